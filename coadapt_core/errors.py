@@ -1,0 +1,42 @@
+"""Errors coadapt raises on purpose.
+
+A `UserError` is bad input from a person (a config value, a design, a plugin name): the CLI
+prints its message as one line and exits with code 2 — never a traceback.
+"""
+
+from __future__ import annotations
+
+
+class CoadaptError(Exception):
+    """Base class of every error coadapt raises deliberately."""
+
+
+class UserError(CoadaptError, ValueError):
+    """Bad input. `field` names what was wrong; the message says what would be accepted."""
+
+    def __init__(self, message: str, *, field: str | None = None):
+        super().__init__(message)
+        self.field = field
+
+
+class DesignError(UserError):
+    """A design outside its design space (bounds, arity, unknown discrete choice)."""
+
+
+class PluginError(CoadaptError):
+    """A plugin could not be loaded or conflicts with another plugin."""
+
+
+class UnknownPluginError(UserError):
+    """A plugin name that no loaded plugin provides."""
+
+    def __init__(self, kind: str, name: str, available: list[str]):
+        listing = ", ".join(sorted(available)) or "(none loaded)"
+        super().__init__(f"unknown {kind} '{name}'; available: {listing}", field=kind)
+        self.kind = kind
+        self.name = name
+        self.available = sorted(available)
+
+
+class NotYetAvailable(CoadaptError):
+    """A command or feature whose implementation arrives with a later piece of work."""

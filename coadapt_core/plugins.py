@@ -1,0 +1,194 @@
+"""Plugin discovery and the registry of robots, simulators, optimizers and objectives.
+
+Every plugin — coadapt's own built-ins included — is a module named by an entry point in
+the `coadapt` group, implementing one or more `coadapt_register_*` hooks. Entry points are
+loaded one by one so a plugin that fails to import is reported by name while the others
+load; two classes claiming one `name` within a kind is an error naming both distributions.
+
+`COADAPT_LOAD_PLUGINS` (comma-separated distribution or entry-point names) restricts which
+third-party plugins load; set but empty means built-ins only.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from dataclasses import dataclass, field
+from importlib import metadata
+from types import ModuleType
+from typing import Any
+
+import pluggy
+
+from coadapt_core import hookspecs
+from coadapt_core.errors import PluginError, UnknownPluginError
+
+ENTRY_POINT_GROUP = "coadapt"
+BUILTIN_DISTRIBUTION = "coadapt"
+ENV_LOAD_PLUGINS = "COADAPT_LOAD_PLUGINS"
+
+#: kind -> (hook name, base class import path)
+KINDS: dict[str, tuple[str, str]] = {
+    "robot": ("coadapt_register_robots", "coadapt_core.robot:Robot"),
+    "simulator": ("coadapt_register_simulators", "coadapt_core.simulator:Simulator"),
+    "optimizer": ("coadapt_register_optimizers", "coadapt_core.optimizer:Optimizer"),
+    "objective": ("coadapt_register_objectives", "coadapt_core.objective:Objective"),
+}
+
+
+def _base_class(kind: str) -> type:
+    module, _, attr = KINDS[kind][1].partition(":")
+    return getattr(importlib.import_module(module), attr)
+
+
+@dataclass
+class PluginInfo:
+    """Where one registered class came from."""
+
+    kind: str
+    name: str
+    cls: type
+    distribution: str
+    version: str
+    entry_point: str
+
+    def to_dict(self) -> dict[str, str]:
+        return {
+            "kind": self.kind,
+            "name": self.name,
+            "class": f"{self.cls.__module__}.{self.cls.__qualname__}",
+            "distribution": self.distribution,
+            "version": self.version,
+            "entry_point": self.entry_point,
+        }
+
+
+@dataclass
+class BrokenPlugin:
+    entry_point: str
+    distribution: str
+    error: str
+
+    def line(self) -> str:
+        return f"plugin '{self.entry_point}' (distribution {self.distribution}) failed to load: {self.error}"
+
+
+@dataclass
+class Registry:
+    """`{kind: {name: PluginInfo}}` plus the plugins that failed to load."""
+
+    entries: dict[str, dict[str, PluginInfo]] = field(default_factory=lambda: {k: {} for k in KINDS})
+    broken: list[BrokenPlugin] = field(default_factory=list)
+    manager: pluggy.PluginManager | None = None
+
+    def names(self, kind: str) -> list[str]:
+        return sorted(self.entries[kind])
+
+    def get(self, kind: str, name: str) -> type:
+        """The class registered as `name` for `kind`; `UnknownPluginError` (a user error,
+        listing what is available) otherwise."""
+        try:
+            return self.entries[kind][name].cls
+        except KeyError:
+            raise UnknownPluginError(kind, name, self.names(kind)) from None
+
+    def create(self, kind: str, name: str, *args: Any, **kwargs: Any) -> Any:
+        return self.get(kind, name)(*args, **kwargs)
+
+    def all(self) -> list[PluginInfo]:
+        return [info for kind in KINDS for info in sorted(self.entries[kind].values(), key=lambda i: i.name)]
+
+
+def _allowed(ep: metadata.EntryPoint, distribution: str) -> bool:
+    """Built-ins always load; third-party ones only when listed (if the variable is set)."""
+    if distribution == BUILTIN_DISTRIBUTION:
+        return True
+    raw = os.environ.get(ENV_LOAD_PLUGINS)
+    if raw is None:
+        return True
+    wanted = {w.strip() for w in raw.split(",") if w.strip()}
+    return distribution in wanted or ep.name in wanted
+
+
+def _distribution_of(ep: metadata.EntryPoint) -> tuple[str, str]:
+    dist = getattr(ep, "dist", None)
+    if dist is None:
+        return "unknown", "unknown"
+    return dist.metadata["Name"], dist.version
+
+
+def load_registry(extra_plugins: list[tuple[ModuleType | object, str]] | None = None) -> Registry:
+    """Discover plugins from entry points (and `extra_plugins`: (module-or-object,
+    distribution) pairs, for tests) and build a fresh registry.
+
+    Raises `PluginError` when two plugins claim the same name for one kind.
+    """
+    pm = pluggy.PluginManager("coadapt")
+    pm.add_hookspecs(hookspecs)
+    registry = Registry(manager=pm)
+    sources: list[tuple[object, str, str, str]] = []  # (plugin object, dist, version, ep name)
+
+    seen: set[tuple[str, str]] = set()
+    for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
+        dist, version = _distribution_of(ep)
+        if (dist, ep.name) in seen:  # the same distribution visible twice on sys.path
+            continue
+        seen.add((dist, ep.name))
+        if not _allowed(ep, dist):
+            continue
+        try:
+            plugin = ep.load()
+        except Exception as exc:  # a broken plugin must not take the others down
+            registry.broken.append(BrokenPlugin(ep.name, dist, f"{type(exc).__name__}: {exc}"))
+            continue
+        sources.append((plugin, dist, version, ep.name))
+    for plugin, dist in extra_plugins or []:
+        sources.append((plugin, dist, "test", getattr(plugin, "__name__", repr(plugin))))
+
+    for plugin, dist, version, ep_name in sources:
+        try:
+            pm.register(plugin, name=f"{dist}:{ep_name}")
+        except ValueError as exc:
+            registry.broken.append(BrokenPlugin(ep_name, dist, str(exc)))
+            continue
+        for kind, (hook_name, _) in KINDS.items():
+            impl = getattr(plugin, hook_name, None)
+            if impl is None:
+                continue
+            try:
+                classes = impl() or []
+            except Exception as exc:
+                registry.broken.append(BrokenPlugin(ep_name, dist, f"{hook_name} raised {type(exc).__name__}: {exc}"))
+                continue
+            base = _base_class(kind)
+            for cls in classes:
+                if not (isinstance(cls, type) and issubclass(cls, base)):
+                    registry.broken.append(
+                        BrokenPlugin(ep_name, dist, f"{hook_name} returned {cls!r}, not a {base.__name__} subclass")
+                    )
+                    continue
+                name = getattr(cls, "name", None)
+                if not isinstance(name, str) or not name:
+                    registry.broken.append(BrokenPlugin(ep_name, dist, f"{cls.__qualname__} has no `name`"))
+                    continue
+                existing = registry.entries[kind].get(name)
+                if existing is not None and existing.cls is not cls:
+                    raise PluginError(
+                        f"{kind} name '{name}' is claimed twice: by {existing.cls.__qualname__} from "
+                        f"distribution {existing.distribution} and by {cls.__qualname__} from "
+                        f"distribution {dist}; uninstall one or restrict {ENV_LOAD_PLUGINS}"
+                    )
+                registry.entries[kind][name] = PluginInfo(kind, name, cls, dist, version, ep_name)
+    pm.check_pending()
+    return registry
+
+
+_REGISTRY: Registry | None = None
+
+
+def get_registry(refresh: bool = False) -> Registry:
+    """The process-wide registry, built on first use."""
+    global _REGISTRY
+    if _REGISTRY is None or refresh:
+        _REGISTRY = load_registry()
+    return _REGISTRY

@@ -1,0 +1,113 @@
+"""Domain randomization (paper Table 2): ranges, and the per-environment draw at reset.
+
+Every simulator backend applies the same `EnvParams` with the same meaning, so the same
+seed gives the same physical parameters on MuJoCo and PyBullet.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields
+
+import numpy as np
+
+from coadapt_core.errors import UserError
+
+
+@dataclass
+class RandomizationConfig:
+    """Ranges drawn uniformly per environment at each reset. `enabled=False` (or a range
+    with equal ends) turns a parameter off; the nominal value is then used."""
+
+    enabled: bool = True
+    friction: tuple[float, float] = (0.5, 1.25)  # sliding friction coefficient
+    restitution: tuple[float, float] = (0.0, 0.4)
+    com_shift: tuple[float, float] = (-0.025, 0.025)  # m, base CoM offset per axis x, y, z
+    pd_factor: tuple[float, float] = (0.9, 1.1)  # scales kp and kd
+    motor_strength: tuple[float, float] = (0.9, 1.1)  # scales the commanded torque
+    delay: tuple[float, float] = (0.0, 0.020)  # s, system delay of the joint targets
+
+    NOMINAL = {
+        "friction": 1.0,
+        "restitution": 0.0,
+        "com_shift": 0.0,
+        "pd_factor": 1.0,
+        "motor_strength": 1.0,
+        "delay": 0.0,
+    }
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            if f.name == "enabled":
+                continue
+            lo, hi = getattr(self, f.name)
+            if lo > hi:
+                raise UserError(
+                    f"randomization.{f.name}: inverted range [{lo}, {hi}]", field=f"randomization.{f.name}"
+                )
+            if f.name in ("friction", "pd_factor", "motor_strength") and lo <= 0:
+                raise UserError(
+                    f"randomization.{f.name}: range must be positive, got [{lo}, {hi}]",
+                    field=f"randomization.{f.name}",
+                )
+            if f.name in ("delay", "restitution") and lo < 0:
+                raise UserError(
+                    f"randomization.{f.name}: range must be >= 0, got [{lo}, {hi}]",
+                    field=f"randomization.{f.name}",
+                )
+            setattr(self, f.name, (float(lo), float(hi)))
+
+    @classmethod
+    def off(cls) -> RandomizationConfig:
+        return cls(enabled=False)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass
+class EnvParams:
+    """Physical parameters of a batch of environments, each array [num_envs] (com_shift
+    [num_envs, 3]). Produced by `sample_env_params`, applied by the simulator at reset."""
+
+    friction: np.ndarray
+    restitution: np.ndarray
+    com_shift: np.ndarray
+    pd_factor: np.ndarray
+    motor_strength: np.ndarray
+    delay: np.ndarray  # s
+
+    def delay_steps(self, physics_dt: float) -> np.ndarray:
+        """[num_envs] int: the delay in whole physics steps (rounded)."""
+        return np.rint(self.delay / physics_dt).astype(int)
+
+    def take(self, env_ids: np.ndarray) -> EnvParams:
+        return EnvParams(**{k: v[env_ids] for k, v in asdict(self).items()})
+
+    def put(self, env_ids: np.ndarray, other: EnvParams) -> None:
+        for k, v in asdict(other).items():
+            getattr(self, k)[env_ids] = v
+
+
+def nominal_env_params(num_envs: int) -> EnvParams:
+    return sample_env_params(RandomizationConfig.off(), num_envs, np.random.default_rng(0))
+
+
+def sample_env_params(config: RandomizationConfig, num_envs: int, rng: np.random.Generator) -> EnvParams:
+    """Draw parameters for `num_envs` environments (always consumes the same amount of
+    randomness whether or not randomization is enabled, so seeds stay aligned)."""
+
+    def draw(name: str, shape: tuple[int, ...]) -> np.ndarray:
+        lo, hi = getattr(config, name)
+        value = rng.uniform(lo, hi, size=shape)
+        if not config.enabled:
+            value = np.full(shape, RandomizationConfig.NOMINAL[name], dtype=float)
+        return value
+
+    return EnvParams(
+        friction=draw("friction", (num_envs,)),
+        restitution=draw("restitution", (num_envs,)),
+        com_shift=draw("com_shift", (num_envs, 3)),
+        pd_factor=draw("pd_factor", (num_envs,)),
+        motor_strength=draw("motor_strength", (num_envs,)),
+        delay=draw("delay", (num_envs,)),
+    )

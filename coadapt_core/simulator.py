@@ -1,0 +1,154 @@
+"""The `Simulator` plugin kind: a batched physics backend.
+
+A simulator moves `num_envs` robots, each built from its own design, on one terrain. It
+steps them with joint position targets (turned into torques by `coadapt_core.actuation`,
+including motor limits, randomized PD factor, motor strength and system delay) and reports
+state as batched torch tensors. It knows nothing of commands, observations or rewards: that
+is the locomotion task's room, which runs unchanged on every backend.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, fields
+from typing import TYPE_CHECKING, ClassVar
+
+import numpy as np
+
+from coadapt_core.randomization import EnvParams, RandomizationConfig
+
+if TYPE_CHECKING:
+    import torch
+
+    from coadapt_core.robot import Robot
+
+#: terrain names every backend understands (paper section 4.4)
+TERRAINS: tuple[str, ...] = ("flat", "slope", "random")
+#: slope terrain inclination, degrees (rising along +x)
+SLOPE_DEGREES = 10.0
+#: random terrain: uniform height noise in [0, RANDOM_MAX_HEIGHT] m
+RANDOM_MAX_HEIGHT = 0.05
+
+
+@dataclass
+class SimState:
+    """Batched state after a step or reset. N = num_envs, J = actuated joints, L = legs.
+
+    Quaternions are (w, x, y, z). Velocities of the base are in the world frame; the task
+    rotates them into the base frame. Every tensor is finite: an environment whose physics
+    diverged has been reset and is flagged in `diverged`.
+    """
+
+    base_pos: torch.Tensor  # [N, 3] world
+    base_quat: torch.Tensor  # [N, 4] (w, x, y, z), base to world
+    base_lin_vel: torch.Tensor  # [N, 3] world frame
+    base_ang_vel: torch.Tensor  # [N, 3] world frame
+    joint_pos: torch.Tensor  # [N, J]
+    joint_vel: torch.Tensor  # [N, J]
+    joint_torque: torch.Tensor  # [N, J] applied torque, mean over the physics steps of the last policy step
+    foot_pos: torch.Tensor  # [N, L, 3] world position of each foot body's origin
+    foot_contact: torch.Tensor  # [N, L] bool, foot touches the terrain
+    foot_contact_force: torch.Tensor  # [N, L] normal contact force, N
+    terrain_height: torch.Tensor  # [N] terrain height under the base
+    diverged: torch.Tensor  # [N] bool, physics blew up during the last step and the env was reset
+
+    def to(self, device: str | torch.device) -> SimState:
+        return SimState(**{f.name: getattr(self, f.name).to(device) for f in fields(self)})
+
+
+class Simulator(ABC):
+    """A batched physics backend. Construct, `reset()`, then `step(targets)` repeatedly."""
+
+    #: user-facing key (`--sim mujoco`)
+    name: ClassVar[str]
+    description: ClassVar[str] = ""
+    #: terrains this backend supports
+    terrains: ClassVar[tuple[str, ...]] = TERRAINS
+
+    def __init__(
+        self,
+        robot: Robot,
+        designs: np.ndarray,  # [num_envs, design_dim]
+        *,
+        terrain: str = "flat",
+        randomization: RandomizationConfig | None = None,
+        physics_dt: float = 0.005,
+        decimation: int = 4,
+        seed: int = 0,
+        device: str = "cpu",
+        num_threads: int | None = None,
+    ):
+        self.robot = robot
+        self.terrain = terrain
+        self.randomization = randomization if randomization is not None else RandomizationConfig()
+        self.physics_dt = physics_dt
+        self.decimation = decimation
+        self.seed = seed
+        self.device = device
+        self.num_threads = num_threads
+
+    # -- sizes ---------------------------------------------------------------------------
+    @property
+    @abstractmethod
+    def num_envs(self) -> int: ...
+
+    @property
+    @abstractmethod
+    def num_joints(self) -> int: ...
+
+    @property
+    def control_dt(self) -> float:
+        """Seconds of simulated time per `step` (policy period)."""
+        return self.physics_dt * self.decimation
+
+    @property
+    @abstractmethod
+    def designs(self) -> np.ndarray:
+        """[num_envs, design_dim] the design each environment currently simulates."""
+
+    @property
+    @abstractmethod
+    def env_params(self) -> EnvParams:
+        """The randomized physical parameters currently in force, per environment."""
+
+    @property
+    @abstractmethod
+    def default_joint_pos(self) -> torch.Tensor:
+        """[num_envs, J] standing pose of each environment's design."""
+
+    # -- control -------------------------------------------------------------------------
+    @abstractmethod
+    def reset(self, env_ids: torch.Tensor | np.ndarray | None = None) -> SimState:
+        """Reset the given environments (all when None) to the standing pose above the
+        terrain, drawing new randomized parameters; others are untouched."""
+
+    @abstractmethod
+    def step(self, joint_targets: torch.Tensor) -> SimState:
+        """Advance every environment by `decimation` physics steps holding joint position
+        targets [num_envs, J]."""
+
+    @abstractmethod
+    def set_designs(self, env_ids: torch.Tensor | np.ndarray, designs: np.ndarray) -> None:
+        """Rebuild the given environments for new designs [len(env_ids), design_dim] (they
+        are reset); the rest keep running."""
+
+    @abstractmethod
+    def get_state(self) -> SimState:
+        """The current state without stepping."""
+
+    def terrain_height_at(self, xy: torch.Tensor) -> torch.Tensor:
+        """Terrain height [...] at world points xy [..., 2]."""
+        import torch
+
+        if self.terrain == "slope":
+            return xy[..., 0] * float(np.tan(np.radians(SLOPE_DEGREES)))
+        return torch.zeros(xy.shape[:-1], dtype=xy.dtype, device=xy.device)
+
+    def close(self) -> None:  # noqa: B027 - optional hook
+        """Release processes, threads or native resources."""
+
+    def __enter__(self) -> Simulator:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

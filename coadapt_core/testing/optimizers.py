@@ -1,0 +1,113 @@
+"""Conformance suite for `Optimizer` plugins.
+
+Supply a fixture `optimizer_cls` (the class). Optional fixture `optimizer_options` (dict of
+extra constructor options, default {}) and `convergence_budget` (ask/tell rounds for the
+sphere test, default 30).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from coadapt_core.design_space import Continuous, DesignSpace, Discrete
+from coadapt_core.errors import UserError
+from coadapt_core.optimizer import Optimizer
+
+
+def sphere(designs: np.ndarray, optimum: np.ndarray) -> np.ndarray:
+    return ((designs - optimum) ** 2).sum(axis=1)
+
+
+class OptimizerConformance:
+    """Every optimizer: ask/tell contract, bounds, determinism, progress on a sphere."""
+
+    @pytest.fixture
+    def optimizer_options(self) -> dict:
+        return {}
+
+    @pytest.fixture
+    def convergence_budget(self) -> int:
+        return 30
+
+    @pytest.fixture
+    def space(self) -> DesignSpace:
+        return DesignSpace([Continuous("a", 0.5, 1.5), Continuous("b", 0.5, 1.5)])
+
+    @pytest.fixture
+    def mixed_space(self) -> DesignSpace:
+        return DesignSpace(
+            [Continuous("a", 0.5, 1.5), Continuous("b", 0.5, 1.5), Discrete("m", (1, 2, 3))]
+        )
+
+    def _objectives(self, optimizer_cls: type[Optimizer]) -> int:
+        return 2 if optimizer_cls.multi_objective else 1
+
+    def _costs(self, optimizer_cls: type[Optimizer], designs: np.ndarray, optimum: np.ndarray) -> np.ndarray:
+        f = sphere(designs, optimum)
+        if optimizer_cls.multi_objective:
+            return np.stack([f, sphere(designs, optimum + 0.1)], axis=1)
+        return f
+
+    def test_is_optimizer_with_name(self, optimizer_cls: type[Optimizer]) -> None:
+        assert issubclass(optimizer_cls, Optimizer)
+        assert isinstance(optimizer_cls.name, str) and optimizer_cls.name
+
+    def test_ask_returns_population_inside_bounds(self, optimizer_cls, optimizer_options, space) -> None:
+        opt = optimizer_cls(space, population=8, budget=3, seed=1, num_objectives=self._objectives(optimizer_cls), **optimizer_options)
+        expected = 1 if optimizer_cls.sequential else 8
+        for _ in range(3):
+            designs = opt.ask()
+            assert designs.shape == (expected, 2)
+            assert np.all(designs >= 0.5 - 1e-9) and np.all(designs <= 1.5 + 1e-9)
+            opt.tell(designs, self._costs(optimizer_cls, designs, np.array([0.7, 1.2])))
+        assert opt.done
+        assert opt.iteration == 3
+
+    def test_same_seed_same_proposals(self, optimizer_cls, optimizer_options, space) -> None:
+        runs = []
+        for _ in range(2):
+            opt = optimizer_cls(space, population=6, budget=3, seed=7, num_objectives=self._objectives(optimizer_cls), **optimizer_options)
+            seq = []
+            for _ in range(3):
+                d = opt.ask()
+                seq.append(d)
+                opt.tell(d, self._costs(optimizer_cls, d, np.array([0.9, 0.9])))
+            runs.append(np.concatenate(seq))
+        np.testing.assert_allclose(runs[0], runs[1])
+
+    def test_finds_sphere_optimum_region(self, optimizer_cls, optimizer_options, space, convergence_budget) -> None:
+        """Best cost after the budget is well below the best of the first batch and close to 0."""
+        optimum = np.array([0.62, 1.31])
+        opt = optimizer_cls(space, population=10, budget=convergence_budget, seed=3, num_objectives=self._objectives(optimizer_cls), **optimizer_options)
+        first_best = None
+        all_designs, all_costs = [], []
+        while not opt.done:
+            d = opt.ask()
+            c = self._costs(optimizer_cls, d, optimum)
+            opt.tell(d, c)
+            all_designs.append(d)
+            all_costs.append(c if c.ndim == 1 else c[:, 0])
+            if first_best is None:
+                first_best = float(np.min(all_costs[-1]))
+        best = float(np.min(np.concatenate(all_costs)))
+        assert best < 0.01, f"best sphere cost {best:.4f} after {convergence_budget} rounds"
+        assert best <= first_best
+
+    def test_rejects_bad_population(self, optimizer_cls, space) -> None:
+        with pytest.raises(UserError):
+            optimizer_cls(space, population=0, budget=3, num_objectives=self._objectives(optimizer_cls))
+
+    def test_mixed_space_handled_or_refused(self, optimizer_cls, optimizer_options, mixed_space) -> None:
+        n_obj = self._objectives(optimizer_cls)
+        if not optimizer_cls.supports_mixed:
+            with pytest.raises(UserError):
+                optimizer_cls(mixed_space, population=4, budget=2, num_objectives=n_obj, **optimizer_options)
+            return
+        opt = optimizer_cls(mixed_space, population=6, budget=4, seed=0, num_objectives=n_obj, **optimizer_options)
+        optimum = np.array([1.0, 1.0, 3.0])
+        for _ in range(4):
+            d = opt.ask()
+            assert set(np.unique(d[:, 2])) <= {1.0, 2.0, 3.0}
+            mixed_space.validate_batch(d)
+            opt.tell(d, self._costs(optimizer_cls, d, optimum))

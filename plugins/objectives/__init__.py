@@ -1,0 +1,1 @@
+"""Built-in objectives plugins, one folder each."""

@@ -1,0 +1,1 @@
+"""Built-in robots plugins, one folder each."""

@@ -1,0 +1,1 @@
+"""Built-in simulators plugins, one folder each."""
