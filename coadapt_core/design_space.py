@@ -186,7 +186,7 @@ class DesignSpace:
     def format(self, design: Iterable[float]) -> str:
         out = []
         for value, var in zip(design, self.variables, strict=True):
-            out.append(f"{int(round(value))}" if isinstance(var, Discrete) else f"{value:.3f}")
+            out.append(f"{round(value)}" if isinstance(var, Discrete) else f"{value:.3f}")
         return ",".join(out)
 
     # -- sampling ------------------------------------------------------------------------

@@ -81,7 +81,7 @@ class SimulatorConformance:
         with self.make(simulator_cls, robot) as sim:
             state = sim.reset()
             start = state.base_pos[:, 2].clone()
-            steps = int(round(1.0 / sim.control_dt))
+            steps = round(1.0 / sim.control_dt)
             for _ in range(steps):
                 state = sim.step(sim.default_joint_pos)
             drop = (start - state.base_pos[:, 2]).abs()
