@@ -77,8 +77,12 @@ class Simulator(ABC):
         seed: int = 0,
         device: str = "cpu",
         num_threads: int | None = None,
+        fixed_base: bool = False,
     ):
+        """`fixed_base=True` welds the base where it spawns, raised clear of the terrain
+        (contact-free swing tests, sim-to-sim checks)."""
         self.robot = robot
+        self.fixed_base = fixed_base
         self.terrain = terrain
         self.randomization = randomization if randomization is not None else RandomizationConfig()
         self.physics_dt = physics_dt
@@ -137,12 +141,13 @@ class Simulator(ABC):
         """The current state without stepping."""
 
     def terrain_height_at(self, xy: torch.Tensor) -> torch.Tensor:
-        """Terrain height [...] at world points xy [..., 2]."""
+        """Terrain height [...] at world points xy [..., 2] (see `coadapt_core.terrain`)."""
         import torch
 
-        if self.terrain == "slope":
-            return xy[..., 0] * float(np.tan(np.radians(SLOPE_DEGREES)))
-        return torch.zeros(xy.shape[:-1], dtype=xy.dtype, device=xy.device)
+        from coadapt_core.terrain import make_terrain
+
+        heights = make_terrain(self.terrain, seed=self.seed).height_at(xy.detach().cpu().numpy())
+        return torch.as_tensor(heights, dtype=xy.dtype, device=xy.device)
 
     def close(self) -> None:  # noqa: B027 - optional hook
         """Release processes, threads or native resources."""

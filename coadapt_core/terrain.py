@@ -1,0 +1,92 @@
+"""Terrains (paper section 4.4), defined once so every backend builds the same ground.
+
+- flat: the plane z = 0.
+- slope: a plane rising along +x at SLOPE_DEGREES (10 degrees), through the origin.
+- random: a height field over a square of side `size` centred on the origin, each cell of
+  side `resolution` at a height drawn uniformly from [0, RANDOM_MAX_HEIGHT] (5 cm), from
+  the simulator's seed. Backends hand the same grid to MuJoCo (hfield) and PyBullet
+  (heightfield shape); `height_at` interpolates it bilinearly, as both engines do between
+  grid vertices.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from coadapt_core.errors import UserError
+from coadapt_core.simulator import RANDOM_MAX_HEIGHT, SLOPE_DEGREES, TERRAINS
+
+
+@dataclass(frozen=True)
+class Terrain:
+    name: str
+    seed: int = 0
+    size: float = 20.0  # m, side of the square height field (random terrain)
+    resolution: float = 0.1  # m, grid spacing (random terrain)
+    max_height: float = RANDOM_MAX_HEIGHT
+
+    @property
+    def slope_radians(self) -> float:
+        return float(np.radians(SLOPE_DEGREES)) if self.name == "slope" else 0.0
+
+    @property
+    def samples(self) -> int:
+        """Grid vertices per side (random terrain)."""
+        return int(round(self.size / self.resolution)) + 1
+
+    def height_grid(self) -> np.ndarray:
+        """[samples, samples] heights in m; row index along y, column index along x, the
+        grid spanning [-size/2, size/2] on both axes. Zeros except for random terrain."""
+        return _grid(self.name, self.seed, self.samples, self.max_height)
+
+    def height_at(self, xy: np.ndarray) -> np.ndarray:
+        """Heights [...] at world points xy [..., 2]."""
+        xy = np.asarray(xy, dtype=float)
+        if self.name == "flat":
+            return np.zeros(xy.shape[:-1])
+        if self.name == "slope":
+            return xy[..., 0] * np.tan(self.slope_radians)
+        grid = self.height_grid()
+        n = self.samples
+        half = self.size / 2
+        u = np.clip((xy[..., 0] + half) / self.resolution, 0, n - 1 - 1e-9)
+        v = np.clip((xy[..., 1] + half) / self.resolution, 0, n - 1 - 1e-9)
+        i0, j0 = np.floor(v).astype(int), np.floor(u).astype(int)
+        fv, fu = v - i0, u - j0
+        h00 = grid[i0, j0]
+        h01 = grid[i0, j0 + 1]
+        h10 = grid[i0 + 1, j0]
+        h11 = grid[i0 + 1, j0 + 1]
+        return (1 - fv) * ((1 - fu) * h00 + fu * h01) + fv * ((1 - fu) * h10 + fu * h11)
+
+    def max_height_near(self, xy: np.ndarray, radius: float) -> np.ndarray:
+        """Highest terrain point within `radius` of each point xy [..., 2] (for spawning
+        a robot clear of the ground)."""
+        xy = np.asarray(xy, dtype=float)
+        if self.name == "flat":
+            return np.zeros(xy.shape[:-1])
+        if self.name == "slope":
+            return (xy[..., 0] + radius) * np.tan(self.slope_radians)
+        offsets = np.linspace(-radius, radius, 7)
+        ox, oy = np.meshgrid(offsets, offsets)
+        pts = xy[..., None, :] + np.stack([ox.ravel(), oy.ravel()], axis=-1)
+        return self.height_at(pts).max(axis=-1)
+
+
+@lru_cache(maxsize=16)
+def _grid(name: str, seed: int, samples: int, max_height: float) -> np.ndarray:
+    if name != "random":
+        return np.zeros((samples, samples))
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 0x7E2A]))
+    grid = rng.uniform(0.0, max_height, size=(samples, samples))
+    grid.setflags(write=False)
+    return grid
+
+
+def make_terrain(name: str, seed: int = 0) -> Terrain:
+    if name not in TERRAINS:
+        raise UserError(f"unknown terrain '{name}'; available: {', '.join(TERRAINS)}", field="terrain")
+    return Terrain(name=name, seed=seed)
