@@ -1,0 +1,137 @@
+"""The paper's locomotion objectives (eqs. 6-8) and their weighted composite, as a plugin.
+
+Costs are per policy step and per environment; real fitness (Algorithm 2) is their mean over
+a rollout, and each one gets its own pseudo-critic (section 3.2.2).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, ClassVar
+
+from coadapt_core import hookimpl
+from coadapt_core.errors import UserError
+from coadapt_core.objective import Objective, StepBatch
+
+if TYPE_CHECKING:
+    import torch
+
+
+def tracking_penalty_weight(step: StepBatch) -> torch.Tensor:
+    """[N] w_t = exp(e_v^2 + e_w^2): the adaptive penalty of eqs. 7-8 that keeps a robot from
+    saving power or torque by standing still."""
+    import torch
+
+    return torch.exp(step.linear_tracking_error**2 + step.yaw_tracking_error**2)
+
+
+class TrackingObjective(Objective):
+    """P_cmd = e_v^2 + e_w^2 (eq. 6)."""
+
+    name: ClassVar[str] = "tracking"
+    display_name: ClassVar[str] = "Command tracking"
+    description: ClassVar[str] = "P_cmd = e_v^2 + e_w^2, velocity command tracking error (eq. 6)"
+
+    def step_cost(self, step: StepBatch) -> torch.Tensor:
+        return step.linear_tracking_error**2 + step.yaw_tracking_error**2  # [N]
+
+    def improvement(self, cost: float, nominal_cost: float) -> float:
+        """The paper compares the tracking *error*, not its square: the mean cost is a mean
+        squared error, so the error is its square root (an RMS error) and the improvement is
+        (rms_nominal - rms) / rms_nominal."""
+        if nominal_cost <= 0:
+            return 0.0
+        error, nominal_error = math.sqrt(max(cost, 0.0)), math.sqrt(nominal_cost)
+        return (nominal_error - error) / nominal_error
+
+
+class PowerObjective(Objective):
+    """P_p = w_t sum_i |tau_i| |dtheta_i| (eq. 7)."""
+
+    name: ClassVar[str] = "power"
+    display_name: ClassVar[str] = "Power consumption"
+    description: ClassVar[str] = "P_p = w_t sum |tau| |dtheta|, mechanical power with tracking penalty (eq. 7)"
+
+    def step_cost(self, step: StepBatch) -> torch.Tensor:
+        power = (step.joint_torque.abs() * step.joint_vel.abs()).sum(dim=-1)  # [N]
+        return tracking_penalty_weight(step) * power
+
+
+class TorqueObjective(Objective):
+    """P_tau = w_t sum_i tau_i^2 (eq. 8)."""
+
+    name: ClassVar[str] = "torque"
+    display_name: ClassVar[str] = "Joint torque"
+    description: ClassVar[str] = "P_tau = w_t sum tau^2, squared joint torque with tracking penalty (eq. 8)"
+
+    def step_cost(self, step: StepBatch) -> torch.Tensor:
+        return tracking_penalty_weight(step) * (step.joint_torque**2).sum(dim=-1)  # [N]
+
+
+#: the components a composite may weigh, by name
+COMPONENTS: dict[str, type[Objective]] = {
+    cls.name: cls for cls in (TrackingObjective, PowerObjective, TorqueObjective)
+}
+
+
+class CompositeObjective(Objective):
+    """A weighted sum of tracking, power and torque costs. Default: the paper's real-robot
+    check P_cmd + P_p + P_tau (all weights 1). Improvement is the cost reduction."""
+
+    name: ClassVar[str] = "composite"
+    display_name: ClassVar[str] = "Composite"
+    description: ClassVar[str] = "weighted sum of tracking, power and torque (default P_cmd + P_p + P_tau)"
+
+    def __init__(self, weights: Mapping[str, float] | str | None = None):
+        self.weights = parse_weights(weights)
+        self._components = [(COMPONENTS[n](), w) for n, w in self.weights.items()]
+
+    def step_cost(self, step: StepBatch) -> torch.Tensor:
+        total = None
+        for objective, weight in self._components:
+            term = weight * objective.step_cost(step)  # [N]
+            total = term if total is None else total + term
+        return total
+
+
+def parse_weights(weights: Mapping[str, float] | str | None) -> dict[str, float]:
+    """`{'tracking': 1, 'power': 1, 'torque': 1}` from a mapping, from text such as
+    'tracking=1,torque=0.5' (missing components weigh 0), or the default (all 1)."""
+    if weights is None or (isinstance(weights, str) and not weights.strip()):
+        return {name: 1.0 for name in COMPONENTS}
+    if isinstance(weights, str):
+        parsed: dict[str, float] = {}
+        for part in weights.split(","):
+            key, sep, value = part.partition("=")
+            try:
+                if not sep:
+                    raise ValueError
+                parsed[key.strip()] = float(value)
+            except ValueError:
+                raise UserError(
+                    f"objective weights '{weights}' must look like 'tracking=1,power=1,torque=1'",
+                    field="objective_weights",
+                ) from None
+        weights = parsed
+    out: dict[str, float] = {}
+    for key, value in dict(weights).items():
+        if key not in COMPONENTS:
+            raise UserError(
+                f"objective weight for unknown component '{key}'; accepted: {', '.join(COMPONENTS)}",
+                field="objective_weights",
+            )
+        value = float(value)
+        if not math.isfinite(value) or value < 0:
+            raise UserError(
+                f"objective weight '{key}' = {value:g} must be a finite number >= 0", field="objective_weights"
+            )
+        out[key] = value
+    if not any(v > 0 for v in out.values()):
+        raise UserError("objective weights must give at least one component a weight > 0", field="objective_weights")
+    return out
+
+
+@hookimpl
+def coadapt_register_objectives() -> list[type[Objective]]:
+    return [TrackingObjective, PowerObjective, TorqueObjective, CompositeObjective]
