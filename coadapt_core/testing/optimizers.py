@@ -31,6 +31,11 @@ class OptimizerConformance:
         return 30
 
     @pytest.fixture
+    def convergence_tolerance(self) -> float:
+        """Best sphere cost to reach (squared distance; 1e-4 = within 1 cm of scale)."""
+        return 1e-4
+
+    @pytest.fixture
     def space(self) -> DesignSpace:
         return DesignSpace([Continuous("a", 0.5, 1.5), Continuous("b", 0.5, 1.5)])
 
@@ -76,8 +81,11 @@ class OptimizerConformance:
             runs.append(np.concatenate(seq))
         np.testing.assert_allclose(runs[0], runs[1])
 
-    def test_finds_sphere_optimum_region(self, optimizer_cls, optimizer_options, space, convergence_budget) -> None:
-        """Best cost after the budget is well below the best of the first batch and close to 0."""
+    def test_finds_sphere_optimum_region(
+        self, optimizer_cls, optimizer_options, space, convergence_budget, convergence_tolerance
+    ) -> None:
+        """Best cost after the budget is close to 0 (pure random sampling of the same number
+        of designs reaches 1e-4 with probability below 10 %)."""
         optimum = np.array([0.62, 1.31])
         opt = optimizer_cls(space, population=10, budget=convergence_budget, seed=3, num_objectives=self._objectives(optimizer_cls), **optimizer_options)
         first_best = None
@@ -91,7 +99,7 @@ class OptimizerConformance:
             if first_best is None:
                 first_best = float(np.min(all_costs[-1]))
         best = float(np.min(np.concatenate(all_costs)))
-        assert best < 0.01, f"best sphere cost {best:.4f} after {convergence_budget} rounds"
+        assert best < convergence_tolerance, f"best sphere cost {best:.2e} after {convergence_budget} rounds"
         assert best <= first_best
 
     def test_rejects_bad_population(self, optimizer_cls, space) -> None:
