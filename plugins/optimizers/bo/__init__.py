@@ -1,0 +1,135 @@
+"""Bayesian optimisation with optuna (TPE by default, GP optional), one design per ask/tell
+round through `study.ask()`/`study.tell()`. The baseline of the paper's Table 7 pairs it with
+a specialised policy per proposed design (`--method bo-specialized`)."""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+from coadapt_plugins.optimizers._common import finite_costs
+
+from coadapt_core import hookimpl
+from coadapt_core.design_space import Continuous, DesignSpace
+from coadapt_core.errors import UserError
+from coadapt_core.optimizer import Optimizer
+
+SAMPLERS = ("tpe", "gp")
+
+
+class BOOptimizer(Optimizer):
+    """Sequential BO over mixed spaces: continuous variables via float distributions,
+    discrete ones as categorical choices.
+
+    Options: sampler ('tpe' | 'gp'), n_startup_trials (random trials before the model, 8),
+    storage (an optuna storage URL, e.g. 'sqlite:///runs/x/results.db', so the study lives in
+    the run's database; default in memory), study_name (default 'coadapt-bo-<seed>'),
+    initial_designs ([n, dim], enqueued as the first trials).
+    """
+
+    name: ClassVar[str] = "bo"
+    description: ClassVar[str] = "Bayesian optimisation (optuna TPE or GP), one design at a time"
+    supports_mixed: ClassVar[bool] = True
+    sequential: ClassVar[bool] = True
+
+    def __init__(self, space: DesignSpace, **kwargs: Any):
+        sampler = kwargs.pop("sampler", "tpe")
+        n_startup = int(kwargs.pop("n_startup_trials", 8))
+        storage = kwargs.pop("storage", None)
+        study_name = kwargs.pop("study_name", None)
+        initial = kwargs.pop("initial_designs", None)
+        super().__init__(space, **kwargs)
+        if sampler not in SAMPLERS:
+            raise UserError(f"BO sampler '{sampler}' is not one of {', '.join(SAMPLERS)}", field="bo_sampler")
+        if n_startup < 1:
+            raise UserError(f"n_startup_trials must be >= 1, got {n_startup}", field="n_startup_trials")
+        self.sampler_name = sampler
+        self.n_startup_trials = n_startup
+        self.storage = storage or None
+        self.study_name = study_name or f"coadapt-bo-{self.seed}"
+        self._make_study(load_if_exists=False)
+        self._trial = None
+        if initial is not None:
+            for design in space.validate_batch(initial):
+                self._study.enqueue_trial(self._params(design))
+
+    # -- optuna plumbing -------------------------------------------------------------------
+    def _sampler(self):
+        import optuna
+
+        if self.sampler_name == "gp":
+            return optuna.samplers.GPSampler(seed=self.seed, n_startup_trials=self.n_startup_trials)
+        return optuna.samplers.TPESampler(seed=self.seed, n_startup_trials=self.n_startup_trials)
+
+    def _make_study(self, *, load_if_exists: bool, sampler=None) -> None:
+        import optuna
+
+        optuna.logging.set_verbosity(optuna.logging.WARNING)
+        try:
+            self._study = optuna.create_study(
+                storage=self.storage,
+                study_name=self.study_name,
+                sampler=sampler or self._sampler(),
+                direction="minimize",
+                load_if_exists=load_if_exists,
+            )
+        except optuna.exceptions.DuplicatedStudyError:
+            raise UserError(
+                f"an optuna study named '{self.study_name}' already exists in {self.storage}; "
+                "pick another study name or storage",
+                field="bo_storage",
+            ) from None
+
+    def _distributions(self) -> dict:
+        from optuna.distributions import CategoricalDistribution, FloatDistribution
+
+        out = {}
+        for var in self.space.variables:
+            if isinstance(var, Continuous):
+                out[var.name] = FloatDistribution(var.low, max(var.high, var.low + 1e-12))
+            else:
+                out[var.name] = CategoricalDistribution(list(var.choices))
+        return out
+
+    def _params(self, design: np.ndarray) -> dict:
+        return {name: float(value) for name, value in zip(self.space.names, design, strict=True)}
+
+    # -- ask / tell ------------------------------------------------------------------------
+    def _ask(self) -> np.ndarray:
+        self._trial = self._study.ask(self._distributions())
+        return np.array([[float(self._trial.params[n]) for n in self.space.names]])  # [1, dim]
+
+    def _tell(self, designs: np.ndarray, costs: np.ndarray) -> None:
+        if self._trial is None:
+            raise RuntimeError("tell() without a preceding ask()")
+        self._study.tell(self._trial, float(finite_costs(costs)[0]))
+        self._trial = None
+
+    def final_population(self) -> np.ndarray:
+        """Every design tried so far (BO has no swarm to narrow around)."""
+        trials = [t for t in self._study.trials if t.value is not None]
+        if not trials:
+            return super().final_population()
+        return np.array([[float(t.params[n]) for n in self.space.names] for t in trials])
+
+    # -- pickling for resumable runs: a database-backed study is reloaded, not pickled -----
+    def __getstate__(self) -> dict:
+        """The loop pickles between rounds (no trial pending); the sampler, with its RNG,
+        travels along so a resumed study proposes what an uninterrupted one would."""
+        state = self.__dict__.copy()
+        state["_trial"] = None
+        if self.storage is not None:
+            state["_study"] = None
+            state["_sampler_state"] = self._study.sampler
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        sampler = state.pop("_sampler_state", None)
+        self.__dict__.update(state)
+        if self._study is None:
+            self._make_study(load_if_exists=True, sampler=sampler)
+
+
+@hookimpl
+def coadapt_register_optimizers() -> list[type[Optimizer]]:
+    return [BOOptimizer]

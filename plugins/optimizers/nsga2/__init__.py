@@ -1,0 +1,94 @@
+"""NSGA-II (pymoo) over two or three objectives at once: the trade-off the paper leaves to a
+weighted composite, searched directly. `pareto_front()` gives the non-dominated designs."""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+from coadapt_plugins.optimizers._common import finite_costs, initial_designs
+
+from coadapt_core import hookimpl
+from coadapt_core.design_space import DesignSpace
+from coadapt_core.optimizer import Optimizer
+
+
+def non_dominated(costs: np.ndarray) -> np.ndarray:
+    """[n] bool: rows of costs [n, M] that no other row dominates (all <=, one <)."""
+    n = costs.shape[0]
+    keep = np.ones(n, dtype=bool)
+    for i in range(n):
+        dominated_by = np.all(costs <= costs[i], axis=1) & np.any(costs < costs[i], axis=1)
+        keep[i] = not dominated_by.any()
+    return keep
+
+
+class NSGA2Optimizer(Optimizer):
+    """pymoo NSGA-II in the unit-cube encoding; continuous variables only.
+
+    Options: initial_designs ([population, dim]; default random). The Pareto front is kept
+    over every design told so far, not only the last generation.
+    """
+
+    name: ClassVar[str] = "nsga2"
+    description: ClassVar[str] = "multi-objective NSGA-II (pymoo) over 2-3 objectives, Pareto front"
+    multi_objective: ClassVar[bool] = True
+
+    def __init__(self, space: DesignSpace, **kwargs: Any):
+        initial = kwargs.pop("initial_designs", None)
+        super().__init__(space, **kwargs)
+        from pymoo.algorithms.moo.nsga2 import NSGA2
+        from pymoo.core.problem import Problem
+        from pymoo.operators.sampling.rnd import FloatRandomSampling
+
+        initial = initial_designs(space, initial, self.population)
+        sampling = FloatRandomSampling() if initial is None else space.encode(initial)
+        problem = Problem(n_var=space.dim, n_obj=self.num_objectives, xl=np.zeros(space.dim), xu=np.ones(space.dim))
+        self._algorithm = NSGA2(pop_size=self.population, sampling=sampling)
+        self._algorithm.setup(problem, seed=self.seed, termination=("n_gen", 10**9), verbose=False)
+        self._pending = None
+        self._designs: list[np.ndarray] = []  # every told batch [n, dim]
+        self._costs: list[np.ndarray] = []  # [n, M]
+
+    def _ask(self) -> np.ndarray:
+        self._pending = self._algorithm.ask()
+        return self.space.decode(self._pending.get("X"))
+
+    def _tell(self, designs: np.ndarray, costs: np.ndarray) -> None:
+        if self._pending is None:
+            raise RuntimeError("tell() without a preceding ask()")
+        costs = finite_costs(costs)  # [n, M]
+        self._pending.set("F", costs)
+        self._algorithm.tell(infills=self._pending)
+        self._pending = None
+        self._designs.append(designs.copy())
+        self._costs.append(costs.copy())
+
+    def pareto_front(self) -> tuple[np.ndarray, np.ndarray]:
+        if not self._costs:
+            return np.zeros((0, self.space.dim)), np.zeros((0, self.num_objectives))
+        designs, costs = np.concatenate(self._designs), np.concatenate(self._costs)
+        keep = non_dominated(costs)
+        designs, costs = designs[keep], costs[keep]
+        _, unique = np.unique(np.round(designs, 12), axis=0, return_index=True)
+        order = np.sort(unique)
+        return designs[order], costs[order]
+
+    def best(self) -> tuple[np.ndarray | None, float]:
+        """The front's best design for the first objective (a single number for progress)."""
+        designs, costs = self.pareto_front()
+        if len(costs) == 0:
+            return None, float("inf")
+        i = int(np.argmin(costs[:, 0]))
+        return designs[i], float(costs[i, 0])
+
+    def final_population(self) -> np.ndarray:
+        pop = getattr(self._algorithm, "pop", None)
+        if pop is None or len(pop) == 0:
+            return super().final_population()
+        return self.space.decode(pop.get("X"))
+
+
+@hookimpl
+def coadapt_register_optimizers() -> list[type[Optimizer]]:
+    return [NSGA2Optimizer]

@@ -1,0 +1,77 @@
+"""Particle swarm optimisation with pymoo's PSO (the paper's optimizer, section 4.1.3),
+batch-evaluated through ask/tell, searching the unit-cube encoding of the design space."""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+from coadapt_plugins.optimizers._common import check_positive, finite_costs, initial_designs
+
+from coadapt_core import hookimpl
+from coadapt_core.design_space import DesignSpace
+from coadapt_core.optimizer import Optimizer
+
+
+class PSOOptimizer(Optimizer):
+    """pymoo PSO with fixed inertia and acceleration (`adaptive=False`, so w, c1, c2 stay as
+    set; the paper uses w = 0.9, c1 = c2 = 2.0). Continuous variables only.
+
+    Options: inertia (0.9), c1 (2.0), c2 (2.0), max_velocity_rate (0.2 of the range, pymoo's
+    default), initial_designs ([population, dim], the first swarm; default Latin hypercube).
+    """
+
+    name: ClassVar[str] = "pso"
+    description: ClassVar[str] = "particle swarm (pymoo PSO, inertia 0.9, c1 = c2 = 2.0)"
+
+    def __init__(self, space: DesignSpace, **kwargs: Any):
+        inertia = kwargs.pop("inertia", 0.9)
+        c1 = kwargs.pop("c1", 2.0)
+        c2 = kwargs.pop("c2", 2.0)
+        max_velocity_rate = kwargs.pop("max_velocity_rate", 0.2)
+        initial = kwargs.pop("initial_designs", None)
+        super().__init__(space, **kwargs)
+        from pymoo.algorithms.soo.nonconvex.pso import PSO
+        from pymoo.core.problem import Problem
+        from pymoo.operators.sampling.lhs import LHS
+
+        self.inertia = check_positive("inertia", inertia)
+        self.c1, self.c2 = check_positive("c1", c1), check_positive("c2", c2)
+        initial = initial_designs(space, initial, self.population)
+        sampling = LHS() if initial is None else space.encode(initial)
+        self._problem = Problem(n_var=space.dim, n_obj=1, xl=np.zeros(space.dim), xu=np.ones(space.dim))
+        self._algorithm = PSO(
+            pop_size=self.population,
+            sampling=sampling,
+            w=self.inertia,
+            c1=self.c1,
+            c2=self.c2,
+            adaptive=False,
+            max_velocity_rate=check_positive("max_velocity_rate", max_velocity_rate, allow_zero=False),
+        )
+        # the budget is enforced by the Optimizer base; pymoo's own termination never stops it
+        self._algorithm.setup(self._problem, seed=self.seed, termination=("n_gen", 10**9), verbose=False)
+        self._pending = None
+
+    def _ask(self) -> np.ndarray:
+        self._pending = self._algorithm.ask()
+        return self.space.decode(self._pending.get("X"))  # [population, dim]
+
+    def _tell(self, designs: np.ndarray, costs: np.ndarray) -> None:
+        if self._pending is None:
+            raise RuntimeError("tell() without a preceding ask()")
+        self._pending.set("F", finite_costs(costs)[:, None])
+        self._algorithm.tell(infills=self._pending)
+        self._pending = None
+
+    def final_population(self) -> np.ndarray:
+        """The particles' current positions (Algorithm 4 narrows around them)."""
+        particles = getattr(self._algorithm, "particles", None)
+        if particles is None:
+            return super().final_population()
+        return self.space.decode(particles.get("X"))
+
+
+@hookimpl
+def coadapt_register_optimizers() -> list[type[Optimizer]]:
+    return [PSOOptimizer]
