@@ -1,0 +1,56 @@
+"""Velocity commands (vx, vy, yaw rate) with a share of zeros and a curriculum on their
+magnitude (shared/walking-notes.md remedy 6)."""
+
+from __future__ import annotations
+
+import torch
+
+from coadapt_core.task.config import CommandConfig
+
+
+class CommandSampler:
+    """Draws commands [n, 3] from the current (curriculum-limited) box."""
+
+    def __init__(self, config: CommandConfig, device: str | torch.device, generator: torch.Generator):
+        self.config = config
+        self.device = torch.device(device)
+        self.generator = generator
+        # current half-width of the command box (same limit on |vx|, |vy| and |yaw|)
+        self.limit = config.curriculum_start if config.curriculum else float("inf")
+
+    def ranges(self) -> list[tuple[float, float]]:
+        """The current (vx, vy, yaw) ranges: the configured ones clipped to +-limit."""
+        out = []
+        for lo, hi in (self.config.vx_range, self.config.vy_range, self.config.yaw_range):
+            out.append((max(lo, -self.limit), min(hi, self.limit)))
+        return out
+
+    def sample(self, n: int) -> torch.Tensor:
+        """[n, 3] commands; |v_xy| below zero_threshold and a share zero_share become 0."""
+        u = torch.rand(n, 3, generator=self.generator, device=self.device)
+        cmd = torch.empty(n, 3, device=self.device)
+        for j, (lo, hi) in enumerate(self.ranges()):
+            cmd[:, j] = lo + (hi - lo) * u[:, j]
+        small = cmd[:, :2].norm(dim=-1) < self.config.zero_threshold
+        cmd[small, :2] = 0.0
+        cmd[cmd[:, 2].abs() < self.config.zero_threshold, 2] = 0.0
+        zero = torch.rand(n, generator=self.generator, device=self.device) < self.config.zero_share
+        cmd[zero] = 0.0
+        return cmd
+
+    def update_curriculum(self, tracking_fraction: float) -> bool:
+        """Widen the box when finished episodes tracked well (fraction of the maximum linear
+        tracking reward); returns True when it widened."""
+        if not self.config.curriculum or tracking_fraction < self.config.curriculum_threshold:
+            return False
+        widest = max(abs(v) for r in (self.config.vx_range, self.config.vy_range, self.config.yaw_range) for v in r)
+        if self.limit >= widest:
+            return False
+        self.limit = min(self.limit + self.config.curriculum_step, widest)
+        return True
+
+    def state_dict(self) -> dict:
+        return {"limit": self.limit}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.limit = float(state["limit"])

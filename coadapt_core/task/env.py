@@ -1,0 +1,361 @@
+"""`LocomotionEnv`: the locomotion task on any `Simulator`, as one batched vector
+environment (commands, gait clock, observations, rewards, objective metrics, termination and
+auto-reset). Torch tensors throughout, on the device given (the simulator's by default)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from coadapt_core.objective import Objective, StepBatch
+from coadapt_core.robot import Robot
+from coadapt_core.simulator import Simulator, SimState
+from coadapt_core.task import observations as layout
+from coadapt_core.task.commands import CommandSampler
+from coadapt_core.task.config import TaskConfig
+from coadapt_core.task.gait import expected_stance, leg_phases, raibert_foot_targets
+from coadapt_core.task.rewards import RewardInputs, combine, compute_terms
+from coadapt_core.task.rotations import quat_rotate_inverse
+
+
+@dataclass
+class StepResult:
+    """What `LocomotionEnv.step` returns (also unpackable as a 7-tuple)."""
+
+    obs: torch.Tensor  # [N, num_obs] policy observation after auto-reset (noisy)
+    critic_obs: torch.Tensor  # [N, num_critic_obs] critic state after auto-reset
+    design_obs: torch.Tensor  # [N, D] normalised design
+    reward: torch.Tensor  # [N]
+    done: torch.Tensor  # [N] bool, the episode ended (fall or timeout) and was reset
+    timeout: torch.Tensor  # [N] bool, ended by the time limit (bootstrap, not a failure)
+    info: dict = field(default_factory=dict)
+
+    def __iter__(self):
+        return iter((self.obs, self.critic_obs, self.design_obs, self.reward, self.done, self.timeout, self.info))
+
+
+class LocomotionEnv:
+    """The task, simulator-agnostic.
+
+    `info` of `step` holds: `metrics` [N, M] per-step objective costs (order of
+    `objectives`); `final_critic_obs` [N, C] critic state before auto-reset (for bootstrapping
+    timeouts); `terminated` [N]; `base_lin_vel` [N, 3] (base frame) and `foot_contact` [N, L]
+    of the step; `reward_terms` {name: mean weighted value}; and `episode` {name: mean over the
+    episodes that just ended} when any ended.
+    """
+
+    def __init__(
+        self,
+        simulator: Simulator,
+        robot: Robot,
+        task_config: TaskConfig | None = None,
+        objectives: Sequence[Objective] = (),
+        *,
+        seed: int = 0,
+        device: str | torch.device | None = None,
+    ):
+        self.sim = simulator
+        self.robot = robot
+        self.cfg = task_config or TaskConfig()
+        self.objectives = list(objectives)
+        self.device = torch.device(device if device is not None else simulator.device)
+        self.generator = torch.Generator(device=self.device)
+        self.generator.manual_seed(int(seed))
+        self.num_envs = simulator.num_envs
+        self.num_actions = simulator.num_joints
+        self.dt = simulator.control_dt
+        self.max_episode_length = int(math.ceil(self.cfg.episode_seconds / self.dt))
+        space = robot.design_space_for(simulator.designs[0])
+        self.design_low = torch.as_tensor(space.lower, dtype=torch.float32, device=self.device)
+        self.design_high = torch.as_tensor(space.upper, dtype=torch.float32, device=self.device)
+        self.commands = CommandSampler(self.cfg.commands, self.device, self.generator)
+        self.fixed_commands = False
+        resample = self.cfg.commands.resample_seconds
+        self.resample_steps = int(round(resample / self.dt)) if resample > 0 else 0
+
+        state = simulator.reset()
+        self.num_legs = int(state.foot_pos.shape[1])
+        self.policy_layout = layout.policy_layout(self.num_actions, self.cfg.history)
+        self.critic_layout = self.policy_layout + layout.privileged_layout(self.num_legs)
+        self.obs_slices = layout.slices(self.policy_layout)
+        self.num_obs = layout.size(self.policy_layout)
+        self.num_critic_obs = layout.size(self.critic_layout)
+        self.num_design_obs = int(self.design_low.shape[0])
+        self.num_metrics = len(self.objectives)
+
+        n, j, legs = self.num_envs, self.num_actions, self.num_legs
+        z = lambda *shape: torch.zeros(*shape, device=self.device)  # noqa: E731
+        self.command = z(n, 3)  # [N, 3]
+        self.phase = z(n)  # [N] gait clock in [0, 1)
+        self.episode_length = torch.zeros(n, dtype=torch.long, device=self.device)
+        self.action_history = z(n, self.cfg.history, j)  # [N, H, J] newest first
+        self.last_joint_vel = z(n, j)
+        self.air_time = z(n, legs)
+        self.last_contact = torch.zeros(n, legs, dtype=torch.bool, device=self.device)
+        self.standing_height = z(n)
+        self.episode_reward = z(n)
+        self.episode_tracking = z(n)  # sum of the unweighted linear tracking term
+        self.episode_speed = z(n)  # sum of base-frame vx
+        self.episode_command = z(n)  # sum of commanded vx
+        self._refresh_design_buffers()
+        self._start(torch.arange(n, device=self.device), self._to_device(state))
+        self.state = self._to_device(state)
+
+    # -- sizes and designs ----------------------------------------------------------------
+    @property
+    def metric_names(self) -> list[str]:
+        return [o.name for o in self.objectives]
+
+    def _to_device(self, state: SimState) -> SimState:
+        return state if state.base_pos.device == self.device else state.to(self.device)
+
+    def normalize_designs(self, designs: np.ndarray | torch.Tensor) -> torch.Tensor:
+        """[n, D] designs mapped to [-1, 1] over the robot's full design-space bounds."""
+        xi = torch.as_tensor(np.asarray(designs, dtype=np.float32), device=self.device)
+        width = self.design_high - self.design_low
+        safe = torch.where(width > 0, width, torch.ones_like(width))
+        return torch.where(width > 0, 2.0 * (xi - self.design_low) / safe - 1.0, torch.zeros_like(xi))
+
+    def _refresh_design_buffers(self) -> None:
+        designs = np.asarray(self.sim.designs, dtype=np.float32)
+        self.designs = torch.as_tensor(designs, device=self.device)  # [N, D]
+        self.design_obs = self.normalize_designs(designs)  # [N, D]
+        self.default_joint_pos = self.sim.default_joint_pos.to(self.device).float()  # [N, J]
+        with torch.no_grad():
+            self.default_feet = self.robot.default_foot_positions(self.designs).to(self.device).float()  # [N, L, 3]
+
+    def set_designs(self, env_ids: torch.Tensor | np.ndarray, designs: np.ndarray) -> None:
+        """Rebuild the given environments for new designs [len(env_ids), D] (they restart)."""
+        ids = torch.as_tensor(np.asarray(env_ids), dtype=torch.long, device=self.device)
+        self.sim.set_designs(ids.cpu().numpy(), np.asarray(designs, dtype=float))
+        self._refresh_design_buffers()
+        state = self._to_device(self.sim.get_state())
+        self._start(ids, state)
+        self.state = state
+
+    def set_commands(self, commands: torch.Tensor | None) -> None:
+        """Hold fixed commands [N, 3] (evaluation), or None to sample them again."""
+        if commands is None:
+            self.fixed_commands = False
+            return
+        self.fixed_commands = True
+        self.command[:] = torch.as_tensor(commands, dtype=torch.float32, device=self.device).expand(self.num_envs, 3)
+        self._freeze_clock(torch.arange(self.num_envs, device=self.device))
+
+    # -- episode bookkeeping ----------------------------------------------------------------
+    def _freeze_clock(self, ids: torch.Tensor) -> None:
+        if self.cfg.gait.freeze_on_zero_command:
+            still = self.command[ids].abs().sum(dim=-1) == 0
+            self.phase[ids[still]] = 0.25  # mid-stance of the first leg; the clock waits
+
+    def _start(self, ids: torch.Tensor, state: SimState) -> None:
+        """Per-env buffers of environments that (re)start an episode."""
+        if ids.numel() == 0:
+            return
+        self.episode_length[ids] = 0
+        self.action_history[ids] = 0.0
+        self.last_joint_vel[ids] = state.joint_vel[ids].float()
+        self.air_time[ids] = 0.0
+        self.last_contact[ids] = state.foot_contact[ids]
+        self.standing_height[ids] = (state.base_pos[ids, 2] - state.terrain_height[ids]).float()
+        self.episode_reward[ids] = 0.0
+        self.episode_tracking[ids] = 0.0
+        self.episode_speed[ids] = 0.0
+        self.episode_command[ids] = 0.0
+        self.phase[ids] = torch.rand(ids.numel(), generator=self.generator, device=self.device)
+        if not self.fixed_commands:
+            self.command[ids] = self.commands.sample(ids.numel())
+        self._freeze_clock(ids)
+
+    def reset(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Reset every environment: (obs, critic_obs, design_obs)."""
+        state = self._to_device(self.sim.reset())
+        self._start(torch.arange(self.num_envs, device=self.device), state)
+        self.state = state
+        obs, critic = self._observe(state)
+        return obs, critic, self.design_obs
+
+    # -- observations -----------------------------------------------------------------------
+    def _base_frame(self, state: SimState) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        quat = state.base_quat.float()
+        lin = quat_rotate_inverse(quat, state.base_lin_vel.float())
+        ang = quat_rotate_inverse(quat, state.base_ang_vel.float())
+        gravity = torch.zeros_like(lin)
+        gravity[:, 2] = -1.0
+        return lin, ang, quat_rotate_inverse(quat, gravity)
+
+    def _noise(self, shape: tuple[int, ...], scale: float) -> torch.Tensor:
+        if self.cfg.noise.kind == "gaussian":
+            return scale * torch.randn(shape, generator=self.generator, device=self.device)
+        return scale * (2.0 * torch.rand(shape, generator=self.generator, device=self.device) - 1.0)
+
+    def _observe(self, state: SimState) -> tuple[torch.Tensor, torch.Tensor]:
+        """(noisy policy obs [N, num_obs], critic state [N, num_critic_obs])."""
+        lin, ang, gravity = self._base_frame(state)
+        joint_pos = state.joint_pos.float() - self.default_joint_pos
+        joint_vel = state.joint_vel.float()
+        angle = 2.0 * math.pi * self.phase
+        clock = torch.stack([torch.sin(angle), torch.cos(angle)], dim=-1)
+        clean = torch.cat(
+            [lin, ang, gravity, self.command, joint_pos, joint_vel, self.action_history.flatten(1), clock], dim=-1
+        )
+        obs = clean
+        noise = self.cfg.noise
+        if noise.enabled:
+            n, s = self.num_envs, self.obs_slices
+            obs = clean.clone()
+            obs[:, s["base_lin_vel"]] += self._noise((n, 3), noise.base_lin_vel)
+            obs[:, s["base_ang_vel"]] += self._noise((n, 3), noise.base_ang_vel)
+            obs[:, s["projected_gravity"]] += self._noise((n, 3), noise.projected_gravity)
+            obs[:, s["joint_pos"]] += self._noise((n, self.num_actions), noise.joint_pos)
+            obs[:, s["joint_vel"]] += self._noise((n, self.num_actions), noise.joint_vel)
+        terrain = state.terrain_height.float()
+        params = self.sim.env_params
+        p = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32, device=self.device)  # noqa: E731
+        privileged = torch.cat(
+            [
+                (state.base_pos[:, 2].float() - terrain)[:, None],
+                state.foot_contact.float(),
+                state.foot_pos[:, :, 2].float() - terrain[:, None],
+                p(params.friction)[:, None],
+                p(params.restitution)[:, None],
+                p(params.pd_factor)[:, None],
+                p(params.motor_strength)[:, None],
+                p(params.delay)[:, None],
+                p(params.com_shift).reshape(self.num_envs, 3),
+            ],
+            dim=-1,
+        )
+        return obs, torch.cat([clean, privileged], dim=-1)
+
+    # -- stepping ---------------------------------------------------------------------------
+    def joint_targets(self, actions: torch.Tensor) -> torch.Tensor:
+        """[N, J] joint position targets: default pose + action_scale * clipped action."""
+        return self.default_joint_pos + self.cfg.action_scale * actions
+
+    def raibert_joint_targets(self, command: torch.Tensor, lin_vel: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(q* [N, J], expected stance [N, L]) of the paper's Raibert reference at this step."""
+        phases = leg_phases(self.phase, self.num_legs)
+        moving = command.abs().sum(dim=-1) > 0
+        stance = expected_stance(phases)
+        if self.cfg.gait.freeze_on_zero_command:
+            stance = stance | ~moving[:, None]
+        feet = raibert_foot_targets(self.default_feet, phases, command, lin_vel, self.cfg.gait)
+        with torch.no_grad():
+            q_star = self.robot.leg_inverse_kinematics(self.designs, feet).to(self.device).float()
+        return q_star, stance
+
+    def step(self, actions: torch.Tensor) -> StepResult:
+        cfg = self.cfg
+        actions = actions.to(self.device).float().clamp(-cfg.action_clip, cfg.action_clip)  # [N, J]
+        targets = self.joint_targets(actions)
+        sim_device = torch.device(self.sim.device)
+        state = self._to_device(self.sim.step(targets.to(sim_device)))
+        self.episode_length += 1
+
+        moving = self.command.abs().sum(dim=-1) > 0  # [N]
+        advance = moving if cfg.gait.freeze_on_zero_command else torch.ones_like(moving)
+        self.phase = torch.remainder(self.phase + self.dt * cfg.gait.frequency * advance, 1.0)
+
+        lin, ang, gravity = self._base_frame(state)
+        joint_pos = state.joint_pos.float()
+        joint_vel = state.joint_vel.float()
+        torque = state.joint_torque.float()
+        contact = state.foot_contact
+        first_contact = (self.air_time > 0) & contact
+        self.air_time += self.dt
+        air_time = self.air_time.clone()
+        self.air_time *= ~contact
+
+        height = state.base_pos[:, 2].float() - state.terrain_height.float()
+        fell = (height < cfg.min_base_height * self.standing_height) | (gravity[:, 2] > -cfg.max_tilt_cos)
+        terminated = fell | state.diverged.to(self.device)
+        timeout = (self.episode_length >= self.max_episode_length) & ~terminated
+
+        q_star, stance = self.raibert_joint_targets(self.command, lin)
+        inputs = RewardInputs(
+            command=self.command,
+            base_lin_vel=lin,
+            base_ang_vel=ang,
+            projected_gravity=gravity,
+            joint_pos=joint_pos,
+            default_joint_pos=self.default_joint_pos,
+            joint_acc=(joint_vel - self.last_joint_vel) / self.dt,
+            joint_torque=torque,
+            action=actions,
+            last_action=self.action_history[:, 0],
+            raibert_targets=q_star,
+            foot_contact=contact,
+            expected_stance=stance,
+            first_contact=first_contact,
+            air_time=air_time,
+            moving_command=moving,
+            terminated=terminated,
+        )
+        terms = compute_terms(inputs, cfg.rewards)
+        reward, weighted = combine(terms, cfg.rewards, self.dt)
+
+        step_batch = StepBatch(
+            command=self.command, base_lin_vel=lin, base_ang_vel=ang, joint_torque=torque, joint_vel=joint_vel, action=targets
+        )
+        if self.objectives:
+            metrics = torch.stack([o.step_cost(step_batch).float() for o in self.objectives], dim=-1)  # [N, M]
+        else:
+            metrics = torch.zeros(self.num_envs, 0, device=self.device)
+
+        # bookkeeping for the next observation
+        self.action_history = torch.roll(self.action_history, 1, dims=1)
+        self.action_history[:, 0] = actions
+        self.last_joint_vel = joint_vel
+        self.last_contact = contact
+        tracking = terms.get("tracking_lin_vel")
+        self.episode_reward += reward
+        self.episode_tracking += tracking if tracking is not None else 0.0
+        self.episode_speed += lin[:, 0]
+        self.episode_command += self.command[:, 0]
+
+        obs, critic = self._observe(state)
+        final_critic = critic
+        done = terminated | timeout
+        info: dict = {
+            "metrics": metrics,
+            "final_critic_obs": final_critic,
+            "terminated": terminated,
+            "base_lin_vel": lin,
+            "foot_contact": contact,
+            "command": self.command.clone(),
+            "reward_terms": {k: float(v.mean()) for k, v in weighted.items()},
+        }
+        ids = done.nonzero(as_tuple=False).flatten()
+        changed = ids.numel() > 0
+        if changed:
+            lengths = self.episode_length[ids].float()
+            fraction = float((self.episode_tracking[ids] / lengths).mean())
+            info["episode"] = {
+                "reward": float(self.episode_reward[ids].mean()),
+                "length_s": float(lengths.mean() * self.dt),
+                "tracking_fraction": fraction,
+                "vx": float((self.episode_speed[ids] / lengths).mean()),
+                "command_vx": float((self.episode_command[ids] / lengths).mean()),
+                "fell": float(terminated[ids].float().mean()),
+                "count": int(ids.numel()),
+            }
+            if not self.fixed_commands:
+                self.commands.update_curriculum(fraction)
+            state = self._to_device(self.sim.reset(ids.to(sim_device)))
+            self._start(ids, state)
+        if self.resample_steps and not self.fixed_commands:
+            due = (self.episode_length > 0) & (self.episode_length % self.resample_steps == 0)
+            due_ids = due.nonzero(as_tuple=False).flatten()
+            if due_ids.numel() > 0:
+                self.command[due_ids] = self.commands.sample(due_ids.numel())
+                self._freeze_clock(due_ids)
+                changed = True
+        self.state = state
+        if changed:  # observe the restarted environments (and new commands) afresh
+            obs, critic = self._observe(state)
+        return StepResult(obs, critic, self.design_obs, reward, done, timeout, info)
