@@ -1,0 +1,490 @@
+"""Kuafu model generator: one design -> mass properties of every body, default pose, PD
+gains, motor limits, and the MJCF and URDF texts that describe the same robot.
+
+Body tree (frames x forward, y left, z up; each body's origin at its parent joint):
+
+    base (freejoint "root"; pelvis + torso + head, one rigid body)
+    ├── {side}_hip_roll_link   joint {side}_hip_roll  (about x) at the hip centre
+    │   └── {side}_thigh       joint {side}_hip_pitch (about y) at the same centre
+    │       └── {side}_shank   joint {side}_knee      (about y) at (0, 0, -l0)
+    │           └── {side}_foot joint {side}_ankle    (about y) at (0, 0, -l1)
+    └── {side}_arm             fixed shoulder joint {side}_shoulder (no MJCF joint)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cache, lru_cache
+
+import numpy as np
+from coadapt_plugins.robots.kuafu import constants as C
+from coadapt_plugins.robots.kuafu.inertia import (
+    Part,
+    box,
+    combine,
+    cylinder,
+    inertia_about_axis,
+    rotation_y,
+    sphere,
+)
+from coadapt_plugins.robots.kuafu.mass_model import load_mass_models
+
+from coadapt_core.robot import RobotModel
+
+LEG_JOINTS = ("hip_roll", "hip_pitch", "knee", "ankle")
+
+
+@dataclass(frozen=True)
+class KuafuDesign:
+    """A design resolved into physical terms."""
+
+    thigh_scale: float
+    shank_scale: float
+    hip_motor: int = C.NOMINAL_MOTOR_TYPE
+    knee_motor: int = C.NOMINAL_MOTOR_TYPE
+
+    @property
+    def thigh_length(self) -> float:  # l0 = 0.35 xi0 (paper 4.1.1)
+        return C.NOMINAL_LINK_LENGTH * self.thigh_scale
+
+    @property
+    def shank_length(self) -> float:  # l1 = 0.35 xi1
+        return C.NOMINAL_LINK_LENGTH * self.shank_scale
+
+    def motor_of(self, joint: str) -> int:
+        """Motor type driving a leg joint: the hip type drives hip roll and hip pitch."""
+        if joint in ("hip_roll", "hip_pitch"):
+            return self.hip_motor
+        if joint == "knee":
+            return self.knee_motor
+        return C.ANKLE_MOTOR_TYPE
+
+    @classmethod
+    def from_vector(cls, design: np.ndarray) -> KuafuDesign:
+        d = [float(x) for x in design]
+        if len(d) == 2:
+            return cls(d[0], d[1])
+        return cls(d[0], d[1], int(round(d[2])), int(round(d[3])))
+
+
+# -- parts ---------------------------------------------------------------------------------
+def actuator(motor_type: int, centre: np.ndarray, axis: str) -> Part:
+    """Actuator unit (motor + gearbox + housing) as a solid cylinder on the joint axis."""
+    mass = C.MOTOR_TYPES[motor_type]["motor_mass"] + C.GEARBOX_HOUSING_MASS
+    return cylinder(mass, C.ACTUATOR_RADIUS, C.ACTUATOR_LENGTH, centre, axis=axis)
+
+
+def _hip_centre(side: str) -> np.ndarray:
+    return C.HIP_OFFSET * np.array([1.0, C.SIDE_SIGN[side], 1.0])
+
+
+def _shoulder(side: str) -> np.ndarray:
+    return C.SHOULDER_OFFSET * np.array([1.0, C.SIDE_SIGN[side], 1.0])
+
+
+@cache
+def head_top_above_base() -> float:
+    """Height of the top of the head above the base origin, chosen so the nominal design
+    stands NOMINAL_HEIGHT tall (head top above the soles at the default pose)."""
+    return C.NOMINAL_HEIGHT - standing_base_height(KuafuDesign(1.0, 1.0))
+
+
+def _upper_body_parts(design: KuafuDesign, torso_mass: float) -> list[Part]:
+    head_centre = np.array([0.0, 0.0, head_top_above_base() - C.HEAD_RADIUS])
+    parts = [
+        box(C.PELVIS_MASS, C.PELVIS_SIZE, C.PELVIS_CENTRE),
+        box(torso_mass, C.TORSO_SIZE, C.TORSO_CENTRE),
+        sphere(C.HEAD_MASS, C.HEAD_RADIUS, head_centre),
+    ]
+    for side in C.SIDES:
+        parts.append(actuator(design.hip_motor, _hip_centre(side) + C.HIP_ROLL_ACTUATOR_OFFSET, "x"))
+    return parts
+
+
+def leg_parts(design: KuafuDesign) -> dict[str, Part]:
+    """Mass properties of the four leg bodies (the same for both legs), each in its frame."""
+    models = load_mass_models()
+    l0, l1 = design.thigh_length, design.shank_length
+    bracket = box(C.HIP_ROLL_BRACKET_MASS, (0.08, 0.08, 0.08), np.zeros(3))
+    foot_centre = np.array([C.FOOT_TOE - 0.5 * C.FOOT_LENGTH, 0.0, -C.ANKLE_HEIGHT + 0.5 * C.FOOT_THICKNESS])
+    return {
+        "hip_roll_link": combine([bracket, actuator(design.hip_motor, np.zeros(3), "y")]),
+        # the knee actuator housing is carried by the thigh at the knee
+        "thigh": combine([models["thigh"].part(l0), actuator(design.knee_motor, np.array([0.0, 0.0, -l0]), "y")]),
+        # the ankle actuator sits high in the shank and drives the ankle by a push rod
+        "shank": combine([models["shank"].part(l1), actuator(C.ANKLE_MOTOR_TYPE, np.array([0.0, 0.0, -0.07]), "y")]),
+        "foot": box(C.FOOT_MASS, (C.FOOT_LENGTH, C.FOOT_WIDTH, C.FOOT_THICKNESS), foot_centre),
+    }
+
+
+def arm_part() -> Part:
+    return cylinder(C.ARM_MASS, C.ARM_RADIUS, C.ARM_LENGTH, np.array([0.0, 0.0, -0.5 * C.ARM_LENGTH]), axis="z")
+
+
+@cache
+def torso_mass() -> float:
+    """The torso (battery, computer, structure) is the balancing term of the mass budget: the
+    nominal design weighs NOMINAL_MASS (paper 4.1.1)."""
+    nominal = KuafuDesign(1.0, 1.0)
+    others = sum(p.mass for p in _upper_body_parts(nominal, 0.0))
+    others += 2.0 * sum(p.mass for p in leg_parts(nominal).values())
+    others += 2.0 * arm_part().mass
+    return C.NOMINAL_MASS - others
+
+
+def base_part(design: KuafuDesign) -> Part:
+    return combine(_upper_body_parts(design, torso_mass()))
+
+
+# -- default pose and leg kinematics -------------------------------------------------------
+def stance_hip_to_ankle(design: KuafuDesign) -> float:
+    """Vertical hip-centre to ankle-centre distance at the default pose."""
+    return C.STANCE_EXTENSION * (design.thigh_length + design.shank_length)
+
+
+def standing_base_height(design: KuafuDesign) -> float:
+    return C.ANKLE_HEIGHT + stance_hip_to_ankle(design) - C.HIP_OFFSET[2]
+
+
+def sagittal_ik(l0: float, l1: float, x: float, depth: float) -> tuple[float, float, float]:
+    """(hip pitch, knee, ankle) putting the ankle centre at (x, -depth) from the hip in the
+    leg plane, knee bent forward (knee >= 0), sole parallel to the ground. Positive pitch
+    rotates about +y, moving the foot backwards."""
+    reach = min(max(math.hypot(x, depth), abs(l0 - l1) + 1e-9), (l0 + l1) * (1 - 1e-9))
+    cos_knee = (reach * reach - l0 * l0 - l1 * l1) / (2.0 * l0 * l1)
+    knee = math.acos(min(1.0, max(-1.0, cos_knee)))
+    pitch = math.atan2(-x, depth) - math.atan2(l1 * math.sin(knee), l0 + l1 * math.cos(knee))
+    return pitch, knee, -(pitch + knee)
+
+
+def default_joint_pos(design: KuafuDesign) -> np.ndarray:
+    """[8] standing pose: ankles straight below the hips, soles flat, no hip roll."""
+    pitch, knee, ankle = sagittal_ik(design.thigh_length, design.shank_length, 0.0, stance_hip_to_ankle(design))
+    leg = [0.0, pitch, knee, ankle]
+    return np.array(leg + leg)
+
+
+def leg_joint_inertias(design: KuafuDesign) -> dict[str, float]:
+    """I_j: inertia of the chain distal to each leg joint about that joint's axis at the
+    default pose (left leg; the right one mirrors it). Armature is not included."""
+    parts = leg_parts(design)
+    _, pitch, knee, ankle = default_joint_pos(design)[:4]
+    l0, l1 = design.thigh_length, design.shank_length
+    r_thigh = rotation_y(pitch)
+    r_shank = rotation_y(pitch + knee)
+    p_knee = r_thigh @ np.array([0.0, 0.0, -l0])
+    p_ankle = p_knee + r_shank @ np.array([0.0, 0.0, -l1])
+    placed = {  # body: (rotation, position) in the hip frame
+        "hip_roll_link": (np.eye(3), np.zeros(3)),
+        "thigh": (r_thigh, np.zeros(3)),
+        "shank": (r_shank, p_knee),
+        "foot": (rotation_y(pitch + knee + ankle), p_ankle),
+    }
+    x_axis, y_axis = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+
+    def about(bodies: tuple[str, ...], point: np.ndarray, axis: np.ndarray) -> float:
+        return sum(inertia_about_axis(parts[b], *placed[b], point, axis) for b in bodies)
+
+    return {
+        "hip_roll": about(("hip_roll_link", "thigh", "shank", "foot"), np.zeros(3), x_axis),
+        "hip_pitch": about(("thigh", "shank", "foot"), np.zeros(3), y_axis),
+        "knee": about(("shank", "foot"), p_knee, y_axis),
+        "ankle": about(("foot",), p_ankle, y_axis),
+    }
+
+
+@cache
+def _nominal_inertias() -> dict[str, float]:
+    return leg_joint_inertias(KuafuDesign(1.0, 1.0))
+
+
+def pd_gains(design: KuafuDesign) -> tuple[np.ndarray, np.ndarray, dict[str, float]]:
+    """kp_j = kp_j(nominal) I_j / I_j(nominal), kd_j = kd_j(nominal) I_j / I_j(nominal):
+    the same ratio for both keeps each joint's natural frequency sqrt(kp / I) and damping
+    ratio kd / (2 sqrt(kp I)) equal to the nominal robot's."""
+    inertias = leg_joint_inertias(design)
+    nominal = _nominal_inertias()
+    ratio = {j: inertias[j] / nominal[j] for j in LEG_JOINTS}
+    kp = [C.NOMINAL_KP[j] * ratio[j] for j in LEG_JOINTS]
+    kd = [C.NOMINAL_KD[j] * ratio[j] for j in LEG_JOINTS]
+    return np.array(kp + kp), np.array(kd + kd), inertias
+
+
+def joint_limits() -> tuple[np.ndarray, np.ndarray]:
+    lower, upper = [], []
+    for side in C.SIDES:
+        for j in LEG_JOINTS:
+            lo, hi = C.JOINT_LIMITS_LEFT[j]
+            if j == "hip_roll" and side == "right":  # mirror: abduction is -x rotation
+                lo, hi = -hi, -lo
+            lower.append(lo)
+            upper.append(hi)
+    return np.array(lower), np.array(upper)
+
+
+def foot_contact_points() -> np.ndarray:
+    """[4, 3] sole corners in the foot frame (origin at the ankle centre)."""
+    z = -C.ANKLE_HEIGHT
+    w = 0.5 * C.FOOT_WIDTH
+    return np.array([[C.FOOT_TOE, w, z], [C.FOOT_TOE, -w, z], [-C.FOOT_HEEL, w, z], [-C.FOOT_HEEL, -w, z]])
+
+
+# -- text ------------------------------------------------------------------------------------
+def _f(x: float) -> str:
+    return f"{float(x):.10g}"
+
+
+def _v(v: np.ndarray) -> str:
+    return " ".join(_f(x) for x in v)
+
+
+def _mj_inertial(p: Part) -> str:
+    i = p.inertia
+    full = [i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2]]
+    return f'<inertial pos="{_v(p.com)}" mass="{_f(p.mass)}" fullinertia="{_v(np.array(full))}"/>'
+
+
+def _urdf_inertial(p: Part) -> str:
+    i = p.inertia
+    return (
+        f'<inertial><origin xyz="{_v(p.com)}" rpy="0 0 0"/><mass value="{_f(p.mass)}"/>'
+        f'<inertia ixx="{_f(i[0, 0])}" ixy="{_f(i[0, 1])}" ixz="{_f(i[0, 2])}" '
+        f'iyy="{_f(i[1, 1])}" iyz="{_f(i[1, 2])}" izz="{_f(i[2, 2])}"/></inertial>'
+    )
+
+
+@dataclass(frozen=True)
+class _Geometry:
+    """What the text writers need for one design."""
+
+    design: KuafuDesign
+    base: Part
+    legs: dict[str, Part]
+    arm: Part
+    lower: np.ndarray
+    upper: np.ndarray
+    torque_limit: np.ndarray
+    speed_limit: np.ndarray
+    base_height: float
+
+
+def _sole_box() -> tuple[np.ndarray, np.ndarray]:
+    """(centre in the foot frame, full size) of the sole box: the feet's collision shape."""
+    centre = np.array([C.FOOT_TOE - 0.5 * C.FOOT_LENGTH, 0.0, -C.ANKLE_HEIGHT + 0.5 * C.FOOT_THICKNESS])
+    return centre, np.array([C.FOOT_LENGTH, C.FOOT_WIDTH, C.FOOT_THICKNESS])
+
+
+def _mjcf(g: _Geometry) -> str:
+    l0, l1 = g.design.thigh_length, g.design.shank_length
+    head_z = head_top_above_base() - C.HEAD_RADIUS
+    sole_centre, sole_size = _sole_box()
+    out = [
+        '<mujoco model="kuafu">',
+        '  <compiler angle="radian" autolimits="true"/>',
+        f'  <option timestep="{_f(C.TIMESTEP)}"/>',
+        "  <default>",
+        f'    <joint type="hinge" damping="{_f(C.JOINT_DAMPING)}" armature="{_f(C.ARMATURE)}" limited="true"/>',
+        '    <geom contype="1" conaffinity="0" condim="3" rgba="0.7 0.7 0.75 1"/>',
+        '    <motor ctrllimited="true" gear="1"/>',
+        '    <default class="visual"><geom contype="0" conaffinity="0" group="1" rgba="0.25 0.35 0.6 1"/></default>',
+        "  </default>",
+        "  <worldbody>",
+        f'    <body name="base" pos="0 0 {_f(g.base_height)}">',
+        '      <freejoint name="root"/>',
+        f"      {_mj_inertial(g.base)}",
+        f'      <geom name="pelvis" type="box" pos="{_v(C.PELVIS_CENTRE)}" size="{_v(0.5 * C.PELVIS_SIZE)}"/>',
+        f'      <geom name="torso" type="box" pos="{_v(C.TORSO_CENTRE)}" size="{_v(0.5 * C.TORSO_SIZE)}"/>',
+        f'      <geom name="head" type="sphere" pos="0 0 {_f(head_z)}" size="{_f(C.HEAD_RADIUS)}"/>',
+        f'      <geom name="neck" class="visual" type="cylinder" fromto="0 0 {_f(C.TORSO_CENTRE[2] + 0.5 * C.TORSO_SIZE[2])} 0 0 {_f(head_z)}" size="0.04"/>',
+    ]
+    joint_index = 0
+    for side in C.SIDES:
+        hip = _hip_centre(side)
+        names = [f"{side}_{j}" for j in LEG_JOINTS]
+        rng = [(g.lower[joint_index + k], g.upper[joint_index + k]) for k in range(4)]
+        joint_index += 4
+        out += [
+            f'      <body name="{side}_hip_roll_link" pos="{_v(hip)}">',
+            f'        <joint name="{names[0]}" axis="1 0 0" range="{_f(rng[0][0])} {_f(rng[0][1])}"/>',
+            f"        {_mj_inertial(g.legs['hip_roll_link'])}",
+            f'        <geom name="{side}_hip" type="sphere" size="0.06"/>',
+            f'        <body name="{side}_thigh">',
+            f'          <joint name="{names[1]}" axis="0 1 0" range="{_f(rng[1][0])} {_f(rng[1][1])}"/>',
+            f"          {_mj_inertial(g.legs['thigh'])}",
+            f'          <geom name="{side}_thigh" type="capsule" fromto="0 0 0 0 0 {_f(-l0)}" size="0.05"/>',
+            f'          <body name="{side}_shank" pos="0 0 {_f(-l0)}">',
+            f'            <joint name="{names[2]}" axis="0 1 0" range="{_f(rng[2][0])} {_f(rng[2][1])}"/>',
+            f"            {_mj_inertial(g.legs['shank'])}",
+            f'            <geom name="{side}_shank" type="capsule" fromto="0 0 0 0 0 {_f(-l1)}" size="0.04"/>',
+            f'            <body name="{side}_foot" pos="0 0 {_f(-l1)}">',
+            f'              <joint name="{names[3]}" axis="0 1 0" range="{_f(rng[3][0])} {_f(rng[3][1])}"/>',
+            f"              {_mj_inertial(g.legs['foot'])}",
+            f'              <geom name="{side}_sole" type="box" pos="{_v(sole_centre)}" size="{_v(0.5 * sole_size)}" rgba="0.2 0.2 0.2 1"/>',
+            "            </body>",
+            "          </body>",
+            "        </body>",
+            "      </body>",
+        ]
+    for side in C.SIDES:
+        out += [
+            f'      <body name="{side}_arm" pos="{_v(_shoulder(side))}">',
+            f"        {_mj_inertial(g.arm)}",
+            f'        <geom name="{side}_arm" type="capsule" fromto="0 0 0 0 0 {_f(-C.ARM_LENGTH)}" size="{_f(C.ARM_RADIUS)}"/>',
+            "      </body>",
+        ]
+    out += ["    </body>", "  </worldbody>", "  <actuator>"]
+    for k, name in enumerate(C.JOINT_NAMES):
+        t = g.torque_limit[k]
+        out.append(f'    <motor name="{name}" joint="{name}" ctrlrange="{_f(-t)} {_f(t)}"/>')
+    out += ["  </actuator>", "</mujoco>", ""]
+    return "\n".join(out)
+
+
+def _urdf_link(name: str, part: Part, shapes: list[str]) -> str:
+    geometry = "".join(shapes)
+    return f'  <link name="{name}">{_urdf_inertial(part)}{geometry}</link>'
+
+
+def _shape(kind: str, geometry: str, xyz: np.ndarray) -> str:
+    return f'<{kind}><origin xyz="{_v(xyz)}" rpy="0 0 0"/><geometry>{geometry}</geometry></{kind}>'
+
+
+def _both(geometry: str, xyz: np.ndarray) -> list[str]:
+    return [_shape("visual", geometry, xyz), _shape("collision", geometry, xyz)]
+
+
+def _urdf(g: _Geometry) -> str:
+    l0, l1 = g.design.thigh_length, g.design.shank_length
+    head_z = head_top_above_base() - C.HEAD_RADIUS
+    sole_centre, sole_size = _sole_box()
+    out = [
+        '<?xml version="1.0"?>',
+        "<!-- Kuafu humanoid generated by coadapt; floating base implied (root link base).",
+        f"     Every revolute joint has a reflected rotor inertia (armature) of {_f(C.ARMATURE)} kg m^2",
+        "     (rotor inertia x gear ratio^2, see the transmissions); URDF has no element for it. -->",
+        '<robot name="kuafu">',
+        _urdf_link(
+            "base",
+            g.base,
+            _both(f'<box size="{_v(C.PELVIS_SIZE)}"/>', C.PELVIS_CENTRE)
+            + _both(f'<box size="{_v(C.TORSO_SIZE)}"/>', C.TORSO_CENTRE)
+            + _both(f'<sphere radius="{_f(C.HEAD_RADIUS)}"/>', np.array([0.0, 0.0, head_z])),
+        ),
+    ]
+    joint_index = 0
+    for side in C.SIDES:
+        links = [f"{side}_hip_roll_link", f"{side}_thigh", f"{side}_shank", f"{side}_foot"]
+        parents = ["base", *links[:3]]
+        origins = [_hip_centre(side), np.zeros(3), np.array([0.0, 0.0, -l0]), np.array([0.0, 0.0, -l1])]
+        axes = ["1 0 0", "0 1 0", "0 1 0", "0 1 0"]
+        shapes = [
+            _both('<sphere radius="0.06"/>', np.zeros(3)),
+            _both(f'<cylinder radius="0.05" length="{_f(l0)}"/>', np.array([0.0, 0.0, -0.5 * l0])),
+            _both(f'<cylinder radius="0.04" length="{_f(l1)}"/>', np.array([0.0, 0.0, -0.5 * l1])),
+            _both(f'<box size="{_v(sole_size)}"/>', sole_centre),
+        ]
+        for k, j in enumerate(LEG_JOINTS):
+            out.append(_urdf_link(links[k], g.legs[links[k].removeprefix(f"{side}_")], shapes[k]))
+            i = joint_index + k
+            out.append(
+                f'  <joint name="{side}_{j}" type="revolute"><parent link="{parents[k]}"/><child link="{links[k]}"/>'
+                f'<origin xyz="{_v(origins[k])}" rpy="0 0 0"/><axis xyz="{axes[k]}"/>'
+                f'<limit lower="{_f(g.lower[i])}" upper="{_f(g.upper[i])}" effort="{_f(g.torque_limit[i])}" velocity="{_f(g.speed_limit[i])}"/>'
+                f'<dynamics damping="{_f(C.JOINT_DAMPING)}" friction="0"/></joint>'
+            )
+        joint_index += 4
+    for side in C.SIDES:
+        out.append(
+            _urdf_link(
+                f"{side}_arm",
+                g.arm,
+                _both(f'<cylinder radius="{_f(C.ARM_RADIUS)}" length="{_f(C.ARM_LENGTH)}"/>', np.array([0.0, 0.0, -0.5 * C.ARM_LENGTH])),
+            )
+        )
+        out.append(
+            f'  <joint name="{side}_shoulder" type="fixed"><parent link="base"/><child link="{side}_arm"/>'
+            f'<origin xyz="{_v(_shoulder(side))}" rpy="0 0 0"/></joint>'
+        )
+    for name in C.JOINT_NAMES:
+        out.append(
+            f'  <transmission name="{name}_transmission"><type>transmission_interface/SimpleTransmission</type>'
+            f'<joint name="{name}"><hardwareInterface>hardware_interface/EffortJointInterface</hardwareInterface></joint>'
+            f'<actuator name="{name}_motor"><mechanicalReduction>{_f(C.GEAR_RATIO)}</mechanicalReduction></actuator></transmission>'
+        )
+    out += ["</robot>", ""]
+    return "\n".join(out)
+
+
+# -- the model -------------------------------------------------------------------------------
+def motor_limits(design: KuafuDesign) -> tuple[np.ndarray, np.ndarray]:
+    """([8] torque limit N m, [8] speed limit rad/s) from Table 8 per joint's motor type."""
+    torque, speed = [], []
+    for _side in C.SIDES:
+        for j in LEG_JOINTS:
+            motor = C.MOTOR_TYPES[design.motor_of(j)]
+            torque.append(motor["torque_limit"])
+            speed.append(C.rpm_to_rad_s(motor["speed_limit_rpm"]))
+    return np.array(torque), np.array(speed)
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+@lru_cache(maxsize=4096)
+def build_cached(key: tuple[float, ...]) -> RobotModel:
+    """The model of a design given as a rounded tuple (the cache key). Arrays are read-only
+    because the model is shared between callers."""
+    design = KuafuDesign.from_vector(np.array(key))
+    legs = leg_parts(design)
+    base = base_part(design)
+    arm = arm_part()
+    lower, upper = joint_limits()
+    torque, speed = motor_limits(design)
+    kp, kd, inertias = pd_gains(design)
+    height = standing_base_height(design)
+    geometry = _Geometry(design, base, legs, arm, lower, upper, torque, speed, height)
+    total = base.mass + 2.0 * sum(p.mass for p in legs.values()) + 2.0 * arm.mass
+    info = {
+        "thigh_length": design.thigh_length,
+        "shank_length": design.shank_length,
+        "hip_motor": design.hip_motor,
+        "knee_motor": design.knee_motor,
+        "ankle_motor": C.ANKLE_MOTOR_TYPE,
+        "motor_types": [design.motor_of(j) for _ in C.SIDES for j in LEG_JOINTS],
+        "standing_height": height + head_top_above_base(),
+        "hip_to_ankle": stance_hip_to_ankle(design),
+        "segment_masses": {
+            "base": base.mass,
+            "torso": torso_mass(),
+            **{name: part.mass for name, part in legs.items()},
+            "arm": arm.mass,
+        },
+        "armature": _readonly(np.full(len(C.JOINT_NAMES), C.ARMATURE)),
+        "joint_damping": _readonly(np.full(len(C.JOINT_NAMES), C.JOINT_DAMPING)),
+        "joint_inertia": {j: inertias[j] for j in LEG_JOINTS},
+        "hip_offset": _readonly(C.HIP_OFFSET),
+        "gear_ratio": C.GEAR_RATIO,
+    }
+    return RobotModel(
+        design=_readonly(np.array(key)),
+        mjcf=_mjcf(geometry),
+        urdf=_urdf(geometry),
+        base_body=C.BASE_BODY,
+        joint_names=list(C.JOINT_NAMES),
+        foot_bodies=list(C.FOOT_BODIES),
+        default_joint_pos=_readonly(default_joint_pos(design)),
+        kp=_readonly(kp),
+        kd=_readonly(kd),
+        torque_limit=_readonly(torque),
+        speed_limit=_readonly(speed),
+        joint_lower=_readonly(lower),
+        joint_upper=_readonly(upper),
+        standing_base_height=height,
+        total_mass=total,
+        foot_contact_points=_readonly(foot_contact_points()),
+        info=info,
+    )
