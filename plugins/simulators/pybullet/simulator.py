@@ -1,0 +1,316 @@
+"""`PyBulletSimulator`: the `Simulator` interface on PyBullet, for sim-to-sim transfer.
+
+Same semantics as the MuJoCo backend from the same robot model: torque control through
+`coadapt_core.actuation`, Table 2 randomization drawn by `coadapt_core.randomization` from
+the simulator's seed, terrains from `coadapt_core.terrain`. Small batches run in this
+process; larger ones in worker processes (see `workers.py`), with identical numbers.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.util
+import os
+from typing import TYPE_CHECKING, ClassVar
+
+import numpy as np
+
+from coadapt_core.errors import DesignError, UserError
+from coadapt_core.randomization import (
+    EnvParams,
+    RandomizationConfig,
+    nominal_env_params,
+    sample_env_params,
+)
+from coadapt_core.simulator import TERRAINS, SimState, Simulator
+
+if TYPE_CHECKING:
+    import torch
+    from coadapt_plugins.simulators.pybullet.spec import EnvSpec
+
+    from coadapt_core.robot import Robot
+
+MISSING_PYBULLET = "the pybullet simulator needs the pybullet package: pip install 'coadapt[pybullet]'"
+#: batches up to this size run in-process (worker start-up and pipe traffic cost more
+#: than they save below it; see docs/sim-to-sim.md)
+IN_PROCESS_MAX_ENVS = 8
+ARMATURE_MODES = ("link_inertia", "none")
+
+
+def require_pybullet() -> None:
+    """Raise the one-line `UserError` naming the missing package."""
+    if importlib.util.find_spec("pybullet") is None:
+        raise UserError(MISSING_PYBULLET, field="simulator")
+
+
+class PyBulletSimulator(Simulator):
+    """PyBullet (Bullet 3 multibody), one DIRECT client per environment, CPU only."""
+
+    name: ClassVar[str] = "pybullet"
+    description: ClassVar[str] = "PyBullet (Bullet) backend for sim-to-sim transfer; one process per CPU core for large batches"
+    terrains: ClassVar[tuple[str, ...]] = TERRAINS
+
+    def __init__(
+        self,
+        robot: Robot,
+        designs: np.ndarray,  # [num_envs, design_dim]
+        *,
+        terrain: str = "flat",
+        randomization: RandomizationConfig | None = None,
+        physics_dt: float = 0.005,
+        decimation: int = 4,
+        seed: int = 0,
+        device: str = "cpu",
+        num_threads: int | None = None,
+        fixed_base: bool = False,
+        processes: int | None = None,
+        armature: str = "link_inertia",
+    ):
+        """`processes`: worker processes (0 = in this process; None = in-process up to
+        IN_PROCESS_MAX_ENVS environments, else one per CPU core or `num_threads`).
+        `armature`: how MJCF joint armature is carried over ("link_inertia" or "none")."""
+        require_pybullet()
+        super().__init__(
+            robot, designs, terrain=terrain, randomization=randomization, physics_dt=physics_dt,
+            decimation=decimation, seed=seed, device=device, num_threads=num_threads, fixed_base=fixed_base,
+        )
+        if terrain not in self.terrains:
+            raise UserError(f"unknown terrain '{terrain}'; available: {', '.join(self.terrains)}", field="terrain")
+        if not physics_dt > 0:
+            raise UserError(f"physics_dt must be a positive number of seconds, got {physics_dt}", field="physics_dt")
+        if int(decimation) != decimation or decimation < 1:
+            raise UserError(f"decimation must be a whole number >= 1, got {decimation}", field="decimation")
+        if armature not in ARMATURE_MODES:
+            raise UserError(f"armature must be one of {', '.join(ARMATURE_MODES)}, got '{armature}'", field="armature")
+        designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        if designs.shape[0] == 0:
+            raise UserError("a simulator needs at least one design", field="designs")
+        self._spec_cache: dict[tuple[float, ...], EnvSpec] = {}
+        specs = [self._spec(d) for d in designs]
+        self._designs = designs.copy()
+        self._num_joints = len(specs[0].joint_names)
+        self._default_joint_pos = np.stack([s.default_joint_pos for s in specs])  # [N, J]
+        self._rng = np.random.default_rng(seed)
+        self._params = nominal_env_params(len(specs))
+        rand = self.randomization
+        max_delay = rand.delay[1] if rand.enabled else 0.0
+        options = {
+            "terrain": terrain,
+            "terrain_seed": seed,
+            "physics_dt": physics_dt,
+            "decimation": int(decimation),
+            "fixed_base": fixed_base,
+            "max_delay_steps": int(np.rint(max_delay / physics_dt)),
+            "armature": armature,
+        }
+        n = len(specs)
+        if processes is None:
+            processes = 0 if n <= IN_PROCESS_MAX_ENVS else min(num_threads or os.cpu_count() or 1, n)
+        if processes < 0:
+            raise UserError(f"processes must be >= 0, got {processes}", field="processes")
+        self.processes = min(int(processes), n)
+        self._engine = None
+        self._pool = None
+        self._slices = np.array_split(np.arange(n), max(self.processes, 1))
+        if self.processes == 0:
+            from coadapt_plugins.simulators.pybullet.engine import Engine
+
+            self._engine = Engine(specs, **options)
+        else:
+            from coadapt_plugins.simulators.pybullet.workers import WorkerPool
+
+            self._pool = WorkerPool(specs, self._slices, options)
+        self._diverged = np.zeros(n, dtype=bool)
+
+    def _spec(self, design: np.ndarray) -> EnvSpec:
+        from coadapt_plugins.simulators.pybullet.spec import EnvSpec
+
+        key = tuple(float(x) for x in design)
+        if key not in self._spec_cache:
+            model = self.robot.build(np.asarray(design, dtype=float))
+            self._spec_cache[key] = EnvSpec.from_model(model)
+        return self._spec_cache[key]
+
+    # -- sizes ---------------------------------------------------------------------------
+    @property
+    def num_envs(self) -> int:
+        return self._designs.shape[0]
+
+    @property
+    def num_joints(self) -> int:
+        return self._num_joints
+
+    @property
+    def designs(self) -> np.ndarray:
+        return self._designs.copy()
+
+    @property
+    def env_params(self) -> EnvParams:
+        return self._params.take(np.arange(self.num_envs))
+
+    @property
+    def default_joint_pos(self) -> torch.Tensor:
+        import torch
+
+        return torch.as_tensor(self._default_joint_pos, dtype=torch.float32, device=self.device)
+
+    # -- plumbing to the engines ---------------------------------------------------------
+    def _split(self, env_ids: np.ndarray) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+        """{worker: (positions in env_ids, local indices in that worker's slice)}."""
+        out = {}
+        for w, ids in enumerate(self._slices):
+            mask = np.isin(env_ids, ids)
+            if mask.any():
+                out[w] = (np.nonzero(mask)[0], env_ids[mask] - ids[0])
+        return out
+
+    def _gather(self, parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+        return {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
+
+    def _engine_params(self, env_ids: np.ndarray) -> dict[str, np.ndarray]:
+        sub = self._params.take(env_ids)
+        return {
+            "friction": sub.friction,
+            "restitution": sub.restitution,
+            "com_shift": sub.com_shift,
+            "pd_factor": sub.pd_factor,
+            "motor_strength": sub.motor_strength,
+            "delay_steps": sub.delay_steps(self.physics_dt),
+        }
+
+    def _to_state(self, raw: dict[str, np.ndarray]) -> SimState:
+        import torch
+
+        def t(x: np.ndarray, dtype=torch.float32) -> torch.Tensor:
+            return torch.as_tensor(np.ascontiguousarray(x), dtype=dtype, device=self.device)
+
+        xy = raw["base_pos"][:, :2]
+        from coadapt_core.terrain import make_terrain
+
+        terrain_height = make_terrain(self.terrain, seed=self.seed).height_at(xy)
+        return SimState(
+            base_pos=t(raw["base_pos"]),
+            base_quat=t(raw["base_quat"]),
+            base_lin_vel=t(raw["base_lin_vel"]),
+            base_ang_vel=t(raw["base_ang_vel"]),
+            joint_pos=t(raw["joint_pos"]),
+            joint_vel=t(raw["joint_vel"]),
+            joint_torque=t(raw["joint_torque"]),
+            foot_pos=t(raw["foot_pos"]),
+            foot_contact=t(raw["foot_contact"], torch.bool),
+            foot_contact_force=t(raw["foot_contact_force"]),
+            terrain_height=t(terrain_height),
+            diverged=t(self._diverged, torch.bool),
+        )
+
+    def _raw_state(self) -> dict[str, np.ndarray]:
+        if self._engine is not None:
+            return self._engine.get_state()
+        return self._gather(self._pool.call("get_state", [()] * len(self._slices)))
+
+    # -- control -------------------------------------------------------------------------
+    def _ids(self, env_ids: torch.Tensor | np.ndarray | None) -> np.ndarray:
+        if env_ids is None:
+            return np.arange(self.num_envs)
+        if hasattr(env_ids, "detach"):
+            env_ids = env_ids.detach().cpu().numpy()
+        ids = np.asarray(env_ids).reshape(-1)
+        if ids.dtype == bool:
+            ids = np.nonzero(ids)[0]
+        ids = ids.astype(int)
+        if ids.size and (ids.min() < 0 or ids.max() >= self.num_envs):
+            raise UserError(f"env_ids must lie in [0, {self.num_envs - 1}], got {ids.tolist()}", field="env_ids")
+        return ids
+
+    def _reset_engines(self, ids: np.ndarray) -> None:
+        self._params.put(ids, sample_env_params(self.randomization, len(ids), self._rng))
+        if self._engine is not None:
+            self._engine.reset(ids, self._engine_params(ids))
+            return
+        self._pool.call_some(
+            "reset", {w: (local, self._engine_params(ids[pos])) for w, (pos, local) in self._split(ids).items()}
+        )
+
+    def reset(self, env_ids: torch.Tensor | np.ndarray | None = None) -> SimState:
+        ids = self._ids(env_ids)
+        if ids.size:
+            self._reset_engines(ids)
+        self._diverged[:] = False
+        return self._to_state(self._raw_state())
+
+    def step(self, joint_targets: torch.Tensor) -> SimState:
+        if hasattr(joint_targets, "detach"):
+            joint_targets = joint_targets.detach().cpu().numpy()
+        targets = np.asarray(joint_targets, dtype=float)  # [N, J]
+        if targets.shape != (self.num_envs, self.num_joints):
+            raise UserError(
+                f"joint_targets must have shape ({self.num_envs}, {self.num_joints}), got {targets.shape}",
+                field="joint_targets",
+            )
+        if self._engine is not None:
+            raw = self._engine.step(targets)
+        else:
+            raw = self._gather(self._pool.call("step", [(targets[ids],) for ids in self._slices]))
+        diverged = raw.pop("diverged")
+        if diverged.any():
+            # fresh parameters and pose for the broken environments, then the state again
+            self._reset_engines(np.nonzero(diverged)[0])
+            raw = self._raw_state()
+        self._diverged = diverged
+        return self._to_state(raw)
+
+    def set_designs(self, env_ids: torch.Tensor | np.ndarray, designs: np.ndarray) -> None:
+        ids = self._ids(env_ids)
+        designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        if designs.shape[0] != ids.size:
+            raise DesignError(
+                f"set_designs: {ids.size} env_ids but {designs.shape[0]} designs", field="designs"
+            )
+        specs = [self._spec(d) for d in designs]  # validates every design before touching any env
+        if specs and len(specs[0].joint_names) != self._num_joints:
+            raise DesignError("set_designs: the new design has a different number of joints", field="designs")
+        if self._engine is not None:
+            self._engine.set_specs(ids, specs)
+        else:
+            self._pool.call_some(
+                "set_specs",
+                {w: (local, [specs[i] for i in pos]) for w, (pos, local) in self._split(ids).items()},
+            )
+        self._designs[ids] = designs
+        self._default_joint_pos[ids] = np.stack([s.default_joint_pos for s in specs])
+        self._reset_engines(ids)
+
+    def get_state(self) -> SimState:
+        return self._to_state(self._raw_state())
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.close()
+            self._pool = None
+        if self._engine is not None:
+            self._engine.close()
+            self._engine = None
+
+    def __del__(self) -> None:
+        with contextlib.suppress(Exception):
+            self.close()
+
+    # -- introspection for tests and the sim-to-sim check --------------------------------
+    def dynamics_info(self, env_id: int) -> dict[str, object]:
+        """Masses, contact and joint parameters of one environment as PyBullet holds them."""
+        (w,) = [w for w, ids in enumerate(self._slices) if env_id in ids]
+        local = int(env_id - self._slices[w][0])
+        if self._engine is not None:
+            return self._engine.dynamics_info(local)
+        return self._pool.call_some("dynamics_info", {w: (local,)})[w]
+
+    def worker_pids(self) -> list[int]:
+        return [] if self._pool is None else [proc.pid for proc in self._pool.procs]
+
+    def _inject(self, env_ids: np.ndarray, base_velocity: float) -> None:
+        """Test hook: kick bases to an absurd speed to exercise divergence handling."""
+        ids = self._ids(env_ids)
+        if self._engine is not None:
+            self._engine.inject(ids, base_velocity)
+        else:
+            self._pool.call_some("inject", {w: (local, base_velocity) for w, (pos, local) in self._split(ids).items()})
