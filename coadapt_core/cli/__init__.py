@@ -9,7 +9,7 @@ import sys
 import typer
 
 from coadapt_core import __version__
-from coadapt_core.cli import grid, plugins, report, robot, run, train
+from coadapt_core.cli import export, grid, plugins, report, robot, run, train
 from coadapt_core.cli.common import EXIT_USAGE
 from coadapt_core.errors import CoadaptError, PluginError, UserError
 
@@ -41,6 +41,7 @@ app.add_typer(robot.app, name="robot")
 train.register(app)
 grid.register(app)
 report.register(app)
+export.register(app)
 
 
 def main(argv: list[str] | None = None) -> int:

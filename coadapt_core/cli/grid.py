@@ -2,13 +2,100 @@
 
 from __future__ import annotations
 
-import typer
+import json
 
-from coadapt_core.cli.common import not_available
+import typer
 
 
 def register(app: typer.Typer) -> None:
     @app.command("grid")
-    def grid_command() -> None:
-        """Run an ablation grid locally or on a Ray cluster, skipping finished cells."""
-        not_available("grid", "the results store and grids (issue 7)")
+    def grid_command(
+        methods: str = typer.Option("ours,no-surrogate,no-real,no-retrain,bo-specialized", help="Comma list of methods."),
+        objectives: str = typer.Option("tracking,power,torque", help="Comma list of objectives (one cell each)."),
+        terrains: str = typer.Option("flat,slope,random", help="Comma list of terrains."),
+        seeds: str = typer.Option("0,1,2", help="Comma list of integer seeds."),
+        preset: str = typer.Option("quick", help="`coadapt run` preset for every cell."),
+        sim: str = typer.Option("mujoco", help="Simulator for every cell."),
+        optimizer: str = typer.Option(None, help="Optimizer for every cell (default: each method's own)."),
+        executor: str = typer.Option("local", help="local (process pool on this machine) or ray."),
+        address: str = typer.Option(None, help="Ray cluster address (default: start a local Ray instance)."),
+        workers: int = typer.Option(None, help="Cells at once (default: the number of cores)."),
+        store: str = typer.Option(None, "--store", help="Results store: a path or SQLAlchemy URL (default $COADAPT_STORE or ./coadapt.db)."),
+        out: str = typer.Option("runs", "--out", help="Folder for run folders and cell logs."),
+        timeout: float = typer.Option(None, help="Seconds before a cell is killed (default: none)."),
+        dry_run: bool = typer.Option(False, "--dry-run", help="Print the plan (skip / resume / new per cell) and run nothing."),
+        as_json: bool = typer.Option(False, "--json", help="Print a JSON summary as the last line."),
+        run_arg: list[str] = typer.Option(None, "--run-arg", help="Extra argument passed to every `coadapt run` (repeatable), e.g. --run-arg=--device=cuda."),
+    ) -> None:
+        """Run an ablation grid locally or on a Ray cluster, skipping cells the store holds
+        as finished and resuming cells a killed grid left unfinished."""
+        from rich.console import Console
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+        )
+
+        from coadapt_core.results.grid import GridSpec, parse_list, plan_grid, run_grid
+        from coadapt_core.results.store import ResultsStore
+
+        spec = GridSpec(
+            methods=parse_list(methods, "methods"),
+            objectives=parse_list(objectives, "objectives"),
+            terrains=parse_list(terrains, "terrains"),
+            seeds=parse_list(seeds, "seeds", integers=True),
+            preset=preset,
+            sim=sim,
+            optimizer=optimizer,
+            extra_args=list(run_arg or []),
+        )
+        results = ResultsStore(store)
+        console = Console(stderr=True)
+        if dry_run:
+            tasks, skipped = plan_grid(results, spec, out_dir=out)
+            for cell in skipped:
+                print(f"skip    {cell.key}")
+            for task in tasks:
+                print(f"{'resume' if task.resume else 'new':7} {task.cell.key}" + (f" (run {task.resume})" if task.resume else ""))
+            print(f"grid {spec.grid_id}: {len(skipped)} finished, {len(tasks)} to run")
+            return
+        counts = {"finished": 0, "failed": 0, "skipped": 0}
+        cells = spec.cells()
+        with Progress(
+            TextColumn("[bold]grid {task.fields[grid]}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("{task.fields[counts]}"),
+            TimeElapsedColumn(),
+            console=console,
+            transient=False,
+        ) as progress:
+            bar = progress.add_task("grid", total=len(cells), grid=spec.grid_id, counts="")
+
+            def on_event(kind, cell, outcome):
+                if kind == "started":
+                    return
+                counts[kind] += 1
+                progress.update(
+                    bar,
+                    advance=1,
+                    counts=f"done {counts['finished']}  skipped {counts['skipped']}  failed {counts['failed']}",
+                )
+                if kind == "failed":
+                    progress.console.print(f"[red]failed[/red] {cell.key}: {outcome.error}")
+
+            report = run_grid(
+                spec, results, executor=executor, workers=workers, address=address, out_dir=out,
+                timeout=timeout, on_event=on_event,
+            )
+        results.close()
+        console.print(
+            f"grid {report.grid_id}: {len(report.finished)} finished, {len(report.skipped)} skipped "
+            f"(already finished), {len(report.resumed)} resumed, {len(report.failed)} failed"
+        )
+        if as_json:
+            print(json.dumps(report.to_dict()))
+        if report.failed:
+            raise typer.Exit(1)

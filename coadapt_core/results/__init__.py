@@ -1,0 +1,22 @@
+"""Results that last: the results store (SQLite by default), its `RunRecorder`, export,
+ablation grids, reports (Table 6/7 layouts, Fig. 6-style figures) and cost landscapes."""
+
+from coadapt_core.results.recorder import SqliteRecorder
+from coadapt_core.results.store import (
+    DEFAULT_STORE_FILE,
+    ENV_GRID_CELL,
+    ENV_GRID_ID,
+    ENV_STORE,
+    ResultsStore,
+    resolve_store_url,
+)
+
+__all__ = [
+    "DEFAULT_STORE_FILE",
+    "ENV_GRID_CELL",
+    "ENV_GRID_ID",
+    "ENV_STORE",
+    "ResultsStore",
+    "SqliteRecorder",
+    "resolve_store_url",
+]

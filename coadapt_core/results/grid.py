@@ -1,0 +1,422 @@
+"""Ablation grids (method x objective x terrain x seed): expand, skip what the store
+already holds, run each cell as `coadapt run ... --json` in its own process, locally or on
+Ray, and resume what a killed grid left unfinished.
+
+A clean process per cell isolates crashes (a diverging simulation or an out-of-memory kill
+takes one cell down, not the grid) and keeps both executors trivial: they only start
+commands. The cell's run finds the store, grid and cell through environment variables
+(`COADAPT_STORE`, `COADAPT_GRID_ID`, `COADAPT_GRID_CELL`) read by the store's recorder.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from coadapt_core.errors import UserError
+from coadapt_core.results.store import ENV_GRID_CELL, ENV_GRID_ID, ENV_STORE, ResultsStore
+
+#: the methods the paper compares (section 4.4), as `coadapt run --method` names them
+METHODS = ("ours", "no-surrogate", "no-real", "no-retrain", "bo-specialized")
+EXECUTORS = ("local", "ray")
+#: how a cell process starts coadapt when no command is given: the interpreter running the
+#: grid (or the Ray worker), so it works without the console script on PATH
+ENTRY_CODE = "import sys; from coadapt_core.cli import main; sys.exit(main(sys.argv[1:]))"
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One run of the grid."""
+
+    method: str
+    objective: str
+    terrain: str
+    seed: int
+    preset: str
+    sim: str = "mujoco"
+    optimizer: str | None = None  # None: the method's default (the loop picks BO for bo-specialized)
+
+    @property
+    def key(self) -> str:
+        """Stable text key; what the store's `runs.cell` and `grid_cells.cell` hold."""
+        parts = [
+            f"method={self.method}",
+            f"objective={self.objective}",
+            f"terrain={self.terrain}",
+            f"seed={self.seed}",
+            f"preset={self.preset}",
+            f"sim={self.sim}",
+        ]
+        if self.optimizer:
+            parts.append(f"optimizer={self.optimizer}")
+        return "|".join(parts)
+
+    @property
+    def slug(self) -> str:
+        return self.key.replace("|", "_").replace("=", "-").replace(",", "+")
+
+    def run_args(self, *, out_dir: str | None = None, resume: str | None = None, extra: Sequence[str] = ()) -> list[str]:
+        """The `coadapt run` arguments of this cell."""
+        args = [
+            "run",
+            "--method", self.method,
+            "--objective", self.objective,
+            "--terrain", self.terrain,
+            "--seed", str(self.seed),
+            "--preset", self.preset,
+            "--sim", self.sim,
+        ]  # fmt: skip
+        if self.optimizer:
+            args += ["--optimizer", self.optimizer]
+        if out_dir:
+            args += ["--out", out_dir]
+        if resume:
+            args += ["--resume", resume]
+        return [*args, *extra, "--json"]
+
+
+@dataclass
+class GridSpec:
+    """What to run. Every combination of the lists is one cell."""
+
+    methods: list[str]
+    objectives: list[str]
+    terrains: list[str]
+    seeds: list[int]
+    preset: str = "quick"
+    sim: str = "mujoco"
+    optimizer: str | None = None
+    extra_args: list[str] = field(default_factory=list)  # appended to every `coadapt run`
+
+    def __post_init__(self) -> None:
+        for name in ("methods", "objectives", "terrains", "seeds"):
+            values = getattr(self, name)
+            if not values:
+                raise UserError(f"grid --{name} needs at least one value", field=name)
+            if len(set(values)) != len(values):
+                raise UserError(f"grid --{name} lists a value twice: {values}", field=name)
+        unknown = [m for m in self.methods if m not in METHODS]
+        if unknown:
+            raise UserError(f"unknown method '{unknown[0]}'; methods are {', '.join(METHODS)}", field="methods")
+
+    def cells(self) -> list[Cell]:
+        return [
+            Cell(m, o, t, int(s), self.preset, self.sim, self.optimizer)
+            for o in self.objectives
+            for t in self.terrains
+            for m in self.methods
+            for s in self.seeds
+        ]
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> GridSpec:
+        return cls(**data)
+
+    @property
+    def grid_id(self) -> str:
+        """Deterministic: the same grid command names the same grid, so re-running it resumes."""
+        digest = hashlib.sha1(json.dumps(self.to_dict(), sort_keys=True).encode()).hexdigest()[:10]
+        return f"grid-{digest}"
+
+
+@dataclass
+class CellTask:
+    """What an executor runs: one process."""
+
+    cell: Cell
+    argv: list[str]  # `coadapt` arguments
+    env: dict[str, str]  # added to the environment
+    command: list[str] | None  # program prefix; None = this interpreter running coadapt's CLI
+    log_path: str | None
+    timeout: float | None = None
+    resume: str | None = None
+
+
+@dataclass
+class CellOutcome:
+    cell_key: str
+    returncode: int
+    seconds: float
+    result: dict[str, Any] | None  # the JSON line `coadapt run --json` printed last
+    error: str | None  # last lines of stderr when the cell failed
+
+
+@dataclass
+class GridReport:
+    grid_id: str
+    skipped: list[str] = field(default_factory=list)  # finished before this invocation
+    finished: list[str] = field(default_factory=list)
+    failed: list[str] = field(default_factory=list)
+    resumed: list[str] = field(default_factory=list)
+    outcomes: dict[str, CellOutcome] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "grid_id": self.grid_id,
+            "skipped": self.skipped,
+            "finished": self.finished,
+            "failed": self.failed,
+            "resumed": self.resumed,
+            "errors": {k: o.error for k, o in self.outcomes.items() if o.returncode != 0},
+        }
+
+
+def parse_list(text: str, name: str, *, integers: bool = False) -> list[Any]:
+    parts = [p.strip() for p in str(text).split(",") if p.strip()]
+    if not parts:
+        raise UserError(f"--{name} needs a comma-separated list, got '{text}'", field=name)
+    if integers:
+        try:
+            return [int(p) for p in parts]
+        except ValueError:
+            raise UserError(f"--{name} must be comma-separated integers, e.g. 0,1,2; got '{text}'", field=name) from None
+    return parts
+
+
+# -- planning ------------------------------------------------------------------------------
+def finished_run(store: ResultsStore, cell: Cell) -> dict[str, Any] | None:
+    """A finished run of this cell in the store: launched for this cell by any grid, or by
+    hand with the same method, objective, terrain, seed, preset and simulator."""
+    for run in reversed(store.list_runs(cell=cell.key, status="finished")):
+        return run
+    for run in reversed(
+        store.list_runs(
+            method=cell.method,
+            objectives=cell.objective,
+            terrain=cell.terrain,
+            seed=cell.seed,
+            preset=cell.preset,
+            simulator=cell.sim,
+            status="finished",
+        )
+    ):
+        if cell.optimizer is None or run["optimizer"] in (None, cell.optimizer):
+            return run
+    return None
+
+
+def unfinished_run(store: ResultsStore, cell: Cell) -> dict[str, Any] | None:
+    """The latest run a grid started for this cell that did not finish (killed, crashed)
+    and whose run folder still exists, so `coadapt run --resume` can continue it."""
+    for run in reversed(store.list_runs(cell=cell.key)):
+        if run["status"] == "finished":
+            return None
+        if run["run_dir"] and not Path(run["run_dir"]).exists():
+            return None  # nothing to resume from; start afresh
+        return run
+    return None
+
+
+def plan_grid(
+    store: ResultsStore,
+    spec: GridSpec,
+    *,
+    out_dir: str | None = None,
+    command: Sequence[str] | None = None,
+    timeout: float | None = None,
+    log_dir: str | os.PathLike | None = None,
+) -> tuple[list[CellTask], list[Cell]]:
+    """(tasks to run, cells already finished)."""
+    grid_id = spec.grid_id
+    tasks: list[CellTask] = []
+    skipped: list[Cell] = []
+    for cell in spec.cells():
+        if finished_run(store, cell) is not None:
+            skipped.append(cell)
+            continue
+        previous = unfinished_run(store, cell)
+        resume = previous["id"] if previous is not None else None
+        env = {ENV_STORE: store.url, ENV_GRID_ID: grid_id, ENV_GRID_CELL: cell.key}
+        log_path = None if log_dir is None else str(Path(log_dir) / f"{cell.slug}.log")
+        tasks.append(
+            CellTask(
+                cell=cell,
+                argv=cell.run_args(out_dir=out_dir, resume=resume, extra=spec.extra_args),
+                env=env,
+                command=list(command) if command is not None else None,
+                log_path=log_path,
+                timeout=timeout,
+                resume=resume,
+            )
+        )
+    return tasks, skipped
+
+
+# -- executing one cell -----------------------------------------------------------------------
+def execute_cell(task: CellTask) -> CellOutcome:
+    """Run one cell's process to the end (module level, so Ray can ship it to a worker)."""
+    prefix = task.command if task.command is not None else [sys.executable, "-c", ENTRY_CODE]
+    env = {**os.environ, **task.env}
+    start = time.perf_counter()
+    try:
+        proc = subprocess.run(
+            [*prefix, *task.argv], capture_output=True, text=True, env=env, timeout=task.timeout
+        )
+        returncode, stdout, stderr = proc.returncode, proc.stdout, proc.stderr
+    except subprocess.TimeoutExpired as exc:
+        returncode = 124
+        stdout = exc.stdout.decode() if isinstance(exc.stdout, bytes) else (exc.stdout or "")
+        stderr = (exc.stderr.decode() if isinstance(exc.stderr, bytes) else (exc.stderr or "")) + (
+            f"\ncell timed out after {task.timeout:g} s"
+        )
+    except OSError as exc:
+        returncode, stdout, stderr = 127, "", f"cannot start {prefix[0]}: {exc}"
+    seconds = time.perf_counter() - start
+    if task.log_path:
+        path = Path(task.log_path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with path.open("a") as fh:
+            fh.write(f"$ {' '.join([*prefix[:1], *task.argv])}\n{stdout}\n--- stderr ---\n{stderr}\n")
+    result = None
+    for line in reversed(stdout.strip().splitlines()):
+        line = line.strip()
+        if line.startswith("{"):
+            try:
+                result = json.loads(line)
+            except json.JSONDecodeError:
+                result = None
+            break
+    error = None
+    if returncode != 0:
+        tail = [ln for ln in stderr.strip().splitlines() if ln.strip()][-5:]
+        error = " | ".join(tail) or f"exit code {returncode}"
+    return CellOutcome(task.cell.key, returncode, seconds, result, error)
+
+
+# -- executors -----------------------------------------------------------------------------
+def local_executor(tasks: Sequence[CellTask], workers: int) -> Iterator[tuple[CellTask, CellOutcome]]:
+    """A pool of `workers` cell processes on this machine (threads only wait on them)."""
+    with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
+        futures = {pool.submit(execute_cell, t): t for t in tasks}
+        for future in as_completed(futures):
+            yield futures[future], future.result()
+
+
+def ray_executor(
+    tasks: Sequence[CellTask], workers: int, address: str | None = None
+) -> Iterator[tuple[CellTask, CellOutcome]]:
+    """One Ray task (1 CPU) per cell: on a cluster at `address`, else a local Ray instance
+    with `workers` CPUs. Cells on other nodes need a store they can reach (PostgreSQL, or
+    SQLite on a shared filesystem)."""
+    try:
+        import ray
+    except ImportError:
+        raise UserError(
+            "--executor ray needs Ray: pip install 'coadapt[ray]' (or use --executor local)", field="executor"
+        ) from None
+    started_here = False
+    if not ray.is_initialized():
+        kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
+        if address:
+            kwargs["address"] = address
+        else:
+            kwargs["num_cpus"] = max(1, workers)
+        try:
+            ray.init(**kwargs)
+        except Exception as exc:  # a bad address or an unreachable cluster
+            raise UserError(f"cannot connect to Ray at '{address or 'local'}': {exc}", field="address") from None
+        started_here = True
+    try:
+        remote = ray.remote(num_cpus=1, max_retries=0)(execute_cell)
+        pending = {remote.remote(t): t for t in tasks}
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1)
+            ref = done[0]
+            task = pending.pop(ref)
+            try:
+                outcome = ray.get(ref)
+            except Exception as exc:  # the worker died (node lost, OOM kill)
+                outcome = CellOutcome(task.cell.key, 1, 0.0, None, f"ray task failed: {exc}")
+            yield task, outcome
+    finally:
+        if started_here:
+            ray.shutdown()
+
+
+Executor = Callable[[Sequence[CellTask], int], Iterator[tuple[CellTask, CellOutcome]]]
+
+
+def default_workers(executor: str) -> int:
+    return max(1, os.cpu_count() or 1)
+
+
+def run_grid(
+    spec: GridSpec,
+    store: ResultsStore,
+    *,
+    executor: str = "local",
+    workers: int | None = None,
+    address: str | None = None,
+    out_dir: str | None = "runs",
+    command: Sequence[str] | None = None,
+    timeout: float | None = None,
+    log_dir: str | os.PathLike | None = None,
+    on_event: Callable[[str, Cell, CellOutcome | None], None] | None = None,
+) -> GridReport:
+    """Run every cell the store does not already hold as finished; returns what happened.
+    `on_event(kind, cell, outcome)` reports "skipped", "started", "finished", "failed"."""
+    if executor not in EXECUTORS:
+        raise UserError(f"executor '{executor}' is not one of {', '.join(EXECUTORS)}", field="executor")
+    if workers is not None and workers < 1:
+        raise UserError(f"--workers must be >= 1, got {workers}", field="workers")
+    workers = workers or default_workers(executor)
+    grid_id = spec.grid_id
+    store.save_grid(grid_id, spec.to_dict())
+    if log_dir is None and out_dir is not None:
+        log_dir = Path(out_dir) / "grid-logs" / grid_id
+    tasks, skipped = plan_grid(store, spec, out_dir=out_dir, command=command, timeout=timeout, log_dir=log_dir)
+    report = GridReport(grid_id)
+    for cell in skipped:
+        run = finished_run(store, cell)
+        store.set_cell(grid_id, cell.key, status="finished", run_id=run["id"] if run else None)
+        report.skipped.append(cell.key)
+        if on_event:
+            on_event("skipped", cell, None)
+    for task in tasks:
+        store.set_cell(grid_id, task.cell.key, status="running", run_id=task.resume, attempt=True)
+        if task.resume:
+            report.resumed.append(task.cell.key)
+        if on_event:
+            on_event("started", task.cell, None)
+    if not tasks:
+        return report
+    # threads per cell: share the cores between the cells running at once
+    threads = str(max(1, (os.cpu_count() or 1) // min(workers, len(tasks))))
+    for task in tasks:
+        task.env.setdefault("OMP_NUM_THREADS", os.environ.get("OMP_NUM_THREADS", threads))
+    if executor == "local":
+        stream = local_executor(tasks, workers)
+    else:
+        stream = ray_executor(tasks, workers, address)
+    for task, outcome in stream:
+        key = task.cell.key
+        report.outcomes[key] = outcome
+        run_id = (outcome.result or {}).get("run_id")
+        if run_id is None:
+            started = store.list_runs(cell=key)
+            run_id = started[-1]["id"] if started else None
+        if outcome.returncode == 0:
+            store.set_cell(grid_id, key, status="finished", run_id=run_id)
+            report.finished.append(key)
+        else:
+            store.set_cell(grid_id, key, status="failed", run_id=run_id, error=outcome.error)
+            if run_id is not None:
+                run = store.get_run(run_id)
+                if run["status"] == "running":  # the process died without saying so
+                    store.set_status(run_id, "interrupted")
+            report.failed.append(key)
+        if on_event:
+            on_event("finished" if outcome.returncode == 0 else "failed", task.cell, outcome)
+    return report

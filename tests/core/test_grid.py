@@ -1,0 +1,190 @@
+"""`coadapt grid`: expansion, skipping finished cells, resuming a killed grid, the local and
+Ray executors. Cells run a small fake `coadapt run` (this file run as a script) that records
+through the real `SqliteRecorder`, so the store sees what a real run writes."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from coadapt_core.errors import UserError
+from coadapt_core.results import ResultsStore
+from coadapt_core.results.grid import GridSpec, plan_grid, run_grid
+
+FAKE_RUN = [sys.executable, str(Path(__file__).resolve())]
+OPTIMUM = {"torque": (0.5, 0.5), "tracking": (1.4, 1.1), "power": (1.3, 1.3)}
+
+
+def fake_run(argv: list[str]) -> int:
+    """A stand-in for `coadapt run ... --json`: 2 outer x 2 inner batches of 3 real
+    evaluations of an analytic cost; saves its position after every batch in its run folder
+    and continues from it with --resume, like the real loop. FAKE_CRASH_AT=<cell>:<n> makes
+    the cell die after n evaluations (once: a marker file records it)."""
+    from coadapt_core.fitness import TrainingResult
+    from coadapt_core.results import SqliteRecorder
+
+    p = argparse.ArgumentParser()
+    for opt in ("--method", "--objective", "--terrain", "--preset", "--sim", "--out", "--resume", "--optimizer"):
+        p.add_argument(opt)
+    p.add_argument("--seed", type=int)
+    p.add_argument("--json", action="store_true")
+    args = p.parse_args(argv[1:])  # argv[0] == "run"
+    rec = SqliteRecorder(None)  # $COADAPT_STORE, as the real factory does
+    config = {k: v for k, v in vars(args).items() if k not in ("json", "resume", "out")}
+    if args.resume:
+        config["run_id"] = args.resume
+    run_id = rec.start_run(config)
+    run_dir = Path(args.out) / run_id
+    run_dir.mkdir(parents=True, exist_ok=True)
+    rec.store.create_run(config, run_id=run_id, run_dir=str(run_dir))
+    state_file = run_dir / "state.json"
+    done = json.loads(state_file.read_text())["done"] if state_file.exists() else 0
+    crash = os.environ.get("FAKE_CRASH_AT", "")
+    crash_cell, _, crash_n = crash.rpartition(":")
+    marker = run_dir / "crashed"
+    rng = np.random.default_rng(args.seed)
+    opt = np.array(OPTIMUM[args.objective])
+    count = 0
+    best = (np.inf, None)
+    for b in range(4):
+        outer, inner = divmod(b, 2)
+        designs = opt + rng.normal(0.0, 0.3 / (b + 1), size=(3, 2))
+        if b < done:
+            continue
+        if inner == 0:
+            rec.record_training(run_id, outer=outer, result=TrainingResult(steps=2000, seconds=0.5, mean_reward=0.1 * b))
+        for d in designs:
+            cost = float(((d - opt) ** 2).sum())
+            rec.record_evaluation(run_id, outer=outer, inner=inner, design=d, costs={args.objective: cost},
+                                  kind="real", interactions=300, seconds=0.01)
+            count += 1
+            if crash_cell == os.environ.get("COADAPT_GRID_CELL") and count == int(crash_n or 0) and not marker.exists():
+                marker.write_text("x")
+                os._exit(9)
+        state_file.write_text(json.dumps({"done": b + 1}))
+    real = rec.store.evaluations(run_id, kind="real")
+    i = int(np.argmin([e.costs[args.objective] for e in real]))
+    best = (real[i].costs[args.objective], real[i].design)
+    summary = {"run_id": run_id, "best_design": best[1], "best_cost": best[0], "nominal_cost": float(((1 - opt) ** 2).sum()),
+               "improvement": 0.5, "interactions": 300 * len(real) + 4000, "seconds": 0.1}
+    rec.finish(run_id, summary)
+    print("fake run done")
+    print(json.dumps(summary))
+    return 0
+
+
+def _spec(**kw) -> GridSpec:
+    base = {"methods": ["ours", "no-surrogate"], "objectives": ["torque"], "terrains": ["flat"], "seeds": [0],
+            "preset": "smoke"}
+    base.update(kw)
+    return GridSpec(**base)
+
+
+def test_grid_expands_every_combination():
+    spec = GridSpec(methods=["ours", "no-surrogate", "no-real", "no-retrain", "bo-specialized"],
+                    objectives=["tracking", "power", "torque"], terrains=["flat", "slope", "random"], seeds=[0, 1, 2])
+    cells = spec.cells()
+    assert len(cells) == 5 * 3 * 3 * 3 == len({c.key for c in cells})
+    argv = cells[0].run_args(out_dir="runs")
+    assert argv[:2] == ["run", "--method"] and argv[-1] == "--json" and "--out" in argv
+    assert spec.grid_id == GridSpec.from_dict(spec.to_dict()).grid_id  # same grid, same id
+
+
+@pytest.mark.parametrize(("field", "value", "message"), [
+    ("methods", ["ours", "sgd"], "unknown method 'sgd'"),
+    ("seeds", [], "at least one value"),
+    ("terrains", ["flat", "flat"], "twice"),
+])
+def test_bad_grid_is_one_clear_error(field, value, message):
+    with pytest.raises(UserError, match=message):
+        _spec(**{field: value})
+
+
+def test_local_grid_runs_cells_then_skips_them(tmp_path):
+    store = ResultsStore(tmp_path / "g.db")
+    spec = _spec(seeds=[0, 1])
+    report = run_grid(spec, store, workers=2, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
+    assert sorted(report.finished) == sorted(c.key for c in spec.cells()) and not report.failed
+    runs = store.list_runs(grid_id=spec.grid_id)
+    assert len(runs) == 4 and {r["status"] for r in runs} == {"finished"}
+    assert all(store.count_evaluations(r["id"]) == 12 for r in runs)
+    assert {r["cell"] for r in runs} == {c.key for c in spec.cells()}
+    assert {c["status"] for c in store.cells(spec.grid_id).values()} == {"finished"}
+    # the same grid again: nothing to run
+    again = run_grid(spec, store, workers=2, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
+    assert sorted(again.skipped) == sorted(report.finished) and not again.finished
+    assert len(store.list_runs()) == 4
+    # a bigger grid runs only the new cells
+    bigger = _spec(seeds=[0, 1, 2])
+    third = run_grid(bigger, store, workers=2, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
+    assert len(third.skipped) == 4 and len(third.finished) == 2
+
+
+def test_killed_cell_is_resumed_without_losing_or_duplicating_evaluations(tmp_path, monkeypatch):
+    store = ResultsStore(tmp_path / "g.db")
+    spec = _spec(methods=["ours"])
+    (cell,) = spec.cells()
+    monkeypatch.setenv("FAKE_CRASH_AT", f"{cell.key}:5")  # dies in the middle of batch 1 (3 + 2)
+    first = run_grid(spec, store, workers=1, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
+    assert first.failed == [cell.key]
+    (run,) = store.list_runs(cell=cell.key)
+    assert run["status"] == "interrupted" and store.count_evaluations(run["id"]) == 5
+    assert store.cells(spec.grid_id)[cell.key]["status"] == "failed"
+    tasks, skipped = plan_grid(store, spec, out_dir=str(tmp_path / "runs"))
+    assert not skipped and tasks[0].resume == run["id"] and tasks[0].argv[-3:] == ["--resume", run["id"], "--json"]
+
+    second = run_grid(spec, store, workers=1, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
+    assert second.finished == [cell.key] and second.resumed == [cell.key]
+    (resumed,) = store.list_runs(cell=cell.key)  # the same run, continued
+    assert resumed["id"] == run["id"] and resumed["status"] == "finished"
+    rows = store.evaluations(run["id"])
+    assert len(rows) == 12  # batch 1 redone: its 2 early rows replaced, not duplicated
+    assert len({(e.outer, e.inner, e.idx) for e in rows}) == 12
+    assert store.cells(spec.grid_id)[cell.key]["attempts"] == 2
+
+
+def test_cell_that_cannot_start_is_reported_failed(tmp_path):
+    store = ResultsStore(tmp_path / "g.db")
+    report = run_grid(_spec(methods=["ours"]), store, out_dir=str(tmp_path / "runs"),
+                      command=[sys.executable, "-c", "import sys; print('boom', file=sys.stderr); sys.exit(3)"])
+    assert len(report.failed) == 1
+    assert "boom" in report.outcomes[report.failed[0]].error
+
+
+def test_grid_cli_dry_run_and_bad_input(tmp_path):
+    from tests.conftest import run_cli
+
+    proc = run_cli("grid", "--methods", "ours,no-real", "--objectives", "torque", "--terrains", "flat,slope",
+                   "--seeds", "0", "--preset", "smoke", "--store", str(tmp_path / "g.db"), "--dry-run")
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.strip().splitlines()
+    assert sum(line.startswith("new") for line in lines) == 4 and lines[-1].endswith("0 finished, 4 to run")
+    bad = run_cli("grid", "--seeds", "0,x", "--store", str(tmp_path / "g.db"))
+    assert bad.returncode == 2 and bad.stderr.strip() == "error: --seeds must be comma-separated integers, e.g. 0,1,2; got '0,x'"
+
+
+@pytest.mark.slow
+def test_ray_executor_runs_a_two_cell_grid(tmp_path):
+    ray = pytest.importorskip("ray", reason="Ray is not installed (pip install 'coadapt[ray]')")
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        store = ResultsStore(tmp_path / "ray.db")
+        spec = _spec()
+        start = time.perf_counter()
+        report = run_grid(spec, store, executor="ray", out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
+        print(f"ray grid of 2 cells: {time.perf_counter() - start:.1f} s")
+        assert sorted(report.finished) == sorted(c.key for c in spec.cells()) and not report.failed
+        assert all(store.count_evaluations(r["id"]) == 12 for r in store.list_runs(grid_id=spec.grid_id))
+    finally:
+        ray.shutdown()
+
+
+if __name__ == "__main__":  # the fake `coadapt run` the grid starts in these tests
+    sys.exit(fake_run(sys.argv[1:]))
