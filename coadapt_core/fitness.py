@@ -25,6 +25,9 @@ class TrainingResult:
     seconds: float
     mean_reward: float  # mean per-step reward over the last iteration
     extra: dict[str, float] = field(default_factory=dict)
+    # optional evaluation buffer R_eval filled from the training rollouts (states the
+    # surrogate can average over); lets `--method no-real` run with 0 evaluation interactions
+    buffer: Any = None
 
 
 @dataclass

@@ -1,0 +1,228 @@
+"""The co-adaptation run's settings: one documented dataclass (CleanRL style), presets, YAML
+files and validation. Precedence: CLI option > YAML key > preset > dataclass default."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any
+
+from coadapt_core.errors import UserError
+from coadapt_core.simulator import TERRAINS
+
+#: --method choices; see `METHOD_SWITCHES` in coadapt_core/coadapt/loop.py
+METHODS: tuple[str, ...] = ("ours", "no-surrogate", "no-real", "no-retrain", "bo-specialized")
+
+
+@dataclass
+class CoadaptConfig:
+    """Every setting of `coadapt run`. Each field is a CLI option (`--outer-iterations`) and
+    a YAML key (`outer_iterations`)."""
+
+    # -- what to co-adapt ------------------------------------------------------------------
+    robot: str = "kuafu"  # robot plugin
+    sim: str = "mujoco"  # simulator plugin
+    optimizer: str = "pso"  # optimizer plugin; mixed-pso switches to the mixed design space
+    objective: str = "torque"  # objective plugin, or a comma list of 2-3 for nsga2
+    objective_weights: str = ""  # composite weights 'tracking=1,power=1,torque=1' (default all 1)
+    terrain: str = "flat"  # flat | slope | random
+    method: str = "ours"  # ours | no-surrogate | no-real | no-retrain | bo-specialized
+    mixed: bool = False  # add the robot's discrete variables (motor types); implied by mixed-pso
+    design_ranges: str = ""  # initial range 'low:high,...' per continuous variable (default full)
+    seed: int = 0
+    # -- Algorithm 4 -------------------------------------------------------------------------
+    outer_iterations: int = 3  # N: train / optimise / narrow rounds
+    population: int = 100  # K: designs sampled for training = particles of the swarm
+    optimizer_iterations: int = 5  # J: optimizer ask/tell rounds per outer iteration
+    evaluation_probability: float = 0.5  # w: probability of surrogate (not real) evaluation
+    agents_per_design: int = 50  # parallel agents per design in training and real evaluation
+    train_steps: int = 24_000_000  # environment interactions of the first training phase
+    retrain_steps: int = 24_000_000  # environment interactions of each later (re)training
+    eval_steps: int = 800  # T_eval: policy steps per agent in a real evaluation (Alg. 2)
+    surrogate_samples: int = 4096  # T_eval states drawn from R_eval by the surrogate (Alg. 3)
+    measure_surrogate_error: bool = True  # also run the surrogate on every real batch (no interactions)
+    # -- optimizer -----------------------------------------------------------------------------
+    inertia: float = 0.9  # PSO momentum w
+    c1: float = 2.0  # PSO cognitive impact
+    c2: float = 2.0  # PSO social impact
+    bo_sampler: str = "tpe"  # tpe | gp
+    bo_storage: str = ""  # optuna storage URL for the BO study (default in memory)
+    # -- narrowing (Algorithm 4 line 22) -----------------------------------------------------
+    narrow_margin: float = 0.25  # widen the particles' span by this fraction on each side
+    narrow_min_width: float = 0.1  # ... to at least this fraction of the full range
+    # -- BO with specialised policies (Table 7 baseline) -------------------------------------
+    bo_designs: int = 20  # designs BO proposes, each trained from scratch
+    specialized_train_steps: int = 10_000_000  # interactions per specialised policy
+    # -- infrastructure ----------------------------------------------------------------------
+    checkpoint: str = ""  # universal policy to start from ('' = the shipped one if any, 'none' = scratch)
+    device: str = "cpu"  # torch device of the learner
+    out: str = "runs"  # parent folder of run folders
+    store: str = ""  # results store URL (empty: JSON files in the run folder only)
+    preset: str = "quick"  # the preset this config started from (recorded)
+
+    # -----------------------------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    @property
+    def objectives(self) -> list[str]:
+        return [o.strip() for o in self.objective.split(",") if o.strip()]
+
+    def validate(self) -> CoadaptConfig:
+        """Raise `UserError` (one line naming the field and what is accepted) on a bad value."""
+        if self.method not in METHODS:
+            raise UserError(f"method '{self.method}' is not one of {', '.join(METHODS)}", field="method")
+        if self.terrain not in TERRAINS:
+            raise UserError(f"terrain '{self.terrain}' is not one of {', '.join(TERRAINS)}", field="terrain")
+        if not self.objectives:
+            raise UserError("objective must name at least one objective", field="objective")
+        if len(set(self.objectives)) != len(self.objectives):
+            raise UserError(f"objective list '{self.objective}' repeats a name", field="objective")
+        for name in ("outer_iterations", "population", "optimizer_iterations", "agents_per_design", "eval_steps", "surrogate_samples", "bo_designs"):
+            _int_at_least(name, getattr(self, name), 1)
+        for name in ("train_steps", "retrain_steps", "specialized_train_steps", "seed"):
+            _int_at_least(name, getattr(self, name), 0)
+        p = self.evaluation_probability
+        if not isinstance(p, int | float) or not (0.0 <= p <= 1.0):
+            raise UserError(
+                f"evaluation_probability must be a probability in [0, 1], got {p}", field="evaluation_probability"
+            )
+        for name in ("inertia", "c1", "c2", "narrow_margin"):
+            _finite_at_least(name, getattr(self, name), 0.0)
+        if not (0.0 < self.narrow_min_width <= 1.0):
+            raise UserError(
+                f"narrow_min_width must be in (0, 1] (a fraction of the full range), got {self.narrow_min_width}",
+                field="narrow_min_width",
+            )
+        if self.bo_sampler not in ("tpe", "gp"):
+            raise UserError(f"bo_sampler '{self.bo_sampler}' is not one of tpe, gp", field="bo_sampler")
+        parse_ranges(self.design_ranges)
+        if self.objective_weights:
+            from coadapt_plugins.objectives.locomotion import parse_weights
+
+            parse_weights(self.objective_weights)
+        return self
+
+
+def _int_at_least(name: str, value: Any, low: int) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or value < low:
+        raise UserError(f"{name} must be an integer >= {low}, got {value!r}", field=name)
+
+
+def _finite_at_least(name: str, value: Any, low: float) -> None:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value < low:
+        raise UserError(f"{name} must be a finite number >= {low:g}, got {value!r}", field=name)
+
+
+def parse_ranges(text: str) -> list[tuple[float, float]]:
+    """'0.5:1.5,0.6:1.2' -> [(0.5, 1.5), (0.6, 1.2)]; inverted or malformed ranges are user errors."""
+    out = []
+    for part in [p.strip() for p in str(text).split(",") if p.strip()]:
+        try:
+            lo_s, hi_s = part.split(":")
+            lo, hi = float(lo_s), float(hi_s)
+        except ValueError:
+            raise UserError(
+                f"design range '{part}' must look like low:high, e.g. 0.5:1.5", field="design_ranges"
+            ) from None
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            raise UserError(f"design range '{part}' must have finite bounds", field="design_ranges")
+        if lo > hi:
+            raise UserError(
+                f"design range '{part}' has inverted bounds; the lower bound must not exceed the upper",
+                field="design_ranges",
+            )
+        out.append((lo, hi))
+    return out
+
+
+#: presets: only the fields that differ from the dataclass defaults (which are the paper's)
+PRESETS: dict[str, dict[str, Any]] = {
+    # seconds on a laptop: for tests and for checking that everything is wired
+    "smoke": dict(
+        outer_iterations=2, population=4, optimizer_iterations=2, agents_per_design=2,
+        train_steps=2048, retrain_steps=1024, eval_steps=20, surrogate_samples=64,
+        bo_designs=2, specialized_train_steps=1024,
+    ),
+    # meaningful on a 2-core laptop in <= 30 min, starting from the shipped universal policy
+    "quick": dict(
+        outer_iterations=3, population=16, optimizer_iterations=4, agents_per_design=4,
+        train_steps=150_000, retrain_steps=60_000, eval_steps=150, surrogate_samples=1024,
+        bo_designs=6, specialized_train_steps=100_000,
+    ),
+    # section 4.1.3: N = 3, K = 100, J = 5, 50 agents, w = 0.5, inertia 0.9, c1 = c2 = 2
+    "paper": dict(
+        outer_iterations=3, population=100, optimizer_iterations=5, agents_per_design=50,
+        evaluation_probability=0.5, inertia=0.9, c1=2.0, c2=2.0,
+        train_steps=24_000_000, retrain_steps=24_000_000, eval_steps=800, bo_designs=20,
+        specialized_train_steps=10_000_000,
+    ),
+}
+
+FIELD_NAMES = tuple(f.name for f in fields(CoadaptConfig))
+
+
+def _coerce(name: str, value: Any) -> Any:
+    """YAML gives ints for floats and strings for anything quoted: bring values to the field's type."""
+    kind = {f.name: f.type for f in fields(CoadaptConfig)}[name]
+    if value is None:
+        raise UserError(f"config key '{name}' has no value", field=name)
+    try:
+        if kind == "float" and not isinstance(value, bool):
+            return float(value)
+        if kind == "int" and isinstance(value, str):
+            return int(value.replace("_", ""))
+        if kind == "str":
+            if isinstance(value, list | tuple):  # objective: [power, torque]
+                return ",".join(str(v) for v in value)
+            return str(value)
+    except ValueError:
+        raise UserError(f"config key '{name}' must be a {kind}, got {value!r}", field=name) from None
+    return value
+
+
+def load_yaml(path: str | Path) -> dict[str, Any]:
+    import yaml
+
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"config file '{path}' does not exist", field="config")
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as exc:
+        raise UserError(f"config file '{path}' is not valid YAML: {str(exc).splitlines()[0]}", field="config") from None
+    if not isinstance(data, dict):
+        raise UserError(f"config file '{path}' must hold a mapping of config keys", field="config")
+    return {str(k).replace("-", "_"): v for k, v in data.items()}
+
+
+def make_config(
+    preset: str | None = None, yaml_file: str | Path | None = None, overrides: dict[str, Any] | None = None
+) -> CoadaptConfig:
+    """Preset, then YAML keys, then overrides (CLI options that were given), validated."""
+    yaml_values = load_yaml(yaml_file) if yaml_file else {}
+    overrides = {k: v for k, v in (overrides or {}).items() if v is not None}
+    preset = preset or overrides.get("preset") or yaml_values.get("preset") or "quick"
+    if preset not in PRESETS:
+        raise UserError(f"preset '{preset}' is not one of {', '.join(PRESETS)}", field="preset")
+    values: dict[str, Any] = {**PRESETS[preset], "preset": preset}
+    for source, label in ((yaml_values, "config file"), (overrides, "option")):
+        for key, value in source.items():
+            if key not in FIELD_NAMES:
+                raise UserError(
+                    f"unknown {label} key '{key}'; accepted keys: {', '.join(FIELD_NAMES)}", field=key
+                )
+            values[key] = _coerce(key, value)
+    values["preset"] = preset
+    return CoadaptConfig(**values).validate()
+
+
+def config_from_dict(data: dict[str, Any]) -> CoadaptConfig:
+    """Rebuild a recorded config (e.g. from a run folder's config.yaml)."""
+    known = {k: _coerce(k, v) for k, v in data.items() if k in FIELD_NAMES}
+    return CoadaptConfig(**known).validate()
+
+
+__all__ = ["FIELD_NAMES", "METHODS", "PRESETS", "CoadaptConfig", "config_from_dict", "make_config", "parse_ranges"]

@@ -1,0 +1,555 @@
+"""Algorithm 4, design co-adaptation, end to end: sample designs from the current range,
+(re)train the universal policy and pseudo-critics on them, run the optimizer with hybrid
+real/surrogate fitness, narrow the range around the final particles; finally re-evaluate the
+best design and the nominal one for real.
+
+One code path serves every method of the paper's comparison through `MethodSwitches`. The
+loop's whole state is pickled into the run folder after every training phase and every
+evaluation batch, so `run_coadaptation(..., resume=run_dir)` continues where it stopped.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from coadapt_core.coadapt.config import CoadaptConfig, config_from_dict
+from coadapt_core.coadapt.recorders import make_recorder
+from coadapt_core.design_space import DesignSpace
+from coadapt_core.errors import UserError
+from coadapt_core.fitness import CoadaptationBackend, RunRecorder
+from coadapt_core.objective import Objective
+from coadapt_core.optimizer import Optimizer
+
+STATE_FILE = "state.pkl"
+
+
+@dataclass(frozen=True)
+class MethodSwitches:
+    """What distinguishes the methods of the paper's Tables 6-7."""
+
+    retrain: bool = True  # retrain the universal policy every outer iteration on the new range
+    narrow: bool = True  # narrow the range around the final particles
+    surrogate_probability: float | None = None  # None: the config's w; else forced
+    specialized: bool = False  # a policy trained from scratch per proposed design (BO baseline)
+    optimizer: str | None = None  # forced optimizer
+
+
+METHOD_SWITCHES: dict[str, MethodSwitches] = {
+    "ours": MethodSwitches(),
+    "no-surrogate": MethodSwitches(surrogate_probability=0.0),
+    "no-real": MethodSwitches(surrogate_probability=1.0),
+    # one universal policy over the full range, trained once; N*J real-only rounds, one swarm
+    "no-retrain": MethodSwitches(retrain=False, narrow=False, surrogate_probability=0.0),
+    "bo-specialized": MethodSwitches(retrain=False, narrow=False, surrogate_probability=0.0, specialized=True, optimizer="bo"),
+}
+
+
+@dataclass
+class LoopState:
+    """Everything needed to continue a run; pickled atomically to `<run_dir>/state.pkl`."""
+
+    run_id: str
+    config: dict[str, Any]
+    phase: str = "train"  # train | optimize | final | done
+    outer: int = 0
+    inner: int = 0
+    space: dict | None = None  # current design range (DesignSpace.to_dict)
+    train_designs: np.ndarray | None = None  # [K, dim] designs of this outer iteration
+    optimizer: Optimizer | None = None
+    buffer: Any = None  # evaluation buffer R_eval
+    buffer_outer: int = -1  # outer iteration whose policy filled the buffer
+    rng_state: dict | None = None  # numpy Generator of sampling and the hybrid switch
+    torch_rng_state: Any = None
+    backend_checkpoint: str | None = None
+    best_real: tuple[list[float], float] | None = None  # (design, cost) lowest real cost seen
+    best_any: tuple[list[float], float, str] | None = None  # lowest cost of any kind
+    counters: dict[str, float] = field(default_factory=lambda: {
+        "train_interactions": 0, "eval_interactions": 0, "final_interactions": 0,
+        "train_seconds": 0.0, "eval_seconds": 0.0, "surrogate_seconds": 0.0, "final_seconds": 0.0,
+        "real_evaluations": 0, "surrogate_evaluations": 0, "designs_evaluated": 0,
+    })
+    batches: list[dict[str, Any]] = field(default_factory=list)  # one summary per evaluation batch
+    spaces: list[dict] = field(default_factory=list)  # the range of each outer iteration
+    elapsed: float = 0.0  # wall-clock seconds spent before the current process
+    summary: dict[str, Any] | None = None
+
+
+@dataclass
+class CoadaptResult:
+    run_id: str
+    run_dir: Path
+    summary: dict[str, Any]
+
+    def json_line(self) -> dict[str, Any]:
+        s = self.summary
+        return {k: s[k] for k in ("run_id", "best_design", "best_cost", "nominal_cost", "improvement", "interactions", "seconds")}
+
+
+ProgressFn = Callable[[dict[str, Any]], None]
+
+
+# ------------------------------------------------------------------------------------------
+def save_state(run_dir: Path, state: LoopState) -> None:
+    if "torch" in sys.modules:  # the learner's RNG; never import torch just for this
+        state.torch_rng_state = sys.modules["torch"].get_rng_state()
+    tmp = run_dir / (STATE_FILE + ".tmp")
+    with open(tmp, "wb") as f:
+        pickle.dump(state, f)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, run_dir / STATE_FILE)
+
+
+def load_state(run_dir: Path) -> LoopState:
+    path = run_dir / STATE_FILE
+    if not path.is_file():
+        raise UserError(f"cannot resume: '{run_dir}' has no {STATE_FILE} (not a run folder, or it never started)", field="resume")
+    with open(path, "rb") as f:
+        state = pickle.load(f)
+    if state.torch_rng_state is not None:
+        import torch
+
+        torch.set_rng_state(state.torch_rng_state)
+    return state
+
+
+def _split(total: float, n: int) -> list[float]:
+    """Share a batch's cost among its n designs (integers stay integers and sum exactly)."""
+    if isinstance(total, int):
+        base, rest = divmod(total, n)
+        return [base + (1 if i < rest else 0) for i in range(n)]
+    return [total / n] * n
+
+
+def new_run_id(config: CoadaptConfig) -> str:
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    objective = config.objective.replace(",", "+")
+    return f"{stamp}-{config.method}-{config.optimizer}-{objective}-s{config.seed}-{os.getpid() % 10000:04d}"
+
+
+# ------------------------------------------------------------------------------------------
+class CoadaptationLoop:
+    """Runs Algorithm 4 as a small state machine over `LoopState` (see module docstring)."""
+
+    def __init__(
+        self,
+        config: CoadaptConfig,
+        *,
+        backend_factory: Callable[[int], CoadaptationBackend],
+        design_space: DesignSpace,
+        nominal_design: np.ndarray,
+        objectives: Sequence[Objective],
+        optimizer_cls: type[Optimizer],
+        run_dir: Path,
+        recorder: RunRecorder,
+        state: LoopState,
+        progress: ProgressFn | None = None,
+    ):
+        self.config = config
+        self.switches = METHOD_SWITCHES[config.method]
+        self.backend_factory = backend_factory
+        self.full_space = design_space
+        self.nominal = np.asarray(nominal_design, dtype=float)
+        self.objectives = list(objectives)
+        self.names = [o.name for o in self.objectives]
+        self.optimizer_cls = optimizer_cls
+        self.run_dir = run_dir
+        self.recorder = recorder
+        self.state = state
+        self.progress = progress
+        self.rng = np.random.default_rng(config.seed)
+        if state.rng_state is not None:
+            self.rng.bit_generator.state = state.rng_state
+        self.started = time.perf_counter()
+        self.backend: CoadaptationBackend | None = None
+        p = self.switches.surrogate_probability
+        self.w = config.evaluation_probability if p is None else p
+
+    # -- bookkeeping -----------------------------------------------------------------------
+    @property
+    def outer_count(self) -> int:
+        return 1 if not (self.switches.retrain or self.switches.narrow) else self.config.outer_iterations
+
+    @property
+    def rounds_per_outer(self) -> int:
+        if self.switches.specialized:
+            return self.config.bo_designs
+        if self.outer_count == 1 and self.config.outer_iterations > 1:  # no-retrain: N*J in one swarm
+            return self.config.outer_iterations * self.config.optimizer_iterations
+        return self.config.optimizer_iterations
+
+    def elapsed(self) -> float:
+        return self.state.elapsed + time.perf_counter() - self.started
+
+    def checkpoint(self) -> None:
+        self.state.rng_state = self.rng.bit_generator.state
+        self.state.elapsed = self.elapsed()
+        self.started = time.perf_counter()
+        save_state(self.run_dir, self.state)
+
+    def emit(self, phase: str, **extra: Any) -> None:
+        if self.progress is None:
+            return
+        s = self.state
+        total = self.outer_count * (self.rounds_per_outer + (0 if self.switches.specialized else 1)) + 1
+        done = s.outer * (self.rounds_per_outer + (0 if self.switches.specialized else 1))
+        if s.phase == "optimize":
+            done += (0 if self.switches.specialized else 1) + s.inner
+        if s.phase in ("final", "done"):
+            done = total - (1 if s.phase == "final" else 0)
+        c = s.counters
+        self.progress({
+            "phase": phase, "outer": s.outer, "outer_total": self.outer_count, "inner": s.inner,
+            "inner_total": self.rounds_per_outer, "fraction": min(done / total, 1.0),
+            "best_cost": None if s.best_real is None else s.best_real[1],
+            "best_any": None if s.best_any is None else s.best_any[1],
+            "interactions": int(c["train_interactions"] + c["eval_interactions"] + c["final_interactions"]),
+            "elapsed": self.elapsed(), **extra,
+        })
+
+    def seed_for(self, *parts: int) -> int:
+        """A seed fixed by position in the run, so a resumed run draws what it would have."""
+        return int(np.random.SeedSequence([self.config.seed, *parts]).generate_state(1)[0] % (2**31 - 1))
+
+    def get_backend(self) -> CoadaptationBackend:
+        if self.backend is None:
+            self.backend = self.backend_factory(self.seed_for(0))
+            if self.state.backend_checkpoint:
+                self.backend.load(self.state.backend_checkpoint)
+        return self.backend
+
+    def optimizer_options(self) -> dict[str, Any]:
+        c = self.config
+        name = self.optimizer_cls.name
+        if name in ("pso", "mixed-pso"):
+            return {"inertia": c.inertia, "c1": c.c1, "c2": c.c2}
+        if name == "bo":
+            opts: dict[str, Any] = {"sampler": c.bo_sampler}
+            if c.bo_storage:
+                opts.update(storage=c.bo_storage, study_name=f"{self.state.run_id}-outer{self.state.outer}")
+            return opts
+        return {}
+
+    # -- the phases ------------------------------------------------------------------------
+    def run(self) -> dict[str, Any]:
+        s = self.state
+        while s.phase != "done":
+            if s.phase == "train":
+                self.train_phase()
+            elif s.phase == "optimize":
+                self.optimize_round()
+            elif s.phase == "final":
+                self.final_phase()
+        assert s.summary is not None
+        return s.summary
+
+    def train_phase(self) -> None:
+        """Algorithm 4 lines 10-11 and the set-up of this outer iteration's optimizer."""
+        s, c = self.state, self.config
+        space = DesignSpace.from_dict(s.space)
+        s.spaces.append(space.to_dict())
+        population = 1 if self.optimizer_cls.sequential else c.population
+        if self.switches.specialized:  # BO baseline: nothing shared to train
+            s.train_designs = None
+            initial = None
+        else:
+            s.train_designs = space.sample(c.population, self.rng)  # [K, dim], line 10
+            initial = s.train_designs[:population] if population == c.population else None
+            steps = c.train_steps if s.outer == 0 else c.retrain_steps
+            if (s.outer == 0 or self.switches.retrain) and steps > 0:
+                self.emit("training")
+                result = self.get_backend().train(s.train_designs, steps, seed=self.seed_for(1, s.outer))
+                s.counters["train_interactions"] += int(result.steps)
+                s.counters["train_seconds"] += float(result.seconds)
+                self.recorder.record_training(s.run_id, outer=s.outer, result=result)
+                if getattr(result, "buffer", None) is not None:
+                    s.buffer, s.buffer_outer = result.buffer, s.outer
+            else:
+                self.get_backend()
+            path = self.run_dir / "checkpoints" / f"backend-outer{s.outer}.pt"
+            path.parent.mkdir(exist_ok=True)
+            self.get_backend().save(str(path))
+            s.backend_checkpoint = str(path)
+            self.recorder.record_checkpoint(s.run_id, outer=s.outer, path=str(path))
+        s.optimizer = self.optimizer_cls(
+            space, population=population, budget=self.rounds_per_outer, seed=self.seed_for(2, s.outer),
+            num_objectives=len(self.objectives), initial_designs=initial, **self.optimizer_options(),
+        )
+        s.phase, s.inner = "optimize", 0
+        self.checkpoint()
+
+    def choose_kind(self) -> str:
+        """Hybrid evaluation (Algorithm 4 line 14): surrogate with probability w, else real.
+        The draw is made every round so the random stream does not depend on the buffer; the
+        surrogate needs an evaluation buffer from the current policy, so without one the
+        round is real (the first of each outer iteration, unless training filled it)."""
+        s = self.state
+        draw = self.rng.random()
+        if s.buffer is None or s.buffer_outer != s.outer:
+            return "real"
+        return "surrogate" if draw < self.w else "real"
+
+    def optimize_round(self) -> None:
+        """One optimizer ask/tell round (Algorithm 4 lines 13-20)."""
+        s = self.state
+        opt = s.optimizer
+        assert opt is not None
+        if opt.done:
+            self.end_outer()
+            return
+        designs = opt.ask()  # [P, dim]
+        if self.switches.specialized:
+            kind = "real"
+            costs, interactions, seconds, errors = self.specialized_evaluation(designs)
+        else:
+            kind = self.choose_kind()
+            self.emit(f"{kind} evaluation")
+            costs, interactions, seconds, errors = self.evaluate(designs, kind)
+        target = costs[:, 0] if len(self.objectives) == 1 else costs
+        opt.tell(designs, target)
+        self.record_batch(designs, costs, kind, interactions, seconds, errors)
+        s.inner += 1
+        self.checkpoint()
+        self.emit("evaluated", kind=kind)
+
+    def evaluate(self, designs: np.ndarray, kind: str) -> tuple[np.ndarray, int, float, np.ndarray | None]:
+        """costs [P, M], interactions, seconds, surrogate errors [P, M] (real rounds only)."""
+        s, c = self.state, self.config
+        backend = self.get_backend()
+        seed = self.seed_for(3, s.outer, s.inner)
+        if kind == "real":
+            fit = backend.real_fitness(designs, self.objectives, agents=c.agents_per_design, steps=c.eval_steps, seed=seed)
+            s.buffer, s.buffer_outer = fit.buffer, s.outer  # line 15: R_eval from this rollout
+            costs = np.asarray(fit.costs, dtype=float).reshape(len(designs), -1)
+            errors = None
+            if c.measure_surrogate_error:
+                t0 = time.perf_counter()
+                predicted = backend.surrogate_fitness(designs, self.objectives, fit.buffer, samples=c.surrogate_samples, seed=seed)
+                s.counters["surrogate_seconds"] += time.perf_counter() - t0
+                errors = np.asarray(predicted, dtype=float).reshape(costs.shape) - costs
+            s.counters["eval_interactions"] += int(fit.interactions)
+            s.counters["eval_seconds"] += float(fit.seconds)
+            s.counters["real_evaluations"] += 1
+            return costs, int(fit.interactions), float(fit.seconds), errors
+        t0 = time.perf_counter()
+        predicted = backend.surrogate_fitness(designs, self.objectives, s.buffer, samples=c.surrogate_samples, seed=seed)
+        seconds = time.perf_counter() - t0
+        s.counters["surrogate_seconds"] += seconds
+        s.counters["eval_seconds"] += seconds
+        s.counters["surrogate_evaluations"] += 1
+        return np.asarray(predicted, dtype=float).reshape(len(designs), -1), 0, seconds, None
+
+    def specialized_evaluation(self, designs: np.ndarray) -> tuple[np.ndarray, int, float, None]:
+        """BO baseline: train a fresh policy on each design alone, then evaluate it for real."""
+        s, c = self.state, self.config
+        costs, interactions, seconds = [], 0, 0.0
+        for i, design in enumerate(designs):
+            self.emit("training specialised policy")
+            backend = self.backend_factory(self.seed_for(4, s.inner, i))
+            result = backend.train(design[None, :], c.specialized_train_steps, seed=self.seed_for(5, s.inner, i))
+            s.counters["train_interactions"] += int(result.steps)
+            s.counters["train_seconds"] += float(result.seconds)
+            self.recorder.record_training(s.run_id, outer=s.outer, result=result)
+            self.emit("real evaluation")
+            fit = backend.real_fitness(design[None, :], self.objectives, agents=c.agents_per_design, steps=c.eval_steps, seed=self.seed_for(3, s.outer, s.inner))
+            costs.append(np.asarray(fit.costs, dtype=float).reshape(-1))
+            interactions += int(fit.interactions)
+            seconds += float(fit.seconds)
+        s.counters["eval_interactions"] += interactions
+        s.counters["eval_seconds"] += seconds
+        s.counters["real_evaluations"] += 1
+        return np.stack(costs), interactions, seconds, None
+
+    def record_batch(self, designs, costs, kind, interactions, seconds, errors) -> None:
+        s = self.state
+        n = len(designs)
+        s.counters["designs_evaluated"] += n
+        for design, cost in zip(designs, costs[:, 0], strict=True):
+            if s.best_any is None or cost < s.best_any[1]:
+                s.best_any = (design.tolist(), float(cost), kind)
+            if kind == "real" and (s.best_real is None or cost < s.best_real[1]):
+                s.best_real = (design.tolist(), float(cost))
+        cost_dicts = [dict(zip(self.names, map(float, row), strict=True)) for row in costs]
+        error_dicts = None if errors is None else [dict(zip(self.names, map(float, row), strict=True)) for row in errors]
+        shares, secs = _split(int(interactions), n), _split(float(seconds), n)
+        batch_writer = getattr(self.recorder, "record_evaluation_batch", None)
+        if batch_writer is not None:
+            batch_writer(s.run_id, outer=s.outer, inner=s.inner, designs=designs.tolist(), costs=cost_dicts, kind=kind,
+                         interactions=shares, seconds=secs, surrogate_errors=error_dicts)
+        else:
+            for i in range(n):
+                self.recorder.record_evaluation(
+                    s.run_id, outer=s.outer, inner=s.inner, design=designs[i].tolist(), costs=cost_dicts[i], kind=kind,
+                    interactions=shares[i], seconds=secs[i], surrogate_error=None if error_dicts is None else error_dicts[i],
+                )
+        s.batches.append({
+            "outer": s.outer, "inner": s.inner, "kind": kind, "designs": n, "interactions": int(interactions),
+            "seconds": float(seconds), "best_cost": float(costs[:, 0].min()), "mean_cost": float(costs[:, 0].mean()),
+            "surrogate_abs_error": None if errors is None else float(np.abs(errors[:, 0]).mean()),
+        })
+
+    def end_outer(self) -> None:
+        """Algorithm 4 line 22: the next range, around the final particles."""
+        s, c = self.state, self.config
+        space = DesignSpace.from_dict(s.space)
+        if self.switches.narrow:
+            narrowed = space.narrow(
+                s.optimizer.final_population(), margin=c.narrow_margin, min_width_fraction=c.narrow_min_width,
+                reference=self.full_space,
+            )
+            s.space = narrowed.to_dict()
+        s.outer += 1
+        s.inner = 0
+        s.phase = "train" if s.outer < self.outer_count else "final"
+        self.checkpoint()
+
+    def final_phase(self) -> None:
+        """Re-evaluate for real the best designs (best real, best of any kind; the Pareto front
+        for several objectives) and the nominal design, with the final policy."""
+        s, c = self.state, self.config
+        self.emit("final evaluation")
+        if len(self.objectives) > 1:
+            front, _ = s.optimizer.pareto_front()
+            candidates = list(front[: c.population])
+        else:
+            candidates = []
+            for item in (s.best_real, s.best_any):
+                if item is not None and not any(np.allclose(item[0], x) for x in candidates):
+                    candidates.append(np.asarray(item[0]))
+        designs = np.stack([*candidates, self.nominal])  # [C + 1, dim]
+        seed = self.seed_for(6)
+        if self.switches.specialized:
+            # every BO cost is already real with its own policy; the nominal design needs its own
+            best_design, best_cost = np.asarray(s.best_real[0]), s.best_real[1]
+            costs, inter, secs, _ = self.specialized_evaluation(self.nominal[None, :])
+            s.counters["eval_interactions"] -= inter
+            s.counters["eval_seconds"] -= secs
+            s.counters["real_evaluations"] -= 1
+            s.counters["final_interactions"] += inter
+            s.counters["final_seconds"] += secs
+            nominal_costs = costs[0]
+            front = None
+            best_costs = np.array([best_cost])
+        else:
+            fit = self.get_backend().real_fitness(designs, self.objectives, agents=c.agents_per_design, steps=c.eval_steps, seed=seed)
+            costs = np.asarray(fit.costs, dtype=float).reshape(len(designs), -1)
+            s.counters["final_interactions"] += int(fit.interactions)
+            s.counters["final_seconds"] += float(fit.seconds)
+            nominal_costs = costs[-1]
+            i = int(np.argmin(costs[:-1, 0]))
+            best_design, best_costs = designs[i], costs[i]
+            best_cost = float(best_costs[0])
+            front = None
+            if len(self.objectives) > 1:
+                front = {"designs": designs[:-1].tolist(), "costs": [dict(zip(self.names, map(float, r), strict=True)) for r in costs[:-1]]}
+        improvements = {
+            o.name: float(o.improvement(float(best_costs[j]) if j < len(best_costs) else float("nan"), float(nominal_costs[j])))
+            for j, o in enumerate(self.objectives) if j < len(best_costs)
+        }
+        cnt = s.counters
+        interactions = int(cnt["train_interactions"] + cnt["eval_interactions"] + cnt["final_interactions"])
+        summary = {
+            "run_id": s.run_id,
+            "method": c.method, "optimizer": self.optimizer_cls.name, "objective": c.objective, "terrain": c.terrain,
+            "seed": c.seed, "preset": c.preset,
+            "best_design": [float(x) for x in best_design],
+            "best_cost": float(best_cost),
+            "best_costs": dict(zip(self.names, map(float, best_costs), strict=False)),
+            "nominal_design": self.nominal.tolist(),
+            "nominal_cost": float(nominal_costs[0]),
+            "nominal_costs": dict(zip(self.names, map(float, nominal_costs), strict=True)),
+            "improvement": improvements[self.names[0]],
+            "improvements": improvements,
+            "interactions": interactions,
+            "train_interactions": int(cnt["train_interactions"]),
+            "eval_interactions": int(cnt["eval_interactions"]),
+            "final_interactions": int(cnt["final_interactions"]),
+            "seconds": self.elapsed(),
+            "train_seconds": cnt["train_seconds"], "eval_seconds": cnt["eval_seconds"],
+            "surrogate_seconds": cnt["surrogate_seconds"], "final_seconds": cnt["final_seconds"],
+            "real_evaluations": int(cnt["real_evaluations"]), "surrogate_evaluations": int(cnt["surrogate_evaluations"]),
+            "designs_evaluated": int(cnt["designs_evaluated"]),
+            "spaces": s.spaces,
+            "final_space": s.space,
+            "batches": s.batches,
+            "pareto_front": front,
+        }
+        s.summary = summary
+        s.phase = "done"
+        self.checkpoint()
+        self.recorder.finish(s.run_id, summary, "finished")
+        self.emit("done")
+
+
+# ------------------------------------------------------------------------------------------
+def run_coadaptation(
+    config: CoadaptConfig | None = None,
+    *,
+    backend_factory: Callable[[int], CoadaptationBackend] | None = None,
+    design_space: DesignSpace | None = None,
+    nominal_design: np.ndarray | None = None,
+    objectives: Sequence[Objective] | None = None,
+    optimizer_cls: type[Optimizer] | None = None,
+    recorder: RunRecorder | None = None,
+    resume: str | os.PathLike | None = None,
+    run_dir: str | os.PathLike | None = None,
+    progress: ProgressFn | None = None,
+) -> CoadaptResult:
+    """Run (or resume) Algorithm 4 and return its summary.
+
+    Anything not given is built from the registry and the config: the robot's design space
+    (mixed for mixed-pso or `mixed`) narrowed to `design_ranges`, its nominal design, the
+    objectives, the optimizer class and the universal-policy backend. With `resume` (a run
+    folder) the recorded config and state are used and `config` is ignored.
+    """
+    if resume is not None:
+        run_path = Path(resume)
+        state = load_state(run_path)
+        config = config_from_dict(state.config)
+    else:
+        if config is None:
+            raise UserError("run_coadaptation needs a config or a run folder to resume", field="config")
+        config.validate()
+        state = None
+        run_path = None
+    from coadapt_core.coadapt.setup import build_parts
+
+    parts = build_parts(config, design_space=design_space, nominal_design=nominal_design, objectives=objectives,
+                        optimizer_cls=optimizer_cls, backend_factory=backend_factory)
+    if state is None:
+        run_id = new_run_id(config) if run_dir is None else Path(run_dir).name
+        run_path = Path(run_dir) if run_dir is not None else Path(config.out) / run_id
+        if (run_path / STATE_FILE).exists():
+            raise UserError(f"run folder '{run_path}' already holds a run; resume it or pick another", field="out")
+        run_path.mkdir(parents=True, exist_ok=True)
+        state = LoopState(run_id=run_id, config=config.to_dict(), space=parts.space.to_dict())
+    assert run_path is not None
+    recorder = recorder or make_recorder(run_path, config.store or None)
+    recorder.start_run({**config.to_dict(), "run_id": state.run_id, "run_dir": str(run_path)})
+    if state.phase == "done":
+        assert state.summary is not None
+        return CoadaptResult(state.run_id, run_path, state.summary)
+    loop = CoadaptationLoop(
+        config, backend_factory=parts.backend_factory, design_space=parts.full_space, nominal_design=parts.nominal,
+        objectives=parts.objectives, optimizer_cls=parts.optimizer_cls, run_dir=run_path, recorder=recorder,
+        state=state, progress=progress,
+    )
+    if resume is None:
+        loop.checkpoint()  # a run folder with a state from the start: resumable at once
+    try:
+        summary = loop.run()
+    except BaseException as exc:
+        # the last checkpoint stays in the run folder; `resume=run_dir` continues from it
+        recorder.finish(state.run_id, {"run_id": state.run_id, "error": f"{type(exc).__name__}: {exc}",
+                                       "outer": loop.state.outer, "inner": loop.state.inner}, "interrupted")
+        raise
+    return CoadaptResult(state.run_id, run_path, summary)

@@ -1,0 +1,1 @@
+"""Test doubles: cheap stand-ins with known answers (not registered plugins)."""
