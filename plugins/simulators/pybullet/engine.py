@@ -68,7 +68,7 @@ class Engine:
         decimation: int,
         fixed_base: bool,
         max_delay_steps: int,
-        armature: str = "link_inertia",
+        armature: str = "compensated",
         solver_iterations: int = 50,
     ):
         self.k = len(specs)
@@ -95,6 +95,11 @@ class Engine:
         self.com_shift = np.zeros((self.k, 3))
         self.delay = DelayLine(self.k, j, max_delay_steps)
         self.last_torque = np.zeros((self.k, j))  # [k, J] mean over the last policy step
+        # armature folded into link inertias also loads the joints upstream of each one;
+        # `armature_coupling` [k, J, J] is that excess in joint space, cancelled explicitly
+        self.armature_coupling = np.zeros((self.k, j, j))
+        self.prev_dq = np.zeros((self.k, j))  # [k, J] joint velocities one physics step ago
+        self.prev_ddq = np.zeros((self.k, j))  # [k, J] joint accelerations of the last physics step
         self.clients: list[int] = []
         self.grounds: list[int] = []
         self.bodies: list[int] = [-1] * self.k
@@ -159,7 +164,7 @@ class Engine:
     def _urdf_path(self, e: int, spec: EnvSpec, com_shift: np.ndarray) -> str:
         armature = (
             dict(zip(spec.joint_names, spec.joint_armature, strict=True))
-            if self.armature == "link_inertia" and spec.joint_armature is not None
+            if self.armature in ("link_inertia", "compensated") and spec.joint_armature is not None
             else None
         )
         text = prepare_urdf(spec.urdf, spec.base_body, com_shift=com_shift, armature=armature)
@@ -221,6 +226,38 @@ class Engine:
         self.dq_max[e] = spec.speed_limit
         self.default_joint_pos[e] = spec.default_joint_pos
         self._apply_contact_params(e)
+        self.armature_coupling[e] = self._coupling(e, spec) if self.armature == "compensated" else 0.0
+
+    def _coupling(self, e: int, spec: EnvSpec) -> np.ndarray:
+        """[J, J] joint-space inertia that folding armature a_j into child link j adds
+        beyond MuJoCo's a_j on the diagonal: a_j (w w^T - e_j e_j^T), w_k = n_k . n_j over
+        joint j and its actuated ancestors k (n: world joint axes at the default pose)."""
+        j = self.num_joints
+        coupling = np.zeros((j, j))
+        if spec.joint_armature is None or not np.any(spec.joint_armature > 0):
+            return coupling
+        client, body = self.clients[e], self.bodies[e]
+        for jid, q in zip(self.joint_ids[e], spec.default_joint_pos, strict=True):
+            p.resetJointState(body, jid, float(q), 0.0, physicsClientId=client)
+        column = {jid: c for c, jid in enumerate(self.joint_ids[e])}
+        axes, parents = {}, {}
+        for jid in range(p.getNumJoints(body, physicsClientId=client)):
+            info = p.getJointInfo(body, jid, physicsClientId=client)
+            orn = p.getLinkState(body, jid, computeForwardKinematics=1, physicsClientId=client)[5]
+            rot = np.array(p.getMatrixFromQuaternion(orn)).reshape(3, 3)
+            axes[jid] = rot @ np.asarray(info[13], dtype=float)
+            parents[jid] = info[16]
+        for jid, c in column.items():
+            w = np.zeros(j)
+            k = jid
+            while k >= 0:
+                if k in column:
+                    w[column[k]] = float(axes[k] @ axes[jid])
+                k = parents[k]
+            excess = np.outer(w, w)
+            excess[c, c] -= 1.0
+            coupling += spec.joint_armature[c] * excess
+        return coupling
 
     def _apply_contact_params(self, e: int) -> None:
         for link in self.all_links[e]:
@@ -264,6 +301,8 @@ class Engine:
         self.delay.set_delay(env_ids, params["delay_steps"])
         self.delay.reset(env_ids, self.default_joint_pos[env_ids])
         self.last_torque[env_ids] = 0.0
+        self.prev_dq[env_ids] = 0.0
+        self.prev_ddq[env_ids] = 0.0
 
     def _reset_pose(self, e: int) -> None:
         client, body = self.clients[e], self.bodies[e]
@@ -301,12 +340,17 @@ class Engine:
                 self.delay.current(), q, dq, self.kp, self.kd, self.tau_max, self.dq_max,
                 self.pd_factor, self.motor_strength,
             )  # [k, J]
-            bad = ~np.isfinite(tau).all(axis=1)
+            # the last step's acceleration stands in for this one's (explicit, one step late)
+            self.prev_ddq = (dq - self.prev_dq) / self.physics_dt
+            self.prev_dq = dq
+            applied = tau + np.einsum("kij,kj->ki", self.armature_coupling, self.prev_ddq)  # [k, J]
+            bad = ~np.isfinite(applied).all(axis=1)
             broken |= bad
             tau[bad] = 0.0  # never feed NaN to Bullet; the env is reset after this step
+            applied[bad] = 0.0
             for e in range(self.k):
                 p.setJointMotorControlArray(
-                    self.bodies[e], self.joint_ids[e], p.TORQUE_CONTROL, forces=tau[e].tolist(),
+                    self.bodies[e], self.joint_ids[e], p.TORQUE_CONTROL, forces=applied[e].tolist(),
                     physicsClientId=self.clients[e],
                 )
                 p.stepSimulation(physicsClientId=self.clients[e])

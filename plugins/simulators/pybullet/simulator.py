@@ -34,7 +34,7 @@ MISSING_PYBULLET = "the pybullet simulator needs the pybullet package: pip insta
 #: batches up to this size run in-process (worker start-up and pipe traffic cost more
 #: than they save below it; see docs/sim-to-sim.md)
 IN_PROCESS_MAX_ENVS = 8
-ARMATURE_MODES = ("link_inertia", "none")
+ARMATURE_MODES = ("compensated", "link_inertia", "none")
 
 
 def require_pybullet() -> None:
@@ -64,11 +64,13 @@ class PyBulletSimulator(Simulator):
         num_threads: int | None = None,
         fixed_base: bool = False,
         processes: int | None = None,
-        armature: str = "link_inertia",
+        armature: str = "compensated",
     ):
         """`processes`: worker processes (0 = in this process; None = in-process up to
         IN_PROCESS_MAX_ENVS environments, else one per CPU core or `num_threads`).
-        `armature`: how MJCF joint armature is carried over ("link_inertia" or "none")."""
+        `armature`: how MJCF joint armature is carried over: "compensated" (folded into
+        link inertias, the excess this loads on upstream joints cancelled explicitly),
+        "link_inertia" (folded only) or "none"; see docs/sim-to-sim.md."""
         require_pybullet()
         super().__init__(
             robot, designs, terrain=terrain, randomization=randomization, physics_dt=physics_dt,
@@ -305,7 +307,7 @@ class PyBulletSimulator(Simulator):
         return self._pool.call_some("dynamics_info", {w: (local,)})[w]
 
     def worker_pids(self) -> list[int]:
-        return [] if self._pool is None else [proc.pid for proc in self._pool.procs]
+        return [] if self._pool is None else self._pool.pids
 
     def _inject(self, env_ids: np.ndarray, base_velocity: float) -> None:
         """Test hook: kick bases to an absurd speed to exercise divergence handling."""

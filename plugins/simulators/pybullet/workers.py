@@ -1,24 +1,37 @@
 """Worker processes for large batches: PyBullet has no batched API, so each worker owns a
 slice of environments (an `Engine`) and the main process exchanges whole [k, ...] arrays
-with all workers at once over pipes.
+with all workers at once.
 
-Workers start with the `spawn` method (safe with torch and threads in the parent), exit
-when told, when their pipe closes (the parent died) and, being daemonic, when the parent
-interpreter exits.
+A worker is a fresh interpreter (`python -m coadapt_plugins.simulators.pybullet.workers`)
+joined to the main process by a private socket pair wrapped as a
+`multiprocessing.connection.Connection`. This is the `spawn` start method without its one
+trap: multiprocessing's spawn and forkserver re-run the user's main script in every
+child, which breaks any script that builds a simulator outside an `if __name__ ==
+"__main__":` guard. A worker exits when told, and when its socket closes because the main
+process is gone; `close()` (also run at interpreter exit) waits for it and kills it if
+it lingers.
 """
 
 from __future__ import annotations
 
 import contextlib
-import multiprocessing as mp
+import os
+import socket
+import subprocess
+import sys
 import weakref
 from multiprocessing.connection import Connection
 from typing import Any
 
 import numpy as np
 
+#: seconds a worker may take to start (import, open its clients, load the robots)
+START_TIMEOUT = 120.0
 
-def _worker_main(conn: Connection, specs: list, options: dict[str, Any]) -> None:
+
+def _serve(conn: Connection) -> None:
+    """Worker side: build the engine from the first message, then answer method calls."""
+    specs, options = conn.recv()
     from coadapt_plugins.simulators.pybullet.engine import Engine
 
     try:
@@ -31,7 +44,7 @@ def _worker_main(conn: Connection, specs: list, options: dict[str, Any]) -> None
         while True:
             try:
                 method, args = conn.recv()
-            except (EOFError, OSError):  # the parent is gone
+            except (EOFError, OSError):  # the main process is gone
                 break
             if method == "close":
                 break
@@ -46,16 +59,17 @@ def _worker_main(conn: Connection, specs: list, options: dict[str, Any]) -> None
         conn.close()
 
 
-def _shutdown(procs: list, conns: list[Connection]) -> None:
+def _shutdown(procs: list[subprocess.Popen], conns: list[Connection]) -> None:
     """Ask workers to leave, then make sure they have."""
     for conn in conns:
-        with contextlib.suppress(OSError, ValueError, BrokenPipeError):
+        with contextlib.suppress(OSError, ValueError):
             conn.send(("close", ()))
     for proc in procs:
-        proc.join(timeout=5)
-        if proc.is_alive():
-            proc.terminate()
-            proc.join(timeout=5)
+        try:
+            proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=5)
     for conn in conns:
         with contextlib.suppress(OSError):
             conn.close()
@@ -66,31 +80,42 @@ class WorkerPool:
     worker at once and gathers the answers."""
 
     def __init__(self, specs: list, slices: list[np.ndarray], options: dict[str, Any]):
-        ctx = mp.get_context("spawn")
         self.slices = slices
-        self.procs: list = []
+        self.procs: list[subprocess.Popen] = []
         self.conns: list[Connection] = []
         # registered first, so a failing start still cleans up what did start
         self._finalizer = weakref.finalize(self, _shutdown, self.procs, self.conns)
+        env = dict(os.environ)
+        env.setdefault("OMP_NUM_THREADS", "1")  # one core per worker
         for ids in slices:
-            parent, child = ctx.Pipe()
-            proc = ctx.Process(
-                target=_worker_main, args=(child, [specs[i] for i in ids], options), daemon=True,
-                name="coadapt-pybullet-worker",
-            )
-            proc.start()
-            child.close()
+            parent, child = socket.socketpair()
+            try:
+                proc = subprocess.Popen(
+                    [sys.executable, "-m", "coadapt_plugins.simulators.pybullet.workers", str(child.fileno())],
+                    pass_fds=(child.fileno(),),
+                    stdin=subprocess.DEVNULL,
+                    stdout=subprocess.DEVNULL,  # PyBullet prints banners and warnings on stdout
+                    env=env,
+                )
+            finally:
+                child.close()
+            parent.settimeout(None)
+            conn = Connection(parent.detach())
             self.procs.append(proc)
-            self.conns.append(parent)
+            self.conns.append(conn)
+            conn.send(([specs[i] for i in ids], options))
         for conn in self.conns:
+            if not conn.poll(START_TIMEOUT):
+                self.close()
+                raise RuntimeError(f"a pybullet worker did not start within {START_TIMEOUT:.0f} s")
             self._answer(conn)
 
-    @staticmethod
-    def _answer(conn: Connection) -> Any:
+    def _answer(self, conn: Connection) -> Any:
         try:
             status, value = conn.recv()
         except (EOFError, OSError) as exc:
-            raise RuntimeError("a pybullet worker process died") from exc
+            self.close()
+            raise RuntimeError("a pybullet worker process died (see its message above)") from exc
         if status != "ok":
             raise RuntimeError(f"pybullet worker failed: {value}")
         return value
@@ -109,5 +134,18 @@ class WorkerPool:
         self._finalizer()
 
     @property
-    def alive(self) -> list[bool]:
-        return [proc.is_alive() for proc in self.procs]
+    def pids(self) -> list[int]:
+        return [proc.pid for proc in self.procs]
+
+
+def main(argv: list[str]) -> int:
+    conn = Connection(int(argv[0]))
+    try:
+        _serve(conn)
+    except (EOFError, OSError, KeyboardInterrupt):
+        return 0
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
