@@ -69,7 +69,7 @@ ANKLE_HEIGHT = 0.07  # m, ankle joint centre above the sole
 FOOT_LENGTH = 0.22  # m
 FOOT_WIDTH = 0.10  # m
 FOOT_THICKNESS = 0.03  # m
-FOOT_TOE = 0.15  # m, sole extends from the ankle 0.15 m forward and 0.07 m back
+FOOT_TOE = 0.13  # m, sole extends from the ankle 0.13 m forward and 0.09 m back
 FOOT_HEEL = FOOT_LENGTH - FOOT_TOE
 #: default standing pose: ankle centre straight below the hip at 0.94 of the full leg
 #: length (knees bent about 40 degrees at the nominal design), sole flat
@@ -104,9 +104,16 @@ JOINT_LIMITS_LEFT = {
     "ankle": (-1.0, 0.8),
 }
 
-# -- PD gains of the nominal design (scaled with limb inertia for others) -----------------
-NOMINAL_KP = {"hip_roll": 200.0, "hip_pitch": 200.0, "knee": 250.0, "ankle": 35.0}  # N m / rad
-NOMINAL_KD = {"hip_roll": 5.0, "hip_pitch": 5.0, "knee": 6.0, "ankle": 1.5}  # N m s / rad
+# -- PD gains of the nominal design (scaled with the joints' load inertia for others) ------
+# Chosen so the nominal robot (and every design, through the scaling rule) stands under PD
+# alone at 5 ms physics steps and rides out 0.2 m/s pushes: standing without a policy needs
+# the legs' series stiffness above the gravity stiffness m g h_com (about 330 N m/rad at the
+# nominal design), which puts the ankle and knee well above the 15-40 (ankle) typical of
+# policy-balanced humanoids. Ankle kd stays under the explicit-integration bound
+# 2 I_swing / dt = 10.4 N m s/rad of the swinging foot (foot + armature) at every design,
+# with the +-10 % PD and motor-strength randomization on top.
+NOMINAL_KP = {"hip_roll": 500.0, "hip_pitch": 500.0, "knee": 600.0, "ankle": 500.0}  # N m / rad
+NOMINAL_KD = {"hip_roll": 10.0, "hip_pitch": 10.0, "knee": 12.0, "ankle": 5.0}  # N m s / rad
 
 # -- numerical physics options ------------------------------------------------------------
 TIMESTEP = 0.005  # s

@@ -165,9 +165,21 @@ def default_joint_pos(design: KuafuDesign) -> np.ndarray:
     return np.array(leg + leg)
 
 
+def _upper_body_in_hip_frame(design: KuafuDesign) -> list[Part]:
+    """Base and both arms, placed in the left hip frame (base upright at the default pose)."""
+    hip = _hip_centre("left")
+    parts = [base_part(design).shifted(-hip)]
+    for side in C.SIDES:
+        parts.append(arm_part().shifted(_shoulder(side) - hip))
+    return parts
+
+
 def leg_joint_inertias(design: KuafuDesign) -> dict[str, float]:
-    """I_j: inertia of the chain distal to each leg joint about that joint's axis at the
-    default pose (left leg; the right one mirrors it). Armature is not included."""
+    """I_j, the load inertia of each leg joint about its axis at the default pose: the chain
+    distal to the joint (what it swings with the foot in the air) plus the bodies above it
+    (what it carries with the foot on the ground: the same leg's proximal links, the base
+    and the arms; the other leg is left out). Left leg; the right one mirrors it. Armature
+    is not included."""
     parts = leg_parts(design)
     _, pitch, knee, ankle = default_joint_pos(design)[:4]
     l0, l1 = design.thigh_length, design.shank_length
@@ -181,16 +193,19 @@ def leg_joint_inertias(design: KuafuDesign) -> dict[str, float]:
         "shank": (r_shank, p_knee),
         "foot": (rotation_y(pitch + knee + ankle), p_ankle),
     }
+    upper = _upper_body_in_hip_frame(design)
     x_axis, y_axis = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
 
-    def about(bodies: tuple[str, ...], point: np.ndarray, axis: np.ndarray) -> float:
-        return sum(inertia_about_axis(parts[b], *placed[b], point, axis) for b in bodies)
+    def about(point: np.ndarray, axis: np.ndarray) -> float:
+        leg = sum(inertia_about_axis(parts[b], *placed[b], point, axis) for b in placed)
+        return leg + sum(inertia_about_axis(p, np.eye(3), np.zeros(3), point, axis) for p in upper)
 
+    # distal + proximal side of each joint = the whole leg and the upper body
     return {
-        "hip_roll": about(("hip_roll_link", "thigh", "shank", "foot"), np.zeros(3), x_axis),
-        "hip_pitch": about(("thigh", "shank", "foot"), np.zeros(3), y_axis),
-        "knee": about(("shank", "foot"), p_knee, y_axis),
-        "ankle": about(("foot",), p_ankle, y_axis),
+        "hip_roll": about(np.zeros(3), x_axis),
+        "hip_pitch": about(np.zeros(3), y_axis),
+        "knee": about(p_knee, y_axis),
+        "ankle": about(p_ankle, y_axis),
     }
 
 
@@ -200,14 +215,15 @@ def _nominal_inertias() -> dict[str, float]:
 
 
 def pd_gains(design: KuafuDesign) -> tuple[np.ndarray, np.ndarray, dict[str, float]]:
-    """kp_j = kp_j(nominal) I_j / I_j(nominal), kd_j = kd_j(nominal) I_j / I_j(nominal):
-    the same ratio for both keeps each joint's natural frequency sqrt(kp / I) and damping
-    ratio kd / (2 sqrt(kp I)) equal to the nominal robot's."""
+    """kp_j = kp_j(nominal) r_j and kd_j = kd_j(nominal) sqrt(r_j) with r_j = I_j / I_j(nominal):
+    stiffness grows with the load inertia (and with it the gravity load m g h the joint must
+    out-stiffen to stand); damping by the square root, which keeps kd within the explicit
+    integration bound 2 I_swing / dt of the light distal chain (the foot, at the ankle)."""
     inertias = leg_joint_inertias(design)
     nominal = _nominal_inertias()
     ratio = {j: inertias[j] / nominal[j] for j in LEG_JOINTS}
     kp = [C.NOMINAL_KP[j] * ratio[j] for j in LEG_JOINTS]
-    kd = [C.NOMINAL_KD[j] * ratio[j] for j in LEG_JOINTS]
+    kd = [C.NOMINAL_KD[j] * math.sqrt(ratio[j]) for j in LEG_JOINTS]
     return np.array(kp + kp), np.array(kd + kd), inertias
 
 
