@@ -5,6 +5,7 @@ auto-reset). Torch tensors throughout, on the device given (the simulator's by d
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -13,7 +14,7 @@ import torch
 
 from coadapt_core.objective import Objective, StepBatch
 from coadapt_core.robot import Robot
-from coadapt_core.simulator import Simulator, SimState
+from coadapt_core.simulator import SimState, Simulator
 from coadapt_core.task import observations as layout
 from coadapt_core.task.commands import CommandSampler
 from coadapt_core.task.config import TaskConfig
@@ -43,8 +44,8 @@ class LocomotionEnv:
 
     `info` of `step` holds: `metrics` [N, M] per-step objective costs (order of
     `objectives`); `final_critic_obs` [N, C] critic state before auto-reset (for bootstrapping
-    timeouts); `terminated` [N]; `base_lin_vel` [N, 3] (base frame) and `foot_contact` [N, L]
-    of the step; `reward_terms` {name: mean weighted value}; and `episode` {name: mean over the
+    timeouts); `terminated` [N]; `base_lin_vel`, `base_ang_vel` [N, 3] (base frame),
+    `foot_contact` [N, L] and `command` [N, 3] of the step; `reward_terms` {name: mean weighted value}; and `episode` {name: mean over the
     episodes that just ended} when any ended.
     """
 
@@ -86,6 +87,8 @@ class LocomotionEnv:
         self.num_critic_obs = layout.size(self.critic_layout)
         self.num_design_obs = int(self.design_low.shape[0])
         self.num_metrics = len(self.objectives)
+        # wall seconds spent inside the simulator and in the whole `step` (throughput split)
+        self.timing = {"physics": 0.0, "step": 0.0}
 
         n, j, legs = self.num_envs, self.num_actions, self.num_legs
         z = lambda *shape: torch.zeros(*shape, device=self.device)  # noqa: E731
@@ -250,11 +253,19 @@ class LocomotionEnv:
         return q_star, stance
 
     def step(self, actions: torch.Tensor) -> StepResult:
+        start = time.perf_counter()
+        result = self._step(actions)
+        self.timing["step"] += time.perf_counter() - start
+        return result
+
+    def _step(self, actions: torch.Tensor) -> StepResult:
         cfg = self.cfg
         actions = actions.to(self.device).float().clamp(-cfg.action_clip, cfg.action_clip)  # [N, J]
         targets = self.joint_targets(actions)
         sim_device = torch.device(self.sim.device)
+        tick = time.perf_counter()
         state = self._to_device(self.sim.step(targets.to(sim_device)))
+        self.timing["physics"] += time.perf_counter() - tick
         self.episode_length += 1
 
         moving = self.command.abs().sum(dim=-1) > 0  # [N]
@@ -326,6 +337,7 @@ class LocomotionEnv:
             "final_critic_obs": final_critic,
             "terminated": terminated,
             "base_lin_vel": lin,
+            "base_ang_vel": ang,
             "foot_contact": contact,
             "command": self.command.clone(),
             "reward_terms": {k: float(v.mean()) for k, v in weighted.items()},
@@ -346,7 +358,9 @@ class LocomotionEnv:
             }
             if not self.fixed_commands:
                 self.commands.update_curriculum(fraction)
+            tick = time.perf_counter()
             state = self._to_device(self.sim.reset(ids.to(sim_device)))
+            self.timing["physics"] += time.perf_counter() - tick
             self._start(ids, state)
         if self.resample_steps and not self.fixed_commands:
             due = (self.episode_length > 0) & (self.episode_length % self.resample_steps == 0)

@@ -1,0 +1,210 @@
+"""`UniversalPolicyBackend`: the real learner behind the co-adaptation loop, implementing
+`coadapt_core.fitness.CoadaptationBackend` — training (Algorithm 1), real fitness
+(Algorithm 2) and surrogate fitness from the pseudo-critics (Algorithm 3)."""
+
+from __future__ import annotations
+
+import copy
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import torch
+
+from coadapt_core.design_space import DesignSpace
+from coadapt_core.errors import UserError
+from coadapt_core.fitness import RealFitness, TrainingResult
+from coadapt_core.learning.config import TrainConfig
+from coadapt_core.learning.evaluate import EvalBuffer, rollout
+from coadapt_core.learning.trainer import Trainer
+from coadapt_core.objective import Objective
+from coadapt_core.robot import Robot
+from coadapt_core.task.config import TaskConfig
+from coadapt_core.task.env import LocomotionEnv
+
+
+class UniversalPolicyBackend:
+    """The universal policy pi(a | o, xi), its critic and one pseudo-critic per objective.
+
+    Constructor (stable; the co-adaptation loop calls exactly this)::
+
+        UniversalPolicyBackend(robot, simulator_cls, objectives, *, terrain, design_space,
+                               agents_per_design, device, seed, checkpoint=None,
+                               train_config=None)
+
+    - robot: a `Robot`; simulator_cls: a `Simulator` class; objectives: the `Objective`s whose
+      pseudo-critics are trained (their order is the column order of every [K, M] result).
+    - design_space: the full design space (normalisation bounds of xi come from the robot).
+    - agents_per_design: environments per design in training (K x agents) and the default in
+      real fitness.
+    - checkpoint: a file written by `save` or `Trainer.save`/`export_weights` to start from
+      (resume / fine-tune, Algorithm 4 retraining); pseudo-critics are matched by objective
+      name, missing ones start fresh.
+    - train_config: `TrainConfig` (sizes, PPO settings); its device/seed are overridden.
+
+    `train(designs, steps)` trains on the given designs (K of them, `agents_per_design` each)
+    for about `steps` interactions; its `TrainingResult.buffer` holds critic states of the
+    last rollout. `real_fitness` rolls out the policy mean with commands drawn once per agent
+    from the current command box (the same commands for every design) and returns the mean
+    per-step metric [K, M]; `surrogate_fitness` averages the pseudo-critics over `samples`
+    buffer states with each candidate's xi substituted.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        simulator_cls: type,
+        objectives: Sequence[Objective],
+        *,
+        terrain: str = "flat",
+        design_space: DesignSpace | None = None,
+        agents_per_design: int = 50,
+        device: str = "cpu",
+        seed: int = 0,
+        checkpoint: str | None = None,
+        train_config: TrainConfig | None = None,
+        task_config: TaskConfig | None = None,
+    ):
+        config = copy.deepcopy(train_config) if train_config is not None else TrainConfig()
+        config.agents_per_design = int(agents_per_design)
+        self.trainer = Trainer(
+            robot,
+            simulator_cls,
+            objectives,
+            terrain=terrain,
+            design_space=design_space,
+            train_config=config,
+            task_config=task_config,
+            device=device,
+            seed=seed,
+        )
+        self.objectives = list(objectives)
+        self.eval_env: LocomotionEnv | None = None
+        if checkpoint:
+            self.load(checkpoint)
+
+    @property
+    def ppo(self):
+        return self.trainer.ppo
+
+    # -- Algorithm 1 ------------------------------------------------------------------------
+    def train(self, designs: np.ndarray, steps: int, *, seed: int = 0) -> TrainingResult:
+        t0 = time.perf_counter()
+        steps0 = self.trainer.total_steps
+        torch.manual_seed(seed)
+        self.trainer.set_designs(designs)
+        stats = self.trainer.learn(self.trainer.iterations_for(int(steps)))
+        visited = self.trainer.last_rollout_critic_obs
+        buffer = EvalBuffer(visited) if visited is not None else None
+        return TrainingResult(
+            steps=self.trainer.total_steps - steps0,
+            seconds=time.perf_counter() - t0,
+            mean_reward=stats.mean_reward,
+            extra={
+                "episode_length_s": stats.episode_length_s,
+                "tracking_error": stats.tracking_error,
+                "vx": stats.vx,
+                "collect_steps_per_s": stats.collect_steps_per_s,
+            },
+            buffer=buffer,
+        )
+
+    # -- Algorithm 2 ------------------------------------------------------------------------
+    def _eval_env(self, designs: np.ndarray, agents: int, steps: int, seed: int) -> LocomotionEnv:
+        tr = self.trainer
+        space = tr.robot.design_space_for(designs[0])
+        per_env = np.repeat(space.validate_batch(designs), agents, axis=0)
+        if self.eval_env is not None and self.eval_env.num_envs == len(per_env):
+            self.eval_env.set_designs(np.arange(len(per_env)), per_env)
+            return self.eval_env
+        if self.eval_env is not None:
+            self.eval_env.sim.close()
+        task = copy.deepcopy(tr.task_config)
+        task.commands.resample_seconds = 0.0
+        sim = tr.simulator_cls(tr.robot, per_env, terrain=tr.terrain, randomization=tr.randomization, seed=seed)
+        self.eval_env = LocomotionEnv(sim, tr.robot, task, tr.objectives, seed=seed, device=tr.device)
+        return self.eval_env
+
+    def _check_objectives(self, objectives: Sequence[Objective]) -> list[int]:
+        names = [o.name for o in self.objectives]
+        index = []
+        for o in objectives:
+            if o.name not in names:
+                raise UserError(
+                    f"objective '{o.name}' has no pseudo-critic in this backend (trained: {', '.join(names)})",
+                    field="objective",
+                )
+            index.append(names.index(o.name))
+        return index
+
+    def real_fitness(
+        self, designs: np.ndarray, objectives: Sequence[Objective], *, agents: int, steps: int, seed: int = 0
+    ) -> RealFitness:
+        t0 = time.perf_counter()
+        columns = self._check_objectives(objectives)
+        designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        env = self._eval_env(designs, agents, steps, seed)
+        self.trainer.ensure_ppo(env)
+        env.cfg.episode_seconds = steps * env.dt + 1.0
+        env.max_episode_length = steps + 10
+        # commands: one per agent from the current box, identical across designs
+        if self.trainer.env is not None:
+            env.commands.limit = self.trainer.env.commands.limit
+        gen = torch.Generator(device=env.device)
+        gen.manual_seed(int(seed))
+        env.commands.generator = gen
+        per_agent = env.commands.sample(agents)  # [A, 3]
+        env.set_commands(per_agent.repeat(len(designs), 1))
+        result = rollout(self.ppo, env, len(designs), steps, seed=seed)
+        return RealFitness(
+            costs=result.metrics[:, columns],
+            buffer=result.buffer,
+            interactions=result.steps,
+            seconds=time.perf_counter() - t0,
+            survival=result.survival,
+        )
+
+    # -- Algorithm 3 ------------------------------------------------------------------------
+    @torch.no_grad()
+    def surrogate_fitness(
+        self, designs: np.ndarray, objectives: Sequence[Objective], buffer: Any, *, samples: int, seed: int = 0
+    ) -> np.ndarray:
+        columns = self._check_objectives(objectives)
+        if self.ppo is None or self.ppo.pseudo_critic is None:
+            raise UserError("surrogate fitness needs a trained policy with pseudo-critics", field="backend")
+        if not isinstance(buffer, EvalBuffer) or len(buffer) == 0:
+            raise UserError("surrogate fitness needs a non-empty evaluation buffer from real_fitness or train", field="buffer")
+        designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        gen = torch.Generator(device="cpu")
+        gen.manual_seed(int(seed))
+        rows = torch.randint(len(buffer), (int(samples),), generator=gen)
+        states = self.ppo.critic_norm(buffer.critic_obs[rows].to(self.ppo.device))  # [S, C]
+        xi = self.trainer_normalize(designs)  # [K, D]
+        out = []
+        for k in range(xi.shape[0]):  # one candidate at a time keeps memory at [S, C]
+            values = self.ppo.pseudo_values(states, xi[k].expand(states.shape[0], -1))  # [S, M]
+            out.append(values.mean(dim=0))
+        return torch.stack(out)[:, columns].cpu().numpy()
+
+    def trainer_normalize(self, designs: np.ndarray) -> torch.Tensor:
+        space = self.trainer.robot.design_space_for(designs[0])
+        low = torch.as_tensor(space.lower, dtype=torch.float32)
+        high = torch.as_tensor(space.upper, dtype=torch.float32)
+        xi = torch.as_tensor(designs, dtype=torch.float32)
+        width = high - low
+        norm = torch.where(width > 0, 2.0 * (xi - low) / torch.where(width > 0, width, 1.0) - 1.0, 0.0)
+        return norm.to(self.ppo.device)
+
+    # -- checkpoints ------------------------------------------------------------------------
+    def save(self, path: str) -> None:
+        self.trainer.save(path)
+
+    def load(self, path: str) -> None:
+        self.trainer.load(path)
+
+    def close(self) -> None:
+        self.trainer.close()
+        if self.eval_env is not None:
+            self.eval_env.sim.close()
+            self.eval_env = None

@@ -1,0 +1,72 @@
+"""PPO and training settings, one documented dataclass (each field maps onto a CLI option
+or a config key). Defaults are those meant for the long GPU run (walking-notes.md, legged_gym
+practice); a CPU smoke run overrides the sizes."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+from coadapt_core.errors import UserError
+
+
+@dataclass
+class TrainConfig:
+    # -- batch ------------------------------------------------------------------------------
+    num_designs: int = 128  # K designs sampled from the current range per training phase
+    agents_per_design: int = 32  # environments per design; num_envs = K x agents (4096)
+    steps_per_env: int = 24  # rollout length per update (4096 x 24 = 98 304 samples)
+    design_resample_every: int = 0  # iterations between new design draws (0: fixed, Alg. 1)
+    # -- PPO --------------------------------------------------------------------------------
+    epochs: int = 5
+    minibatches: int = 4
+    learning_rate: float = 1.0e-3
+    schedule: str = "adaptive"  # "adaptive" (KL-based, rsl_rl) | "fixed"
+    desired_kl: float = 0.01
+    gamma: float = 0.99
+    lam: float = 0.95
+    clip_param: float = 0.2
+    entropy_coef: float = 0.005
+    value_loss_coef: float = 1.0
+    max_grad_norm: float = 1.0
+    init_noise_std: float = 1.0  # Gaussian policy, state-independent learned log-std
+    # -- networks (paper section 4: MLP [512, 256, 128] for policy, critic, pseudo-critics) --
+    hidden: tuple[int, ...] = (512, 256, 128)
+    activation: str = "elu"
+    # -- pseudo-critics (section 3.2.2) ----------------------------------------------------
+    pseudo_learning_rate: float = 1.0e-3
+    pseudo_lam: float = 0.95  # TD(lambda) of the discounted-average metric target
+    # -- bookkeeping ------------------------------------------------------------------------
+    checkpoint_every: int = 100  # iterations
+    device: str = "cpu"
+    seed: int = 0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        positive = ("num_designs", "agents_per_design", "steps_per_env", "epochs", "minibatches")
+        for name in positive:
+            if int(getattr(self, name)) < 1:
+                raise UserError(f"train.{name} must be >= 1, got {getattr(self, name)}", field=name)
+        if self.schedule not in ("adaptive", "fixed"):
+            raise UserError(f"train.schedule '{self.schedule}' is not one of: adaptive, fixed", field="schedule")
+        if not (0.0 < self.gamma < 1.0) or not (0.0 <= self.lam <= 1.0):
+            raise UserError("train.gamma must lie in (0, 1) and train.lam in [0, 1]", field="gamma")
+        if self.activation not in ("elu", "relu", "tanh"):
+            raise UserError(f"train.activation '{self.activation}' is not one of: elu, relu, tanh", field="activation")
+        self.hidden = tuple(int(h) for h in self.hidden)
+
+    @property
+    def num_envs(self) -> int:
+        return self.num_designs * self.agents_per_design
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any] | None) -> TrainConfig:
+        data = dict(data or {})
+        names = {f.name for f in fields(cls)}
+        bad = sorted(set(data) - names)
+        if bad:
+            raise UserError(f"train config: unknown field(s) {bad}; known: {sorted(names)}", field="train")
+        return cls(**data)

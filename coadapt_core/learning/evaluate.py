@@ -1,0 +1,99 @@
+"""Roll a trained policy out deterministically (the policy mean) on a batch of environments:
+per-design mean objective metrics (real fitness, Algorithm 2), survival, speed, and the
+evaluation buffer R_eval of critic states the surrogate (Algorithm 3) averages over."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from coadapt_core.learning.ppo import PPO
+from coadapt_core.task.env import LocomotionEnv
+
+
+@dataclass
+class EvalBuffer:
+    """R_eval: critic states (raw, un-normalised) visited by the policy."""
+
+    critic_obs: torch.Tensor  # [S, C] float32, cpu
+
+    def __len__(self) -> int:
+        return int(self.critic_obs.shape[0])
+
+
+@dataclass
+class RolloutResult:
+    metrics: np.ndarray  # [K, M] mean per-step metric of each design over agents and steps
+    survival: np.ndarray  # [K] share of agents that never fell
+    vx: np.ndarray  # [K] mean base-frame forward speed (steps before an agent's first fall)
+    tracking_error: np.ndarray  # [K] mean e_v^2 + e_w^2 (steps before the first fall)
+    alternation: np.ndarray  # [K] share of steps with exactly one foot down
+    buffer: EvalBuffer
+    steps: int  # environment interactions
+
+
+@torch.no_grad()
+def rollout(
+    ppo: PPO,
+    env: LocomotionEnv,
+    num_designs: int,
+    steps: int,
+    *,
+    buffer_rows: int = 100_000,
+    seed: int = 0,
+    on_step=None,
+) -> RolloutResult:
+    """Run `steps` policy steps on `env`, whose environments are `num_designs` consecutive
+    groups of agents (as `Trainer.set_designs` lays them out)."""
+    n = env.num_envs
+    agents = n // num_designs
+    gen = torch.Generator(device="cpu")
+    gen.manual_seed(int(seed))
+    ppo.training = False
+    obs, critic, design_obs = env.reset()
+    m = env.num_metrics
+    metric_sum = torch.zeros(n, m, device=env.device)
+    alive = torch.ones(n, dtype=torch.bool, device=env.device)
+    alive_steps = torch.zeros(n, device=env.device)
+    vx_sum = torch.zeros(n, device=env.device)
+    err_sum = torch.zeros(n, device=env.device)
+    alt_sum = torch.zeros(n, device=env.device)
+    per_step = max(1, -(-buffer_rows // max(steps, 1)))
+    kept: list[torch.Tensor] = []
+    for _ in range(steps):
+        if per_step >= n:
+            kept.append(critic.float().cpu())
+        else:
+            kept.append(critic[torch.randperm(n, generator=gen)[:per_step].to(env.device)].float().cpu())
+        actions = ppo.act_inference(obs, design_obs)
+        res = env.step(actions)
+        info = res.info
+        metric_sum += info["metrics"]
+        lin, command = info["base_lin_vel"], info["command"]
+        err = ((command[:, :2] - lin[:, :2]) ** 2).sum(-1) + (command[:, 2] - info["base_ang_vel"][:, 2]) ** 2
+        alive_f = alive.float()
+        vx_sum += lin[:, 0] * alive_f
+        err_sum += err * alive_f
+        alt_sum += (info["foot_contact"].sum(-1) == 1).float() * alive_f
+        alive_steps += alive_f
+        alive &= ~info["terminated"]
+        if on_step is not None:
+            on_step(env)
+        obs, critic, design_obs = res.obs, res.critic_obs, res.design_obs
+    ppo.training = True
+
+    def per_design(x: torch.Tensor) -> np.ndarray:
+        return x.reshape(num_designs, agents, *x.shape[1:]).mean(dim=1).cpu().numpy()
+
+    safe = alive_steps.clamp(min=1.0)
+    return RolloutResult(
+        metrics=per_design(metric_sum / steps),
+        survival=per_design(alive.float()),
+        vx=per_design(vx_sum / safe),
+        tracking_error=per_design(err_sum / safe),
+        alternation=per_design(alt_sum / safe),
+        buffer=EvalBuffer(torch.cat(kept)[:buffer_rows]),
+        steps=n * steps,
+    )

@@ -1,0 +1,258 @@
+"""PPO for the universal policy with a critic and pseudo-critics, on TorchRL's `ClipPPOLoss`
+and `GAE`, split the rsl_rl way: `act`, `process_env_step`, `compute_returns`, `update`.
+
+Pseudo-critics (paper section 3.2.2) share the critic's architecture and inputs (s, xi) but
+are excluded from the policy update: they live in their own optimizer and regress, per
+objective m, the discounted-average metric
+
+    target_t = (1 - gamma) sum_k gamma^k P_{m, t+k}
+
+(TD(lambda) estimate, bootstrapped with the pseudo-critic itself), whose scale equals the
+per-step metric — so the surrogate fitness (mean of V_pseudo over states, Algorithm 3) is
+directly comparable with the real fitness (mean of P over steps, Algorithm 2). A fall does
+not end the metric stream (the real fitness keeps averaging after an auto-reset), so both
+terminations and timeouts bootstrap from the pseudo-critic at the final state. Targets are
+normalised per objective by running statistics; predictions are de-normalised.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from tensordict import TensorDict
+from tensordict.nn import TensorDictModule
+
+from coadapt_core.learning.config import TrainConfig
+from coadapt_core.learning.networks import ActorNet, EmpiricalNormalization, ValueNet
+
+
+@dataclass
+class Dims:
+    num_obs: int  # policy observation o (70)
+    num_critic_obs: int  # critic state s
+    num_design: int  # xi
+    num_actions: int  # 8
+    num_metrics: int  # M objectives / pseudo-critics
+
+
+class PPO:
+    """The learner. Attributes:
+
+    actor_net: pi(a | o, xi) mean MLP + log-std; critic_net: V(s, xi);
+    pseudo_critic: V_pseudo(s, xi), one MLP head per objective (None when M = 0);
+    obs_norm / critic_norm: running normalisers of o and s; pseudo_norm: of pseudo targets;
+    loss: TorchRL ClipPPOLoss over actor + critic; gae: TorchRL GAE;
+    optimizer: Adam over actor + critic; pseudo_optimizer: Adam over the pseudo-critics only.
+    """
+
+    def __init__(self, dims: Dims, config: TrainConfig, device: str | torch.device = "cpu"):
+        from torchrl.modules import IndependentNormal, ProbabilisticActor, ValueOperator
+        from torchrl.objectives import ClipPPOLoss
+        from torchrl.objectives.value import GAE
+
+        self.dims = dims
+        self.config = config
+        self.device = torch.device(device)
+        c = config
+        self.actor_net = ActorNet(
+            dims.num_obs, dims.num_design, dims.num_actions, c.hidden, c.activation, c.init_noise_std
+        ).to(self.device)
+        self.critic_net = ValueNet(dims.num_critic_obs, dims.num_design, c.hidden, c.activation).to(self.device)
+        self.pseudo_critic = (
+            ValueNet(dims.num_critic_obs, dims.num_design, c.hidden, c.activation, outputs=dims.num_metrics).to(self.device)
+            if dims.num_metrics > 0
+            else None
+        )
+        self.obs_norm = EmpiricalNormalization(dims.num_obs).to(self.device)
+        self.critic_norm = EmpiricalNormalization(dims.num_critic_obs).to(self.device)
+        self.pseudo_norm = EmpiricalNormalization(max(dims.num_metrics, 1), eps=1e-8, clip=1e9).to(self.device)
+
+        self.actor = ProbabilisticActor(
+            TensorDictModule(self.actor_net, in_keys=["obs", "design_obs"], out_keys=["loc", "scale"]),
+            in_keys=["loc", "scale"],
+            distribution_class=IndependentNormal,
+            return_log_prob=True,
+        )
+        self.critic = ValueOperator(self.critic_net, in_keys=["critic_obs", "design_obs"])
+        self.loss = ClipPPOLoss(
+            self.actor,
+            self.critic,
+            clip_epsilon=c.clip_param,
+            entropy_coeff=c.entropy_coef,
+            critic_coeff=c.value_loss_coef,
+            loss_critic_type="l2",
+            normalize_advantage=True,
+        )
+        self.gae = GAE(gamma=c.gamma, lmbda=c.lam, value_network=self.critic)
+        self.learning_rate = c.learning_rate
+        self.optimizer = torch.optim.Adam(self.loss.parameters(), lr=c.learning_rate)
+        self.pseudo_optimizer = (
+            torch.optim.Adam(self.pseudo_critic.parameters(), lr=c.pseudo_learning_rate) if self.pseudo_critic else None
+        )
+        self.transitions: list[TensorDict] = []  # one [N] TensorDict per rollout step
+        self.rollout: TensorDict | None = None  # [N, T] after compute_returns
+        self.training = True
+
+    # -- acting -----------------------------------------------------------------------------
+    @torch.no_grad()
+    def act(self, obs: torch.Tensor, critic_obs: torch.Tensor, design_obs: torch.Tensor) -> torch.Tensor:
+        """Sample actions [N, A] for a rollout step and start its transition record."""
+        from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+        if self.training:
+            self.obs_norm.update(obs)
+            self.critic_norm.update(critic_obs)
+        td = TensorDict(
+            {"obs": self.obs_norm(obs), "critic_obs": self.critic_norm(critic_obs), "design_obs": design_obs},
+            batch_size=[obs.shape[0]],
+            device=self.device,
+        )
+        with set_exploration_type(ExplorationType.RANDOM):
+            self.actor(td)
+        self.transitions.append(td)
+        return td["action"]
+
+    @torch.no_grad()
+    def act_inference(self, obs: torch.Tensor, design_obs: torch.Tensor) -> torch.Tensor:
+        """Deterministic actions [N, A] (the policy mean), for evaluation and deployment."""
+        loc, _ = self.actor_net(self.obs_norm(obs), design_obs)
+        return loc
+
+    @torch.no_grad()
+    def process_env_step(
+        self,
+        reward: torch.Tensor,  # [N]
+        done: torch.Tensor,  # [N] bool
+        timeout: torch.Tensor,  # [N] bool
+        final_critic_obs: torch.Tensor,  # [N, C] critic state before auto-reset
+        design_obs: torch.Tensor,  # [N, D]
+        metrics: torch.Tensor,  # [N, M]
+    ) -> None:
+        """Complete the current transition with what the environment returned."""
+        td = self.transitions[-1]
+        terminated = done & ~timeout
+        td["next"] = TensorDict(
+            {
+                "critic_obs": self.critic_norm(final_critic_obs),
+                "design_obs": design_obs,
+                "reward": reward[:, None].float(),
+                "done": done[:, None],
+                "terminated": terminated[:, None],
+                "truncated": timeout[:, None],
+            },
+            batch_size=td.batch_size,
+        )
+        td["metrics"] = metrics.float()
+
+    # -- returns ----------------------------------------------------------------------------
+    def pseudo_values(self, critic_obs_normed: torch.Tensor, design_obs: torch.Tensor) -> torch.Tensor:
+        """[*, M] de-normalised pseudo-critic predictions (in units of the per-step metric)."""
+        out = self.pseudo_critic(critic_obs_normed, design_obs)
+        m = self.dims.num_metrics
+        return out * torch.sqrt(self.pseudo_norm.var[:m] + self.pseudo_norm.eps) + self.pseudo_norm.mean[:m]
+
+    @torch.no_grad()
+    def compute_returns(self) -> TensorDict:
+        """Stack the rollout to [N, T]; GAE advantages and value targets (TorchRL), and the
+        pseudo-critic targets (module docstring)."""
+        td = torch.stack(self.transitions, dim=1)  # [N, T]
+        self.transitions = []
+        self.gae(td)
+        if self.pseudo_critic is not None:
+            gamma, lam = self.config.gamma, self.config.pseudo_lam
+            metrics = td["metrics"]  # [N, T, M]
+            value_next = self.pseudo_values(td["next", "critic_obs"], td["next", "design_obs"])  # [N, T, M]
+            done = td["next", "done"].float()  # [N, T, 1]
+            target = torch.empty_like(metrics)
+            following = value_next[:, -1]
+            for t in reversed(range(metrics.shape[1])):
+                blend = value_next[:, t] if t == metrics.shape[1] - 1 else (1 - lam) * value_next[:, t] + lam * following
+                boot = done[:, t] * value_next[:, t] + (1 - done[:, t]) * blend
+                target[:, t] = (1 - gamma) * metrics[:, t] + gamma * boot
+                following = target[:, t]
+            self.pseudo_norm.update(target)
+            m = self.dims.num_metrics
+            td["pseudo_target"] = (target - self.pseudo_norm.mean[:m]) / torch.sqrt(self.pseudo_norm.var[:m] + self.pseudo_norm.eps)
+        self.rollout = td
+        return td
+
+    # -- update -----------------------------------------------------------------------------
+    def update(self) -> dict[str, float]:
+        """Epochs x minibatches of the clipped PPO loss (actor + critic) and, separately, of
+        the pseudo-critic regression. Returns mean losses and the learning rate."""
+        c = self.config
+        flat = self.rollout.reshape(-1)
+        n = flat.shape[0]
+        size = max(n // c.minibatches, 1)
+        sums = {"loss_objective": 0.0, "loss_critic": 0.0, "loss_entropy": 0.0, "loss_pseudo": 0.0, "kl": 0.0, "entropy": 0.0}
+        count = 0
+        params = list(self.loss.parameters())
+        for _ in range(c.epochs):
+            order = torch.randperm(n, device=self.device)
+            for start in range(0, n - size + 1, size):
+                batch = flat[order[start : start + size]]
+                out = self.loss(batch)
+                kl = float(out["kl_approx"])
+                if c.schedule == "adaptive":
+                    # rsl_rl's rule on the (approximate) KL between behaviour and current policy
+                    if kl > 2.0 * c.desired_kl:
+                        self.learning_rate = max(1e-5, self.learning_rate / 1.5)
+                    elif 0.0 < kl < c.desired_kl / 2.0:
+                        self.learning_rate = min(1e-2, self.learning_rate * 1.5)
+                    for group in self.optimizer.param_groups:
+                        group["lr"] = self.learning_rate
+                loss = out["loss_objective"] + out["loss_critic"] + out["loss_entropy"]
+                self.optimizer.zero_grad(set_to_none=True)
+                loss.backward()
+                torch.nn.utils.clip_grad_norm_(params, c.max_grad_norm)
+                self.optimizer.step()
+                if self.pseudo_critic is not None:
+                    # the pseudo-critics see data only: no path from their loss to the actor
+                    pred = self.pseudo_critic(batch["critic_obs"], batch["design_obs"])
+                    loss_pseudo = torch.nn.functional.mse_loss(pred, batch["pseudo_target"])
+                    self.pseudo_optimizer.zero_grad(set_to_none=True)
+                    loss_pseudo.backward()
+                    torch.nn.utils.clip_grad_norm_(self.pseudo_critic.parameters(), c.max_grad_norm)
+                    self.pseudo_optimizer.step()
+                    sums["loss_pseudo"] += loss_pseudo.item()
+                for key in ("loss_objective", "loss_critic", "loss_entropy"):
+                    sums[key] += float(out[key])
+                sums["kl"] += kl
+                sums["entropy"] += float(out["entropy"])
+                count += 1
+        self.rollout = None
+        stats = {k: v / max(count, 1) for k, v in sums.items()}
+        stats["learning_rate"] = self.learning_rate
+        stats["action_std"] = float(self.actor_net.log_std.exp().mean())
+        return stats
+
+    # -- state ------------------------------------------------------------------------------
+    def state_dict(self) -> dict:
+        return {
+            "actor": self.actor_net.state_dict(),
+            "critic": self.critic_net.state_dict(),
+            "pseudo_critic": self.pseudo_critic.state_dict() if self.pseudo_critic else None,
+            "obs_norm": self.obs_norm.state_dict(),
+            "critic_norm": self.critic_norm.state_dict(),
+            "pseudo_norm": self.pseudo_norm.state_dict(),
+            "optimizer": self.optimizer.state_dict(),
+            "pseudo_optimizer": self.pseudo_optimizer.state_dict() if self.pseudo_optimizer else None,
+            "learning_rate": self.learning_rate,
+        }
+
+    def load_state_dict(self, state: dict, *, optimizers: bool = True) -> None:
+        self.actor_net.load_state_dict(state["actor"])
+        self.critic_net.load_state_dict(state["critic"])
+        if self.pseudo_critic is not None and state.get("pseudo_critic") is not None:
+            self.pseudo_critic.load_state_dict(state["pseudo_critic"])
+        self.obs_norm.load_state_dict(state["obs_norm"])
+        self.critic_norm.load_state_dict(state["critic_norm"])
+        self.pseudo_norm.load_state_dict(state["pseudo_norm"])
+        if optimizers and "optimizer" in state:
+            self.optimizer.load_state_dict(state["optimizer"])
+            if self.pseudo_optimizer is not None and state.get("pseudo_optimizer") is not None:
+                self.pseudo_optimizer.load_state_dict(state["pseudo_optimizer"])
+            self.learning_rate = float(state.get("learning_rate", self.learning_rate))
+            for group in self.optimizer.param_groups:
+                group["lr"] = self.learning_rate

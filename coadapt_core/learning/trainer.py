@@ -1,0 +1,349 @@
+"""The training loop of Algorithm 1 around `PPO` and `LocomotionEnv`: K designs x A agents
+as one batched environment, rollouts, updates, statistics, checkpoints and resume."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from coadapt_core.design_space import DesignSpace
+from coadapt_core.errors import UserError
+from coadapt_core.learning.config import TrainConfig
+from coadapt_core.learning.ppo import PPO, Dims
+from coadapt_core.objective import Objective
+from coadapt_core.randomization import RandomizationConfig
+from coadapt_core.robot import Robot
+from coadapt_core.task.config import TaskConfig
+from coadapt_core.task.env import LocomotionEnv
+
+CHECKPOINT_FORMAT = "coadapt-policy-1"
+WEIGHTS_FORMAT = "coadapt-policy-weights-1"
+
+
+@dataclass
+class IterationStats:
+    iteration: int
+    total_steps: int
+    mean_reward: float  # per-step reward over the rollout
+    episode_reward: float  # mean return of the episodes that ended (nan if none)
+    episode_length_s: float
+    tracking_error: float  # mean |v_xy_cmd - v_xy| over the rollout, m/s
+    vx: float  # mean base-frame forward speed over envs with a forward command
+    command_vx: float
+    alternation: float  # share of steps with exactly one foot on the ground
+    fall_rate: float  # falls per env per second
+    command_limit: float  # curriculum half-width
+    collect_steps_per_s: float
+    update_samples_per_s: float
+    physics_share: float
+    task_share: float
+    learner_share: float
+    losses: dict[str, float]
+
+    def to_dict(self) -> dict:
+        out = {k: v for k, v in self.__dict__.items() if k != "losses"}
+        out.update({f"loss/{k}": v for k, v in self.losses.items()})
+        return out
+
+
+class Trainer:
+    """Owns the simulator, the task environment and the learner.
+
+    `set_designs(designs)` places A agents on each of K designs [K, D] (one batched
+    environment of K x A robots); `learn(iterations)` runs PPO; `save`/`load` checkpoint all
+    of it; `export_weights` writes a small float32 file for deployment and evaluation.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        simulator_cls: type,
+        objectives: Sequence[Objective] = (),
+        *,
+        terrain: str = "flat",
+        design_space: DesignSpace | None = None,
+        train_config: TrainConfig | None = None,
+        task_config: TaskConfig | None = None,
+        randomization: RandomizationConfig | None = None,
+        device: str | None = None,
+        seed: int | None = None,
+        num_threads: int | None = None,
+    ):
+        self.robot = robot
+        self.simulator_cls = simulator_cls
+        self.objectives = list(objectives)
+        self.terrain = terrain
+        self.design_space = design_space or robot.design_space()
+        self.config = train_config or TrainConfig()
+        if device is not None:
+            self.config.device = device
+        if seed is not None:
+            self.config.seed = seed
+        if self.config.device.startswith("cuda") and not torch.cuda.is_available():
+            raise UserError("device 'cuda' requested but no CUDA device is available; use --device cpu", field="device")
+        self.task_config = task_config or TaskConfig()
+        self.randomization = randomization
+        self.num_threads = num_threads
+        self.device = torch.device(self.config.device)
+        self.env: LocomotionEnv | None = None
+        self.ppo: PPO | None = None
+        self.iteration = 0
+        self.total_steps = 0
+        self.rng = np.random.default_rng(self.config.seed)
+        torch.manual_seed(self.config.seed)
+        self._obs = None
+        self._pending_commands: dict | None = None
+        self.last_rollout_critic_obs: torch.Tensor | None = None  # [T * N, C] raw, cpu
+
+    # -- environment ------------------------------------------------------------------------
+    def sample_designs(self, k: int | None = None) -> np.ndarray:
+        """[K, D] designs drawn uniformly from the current design range."""
+        return self.design_space.sample(k or self.config.num_designs, self.rng)
+
+    def set_designs(self, designs: np.ndarray, agents: int | None = None) -> None:
+        """Place `agents` environments on each design [K, D] (rebuilds the simulator when the
+        number of environments changes, else swaps models in place)."""
+        designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        space = self.robot.design_space_for(designs[0])
+        designs = space.validate_batch(designs)
+        agents = agents or self.config.agents_per_design
+        per_env = np.repeat(designs, agents, axis=0)  # [K * A, D], agents of a design adjacent
+        if self.env is not None and self.env.num_envs == len(per_env):
+            if not np.array_equal(self.env.sim.designs, per_env):
+                self.env.set_designs(np.arange(len(per_env)), per_env)
+        else:
+            self.close()
+            sim = self.simulator_cls(
+                self.robot,
+                per_env,
+                terrain=self.terrain,
+                randomization=self.randomization,
+                seed=self.config.seed,
+                num_threads=self.num_threads,
+            )
+            self.env = LocomotionEnv(sim, self.robot, self.task_config, self.objectives, seed=self.config.seed, device=self.device)
+            if self._pending_commands is not None:  # curriculum state of a loaded checkpoint
+                self.env.commands.load_state_dict(self._pending_commands)
+        self.designs = designs
+        self.agents = agents
+        self._obs = None
+        self.ensure_ppo(self.env)
+
+    def ensure_ppo(self, env: LocomotionEnv) -> PPO:
+        """Build the learner for `env`'s sizes (or check a loaded one matches them)."""
+        dims = Dims(env.num_obs, env.num_critic_obs, env.num_design_obs, env.num_actions, len(self.objectives))
+        if self.ppo is None:
+            self.ppo = PPO(dims, self.config, self.device)
+        elif self.ppo.dims != dims:
+            raise UserError(
+                f"the environment's sizes {dims} do not match the policy's {self.ppo.dims}; "
+                "was the checkpoint trained for another robot?",
+                field="checkpoint",
+            )
+        return self.ppo
+
+    def close(self) -> None:
+        if self.env is not None:
+            self.env.sim.close()
+            self.env = None
+
+    # -- training ---------------------------------------------------------------------------
+    @property
+    def samples_per_iteration(self) -> int:
+        return self.env.num_envs * self.config.steps_per_env
+
+    def iterations_for(self, steps: int) -> int:
+        return max(1, math.ceil(steps / self.samples_per_iteration))
+
+    def learn(self, iterations: int, callback: Callable[[IterationStats], None] | None = None) -> IterationStats:
+        """Run `iterations` PPO iterations; `callback` sees each one's statistics."""
+        if self.env is None:
+            self.set_designs(self.sample_designs())
+        env, ppo, cfg = self.env, self.ppo, self.config
+        ppo.training = True
+        if self._obs is None:
+            self._obs = env.reset()
+        obs, critic_obs, design_obs = self._obs
+        stats = None
+        for _ in range(iterations):
+            if cfg.design_resample_every and self.iteration > 0 and self.iteration % cfg.design_resample_every == 0:
+                self.set_designs(self.sample_designs(len(self.designs)), self.agents)
+                obs, critic_obs, design_obs = env.reset()
+            physics0, step0 = env.timing["physics"], env.timing["step"]
+            start = time.perf_counter()
+            rewards, errors, alternation = [], [], []
+            vx_sum, vx_count, cmd_sum = 0.0, 0, 0.0
+            episodes: list[dict] = []
+            visited: list[torch.Tensor] = []
+            for _ in range(cfg.steps_per_env):
+                visited.append(critic_obs)
+                actions = ppo.act(obs, critic_obs, design_obs)
+                res = env.step(actions)
+                ppo.process_env_step(res.reward, res.done, res.timeout, res.info["final_critic_obs"], res.design_obs, res.info["metrics"])
+                obs, critic_obs, design_obs = res.obs, res.critic_obs, res.design_obs
+                info = res.info
+                rewards.append(res.reward.mean())
+                lin, command = info["base_lin_vel"], info["command"]
+                errors.append((command[:, :2] - lin[:, :2]).norm(dim=-1).mean())
+                alternation.append((info["foot_contact"].sum(dim=-1) == 1).float().mean())
+                forward = command[:, 0] > 0.1
+                vx_sum += float(lin[forward, 0].sum())
+                cmd_sum += float(command[forward, 0].sum())
+                vx_count += int(forward.sum())
+                if "episode" in info:
+                    episodes.append(info["episode"])
+            collect_seconds = time.perf_counter() - start
+            self.last_rollout_critic_obs = torch.cat(visited).float().cpu()
+            t_update = time.perf_counter()
+            ppo.compute_returns()
+            losses = ppo.update()
+            update_seconds = time.perf_counter() - t_update
+            self.iteration += 1
+            samples = env.num_envs * cfg.steps_per_env
+            self.total_steps += samples
+            total = collect_seconds + update_seconds
+            physics = env.timing["physics"] - physics0
+            task = env.timing["step"] - step0 - physics
+            falls = sum(e["fell"] * e["count"] for e in episodes)
+            stats = IterationStats(
+                iteration=self.iteration,
+                total_steps=self.total_steps,
+                mean_reward=float(torch.stack(rewards).mean()),
+                episode_reward=_weighted_mean(episodes, "reward"),
+                episode_length_s=_weighted_mean(episodes, "length_s"),
+                tracking_error=float(torch.stack(errors).mean()),
+                vx=vx_sum / vx_count if vx_count else float("nan"),
+                command_vx=cmd_sum / vx_count if vx_count else float("nan"),
+                alternation=float(torch.stack(alternation).mean()),
+                fall_rate=falls / (env.num_envs * cfg.steps_per_env * env.dt),
+                command_limit=float(env.commands.limit),
+                collect_steps_per_s=samples / collect_seconds,
+                update_samples_per_s=samples * cfg.epochs / update_seconds,
+                physics_share=physics / total,
+                task_share=task / total,
+                learner_share=1.0 - (physics + task) / total,
+                losses=losses,
+            )
+            if callback is not None:
+                callback(stats)
+        self._obs = (obs, critic_obs, design_obs)
+        return stats
+
+    # -- checkpoints ------------------------------------------------------------------------
+    def _header(self) -> dict:
+        ppo = self.ppo
+        return {
+            "robot": self.robot.name,
+            "simulator": getattr(self.simulator_cls, "name", "?"),
+            "terrain": self.terrain,
+            "objectives": [o.name for o in self.objectives],
+            "design_space": self.design_space.to_dict(),
+            "train_config": self.config.to_dict(),
+            "task_config": self.task_config.to_dict(),
+            "dims": ppo.dims.__dict__,
+            "iteration": self.iteration,
+            "total_steps": self.total_steps,
+        }
+
+    def save(self, path: str | Path) -> Path:
+        """Full checkpoint: configs, design range, networks, normalisers, optimizers, counters,
+        command curriculum."""
+        if self.ppo is None:
+            raise UserError("nothing to save: the policy has not been built yet", field="checkpoint")
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        state = {"format": CHECKPOINT_FORMAT, **self._header(), "ppo": self.ppo.state_dict()}
+        if self.env is not None:
+            state["commands"] = self.env.commands.state_dict()
+        torch.save(state, path)
+        return path
+
+    def export_weights(self, path: str | Path) -> Path:
+        """Weights only (float32 actor, critic, pseudo-critics and normalisers, plus the
+        configs needed to run them): the small file shipped with a robot."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        full = self.ppo.state_dict()
+        keep = ("actor", "critic", "pseudo_critic", "obs_norm", "critic_norm", "pseudo_norm")
+        weights = {
+            k: {n: (t.float() if t.is_floating_point() else t).cpu() for n, t in full[k].items()}
+            for k in keep
+            if full.get(k) is not None
+        }
+        torch.save({"format": WEIGHTS_FORMAT, **self._header(), "ppo": weights}, path)
+        return path
+
+    def load(self, path: str | Path, *, optimizers: bool = True) -> dict:
+        """Restore a checkpoint (or a weights export) written by `save` (`export_weights`)."""
+        state = read_checkpoint(path)
+        self.config.hidden = tuple(state["train_config"]["hidden"])
+        self.config.activation = state["train_config"]["activation"]
+        saved_names = list(state["objectives"])
+        names = [o.name for o in self.objectives]
+        dims = Dims(**{**state["dims"], "num_metrics": len(names)})
+        if self.ppo is None:
+            self.ppo = PPO(dims, self.config, self.device)
+        elif self.ppo.dims != dims:
+            raise UserError(f"checkpoint '{path}' has sizes {dims}, the policy here {self.ppo.dims}", field="checkpoint")
+        ppo_state = dict(state["ppo"])
+        same = saved_names == names
+        if not same:  # pseudo-critics follow objectives by name; unknown ones start fresh
+            ppo_state["pseudo_critic"] = _remap_heads(ppo_state.get("pseudo_critic"), saved_names, names, self.ppo)
+            ppo_state["pseudo_norm"] = _remap_norm(ppo_state["pseudo_norm"], saved_names, names, self.ppo)
+        self.ppo.load_state_dict(ppo_state, optimizers=same and optimizers and state["format"] == CHECKPOINT_FORMAT)
+        self.iteration = int(state["iteration"])
+        self.total_steps = int(state["total_steps"])
+        if self.env is not None and "commands" in state:
+            self.env.commands.load_state_dict(state["commands"])
+        self._pending_commands = state.get("commands")
+        return state
+
+
+def _weighted_mean(episodes: list[dict], key: str) -> float:
+    """Mean of an episode statistic over the episodes that ended (nan when none did)."""
+    count = sum(e["count"] for e in episodes)
+    return sum(e[key] * e["count"] for e in episodes) / count if count else float("nan")
+
+
+def _remap_heads(saved: dict | None, saved_names: list[str], names: list[str], ppo: PPO) -> dict | None:
+    if ppo.pseudo_critic is None:
+        return None
+    out = ppo.pseudo_critic.state_dict()
+    for i, name in enumerate(names):
+        if saved is not None and name in saved_names:
+            j = saved_names.index(name)
+            for key in list(out):
+                if key.startswith(f"heads.{i}."):
+                    out[key] = saved[f"heads.{j}." + key[len(f"heads.{i}.") :]]
+    return out
+
+
+def _remap_norm(saved: dict, saved_names: list[str], names: list[str], ppo: PPO) -> dict:
+    out = {k: v.clone() for k, v in ppo.pseudo_norm.state_dict().items()}
+    for i, name in enumerate(names):
+        if name in saved_names:
+            j = saved_names.index(name)
+            out["mean"][i] = saved["mean"][j]
+            out["var"][i] = saved["var"][j]
+    out["count"] = saved["count"]
+    return out
+
+
+def read_checkpoint(path: str | Path) -> dict:
+    """The dict saved by `Trainer.save` / `export_weights`; a one-line `UserError` otherwise."""
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"checkpoint '{path}' does not exist", field="checkpoint")
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=False)
+    except Exception as exc:
+        raise UserError(f"checkpoint '{path}' cannot be read ({type(exc).__name__})", field="checkpoint") from None
+    if not isinstance(state, dict) or state.get("format") not in (CHECKPOINT_FORMAT, WEIGHTS_FORMAT):
+        raise UserError(f"'{path}' is not a coadapt policy checkpoint", field="checkpoint")
+    return state
