@@ -1,24 +1,203 @@
-"""`coadapt run`: the co-adaptation loop (Algorithm 4) on one robot, simulator and objective."""
+"""`coadapt run`: the co-adaptation loop (Algorithm 4) on one robot, simulator and objective.
+
+Every option is a field of `coadapt_core.coadapt.config.CoadaptConfig` (and a YAML key of
+`--config`); an option given on the command line wins over the YAML file, which wins over
+the preset.
+"""
 
 from __future__ import annotations
 
+import json
+import math
+from pathlib import Path
+from typing import Any
+
 import typer
 
-from coadapt_core.cli.common import choice_help, not_available, resolve
+from coadapt_core.cli.common import choice_help, fail, resolve
+from coadapt_core.errors import UserError
+
+_METHOD_HELP = "Method: ours, no-surrogate, no-real, no-retrain or bo-specialized."
+
+
+def _fmt_duration(seconds: float | None) -> str:
+    if seconds is None or not math.isfinite(seconds):
+        return "?"
+    seconds = int(seconds)
+    return f"{seconds // 3600}:{seconds % 3600 // 60:02d}:{seconds % 60:02d}"
+
+
+class _ProgressView:
+    """A rich live line: phase, outer/inner iteration, best real cost, interactions, ETA."""
+
+    def __init__(self, enabled: bool):
+        self.enabled = enabled
+        self.progress = None
+        self.task = None
+
+    def __enter__(self) -> _ProgressView:
+        return self
+
+    def _start(self) -> None:
+        """Shown from the first event on, so a config error is never preceded by a bar."""
+        if self.enabled and self.progress is None:
+            from rich.console import Console
+            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+            self.progress = Progress(
+                TextColumn("[bold]{task.fields[phase]:<22}"),
+                BarColumn(),
+                TextColumn("outer {task.fields[outer]} round {task.fields[inner]}"),
+                TextColumn("best {task.fields[best]}"),
+                TextColumn("{task.fields[interactions]} interactions"),
+                TimeElapsedColumn(),
+                TextColumn("ETA {task.fields[eta]}"),
+                console=Console(stderr=True),
+                transient=False,
+            )
+            self.progress.__enter__()
+            self.task = self.progress.add_task("run", total=1.0, phase="starting", outer="-", inner="-", best="-", interactions=0, eta="?")
+
+    def __call__(self, event: dict[str, Any]) -> None:
+        self._start()
+        if self.progress is None:
+            return
+        fraction = event["fraction"]
+        eta = event["elapsed"] * (1 - fraction) / fraction if fraction > 0 else None
+        best = event["best_cost"] if event["best_cost"] is not None else event.get("best_any")
+        self.progress.update(
+            self.task, completed=fraction, phase=event["phase"],
+            outer=f"{min(event['outer'] + 1, event['outer_total'])}/{event['outer_total']}",
+            inner=f"{event['inner']}/{event['inner_total']}",
+            best="-" if best is None else f"{best:.4g}", interactions=f"{event['interactions']:,}",
+            eta=_fmt_duration(eta),
+        )
+
+    def __exit__(self, *exc: Any) -> None:
+        if self.progress is not None:
+            self.progress.__exit__(*exc)
+
+
+def _print_summary(summary: dict[str, Any], space_names: list[str] | None) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    names = space_names or [f"x{i}" for i in range(len(summary["best_design"]))]
+    table = Table(title=f"coadapt run {summary['run_id']}")
+    table.add_column("")
+    for name in names:
+        table.add_column(name)
+    for objective in summary["best_costs"]:
+        table.add_column(f"{objective} cost")
+    table.add_row("best", *[f"{x:.3f}" for x in summary["best_design"]], *[f"{v:.5g}" for v in summary["best_costs"].values()])
+    table.add_row("nominal", *[f"{x:.3f}" for x in summary["nominal_design"]],
+                  *[f"{summary['nominal_costs'][k]:.5g}" for k in summary["best_costs"]])
+    console.print(table)
+    improvements = ", ".join(f"{k} {100 * v:+.1f} %" for k, v in summary["improvements"].items())
+    console.print(
+        f"improvement over nominal: {improvements}; interactions {summary['interactions']:,} "
+        f"(training {summary['train_interactions']:,}, evaluation {summary['eval_interactions']:,}, "
+        f"final check {summary['final_interactions']:,}); {summary['real_evaluations']} real and "
+        f"{summary['surrogate_evaluations']} surrogate rounds; {_fmt_duration(summary['seconds'])} wall clock"
+    )
+    if summary.get("pareto_front"):
+        front = summary["pareto_front"]
+        console.print(f"Pareto front ({len(front['designs'])} designs, real costs):")
+        for design, costs in zip(front["designs"], front["costs"], strict=True):
+            console.print("  " + ", ".join(f"{x:.3f}" for x in design) + "  ->  " + ", ".join(f"{k} {v:.4g}" for k, v in costs.items()))
 
 
 def register(app: typer.Typer) -> None:
     @app.command("run")
     def run_command(
-        optimizer: str = typer.Option("pso", help=choice_help("optimizer", "Design optimizer.")),
-        sim: str = typer.Option("mujoco", help=choice_help("simulator", "Simulator backend.")),
-        objective: str = typer.Option("torque", help=choice_help("objective", "Objective to minimise.")),
-        robot: str = typer.Option("kuafu", help=choice_help("robot", "Robot.")),
-        terrain: str = typer.Option("flat", help="Terrain: flat, slope or random."),
-        seed: int = typer.Option(0, help="Random seed."),
+        optimizer: str = typer.Option(None, help=choice_help("optimizer", "Design optimizer [pso].")),
+        sim: str = typer.Option(None, help=choice_help("simulator", "Simulator backend [mujoco].")),
+        objective: str = typer.Option(None, help=choice_help("objective", "Objective to minimise, or a comma list of 2-3 for nsga2 [torque].")),
+        robot: str = typer.Option(None, help=choice_help("robot", "Robot [kuafu].")),
+        terrain: str = typer.Option(None, help="Terrain: flat, slope or random [flat]."),
+        method: str = typer.Option(None, help=_METHOD_HELP + " [ours]"),
+        preset: str = typer.Option(None, help="Preset: smoke, quick or paper [quick]."),
+        seed: int = typer.Option(None, help="Random seed [0]."),
+        config: Path = typer.Option(None, "--config", help="YAML file of config keys (CLI options win over it)."),
+        out: str = typer.Option(None, help="Parent folder of run folders [runs]."),
+        resume: str = typer.Option(None, help="Resume the run with this id (a folder under --out) or this run folder."),
+        as_json: bool = typer.Option(False, "--json", help="Last stdout line: a JSON summary."),
+        objective_weights: str = typer.Option(None, help="Composite weights, e.g. tracking=1,power=1,torque=1."),
+        mixed: bool = typer.Option(None, "--mixed/--no-mixed", help="Add the robot's discrete variables (motor types); implied by mixed-pso."),
+        design_ranges: str = typer.Option(None, help="Initial range low:high per continuous variable, e.g. 0.5:1.5,0.5:1.0."),
+        outer_iterations: int = typer.Option(None, help="N: outer iterations (train, optimise, narrow)."),
+        population: int = typer.Option(None, help="K: designs per training phase = swarm size."),
+        optimizer_iterations: int = typer.Option(None, help="J: optimizer rounds per outer iteration."),
+        evaluation_probability: float = typer.Option(None, help="w: probability of a surrogate (not real) round."),
+        agents_per_design: int = typer.Option(None, help="Agents per design in training and real evaluation."),
+        train_steps: int = typer.Option(None, help="Interactions of the first training phase."),
+        retrain_steps: int = typer.Option(None, help="Interactions of each later retraining phase."),
+        eval_steps: int = typer.Option(None, help="T_eval: policy steps per agent in a real evaluation."),
+        surrogate_samples: int = typer.Option(None, help="States drawn from the evaluation buffer by the surrogate."),
+        measure_surrogate_error: bool = typer.Option(None, "--measure-surrogate-error/--no-measure-surrogate-error", help="Run the surrogate on real batches too, to record its error."),
+        inertia: float = typer.Option(None, help="PSO inertia (momentum) [0.9]."),
+        c1: float = typer.Option(None, help="PSO cognitive impact [2.0]."),
+        c2: float = typer.Option(None, help="PSO social impact [2.0]."),
+        bo_sampler: str = typer.Option(None, help="BO sampler: tpe or gp."),
+        bo_storage: str = typer.Option(None, help="Optuna storage URL for the BO study."),
+        narrow_margin: float = typer.Option(None, help="Narrowing: widen the particles' span by this fraction per side."),
+        narrow_min_width: float = typer.Option(None, help="Narrowing: minimum width as a fraction of the full range."),
+        bo_designs: int = typer.Option(None, help="bo-specialized: designs BO proposes."),
+        specialized_train_steps: int = typer.Option(None, help="bo-specialized: interactions per specialised policy."),
+        checkpoint: str = typer.Option(None, help="Universal policy to start from ('none' = from scratch)."),
+        device: str = typer.Option(None, help="Torch device of the learner [cpu]."),
+        store: str = typer.Option(None, help="Results store URL or path (default: JSON files only)."),
     ) -> None:
-        """Co-adapt design and policy: universal policy + pseudo-critics, PSO with hybrid
+        """Co-adapt design and policy: universal policy + pseudo-critics, optimizer with hybrid
         real/surrogate fitness, range narrowing (paper Algorithm 4)."""
-        for kind, name in (("optimizer", optimizer), ("simulator", sim), ("objective", objective), ("robot", robot)):
-            resolve(kind, name)
-        not_available("run", "the co-adaptation loop (issue 6: objectives, fitness, optimizers, Algorithm 4)")
+        from coadapt_core.coadapt.config import make_config
+        from coadapt_core.coadapt.loop import run_coadaptation
+
+        overrides = {
+            "optimizer": optimizer, "sim": sim, "objective": objective, "robot": robot, "terrain": terrain,
+            "method": method, "seed": seed, "out": out, "objective_weights": objective_weights, "mixed": mixed,
+            "design_ranges": design_ranges, "outer_iterations": outer_iterations, "population": population,
+            "optimizer_iterations": optimizer_iterations, "evaluation_probability": evaluation_probability,
+            "agents_per_design": agents_per_design, "train_steps": train_steps, "retrain_steps": retrain_steps,
+            "eval_steps": eval_steps, "surrogate_samples": surrogate_samples,
+            "measure_surrogate_error": measure_surrogate_error, "inertia": inertia, "c1": c1, "c2": c2,
+            "bo_sampler": bo_sampler, "bo_storage": bo_storage, "narrow_margin": narrow_margin,
+            "narrow_min_width": narrow_min_width, "bo_designs": bo_designs,
+            "specialized_train_steps": specialized_train_steps, "checkpoint": checkpoint, "device": device,
+            "store": store,
+        }
+        try:
+            if resume:
+                run_dir = Path(resume)
+                if not (run_dir / "state.pkl").exists():
+                    run_dir = Path(out or "runs") / resume
+                if not run_dir.is_dir():
+                    fail(f"--resume: no run '{resume}' under {out or 'runs'}/ (and no such folder)")
+                kwargs: dict[str, Any] = {"resume": run_dir}
+                cfg = None
+            else:
+                cfg = make_config(preset, config, overrides)
+                resolve("optimizer", cfg.optimizer)
+                resolve("simulator", cfg.sim)
+                resolve("robot", cfg.robot)
+                for name in cfg.objectives:
+                    resolve("objective", name)
+                kwargs = {}
+            with _ProgressView(enabled=not as_json) as view:
+                result = run_coadaptation(cfg, progress=view, **kwargs)
+        except UserError as exc:
+            fail(str(exc))
+        summary = result.summary
+        if as_json:
+            print(json.dumps(result.json_line()))
+        else:
+            names = None
+            try:
+                from coadapt_core.design_space import DesignSpace
+
+                names = DesignSpace.from_dict(summary["final_space"]).names
+            except Exception:
+                names = None
+            _print_summary(summary, names)
+            print(f"run folder: {result.run_dir}")

@@ -41,12 +41,16 @@ class MethodSwitches:
     surrogate_probability: float | None = None  # None: the config's w; else forced
     specialized: bool = False  # a policy trained from scratch per proposed design (BO baseline)
     optimizer: str | None = None  # forced optimizer
+    # take R_eval from the training rollouts when the backend offers it (no-real only: the
+    # other methods fill it with the first, real, round of each outer iteration, as in the
+    # paper where R_eval comes from Algorithm 2)
+    buffer_from_training: bool = False
 
 
 METHOD_SWITCHES: dict[str, MethodSwitches] = {
     "ours": MethodSwitches(),
     "no-surrogate": MethodSwitches(surrogate_probability=0.0),
-    "no-real": MethodSwitches(surrogate_probability=1.0),
+    "no-real": MethodSwitches(surrogate_probability=1.0, buffer_from_training=True),
     # one universal policy over the full range, trained once; N*J real-only rounds, one swarm
     "no-retrain": MethodSwitches(retrain=False, narrow=False, surrogate_probability=0.0),
     "bo-specialized": MethodSwitches(retrain=False, narrow=False, surrogate_probability=0.0, specialized=True, optimizer="bo"),
@@ -271,7 +275,7 @@ class CoadaptationLoop:
                 s.counters["train_interactions"] += int(result.steps)
                 s.counters["train_seconds"] += float(result.seconds)
                 self.recorder.record_training(s.run_id, outer=s.outer, result=result)
-                if getattr(result, "buffer", None) is not None:
+                if self.switches.buffer_from_training and getattr(result, "buffer", None) is not None:
                     s.buffer, s.buffer_outer = result.buffer, s.outer
             else:
                 self.get_backend()

@@ -1,0 +1,111 @@
+"""`coadapt run` and its config: presets, YAML, precedence, validation with exit code 2,
+the --json line, --resume; the learner is replaced by the analytic backend."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import coadapt_core.coadapt.setup as loop_setup
+from coadapt_core.cli import main
+from coadapt_core.coadapt.config import PRESETS, CoadaptConfig, make_config
+from coadapt_core.errors import UserError
+from tests.fakes.analytic import AnalyticBackend, optimum_of
+
+
+@pytest.fixture
+def fake_learner(monkeypatch):
+    monkeypatch.setattr(loop_setup, "universal_policy_factory", lambda *a, **k: (lambda seed: AnalyticBackend(seed)))
+
+
+def test_paper_preset_has_section_4_1_3_settings():
+    c = make_config("paper")
+    assert (c.outer_iterations, c.population, c.optimizer_iterations, c.agents_per_design) == (3, 100, 5, 50)
+    assert (c.evaluation_probability, c.inertia, c.c1, c.c2) == (0.5, 0.9, 2.0, 2.0)
+
+
+def test_cli_beats_yaml_beats_preset(tmp_path):
+    path = tmp_path / "c.yaml"
+    path.write_text("population: 7\nseed: 5\nobjective: [power, torque]\noptimizer: nsga2\n")
+    c = make_config("smoke", path, {"seed": 11, "population": None})
+    assert c.population == 7 and c.seed == 11 and c.objective == "power,torque"
+    assert c.outer_iterations == PRESETS["smoke"]["outer_iterations"]
+
+
+def test_every_field_has_a_cli_option():
+    from typer.main import get_command
+
+    from coadapt_core.cli import app
+
+    run = get_command(app).commands["run"]
+    options = {opt.lstrip("-").replace("-", "_") for p in run.params for opt in p.opts}
+    assert set(CoadaptConfig.__dataclass_fields__) <= options | {"preset"}
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--evaluation-probability", "1.7"], "evaluation_probability must be a probability in [0, 1]"),
+        (["--population", "0"], "population must be an integer >= 1"),
+        (["--design-ranges", "1.5:0.5,0.5:1.5"], "inverted bounds"),
+        (["--design-ranges", "0.2:1.5,0.5:1.5"], "leaves its bounds"),
+        (["--method", "magic"], "method 'magic' is not one of"),
+        (["--terrain", "ice"], "terrain 'ice'"),
+        (["--optimizer", "cmaes"], "unknown optimizer 'cmaes'"),
+        (["--objective", "speed"], "unknown objective 'speed'"),
+        (["--objective", "power,torque"], "need a multi-objective optimizer"),
+        (["--optimizer", "nsga2"], "needs 2-3 objectives"),
+        (["--preset", "huge"], "preset 'huge'"),
+        (["--narrow-min-width", "0"], "narrow_min_width"),
+        (["--objective", "composite", "--objective-weights", "speed=1"], "unknown component 'speed'"),
+        (["--resume", "no-such-run"], "no run 'no-such-run'"),
+    ],
+)
+def test_bad_values_are_one_line_and_exit_2(tmp_path, capsys, fake_learner, args, message):
+    code = main(["run", "--preset", "smoke", "--out", str(tmp_path), *args])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert message in err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_bad_yaml_is_exit_2(tmp_path, capsys):
+    path = tmp_path / "bad.yaml"
+    path.write_text("population: [1, 2\n")
+    assert main(["run", "--config", str(path)]) == 2
+    path.write_text("populaton: 3\n")
+    assert main(["run", "--config", str(path)]) == 2
+    assert "unknown config file key 'populaton'" in capsys.readouterr().err
+
+
+def test_run_json_last_line_and_resume(tmp_path, capsys, fake_learner):
+    args = ["run", "--optimizer", "pso", "--sim", "mujoco", "--objective", "torque", "--preset", "smoke",
+            "--population", "12", "--optimizer-iterations", "4", "--agents-per-design", "30", "--out", str(tmp_path), "--json"]
+    assert main(args) == 0
+    line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert set(line) == {"run_id", "best_design", "best_cost", "nominal_cost", "improvement", "interactions", "seconds"}
+    assert np.abs(np.array(line["best_design"]) - optimum_of("torque")).max() < 0.15
+    assert line["improvement"] > 0.15 and line["interactions"] > 0
+    # resuming a finished run by id prints the same result
+    assert main(["run", "--resume", line["run_id"], "--out", str(tmp_path), "--json"]) == 0
+    again = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert again["best_design"] == line["best_design"]
+
+
+def test_run_table_output_and_mixed_pso_uses_motor_types(tmp_path, capsys, fake_learner):
+    assert main(["run", "--optimizer", "mixed-pso", "--preset", "smoke", "--population", "8", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "hip_motor" in out and "improvement over nominal" in out and "run folder:" in out
+
+
+def test_nsga2_prints_pareto_front(tmp_path, capsys, fake_learner):
+    assert main(["run", "--optimizer", "nsga2", "--objective", "power,torque", "--preset", "smoke", "--population", "8", "--out", str(tmp_path)]) == 0
+    assert "Pareto front" in capsys.readouterr().out
+
+
+def test_config_validation_names_field():
+    with pytest.raises(UserError) as info:
+        make_config("smoke", overrides={"agents_per_design": -3})
+    assert info.value.field == "agents_per_design"
