@@ -1,15 +1,306 @@
-"""`coadapt robot ...`: inspect, export, validate and render a robot's designs."""
+"""`coadapt robot ...`: inspect, export, validate and render a robot's designs.
+
+Every command takes a registered robot name and `--design` (comma-separated values in the
+order of the robot's continuous or mixed design space; the nominal design when left out).
+"""
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
 import typer
 
-from coadapt_core.cli.common import not_available
+from coadapt_core.cli.common import fail, resolve
+from coadapt_core.errors import DesignError
 
 app = typer.Typer(help="Inspect, export, validate and render robot designs.", no_args_is_help=True)
 
+DESIGN_HELP = "Design values, comma-separated in the order of the robot's design space (e.g. 1.2,0.8 or 1.2,0.8,2,3 for kuafu). Default: the nominal design."
+#: exit code of `validate` for a design that fails a check
+EXIT_INFEASIBLE = 1
+#: GL backends tried in turn for offscreen rendering (MUJOCO_GL), unless MUJOCO_GL is set
+GL_BACKENDS = ("egl", "osmesa")
+
+
+def load_robot(name: str) -> Any:
+    """An instance of the registered robot `name` (one-line error listing the robots)."""
+    return resolve("robot", name)()
+
+
+def parse_design(robot: Any, text: str | None) -> np.ndarray:
+    """`text` as a design of the robot's continuous or mixed space (picked by arity), or the
+    nominal design when `text` is None. Raises `DesignError` (one line) otherwise."""
+    if text is None:
+        return robot.nominal_design()
+    plain, mixed = robot.design_space(False), robot.design_space(True)
+    parts = [p.strip() for p in text.split(",") if p.strip()]
+    spaces = [plain] if plain.dim == mixed.dim else [plain, mixed]
+    expected = " or ".join(f"{s.dim} values ({', '.join(s.names)})" for s in spaces)
+    try:
+        values = np.array([float(p) for p in parts])
+    except ValueError:
+        raise DesignError(f"--design '{text}' must be comma-separated numbers: {expected}", field="design") from None
+    for space in spaces:
+        if values.shape[0] == space.dim:
+            return space.validate(values)
+    raise DesignError(f"--design '{text}' has {values.shape[0]} values; {robot.name} takes {expected}", field="design")
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    return value
+
+
+def describe(robot: Any, design: np.ndarray, validate: bool = True) -> dict:
+    """Everything `show` prints, as plain data."""
+    model = robot.build(design)
+    space = robot.design_space_for(design)
+    joints = []
+    for k, name in enumerate(model.joint_names):
+        joints.append(
+            {
+                "name": name,
+                "default": float(model.default_joint_pos[k]),
+                "lower": float(model.joint_lower[k]),
+                "upper": float(model.joint_upper[k]),
+                "kp": float(model.kp[k]),
+                "kd": float(model.kd[k]),
+                "torque_limit": float(model.torque_limit[k]),
+                "speed_limit": float(model.speed_limit[k]),
+                "speed_limit_rpm": float(model.speed_limit[k] * 60.0 / (2.0 * np.pi)),
+            }
+        )
+    out = {
+        "robot": robot.name,
+        "design": dict(zip(space.names, (float(x) for x in design), strict=True)),
+        "total_mass": float(model.total_mass),
+        "standing_base_height": float(model.standing_base_height),
+        "info": _jsonable(model.info),
+        "joints": joints,
+    }
+    if validate:
+        out["validation"] = robot.validate(design).to_dict()
+    return out
+
+
+def _console() -> Any:
+    """A rich console; when output is not a terminal (pipes, files, tests) wide enough that
+    the tables do not wrap."""
+    from rich.console import Console
+
+    console = Console()
+    return console if console.is_terminal else Console(width=120)
+
+
+def _print_description(data: dict) -> None:
+    from rich.table import Table
+
+    console = _console()
+    design = ", ".join(f"{k}={v:g}" for k, v in data["design"].items())
+    summary = Table(title=f"{data['robot']}  ({design})", show_header=False)
+    summary.add_column("quantity")
+    summary.add_column("value", justify="right")
+    summary.add_row("total mass", f"{data['total_mass']:.3f} kg")
+    summary.add_row("standing base height", f"{data['standing_base_height']:.3f} m")
+    for key, value in data["info"].items():
+        if isinstance(value, int | float) and not isinstance(value, bool):
+            summary.add_row(key.replace("_", " "), f"{value:.4g}")
+        elif isinstance(value, dict) and all(isinstance(v, int | float) for v in value.values()):
+            summary.add_row(key.replace("_", " "), ", ".join(f"{k} {v:.3g}" for k, v in value.items()))
+    console.print(summary)
+    joints = Table(title="actuated joints")
+    motors = data["info"].get("motor_types")
+    columns = ["joint", *(["motor"] if motors else []), "default", "range", "kp", "kd", "N m", "rad/s", "RPM"]
+    for column in columns:
+        joints.add_column(column, justify="left" if column == "joint" else "right", no_wrap=True)
+    for k, j in enumerate(data["joints"]):
+        joints.add_row(
+            j["name"],
+            *([str(motors[k])] if motors else []),
+            f"{j['default']:+.3f}",
+            f"[{j['lower']:+.2f}, {j['upper']:+.2f}]",
+            f"{j['kp']:.0f}",
+            f"{j['kd']:.1f}",
+            f"{j['torque_limit']:.1f}",
+            f"{j['speed_limit']:.1f}",
+            f"{j['speed_limit_rpm']:.0f}",
+        )
+    joints.caption = "range in rad; N m: peak torque; rad/s and RPM: no-load joint speed"
+    console.print(joints)
+    if "validation" in data:
+        _print_findings(console, data["validation"])
+
+
+def _print_findings(console: Any, report: dict) -> None:
+    from rich.table import Table
+
+    verdict = "feasible" if report["feasible"] else "INFEASIBLE"
+    table = Table(title=f"validation: {verdict}")
+    table.add_column("check")
+    table.add_column("ok")
+    table.add_column("finding")
+    for f in report["findings"]:
+        table.add_row(f["check"], "yes" if f["ok"] else "NO", f["message"])
+    console.print(table)
+
 
 @app.command("show")
-def show_command() -> None:
-    """A table of lengths, masses, motor limits and validation findings for one design."""
-    not_available("robot show", "the Kuafu robot plugin (issue 3)")
+def show_command(
+    robot: str = typer.Argument(..., help="Registered robot name (see `coadapt plugins`)."),
+    design: str | None = typer.Option(None, "--design", help=DESIGN_HELP),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON instead of tables."),
+    no_validate: bool = typer.Option(False, "--no-validate", help="Skip the validation checks."),
+) -> None:
+    """Lengths, masses, motor limits, PD gains and validation findings for one design."""
+    instance = load_robot(robot)
+    values = parse_design(instance, design)
+    data = describe(instance, values, validate=not no_validate)
+    if as_json:
+        print(json.dumps(data, indent=2))
+    else:
+        _print_description(data)
+
+
+@app.command("export")
+def export_command(
+    robot: str = typer.Argument(..., help="Registered robot name."),
+    design: str | None = typer.Option(None, "--design", help=DESIGN_HELP),
+    fmt: str = typer.Option("mjcf", "--format", help="Model format: mjcf or urdf."),
+    output: Path | None = typer.Option(None, "-o", "--output", help="File to write (default: standard output)."),
+) -> None:
+    """Write the design's model as MJCF (MuJoCo) or URDF (Pinocchio, PyBullet)."""
+    if fmt not in ("mjcf", "urdf"):
+        fail(f"--format '{fmt}' is not supported; use mjcf or urdf")
+    instance = load_robot(robot)
+    model = instance.build(parse_design(instance, design))
+    text = model.mjcf if fmt == "mjcf" else model.urdf
+    if output is None:
+        sys.stdout.write(text)
+        return
+    try:
+        output.write_text(text)
+    except OSError as exc:
+        fail(f"cannot write -o {output}: {exc.strerror or exc}")
+    print(f"wrote {fmt} of {robot} ({','.join(f'{x:g}' for x in model.design)}) to {output}", file=sys.stderr)
+
+
+@app.command("validate")
+def validate_command(
+    robot: str = typer.Argument(..., help="Registered robot name."),
+    design: str | None = typer.Option(None, "--design", help=DESIGN_HELP),
+    as_json: bool = typer.Option(False, "--json", help="Print the report as JSON."),
+) -> None:
+    """Check a design (kinematics, mass, statics, MuJoCo/Pinocchio agreement). Exit code 0
+    when feasible, 1 when a check fails."""
+    instance = load_robot(robot)
+    report = instance.validate(parse_design(instance, design))
+    if as_json:
+        print(json.dumps(report.to_dict(), indent=2))
+    else:
+        _print_findings(_console(), report.to_dict())
+    if not report.feasible:
+        for reason in report.reasons:
+            print(f"infeasible: {reason}", file=sys.stderr)
+        raise typer.Exit(EXIT_INFEASIBLE)
+
+
+# -- render ----------------------------------------------------------------------------------
+def render_png(mjcf: str, qpos_joints: list[float], base_height: float, output: str, width: int, height: int) -> None:
+    """Draw the robot at the given pose, standing on a checker floor, into a PNG. Runs in a
+    fresh interpreter (see `render_command`) because MuJoCo picks its GL backend from
+    MUJOCO_GL when it is first imported."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.image
+    import mujoco
+
+    spec = mujoco.MjSpec.from_string(mjcf)
+    texture = spec.add_texture(name="grid", type=mujoco.mjtTexture.mjTEXTURE_2D, builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
+                               rgb1=[0.82, 0.84, 0.86], rgb2=[0.68, 0.7, 0.72], width=256, height=256)
+    material = spec.add_material(name="grid", texrepeat=[8, 8], reflectance=0.05)
+    material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = texture.name
+    floor = spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[4, 4, 0.05], material="grid")
+    floor.contype, floor.conaffinity = 0, 0
+    spec.worldbody.add_light(pos=[1.5, -1.5, 3.5], dir=[-0.4, 0.4, -1], diffuse=[0.8, 0.8, 0.8])
+    spec.worldbody.add_light(pos=[-2, 2, 3], dir=[0.5, -0.5, -1], diffuse=[0.4, 0.4, 0.4])
+    model = spec.compile()
+    model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
+    model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+    data = mujoco.MjData(model)
+    data.qpos[2] = base_height
+    data.qpos[3:7] = [1, 0, 0, 0]
+    data.qpos[7 : 7 + len(qpos_joints)] = qpos_joints
+    mujoco.mj_forward(model, data)
+    camera = mujoco.MjvCamera()
+    top = float(max(data.geom_xpos[:, 2].max(), base_height))
+    camera.lookat[:] = [0.0, 0.0, 0.5 * top]
+    camera.distance = 1.4 + 1.6 * top
+    camera.azimuth, camera.elevation = 140.0, -12.0
+    options = mujoco.MjvOption()
+    options.geomgroup[:] = 1  # collision shapes and visual-only geoms
+    with mujoco.Renderer(model, height, width) as renderer:
+        renderer.update_scene(data, camera=camera, scene_option=options)
+        pixels = renderer.render()
+    matplotlib.image.imsave(output, pixels)
+
+
+def _render_in_subprocess(payload: dict, backend: str) -> subprocess.CompletedProcess:
+    env = dict(os.environ, MUJOCO_GL=backend, PYOPENGL_PLATFORM=backend)
+    code = (
+        "import json, sys\n"
+        "from coadapt_core.cli.robot import render_png\n"
+        "render_png(**json.loads(sys.stdin.read()))\n"
+    )
+    return subprocess.run([sys.executable, "-c", code], input=json.dumps(payload), capture_output=True, text=True, env=env, timeout=300)
+
+
+@app.command("render")
+def render_command(
+    robot: str = typer.Argument(..., help="Registered robot name."),
+    design: str | None = typer.Option(None, "--design", help=DESIGN_HELP),
+    output: Path = typer.Option(Path("design.png"), "-o", "--output", help="PNG file to write."),
+    width: int = typer.Option(640, help="Image width in pixels."),
+    height: int = typer.Option(800, help="Image height in pixels."),
+) -> None:
+    """Offscreen MuJoCo picture of the design at its default pose, on a floor. Uses
+    MUJOCO_GL when set, else tries EGL and then OSMesa."""
+    if not (16 <= width <= 4096 and 16 <= height <= 4096):
+        fail(f"--width and --height must lie in [16, 4096], got {width} x {height}")
+    instance = load_robot(robot)
+    model = instance.build(parse_design(instance, design))
+    payload = {
+        "mjcf": model.mjcf,
+        "qpos_joints": [float(x) for x in model.default_joint_pos],
+        "base_height": float(model.standing_base_height),
+        "output": str(output),
+        "width": width,
+        "height": height,
+    }
+    backends = [os.environ["MUJOCO_GL"]] if os.environ.get("MUJOCO_GL") else list(GL_BACKENDS)
+    errors = []
+    for backend in backends:
+        result = _render_in_subprocess(payload, backend)
+        if result.returncode == 0:
+            print(f"wrote {output} ({width} x {height}, MUJOCO_GL={backend})", file=sys.stderr)
+            return
+        last = (result.stderr.strip().splitlines() or ["no output"])[-1]
+        errors.append(f"{backend}: {last}")
+    fail(
+        "offscreen rendering failed (" + "; ".join(errors) + "); install an EGL or OSMesa GL "
+        "library, e.g. apt-get install libegl1 libgl1 (EGL) or libosmesa6 (OSMesa)",
+        code=1,
+    )
