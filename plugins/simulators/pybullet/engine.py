@@ -23,10 +23,8 @@ from coadapt_core.terrain import Terrain
 
 #: gravity, m/s^2 (MuJoCo's default)
 GRAVITY = 9.81
-#: the base spawns this far above the standing height over the highest terrain nearby, m
-SPAWN_CLEARANCE = 0.01
-#: radius around the spawn point searched for the highest terrain, m
-SPAWN_RADIUS = 0.5
+#: the soles spawn this far above the highest ground under either foot, m (as MuJoCo)
+SPAWN_CLEARANCE = 0.002
 #: with `fixed_base`, the base is welded this far above its standing spawn height, m
 FIXED_BASE_LIFT = 0.5
 #: divergence: any state beyond these magnitudes (or not finite) resets the environment
@@ -68,7 +66,7 @@ class Engine:
         decimation: int,
         fixed_base: bool,
         max_delay_steps: int,
-        armature: str = "compensated",
+        armature: str = "joint_space",
         solver_iterations: int = 50,
     ):
         self.k = len(specs)
@@ -95,11 +93,15 @@ class Engine:
         self.com_shift = np.zeros((self.k, 3))
         self.delay = DelayLine(self.k, j, max_delay_steps)
         self.last_torque = np.zeros((self.k, j))  # [k, J] mean over the last policy step
-        # armature folded into link inertias also loads the joints upstream of each one;
-        # `armature_coupling` [k, J, J] is that excess in joint space, cancelled explicitly
-        self.armature_coupling = np.zeros((self.k, j, j))
-        self.prev_dq = np.zeros((self.k, j))  # [k, J] joint velocities one physics step ago
-        self.prev_ddq = np.zeros((self.k, j))  # [k, J] joint accelerations of the last physics step
+        # joint-space armature (see `_armature_torque`): per env the armature [J], the
+        # positions of the actuated joints in Bullet's mass matrix, and the last step's
+        # velocities and applied torques, from which the other generalized forces follow
+        self.armature_diag = np.zeros((self.k, j))  # [k, J] kg m^2
+        self.mass_cols: list[np.ndarray] = [np.arange(j) for _ in range(self.k)]
+        self.movable: list[list[int]] = [[] for _ in range(self.k)]
+        self.prev_dq = np.zeros((self.k, j))  # [k, J]
+        self.prev_applied = np.zeros((self.k, j))  # [k, J]
+        self.fresh = np.ones(self.k, dtype=bool)  # [k] no physics step since reset
         self.clients: list[int] = []
         self.grounds: list[int] = []
         self.bodies: list[int] = [-1] * self.k
@@ -107,6 +109,8 @@ class Engine:
         self.foot_ids: list[list[int]] = [[] for _ in range(self.k)]
         self.all_links: list[list[int]] = [[] for _ in range(self.k)]
         self.loaded_shift = np.zeros((self.k, 3))
+        self.foot_xy = np.zeros((self.k, self.num_feet, 2))  # [k, L, 2] feet around the base, default pose
+        self.spawn_xy = np.zeros((self.k, 2))  # [k, 2] where each base last spawned
         # base link frame expressed in the base inertial frame (PyBullet reports the latter)
         self.inertial_pos = np.zeros((self.k, 3))
         self.inertial_quat = np.tile([0.0, 0.0, 0.0, 1.0], (self.k, 1))
@@ -164,7 +168,7 @@ class Engine:
     def _urdf_path(self, e: int, spec: EnvSpec, com_shift: np.ndarray) -> str:
         armature = (
             dict(zip(spec.joint_names, spec.joint_armature, strict=True))
-            if self.armature in ("link_inertia", "compensated") and spec.joint_armature is not None
+            if self.armature == "link_inertia" and spec.joint_armature is not None
             else None
         )
         text = prepare_urdf(spec.urdf, spec.base_body, com_shift=com_shift, armature=armature)
@@ -226,38 +230,42 @@ class Engine:
         self.dq_max[e] = spec.speed_limit
         self.default_joint_pos[e] = spec.default_joint_pos
         self._apply_contact_params(e)
-        self.armature_coupling[e] = self._coupling(e, spec) if self.armature == "compensated" else 0.0
+        self._index_dofs(e, spec)
+        self.foot_xy[e] = self._foot_offsets(e, spec)
 
-    def _coupling(self, e: int, spec: EnvSpec) -> np.ndarray:
-        """[J, J] joint-space inertia that folding armature a_j into child link j adds
-        beyond MuJoCo's a_j on the diagonal: a_j (w w^T - e_j e_j^T), w_k = n_k . n_j over
-        joint j and its actuated ancestors k (n: world joint axes at the default pose)."""
-        j = self.num_joints
-        coupling = np.zeros((j, j))
-        if spec.joint_armature is None or not np.any(spec.joint_armature > 0):
-            return coupling
+    def _foot_offsets(self, e: int, spec: EnvSpec) -> np.ndarray:
+        """[L, 2] foot origins relative to the base origin at the default pose, level base."""
         client, body = self.clients[e], self.bodies[e]
+        self._place_base(e, np.zeros(3))
         for jid, q in zip(self.joint_ids[e], spec.default_joint_pos, strict=True):
             p.resetJointState(body, jid, float(q), 0.0, physicsClientId=client)
-        column = {jid: c for c, jid in enumerate(self.joint_ids[e])}
-        axes, parents = {}, {}
-        for jid in range(p.getNumJoints(body, physicsClientId=client)):
-            info = p.getJointInfo(body, jid, physicsClientId=client)
-            orn = p.getLinkState(body, jid, computeForwardKinematics=1, physicsClientId=client)[5]
-            rot = np.array(p.getMatrixFromQuaternion(orn)).reshape(3, 3)
-            axes[jid] = rot @ np.asarray(info[13], dtype=float)
-            parents[jid] = info[16]
-        for jid, c in column.items():
-            w = np.zeros(j)
-            k = jid
-            while k >= 0:
-                if k in column:
-                    w[column[k]] = float(axes[k] @ axes[jid])
-                k = parents[k]
-            excess = np.outer(w, w)
-            excess[c, c] -= 1.0
-            coupling += spec.joint_armature[c] * excess
-        return coupling
+        feet = p.getLinkStates(body, self.foot_ids[e], computeForwardKinematics=1, physicsClientId=client)
+        return np.array([np.asarray(f[4])[:2] for f in feet])
+
+    def _place_base(self, e: int, link_pos: np.ndarray) -> None:
+        """Put the base link origin at `link_pos`, level, at rest. PyBullet places a base by
+        its inertial frame: com = link * inertial offset."""
+        com_pos, com_quat = p.multiplyTransforms(
+            [float(v) for v in link_pos], [0.0, 0.0, 0.0, 1.0],
+            self.inertial_pos[e].tolist(), self.inertial_quat[e].tolist(),
+        )
+        client, body = self.clients[e], self.bodies[e]
+        p.resetBasePositionAndOrientation(body, com_pos, com_quat, physicsClientId=client)
+        p.resetBaseVelocity(body, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], physicsClientId=client)
+
+    def _index_dofs(self, e: int, spec: EnvSpec) -> None:
+        """Where each actuated joint sits among the body's degrees of freedom (Bullet's mass
+        matrix: 6 base dofs first on a floating base, then the movable joints in order)."""
+        client, body = self.clients[e], self.bodies[e]
+        movable = [
+            i for i in range(p.getNumJoints(body, physicsClientId=client))
+            if p.getJointInfo(body, i, physicsClientId=client)[2] != p.JOINT_FIXED
+        ]
+        offset = 0 if self.fixed_base else 6
+        self.movable[e] = movable
+        self.mass_cols[e] = np.array([offset + movable.index(jid) for jid in self.joint_ids[e]])
+        use = self.armature == "joint_space" and spec.joint_armature is not None
+        self.armature_diag[e] = spec.joint_armature if use else 0.0
 
     def _apply_contact_params(self, e: int) -> None:
         for link in self.all_links[e]:
@@ -270,12 +278,15 @@ class Engine:
 
     # -- commands ------------------------------------------------------------------------
     def spawn_pose(self, e: int) -> np.ndarray:
-        """[3] base link origin at reset: standing height over the highest terrain nearby."""
-        ground = float(self.terrain.max_height_near(np.zeros(2), SPAWN_RADIUS))
+        """[3] base link origin at reset: standing height above the highest ground under
+        either foot (the MuJoCo backend's rule)."""
+        xy = self.spawn_xy[e]
+        feet = xy[None, :] + self.foot_xy[e]  # [L, 2]
+        ground = float(self.terrain.max_height_near(feet, self.specs[e].foot_radius).max())
         z = ground + self.specs[e].standing_base_height + SPAWN_CLEARANCE
         if self.fixed_base:
             z += FIXED_BASE_LIFT
-        return np.array([0.0, 0.0, z])
+        return np.array([xy[0], xy[1], z])
 
     def set_specs(self, env_ids: np.ndarray, specs: list[EnvSpec]) -> None:
         for e, spec in zip(np.asarray(env_ids, dtype=int), specs, strict=True):
@@ -285,9 +296,10 @@ class Engine:
     def reset(self, env_ids: np.ndarray, params: dict[str, np.ndarray]) -> None:
         """Reset environments to the standing pose with new physical parameters; `params`
         holds arrays over env_ids (friction, restitution, com_shift, pd_factor,
-        motor_strength, delay_steps)."""
+        motor_strength, delay_steps, spawn_xy)."""
         env_ids = np.asarray(env_ids, dtype=int)
         for i, e in enumerate(env_ids):
+            self.spawn_xy[e] = params["spawn_xy"][i]
             self.friction[e] = params["friction"][i]
             self.restitution[e] = params["restitution"][i]
             self.pd_factor[e] = params["pd_factor"][i]
@@ -302,18 +314,12 @@ class Engine:
         self.delay.reset(env_ids, self.default_joint_pos[env_ids])
         self.last_torque[env_ids] = 0.0
         self.prev_dq[env_ids] = 0.0
-        self.prev_ddq[env_ids] = 0.0
+        self.prev_applied[env_ids] = 0.0
+        self.fresh[env_ids] = True
 
     def _reset_pose(self, e: int) -> None:
         client, body = self.clients[e], self.bodies[e]
-        link_pos = self.spawn_pose(e)
-        # PyBullet places the base by its inertial frame: com = link * inertial offset
-        com_pos, com_quat = p.multiplyTransforms(
-            link_pos.tolist(), [0.0, 0.0, 0.0, 1.0],
-            self.inertial_pos[e].tolist(), self.inertial_quat[e].tolist(),
-        )
-        p.resetBasePositionAndOrientation(body, com_pos, com_quat, physicsClientId=client)
-        p.resetBaseVelocity(body, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], physicsClientId=client)
+        self._place_base(e, self.spawn_pose(e))
         for jid, q in zip(self.joint_ids[e], self.default_joint_pos[e], strict=True):
             p.resetJointState(body, jid, float(q), 0.0, physicsClientId=client)
 
@@ -340,14 +346,12 @@ class Engine:
                 self.delay.current(), q, dq, self.kp, self.kd, self.tau_max, self.dq_max,
                 self.pd_factor, self.motor_strength,
             )  # [k, J]
-            # the last step's acceleration stands in for this one's (explicit, one step late)
-            self.prev_ddq = (dq - self.prev_dq) / self.physics_dt
-            self.prev_dq = dq
-            applied = tau + np.einsum("kij,kj->ki", self.armature_coupling, self.prev_ddq)  # [k, J]
+            applied = tau - self._armature_torque(q, dq, tau)  # [k, J]
             bad = ~np.isfinite(applied).all(axis=1)
             broken |= bad
             tau[bad] = 0.0  # never feed NaN to Bullet; the env is reset after this step
             applied[bad] = 0.0
+            self.prev_applied = applied
             for e in range(self.k):
                 p.setJointMotorControlArray(
                     self.bodies[e], self.joint_ids[e], p.TORQUE_CONTROL, forces=applied[e].tolist(),
@@ -359,6 +363,40 @@ class Engine:
         state = self.get_state()
         state["diverged"] = broken | _diverged(state)
         return state
+
+    def _armature_torque(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """[k, J] torque A ddq that MuJoCo's armature A (reflected rotor inertia, added to
+        the joint-space mass matrix only) would absorb this step; Bullet has no armature,
+        so it is taken off the motor torque.
+
+        MuJoCo: (M + A) ddq = tau + h, h every other generalized force (gravity, Coriolis,
+        damping, contacts, limits). Bullet: M ddq = tau' + h. Predicting ddq from the
+        current M, the motor torque and h of the last step (h = M ddq - tau', measured)
+        gives tau' = tau - A ddq. The stiff part (the PD torque) is thus exact; only h
+        lags one physics step.
+        """
+        if not np.any(self.armature_diag):
+            return np.zeros_like(tau)
+        out = np.zeros_like(tau)
+        ddq = (dq - self.prev_dq) / self.physics_dt  # [k, J] the last step's acceleration
+        for e in range(self.k):
+            a = self.armature_diag[e]
+            if not np.any(a):
+                continue
+            positions = q[e] if len(self.movable[e]) == self.num_joints else self._movable_positions(e)
+            mass = np.asarray(
+                p.calculateMassMatrix(self.bodies[e], positions.tolist(), physicsClientId=self.clients[e])
+            )[np.ix_(self.mass_cols[e], self.mass_cols[e])]  # [J, J] joint block
+            h = np.zeros(self.num_joints) if self.fresh[e] else mass @ ddq[e] - self.prev_applied[e]
+            predicted = np.linalg.solve(mass + np.diag(a), tau[e] + h)
+            out[e] = a * predicted
+        self.prev_dq = dq.copy()
+        self.fresh[:] = False
+        return out
+
+    def _movable_positions(self, e: int) -> np.ndarray:
+        states = p.getJointStates(self.bodies[e], self.movable[e], physicsClientId=self.clients[e])
+        return np.array([s_[0] for s_ in states])
 
     def get_state(self) -> dict[str, np.ndarray]:
         k, nf = self.k, self.num_feet
@@ -461,4 +499,5 @@ def _nominal_params(k: int) -> dict[str, np.ndarray]:
         "pd_factor": np.ones(k),
         "motor_strength": np.ones(k),
         "delay_steps": np.zeros(k, dtype=int),
+        "spawn_xy": np.zeros((k, 2)),
     }

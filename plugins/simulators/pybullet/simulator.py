@@ -34,7 +34,9 @@ MISSING_PYBULLET = "the pybullet simulator needs the pybullet package: pip insta
 #: batches up to this size run in-process (worker start-up and pipe traffic cost more
 #: than they save below it; see docs/sim-to-sim.md)
 IN_PROCESS_MAX_ENVS = 8
-ARMATURE_MODES = ("compensated", "link_inertia", "none")
+#: random terrain: spawn points stay this far inside the height field's edge (as MuJoCo)
+SPAWN_MARGIN = 3.0
+ARMATURE_MODES = ("joint_space", "link_inertia", "none")
 
 
 def require_pybullet() -> None:
@@ -64,13 +66,14 @@ class PyBulletSimulator(Simulator):
         num_threads: int | None = None,
         fixed_base: bool = False,
         processes: int | None = None,
-        armature: str = "compensated",
+        armature: str = "joint_space",
     ):
         """`processes`: worker processes (0 = in this process; None = in-process up to
         IN_PROCESS_MAX_ENVS environments, else one per CPU core or `num_threads`).
-        `armature`: how MJCF joint armature is carried over: "compensated" (folded into
-        link inertias, the excess this loads on upstream joints cancelled explicitly),
-        "link_inertia" (folded only) or "none"; see docs/sim-to-sim.md."""
+        `armature`: how MJCF joint armature is carried over: "joint_space" (taken off the
+        motor torque as A ddq, ddq predicted from Bullet's joint-space mass matrix),
+        "link_inertia" (added to the child link's inertia) or "none"; see
+        docs/sim-to-sim.md."""
         require_pybullet()
         super().__init__(
             robot, designs, terrain=terrain, randomization=randomization, physics_dt=physics_dt,
@@ -93,6 +96,8 @@ class PyBulletSimulator(Simulator):
         self._num_joints = len(specs[0].joint_names)
         self._default_joint_pos = np.stack([s.default_joint_pos for s in specs])  # [N, J]
         self._rng = np.random.default_rng(seed)
+        # spawn points on random terrain: their own stream, drawn as the MuJoCo backend does
+        self._spawn_rng = np.random.default_rng([seed, 0x5A])
         self._params = nominal_env_params(len(specs))
         rand = self.randomization
         max_delay = rand.delay[1] if rand.enabled else 0.0
@@ -169,9 +174,10 @@ class PyBulletSimulator(Simulator):
     def _gather(self, parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
         return {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
 
-    def _engine_params(self, env_ids: np.ndarray) -> dict[str, np.ndarray]:
+    def _engine_params(self, env_ids: np.ndarray, spawn_xy: np.ndarray) -> dict[str, np.ndarray]:
         sub = self._params.take(env_ids)
         return {
+            "spawn_xy": spawn_xy,
             "friction": sub.friction,
             "restitution": sub.restitution,
             "com_shift": sub.com_shift,
@@ -226,11 +232,18 @@ class PyBulletSimulator(Simulator):
 
     def _reset_engines(self, ids: np.ndarray) -> None:
         self._params.put(ids, sample_env_params(self.randomization, len(ids), self._rng))
+        spawn_xy = np.zeros((len(ids), 2))
+        if self.terrain == "random":
+            from coadapt_core.terrain import make_terrain
+
+            half = make_terrain(self.terrain, seed=self.seed).size / 2 - SPAWN_MARGIN
+            spawn_xy = self._spawn_rng.uniform(-half, half, size=(len(ids), 2))
         if self._engine is not None:
-            self._engine.reset(ids, self._engine_params(ids))
+            self._engine.reset(ids, self._engine_params(ids, spawn_xy))
             return
         self._pool.call_some(
-            "reset", {w: (local, self._engine_params(ids[pos])) for w, (pos, local) in self._split(ids).items()}
+            "reset",
+            {w: (local, self._engine_params(ids[pos], spawn_xy[pos])) for w, (pos, local) in self._split(ids).items()},
         )
 
     def reset(self, env_ids: torch.Tensor | np.ndarray | None = None) -> SimState:

@@ -30,6 +30,7 @@ class EnvSpec:
     torque_limit: np.ndarray  # [J]
     speed_limit: np.ndarray  # [J]
     standing_base_height: float
+    foot_radius: float  # m, horizontal reach of a foot's contact points around its origin
     # from the compiled MJCF; None when it does not compile (the URDF's <dynamics> stand)
     joint_damping: np.ndarray | None  # [J] N m s / rad
     joint_armature: np.ndarray | None  # [J] kg m^2
@@ -51,10 +52,17 @@ class EnvSpec:
             torque_limit=np.asarray(model.torque_limit, dtype=float),
             speed_limit=np.asarray(model.speed_limit, dtype=float),
             standing_base_height=float(model.standing_base_height),
+            foot_radius=_foot_radius(model.foot_contact_points),
             joint_damping=damping,
             joint_armature=armature,
             joint_frictionloss=frictionloss,
         )
+
+
+def _foot_radius(points: np.ndarray) -> float:
+    """The same reach the MuJoCo backend uses to find the ground under a spawning foot."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    return float(np.max(np.linalg.norm(pts[:, :2], axis=1))) if len(pts) else 0.15
 
 
 def mjcf_joint_dynamics(
