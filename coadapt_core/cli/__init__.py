@@ -9,7 +9,7 @@ import sys
 import typer
 
 from coadapt_core import __version__
-from coadapt_core.cli import export, grid, plugins, report, robot, run, train
+from coadapt_core.cli import export, grid, landscape, plugins, report, robot, run, train
 from coadapt_core.cli.common import EXIT_USAGE
 from coadapt_core.errors import CoadaptError, PluginError, UserError
 
@@ -42,6 +42,7 @@ train.register(app)
 grid.register(app)
 report.register(app)
 export.register(app)
+landscape.register(app)
 
 
 def main(argv: list[str] | None = None) -> int:

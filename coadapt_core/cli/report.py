@@ -2,13 +2,33 @@
 
 from __future__ import annotations
 
-import typer
+from pathlib import Path
 
-from coadapt_core.cli.common import not_available
+import typer
 
 
 def register(app: typer.Typer) -> None:
     @app.command("report")
-    def report_command() -> None:
+    def report_command(
+        selection: str = typer.Argument(None, metavar="[RUN_OR_GRID]", help="A run id or grid id (default: every finished run)."),
+        out: Path = typer.Option(Path("report"), "-o", "--out", help="Folder for the tables, figures and report.html."),
+        store: str = typer.Option(None, "--store", help="Results store: a path or SQLAlchemy URL (default $COADAPT_STORE or ./coadapt.db)."),
+        sim_to_sim: bool = typer.Option(True, "--sim-to-sim/--no-sim-to-sim", help="Evaluate each best design's policy on a second simulator (Table 6's last column)."),
+        transfer_sim: str = typer.Option("pybullet", help="Simulator for the sim-to-sim column."),
+        transfer_agents: int = typer.Option(8, help="Agents per design in the sim-to-sim evaluation."),
+        transfer_steps: int = typer.Option(400, help="Policy steps per agent in the sim-to-sim evaluation."),
+    ) -> None:
         """Write tables (Markdown, CSV) and figures (PNG, HTML) from a run or grid."""
-        not_available("report", "the results store and reports (issue 7)")
+        from coadapt_core.cli.common import fail
+        from coadapt_core.results.report import write_report
+        from coadapt_core.results.store import ResultsStore
+
+        if transfer_agents < 1 or transfer_steps < 1:
+            fail("--transfer-agents and --transfer-steps must be >= 1")
+        with ResultsStore(store) as results:
+            files = write_report(
+                results, selection, out, sim2sim=sim_to_sim, transfer_simulator=transfer_sim,
+                transfer_agents=transfer_agents, transfer_steps=transfer_steps,
+            )
+        for name, path in files.items():
+            print(f"{name}: {path}")

@@ -1,0 +1,89 @@
+"""`coadapt landscape`: the real cost over an n x n grid of leg scales, stored as a run."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import typer
+
+from coadapt_core.cli.common import choice_help, fail, resolve
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("landscape")
+    def landscape_command(
+        objective: str = typer.Option("torque", help=choice_help("objective", "Objective (comma list for several).")),
+        grid: int = typer.Option(11, help="Points per axis (grid x grid designs)."),
+        terrain: str = typer.Option("flat", help="Terrain: flat, slope or random."),
+        sim: str = typer.Option("mujoco", help=choice_help("simulator", "Simulator backend.")),
+        robot: str = typer.Option("kuafu", help=choice_help("robot", "Robot.")),
+        checkpoint: Path = typer.Option(None, help="Universal policy checkpoint (default: the robot's shipped policy for the terrain)."),
+        agents: int = typer.Option(16, help="Agents per design."),
+        steps: int = typer.Option(500, help="Policy steps per agent (T_eval)."),
+        seed: int = typer.Option(0, help="Random seed."),
+        device: str = typer.Option("cpu", help="Torch device for the policy."),
+        resume: str = typer.Option(None, "--resume", help="Continue an interrupted landscape run (its id)."),
+        store: str = typer.Option(None, "--store", help="Results store: a path or SQLAlchemy URL (default $COADAPT_STORE or ./coadapt.db)."),
+        as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON on the last line."),
+    ) -> None:
+        """Evaluate the real cost (Algorithm 2) of a grid of (thigh, shank) designs with the
+        universal policy; reports draw it as a heat-map and mark each method's optimum."""
+        from coadapt_core.results.backends import (
+            BackendRequest,
+            BackendUnavailable,
+            nominal_design,
+            universal_policy_backend,
+        )
+        from coadapt_core.results.landscape import run_landscape
+        from coadapt_core.results.recorder import SqliteRecorder
+        from coadapt_core.simulator import TERRAINS
+
+        names = [o.strip() for o in objective.split(",") if o.strip()]
+        for name in names:
+            resolve("objective", name)
+        resolve("simulator", sim)
+        robot_cls = resolve("robot", robot)
+        if terrain not in TERRAINS:
+            fail(f"--terrain '{terrain}' is not one of {', '.join(TERRAINS)}")
+        if grid < 2 or grid > 101:
+            fail(f"--grid must be between 2 and 101 points per axis, got {grid}")
+        if agents < 1 or steps < 1:
+            fail("--agents and --steps must be >= 1")
+        if checkpoint is None:
+            import inspect
+
+            shipped = Path(inspect.getfile(robot_cls)).parent / "policies" / f"{terrain}.pt"
+            if not shipped.exists():
+                fail(f"no --checkpoint given and robot '{robot}' ships no policy for terrain '{terrain}' ({shipped}); "
+                     "train one with `coadapt train` or pass a run's checkpoint")
+            checkpoint = shipped
+        elif not checkpoint.exists():
+            fail(f"--checkpoint {checkpoint} does not exist")
+        request = BackendRequest(robot=robot, simulator=sim, objectives=names, terrain=terrain, checkpoint=str(checkpoint),
+                                 agents_per_design=agents, device=device, seed=seed)
+        try:
+            backend, objectives = universal_policy_backend(request)
+        except BackendUnavailable as exc:
+            fail(f"cannot evaluate designs: {exc}")
+        space = robot_cls().design_space()
+        low, high = space.lower[:2], space.upper[:2]
+        recorder = SqliteRecorder(store)
+        config = {"objective": ",".join(names), "terrain": terrain, "sim": sim, "robot": robot, "checkpoint": str(checkpoint),
+                  "device": device, "design_space": space.to_dict()}
+        if resume:
+            if not recorder.store.has_run(resume):
+                fail(f"--resume: run '{resume}' is not in store {recorder.url}")
+            config["run_id"] = resume
+
+        def on_row(row: int, total: int) -> None:
+            print(f"row {row + 1}/{total} done", flush=True)
+
+        summary = run_landscape(
+            backend, objectives, recorder, config=config, grid=grid, low=low, high=high,
+            nominal=nominal_design(robot, space.dim), agents=agents, steps=steps, seed=seed, on_row=on_row,
+        )
+        print(f"landscape {summary['run_id']}: grid optimum {summary['best_design'][:2]} cost {summary['best_cost']:.4g}; "
+              f"nominal cost {summary['nominal_cost']:.4g}")
+        if as_json:
+            print(json.dumps(summary))

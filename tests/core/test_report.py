@@ -1,0 +1,223 @@
+"""`coadapt report` and `coadapt landscape`: the tables' numbers are the store's numbers, the
+figures exist, sim-to-sim goes through a `CoadaptationBackend` (or says n/a and why), and a
+landscape run is stored like any run and resumable."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from coadapt_core.errors import UserError
+from coadapt_core.fitness import CoadaptationBackend, RealFitness, TrainingResult
+from coadapt_core.results import ResultsStore, SqliteRecorder
+from coadapt_core.results.backends import objective_instances
+from coadapt_core.results.landscape import run_landscape
+from coadapt_core.results.report import pareto_mask, write_report
+
+OPTIMUM = np.array([0.62, 0.57])
+
+
+def analytic_cost(designs: np.ndarray, scale: float = 1.0) -> np.ndarray:
+    """[K] a bowl with its minimum at OPTIMUM."""
+    designs = np.atleast_2d(designs)
+    return scale * (1.0 + ((designs[:, :2] - OPTIMUM) ** 2).sum(axis=1))
+
+
+class AnalyticBackend:
+    """Real fitness of a known bowl; `scale` stands in for a second simulator's physics."""
+
+    def __init__(self, scale: float = 1.0, fail_on_call: int | None = None):
+        self.scale = scale
+        self.calls = 0
+        self.fail_on_call = fail_on_call
+
+    def train(self, designs, steps, *, seed=0):
+        return TrainingResult(steps=steps, seconds=0.0, mean_reward=0.0)
+
+    def real_fitness(self, designs, objectives, *, agents, steps, seed=0):
+        self.calls += 1
+        if self.fail_on_call is not None and self.calls == self.fail_on_call:
+            raise RuntimeError("simulated crash")
+        c = analytic_cost(designs, self.scale)
+        return RealFitness(costs=np.stack([c] * len(objectives), axis=1), buffer=None,
+                           interactions=len(designs) * agents * steps, seconds=0.01)
+
+    def surrogate_fitness(self, designs, objectives, buffer, *, samples, seed=0):
+        return np.stack([analytic_cost(designs)] * len(objectives), axis=1)
+
+    def save(self, path):
+        Path(path).write_text("ckpt")
+
+    def load(self, path):
+        pass
+
+
+def record_run(rec: SqliteRecorder, method: str, seed: int, *, objectives=("torque",), terrain="flat",
+               checkpoint: Path | None = None, optimizer="pso") -> str:
+    """A small finished run as the loop records it: 2 training phases, 2 x 2 batches of 4
+    real designs (surrogate scored too), 4 surrogate-only designs, best and nominal."""
+    rng = np.random.default_rng(seed + 17 * len(method))
+    run_id = rec.start_run({"method": method, "objective": ",".join(objectives), "terrain": terrain, "seed": seed,
+                            "preset": "smoke", "sim": "mujoco", "robot": "kuafu", "optimizer": optimizer})
+    for outer in range(2):
+        rec.record_training(run_id, outer=outer, result=TrainingResult(steps=10_000 * (seed + 1), seconds=2.0 + seed, mean_reward=0.3))
+        for inner in range(2):
+            designs = rng.uniform(0.5, 1.5, size=(4, 2))
+            real = analytic_cost(designs)
+            for d, c in zip(designs, real, strict=True):
+                costs = {o: float(c) * (1 + i) for i, o in enumerate(objectives)}
+                rec.record_evaluation(run_id, outer=outer, inner=inner, design=d, costs=costs, kind="real",
+                                      interactions=1000, seconds=0.5, surrogate_error={objectives[0]: 0.1 * (d[0] - 1)})
+            for d in rng.uniform(0.5, 1.5, size=(1, 2)):
+                rec.record_evaluation(run_id, outer=outer, inner=inner, design=d, costs={objectives[0]: 1.0},
+                                      kind="surrogate", interactions=0, seconds=0.05)
+        if checkpoint is not None:
+            rec.record_checkpoint(run_id, outer=outer, path=str(checkpoint))
+    real = rec.store.evaluations(run_id, kind="real")
+    best = min(real, key=lambda e: e.costs[objectives[0]])
+    nominal = float(analytic_cost(np.array([1.0, 1.0]))[0])
+    rec.finish(run_id, {"run_id": run_id, "best_design": best.design, "best_cost": best.costs[objectives[0]],
+                        "nominal_cost": nominal, "improvement": (nominal - best.costs[objectives[0]]) / nominal})
+    return run_id
+
+
+@pytest.fixture
+def filled_store(tmp_path):
+    ckpt = tmp_path / "policy.pt"
+    ckpt.write_text("weights")
+    rec = SqliteRecorder(tmp_path / "r.db")
+    ids = {(m, s): record_run(rec, m, s, checkpoint=ckpt) for m in ("ours", "no-surrogate") for s in (0, 1)}
+    return rec.store, ids
+
+
+def read_csv(path: Path) -> list[dict[str, str]]:
+    with path.open() as fh:
+        return list(csv.DictReader(fh))
+
+
+def test_report_tables_match_the_store(filled_store, tmp_path):
+    store, ids = filled_store
+    files = write_report(store, None, tmp_path / "rep", sim2sim=False)
+    for name in ("table6.csv", "table6.md", "table7.csv", "table7.md", "report.html", "heatmap_flat.png", "convergence.png",
+                 "surrogate_error.png"):
+        assert files[name].exists() and files[name].stat().st_size > 0, name
+    t6 = {(r["method"], r["terrain"]): r for r in read_csv(files["table6.csv"])}
+    for method in ("ours", "no-surrogate"):
+        runs = [store.get_run(ids[(method, s)]) for s in (0, 1)]
+        row = t6[(method, "flat")]
+        assert int(row["runs"]) == 2
+        assert float(row["thigh"]) == pytest.approx(np.mean([r["summary"]["best_design"][0] for r in runs]))
+        assert float(row["shank"]) == pytest.approx(np.mean([r["summary"]["best_design"][1] for r in runs]))
+        assert float(row["improvement"]) == pytest.approx(np.mean([r["summary"]["improvement"] for r in runs]))
+        assert row["sim2sim_improvement"] == "" and "not requested" in row["sim2sim_note"]
+    t7 = {r["method"]: r for r in read_csv(files["table7.csv"])}
+    for method in ("ours", "no-surrogate"):
+        train = [sum(t["steps"] for t in store.training(ids[(method, s)])) for s in (0, 1)]
+        evals = [store.evaluations(ids[(method, s)]) for s in (0, 1)]
+        assert float(t7[method]["interactions_training"]) == pytest.approx(np.mean(train)) == 30_000
+        assert float(t7[method]["interactions_evaluation"]) == pytest.approx(
+            np.mean([sum(e.interactions for e in ev if e.kind == "real") for ev in evals])) == 16_000
+        assert float(t7[method]["seconds_evaluation"]) == pytest.approx(np.mean([sum(e.seconds for e in ev) for ev in evals]))
+        assert float(t7[method]["designs_real"]) == 16 and float(t7[method]["designs_surrogate"]) == 4
+    md = files["table7.md"].read_text()
+    assert "| Ours | 46(30+16) |" in md  # thousands: 30 k training + 16 k evaluation
+    assert "Ours w/o Surrogate" in files["table6.md"].read_text()
+    html = files["report.html"].read_text()
+    assert all(f"src='{p}'" in html for p in ("heatmap_flat.png", "convergence.png", "surrogate_error.png"))
+
+
+def test_sim_to_sim_column_uses_the_backend_and_is_cached(filled_store, tmp_path):
+    store, ids = filled_store
+    built = []
+
+    def factory(request):
+        assert request.simulator == "pybullet" and request.checkpoint.endswith("policy.pt") and request.terrain == "flat"
+        backend = AnalyticBackend(scale=1.5)
+        built.append(backend)
+        assert isinstance(backend, CoadaptationBackend)
+        return backend, objective_instances(request.objectives)
+
+    files = write_report(store, ids[("ours", 0)], tmp_path / "rep", backend_factory=factory)
+    (row,) = read_csv(files["table6.csv"])
+    run = store.get_run(ids[("ours", 0)])
+    best = np.array(run["summary"]["best_design"])
+    b, n = analytic_cost(best, 1.5)[0], analytic_cost(np.ones(2), 1.5)[0]
+    assert float(row["sim2sim_improvement"]) == pytest.approx((n - b) / n)
+    rows = store.evaluations(run["id"], kind="sim2sim")
+    assert [(e.idx, e.simulator) for e in rows] == [(0, "pybullet"), (1, "pybullet")]
+    assert store.count_evaluations(run["id"], kind="real") == 16  # transfer rows are not real-run evidence
+    write_report(store, ids[("ours", 0)], tmp_path / "rep2", backend_factory=factory)
+    assert len(built) == 1  # second report reads the stored transfer
+
+
+def test_sim_to_sim_says_why_when_not_available(tmp_path):
+    rec = SqliteRecorder(tmp_path / "r.db")
+    run_id = record_run(rec, "ours", 0)  # no checkpoint recorded
+    files = write_report(rec.store, run_id, tmp_path / "rep")
+    (row,) = read_csv(files["table6.csv"])
+    assert row["sim2sim_improvement"] == "" and row["sim2sim_note"] == "n/a: the run recorded no policy checkpoint"
+    assert "Sim-to-sim n/a: n/a: the run recorded no policy checkpoint" in files["table6.md"].read_text()
+
+
+def test_landscape_is_stored_as_a_run_and_drives_the_heatmap(filled_store, tmp_path):
+    store, _ = filled_store
+    rec = SqliteRecorder(store)
+    (torque,) = objective_instances(["torque"])
+    summary = run_landscape(AnalyticBackend(), [torque], rec, config={"terrain": "flat", "sim": "mujoco", "robot": "kuafu"},
+                            grid=11, agents=2, steps=5)
+    run = store.get_run(summary["run_id"])
+    assert run["method"] == "landscape" and run["status"] == "finished"
+    rows = store.evaluations(run["id"], kind="real")
+    assert len(rows) == 121 and sum(e.interactions for e in rows) == 121 * 2 * 5
+    np.testing.assert_allclose(summary["best_design"], [0.6, 0.6])  # the grid point nearest OPTIMUM
+    assert summary["nominal_cost"] == pytest.approx(analytic_cost(np.ones(2))[0])
+    files = write_report(store, None, tmp_path / "rep", sim2sim=False)
+    assert "landscape run" in files["report.html"].read_text()
+    t6 = read_csv(files["table6.csv"])
+    assert {r["method"] for r in t6} == {"ours", "no-surrogate"}  # the landscape is not a method
+
+
+def test_interrupted_landscape_resumes_without_reevaluating_rows(tmp_path):
+    rec = SqliteRecorder(tmp_path / "l.db")
+    (torque,) = objective_instances(["torque"])
+    crashing = AnalyticBackend(fail_on_call=4)  # dies on the 4th grid row
+    with pytest.raises(RuntimeError):
+        run_landscape(crashing, [torque], rec, config={"terrain": "flat"}, grid=5, agents=1, steps=1)
+    (run,) = rec.store.list_runs(method="landscape")
+    assert rec.store.count_evaluations(run["id"]) == 15 and run["status"] == "running"
+    again = AnalyticBackend()
+    summary = run_landscape(again, [torque], SqliteRecorder(tmp_path / "l.db"), config={"terrain": "flat", "run_id": run["id"]},
+                            grid=5, agents=1, steps=1)
+    assert again.calls == 2 and summary["run_id"] == run["id"]
+    assert rec.store.count_evaluations(run["id"]) == 25
+
+
+def test_pareto_front_of_a_two_objective_run(tmp_path):
+    costs = np.array([[1.0, 5.0], [2.0, 2.0], [3.0, 3.0], [5.0, 1.0], [2.0, 2.5]])
+    assert pareto_mask(costs).tolist() == [True, True, False, True, False]
+    rec = SqliteRecorder(tmp_path / "p.db")
+    run_id = record_run(rec, "ours", 0, objectives=("torque", "power"), optimizer="nsga2")
+    files = write_report(rec.store, run_id, tmp_path / "rep", sim2sim=False)
+    assert files["pareto.png"].stat().st_size > 0
+
+
+def test_report_of_unknown_selection_is_one_line(tmp_path):
+    store = ResultsStore(tmp_path / "e.db")
+    with pytest.raises(UserError, match="neither a run nor a grid"):
+        write_report(store, "nope", tmp_path / "rep")
+    with pytest.raises(UserError, match="no finished runs"):
+        write_report(store, None, tmp_path / "rep")
+
+
+def test_report_cli_writes_files(filled_store, tmp_path):
+    from tests.conftest import run_cli
+
+    store, _ = filled_store
+    proc = run_cli("report", "--store", store.url, "-o", str(tmp_path / "cli"), "--no-sim-to-sim")
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "cli" / "report.html").exists() and (tmp_path / "cli" / "heatmap_flat.png").exists()
+    bad = run_cli("report", "missing-run", "--store", store.url, "-o", str(tmp_path / "cli"))
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
