@@ -203,8 +203,7 @@ def validate_command(
     design: str | None = typer.Option(None, "--design", help=DESIGN_HELP),
     as_json: bool = typer.Option(False, "--json", help="Print the report as JSON."),
 ) -> None:
-    """Check a design (kinematics, mass, statics, MuJoCo/Pinocchio agreement). Exit code 0
-    when feasible, 1 when a check fails."""
+    """Check a design: kinematics, mass, statics, MuJoCo/Pinocchio agreement (exit 1 if infeasible)."""
     instance = load_robot(robot)
     report = instance.validate(parse_design(instance, design))
     if as_json:
@@ -276,8 +275,8 @@ def render_command(
     width: int = typer.Option(640, help="Image width in pixels."),
     height: int = typer.Option(800, help="Image height in pixels."),
 ) -> None:
-    """Offscreen MuJoCo picture of the design at its default pose, on a floor. Uses
-    MUJOCO_GL when set, else tries EGL and then OSMesa."""
+    """Offscreen MuJoCo picture of the design at its default pose, on a floor (PNG)."""
+    # MUJOCO_GL is used when set; else EGL, then OSMesa
     if not (16 <= width <= 4096 and 16 <= height <= 4096):
         fail(f"--width and --height must lie in [16, 4096], got {width} x {height}")
     instance = load_robot(robot)
