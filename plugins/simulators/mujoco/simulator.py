@@ -1,0 +1,527 @@
+"""The batched MuJoCo backend: every environment its own design, stepped in C on a thread
+pool by `mujoco.batch.Batch`, with the shared actuation law applied in numpy per physics step.
+
+One `Batch` holds all environments. Its model is the first design's compiled model; the
+model fields in which other designs (and the per-environment randomization) differ are
+*expanded* to per-simulation values, so a design change or a reset rewrites a few rows of a
+few arrays and never rebuilds the batch. See docs/simulators.md for the measurements behind
+this choice (expand vs `set_models` vs `mujoco.rollout`).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from typing import TYPE_CHECKING
+
+import mujoco
+import mujoco.batch
+import numpy as np
+from coadapt_plugins.simulators.mujoco.compose import (
+    CONTACT_SENSOR_DIM,
+    CompiledDesign,
+    ModelCache,
+    terrain_for,
+    terrain_normal,
+)
+
+from coadapt_core.actuation import DelayLine, pd_torque
+from coadapt_core.errors import UserError
+from coadapt_core.randomization import EnvParams, RandomizationConfig, sample_env_params
+from coadapt_core.simulator import SimState, Simulator
+
+if TYPE_CHECKING:
+    import torch
+
+    from coadapt_core.robot import Robot
+
+#: |qvel| above this (rad/s or m/s) counts as a blow-up: no walking robot gets near it
+MAX_QVEL = 1e3
+#: fixed-base robots hang this far above their standing height (contact-free swing tests)
+FIXED_BASE_LIFT = 0.5
+#: spawn clearance between the lowest sole point and the highest ground near it
+SPAWN_CLEARANCE = 0.002
+#: random terrain: spawn points stay this far inside the height field's edge
+SPAWN_MARGIN = 3.0
+#: MuJoCo's default contact time constant (solref[0]); restitution maps onto the damping ratio
+CONTACT_TIMECONST = 0.02
+
+#: model fields never expanded per design (MuJoCo options, shared by the whole batch)
+_SKIP_PREFIX = ("opt.",)
+
+#: shared across simulator instances: a PSO iteration re-uses the compilations of the last
+_CACHE = ModelCache()
+
+
+def restitution_to_dampratio(restitution: np.ndarray) -> np.ndarray:
+    """Contact damping ratio whose mass-spring-damper bounces back with coefficient `e`.
+
+    A damped oscillator released into contact leaves it with speed ratio
+    e = exp(-zeta pi / sqrt(1 - zeta^2)), so zeta = -ln e / sqrt(pi^2 + ln^2 e); e = 0 is
+    critical damping (MuJoCo's default dampratio 1). MuJoCo's soft-contact impedance makes
+    the realised bounce approximate (docs/simulators.md quotes a measurement)."""
+    e = np.clip(np.asarray(restitution, dtype=float), 0.0, 0.999)
+    out = np.ones_like(e)
+    bouncy = e > 1e-6
+    log_e = np.log(e[bouncy])
+    out[bouncy] = -log_e / np.sqrt(math.pi**2 + log_e**2)
+    return out
+
+
+def _quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vectors v [N, 3] by unit quaternions q [N, 4] (w, x, y, z)."""
+    w = q[:, :1]
+    u = q[:, 1:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def _default_threads() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+class MujocoSimulator(Simulator):
+    """MuJoCo 4 batched backend (`mujoco.batch`), one compiled model per design."""
+
+    name = "mujoco"
+    description = "MuJoCo 4 on a C thread pool (mujoco.batch), one model per design, CPU"
+
+    def __init__(
+        self,
+        robot: Robot,
+        designs: np.ndarray,  # [num_envs, design_dim]
+        *,
+        terrain: str = "flat",
+        randomization: RandomizationConfig | None = None,
+        physics_dt: float = 0.005,
+        decimation: int = 4,
+        seed: int = 0,
+        device: str = "cpu",
+        num_threads: int | None = None,
+        fixed_base: bool = False,
+    ):
+        super().__init__(
+            robot, designs, terrain=terrain, randomization=randomization, physics_dt=physics_dt,
+            decimation=decimation, seed=seed, device=device, num_threads=num_threads, fixed_base=fixed_base,
+        )
+        if not (isinstance(decimation, int | np.integer) and decimation >= 1):
+            raise UserError(f"decimation must be an integer >= 1, got {decimation!r}", field="decimation")
+        if not (math.isfinite(physics_dt) and physics_dt > 0):
+            raise UserError(f"physics_dt must be a positive number of seconds, got {physics_dt!r}", field="physics_dt")
+        if num_threads is not None and int(num_threads) < 1:
+            raise UserError(f"num_threads must be >= 1, got {num_threads}", field="num_threads")
+        designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        if designs.shape[0] < 1:
+            raise UserError("a simulator needs at least one environment (designs is empty)", field="designs")
+        self._terrain = terrain_for(terrain, seed)
+        self._normal = terrain_normal(self._terrain)
+        n = designs.shape[0]
+        self._n = n
+        self._designs = designs.copy()
+
+        compiled = [self._compile(d) for d in designs]
+        ref = compiled[0]
+        self._ref = ref
+        self._j = ref.robot_model.num_joints
+        self._threads = int(num_threads) if num_threads is not None else _default_threads()
+        self._batch = mujoco.batch.Batch(ref.model, n, nthread=self._threads)
+        b = self._batch
+        self._qpos = b.bind("qpos")  # [N, nq] live state rows
+        self._qvel = b.bind("qvel")  # [N, nv]
+        self._ctrl = b.bind("ctrl")  # [N, nu]
+        self._time = b.bind("time")  # [N]
+        self._xpos = b.bind("xpos")  # [N, nbody, 3], refreshed after each call
+        self._sensordata = b.bind("sensordata")  # [N, nsensordata]
+        self._cvel = b.bind("cvel")  # [N, nbody, 6] (angular, linear) at the root subtree's CoM
+        self._subtree_com = b.bind("subtree_com")  # [N, nbody, 3]
+        root = ref.model.body_rootid[ref.foot_body_ids]
+        self._foot_root = root  # [L] root body of each foot's tree
+        self._sensor_adr = np.array(
+            [ref.model.sensor_adr[mujoco.mj_name2id(ref.model, mujoco.mjtObj.mjOBJ_SENSOR, "coadapt_contact_" + f)]
+             for f in ref.robot_model.foot_bodies]
+        )
+        # contiguous joint blocks read as slices (no gather in the hot loop)
+        self._q_index = self._as_slice(ref.qpos_adr)
+        self._dq_index = self._as_slice(ref.dof_adr)
+        self._act_index = self._as_slice(ref.actuator_ids)
+
+        # per-environment model fields: those the designs differ in, plus randomization's
+        self._expanded: dict[str, np.ndarray] = {}
+        for name in ("geom_friction", "geom_solref", "body_ipos", "body_pos"):
+            self._expanded[name] = b.expand(name)
+        self._design_fields: set[str] = set()
+        self._field_diff_cache: dict[int, list[str]] = {}
+
+        j = self._j
+        self._kp = np.zeros((n, j))  # [N, J]
+        self._kd = np.zeros((n, j))
+        self._tau_max = np.zeros((n, j))
+        self._dq_max = np.zeros((n, j))
+        self._default_q = np.zeros((n, j))
+        self._standing_height = np.zeros(n)
+        self._foot_xy = np.zeros((n, len(ref.robot_model.foot_bodies), 2))
+        self._foot_radius = np.zeros(n)
+        self._base_ipos = np.zeros((n, 3))  # [N, 3] the design's base CoM, before the shift
+        self._geom_friction = np.zeros((n, ref.model.ngeom, 3))
+        self._geom_solref = np.zeros((n, ref.model.ngeom, 2))
+        self._base_pos0 = np.zeros((n, 3))
+        self._write_designs(np.arange(n), compiled)
+
+        self._rng = np.random.default_rng(seed)
+        # spawn points come from their own stream, so env params stay aligned with any
+        # backend that draws them from default_rng(seed) in the same order
+        self._spawn_rng = np.random.default_rng([seed, 0x5A])
+        cfg = self.randomization
+        max_delay = max(cfg.delay[1], RandomizationConfig.NOMINAL["delay"]) if cfg.enabled else 0.0
+        self._delay = DelayLine(n, j, int(np.rint(max_delay / physics_dt)))
+        self._params: EnvParams = sample_env_params(RandomizationConfig.off(), n, np.random.default_rng(0))
+        self._torque = np.zeros((n, j))  # [N, J] mean applied torque of the last policy step
+        self._tau = np.zeros((n, j))  # [N, J] scratch, one physics step
+        self._diverged = np.zeros(n, dtype=bool)
+        self._expected_time = np.zeros(n)
+        self._state: SimState | None = None
+        self.divergence_count = 0
+        #: seconds spent in physics / actuation / state extraction (benchmark breakdown)
+        self.timings = {"physics": 0.0, "actuation": 0.0, "state": 0.0}
+        #: set to a list to receive each physics step's ctrl [N, nu] (open-loop replay)
+        self.record_controls: list[np.ndarray] | None = None
+        self._reset_envs(np.arange(n))
+        self._state = self._build_state()
+
+    # -- construction helpers ------------------------------------------------------------
+    @staticmethod
+    def _as_slice(index: np.ndarray) -> slice | np.ndarray:
+        index = np.asarray(index, dtype=int)
+        if index.size and np.array_equal(index, np.arange(index[0], index[0] + index.size)):
+            return slice(int(index[0]), int(index[0] + index.size))
+        return index
+
+    def _compile(self, design: np.ndarray) -> CompiledDesign:
+        return _CACHE.get(self.robot, design, self._terrain, physics_dt=self.physics_dt, fixed_base=self.fixed_base)
+
+    def _diff_fields(self, item: CompiledDesign) -> list[str]:
+        """Model fields in which `item` differs from the batch's reference model."""
+        key = id(item.model)
+        cached = self._field_diff_cache.get(key)
+        if cached is not None:
+            return cached
+        ref, other = self._ref.model, item.model
+        if item is self._ref:
+            self._field_diff_cache[key] = []
+            return []
+        if (ref.nq, ref.nv, ref.nu, ref.nbody, ref.ngeom, ref.nsensordata) != (
+            other.nq, other.nv, other.nu, other.nbody, other.ngeom, other.nsensordata
+        ) or not (
+            np.array_equal(item.qpos_adr, self._ref.qpos_adr)
+            and np.array_equal(item.actuator_ids, self._ref.actuator_ids)
+            and np.array_equal(item.foot_body_ids, self._ref.foot_body_ids)
+        ):
+            raise UserError(
+                f"design {np.round(item.robot_model.design, 4).tolist()} changes the model's structure "
+                "(bodies, joints, geoms or actuators); one MuJoCo batch needs designs that differ only in "
+                "parameters",
+                field="designs",
+            )
+        out = []
+        for name in mujoco.batch.MODEL_FIELDS:
+            if name.startswith(_SKIP_PREFIX):
+                continue
+            try:
+                a, c = getattr(ref, name), getattr(other, name)
+            except AttributeError:
+                continue
+            a, c = np.asarray(a), np.asarray(c)
+            if a.shape != c.shape:
+                raise UserError(
+                    f"design {np.round(item.robot_model.design, 4).tolist()} changes the size of model "
+                    f"field {name}; one MuJoCo batch needs designs that differ only in parameters",
+                    field="designs",
+                )
+            if not np.array_equal(a, c):
+                out.append(name)
+        self._field_diff_cache[key] = out
+        return out
+
+    def _write_designs(self, env_ids: np.ndarray, compiled: list[CompiledDesign]) -> None:
+        """Copy each design's model fields and actuator facts into its environments' rows."""
+        groups: dict[int, tuple[CompiledDesign, list[int]]] = {}
+        for env, item in zip(env_ids, compiled, strict=True):
+            groups.setdefault(id(item), (item, []))[1].append(int(env))
+        for item, _ in groups.values():
+            for name in self._diff_fields(item):
+                if name not in self._expanded:
+                    self._expanded[name] = self._batch.expand(name)
+                self._design_fields.add(name)
+        for item, envs in groups.values():
+            ids = np.array(envs)
+            m = item.model
+            for name in self._design_fields:
+                self._expanded[name][ids] = np.asarray(getattr(m, name))
+            rm = item.robot_model
+            self._kp[ids] = rm.kp
+            self._kd[ids] = rm.kd
+            self._tau_max[ids] = rm.torque_limit
+            self._dq_max[ids] = rm.speed_limit
+            self._default_q[ids] = rm.default_joint_pos
+            self._standing_height[ids] = rm.standing_base_height
+            self._foot_xy[ids] = item.foot_xy_offset
+            self._foot_radius[ids] = item.foot_radius
+            self._base_ipos[ids] = m.body_ipos[item.base_body_id]
+            self._geom_friction[ids] = m.geom_friction
+            self._geom_solref[ids] = m.geom_solref
+            self._base_pos0[ids] = m.body_pos[item.base_body_id]
+
+    # -- sizes and facts -----------------------------------------------------------------
+    @property
+    def num_envs(self) -> int:
+        return self._n
+
+    @property
+    def num_joints(self) -> int:
+        return self._j
+
+    @property
+    def designs(self) -> np.ndarray:
+        return self._designs.copy()
+
+    @property
+    def env_params(self) -> EnvParams:
+        return self._params.take(np.arange(self._n))
+
+    @property
+    def default_joint_pos(self) -> torch.Tensor:
+        import torch
+
+        return torch.as_tensor(self._default_q, dtype=torch.float32).to(self.device)
+
+    @property
+    def num_threads_used(self) -> int:
+        return self._threads
+
+    def env_model(self, env: int) -> mujoco.MjModel:
+        """A copy of environment `env`'s model with its design and randomization."""
+        return self._live().get_model(int(env))
+
+    # -- control -------------------------------------------------------------------------
+    def _live(self) -> mujoco.batch.Batch:
+        if self._batch is None:
+            raise RuntimeError("this MujocoSimulator was closed")
+        return self._batch
+
+    def _ids(self, env_ids: torch.Tensor | np.ndarray | None) -> np.ndarray:
+        if env_ids is None:
+            return np.arange(self._n)
+        if hasattr(env_ids, "detach"):
+            env_ids = env_ids.detach().cpu().numpy()
+        ids = np.asarray(env_ids)
+        if ids.dtype == bool:
+            ids = np.flatnonzero(ids)
+        ids = ids.astype(int).reshape(-1)
+        if ids.size and (ids.min() < 0 or ids.max() >= self._n):
+            raise UserError(f"env_ids must lie in [0, {self._n - 1}], got {ids.tolist()}", field="env_ids")
+        return ids
+
+    def reset(self, env_ids: torch.Tensor | np.ndarray | None = None) -> SimState:
+        ids = self._ids(env_ids)
+        self._live()
+        self._reset_envs(ids)
+        self._diverged[ids] = False
+        self._state = self._build_state()
+        return self._state
+
+    def _reset_envs(self, ids: np.ndarray) -> None:
+        """New parameters, spawn pose and clean delay line for `ids`; others untouched."""
+        if ids.size == 0:
+            return
+        b = self._live()
+        params = sample_env_params(self.randomization, ids.size, self._rng)
+        self._params.put(ids, params)
+        # Table 2 parameters living in the model: sliding friction of every geom (MuJoCo
+        # combines a contact's two geoms by max, so robot and terrain both carry it),
+        # restitution as contact damping, base CoM shift
+        friction = self._geom_friction[ids].copy()
+        friction[..., 0] = params.friction[:, None]
+        self._expanded["geom_friction"][ids] = friction
+        solref = self._geom_solref[ids].copy()
+        solref[..., 1] = np.where(
+            params.restitution[:, None] > 0, restitution_to_dampratio(params.restitution)[:, None], solref[..., 1]
+        )
+        self._expanded["geom_solref"][ids] = solref
+        base = self._ref.base_body_id
+        ipos = self._expanded["body_ipos"]
+        ipos[ids, base] = self._base_ipos[ids] + params.com_shift
+
+        # spawn: standing height above the highest ground under either foot
+        xy = np.zeros((ids.size, 2))
+        if self._terrain.name == "random":
+            half = self._terrain.size / 2 - SPAWN_MARGIN
+            xy = self._spawn_rng.uniform(-half, half, size=(ids.size, 2))
+        feet = xy[:, None, :] + self._foot_xy[ids]  # [n, L, 2]
+        ground = np.empty(feet.shape[:2])  # [n, L] highest ground within each sole's reach
+        radii = self._foot_radius[ids]
+        for radius in np.unique(radii):  # one value unless designs change the foot
+            rows = radii == radius
+            ground[rows] = self._terrain.max_height_near(feet[rows], float(radius))
+        z = self._standing_height[ids] + ground.max(axis=1) + SPAWN_CLEARANCE
+        if self.fixed_base:
+            body_pos = self._expanded["body_pos"]
+            body_pos[ids, base] = np.column_stack([xy, z + FIXED_BASE_LIFT])
+        b.set_const(ids)
+        b.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
+        if not self.fixed_base:
+            self._qpos[ids, 0:2] = xy
+            self._qpos[ids, 2] = z
+            self._qpos[ids, 3:7] = (1.0, 0.0, 0.0, 0.0)
+        q = self._qpos[ids]
+        q[:, self._q_index] = self._default_q[ids]
+        self._qpos[ids] = q
+        self._qvel[ids] = 0.0
+        self._ctrl[ids] = 0.0
+        b.forward(ids, stage=mujoco.mjtStage.mjSTAGE_ACC)
+        self._delay.reset(ids, self._default_q[ids])
+        self._delay.set_delay(ids, np.minimum(params.delay_steps(self.physics_dt), self._delay.capacity - 1))
+        self._expected_time[ids] = 0.0
+        self._torque[ids] = 0.0
+
+    def set_designs(self, env_ids: torch.Tensor | np.ndarray, designs: np.ndarray) -> None:
+        ids = self._ids(env_ids)
+        designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        if designs.shape != (ids.size, self._designs.shape[1]):
+            raise UserError(
+                f"set_designs needs one design of {self._designs.shape[1]} values per env id "
+                f"({ids.size} ids), got an array of shape {designs.shape}",
+                field="designs",
+            )
+        self._live()
+        compiled = [self._compile(d) for d in designs]
+        self._write_designs(ids, compiled)
+        self._designs[ids] = designs
+        self._reset_envs(ids)
+        self._diverged[ids] = False
+        self._state = self._build_state()
+
+    def step(self, joint_targets: torch.Tensor) -> SimState:
+        b = self._live()
+        if hasattr(joint_targets, "detach"):
+            joint_targets = joint_targets.detach().cpu().numpy()
+        targets = np.asarray(joint_targets, dtype=float)  # [N, J]
+        if targets.shape != (self._n, self._j):
+            raise ValueError(f"joint_targets must be [{self._n}, {self._j}], got {tuple(targets.shape)}")
+        timings = self.timings
+        perf = time.perf_counter
+        self._torque[:] = 0.0
+        diverged = np.zeros(self._n, dtype=bool)
+        params = self._params
+        for _sub in range(self.decimation):
+            t0 = perf()
+            # coadapt_core.actuation: delayed target, PD, strength, torque-speed envelope
+            self._delay.push(targets)
+            q = self._qpos[:, self._q_index]  # [N, J]
+            dq = self._qvel[:, self._dq_index]  # [N, J]
+            tau = pd_torque(
+                self._delay.current(), q, dq, self._kp, self._kd, self._tau_max, self._dq_max,
+                params.pd_factor, params.motor_strength, out=self._tau,
+            )
+            self._ctrl[:, self._act_index] = tau
+            self._torque += tau
+            if self.record_controls is not None:
+                self.record_controls.append(self._ctrl.copy())
+            t1 = perf()
+            failed = None
+            try:
+                b.step()
+            except mujoco.batch.SimulationError as exc:
+                failed = np.asarray(exc.ids, dtype=int)
+            t2 = perf()
+            self._expected_time += self.physics_dt
+            # MuJoCo resets a simulation itself on a bad state (its warning), which shows as
+            # its clock restarting; NaN or huge speeds are caught before that happens
+            bad = np.abs(self._time - self._expected_time) > 0.5 * self.physics_dt
+            speed = np.abs(self._qvel).max(axis=1)
+            bad |= ~(speed <= MAX_QVEL)  # also catches NaN
+            if failed is not None and failed.size:
+                bad[failed] = True
+            if bad.any():
+                ids = np.flatnonzero(bad)
+                diverged[ids] = True
+                self.divergence_count += ids.size
+                self._reset_envs(ids)
+            timings["actuation"] += t1 - t0
+            timings["physics"] += t2 - t1
+        self._torque /= self.decimation
+        self._torque[diverged] = 0.0
+        self._diverged = diverged
+        t3 = perf()
+        self._state = self._build_state()
+        timings["state"] += perf() - t3
+        return self._state
+
+    def get_state(self) -> SimState:
+        if self._state is None:
+            self._state = self._build_state()
+        return self._state
+
+    # -- state -----------------------------------------------------------------------------
+    def _build_state(self) -> SimState:
+        import torch
+
+        n = self._n
+        qpos, qvel = self._qpos, self._qvel
+        if self.fixed_base:
+            base_pos = self._xpos[:, self._ref.base_body_id]
+            base_quat = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+            lin_vel = np.zeros((n, 3))
+            ang_vel = np.zeros((n, 3))
+        else:
+            base_pos = qpos[:, 0:3]
+            base_quat = qpos[:, 3:7]
+            lin_vel = qvel[:, 0:3]  # free joint: linear velocity in the world frame
+            ang_vel = _quat_rotate(base_quat, qvel[:, 3:6])  # free joint: angular in the body frame
+        sd = self._sensordata
+        found = np.stack([sd[:, a] for a in self._sensor_adr], axis=1)  # [N, L] number of contacts
+        force = np.stack([sd[:, a + 1 : a + CONTACT_SENSOR_DIM] for a in self._sensor_adr], axis=1)  # [N, L, 3]
+        normal_force = np.abs(force @ self._normal)  # [N, L]
+        terrain_h = self._terrain.height_at(base_pos[:, :2])  # [N]
+
+        def f32(x: np.ndarray) -> torch.Tensor:
+            return torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32))
+
+        state = SimState(
+            base_pos=f32(base_pos),
+            base_quat=f32(base_quat),
+            base_lin_vel=f32(lin_vel),
+            base_ang_vel=f32(ang_vel),
+            joint_pos=f32(qpos[:, self._q_index]),
+            joint_vel=f32(qvel[:, self._dq_index]),
+            joint_torque=f32(self._torque),
+            foot_pos=f32(self._foot_positions()),
+            foot_contact=torch.from_numpy(found > 0),
+            foot_contact_force=f32(normal_force),
+            terrain_height=f32(terrain_h),
+            diverged=torch.from_numpy(self._diverged.copy()),
+        )
+        if str(self.device) != "cpu":
+            state = state.to(self.device)
+        return state
+
+    def _foot_positions(self) -> np.ndarray:
+        """[N, L, 3] foot body origins at the current state.
+
+        Derived fields (xpos, cvel) describe the state before the last physics step, as
+        with mj_step. Recomputing the position stage would cost half a physics step (it
+        includes collision detection); one Euler step of each foot's velocity brings the
+        origins forward instead, within about a millimetre (tests check it)."""
+        feet = self._ref.foot_body_ids
+        pos = self._xpos[:, feet]  # [N, L, 3]
+        cvel = self._cvel[:, feet]  # [N, L, 6]
+        lever = pos - self._subtree_com[:, self._foot_root]
+        vel = cvel[..., 3:] + np.cross(cvel[..., :3], lever)
+        return pos + self.physics_dt * vel
+
+    def close(self) -> None:
+        # dropping the batch joins its threads and frees its MjData
+        self._batch = None
