@@ -77,6 +77,7 @@ class Engine:
         self.armature = armature
         self.solver_iterations = int(solver_iterations)
         self._tmpdir = tempfile.mkdtemp(prefix="coadapt-pybullet-")
+        self._loads = 0
         self.specs: list[EnvSpec] = list(specs)
         self.num_joints = len(specs[0].joint_names)
         self.num_feet = len(specs[0].foot_bodies)
@@ -172,7 +173,9 @@ class Engine:
             else None
         )
         text = prepare_urdf(spec.urdf, spec.base_body, com_shift=com_shift, armature=armature)
-        path = os.path.join(self._tmpdir, f"env{e}.urdf")
+        # a new name per load: PyBullet caches files by path and would reuse a stale one
+        self._loads += 1
+        path = os.path.join(self._tmpdir, f"env{e}-{self._loads}.urdf")
         with open(path, "w") as f:
             f.write(text)
         return path
@@ -183,13 +186,15 @@ class Engine:
         shift = np.zeros(3) if com_shift is None else np.asarray(com_shift, dtype=float)
         if self.bodies[e] >= 0:
             p.removeBody(self.bodies[e], physicsClientId=client)
+        path = self._urdf_path(e, spec, shift)
         body = p.loadURDF(
-            self._urdf_path(e, spec, shift),
+            path,
             basePosition=[0.0, 0.0, spec.standing_base_height + 1.0],
             useFixedBase=self.fixed_base,
             flags=p.URDF_USE_INERTIA_FROM_FILE,
             physicsClientId=client,
         )
+        os.remove(path)
         self.bodies[e] = body
         self.loaded_shift[e] = shift
         names = {}
