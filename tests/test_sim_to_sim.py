@@ -1,0 +1,72 @@
+"""Sim-to-sim: PyBullet reproduces MuJoCo's motion of the same robot (docs/sim-to-sim.md).
+
+Tolerances, from the figures measured on the default designs (largest seen in brackets):
+- swing (fixed base, no contact): joint angle RMS < 0.02 rad (0.013, design 1.5/1.5),
+  joint velocity RMS < 6 rad/s (4.9), torque RMS < 5 N m (3.8), against a joint motion of
+  about 0.3 rad RMS;
+- standing on flat ground for 1 s: base height within 5 mm at every step (1.4 mm), base
+  orientation within 0.02 rad (0.0095), joint angles within 0.02 rad (0.011).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pybullet")
+
+from coadapt_core.plugins import get_registry
+from coadapt_core.sim2sim import (
+    DEFAULT_DESIGNS,
+    ErrorFigure,
+    compare_backends,
+    markdown_tables,
+    swing_targets,
+)
+
+
+@pytest.fixture(scope="module")
+def figures():
+    registry = get_registry()
+    if "mujoco" not in registry.names("simulator"):
+        pytest.skip("the mujoco simulator plugin is not available")
+    return compare_backends(registry.create("robot", "kuafu"))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("index", range(len(DEFAULT_DESIGNS)))
+def test_swing_trajectories_agree(figures, index):
+    fig = figures[index]
+    assert fig.design == DEFAULT_DESIGNS[index]
+    assert fig.swing_amplitude > 0.2  # the joints really moved
+    assert fig.swing["joint_pos"].rms < 0.02, fig.to_dict()
+    assert fig.swing["joint_vel"].rms < 6.0, fig.to_dict()
+    assert fig.swing["joint_torque"].rms < 5.0, fig.to_dict()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("index", range(len(DEFAULT_DESIGNS)))
+def test_standing_agrees(figures, index):
+    fig = figures[index]
+    assert fig.standing["base_height"].max < 0.005, fig.to_dict()
+    assert fig.standing["orientation"].max < 0.02, fig.to_dict()
+    assert fig.standing["joint_pos"].max < 0.02, fig.to_dict()
+    # both backends settle by the same amount (soft MuJoCo contact vs rigid Bullet contact)
+    assert abs(fig.height_drop["reference"] - fig.height_drop["other"]) < 0.005
+
+
+@pytest.mark.slow
+def test_markdown_has_a_table_per_design(figures):
+    text = markdown_tables(figures)
+    assert text.count("#### Design") == len(DEFAULT_DESIGNS)
+    assert "| swing | joint_pos (rad) |" in text
+
+
+def test_error_figure_and_swing_targets():
+    err = ErrorFigure.of(np.array([0.0, 3.0, -4.0]), np.zeros(3))
+    assert err.max == 4.0
+    assert err.rms == pytest.approx(np.sqrt(25 / 3))
+    targets = swing_targets(np.zeros((2, 8)), steps=50, control_dt=0.02)
+    assert targets.shape == (50, 2, 8)
+    assert np.abs(targets).max() <= 0.5 + 1e-12
+    assert not np.allclose(targets[:, 0, :4], targets[:, 0, 4:])  # legs are not mirrored
