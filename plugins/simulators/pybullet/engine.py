@@ -98,7 +98,8 @@ class Engine:
         # positions of the actuated joints in Bullet's mass matrix, and the last step's
         # velocities and applied torques, from which the other generalized forces follow
         self.armature_diag = np.zeros((self.k, j))  # [k, J] kg m^2
-        self.mass_cols: list[np.ndarray] = [np.arange(j) for _ in range(self.k)]
+        self.mass_block: list[tuple] = [np.ix_(np.arange(j), np.arange(j)) for _ in range(self.k)]
+        self._diag = np.arange(j)
         self.movable: list[list[int]] = [[] for _ in range(self.k)]
         self.prev_dq = np.zeros((self.k, j))  # [k, J]
         self.prev_applied = np.zeros((self.k, j))  # [k, J]
@@ -268,7 +269,8 @@ class Engine:
         ]
         offset = 0 if self.fixed_base else 6
         self.movable[e] = movable
-        self.mass_cols[e] = np.array([offset + movable.index(jid) for jid in self.joint_ids[e]])
+        cols = np.array([offset + movable.index(jid) for jid in self.joint_ids[e]])
+        self.mass_block[e] = np.ix_(cols, cols)
         use = self.armature == "joint_space" and spec.joint_armature is not None
         self.armature_diag[e] = spec.joint_armature if use else 0.0
 
@@ -382,22 +384,19 @@ class Engine:
         """
         if not np.any(self.armature_diag):
             return np.zeros_like(tau)
-        out = np.zeros_like(tau)
         ddq = (dq - self.prev_dq) / self.physics_dt  # [k, J] the last step's acceleration
+        mass = np.empty((self.k, self.num_joints, self.num_joints))  # [k, J, J] joint blocks
         for e in range(self.k):
-            a = self.armature_diag[e]
-            if not np.any(a):
-                continue
             positions = q[e] if len(self.movable[e]) == self.num_joints else self._movable_positions(e)
-            mass = np.asarray(
-                p.calculateMassMatrix(self.bodies[e], positions.tolist(), physicsClientId=self.clients[e])
-            )[np.ix_(self.mass_cols[e], self.mass_cols[e])]  # [J, J] joint block
-            h = np.zeros(self.num_joints) if self.fresh[e] else mass @ ddq[e] - self.prev_applied[e]
-            predicted = np.linalg.solve(mass + np.diag(a), tau[e] + h)
-            out[e] = a * predicted
+            full = np.array(p.calculateMassMatrix(self.bodies[e], positions.tolist(), physicsClientId=self.clients[e]))
+            mass[e] = full[self.mass_block[e]]
+        h = np.einsum("kij,kj->ki", mass, ddq) - self.prev_applied  # [k, J]
+        h[self.fresh] = 0.0  # nothing measured yet right after a reset
+        mass[:, self._diag, self._diag] += self.armature_diag
+        predicted = np.linalg.solve(mass, (tau + h)[..., None])[..., 0]  # [k, J]
         self.prev_dq = dq.copy()
         self.fresh[:] = False
-        return out
+        return self.armature_diag * predicted
 
     def _movable_positions(self, e: int) -> np.ndarray:
         states = p.getJointStates(self.bodies[e], self.movable[e], physicsClientId=self.clients[e])
