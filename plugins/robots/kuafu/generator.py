@@ -174,12 +174,14 @@ def _upper_body_in_hip_frame(design: KuafuDesign) -> list[Part]:
     return parts
 
 
-def leg_joint_inertias(design: KuafuDesign) -> dict[str, float]:
-    """I_j, the load inertia of each leg joint about its axis at the default pose: the chain
-    distal to the joint (what it swings with the foot in the air) plus the bodies above it
-    (what it carries with the foot on the ground: the same leg's proximal links, the base
-    and the arms; the other leg is left out). Left leg; the right one mirrors it. Armature
-    is not included."""
+def leg_joint_inertias(design: KuafuDesign) -> dict[str, dict[str, float]]:
+    """Inertias of each leg joint about its axis at the default pose (left leg; the right
+    one mirrors it; armature not included):
+
+    - "load": what the joint carries with the foot on the ground and swings with it in the
+      air: the whole leg plus the upper body (base and arms; the other leg left out);
+    - "swing": the chain distal to the joint only (the foot alone at the ankle).
+    """
     parts = leg_parts(design)
     _, pitch, knee, ankle = default_joint_pos(design)[:4]
     l0, l1 = design.thigh_length, design.shank_length
@@ -195,35 +197,45 @@ def leg_joint_inertias(design: KuafuDesign) -> dict[str, float]:
     }
     upper = _upper_body_in_hip_frame(design)
     x_axis, y_axis = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
-
-    def about(point: np.ndarray, axis: np.ndarray) -> float:
-        leg = sum(inertia_about_axis(parts[b], *placed[b], point, axis) for b in placed)
-        return leg + sum(inertia_about_axis(p, np.eye(3), np.zeros(3), point, axis) for p in upper)
-
-    # distal + proximal side of each joint = the whole leg and the upper body
-    return {
-        "hip_roll": about(np.zeros(3), x_axis),
-        "hip_pitch": about(np.zeros(3), y_axis),
-        "knee": about(p_knee, y_axis),
-        "ankle": about(p_ankle, y_axis),
+    joints = {  # joint: (point on the axis, axis, distal bodies)
+        "hip_roll": (np.zeros(3), x_axis, ("hip_roll_link", "thigh", "shank", "foot")),
+        "hip_pitch": (np.zeros(3), y_axis, ("thigh", "shank", "foot")),
+        "knee": (p_knee, y_axis, ("shank", "foot")),
+        "ankle": (p_ankle, y_axis, ("foot",)),
     }
+    out: dict[str, dict[str, float]] = {"load": {}, "swing": {}}
+    for name, (point, axis, distal) in joints.items():
+        leg = {b: inertia_about_axis(parts[b], *placed[b], point, axis) for b in placed}
+        above = sum(inertia_about_axis(p, np.eye(3), np.zeros(3), point, axis) for p in upper)
+        out["load"][name] = sum(leg.values()) + above
+        out["swing"][name] = sum(leg[b] for b in distal)
+    return out
 
 
 @cache
-def _nominal_inertias() -> dict[str, float]:
+def _nominal_inertias() -> dict[str, dict[str, float]]:
     return leg_joint_inertias(KuafuDesign(1.0, 1.0))
 
 
-def pd_gains(design: KuafuDesign) -> tuple[np.ndarray, np.ndarray, dict[str, float]]:
-    """kp_j = kp_j(nominal) r_j and kd_j = kd_j(nominal) sqrt(r_j) with r_j = I_j / I_j(nominal):
-    stiffness grows with the load inertia (and with it the gravity load m g h the joint must
-    out-stiffen to stand); damping by the square root, which keeps kd within the explicit
-    integration bound 2 I_swing / dt of the light distal chain (the foot, at the ankle)."""
+def pd_gains(design: KuafuDesign) -> tuple[np.ndarray, np.ndarray, dict[str, dict[str, float]]]:
+    """The PD scaling rule (README, "PD gains"):
+
+        kp_j = kp_j(nominal) * L_j / L_j(nominal)
+        kd_j = kd_j(nominal) * sqrt(kp_j / kp_j(nominal) * S_j / S_j(nominal))
+
+    with L_j the load inertia and S_j = swing inertia + armature. Stiffness grows with the
+    mass the joint moves (and with it the gravity load m g h it must out-stiffen to stand);
+    damping keeps the swing mode's damping ratio kd / (2 sqrt(kp S)) at the nominal robot's,
+    so the explicit PD stays as far from its 5 ms stability bound as the nominal design's
+    for a given natural frequency."""
     inertias = leg_joint_inertias(design)
     nominal = _nominal_inertias()
-    ratio = {j: inertias[j] / nominal[j] for j in LEG_JOINTS}
-    kp = [C.NOMINAL_KP[j] * ratio[j] for j in LEG_JOINTS]
-    kd = [C.NOMINAL_KD[j] * math.sqrt(ratio[j]) for j in LEG_JOINTS]
+    kp, kd = [], []
+    for j in LEG_JOINTS:
+        kp_ratio = inertias["load"][j] / nominal["load"][j]
+        swing_ratio = (inertias["swing"][j] + C.ARMATURE) / (nominal["swing"][j] + C.ARMATURE)
+        kp.append(C.NOMINAL_KP[j] * kp_ratio)
+        kd.append(C.NOMINAL_KD[j] * math.sqrt(kp_ratio * swing_ratio))
     return np.array(kp + kp), np.array(kd + kd), inertias
 
 
@@ -481,7 +493,8 @@ def build_cached(key: tuple[float, ...]) -> RobotModel:
         },
         "armature": _readonly(np.full(len(C.JOINT_NAMES), C.ARMATURE)),
         "joint_damping": _readonly(np.full(len(C.JOINT_NAMES), C.JOINT_DAMPING)),
-        "joint_inertia": {j: inertias[j] for j in LEG_JOINTS},
+        "joint_load_inertia": dict(inertias["load"]),
+        "joint_swing_inertia": dict(inertias["swing"]),
         "hip_offset": _readonly(C.HIP_OFFSET),
         "gear_ratio": C.GEAR_RATIO,
     }

@@ -79,8 +79,13 @@ class Kuafu(Robot):
     # -- leg kinematics (batched torch) -----------------------------------------------------
     @staticmethod
     def _lengths(designs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """([n, 1], [n, 1]) thigh and shank lengths."""
-        return C.NOMINAL_LINK_LENGTH * designs[:, 0:1], C.NOMINAL_LINK_LENGTH * designs[:, 1:2]
+        """([n, 1], [n, 1]) thigh and shank lengths of the models `build` makes (whose
+        designs are rounded to DESIGN_DECIMALS)."""
+        import torch
+
+        scale = 10.0**DESIGN_DECIMALS
+        rounded = torch.round(designs[:, :2] * scale) / scale  # [n, 2]
+        return C.NOMINAL_LINK_LENGTH * rounded[:, 0:1], C.NOMINAL_LINK_LENGTH * rounded[:, 1:2]
 
     def default_foot_positions(self, designs: torch.Tensor) -> torch.Tensor:
         """[n, 2, 3] ankle joint centre relative to the hip joint centre (where the hip roll

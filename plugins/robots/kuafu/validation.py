@@ -19,6 +19,14 @@ CONSISTENCY_POS_TOL = 1e-6  # m, CoM and foot positions
 RANDOM_CONFIGURATIONS = 5
 
 
+def _largest_gain_factor() -> float:
+    """Largest PD factor x motor strength the default domain randomization (Table 2) draws."""
+    from coadapt_core.randomization import RandomizationConfig
+
+    config = RandomizationConfig()
+    return float(config.pd_factor[1] * config.motor_strength[1])
+
+
 def _pinocchio():
     try:
         import pinocchio
@@ -221,6 +229,35 @@ def _statics(pin, pmodel, pdata, model: RobotModel, ix: _Indexer, q: np.ndarray)
     return findings
 
 
+def _pd_stability(pin, pmodel, pdata, model: RobotModel, ix: _Indexer, q: np.ndarray) -> list[Finding]:
+    """The PD law is explicit in the physics step (torques written to ctrl), so a light
+    chain with stiff gains can ring or diverge. Per joint, with the base held (a swinging
+    leg) and I = 1 / (M^-1)_jj its effective inertia (armature included), the discrete
+    semi-implicit Euler loop is stable when a = dt f kd / I < 2 and 2 a + dt^2 f kp / I < 4,
+    f the largest randomized PD factor x motor strength. Value: worst (2a + b) / 4."""
+    legs = pin.crba(pmodel, pdata, q)
+    legs = np.triu(legs) + np.triu(legs, 1).T
+    legs = legs[np.ix_(ix.v_idx, ix.v_idx)]
+    effective = 1.0 / np.diag(np.linalg.inv(legs))  # [8]
+    factor = _largest_gain_factor()
+    dt = C.TIMESTEP
+    a = dt * factor * model.kd / effective
+    b = dt * dt * factor * model.kp / effective
+    index = (2.0 * a + b) / 4.0
+    worst = int(np.argmax(index))
+    ok = bool(index[worst] < 1.0 and np.all(a < 2.0))
+    return [
+        Finding(
+            "control.pd_stability",
+            ok,
+            f"explicit PD at dt {dt * 1000:g} ms, gains x{factor:.2f}: worst {model.joint_names[worst]} "
+            f"at {100 * index[worst]:.0f} % of the stability bound (effective inertia {effective[worst]:.4f} kg m^2)",
+            value=float(index[worst]),
+            limit=1.0,
+        )
+    ]
+
+
 def _random_configurations(model: RobotModel, count: int, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     rng = np.random.default_rng(seed)
     out = []
@@ -337,5 +374,6 @@ def validate_model(model: RobotModel) -> ValidationReport:
     findings = _kinematics(pin, pmodel, pdata, model, q)
     findings += _mass(pin, pmodel, pdata, model, q)
     findings += _statics(pin, pmodel, pdata, model, ix, q)
+    findings += _pd_stability(pin, pmodel, pdata, model, ix, q)
     findings += _consistency_findings(model, pmodel)
     return ValidationReport(design=np.array(model.design, dtype=float), findings=findings)

@@ -155,19 +155,23 @@ def test_default_pose_knees_bent_soles_flat_feet_under_hips(kuafu):
             np.testing.assert_allclose(data.xpos[foot][:2], data.xpos[hip][:2], atol=1e-12)
 
 
-def test_pd_gains_scale_with_load_inertia(kuafu):
+def test_pd_gains_follow_the_scaling_rule(kuafu):
+    joints = ("hip_roll", "hip_pitch", "knee", "ankle")
     nominal = kuafu.build(np.array([1.0, 1.0]))
-    assert list(nominal.kp[:4]) == [C.NOMINAL_KP[j] for j in ("hip_roll", "hip_pitch", "knee", "ankle")]
-    assert list(nominal.kd[:4]) == [C.NOMINAL_KD[j] for j in ("hip_roll", "hip_pitch", "knee", "ankle")]
+    assert list(nominal.kp[:4]) == [C.NOMINAL_KP[j] for j in joints]
+    assert list(nominal.kd[:4]) == [C.NOMINAL_KD[j] for j in joints]
     i_nom = leg_joint_inertias(KuafuDesign(1.0, 1.0))
     for design in ([0.5, 0.5], [1.5, 1.5], [1.5, 0.5]):
         model = kuafu.build(np.array(design))
         inertia = leg_joint_inertias(KuafuDesign(*design))
-        ratio = np.array([inertia[j] / i_nom[j] for j in ("hip_roll", "hip_pitch", "knee", "ankle")] * 2)
-        np.testing.assert_allclose(model.kp / nominal.kp, ratio, rtol=1e-12)
-        np.testing.assert_allclose(model.kd / nominal.kd, np.sqrt(ratio), rtol=1e-12)
+        load = np.array([inertia["load"][j] / i_nom["load"][j] for j in joints] * 2)
+        swing = np.array([(inertia["swing"][j] + C.ARMATURE) / (i_nom["swing"][j] + C.ARMATURE) for j in joints] * 2)
+        np.testing.assert_allclose(model.kp / nominal.kp, load, rtol=1e-12)
+        np.testing.assert_allclose(model.kd / nominal.kd, np.sqrt(load * swing), rtol=1e-12)
     short, tall = kuafu.build(np.array([0.5, 0.5])), kuafu.build(np.array([1.5, 1.5]))
     assert np.all(tall.kp > nominal.kp) and np.all(nominal.kp > short.kp)
+    # the load inertia counts the upper body; the swing inertia at the ankle is the foot alone
+    assert i_nom["load"]["ankle"] > 20.0 and i_nom["swing"]["ankle"] < 0.01
 
 
 def test_build_is_cached_fast_and_read_only(kuafu):
