@@ -117,11 +117,17 @@ def read_evaluations(run_dir: str | os.PathLike) -> list[dict[str, Any]]:
 
 
 def make_recorder(run_dir: str | os.PathLike, store: str | None = None) -> RunRecorder:
-    """The recorder for a run folder: JSON files always; with `store` (a results store URL or
-    path) the results store's recorder, teeing into the JSON files."""
+    """The recorder for a run folder: JSON files always, teed into the results store.
+
+    `store` is a results store URL or path; without one, `$COADAPT_STORE`, else coadapt.db
+    beside the runs folder (./coadapt.db for ./runs/<id>); "none" records JSON files only.
+    See `coadapt_core.results.store.store_url_for_run`."""
+    from coadapt_core.results.store import store_url_for_run
+
     json_recorder = JsonRecorder(run_dir)
-    if not store:
+    url = store_url_for_run(run_dir, store)
+    if url is None:
         return json_recorder
     from coadapt_core.results import SqliteRecorder
 
-    return SqliteRecorder(store, run_dir=run_dir, tee=json_recorder)
+    return SqliteRecorder(url, run_dir=run_dir, tee=json_recorder)

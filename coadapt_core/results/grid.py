@@ -64,8 +64,11 @@ class Cell:
     def slug(self) -> str:
         return self.key.replace("|", "_").replace("=", "-").replace(",", "+")
 
-    def run_args(self, *, out_dir: str | None = None, resume: str | None = None, extra: Sequence[str] = ()) -> list[str]:
-        """The `coadapt run` arguments of this cell."""
+    def run_args(
+        self, *, out_dir: str | None = None, resume: str | None = None, extra: Sequence[str] = (), store: str | None = None
+    ) -> list[str]:
+        """The `coadapt run` arguments of this cell. With `store`, the run records into it
+        and the BO baseline keeps its optuna study there too."""
         args = [
             "run",
             "--method", self.method,
@@ -79,6 +82,10 @@ class Cell:
             args += ["--optimizer", self.optimizer]
         if out_dir:
             args += ["--out", out_dir]
+        if store:
+            args += ["--store", store]
+            if self.method == "bo-specialized":
+                args += ["--bo-storage", store]
         if resume:
             args += ["--resume", resume]
         return [*args, *extra, "--json"]
@@ -243,7 +250,7 @@ def plan_grid(
         tasks.append(
             CellTask(
                 cell=cell,
-                argv=cell.run_args(out_dir=out_dir, resume=resume, extra=spec.extra_args),
+                argv=cell.run_args(out_dir=out_dir, resume=resume, extra=spec.extra_args, store=store.url),
                 env=env,
                 command=list(command) if command is not None else None,
                 log_path=log_path,

@@ -30,7 +30,8 @@ class SqliteRecorder:
         tee: RunRecorder | None = None,
     ):
         self.store = store if isinstance(store, ResultsStore) else ResultsStore(store)
-        self.run_dir = None if run_dir is None else os.fspath(run_dir)
+        # absolute, so reports and grids started from another folder still find them
+        self.run_dir = None if run_dir is None else os.path.abspath(run_dir)
         self.tee = tee
         # next idx per (run, outer, inner, kind) and per (run, outer) for training phases
         self._next_eval: dict[tuple[str, int, int, str], int] = defaultdict(int)
@@ -165,7 +166,7 @@ class SqliteRecorder:
             self.tee.record_training(run_id, outer=outer, result=result)
 
     def record_checkpoint(self, run_id: str, *, outer: int, path: str) -> None:
-        self.store.record_checkpoint(run_id, outer=outer, path=os.fspath(path))
+        self.store.record_checkpoint(run_id, outer=outer, path=os.path.abspath(path))
         if self.tee is not None:
             self.tee.record_checkpoint(run_id, outer=outer, path=path)
 

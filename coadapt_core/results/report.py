@@ -161,6 +161,9 @@ def sim_to_sim(
         checkpoint = (run["summary"] or {}).get("checkpoint") or (checkpoints[-1]["path"] if checkpoints else None)
         if checkpoint is None:
             return None, "n/a: the run recorded no policy checkpoint"
+        if not Path(checkpoint).is_absolute() and run.get("run_dir"):
+            # older rows hold paths relative to the folder the run was started from
+            checkpoint = str(Path(run["run_dir"]).resolve().parent.parent / checkpoint)
         if not Path(checkpoint).exists():
             return None, f"n/a: checkpoint {checkpoint} is gone"
         try:
@@ -513,7 +516,10 @@ def figure_surrogate_error(facts: Sequence[RunFacts], out: Path) -> list[tuple[P
             ax.scatter(xy[:, 0], xy[:, 1], s=12, alpha=0.7, color=METHOD_COLORS.get(m, "black"), label=METHOD_LABELS.get(m, m))
         ax.axhline(0.0, color="grey", linewidth=0.8)
         errs = np.array([p[1] for p in pts])
-        ax.set_title(f"{o}: mean |error| {np.abs(errs).mean():.3g} over {len(errs)} designs")
+        finite = np.isfinite(errs)
+        mean_abs = f"{np.abs(errs[finite]).mean():.3g}" if finite.any() else "n/a"
+        missing = f"; {int((~finite).sum())} not finite, not drawn" if not finite.all() else ""
+        ax.set_title(f"{o}: mean |error| {mean_abs} over {int(finite.sum())} designs{missing}", fontsize=9)
         ax.set_xlabel(f"real {o} cost")
         ax.set_ylabel("surrogate error (as recorded by the run)")
         ax.legend(fontsize=7)

@@ -156,6 +156,25 @@ def resolve_store_url(store: str | os.PathLike | None = None) -> str:
     return f"sqlite:///{path}"
 
 
+#: `--store none` (or `$COADAPT_STORE=none`): a run writes its JSON files only
+NO_STORE = ("none", "off", "no")
+
+
+def store_url_for_run(run_dir: str | os.PathLike, store: str | os.PathLike | None = None) -> str | None:
+    """The store a run records into: `store` when given, else `$COADAPT_STORE`, else
+    coadapt.db beside the runs folder (the parent of the run folder's parent: ./coadapt.db
+    for ./runs/<run id>, the same file `coadapt report` and `coadapt grid` use by default).
+    None when the store is switched off ("none")."""
+    value = str(store) if store else os.environ.get(ENV_STORE) or ""
+    if value.strip().lower() in NO_STORE:
+        return None
+    if not value:
+        project = Path(run_dir).resolve().parent.parent
+        project.mkdir(parents=True, exist_ok=True)
+        value = str(project / DEFAULT_STORE_FILE)
+    return resolve_store_url(value)
+
+
 def code_commit() -> str | None:
     """Git commit of the coadapt source tree, with '+dirty' when it has local changes; None
     when coadapt is not installed from a git checkout."""

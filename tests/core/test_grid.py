@@ -31,13 +31,14 @@ def fake_run(argv: list[str]) -> int:
     from coadapt_core.results import SqliteRecorder
 
     p = argparse.ArgumentParser()
-    for opt in ("--method", "--objective", "--terrain", "--preset", "--sim", "--out", "--resume", "--optimizer"):
+    for opt in ("--method", "--objective", "--terrain", "--preset", "--sim", "--out", "--resume", "--optimizer", "--store",
+                "--bo-storage"):
         p.add_argument(opt)
     p.add_argument("--seed", type=int)
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv[1:])  # argv[0] == "run"
-    rec = SqliteRecorder(None)  # $COADAPT_STORE, as the real factory does
-    config = {k: v for k, v in vars(args).items() if k not in ("json", "resume", "out")}
+    rec = SqliteRecorder(args.store)
+    config = {k: v for k, v in vars(args).items() if k not in ("json", "resume", "out", "store", "bo_storage")}
     if args.resume:
         config["run_id"] = args.resume
     run_id = rec.start_run(config)
@@ -95,6 +96,9 @@ def test_grid_expands_every_combination():
     argv = cells[0].run_args(out_dir="runs")
     assert argv[:2] == ["run", "--method"] and argv[-1] == "--json" and "--out" in argv
     assert spec.grid_id == GridSpec.from_dict(spec.to_dict()).grid_id  # same grid, same id
+    bo = next(c for c in cells if c.method == "bo-specialized").run_args(store="sqlite:///x.db")
+    assert bo[bo.index("--store") + 1] == bo[bo.index("--bo-storage") + 1] == "sqlite:///x.db"
+    assert "--bo-storage" not in cells[0].run_args(store="sqlite:///x.db")  # only BO keeps a study
 
 
 @pytest.mark.parametrize(("field", "value", "message"), [

@@ -8,6 +8,7 @@ import json
 import multiprocessing
 import os
 import sqlite3
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -206,3 +207,23 @@ def test_bo_study_lives_in_the_store_and_optuna_finds_it(tmp_path):
     assert len(study.trials) == 4
     assert study.best_value == pytest.approx(bo.best()[1])
     assert ResultsStore(tmp_path / "bo.db").get_run(run_id)["method"] == "bo-specialized"  # our tables intact
+
+
+def test_make_recorder_tees_json_files_into_the_store_beside_the_runs_folder(tmp_path, monkeypatch):
+    from coadapt_core.coadapt.recorders import JsonRecorder, make_recorder
+
+    monkeypatch.delenv("COADAPT_STORE", raising=False)
+    run_dir = tmp_path / "runs" / "r1"
+    rec = make_recorder(run_dir)
+    assert isinstance(rec, SqliteRecorder) and rec.url == f"sqlite:///{tmp_path / 'coadapt.db'}"
+    assert rec.start_run(CONFIG) == "r1"  # the JSON recorder names the run after its folder
+    rec.record_evaluation("r1", outer=0, inner=0, design=[1.0, 1.0], costs={"torque": 2.0}, kind="real",
+                          interactions=5, seconds=0.1)
+    rec.record_checkpoint("r1", outer=0, path="runs/r1/ckpt.pt")
+    assert (run_dir / "evaluations.jsonl").read_text().count("\n") == 1
+    store = ResultsStore(tmp_path / "coadapt.db")
+    assert store.count_evaluations("r1") == 1 and store.get_run("r1")["run_dir"] == str(run_dir)
+    assert Path(store.checkpoints("r1")[0]["path"]).is_absolute()
+    assert isinstance(make_recorder(tmp_path / "runs" / "r2", "none"), JsonRecorder)
+    monkeypatch.setenv("COADAPT_STORE", str(tmp_path / "env.db"))
+    assert make_recorder(tmp_path / "runs" / "r3").url.endswith("env.db")
