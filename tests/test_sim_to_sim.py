@@ -70,3 +70,28 @@ def test_error_figure_and_swing_targets():
     assert targets.shape == (50, 2, 8)
     assert np.abs(targets).max() <= 0.5 + 1e-12
     assert not np.allclose(targets[:, 0, :4], targets[:, 0, 4:])  # legs are not mirrored
+
+
+@pytest.mark.parametrize("terrain", ["flat", "random"])
+def test_same_seed_same_parameters_and_spawn_on_both_backends(terrain):
+    """Randomized parameters and spawn points come from the seed alone, not the backend."""
+    from coadapt_core.randomization import RandomizationConfig
+
+    registry = get_registry()
+    if "mujoco" not in registry.names("simulator"):
+        pytest.skip("the mujoco simulator plugin is not available")
+    robot = registry.create("robot", "kuafu")
+    designs = np.array([[1.0, 1.0], [0.6, 1.4]])
+    seen = []
+    for name in ("mujoco", "pybullet"):
+        with registry.create("simulator", name, robot, designs, terrain=terrain, randomization=RandomizationConfig(), seed=9) as sim:
+            first = sim.env_params
+            state = sim.reset()
+            seen.append((first, sim.env_params, state.base_pos.double().numpy(), state.joint_pos.double().numpy()))
+    (a_first, a_params, a_pos, a_q), (b_first, b_params, b_pos, b_q) = seen
+    for key in ("friction", "restitution", "com_shift", "pd_factor", "motor_strength", "delay"):
+        np.testing.assert_array_equal(getattr(a_first, key), getattr(b_first, key))
+        np.testing.assert_array_equal(getattr(a_params, key), getattr(b_params, key))
+    assert not np.array_equal(a_first.friction, a_params.friction)  # reset drew new ones
+    np.testing.assert_allclose(b_pos, a_pos, atol=1e-6)  # the same spawn point and height
+    np.testing.assert_allclose(b_q, a_q, atol=1e-6)

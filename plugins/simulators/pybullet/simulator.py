@@ -128,6 +128,9 @@ class PyBulletSimulator(Simulator):
 
             self._pool = WorkerPool(specs, self._slices, options)
         self._diverged = np.zeros(n, dtype=bool)
+        # draw every environment's parameters now, as the MuJoCo backend does, so the same
+        # seed gives both backends the same parameters and spawn points
+        self._reset_engines(np.arange(n))
 
     def _spec(self, design: np.ndarray) -> EnvSpec:
         from coadapt_plugins.simulators.pybullet.spec import EnvSpec
@@ -250,7 +253,7 @@ class PyBulletSimulator(Simulator):
         ids = self._ids(env_ids)
         if ids.size:
             self._reset_engines(ids)
-        self._diverged[:] = False
+        self._diverged[ids] = False
         return self._to_state(self._raw_state())
 
     def step(self, joint_targets: torch.Tensor) -> SimState:
