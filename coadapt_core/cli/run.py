@@ -147,7 +147,7 @@ def register(app: typer.Typer) -> None:
         specialized_train_steps: int = typer.Option(None, help="bo-specialized: interactions per specialised policy."),
         checkpoint: str = typer.Option(None, help="Universal policy to start from ('none' = from scratch)."),
         device: str = typer.Option(None, help="Torch device of the learner [cpu]."),
-        store: str = typer.Option(None, help="Results store URL or path (default: JSON files only)."),
+        store: str = typer.Option(None, help="Results store URL or path (default: $COADAPT_STORE, else coadapt.db beside --out; none: JSON files only)."),
     ) -> None:
         """Co-adapt design and policy: universal policy + pseudo-critics, optimizer with hybrid
         real/surrogate fitness, range narrowing (paper Algorithm 4)."""

@@ -59,7 +59,7 @@ class CoadaptConfig:
     checkpoint: str = ""  # universal policy to start from ('' = the shipped one if any, 'none' = scratch)
     device: str = "cpu"  # torch device of the learner
     out: str = "runs"  # parent folder of run folders
-    store: str = ""  # results store URL (empty: JSON files in the run folder only)
+    store: str = ""  # results store URL or path (empty: $COADAPT_STORE, else coadapt.db beside `out`; "none": JSON files only)
     preset: str = "quick"  # the preset this config started from (recorded)
 
     # -----------------------------------------------------------------------------------------
@@ -143,14 +143,14 @@ PRESETS: dict[str, dict[str, Any]] = {
     # seconds on a laptop: for tests and for checking that everything is wired
     "smoke": dict(
         outer_iterations=2, population=4, optimizer_iterations=2, agents_per_design=2,
-        train_steps=2048, retrain_steps=1024, eval_steps=20, surrogate_samples=64,
-        bo_designs=2, specialized_train_steps=1024,
+        train_steps=400, retrain_steps=200, eval_steps=20, surrogate_samples=64,
+        bo_designs=2, specialized_train_steps=200,
     ),
     # meaningful on a 2-core laptop in <= 30 min, starting from the shipped universal policy
     "quick": dict(
         outer_iterations=3, population=16, optimizer_iterations=4, agents_per_design=4,
-        train_steps=150_000, retrain_steps=60_000, eval_steps=150, surrogate_samples=1024,
-        bo_designs=6, specialized_train_steps=100_000,
+        train_steps=30_000, retrain_steps=15_000, eval_steps=150, surrogate_samples=1024,
+        bo_designs=4, specialized_train_steps=15_000,
     ),
     # section 4.1.3: N = 3, K = 100, J = 5, 50 agents, w = 0.5, inertia 0.9, c1 = c2 = 2
     "paper": dict(
