@@ -102,6 +102,7 @@ def _upper_body_parts(design: KuafuDesign, torso_mass: float) -> list[Part]:
     return parts
 
 
+@lru_cache(maxsize=8192)
 def leg_parts(design: KuafuDesign) -> dict[str, Part]:
     """Mass properties of the four leg bodies (the same for both legs), each in its frame."""
     models = load_mass_models()
@@ -134,7 +135,13 @@ def torso_mass() -> float:
 
 
 def base_part(design: KuafuDesign) -> Part:
-    return combine(_upper_body_parts(design, torso_mass()))
+    return _base_part(design.hip_motor)
+
+
+@lru_cache(maxsize=8)
+def _base_part(hip_motor: int) -> Part:
+    """The trunk depends on the design only through the hip-roll actuators it carries."""
+    return combine(_upper_body_parts(KuafuDesign(1.0, 1.0, hip_motor=hip_motor), torso_mass()))
 
 
 # -- default pose and leg kinematics -------------------------------------------------------

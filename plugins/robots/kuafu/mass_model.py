@@ -124,7 +124,13 @@ class LinkMassModel:
     r2: dict[str, float]
 
     def quantities(self, length: float) -> dict[str, float]:
-        return {q: float(np.polyval(self.coefficients[q], length)) for q in QUANTITIES}
+        out = {}
+        for q in QUANTITIES:
+            value = 0.0
+            for c in self.coefficients[q]:  # Horner, highest power first (as numpy.polyval)
+                value = value * length + c
+            out[q] = value
+        return out
 
     def part(self, length: float) -> Part:
         """The link structure as a `Part` in the link frame, from the regression."""
