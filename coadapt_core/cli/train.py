@@ -1,19 +1,401 @@
-"""`coadapt train` and `coadapt eval`: the universal locomotion policy."""
+"""`coadapt train` and `coadapt eval`: the universal locomotion policy.
+
+`train` runs PPO (Algorithm 1) on K designs drawn from a design range, A agents each, with
+a progress bar, CSV scalars (TorchRL's CSVLogger; TensorBoard when installed), periodic
+checkpoints and resume. `eval` rolls a policy out on one design under a fixed command and
+prints survival, speed and costs.
+"""
 
 from __future__ import annotations
 
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
 import typer
 
-from coadapt_core.cli.common import not_available
+from coadapt_core.cli.common import choice_help, fail, resolve
+from coadapt_core.errors import UserError
+
+#: the objectives whose pseudo-critics `coadapt train` trains by default (paper section 4)
+DEFAULT_OBJECTIVES = "tracking,power,torque"
+
+
+def _objectives(text: str) -> list:
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if not names:
+        fail("--objectives needs at least one objective name, e.g. tracking,power,torque")
+    return [resolve("objective", n)() for n in names]
+
+
+def _simulator(sim: str, terrain: str) -> type:
+    cls = resolve("simulator", sim)
+    if terrain not in cls.terrains:
+        fail(f"--terrain '{terrain}' is not supported by simulator '{sim}'; one of: {', '.join(cls.terrains)}")
+    return cls
+
+
+def _check_device(device: str) -> None:
+    import torch
+
+    if device not in ("cpu", "cuda") and not device.startswith("cuda:"):
+        fail(f"--device '{device}' is not one of: cpu, cuda, cuda:N")
+    if device.startswith("cuda") and not torch.cuda.is_available():
+        fail("--device cuda requested but torch sees no CUDA device; use --device cpu")
+
+
+def _logger(out: Path) -> Any:
+    """TorchRL's TensorBoard logger when tensorboard is installed, else its CSV logger."""
+    from torchrl.record.loggers import CSVLogger
+
+    try:
+        import tensorboard  # noqa: F401
+        from torchrl.record.loggers import TensorboardLogger
+
+        return TensorboardLogger(exp_name="train", log_dir=str(out / "logs"))
+    except ImportError:
+        return CSVLogger(exp_name="train", log_dir=str(out / "logs"))
 
 
 def register(app: typer.Typer) -> None:
     @app.command("train")
-    def train_command() -> None:
+    def train_command(
+        robot: str = typer.Option("kuafu", help=choice_help("robot", "Robot.")),
+        sim: str = typer.Option("mujoco", help=choice_help("simulator", "Simulator backend.")),
+        terrain: str = typer.Option("flat", help="Terrain: flat, slope or random."),
+        designs: str | None = typer.Option(
+            None, help="Design range, one low:high per continuous variable, e.g. 0.5:1.5,0.5:1.5 (default: the full space; on --resume: the checkpoint's)."
+        ),
+        steps: int = typer.Option(1_000_000, help="Environment interactions to train for (this invocation)."),
+        num_designs: int | None = typer.Option(None, "--num-designs", help="K designs sampled from the range (default 128)."),
+        agents: int | None = typer.Option(None, help="Environments per design (default 32); num envs = K x agents."),
+        steps_per_env: int | None = typer.Option(None, "--steps-per-env", help="Rollout length per PPO update (default 24)."),
+        epochs: int | None = typer.Option(None, help="PPO epochs per update (default 5)."),
+        minibatches: int | None = typer.Option(None, help="Minibatches per epoch (default 4)."),
+        lr: float | None = typer.Option(None, "--lr", help="Initial learning rate (default 1e-3, KL-adaptive)."),
+        torch_threads: int = typer.Option(0, "--torch-threads", help="Learner CPU threads (0: 1 on <= 4 cores, else torch's default)."),
+        objectives: str = typer.Option(DEFAULT_OBJECTIVES, help="Objectives whose pseudo-critics are trained, comma-separated."),
+        device: str = typer.Option("cpu", help="Learner device: cpu or cuda."),
+        threads: int | None = typer.Option(None, help="Physics threads (default: the backend's choice)."),
+        seed: int = typer.Option(0, help="Random seed."),
+        resume: Path | None = typer.Option(None, help="Checkpoint to resume from (networks, optimizers, normalisers, counters)."),
+        out: Path = typer.Option(Path("runs/train"), help="Output directory (checkpoints, logs, progress.jsonl)."),
+        checkpoint_every: int = typer.Option(50, "--checkpoint-every", help="Iterations between checkpoints."),
+        mixed: bool = typer.Option(False, help="Also sample the discrete design variables (motor types)."),
+        quiet: bool = typer.Option(False, help="No progress bar; one JSON line per iteration on stdout."),
+    ) -> None:
         """Train the universal policy pi(a|o, xi) with its critic and pseudo-critics (PPO)."""
-        not_available("train", "the locomotion task and PPO learner (issue 5)")
+        if steps < 1:
+            fail(f"--steps must be >= 1, got {steps}")
+        for name, value in (("--num-designs", num_designs), ("--agents", agents), ("--steps-per-env", steps_per_env),
+                            ("--epochs", epochs), ("--minibatches", minibatches)):
+            if value is not None and value < 1:
+                fail(f"{name} must be >= 1, got {value}")
+        if checkpoint_every < 1:
+            fail(f"--checkpoint-every must be >= 1, got {checkpoint_every}")
+        _check_device(device)
+        robot_obj = resolve("robot", robot)()
+        sim_cls = _simulator(sim, terrain)
+        objective_objs = _objectives(objectives)
+
+        from coadapt_core.design_space import DesignSpace
+        from coadapt_core.learning import TrainConfig, Trainer, read_checkpoint
+        from coadapt_core.task import TaskConfig
+
+        state = read_checkpoint(resume) if resume is not None else None
+        if state is not None and state["robot"] != robot:
+            fail(f"--resume checkpoint was trained for robot '{state['robot']}', not '{robot}'")
+        base = TrainConfig.from_dict(state["train_config"]) if state is not None else TrainConfig()
+        if lr is not None and not (0 < lr < 1):
+            fail(f"--lr must lie in (0, 1), got {lr}")
+        overrides = {
+            "num_designs": num_designs, "agents_per_design": agents, "steps_per_env": steps_per_env,
+            "epochs": epochs, "minibatches": minibatches, "learning_rate": lr,
+        }
+        for key, value in overrides.items():
+            if value is not None:
+                setattr(base, key, value)
+        base.device, base.seed, base.checkpoint_every, base.torch_threads = device, seed, checkpoint_every, torch_threads
+        task = TaskConfig.from_dict(state["task_config"]) if state is not None else TaskConfig()
+        full = robot_obj.design_space(mixed)
+        if designs is not None:
+            space = full.parse_ranges(designs)
+        elif state is not None:
+            space = DesignSpace.from_dict(state["design_space"])
+        else:
+            space = full
+
+        trainer = Trainer(
+            robot_obj, sim_cls, objective_objs, terrain=terrain, design_space=space, train_config=base,
+            task_config=task, num_threads=threads,
+        )
+        if resume is not None:
+            trainer.load(resume)
+        trainer.set_designs(trainer.sample_designs())
+        iterations = trainer.iterations_for(steps)
+        out.mkdir(parents=True, exist_ok=True)
+        logger = _logger(out)
+        progress_file = (out / "progress.jsonl").open("a")
+        print(
+            f"training {robot} on {sim}/{terrain}: {base.num_designs} designs x {base.agents_per_design} agents = "
+            f"{trainer.env.num_envs} envs, {iterations} iterations of {trainer.samples_per_iteration} samples, "
+            f"range {space.describe()}, device {device}",
+            file=sys.stderr,
+        )
+
+        def record(stats) -> None:
+            row = stats.to_dict()
+            progress_file.write(json.dumps(row) + "\n")
+            progress_file.flush()
+            for key, value in row.items():
+                if isinstance(value, float) and math.isfinite(value):
+                    logger.log_scalar(key, value, step=stats.total_steps)
+            if stats.iteration % checkpoint_every == 0:
+                trainer.save(out / "checkpoints" / f"model_{stats.iteration}.pt")
+            if quiet:
+                print(json.dumps(row), flush=True)
+
+        if quiet:
+            trainer.learn(iterations, record)
+        else:
+            from rich.progress import (
+                BarColumn,
+                Progress,
+                TextColumn,
+                TimeElapsedColumn,
+                TimeRemainingColumn,
+            )
+
+            columns = (
+                TextColumn("[bold]train"), BarColumn(), TextColumn("{task.completed}/{task.total} it"),
+                TimeElapsedColumn(), TimeRemainingColumn(), TextColumn("{task.fields[line]}"),
+            )
+            with Progress(*columns, transient=False) as bar:
+                task_id = bar.add_task("train", total=iterations, line="")
+
+                def show(stats) -> None:
+                    record(stats)
+                    line = (
+                        f"{stats.collect_steps_per_s:,.0f} steps/s  reward {stats.mean_reward:.4f}  "
+                        f"ep {stats.episode_length_s:.1f} s  err {stats.tracking_error:.3f} m/s  "
+                        f"vx {stats.vx:.2f}/{stats.command_vx:.2f}"
+                    )
+                    bar.update(task_id, advance=1, line=line)
+
+                trainer.learn(iterations, show)
+        progress_file.close()
+        final = trainer.save(out / "model_final.pt")
+        weights = trainer.export_weights(out / "policy.pt")
+        trainer.close()
+        print(f"wrote {final} and {weights} ({weights.stat().st_size / 1e6:.1f} MB) after {trainer.total_steps} steps", file=sys.stderr)
 
     @app.command("eval")
-    def eval_command() -> None:
+    def eval_command(
+        checkpoint: Path | None = typer.Option(None, help="Checkpoint or weights file (default: the policy shipped for the robot and terrain)."),
+        robot: str = typer.Option("kuafu", help=choice_help("robot", "Robot.")),
+        design: str | None = typer.Option(None, help="Design, comma-separated (default: the nominal design)."),
+        sim: str = typer.Option("mujoco", help=choice_help("simulator", "Simulator backend.")),
+        terrain: str = typer.Option("flat", help="Terrain: flat, slope or random."),
+        command: str = typer.Option("0.5,0,0", help="Velocity command vx,vy,yaw_rate (m/s, m/s, rad/s)."),
+        agents: int = typer.Option(50, help="Agents (environments) on the design."),
+        seconds: float = typer.Option(20.0, help="Simulated seconds per agent."),
+        device: str = typer.Option("cpu", help="Policy device: cpu or cuda."),
+        seed: int = typer.Option(0, help="Random seed."),
+        randomize: bool = typer.Option(True, help="Domain randomization (Table 2) as in training."),
+        as_json: bool = typer.Option(False, "--json", help="Print JSON."),
+        video: Path | None = typer.Option(None, help="Render agent 0 offscreen into a .gif (or .mp4 with ffmpeg)."),
+    ) -> None:
         """Roll out a policy on one design and report survival, speed and costs."""
-        not_available("eval", "the locomotion task and PPO learner (issue 5)")
+        if agents < 1:
+            fail(f"--agents must be >= 1, got {agents}")
+        if not (0 < seconds <= 3600):
+            fail(f"--seconds must lie in (0, 3600], got {seconds}")
+        if video is not None and video.suffix.lower() not in (".gif", ".mp4"):
+            fail(f"--video '{video}' must end in .gif or .mp4")
+        _check_device(device)
+        try:
+            values = [float(v) for v in command.split(",")]
+        except ValueError:
+            values = []
+        if len(values) != 3 or not all(math.isfinite(v) for v in values):
+            fail(f"--command '{command}' must be three numbers vx,vy,yaw_rate, e.g. 0.5,0,0")
+        robot_obj = resolve("robot", robot)()
+        sim_cls = _simulator(sim, terrain)
+        from coadapt_core.cli.robot import parse_design
+
+        design_values = parse_design(robot_obj, design)
+        if checkpoint is None:
+            from coadapt_core.learning import shipped_checkpoint
+
+            checkpoint = shipped_checkpoint(robot, terrain)
+            if checkpoint is None:
+                fail(
+                    f"no policy is shipped yet for robot '{robot}' on terrain '{terrain}' "
+                    f"(looked for plugins/robots/{robot}/policies/{terrain}.pt); pass --checkpoint"
+                )
+        result = evaluate_checkpoint(
+            checkpoint, robot_obj, sim_cls, design_values, terrain=terrain, command=values, agents=agents,
+            seconds=seconds, device=device, seed=seed, randomize=randomize, record=video is not None,
+        )
+        trajectory = result.pop("_trajectory", None)
+        if as_json:
+            print(json.dumps(result))
+        else:
+            from rich.console import Console
+            from rich.table import Table
+
+            table = Table(title=f"{robot} design {design_values.tolist()} on {sim}/{terrain}, command {values}")
+            table.add_column("metric")
+            table.add_column("value", justify="right")
+            for key, value in result.items():
+                table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
+            Console().print(table)
+        if video is not None:
+            write_video(robot_obj, design_values, trajectory, video)
+
+
+def evaluate_checkpoint(
+    checkpoint: Path | str,
+    robot_obj: Any,
+    sim_cls: type,
+    design: Any,
+    *,
+    terrain: str,
+    command: list[float],
+    agents: int,
+    seconds: float,
+    device: str = "cpu",
+    seed: int = 0,
+    randomize: bool = True,
+    record: bool = False,
+) -> dict[str, Any]:
+    """Survival, mean forward speed and costs of a policy on one design under a fixed
+    command (the policy mean; falls auto-reset but count against survival)."""
+    import numpy as np
+    import torch
+
+    from coadapt_core.learning import TrainConfig, Trainer, read_checkpoint
+    from coadapt_core.learning.evaluate import rollout
+    from coadapt_core.plugins import get_registry
+    from coadapt_core.randomization import RandomizationConfig
+    from coadapt_core.task import LocomotionEnv, TaskConfig
+
+    state = read_checkpoint(checkpoint)
+    if state["robot"] != robot_obj.name:
+        raise UserError(f"checkpoint '{checkpoint}' was trained for robot '{state['robot']}', not '{robot_obj.name}'", field="checkpoint")
+    registry = get_registry()
+    metric_names = ["tracking", "power", "torque"]
+    objectives = [registry.get("objective", n)() for n in metric_names]
+    config = TrainConfig.from_dict(state["train_config"])
+    config.device = device
+    task = TaskConfig.from_dict(state["task_config"])
+    task.commands.resample_seconds = 0.0
+    task.episode_seconds = seconds + 1.0
+    trainer = Trainer(robot_obj, sim_cls, objectives, terrain=terrain, train_config=config, task_config=task, device=device, seed=seed)
+    trainer.load(checkpoint, optimizers=False)
+    randomization = RandomizationConfig() if randomize else RandomizationConfig.off()
+    designs = np.tile(np.asarray(design, dtype=float), (agents, 1))
+    sim = sim_cls(robot_obj, designs, terrain=terrain, randomization=randomization, seed=seed)
+    env = LocomotionEnv(sim, robot_obj, task, objectives, seed=seed, device=device)
+    trainer.ensure_ppo(env)
+    env.set_commands(torch.tensor(command, dtype=torch.float32))
+    steps = max(1, int(round(seconds / env.dt)))
+    frames: list[dict] = []
+
+    def capture(e: LocomotionEnv) -> None:
+        s = e.state
+        frames.append({
+            "pos": s.base_pos[0].tolist(), "quat": s.base_quat[0].tolist(), "q": s.joint_pos[0].tolist(),
+        })
+
+    result = rollout(trainer.ppo, env, 1, steps, seed=seed, on_step=capture if record else None)
+    sim.close()
+    out: dict[str, Any] = {
+        "survival": float(result.survival[0]),
+        "vx_mean": float(result.vx[0]),
+        "tracking_error": float(result.metrics[0, 0]),
+        "torque_cost": float(result.metrics[0, 2]),
+        "power_cost": float(result.metrics[0, 1]),
+        "vx_command": float(command[0]),
+        "foot_alternation": float(result.alternation[0]),
+        "steps": int(result.steps),
+        "dt": float(env.dt),
+    }
+    if record:
+        out["_trajectory"] = {"frames": frames, "dt": env.dt, "terrain": terrain}
+    return out
+
+
+def render_frames(mjcf: str, joint_names: list[str], frames: list[dict], output: str, width: int, height: int, fps: float) -> None:
+    """Replay base poses and joint angles in a MuJoCo model of the design, offscreen, into a
+    GIF (PIL) or MP4 (ffmpeg). Runs in a fresh interpreter: MUJOCO_GL is read at import."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import mujoco
+    import numpy as np
+    from PIL import Image
+
+    spec = mujoco.MjSpec.from_string(mjcf)
+    texture = spec.add_texture(name="grid", type=mujoco.mjtTexture.mjTEXTURE_2D, builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
+                               rgb1=[0.82, 0.84, 0.86], rgb2=[0.68, 0.7, 0.72], width=256, height=256)
+    material = spec.add_material(name="grid", texrepeat=[40, 40], reflectance=0.05)
+    material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = texture.name
+    spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[20, 20, 0.05], material="grid")
+    spec.worldbody.add_light(pos=[0, -2, 4], dir=[0, 0.4, -1], diffuse=[0.8, 0.8, 0.8])
+    model = spec.compile()
+    model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
+    model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+    data = mujoco.MjData(model)
+    addresses = [model.jnt_qposadr[model.joint(name).id] for name in joint_names]
+    camera = mujoco.MjvCamera()
+    camera.distance, camera.azimuth, camera.elevation = 3.0, 90.0, -10.0
+    images = []
+    with mujoco.Renderer(model, height, width) as renderer:
+        for frame in frames:
+            data.qpos[0:3] = frame["pos"]
+            data.qpos[3:7] = frame["quat"]
+            data.qpos[addresses] = frame["q"]
+            mujoco.mj_forward(model, data)
+            camera.lookat[:] = [frame["pos"][0], frame["pos"][1], 0.7]
+            renderer.update_scene(data, camera=camera)
+            images.append(np.array(renderer.render()))
+    if output.endswith(".gif"):
+        pil = [Image.fromarray(im) for im in images]
+        pil[0].save(output, save_all=True, append_images=pil[1:], duration=int(1000 / fps), loop=0)
+    else:
+        proc = subprocess.run(
+            ["ffmpeg", "-y", "-loglevel", "error", "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{width}x{height}",
+             "-r", str(fps), "-i", "-", "-pix_fmt", "yuv420p", output],
+            input=np.stack(images).tobytes(), capture_output=True,
+        )
+        if proc.returncode != 0:
+            raise RuntimeError(proc.stderr.decode().strip().splitlines()[-1])
+
+
+def write_video(robot_obj: Any, design: Any, trajectory: dict, output: Path, width: int = 480, height: int = 360) -> None:
+    import shutil
+
+    if output.suffix.lower() == ".mp4" and shutil.which("ffmpeg") is None:
+        fail("--video .mp4 needs ffmpeg on PATH, which is not installed; write a .gif instead", code=1)
+    model = robot_obj.build(design)
+    frames = trajectory["frames"][::2]  # every other policy step: 25 fps at dt = 0.02 s
+    payload = {
+        "mjcf": model.mjcf, "joint_names": model.joint_names, "frames": frames, "output": str(output),
+        "width": width, "height": height, "fps": 1.0 / (2 * trajectory["dt"]),
+    }
+    code = "import json, sys\nfrom coadapt_core.cli.train import render_frames\nrender_frames(**json.loads(sys.stdin.read()))\n"
+    backends = [os.environ["MUJOCO_GL"]] if os.environ.get("MUJOCO_GL") else ["egl", "osmesa"]
+    errors = []
+    for backend in backends:
+        env = dict(os.environ, MUJOCO_GL=backend, PYOPENGL_PLATFORM=backend)
+        proc = subprocess.run([sys.executable, "-c", code], input=json.dumps(payload), capture_output=True, text=True, env=env, timeout=1800)
+        if proc.returncode == 0:
+            print(f"wrote {output} ({len(frames)} frames, MUJOCO_GL={backend})", file=sys.stderr)
+            return
+        errors.append(f"{backend}: {(proc.stderr.strip().splitlines() or ['no output'])[-1]}")
+    fail("offscreen rendering is unavailable here (" + "; ".join(errors) + "); no video written", code=1)

@@ -39,6 +39,10 @@ class TrainConfig:
     # -- bookkeeping ------------------------------------------------------------------------
     checkpoint_every: int = 100  # iterations
     device: str = "cpu"
+    # CPU threads of the learner's torch ops; 0 = one thread on machines with <= 4 cores
+    # (physics threads share them, and oversubscribed OpenMP spin-waits cost up to 6x on
+    # a 2-core machine), torch's default elsewhere
+    torch_threads: int = 0
     seed: int = 0
     extra: dict[str, Any] = field(default_factory=dict)
 

@@ -4,6 +4,7 @@ as one batched environment, rollouts, updates, statistics, checkpoints and resum
 from __future__ import annotations
 
 import math
+import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -97,6 +98,9 @@ class Trainer:
         self.total_steps = 0
         self.rng = np.random.default_rng(self.config.seed)
         torch.manual_seed(self.config.seed)
+        threads = self.config.torch_threads or (1 if (os.cpu_count() or 1) <= 4 else 0)
+        if threads:
+            torch.set_num_threads(threads)
         self._obs = None
         self._pending_commands: dict | None = None
         self.last_rollout_critic_obs: torch.Tensor | None = None  # [T * N, C] raw, cpu
