@@ -40,12 +40,13 @@ if TYPE_CHECKING:
 MAX_QVEL = 1e3
 #: fixed-base robots hang this far above their standing height (contact-free swing tests)
 FIXED_BASE_LIFT = 0.5
+#: each environment's MuJoCo clock restarts here at reset, so that MuJoCo resetting a
+#: simulation itself on a bad state (clock back to 0) is always visible
+RESET_CLOCK = 1.0
 #: spawn clearance between the lowest sole point and the highest ground near it
 SPAWN_CLEARANCE = 0.002
 #: random terrain: spawn points stay this far inside the height field's edge
 SPAWN_MARGIN = 3.0
-#: MuJoCo's default contact time constant (solref[0]); restitution maps onto the damping ratio
-CONTACT_TIMECONST = 0.02
 
 #: model fields never expanded per design (MuJoCo options, shared by the whole batch)
 _SKIP_PREFIX = ("opt.",)
@@ -54,19 +55,20 @@ _SKIP_PREFIX = ("opt.",)
 _CACHE = ModelCache()
 
 
-def restitution_to_dampratio(restitution: np.ndarray) -> np.ndarray:
-    """Contact damping ratio whose mass-spring-damper bounces back with coefficient `e`.
+#: restitution calibration: a 40 kg box dropped at 1 m/s onto the plane (dt 5 ms, MuJoCo's
+#: default solref time constant 0.02 s and solimp) rebounds with speed ratio RESTITUTION_MEASURED
+#: at contact damping ratio RESTITUTION_DAMPRATIO (docs/simulators.md). Below 0.5 a resting
+#: contact rings in a sustained 50 Hz limit cycle; above 1 MuJoCo softens the contact
+#: (its stiffness scales with 1 / dampratio^2). So the reachable bounce is [0.14, 0.33].
+RESTITUTION_DAMPRATIO = np.array([1.0, 0.8, 0.6, 0.5])
+RESTITUTION_MEASURED = np.array([0.139, 0.191, 0.276, 0.328])
 
-    A damped oscillator released into contact leaves it with speed ratio
-    e = exp(-zeta pi / sqrt(1 - zeta^2)), so zeta = -ln e / sqrt(pi^2 + ln^2 e); e = 0 is
-    critical damping (MuJoCo's default dampratio 1). MuJoCo's soft-contact impedance makes
-    the realised bounce approximate (docs/simulators.md quotes a measurement)."""
-    e = np.clip(np.asarray(restitution, dtype=float), 0.0, 0.999)
-    out = np.ones_like(e)
-    bouncy = e > 1e-6
-    log_e = np.log(e[bouncy])
-    out[bouncy] = -log_e / np.sqrt(math.pi**2 + log_e**2)
-    return out
+
+def restitution_to_dampratio(restitution: np.ndarray) -> np.ndarray:
+    """Contact damping ratio (solref[1]) whose measured bounce is `restitution`, clamped to
+    the reachable [0.14, 0.33]: 0 (and anything up to 0.14) is MuJoCo's default 1.0."""
+    e = np.asarray(restitution, dtype=float)
+    return np.interp(e, RESTITUTION_MEASURED, RESTITUTION_DAMPRATIO)
 
 
 def _quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -136,10 +138,10 @@ class MujocoSimulator(Simulator):
         self._time = b.bind("time")  # [N]
         self._xpos = b.bind("xpos")  # [N, nbody, 3], refreshed after each call
         self._sensordata = b.bind("sensordata")  # [N, nsensordata]
-        self._cvel = b.bind("cvel")  # [N, nbody, 6] (angular, linear) at the root subtree's CoM
+        self._cdof = b.bind("cdof")  # [N, nv, 6] motion axes (angular, linear) at the root subtree's CoM
         self._subtree_com = b.bind("subtree_com")  # [N, nbody, 3]
-        root = ref.model.body_rootid[ref.foot_body_ids]
-        self._foot_root = root  # [L] root body of each foot's tree
+        self._foot_root = ref.model.body_rootid[ref.foot_body_ids]  # [L] root body of each foot's tree
+        self._foot_dofs = [self._ancestor_dofs(ref.model, body) for body in ref.foot_body_ids]
         self._sensor_adr = np.array(
             [ref.model.sensor_adr[mujoco.mj_name2id(ref.model, mujoco.mjtObj.mjOBJ_SENSOR, "coadapt_contact_" + f)]
              for f in ref.robot_model.foot_bodies]
@@ -199,6 +201,16 @@ class MujocoSimulator(Simulator):
         if index.size and np.array_equal(index, np.arange(index[0], index[0] + index.size)):
             return slice(int(index[0]), int(index[0] + index.size))
         return index
+
+    @staticmethod
+    def _ancestor_dofs(model: mujoco.MjModel, body: int) -> np.ndarray:
+        """Degrees of freedom that move `body` (its own and its ancestors')."""
+        dofs = []
+        while body > 0:
+            start, count = model.body_dofadr[body], model.body_dofnum[body]
+            dofs.extend(range(start, start + count))
+            body = model.body_parentid[body]
+        return np.array(sorted(dofs), dtype=int)
 
     def _compile(self, design: np.ndarray) -> CompiledDesign:
         return _CACHE.get(self.robot, design, self._terrain, physics_dt=self.physics_dt, fixed_base=self.fixed_base)
@@ -347,9 +359,7 @@ class MujocoSimulator(Simulator):
         friction[..., 0] = params.friction[:, None]
         self._expanded["geom_friction"][ids] = friction
         solref = self._geom_solref[ids].copy()
-        solref[..., 1] = np.where(
-            params.restitution[:, None] > 0, restitution_to_dampratio(params.restitution)[:, None], solref[..., 1]
-        )
+        solref[..., 1] = restitution_to_dampratio(params.restitution)[:, None]
         self._expanded["geom_solref"][ids] = solref
         base = self._ref.base_body_id
         ipos = self._expanded["body_ipos"]
@@ -381,10 +391,11 @@ class MujocoSimulator(Simulator):
         self._qpos[ids] = q
         self._qvel[ids] = 0.0
         self._ctrl[ids] = 0.0
+        self._time[ids] = RESET_CLOCK
         b.forward(ids, stage=mujoco.mjtStage.mjSTAGE_ACC)
         self._delay.reset(ids, self._default_q[ids])
         self._delay.set_delay(ids, np.minimum(params.delay_steps(self.physics_dt), self._delay.capacity - 1))
-        self._expected_time[ids] = 0.0
+        self._expected_time[ids] = RESET_CLOCK
         self._torque[ids] = 0.0
 
     def set_designs(self, env_ids: torch.Tensor | np.ndarray, designs: np.ndarray) -> None:
@@ -511,16 +522,20 @@ class MujocoSimulator(Simulator):
     def _foot_positions(self) -> np.ndarray:
         """[N, L, 3] foot body origins at the current state.
 
-        Derived fields (xpos, cvel) describe the state before the last physics step, as
+        Derived fields (xpos, cdof) describe the state before the last physics step, as
         with mj_step. Recomputing the position stage would cost half a physics step (it
-        includes collision detection); one Euler step of each foot's velocity brings the
-        origins forward instead, within about a millimetre (tests check it)."""
-        feet = self._ref.foot_body_ids
-        pos = self._xpos[:, feet]  # [N, L, 3]
-        cvel = self._cvel[:, feet]  # [N, L, 6]
-        lever = pos - self._subtree_com[:, self._foot_root]
-        vel = cvel[..., 3:] + np.cross(cvel[..., :3], lever)
-        return pos + self.physics_dt * vel
+        includes collision detection). Instead each origin moves by dt times its velocity
+        under the new joint velocities (MuJoCo's Euler step moves positions with the new
+        velocities), which is exact to first order, impacts included (tests check < 2 mm).
+        """
+        qvel = self._qvel
+        out = np.empty((self._n, len(self._foot_dofs), 3))
+        for leg, (body, dofs) in enumerate(zip(self._ref.foot_body_ids, self._foot_dofs, strict=True)):
+            twist = np.einsum("nds,nd->ns", self._cdof[:, dofs], qvel[:, dofs])  # [N, 6]
+            pos = self._xpos[:, body]  # [N, 3]
+            lever = pos - self._subtree_com[:, self._foot_root[leg]]
+            out[:, leg] = pos + self.physics_dt * (twist[:, 3:] + np.cross(twist[:, :3], lever))
+        return out
 
     def close(self) -> None:
         # dropping the batch joins its threads and frees its MjData
