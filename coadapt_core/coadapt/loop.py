@@ -157,8 +157,10 @@ class CoadaptationLoop:
         recorder: RunRecorder,
         state: LoopState,
         progress: ProgressFn | None = None,
+        pretrained: bool = False,
     ):
         self.config = config
+        self.pretrained = pretrained
         self.switches = METHOD_SWITCHES[config.method]
         self.backend_factory = backend_factory
         self.full_space = design_space
@@ -175,6 +177,7 @@ class CoadaptationLoop:
             self.rng.bit_generator.state = state.rng_state
         self.started = time.perf_counter()
         self.backend: CoadaptationBackend | None = None
+        self._last_survival: float | None = None  # mean survival of the last real batch
         p = self.switches.surrogate_probability
         self.w = config.evaluation_probability if p is None else p
 
@@ -269,6 +272,10 @@ class CoadaptationLoop:
             s.train_designs = space.sample(c.population, self.rng)  # [K, dim], line 10
             initial = s.train_designs[:population] if population == c.population else None
             steps = c.train_steps if s.outer == 0 else c.retrain_steps
+            if self.pretrained and not self.switches.retrain:
+                # no-retrain starting from a universal policy over the full range trains nothing,
+                # as the paper's (0 training interactions in its Table 7)
+                steps = 0
             if (s.outer == 0 or self.switches.retrain) and steps > 0:
                 self.emit("training")
                 result = self.get_backend().train(s.train_designs, steps, seed=self.seed_for(1, s.outer))
@@ -343,6 +350,8 @@ class CoadaptationLoop:
             s.counters["eval_interactions"] += int(fit.interactions)
             s.counters["eval_seconds"] += float(fit.seconds)
             s.counters["real_evaluations"] += 1
+            if fit.survival is not None:
+                self._last_survival = float(np.mean(fit.survival))
             return costs, int(fit.interactions), float(fit.seconds), errors
         t0 = time.perf_counter()
         predicted = backend.surrogate_fitness(designs, self.objectives, s.buffer, samples=c.surrogate_samples, seed=seed)
@@ -378,6 +387,8 @@ class CoadaptationLoop:
         n = len(designs)
         s.counters["designs_evaluated"] += n
         for design, cost in zip(designs, costs[:, 0], strict=True):
+            if not np.isfinite(cost):
+                continue
             if s.best_any is None or cost < s.best_any[1]:
                 s.best_any = (design.tolist(), float(cost), kind)
             if kind == "real" and (s.best_real is None or cost < s.best_real[1]):
@@ -395,11 +406,19 @@ class CoadaptationLoop:
                     s.run_id, outer=s.outer, inner=s.inner, design=designs[i].tolist(), costs=cost_dicts[i], kind=kind,
                     interactions=shares[i], seconds=secs[i], surrogate_error=None if error_dicts is None else error_dicts[i],
                 )
+        finite = np.isfinite(costs[:, 0])
+        error_finite = None if errors is None else np.isfinite(errors[:, 0])
         s.batches.append({
             "outer": s.outer, "inner": s.inner, "kind": kind, "designs": n, "interactions": int(interactions),
-            "seconds": float(seconds), "best_cost": float(costs[:, 0].min()), "mean_cost": float(costs[:, 0].mean()),
-            "surrogate_abs_error": None if errors is None else float(np.abs(errors[:, 0]).mean()),
+            "seconds": float(seconds),
+            "best_cost": float(costs[finite, 0].min()) if finite.any() else None,
+            "mean_cost": float(costs[finite, 0].mean()) if finite.any() else None,
+            # a diverged pseudo-critic gives NaN/inf: counted, and told to the optimizer as worst
+            "nonfinite_costs": int((~finite).sum()),
+            "surrogate_abs_error": float(np.abs(errors[error_finite, 0]).mean()) if errors is not None and error_finite.any() else None,
+            "survival": self._last_survival,
         })
+        self._last_survival = None
 
     def end_outer(self) -> None:
         """Algorithm 4 line 22: the next range, around the final particles."""
@@ -545,7 +564,7 @@ def run_coadaptation(
     loop = CoadaptationLoop(
         config, backend_factory=parts.backend_factory, design_space=parts.full_space, nominal_design=parts.nominal,
         objectives=parts.objectives, optimizer_cls=parts.optimizer_cls, run_dir=run_path, recorder=recorder,
-        state=state, progress=progress,
+        state=state, progress=progress, pretrained=parts.pretrained,
     )
     if resume is None:
         loop.checkpoint()  # a run folder with a state from the start: resumable at once

@@ -24,6 +24,7 @@ class LoopParts:
     objectives: list[Objective]
     optimizer_cls: type[Optimizer]
     backend_factory: Callable[[int], CoadaptationBackend]
+    pretrained: bool = False  # the backend starts from a universal policy over the full range
 
 
 def uses_mixed_space(config: CoadaptConfig) -> bool:
@@ -89,9 +90,11 @@ def build_parts(
             "space needs mixed-pso or bo",
             field="optimizer",
         )
+    pretrained = False
     if backend_factory is None:
         backend_factory = universal_policy_factory(config, robot, full_space, objectives)
-    return LoopParts(full_space, space, nominal, objectives, optimizer_cls, backend_factory)
+        pretrained = not switches.specialized and resolve_checkpoint(config) is not None
+    return LoopParts(full_space, space, nominal, objectives, optimizer_cls, backend_factory, pretrained)
 
 
 def universal_policy_factory(
@@ -108,7 +111,10 @@ def universal_policy_factory(
         raise CoadaptError(
             f"the universal-policy learner (coadapt_core.learning.backend) is not available: {exc}"
         ) from None
-    checkpoint = resolve_checkpoint(config)
+    from coadapt_core.coadapt.loop import METHOD_SWITCHES
+
+    # a specialised policy (BO baseline) is trained from scratch on its one design
+    checkpoint = None if METHOD_SWITCHES[config.method].specialized else resolve_checkpoint(config)
 
     def factory(seed: int) -> CoadaptationBackend:
         return UniversalPolicyBackend(

@@ -200,3 +200,30 @@ def test_same_seed_same_run(tmp_path):
     # everything but the measured wall-clock seconds of surrogate rounds
     strip = [{k: v for k, v in batch.items() if k != "seconds"} for batch in a["batches"]]
     assert strip == [{k: v for k, v in batch.items() if k != "seconds"} for batch in b["batches"]]
+
+
+def test_diverged_surrogate_nan_is_counted_and_never_best(tmp_path):
+    class Diverged(AnalyticBackend):
+        def surrogate_fitness(self, designs, objectives, buffer, *, samples, seed=0):
+            out = super().surrogate_fitness(designs, objectives, buffer, samples=samples, seed=seed)
+            out[::2] = np.nan  # half the candidates come back NaN
+            out[1] = -1e9  # and one absurdly good: it must not be reported as a real cost
+            return out
+
+    summary = run(tmp_path, backend=Diverged).summary
+    surrogate = [b for b in summary["batches"] if b["kind"] == "surrogate"]
+    assert surrogate and all(b["nonfinite_costs"] == 10 for b in surrogate)
+    assert summary["best_cost"] > 0.9  # re-evaluated for real
+    assert np.abs(np.array(summary["best_design"]) - optimum_of("torque")).max() < 0.1
+
+
+def test_no_retrain_from_a_pretrained_policy_trains_nothing(tmp_path, monkeypatch):
+    import coadapt_core.coadapt.setup as loop_setup
+
+    monkeypatch.setattr(loop_setup, "universal_policy_factory", lambda *a, **k: (lambda seed: AnalyticBackend(seed)))
+    monkeypatch.setattr(loop_setup, "resolve_checkpoint", lambda config: "/shipped/policy.pt")
+    config = make_config("smoke", overrides={**BASE, "out": str(tmp_path), "method": "no-retrain"})
+    summary = run_coadaptation(config, design_space=SPACE, nominal_design=NOMINAL, objectives=[TorqueObjective()]).summary
+    # the paper's Table 7 row: 0 training + N*J real rounds
+    assert summary["train_interactions"] == 0
+    assert summary["eval_interactions"] == 15 * 20 * 50 * 20
