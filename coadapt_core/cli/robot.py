@@ -300,6 +300,6 @@ def render_command(
         errors.append(f"{backend}: {last}")
     fail(
         "offscreen rendering failed (" + "; ".join(errors) + "); install an EGL or OSMesa GL "
-        "library, e.g. apt-get install libegl1 libgl1 (EGL) or libosmesa6 (OSMesa)",
+        "library, e.g. apt-get install -y libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 (EGL) or libosmesa6 (OSMesa)",
         code=1,
     )
