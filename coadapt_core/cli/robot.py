@@ -279,6 +279,8 @@ def render_command(
     # MUJOCO_GL is used when set; else EGL, then OSMesa
     if not (16 <= width <= 4096 and 16 <= height <= 4096):
         fail(f"--width and --height must lie in [16, 4096], got {width} x {height}")
+    if not output.parent.is_dir():
+        fail(f"cannot write -o {output}: folder {output.parent} does not exist")
     instance = load_robot(robot)
     model = instance.build(parse_design(instance, design))
     payload = {

@@ -4,6 +4,7 @@ designs (exit code 2)."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -140,3 +141,20 @@ def test_render_writes_a_picture(tmp_path):
     pixels = matplotlib.image.imread(target)
     assert pixels.shape[:2] == (200, 160)
     assert pixels[..., :3].std() > 0.05  # a picture, not a blank frame
+
+
+@pytest.mark.slow
+def test_render_without_a_gl_backend_is_one_line_exit_1(tmp_path):
+    proc = subprocess.run(
+        [sys.executable, "-c", "import sys; from coadapt_core.cli import main; sys.exit(main(sys.argv[1:]))",
+         "robot", "render", "kuafu", "-o", str(tmp_path / "x.png"), "--width", "64", "--height", "64"],
+        capture_output=True, text=True, timeout=300, env={**os.environ, "MUJOCO_GL": "not-a-backend"},
+    )
+    assert proc.returncode == 1
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "offscreen rendering failed" in lines[0] and "apt-get install" in lines[0]
+
+
+def test_render_into_a_missing_folder_is_exit_2(capsys, tmp_path):
+    code, _, err = cli(capsys, "render", "kuafu", "-o", str(tmp_path / "nope" / "x.png"))
+    assert code == 2 and "does not exist" in err
