@@ -84,6 +84,7 @@ def test_nsga2_front_spans_both_optima_with_real_costs(tmp_path):
         assert costs["torque"] == pytest.approx(true_cost(design, "torque")[0], abs=5 * NOISE_STD)
 
 
+@pytest.mark.slow
 def test_hybrid_switch_uses_surrogate_with_probability_w(tmp_path):
     w = 0.3
     summary = run(tmp_path, population=2, agents_per_design=3, eval_steps=7, optimizer_iterations=150,

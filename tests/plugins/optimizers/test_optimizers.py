@@ -115,6 +115,7 @@ def test_bo_handles_mixed_space_and_finds_motor():
     assert best[3] == 3.0 and value < 0.02
 
 
+@pytest.mark.slow
 def test_bo_gp_sampler_and_bad_sampler():
     opt = run(BOOptimizer(SPACE, budget=12, seed=0, sampler="gp", n_startup_trials=4), lambda d: ((d - 1.1) ** 2).sum(1))
     assert opt.best()[1] < 0.05
