@@ -256,3 +256,43 @@ def test_set_designs_loads_the_new_robot(kuafu):
     assert sum(after.values()) == pytest.approx(model.total_mass, rel=1e-6)
     # standing height of the new legs (+ the 2 mm spawn clearance)
     assert float(state.base_pos[1, 2]) == pytest.approx(model.standing_base_height + 0.002, abs=1e-6)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("ending", ["exit", "kill"])
+def test_workers_end_with_the_interpreter(ending, tmp_path):
+    """No close(): workers still go when the interpreter exits or is killed outright."""
+    import subprocess
+    import sys
+    import time
+
+    script = (
+        "import os, signal, sys, numpy as np\n"
+        "from coadapt_plugins.robots.kuafu.robot import Kuafu\n"
+        "from coadapt_plugins.simulators.pybullet import PyBulletSimulator\n"
+        "sim = PyBulletSimulator(Kuafu(), np.ones((2, 2)), processes=2)\n"
+        "print(*sim.worker_pids(), flush=True)\n"
+        f"if {ending == 'kill'}: os.kill(os.getpid(), signal.SIGKILL)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    pids = [int(x) for x in out.stdout.split()]
+    assert len(pids) == 2, out.stderr
+    deadline = time.monotonic() + 10
+    alive = pids
+    while alive and time.monotonic() < deadline:
+        time.sleep(0.1)
+        alive = [pid for pid in pids if _alive(pid)]
+    assert not alive
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    # a zombie (exited, not yet reaped by init) counts as gone
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split()[2] != "Z"
+    except FileNotFoundError:
+        return False
