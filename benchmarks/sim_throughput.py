@@ -156,6 +156,66 @@ def measure_mujoco(
     return result
 
 
+def measure_layouts(robot, designs: int, agents: int, threads: int | None, seed: int, reps: int = 5) -> dict:
+    """Physics-only speed of the ways to give each environment its own model, from the same
+    states with the same controls (4 physics steps per call, as one policy step):
+    the backend's expanded fields, `set_models` with one model per design (no per-env
+    randomization possible: `expand` raises on such a batch), `set_models` with a model copy
+    per environment, and `mujoco.rollout` over the per-environment models."""
+    import torch
+    from coadapt_plugins.simulators.mujoco.simulator import MujocoSimulator
+
+    from coadapt_core.randomization import RandomizationConfig
+
+    space = robot.design_space()
+    unique = space.sample(designs, rng=seed)
+    env_designs = np.repeat(unique, agents, axis=0)
+    n = env_designs.shape[0]
+    sim = MujocoSimulator(robot, env_designs, randomization=RandomizationConfig(), seed=seed, num_threads=threads)
+    sim.reset()
+    for _ in range(10):
+        sim.step(sim.default_joint_pos + 0.02 * torch.randn(sim.default_joint_pos.shape))
+    nthread = sim.num_threads_used
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    initial, _ = _env_states(sim, spec)
+    ctrl = sim._ctrl.copy()
+    per_env = [sim.env_model(i) for i in range(n)]
+    per_design = [sim._compile(d).model for d in unique]
+    shared = [per_design[i // agents] for i in range(n)]
+    batches = {"expand (backend)": sim._live()}
+    for name, models in (("set_models per design", shared), ("set_models per env", per_env)):
+        b = mujoco.batch.Batch(per_design[0], n, nthread=nthread)
+        b.set_models(models)
+        batches[name] = b
+    roller = mujoco.rollout.Rollout(nthread=nthread)
+    datas = [mujoco.MjData(per_design[0]) for _ in range(nthread)]
+    times: dict[str, list[float]] = {name: [] for name in [*batches, "rollout per env"]}
+    nstep = sim.decimation
+    nq, nv = sim._ref.model.nq, sim._ref.model.nv
+    qpos_cols = slice(1, 1 + nq)  # mjSTATE_FULLPHYSICS: time, qpos, qvel, ...
+    qvel_cols = slice(1 + nq, 1 + nq + nv)
+    for _ in range(reps):
+        for name, b in batches.items():
+            # the same starting state everywhere (a reset also clears the solver warm start)
+            b.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
+            b.bind("qpos")[:] = initial[:, qpos_cols]
+            b.bind("qvel")[:] = initial[:, qvel_cols]
+            b.bind("ctrl")[:] = ctrl
+            b.forward()
+            t = time.perf_counter()
+            for _ in range(nstep):
+                b.step()
+            times[name].append(time.perf_counter() - t)
+        t = time.perf_counter()
+        roller.rollout(per_env, datas, initial, np.repeat(ctrl[:, None], nstep, axis=1))
+        times["rollout per env"].append(time.perf_counter() - t)
+    roller.close()
+    sim.close()
+    return {
+        name: {"physics_steps_per_s": round(n * nstep / float(np.median(v)), 1)} for name, v in times.items()
+    } | {"envs": n, "threads": nthread, "load_avg_1min": round(os.getloadavg()[0], 2)}
+
+
 def measure_pybullet(robot, envs: int, seconds: float, seed: int) -> dict | None:
     try:
         import pybullet  # noqa: F401
@@ -190,10 +250,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seconds", type=float, default=20.0, help="wall time of the measured loop (both sides)")
     parser.add_argument("--threads", type=int, default=None, help="default: all cores")
     parser.add_argument("--terrain", default="flat")
-    parser.add_argument("--chunk", type=int, default=25, help="policy steps per alternating chunk")
+    parser.add_argument("--chunk", type=int, default=10, help="policy steps per alternating chunk")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--pybullet-envs", type=int, default=16)
     parser.add_argument("--no-pybullet", action="store_true")
+    parser.add_argument("--layouts", action="store_true", help="also compare per-environment model layouts")
     args = parser.parse_args(argv)
     for name in ("designs", "agents", "chunk"):
         if getattr(args, name) < 1:
@@ -202,6 +263,8 @@ def main(argv: list[str] | None = None) -> int:
     result = measure_mujoco(
         robot, args.designs, args.agents, args.seconds * 0.5, args.threads, args.terrain, args.chunk, args.seed
     )
+    if args.layouts:
+        result["layouts"] = measure_layouts(robot, args.designs, args.agents, args.threads, args.seed)
     if not args.no_pybullet:
         result["pybullet"] = measure_pybullet(robot, args.pybullet_envs, min(10.0, args.seconds / 2), args.seed)
     print(json.dumps(result))
