@@ -25,6 +25,8 @@ from coadapt_core.terrain import Terrain
 GRAVITY = 9.81
 #: the soles spawn this far above the highest ground under either foot, m (as MuJoCo)
 SPAWN_CLEARANCE = 0.002
+#: random terrain: the safety floor lies this far below z = 0 (as in MuJoCo), m
+FLOOR_BELOW_FIELD = 0.001
 #: with `fixed_base`, the base is welded this far above its standing spawn height, m
 FIXED_BASE_LIFT = 0.5
 #: divergence: any state beyond these magnitudes (or not finite) resets the environment
@@ -105,7 +107,7 @@ class Engine:
         self.prev_applied = np.zeros((self.k, j))  # [k, J]
         self.fresh = np.ones(self.k, dtype=bool)  # [k] no physics step since reset
         self.clients: list[int] = []
-        self.grounds: list[int] = []
+        self.grounds: list[list[int]] = []  # per env: the terrain's bodies
         self.bodies: list[int] = [-1] * self.k
         self.joint_ids: list[list[int]] = [[] for _ in range(self.k)]
         self.foot_ids: list[list[int]] = [[] for _ in range(self.k)]
@@ -138,8 +140,9 @@ class Engine:
         )
         self.grounds.append(self._create_ground(client))
 
-    def _create_ground(self, client: int) -> int:
+    def _create_ground(self, client: int) -> list[int]:
         t = self.terrain
+        bodies = []
         if t.name == "random":
             grid = t.height_grid()  # [rows along y, cols along x]
             shape = p.createCollisionShape(
@@ -152,20 +155,25 @@ class Engine:
             )
             # Bullet centres a height field on its bounding box, heights included
             position = [0.0, 0.0, 0.5 * (float(grid.min()) + float(grid.max()))]
+            # a safety floor just below the field (as in MuJoCo): a robot walking off its
+            # edge lands instead of falling forever
+            floor = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=client)
+            bodies.append(p.createMultiBody(0, floor, basePosition=[0.0, 0.0, -FLOOR_BELOW_FIELD], physicsClientId=client))
         else:
             angle = t.slope_radians  # 0 on flat ground; the slope rises along +x
             shape = p.createCollisionShape(
                 p.GEOM_PLANE, planeNormal=[-np.sin(angle), 0.0, np.cos(angle)], physicsClientId=client
             )
             position = [0.0, 0.0, 0.0]
-        ground = p.createMultiBody(0, shape, basePosition=position, physicsClientId=client)
-        # Bullet multiplies the two bodies' coefficients: 1 on the ground makes the robot's
-        # own friction and restitution the ones in force
-        p.changeDynamics(
-            ground, -1, lateralFriction=1.0, restitution=1.0, spinningFriction=0.0, rollingFriction=0.0,
-            physicsClientId=client,
-        )
-        return ground
+        bodies.insert(0, p.createMultiBody(0, shape, basePosition=position, physicsClientId=client))
+        for ground in bodies:
+            # Bullet multiplies the two bodies' coefficients: 1 on the ground makes the
+            # robot's own friction and restitution the ones in force
+            p.changeDynamics(
+                ground, -1, lateralFriction=1.0, restitution=1.0, spinningFriction=0.0, rollingFriction=0.0,
+                physicsClientId=client,
+            )
+        return bodies
 
     def _urdf_path(self, e: int, spec: EnvSpec, com_shift: np.ndarray) -> str:
         armature = (
@@ -418,9 +426,9 @@ class Engine:
             links = p.getLinkStates(body, self.foot_ids[e], computeForwardKinematics=1, physicsClientId=client)
             for f, link in enumerate(links):
                 foot_pos[e, f] = link[4]  # the link frame origin, not its centre of mass
-            contacts = p.getContactPoints(bodyA=body, bodyB=self.grounds[e], physicsClientId=client)
+            contacts = p.getContactPoints(bodyA=body, physicsClientId=client)
             for c in contacts:
-                if c[3] in self.foot_ids[e]:
+                if c[2] in self.grounds[e] and c[3] in self.foot_ids[e]:
                     contact_force[e, self.foot_ids[e].index(c[3])] += c[9]
         q, dq = self._joints()
         # base link frame = inertial frame * inverse(inertial offset)

@@ -296,3 +296,12 @@ def _alive(pid: int) -> bool:
             return f.read().split()[2] != "Z"
     except FileNotFoundError:
         return False
+
+
+def test_random_terrain_has_a_safety_floor_beyond_its_edge(kuafu):
+    import pybullet as p
+
+    with PyBulletSimulator(kuafu, NOMINAL, terrain="random") as sim:
+        client = sim._engine.clients[0]
+        (hit,) = p.rayTestBatch([[15.0, 0.0, 1.0]], [[15.0, 0.0, -1.0]], physicsClientId=client)
+        assert hit[0] >= 0 and hit[3][2] == pytest.approx(-0.001)
