@@ -103,6 +103,7 @@ class Engine:
         self.mass_block: list[tuple] = [np.ix_(np.arange(j), np.arange(j)) for _ in range(self.k)]
         self._diag = np.arange(j)
         self.movable: list[list[int]] = [[] for _ in range(self.k)]
+        self.movable_order: list[np.ndarray | None] = [None] * self.k
         self.prev_dq = np.zeros((self.k, j))  # [k, J]
         self.prev_applied = np.zeros((self.k, j))  # [k, J]
         self.fresh = np.ones(self.k, dtype=bool)  # [k] no physics step since reset
@@ -277,6 +278,13 @@ class Engine:
         ]
         offset = 0 if self.fixed_base else 6
         self.movable[e] = movable
+        # mass matrix positions come in Bullet's joint order: the actuated columns to take,
+        # or None when some movable joint is not actuated (then they are read)
+        self.movable_order[e] = (
+            np.array([self.joint_ids[e].index(m) for m in movable])
+            if sorted(movable) == sorted(self.joint_ids[e])
+            else None
+        )
         cols = np.array([offset + movable.index(jid) for jid in self.joint_ids[e]])
         self.mass_block[e] = np.ix_(cols, cols)
         use = self.armature == "joint_space" and spec.joint_armature is not None
@@ -395,7 +403,8 @@ class Engine:
         ddq = (dq - self.prev_dq) / self.physics_dt  # [k, J] the last step's acceleration
         mass = np.empty((self.k, self.num_joints, self.num_joints))  # [k, J, J] joint blocks
         for e in range(self.k):
-            positions = q[e] if len(self.movable[e]) == self.num_joints else self._movable_positions(e)
+            order = self.movable_order[e]
+            positions = q[e][order] if order is not None else self._movable_positions(e)
             full = np.array(p.calculateMassMatrix(self.bodies[e], positions.tolist(), physicsClientId=self.clients[e]))
             mass[e] = full[self.mass_block[e]]
         h = np.einsum("kij,kj->ki", mass, ddq) - self.prev_applied  # [k, J]

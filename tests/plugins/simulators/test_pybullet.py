@@ -305,3 +305,32 @@ def test_random_terrain_has_a_safety_floor_beyond_its_edge(kuafu):
         client = sim._engine.clients[0]
         (hit,) = p.rayTestBatch([[15.0, 0.0, 1.0]], [[15.0, 0.0, -1.0]], physicsClientId=client)
         assert hit[0] >= 0 and hit[3][2] == pytest.approx(-0.001)
+
+
+def test_joint_order_other_than_the_urdf_gives_the_same_physics(kuafu):
+    """Armature and state must follow `joint_names`, not the URDF's joint order."""
+    from dataclasses import replace
+
+    from coadapt_plugins.simulators.pybullet.engine import Engine
+    from coadapt_plugins.simulators.pybullet.spec import EnvSpec
+
+    spec = EnvSpec.from_model(kuafu.build(NOMINAL[0]))
+    perm = np.array([4, 5, 6, 7, 0, 1, 2, 3])  # right leg first
+    swapped = replace(
+        spec,
+        joint_names=[spec.joint_names[i] for i in perm],
+        **{k: getattr(spec, k)[perm] for k in (
+            "default_joint_pos", "kp", "kd", "torque_limit", "speed_limit",
+            "joint_damping", "joint_armature", "joint_frictionloss",
+        )},
+    )
+    options = dict(terrain="flat", terrain_seed=0, physics_dt=0.005, decimation=4, fixed_base=True, max_delay_steps=0)
+    finals = []
+    for s, order in ((spec, np.arange(8)), (swapped, perm)):
+        engine = Engine([s], **options)
+        targets = (spec.default_joint_pos + np.array([0.2, 0.4, 0.5, 0.3, -0.1, -0.3, 0.2, -0.2]))[order]
+        for _ in range(10):
+            state = engine.step(targets[None])
+        engine.close()
+        finals.append(state["joint_pos"][0][np.argsort(order)])
+    np.testing.assert_allclose(finals[1], finals[0], atol=1e-9)
