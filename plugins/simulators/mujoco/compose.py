@@ -171,7 +171,7 @@ class ModelCache:
     """Compiled designs keyed by (design, terrain, seed, fixed_base, physics_dt), least
     recently used evicted beyond `capacity`."""
 
-    def __init__(self, capacity: int = 4096):
+    def __init__(self, capacity: int = 256):
         self.capacity = capacity
         self._items: OrderedDict[tuple, CompiledDesign] = OrderedDict()
         self.hits = 0
