@@ -93,7 +93,6 @@ class Engine:
         self.motor_strength = np.ones(self.k)
         self.friction = np.ones(self.k)
         self.restitution = np.zeros(self.k)
-        self.com_shift = np.zeros((self.k, 3))
         self.delay = DelayLine(self.k, j, max_delay_steps)
         self.last_torque = np.zeros((self.k, j))  # [k, J] mean over the last policy step
         # joint-space armature (see `_armature_torque`): per env the armature [J], the
@@ -402,13 +401,17 @@ class Engine:
             return np.zeros_like(tau)
         ddq = (dq - self.prev_dq) / self.physics_dt  # [k, J] the last step's acceleration
         mass = np.empty((self.k, self.num_joints, self.num_joints))  # [k, J, J] joint blocks
+        finite = np.isfinite(q).all(axis=1) & np.isfinite(dq).all(axis=1)  # [k]
         for e in range(self.k):
+            if not finite[e]:  # diverged: its torque is already NaN and it will be reset
+                mass[e] = np.eye(self.num_joints)
+                continue
             order = self.movable_order[e]
             positions = q[e][order] if order is not None else self._movable_positions(e)
             full = np.array(p.calculateMassMatrix(self.bodies[e], positions.tolist(), physicsClientId=self.clients[e]))
             mass[e] = full[self.mass_block[e]]
         h = np.einsum("kij,kj->ki", mass, ddq) - self.prev_applied  # [k, J]
-        h[self.fresh] = 0.0  # nothing measured yet right after a reset
+        h[self.fresh | ~finite] = 0.0  # nothing measured yet right after a reset
         mass[:, self._diag, self._diag] += self.armature_diag
         predicted = np.linalg.solve(mass, (tau + h)[..., None])[..., 0]  # [k, J]
         self.prev_dq = dq.copy()

@@ -196,13 +196,14 @@ def test_slope_rises_along_x(kuafu):
         np.testing.assert_allclose(heights, np.array([-2.0, 0.0, 2.0]) * np.tan(np.radians(10.0)), atol=1e-6)
 
 
-def test_divergence_resets_and_flags_without_nan(kuafu):
+@pytest.mark.parametrize("kick", [1.0e6, float("nan")])
+def test_divergence_resets_and_flags_without_nan(kuafu, kick):
     with PyBulletSimulator(kuafu, np.repeat(NOMINAL, 2, axis=0)) as sim:
         start = sim.reset()
-        sim._inject(np.array([1]), 1.0e6)
+        sim._inject(np.array([1]), kick)
         state = sim.step(sim.default_joint_pos)
         assert state.diverged.tolist() == [False, True]
-        for name in ("base_pos", "base_lin_vel", "joint_pos", "joint_vel"):
+        for name in ("base_pos", "base_quat", "base_lin_vel", "joint_pos", "joint_vel", "joint_torque", "foot_pos"):
             assert torch.isfinite(getattr(state, name)).all()
         # the broken environment is back at its spawn pose
         assert float((state.base_pos[1] - start.base_pos[1]).abs().max()) < 1e-6
