@@ -192,7 +192,7 @@ class MujocoSimulator(Simulator):
         self.timings = {"physics": 0.0, "actuation": 0.0, "state": 0.0}
         #: set to a list to receive each physics step's ctrl [N, nu] (open-loop replay)
         self.record_controls: list[np.ndarray] | None = None
-        self._reset_envs(np.arange(n))
+        self._reset_envs(np.arange(n), draw=False)
         self._state = self._build_state()
 
     # -- construction helpers ------------------------------------------------------------
@@ -347,13 +347,17 @@ class MujocoSimulator(Simulator):
         self._state = self._build_state()
         return self._state
 
-    def _reset_envs(self, ids: np.ndarray) -> None:
-        """New parameters, spawn pose and clean delay line for `ids`; others untouched."""
+    def _reset_envs(self, ids: np.ndarray, draw: bool = True) -> None:
+        """New parameters, spawn pose and clean delay line for `ids`; others untouched.
+        `draw=False` (construction) keeps the parameters in force and spawns at the origin,
+        consuming no randomness: the first `reset()` makes the first draw, as in every
+        backend, so one seed gives one set of parameters everywhere."""
         if ids.size == 0:
             return
         b = self._live()
-        params = sample_env_params(self.randomization, ids.size, self._rng)
-        self._params.put(ids, params)
+        if draw:
+            self._params.put(ids, sample_env_params(self.randomization, ids.size, self._rng))
+        params = self._params.take(ids)
         # Table 2 parameters living in the model: sliding friction of every geom (MuJoCo
         # combines a contact's two geoms by max, so robot and terrain both carry it),
         # restitution as contact damping, base CoM shift
@@ -369,7 +373,7 @@ class MujocoSimulator(Simulator):
 
         # spawn: standing height above the highest ground under either foot
         xy = np.zeros((ids.size, 2))
-        if self._terrain.name == "random":
+        if draw and self._terrain.name == "random":
             half = self._terrain.size / 2 - SPAWN_MARGIN
             xy = self._spawn_rng.uniform(-half, half, size=(ids.size, 2))
         feet = xy[:, None, :] + self._foot_xy[ids]  # [n, L, 2]

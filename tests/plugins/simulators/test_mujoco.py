@@ -430,3 +430,21 @@ def test_device_and_dtype(kuafu) -> None:
         assert state.joint_pos.dtype == torch.float32 and state.joint_pos.device.type == "cpu"
         assert state.foot_contact.dtype == torch.bool and state.diverged.dtype == torch.bool
         assert sim.control_dt == pytest.approx(0.02)
+
+
+def test_same_seed_draws_the_same_parameters_as_the_core_sampler(kuafu) -> None:
+    """Construction consumes no randomness: the first reset's parameters are the first draw
+    of default_rng(seed), as on every backend."""
+    from coadapt_core.randomization import sample_env_params
+
+    rand = RandomizationConfig()
+    with MujocoSimulator(kuafu, _designs(kuafu, 5), randomization=rand, seed=9) as sim:
+        sim.reset()
+        expected = sample_env_params(rand, 5, np.random.default_rng(9))
+        np.testing.assert_array_equal(sim.env_params.friction, expected.friction)
+        np.testing.assert_array_equal(sim.env_params.com_shift, expected.com_shift)
+        sim.reset(np.array([1, 3]))
+        rng = np.random.default_rng(9)  # the second draw continues the same stream
+        sample_env_params(rand, 5, rng)
+        second = sample_env_params(rand, 2, rng)
+        np.testing.assert_array_equal(sim.env_params.delay[[1, 3]], second.delay)
