@@ -18,12 +18,20 @@ if TYPE_CHECKING:
     import torch
 
 
+#: cap of the exponent of w_t. Commands stay within 1.25 m/s, so e_v^2 + e_w^2 > 20 (errors
+#: of about 4.5 m/s or rad/s) only happens to a robot that is flying off or a simulation
+#: that diverged; uncapped, exp() overflows float32 (above 88) and the resulting inf turns
+#: the pseudo-critics' normalisers and weights into NaN. Below the cap eqs. 7-8 are exact.
+W_T_MAX_EXPONENT = 20.0
+
+
 def tracking_penalty_weight(step: StepBatch) -> torch.Tensor:
     """[N] w_t = exp(e_v^2 + e_w^2): the adaptive penalty of eqs. 7-8 that keeps a robot from
-    saving power or torque by standing still."""
+    saving power or torque by standing still (exponent capped at `W_T_MAX_EXPONENT`)."""
     import torch
 
-    return torch.exp(step.linear_tracking_error**2 + step.yaw_tracking_error**2)
+    exponent = step.linear_tracking_error**2 + step.yaw_tracking_error**2  # [N]
+    return torch.exp(exponent.clamp(max=W_T_MAX_EXPONENT))
 
 
 class TrackingObjective(Objective):

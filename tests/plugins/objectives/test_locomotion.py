@@ -85,3 +85,14 @@ def test_registered_through_entry_point():
     registry = get_registry()
     for name in ("tracking", "power", "torque", "composite"):
         assert registry.entries["objective"][name].distribution == "coadapt"
+
+
+def test_penalty_weight_stays_finite_for_a_diverged_robot():
+    step = hand_step()
+    step.base_lin_vel[1, 0] = 50.0  # e_v^2 ~ 2400: exp() would overflow float32
+    for objective in (PowerObjective(), TorqueObjective(), CompositeObjective()):
+        cost = objective.step_cost(step)
+        assert torch.isfinite(cost).all()
+    assert TorqueObjective().step_cost(step)[1].item() == pytest.approx(101.0 * math.exp(20.0), rel=1e-5)
+    # the tracking cost itself is not capped
+    assert TrackingObjective().step_cost(step)[1].item() == pytest.approx(49.0**2 + 0.4**2 + 0.04, rel=1e-5)
