@@ -27,6 +27,30 @@ from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.networks import ActorNet, EmpiricalNormalization, ValueNet
 
 
+def discounted_average_targets(
+    metrics: torch.Tensor,  # [N, T, M] per-step metric P_t
+    value_next: torch.Tensor,  # [N, T, M] pseudo-critic at s_{t+1} (the final state where done)
+    done: torch.Tensor,  # [N, T, 1] bool, the episode ended after step t
+    gamma: float,
+    lam: float,
+) -> torch.Tensor:
+    """[N, T, M] TD(lambda) targets of (1 - gamma) sum_k gamma^k P_{t+k}: a constant metric
+    c has target c. Episode ends (falls and timeouts alike) and the rollout end bootstrap
+    from `value_next`."""
+    done = done.to(metrics.dtype)
+    target = torch.empty_like(metrics)
+    following = value_next[:, -1]
+    for t in reversed(range(metrics.shape[1])):
+        if t == metrics.shape[1] - 1:
+            blend = value_next[:, t]
+        else:
+            blend = (1 - lam) * value_next[:, t] + lam * following
+        boot = done[:, t] * value_next[:, t] + (1 - done[:, t]) * blend
+        target[:, t] = (1 - gamma) * metrics[:, t] + gamma * boot
+        following = target[:, t]
+    return target
+
+
 @dataclass
 class Dims:
     num_obs: int  # policy observation o (70)
@@ -163,17 +187,10 @@ class PPO:
         self.transitions = []
         self.gae(td)
         if self.pseudo_critic is not None:
-            gamma, lam = self.config.gamma, self.config.pseudo_lam
-            metrics = td["metrics"]  # [N, T, M]
             value_next = self.pseudo_values(td["next", "critic_obs"], td["next", "design_obs"])  # [N, T, M]
-            done = td["next", "done"].float()  # [N, T, 1]
-            target = torch.empty_like(metrics)
-            following = value_next[:, -1]
-            for t in reversed(range(metrics.shape[1])):
-                blend = value_next[:, t] if t == metrics.shape[1] - 1 else (1 - lam) * value_next[:, t] + lam * following
-                boot = done[:, t] * value_next[:, t] + (1 - done[:, t]) * blend
-                target[:, t] = (1 - gamma) * metrics[:, t] + gamma * boot
-                following = target[:, t]
+            target = discounted_average_targets(
+                td["metrics"], value_next, td["next", "done"], self.config.gamma, self.config.pseudo_lam
+            )
             self.pseudo_norm.update(target)
             m = self.dims.num_metrics
             td["pseudo_target"] = (target - self.pseudo_norm.mean[:m]) / torch.sqrt(self.pseudo_norm.var[:m] + self.pseudo_norm.eps)
