@@ -39,10 +39,15 @@ SPAWN_MARGIN = 3.0
 ARMATURE_MODES = ("joint_space", "link_inertia", "none")
 
 
+class PyBulletMissing(UserError, ImportError):
+    """PyBullet is not installed: a user error (one line, exit 2) that code guarding an
+    optional backend with `except ImportError` also catches."""
+
+
 def require_pybullet() -> None:
-    """Raise the one-line `UserError` naming the missing package."""
+    """Raise the one-line `PyBulletMissing` naming the extra to install."""
     if importlib.util.find_spec("pybullet") is None:
-        raise UserError(MISSING_PYBULLET, field="simulator")
+        raise PyBulletMissing(MISSING_PYBULLET, field="simulator")
 
 
 class PyBulletSimulator(Simulator):

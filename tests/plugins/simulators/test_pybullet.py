@@ -237,6 +237,7 @@ def test_missing_pybullet_names_the_extra(kuafu, monkeypatch):
     with pytest.raises(UserError) as info:
         PyBulletSimulator(kuafu, NOMINAL)
     assert str(info.value) == "the pybullet simulator needs the pybullet package: pip install 'coadapt[pybullet]'"
+    assert isinstance(info.value, ImportError)  # for callers guarding optional backends
 
 
 def test_registered_as_pybullet():
