@@ -149,7 +149,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     # meaningful on a 2-core laptop in <= 30 min, starting from the shipped universal policy
     "quick": dict(
         outer_iterations=3, population=16, optimizer_iterations=4, agents_per_design=4,
-        train_steps=30_000, retrain_steps=15_000, eval_steps=150, surrogate_samples=1024,
+        train_steps=120_000, retrain_steps=60_000, eval_steps=150, surrogate_samples=1024,
         bo_designs=4, specialized_train_steps=15_000,
     ),
     # section 4.1.3: N = 3, K = 100, J = 5, 50 agents, w = 0.5, inertia 0.9, c1 = c2 = 2
