@@ -45,9 +45,10 @@ class UniversalPolicyBackend:
 
     `train(designs, steps)` trains on the given designs (K of them, `agents_per_design` each)
     for about `steps` interactions; its `TrainingResult.buffer` holds critic states of the
-    last rollout. `real_fitness` rolls out the policy mean with commands drawn once per agent
-    from the current command box (the same commands for every design) and returns the mean
-    per-step metric [K, M]; `surrogate_fitness` averages the pseudo-critics over `samples`
+    last rollout. `real_fitness` rolls out the (stochastic, seeded) policy with commands drawn
+    once per agent from the current command box (the same commands for every design) and
+    returns the mean per-step metric [K, M] (set `stochastic_evaluation = False` for the
+    policy mean); `surrogate_fitness` averages the pseudo-critics over `samples`
     buffer states with each candidate's xi substituted.
     """
 
@@ -80,6 +81,7 @@ class UniversalPolicyBackend:
             seed=seed,
         )
         self.objectives = list(objectives)
+        self.stochastic_evaluation = True
         self.eval_env: LocomotionEnv | None = None
         if checkpoint:
             self.load(checkpoint)
@@ -156,7 +158,10 @@ class UniversalPolicyBackend:
         env.commands.generator = gen
         per_agent = env.commands.sample(agents)  # [A, 3]
         env.set_commands(per_agent.repeat(len(designs), 1))
-        result = rollout(self.ppo, env, len(designs), steps, seed=seed)
+        # the stochastic policy, as in training: the pseudo-critics learn the metric under it,
+        # so real and surrogate fitness estimate the same quantity (the mean action's torque
+        # and power are lower while the policy's std is large)
+        result = rollout(self.ppo, env, len(designs), steps, seed=seed, stochastic=self.stochastic_evaluation)
         return RealFitness(
             costs=result.metrics[:, columns],
             buffer=result.buffer,

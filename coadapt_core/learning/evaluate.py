@@ -43,14 +43,20 @@ def rollout(
     *,
     buffer_rows: int = 100_000,
     seed: int = 0,
+    stochastic: bool = False,
     on_step=None,
 ) -> RolloutResult:
     """Run `steps` policy steps on `env`, whose environments are `num_designs` consecutive
-    groups of agents (as `Trainer.set_designs` lays them out)."""
+    groups of agents (as `Trainer.set_designs` lays them out). Actions are the policy mean,
+    or samples of the Gaussian policy when `stochastic` (seeded by `seed`, as are the
+    observation noise and the buffer sample)."""
     n = env.num_envs
     agents = n // num_designs
     gen = torch.Generator(device="cpu")
     gen.manual_seed(int(seed))
+    env.generator.manual_seed(int(seed))
+    action_gen = torch.Generator(device=env.device)
+    action_gen.manual_seed(int(seed) + 1)
     ppo.training = False
     obs, critic, design_obs = env.reset()
     m = env.num_metrics
@@ -67,7 +73,11 @@ def rollout(
             kept.append(critic.float().cpu())
         else:
             kept.append(critic[torch.randperm(n, generator=gen)[:per_step].to(env.device)].float().cpu())
-        actions = ppo.act_inference(obs, design_obs)
+        if stochastic:
+            loc, scale = ppo.actor_net(ppo.obs_norm(obs), design_obs)
+            actions = loc + scale * torch.randn(loc.shape, generator=action_gen, device=loc.device)
+        else:
+            actions = ppo.act_inference(obs, design_obs)
         res = env.step(actions)
         info = res.info
         metric_sum += info["metrics"]
