@@ -133,9 +133,9 @@ class PyBulletSimulator(Simulator):
 
             self._pool = WorkerPool(specs, self._slices, options)
         self._diverged = np.zeros(n, dtype=bool)
-        # draw every environment's parameters now, as the MuJoCo backend does, so the same
-        # seed gives both backends the same parameters and spawn points
-        self._reset_engines(np.arange(n))
+        # construction draws nothing (nominal parameters, spawn at the origin): the first
+        # reset() makes the first draw, as in every backend, so one seed gives the same
+        # parameters and spawn points on MuJoCo and PyBullet
 
     def _spec(self, design: np.ndarray) -> EnvSpec:
         from coadapt_plugins.simulators.pybullet.spec import EnvSpec
