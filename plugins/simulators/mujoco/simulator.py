@@ -48,6 +48,10 @@ SPAWN_CLEARANCE = 0.002
 #: random terrain: spawn points stay this far inside the height field's edge
 SPAWN_MARGIN = 3.0
 
+#: MuJoCo's warnings for a bad state, after which it resets the simulation itself
+_BAD_STATE_WARNINGS = [
+    int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mjWARN_BADQVEL), int(mujoco.mjtWarning.mjWARN_BADQACC)
+]
 #: model fields never expanded per design (MuJoCo options, shared by the whole batch)
 _SKIP_PREFIX = ("opt.",)
 
@@ -137,6 +141,8 @@ class MujocoSimulator(Simulator):
         self._qvel = b.bind("qvel")  # [N, nv]
         self._ctrl = b.bind("ctrl")  # [N, nu]
         self._time = b.bind("time")  # [N]
+        self._warnings = b.warning  # [N, mjNWARNING, 2] live (last info, count)
+        self._warnings_seen = self._warnings[:, _BAD_STATE_WARNINGS, 1].copy()  # [N, 3]
         self._xpos = b.bind("xpos")  # [N, nbody, 3], refreshed after each call
         self._sensordata = b.bind("sensordata")  # [N, nsensordata]
         self._cdof = b.bind("cdof")  # [N, nv, 6] motion axes (angular, linear) at the root subtree's CoM
@@ -402,6 +408,7 @@ class MujocoSimulator(Simulator):
         self._delay.reset(ids, self._default_q[ids])
         self._delay.set_delay(ids, np.minimum(params.delay_steps(self.physics_dt), self._delay.capacity - 1))
         self._expected_time[ids] = RESET_CLOCK
+        self._warnings_seen[ids] = self._warnings[ids][:, _BAD_STATE_WARNINGS, 1]
         self._torque[ids] = 0.0
 
     def set_designs(self, env_ids: torch.Tensor | np.ndarray, designs: np.ndarray) -> None:
@@ -455,9 +462,12 @@ class MujocoSimulator(Simulator):
                 failed = np.asarray(exc.ids, dtype=int)
             t2 = perf()
             self._expected_time += self.physics_dt
-            # MuJoCo resets a simulation itself on a bad state (its warning), which shows as
-            # its clock restarting; NaN or huge speeds are caught before that happens
+            # MuJoCo resets a simulation itself on a bad state: its warning counter rises and
+            # its clock restarts; NaN or huge speeds are caught before that happens
             bad = np.abs(self._time - self._expected_time) > 0.5 * self.physics_dt
+            warnings = self._warnings[:, _BAD_STATE_WARNINGS, 1]  # [N, 3] counts so far
+            bad |= (warnings > self._warnings_seen).any(axis=1)
+            self._warnings_seen[:] = warnings
             speed = np.abs(self._qvel).max(axis=1)
             bad |= ~(speed <= MAX_QVEL)  # also catches NaN
             if failed is not None and failed.size:
