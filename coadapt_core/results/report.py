@@ -301,7 +301,7 @@ def table6_markdown(rows: Sequence[dict[str, Any]]) -> str:
         lines.append("| " + " | ".join(cells) + " |")
     notes = sorted({r["sim2sim_note"] for r in rows if r["sim2sim_improvement"] is None and r["sim2sim_note"]})
     if notes:
-        lines += ["", "Sim-to-sim n/a: " + "; ".join(notes) + "."]
+        lines += ["", "Sim-to-sim: " + "; ".join(notes) + "."]
     return "\n".join(lines) + "\n"
 
 
@@ -417,24 +417,29 @@ def figure_heatmaps(store: ResultsStore, facts: Sequence[RunFacts], out: Path) -
         panels = [(o, d) for o, d in panels if d is not None]
         if not panels:
             continue
-        fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 4.6), squeeze=False)
+        fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 5.2), squeeze=False)
         sources = []
         for ax, (o, (a, b, grid, source, optimum)) in zip(axes[0], panels, strict=True):
             # lighter = lower cost, as in the paper's heat-maps
             mesh = ax.pcolormesh(a, b, grid, cmap="viridis_r", shading="nearest" if len(a) < 20 else "gouraud")
             fig.colorbar(mesh, ax=ax, label=f"{o} cost")
-            if optimum is not None:
-                ax.plot(*optimum, marker="*", color="white", markeredgecolor="black", markersize=18, linestyle="none", label="grid optimum")
-            for m in _ordered({f.method for f in facts if f.objective == o and f.terrain == t and f.best_design} - {LANDSCAPE_METHOD}, METHODS):
+            if optimum is not None:  # hollow, on top, so a method's marker under it stays visible
+                ax.plot(*optimum, marker="*", markerfacecolor="none", markeredgecolor="black", markeredgewidth=1.5,
+                        markersize=22, linestyle="none", label="grid optimum", zorder=5, clip_on=False)
+            methods = _ordered({f.method for f in facts if f.objective == o and f.terrain == t and f.best_design} - {LANDSCAPE_METHOD}, METHODS)
+            for rank, m in enumerate(methods):
                 pts = np.array([f.best_design[:2] for f in facts if f.method == m and f.objective == o and f.terrain == t and f.best_design])
-                ax.scatter(pts[:, 0], pts[:, 1], marker=METHOD_MARKERS.get(m, "x"), s=70, color=METHOD_COLORS.get(m, "black"),
-                           edgecolor="white", linewidth=1.0, label=METHOD_LABELS.get(m, m), zorder=3)
+                # hollow, shrinking markers: methods that found the same design show as nested outlines
+                ax.scatter(pts[:, 0], pts[:, 1], marker=METHOD_MARKERS.get(m, "x"), s=320 - 60 * rank, facecolors="none",
+                           edgecolors=METHOD_COLORS.get(m, "black"), linewidths=2.2, label=METHOD_LABELS.get(m, m), zorder=3 + 0.1 * rank,
+                           clip_on=False)  # optima often sit on the range's edge
             ax.set_xlim(0.5, 1.5)
             ax.set_ylim(0.5, 1.5)
             ax.set_xlabel("thigh scale")
             ax.set_ylabel("shank scale")
             ax.set_title(f"{o} on {t}" + (" (landscape)" if optimum is not None else " (interpolated)"))
-            ax.legend(loc="upper right", fontsize=7, framealpha=0.8)
+            # below the panel, so it hides no part of the map
+            ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=3, fontsize=7, frameon=False)
             sources.append(f"{o}: {source}")
         fig.tight_layout()
         path = out / f"heatmap_{t}.png"
@@ -469,6 +474,8 @@ def figure_convergence(store: ResultsStore, facts: Sequence[RunFacts], out: Path
                   key=lambda k: (list(OBJECTIVE_LABELS).index(k[0]) if k[0] in OBJECTIVE_LABELS else 9, k[1]))
     if not keys:
         return []
+    most = max((convergence_series(store, f)[0].max(initial=0.0) for f in facts if f.real), default=0.0)
+    unit, unit_name = (1e6, "million") if most >= 1e5 else (1e3, "thousand")
     cols = min(3, len(keys))
     rows = math.ceil(len(keys) / cols)
     fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 3.8 * rows), squeeze=False)
@@ -482,8 +489,8 @@ def figure_convergence(store: ResultsStore, facts: Sequence[RunFacts], out: Path
                 continue
             label = None if f.method in labelled else METHOD_LABELS.get(f.method, f.method)
             labelled.add(f.method)
-            ax.step(x / 1e6, y, where="post", color=METHOD_COLORS.get(f.method, "black"), label=label, alpha=0.85)
-        ax.set_xlabel("environment interactions (million)")
+            ax.step(x / unit, y, where="post", color=METHOD_COLORS.get(f.method, "black"), label=label, alpha=0.85)
+        ax.set_xlabel(f"environment interactions ({unit_name})")
         ax.set_ylabel(f"best real {o} cost")
         ax.set_title(f"{o} on {t}")
         ax.legend(fontsize=7)

@@ -111,6 +111,7 @@ def test_bad_grid_is_one_clear_error(field, value, message):
         _spec(**{field: value})
 
 
+@pytest.mark.slow
 def test_local_grid_runs_cells_then_skips_them(tmp_path):
     store = ResultsStore(tmp_path / "g.db")
     spec = _spec(seeds=[0, 1])
@@ -125,6 +126,12 @@ def test_local_grid_runs_cells_then_skips_them(tmp_path):
     again = run_grid(spec, store, workers=2, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
     assert sorted(again.skipped) == sorted(report.finished) and not again.finished
     assert len(store.list_runs()) == 4
+    # the grid's report covers its runs, one Table 7 row per method
+    from coadapt_core.results.report import write_report
+
+    files = write_report(store, spec.grid_id, tmp_path / "report", sim2sim=False)
+    t7 = files["table7.csv"].read_text().splitlines()
+    assert len(t7) == 3 and t7[1].startswith("ours,2,") and t7[2].startswith("no-surrogate,2,")
     # a bigger grid runs only the new cells
     bigger = _spec(seeds=[0, 1, 2])
     third = run_grid(bigger, store, workers=2, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
@@ -152,6 +159,25 @@ def test_killed_cell_is_resumed_without_losing_or_duplicating_evaluations(tmp_pa
     assert len(rows) == 12  # batch 1 redone: its 2 early rows replaced, not duplicated
     assert len({(e.outer, e.inner, e.idx) for e in rows}) == 12
     assert store.cells(spec.grid_id)[cell.key]["attempts"] == 2
+
+
+def test_killed_grid_resumes_runs_left_running(tmp_path):
+    """The grid process itself was killed: its cells' runs are still marked running. The
+    next invocation resumes those whose run folder exists and restarts the others."""
+    store = ResultsStore(tmp_path / "g.db")
+    spec = _spec(seeds=[0, 1])
+    c0, c1, c2, c3 = spec.cells()
+    (tmp_path / "runs" / "r0").mkdir(parents=True)
+    store.create_run({"method": c0.method, "objective": c0.objective, "seed": c0.seed, "grid_cell": c0.key},
+                     run_id="r0", run_dir=str(tmp_path / "runs" / "r0"))
+    store.create_run({"method": c1.method, "objective": c1.objective, "seed": c1.seed, "grid_cell": c1.key},
+                     run_id="r1", run_dir=str(tmp_path / "runs" / "gone"))
+    done = store.create_run({"method": c2.method, "objective": c2.objective, "terrain": "flat", "seed": c2.seed,
+                             "preset": "smoke", "sim": "mujoco"}, run_id="r2")  # finished by hand, no grid
+    store.finish_run(done, {"best_cost": 1.0})
+    tasks, skipped = plan_grid(store, spec, out_dir=str(tmp_path / "runs"))
+    assert [c.key for c in skipped] == [c2.key]
+    assert {t.cell.key: t.resume for t in tasks} == {c0.key: "r0", c1.key: None, c3.key: None}
 
 
 def test_cell_that_cannot_start_is_reported_failed(tmp_path):
