@@ -1,0 +1,81 @@
+"""`coadapt train` and `coadapt eval` end to end on Kuafu and MuJoCo (tiny budgets), and their
+one-line errors."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from coadapt_core.cli import main
+from coadapt_core.plugins import get_registry
+
+
+def _have(kind: str, name: str) -> bool:
+    return name in get_registry().names(kind)
+
+
+needs_mujoco = pytest.mark.skipif(
+    not (_have("robot", "kuafu") and _have("simulator", "mujoco")), reason="kuafu robot or mujoco backend missing"
+)
+
+
+@pytest.mark.slow
+@needs_mujoco
+def test_train_writes_a_checkpoint_that_eval_and_resume_read(tmp_path, capsys) -> None:
+    out = tmp_path / "run"
+    args = ["train", "--steps", "128", "--num-designs", "2", "--agents", "4", "--steps-per-env", "8",
+            "--epochs", "1", "--minibatches", "2", "--out", str(out), "--checkpoint-every", "1", "--quiet"]
+    assert main(args) == 0
+    lines = [json.loads(line) for line in capsys.readouterr().out.splitlines() if line.startswith("{")]
+    assert [row["iteration"] for row in lines] == [1, 2] and lines[-1]["total_steps"] == 128
+    assert (out / "model_final.pt").is_file() and (out / "checkpoints" / "model_2.pt").is_file()
+    assert (out / "policy.pt").stat().st_size < 6e6
+    assert len((out / "progress.jsonl").read_text().splitlines()) == 2
+    assert any((out / "logs").rglob("*.csv"))
+
+    code = main(["eval", "--checkpoint", str(out / "model_final.pt"), "--design", "1.0,1.0", "--agents", "2",
+                 "--seconds", "0.4", "--command", "0.5,0,0", "--json"])
+    assert code == 0
+    result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert {"survival", "vx_mean", "tracking_error", "torque_cost", "power_cost"} <= set(result)
+    assert 0.0 <= result["survival"] <= 1.0 and result["torque_cost"] > 0 and result["steps"] == 2 * 20
+
+    resumed = tmp_path / "resumed"
+    assert main(["train", "--resume", str(out / "model_final.pt"), "--steps", "64", "--out", str(resumed), "--quiet",
+                 "--epochs", "1"]) == 0
+    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines() if line.startswith("{")]
+    assert rows[0]["iteration"] == 3 and rows[-1]["total_steps"] == 192  # 2 designs x 4 agents from the checkpoint
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["train", "--robot", "nope"], "unknown robot 'nope'"),
+        (["train", "--sim", "nope"], "unknown simulator 'nope'"),
+        (["train", "--designs", "0.5:2.0,0.5:1.5"], "leaves its bounds"),
+        (["train", "--designs", "0.5-1.5"], "low:high"),
+        (["train", "--steps", "0"], "--steps must be >= 1"),
+        (["train", "--device", "tpu"], "--device 'tpu'"),
+        (["eval", "--command", "fast"], "--command 'fast'"),
+        (["eval", "--checkpoint", "/no/such.pt"], "does not exist"),
+        (["eval", "--design", "3,3", "--checkpoint", "x.pt"], "outside its bounds"),
+        (["eval", "--video", "out.avi", "--checkpoint", "x.pt"], ".gif or .mp4"),
+    ],
+)
+def test_bad_options_give_one_line_and_exit_2(args, message, capsys) -> None:
+    if not _have("robot", "kuafu"):
+        pytest.skip("kuafu robot plugin missing")
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1, err
+
+
+def test_eval_without_checkpoint_says_no_policy_is_shipped(capsys, monkeypatch) -> None:
+    if not _have("robot", "kuafu"):
+        pytest.skip("kuafu robot plugin missing")
+    import coadapt_core.learning as learning
+
+    monkeypatch.setattr(learning, "shipped_checkpoint", lambda robot, terrain: None)
+    assert main(["eval", "--terrain", "slope"]) == 2
+    assert "no policy is shipped yet for robot 'kuafu' on terrain 'slope'" in capsys.readouterr().err
