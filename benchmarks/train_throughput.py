@@ -1,0 +1,98 @@
+"""Training throughput of the universal-policy learner on this machine.
+
+Measures, separately: (1) the physics ceiling — the simulator stepped with fixed targets,
+no task and no policy; (2) rollout collection — policy act + task + physics, env steps/s,
+with the share of time in physics, task code and the policy; (3) the PPO update — samples/s
+(rollout samples per second of update, all epochs) and sample-epochs/s. Prints JSON.
+
+    .venv/bin/python benchmarks/train_throughput.py --num-designs 16 --agents 16
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+
+import numpy as np
+import torch
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--robot", default="kuafu")
+    parser.add_argument("--sim", default="mujoco")
+    parser.add_argument("--terrain", default="flat")
+    parser.add_argument("--num-designs", type=int, default=16)
+    parser.add_argument("--agents", type=int, default=16)
+    parser.add_argument("--steps-per-env", type=int, default=24)
+    parser.add_argument("--epochs", type=int, default=5)
+    parser.add_argument("--minibatches", type=int, default=4)
+    parser.add_argument("--iterations", type=int, default=2, help="rollouts (and updates) timed after one warm-up")
+    parser.add_argument("--device", default="cpu")
+    parser.add_argument("--threads", type=int, default=None, help="physics threads")
+    parser.add_argument("--torch-threads", type=int, default=0)
+    args = parser.parse_args()
+
+    from coadapt_core.learning import TrainConfig, Trainer
+    from coadapt_core.plugins import get_registry
+
+    registry = get_registry()
+    robot = registry.get("robot", args.robot)()
+    sim_cls = registry.get("simulator", args.sim)
+    objectives = [registry.get("objective", n)() for n in ("tracking", "power", "torque")]
+    config = TrainConfig(
+        num_designs=args.num_designs, agents_per_design=args.agents, steps_per_env=args.steps_per_env,
+        epochs=args.epochs, minibatches=args.minibatches, device=args.device, torch_threads=args.torch_threads,
+    )
+    trainer = Trainer(robot, sim_cls, objectives, terrain=args.terrain, train_config=config, num_threads=args.threads)
+    t0 = time.perf_counter()
+    trainer.set_designs(trainer.sample_designs())
+    build_seconds = time.perf_counter() - t0
+    env, ppo = trainer.env, trainer.ppo
+    n = env.num_envs
+
+    # (1) physics ceiling: the same simulator, default-pose targets, no task, no policy
+    sim = env.sim
+    targets = sim.default_joint_pos.clone()
+    sim.step(targets)
+    steps = max(args.steps_per_env * args.iterations, 20)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        sim.step(targets)
+    physics_ceiling = n * steps / (time.perf_counter() - t0)
+
+    # (2) + (3): PPO iterations, the first one a warm-up
+    trainer.learn(1)
+    rows = []
+    trainer.learn(args.iterations, rows.append)
+    collect = float(np.mean([r.collect_steps_per_s for r in rows]))
+    update_sample_epochs = float(np.mean([r.update_samples_per_s for r in rows]))
+    physics = float(np.mean([r.physics_share for r in rows]))
+    task = float(np.mean([r.task_share for r in rows]))
+    learner = float(np.mean([r.learner_share for r in rows]))
+    samples = n * args.steps_per_env
+    collect_s = samples / collect
+    update_s = samples * args.epochs / update_sample_epochs
+    result = {
+        "machine": {"cpus": os.cpu_count(), "platform": platform.platform(), "torch_threads": torch.get_num_threads(),
+                    "device": args.device, "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None},
+        "setup": {"robot": args.robot, "sim": args.sim, "num_envs": n, "num_designs": args.num_designs,
+                  "steps_per_env": args.steps_per_env, "epochs": args.epochs, "minibatches": args.minibatches,
+                  "physics_threads": getattr(sim, "num_threads_used", None), "build_seconds": round(build_seconds, 2)},
+        "physics_ceiling_env_steps_per_s": round(physics_ceiling),
+        "collection_env_steps_per_s": round(collect),
+        "collection_vs_physics_ceiling": round(collect / physics_ceiling, 3),
+        "update_samples_per_s": round(samples / update_s),
+        "update_sample_epochs_per_s": round(update_sample_epochs),
+        "end_to_end_env_steps_per_s": round(samples / (collect_s + update_s)),
+        "time_share": {"physics": round(physics, 3), "task": round(task, 3), "learner": round(learner, 3)},
+    }
+    trainer.close()
+    print(json.dumps(result, indent=2))
+
+
+if __name__ == "__main__":
+    main()
