@@ -50,7 +50,8 @@ def _robot(name: str):
 
 
 def _env_states(sim, spec: int) -> tuple[np.ndarray, np.ndarray]:
-    """[N, nstate] full physics state and [N, nv] solver warm start of every environment."""
+    """[N, nstate] full physics state and [N, nv] solver warm start of every batch row
+    (everything here works in the batch's row order, as the recorded controls are)."""
     batch = sim._live()
     model = sim._ref.model
     out = np.empty((sim.num_envs, mujoco.mj_stateSize(model, spec)))
@@ -91,7 +92,7 @@ def measure_mujoco(
     peak_backend = _peak_rss_mb()
 
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-    models = [sim.env_model(i) for i in range(n)]
+    models = [sim._live().get_model(row) for row in range(n)]
     nthread = sim.num_threads_used
     datas = [mujoco.MjData(models[0]) for _ in range(nthread)]
     roller = mujoco.rollout.Rollout(nthread=nthread)
@@ -179,9 +180,9 @@ def measure_layouts(robot, designs: int, agents: int, threads: int | None, seed:
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     initial, _ = _env_states(sim, spec)
     ctrl = sim._ctrl.copy()
-    per_env = [sim.env_model(i) for i in range(n)]
+    per_env = [sim._live().get_model(row) for row in range(n)]
     per_design = [sim._compile(d).model for d in unique]
-    shared = [per_design[i // agents] for i in range(n)]
+    shared = [per_design[env // agents] for env in sim._env_of_row]
     batches = {"expand (backend)": sim._live()}
     for name, models in (("set_models per design", shared), ("set_models per env", per_env)):
         b = mujoco.batch.Batch(per_design[0], n, nthread=nthread)

@@ -52,6 +52,8 @@ SPAWN_MARGIN = 3.0
 _BAD_STATE_WARNINGS = [
     int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mjWARN_BADQVEL), int(mujoco.mjtWarning.mjWARN_BADQACC)
 ]
+#: seed of the fixed environment-to-batch-row shuffle (load balance across threads)
+ROW_SHUFFLE_SEED = 0x5EED
 #: model fields never expanded per design (MuJoCo options, shared by the whole batch)
 _SKIP_PREFIX = ("opt.",)
 
@@ -135,6 +137,11 @@ class MujocoSimulator(Simulator):
         self._ref = ref
         self._j = ref.robot_model.num_joints
         self._threads = int(num_threads) if num_threads is not None else _default_threads()
+        # Environment e lives in batch row _row[e]. mujoco.batch hands each thread one
+        # contiguous block of rows, so a fixed shuffle spreads each design's agents (and
+        # whatever makes some environments costlier, such as falling) over all threads.
+        self._row = np.random.default_rng(ROW_SHUFFLE_SEED).permutation(n)  # [N] env -> row
+        self._env_of_row = np.argsort(self._row)  # [N] row -> env
         self._batch = mujoco.batch.Batch(ref.model, n, nthread=self._threads)
         b = self._batch
         self._qpos = b.bind("qpos")  # [N, nq] live state rows
@@ -178,7 +185,7 @@ class MujocoSimulator(Simulator):
         self._geom_friction = np.zeros((n, ref.model.ngeom, 3))
         self._geom_solref = np.zeros((n, ref.model.ngeom, 2))
         self._base_pos0 = np.zeros((n, 3))
-        self._write_designs(np.arange(n), compiled)
+        self._write_designs(self._row, compiled)
 
         self._rng = np.random.default_rng(seed)
         # spawn points come from their own stream, so env params stay aligned with any
@@ -198,7 +205,7 @@ class MujocoSimulator(Simulator):
         self.timings = {"physics": 0.0, "actuation": 0.0, "state": 0.0}
         #: set to a list to receive each physics step's ctrl [N, nu] (open-loop replay)
         self.record_controls: list[np.ndarray] | None = None
-        self._reset_envs(np.arange(n), draw=False)
+        self._reset_rows(self._row, draw=False)
         self._state = self._build_state()
 
     # -- construction helpers ------------------------------------------------------------
@@ -266,11 +273,11 @@ class MujocoSimulator(Simulator):
         self._field_diff_cache[key] = (item, out)
         return out
 
-    def _write_designs(self, env_ids: np.ndarray, compiled: list[CompiledDesign]) -> None:
-        """Copy each design's model fields and actuator facts into its environments' rows."""
+    def _write_designs(self, rows: np.ndarray, compiled: list[CompiledDesign]) -> None:
+        """Copy each design's model fields and actuator facts into its batch rows."""
         groups: dict[int, tuple[CompiledDesign, list[int]]] = {}
-        for env, item in zip(env_ids, compiled, strict=True):
-            groups.setdefault(id(item), (item, []))[1].append(int(env))
+        for row, item in zip(rows, compiled, strict=True):
+            groups.setdefault(id(item), (item, []))[1].append(int(row))
         for item, _ in groups.values():
             for name in self._diff_fields(item):
                 if name not in self._expanded:
@@ -310,13 +317,13 @@ class MujocoSimulator(Simulator):
 
     @property
     def env_params(self) -> EnvParams:
-        return self._params.take(np.arange(self._n))
+        return self._params.take(self._row)
 
     @property
     def default_joint_pos(self) -> torch.Tensor:
         import torch
 
-        return torch.as_tensor(self._default_q, dtype=torch.float32).to(self.device)
+        return torch.as_tensor(self._default_q[self._row], dtype=torch.float32).to(self.device)
 
     @property
     def num_threads_used(self) -> int:
@@ -324,7 +331,11 @@ class MujocoSimulator(Simulator):
 
     def env_model(self, env: int) -> mujoco.MjModel:
         """A copy of environment `env`'s model with its design and randomization."""
-        return self._live().get_model(int(env))
+        return self._live().get_model(int(self._row[int(env)]))
+
+    def rows(self, env_ids: np.ndarray | int) -> np.ndarray:
+        """Batch rows of environments (for reading the live bound arrays in tests and tools)."""
+        return self._row[env_ids]
 
     # -- control -------------------------------------------------------------------------
     def _live(self) -> mujoco.batch.Batch:
@@ -346,15 +357,16 @@ class MujocoSimulator(Simulator):
         return ids
 
     def reset(self, env_ids: torch.Tensor | np.ndarray | None = None) -> SimState:
-        ids = self._ids(env_ids)
+        rows = self._row[self._ids(env_ids)]
         self._live()
-        self._reset_envs(ids)
-        self._diverged[ids] = False
+        self._reset_rows(rows)
+        self._diverged[rows] = False
         self._state = self._build_state()
         return self._state
 
-    def _reset_envs(self, ids: np.ndarray, draw: bool = True) -> None:
-        """New parameters, spawn pose and clean delay line for `ids`; others untouched.
+    def _reset_rows(self, ids: np.ndarray, draw: bool = True) -> None:
+        """New parameters, spawn pose and clean delay line for batch rows `ids` (in the
+        order of the environments asked for); others untouched.
         `draw=False` (construction) keeps the parameters in force and spawns at the origin,
         consuming no randomness: the first `reset()` makes the first draw, as in every
         backend, so one seed gives one set of parameters everywhere."""
@@ -392,8 +404,9 @@ class MujocoSimulator(Simulator):
         if self.fixed_base:
             body_pos = self._expanded["body_pos"]
             body_pos[ids, base] = np.column_stack([xy, z + FIXED_BASE_LIFT])
-        b.set_const(ids)
-        b.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
+        batch_ids = np.unique(ids)  # mujoco.batch takes sorted, unique ids
+        b.set_const(batch_ids)
+        b.reset(batch_ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
         if not self.fixed_base:
             self._qpos[ids, 0:2] = xy
             self._qpos[ids, 2] = z
@@ -404,7 +417,7 @@ class MujocoSimulator(Simulator):
         self._qvel[ids] = 0.0
         self._ctrl[ids] = 0.0
         self._time[ids] = RESET_CLOCK
-        b.forward(ids, stage=mujoco.mjtStage.mjSTAGE_ACC)
+        b.forward(batch_ids, stage=mujoco.mjtStage.mjSTAGE_ACC)
         self._delay.reset(ids, self._default_q[ids])
         self._delay.set_delay(ids, np.minimum(params.delay_steps(self.physics_dt), self._delay.capacity - 1))
         self._expected_time[ids] = RESET_CLOCK
@@ -422,19 +435,21 @@ class MujocoSimulator(Simulator):
             )
         self._live()
         compiled = [self._compile(d) for d in designs]
-        self._write_designs(ids, compiled)
+        rows = self._row[ids]
+        self._write_designs(rows, compiled)
         self._designs[ids] = designs
-        self._reset_envs(ids)
-        self._diverged[ids] = False
+        self._reset_rows(rows)
+        self._diverged[rows] = False
         self._state = self._build_state()
 
     def step(self, joint_targets: torch.Tensor) -> SimState:
         b = self._live()
         if hasattr(joint_targets, "detach"):
             joint_targets = joint_targets.detach().cpu().numpy()
-        targets = np.asarray(joint_targets, dtype=float)  # [N, J]
+        targets = np.asarray(joint_targets, dtype=float)  # [N, J] environment order
         if targets.shape != (self._n, self._j):
             raise UserError(f"joint_targets must be [{self._n}, {self._j}], got {tuple(targets.shape)}", field="joint_targets")
+        targets = targets[self._env_of_row]  # [N, J] row order, as everything below
         timings = self.timings
         perf = time.perf_counter
         self._torque[:] = 0.0
@@ -476,7 +491,7 @@ class MujocoSimulator(Simulator):
                 ids = np.flatnonzero(bad)
                 diverged[ids] = True
                 self.divergence_count += ids.size
-                self._reset_envs(ids)
+                self._reset_rows(ids)
             timings["actuation"] += t1 - t0
             timings["physics"] += t2 - t1
         self._torque /= self.decimation
@@ -497,9 +512,10 @@ class MujocoSimulator(Simulator):
         import torch
 
         n = self._n
-        qpos, qvel = self._qpos, self._qvel
+        order = self._row  # row-order arrays below are gathered into environment order
+        qpos, qvel = self._qpos[order], self._qvel[order]
         if self.fixed_base:
-            base_pos = self._xpos[:, self._ref.base_body_id]
+            base_pos = self._xpos[order, self._ref.base_body_id]
             base_quat = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
             lin_vel = np.zeros((n, 3))
             ang_vel = np.zeros((n, 3))
@@ -508,7 +524,7 @@ class MujocoSimulator(Simulator):
             base_quat = qpos[:, 3:7]
             lin_vel = qvel[:, 0:3]  # free joint: linear velocity in the world frame
             ang_vel = _quat_rotate(base_quat, qvel[:, 3:6])  # free joint: angular in the body frame
-        sd = self._sensordata
+        sd = self._sensordata[order]
         found = np.stack([sd[:, a] for a in self._sensor_adr], axis=1)  # [N, L] number of contacts
         force = np.stack([sd[:, a + 1 : a + CONTACT_SENSOR_DIM] for a in self._sensor_adr], axis=1)  # [N, L, 3]
         normal_force = np.abs(force @ self._normal)  # [N, L]
@@ -524,12 +540,12 @@ class MujocoSimulator(Simulator):
             base_ang_vel=f32(ang_vel),
             joint_pos=f32(qpos[:, self._q_index]),
             joint_vel=f32(qvel[:, self._dq_index]),
-            joint_torque=f32(self._torque),
-            foot_pos=f32(self._foot_positions()),
+            joint_torque=f32(self._torque[order]),
+            foot_pos=f32(self._foot_positions()[order]),
             foot_contact=torch.from_numpy(found > 0),
             foot_contact_force=f32(normal_force),
             terrain_height=f32(terrain_h),
-            diverged=torch.from_numpy(self._diverged.copy()),
+            diverged=torch.from_numpy(self._diverged[order]),
         )
         if str(self.device) != "cpu":
             state = state.to(self.device)

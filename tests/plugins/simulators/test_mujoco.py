@@ -59,7 +59,7 @@ def _fixed(**overrides) -> RandomizationConfig:
 def _sole_corners(sim: MujocoSimulator, env: int) -> np.ndarray:
     """[L, 4, 3] world positions of each foot's sole corners at env's current state."""
     model = sim.env_model(env)
-    data = sim._live().get_data(env)
+    data = sim._live().get_data(int(sim.rows(env)))
     mujoco.mj_kinematics(model, data)
     points = sim._ref.robot_model.foot_contact_points  # [4, 3] in the foot frame
     return np.stack([data.xpos[b] + points @ data.xmat[b].reshape(3, 3).T for b in sim._ref.foot_body_ids])
@@ -204,7 +204,7 @@ def test_foot_positions_are_current_not_one_physics_step_old(kuafu, fixed_base) 
         for k in range(20):
             state = sim.step(sim.default_joint_pos + (0.6 if k % 10 < 5 else -0.6))
             for env in range(sim.num_envs):
-                data = sim._live().get_data(env)
+                data = sim._live().get_data(int(sim.rows(env)))
                 mujoco.mj_kinematics(sim.env_model(env), data)
                 exact = data.xpos[sim._ref.foot_body_ids]
                 worst = max(worst, float(np.abs(state.foot_pos[env].numpy() - exact).max()))
@@ -215,7 +215,7 @@ def test_foot_positions_are_current_not_one_physics_step_old(kuafu, fixed_base) 
 def test_base_angular_velocity_is_in_the_world_frame(kuafu) -> None:
     with MujocoSimulator(kuafu, _designs(kuafu, 1)) as sim:
         sim.reset()
-        qpos, qvel = sim._qpos, sim._qvel
+        qpos, qvel = sim._qpos, sim._qvel  # one environment: row 0
         qpos[0, 3:7] = [math.cos(0.25 * math.pi), 0.0, 0.0, math.sin(0.25 * math.pi)]  # yaw 90 degrees
         qvel[0, 3:6] = [1.0, 0.0, 0.0]  # roll rate about the body x axis = world y
         state = sim._build_state()
@@ -244,7 +244,7 @@ def test_applied_torque_follows_the_shared_actuation_law(kuafu) -> None:
 def test_delay_holds_the_previous_target_for_whole_physics_steps(kuafu) -> None:
     with MujocoSimulator(kuafu, _designs(kuafu, 1), randomization=_fixed(delay=0.010), decimation=1, fixed_base=True) as sim:
         sim.reset()
-        assert sim._delay.delay_steps.tolist() == [2]
+        assert sim._delay.delay_steps.tolist() == [2]  # one environment
         moved = sim.default_joint_pos + 0.5
         torques = [float(sim.step(moved).joint_torque[0, 1].abs()) for _ in range(4)]
         # 10 ms = 2 physics steps: two steps still hold the reset pose (tiny torque), then full effort
@@ -308,7 +308,7 @@ def test_randomization_draws_every_range_per_environment_in_the_model(kuafu) -> 
             np.testing.assert_allclose(model.geom_solref[:, 1], restitution_to_dampratio(params.restitution[env : env + 1])[0])
             compiled = mujoco.MjModel.from_xml_string(nominal.mjcf)
             np.testing.assert_allclose(model.body_ipos[base] - compiled.body_ipos[base], params.com_shift[env], atol=1e-12)
-            assert sim._delay.delay_steps[env] == round(params.delay[env] / sim.physics_dt)
+            assert sim._delay.delay_steps[sim.rows(env)] == round(params.delay[env] / sim.physics_dt)
 
 
 def test_randomization_off_means_nominal_everywhere(kuafu) -> None:
@@ -361,15 +361,15 @@ def test_subset_reset_redraws_only_those_environments(kuafu) -> None:
         for _ in range(5):
             sim.step(sim.default_joint_pos + 0.1)
         before = sim.env_params
-        qvel_before = sim._qvel.copy()
+        qvel_before = sim._qvel[sim.rows(np.arange(4))]  # [4, nv] environment order
         sim.reset(torch.tensor([False, True, False, True]))
         after = sim.env_params
         for env in (0, 2):
             assert after.friction[env] == before.friction[env]
-            np.testing.assert_array_equal(sim._qvel[env], qvel_before[env])
+            np.testing.assert_array_equal(sim._qvel[sim.rows(env)], qvel_before[env])
         for env in (1, 3):
             assert after.friction[env] != before.friction[env]
-            assert np.all(sim._qvel[env] == 0.0)
+            assert np.all(sim._qvel[sim.rows(env)] == 0.0)
 
 
 def test_set_designs_rebuilds_only_the_given_environments(kuafu) -> None:
@@ -401,8 +401,8 @@ def test_nan_and_runaway_speeds_reset_that_environment_only(kuafu) -> None:
         sim.reset()
         for _ in range(3):
             sim.step(sim.default_joint_pos)
-        sim._qvel[1, 7] = np.nan  # through the live bound array: a blown-up state
-        sim._qvel[3, 0] = 5e4  # beyond MAX_QVEL but below MuJoCo's own 1e10 check
+        sim._qvel[sim.rows(1), 7] = np.nan  # through the live bound array: a blown-up state
+        sim._qvel[sim.rows(3), 0] = 5e4  # beyond MAX_QVEL but below MuJoCo's own 1e10 check
         state = sim.step(sim.default_joint_pos)
         assert state.diverged.tolist() == [False, True, False, True]
         for name in ("base_pos", "joint_pos", "joint_vel", "joint_torque", "foot_pos", "foot_contact_force"):
@@ -418,7 +418,7 @@ def test_mujoco_self_reset_is_detected_as_divergence(kuafu) -> None:
     the backend notices the restarted clock and respawns it properly."""
     with MujocoSimulator(kuafu, _designs(kuafu, 2)) as sim:
         sim.reset()
-        sim._qpos[0, 2] = np.inf
+        sim._qpos[sim.rows(0), 2] = np.inf
         state = sim.step(sim.default_joint_pos)
         assert state.diverged.tolist() == [True, False]
         assert abs(float(state.base_pos[0, 2]) - float(sim.reset(np.array([0])).base_pos[0, 2])) < 0.05
@@ -448,3 +448,18 @@ def test_same_seed_draws_the_same_parameters_as_the_core_sampler(kuafu) -> None:
         sample_env_params(rand, 5, rng)
         second = sample_env_params(rand, 2, rng)
         np.testing.assert_array_equal(sim.env_params.delay[[1, 3]], second.delay)
+
+
+def test_environments_are_spread_over_the_batch_rows(kuafu) -> None:
+    """mujoco.batch gives each thread a contiguous block of rows; the environments of one
+    design must not all land in one block. Environment order is restored in the state."""
+    designs = np.repeat(_designs(kuafu, 2), 8, axis=0)  # 2 designs x 8 agents
+    with MujocoSimulator(kuafu, designs, num_threads=2) as sim:
+        rows = sim.rows(np.arange(16))
+        assert sorted(rows.tolist()) == list(range(16))
+        first_design_rows = rows[:8]
+        assert 2 <= int((first_design_rows < 8).sum()) <= 6
+        state = sim.reset()
+        heights = np.array([kuafu.build(d).standing_base_height for d in designs])
+        np.testing.assert_allclose(state.base_pos[:, 2].numpy(), heights + SPAWN_CLEARANCE, atol=1e-6)
+        np.testing.assert_allclose(sim.default_joint_pos.numpy(), np.stack([kuafu.build(d).default_joint_pos for d in designs]), atol=1e-6)
