@@ -52,6 +52,8 @@ SPAWN_MARGIN = 3.0
 _BAD_STATE_WARNINGS = [
     int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mjWARN_BADQVEL), int(mujoco.mjtWarning.mjWARN_BADQACC)
 ]
+#: attributes holding arrays bound to the batch (they keep it and its threads alive)
+_BOUND = ("_qpos", "_qvel", "_ctrl", "_time", "_xpos", "_sensordata", "_cdof", "_subtree_com", "_warnings")
 #: seed of the fixed environment-to-batch-row shuffle (load balance across threads)
 ROW_SHUFFLE_SEED = 0x5EED
 #: model fields never expanded per design (MuJoCo options, shared by the whole batch)
@@ -570,5 +572,10 @@ class MujocoSimulator(Simulator):
         return out
 
     def close(self) -> None:
-        # dropping the batch joins its threads and frees its MjData
+        """Join the batch's threads and free its memory: the bound arrays keep the batch
+        alive, so they go too."""
         self._batch = None
+        for name in _BOUND:
+            setattr(self, name, None)
+        self._expanded = {}
+        self.record_controls = None

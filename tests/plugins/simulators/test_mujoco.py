@@ -463,3 +463,19 @@ def test_environments_are_spread_over_the_batch_rows(kuafu) -> None:
         heights = np.array([kuafu.build(d).standing_base_height for d in designs])
         np.testing.assert_allclose(state.base_pos[:, 2].numpy(), heights + SPAWN_CLEARANCE, atol=1e-6)
         np.testing.assert_allclose(sim.default_joint_pos.numpy(), np.stack([kuafu.build(d).default_joint_pos for d in designs]), atol=1e-6)
+
+
+def test_close_joins_the_batch_threads(kuafu) -> None:
+    import os
+
+    def threads() -> int:
+        return len(os.listdir("/proc/self/task"))
+
+    if not os.path.isdir("/proc/self/task"):
+        pytest.skip("needs Linux /proc to count threads")
+    before = threads()
+    sim = MujocoSimulator(kuafu, _designs(kuafu, 4), num_threads=3)
+    sim.step(sim.default_joint_pos)
+    assert threads() >= before + 2  # the caller's thread plus two workers
+    sim.close()
+    assert threads() == before
