@@ -196,8 +196,9 @@ def parse_list(text: str, name: str, *, integers: bool = False) -> list[Any]:
 def finished_run(store: ResultsStore, cell: Cell) -> dict[str, Any] | None:
     """A finished run of this cell in the store: launched for this cell by any grid, or by
     hand with the same method, objective, terrain, seed, preset and simulator."""
-    for run in reversed(store.list_runs(cell=cell.key, status="finished")):
-        return run
+    by_cell = store.list_runs(cell=cell.key, status="finished")
+    if by_cell:
+        return by_cell[-1]
     for run in reversed(
         store.list_runs(
             method=cell.method,
@@ -355,7 +356,8 @@ def ray_executor(
 Executor = Callable[[Sequence[CellTask], int], Iterator[tuple[CellTask, CellOutcome]]]
 
 
-def default_workers(executor: str) -> int:
+def default_workers() -> int:
+    """One cell per core: a cell's learner and physics keep a core busy on their own."""
     return max(1, os.cpu_count() or 1)
 
 
@@ -378,7 +380,7 @@ def run_grid(
         raise UserError(f"executor '{executor}' is not one of {', '.join(EXECUTORS)}", field="executor")
     if workers is not None and workers < 1:
         raise UserError(f"--workers must be >= 1, got {workers}", field="workers")
-    workers = workers or default_workers(executor)
+    workers = workers or default_workers()
     grid_id = spec.grid_id
     store.save_grid(grid_id, spec.to_dict())
     if log_dir is None and out_dir is not None:
