@@ -63,17 +63,30 @@ class Terrain:
         return (1 - fv) * ((1 - fu) * h00 + fu * h01) + fv * ((1 - fu) * h10 + fu * h11)
 
     def max_height_near(self, xy: np.ndarray, radius: float) -> np.ndarray:
-        """Highest terrain point within `radius` of each point xy [..., 2] (for spawning
-        a robot clear of the ground)."""
+        """Highest terrain point (`height_at`) in the square of half-side `radius` around
+        each point xy [..., 2] (for spawning a robot clear of the ground).
+
+        Exact for the random terrain: within each grid cell `height_at` is bilinear, so its
+        maximum over the square is at a corner of some cell-square intersection, i.e. on
+        the product of {square edges, grid lines inside} along x and along y."""
         xy = np.asarray(xy, dtype=float)
         if self.name == "flat":
             return np.zeros(xy.shape[:-1])
         if self.name == "slope":
             return (xy[..., 0] + radius) * np.tan(self.slope_radians)
-        offsets = np.linspace(-radius, radius, 7)
-        ox, oy = np.meshgrid(offsets, offsets)
-        pts = xy[..., None, :] + np.stack([ox.ravel(), oy.ravel()], axis=-1)
-        return self.height_at(pts).max(axis=-1)
+        half = self.size / 2
+        lines = int(np.ceil(2 * radius / self.resolution)) + 1  # grid lines a window can hold
+
+        def candidates(centre: np.ndarray) -> np.ndarray:
+            lo, hi = centre - radius, centre + radius  # [...]
+            first = np.floor((lo + half) / self.resolution) * self.resolution - half
+            grid = first[..., None] + self.resolution * np.arange(1, lines + 1)  # [..., lines]
+            inner = np.clip(grid, lo[..., None], hi[..., None])
+            return np.concatenate([lo[..., None], inner, hi[..., None]], axis=-1)  # [..., lines + 2]
+
+        xs, ys = candidates(xy[..., 0]), candidates(xy[..., 1])
+        pts = np.stack(np.broadcast_arrays(xs[..., :, None], ys[..., None, :]), axis=-1)  # [..., k, k, 2]
+        return self.height_at(pts).reshape(*xy.shape[:-1], -1).max(axis=-1)
 
 
 @lru_cache(maxsize=16)

@@ -130,12 +130,16 @@ def test_random_terrain_is_the_shared_height_grid(kuafu) -> None:
 
 @pytest.mark.parametrize("terrain", ["flat", "slope", "random"])
 def test_spawn_puts_soles_just_above_the_highest_ground(kuafu, terrain) -> None:
-    with MujocoSimulator(kuafu, _designs(kuafu, 4, mixed=True), terrain=terrain, seed=1) as sim:
+    with MujocoSimulator(kuafu, _designs(kuafu, 16, mixed=True), terrain=terrain, seed=1) as sim:
         state = sim.reset()
         ground = make_terrain(terrain, seed=1)
+        u, v = np.meshgrid(np.linspace(0, 1, 23), np.linspace(0, 1, 11))
         for env in range(sim.num_envs):
-            corners = _sole_corners(sim, env)  # [L, 4, 3]
-            clearance = corners[..., 2] - ground.height_at(corners[..., :2])
+            c = _sole_corners(sim, env)  # [L, 4, 3] toe-left, toe-right, heel-left, heel-right
+            soles = c[:, None, None, 2] + u[..., None] * (c[:, None, None, 0] - c[:, None, None, 2]) + v[
+                ..., None
+            ] * (c[:, None, None, 3] - c[:, None, None, 2])  # [L, 11, 23, 3] points over each sole
+            clearance = soles[..., 2] - ground.height_at(soles[..., :2])
             assert clearance.min() >= SPAWN_CLEARANCE - 1e-6, (terrain, env, clearance)
             # never far above: the highest ground within the sole's reach sets the height
             assert clearance.min() <= SPAWN_CLEARANCE + (0.05 if terrain == "random" else 0.04)
