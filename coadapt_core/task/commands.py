@@ -17,6 +17,8 @@ class CommandSampler:
         self.generator = generator
         # current half-width of the command box (same limit on |vx|, |vy| and |yaw|)
         self.limit = config.curriculum_start if config.curriculum else float("inf")
+        # finished episodes gathered for the next curriculum decision
+        self._window = {"episodes": 0, "falls": 0, "tracking": 0.0, "moving_steps": 0.0}
 
     def ranges(self) -> list[tuple[float, float]]:
         """The current (vx, vy, yaw) ranges: the configured ones clipped to +-limit."""
@@ -38,9 +40,27 @@ class CommandSampler:
         cmd[zero] = 0.0
         return cmd
 
+    def record_episodes(self, episodes: int, falls: int, tracking_sum: float, moving_steps: float) -> bool:
+        """Add finished episodes (their count, falls, the sum of the unweighted tracking term
+        over steps with a moving command and the number of such steps); once a window is full,
+        decide on the curriculum. Returns True when the box widened."""
+        w = self._window
+        w["episodes"] += episodes
+        w["falls"] += falls
+        w["tracking"] += tracking_sum
+        w["moving_steps"] += moving_steps
+        if w["episodes"] < self.config.curriculum_window:
+            return False
+        fall_share = w["falls"] / w["episodes"]
+        fraction = w["tracking"] / w["moving_steps"] if w["moving_steps"] > 0 else 0.0
+        self._window = {"episodes": 0, "falls": 0, "tracking": 0.0, "moving_steps": 0.0}
+        if fall_share > self.config.curriculum_max_fall_share:
+            return False
+        return self.update_curriculum(fraction)
+
     def update_curriculum(self, tracking_fraction: float) -> bool:
-        """Widen the box when finished episodes tracked well (fraction of the maximum linear
-        tracking reward); returns True when it widened."""
+        """Widen the box when episodes tracked well (fraction of the maximum linear tracking
+        reward); returns True when it widened."""
         if not self.config.curriculum or tracking_fraction < self.config.curriculum_threshold:
             return False
         widest = max(abs(v) for r in (self.config.vx_range, self.config.vy_range, self.config.yaw_range) for v in r)

@@ -46,12 +46,15 @@ class CommandConfig:
     zero_threshold: float = 0.1  # a planar command slower than this becomes zero (m/s)
     resample_seconds: float = 10.0  # redraw mid-episode every so often; 0 = once per episode
     # curriculum (walking-notes remedy 6): the command box starts at +-curriculum_start
-    # (clipped to the ranges above) and widens by curriculum_step whenever the mean linear
-    # tracking reward of finished episodes exceeds curriculum_threshold of its maximum
+    # (clipped to the ranges above) and widens by curriculum_step whenever, over a window of
+    # finished episodes, the mean unweighted linear tracking term on steps with a moving
+    # command exceeds curriculum_threshold and at most curriculum_max_fall_share of them fell
     curriculum: bool = True
     curriculum_start: float = 0.3
     curriculum_step: float = 0.1
     curriculum_threshold: float = 0.8
+    curriculum_max_fall_share: float = 0.2
+    curriculum_window: int = 64  # finished episodes per curriculum decision
 
     def __post_init__(self) -> None:
         for name in ("vx_range", "vy_range", "yaw_range"):

@@ -102,6 +102,8 @@ class LocomotionEnv:
         self.standing_height = z(n)
         self.episode_reward = z(n)
         self.episode_tracking = z(n)  # sum of the unweighted linear tracking term
+        self.episode_moving_tracking = z(n)  # ... over steps with a moving command
+        self.episode_moving_steps = z(n)
         self.episode_speed = z(n)  # sum of base-frame vx
         self.episode_command = z(n)  # sum of commanded vx
         self._refresh_design_buffers()
@@ -167,6 +169,8 @@ class LocomotionEnv:
         self.standing_height[ids] = (state.base_pos[ids, 2] - state.terrain_height[ids]).float()
         self.episode_reward[ids] = 0.0
         self.episode_tracking[ids] = 0.0
+        self.episode_moving_tracking[ids] = 0.0
+        self.episode_moving_steps[ids] = 0.0
         self.episode_speed[ids] = 0.0
         self.episode_command[ids] = 0.0
         self.phase[ids] = torch.rand(ids.numel(), generator=self.generator, device=self.device)
@@ -325,7 +329,10 @@ class LocomotionEnv:
         self.last_contact = contact
         tracking = terms.get("tracking_lin_vel")
         self.episode_reward += reward
-        self.episode_tracking += tracking if tracking is not None else 0.0
+        if tracking is not None:
+            self.episode_tracking += tracking
+            self.episode_moving_tracking += tracking * moving
+        self.episode_moving_steps += moving.float()
         self.episode_speed += lin[:, 0]
         self.episode_command += self.command[:, 0]
 
@@ -357,7 +364,12 @@ class LocomotionEnv:
                 "count": int(ids.numel()),
             }
             if not self.fixed_commands:
-                self.commands.update_curriculum(fraction)
+                self.commands.record_episodes(
+                    int(ids.numel()),
+                    int(terminated[ids].sum()),
+                    float(self.episode_moving_tracking[ids].sum()),
+                    float(self.episode_moving_steps[ids].sum()),
+                )
             tick = time.perf_counter()
             state = self._to_device(self.sim.reset(ids.to(sim_device)))
             self.timing["physics"] += time.perf_counter() - tick

@@ -98,6 +98,7 @@ def test_pseudo_critics_get_no_gradient_from_the_policy_loss(fake_robot, fake_si
     assert batch["pseudo_target"].shape == (2 * 16 * 4, 2)
 
 
+@pytest.mark.slow
 def test_short_training_raises_the_mean_reward(fake_robot, fake_sim_cls) -> None:
     # forward commands of 0.5-1 m/s: standing still tracks badly, so there is reward to gain
     task = TaskConfig(

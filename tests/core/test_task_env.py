@@ -156,3 +156,13 @@ def test_zero_command_freezes_the_clock_with_both_feet_in_stance(fake_robot, fak
     env.step(torch.zeros(2, 8))
     assert torch.allclose(env.phase, torch.full((2,), 0.25 + 0.02 * 1.5))
     assert math.isclose(env.dt, 0.02)
+
+
+def test_curriculum_widens_only_on_a_full_window_of_well_tracked_upright_episodes() -> None:
+    gen = torch.Generator().manual_seed(0)
+    sampler = CommandSampler(CommandConfig(curriculum_window=4), "cpu", gen)
+    assert not sampler.record_episodes(2, 0, 95.0, 100.0)  # window not full yet
+    assert sampler.record_episodes(2, 0, 90.0, 100.0) and sampler.limit == pytest.approx(0.4)
+    assert not sampler.record_episodes(4, 2, 190.0, 200.0)  # half of them fell
+    assert not sampler.record_episodes(4, 0, 150.0, 200.0)  # tracking 0.75 < 0.8
+    assert sampler.limit == pytest.approx(0.4)
