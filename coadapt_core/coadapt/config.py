@@ -43,6 +43,7 @@ class CoadaptConfig:
     eval_steps: int = 800  # T_eval: policy steps per agent in a real evaluation (Alg. 2)
     surrogate_samples: int = 4096  # T_eval states drawn from R_eval by the surrogate (Alg. 3)
     measure_surrogate_error: bool = True  # also run the surrogate on every real batch (no interactions)
+    final_candidates: int = 3  # lowest-real-cost designs re-evaluated in the final check
     # -- optimizer -----------------------------------------------------------------------------
     inertia: float = 0.9  # PSO momentum w
     c1: float = 2.0  # PSO cognitive impact
@@ -80,7 +81,7 @@ class CoadaptConfig:
             raise UserError("objective must name at least one objective", field="objective")
         if len(set(self.objectives)) != len(self.objectives):
             raise UserError(f"objective list '{self.objective}' repeats a name", field="objective")
-        for name in ("outer_iterations", "population", "optimizer_iterations", "agents_per_design", "eval_steps", "surrogate_samples", "bo_designs"):
+        for name in ("outer_iterations", "population", "optimizer_iterations", "agents_per_design", "eval_steps", "surrogate_samples", "bo_designs", "final_candidates"):
             _int_at_least(name, getattr(self, name), 1)
         for name in ("train_steps", "retrain_steps", "specialized_train_steps", "seed"):
             _int_at_least(name, getattr(self, name), 0)

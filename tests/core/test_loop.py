@@ -108,6 +108,8 @@ def test_no_surrogate_spends_more_evaluation_interactions_than_ours(tmp_path):
     assert real_only["eval_interactions"] == 15 * 20 * 50 * 20
     assert ours["eval_interactions"] < real_only["eval_interactions"]
     assert ours["train_interactions"] == real_only["train_interactions"] == 5000 + 2 * 2000
+    # final check: the 3 lowest real costs (final_candidates) and the nominal design, one rollout
+    assert real_only["final_interactions"] == (3 + 1) * 50 * 20
 
 
 def test_no_real_fills_buffer_from_training_and_spends_no_evaluation_interactions(tmp_path):
