@@ -251,7 +251,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seconds", type=float, default=20.0, help="wall time of the measured loop (both sides)")
     parser.add_argument("--threads", type=int, default=None, help="default: all cores")
     parser.add_argument("--terrain", default="flat")
-    parser.add_argument("--chunk", type=int, default=10, help="policy steps per alternating chunk")
+    parser.add_argument("--chunk", type=int, default=2, help="policy steps per alternating chunk (small: both sides see the same machine load)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--pybullet-envs", type=int, default=16)
     parser.add_argument("--no-pybullet", action="store_true")

@@ -142,7 +142,7 @@ class MujocoSimulator(Simulator):
         # Environment e lives in batch row _row[e]. mujoco.batch hands each thread one
         # contiguous block of rows, so a fixed shuffle spreads each design's agents (and
         # whatever makes some environments costlier, such as falling) over all threads.
-        self._row = np.random.default_rng(ROW_SHUFFLE_SEED).permutation(n)  # [N] env -> row
+        self._row = np.random.default_rng(ROW_SHUFFLE_SEED).permutation(n) if ROW_SHUFFLE_SEED is not None else np.arange(n)  # [N] env -> row
         self._env_of_row = np.argsort(self._row)  # [N] row -> env
         self._batch = mujoco.batch.Batch(ref.model, n, nthread=self._threads)
         b = self._batch
