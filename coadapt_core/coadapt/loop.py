@@ -30,6 +30,7 @@ from coadapt_core.objective import Objective
 from coadapt_core.optimizer import Optimizer
 
 STATE_FILE = "state.pkl"
+BUFFER_FILE_STEM = "buffer"  # <run_dir>/buffer-<serial>.pkl: the evaluation buffer R_eval
 
 
 @dataclass(frozen=True)
@@ -69,8 +70,10 @@ class LoopState:
     space: dict | None = None  # current design range (DesignSpace.to_dict)
     train_designs: np.ndarray | None = None  # [K, dim] designs of this outer iteration
     optimizer: Optimizer | None = None
-    buffer: Any = None  # evaluation buffer R_eval
+    buffer: Any = None  # evaluation buffer R_eval (pickled to its own file, see save_state)
     buffer_outer: int = -1  # outer iteration whose policy filled the buffer
+    buffer_serial: int = -1  # bumped whenever the buffer is replaced
+    buffer_saved_serial: int = -1  # the serial written to <run_dir>/buffer-<serial>.pkl
     rng_state: dict | None = None  # numpy Generator of sampling and the hybrid switch
     torch_rng_state: Any = None
     backend_checkpoint: str | None = None
@@ -103,15 +106,34 @@ ProgressFn = Callable[[dict[str, Any]], None]
 
 
 # ------------------------------------------------------------------------------------------
-def save_state(run_dir: Path, state: LoopState) -> None:
-    if "torch" in sys.modules:  # the learner's RNG; never import torch just for this
-        state.torch_rng_state = sys.modules["torch"].get_rng_state()
-    tmp = run_dir / (STATE_FILE + ".tmp")
+def _write_atomic(path: Path, obj: Any) -> None:
+    tmp = path.with_name(path.name + ".tmp")
     with open(tmp, "wb") as f:
-        pickle.dump(state, f)
+        pickle.dump(obj, f)
         f.flush()
         os.fsync(f.fileno())
-    os.replace(tmp, run_dir / STATE_FILE)
+    os.replace(tmp, path)
+
+
+def save_state(run_dir: Path, state: LoopState) -> None:
+    """Pickle the state atomically. The evaluation buffer can be large (every state of a real
+    round), so it goes to its own file, written only when it changed (`buffer_serial`)."""
+    if "torch" in sys.modules:  # the learner's RNG; never import torch just for this
+        state.torch_rng_state = sys.modules["torch"].get_rng_state()
+    buffer = state.buffer
+    if buffer is not None and state.buffer_saved_serial != state.buffer_serial:
+        _write_atomic(run_dir / f"{BUFFER_FILE_STEM}-{state.buffer_serial}.pkl", buffer)
+        stale = run_dir / f"{BUFFER_FILE_STEM}-{state.buffer_saved_serial}.pkl"
+        state.buffer_saved_serial = state.buffer_serial
+    else:
+        stale = None
+    state.buffer = None
+    try:
+        _write_atomic(run_dir / STATE_FILE, state)
+    finally:
+        state.buffer = buffer
+    if stale is not None and stale.exists():  # only once the new state points past it
+        stale.unlink()
 
 
 def load_state(run_dir: Path) -> LoopState:
@@ -120,6 +142,9 @@ def load_state(run_dir: Path) -> LoopState:
         raise UserError(f"cannot resume: '{run_dir}' has no {STATE_FILE} (not a run folder, or it never started)", field="resume")
     with open(path, "rb") as f:
         state = pickle.load(f)
+    if state.buffer_saved_serial >= 0:
+        with open(run_dir / f"{BUFFER_FILE_STEM}-{state.buffer_saved_serial}.pkl", "rb") as f:
+            state.buffer = pickle.load(f)
     if state.torch_rng_state is not None:
         import torch
 
@@ -285,6 +310,7 @@ class CoadaptationLoop:
                 self.recorder.record_training(s.run_id, outer=s.outer, result=result)
                 if self.switches.buffer_from_training and getattr(result, "buffer", None) is not None:
                     s.buffer, s.buffer_outer = result.buffer, s.outer
+                    s.buffer_serial += 1
             else:
                 self.get_backend()
             path = self.run_dir / "checkpoints" / f"backend-outer{s.outer}.pt"
@@ -341,6 +367,7 @@ class CoadaptationLoop:
         if kind == "real":
             fit = backend.real_fitness(designs, self.objectives, agents=c.agents_per_design, steps=c.eval_steps, seed=seed)
             s.buffer, s.buffer_outer = fit.buffer, s.outer  # line 15: R_eval from this rollout
+            s.buffer_serial += 1
             costs = np.asarray(fit.costs, dtype=float).reshape(len(designs), -1)
             errors = None
             if c.measure_surrogate_error:
