@@ -248,11 +248,13 @@ def table6_rows(facts: Sequence[RunFacts]) -> list[dict[str, Any]]:
 
 
 def table7_rows(facts: Sequence[RunFacts]) -> list[dict[str, Any]]:
-    """One row per method, means over its runs (the paper reports averages)."""
+    """One row per method, means over its runs (the paper reports averages). A run with
+    another optimizer than PSO (NSGA-II, mixed PSO) gets a row of its own, "ours [nsga2]":
+    its costs are not the method's."""
     groups: dict[str, list[RunFacts]] = defaultdict(list)
     for f in facts:
         if f.method != LANDSCAPE_METHOD:
-            groups[f.method].append(f)
+            groups[_method_key(f)].append(f)
     rows = []
     for m in _ordered(list(groups), METHODS):
         g = groups[m]
@@ -269,6 +271,18 @@ def table7_rows(facts: Sequence[RunFacts]) -> list[dict[str, Any]]:
             }
         )
     return rows
+
+
+def _method_key(f: RunFacts) -> str:
+    optimizer = f.run.get("optimizer")
+    if f.method == "bo-specialized" or optimizer in (None, "", "pso"):
+        return f.method
+    return f"{f.method} [{optimizer}]"
+
+
+def _label(method_key: str) -> str:
+    method, _, rest = method_key.partition(" ")
+    return f"{METHOD_LABELS.get(method, method)} {rest}".strip()
 
 
 def _fmt(value: float | None, spec: str = ".2f", pct: bool = False) -> str:
@@ -325,7 +339,7 @@ def table7_markdown(rows: Sequence[dict[str, Any]]) -> str:
         ti, ei = r["interactions_training"] / iu, r["interactions_evaluation"] / iu
         ts, es = r["seconds_training"] / tu, r["seconds_evaluation"] / tu
         lines.append(
-            f"| {METHOD_LABELS.get(r['method'], r['method'])} | {ti + ei:.3g}({ti:.3g}+{ei:.3g}) | "
+            f"| {_label(r['method'])} | {ti + ei:.3g}({ti:.3g}+{ei:.3g}) | "
             f"{ts + es:.3g}({ts:.3g}+{es:.3g}) | {r['designs_real'] + r['designs_surrogate']:.0f}"
             f"({r['designs_real']:.0f}+{r['designs_surrogate']:.0f}) | {r['runs']} |"
         )
@@ -349,6 +363,15 @@ def _pyplot():
     import matplotlib.pyplot as plt
 
     return plt
+
+
+def _spans_decades(values: Any, decades: float = 3.0) -> bool:
+    """True when positive finite values spread over more than `decades` orders of magnitude:
+    one diverged rollout (cost 1e10 next to 1e3) would flatten a linear axis, so such axes
+    go logarithmic."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    return v.size > 1 and bool((v > 0).all()) and float(v.max() / v.min()) > 10**decades
 
 
 METHOD_MARKERS = {"ours": "o", "no-surrogate": "s", "no-real": "^", "no-retrain": "D", "bo-specialized": "P"}
@@ -421,8 +444,14 @@ def figure_heatmaps(store: ResultsStore, facts: Sequence[RunFacts], out: Path) -
         sources = []
         for ax, (o, (a, b, grid, source, optimum)) in zip(axes[0], panels, strict=True):
             # lighter = lower cost, as in the paper's heat-maps
-            mesh = ax.pcolormesh(a, b, grid, cmap="viridis_r", shading="nearest" if len(a) < 20 else "gouraud")
-            fig.colorbar(mesh, ax=ax, label=f"{o} cost")
+            log = _spans_decades(grid)
+            norm = None
+            if log:
+                from matplotlib.colors import LogNorm
+
+                norm = LogNorm(vmin=float(np.nanmin(grid)), vmax=float(np.nanmax(grid)))
+            mesh = ax.pcolormesh(a, b, grid, cmap="viridis_r", norm=norm, shading="nearest" if len(a) < 20 else "gouraud")
+            fig.colorbar(mesh, ax=ax, label=f"{o} cost" + (" (log scale)" if log else ""))
             if optimum is not None:  # hollow, on top, so a method's marker under it stays visible
                 ax.plot(*optimum, marker="*", markerfacecolor="none", markeredgecolor="black", markeredgewidth=1.5,
                         markersize=22, linestyle="none", label="grid optimum", zorder=5, clip_on=False)
@@ -492,6 +521,8 @@ def figure_convergence(store: ResultsStore, facts: Sequence[RunFacts], out: Path
             ax.step(x / unit, y, where="post", color=METHOD_COLORS.get(f.method, "black"), label=label, alpha=0.85)
         ax.set_xlabel(f"environment interactions ({unit_name})")
         ax.set_ylabel(f"best real {o} cost")
+        if _spans_decades([y for line in ax.get_lines() for y in line.get_ydata()]):
+            ax.set_yscale("log")
         ax.set_title(f"{o} on {t}")
         ax.legend(fontsize=7)
     for ax in axes.ravel()[len(keys):]:
@@ -523,10 +554,16 @@ def figure_surrogate_error(facts: Sequence[RunFacts], out: Path) -> list[tuple[P
             ax.scatter(xy[:, 0], xy[:, 1], s=12, alpha=0.7, color=METHOD_COLORS.get(m, "black"), label=METHOD_LABELS.get(m, m))
         ax.axhline(0.0, color="grey", linewidth=0.8)
         errs = np.array([p[1] for p in pts])
+        reals = np.array([p[0] for p in pts])
+        if _spans_decades(reals):
+            ax.set_xscale("log")
+        if _spans_decades(np.abs(errs[np.isfinite(errs) & (errs != 0)])):
+            # errors change sign: symmetric log, linear within the smallest error's decade
+            ax.set_yscale("symlog", linthresh=float(np.nanmin(np.abs(errs[np.isfinite(errs) & (errs != 0)]))))
         finite = np.isfinite(errs)
         mean_abs = f"{np.abs(errs[finite]).mean():.3g}" if finite.any() else "n/a"
-        missing = f"; {int((~finite).sum())} not finite, not drawn" if not finite.all() else ""
-        ax.set_title(f"{o}: mean |error| {mean_abs} over {int(finite.sum())} designs{missing}", fontsize=9)
+        missing = f", {int((~finite).sum())} NaN not drawn" if not finite.all() else ""
+        ax.set_title(f"{o}: mean |error| {mean_abs} ({int(finite.sum())} designs{missing})", fontsize=9)
         ax.set_xlabel(f"real {o} cost")
         ax.set_ylabel("surrogate error (as recorded by the run)")
         ax.legend(fontsize=7)
@@ -564,6 +601,10 @@ def figure_pareto(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]
         ax.plot(front[:, 0], front[:, 1], "o-", color="tab:red", label=f"Pareto front ({mask.sum()})")
         ax.set_xlabel(f"{o1} cost")
         ax.set_ylabel(f"{o2} cost")
+        if _spans_decades(costs[:, 0]):
+            ax.set_xscale("log")
+        if _spans_decades(costs[:, 1]):
+            ax.set_yscale("log")
         ax.set_title(f"{f.run['id']}\n{f.run['optimizer'] or ''} on {f.terrain}", fontsize=8)
         ax.legend(fontsize=7)
     fig.tight_layout()
@@ -632,7 +673,7 @@ def write_report(
     t7_html_rows = [
         {**r, "inter_t": r["interactions_training"] / iu, "inter_e": r["interactions_evaluation"] / iu,
          "time_t": r["seconds_training"] / tu, "time_e": r["seconds_evaluation"] / tu,
-         "method": METHOD_LABELS.get(r["method"], r["method"])}
+         "method": _label(r["method"])}
         for r in t7
     ]
     t6_html_rows = [{**r, "method": METHOD_LABELS.get(r["method"], r["method"])} for r in t6]
