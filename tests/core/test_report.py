@@ -5,6 +5,7 @@ landscape run is stored like any run and resumable."""
 from __future__ import annotations
 
 import csv
+import json
 from pathlib import Path
 
 import numpy as np
@@ -231,3 +232,45 @@ def test_report_cli_writes_files(filled_store, tmp_path):
     assert (tmp_path / "cli" / "report.html").exists() and (tmp_path / "cli" / "heatmap_flat.png").exists()
     bad = run_cli("report", "missing-run", "--store", store.url, "-o", str(tmp_path / "cli"))
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--grid", "1"], "error: --grid must be between 2 and 101 points per axis, got 1"),
+    (["--terrain", "ice"], "error: --terrain 'ice' is not one of flat, slope, random"),
+    (["--checkpoint", "/nonexistent/policy.pt"], "error: --checkpoint /nonexistent/policy.pt does not exist"),
+    (["--objective", "speed"], "error: unknown objective 'speed'"),
+])
+def test_landscape_cli_bad_input_is_one_line(tmp_path, args, message):
+    from tests.conftest import run_cli
+
+    proc = run_cli("landscape", "--store", str(tmp_path / "l.db"), *args)
+    assert proc.returncode == 2
+    (line,) = proc.stderr.strip().splitlines()
+    assert line.startswith(message)
+
+
+@pytest.mark.slow
+def test_landscape_cli_on_real_mujoco_with_a_saved_policy(tmp_path):
+    """End to end: a barely trained universal policy saved by the learner, a 3 x 3 landscape
+    on MuJoCo through `coadapt landscape`, stored as a run the report draws."""
+    from coadapt_core.learning.backend import UniversalPolicyBackend
+    from coadapt_core.plugins import get_registry
+    from tests.conftest import run_cli
+
+    registry = get_registry()
+    robot = registry.get("robot", "kuafu")()
+    backend = UniversalPolicyBackend(robot, registry.get("simulator", "mujoco"), objective_instances(["torque"]),
+                                     terrain="flat", design_space=robot.design_space(), agents_per_design=1, seed=0)
+    backend.train(np.array([[1.0, 1.0]]), 64, seed=0)  # builds the networks; a few PPO steps
+    backend.save(str(tmp_path / "policy.pt"))
+    proc = run_cli("landscape", "--objective", "torque", "--grid", "3", "--agents", "1", "--steps", "10",
+                   "--checkpoint", str(tmp_path / "policy.pt"), "--store", str(tmp_path / "l.db"), "--json", timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads(proc.stdout.strip().splitlines()[-1])
+    store = ResultsStore(tmp_path / "l.db")
+    rows = store.evaluations(summary["run_id"], kind="real")
+    assert len(rows) == 9 and sum(e.interactions for e in rows) == summary["interactions"] == 9 * 10
+    assert sorted({round(e.design[0], 6) for e in rows}) == [0.5, 1.0, 1.5]
+    best = min(rows, key=lambda e: e.costs["torque"])
+    assert summary["best_cost"] == pytest.approx(best.costs["torque"]) and summary["best_design"] == best.design
+    assert all(np.isfinite(e.costs["torque"]) and e.costs["torque"] >= 0 for e in rows)
