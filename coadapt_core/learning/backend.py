@@ -17,7 +17,7 @@ from coadapt_core.errors import UserError
 from coadapt_core.fitness import RealFitness, TrainingResult
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.evaluate import EvalBuffer, rollout
-from coadapt_core.learning.trainer import Trainer
+from coadapt_core.learning.trainer import Trainer, read_checkpoint
 from coadapt_core.objective import Objective
 from coadapt_core.robot import Robot
 from coadapt_core.task.config import TaskConfig
@@ -41,7 +41,9 @@ class UniversalPolicyBackend:
     - checkpoint: a file written by `save` or `Trainer.save`/`export_weights` to start from
       (resume / fine-tune, Algorithm 4 retraining); pseudo-critics are matched by objective
       name, missing ones start fresh.
-    - train_config: `TrainConfig` (sizes, PPO settings); its device/seed are overridden.
+    - train_config: `TrainConfig` (sizes, PPO settings; default: the checkpoint's, else the
+      defaults); its device, seed and agents_per_design are overridden. The task settings
+      come from the checkpoint when one is given.
 
     `train(designs, steps)` trains on the given designs (K of them, `agents_per_design` each)
     for about `steps` interactions; its `TrainingResult.buffer` holds critic states of the
@@ -67,7 +69,12 @@ class UniversalPolicyBackend:
         train_config: TrainConfig | None = None,
         task_config: TaskConfig | None = None,
     ):
-        config = copy.deepcopy(train_config) if train_config is not None else TrainConfig()
+        saved = read_checkpoint(checkpoint) if checkpoint else None
+        if train_config is None:
+            train_config = TrainConfig.from_dict(saved["train_config"]) if saved else TrainConfig()
+        if task_config is None and saved is not None:
+            task_config = TaskConfig.from_dict(saved["task_config"])  # same observation sizes
+        config = copy.deepcopy(train_config)
         config.agents_per_design = int(agents_per_design)
         self.trainer = Trainer(
             robot,
