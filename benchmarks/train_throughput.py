@@ -51,7 +51,7 @@ def main() -> None:
     t0 = time.perf_counter()
     trainer.set_designs(trainer.sample_designs())
     build_seconds = time.perf_counter() - t0
-    env, ppo = trainer.env, trainer.ppo
+    env = trainer.env
     n = env.num_envs
 
     # (1) physics ceiling: the same simulator, default-pose targets, no task, no policy
