@@ -123,7 +123,10 @@ def compile_design(
         raise UserError(f"design {np.round(design, 4).tolist()}: MuJoCo cannot compile its model: {exc}", field="design") from None
     if terrain.name == "random":
         # exact heights (the compiler may renormalise user elevation data)
-        model.hfield_data[:] = (terrain.height_grid() / terrain.max_height).ravel()
+        hid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_HFIELD, HFIELD)
+        start = model.hfield_adr[hid]
+        values = (terrain.height_grid() / terrain.max_height).ravel()
+        model.hfield_data[start : start + values.size] = values
     base_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, rm.base_body)
     if base_id < 0:
         raise UserError(f"robot model has no base body '{rm.base_body}'", field="robot")
