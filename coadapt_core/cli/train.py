@@ -74,6 +74,9 @@ def register(app: typer.Typer) -> None:
         num_designs: int | None = typer.Option(None, "--num-designs", help="K designs sampled from the range (default 128)."),
         agents: int | None = typer.Option(None, help="Environments per design (default 32); num envs = K x agents."),
         steps_per_env: int | None = typer.Option(None, "--steps-per-env", help="Rollout length per PPO update (default 24)."),
+        resample_designs: int | None = typer.Option(
+            None, "--resample-designs", help="Draw new designs every N iterations (default 0: keep the K designs, Algorithm 1)."
+        ),
         epochs: int | None = typer.Option(None, help="PPO epochs per update (default 5)."),
         minibatches: int | None = typer.Option(None, help="Minibatches per epoch (default 4)."),
         lr: float | None = typer.Option(None, "--lr", help="Initial learning rate (default 1e-3, KL-adaptive)."),
@@ -95,6 +98,8 @@ def register(app: typer.Typer) -> None:
                             ("--epochs", epochs), ("--minibatches", minibatches)):
             if value is not None and value < 1:
                 fail(f"{name} must be >= 1, got {value}")
+        if resample_designs is not None and resample_designs < 0:
+            fail(f"--resample-designs must be >= 0, got {resample_designs}")
         if checkpoint_every < 1:
             fail(f"--checkpoint-every must be >= 1, got {checkpoint_every}")
         _check_device(device)
@@ -115,6 +120,7 @@ def register(app: typer.Typer) -> None:
         overrides = {
             "num_designs": num_designs, "agents_per_design": agents, "steps_per_env": steps_per_env,
             "epochs": epochs, "minibatches": minibatches, "learning_rate": lr,
+            "design_resample_every": resample_designs,
         }
         for key, value in overrides.items():
             if value is not None:

@@ -171,3 +171,18 @@ def test_pseudo_critics_follow_objectives_by_name_on_load(fake_robot, fake_sim_c
     a = trainer.ppo.pseudo_values(x, xi)
     b = swapped.ppo.pseudo_values(x, xi)
     assert torch.allclose(a[:, [1, 0]], b, atol=1e-6)
+
+
+def test_designs_are_redrawn_from_the_range_every_n_iterations(fake_robot, fake_sim_cls) -> None:
+    space = fake_robot.design_space().with_bounds({"thigh_scale": (0.6, 0.8)})
+    trainer = Trainer(
+        fake_robot, fake_sim_cls, [SquaredTorque()], design_space=space,
+        train_config=small_config(design_resample_every=2, steps_per_env=4), task_config=TaskConfig(),
+    )
+    trainer.set_designs(trainer.sample_designs())
+    first = trainer.designs.copy()
+    trainer.learn(2)
+    assert np.array_equal(trainer.designs, first)
+    trainer.learn(1)
+    assert not np.array_equal(trainer.designs, first)
+    assert np.all((trainer.env.sim.designs[:, 0] >= 0.6) & (trainer.env.sim.designs[:, 0] <= 0.8))
