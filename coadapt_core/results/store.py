@@ -257,12 +257,20 @@ class ResultsStore:
         else:
             self.engine = sa.create_engine(self.url, pool_pre_ping=True)
         if create:
+            self._create_tables()
+
+    def _create_tables(self) -> None:
+        for attempt in range(3):
             try:
                 metadata.create_all(self.engine)
+                return
             except sa.exc.OperationalError as exc:
-                raise UserError(
-                    f"store '{self.url}' cannot be opened: {exc.orig}", field="store"
-                ) from None
+                # two processes creating a fresh database at once: the loser sees the
+                # winner's tables half made; looking again finds them all
+                if "already exists" in str(exc.orig) and attempt < 2:
+                    time.sleep(0.2)
+                    continue
+                raise UserError(f"store '{self.url}' cannot be opened: {exc.orig}", field="store") from None
 
     def close(self) -> None:
         self.engine.dispose()

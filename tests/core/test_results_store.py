@@ -227,3 +227,28 @@ def test_make_recorder_tees_json_files_into_the_store_beside_the_runs_folder(tmp
     assert isinstance(make_recorder(tmp_path / "runs" / "r2", "none"), JsonRecorder)
     monkeypatch.setenv("COADAPT_STORE", str(tmp_path / "env.db"))
     assert make_recorder(tmp_path / "runs" / "r3").url.endswith("env.db")
+
+
+def _open_and_record(db: str, n: int) -> None:
+    rec = SqliteRecorder(db)
+    run_id = rec.start_run({**CONFIG, "seed": n})
+    for i in range(20):
+        rec.record_evaluation(run_id, outer=0, inner=i, design=[1.0, 1.0], costs={"torque": float(i)}, kind="real",
+                              interactions=1, seconds=0.0)
+    rec.finish(run_id, {"n": n})
+
+
+def test_processes_creating_and_writing_one_store_at_once(tmp_path):
+    """Four processes open a store that does not exist yet and write to it concurrently
+    (what a grid's first cells do): every row arrives."""
+    ctx = multiprocessing.get_context("spawn")
+    procs = [ctx.Process(target=_open_and_record, args=(str(tmp_path / "c.db"), n)) for n in range(4)]
+    for p in procs:
+        p.start()
+    for p in procs:
+        p.join(timeout=120)
+    assert [p.exitcode for p in procs] == [0, 0, 0, 0]
+    store = ResultsStore(tmp_path / "c.db")
+    runs = store.list_runs(status="finished")
+    assert sorted(r["seed"] for r in runs) == [0, 1, 2, 3]
+    assert all(store.count_evaluations(r["id"]) == 20 for r in runs)
