@@ -30,10 +30,12 @@ def main() -> None:
     parser.add_argument("--steps-per-env", type=int, default=24)
     parser.add_argument("--epochs", type=int, default=5)
     parser.add_argument("--minibatches", type=int, default=4)
+    parser.add_argument("--pseudo-epochs", type=int, default=0)
     parser.add_argument("--iterations", type=int, default=2, help="rollouts (and updates) timed after one warm-up")
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--threads", type=int, default=None, help="physics threads")
     parser.add_argument("--torch-threads", type=int, default=0)
+    parser.add_argument("--objectives", default="tracking,power,torque", help="pseudo-critics to train ('' for none)")
     args = parser.parse_args()
 
     from coadapt_core.learning import TrainConfig, Trainer
@@ -42,10 +44,10 @@ def main() -> None:
     registry = get_registry()
     robot = registry.get("robot", args.robot)()
     sim_cls = registry.get("simulator", args.sim)
-    objectives = [registry.get("objective", n)() for n in ("tracking", "power", "torque")]
+    objectives = [registry.get("objective", n)() for n in args.objectives.split(",") if n]
     config = TrainConfig(
         num_designs=args.num_designs, agents_per_design=args.agents, steps_per_env=args.steps_per_env,
-        epochs=args.epochs, minibatches=args.minibatches, device=args.device, torch_threads=args.torch_threads,
+        epochs=args.epochs, minibatches=args.minibatches, pseudo_epochs=args.pseudo_epochs, device=args.device, torch_threads=args.torch_threads,
     )
     trainer = Trainer(robot, sim_cls, objectives, terrain=args.terrain, train_config=config, num_threads=args.threads)
     t0 = time.perf_counter()
@@ -79,7 +81,7 @@ def main() -> None:
     result = {
         "machine": {"cpus": os.cpu_count(), "platform": platform.platform(), "torch_threads": torch.get_num_threads(),
                     "device": args.device, "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None},
-        "setup": {"robot": args.robot, "sim": args.sim, "num_envs": n, "num_designs": args.num_designs,
+        "setup": {"robot": args.robot, "sim": args.sim, "num_envs": n, "pseudo_critics": len(objectives), "num_designs": args.num_designs,
                   "steps_per_env": args.steps_per_env, "epochs": args.epochs, "minibatches": args.minibatches,
                   "physics_threads": getattr(sim, "num_threads_used", None), "build_seconds": round(build_seconds, 2)},
         "physics_ceiling_env_steps_per_s": round(physics_ceiling),

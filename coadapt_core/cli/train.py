@@ -79,6 +79,7 @@ def register(app: typer.Typer) -> None:
         ),
         epochs: int | None = typer.Option(None, help="PPO epochs per update (default 5)."),
         minibatches: int | None = typer.Option(None, help="Minibatches per epoch (default 4)."),
+        pseudo_epochs: int | None = typer.Option(None, "--pseudo-epochs", help="Pseudo-critic epochs per update (default: as PPO's)."),
         lr: float | None = typer.Option(None, "--lr", help="Initial learning rate (default 1e-3, KL-adaptive)."),
         torch_threads: int = typer.Option(0, "--torch-threads", help="Learner CPU threads (0: 1 on <= 4 cores, else torch's default)."),
         objectives: str = typer.Option(DEFAULT_OBJECTIVES, help="Objectives whose pseudo-critics are trained, comma-separated."),
@@ -95,7 +96,7 @@ def register(app: typer.Typer) -> None:
         if steps < 1:
             fail(f"--steps must be >= 1, got {steps}")
         for name, value in (("--num-designs", num_designs), ("--agents", agents), ("--steps-per-env", steps_per_env),
-                            ("--epochs", epochs), ("--minibatches", minibatches)):
+                            ("--epochs", epochs), ("--minibatches", minibatches), ("--pseudo-epochs", pseudo_epochs)):
             if value is not None and value < 1:
                 fail(f"{name} must be >= 1, got {value}")
         if resample_designs is not None and resample_designs < 0:
@@ -120,7 +121,7 @@ def register(app: typer.Typer) -> None:
         overrides = {
             "num_designs": num_designs, "agents_per_design": agents, "steps_per_env": steps_per_env,
             "epochs": epochs, "minibatches": minibatches, "learning_rate": lr,
-            "design_resample_every": resample_designs,
+            "design_resample_every": resample_designs, "pseudo_epochs": pseudo_epochs,
         }
         for key, value in overrides.items():
             if value is not None:

@@ -206,9 +206,10 @@ class PPO:
         n = flat.shape[0]
         size = max(n // c.minibatches, 1)
         sums = {"loss_objective": 0.0, "loss_critic": 0.0, "loss_entropy": 0.0, "loss_pseudo": 0.0, "kl": 0.0, "entropy": 0.0}
-        count = 0
+        count = pseudo_count = 0
         params = list(self.loss.parameters())
-        for _ in range(c.epochs):
+        pseudo_epochs = c.pseudo_epochs or c.epochs
+        for epoch in range(c.epochs):
             order = torch.randperm(n, device=self.device)
             for start in range(0, n - size + 1, size):
                 batch = flat[order[start : start + size]]
@@ -227,7 +228,7 @@ class PPO:
                 loss.backward()
                 torch.nn.utils.clip_grad_norm_(params, c.max_grad_norm, foreach=True)
                 self.optimizer.step()
-                if self.pseudo_critic is not None:
+                if self.pseudo_critic is not None and epoch < pseudo_epochs:
                     # the pseudo-critics see data only: no path from their loss to the actor
                     pred = self.pseudo_critic(batch["critic_obs"], batch["design_obs"])
                     loss_pseudo = torch.nn.functional.mse_loss(pred, batch["pseudo_target"])
@@ -236,6 +237,7 @@ class PPO:
                     torch.nn.utils.clip_grad_norm_(self.pseudo_critic.parameters(), c.max_grad_norm, foreach=True)
                     self.pseudo_optimizer.step()
                     sums["loss_pseudo"] += loss_pseudo.item()
+                    pseudo_count += 1
                 for key in ("loss_objective", "loss_critic", "loss_entropy"):
                     sums[key] += out[key].item()
                 sums["kl"] += kl
@@ -243,6 +245,7 @@ class PPO:
                 count += 1
         self.rollout = None
         stats = {k: v / max(count, 1) for k, v in sums.items()}
+        stats["loss_pseudo"] = sums["loss_pseudo"] / max(pseudo_count, 1)
         stats["learning_rate"] = self.learning_rate
         stats["action_std"] = self.actor_net.log_std.detach().exp().mean().item()
         return stats

@@ -186,3 +186,12 @@ def test_designs_are_redrawn_from_the_range_every_n_iterations(fake_robot, fake_
     trainer.learn(1)
     assert not np.array_equal(trainer.designs, first)
     assert np.all((trainer.env.sim.designs[:, 0] >= 0.6) & (trainer.env.sim.designs[:, 0] <= 0.8))
+
+
+def test_pseudo_epochs_limit_the_pseudo_critic_steps(fake_robot, fake_sim_cls) -> None:
+    trainer = make_trainer(fake_robot, fake_sim_cls, small_config(epochs=3, minibatches=2, pseudo_epochs=1))
+    trainer.set_designs(np.array([[1.0, 1.0]]))
+    trainer.learn(1)
+    ppo = trainer.ppo
+    assert int(ppo.optimizer.state_dict()["state"][0]["step"]) == 3 * 2
+    assert int(ppo.pseudo_optimizer.state_dict()["state"][0]["step"]) == 1 * 2
