@@ -7,7 +7,7 @@ import math
 import os
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -46,10 +46,12 @@ class IterationStats:
     task_share: float
     learner_share: float
     losses: dict[str, float]
+    reward_terms: dict[str, float] = field(default_factory=dict)  # mean weighted value per step
 
     def to_dict(self) -> dict:
-        out = {k: v for k, v in self.__dict__.items() if k != "losses"}
+        out = {k: v for k, v in self.__dict__.items() if k not in ("losses", "reward_terms")}
         out.update({f"loss/{k}": v for k, v in self.losses.items()})
+        out.update({f"reward/{k}": v for k, v in self.reward_terms.items()})
         return out
 
 
@@ -182,9 +184,13 @@ class Trainer:
             physics0, step0 = env.timing["physics"], env.timing["step"]
             start = time.perf_counter()
             rewards, errors, alternation = [], [], []
-            vx_sum, vx_count, cmd_sum = 0.0, 0, 0.0
+            # on-device sums: no host synchronisation inside the rollout loop
+            vx_sum = torch.zeros((), device=self.device)
+            cmd_sum = torch.zeros((), device=self.device)
+            vx_count = torch.zeros((), device=self.device)
             episodes: list[dict] = []
             visited: list[torch.Tensor] = []
+            term_sums: dict[str, torch.Tensor] = {}
             for _ in range(cfg.steps_per_env):
                 visited.append(critic_obs)
                 actions = ppo.act(obs, critic_obs, design_obs)
@@ -196,10 +202,12 @@ class Trainer:
                 lin, command = info["base_lin_vel"], info["command"]
                 errors.append((command[:, :2] - lin[:, :2]).norm(dim=-1).mean())
                 alternation.append((info["foot_contact"].sum(dim=-1) == 1).float().mean())
-                forward = command[:, 0] > 0.1
-                vx_sum += float(lin[forward, 0].sum())
-                cmd_sum += float(command[forward, 0].sum())
-                vx_count += int(forward.sum())
+                forward = (command[:, 0] > 0.1).float()
+                vx_sum += (lin[:, 0] * forward).sum()
+                cmd_sum += (command[:, 0] * forward).sum()
+                vx_count += forward.sum()
+                for name, value in info["reward_terms"].items():
+                    term_sums[name] = term_sums.get(name, 0.0) + value
                 if "episode" in info:
                     episodes.append(info["episode"])
             collect_seconds = time.perf_counter() - start
@@ -222,8 +230,8 @@ class Trainer:
                 episode_reward=_weighted_mean(episodes, "reward"),
                 episode_length_s=_weighted_mean(episodes, "length_s"),
                 tracking_error=float(torch.stack(errors).mean()),
-                vx=vx_sum / vx_count if vx_count else float("nan"),
-                command_vx=cmd_sum / vx_count if vx_count else float("nan"),
+                vx=float(vx_sum / vx_count) if float(vx_count) > 0 else float("nan"),
+                command_vx=float(cmd_sum / vx_count) if float(vx_count) > 0 else float("nan"),
                 alternation=float(torch.stack(alternation).mean()),
                 fall_rate=falls / (env.num_envs * cfg.steps_per_env * env.dt),
                 command_limit=float(env.commands.limit),
@@ -233,6 +241,7 @@ class Trainer:
                 task_share=task / total,
                 learner_share=1.0 - (physics + task) / total,
                 losses=losses,
+                reward_terms={k: float(v) / cfg.steps_per_env for k, v in term_sums.items()},
             )
             if callback is not None:
                 callback(stats)

@@ -45,7 +45,7 @@ class LocomotionEnv:
     `info` of `step` holds: `metrics` [N, M] per-step objective costs (order of
     `objectives`); `final_critic_obs` [N, C] critic state before auto-reset (for bootstrapping
     timeouts); `terminated` [N]; `base_lin_vel`, `base_ang_vel` [N, 3] (base frame),
-    `foot_contact` [N, L] and `command` [N, 3] of the step; `reward_terms` {name: mean weighted value}; and `episode` {name: mean over the
+    `foot_contact` [N, L] and `command` [N, 3] of the step; `reward_terms` {name: mean weighted value, a 0-dim tensor}; and `episode` {name: mean over the
     episodes that just ended} when any ended.
     """
 
@@ -347,7 +347,7 @@ class LocomotionEnv:
             "base_ang_vel": ang,
             "foot_contact": contact,
             "command": self.command.clone(),
-            "reward_terms": {k: float(v.mean()) for k, v in weighted.items()},
+            "reward_terms": {k: v.mean() for k, v in weighted.items()},  # 0-dim tensors, no sync
         }
         ids = done.nonzero(as_tuple=False).flatten()
         changed = ids.numel() > 0
