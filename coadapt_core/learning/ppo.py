@@ -26,6 +26,9 @@ from tensordict.nn import TensorDictModule
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.networks import ActorNet, EmpiricalNormalization, ValueNet
 
+#: per-step metrics are clamped to +-METRIC_LIMIT before the pseudo-critics see them
+METRIC_LIMIT = 1e15
+
 
 def discounted_average_targets(
     metrics: torch.Tensor,  # [N, T, M] per-step metric P_t
@@ -170,7 +173,10 @@ class PPO:
             },
             batch_size=td.batch_size,
         )
-        td["metrics"] = metrics.float()
+        # a non-finite or absurd metric (an exploding w_t = exp(e^2) of a flailing robot) must
+        # not poison the pseudo-critics' running statistics: NaN -> 0, clamp to +-1e15 so the
+        # float32 variance (squares) stays finite
+        td["metrics"] = torch.nan_to_num(metrics.float(), nan=0.0).clamp(-METRIC_LIMIT, METRIC_LIMIT)
 
     # -- returns ----------------------------------------------------------------------------
     def pseudo_values(self, critic_obs_normed: torch.Tensor, design_obs: torch.Tensor) -> torch.Tensor:
@@ -232,12 +238,13 @@ class PPO:
                     # the pseudo-critics see data only: no path from their loss to the actor
                     pred = self.pseudo_critic(batch["critic_obs"], batch["design_obs"])
                     loss_pseudo = torch.nn.functional.mse_loss(pred, batch["pseudo_target"])
-                    self.pseudo_optimizer.zero_grad(set_to_none=True)
-                    loss_pseudo.backward()
-                    torch.nn.utils.clip_grad_norm_(self.pseudo_critic.parameters(), c.max_grad_norm, foreach=True)
-                    self.pseudo_optimizer.step()
-                    sums["loss_pseudo"] += loss_pseudo.item()
-                    pseudo_count += 1
+                    if torch.isfinite(loss_pseudo):  # never step on a non-finite loss
+                        self.pseudo_optimizer.zero_grad(set_to_none=True)
+                        loss_pseudo.backward()
+                        torch.nn.utils.clip_grad_norm_(self.pseudo_critic.parameters(), c.max_grad_norm, foreach=True)
+                        self.pseudo_optimizer.step()
+                        sums["loss_pseudo"] += loss_pseudo.item()
+                        pseudo_count += 1
                 for key in ("loss_objective", "loss_critic", "loss_entropy"):
                     sums[key] += out[key].item()
                 sums["kl"] += kl

@@ -195,3 +195,25 @@ def test_pseudo_epochs_limit_the_pseudo_critic_steps(fake_robot, fake_sim_cls) -
     ppo = trainer.ppo
     assert int(ppo.optimizer.state_dict()["state"][0]["step"]) == 3 * 2
     assert int(ppo.pseudo_optimizer.state_dict()["state"][0]["step"]) == 1 * 2
+
+
+class Exploding(Objective):
+    name = "exploding"
+    display_name = "exploding"
+
+    def step_cost(self, step: StepBatch) -> torch.Tensor:
+        cost = torch.full((step.command.shape[0],), 1e30)
+        cost[0] = float("inf")
+        cost[1] = float("nan")
+        return cost
+
+
+def test_non_finite_metrics_do_not_poison_the_pseudo_critics(fake_robot, fake_sim_cls) -> None:
+    trainer = make_trainer(fake_robot, fake_sim_cls, objectives=[Exploding(), SquaredTorque()])
+    trainer.set_designs(np.array([[1.0, 1.0]]))
+    trainer.learn(2)
+    ppo = trainer.ppo
+    assert all(torch.isfinite(p).all() for p in ppo.pseudo_critic.parameters())
+    assert torch.isfinite(ppo.pseudo_norm.var).all() and float(ppo.pseudo_norm.mean[0]) <= 1e15
+    values = ppo.pseudo_values(torch.zeros(3, ppo.dims.num_critic_obs), torch.zeros(3, 2))
+    assert torch.isfinite(values).all()
