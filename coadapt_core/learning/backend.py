@@ -17,7 +17,7 @@ from coadapt_core.errors import UserError
 from coadapt_core.fitness import RealFitness, TrainingResult
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.evaluate import EvalBuffer, rollout
-from coadapt_core.learning.trainer import Trainer, read_checkpoint
+from coadapt_core.learning.trainer import Trainer, read_checkpoint, reseed_simulator
 from coadapt_core.objective import Objective
 from coadapt_core.robot import Robot
 from coadapt_core.task.config import TaskConfig
@@ -103,6 +103,9 @@ class UniversalPolicyBackend:
         steps0 = self.trainer.total_steps
         torch.manual_seed(seed)
         self.trainer.set_designs(designs)
+        # the environment's streams restart from `seed`, so this phase is a function of the
+        # checkpointed state, the designs and the seed (exact resume, docs/coadaptation.md)
+        self.trainer.reseed(seed)
         stats = self.trainer.learn(self.trainer.iterations_for(int(steps)))
         visited = self.trainer.last_rollout_critic_obs
         buffer = EvalBuffer(visited) if visited is not None else None
@@ -131,8 +134,10 @@ class UniversalPolicyBackend:
             self.eval_env.sim.close()
         task = copy.deepcopy(tr.task_config)
         task.commands.resample_seconds = 0.0
-        sim = tr.simulator_cls(tr.robot, per_env, terrain=tr.terrain, randomization=tr.randomization, seed=seed)
-        self.eval_env = LocomotionEnv(sim, tr.robot, task, tr.objectives, seed=seed, device=tr.device)
+        # built with the backend's seed, not the call's: the terrain (seeded by the simulator's
+        # seed) must not depend on which call happened to build the environment
+        sim = tr.simulator_cls(tr.robot, per_env, terrain=tr.terrain, randomization=tr.randomization, seed=tr.config.seed)
+        self.eval_env = LocomotionEnv(sim, tr.robot, task, tr.objectives, seed=tr.config.seed, device=tr.device)
         return self.eval_env
 
     def _check_objectives(self, objectives: Sequence[Objective]) -> list[int]:
@@ -157,9 +162,15 @@ class UniversalPolicyBackend:
         self.trainer.ensure_ppo(env)
         env.cfg.episode_seconds = steps * env.dt + 1.0
         env.max_episode_length = steps + 10
-        # commands: one per agent from the current box, identical across designs
-        if self.trainer.env is not None:
-            env.commands.limit = self.trainer.env.commands.limit
+        # real fitness is a function of the policy, the curriculum, the designs and `seed`
+        # alone: the randomization and spawn streams restart here (the task's own generator
+        # restarts in `rollout`), whatever earlier calls drew
+        reseed_simulator(env.sim, int(seed))
+        # commands: one per agent from the current box (the live training environment's, or
+        # the loaded checkpoint's), identical across designs
+        commands = self.trainer.command_state()
+        if commands is not None:
+            env.commands.load_state_dict(commands)
         gen = torch.Generator(device=env.device)
         gen.manual_seed(int(seed))
         env.commands.generator = gen

@@ -124,6 +124,7 @@ class Trainer:
             if not np.array_equal(self.env.sim.designs, per_env):
                 self.env.set_designs(np.arange(len(per_env)), per_env)
         else:
+            commands = self.command_state()  # the curriculum outlives a rebuilt environment
             self.close()
             sim = self.simulator_cls(
                 self.robot,
@@ -134,8 +135,8 @@ class Trainer:
                 num_threads=self.num_threads,
             )
             self.env = LocomotionEnv(sim, self.robot, self.task_config, self.objectives, seed=self.config.seed, device=self.device)
-            if self._pending_commands is not None:  # curriculum state of a loaded checkpoint
-                self.env.commands.load_state_dict(self._pending_commands)
+            if commands is not None:  # of the environment replaced, or of a loaded checkpoint
+                self.env.commands.load_state_dict(commands)
         self.designs = designs
         self.agents = agents
         self._obs = None
@@ -153,6 +154,26 @@ class Trainer:
                 field="checkpoint",
             )
         return self.ppo
+
+    def command_state(self) -> dict | None:
+        """The command curriculum in force: the live environment's, else a loaded
+        checkpoint's (None before either exists)."""
+        if self.env is not None:
+            return self.env.commands.state_dict()
+        return self._pending_commands
+
+    def reseed(self, seed: int) -> None:
+        """Restart the environment's random streams from `seed` (the task's torch generator,
+        which also draws commands, and the simulator's numpy generators); the next `learn`
+        resets every environment. After this, training depends only on the checkpointed
+        state (networks, normalisers, optimizers, curriculum, counters), the designs and
+        `seed`, not on what the environment did before, so a resumed run trains exactly as
+        an uninterrupted one."""
+        if self.env is None:
+            return
+        self.env.generator.manual_seed(int(seed))
+        reseed_simulator(self.env.sim, int(seed))
+        self._obs = None
 
     def close(self) -> None:
         if self.env is not None:
@@ -272,9 +293,14 @@ class Trainer:
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         state = {"format": CHECKPOINT_FORMAT, **self._header(), "ppo": self.ppo.state_dict()}
-        if self.env is not None:
-            state["commands"] = self.env.commands.state_dict()
-        torch.save(state, path)
+        commands = self.command_state()
+        if commands is not None:
+            state["commands"] = commands
+        state["design_rng"] = self.rng.bit_generator.state  # sample_designs / design resampling
+        # written to a temporary file first: a kill mid-write leaves the previous checkpoint
+        tmp = path.with_name(path.name + ".tmp")
+        torch.save(state, tmp)
+        os.replace(tmp, path)
         return path
 
     def export_weights(self, path: str | Path) -> Path:
@@ -315,7 +341,23 @@ class Trainer:
         if self.env is not None and "commands" in state:
             self.env.commands.load_state_dict(state["commands"])
         self._pending_commands = state.get("commands")
+        if "design_rng" in state:
+            self.rng.bit_generator.state = state["design_rng"]
         return state
+
+
+def reseed_simulator(sim, seed: int) -> None:
+    """Restart a simulator's numpy random streams from `seed`: its own `reseed(seed)` when
+    it has one, else every `numpy.random.Generator` attribute (sorted by name, the k-th from
+    SeedSequence([seed, k])), in place, so references held elsewhere follow."""
+    own = getattr(sim, "reseed", None)
+    if callable(own):
+        own(int(seed))
+        return
+    names = sorted(k for k, v in vars(sim).items() if isinstance(v, np.random.Generator))
+    for k, name in enumerate(names):
+        gen = getattr(sim, name)
+        gen.bit_generator.state = type(gen.bit_generator)(np.random.SeedSequence([int(seed), k])).state
 
 
 def _weighted_mean(episodes: list[dict], key: str) -> float:

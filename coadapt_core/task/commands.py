@@ -70,7 +70,11 @@ class CommandSampler:
         return True
 
     def state_dict(self) -> dict:
-        return {"limit": self.limit}
+        """The curriculum: the box's half-width and the episodes gathered towards the next
+        decision (a resumed run must widen the box when the uninterrupted one would)."""
+        return {"limit": self.limit, "window": dict(self._window)}
 
     def load_state_dict(self, state: dict) -> None:
         self.limit = float(state["limit"])
+        if "window" in state:  # checkpoints before the window was saved start a fresh one
+            self._window = dict(state["window"])
