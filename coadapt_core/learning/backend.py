@@ -52,6 +52,14 @@ class UniversalPolicyBackend:
     returns the mean per-step metric [K, M] (set `stochastic_evaluation = False` for the
     policy mean); `surrogate_fitness` averages the pseudo-critics over `samples`
     buffer states with each candidate's xi substituted.
+
+    Exact resume: `train` and `real_fitness` restart every random stream of their
+    environment (the simulator's numpy generators, the task's torch generator, the command
+    draw) from their `seed`, and reset every environment first, so each is a function of the
+    checkpointed state (networks, normalisers, Adam moments, learning rate, command
+    curriculum, design RNG, counters), its arguments and the global torch RNG alone. A
+    backend that `load`s a `save`d checkpoint therefore trains and evaluates bit-identically
+    to the one that saved it (CPU), whatever that one did before.
     """
 
     def __init__(
@@ -221,6 +229,7 @@ class UniversalPolicyBackend:
 
     # -- checkpoints ------------------------------------------------------------------------
     def save(self, path: str) -> None:
+        """Everything `train`/`real_fitness` depend on (see the class docstring), atomically."""
         self.trainer.save(path)
 
     def load(self, path: str) -> None:
