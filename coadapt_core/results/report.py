@@ -377,6 +377,9 @@ def _spans_decades(values: Any, decades: float = 3.0) -> bool:
 METHOD_MARKERS = {"ours": "o", "no-surrogate": "s", "no-real": "^", "no-retrain": "D", "bo-specialized": "P"}
 METHOD_COLORS = {"ours": "tab:red", "no-surrogate": "tab:blue", "no-real": "tab:green", "no-retrain": "tab:purple",
                  "bo-specialized": "tab:orange"}
+#: methods that share a seed share their first rounds: distinct dashes keep every curve visible
+METHOD_LINESTYLES = {"ours": "-", "no-surrogate": (0, (5, 2)), "no-real": (0, (1, 1.5)), "no-retrain": "-.",
+                     "bo-specialized": (0, (3, 1, 1, 1, 1, 1))}
 
 
 def _landscape_for(store: ResultsStore, objective: str, terrain: str) -> dict[str, Any] | None:
@@ -518,7 +521,8 @@ def figure_convergence(store: ResultsStore, facts: Sequence[RunFacts], out: Path
                 continue
             label = None if f.method in labelled else METHOD_LABELS.get(f.method, f.method)
             labelled.add(f.method)
-            ax.step(x / unit, y, where="post", color=METHOD_COLORS.get(f.method, "black"), label=label, alpha=0.85)
+            ax.step(x / unit, y, where="post", color=METHOD_COLORS.get(f.method, "black"), label=label, alpha=0.85,
+                    linestyle=METHOD_LINESTYLES.get(f.method, "-"), linewidth=1.8)
         ax.set_xlabel(f"environment interactions ({unit_name})")
         ax.set_ylabel(f"best real {o} cost")
         if _spans_decades([y for line in ax.get_lines() for y in line.get_ydata()]):
@@ -551,7 +555,10 @@ def figure_surrogate_error(facts: Sequence[RunFacts], out: Path) -> list[tuple[P
     for ax, (o, pts) in zip(axes[0], sorted(series.items()), strict=True):
         for m in _ordered({p[2] for p in pts}, METHODS):
             xy = np.array([(p[0], p[1]) for p in pts if p[2] == m])
-            ax.scatter(xy[:, 0], xy[:, 1], s=12, alpha=0.7, color=METHOD_COLORS.get(m, "black"), label=METHOD_LABELS.get(m, m))
+            # hollow markers of different shapes: coinciding designs of two methods stay visible
+            ax.scatter(xy[:, 0], xy[:, 1], s=36, facecolors="none", linewidths=1.2,
+                       edgecolors=METHOD_COLORS.get(m, "black"), marker=METHOD_MARKERS.get(m, "x"),
+                       label=METHOD_LABELS.get(m, m))
         ax.axhline(0.0, color="grey", linewidth=0.8)
         errs = np.array([p[1] for p in pts])
         reals = np.array([p[0] for p in pts])
