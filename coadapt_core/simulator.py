@@ -149,6 +149,17 @@ class Simulator(ABC):
         heights = make_terrain(self.terrain, seed=self.seed).height_at(xy.detach().cpu().numpy())
         return torch.as_tensor(heights, dtype=xy.dtype, device=xy.device)
 
+    def reseed(self, seed: int) -> None:
+        """Restart every random stream of the backend from `seed` (the next `reset` then
+        draws randomization and spawn points from it). Exact resume of a co-adaptation run
+        relies on it. Default: each `numpy.random.Generator` attribute, sorted by name, is
+        restarted in place from SeedSequence([seed, k]); a backend that keeps randomness
+        elsewhere overrides this."""
+        names = sorted(k for k, v in vars(self).items() if isinstance(v, np.random.Generator))
+        for k, name in enumerate(names):
+            gen = getattr(self, name)
+            gen.bit_generator.state = type(gen.bit_generator)(np.random.SeedSequence([int(seed), k])).state
+
     def close(self) -> None:  # noqa: B027 - optional hook
         """Release processes, threads or native resources."""
 

@@ -17,7 +17,7 @@ HOOKS = sorted(name for name, obj in inspect.getmembers(hookspecs, inspect.isfun
 
 
 def test_hookspecs_are_the_four_kinds():
-    assert HOOKS == sorted(hook for hook, _ in KINDS.values())
+    assert sorted(hook for hook, _ in KINDS.values()) == HOOKS
 
 
 @pytest.mark.parametrize("hook", HOOKS)

@@ -347,17 +347,9 @@ class Trainer:
 
 
 def reseed_simulator(sim, seed: int) -> None:
-    """Restart a simulator's numpy random streams from `seed`: its own `reseed(seed)` when
-    it has one, else every `numpy.random.Generator` attribute (sorted by name, the k-th from
-    SeedSequence([seed, k])), in place, so references held elsewhere follow."""
-    own = getattr(sim, "reseed", None)
-    if callable(own):
-        own(int(seed))
-        return
-    names = sorted(k for k, v in vars(sim).items() if isinstance(v, np.random.Generator))
-    for k, name in enumerate(names):
-        gen = getattr(sim, name)
-        gen.bit_generator.state = type(gen.bit_generator)(np.random.SeedSequence([int(seed), k])).state
+    """Restart a simulator's random streams from `seed` (`Simulator.reseed`, which backends
+    may override; the base class restarts every numpy Generator attribute in place)."""
+    sim.reseed(int(seed))
 
 
 def _weighted_mean(episodes: list[dict], key: str) -> float:

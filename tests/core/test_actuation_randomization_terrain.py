@@ -43,9 +43,9 @@ def test_delay_line_delays_per_env():
 def test_randomization_ranges_and_off():
     cfg = RandomizationConfig()
     p = sample_env_params(cfg, 2000, np.random.default_rng(0))
-    assert 0.5 <= p.friction.min() and p.friction.max() <= 1.25
+    assert p.friction.min() >= 0.5 and p.friction.max() <= 1.25
     assert p.com_shift.shape == (2000, 3) and np.abs(p.com_shift).max() <= 0.025
-    assert 0.0 <= p.delay.min() and p.delay.max() <= 0.020
+    assert p.delay.min() >= 0.0 and p.delay.max() <= 0.020
     assert p.friction.std() > 0.1
     off = sample_env_params(RandomizationConfig.off(), 10, np.random.default_rng(0))
     assert np.all(off.friction == 1.0) and np.all(off.delay == 0.0) and np.all(off.pd_factor == 1.0)
@@ -65,7 +65,7 @@ def test_terrains():
     np.testing.assert_allclose(flat.height_at(xy), 0.0)
     np.testing.assert_allclose(slope.height_at(xy), xy[:, 0] * np.tan(np.radians(10.0)))
     h = rough.height_at(np.random.default_rng(0).uniform(-5, 5, (1000, 2)))
-    assert 0.0 <= h.min() and h.max() <= 0.05 and h.std() > 0.005
+    assert h.min() >= 0.0 and h.max() <= 0.05 and h.std() > 0.005
     grid = rough.height_grid()
     assert grid.shape == (201, 201)
     # grid vertices are hit exactly

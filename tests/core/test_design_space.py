@@ -13,7 +13,7 @@ def mixed():
 
 
 def test_inverted_bounds_rejected_with_field_name():
-    with pytest.raises(UserError, match="'thigh'.*inverted"):
+    with pytest.raises(UserError, match=r"'thigh'.*inverted"):
         Continuous("thigh", 1.5, 0.5)
 
 

@@ -12,7 +12,7 @@ from coadapt_core.testing import ObjectiveConformance, OptimizerConformance
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "example_plugin"))
 
-from coadapt_example import JointSpeedObjective, RandomSearch  # noqa: E402
+from coadapt_example import JointSpeedObjective, RandomSearch
 
 
 class TestJointSpeedObjective(ObjectiveConformance):

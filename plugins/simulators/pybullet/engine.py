@@ -326,11 +326,9 @@ class Engine:
             self.restitution[e] = params["restitution"][i]
             self.pd_factor[e] = params["pd_factor"][i]
             self.motor_strength[e] = params["motor_strength"][i]
-            shift = np.asarray(params["com_shift"][i], dtype=float)
-            if not np.array_equal(shift, self.loaded_shift[e]):
-                self._load(e, self.specs[e], shift)
-            else:
-                self._apply_contact_params(e)
+            # always a fresh body: Bullet keeps contact manifolds and solver warm starts of a
+            # body across resetJointState, so a reused body would not repeat a trajectory
+            self._load(e, self.specs[e], np.asarray(params["com_shift"][i], dtype=float))
             self._reset_pose(e)
         self.delay.set_delay(env_ids, params["delay_steps"])
         self.delay.reset(env_ids, self.default_joint_pos[env_ids])
