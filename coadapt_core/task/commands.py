@@ -18,7 +18,7 @@ class CommandSampler:
         # current half-width of the command box (same limit on |vx|, |vy| and |yaw|)
         self.limit = config.curriculum_start if config.curriculum else float("inf")
         # finished episodes gathered for the next curriculum decision
-        self._window = {"episodes": 0, "falls": 0, "tracking": 0.0, "moving_steps": 0.0}
+        self._window = {"episodes": 0, "falls": 0, "tracking": 0.0, "moving_steps": 0.0, "seconds": 0.0}
 
     def ranges(self) -> list[tuple[float, float]]:
         """The current (vx, vy, yaw) ranges: the configured ones clipped to +-limit."""
@@ -40,21 +40,24 @@ class CommandSampler:
         cmd[zero] = 0.0
         return cmd
 
-    def record_episodes(self, episodes: int, falls: int, tracking_sum: float, moving_steps: float) -> bool:
+    def record_episodes(
+        self, episodes: int, falls: int, tracking_sum: float, moving_steps: float, seconds: float
+    ) -> bool:
         """Add finished episodes (their count, falls, the sum of the unweighted tracking term
-        over steps with a moving command and the number of such steps); once a window is full,
-        decide on the curriculum. Returns True when the box widened."""
+        over steps with a moving command, the number of such steps, and their total duration
+        in s); once a window is full, decide on the curriculum. Returns True when it widened."""
         w = self._window
         w["episodes"] += episodes
         w["falls"] += falls
         w["tracking"] += tracking_sum
         w["moving_steps"] += moving_steps
+        w["seconds"] = w.get("seconds", 0.0) + seconds
         if w["episodes"] < self.config.curriculum_window:
             return False
-        fall_share = w["falls"] / w["episodes"]
+        fall_rate = w["falls"] / max(w["seconds"], 1e-9)  # falls per second of episode time
         fraction = w["tracking"] / w["moving_steps"] if w["moving_steps"] > 0 else 0.0
-        self._window = {"episodes": 0, "falls": 0, "tracking": 0.0, "moving_steps": 0.0}
-        if fall_share > self.config.curriculum_max_fall_share:
+        self._window = {"episodes": 0, "falls": 0, "tracking": 0.0, "moving_steps": 0.0, "seconds": 0.0}
+        if fall_rate > self.config.curriculum_max_fall_rate:
             return False
         return self.update_curriculum(fraction)
 

@@ -369,6 +369,7 @@ class LocomotionEnv:
                     int(terminated[ids].sum()),
                     float(self.episode_moving_tracking[ids].sum()),
                     float(self.episode_moving_steps[ids].sum()),
+                    float(lengths.sum()) * self.dt,
                 )
             tick = time.perf_counter()
             state = self._to_device(self.sim.reset(ids.to(sim_device)))

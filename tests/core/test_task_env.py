@@ -161,8 +161,10 @@ def test_zero_command_freezes_the_clock_with_both_feet_in_stance(fake_robot, fak
 def test_curriculum_widens_only_on_a_full_window_of_well_tracked_upright_episodes() -> None:
     gen = torch.Generator().manual_seed(0)
     sampler = CommandSampler(CommandConfig(curriculum_window=4), "cpu", gen)
-    assert not sampler.record_episodes(2, 0, 95.0, 100.0)  # window not full yet
-    assert sampler.record_episodes(2, 0, 90.0, 100.0) and sampler.limit == pytest.approx(0.4)
-    assert not sampler.record_episodes(4, 2, 190.0, 200.0)  # half of them fell
-    assert not sampler.record_episodes(4, 0, 150.0, 200.0)  # tracking 0.75 < 0.8
+    assert not sampler.record_episodes(2, 0, 95.0, 100.0, 40.0)  # window not full yet
+    assert sampler.record_episodes(2, 0, 90.0, 100.0, 40.0) and sampler.limit == pytest.approx(0.4)
+    assert not sampler.record_episodes(4, 4, 190.0, 200.0, 80.0)  # 0.05 falls/s > 0.03
+    assert not sampler.record_episodes(4, 0, 150.0, 200.0, 80.0)  # tracking 0.75 < 0.8
     assert sampler.limit == pytest.approx(0.4)
+    # one fall in 80 s of 20 s episodes (a quarter of the episodes fell) no longer blocks it
+    assert sampler.record_episodes(4, 1, 190.0, 200.0, 80.0) and sampler.limit == pytest.approx(0.5)
