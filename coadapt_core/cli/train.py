@@ -93,8 +93,8 @@ def register(app: typer.Typer) -> None:
         quiet: bool = typer.Option(False, help="No progress bar; one JSON line per iteration on stdout."),
     ) -> None:
         """Train the universal policy pi(a|o, xi) with its critic and pseudo-critics (PPO)."""
-        if steps < 1:
-            fail(f"--steps must be >= 1, got {steps}")
+        if steps < 0 or (steps == 0 and resume is None):
+            fail(f"--steps must be >= 1 (or 0 with --resume: export the checkpoint without training), got {steps}")
         for name, value in (("--num-designs", num_designs), ("--agents", agents), ("--steps-per-env", steps_per_env),
                             ("--epochs", epochs), ("--minibatches", minibatches), ("--pseudo-epochs", pseudo_epochs)):
             if value is not None and value < 1:
@@ -143,7 +143,7 @@ def register(app: typer.Typer) -> None:
         if resume is not None:
             trainer.load(resume)
         trainer.set_designs(trainer.sample_designs())
-        iterations = trainer.iterations_for(steps)
+        iterations = trainer.iterations_for(steps) if steps > 0 else 0  # 0: export only
         out.mkdir(parents=True, exist_ok=True)
         logger = _logger(out)
         progress_file = (out / "progress.jsonl").open("a")
@@ -166,7 +166,9 @@ def register(app: typer.Typer) -> None:
             if quiet:
                 print(json.dumps(row), flush=True)
 
-        if quiet:
+        if iterations == 0:
+            pass
+        elif quiet:
             trainer.learn(iterations, record)
         else:
             from rich.progress import (
