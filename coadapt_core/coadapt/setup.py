@@ -3,6 +3,7 @@ objectives, optimizer class and the backend factory (the universal-policy learne
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -143,4 +144,20 @@ def resolve_checkpoint(config: CoadaptConfig) -> str | None:
     except ImportError:
         return None
     path = shipped_checkpoint(config.robot, config.terrain)
-    return None if path is None else str(path)
+    if path is None:
+        return None
+    # a shipped policy takes the design input it was trained on (e.g. the two leg scales);
+    # for another design space (the mixed one with motor types) training starts from scratch
+    from coadapt_core.learning import read_checkpoint
+    from coadapt_core.plugins import get_registry
+
+    trained_dim = int(read_checkpoint(path)["dims"]["num_design"])
+    wanted_dim = get_registry().get("robot", config.robot)().design_space(uses_mixed_space(config)).dim
+    if trained_dim != wanted_dim:
+        print(
+            f"note: the shipped {config.robot} policy for {config.terrain} takes {trained_dim} design "
+            f"values, this run's design space has {wanted_dim}: training starts from scratch",
+            file=sys.stderr,
+        )
+        return None
+    return str(path)
