@@ -1,0 +1,27 @@
+"""A built wheel carries the plugin data files and the entry points (not only an editable
+install): the shipped policy, the mass model, and every built-in plugin's entry point."""
+
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.slow
+def test_wheel_carries_data_and_entry_points(tmp_path):
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", str(ROOT), "-w", str(tmp_path)],
+        check=True, capture_output=True, cwd=tmp_path,
+    )
+    wheel = zipfile.ZipFile(next(tmp_path.glob("coadapt-*.whl")))
+    names = set(wheel.namelist())
+    assert "coadapt_plugins/robots/kuafu/policies/flat.pt" in names
+    assert "coadapt_plugins/robots/kuafu/mass_model.json" in names
+    entry_points = next(n for n in names if n.endswith("entry_points.txt"))
+    text = wheel.read(entry_points).decode()
+    for name in ("coadapt.robots.kuafu", "coadapt.simulators.mujoco", "coadapt.optimizers.pso", "coadapt.objectives.locomotion"):
+        assert name in text
