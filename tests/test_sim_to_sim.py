@@ -29,8 +29,6 @@ from coadapt_core.sim2sim import (
 @pytest.fixture(scope="module")
 def figures():
     registry = get_registry()
-    if "mujoco" not in registry.names("simulator"):
-        pytest.skip("the mujoco simulator plugin is not available")
     return compare_backends(registry.create("robot", "kuafu"))
 
 
@@ -79,8 +77,6 @@ def test_same_seed_same_parameters_and_spawn_on_both_backends(terrain):
     from coadapt_core.randomization import RandomizationConfig
 
     registry = get_registry()
-    if "mujoco" not in registry.names("simulator"):
-        pytest.skip("the mujoco simulator plugin is not available")
     robot = registry.create("robot", "kuafu")
     designs = np.array([[1.0, 1.0], [0.6, 1.4]])
     seen = []

@@ -8,20 +8,9 @@ import json
 import pytest
 
 from coadapt_core.cli import main
-from coadapt_core.plugins import get_registry
-
-
-def _have(kind: str, name: str) -> bool:
-    return name in get_registry().names(kind)
-
-
-needs_mujoco = pytest.mark.skipif(
-    not (_have("robot", "kuafu") and _have("simulator", "mujoco")), reason="kuafu robot or mujoco backend missing"
-)
 
 
 @pytest.mark.slow
-@needs_mujoco
 def test_train_writes_a_checkpoint_that_eval_and_resume_read(tmp_path, capsys) -> None:
     out = tmp_path / "run"
     args = ["train", "--steps", "128", "--num-designs", "2", "--agents", "4", "--steps-per-env", "8",
@@ -64,16 +53,12 @@ def test_train_writes_a_checkpoint_that_eval_and_resume_read(tmp_path, capsys) -
     ],
 )
 def test_bad_options_give_one_line_and_exit_2(args, message, capsys) -> None:
-    if not _have("robot", "kuafu"):
-        pytest.skip("kuafu robot plugin missing")
     assert main(args) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1, err
 
 
 def test_eval_without_checkpoint_says_no_policy_is_shipped(capsys, monkeypatch) -> None:
-    if not _have("robot", "kuafu"):
-        pytest.skip("kuafu robot plugin missing")
     import coadapt_core.learning as learning
 
     monkeypatch.setattr(learning, "shipped_checkpoint", lambda robot, terrain: None)

@@ -12,8 +12,6 @@ from coadapt_core.plugins import get_registry
 @pytest.mark.slow
 def test_short_mujoco_training_lengthens_episodes_and_raises_the_reward() -> None:
     registry = get_registry()
-    if "kuafu" not in registry.names("robot") or "mujoco" not in registry.names("simulator"):
-        pytest.skip("kuafu robot or mujoco backend missing")
     from coadapt_core.learning import TrainConfig, Trainer
     from coadapt_core.randomization import RandomizationConfig
     from coadapt_core.task import TaskConfig

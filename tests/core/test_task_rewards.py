@@ -145,8 +145,6 @@ def test_kuafu_raibert_targets_at_zero_command_are_its_standing_pose() -> None:
     from coadapt_core.plugins import get_registry
 
     registry = get_registry()
-    if "kuafu" not in registry.names("robot"):
-        pytest.skip("kuafu robot plugin not installed")
     robot = registry.get("robot", "kuafu")()
     for design in (np.array([1.0, 1.0]), np.array([0.6, 1.3])):
         designs = torch.tensor(design[None, :], dtype=torch.float32)
