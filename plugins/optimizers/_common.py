@@ -39,3 +39,14 @@ def check_positive(name: str, value: float, *, allow_zero: bool = True) -> float
         bound = ">= 0" if allow_zero else "> 0"
         raise UserError(f"optimizer option '{name}' = {value:g} must be a finite number {bound}", field=name)
     return value
+
+
+def pop_swarm_options(kwargs: dict) -> tuple[float, float, float, float, np.ndarray | None]:
+    """Take the particle-swarm options out of `kwargs` (the rest go to `Optimizer`) and check
+    them: (inertia 0.9, c1 2.0, c2 2.0, max_velocity_rate 0.2, initial_designs None), the
+    paper's settings by default."""
+    inertia = check_positive("inertia", kwargs.pop("inertia", 0.9))
+    c1 = check_positive("c1", kwargs.pop("c1", 2.0))
+    c2 = check_positive("c2", kwargs.pop("c2", 2.0))
+    max_velocity_rate = check_positive("max_velocity_rate", kwargs.pop("max_velocity_rate", 0.2), allow_zero=False)
+    return inertia, c1, c2, max_velocity_rate, kwargs.pop("initial_designs", None)

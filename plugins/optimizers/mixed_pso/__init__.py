@@ -16,7 +16,7 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 import numpy as np
-from coadapt_plugins.optimizers._common import check_positive, finite_costs, initial_designs
+from coadapt_plugins.optimizers._common import finite_costs, initial_designs, pop_swarm_options
 
 from coadapt_core import hookimpl
 from coadapt_core.design_space import DesignSpace
@@ -37,15 +37,8 @@ class MixedPSOOptimizer(Optimizer):
     supports_mixed: ClassVar[bool] = True
 
     def __init__(self, space: DesignSpace, **kwargs: Any):
-        inertia = kwargs.pop("inertia", 0.9)
-        c1 = kwargs.pop("c1", 2.0)
-        c2 = kwargs.pop("c2", 2.0)
-        max_velocity_rate = kwargs.pop("max_velocity_rate", 0.2)
-        initial = kwargs.pop("initial_designs", None)
+        self.inertia, self.c1, self.c2, self.max_velocity, initial = pop_swarm_options(kwargs)
         super().__init__(space, **kwargs)
-        self.inertia = check_positive("inertia", inertia)
-        self.c1, self.c2 = check_positive("c1", c1), check_positive("c2", c2)
-        self.max_velocity = check_positive("max_velocity_rate", max_velocity_rate, allow_zero=False)
         self._rng = np.random.default_rng(self.seed)
         n, d = self.population, space.dim
         initial = initial_designs(space, initial, n)

@@ -6,7 +6,7 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 import numpy as np
-from coadapt_plugins.optimizers._common import check_positive, finite_costs, initial_designs
+from coadapt_plugins.optimizers._common import finite_costs, initial_designs, pop_swarm_options
 
 from coadapt_core import hookimpl
 from coadapt_core.design_space import DesignSpace
@@ -25,18 +25,12 @@ class PSOOptimizer(Optimizer):
     description: ClassVar[str] = "particle swarm (pymoo PSO, inertia 0.9, c1 = c2 = 2.0)"
 
     def __init__(self, space: DesignSpace, **kwargs: Any):
-        inertia = kwargs.pop("inertia", 0.9)
-        c1 = kwargs.pop("c1", 2.0)
-        c2 = kwargs.pop("c2", 2.0)
-        max_velocity_rate = kwargs.pop("max_velocity_rate", 0.2)
-        initial = kwargs.pop("initial_designs", None)
+        self.inertia, self.c1, self.c2, max_velocity_rate, initial = pop_swarm_options(kwargs)
         super().__init__(space, **kwargs)
         from pymoo.algorithms.soo.nonconvex.pso import PSO
         from pymoo.core.problem import Problem
         from pymoo.operators.sampling.lhs import LHS
 
-        self.inertia = check_positive("inertia", inertia)
-        self.c1, self.c2 = check_positive("c1", c1), check_positive("c2", c2)
         initial = initial_designs(space, initial, self.population)
         sampling = LHS() if initial is None else space.encode(initial)
         self._problem = Problem(n_var=space.dim, n_obj=1, xl=np.zeros(space.dim), xu=np.ones(space.dim))
@@ -47,7 +41,7 @@ class PSOOptimizer(Optimizer):
             c1=self.c1,
             c2=self.c2,
             adaptive=False,
-            max_velocity_rate=check_positive("max_velocity_rate", max_velocity_rate, allow_zero=False),
+            max_velocity_rate=max_velocity_rate,
         )
         # the budget is enforced by the Optimizer base; pymoo's own termination never stops it
         self._algorithm.setup(self._problem, seed=self.seed, termination=("n_gen", 10**9), verbose=False)
