@@ -146,6 +146,7 @@ def register(app: typer.Typer) -> None:
         narrow_min_width: float = typer.Option(None, help="Narrowing: minimum width as a fraction of the full range."),
         bo_designs: int = typer.Option(None, help="bo-specialized: designs BO proposes."),
         specialized_train_steps: int = typer.Option(None, help="bo-specialized: interactions per specialised policy."),
+        specialized_init: str = typer.Option(None, help="bo-specialized: scratch (the paper's) or universal (fine-tune the universal policy per design)."),
         checkpoint: str = typer.Option(None, help="Universal policy to start from ('none' = from scratch)."),
         device: str = typer.Option(None, help="Torch device of the learner (default cpu)."),
         store: str = typer.Option(None, help="Results store URL or path (default: $COADAPT_STORE, else coadapt.db beside --out; none: JSON files only)."),
@@ -165,7 +166,7 @@ def register(app: typer.Typer) -> None:
             "measure_surrogate_error": measure_surrogate_error, "final_candidates": final_candidates, "inertia": inertia, "c1": c1, "c2": c2,
             "bo_sampler": bo_sampler, "bo_storage": bo_storage, "narrow_margin": narrow_margin,
             "narrow_min_width": narrow_min_width, "bo_designs": bo_designs,
-            "specialized_train_steps": specialized_train_steps, "checkpoint": checkpoint, "device": device,
+            "specialized_train_steps": specialized_train_steps, "specialized_init": specialized_init, "checkpoint": checkpoint, "device": device,
             "store": store,
         }
         try:

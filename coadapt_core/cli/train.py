@@ -87,14 +87,23 @@ def register(app: typer.Typer) -> None:
         threads: int | None = typer.Option(None, help="Physics threads (default: the backend's choice)."),
         seed: int = typer.Option(0, help="Random seed."),
         resume: Path | None = typer.Option(None, help="Checkpoint to resume from (networks, optimizers, normalisers, counters)."),
+        init_from: Path | None = typer.Option(
+            None, "--init-from",
+            help="Start from this policy's weights and normalisers (fresh optimizer state); one taking fewer design "
+            "values (e.g. the leg scales only, for --mixed) gets zero weights for the new ones.",
+        ),
         out: Path = typer.Option(Path("runs/train"), help="Output directory (checkpoints, logs, progress.jsonl)."),
         checkpoint_every: int = typer.Option(50, "--checkpoint-every", help="Iterations between checkpoints."),
         mixed: bool = typer.Option(False, help="Also sample the discrete design variables (motor types)."),
+        reset_pseudo_critics: bool = typer.Option(
+            False, "--reset-pseudo-critics",
+            help="With --resume or --init-from: restart the pseudo-critics from scratch (after an objective's definition changed).",
+        ),
         quiet: bool = typer.Option(False, help="No progress bar; one JSON line per iteration on stdout."),
     ) -> None:
         """Train the universal policy pi(a|o, xi) with its critic and pseudo-critics (PPO)."""
-        if steps < 0 or (steps == 0 and resume is None):
-            fail(f"--steps must be >= 1 (or 0 with --resume: export the checkpoint without training), got {steps}")
+        if steps < 0 or (steps == 0 and resume is None and init_from is None):
+            fail(f"--steps must be >= 1 (or 0 with --resume or --init-from: export without training), got {steps}")
         for name, value in (("--num-designs", num_designs), ("--agents", agents), ("--steps-per-env", steps_per_env),
                             ("--epochs", epochs), ("--minibatches", minibatches), ("--pseudo-epochs", pseudo_epochs)):
             if value is not None and value < 1:
@@ -112,9 +121,15 @@ def register(app: typer.Typer) -> None:
         from coadapt_core.learning import TrainConfig, Trainer, read_checkpoint
         from coadapt_core.task import TaskConfig
 
-        state = read_checkpoint(resume) if resume is not None else None
+        if resume is not None and init_from is not None:
+            fail("--resume and --init-from exclude each other: resume continues a run, --init-from starts a new one from its weights")
+        if reset_pseudo_critics and resume is None and init_from is None:
+            fail("--reset-pseudo-critics needs --resume or --init-from (a new run's pseudo-critics are fresh anyway)")
+        source = resume if resume is not None else init_from
+        state = read_checkpoint(source) if source is not None else None
         if state is not None and state["robot"] != robot:
-            fail(f"--resume checkpoint was trained for robot '{state['robot']}', not '{robot}'")
+            flag = "--resume" if resume is not None else "--init-from"
+            fail(f"{flag} checkpoint was trained for robot '{state['robot']}', not '{robot}'")
         base = TrainConfig.from_dict(state["train_config"]) if state is not None else TrainConfig()
         if lr is not None and not (0 < lr < 1):
             fail(f"--lr must lie in (0, 1), got {lr}")
@@ -131,7 +146,7 @@ def register(app: typer.Typer) -> None:
         full = robot_obj.design_space(mixed)
         if designs is not None:
             space = full.parse_ranges(designs)
-        elif state is not None:
+        elif state is not None and resume is not None:
             space = DesignSpace.from_dict(state["design_space"])
         else:
             space = full
@@ -142,6 +157,20 @@ def register(app: typer.Typer) -> None:
         )
         if resume is not None:
             trainer.load(resume)
+        elif init_from is not None:
+            trainer.load(init_from, optimizers=False, widen=True)
+            if int(state["dims"]["num_design"]) < space.dim:
+                print(
+                    f"widened {init_from}'s design input from {state['dims']['num_design']} to {space.dim} values "
+                    "(zero weights for the new ones)",
+                    file=sys.stderr,
+                )
+        if reset_pseudo_critics and trainer.ppo.pseudo_critic is not None:
+            trainer.ppo.reset_pseudo_critics()
+        if lr is not None and source is not None:  # --lr wins over the rate the checkpoint reached
+            trainer.ppo.learning_rate = lr
+            for group in trainer.ppo.optimizer.param_groups:
+                group["lr"] = lr
         trainer.set_designs(trainer.sample_designs())
         iterations = trainer.iterations_for(steps) if steps > 0 else 0  # 0: export only
         out.mkdir(parents=True, exist_ok=True)
@@ -240,11 +269,13 @@ def register(app: typer.Typer) -> None:
         if checkpoint is None:
             from coadapt_core.learning import shipped_checkpoint
 
-            checkpoint = shipped_checkpoint(robot, terrain)
+            mixed = robot_obj.design_space_for(design_values).is_mixed
+            checkpoint = shipped_checkpoint(robot, terrain, mixed=mixed)
             if checkpoint is None:
+                name = f"{terrain}-mixed.pt" if mixed else f"{terrain}.pt"
                 fail(
                     f"no policy is shipped yet for robot '{robot}' on terrain '{terrain}' "
-                    f"(looked for plugins/robots/{robot}/policies/{terrain}.pt); pass --checkpoint"
+                    f"(looked for plugins/robots/{robot}/policies/{name}); pass --checkpoint"
                 )
         result = evaluate_checkpoint(
             checkpoint, robot_obj, sim_cls, design_values, terrain=terrain, command=values, agents=agents,

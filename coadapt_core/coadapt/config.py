@@ -54,8 +54,9 @@ class CoadaptConfig:
     narrow_margin: float = 0.25  # widen the particles' span by this fraction on each side
     narrow_min_width: float = 0.1  # ... to at least this fraction of the full range
     # -- BO with specialised policies (Table 7 baseline) -------------------------------------
-    bo_designs: int = 20  # designs BO proposes, each trained from scratch
+    bo_designs: int = 20  # designs BO proposes, each with its own specialised policy
     specialized_train_steps: int = 10_000_000  # interactions per specialised policy
+    specialized_init: str = "scratch"  # scratch (the paper's) | universal: fine-tune the universal policy on the design
     # -- infrastructure ----------------------------------------------------------------------
     checkpoint: str = ""  # universal policy to start from ('' = the shipped one if any, 'none' = scratch)
     device: str = "cpu"  # torch device of the learner
@@ -96,6 +97,10 @@ class CoadaptConfig:
             raise UserError(
                 f"narrow_min_width must be in (0, 1] (a fraction of the full range), got {self.narrow_min_width}",
                 field="narrow_min_width",
+            )
+        if self.specialized_init not in ("scratch", "universal"):
+            raise UserError(
+                f"specialized_init '{self.specialized_init}' is not one of scratch, universal", field="specialized_init"
             )
         if self.bo_sampler not in ("tpe", "gp"):
             raise UserError(f"bo_sampler '{self.bo_sampler}' is not one of tpe, gp", field="bo_sampler")
@@ -149,9 +154,9 @@ PRESETS: dict[str, dict[str, Any]] = {
     ),
     # meaningful on a 2-core laptop in <= 30 min, starting from the shipped universal policy
     "quick": dict(
-        outer_iterations=3, population=16, optimizer_iterations=4, agents_per_design=4,
-        train_steps=120_000, retrain_steps=60_000, eval_steps=150, surrogate_samples=1024,
-        bo_designs=4, specialized_train_steps=15_000,
+        outer_iterations=3, population=16, optimizer_iterations=5, agents_per_design=16,
+        train_steps=200_000, retrain_steps=100_000, eval_steps=500, surrogate_samples=4096,
+        bo_designs=20, specialized_train_steps=100_000, specialized_init="universal",
     ),
     # section 4.1.3: N = 3, K = 100, J = 5, 50 agents, w = 0.5, inertia 0.9, c1 = c2 = 2
     "paper": dict(

@@ -114,13 +114,17 @@ def universal_policy_factory(
         ) from None
     from coadapt_core.coadapt.loop import METHOD_SWITCHES
 
-    # a specialised policy (BO baseline) is trained from scratch on its one design
-    checkpoint = None if METHOD_SWITCHES[config.method].specialized else resolve_checkpoint(config)
+    # a specialised policy (BO baseline) is trained on its one design from scratch (the
+    # paper's), or fine-tuned from the universal policy (`specialized_init: universal`), with
+    # the universal training's batch (K x agents environments) on that design
+    specialized = METHOD_SWITCHES[config.method].specialized
+    checkpoint = resolve_checkpoint(config) if not specialized or config.specialized_init == "universal" else None
+    agents = config.population * config.agents_per_design if specialized else config.agents_per_design
 
     def factory(seed: int) -> CoadaptationBackend:
         return UniversalPolicyBackend(
             robot, simulator_cls, list(objectives), terrain=config.terrain, design_space=full_space,
-            agents_per_design=config.agents_per_design, device=config.device, seed=seed,
+            agents_per_design=agents, device=config.device, seed=seed,
             checkpoint=checkpoint,
         )
 
@@ -143,20 +147,27 @@ def resolve_checkpoint(config: CoadaptConfig) -> str | None:
         from coadapt_core.learning import shipped_checkpoint  # type: ignore[attr-defined]
     except ImportError:
         return None
-    path = shipped_checkpoint(config.robot, config.terrain)
+    mixed = uses_mixed_space(config)
+    path = shipped_checkpoint(config.robot, config.terrain, mixed=mixed)
     if path is None:
+        if mixed and shipped_checkpoint(config.robot, config.terrain) is not None:
+            print(
+                f"note: no {config.robot} policy for the mixed design space on {config.terrain} is shipped "
+                f"(policies/{config.terrain}-mixed.pt); training starts from scratch. `coadapt train --mixed "
+                f"--init-from` the continuous one makes one (docs/training.md)",
+                file=sys.stderr,
+            )
         return None
-    # a shipped policy takes the design input it was trained on (e.g. the two leg scales);
-    # for another design space (the mixed one with motor types) training starts from scratch
+    # a shipped policy takes the design input it was trained on; check it matches this space
     from coadapt_core.learning import read_checkpoint
     from coadapt_core.plugins import get_registry
 
     trained_dim = int(read_checkpoint(path)["dims"]["num_design"])
-    wanted_dim = get_registry().get("robot", config.robot)().design_space(uses_mixed_space(config)).dim
+    wanted_dim = get_registry().get("robot", config.robot)().design_space(mixed).dim
     if trained_dim != wanted_dim:
         print(
-            f"note: the shipped {config.robot} policy for {config.terrain} takes {trained_dim} design "
-            f"values, this run's design space has {wanted_dim}: training starts from scratch",
+            f"note: the shipped {config.robot} policy {path.name} takes {trained_dim} design values, this "
+            f"run's design space has {wanted_dim}: training starts from scratch",
             file=sys.stderr,
         )
         return None

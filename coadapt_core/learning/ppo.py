@@ -279,10 +279,30 @@ class PPO:
         self.obs_norm.load_state_dict(state["obs_norm"])
         self.critic_norm.load_state_dict(state["critic_norm"])
         self.pseudo_norm.load_state_dict(state["pseudo_norm"])
+        # pseudo-critics poisoned by non-finite metrics (checkpoints written before the w_t
+        # exponent was capped) predict NaN forever: they restart from scratch instead
+        self.pseudo_reset = self.pseudo_critic is not None and not _all_finite(self.pseudo_critic, self.pseudo_norm)
+        if self.pseudo_reset:
+            self.reset_pseudo_critics()
         if optimizers and "optimizer" in state:
             self.optimizer.load_state_dict(state["optimizer"])
-            if self.pseudo_optimizer is not None and state.get("pseudo_optimizer") is not None:
+            if self.pseudo_optimizer is not None and state.get("pseudo_optimizer") is not None and not self.pseudo_reset:
                 self.pseudo_optimizer.load_state_dict(state["pseudo_optimizer"])
-            self.learning_rate = float(state.get("learning_rate", self.learning_rate))
+        if "learning_rate" in state:
+            # the KL-adapted rate the training had reached (weights exports carry it too), where
+            # resuming or fine-tuning continues
+            self.learning_rate = float(state["learning_rate"])
             for group in self.optimizer.param_groups:
                 group["lr"] = self.learning_rate
+
+    def reset_pseudo_critics(self) -> None:
+        """Fresh pseudo-critic weights, target normaliser and optimizer (same sizes)."""
+        d, c = self.dims, self.config
+        fresh = ValueNet(d.num_critic_obs, d.num_design, c.hidden, c.activation, outputs=d.num_metrics).to(self.device)
+        self.pseudo_critic.load_state_dict(fresh.state_dict())
+        self.pseudo_norm.load_state_dict(EmpiricalNormalization(max(d.num_metrics, 1), eps=1e-8, clip=1e9).to(self.device).state_dict())
+        self.pseudo_optimizer = torch.optim.Adam(self.pseudo_critic.parameters(), lr=c.pseudo_learning_rate, foreach=True)
+
+
+def _all_finite(*modules: torch.nn.Module) -> bool:
+    return all(bool(torch.isfinite(t).all()) for m in modules for t in m.state_dict().values() if t.is_floating_point())

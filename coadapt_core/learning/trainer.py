@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -305,7 +306,8 @@ class Trainer:
 
     def export_weights(self, path: str | Path) -> Path:
         """Weights only (float32 actor, critic, pseudo-critics and normalisers, plus the
-        configs needed to run them): the small file shipped with a robot."""
+        configs needed to run them and the command curriculum reached): the small file
+        shipped with a robot."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         full = self.ppo.state_dict()
@@ -315,12 +317,27 @@ class Trainer:
             for k in keep
             if full.get(k) is not None
         }
-        torch.save({"format": WEIGHTS_FORMAT, **self._header(), "ppo": weights}, path)
+        # the KL-adapted learning rate reached: fine-tuning from this file starts there, not at
+        # the configured initial rate (a fresh Adam at 1e-3 knocks a trained policy over)
+        weights["learning_rate"] = float(full["learning_rate"])
+        state = {"format": WEIGHTS_FORMAT, **self._header(), "ppo": weights}
+        commands = self.command_state()
+        if commands is not None:  # the command box the policy was trained to (real fitness draws from it)
+            state["commands"] = commands
+        torch.save(state, path)
         return path
 
-    def load(self, path: str | Path, *, optimizers: bool = True) -> dict:
-        """Restore a checkpoint (or a weights export) written by `save` (`export_weights`)."""
+    def load(self, path: str | Path, *, optimizers: bool = True, widen: bool = False) -> dict:
+        """Restore a checkpoint (or a weights export) written by `save` (`export_weights`).
+
+        `widen=True` also accepts a policy that takes fewer design values than this trainer's
+        design space (its leading variables, e.g. the leg scales of the mixed space with motor
+        types): see `widen_design_input`. Optimizer states are then not restored."""
         state = read_checkpoint(path)
+        wanted = self.design_space.dim
+        if widen and int(state["dims"]["num_design"]) < wanted:
+            state = widen_design_input(state, wanted)
+            optimizers = False
         self.config.hidden = tuple(state["train_config"]["hidden"])
         self.config.activation = state["train_config"]["activation"]
         saved_names = list(state["objectives"])
@@ -336,6 +353,8 @@ class Trainer:
             ppo_state["pseudo_critic"] = _remap_heads(ppo_state.get("pseudo_critic"), saved_names, names, self.ppo)
             ppo_state["pseudo_norm"] = _remap_norm(ppo_state["pseudo_norm"], saved_names, names, self.ppo)
         self.ppo.load_state_dict(ppo_state, optimizers=same and optimizers and state["format"] == CHECKPOINT_FORMAT)
+        if self.ppo.pseudo_reset:
+            print(f"note: the pseudo-critics in '{path}' hold non-finite values; they restart from scratch", file=sys.stderr)
         self.iteration = int(state["iteration"])
         self.total_steps = int(state["total_steps"])
         if self.env is not None and "commands" in state:
@@ -344,6 +363,40 @@ class Trainer:
         if "design_rng" in state:
             self.rng.bit_generator.state = state["design_rng"]
         return state
+
+
+#: first layers that read the design input xi (the last columns of their input, after the
+#: observation): the actor's trunk, the critic's and every pseudo-critic's
+_DESIGN_INPUT_LAYERS = {"actor": ("body.0.weight",), "critic": ("heads.", ".0.weight"), "pseudo_critic": ("heads.", ".0.weight")}
+
+
+def widen_design_input(state: dict, num_design: int) -> dict:
+    """A copy of checkpoint `state` whose networks take `num_design` design values instead of
+    fewer: the new inputs (appended after the existing ones, as the design space appends its
+    variables) get zero weights, so the widened policy, critic and pseudo-critics compute
+    exactly what the original did whatever the new variables' values, and training then
+    learns how much they matter. Optimizer states are dropped (their shapes change)."""
+    old = int(state["dims"]["num_design"])
+    if num_design < old:
+        raise UserError(
+            f"a policy taking {old} design values cannot be narrowed to {num_design}", field="checkpoint"
+        )
+    out = dict(state)
+    out["dims"] = {**state["dims"], "num_design": int(num_design)}
+    ppo = {k: v for k, v in state["ppo"].items() if k not in ("optimizer", "pseudo_optimizer")}
+    extra = num_design - old
+    for net, pattern in _DESIGN_INPUT_LAYERS.items():
+        if ppo.get(net) is None:
+            continue
+        weights = dict(ppo[net])
+        for key, tensor in weights.items():
+            if key == pattern[0] or (len(pattern) == 2 and key.startswith(pattern[0]) and key.endswith(pattern[1])):
+                zeros = torch.zeros(tensor.shape[0], extra, dtype=tensor.dtype)
+                weights[key] = torch.cat([tensor, zeros], dim=1)
+        ppo[net] = weights
+    out["ppo"] = ppo
+    out["widened_from"] = old
+    return out
 
 
 def reseed_simulator(sim, seed: int) -> None:

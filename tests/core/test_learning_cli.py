@@ -46,6 +46,8 @@ def test_train_writes_a_checkpoint_that_eval_and_resume_read(tmp_path, capsys) -
         (["train", "--designs", "0.5-1.5"], "low:high"),
         (["train", "--steps", "0"], "--steps must be >= 1"),
         (["train", "--device", "tpu"], "--device 'tpu'"),
+        (["train", "--resume", "a.pt", "--init-from", "b.pt"], "--resume and --init-from exclude each other"),
+        (["train", "--reset-pseudo-critics", "--steps", "8"], "--reset-pseudo-critics needs --resume or --init-from"),
         (["eval", "--command", "fast"], "--command 'fast'"),
         (["eval", "--checkpoint", "/no/such.pt"], "does not exist"),
         (["eval", "--design", "3,3", "--checkpoint", "x.pt"], "outside its bounds"),
@@ -61,6 +63,6 @@ def test_bad_options_give_one_line_and_exit_2(args, message, capsys) -> None:
 def test_eval_without_checkpoint_says_no_policy_is_shipped(capsys, monkeypatch) -> None:
     import coadapt_core.learning as learning
 
-    monkeypatch.setattr(learning, "shipped_checkpoint", lambda robot, terrain: None)
+    monkeypatch.setattr(learning, "shipped_checkpoint", lambda robot, terrain, mixed=False: None)
     assert main(["eval", "--terrain", "slope"]) == 2
     assert "no policy is shipped yet for robot 'kuafu' on terrain 'slope'" in capsys.readouterr().err

@@ -217,3 +217,75 @@ def test_non_finite_metrics_do_not_poison_the_pseudo_critics(fake_robot, fake_si
     assert torch.isfinite(ppo.pseudo_norm.var).all() and float(ppo.pseudo_norm.mean[0]) <= 1e15
     values = ppo.pseudo_values(torch.zeros(3, ppo.dims.num_critic_obs), torch.zeros(3, 2))
     assert torch.isfinite(values).all()
+
+
+def mixed_space():
+    from coadapt_core.design_space import Continuous, DesignSpace, Discrete
+
+    return DesignSpace([
+        Continuous("thigh_scale", 0.5, 1.5), Continuous("shank_scale", 0.5, 1.5),
+        Discrete("hip_motor", (1.0, 2.0, 3.0)), Discrete("knee_motor", (1.0, 2.0, 3.0)),
+    ])
+
+
+def test_widened_policy_acts_exactly_as_before_whatever_the_new_design_values(fake_robot, fake_sim_cls, tmp_path) -> None:
+    trainer = make_trainer(fake_robot, fake_sim_cls)
+    trainer.set_designs(np.array([[1.0, 1.0], [0.6, 1.4]]))
+    trainer.learn(2)
+    path = trainer.export_weights(tmp_path / "policy.pt")
+    obs, critic_obs, design = trainer.env.reset()
+    critic_in = trainer.ppo.critic_norm(critic_obs)
+
+    wide = Trainer(fake_robot, fake_sim_cls, [SquaredTorque(), SpeedError()], design_space=mixed_space(),
+                   train_config=small_config(), task_config=TaskConfig(noise=NoiseConfig(enabled=False)))
+    wide.load(path, optimizers=False, widen=True)
+    assert wide.ppo.dims.num_design == 4
+    gen = torch.Generator().manual_seed(0)
+    for _ in range(3):  # any motor values: the new inputs have zero weights
+        extra = torch.randint(-1, 2, (design.shape[0], 2), generator=gen).float()
+        xi = torch.cat([design, extra], dim=-1)
+        assert torch.allclose(wide.ppo.act_inference(obs, xi), trainer.ppo.act_inference(obs, design), atol=1e-6)
+        assert torch.allclose(wide.ppo.pseudo_values(critic_in, xi), trainer.ppo.pseudo_values(critic_in, design), rtol=1e-5)
+    weight = wide.ppo.actor_net.body[0].weight
+    assert weight.shape[1] == trainer.ppo.actor_net.body[0].weight.shape[1] + 2
+    assert torch.count_nonzero(weight[:, -2:]) == 0
+
+
+
+def test_non_finite_pseudo_critics_in_a_checkpoint_restart_fresh(fake_robot, fake_sim_cls, tmp_path, capsys) -> None:
+    trainer = make_trainer(fake_robot, fake_sim_cls)
+    trainer.set_designs(np.array([[1.0, 1.0]]))
+    trainer.learn(1)
+    with torch.no_grad():
+        trainer.ppo.pseudo_norm.mean.fill_(float("nan"))
+        trainer.ppo.pseudo_critic.heads[0][0].weight.fill_(float("nan"))
+    path = trainer.save(tmp_path / "poisoned.pt")
+    restored = make_trainer(fake_robot, fake_sim_cls)
+    restored.load(path)
+    assert "non-finite" in capsys.readouterr().err
+    ppo = restored.ppo
+    assert ppo.pseudo_reset
+    # the policy itself is restored, the pseudo-critics start over and learn finite values
+    obs, _, design = trainer.env.reset()
+    assert torch.equal(ppo.act_inference(obs, design), trainer.ppo.act_inference(obs, design))
+    restored.set_designs(np.array([[1.0, 1.0]]))
+    restored.learn(2)
+    values = ppo.pseudo_values(torch.zeros(3, ppo.dims.num_critic_obs), torch.zeros(3, 2))
+    assert torch.isfinite(values).all()
+    assert torch.isfinite(ppo.pseudo_norm.mean).all() and torch.isfinite(ppo.pseudo_norm.var).all()
+
+
+def test_weights_export_carries_the_command_curriculum_and_learning_rate(fake_robot, fake_sim_cls, tmp_path) -> None:
+    trainer = make_trainer(fake_robot, fake_sim_cls)
+    trainer.set_designs(np.array([[1.0, 1.0]]))
+    trainer.env.commands.limit = 0.9
+    trainer.ppo.learning_rate = 1.3e-4
+    path = trainer.export_weights(tmp_path / "policy.pt")
+    restored = make_trainer(fake_robot, fake_sim_cls)
+    restored.load(path)
+    assert restored.command_state()["limit"] == pytest.approx(0.9)
+    # fine-tuning starts at the rate the training had reached, not the configured 1e-3
+    assert restored.ppo.learning_rate == pytest.approx(1.3e-4)
+    assert all(g["lr"] == pytest.approx(1.3e-4) for g in restored.ppo.optimizer.param_groups)
+    restored.set_designs(np.array([[1.0, 1.0]]))
+    assert restored.env.commands.limit == pytest.approx(0.9)

@@ -59,6 +59,7 @@ def test_every_field_has_a_cli_option():
         (["--optimizer", "nsga2"], "needs 2-3 objectives"),
         (["--preset", "huge"], "preset 'huge'"),
         (["--narrow-min-width", "0"], "narrow_min_width"),
+        (["--specialized-init", "warm"], "specialized_init 'warm' is not one of scratch, universal"),
         (["--objective", "composite", "--objective-weights", "speed=1"], "unknown component 'speed'"),
         (["--resume", "no-such-run"], "no run 'no-such-run'"),
     ],

@@ -93,6 +93,11 @@ def test_penalty_weight_stays_finite_for_a_diverged_robot():
     for objective in (PowerObjective(), TorqueObjective(), CompositeObjective()):
         cost = objective.step_cost(step)
         assert torch.isfinite(cost).all()
-    assert TorqueObjective().step_cost(step)[1].item() == pytest.approx(101.0 * math.exp(20.0), rel=1e-5)
+    assert TorqueObjective().step_cost(step)[1].item() == pytest.approx(101.0 * math.exp(5.0), rel=1e-5)
     # the tracking cost itself is not capped
     assert TrackingObjective().step_cost(step)[1].item() == pytest.approx(49.0**2 + 0.4**2 + 0.04, rel=1e-5)
+    # below the cap eqs. 7-8 hold exactly: a robot standing still under the fastest command
+    step.base_lin_vel[1] = torch.tensor([0.0, 0.0, 0.0])
+    step.command[1] = torch.tensor([1.25, 0.0, 0.0])
+    step.base_ang_vel[1] = torch.tensor([0.0, 0.0, 0.5])
+    assert TorqueObjective().step_cost(step)[1].item() == pytest.approx(101.0 * math.exp(1.25**2 + 0.25), rel=1e-5)

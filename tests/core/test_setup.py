@@ -1,0 +1,46 @@
+"""`coadapt_core.coadapt.setup`: which policy a run starts from (shipped, widened, scratch) and
+how the BO baseline's specialised policies are built."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from coadapt_core.coadapt.config import make_config
+from coadapt_core.coadapt.setup import build_parts, resolve_checkpoint
+from coadapt_core.learning import read_checkpoint, shipped_checkpoint
+
+
+def actor_weight(backend) -> torch.Tensor:
+    return backend.ppo.actor_net.body[0].weight.detach()
+
+
+def test_shipped_policies_match_their_design_spaces() -> None:
+    flat = shipped_checkpoint("kuafu", "flat")
+    assert flat is not None and int(read_checkpoint(flat)["dims"]["num_design"]) == 2
+    assert resolve_checkpoint(make_config("quick", overrides={"optimizer": "pso"})) == str(flat)
+    mixed = shipped_checkpoint("kuafu", "flat", mixed=True)
+    if mixed is not None:
+        assert int(read_checkpoint(mixed)["dims"]["num_design"]) == 4
+        assert resolve_checkpoint(make_config("quick", overrides={"optimizer": "mixed-pso"})) == str(mixed)
+    assert shipped_checkpoint("kuafu", "slope") is None
+
+
+@pytest.mark.parametrize(("init", "warm"), [("universal", True), ("scratch", False)])
+def test_specialised_policies_start_from_the_universal_policy_or_from_scratch(init, warm) -> None:
+    config = make_config("quick", overrides={"method": "bo-specialized", "specialized_init": init, "population": 3, "agents_per_design": 2})
+    parts = build_parts(config)
+    assert not parts.pretrained  # the BO baseline shares no universal policy
+    backend = parts.backend_factory(0)
+    try:
+        backend.train(np.array([[1.0, 1.0]]), 1, seed=0)  # builds the networks; one PPO iteration
+        assert backend.trainer.env.num_envs == 3 * 2  # the universal training's batch, on one design
+        shipped = read_checkpoint(shipped_checkpoint("kuafu", "flat"))["ppo"]["actor"]["body.0.weight"]
+        distance = float((actor_weight(backend) - shipped).abs().max())
+        if warm:
+            assert distance < 0.05  # one small update away from the shipped weights
+        else:
+            assert distance > 0.1  # a fresh initialisation
+    finally:
+        backend.close()
