@@ -18,11 +18,16 @@ if TYPE_CHECKING:
     import torch
 
 
-#: cap of the exponent of w_t. Commands stay within 1.25 m/s, so e_v^2 + e_w^2 > 20 (errors
-#: of about 4.5 m/s or rad/s) only happens to a robot that is flying off or a simulation
-#: that diverged; uncapped, exp() overflows float32 (above 88) and the resulting inf turns
-#: the pseudo-critics' normalisers and weights into NaN. Below the cap eqs. 7-8 are exact.
-W_T_MAX_EXPONENT = 20.0
+#: cap of the exponent of w_t (our addition: eqs. 7-8 have none). Commands stay within
+#: 1.25 m/s and 0 rad/s, so a robot that stands still or walks badly has e_v^2 + e_w^2 below
+#: about 2 (w_t < 7.4) and is weighed exactly as the paper says; only a robot that is falling,
+#: spinning or diverged exceeds 5 (errors over 2.2 m/s or rad/s). Uncapped, those few steps
+#: decide the mean: a fall weighs a step by up to e^20 = 4.9e8 before the reset, so with the
+#: earlier cap of 20 one falling agent in 50 multiplied a design's mean torque cost by 1e4
+#: (the Kuafu README's evaluation tables), real fitness became a lottery on falls and the
+#: pseudo-critics learned the lottery's mean. At 5 a falling step still costs up to 148 x an
+#: upright one; above 88, exp() would overflow float32.
+W_T_MAX_EXPONENT = 5.0
 
 
 def tracking_penalty_weight(step: StepBatch) -> torch.Tensor:
