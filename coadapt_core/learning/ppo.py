@@ -86,14 +86,9 @@ class PPO:
             dims.num_obs, dims.num_design, dims.num_actions, c.hidden, c.activation, c.init_noise_std
         ).to(self.device)
         self.critic_net = ValueNet(dims.num_critic_obs, dims.num_design, c.hidden, c.activation).to(self.device)
-        self.pseudo_critic = (
-            ValueNet(dims.num_critic_obs, dims.num_design, c.hidden, c.activation, outputs=dims.num_metrics).to(self.device)
-            if dims.num_metrics > 0
-            else None
-        )
         self.obs_norm = EmpiricalNormalization(dims.num_obs).to(self.device)
         self.critic_norm = EmpiricalNormalization(dims.num_critic_obs).to(self.device)
-        self.pseudo_norm = EmpiricalNormalization(max(dims.num_metrics, 1), eps=1e-8, clip=1e9).to(self.device)
+        self.pseudo_critic, self.pseudo_norm, self.pseudo_optimizer = self._new_pseudo_critics()
 
         self.actor = ProbabilisticActor(
             TensorDictModule(self.actor_net, in_keys=["obs", "design_obs"], out_keys=["loc", "scale"]),
@@ -115,11 +110,6 @@ class PPO:
         self.learning_rate = c.learning_rate
         # foreach: the per-tensor Adam loop costs ~50x more on CPU for these sizes
         self.optimizer = torch.optim.Adam(self.loss.parameters(), lr=c.learning_rate, foreach=True)
-        self.pseudo_optimizer = (
-            torch.optim.Adam(self.pseudo_critic.parameters(), lr=c.pseudo_learning_rate, foreach=True)
-            if self.pseudo_critic
-            else None
-        )
         self.transitions: list[TensorDict] = []  # one [N] TensorDict per rollout step
         self.rollout: TensorDict | None = None  # [N, T] after compute_returns
         self.training = True
@@ -295,13 +285,18 @@ class PPO:
             for group in self.optimizer.param_groups:
                 group["lr"] = self.learning_rate
 
-    def reset_pseudo_critics(self) -> None:
-        """Fresh pseudo-critic weights, target normaliser and optimizer (same sizes)."""
+    def _new_pseudo_critics(self) -> tuple[ValueNet | None, EmpiricalNormalization, torch.optim.Adam | None]:
+        """Fresh pseudo-critics (None when there are no objectives), target normaliser and optimizer."""
         d, c = self.dims, self.config
-        fresh = ValueNet(d.num_critic_obs, d.num_design, c.hidden, c.activation, outputs=d.num_metrics).to(self.device)
-        self.pseudo_critic.load_state_dict(fresh.state_dict())
-        self.pseudo_norm.load_state_dict(EmpiricalNormalization(max(d.num_metrics, 1), eps=1e-8, clip=1e9).to(self.device).state_dict())
-        self.pseudo_optimizer = torch.optim.Adam(self.pseudo_critic.parameters(), lr=c.pseudo_learning_rate, foreach=True)
+        norm = EmpiricalNormalization(max(d.num_metrics, 1), eps=1e-8, clip=1e9).to(self.device)
+        if d.num_metrics == 0:
+            return None, norm, None
+        net = ValueNet(d.num_critic_obs, d.num_design, c.hidden, c.activation, outputs=d.num_metrics).to(self.device)
+        return net, norm, torch.optim.Adam(net.parameters(), lr=c.pseudo_learning_rate, foreach=True)
+
+    def reset_pseudo_critics(self) -> None:
+        """Restart the pseudo-critics, their target normaliser and optimizer from scratch."""
+        self.pseudo_critic, self.pseudo_norm, self.pseudo_optimizer = self._new_pseudo_critics()
 
 
 def _all_finite(*modules: torch.nn.Module) -> bool:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -367,7 +368,7 @@ class Trainer:
 
 #: first layers that read the design input xi (the last columns of their input, after the
 #: observation): the actor's trunk, the critic's and every pseudo-critic's
-_DESIGN_INPUT_LAYERS = {"actor": ("body.0.weight",), "critic": ("heads.", ".0.weight"), "pseudo_critic": ("heads.", ".0.weight")}
+_DESIGN_INPUT_LAYER = re.compile(r"^(body|heads\.\d+)\.0\.weight$")
 
 
 def widen_design_input(state: dict, num_design: int) -> dict:
@@ -385,12 +386,12 @@ def widen_design_input(state: dict, num_design: int) -> dict:
     out["dims"] = {**state["dims"], "num_design": int(num_design)}
     ppo = {k: v for k, v in state["ppo"].items() if k not in ("optimizer", "pseudo_optimizer")}
     extra = num_design - old
-    for net, pattern in _DESIGN_INPUT_LAYERS.items():
+    for net in ("actor", "critic", "pseudo_critic"):
         if ppo.get(net) is None:
             continue
         weights = dict(ppo[net])
         for key, tensor in weights.items():
-            if key == pattern[0] or (len(pattern) == 2 and key.startswith(pattern[0]) and key.endswith(pattern[1])):
+            if _DESIGN_INPUT_LAYER.match(key):
                 zeros = torch.zeros(tensor.shape[0], extra, dtype=tensor.dtype)
                 weights[key] = torch.cat([tensor, zeros], dim=1)
         ppo[net] = weights
