@@ -39,6 +39,12 @@ class RealFitness:
     interactions: int  # environment steps spent
     seconds: float
     survival: np.ndarray | None = None  # [K] fraction of agents that did not fall
+    # paired evaluation (optional: a backend without them still drives the loop; the loop
+    # then reports no standard errors). Scenario a (agent a) is the same for every design of
+    # a call and of every call with the same seed, so differences are paired.
+    per_scenario: np.ndarray | None = None  # [K, A, M] each scenario's mean per-step cost
+    cost_se: np.ndarray | None = None  # [K, M] standard error of `costs` over scenarios
+    fall_rate: np.ndarray | None = None  # [K] share of scenarios (agents) that fell at least once
 
 
 @runtime_checkable
@@ -92,3 +98,40 @@ class RunRecorder(Protocol):
     def record_checkpoint(self, run_id: str, *, outer: int, path: str) -> None: ...
 
     def finish(self, run_id: str, summary: dict[str, Any], status: str = "finished") -> None: ...
+
+
+# -- standard errors of paired real fitness -------------------------------------------------
+def scenario_se(per_scenario: np.ndarray) -> np.ndarray:
+    """[K, M] standard error of the mean over scenarios of per-scenario costs [K, A, M]
+    (0 with a single scenario: no spread to measure)."""
+    x = np.asarray(per_scenario, dtype=float)
+    a = x.shape[1]
+    if a < 2:
+        return np.zeros((x.shape[0], x.shape[2]))
+    return x.std(axis=1, ddof=1) / np.sqrt(a)
+
+
+def paired_difference(per_scenario: np.ndarray, i: int, j: int) -> tuple[np.ndarray, np.ndarray]:
+    """(mean [M], paired standard error [M]) of cost(design i) - cost(design j), scenario by
+    scenario: what the two designs share (command, randomization, noise) cancels."""
+    x = np.asarray(per_scenario, dtype=float)
+    d = x[i] - x[j]  # [A, M]
+    se = d.std(axis=0, ddof=1) / np.sqrt(len(d)) if len(d) > 1 else np.zeros(d.shape[1])
+    return d.mean(axis=0), se
+
+
+def improvement_se(objective: Any, best: np.ndarray, nominal: np.ndarray) -> float:
+    """Paired standard error of `objective.improvement(mean(best), mean(nominal))` from the
+    per-scenario costs of the two designs [A] (delta method: the improvement's gradient,
+    taken numerically so a plugin's own `improvement` is honoured, applied to each
+    scenario's deviation from the means)."""
+    b, n = np.asarray(best, dtype=float), np.asarray(nominal, dtype=float)
+    if len(b) < 2:
+        return float("nan")
+    mb, mn = float(b.mean()), float(n.mean())
+    h = 1e-6 * max(abs(mb), abs(mn), 1e-12)
+    f = objective.improvement
+    gb = (f(mb + h, mn) - f(mb - h, mn)) / (2 * h)
+    gn = (f(mb, mn + h) - f(mb, mn - h)) / (2 * h)
+    u = gb * (b - mb) + gn * (n - mn)  # [A] influence of each scenario
+    return float(u.std(ddof=1) / np.sqrt(len(u)))

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from coadapt_core.randomization import EnvParams, RandomizationConfig
+from coadapt_core.randomization import EnvParams, RandomizationConfig, sample_env_params
 
 if TYPE_CHECKING:
     import torch
@@ -159,6 +159,36 @@ class Simulator(ABC):
         for k, name in enumerate(names):
             gen = getattr(self, name)
             gen.bit_generator.state = type(gen.bit_generator)(np.random.SeedSequence([int(seed), k])).state
+
+    # -- paired evaluation (common random numbers) -----------------------------------------
+    def fix_scenarios(self, params: EnvParams | None, spawn: np.ndarray | None = None) -> None:
+        """Hold each environment's randomized parameters (`params` over all `num_envs`) and,
+        on the random terrain, its spawn point (`spawn` [num_envs, 2], fractions in [0, 1) of
+        the spawn square) at every later reset, including restarts after a fall; None draws
+        them again. Real fitness uses this to give agent i of every design the same draw
+        (docs/coadaptation.md, "Evaluation protocol"). A backend honours it by drawing through
+        `draw_env_params` and `draw_spawn_xy`; one that does not still runs, unpaired."""
+        if params is None:
+            self._scenario = None
+            return
+        frac = None if spawn is None else np.asarray(spawn, dtype=float).reshape(-1, 2)
+        self._scenario = (params, frac)
+
+    def draw_env_params(self, env_ids: np.ndarray, rng: np.random.Generator) -> EnvParams:
+        """Randomized parameters for environments `env_ids` at a reset: the fixed scenario's
+        when `fix_scenarios` set one (consuming no randomness), else a fresh draw from `rng`."""
+        scenario = getattr(self, "_scenario", None)
+        if scenario is not None:
+            return scenario[0].take(np.asarray(env_ids, dtype=int))
+        return sample_env_params(self.randomization, len(env_ids), rng)
+
+    def draw_spawn_xy(self, env_ids: np.ndarray, rng: np.random.Generator, half: float) -> np.ndarray:
+        """[n, 2] spawn points in [-half, half]^2 for `env_ids` (random terrain): the fixed
+        scenario's when set, else drawn from `rng`."""
+        scenario = getattr(self, "_scenario", None)
+        if scenario is not None and scenario[1] is not None:
+            return -half + 2.0 * half * scenario[1][np.asarray(env_ids, dtype=int)]
+        return rng.uniform(-half, half, size=(len(env_ids), 2))
 
     def close(self) -> None:  # noqa: B027 - optional hook
         """Release processes, threads or native resources."""

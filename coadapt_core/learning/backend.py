@@ -14,11 +14,12 @@ import torch
 
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
-from coadapt_core.fitness import RealFitness, TrainingResult
+from coadapt_core.fitness import RealFitness, TrainingResult, scenario_se
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.evaluate import EvalBuffer, rollout
 from coadapt_core.learning.trainer import Trainer, read_checkpoint, reseed_simulator
 from coadapt_core.objective import Objective
+from coadapt_core.randomization import EnvParams, sample_env_params
 from coadapt_core.robot import Robot
 from coadapt_core.task.config import TaskConfig
 from coadapt_core.task.env import LocomotionEnv
@@ -97,6 +98,8 @@ class UniversalPolicyBackend:
         )
         self.objectives = list(objectives)
         self.stochastic_evaluation = True
+        # common random numbers across designs (docs/coadaptation.md, evaluation protocol)
+        self.paired_evaluation = True
         self.eval_env: LocomotionEnv | None = None
         if checkpoint:
             self.load(checkpoint)
@@ -174,27 +177,60 @@ class UniversalPolicyBackend:
         # alone: the randomization and spawn streams restart here (the task's own generator
         # restarts in `rollout`), whatever earlier calls drew
         reseed_simulator(env.sim, int(seed))
-        # commands: one per agent from the current box (the live training environment's, or
-        # the loaded checkpoint's), identical across designs
-        commands = self.trainer.command_state()
-        if commands is not None:
-            env.commands.load_state_dict(commands)
-        gen = torch.Generator(device=env.device)
-        gen.manual_seed(int(seed))
-        env.commands.generator = gen
-        per_agent = env.commands.sample(agents)  # [A, 3]
-        env.set_commands(per_agent.repeat(len(designs), 1))
+        k = len(designs)
+        if self.paired_evaluation:
+            self.pair_scenarios(env, agents, k, int(seed))
+        else:
+            self.unpaired_scenarios(env, agents, k, int(seed))
         # the stochastic policy, as in training: the pseudo-critics learn the metric under it,
         # so real and surrogate fitness estimate the same quantity (the mean action's torque
         # and power are lower while the policy's std is large)
-        result = rollout(self.ppo, env, len(designs), steps, seed=seed, stochastic=self.stochastic_evaluation)
+        result = rollout(self.ppo, env, k, steps, seed=seed, stochastic=self.stochastic_evaluation)
+        per_scenario = result.per_agent[:, :, columns]  # [K, A, M]
         return RealFitness(
             costs=result.metrics[:, columns],
             buffer=result.buffer,
             interactions=result.steps,
             seconds=time.perf_counter() - t0,
             survival=result.survival,
+            per_scenario=per_scenario,
+            cost_se=scenario_se(per_scenario),
+            fall_rate=1.0 - result.survival,
         )
+
+    def unpaired_scenarios(self, env: LocomotionEnv, agents: int, designs: int, seed: int) -> None:
+        """The protocol before paired evaluation, kept to measure what pairing buys
+        (benchmarks/fitness_noise.py --protocol unpaired): commands drawn independently per
+        agent from the box (shared by the designs of one call), every randomization draw and
+        noise stream independent per environment."""
+        commands = self.trainer.command_state()
+        if commands is not None:
+            env.commands.load_state_dict(commands)
+        gen = torch.Generator(device=env.device)
+        gen.manual_seed(int(seed))
+        env.commands.generator = gen
+        env.set_commands(env.commands.sample(agents).repeat(designs, 1))
+        env.sim.fix_scenarios(None)
+        env.pair_scenarios(None)
+
+    def pair_scenarios(self, env: LocomotionEnv, agents: int, designs: int, seed: int) -> None:
+        """The scenario set of `seed` (common random numbers, docs/coadaptation.md): agent i of
+        each of the `designs` groups gets scenario i — its command (stratified over the
+        current command box), randomization draw (Table 2), spawn point, initial gait phase,
+        observation-noise and action-noise streams — whatever the designs and the batch."""
+        commands = self.trainer.command_state()  # the curriculum's box (live, or the checkpoint's)
+        if commands is not None:
+            env.commands.load_state_dict(commands)
+        gen = torch.Generator()
+        gen.manual_seed(int(seed))
+        per_agent = env.commands.stratified(agents, gen)  # [A, 3]
+        env.set_commands(per_agent.repeat(designs, 1))
+        rng = np.random.default_rng([int(seed), 0xC0]) # the randomization draw of each scenario
+        params = sample_env_params(env.sim.randomization, agents, rng)
+        spawn = rng.random((agents, 2))
+        tiled = EnvParams(**{f: np.tile(v, (designs,) + (1,) * (v.ndim - 1)) for f, v in vars(params).items()})
+        env.sim.fix_scenarios(tiled, np.tile(spawn, (designs, 1)))
+        env.pair_scenarios(agents, int(seed))
 
     # -- Algorithm 3 ------------------------------------------------------------------------
     @torch.no_grad()

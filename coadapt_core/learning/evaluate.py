@@ -10,9 +10,11 @@ import numpy as np
 import torch
 
 from coadapt_core.learning.ppo import PPO
+from coadapt_core.statefile import register_dataclass
 from coadapt_core.task.env import LocomotionEnv
 
 
+@register_dataclass  # saved in run folders as arrays (buffer-<n>.npz), never pickled
 @dataclass
 class EvalBuffer:
     """R_eval: critic states (raw, un-normalised) visited by the policy."""
@@ -32,6 +34,9 @@ class RolloutResult:
     alternation: np.ndarray  # [K] share of steps with exactly one foot down
     buffer: EvalBuffer
     steps: int  # environment interactions
+    per_agent: np.ndarray | None = None  # [K, A, M] each agent's mean per-step metric
+    falls: np.ndarray | None = None  # [K, A] falls of each agent (it restarts after each)
+    fall_metric: np.ndarray | None = None  # [K, M] mean per-step metric accrued on fall steps
 
 
 @torch.no_grad()
@@ -66,6 +71,8 @@ def rollout(
     vx_sum = torch.zeros(n, device=env.device)
     err_sum = torch.zeros(n, device=env.device)
     alt_sum = torch.zeros(n, device=env.device)
+    falls = torch.zeros(n, device=env.device)
+    fall_metric = torch.zeros(n, m, device=env.device)
     per_step = max(1, -(-buffer_rows // max(steps, 1)))
     kept: list[torch.Tensor] = []
     for _ in range(steps):
@@ -75,7 +82,8 @@ def rollout(
             kept.append(critic[torch.randperm(n, generator=gen)[:per_step].to(env.device)].float().cpu())
         if stochastic:
             loc, scale = ppo.actor_net(ppo.obs_norm(obs), design_obs)
-            actions = loc + scale * torch.randn(loc.shape, generator=action_gen, device=loc.device)
+            # paired evaluation: agent i of every design gets the same action noise
+            actions = loc + scale * env.paired_draw(tuple(loc.shape), action_gen).to(loc.device)
         else:
             actions = ppo.act_inference(obs, design_obs)
         res = env.step(actions)
@@ -89,6 +97,9 @@ def rollout(
         alt_sum += (info["foot_contact"].sum(-1) == 1).float() * alive_f
         alive_steps += alive_f
         alive &= ~info["terminated"]
+        fell = info["terminated"].float()
+        falls += fell
+        fall_metric += info["metrics"] * fell[:, None]
         if on_step is not None:
             on_step(env)
         obs, critic, design_obs = res.obs, res.critic_obs, res.design_obs
@@ -106,4 +117,7 @@ def rollout(
         alternation=per_design(alt_sum / safe),
         buffer=EvalBuffer(torch.cat(kept)[:buffer_rows]),
         steps=n * steps,
+        per_agent=(metric_sum / steps).reshape(num_designs, agents, m).cpu().numpy(),
+        falls=falls.reshape(num_designs, agents).cpu().numpy(),
+        fall_metric=per_design(fall_metric / steps),
     )

@@ -40,6 +40,31 @@ class CommandSampler:
         cmd[zero] = 0.0
         return cmd
 
+    def stratified(self, n: int, generator: torch.Generator | None = None) -> torch.Tensor:
+        """[n, 3] commands covering the current box evenly, for evaluation: agent i's vx is
+        the midpoint of the i-th of n equal strata of the vx range (a fixed grid, the same for
+        every seed); vy and the yaw rate take the midpoints of their own n strata in an order
+        shuffled by `generator` (a Latin hypercube). The zero rules of `sample` follow: a
+        planar command slower than zero_threshold becomes 0 and round(zero_share * n) further
+        agents, those with the slowest commands, stand still."""
+        n = int(n)
+        mid = (torch.arange(n, dtype=torch.float32) + 0.5) / max(n, 1)  # [n] in (0, 1)
+        gen = generator if generator is not None else torch.Generator().manual_seed(0)
+        cmd = torch.empty(n, 3)
+        for j, (lo, hi) in enumerate(self.ranges()):
+            u = mid if j == 0 else mid[torch.randperm(n, generator=gen)]
+            cmd[:, j] = lo + (hi - lo) * u
+        small = cmd[:, :2].norm(dim=-1) < self.config.zero_threshold
+        cmd[small, :2] = 0.0
+        cmd[cmd[:, 2].abs() < self.config.zero_threshold, 2] = 0.0
+        extra = int(round(self.config.zero_share * n))
+        if extra > 0:
+            speed = cmd.abs().sum(dim=-1)
+            speed[speed == 0] = float("inf")  # already standing: not counted again
+            order = torch.argsort(speed, stable=True)[:extra]
+            cmd[order[torch.isfinite(speed[order])]] = 0.0
+        return cmd.to(self.device)
+
     def record_episodes(
         self, episodes: int, falls: int, tracking_sum: float, moving_steps: float, seconds: float
     ) -> bool:

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
+from coadapt_core.errors import UserError
 from coadapt_core.objective import Objective, StepBatch
 from coadapt_core.robot import Robot
 from coadapt_core.simulator import SimState, Simulator
@@ -75,6 +76,11 @@ class LocomotionEnv:
         self.design_high = torch.as_tensor(space.upper, dtype=torch.float32, device=self.device)
         self.commands = CommandSampler(self.cfg.commands, self.device, self.generator)
         self.fixed_commands = False
+        # paired evaluation (`pair_scenarios`): (agents per design, seed), or None
+        self.paired: tuple[int, int] | None = None
+        self._paired_phase: torch.Tensor | None = None
+        self._paired_gen = torch.Generator(device=self.device)
+        self._tick = 0  # policy steps since the last full `reset` (keys the paired noise)
         resample = self.cfg.commands.resample_seconds
         self.resample_steps = int(round(resample / self.dt)) if resample > 0 else 0
 
@@ -151,6 +157,38 @@ class LocomotionEnv:
         self.command[:] = torch.as_tensor(commands, dtype=torch.float32, device=self.device).expand(self.num_envs, 3)
         self._freeze_clock(torch.arange(self.num_envs, device=self.device))
 
+    def pair_scenarios(self, agents: int | None, seed: int = 0) -> None:
+        """Common random numbers across designs (real fitness): the environments form
+        consecutive groups of `agents`, one group per design, and environment
+        k * agents + i sees what environment i sees: the same observation noise at every step
+        (a function of `seed`, the steps since `reset` and i alone, so it depends neither on
+        the other designs in the batch nor on who fell) and the same gait phase at the start
+        of every episode. `agents=None` returns to independent draws."""
+        if agents is None:
+            self.paired, self._paired_phase = None, None
+            return
+        agents = int(agents)
+        if agents < 1 or self.num_envs % agents:
+            raise UserError(
+                f"pair_scenarios: {self.num_envs} environments do not split into groups of {agents} agents",
+                field="agents",
+            )
+        self.paired = (agents, int(seed))
+        gen = torch.Generator(device=self.device)
+        gen.manual_seed(int(seed))
+        self._paired_phase = torch.rand(agents, generator=gen, device=self.device)
+
+    def paired_draw(self, shape: tuple[int, ...], generator: torch.Generator, normal: bool = True) -> torch.Tensor:
+        """[num_envs, *shape[1:]] random numbers, standard normal or uniform in [0, 1): one
+        draw per agent of a group repeated for every design when paired, else one per
+        environment."""
+        rows = self.paired[0] if self.paired is not None else shape[0]
+        draw = torch.randn if normal else torch.rand
+        x = draw((rows, *shape[1:]), generator=generator, device=self.device)
+        if self.paired is not None:
+            x = x.repeat(shape[0] // rows, *([1] * (len(shape) - 1)))
+        return x
+
     # -- episode bookkeeping ----------------------------------------------------------------
     def _freeze_clock(self, ids: torch.Tensor) -> None:
         if self.cfg.gait.freeze_on_zero_command:
@@ -173,7 +211,10 @@ class LocomotionEnv:
         self.episode_moving_steps[ids] = 0.0
         self.episode_speed[ids] = 0.0
         self.episode_command[ids] = 0.0
-        self.phase[ids] = torch.rand(ids.numel(), generator=self.generator, device=self.device)
+        if self._paired_phase is not None:  # paired: agent i always starts at its own phase
+            self.phase[ids] = self._paired_phase[ids % self._paired_phase.numel()]
+        else:
+            self.phase[ids] = torch.rand(ids.numel(), generator=self.generator, device=self.device)
         if not self.fixed_commands:
             self.command[ids] = self.commands.sample(ids.numel())
         self._freeze_clock(ids)
@@ -181,6 +222,7 @@ class LocomotionEnv:
     def reset(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Reset every environment: (obs, critic_obs, design_obs)."""
         state = self._to_device(self.sim.reset())
+        self._tick = 0
         self._start(torch.arange(self.num_envs, device=self.device), state)
         self.state = state
         obs, critic = self._observe(state)
@@ -196,9 +238,10 @@ class LocomotionEnv:
         return lin, ang, quat_rotate_inverse(quat, gravity)
 
     def _noise(self, shape: tuple[int, ...], scale: float) -> torch.Tensor:
+        gen = self._paired_gen if self.paired is not None else self.generator
         if self.cfg.noise.kind == "gaussian":
-            return scale * torch.randn(shape, generator=self.generator, device=self.device)
-        return scale * (2.0 * torch.rand(shape, generator=self.generator, device=self.device) - 1.0)
+            return scale * self.paired_draw(shape, gen)
+        return scale * (2.0 * self.paired_draw(shape, gen, normal=False) - 1.0)
 
     def _observe(self, state: SimState) -> tuple[torch.Tensor, torch.Tensor]:
         """(noisy policy obs [N, num_obs], critic state [N, num_critic_obs])."""
@@ -213,6 +256,9 @@ class LocomotionEnv:
         obs = clean
         noise = self.cfg.noise
         if noise.enabled:
+            if self.paired is not None:  # the same noise however often this step is observed
+                key = np.random.SeedSequence([self.paired[1], self._tick]).generate_state(2, dtype=np.uint64)
+                self._paired_gen.manual_seed(int(key[0] >> np.uint64(1)))
             n, s = self.num_envs, self.obs_slices
             obs = clean.clone()
             obs[:, s["base_lin_vel"]] += self._noise((n, 3), noise.base_lin_vel)
@@ -271,6 +317,7 @@ class LocomotionEnv:
         state = self._to_device(self.sim.step(targets.to(sim_device)))
         self.timing["physics"] += time.perf_counter() - tick
         self.episode_length += 1
+        self._tick += 1
 
         moving = self.command.abs().sum(dim=-1) > 0  # [N]
         advance = moving if cfg.gait.freeze_on_zero_command else torch.ones_like(moving)

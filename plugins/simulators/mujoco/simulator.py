@@ -376,7 +376,7 @@ class MujocoSimulator(Simulator):
             return
         b = self._live()
         if draw:
-            self._params.put(ids, sample_env_params(self.randomization, ids.size, self._rng))
+            self._params.put(ids, self.draw_env_params(self._env_of_row[ids], self._rng))
         params = self._params.take(ids)
         # Table 2 parameters living in the model: sliding friction of every geom (MuJoCo
         # combines a contact's two geoms by max, so robot and terrain both carry it),
@@ -395,7 +395,7 @@ class MujocoSimulator(Simulator):
         xy = np.zeros((ids.size, 2))
         if draw and self._terrain.name == "random":
             half = self._terrain.size / 2 - SPAWN_MARGIN
-            xy = self._spawn_rng.uniform(-half, half, size=(ids.size, 2))
+            xy = self.draw_spawn_xy(self._env_of_row[ids], self._spawn_rng, half)
         feet = xy[:, None, :] + self._foot_xy[ids]  # [n, L, 2]
         ground = np.empty(feet.shape[:2])  # [n, L] highest ground within each sole's reach
         radii = self._foot_radius[ids]

@@ -20,7 +20,6 @@ from coadapt_core.randomization import (
     EnvParams,
     RandomizationConfig,
     nominal_env_params,
-    sample_env_params,
 )
 from coadapt_core.simulator import TERRAINS, SimState, Simulator
 
@@ -239,13 +238,13 @@ class PyBulletSimulator(Simulator):
         return ids
 
     def _reset_engines(self, ids: np.ndarray) -> None:
-        self._params.put(ids, sample_env_params(self.randomization, len(ids), self._rng))
+        self._params.put(ids, self.draw_env_params(ids, self._rng))
         spawn_xy = np.zeros((len(ids), 2))
         if self.terrain == "random":
             from coadapt_core.terrain import make_terrain
 
             half = make_terrain(self.terrain, seed=self.seed).size / 2 - SPAWN_MARGIN
-            spawn_xy = self._spawn_rng.uniform(-half, half, size=(len(ids), 2))
+            spawn_xy = self.draw_spawn_xy(ids, self._spawn_rng, half)
         if self._engine is not None:
             self._engine.reset(ids, self._engine_params(ids, spawn_xy))
             return
