@@ -76,6 +76,10 @@ class CoadaptConfig:
         """Raise `UserError` (one line naming the field and what is accepted) on a bad value."""
         if self.method not in METHODS:
             raise UserError(f"method '{self.method}' is not one of {', '.join(METHODS)}", field="method")
+        if self.method == "bo-specialized":
+            # the BO baseline always searches with BO: record the optimizer it really uses
+            # (run id, config.yaml, store), whatever the preset's or the option's optimizer
+            self.optimizer = "bo"
         if self.terrain not in TERRAINS:
             raise UserError(f"terrain '{self.terrain}' is not one of {', '.join(TERRAINS)}", field="terrain")
         if not self.objectives:

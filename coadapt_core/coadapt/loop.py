@@ -28,6 +28,7 @@ from coadapt_core.errors import UserError
 from coadapt_core.fitness import CoadaptationBackend, RunRecorder
 from coadapt_core.objective import Objective
 from coadapt_core.optimizer import Optimizer
+from coadapt_core.pareto import pareto_front
 
 STATE_FILE = "state.pkl"
 BUFFER_FILE_STEM = "buffer"  # <run_dir>/buffer-<serial>.pkl: the evaluation buffer R_eval
@@ -485,8 +486,10 @@ class CoadaptationLoop:
         s, c = self.state, self.config
         self.emit("final evaluation")
         if len(self.objectives) > 1:
-            front, _ = s.optimizer.pareto_front()
-            candidates = list(front[: c.population])
+            front, _ = s.optimizer.pareto_front()  # sorted by the first cost
+            if len(front) > c.population:  # evenly along the front, both ends included
+                front = front[np.unique(np.linspace(0, len(front) - 1, c.population).round().astype(int))]
+            candidates = list(front)
         else:
             candidates = []
             for item in [*s.top_real, s.best_any]:
@@ -512,12 +515,18 @@ class CoadaptationLoop:
             s.counters["final_interactions"] += int(fit.interactions)
             s.counters["final_seconds"] += float(fit.seconds)
             nominal_costs = costs[-1]
-            i = int(np.argmin(costs[:-1, 0]))
-            best_design, best_costs = designs[i], costs[i]
-            best_cost = float(best_costs[0])
             front = None
             if len(self.objectives) > 1:
-                front = {"designs": designs[:-1].tolist(), "costs": [dict(zip(self.names, map(float, r), strict=True)) for r in costs[:-1]]}
+                # the optimizer's front mixes surrogate and noisy real costs: the stored front
+                # is the non-dominated subset of the final real re-evaluation
+                front_designs, front_costs = pareto_front(designs[:-1], costs[:-1])
+                front = {"designs": front_designs.tolist(),
+                         "costs": [dict(zip(self.names, map(float, r), strict=True)) for r in front_costs]}
+                best_design, best_costs = front_designs[0], front_costs[0]  # lowest first cost
+            else:
+                i = int(np.argmin(costs[:-1, 0]))
+                best_design, best_costs = designs[i], costs[i]
+            best_cost = float(best_costs[0])
         improvements = {
             o.name: float(o.improvement(float(best_costs[j]) if j < len(best_costs) else float("nan"), float(nominal_costs[j])))
             for j, o in enumerate(self.objectives) if j < len(best_costs)
@@ -601,7 +610,8 @@ def run_coadaptation(
         state = LoopState(run_id=run_id, config=config.to_dict(), space=parts.space.to_dict())
     assert run_path is not None
     recorder = recorder or make_recorder(run_path, config.store or None)
-    recorder.start_run({**config.to_dict(), "run_id": state.run_id, "run_dir": str(run_path)})
+    recorder.start_run({**config.to_dict(), "run_id": state.run_id, "run_dir": str(run_path),
+                        "design_space": parts.full_space.to_dict()})
     if state.phase == "done":
         assert state.summary is not None
         return CoadaptResult(state.run_id, run_path, state.summary)

@@ -40,16 +40,51 @@ def _flatten(name: str, row: dict[str, Any], design_names: dict[str, list[str]])
     return out
 
 
+def space_of_run(run: dict[str, Any], dim: int | None = None) -> dict[str, Any] | None:
+    """The run's design space as `DesignSpace.to_dict()` gives it: from its config (recorded
+    since runs carry it), else its summary (the ranges it searched), else the robot plugin's
+    space of the same dimension; None when nothing names it."""
+    cfg = run.get("config") if isinstance(run.get("config"), dict) else {}
+    summary = run.get("summary") if isinstance(run.get("summary"), dict) else {}
+    spaces = summary.get("spaces") if isinstance(summary.get("spaces"), list) else []
+    for space in (cfg.get("design_space"), summary.get("final_space"), *spaces[:1]):
+        if isinstance(space, dict) and isinstance(space.get("variables"), list):
+            return space
+    robot = run.get("robot") or cfg.get("robot")
+    if robot and dim is not None:
+        try:
+            from coadapt_core.plugins import get_registry
+
+            robot_obj = get_registry().get("robot", str(robot))()
+            for mixed in (False, True):
+                space = robot_obj.design_space(mixed=mixed)
+                if space.dim == dim:
+                    return space.to_dict()
+        except Exception:  # an uninstalled robot plugin: no names
+            return None
+    return None
+
+
+def design_names_of(run: dict[str, Any], dim: int | None = None) -> list[str] | None:
+    """Variable names of the run's design space (see `space_of_run`)."""
+    cfg = run.get("config") if isinstance(run.get("config"), dict) else {}
+    if isinstance(cfg.get("design_names"), list):
+        return [str(n) for n in cfg["design_names"]]
+    space = space_of_run(run, dim)
+    return None if space is None else [str(v["name"]) for v in space["variables"]]
+
+
 def _design_names(store: ResultsStore, run_ids: Sequence[str] | None) -> dict[str, list[str]]:
-    """Variable names per run, from the design space in its config when it has one."""
+    """Variable names per run, from its design space (see `space_of_run`)."""
     names: dict[str, list[str]] = {}
     for run in store.list_runs(run_ids=run_ids):
-        cfg = run["config"]
-        space = cfg.get("design_space") if isinstance(cfg, dict) else None
-        if isinstance(space, dict) and "variables" in space:
-            names[run["id"]] = [str(v["name"]) for v in space["variables"]]
-        elif isinstance(cfg, dict) and isinstance(cfg.get("design_names"), list):
-            names[run["id"]] = [str(n) for n in cfg["design_names"]]
+        dim = None
+        first = store.evaluations(run["id"])[:1]
+        if first:
+            dim = len(first[0].design)
+        found = design_names_of(run, dim)
+        if found:
+            names[run["id"]] = found
     return names
 
 

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from coadapt_core.errors import UserError
+from coadapt_core.pareto import pareto_mask
 from coadapt_core.results.backends import (
     BackendFactory,
     BackendUnavailable,
@@ -24,6 +25,7 @@ from coadapt_core.results.backends import (
     run_request,
     universal_policy_backend,
 )
+from coadapt_core.results.export import space_of_run
 from coadapt_core.results.grid import METHODS
 from coadapt_core.results.landscape import LANDSCAPE_METHOD
 from coadapt_core.results.store import Evaluation, ResultsStore
@@ -60,10 +62,28 @@ class RunFacts:
     real: list[Evaluation] = field(default_factory=list)
     sim2sim: float | None = None
     sim2sim_note: str = ""
+    design_names: list[str] = field(default_factory=list)  # the run's design space, in order
+    design_units: list[str] = field(default_factory=list)
+    design_discrete: list[bool] = field(default_factory=list)
 
     @property
     def method(self) -> str:
         return self.run["method"]
+
+    @property
+    def optimizer(self) -> str:
+        """The optimizer the run used (the BO baseline always used BO, whatever older rows say)."""
+        if self.method == "bo-specialized":
+            return "bo"
+        return str(self.run.get("optimizer") or "unknown")
+
+    @property
+    def summary(self) -> dict[str, Any]:
+        return self.run.get("summary") or {}
+
+    @property
+    def space_key(self) -> tuple[str, ...]:
+        return tuple(self.design_names)
 
     @property
     def objective(self) -> str:
@@ -111,6 +131,9 @@ def run_facts(store: ResultsStore, run: dict[str, Any]) -> RunFacts:
         best = min(real, key=lambda e: e.costs.get(first, math.inf))
         best_design, best_cost = best.design, best.costs.get(first)
     training = store.training(run["id"])
+    dim = len(best_design) if best_design is not None else (len(real[0].design) if real else None)
+    space = space_of_run(run, dim)
+    variables = space["variables"] if space else [{"name": f"x{i}", "type": "continuous"} for i in range(dim or 0)]
     return RunFacts(
         run=run,
         best_design=None if best_design is None else [float(x) for x in np.ravel(best_design)],
@@ -124,6 +147,9 @@ def run_facts(store: ResultsStore, run: dict[str, Any]) -> RunFacts:
         designs_real=len(real),
         designs_surrogate=len(surrogate),
         real=real,
+        design_names=[str(v["name"]) for v in variables],
+        design_units=[str(v.get("unit") or "") for v in variables],
+        design_discrete=[v.get("type") == "discrete" for v in variables],
     )
 
 
@@ -205,84 +231,118 @@ def _ordered(values: Sequence[str], order: Sequence[str]) -> list[str]:
     return known + sorted(v for v in set(values) if v not in order)
 
 
+OPTIMIZER_ORDER = ("pso", "mixed-pso", "bo", "nsga2")
+
+
+def _group_order(keys: Sequence[tuple[str, str]]) -> list[tuple[str, str]]:
+    """(method, optimizer) keys in the paper's method order, then optimizer order: the same
+    order in every table, legend and figure."""
+    def rank(key: tuple[str, str]) -> tuple[int, str, int, str]:
+        m, o = key
+        mi = METHODS.index(m) if m in METHODS else len(METHODS)
+        oi = OPTIMIZER_ORDER.index(o) if o in OPTIMIZER_ORDER else len(OPTIMIZER_ORDER)
+        return (mi, m, oi, o)
+
+    return sorted(set(keys), key=rank)
+
+
+def _stat(values: Sequence[float | None]) -> tuple[float | None, float | None, int]:
+    """(mean, sample std or None for one value, n) over the values that exist."""
+    vals = [float(v) for v in values if v is not None and math.isfinite(float(v))]
+    if not vals:
+        return None, None, 0
+    return float(np.mean(vals)), (float(np.std(vals, ddof=1)) if len(vals) > 1 else None), len(vals)
+
+
 def _mean(values: Sequence[float | None]) -> float | None:
-    vals = [v for v in values if v is not None]
-    return float(np.mean(vals)) if vals else None
+    return _stat(values)[0]
+
+
+def _se_of_mean(values: Sequence[float | None]) -> float | None:
+    """Standard error of the mean of independent estimates with these standard errors (all
+    of them recorded, else None)."""
+    if not values or any(v is None for v in values):
+        return None
+    return float(math.sqrt(sum(float(v) ** 2 for v in values)) / len(values))
+
+
+def _add_stat(row: dict[str, Any], name: str, values: Sequence[float | None], se: Sequence[float | None] | None = None) -> None:
+    mean, std, n = _stat(values)
+    row[name], row[f"{name}_std"], row[f"{name}_n"] = mean, std, n
+    if se is not None:
+        row[f"{name}_se"] = _se_of_mean(se)
 
 
 def table6_rows(facts: Sequence[RunFacts]) -> list[dict[str, Any]]:
-    """One row per objective x method x terrain, means over seeds."""
-    groups: dict[tuple[str, str, str], list[RunFacts]] = defaultdict(list)
+    """One row per objective x method x optimizer x terrain: mean, sample standard
+    deviation over seeds and count of every number (`<col>`, `<col>_std`, `<col>_n`); the
+    design columns are named after the run's design space."""
+    groups: dict[tuple[str, str, str, str], list[RunFacts]] = defaultdict(list)
     for f in facts:
         if f.method != LANDSCAPE_METHOD:
-            groups[(f.objective, f.method, f.terrain)].append(f)
+            groups[(f.objective, f.method, f.optimizer, f.terrain)].append(f)
     rows = []
     objectives = _ordered([k[0] for k in groups], list(OBJECTIVE_LABELS))
-    methods = _ordered([k[1] for k in groups], METHODS)
-    terrains = _ordered([k[2] for k in groups], TERRAIN_ORDER)
+    pairs = _group_order([(k[1], k[2]) for k in groups])
+    terrains = _ordered([k[3] for k in groups], TERRAIN_ORDER)
     for o in objectives:
-        for m in methods:
+        for m, opt in pairs:
             for t in terrains:
-                group = groups.get((o, m, t))
+                group = groups.get((o, m, opt, t))
                 if not group:
                     continue
-                designs = [f.best_design for f in group if f.best_design is not None]
-                notes = sorted({f.sim2sim_note for f in group if f.sim2sim is None and f.sim2sim_note})
-                rows.append(
-                    {
-                        "objective": o,
-                        "method": m,
-                        "terrain": t,
-                        "runs": len(group),
-                        "thigh": _mean([d[0] for d in designs]),
-                        "shank": _mean([d[1] for d in designs if len(d) > 1]),
-                        "best_cost": _mean([f.best_cost for f in group]),
-                        "nominal_cost": _mean([f.nominal_cost for f in group]),
-                        "improvement": _mean([f.improvement for f in group]),
-                        "sim2sim_improvement": _mean([f.sim2sim for f in group]),
-                        "sim2sim_note": "; ".join(notes),
-                        "run_ids": " ".join(f.run["id"] for f in group),
-                    }
-                )
+                row: dict[str, Any] = {"objective": o, "method": m, "optimizer": opt, "terrain": t, "runs": len(group),
+                                       "seeds": " ".join(str(f.run.get("seed")) for f in group)}
+                names = group[0].design_names
+                for i, name in enumerate(names):
+                    _add_stat(row, name, [f.best_design[i] if f.best_design and len(f.best_design) > i else None for f in group])
+                _add_stat(row, "best_cost", [f.best_cost for f in group], [_float(f.summary.get("best_cost_se")) for f in group])
+                _add_stat(row, "nominal_cost", [f.nominal_cost for f in group],
+                          [_float(f.summary.get("nominal_cost_se")) for f in group])
+                _add_stat(row, "improvement", [f.improvement for f in group],
+                          [_float(f.summary.get("improvement_se")) for f in group])
+                _add_stat(row, "sim2sim_improvement", [f.sim2sim for f in group])
+                row["sim2sim_note"] = "; ".join(sorted({f.sim2sim_note for f in group if f.sim2sim_note}))
+                row["design_variables"] = " ".join(names)
+                row["design_units"] = "|".join(group[0].design_units)
+                row["design_discrete"] = " ".join(str(int(d)) for d in group[0].design_discrete)
+                row["run_ids"] = " ".join(f.run["id"] for f in group)
+                rows.append(row)
     return rows
+
+
+T7_NUMBERS = ("interactions_training", "interactions_evaluation", "seconds_training", "seconds_evaluation",
+              "designs_real", "designs_surrogate")
 
 
 def table7_rows(facts: Sequence[RunFacts]) -> list[dict[str, Any]]:
-    """One row per method, means over its runs (the paper reports averages). A run with
-    another optimizer than PSO (NSGA-II, mixed PSO) gets a row of its own, "ours [nsga2]":
-    its costs are not the method's."""
-    groups: dict[str, list[RunFacts]] = defaultdict(list)
+    """One row per method x optimizer: mean, std and count over its runs (the paper reports
+    averages); a pso and a mixed-pso run of one method are two rows, as in Table 6."""
+    groups: dict[tuple[str, str], list[RunFacts]] = defaultdict(list)
     for f in facts:
         if f.method != LANDSCAPE_METHOD:
-            groups[_method_key(f)].append(f)
+            groups[(f.method, f.optimizer)].append(f)
     rows = []
-    for m in _ordered(list(groups), METHODS):
-        g = groups[m]
-        rows.append(
-            {
-                "method": m,
-                "runs": len(g),
-                "interactions_training": float(np.mean([f.train_interactions for f in g])),
-                "interactions_evaluation": float(np.mean([f.eval_interactions for f in g])),
-                "seconds_training": float(np.mean([f.train_seconds for f in g])),
-                "seconds_evaluation": float(np.mean([f.eval_seconds for f in g])),
-                "designs_real": float(np.mean([f.designs_real for f in g])),
-                "designs_surrogate": float(np.mean([f.designs_surrogate for f in g])),
-            }
-        )
+    for m, opt in _group_order(list(groups)):
+        g = groups[(m, opt)]
+        row: dict[str, Any] = {"method": m, "optimizer": opt, "runs": len(g)}
+        values = {
+            "interactions_training": [f.train_interactions for f in g],
+            "interactions_evaluation": [f.eval_interactions for f in g],
+            "seconds_training": [f.train_seconds for f in g],
+            "seconds_evaluation": [f.eval_seconds for f in g],
+            "designs_real": [f.designs_real for f in g],
+            "designs_surrogate": [f.designs_surrogate for f in g],
+        }
+        for name in T7_NUMBERS:
+            _add_stat(row, name, values[name])
+        row["run_ids"] = " ".join(f.run["id"] for f in g)
+        rows.append(row)
     return rows
 
 
-def _method_key(f: RunFacts) -> str:
-    optimizer = f.run.get("optimizer")
-    if f.method == "bo-specialized" or optimizer in (None, "", "pso"):
-        return f.method
-    return f"{f.method} [{optimizer}]"
-
-
-def _label(method_key: str) -> str:
-    method, _, rest = method_key.partition(" ")
-    return f"{METHOD_LABELS.get(method, method)} {rest}".strip()
+def _label(method: str, optimizer: str | None = None) -> str:
+    return METHOD_LABELS.get(method, method) + (f" [{optimizer}]" if optimizer else "")
 
 
 def _fmt(value: float | None, spec: str = ".2f", pct: bool = False) -> str:
@@ -291,63 +351,106 @@ def _fmt(value: float | None, spec: str = ".2f", pct: bool = False) -> str:
     return f"{100 * value:.1f}%" if pct else format(value, spec)
 
 
-def table6_markdown(rows: Sequence[dict[str, Any]]) -> str:
-    terrains = _ordered([r["terrain"] for r in rows], TERRAIN_ORDER)
-    index = {(r["objective"], r["method"], r["terrain"]): r for r in rows}
-    head = "| Objective | Method | " + " | ".join(
-        f"{t.title()} thigh | {t.title()} shank | {t.title()} improvement | {t.title()} sim-to-sim" for t in terrains
-    ) + " |"
-    lines = [head, "|" + "---|" * (2 + 4 * len(terrains))]
-    seen: list[tuple[str, str]] = []
+def _cell(row: dict[str, Any], name: str, *, spec: str = ".3g", pct: bool = False, scale: float = 1.0) -> str:
+    """'mean ± std (n=k)' of an aggregated column; one run: 'value ± se SE (n=1)' when the
+    run recorded a standard error, else 'value (n=1)'."""
+    mean, std, n = row.get(name), row.get(f"{name}_std"), row.get(f"{name}_n", 0)
+    if mean is None or not n:
+        return "n/a"
+
+    def fmt(v: float) -> str:
+        return f"{100 * v / scale:.1f}%" if pct else format(v / scale, spec)
+
+    if std is not None:
+        return f"{fmt(mean)} ± {fmt(std)} (n={n})"
+    se = row.get(f"{name}_se")
+    if se is not None:
+        return f"{fmt(mean)} ± {fmt(se)} SE (n={n})"
+    return f"{fmt(mean)} (n={n})"
+
+
+def _design_header(name: str, unit: str) -> str:
+    return f"{name} [{unit}]" if unit else name
+
+
+def _design_cell(row: dict[str, Any], name: str, discrete: bool) -> str:
+    if row.get(f"{name}_n", 0) == 1 and discrete and row.get(name) is not None:
+        return f"{row[name]:.0f} (n=1)"  # a motor type is an integer
+    return _cell(row, name, spec=".3f")
+
+
+def _design_columns(rows: Sequence[dict[str, Any]]) -> list[tuple[str, str, bool]]:
+    """(name, unit, discrete) of every design variable the rows name, in first-seen order."""
+    out: list[tuple[str, str, bool]] = []
     for r in rows:
-        if (r["objective"], r["method"]) not in seen:
-            seen.append((r["objective"], r["method"]))
-    previous = None
-    for o, m in seen:
-        cells = [OBJECTIVE_LABELS.get(o, o) if o != previous else "", METHOD_LABELS.get(m, m)]
-        previous = o
-        for t in terrains:
-            r = index.get((o, m, t))
-            if r is None:
-                cells += ["", "", "", ""]
-            else:
-                cells += [_fmt(r["thigh"]), _fmt(r["shank"]), _fmt(r["improvement"], pct=True), _fmt(r["sim2sim_improvement"], pct=True)]
+        names = r["design_variables"].split()
+        units = r["design_units"].split("|") if r["design_units"] else [""] * len(names)
+        flags = [d == "1" for d in r["design_discrete"].split()] or [False] * len(names)
+        for n, u, d in zip(names, units + [""] * len(names), flags + [False] * len(names), strict=False):
+            if n not in [c[0] for c in out]:
+                out.append((n, u, d))
+    return out
+
+
+def table6_markdown(rows: Sequence[dict[str, Any]]) -> str:
+    design = _design_columns(rows)
+    head = (["Objective", "Method", "Optimizer", "Terrain", "Runs"] + [_design_header(n, u) for n, u, _ in design]
+            + ["Best cost", "Nominal cost", "Improvement", "Sim-to-sim improvement", "Sim-to-sim note"])
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in rows:
+        cells = [OBJECTIVE_LABELS.get(r["objective"], r["objective"]), METHOD_LABELS.get(r["method"], r["method"]),
+                 r["optimizer"], r["terrain"], str(r["runs"])]
+        cells += [_design_cell(r, n, d) if f"{n}_n" in r else "" for n, _, d in design]
+        cells += [_cell(r, "best_cost", spec=".4g"), _cell(r, "nominal_cost", spec=".4g"), _cell(r, "improvement", pct=True),
+                  _cell(r, "sim2sim_improvement", pct=True), r["sim2sim_note"] or ""]
         lines.append("| " + " | ".join(cells) + " |")
-    notes = sorted({r["sim2sim_note"] for r in rows if r["sim2sim_improvement"] is None and r["sim2sim_note"]})
-    if notes:
-        lines += ["", "Sim-to-sim: " + "; ".join(notes) + "."]
+    lines += ["", "Each number: mean ± sample standard deviation over the runs (seeds) of the row, and how many "
+              "runs had it (n); one run shows its own standard error (SE) when it recorded one. Improvement: "
+              "lower cost than the nominal design, in percent of the nominal cost."]
     return "\n".join(lines) + "\n"
 
 
 def table7_units(rows: Sequence[dict[str, Any]]) -> tuple[float, str, float, str]:
     """Interaction and time units: the paper's millions and hours, smaller ones when a
     table of smoke runs would print only zeros."""
-    most_inter = max((r["interactions_training"] + r["interactions_evaluation"] for r in rows), default=0)
-    most_sec = max((r["seconds_training"] + r["seconds_evaluation"] for r in rows), default=0)
+    most_inter = max(((r["interactions_training"] or 0) + (r["interactions_evaluation"] or 0) for r in rows), default=0)
+    most_sec = max(((r["seconds_training"] or 0) + (r["seconds_evaluation"] or 0) for r in rows), default=0)
     inter = (1e6, "million") if most_inter >= 1e5 else (1e3, "thousand")
     time_unit = (3600.0, "hour") if most_sec >= 360 else (60.0, "minute") if most_sec >= 6 else (1.0, "second")
     return inter[0], inter[1], time_unit[0], time_unit[1]
 
 
+def _sum_cell(r: dict[str, Any], a: str, b: str, unit: float, spec: str = ".3g") -> str:
+    """'total ± std (a+b)': the paper's Training+Evaluation layout with the spread of the total."""
+    ta, tb = (r[a] or 0.0) / unit, (r[b] or 0.0) / unit
+    sa, sb = r.get(f"{a}_std"), r.get(f"{b}_std")
+    spread = "" if sa is None or sb is None else f" ± {format(math.hypot(sa, sb) / unit, spec)}"
+    return f"{format(ta + tb, spec)}{spread} ({format(ta, spec)}+{format(tb, spec)})"
+
+
 def table7_markdown(rows: Sequence[dict[str, Any]]) -> str:
     iu, iname, tu, tname = table7_units(rows)
     lines = [
-        f"| Method | Interactions ({iname}, Training+Evaluation) | Wall clock time ({tname}, Training+Evaluation) | Designs evaluated (real+surrogate) | Runs |",
-        "|---|---|---|---|---|",
+        f"| Method | Optimizer | Runs | Interactions ({iname}, Training+Evaluation) | "
+        f"Wall clock time ({tname}, Training+Evaluation) | Designs evaluated (real+surrogate) |",
+        "|---|---|---|---|---|---|",
     ]
     for r in rows:
-        ti, ei = r["interactions_training"] / iu, r["interactions_evaluation"] / iu
-        ts, es = r["seconds_training"] / tu, r["seconds_evaluation"] / tu
         lines.append(
-            f"| {_label(r['method'])} | {ti + ei:.3g}({ti:.3g}+{ei:.3g}) | "
-            f"{ts + es:.3g}({ts:.3g}+{es:.3g}) | {r['designs_real'] + r['designs_surrogate']:.0f}"
-            f"({r['designs_real']:.0f}+{r['designs_surrogate']:.0f}) | {r['runs']} |"
+            f"| {METHOD_LABELS.get(r['method'], r['method'])} | {r['optimizer']} | {r['runs']} | "
+            f"{_sum_cell(r, 'interactions_training', 'interactions_evaluation', iu)} | "
+            f"{_sum_cell(r, 'seconds_training', 'seconds_evaluation', tu)} | "
+            f"{_sum_cell(r, 'designs_real', 'designs_surrogate', 1.0, '.0f')} |"
         )
+    lines += ["", "Means over the runs of each row (± sample standard deviation of the total when a row has "
+              "two or more runs)."]
     return "\n".join(lines) + "\n"
 
 
 def write_csv(path: Path, rows: Sequence[dict[str, Any]]) -> None:
-    columns = list(rows[0]) if rows else []
+    columns: list[str] = []
+    for r in rows:
+        columns.extend(k for k in r if k not in columns)
     with path.open("w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=columns)
         writer.writeheader()
@@ -365,6 +468,11 @@ def _pyplot():
     return plt
 
 
+#: figure width per panel (inches) and resolution: at most two panels a row keeps a figure
+#: under ~1000 px, shown at its own size in report.html (no shrinking of its labels)
+PANEL_W, PANEL_H, DPI, MAX_COLS = 4.8, 4.0, 100, 2
+
+
 def _spans_decades(values: Any, decades: float = 3.0) -> bool:
     """True when positive finite values spread over more than `decades` orders of magnitude:
     one diverged rollout (cost 1e10 next to 1e3) would flatten a linear axis, so such axes
@@ -377,26 +485,47 @@ def _spans_decades(values: Any, decades: float = 3.0) -> bool:
 METHOD_MARKERS = {"ours": "o", "no-surrogate": "s", "no-real": "^", "no-retrain": "D", "bo-specialized": "P"}
 METHOD_COLORS = {"ours": "tab:red", "no-surrogate": "tab:blue", "no-real": "tab:green", "no-retrain": "tab:purple",
                  "bo-specialized": "tab:orange"}
-#: methods that share a seed share their first rounds: distinct dashes keep every curve visible
-METHOD_LINESTYLES = {"ours": "-", "no-surrogate": (0, (5, 2)), "no-real": (0, (1, 1.5)), "no-retrain": "-.",
-                     "bo-specialized": (0, (3, 1, 1, 1, 1, 1))}
+#: the optimizer sets a run's line style and its marker's fill: two optimizers of one method
+#: differ in both, the methods in colour and marker shape
+OPTIMIZER_LINESTYLES = {"pso": "-", "mixed-pso": (0, (5, 2)), "bo": (0, (3, 1, 1, 1)), "nsga2": (0, (1, 1.2))}
+OPTIMIZER_FILLED = {"pso": False, "mixed-pso": True, "bo": False, "nsga2": True}
 
 
-def _landscape_for(store: ResultsStore, objective: str, terrain: str) -> dict[str, Any] | None:
-    found = [
-        r
-        for r in store.list_runs(method=LANDSCAPE_METHOD, terrain=terrain, status="finished")
-        if r["objectives"] and objective in r["objectives"]
-    ]
+def _panels(plt: Any, n: int, height: float = PANEL_H) -> tuple[Any, Any]:
+    cols = min(MAX_COLS, n)
+    rows = math.ceil(n / cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(PANEL_W * cols, height * rows), squeeze=False)
+    for ax in axes.ravel()[n:]:
+        ax.axis("off")
+    return fig, axes.ravel()[:n]
+
+
+def _space_slug(names: Sequence[str]) -> str:
+    return "+".join(names)
+
+
+def _landscape_for(store: ResultsStore, objective: str, terrain: str, names: Sequence[str]) -> dict[str, Any] | None:
+    """The latest finished landscape over this objective, terrain and design space."""
+    found = []
+    for r in store.list_runs(method=LANDSCAPE_METHOD, terrain=terrain, status="finished"):
+        if not (r["objectives"] and objective in r["objectives"]):
+            continue
+        space = space_of_run(r, 2)
+        land_names = [v["name"] for v in space["variables"]] if space else ["x0", "x1"]
+        if list(land_names[:2]) == list(names[:2]) and len(names) == 2:
+            found.append(r)
     return found[-1] if found else None
 
 
 def heatmap_data(
-    store: ResultsStore, facts: Sequence[RunFacts], objective: str, terrain: str, resolution: int = 41
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, str, np.ndarray | None] | None:
-    """(thigh axis [n], shank axis [n], cost [n, n] indexed [shank, thigh], source label,
-    grid optimum [2] or None) for one objective and terrain."""
-    land = _landscape_for(store, objective, terrain)
+    store: ResultsStore, facts: Sequence[RunFacts], objective: str, terrain: str, names: Sequence[str] | None = None
+) -> dict[str, Any] | None:
+    """What one panel draws for an objective, terrain and design space: a landscape grid
+    ("grid": [n_b, n_a] indexed [second variable, first]) when a landscape run exists,
+    else the evaluated designs as points ("points" [n, 2], "values" [n]); None when
+    neither exists."""
+    names = list(names or ["thigh_scale", "shank_scale"])
+    land = _landscape_for(store, objective, terrain, names)
     if land is not None:
         rows = store.evaluations(land["id"], kind="real")
         pts = np.array([e.design[:2] for e in rows])  # [n*n, 2]
@@ -405,81 +534,87 @@ def heatmap_data(
         grid = np.full((len(b), len(a)), np.nan)
         for (x, y), v in zip(pts, vals, strict=True):
             grid[np.searchsorted(b, y), np.searchsorted(a, x)] = v
-        optimum = pts[int(np.argmin(vals))]
-        return a, b, grid, f"landscape run {land['id']} ({len(a)}x{len(b)} real evaluations)", optimum
+        return {"kind": "landscape", "a": a, "b": b, "grid": grid, "optimum": pts[int(np.argmin(vals))],
+                "source": f"landscape run {land['id']} ({len(a)}x{len(b)} real evaluations)"}
     pts, vals = [], []
     for f in facts:
-        if f.objective == objective and f.terrain == terrain:
+        if f.objective == objective and f.terrain == terrain and list(f.design_names) == names:
             for e in f.real:
-                if objective in e.costs and len(e.design) >= 2:
+                if objective in e.costs and len(e.design) >= 2 and math.isfinite(e.costs[objective]):
                     pts.append(e.design[:2])
                     vals.append(e.costs[objective])
-    if len(pts) < 4:
+    if not pts:
         return None
-    from scipy.interpolate import griddata
-
-    pts_arr, vals_arr = np.array(pts), np.array(vals)
-    a = np.linspace(0.5, 1.5, resolution)
-    b = np.linspace(0.5, 1.5, resolution)
-    aa, bb = np.meshgrid(a, b)  # [n, n] indexed [shank, thigh]
-    try:
-        grid = griddata(pts_arr, vals_arr, (aa, bb), method="linear")
-    except Exception:  # degenerate (collinear) samples
-        grid = np.full(aa.shape, np.nan)
-    near = griddata(pts_arr, vals_arr, (aa, bb), method="nearest")
-    grid = np.where(np.isnan(grid), near, grid)
-    return a, b, grid, f"interpolated from {len(pts)} real evaluations of the runs (not a landscape run)", None
+    return {"kind": "scatter", "points": np.array(pts), "values": np.array(vals),
+            "source": f"{len(pts)} real evaluations of the runs (each with its own run's policy)"}
 
 
 def figure_heatmaps(store: ResultsStore, facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]]:
-    """One PNG per terrain, one panel per objective (Fig. 6 shows flat, three objectives)."""
+    """One PNG per terrain and design space, one panel per objective: the landscape grid when
+    one exists, else the designs the runs evaluated, coloured by their real cost."""
     plt = _pyplot()
-    written = []
-    objectives = _ordered([f.objective for f in facts if f.method != LANDSCAPE_METHOD], list(OBJECTIVE_LABELS))
-    objectives = [o for o in objectives if "," not in o]  # multi-objective runs have a Pareto front instead
-    terrains = _ordered([f.terrain for f in facts], TERRAIN_ORDER)
-    for t in terrains:
-        panels = [(o, heatmap_data(store, facts, o, t)) for o in objectives]
-        panels = [(o, d) for o, d in panels if d is not None]
-        if not panels:
-            continue
-        fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 5.2), squeeze=False)
-        sources = []
-        for ax, (o, (a, b, grid, source, optimum)) in zip(axes[0], panels, strict=True):
-            # lighter = lower cost, as in the paper's heat-maps
-            log = _spans_decades(grid)
-            norm = None
-            if log:
-                from matplotlib.colors import LogNorm
+    from matplotlib.colors import LogNorm
 
-                norm = LogNorm(vmin=float(np.nanmin(grid)), vmax=float(np.nanmax(grid)))
-            mesh = ax.pcolormesh(a, b, grid, cmap="viridis_r", norm=norm, shading="nearest" if len(a) < 20 else "gouraud")
-            fig.colorbar(mesh, ax=ax, label=f"{o} cost" + (" (log scale)" if log else ""))
-            if optimum is not None:  # hollow, on top, so a method's marker under it stays visible
-                ax.plot(*optimum, marker="*", markerfacecolor="none", markeredgecolor="black", markeredgewidth=1.5,
-                        markersize=22, linestyle="none", label="grid optimum", zorder=5, clip_on=False)
-            methods = _ordered({f.method for f in facts if f.objective == o and f.terrain == t and f.best_design} - {LANDSCAPE_METHOD}, METHODS)
-            for rank, m in enumerate(methods):
-                pts = np.array([f.best_design[:2] for f in facts if f.method == m and f.objective == o and f.terrain == t and f.best_design])
-                # hollow, shrinking markers: methods that found the same design show as nested outlines
-                ax.scatter(pts[:, 0], pts[:, 1], marker=METHOD_MARKERS.get(m, "x"), s=320 - 60 * rank, facecolors="none",
-                           edgecolors=METHOD_COLORS.get(m, "black"), linewidths=2.2, label=METHOD_LABELS.get(m, m), zorder=3 + 0.1 * rank,
-                           clip_on=False)  # optima often sit on the range's edge
-            ax.set_xlim(0.5, 1.5)
-            ax.set_ylim(0.5, 1.5)
-            ax.set_xlabel("thigh scale")
-            ax.set_ylabel("shank scale")
-            ax.set_title(f"{o} on {t}" + (" (landscape)" if optimum is not None else " (interpolated)"))
-            # below the panel, so it hides no part of the map
-            ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=3, fontsize=7, frameon=False)
-            sources.append(f"{o}: {source}")
-        fig.tight_layout()
-        path = out / f"heatmap_{t}.png"
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        written.append((path, f"Cost heat-maps on {t} terrain over (thigh, shank) scales; lighter = lower cost; "
-                              f"markers: each method's best design (one per seed); star: the landscape grid optimum. Sources: "
-                              + "; ".join(sources) + "."))
+    written = []
+    runs = [f for f in facts if f.method != LANDSCAPE_METHOD and "," not in f.objective]  # fronts go to pareto.png
+    objectives = _ordered([f.objective for f in runs], list(OBJECTIVE_LABELS))
+    spaces = sorted({f.space_key for f in runs if len(f.space_key) >= 2}, key=lambda k: (len(k), k))
+    for names in spaces:
+        for t in _ordered([f.terrain for f in runs], TERRAIN_ORDER):
+            panels = [(o, heatmap_data(store, runs, o, t, names)) for o in objectives]
+            panels = [(o, d) for o, d in panels if d is not None]
+            if not panels:
+                continue
+            fig, axes = _panels(plt, len(panels), height=PANEL_H + 0.6)
+            sources, drew_star, drew_methods = [], False, set()
+            for ax, (o, d) in zip(axes, panels, strict=True):
+                values = d["grid"] if d["kind"] == "landscape" else d["values"]
+                log = _spans_decades(values)
+                norm = LogNorm(vmin=float(np.nanmin(values)), vmax=float(np.nanmax(values))) if log else None
+                if d["kind"] == "landscape":
+                    # each grid cell one evaluated design: no interpolation between them
+                    mesh = ax.pcolormesh(d["a"], d["b"], d["grid"], cmap="viridis_r", norm=norm, shading="nearest")
+                    ax.plot(*d["optimum"], marker="*", markerfacecolor="none", markeredgecolor="black", markeredgewidth=1.5,
+                            markersize=18, linestyle="none", label="grid optimum", zorder=5, clip_on=False)
+                    drew_star = True
+                else:
+                    mesh = ax.scatter(d["points"][:, 0], d["points"][:, 1], c=d["values"], cmap="viridis_r", norm=norm,
+                                      s=14, linewidths=0)
+                fig.colorbar(mesh, ax=ax, label=f"real {o} cost" + (" (log scale)" if log else ""))
+                keys = _group_order([(f.method, f.optimizer) for f in runs
+                                     if f.objective == o and f.terrain == t and f.space_key == names and f.best_design])
+                for rank, (m, opt) in enumerate(keys):
+                    pts = np.array([f.best_design[:2] for f in runs if (f.method, f.optimizer) == (m, opt)
+                                    and f.objective == o and f.terrain == t and f.space_key == names and f.best_design])
+                    ax.scatter(pts[:, 0], pts[:, 1], marker=METHOD_MARKERS.get(m, "x"), s=200 - 30 * min(rank, 4),
+                               facecolors="none", edgecolors=METHOD_COLORS.get(m, "black"), linewidths=2.0,
+                               label=_label(m, opt), zorder=3 + 0.1 * rank, clip_on=False)
+                    drew_methods.add(m)
+                ax.set_xlabel(names[0])
+                ax.set_ylabel(names[1])
+                ax.set_title(f"{o} on {t}" + (" (landscape grid)" if d["kind"] == "landscape" else " (evaluated designs)"),
+                             fontsize=10)
+                ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, fontsize=7, frameon=False)
+                sources.append(f"{o}: {d['source']}")
+            fig.tight_layout()
+            suffix = "" if list(names) == ["thigh_scale", "shank_scale"] else "_" + _space_slug(names)
+            path = out / f"heatmap_{t}{suffix}.png"
+            fig.savefig(path, dpi=DPI)
+            plt.close(fig)
+            kinds = {d["kind"] for _, d in panels}
+            what = []
+            if "landscape" in kinds:
+                what.append("a landscape run's grid of real costs (one cell per evaluated design)")
+            if "scatter" in kinds:
+                what.append("every real evaluation of the runs as a dot coloured by its cost"
+                            + (" (motor types differ between dots)" if len(names) > 2 else ""))
+            caption = (f"Real cost on {t} terrain over ({names[0]}, {names[1]}); lighter = lower cost. Panels show "
+                       + " and ".join(what) + ".")
+            if drew_methods:
+                caption += " Hollow markers: each method's best design, one per seed."
+            if drew_star:
+                caption += " Star: the landscape grid's lowest cost."
+            written.append((path, caption + " Sources: " + "; ".join(sources) + "."))
     return written
 
 
@@ -493,7 +628,7 @@ def convergence_series(store: ResultsStore, f: RunFacts) -> tuple[np.ndarray, np
     total, best, xs, ys = 0, math.inf, [], []
     for _, inter, cost in events:
         total += inter
-        if cost is not None:
+        if cost is not None and math.isfinite(cost):
             best = min(best, cost)
             xs.append(total)
             ys.append(best)
@@ -502,136 +637,182 @@ def convergence_series(store: ResultsStore, f: RunFacts) -> tuple[np.ndarray, np
 
 def figure_convergence(store: ResultsStore, facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]]:
     plt = _pyplot()
-    keys = sorted({(f.objective, f.terrain) for f in facts if f.method != LANDSCAPE_METHOD and f.real and "," not in f.objective},
+    from matplotlib.lines import Line2D
+
+    runs = [f for f in facts if f.method != LANDSCAPE_METHOD and f.real and "," not in f.objective]
+    keys = sorted({(f.objective, f.terrain) for f in runs},
                   key=lambda k: (list(OBJECTIVE_LABELS).index(k[0]) if k[0] in OBJECTIVE_LABELS else 9, k[1]))
     if not keys:
         return []
-    most = max((convergence_series(store, f)[0].max(initial=0.0) for f in facts if f.real), default=0.0)
+    series = {f.run["id"]: convergence_series(store, f) for f in runs}
+    most = max((x.max(initial=0.0) for x, _ in series.values()), default=0.0)
     unit, unit_name = (1e6, "million") if most >= 1e5 else (1e3, "thousand")
-    cols = min(3, len(keys))
-    rows = math.ceil(len(keys) / cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 3.8 * rows), squeeze=False)
-    for ax, (o, t) in zip(axes.ravel(), keys, strict=False):
-        labelled = set()
-        for f in facts:
-            if f.objective != o or f.terrain != t or f.method == LANDSCAPE_METHOD:
-                continue
-            x, y = convergence_series(store, f)
-            if len(x) == 0:
-                continue
-            label = None if f.method in labelled else METHOD_LABELS.get(f.method, f.method)
-            labelled.add(f.method)
-            ax.step(x / unit, y, where="post", color=METHOD_COLORS.get(f.method, "black"), label=label, alpha=0.85,
-                    linestyle=METHOD_LINESTYLES.get(f.method, "-"), linewidth=1.8)
+    fig, axes = _panels(plt, len(keys))
+    groups = _group_order([(f.method, f.optimizer) for f in runs])
+    for ax, (o, t) in zip(axes, keys, strict=True):
+        for m, opt in groups:
+            for f in runs:
+                if (f.method, f.optimizer, f.objective, f.terrain) != (m, opt, o, t):
+                    continue
+                x, y = series[f.run["id"]]
+                if len(x) == 0:
+                    continue
+                color = METHOD_COLORS.get(m, "black")
+                ax.step(x / unit, y, where="post", color=color, alpha=0.85, linewidth=1.6,
+                        linestyle=OPTIMIZER_LINESTYLES.get(opt, "-"))
+                ax.plot(x[-1:] / unit, y[-1:], marker=METHOD_MARKERS.get(m, "x"), markersize=7, color=color,
+                        markerfacecolor=color if OPTIMIZER_FILLED.get(opt, False) else "none", linestyle="none")
         ax.set_xlabel(f"environment interactions ({unit_name})")
-        ax.set_ylabel(f"best real {o} cost")
-        if _spans_decades([y for line in ax.get_lines() for y in line.get_ydata()]):
+        ax.set_ylabel(f"best real {o} cost so far")
+        if _spans_decades([y for _, ys in series.values() for y in ys]):
             ax.set_yscale("log")
-        ax.set_title(f"{o} on {t}")
-        ax.legend(fontsize=7)
-    for ax in axes.ravel()[len(keys):]:
-        ax.axis("off")
-    fig.tight_layout()
+        ax.set_title(f"{o} on {t}", fontsize=10)
+    # one legend for the whole figure, in the tables' order: the same in every panel
+    handles = [Line2D([], [], color=METHOD_COLORS.get(m, "black"), linestyle=OPTIMIZER_LINESTYLES.get(opt, "-"),
+                      marker=METHOD_MARKERS.get(m, "x"), markerfacecolor=METHOD_COLORS.get(m, "black")
+                      if OPTIMIZER_FILLED.get(opt, False) else "none", label=_label(m, opt)) for m, opt in groups]
+    fig.legend(handles=handles, loc="lower center", ncol=min(3, len(handles)), fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0.06 + 0.03 * math.ceil(len(handles) / 3), 1, 1))
     path = out / "convergence.png"
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=DPI)
     plt.close(fig)
     return [(path, "Convergence: best real cost found so far against environment interactions spent "
-                   "(training + real evaluation), one line per run, coloured by method.")]
+                   "(training + real evaluation), one line per run; colour and marker shape = method, "
+                   "line style and marker fill = optimizer; the marker sits at the run's last evaluation.")]
 
 
 def figure_surrogate_error(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]]:
-    """Surrogate error against real cost, for every real evaluation whose design the
-    surrogate also scored."""
+    """Relative surrogate error against the real cost of the same design, one panel per
+    objective and terrain (costs of different terrains differ by orders of magnitude)."""
     plt = _pyplot()
-    series: dict[str, list[tuple[float, float, str]]] = defaultdict(list)
+    series: dict[tuple[str, str], list[tuple[float, float, str]]] = defaultdict(list)
     for f in facts:
         for e in f.real:
             for o, err in (e.surrogate_error or {}).items():
-                if o in e.costs:
-                    series[o].append((e.costs[o], err, f.method))
+                real = e.costs.get(o)
+                if real is not None and math.isfinite(real) and real != 0:
+                    series[(o, f.terrain)].append((real, err / abs(real), f.method))
     if not series:
         return []
-    fig, axes = plt.subplots(1, len(series), figsize=(5.2 * len(series), 4.0), squeeze=False)
-    for ax, (o, pts) in zip(axes[0], sorted(series.items()), strict=True):
+    keys = sorted(series, key=lambda k: (list(OBJECTIVE_LABELS).index(k[0]) if k[0] in OBJECTIVE_LABELS else 9,
+                                         TERRAIN_ORDER.index(k[1]) if k[1] in TERRAIN_ORDER else 9))
+    fig, axes = _panels(plt, len(keys))
+    for ax, key in zip(axes, keys, strict=True):
+        pts = series[key]
         for m in _ordered({p[2] for p in pts}, METHODS):
-            xy = np.array([(p[0], p[1]) for p in pts if p[2] == m])
-            # hollow markers of different shapes: coinciding designs of two methods stay visible
-            ax.scatter(xy[:, 0], xy[:, 1], s=36, facecolors="none", linewidths=1.2,
+            xy = np.array([(p[0], 100 * p[1]) for p in pts if p[2] == m])
+            ax.scatter(xy[:, 0], xy[:, 1], s=30, facecolors="none", linewidths=1.2,
                        edgecolors=METHOD_COLORS.get(m, "black"), marker=METHOD_MARKERS.get(m, "x"),
                        label=METHOD_LABELS.get(m, m))
         ax.axhline(0.0, color="grey", linewidth=0.8)
-        errs = np.array([p[1] for p in pts])
+        errs = np.array([100 * p[1] for p in pts])
         reals = np.array([p[0] for p in pts])
         if _spans_decades(reals):
             ax.set_xscale("log")
-        if _spans_decades(np.abs(errs[np.isfinite(errs) & (errs != 0)])):
-            # errors change sign: symmetric log, linear within the smallest error's decade
-            ax.set_yscale("symlog", linthresh=float(np.nanmin(np.abs(errs[np.isfinite(errs) & (errs != 0)]))))
         finite = np.isfinite(errs)
-        mean_abs = f"{np.abs(errs[finite]).mean():.3g}" if finite.any() else "n/a"
-        missing = f", {int((~finite).sum())} NaN not drawn" if not finite.all() else ""
-        ax.set_title(f"{o}: mean |error| {mean_abs} ({int(finite.sum())} designs{missing})", fontsize=9)
-        ax.set_xlabel(f"real {o} cost")
-        ax.set_ylabel("surrogate error (as recorded by the run)")
+        if finite.any():
+            lo, hi = np.percentile(errs[finite], [1, 99])
+            pad = 0.1 * max(hi - lo, 1.0)
+            ax.set_ylim(min(lo, 0.0) - pad, max(hi, 0.0) + pad)  # a few diverged points do not squash the rest
+        clipped = int((finite & ((errs < ax.get_ylim()[0]) | (errs > ax.get_ylim()[1]))).sum())
+        mean_abs = f"{np.abs(errs[finite]).mean():.3g} %" if finite.any() else "n/a"
+        notes = (f", {clipped} off-scale" if clipped else "") + (f", {int((~finite).sum())} NaN" if not finite.all() else "")
+        ax.set_title(f"{key[0]} on {key[1]}: mean |error| {mean_abs}\n({int(finite.sum())} designs{notes})", fontsize=9)
+        ax.set_xlabel(f"real {key[0]} cost")
+        ax.set_ylabel("(surrogate − real) / |real|  [%]")
         ax.legend(fontsize=7)
     fig.tight_layout()
     path = out / "surrogate_error.png"
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=DPI)
     plt.close(fig)
-    return [(path, "Pseudo-critic surrogate error against the real cost of the same design (paper Fig. 4, right); "
-                   "zero line = exact prediction.")]
+    return [(path, "Pseudo-critic surrogate error relative to the real cost of the same design (paper Fig. 4, "
+                   "right), one panel per objective and terrain. Sign: (surrogate − real) / |real|, so a point "
+                   "above the zero line is a design the surrogate scored worse (costlier) than it is; below, better.")]
 
 
-def pareto_mask(costs: np.ndarray) -> np.ndarray:
-    """[n] True where no other row is at least as good in every cost and better in one."""
-    n = costs.shape[0]
-    mask = np.ones(n, dtype=bool)
-    for i in range(n):
-        dominated = np.all(costs <= costs[i], axis=1) & np.any(costs < costs[i], axis=1)
-        mask[i] = not dominated.any()
-    return mask
+def pareto_points(f: RunFacts) -> dict[str, Any]:
+    """What pareto.png draws for a multi-objective run: every real evaluation ("evaluated"
+    [n, 2]), the front ("front" [F, 2], first two objectives) and where it comes from. The
+    front is the run's stored final front (the one `coadapt run` printed) when it has one."""
+    o1, o2 = f.run["objectives"][:2]
+    evaluated = np.array([[e.costs[o1], e.costs[o2]] for e in f.real if o1 in e.costs and o2 in e.costs]).reshape(-1, 2)
+    stored = f.summary.get("pareto_front")
+    if isinstance(stored, dict) and stored.get("costs"):
+        front = np.array([[c[o1], c[o2]] for c in stored["costs"]], dtype=float)
+        designs = np.array(stored["designs"], dtype=float)
+        source = "the run's final front (real re-evaluation)"
+    else:
+        mask = pareto_mask(evaluated)
+        front = evaluated[mask]
+        designs = np.array([e.design for e in f.real if o1 in e.costs and o2 in e.costs])[mask]
+        source = "non-dominated real evaluations (the run stored no final front)"
+    order = np.lexsort(front.T[::-1]) if len(front) else np.arange(0)
+    return {"objectives": (o1, o2), "evaluated": evaluated, "front": front[order], "designs": designs[order],
+            "source": source}
 
 
 def figure_pareto(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]]:
     plt = _pyplot()
-    multi = [f for f in facts if len(f.run["objectives"]) >= 2 and f.real]
+    multi = [f for f in facts if len(f.run["objectives"]) >= 2 and (f.real or f.summary.get("pareto_front"))][:6]
     if not multi:
         return []
-    multi = multi[:6]
-    fig, axes = plt.subplots(1, len(multi), figsize=(5.2 * len(multi), 4.2), squeeze=False)
-    for ax, f in zip(axes[0], multi, strict=True):
-        o1, o2 = f.run["objectives"][:2]
-        costs = np.array([[e.costs[o1], e.costs[o2]] for e in f.real if o1 in e.costs and o2 in e.costs])
-        mask = pareto_mask(costs)
-        ax.scatter(costs[~mask, 0], costs[~mask, 1], s=12, color="lightgrey", label="evaluated")
-        front = costs[mask][np.argsort(costs[mask][:, 0])]
-        ax.plot(front[:, 0], front[:, 1], "o-", color="tab:red", label=f"Pareto front ({mask.sum()})")
+    fig, axes = _panels(plt, len(multi), height=PANEL_H + 0.4)
+    sources = set()
+    for ax, f in zip(axes, multi, strict=True):
+        d = pareto_points(f)
+        o1, o2 = d["objectives"]
+        ax.scatter(d["evaluated"][:, 0], d["evaluated"][:, 1], s=12, color="lightgrey", label="real evaluations during the run")
+        ax.plot(d["front"][:, 0], d["front"][:, 1], "o-", color="tab:red", label=f"Pareto front ({len(d['front'])} designs)")
+        best = f.summary.get("best_costs") or {}
+        if o1 in best and o2 in best:
+            ax.plot(best[o1], best[o2], marker="D", markersize=9, markerfacecolor="none", markeredgecolor="black",
+                    linestyle="none", label="Table 6 design (lowest first cost)")
         ax.set_xlabel(f"{o1} cost")
         ax.set_ylabel(f"{o2} cost")
-        if _spans_decades(costs[:, 0]):
+        both = np.vstack([d["evaluated"], d["front"]])
+        if _spans_decades(both[:, 0]):
             ax.set_xscale("log")
-        if _spans_decades(costs[:, 1]):
+        if _spans_decades(both[:, 1]):
             ax.set_yscale("log")
-        ax.set_title(f"{f.run['id']}\n{f.run['optimizer'] or ''} on {f.terrain}", fontsize=8)
+        ax.set_title(f"{f.run['id']}\n{f.optimizer} on {f.terrain}", fontsize=8)
         ax.legend(fontsize=7)
+        sources.add(d["source"])
     fig.tight_layout()
     path = out / "pareto.png"
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=DPI)
     plt.close(fig)
-    return [(path, "Pareto fronts of multi-objective (NSGA-II) runs: every real evaluation in grey, the non-dominated ones in red.")]
+    return [(path, "Pareto fronts of multi-objective runs: grey, every real evaluation during the run; red, the "
+                   f"front ({'; '.join(sorted(sources))}), the same designs `coadapt run` printed and the store holds; "
+                   "diamond, the design Table 6 reports.")]
+
+
+def figure_videos(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]]:
+    """Copy each run's best-vs-nominal video (written by `coadapt run`) next to the report."""
+    import shutil
+
+    written = []
+    for f in facts:
+        run_dir = f.run.get("run_dir")
+        if not run_dir or f.method == LANDSCAPE_METHOD:
+            continue
+        for name in ("best_vs_nominal.gif",):
+            src = Path(run_dir) / name
+            if src.is_file() and not src.is_symlink():
+                dst = out / f"video_{f.run['id']}.gif"
+                shutil.copyfile(src, dst)
+                written.append((dst, f"Run {f.run['id']} ({_label(f.method, f.optimizer)}, {f.objective} on "
+                                     f"{f.terrain}): the best design (left) and the nominal design (right) walking "
+                                     "with the run's final policy."))
+    return written[:12]
 
 
 # -- the whole report -------------------------------------------------------------------------
-def _html_table(rows: Sequence[dict[str, Any]], columns: Sequence[tuple[str, str]], pct: Sequence[str] = ()) -> str:
+def _html_table(rows: Sequence[dict[str, Any]], columns: Sequence[tuple[str, str]]) -> str:
     head = "".join(f"<th>{html.escape(label)}</th>" for _, label in columns)
     body = []
     for r in rows:
-        cells = []
-        for key, _ in columns:
-            v = r.get(key)
-            text = _fmt(v, pct=True) if key in pct else (_fmt(v, ".4g") if isinstance(v, float) else str(v if v is not None else "n/a"))
-            cells.append(f"<td>{html.escape(text)}</td>")
-        body.append("<tr>" + "".join(cells) + "</tr>")
+        cells = "".join(f"<td>{html.escape(str(r.get(key, '')))}</td>" for key, _ in columns)
+        body.append(f"<tr>{cells}</tr>")
     return f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
 
 
@@ -645,16 +826,20 @@ def write_report(
     transfer_agents: int = 8,
     transfer_steps: int = 400,
     backend_factory: BackendFactory | None = None,
+    progress: Any = None,
 ) -> dict[str, Path]:
     """Tables (Markdown + CSV), figures (PNG) and report.html for `selection` (a grid id, a
-    run id, or None for every finished run). Returns the files written by name."""
+    run id, or None for every finished run). Returns the files written by name.
+    `progress(done, total, what)` hears of each step (sim-to-sim transfers take longest)."""
     runs, title = select_runs(store, selection)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     facts = [run_facts(store, r) for r in runs]
-    for f in facts:
-        if f.method == LANDSCAPE_METHOD:
-            continue
+    todo = [f for f in facts if f.method != LANDSCAPE_METHOD]
+    total = len(todo) + 5
+    for i, f in enumerate(todo):
+        if progress is not None:
+            progress(i, total, f"sim-to-sim {f.run['id']}" if sim2sim else "reading runs")
         if sim2sim:
             f.sim2sim, f.sim2sim_note = sim_to_sim(
                 store, f, simulator=transfer_simulator, agents=transfer_agents, steps=transfer_steps, factory=backend_factory
@@ -668,40 +853,57 @@ def write_report(
         (out / f"{name}.md").write_text(md)
         files[f"{name}.csv"] = out / f"{name}.csv"
         files[f"{name}.md"] = out / f"{name}.md"
-    figures = (
-        figure_heatmaps(store, facts, out)
-        + figure_convergence(store, facts, out)
-        + figure_surrogate_error(facts, out)
-        + figure_pareto(facts, out)
-    )
+    figures: list[tuple[Path, str]] = []
+    steps = (("heat-maps", lambda: figure_heatmaps(store, facts, out)),
+             ("convergence", lambda: figure_convergence(store, facts, out)),
+             ("surrogate error", lambda: figure_surrogate_error(facts, out)),
+             ("Pareto fronts", lambda: figure_pareto(facts, out)),
+             ("videos", lambda: figure_videos(facts, out)))
+    for j, (what, draw) in enumerate(steps):
+        if progress is not None:
+            progress(len(todo) + j, total, what)
+        figures += draw()
+    if progress is not None:
+        progress(total, total, "done")
     for path, _ in figures:
         files[path.name] = path
     iu, iname, tu, tname = table7_units(t7)
-    t7_html_rows = [
-        {**r, "inter_t": r["interactions_training"] / iu, "inter_e": r["interactions_evaluation"] / iu,
-         "time_t": r["seconds_training"] / tu, "time_e": r["seconds_evaluation"] / tu,
-         "method": _label(r["method"])}
-        for r in t7
-    ]
-    t6_html_rows = [{**r, "method": METHOD_LABELS.get(r["method"], r["method"])} for r in t6]
+    design = _design_columns(t6)
+    t6_html = []
+    for r in t6:
+        row = {"objective": r["objective"], "method": METHOD_LABELS.get(r["method"], r["method"]), "optimizer": r["optimizer"],
+               "terrain": r["terrain"], "runs": r["runs"], "best_cost": _cell(r, "best_cost", spec=".4g"),
+               "nominal_cost": _cell(r, "nominal_cost", spec=".4g"), "improvement": _cell(r, "improvement", pct=True),
+               "sim2sim": _cell(r, "sim2sim_improvement", pct=True), "sim2sim_note": r["sim2sim_note"]}
+        row.update({f"d:{n}": _design_cell(r, n, d) if f"{n}_n" in r else "" for n, _, d in design})
+        t6_html.append(row)
+    t7_html = [{"method": METHOD_LABELS.get(r["method"], r["method"]), "optimizer": r["optimizer"], "runs": r["runs"],
+                "inter_t": _cell(r, "interactions_training", scale=iu), "inter_e": _cell(r, "interactions_evaluation", scale=iu),
+                "time_t": _cell(r, "seconds_training", scale=tu), "time_e": _cell(r, "seconds_evaluation", scale=tu),
+                "designs_real": _cell(r, "designs_real", spec=".0f"), "designs_surrogate": _cell(r, "designs_surrogate", spec=".0f")}
+               for r in t7]
     parts = [
         "<!doctype html><html><head><meta charset='utf-8'><title>coadapt report</title>",
-        "<style>body{font-family:sans-serif;max-width:1200px;margin:2em auto}table{border-collapse:collapse;margin:1em 0}"
-        "td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#eee}img{max-width:100%}"
-        "figcaption{color:#444;font-size:90%}</style></head><body>",
+        "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em}"
+        "table{border-collapse:collapse;margin:1em 0;font-size:90%}"
+        "td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#eee}"
+        "img{max-width:100%;height:auto}figure{margin:1.5em 0}figcaption{color:#444;font-size:90%;max-width:60em}"
+        "</style></head><body>",
         f"<h1>coadapt report — {html.escape(title)}</h1>",
-        f"<p>Store: <code>{html.escape(store.url)}</code>; {len(runs)} runs. Numbers are means over seeds.</p>",
+        f"<p>Store: <code>{html.escape(store.url)}</code>; {len(runs)} runs. Each number is the mean ± sample standard "
+        "deviation over the runs (seeds) of its row, with how many runs had it (n); one row per method and optimizer. "
+        "A single run shows its own standard error (SE) when it recorded one.</p>",
         "<h2>Table 6 — optimization results</h2>",
-        _html_table(t6_html_rows, [("objective", "objective"), ("method", "method"), ("terrain", "terrain"), ("runs", "runs"),
-                                   ("thigh", "thigh"), ("shank", "shank"), ("best_cost", "best cost"),
-                                   ("nominal_cost", "nominal cost"), ("improvement", "improvement"),
-                                   ("sim2sim_improvement", "sim-to-sim improvement"), ("sim2sim_note", "sim-to-sim")],
-                    pct=("improvement", "sim2sim_improvement")),
+        _html_table(t6_html, [("objective", "objective"), ("method", "method"), ("optimizer", "optimizer"),
+                              ("terrain", "terrain"), ("runs", "runs")]
+                    + [(f"d:{n}", _design_header(n, u)) for n, u, _ in design]
+                    + [("best_cost", "best cost"), ("nominal_cost", "nominal cost"), ("improvement", "improvement"),
+                       ("sim2sim", "sim-to-sim improvement"), ("sim2sim_note", "sim-to-sim note")]),
         "<h2>Table 7 — computational cost</h2>",
-        _html_table(t7_html_rows, [("method", "method"), ("runs", "runs"), ("inter_t", f"interactions training ({iname})"),
-                                   ("inter_e", f"interactions evaluation ({iname})"), ("time_t", f"wall clock training ({tname})"),
-                                   ("time_e", f"wall clock evaluation ({tname})"), ("designs_real", "designs real"),
-                                   ("designs_surrogate", "designs surrogate")]),
+        _html_table(t7_html, [("method", "method"), ("optimizer", "optimizer"), ("runs", "runs"),
+                              ("inter_t", f"interactions training ({iname})"), ("inter_e", f"interactions evaluation ({iname})"),
+                              ("time_t", f"wall clock training ({tname})"), ("time_e", f"wall clock evaluation ({tname})"),
+                              ("designs_real", "designs real"), ("designs_surrogate", "designs surrogate")]),
         "<h2>Figures</h2>",
     ]
     for path, caption in figures:

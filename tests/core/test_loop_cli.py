@@ -101,9 +101,34 @@ def test_run_table_output_and_mixed_pso_uses_motor_types(tmp_path, capsys, fake_
     assert "hip_motor" in out and "improvement over nominal" in out and "run folder:" in out
 
 
-def test_nsga2_prints_pareto_front(tmp_path, capsys, fake_learner):
-    assert main(["run", "--optimizer", "nsga2", "--objective", "power,torque", "--preset", "smoke", "--population", "8", "--out", str(tmp_path)]) == 0
-    assert "Pareto front" in capsys.readouterr().out
+def test_nsga2_front_is_non_dominated_and_printed_stored_plotted_alike(tmp_path, capsys, fake_learner):
+    from coadapt_core.pareto import is_dominated
+    from coadapt_core.results import ResultsStore
+    from coadapt_core.results.report import pareto_points, run_facts
+
+    db = tmp_path / "s.db"
+    assert main(["run", "--optimizer", "nsga2", "--objective", "power,torque", "--preset", "smoke", "--population", "8",
+                 "--optimizer-iterations", "4", "--out", str(tmp_path), "--store", str(db)]) == 0
+    out = capsys.readouterr().out
+    printed = [line.strip() for line in out.split("Pareto front", 1)[1].splitlines()[1:] if "->" in line]
+    store = ResultsStore(db)
+    (run,) = store.list_runs()
+    stored = run["summary"]["pareto_front"]
+    costs = np.array([[c["power"], c["torque"]] for c in stored["costs"]])  # [F, 2]
+    assert len(costs) >= 2
+    # no design of the front is dominated by another design of the front
+    for i, point in enumerate(costs):
+        assert not is_dominated(point, np.delete(costs, i, axis=0)), point
+    # printed == stored (the printed text is the stored numbers)
+    expected = ["  ".join([", ".join(f"{x:.3f}" for x in d), "->", ", ".join(f"{k} {v:.4g}" for k, v in c.items())])
+                for d, c in zip(stored["designs"], stored["costs"], strict=True)]
+    assert [" ".join(p.split()) for p in printed] == [" ".join(e.split()) for e in expected]
+    # plotted == stored, and Table 6's design (lowest first cost) lies on it
+    plotted = pareto_points(run_facts(store, run))
+    np.testing.assert_allclose(plotted["front"], costs[np.lexsort(costs.T[::-1])])
+    best = run["summary"]["best_costs"]
+    assert [best["power"], best["torque"]] in costs.tolist()
+    assert best["power"] == costs[:, 0].min()
 
 
 def test_config_validation_names_field():

@@ -13,10 +13,11 @@ import pytest
 
 from coadapt_core.errors import UserError
 from coadapt_core.fitness import CoadaptationBackend, RealFitness, TrainingResult
+from coadapt_core.pareto import pareto_mask
 from coadapt_core.results import ResultsStore, SqliteRecorder
 from coadapt_core.results.backends import objective_instances
 from coadapt_core.results.landscape import run_landscape
-from coadapt_core.results.report import pareto_mask, write_report
+from coadapt_core.results.report import write_report
 
 OPTIMUM = np.array([0.62, 0.57])
 
@@ -106,15 +107,22 @@ def test_report_tables_match_the_store(filled_store, tmp_path):
                  "surrogate_error.png"):
         assert files[name].exists() and files[name].stat().st_size > 0, name
     t6 = {(r["method"], r["terrain"]): r for r in read_csv(files["table6.csv"])}
+    assert all(r["optimizer"] == "pso" for r in t6.values())
     for method in ("ours", "no-surrogate"):
         runs = [store.get_run(ids[(method, s)]) for s in (0, 1)]
         row = t6[(method, "flat")]
         assert int(row["runs"]) == 2
-        assert float(row["thigh"]) == pytest.approx(np.mean([r["summary"]["best_design"][0] for r in runs]))
-        assert float(row["shank"]) == pytest.approx(np.mean([r["summary"]["best_design"][1] for r in runs]))
-        assert float(row["improvement"]) == pytest.approx(np.mean([r["summary"]["improvement"] for r in runs]))
+        # design columns are named after the robot's design space, with the spread over seeds
+        thighs = [r["summary"]["best_design"][0] for r in runs]
+        assert float(row["thigh_scale"]) == pytest.approx(np.mean(thighs))
+        assert float(row["thigh_scale_std"]) == pytest.approx(np.std(thighs, ddof=1))
+        assert float(row["shank_scale"]) == pytest.approx(np.mean([r["summary"]["best_design"][1] for r in runs]))
+        improvements = [r["summary"]["improvement"] for r in runs]
+        assert float(row["improvement"]) == pytest.approx(np.mean(improvements))
+        assert float(row["improvement_std"]) == pytest.approx(np.std(improvements, ddof=1))
+        assert int(row["improvement_n"]) == 2
         assert row["sim2sim_improvement"] == "" and "not requested" in row["sim2sim_note"]
-    t7 = {r["method"]: r for r in read_csv(files["table7.csv"])}
+    t7 = {r["method"]: r for r in read_csv(files["table7.csv"]) if r["optimizer"] == "pso"}
     for method in ("ours", "no-surrogate"):
         train = [sum(t["steps"] for t in store.training(ids[(method, s)])) for s in (0, 1)]
         evals = [store.evaluations(ids[(method, s)]) for s in (0, 1)]
@@ -124,8 +132,12 @@ def test_report_tables_match_the_store(filled_store, tmp_path):
         assert float(t7[method]["seconds_evaluation"]) == pytest.approx(np.mean([sum(e.seconds for e in ev) for ev in evals]))
         assert float(t7[method]["designs_real"]) == 16 and float(t7[method]["designs_surrogate"]) == 4
     md = files["table7.md"].read_text()
-    assert "| Ours | 46(30+16) |" in md  # thousands: 30 k training + 16 k evaluation
-    assert "Ours w/o Surrogate" in files["table6.md"].read_text()
+    # thousands: 30 k training (20 k and 40 k: std 14.1 k) + 16 k evaluation
+    assert "| Ours | pso | 2 | 46 ± 14.1 (30+16) |" in md
+    t6md = files["table6.md"].read_text()
+    assert "Ours w/o Surrogate" in t6md and "| Runs |" in t6md and "thigh_scale [x 0.35 m]" in t6md
+    mean, std = np.mean(improvements), np.std(improvements, ddof=1)  # the last method's
+    assert f"{100 * mean:.1f}% ± {100 * std:.1f}% (n=2)" in t6md
     html = files["report.html"].read_text()
     assert all(f"src='{p}'" in html for p in ("heatmap_flat.png", "convergence.png", "surrogate_error.png"))
 
@@ -160,7 +172,7 @@ def test_sim_to_sim_says_why_when_not_available(tmp_path):
     files = write_report(rec.store, run_id, tmp_path / "rep")
     (row,) = read_csv(files["table6.csv"])
     assert row["sim2sim_improvement"] == "" and row["sim2sim_note"] == "n/a: the run recorded no policy checkpoint"
-    assert "Sim-to-sim: n/a: the run recorded no policy checkpoint." in files["table6.md"].read_text()
+    assert "| n/a | n/a: the run recorded no policy checkpoint |" in files["table6.md"].read_text()
 
 
 def test_landscape_is_stored_as_a_run_and_drives_the_heatmap(filled_store, tmp_path):

@@ -11,16 +11,7 @@ from coadapt_plugins.optimizers._common import finite_costs, initial_designs
 from coadapt_core import hookimpl
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.optimizer import Optimizer
-
-
-def non_dominated(costs: np.ndarray) -> np.ndarray:
-    """[n] bool: rows of costs [n, M] that no other row dominates (all <=, one <)."""
-    n = costs.shape[0]
-    keep = np.ones(n, dtype=bool)
-    for i in range(n):
-        dominated_by = np.all(costs <= costs[i], axis=1) & np.any(costs < costs[i], axis=1)
-        keep[i] = not dominated_by.any()
-    return keep
+from coadapt_core.pareto import pareto_front
 
 
 class NSGA2Optimizer(Optimizer):
@@ -67,12 +58,7 @@ class NSGA2Optimizer(Optimizer):
     def pareto_front(self) -> tuple[np.ndarray, np.ndarray]:
         if not self._costs:
             return np.zeros((0, self.space.dim)), np.zeros((0, self.num_objectives))
-        designs, costs = np.concatenate(self._designs), np.concatenate(self._costs)
-        keep = non_dominated(costs)
-        designs, costs = designs[keep], costs[keep]
-        _, unique = np.unique(np.round(designs, 12), axis=0, return_index=True)
-        order = np.sort(unique)
-        return designs[order], costs[order]
+        return pareto_front(np.concatenate(self._designs), np.concatenate(self._costs))
 
     def best(self) -> tuple[np.ndarray | None, float]:
         """The front's best design for the first objective (a single number for progress)."""
