@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import shlex
 import subprocess
 import sys
 import time
@@ -193,24 +194,105 @@ def parse_list(text: str, name: str, *, integers: bool = False) -> list[Any]:
 
 
 # -- planning ------------------------------------------------------------------------------
-def finished_run(store: ResultsStore, cell: Cell) -> dict[str, Any] | None:
-    """A finished run of this cell in the store: launched for this cell by any grid, or by
-    hand with the same method, objective, terrain, seed, preset and simulator."""
+#: config keys that say where or how a run is stored or executed, not what it computes
+CONFIG_HASH_IGNORES = frozenset({"out", "store", "run_id", "run_dir", "device", "design_space", "grid_id", "grid_cell",
+                                 "bo_storage"})
+
+
+def config_hash(config: dict[str, Any]) -> str:
+    """A short hash of a resolved run config (preset, YAML and options applied), without the
+    keys that do not change what the run computes (`CONFIG_HASH_IGNORES`)."""
+    kept = {k: v for k, v in sorted(config.items()) if k not in CONFIG_HASH_IGNORES}
+    return hashlib.sha1(json.dumps(kept, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def _extra_overrides(extra: Sequence[str]) -> dict[str, Any] | None:
+    """`coadapt run` options given as grid --extra (`--population 3`, `--no-mixed`) as config
+    overrides; None when one of them is not a plain config option (the hash is then unknown)."""
+    from coadapt_core.coadapt.config import CoadaptConfig
+
+    types = {f: str(t.type) for f, t in CoadaptConfig.__dataclass_fields__.items()}
+    out: dict[str, Any] = {}
+    items = list(extra)
+    i = 0
+    while i < len(items):
+        token = items[i]
+        if not token.startswith("--"):
+            return None
+        name, eq, value = token[2:].partition("=")
+        key = name.replace("-", "_")
+        if not eq and key.startswith("no_") and types.get(key[3:]) == "bool":
+            out[key[3:]] = False
+        elif not eq and types.get(key) == "bool":
+            out[key] = True
+        elif key in types and key != "preset":
+            if not eq:
+                i += 1
+                if i >= len(items):
+                    return None
+                value = items[i]
+            out[key] = value
+        else:
+            return None
+        i += 1
+    return out
+
+
+def cell_config_hash(cell: Cell, extra: Sequence[str] = ()) -> str | None:
+    """The config hash `coadapt run` will record for this cell, or None when it cannot be
+    known here (an --extra option that is not a config field, a config that does not validate)."""
+    from coadapt_core.coadapt.config import make_config
+
+    overrides = _extra_overrides(extra)
+    if overrides is None:
+        return None
+    overrides.update(method=cell.method, objective=cell.objective, terrain=cell.terrain, seed=cell.seed, sim=cell.sim)
+    if cell.optimizer:
+        overrides["optimizer"] = cell.optimizer
+    try:
+        return config_hash(make_config(cell.preset, None, overrides).to_dict())
+    except (UserError, TypeError, ValueError):
+        return None
+
+
+def run_config_hash(run: dict[str, Any]) -> str | None:
+    """The config hash of a stored run (its recorded config, resolved again), or None."""
+    from coadapt_core.coadapt.config import config_from_dict
+
+    config = run.get("config")
+    if not isinstance(config, dict) or not config:
+        return None
+    try:
+        return config_hash(config_from_dict(config).to_dict())
+    except (UserError, TypeError, ValueError):
+        return None
+
+
+def finished_run(store: ResultsStore, cell: Cell, spec: GridSpec | None = None) -> dict[str, Any] | None:
+    """A finished run that answers this cell: launched for it by this very grid (same grid
+    id: the same command line), or any other run whose whole resolved config matches the
+    cell's (`config_hash`: method, objective, terrain, seed, preset values, --extra options).
+    A hand-made run with another population, or a cell of a grid with other --extra
+    options, is not reused: the cell runs."""
+    grid_id = spec.grid_id if spec is not None else None
+    expected = cell_config_hash(cell, spec.extra_args if spec is not None else ())
+    extra = list(spec.extra_args) if spec is not None else []
     by_cell = store.list_runs(cell=cell.key, status="finished")
-    if by_cell:
-        return by_cell[-1]
-    for run in reversed(
-        store.list_runs(
-            method=cell.method,
-            objectives=cell.objective,
-            terrain=cell.terrain,
-            seed=cell.seed,
-            preset=cell.preset,
-            simulator=cell.sim,
-            status="finished",
-        )
-    ):
-        if cell.optimizer is None or run["optimizer"] in (None, cell.optimizer):
+    for run in reversed(by_cell):
+        if grid_id is not None and run.get("grid_id") == grid_id:
+            return run
+        other = store.get_grid(run["grid_id"]) if run.get("grid_id") else None
+        other_spec = other.get("spec") if isinstance(other, dict) else None
+        if isinstance(other_spec, dict) and list(other_spec.get("extra_args") or []) == extra:
+            return run  # another grid ran this cell with the same command line
+    candidates = by_cell + store.list_runs(
+        method=cell.method, objectives=cell.objective, terrain=cell.terrain, seed=cell.seed, preset=cell.preset,
+        simulator=cell.sim, status="finished",
+    )
+    if expected is None:
+        return None
+    for run in reversed(candidates):
+        if run_config_hash(run) == expected:
             return run
     return None
 
@@ -241,7 +323,7 @@ def plan_grid(
     tasks: list[CellTask] = []
     skipped: list[Cell] = []
     for cell in spec.cells():
-        if finished_run(store, cell) is not None:
+        if finished_run(store, cell, spec) is not None:
             skipped.append(cell)
             continue
         previous = unfinished_run(store, cell)
@@ -286,7 +368,9 @@ def execute_cell(task: CellTask) -> CellOutcome:
         path = Path(task.log_path)
         path.parent.mkdir(parents=True, exist_ok=True)
         with path.open("a") as fh:
-            fh.write(f"$ {' '.join([*prefix[:1], *task.argv])}\n{stdout}\n--- stderr ---\n{stderr}\n")
+            # a command that runs as it stands (this interpreter starts coadapt as a module)
+            shown = [*task.command, *task.argv] if task.command is not None else [sys.executable, "-m", "coadapt_core", *task.argv]
+            fh.write(f"$ {shlex.join(shown)}\n{stdout}\n--- stderr ---\n{stderr}\n")
     result = None
     for line in reversed(stdout.strip().splitlines()):
         line = line.strip()
@@ -388,7 +472,7 @@ def run_grid(
     tasks, skipped = plan_grid(store, spec, out_dir=out_dir, command=command, timeout=timeout, log_dir=log_dir)
     report = GridReport(grid_id)
     for cell in skipped:
-        run = finished_run(store, cell)
+        run = finished_run(store, cell, spec)
         store.set_cell(grid_id, cell.key, status="finished", run_id=run["id"] if run else None)
         report.skipped.append(cell.key)
         if on_event:

@@ -131,7 +131,7 @@ def test_local_grid_runs_cells_then_skips_them(tmp_path):
 
     files = write_report(store, spec.grid_id, tmp_path / "report", sim2sim=False)
     t7 = files["table7.csv"].read_text().splitlines()
-    assert len(t7) == 3 and t7[1].startswith("ours,2,") and t7[2].startswith("no-surrogate,2,")
+    assert len(t7) == 3 and t7[1].startswith("ours,unknown,2,") and t7[2].startswith("no-surrogate,unknown,2,")
     # a bigger grid runs only the new cells
     bigger = _spec(seeds=[0, 1, 2])
     third = run_grid(bigger, store, workers=2, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
@@ -172,12 +172,23 @@ def test_killed_grid_resumes_runs_left_running(tmp_path):
                      run_id="r0", run_dir=str(tmp_path / "runs" / "r0"))
     store.create_run({"method": c1.method, "objective": c1.objective, "seed": c1.seed, "grid_cell": c1.key},
                      run_id="r1", run_dir=str(tmp_path / "runs" / "gone"))
-    done = store.create_run({"method": c2.method, "objective": c2.objective, "terrain": "flat", "seed": c2.seed,
-                             "preset": "smoke", "sim": "mujoco"}, run_id="r2")  # finished by hand, no grid
-    store.finish_run(done, {"best_cost": 1.0})
+    from coadapt_core.coadapt.config import make_config
+
+    def by_hand(cell, run_id, **changed):
+        config = make_config("smoke", overrides={"method": cell.method, "objective": cell.objective, "terrain": "flat",
+                                                 "seed": cell.seed, "sim": "mujoco", **changed}).to_dict()
+        store.finish_run(store.create_run({**config, "out": "elsewhere"}, run_id=run_id), {"best_cost": 1.0})
+
+    by_hand(c2, "r2")  # finished by hand, no grid, the cell's whole config: reused
+    by_hand(c3, "r3", population=7)  # by hand with another population: not this cell's run
     tasks, skipped = plan_grid(store, spec, out_dir=str(tmp_path / "runs"))
     assert [c.key for c in skipped] == [c2.key]
     assert {t.cell.key: t.resume for t in tasks} == {c0.key: "r0", c1.key: None, c3.key: None}
+    # the same cells with another --extra option: neither hand-made run matches any more
+    other = _spec(seeds=[0, 1])
+    other.extra_args = ["--population", "7"]
+    _, skipped = plan_grid(store, other, out_dir=str(tmp_path / "runs"))
+    assert [c.key for c in skipped] == [c3.key]
 
 
 def test_cell_that_cannot_start_is_reported_failed(tmp_path):
