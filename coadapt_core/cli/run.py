@@ -78,6 +78,14 @@ class _ProgressView:
             self.progress.__exit__(*exc)
 
 
+def _with_se(value: float, se: float | None) -> str:
+    return f"{value:.5g}" if se is None else f"{value:.5g} +- {se:.2g}"
+
+
+def _rate(value: float | None) -> str:
+    return "-" if value is None else f"{value:.2f}"
+
+
 def _print_summary(summary: dict[str, Any], space_names: list[str] | None) -> None:
     from rich.console import Console
     from rich.table import Table
@@ -89,12 +97,28 @@ def _print_summary(summary: dict[str, Any], space_names: list[str] | None) -> No
     for name in names:
         table.add_column(name)
     for objective in summary["best_costs"]:
-        table.add_column(f"{objective} cost")
-    table.add_row("best", *[f"{x:.3f}" for x in summary["best_design"]], *[f"{v:.5g}" for v in summary["best_costs"].values()])
+        table.add_column(f"{objective} cost +- SE")
+    table.add_column("fall rate")
+    best_se, nominal_se = summary.get("best_costs_se") or {}, summary.get("nominal_costs_se") or {}
+    table.add_row("best", *[f"{x:.3f}" for x in summary["best_design"]],
+                  *[_with_se(v, best_se.get(k)) for k, v in summary["best_costs"].items()], _rate(summary.get("best_fall_rate")))
     table.add_row("nominal", *[f"{x:.3f}" for x in summary["nominal_design"]],
-                  *[f"{summary['nominal_costs'][k]:.5g}" for k in summary["best_costs"]])
+                  *[_with_se(summary["nominal_costs"][k], nominal_se.get(k)) for k in summary["best_costs"]],
+                  _rate(summary.get("nominal_fall_rate")))
     console.print(table)
-    improvements = ", ".join(f"{k} {100 * v:+.1f} %" for k, v in summary["improvements"].items())
+    if summary.get("final_scenarios"):
+        console.print(f"final check: {summary['final_scenarios']} paired scenarios per design "
+                      f"({summary.get('final_blocks')} blocks); SE = standard error over scenarios")
+    improvement_se = summary.get("improvements_se") or {}
+    first = next(iter(summary["improvements"]), None)
+    parts = []
+    for k, v in summary["improvements"].items():
+        se = improvement_se.get(k)
+        text = f"{k} {100 * v:+.1f} %" if se is None else f"{k} {100 * v:+.1f} +- {100 * se:.1f} %"
+        if k == first and summary.get("significant") is False:
+            text = f"{k} not significant ({text.split(' ', 1)[1]}, under 4 paired standard errors)"
+        parts.append(text)
+    improvements = ", ".join(parts)
     console.print(
         f"improvement over nominal: {improvements}; interactions {summary['interactions']:,} "
         f"(training {summary['train_interactions']:,}, evaluation {summary['eval_interactions']:,}, "
@@ -137,6 +161,7 @@ def register(app: typer.Typer) -> None:
         surrogate_samples: int = typer.Option(None, help="States drawn from the evaluation buffer by the surrogate."),
         measure_surrogate_error: bool = typer.Option(None, "--measure-surrogate-error/--no-measure-surrogate-error", help="Run the surrogate on real batches too, to record its error."),
         final_candidates: int = typer.Option(None, help="Lowest-real-cost designs re-evaluated in the final check (default 3)."),
+        final_max_blocks: int = typer.Option(None, help="Final check: at most this many blocks of agents-per-design paired scenarios (default 8)."),
         inertia: float = typer.Option(None, help="PSO inertia (momentum) (default 0.9)."),
         c1: float = typer.Option(None, help="PSO cognitive impact (default 2.0)."),
         c2: float = typer.Option(None, help="PSO social impact (default 2.0)."),
@@ -163,7 +188,7 @@ def register(app: typer.Typer) -> None:
             "optimizer_iterations": optimizer_iterations, "evaluation_probability": evaluation_probability,
             "agents_per_design": agents_per_design, "train_steps": train_steps, "retrain_steps": retrain_steps,
             "eval_steps": eval_steps, "surrogate_samples": surrogate_samples,
-            "measure_surrogate_error": measure_surrogate_error, "final_candidates": final_candidates, "inertia": inertia, "c1": c1, "c2": c2,
+            "measure_surrogate_error": measure_surrogate_error, "final_candidates": final_candidates, "final_max_blocks": final_max_blocks, "inertia": inertia, "c1": c1, "c2": c2,
             "bo_sampler": bo_sampler, "bo_storage": bo_storage, "narrow_margin": narrow_margin,
             "narrow_min_width": narrow_min_width, "bo_designs": bo_designs,
             "specialized_train_steps": specialized_train_steps, "specialized_init": specialized_init, "checkpoint": checkpoint, "device": device,

@@ -44,6 +44,7 @@ class CoadaptConfig:
     surrogate_samples: int = 4096  # T_eval states drawn from R_eval by the surrogate (Alg. 3)
     measure_surrogate_error: bool = True  # also run the surrogate on every real batch (no interactions)
     final_candidates: int = 3  # lowest-real-cost designs re-evaluated in the final check
+    final_max_blocks: int = 8  # final check: at most this many blocks of agents_per_design paired scenarios
     # -- optimizer -----------------------------------------------------------------------------
     inertia: float = 0.9  # PSO momentum w
     c1: float = 2.0  # PSO cognitive impact
@@ -86,7 +87,7 @@ class CoadaptConfig:
             raise UserError("objective must name at least one objective", field="objective")
         if len(set(self.objectives)) != len(self.objectives):
             raise UserError(f"objective list '{self.objective}' repeats a name", field="objective")
-        for name in ("outer_iterations", "population", "optimizer_iterations", "agents_per_design", "eval_steps", "surrogate_samples", "bo_designs", "final_candidates"):
+        for name in ("outer_iterations", "population", "optimizer_iterations", "agents_per_design", "eval_steps", "surrogate_samples", "bo_designs", "final_candidates", "final_max_blocks"):
             _int_at_least(name, getattr(self, name), 1)
         for name in ("train_steps", "retrain_steps", "specialized_train_steps", "seed"):
             _int_at_least(name, getattr(self, name), 0)

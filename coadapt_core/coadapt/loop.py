@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from coadapt_core.coadapt.config import CoadaptConfig, config_from_dict
+from coadapt_core.coadapt.final_check import final_check, no_uncertainty
 from coadapt_core.coadapt.recorders import make_recorder
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
@@ -100,7 +101,9 @@ class CoadaptResult:
 
     def json_line(self) -> dict[str, Any]:
         s = self.summary
-        return {k: s[k] for k in ("run_id", "best_design", "best_cost", "nominal_cost", "improvement", "interactions", "seconds")}
+        return {k: s.get(k) for k in ("run_id", "best_design", "best_cost", "best_cost_se", "nominal_cost", "nominal_cost_se",
+                                 "improvement", "improvement_se", "significant", "best_fall_rate", "nominal_fall_rate",
+                                 "interactions", "seconds")}
 
 
 ProgressFn = Callable[[dict[str, Any]], None]
@@ -254,6 +257,12 @@ class CoadaptationLoop:
         """A seed fixed by position in the run, so a resumed run draws what it would have."""
         return int(np.random.SeedSequence([self.config.seed, *parts]).generate_state(1)[0] % (2**31 - 1))
 
+    def scenario_seed(self, block: int = 0) -> int:
+        """The seed of the run's scenario set (common random numbers, docs/coadaptation.md):
+        block 0 serves every real round, so all designs of a run are compared on the same
+        scenarios; the final check adds blocks 1, 2, ... (fresh scenarios, same seed)."""
+        return self.seed_for(7, block)
+
     def get_backend(self) -> CoadaptationBackend:
         if self.backend is None:
             self.backend = self.backend_factory(self.seed_for(0))
@@ -365,8 +374,8 @@ class CoadaptationLoop:
         s, c = self.state, self.config
         backend = self.get_backend()
         seed = self.seed_for(3, s.outer, s.inner)
-        if kind == "real":
-            fit = backend.real_fitness(designs, self.objectives, agents=c.agents_per_design, steps=c.eval_steps, seed=seed)
+        if kind == "real":  # every real round on the run's one scenario set (paired designs)
+            fit = backend.real_fitness(designs, self.objectives, agents=c.agents_per_design, steps=c.eval_steps, seed=self.scenario_seed())
             s.buffer, s.buffer_outer = fit.buffer, s.outer  # line 15: R_eval from this rollout
             s.buffer_serial += 1
             costs = np.asarray(fit.costs, dtype=float).reshape(len(designs), -1)
@@ -402,7 +411,7 @@ class CoadaptationLoop:
             s.counters["train_seconds"] += float(result.seconds)
             self.recorder.record_training(s.run_id, outer=s.outer, result=result)
             self.emit("real evaluation")
-            fit = backend.real_fitness(design[None, :], self.objectives, agents=c.agents_per_design, steps=c.eval_steps, seed=self.seed_for(3, s.outer, s.inner))
+            fit = backend.real_fitness(design[None, :], self.objectives, agents=c.agents_per_design, steps=c.eval_steps, seed=self.scenario_seed())
             costs.append(np.asarray(fit.costs, dtype=float).reshape(-1))
             interactions += int(fit.interactions)
             seconds += float(fit.seconds)
@@ -496,7 +505,7 @@ class CoadaptationLoop:
                 if item is not None and not any(np.allclose(item[0], x) for x in candidates):
                     candidates.append(np.asarray(item[0]))
         designs = np.stack([*candidates, self.nominal])  # [C + 1, dim]
-        seed = self.seed_for(6)
+        uncertainty = no_uncertainty(self.names)
         if self.switches.specialized:
             # every BO cost is already real with its own policy; the nominal design needs its own
             best_design, best_cost = np.asarray(s.best_real[0]), s.best_real[1]
@@ -510,7 +519,15 @@ class CoadaptationLoop:
             front = None
             best_costs = np.array([best_cost])
         else:
-            fit = self.get_backend().real_fitness(designs, self.objectives, agents=c.agents_per_design, steps=c.eval_steps, seed=seed)
+            # paired blocks of fresh scenarios until the improvement is >= 4 standard errors
+            check = final_check(
+                lambda d, block: self.get_backend().real_fitness(
+                    d, self.objectives, agents=c.agents_per_design, steps=c.eval_steps, seed=self.scenario_seed(block)),
+                designs, self.objectives, max_blocks=c.final_max_blocks,
+                on_block=lambda b: self.emit(f"final check, scenario block {b}"),
+            )
+            fit = check.fit
+            uncertainty = check.uncertainty(self.names)
             costs = np.asarray(fit.costs, dtype=float).reshape(len(designs), -1)
             s.counters["final_interactions"] += int(fit.interactions)
             s.counters["final_seconds"] += float(fit.seconds)
@@ -559,6 +576,7 @@ class CoadaptationLoop:
             "batches": s.batches,
             "pareto_front": front,
         }
+        summary.update(uncertainty)
         s.summary = summary
         s.phase = "done"
         self.checkpoint()

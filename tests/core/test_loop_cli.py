@@ -86,7 +86,8 @@ def test_run_json_last_line_and_resume(tmp_path, capsys, fake_learner):
             "--population", "12", "--optimizer-iterations", "4", "--agents-per-design", "30", "--out", str(tmp_path), "--json"]
     assert main(args) == 0
     line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
-    assert set(line) == {"run_id", "best_design", "best_cost", "nominal_cost", "improvement", "interactions", "seconds"}
+    assert set(line) == {"run_id", "best_design", "best_cost", "best_cost_se", "nominal_cost", "nominal_cost_se", "improvement",
+                         "improvement_se", "significant", "best_fall_rate", "nominal_fall_rate", "interactions", "seconds"}
     assert np.abs(np.array(line["best_design"]) - optimum_of("torque")).max() < 0.15
     assert line["improvement"] > 0.15 and line["interactions"] > 0
     # resuming a finished run by id prints the same result
