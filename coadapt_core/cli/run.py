@@ -16,6 +16,7 @@ import typer
 
 from coadapt_core.cli.common import choice_help, fail, resolve
 from coadapt_core.errors import UserError
+from coadapt_core.tracking import check_logger
 
 _METHOD_HELP = "Method: ours, no-surrogate, no-real, no-retrain or bo-specialized."
 
@@ -175,6 +176,7 @@ def register(app: typer.Typer) -> None:
         checkpoint: str = typer.Option(None, help="Universal policy to start from ('none' = from scratch)."),
         device: str = typer.Option(None, help="Torch device of the learner (default cpu)."),
         store: str = typer.Option(None, help="Results store URL or path (default: $COADAPT_STORE, else coadapt.db beside --out; none: JSON files only)."),
+        logger: str = typer.Option(None, help="Experiment tracking: tensorboard (event files in <run folder>/tb), wandb (if installed) or none [default: tensorboard]."),
     ) -> None:
         """Co-adapt design and policy: universal policy + pseudo-critics, optimizer with hybrid
         real/surrogate fitness, range narrowing (paper Algorithm 4)."""
@@ -192,7 +194,7 @@ def register(app: typer.Typer) -> None:
             "bo_sampler": bo_sampler, "bo_storage": bo_storage, "narrow_margin": narrow_margin,
             "narrow_min_width": narrow_min_width, "bo_designs": bo_designs,
             "specialized_train_steps": specialized_train_steps, "specialized_init": specialized_init, "checkpoint": checkpoint, "device": device,
-            "store": store,
+            "store": store, "logger": logger,
         }
         try:
             if resume:
@@ -206,6 +208,7 @@ def register(app: typer.Typer) -> None:
             else:
                 cfg = make_config(preset, config, overrides)
                 resolve("optimizer", cfg.optimizer)
+                check_logger(cfg.logger)  # wandb asked for but not installed: one line, exit 2
                 resolve("simulator", cfg.sim)
                 resolve("robot", cfg.robot)
                 for name in cfg.objectives:

@@ -18,8 +18,11 @@ from typing import Any
 
 import typer
 
+from coadapt_core import tracking
 from coadapt_core.cli.common import choice_help, fail, resolve
+from coadapt_core.cli.progress import ProgressLine
 from coadapt_core.errors import UserError
+from coadapt_core.tracking import check_logger, make_logger
 
 #: the objectives whose pseudo-critics `coadapt train` trains by default (paper section 4)
 DEFAULT_OBJECTIVES = "tracking,power,torque"
@@ -46,19 +49,6 @@ def _check_device(device: str) -> None:
         fail(f"--device '{device}' is not one of: cpu, cuda, cuda:N")
     if device.startswith("cuda") and not torch.cuda.is_available():
         fail("--device cuda requested but torch sees no CUDA device; use --device cpu")
-
-
-def _logger(out: Path) -> Any:
-    """TorchRL's TensorBoard logger when tensorboard is installed, else its CSV logger."""
-    from torchrl.record.loggers import CSVLogger
-
-    try:
-        import tensorboard  # noqa: F401
-        from torchrl.record.loggers import TensorboardLogger
-
-        return TensorboardLogger(exp_name="train", log_dir=str(out / "logs"))
-    except ImportError:
-        return CSVLogger(exp_name="train", log_dir=str(out / "logs"))
 
 
 def register(app: typer.Typer) -> None:
@@ -100,6 +90,9 @@ def register(app: typer.Typer) -> None:
             help="With --resume or --init-from: restart the pseudo-critics from scratch (after an objective's definition changed).",
         ),
         quiet: bool = typer.Option(False, help="No progress bar; one JSON line per iteration on stdout."),
+        logger: str = typer.Option(
+            "tensorboard", help="Experiment tracking: tensorboard (event files in OUT/logs), wandb (if installed) or none."
+        ),
     ) -> None:
         """Train the universal policy pi(a|o, xi) with its critic and pseudo-critics (PPO)."""
         if steps < 0 or (steps == 0 and resume is None and init_from is None):
@@ -113,6 +106,10 @@ def register(app: typer.Typer) -> None:
         if checkpoint_every < 1:
             fail(f"--checkpoint-every must be >= 1, got {checkpoint_every}")
         _check_device(device)
+        try:
+            check_logger(logger)
+        except UserError as exc:
+            fail(str(exc))
         robot_obj = resolve("robot", robot)()
         sim_cls = _simulator(sim, terrain)
         objective_objs = _objectives(objectives)
@@ -174,7 +171,8 @@ def register(app: typer.Typer) -> None:
         trainer.set_designs(trainer.sample_designs())
         iterations = trainer.iterations_for(steps) if steps > 0 else 0  # 0: export only
         out.mkdir(parents=True, exist_ok=True)
-        logger = _logger(out)
+        tracker = make_logger(logger, out / "logs", name=f"train-{robot}-{terrain}", config={"robot": robot, "sim": sim, "terrain": terrain, **base.__dict__})
+        tracker.train_step = trainer.total_steps  # a resumed run continues its curves
         progress_file = (out / "progress.jsonl").open("a")
         print(
             f"training {robot} on {sim}/{terrain}: {base.num_designs} designs x {base.agents_per_design} agents = "
@@ -187,44 +185,23 @@ def register(app: typer.Typer) -> None:
             row = stats.to_dict()
             progress_file.write(json.dumps(row) + "\n")
             progress_file.flush()
-            for key, value in row.items():
-                if isinstance(value, float) and math.isfinite(value):
-                    logger.log_scalar(key, value, step=stats.total_steps)
             if stats.iteration % checkpoint_every == 0:
                 trainer.save(out / "checkpoints" / f"model_{stats.iteration}.pt")
             if quiet:
                 print(json.dumps(row), flush=True)
 
-        if iterations == 0:
-            pass
-        elif quiet:
-            trainer.learn(iterations, record)
-        else:
-            from rich.progress import (
-                BarColumn,
-                Progress,
-                TextColumn,
-                TimeElapsedColumn,
-                TimeRemainingColumn,
-            )
+        with tracking.active(tracker), ProgressLine("train", iterations, unit=" it", enabled=not quiet) as bar:
 
-            columns = (
-                TextColumn("[bold]train"), BarColumn(), TextColumn("{task.completed}/{task.total} it"),
-                TimeElapsedColumn(), TimeRemainingColumn(), TextColumn("{task.fields[line]}"),
-            )
-            with Progress(*columns, transient=False) as bar:
-                task_id = bar.add_task("train", total=iterations, line="")
+            def show(stats) -> None:
+                record(stats)
+                bar.update(stats.iteration - first_iteration, f"{stats.collect_steps_per_s:,.0f} steps/s  reward "
+                           f"{stats.mean_reward:.4f}  vx {stats.vx:.2f}/{stats.command_vx:.2f} m/s  "
+                           f"err {stats.tracking_error:.3f} m/s  ep {stats.episode_length_s:.1f} s")
 
-                def show(stats) -> None:
-                    record(stats)
-                    line = (
-                        f"{stats.collect_steps_per_s:,.0f} steps/s  reward {stats.mean_reward:.4f}  "
-                        f"ep {stats.episode_length_s:.1f} s  err {stats.tracking_error:.3f} m/s  "
-                        f"vx {stats.vx:.2f}/{stats.command_vx:.2f}"
-                    )
-                    bar.update(task_id, advance=1, line=line)
-
+            first_iteration = trainer.iteration
+            if iterations > 0:
                 trainer.learn(iterations, show)
+        tracker.close()
         progress_file.close()
         final = trainer.save(out / "model_final.pt")
         weights = trainer.export_weights(out / "policy.pt")

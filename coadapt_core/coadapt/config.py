@@ -61,6 +61,7 @@ class CoadaptConfig:
     # -- infrastructure ----------------------------------------------------------------------
     checkpoint: str = ""  # universal policy to start from ('' = the shipped one if any, 'none' = scratch)
     device: str = "cpu"  # torch device of the learner
+    logger: str = "tensorboard"  # tensorboard | wandb | none: curves and rounds in <run folder>/tb
     out: str = "runs"  # parent folder of run folders
     store: str = ""  # results store URL or path (empty: $COADAPT_STORE, else coadapt.db beside `out`; "none": JSON files only)
     preset: str = "quick"  # the preset this config started from (recorded)
@@ -109,6 +110,8 @@ class CoadaptConfig:
             )
         if self.bo_sampler not in ("tpe", "gp"):
             raise UserError(f"bo_sampler '{self.bo_sampler}' is not one of tpe, gp", field="bo_sampler")
+        if self.logger not in ("tensorboard", "wandb", "none"):
+            raise UserError(f"logger '{self.logger}' is not one of tensorboard, wandb, none", field="logger")
         parse_ranges(self.design_ranges)
         if self.objective_weights:
             from coadapt_plugins.objectives.locomotion import parse_weights

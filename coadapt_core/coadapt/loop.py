@@ -633,6 +633,12 @@ def run_coadaptation(
     if state.phase == "done":
         assert state.summary is not None
         return CoadaptResult(state.run_id, run_path, state.summary)
+    from coadapt_core import tracking
+
+    # TensorBoard (default) / wandb: training curves, best cost per round, surrogate error
+    logger = tracking.make_logger(getattr(config, "logger", "tensorboard"), run_path / "tb", name=state.run_id,
+                                  config=config.to_dict())
+    recorder = tracking.TrackingRecorder(recorder, logger)
     loop = CoadaptationLoop(
         config, backend_factory=parts.backend_factory, design_space=parts.full_space, nominal_design=parts.nominal,
         objectives=parts.objectives, optimizer_cls=parts.optimizer_cls, run_dir=run_path, recorder=recorder,
@@ -641,10 +647,13 @@ def run_coadaptation(
     if resume is None:
         loop.checkpoint()  # a run folder with a state from the start: resumable at once
     try:
-        summary = loop.run()
+        with tracking.active(logger):
+            summary = loop.run()
     except BaseException as exc:
         # the last checkpoint stays in the run folder; `resume=run_dir` continues from it
         recorder.finish(state.run_id, {"run_id": state.run_id, "error": f"{type(exc).__name__}: {exc}",
                                        "outer": loop.state.outer, "inner": loop.state.inner}, "interrupted")
         raise
+    finally:
+        logger.close()
     return CoadaptResult(state.run_id, run_path, summary)

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from coadapt_core import tracking
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
 from coadapt_core.learning.config import TrainConfig
@@ -268,6 +269,7 @@ class Trainer:
             )
             if callback is not None:
                 callback(stats)
+            tracking.on_training_iteration(stats, samples)  # TensorBoard / wandb, when one is active
         self._obs = (obs, critic_obs, design_obs)
         return stats
 
