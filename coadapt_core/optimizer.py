@@ -4,6 +4,12 @@ The co-adaptation loop never knows which optimizer runs: it asks for a batch of 
 designs, evaluates them (real rollouts or the surrogate) and tells the costs back. Mixed
 variables are declared by the design space; an optimizer that cannot handle them says so
 through `supports_mixed`.
+
+Resumable runs keep an optimizer's state as data (`state_dict()` / `load_state_dict()`),
+never as a pickle: the base class records every told batch, and by default rebuilds an
+optimizer by replaying those rounds into a freshly constructed one (same constructor
+arguments, same seed), checking that it proposes exactly what was recorded. An optimizer
+whose proposals do not depend only on its seed and the costs told overrides both methods.
 """
 
 from __future__ import annotations
@@ -76,6 +82,7 @@ class Optimizer(ABC):
         self._best_design: np.ndarray | None = None
         self._best_cost: float = float("inf")
         self._last_asked: np.ndarray | None = None
+        self._history: list[tuple[np.ndarray, np.ndarray]] = []  # every told (designs, costs)
 
     @abstractmethod
     def _ask(self) -> np.ndarray:
@@ -83,14 +90,18 @@ class Optimizer(ABC):
 
     def ask(self) -> np.ndarray:
         """Candidate designs [population, dim], inside `space` (discrete values exact)."""
-        designs = np.atleast_2d(np.asarray(self._ask(), dtype=float))
+        designs = self._checked(self._ask())
+        self._last_asked = designs
+        return designs
+
+    def _checked(self, raw: np.ndarray) -> np.ndarray:
+        designs = np.atleast_2d(np.asarray(raw, dtype=float))
         if designs.shape[1] != self.space.dim:
             raise RuntimeError(f"optimizer '{self.name}' proposed designs of width {designs.shape[1]}, expected {self.space.dim}")
         # discrete values snap to their exact choices; continuous ones are clipped to bounds
         designs = self.space.decode(self.space.encode(designs)) if self.space.is_mixed else np.clip(
             designs, self.space.lower, self.space.upper
         )
-        self._last_asked = designs
         return designs
 
     @abstractmethod
@@ -105,6 +116,7 @@ class Optimizer(ABC):
         if costs.shape != expected:
             raise ValueError(f"tell expects costs of shape {expected}, got {costs.shape}")
         self._tell(designs, costs)
+        self._history.append((designs.copy(), costs.copy()))
         if self.num_objectives == 1:
             finite = np.where(np.isfinite(costs), costs, np.inf)
             i = int(np.argmin(finite))
@@ -132,3 +144,62 @@ class Optimizer(ABC):
         if last is None:
             raise RuntimeError("no designs have been asked for yet")
         return last
+
+    # -- state as data (resumable runs) ----------------------------------------------------
+    def state_dict(self) -> dict[str, Any]:
+        """The optimizer's state as plain JSON values (lists, numbers, strings), taken between
+        rounds (after `tell`, before the next `ask`). `load_state_dict` on an optimizer built
+        with the same constructor arguments continues exactly as this one would.
+
+        The base implementation stores the told rounds (`rounds`: designs and costs) and the
+        bookkeeping of this class; subclasses that keep an explicit state extend the dict
+        (calling `super().state_dict()`) and override `_restore`.
+        """
+        return {
+            "optimizer": self.name,
+            "iteration": int(self.iteration),
+            "best_design": None if self._best_design is None else self._best_design.tolist(),
+            "best_cost": float(self._best_cost),
+            "last_asked": None if self._last_asked is None else self._last_asked.tolist(),
+            "rounds": [{"designs": d.tolist(), "costs": c.tolist()} for d, c in self._history],
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore what `state_dict` returned, on a freshly constructed optimizer (same
+        constructor arguments). Raises `UserError` if the state does not fit."""
+        if not isinstance(state, dict) or state.get("optimizer") != self.name:
+            found = state.get("optimizer") if isinstance(state, dict) else type(state).__name__
+            raise UserError(f"optimizer state is for '{found}', not '{self.name}'", field="optimizer")
+        if self.iteration != 0 or self._history:
+            raise RuntimeError("load_state_dict needs a freshly constructed optimizer")
+        try:
+            rounds = [
+                (np.atleast_2d(np.asarray(r["designs"], dtype=float)), np.asarray(r["costs"], dtype=float))
+                for r in state["rounds"]
+            ]
+            self._restore(state, rounds)
+            self.iteration = int(state["iteration"])
+            best = state["best_design"]
+            self._best_design = None if best is None else np.asarray(best, dtype=float)
+            self._best_cost = float(state["best_cost"])
+            last = state["last_asked"]
+            self._last_asked = None if last is None else np.atleast_2d(np.asarray(last, dtype=float))
+        except (KeyError, TypeError, ValueError) as exc:
+            if isinstance(exc, UserError):
+                raise
+            raise UserError(f"optimizer state for '{self.name}' is damaged ({type(exc).__name__}: {exc})", field="optimizer") from None
+        self._history = rounds
+
+    def _restore(self, state: dict[str, Any], rounds: list[tuple[np.ndarray, np.ndarray]]) -> None:
+        """Bring the subclass's own state to where `state` was taken. Default: replay the
+        recorded rounds through `_ask`/`_tell` (deterministic optimizers, seeded in the
+        constructor), refusing if a replayed proposal differs from the recorded one."""
+        for i, (designs, costs) in enumerate(rounds):
+            proposed = self._checked(self._ask())
+            if proposed.shape != designs.shape or not np.array_equal(proposed, designs):
+                raise UserError(
+                    f"optimizer '{self.name}' does not replay its recorded round {i} identically "
+                    "(a different library version or constructor options?); the run cannot be resumed exactly",
+                    field="optimizer",
+                )
+            self._tell(designs, costs)

@@ -76,6 +76,8 @@ class _ProgressView:
 
     def __exit__(self, *exc: Any) -> None:
         if self.progress is not None:
+            if exc and exc[0] is not None:  # an error: its one line is all that stays on screen
+                self.progress.live.transient = True
             self.progress.__exit__(*exc)
 
 
@@ -198,9 +200,13 @@ def register(app: typer.Typer) -> None:
         }
         try:
             if resume:
-                run_dir = Path(resume)
-                if not (run_dir / "state.pkl").exists():
-                    run_dir = Path(out or "runs") / resume
+                from coadapt_core.validation import is_run_id, run_folder
+
+                # a run id is looked up inside --out first (the grid resumes by id); otherwise
+                # --resume is the run folder itself
+                run_dir = run_folder(out or "runs", resume, field="resume") if is_run_id(resume) else Path(resume)
+                if not run_dir.is_dir() and is_run_id(resume) and Path(resume).is_dir():
+                    run_dir = Path(resume)
                 if not run_dir.is_dir():
                     fail(f"--resume: no run '{resume}' under {out or 'runs'}/ (and no such folder)")
                 kwargs: dict[str, Any] = {"resume": run_dir}

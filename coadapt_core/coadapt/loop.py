@@ -4,18 +4,19 @@ real/surrogate fitness, narrow the range around the final particles; finally re-
 best design and the nominal one for real.
 
 One code path serves every method of the paper's comparison through `MethodSwitches`. The
-loop's whole state is pickled into the run folder after every training phase and every
-evaluation batch, so `run_coadaptation(..., resume=run_dir)` continues where it stopped.
+loop's whole state is written into the run folder after every training phase and every
+evaluation batch, as data only (`state.json`, the evaluation buffer as `buffer-<n>.npz`, the
+optimizer as its `state_dict()`; never a pickle), so `run_coadaptation(..., resume=run_dir)`
+continues where it stopped.
 """
 
 from __future__ import annotations
 
 import os
-import pickle
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -30,9 +31,12 @@ from coadapt_core.fitness import CoadaptationBackend, RunRecorder
 from coadapt_core.objective import Objective
 from coadapt_core.optimizer import Optimizer
 from coadapt_core.pareto import pareto_front
+from coadapt_core.statefile import StateFileError, read_json, read_npz, write_json, write_npz
 
-STATE_FILE = "state.pkl"
-BUFFER_FILE_STEM = "buffer"  # <run_dir>/buffer-<serial>.pkl: the evaluation buffer R_eval
+STATE_FILE = "state.json"
+BUFFER_FILE_STEM = "buffer"  # <run_dir>/buffer-<serial>.npz: the evaluation buffer R_eval
+LEGACY_STATE_FILE = "state.pkl"  # written by coadapt before state files were data only; never read
+STATE_FORMAT = "coadapt-loop-state-1"
 
 
 @dataclass(frozen=True)
@@ -62,7 +66,7 @@ METHOD_SWITCHES: dict[str, MethodSwitches] = {
 
 @dataclass
 class LoopState:
-    """Everything needed to continue a run; pickled atomically to `<run_dir>/state.pkl`."""
+    """Everything needed to continue a run; written atomically to `<run_dir>/state.json`."""
 
     run_id: str
     config: dict[str, Any]
@@ -72,13 +76,15 @@ class LoopState:
     space: dict | None = None  # current design range (DesignSpace.to_dict)
     train_designs: np.ndarray | None = None  # [K, dim] designs of this outer iteration
     optimizer: Optimizer | None = None
-    buffer: Any = None  # evaluation buffer R_eval (pickled to its own file, see save_state)
+    optimizer_init: dict[str, Any] | None = None  # the optimizer's constructor arguments (data)
+    optimizer_state: dict[str, Any] | None = None  # its state_dict(), until the loop rebuilds it
+    buffer: Any = None  # evaluation buffer R_eval (written to its own file, see save_state)
     buffer_outer: int = -1  # outer iteration whose policy filled the buffer
     buffer_serial: int = -1  # bumped whenever the buffer is replaced
-    buffer_saved_serial: int = -1  # the serial written to <run_dir>/buffer-<serial>.pkl
+    buffer_saved_serial: int = -1  # the serial written to <run_dir>/buffer-<serial>.npz
     rng_state: dict | None = None  # numpy Generator of sampling and the hybrid switch
     torch_rng_state: Any = None
-    backend_checkpoint: str | None = None
+    backend_checkpoint: str | None = None  # relative to the run folder
     best_real: tuple[list[float], float] | None = None  # (design, cost) lowest real cost seen
     top_real: list[tuple[list[float], float]] = field(default_factory=list)  # lowest distinct real costs
     best_any: tuple[list[float], float, str] | None = None  # lowest cost of any kind
@@ -110,50 +116,86 @@ ProgressFn = Callable[[dict[str, Any]], None]
 
 
 # ------------------------------------------------------------------------------------------
-def _write_atomic(path: Path, obj: Any) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as f:
-        pickle.dump(obj, f)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
+_RECOVER = "; the run cannot continue from it: start it again with `coadapt run` (same options) in a new --out"
+_NOT_SAVED = ("optimizer", "optimizer_state", "buffer")
 
 
 def save_state(run_dir: Path, state: LoopState) -> None:
-    """Pickle the state atomically. The evaluation buffer can be large (every state of a real
-    round), so it goes to its own file, written only when it changed (`buffer_serial`)."""
+    """Write the state atomically as JSON (arrays inline). The evaluation buffer can be large
+    (every state of a real round), so it goes to its own `.npz`, written only when it changed
+    (`buffer_serial`). The optimizer is saved as its `state_dict()`."""
     if "torch" in sys.modules:  # the learner's RNG; never import torch just for this
         state.torch_rng_state = sys.modules["torch"].get_rng_state()
     buffer = state.buffer
+    stale = None
     if buffer is not None and state.buffer_saved_serial != state.buffer_serial:
-        _write_atomic(run_dir / f"{BUFFER_FILE_STEM}-{state.buffer_serial}.pkl", buffer)
-        stale = run_dir / f"{BUFFER_FILE_STEM}-{state.buffer_saved_serial}.pkl"
+        write_npz(run_dir / f"{BUFFER_FILE_STEM}-{state.buffer_serial}.npz", buffer)
+        stale = run_dir / f"{BUFFER_FILE_STEM}-{state.buffer_saved_serial}.npz"
         state.buffer_saved_serial = state.buffer_serial
-    else:
-        stale = None
-    state.buffer = None
-    try:
-        _write_atomic(run_dir / STATE_FILE, state)
-    finally:
-        state.buffer = buffer
+    data = {"format": STATE_FORMAT}
+    for f in fields(LoopState):
+        if f.name not in _NOT_SAVED:
+            data[f.name] = getattr(state, f.name)
+    data["optimizer_state"] = state.optimizer.state_dict() if state.optimizer is not None else state.optimizer_state
+    write_json(run_dir / STATE_FILE, data)
     if stale is not None and stale.exists():  # only once the new state points past it
         stale.unlink()
 
 
 def load_state(run_dir: Path) -> LoopState:
+    """The state `save_state` wrote (the optimizer still as data: `optimizer_state`, rebuilt
+    by the loop). A damaged or foreign file is a one-line `UserError` naming it."""
     path = run_dir / STATE_FILE
     if not path.is_file():
+        if (run_dir / LEGACY_STATE_FILE).is_file():
+            raise UserError(
+                f"cannot resume: '{run_dir}' holds a {LEGACY_STATE_FILE} from an older coadapt; pickled state is "
+                "never read (it can run code): start the run again", field="resume")
         raise UserError(f"cannot resume: '{run_dir}' has no {STATE_FILE} (not a run folder, or it never started)", field="resume")
-    with open(path, "rb") as f:
-        state = pickle.load(f)
+    data = read_json(path, what="run state", recover=_RECOVER)
+    names = {f.name for f in fields(LoopState)}
+    if not isinstance(data, dict) or data.get("format") != STATE_FORMAT or not {"run_id", "config"} <= set(data):
+        raise StateFileError(f"run state '{path}' is not a coadapt run state{_RECOVER}", field="resume")
+    try:
+        state = LoopState(**{k: v for k, v in data.items() if k in names and k not in ("optimizer", "buffer")})
+        _check_state(state)
+    except (TypeError, ValueError) as exc:
+        raise StateFileError(f"run state '{path}' is damaged ({type(exc).__name__}: {exc}){_RECOVER}", field="resume") from None
     if state.buffer_saved_serial >= 0:
-        with open(run_dir / f"{BUFFER_FILE_STEM}-{state.buffer_saved_serial}.pkl", "rb") as f:
-            state.buffer = pickle.load(f)
+        buffer_path = run_dir / f"{BUFFER_FILE_STEM}-{state.buffer_saved_serial}.npz"
+        if not buffer_path.is_file():
+            raise StateFileError(f"evaluation buffer '{buffer_path}' is missing{_RECOVER}", field="resume")
+        from coadapt_core.plugins import get_registry
+
+        get_registry()  # plugins register their buffer types (statefile.register_dataclass)
+        state.buffer = read_npz(buffer_path, what="evaluation buffer", recover=_RECOVER)
     if state.torch_rng_state is not None:
         import torch
 
         torch.set_rng_state(state.torch_rng_state)
     return state
+
+
+def _check_state(state: LoopState) -> None:
+    """Types that the loop relies on (a hand-edited or foreign file fails here, in one line)."""
+    if not isinstance(state.run_id, str) or not isinstance(state.config, dict):
+        raise ValueError("run_id or config has the wrong type")
+    if state.phase not in ("train", "optimize", "final", "done"):
+        raise ValueError(f"unknown phase {state.phase!r}")
+    for name in ("outer", "inner", "buffer_serial", "buffer_saved_serial"):
+        if not isinstance(getattr(state, name), int):
+            raise ValueError(f"{name} is not an integer")
+    if state.backend_checkpoint is not None:
+        rel = Path(str(state.backend_checkpoint))
+        if rel.is_absolute() or ".." in rel.parts:
+            raise ValueError("backend checkpoint path leaves the run folder")
+    for name in ("best_real", "best_any"):
+        if getattr(state, name) is not None:
+            setattr(state, name, tuple(getattr(state, name)))
+    state.top_real = [tuple(item) for item in state.top_real]
+    torch_rng = state.torch_rng_state
+    if torch_rng is not None and type(torch_rng).__name__ != "Tensor":
+        raise ValueError("torch RNG state is not a tensor")
 
 
 def _split(total: float, n: int) -> list[float]:
@@ -210,6 +252,19 @@ class CoadaptationLoop:
         self._last_survival: float | None = None  # mean survival of the last real batch
         p = self.switches.surrogate_probability
         self.w = config.evaluation_probability if p is None else p
+        if state.optimizer is None and state.optimizer_init is not None:  # resumed: rebuild from data
+            state.optimizer = self.make_optimizer(state.optimizer_init)
+            if state.optimizer_state is not None:
+                state.optimizer.load_state_dict(state.optimizer_state)
+            state.optimizer_state = None
+
+    def make_optimizer(self, init: dict[str, Any]) -> Optimizer:
+        """The optimizer from its constructor arguments as data (`LoopState.optimizer_init`)."""
+        return self.optimizer_cls(
+            DesignSpace.from_dict(init["space"]), population=init["population"], budget=init["budget"],
+            seed=init["seed"], num_objectives=init["num_objectives"], initial_designs=init["initial_designs"],
+            **init["options"],
+        )
 
     # -- bookkeeping -----------------------------------------------------------------------
     @property
@@ -267,7 +322,7 @@ class CoadaptationLoop:
         if self.backend is None:
             self.backend = self.backend_factory(self.seed_for(0))
             if self.state.backend_checkpoint:
-                self.backend.load(self.state.backend_checkpoint)
+                self.backend.load(str(self.run_dir / self.state.backend_checkpoint))
         return self.backend
 
     def optimizer_options(self) -> dict[str, Any]:
@@ -326,12 +381,14 @@ class CoadaptationLoop:
             path = self.run_dir / "checkpoints" / f"backend-outer{s.outer}.pt"
             path.parent.mkdir(exist_ok=True)
             self.get_backend().save(str(path))
-            s.backend_checkpoint = str(path)
+            s.backend_checkpoint = str(path.relative_to(self.run_dir))
             self.recorder.record_checkpoint(s.run_id, outer=s.outer, path=str(path))
-        s.optimizer = self.optimizer_cls(
-            space, population=population, budget=self.rounds_per_outer, seed=self.seed_for(2, s.outer),
-            num_objectives=len(self.objectives), initial_designs=initial, **self.optimizer_options(),
-        )
+        s.optimizer_init = {
+            "space": space.to_dict(), "population": population, "budget": self.rounds_per_outer,
+            "seed": self.seed_for(2, s.outer), "num_objectives": len(self.objectives),
+            "initial_designs": initial, "options": self.optimizer_options(),
+        }
+        s.optimizer = self.make_optimizer(s.optimizer_init)
         s.phase, s.inner = "optimize", 0
         self.checkpoint()
 
@@ -606,7 +663,7 @@ def run_coadaptation(
     folder) the recorded config and state are used and `config` is ignored.
     """
     if resume is not None:
-        run_path = Path(resume)
+        run_path = Path(resume).absolute()
         state = load_state(run_path)
         config = config_from_dict(state.config)
     else:
@@ -621,7 +678,7 @@ def run_coadaptation(
                         optimizer_cls=optimizer_cls, backend_factory=backend_factory)
     if state is None:
         run_id = new_run_id(config) if run_dir is None else Path(run_dir).name
-        run_path = Path(run_dir) if run_dir is not None else Path(config.out) / run_id
+        run_path = (Path(run_dir) if run_dir is not None else Path(config.out) / run_id).absolute()
         if (run_path / STATE_FILE).exists():
             raise UserError(f"run folder '{run_path}' already holds a run; resume it or pick another", field="out")
         run_path.mkdir(parents=True, exist_ok=True)

@@ -10,9 +10,11 @@ import numpy as np
 import torch
 
 from coadapt_core.learning.ppo import PPO
+from coadapt_core.statefile import register_dataclass
 from coadapt_core.task.env import LocomotionEnv
 
 
+@register_dataclass  # saved in run folders as arrays (buffer-<n>.npz), never pickled
 @dataclass
 class EvalBuffer:
     """R_eval: critic states (raw, un-normalised) visited by the policy."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import os
+import pickle  # only for its exception type: nothing is unpickled here
 import re
 import sys
 import time
@@ -439,14 +440,22 @@ def _remap_norm(saved: dict, saved_names: list[str], names: list[str], ppo: PPO)
 
 
 def read_checkpoint(path: str | Path) -> dict:
-    """The dict saved by `Trainer.save` / `export_weights`; a one-line `UserError` otherwise."""
+    """The dict saved by `Trainer.save` / `export_weights`; a one-line `UserError` otherwise.
+
+    Loaded with `weights_only=True`: tensors, numbers, strings and containers only. A file
+    carrying anything else (a pickled object, possibly planted to run code) is refused
+    without running it."""
     path = Path(path)
     if not path.is_file():
         raise UserError(f"checkpoint '{path}' does not exist", field="checkpoint")
     try:
-        state = torch.load(path, map_location="cpu", weights_only=False)
+        state = torch.load(path, map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError:
+        raise UserError(
+            f"checkpoint '{path}' holds objects other than tensors and plain values; refused "
+            "(it is not a coadapt checkpoint, or was altered)", field="checkpoint") from None
     except Exception as exc:
-        raise UserError(f"checkpoint '{path}' cannot be read ({type(exc).__name__})", field="checkpoint") from None
+        raise UserError(f"checkpoint '{path}' cannot be read ({type(exc).__name__}); it is damaged or not a checkpoint", field="checkpoint") from None
     if not isinstance(state, dict) or state.get("format") not in (CHECKPOINT_FORMAT, WEIGHTS_FORMAT):
         raise UserError(f"'{path}' is not a coadapt policy checkpoint", field="checkpoint")
     return state

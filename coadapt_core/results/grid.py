@@ -24,7 +24,13 @@ from pathlib import Path
 from typing import Any
 
 from coadapt_core.errors import UserError
-from coadapt_core.results.store import ENV_GRID_CELL, ENV_GRID_ID, ENV_STORE, ResultsStore
+from coadapt_core.results.store import (
+    ENV_GRID_CELL,
+    ENV_GRID_ID,
+    ENV_STORE,
+    ResultsStore,
+    run_folder_of,
+)
 
 #: the methods the paper compares (section 4.4), as `coadapt run --method` names them
 METHODS = ("ours", "no-surrogate", "no-real", "no-retrain", "bo-specialized")
@@ -297,15 +303,25 @@ def finished_run(store: ResultsStore, cell: Cell, spec: GridSpec | None = None) 
     return None
 
 
-def unfinished_run(store: ResultsStore, cell: Cell) -> dict[str, Any] | None:
+def unfinished_run(store: ResultsStore, cell: Cell, out_dir: str | os.PathLike | None = None) -> dict[str, Any] | None:
     """The latest run a grid started for this cell that did not finish (killed, crashed)
-    and whose run folder still exists, so `coadapt run --resume` can continue it."""
+    and whose run folder holds a state to continue from, so `coadapt run --resume` can
+    continue it. The folder is `<out_dir>/<run id>` (or the row's own folder when it is named
+    after the run id): a row with a malformed id, or whose folder lies elsewhere, is never
+    resumed. A run killed before its first state file (half registered) starts afresh."""
+    from coadapt_core.coadapt.loop import STATE_FILE
+
     for run in reversed(store.list_runs(cell=cell.key)):
         if run["status"] == "finished":
             return None
-        if run["run_dir"] and not Path(run["run_dir"]).exists():
+        folder = run_folder_of(run)
+        if folder is None:
+            return None  # not a folder this grid may touch: start afresh
+        if out_dir is not None and folder.parent != Path(out_dir).resolve():
+            return None
+        if not (folder / STATE_FILE).is_file():
             return None  # nothing to resume from; start afresh
-        return run
+        return {**run, "run_dir": str(folder)}
     return None
 
 
@@ -326,8 +342,8 @@ def plan_grid(
         if finished_run(store, cell, spec) is not None:
             skipped.append(cell)
             continue
-        previous = unfinished_run(store, cell)
-        resume = previous["id"] if previous is not None else None
+        previous = unfinished_run(store, cell, out_dir)
+        resume = previous["id"] if previous is not None else None  # a checked run id, inside out_dir
         env = {ENV_STORE: store.url, ENV_GRID_ID: grid_id, ENV_GRID_CELL: cell.key}
         log_path = None if log_dir is None else str(Path(log_dir) / f"{cell.slug}.log")
         tasks.append(

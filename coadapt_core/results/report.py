@@ -28,7 +28,7 @@ from coadapt_core.results.backends import (
 from coadapt_core.results.export import space_of_run
 from coadapt_core.results.grid import METHODS
 from coadapt_core.results.landscape import LANDSCAPE_METHOD
-from coadapt_core.results.store import Evaluation, ResultsStore
+from coadapt_core.results.store import Evaluation, ResultsStore, checkpoint_of, run_folder_of
 
 #: the paper's row labels
 METHOD_LABELS = {
@@ -184,13 +184,21 @@ def sim_to_sim(
         if run.get("simulator") == simulator:
             return None, f"n/a: the run itself used {simulator}"
         checkpoints = store.checkpoints(run["id"])
-        checkpoint = (run["summary"] or {}).get("checkpoint") or (checkpoints[-1]["path"] if checkpoints else None)
-        if checkpoint is None:
+        recorded = (run["summary"] or {}).get("checkpoint") or (checkpoints[-1]["path"] if checkpoints else None)
+        if recorded is None:
             return None, "n/a: the run recorded no policy checkpoint"
-        if not Path(checkpoint).is_absolute() and run.get("run_dir"):
-            # older rows hold paths relative to the folder the run was started from
-            checkpoint = str(Path(run["run_dir"]).resolve().parent.parent / checkpoint)
-        if not Path(checkpoint).exists():
+        # a store row is never trusted as a path: only a checkpoint inside the run's own folder
+        # (named after its run id) is used; paths relative to the folder a run was started
+        # from (older rows) are looked up inside the run folder by their last parts
+        found = checkpoint_of(run, recorded)
+        if found is None and not Path(str(recorded)).is_absolute():
+            parts = Path(str(recorded)).parts
+            if len(parts) >= 2 and parts[-2] == "checkpoints":
+                found = checkpoint_of(run, str(Path(*parts[-2:])))
+        if found is None:
+            return None, "n/a: the recorded checkpoint is not inside the run's folder (refused)"
+        checkpoint = str(found)
+        if not found.exists():
             return None, f"n/a: checkpoint {checkpoint} is gone"
         try:
             backend, objectives = (factory or universal_policy_backend)(
@@ -792,11 +800,11 @@ def figure_videos(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]
 
     written = []
     for f in facts:
-        run_dir = f.run.get("run_dir")
-        if not run_dir or f.method == LANDSCAPE_METHOD:
+        run_dir = run_folder_of(f.run)  # None for a row whose id or folder is not trustworthy
+        if run_dir is None or f.method == LANDSCAPE_METHOD:
             continue
         for name in ("best_vs_nominal.gif",):
-            src = Path(run_dir) / name
+            src = run_dir / name
             if src.is_file() and not src.is_symlink():
                 dst = out / f"video_{f.run['id']}.gif"
                 shutil.copyfile(src, dst)

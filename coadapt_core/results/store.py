@@ -244,6 +244,34 @@ class Evaluation:
     created_at: float
 
 
+def run_folder_of(run: dict[str, Any]) -> Path | None:
+    """The run folder a store row names, or None when the row cannot be trusted with a path:
+    its id must be a well-formed run id and its `run_dir` a folder named after that id (every
+    run folder coadapt makes is `<out>/<run id>`). Store rows are data anyone sharing the
+    store may have written; they never steer a path anywhere else."""
+    from coadapt_core.validation import is_run_id
+
+    run_id, run_dir = run.get("id"), run.get("run_dir")
+    if not is_run_id(run_id) or not isinstance(run_dir, str) or not run_dir:
+        return None
+    folder = Path(run_dir).resolve()
+    return folder if folder.name == run_id else None
+
+
+def checkpoint_of(run: dict[str, Any], path: str | None) -> Path | None:
+    """A checkpoint path from a store row (`checkpoints.path`, a summary's `checkpoint`),
+    resolved inside the run's own folder (`run_folder_of`); None when it lies elsewhere."""
+    from coadapt_core.validation import inside
+
+    folder = run_folder_of(run)
+    if folder is None or not path:
+        return None
+    try:
+        return inside(folder, str(path))
+    except UserError:
+        return None
+
+
 class ResultsStore:
     """SQLAlchemy Core access to the results database. Safe to share between processes
     (SQLite in WAL mode with a busy timeout; any server database as it is)."""

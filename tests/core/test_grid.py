@@ -168,6 +168,7 @@ def test_killed_grid_resumes_runs_left_running(tmp_path):
     spec = _spec(seeds=[0, 1])
     c0, c1, c2, c3 = spec.cells()
     (tmp_path / "runs" / "r0").mkdir(parents=True)
+    (tmp_path / "runs" / "r0" / "state.json").write_text("{}")  # got as far as its first state
     store.create_run({"method": c0.method, "objective": c0.objective, "seed": c0.seed, "grid_cell": c0.key},
                      run_id="r0", run_dir=str(tmp_path / "runs" / "r0"))
     store.create_run({"method": c1.method, "objective": c1.objective, "seed": c1.seed, "grid_cell": c1.key},

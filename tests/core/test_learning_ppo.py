@@ -151,7 +151,7 @@ def test_weights_export_is_small_float32_and_acts_the_same(fake_robot, fake_sim_
     weights = trainer.export_weights(tmp_path / "policy.pt")
     full = trainer.save(tmp_path / "full.pt")
     assert weights.stat().st_size < 6e6 < full.stat().st_size
-    state = torch.load(weights, weights_only=False)
+    state = torch.load(weights, weights_only=True)
     assert all(t.dtype == torch.float32 for t in state["ppo"]["actor"].values())
     restored = make_trainer(fake_robot, fake_sim_cls, small_config(hidden=(512, 256, 128)))
     restored.load(weights)

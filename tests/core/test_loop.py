@@ -181,7 +181,7 @@ def test_run_folder_holds_config_evaluations_and_summary(tmp_path):
 
     result = run(tmp_path, seed=4)
     files = {p.name for p in result.run_dir.iterdir()}
-    assert {"config.yaml", "evaluations.jsonl", "trainings.jsonl", "summary.json", "state.pkl"} <= files
+    assert {"config.yaml", "evaluations.jsonl", "trainings.jsonl", "summary.json", "state.json"} <= files
     # the evaluation buffer lives in one file of its own, rewritten only when it changes
     assert len([f for f in files if f.startswith("buffer-")]) == 1
     assert yaml.safe_load((result.run_dir / "config.yaml").read_text())["seed"] == 4

@@ -62,7 +62,7 @@ def test_interrupted_and_resumed_run_equals_uninterrupted(tmp_path, method, opti
     full = start(tmp_path, "full", lambda s: AnalyticBackend(s), **overrides).summary
     with pytest.raises((RuntimeError, KeyboardInterrupt), match="injected"):
         start(tmp_path, "cut", failing, **overrides)
-    assert (tmp_path / "cut" / "state.pkl").exists()
+    assert (tmp_path / "cut" / "state.json").exists()
     import json
 
     assert json.loads((tmp_path / "cut" / "summary.json").read_text())["status"] == "interrupted"

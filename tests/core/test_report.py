@@ -62,8 +62,15 @@ def record_run(rec: SqliteRecorder, method: str, seed: int, *, objectives=("torq
     """A small finished run as the loop records it: 2 training phases, 2 x 2 batches of 4
     real designs (surrogate scored too), 4 surrogate-only designs, best and nominal."""
     rng = np.random.default_rng(seed + 17 * len(method))
-    run_id = rec.start_run({"method": method, "objective": ",".join(objectives), "terrain": terrain, "seed": seed,
-                            "preset": "smoke", "sim": "mujoco", "robot": "kuafu", "optimizer": optimizer})
+    config = {"method": method, "objective": ",".join(objectives), "terrain": terrain, "seed": seed,
+              "preset": "smoke", "sim": "mujoco", "robot": "kuafu", "optimizer": optimizer}
+    if checkpoint is not None:  # a run folder named after the run, holding its policy (as the loop writes)
+        config["run_id"] = f"{method}-{'+'.join(objectives)}-{terrain}-{optimizer}-s{seed}"
+        config["run_dir"] = str(checkpoint.parent / config["run_id"])
+        (checkpoint.parent / config["run_id"] / "checkpoints").mkdir(parents=True, exist_ok=True)
+        checkpoint = Path(config["run_dir"]) / "checkpoints" / checkpoint.name
+        checkpoint.write_text("weights")
+    run_id = rec.start_run(config)
     for outer in range(2):
         rec.record_training(run_id, outer=outer, result=TrainingResult(steps=10_000 * (seed + 1), seconds=2.0 + seed, mean_reward=0.3))
         for inner in range(2):

@@ -47,11 +47,17 @@ class BOOptimizer(Optimizer):
         self.n_startup_trials = n_startup
         self.storage = storage or None
         self.study_name = study_name or f"coadapt-bo-{self.seed}"
-        self._make_study(load_if_exists=False)
+        self._initial = None if initial is None else space.validate_batch(initial)
+        self._study = None  # made at the first ask (or rebuilt by load_state_dict)
         self._trial = None
-        if initial is not None:
-            for design in space.validate_batch(initial):
-                self._study.enqueue_trial(self._params(design))
+
+    def _ensure_study(self):
+        if self._study is None:
+            self._make_study(load_if_exists=False)
+            if self._initial is not None:
+                for design in self._initial:
+                    self._study.enqueue_trial(self._params(design))
+        return self._study
 
     # -- optuna plumbing -------------------------------------------------------------------
     def _sampler(self):
@@ -96,7 +102,7 @@ class BOOptimizer(Optimizer):
 
     # -- ask / tell ------------------------------------------------------------------------
     def _ask(self) -> np.ndarray:
-        self._trial = self._study.ask(self._distributions())
+        self._trial = self._ensure_study().ask(self._distributions())
         return np.array([[float(self._trial.params[n]) for n in self.space.names]])  # [1, dim]
 
     def _tell(self, designs: np.ndarray, costs: np.ndarray) -> None:
@@ -107,26 +113,33 @@ class BOOptimizer(Optimizer):
 
     def final_population(self) -> np.ndarray:
         """Every design tried so far (BO has no swarm to narrow around)."""
-        trials = [t for t in self._study.trials if t.value is not None]
+        trials = [t for t in self._ensure_study().trials if t.value is not None]
         if not trials:
             return super().final_population()
         return np.array([[float(t.params[n]) for n in self.space.names] for t in trials])
 
-    # -- pickling for resumable runs: a database-backed study is reloaded, not pickled -----
-    def __getstate__(self) -> dict:
-        """The loop pickles between rounds (no trial pending); the sampler, with its RNG,
-        travels along so a resumed study proposes what an uninterrupted one would."""
-        state = self.__dict__.copy()
-        state["_trial"] = None
-        if self.storage is not None:
-            state["_study"] = None
-            state["_sampler_state"] = self._study.sampler
-        return state
+    # -- state as data: the study is rebuilt from the recorded rounds --------------------
+    def _restore(self, state: dict[str, Any], rounds: list) -> None:
+        """Replay the told rounds into a fresh in-memory study with the same seeded sampler,
+        so the sampler's random stream is where an uninterrupted run's would be. A study kept
+        in a database (`storage`) already holds those trials: it is reopened with the
+        replayed sampler instead of being told them twice."""
+        storage = self.storage
+        self.storage = None
+        try:
+            super()._restore(state, rounds)
+        finally:
+            self.storage = storage
+        if storage is not None:
+            from optuna.search_space import IntersectionSearchSpace
 
-    def __setstate__(self, state: dict) -> None:
-        sampler = state.pop("_sampler_state", None)
-        self.__dict__.update(state)
-        if self._study is None:
+            # the replayed sampler's random streams (and model caches) go to a fresh sampler;
+            # only its per-study search-space cache stays the fresh one's
+            replayed, sampler = self._study.sampler, self._sampler()
+            for key, value in vars(replayed).items():
+                if not isinstance(value, IntersectionSearchSpace):
+                    setattr(sampler, key, value)
+            self._study = None
             self._make_study(load_if_exists=True, sampler=sampler)
 
 

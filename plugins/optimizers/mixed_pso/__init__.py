@@ -79,6 +79,30 @@ class MixedPSOOptimizer(Optimizer):
     def final_population(self) -> np.ndarray:
         return self.space.decode(self.x)
 
+    # -- state as data: the swarm's arrays and the random generator -----------------------
+    def state_dict(self) -> dict[str, Any]:
+        state = super().state_dict()
+        state["swarm"] = {
+            "x": self.x.tolist(), "v": self.v.tolist(), "p_best": self.p_best.tolist(),
+            "p_cost": self.p_cost.tolist(), "g_best": self.g_best.tolist(), "g_cost": float(self.g_cost),
+            "evaluated_first": bool(self._evaluated_first), "rng": self._rng.bit_generator.state,
+        }
+        return state
+
+    def _restore(self, state: dict[str, Any], rounds: list) -> None:
+        swarm = state["swarm"]
+        n, d = self.x.shape
+        arrays = {k: np.asarray(swarm[k], dtype=float) for k in ("x", "v", "p_best", "p_cost", "g_best")}
+        shapes = {"x": (n, d), "v": (n, d), "p_best": (n, d), "p_cost": (n,), "g_best": (d,)}
+        for key, shape in shapes.items():
+            if arrays[key].shape != shape:
+                raise ValueError(f"swarm '{key}' has shape {arrays[key].shape}, expected {shape}")
+        self.x, self.v, self.p_best = arrays["x"], arrays["v"], arrays["p_best"]
+        self.p_cost, self.g_best = arrays["p_cost"], arrays["g_best"]
+        self.g_cost = float(swarm["g_cost"])
+        self._evaluated_first = bool(swarm["evaluated_first"])
+        self._rng.bit_generator.state = dict(swarm["rng"])
+
 
 @hookimpl
 def coadapt_register_optimizers() -> list[type[Optimizer]]:

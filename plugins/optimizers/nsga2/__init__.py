@@ -19,6 +19,10 @@ class NSGA2Optimizer(Optimizer):
 
     Options: initial_designs ([population, dim]; default random). The Pareto front is kept
     over every design told so far, not only the last generation.
+
+    State for resumed runs (`state_dict`/`load_state_dict`): the told rounds; the pymoo
+    algorithm is rebuilt from them by replay with the same seed (the base class's default),
+    never unpickled.
     """
 
     name: ClassVar[str] = "nsga2"

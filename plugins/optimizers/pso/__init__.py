@@ -19,6 +19,10 @@ class PSOOptimizer(Optimizer):
 
     Options: inertia (0.9), c1 (2.0), c2 (2.0), max_velocity_rate (0.2 of the range, pymoo's
     default), initial_designs ([population, dim], the first swarm; default Latin hypercube).
+
+    State for resumed runs (`state_dict`/`load_state_dict`): the told rounds; the pymoo
+    algorithm is rebuilt from them by replay with the same seed (the base class's default),
+    never unpickled.
     """
 
     name: ClassVar[str] = "pso"
