@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields
 
 import numpy as np
+import torch
 
 from coadapt_core.errors import UserError
 
@@ -79,6 +80,15 @@ class EnvParams:
     def delay_steps(self, physics_dt: float) -> np.ndarray:
         """[num_envs] int: the delay in whole physics steps (rounded)."""
         return np.rint(self.delay / physics_dt).astype(int)
+
+    def privileged(self, device: str | torch.device = "cpu") -> torch.Tensor:
+        """[num_envs, 8] float32 tensor on `device`: friction, restitution, PD factor, motor
+        strength, delay (s), CoM shift (3), the critic state's randomized parameters."""
+        columns = np.column_stack(
+            [self.friction, self.restitution, self.pd_factor, self.motor_strength, self.delay,
+             np.reshape(self.com_shift, (-1, 3))]
+        )
+        return torch.from_numpy(columns.astype(np.float32)).to(device)
 
     def take(self, env_ids: np.ndarray) -> EnvParams:
         return EnvParams(**{k: v[env_ids] for k, v in asdict(self).items()})

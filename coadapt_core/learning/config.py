@@ -39,12 +39,16 @@ class TrainConfig:
     # epochs of pseudo-critic regression per update (0: as many as PPO's); on a CPU the three
     # pseudo-critics cost 2.7x the PPO update itself, so fewer epochs buy throughput
     pseudo_epochs: int = 0
+    # numerics of the update's forward passes: "float32", or "bf16" (autocast to bfloat16
+    # where the hardware supports it; see docs/training.md for when it is worth it)
+    precision: str = "float32"
     # -- bookkeeping ------------------------------------------------------------------------
     checkpoint_every: int = 100  # iterations
     device: str = "cpu"
-    # CPU threads of the learner's torch ops; 0 = one thread on machines with <= 4 cores
-    # (physics threads share them, and oversubscribed OpenMP spin-waits cost up to 6x on
-    # a 2-core machine), torch's default elsewhere
+    # CPU threads of the learner's update (compute_returns + PPO epochs); 0 = every core the
+    # process may use. Collection always runs torch on one thread: the physics backend's
+    # threads own the cores then (torch's spin-waiting OpenMP threads beside them cost a
+    # third of the collection rate on a 2-core machine)
     torch_threads: int = 0
     seed: int = 0
     extra: dict[str, Any] = field(default_factory=dict)
@@ -58,6 +62,8 @@ class TrainConfig:
             raise UserError(f"train.schedule '{self.schedule}' is not one of: adaptive, fixed", field="schedule")
         if not (0.0 < self.gamma < 1.0) or not (0.0 <= self.lam <= 1.0):
             raise UserError("train.gamma must lie in (0, 1) and train.lam in [0, 1]", field="gamma")
+        if self.precision not in ("float32", "bf16"):
+            raise UserError(f"train.precision '{self.precision}' is not one of: float32, bf16", field="precision")
         if self.activation not in ("elu", "relu", "tanh"):
             raise UserError(f"train.activation '{self.activation}' is not one of: elu, relu, tanh", field="activation")
         self.hidden = tuple(int(h) for h in self.hidden)

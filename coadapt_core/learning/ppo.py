@@ -17,6 +17,7 @@ normalised per objective by running statistics; predictions are de-normalised.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import torch
@@ -24,7 +25,7 @@ from tensordict import TensorDict
 from tensordict.nn import TensorDictModule
 
 from coadapt_core.learning.config import TrainConfig
-from coadapt_core.learning.networks import ActorNet, EmpiricalNormalization, ValueNet
+from coadapt_core.learning.networks import ActorNet, CriticBank, EmpiricalNormalization, ValueNet
 
 #: per-step metrics are clamped to +-METRIC_LIMIT before the pseudo-critics see them
 METRIC_LIMIT = 1e15
@@ -67,7 +68,8 @@ class PPO:
     """The learner. Attributes:
 
     actor_net: pi(a | o, xi) mean MLP + log-std; critic_net: V(s, xi);
-    pseudo_critic: V_pseudo(s, xi), one MLP head per objective (None when M = 0);
+    pseudo_critic: V_pseudo(s, xi), a `CriticBank` of one MLP per objective computed as one
+    batched ensemble (None when M = 0);
     obs_norm / critic_norm: running normalisers of o and s; pseudo_norm: of pseudo targets;
     loss: TorchRL ClipPPOLoss over actor + critic; gae: TorchRL GAE;
     optimizer: Adam over actor + critic; pseudo_optimizer: Adam over the pseudo-critics only.
@@ -113,6 +115,10 @@ class PPO:
         self.transitions: list[TensorDict] = []  # one [N] TensorDict per rollout step
         self.rollout: TensorDict | None = None  # [N, T] after compute_returns
         self.training = True
+        #: wall seconds of compute_returns ("returns") and update ("update") and of the
+        #: pseudo-critics' part of both ("pseudo"); `profile` makes them exact on a GPU
+        self.timing = {"returns": 0.0, "update": 0.0, "pseudo": 0.0}
+        self.profile = False
 
     # -- acting -----------------------------------------------------------------------------
     @torch.no_grad()
@@ -181,8 +187,10 @@ class PPO:
         pseudo-critic targets (module docstring)."""
         td = torch.stack(self.transitions, dim=1)  # [N, T]
         self.transitions = []
+        begin = self._clock()
         self.gae(td)
         if self.pseudo_critic is not None:
+            tick = self._clock()
             value_next = self.pseudo_values(td["next", "critic_obs"], td["next", "design_obs"])  # [N, T, M]
             target = discounted_average_targets(
                 td["metrics"], value_next, td["next", "done"], self.config.gamma, self.config.pseudo_lam
@@ -190,27 +198,65 @@ class PPO:
             self.pseudo_norm.update(target)
             m = self.dims.num_metrics
             td["pseudo_target"] = (target - self.pseudo_norm.mean[:m]) / torch.sqrt(self.pseudo_norm.var[:m] + self.pseudo_norm.eps)
+            self.timing["pseudo"] += self._clock() - tick
         self.rollout = td
+        self.timing["returns"] += self._clock() - begin
         return td
 
     # -- update -----------------------------------------------------------------------------
+    def _autocast(self):
+        """bf16 autocast of the update's forward passes where `TrainConfig.precision` asks
+        for it (float32 otherwise: a no-op context)."""
+        enabled = self.config.precision == "bf16"
+        return torch.autocast(self.device.type, dtype=torch.bfloat16, enabled=enabled)
+
+    def _clock(self) -> float:
+        """Wall time for the section timings; with `profile` set on an accelerator, after
+        waiting for the queued work (else only the launch would be timed)."""
+        if self.profile and self.device.type == "cuda":
+            torch.cuda.synchronize(self.device)
+        return time.perf_counter()
+
     def update(self) -> dict[str, float]:
-        """Epochs x minibatches of the clipped PPO loss (actor + critic) and, separately, of
-        the pseudo-critic regression. Returns mean losses and the learning rate."""
+        """Epochs x minibatches of the clipped PPO loss (actor + critic) and, on the same
+        minibatch but in its own optimizer, of the pseudo-critic regression. Returns mean
+        losses and the learning rate.
+
+        One host synchronisation per minibatch: the approximate KL (which sets the adaptive
+        learning rate) and whether the pseudo-critic loss is finite travel together; the
+        loss sums stay on the device until the end."""
         c = self.config
         flat = self.rollout.reshape(-1)
         n = flat.shape[0]
         size = max(n // c.minibatches, 1)
-        sums = {"loss_objective": 0.0, "loss_critic": 0.0, "loss_entropy": 0.0, "loss_pseudo": 0.0, "kl": 0.0, "entropy": 0.0}
+        keys = ("loss_objective", "loss_critic", "loss_entropy", "entropy")
+        sums = torch.zeros(len(keys) + 1, device=self.device)  # + kl
+        pseudo_sum = torch.zeros((), device=self.device)
         count = pseudo_count = 0
         params = list(self.loss.parameters())
+        pseudo_params = list(self.pseudo_critic.parameters()) if self.pseudo_critic is not None else []
         pseudo_epochs = c.pseudo_epochs or c.epochs
+        pseudo_seconds = 0.0
+        begin = self._clock()
         for epoch in range(c.epochs):
             order = torch.randperm(n, device=self.device)
             for start in range(0, n - size + 1, size):
                 batch = flat[order[start : start + size]]
-                out = self.loss(batch)
-                kl = float(out["kl_approx"])
+                with self._autocast():
+                    out = self.loss(batch)
+                loss = out["loss_objective"] + out["loss_critic"] + out["loss_entropy"]
+                pseudo = self.pseudo_critic is not None and epoch < pseudo_epochs
+                flags = [out["kl_approx"].detach().float().reshape(())]
+                if pseudo:
+                    tick = self._clock()
+                    # the pseudo-critics see data only: no path from their loss to the actor
+                    with self._autocast():
+                        pred = self.pseudo_critic(batch["critic_obs"], batch["design_obs"])
+                    loss_pseudo = torch.nn.functional.mse_loss(pred.float(), batch["pseudo_target"])
+                    flags.append(torch.isfinite(loss_pseudo).float())
+                    pseudo_seconds += self._clock() - tick
+                host = torch.stack(flags).tolist()  # the one synchronisation
+                kl = host[0]
                 if c.schedule == "adaptive":
                     # rsl_rl's rule on the (approximate) KL between behaviour and current policy
                     if kl > 2.0 * c.desired_kl:
@@ -219,30 +265,28 @@ class PPO:
                         self.learning_rate = min(1e-2, self.learning_rate * 1.5)
                     for group in self.optimizer.param_groups:
                         group["lr"] = self.learning_rate
-                loss = out["loss_objective"] + out["loss_critic"] + out["loss_entropy"]
                 self.optimizer.zero_grad(set_to_none=True)
                 loss.backward()
                 torch.nn.utils.clip_grad_norm_(params, c.max_grad_norm, foreach=True)
                 self.optimizer.step()
-                if self.pseudo_critic is not None and epoch < pseudo_epochs:
-                    # the pseudo-critics see data only: no path from their loss to the actor
-                    pred = self.pseudo_critic(batch["critic_obs"], batch["design_obs"])
-                    loss_pseudo = torch.nn.functional.mse_loss(pred, batch["pseudo_target"])
-                    if torch.isfinite(loss_pseudo):  # never step on a non-finite loss
-                        self.pseudo_optimizer.zero_grad(set_to_none=True)
-                        loss_pseudo.backward()
-                        torch.nn.utils.clip_grad_norm_(self.pseudo_critic.parameters(), c.max_grad_norm, foreach=True)
-                        self.pseudo_optimizer.step()
-                        sums["loss_pseudo"] += loss_pseudo.item()
-                        pseudo_count += 1
-                for key in ("loss_objective", "loss_critic", "loss_entropy"):
-                    sums[key] += out[key].item()
-                sums["kl"] += kl
-                sums["entropy"] += out["entropy"].item()
+                if pseudo and host[1] > 0:  # never step on a non-finite loss
+                    tick = self._clock()
+                    self.pseudo_optimizer.zero_grad(set_to_none=True)
+                    loss_pseudo.backward()
+                    torch.nn.utils.clip_grad_norm_(pseudo_params, c.max_grad_norm, foreach=True)
+                    self.pseudo_optimizer.step()
+                    pseudo_sum += loss_pseudo.detach()
+                    pseudo_count += 1
+                    pseudo_seconds += self._clock() - tick
+                sums += torch.stack([out[k].detach().float().reshape(()) for k in keys] + [flags[0]])
                 count += 1
+        self.timing["update"] += self._clock() - begin
+        self.timing["pseudo"] += pseudo_seconds
         self.rollout = None
-        stats = {k: v / max(count, 1) for k, v in sums.items()}
-        stats["loss_pseudo"] = sums["loss_pseudo"] / max(pseudo_count, 1)
+        values = (sums / max(count, 1)).tolist()
+        stats = dict(zip(keys, values[:-1], strict=True))
+        stats["kl"] = values[-1]
+        stats["loss_pseudo"] = float(pseudo_sum) / max(pseudo_count, 1)
         stats["learning_rate"] = self.learning_rate
         stats["action_std"] = self.actor_net.log_std.detach().exp().mean().item()
         return stats
@@ -265,7 +309,8 @@ class PPO:
         self.actor_net.load_state_dict(state["actor"])
         self.critic_net.load_state_dict(state["critic"])
         if self.pseudo_critic is not None and state.get("pseudo_critic") is not None:
-            self.pseudo_critic.load_state_dict(state["pseudo_critic"])
+            # checkpoints of the per-head layout (before the bank was batched) are converted
+            self.pseudo_critic.load_state_dict(CriticBank.convert_state_dict(state["pseudo_critic"]))
         self.obs_norm.load_state_dict(state["obs_norm"])
         self.critic_norm.load_state_dict(state["critic_norm"])
         self.pseudo_norm.load_state_dict(state["pseudo_norm"])
@@ -277,7 +322,10 @@ class PPO:
         if optimizers and "optimizer" in state:
             self.optimizer.load_state_dict(state["optimizer"])
             if self.pseudo_optimizer is not None and state.get("pseudo_optimizer") is not None and not self.pseudo_reset:
-                self.pseudo_optimizer.load_state_dict(state["pseudo_optimizer"])
+                bank = self.pseudo_critic
+                saved = CriticBank.convert_optimizer_state(state["pseudo_optimizer"], bank.num_heads, bank.num_layers)
+                if saved is not None:
+                    self.pseudo_optimizer.load_state_dict(saved)
         if "learning_rate" in state:
             # the KL-adapted rate the training had reached (weights exports carry it too), where
             # resuming or fine-tuning continues
@@ -285,13 +333,13 @@ class PPO:
             for group in self.optimizer.param_groups:
                 group["lr"] = self.learning_rate
 
-    def _new_pseudo_critics(self) -> tuple[ValueNet | None, EmpiricalNormalization, torch.optim.Adam | None]:
+    def _new_pseudo_critics(self) -> tuple[CriticBank | None, EmpiricalNormalization, torch.optim.Adam | None]:
         """Fresh pseudo-critics (None when there are no objectives), target normaliser and optimizer."""
         d, c = self.dims, self.config
         norm = EmpiricalNormalization(max(d.num_metrics, 1), eps=1e-8, clip=1e9).to(self.device)
         if d.num_metrics == 0:
             return None, norm, None
-        net = ValueNet(d.num_critic_obs, d.num_design, c.hidden, c.activation, outputs=d.num_metrics).to(self.device)
+        net = CriticBank(d.num_critic_obs, d.num_design, c.hidden, c.activation, outputs=d.num_metrics).to(self.device)
         return net, norm, torch.optim.Adam(net.parameters(), lr=c.pseudo_learning_rate, foreach=True)
 
     def reset_pseudo_critics(self) -> None:

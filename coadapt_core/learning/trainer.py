@@ -20,6 +20,7 @@ from coadapt_core import tracking
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
 from coadapt_core.learning.config import TrainConfig
+from coadapt_core.learning.networks import CriticBank
 from coadapt_core.learning.ppo import PPO, Dims
 from coadapt_core.objective import Objective
 from coadapt_core.randomization import RandomizationConfig
@@ -104,9 +105,11 @@ class Trainer:
         self.total_steps = 0
         self.rng = np.random.default_rng(self.config.seed)
         torch.manual_seed(self.config.seed)
-        threads = self.config.torch_threads or (1 if (os.cpu_count() or 1) <= 4 else 0)
-        if threads:
-            torch.set_num_threads(threads)
+        #: torch threads while updating (every core unless configured) and while collecting
+        #: (one: the physics backend's threads own the cores then); see `torch_threads`
+        self.learner_threads = int(self.config.torch_threads) or usable_cpus()
+        self.collect_threads = 1
+        torch.set_num_threads(self.collect_threads)  # outside the update, as while collecting
         self._obs = None
         self._pending_commands: dict | None = None
         self.last_rollout_critic_obs: torch.Tensor | None = None  # [T * N, C] raw, cpu
@@ -207,6 +210,7 @@ class Trainer:
                 self.set_designs(self.sample_designs(len(self.designs)), self.agents)
                 obs, critic_obs, design_obs = env.reset()
             physics0, step0 = env.timing["physics"], env.timing["step"]
+            torch.set_num_threads(self.collect_threads)
             start = time.perf_counter()
             rewards, errors, alternation = [], [], []
             # on-device sums: no host synchronisation inside the rollout loop
@@ -237,6 +241,7 @@ class Trainer:
                     episodes.append(info["episode"])
             collect_seconds = time.perf_counter() - start
             self.last_rollout_critic_obs = torch.cat(visited).float().cpu()
+            torch.set_num_threads(self.learner_threads)
             t_update = time.perf_counter()
             ppo.compute_returns()
             losses = ppo.update()
@@ -271,6 +276,7 @@ class Trainer:
             if callback is not None:
                 callback(stats)
             tracking.on_training_iteration(stats, samples)  # TensorBoard / wandb, when one is active
+        torch.set_num_threads(self.collect_threads)
         self._obs = (obs, critic_obs, design_obs)
         return stats
 
@@ -370,8 +376,9 @@ class Trainer:
 
 
 #: first layers that read the design input xi (the last columns of their input, after the
-#: observation): the actor's trunk, the critic's and every pseudo-critic's
-_DESIGN_INPUT_LAYER = re.compile(r"^(body|heads\.\d+)\.0\.weight$")
+#: observation): the actor's trunk, the critic's and every pseudo-critic's (per-head layout
+#: `heads.<h>.0.weight` [out, in], or the stacked bank's `weight_0` [H, out, in])
+_DESIGN_INPUT_LAYER = re.compile(r"^((body|heads\.\d+)\.0\.weight|weight_0)$")
 
 
 def widen_design_input(state: dict, num_design: int) -> dict:
@@ -395,12 +402,20 @@ def widen_design_input(state: dict, num_design: int) -> dict:
         weights = dict(ppo[net])
         for key, tensor in weights.items():
             if _DESIGN_INPUT_LAYER.match(key):
-                zeros = torch.zeros(tensor.shape[0], extra, dtype=tensor.dtype)
-                weights[key] = torch.cat([tensor, zeros], dim=1)
+                zeros = torch.zeros(*tensor.shape[:-1], extra, dtype=tensor.dtype)
+                weights[key] = torch.cat([tensor, zeros], dim=-1)
         ppo[net] = weights
     out["ppo"] = ppo
     out["widened_from"] = old
     return out
+
+
+def usable_cpus() -> int:
+    """CPU cores this process may run on (its affinity mask where the OS has one)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
 
 
 def reseed_simulator(sim, seed: int) -> None:
@@ -416,15 +431,18 @@ def _weighted_mean(episodes: list[dict], key: str) -> float:
 
 
 def _remap_heads(saved: dict | None, saved_names: list[str], names: list[str], ppo: PPO) -> dict | None:
+    """The pseudo-critic bank's state with head i taken from the saved head of the same
+    objective name (a fresh head where the name is new); the saved state may be of the
+    per-head layout."""
     if ppo.pseudo_critic is None:
         return None
-    out = ppo.pseudo_critic.state_dict()
+    out = {k: v.clone() for k, v in ppo.pseudo_critic.state_dict().items()}
+    saved = CriticBank.convert_state_dict(saved)
     for i, name in enumerate(names):
         if saved is not None and name in saved_names:
             j = saved_names.index(name)
-            for key in list(out):
-                if key.startswith(f"heads.{i}."):
-                    out[key] = saved[f"heads.{j}." + key[len(f"heads.{i}.") :]]
+            for key in out:
+                out[key][i] = saved[key][j]
     return out
 
 

@@ -258,7 +258,7 @@ def test_non_finite_pseudo_critics_in_a_checkpoint_restart_fresh(fake_robot, fak
     trainer.learn(1)
     with torch.no_grad():
         trainer.ppo.pseudo_norm.mean.fill_(float("nan"))
-        trainer.ppo.pseudo_critic.heads[0][0].weight.fill_(float("nan"))
+        trainer.ppo.pseudo_critic.weight_0[0].fill_(float("nan"))
     path = trainer.save(tmp_path / "poisoned.pt")
     restored = make_trainer(fake_robot, fake_sim_cls)
     restored.load(path)
