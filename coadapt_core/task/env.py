@@ -85,6 +85,7 @@ class LocomotionEnv:
         self.resample_steps = int(round(resample / self.dt)) if resample > 0 else 0
 
         state = simulator.reset()
+        self._refresh_params()
         self.num_legs = int(state.foot_pos.shape[1])
         self.policy_layout = layout.policy_layout(self.num_actions, self.cfg.history)
         self.critic_layout = self.policy_layout + layout.privileged_layout(self.num_legs)
@@ -145,6 +146,7 @@ class LocomotionEnv:
         self.sim.set_designs(ids.cpu().numpy(), np.asarray(designs, dtype=float))
         self._refresh_design_buffers()
         state = self._to_device(self.sim.get_state())
+        self._refresh_params()
         self._start(ids, state)
         self.state = state
 
@@ -222,6 +224,7 @@ class LocomotionEnv:
     def reset(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Reset every environment: (obs, critic_obs, design_obs)."""
         state = self._to_device(self.sim.reset())
+        self._refresh_params()
         self._tick = 0
         self._start(torch.arange(self.num_envs, device=self.device), state)
         self.state = state
@@ -267,23 +270,22 @@ class LocomotionEnv:
             obs[:, s["joint_pos"]] += self._noise((n, self.num_actions), noise.joint_pos)
             obs[:, s["joint_vel"]] += self._noise((n, self.num_actions), noise.joint_vel)
         terrain = state.terrain_height.float()
-        params = self.sim.env_params
-        p = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32, device=self.device)  # noqa: E731
         privileged = torch.cat(
             [
                 (state.base_pos[:, 2].float() - terrain)[:, None],
                 state.foot_contact.float(),
                 state.foot_pos[:, :, 2].float() - terrain[:, None],
-                p(params.friction)[:, None],
-                p(params.restitution)[:, None],
-                p(params.pd_factor)[:, None],
-                p(params.motor_strength)[:, None],
-                p(params.delay)[:, None],
-                p(params.com_shift).reshape(self.num_envs, 3),
+                self._param_obs,
             ],
             dim=-1,
         )
         return obs, torch.cat([clean, privileged], dim=-1)
+
+    def _refresh_params(self) -> None:
+        """The randomized parameters' part of the critic state [N, 8] (friction, restitution,
+        PD factor, motor strength, delay, CoM shift), converted once per reset of the
+        simulator, not at every step: they change only when an environment restarts."""
+        self._param_obs = self.sim.env_params.privileged(self.device)
 
     # -- stepping ---------------------------------------------------------------------------
     def joint_targets(self, actions: torch.Tensor) -> torch.Tensor:
@@ -396,39 +398,59 @@ class LocomotionEnv:
             "command": self.command.clone(),
             "reward_terms": {k: v.mean() for k, v in weighted.items()},  # 0-dim tensors, no sync
         }
-        ids = done.nonzero(as_tuple=False).flatten()
-        changed = ids.numel() > 0
+        # one host synchronisation per step: which environments ended, which are due a new
+        # command, and the sums of the ended episodes' statistics travel together
+        resample = self.resample_steps and not self.fixed_commands
+        if resample:  # environments that end now restart at length 0: never due
+            due = ~done & (self.episode_length % self.resample_steps == 0)
+        else:
+            due = torch.zeros_like(done)
+        ended = done.float()
+        lengths = self.episode_length.float()  # >= 1 after this step
+        sums = torch.stack(
+            [
+                ended.sum(),
+                (terminated.float() * ended).sum(),
+                (self.episode_reward * ended).sum(),
+                (lengths * ended).sum(),
+                (self.episode_tracking / lengths * ended).sum(),
+                (self.episode_speed / lengths * ended).sum(),
+                (self.episode_command / lengths * ended).sum(),
+                (self.episode_moving_tracking * ended).sum(),
+                (self.episode_moving_steps * ended).sum(),
+            ]
+        )
+        host = torch.cat([ended, due.float(), sums]).cpu().numpy()
+        n = self.num_envs
+        done_ids = np.flatnonzero(host[:n])
+        due_ids = np.flatnonzero(host[n : 2 * n])
+        changed = done_ids.size > 0
         if changed:
-            lengths = self.episode_length[ids].float()
-            fraction = float((self.episode_tracking[ids] / lengths).mean())
+            count, falls, returns, length, tracking, speed, command, moving_tracking, moving_steps = host[2 * n :].tolist()
             info["episode"] = {
-                "reward": float(self.episode_reward[ids].mean()),
-                "length_s": float(lengths.mean() * self.dt),
-                "tracking_fraction": fraction,
-                "vx": float((self.episode_speed[ids] / lengths).mean()),
-                "command_vx": float((self.episode_command[ids] / lengths).mean()),
-                "fell": float(terminated[ids].float().mean()),
-                "count": int(ids.numel()),
+                "reward": returns / count,
+                "length_s": length / count * self.dt,
+                "tracking_fraction": tracking / count,
+                "vx": speed / count,
+                "command_vx": command / count,
+                "fell": falls / count,
+                "count": int(done_ids.size),
             }
             if not self.fixed_commands:
                 self.commands.record_episodes(
-                    int(ids.numel()),
-                    int(terminated[ids].sum()),
-                    float(self.episode_moving_tracking[ids].sum()),
-                    float(self.episode_moving_steps[ids].sum()),
-                    float(lengths.sum()) * self.dt,
+                    int(done_ids.size), int(round(falls)), moving_tracking, moving_steps, length * self.dt
                 )
+            cpu_ids = torch.from_numpy(done_ids)
             tick = time.perf_counter()
-            state = self._to_device(self.sim.reset(ids.to(sim_device)))
+            state = self._to_device(self.sim.reset(cpu_ids.to(sim_device)))
             self.timing["physics"] += time.perf_counter() - tick
-            self._start(ids, state)
-        if self.resample_steps and not self.fixed_commands:
-            due = (self.episode_length > 0) & (self.episode_length % self.resample_steps == 0)
-            due_ids = due.nonzero(as_tuple=False).flatten()
-            if due_ids.numel() > 0:
-                self.command[due_ids] = self.commands.sample(due_ids.numel())
-                self._freeze_clock(due_ids)
-                changed = True
+            self._refresh_params()
+            self._start(cpu_ids.to(self.device), state)
+        if due_ids.size > 0:
+            due_ids = torch.from_numpy(due_ids).to(self.device)
+            self.command[due_ids] = self.commands.sample(due_ids.numel())
+            self._freeze_clock(due_ids)
+            changed = True
         self.state = state
         if changed:  # observe the restarted environments (and new commands) afresh
             obs, critic = self._observe(state)
