@@ -10,7 +10,7 @@ import typer
 
 from coadapt_core import __version__
 from coadapt_core.cli import export, grid, landscape, plugins, report, robot, run, train
-from coadapt_core.cli.common import EXIT_USAGE
+from coadapt_core.cli.common import EXIT_USAGE, style_help
 from coadapt_core.errors import CoadaptError, PluginError, UserError
 
 app = typer.Typer(
@@ -48,6 +48,7 @@ landscape.register(app)
 def main(argv: list[str] | None = None) -> int:
     """Entry point: runs the app and turns user errors into one line and exit code 2."""
     command = typer.main.get_command(app)
+    style_help(command)
     try:
         result = command.main(args=argv, prog_name="coadapt", standalone_mode=False)
     except typer.Exit as exc:

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
+import re
 import sys
-from typing import NoReturn
+from typing import Any, NoReturn
 
 import typer
 
@@ -51,3 +53,77 @@ def resolve(kind: str, name: str) -> type:
         return get_registry().get(kind, name)
     except UnknownPluginError as exc:
         fail(str(exc))
+
+
+#: "(default X)" / "(default: X)" written into a help text by hand
+_HAND_DEFAULT = re.compile(r"\s*(?:\(default:?\s+((?:[^()]|\([^()]*\))*)\)|\[default:\s*([^\]]*)\])")
+
+
+def _preset_default(name: str) -> str | None:
+    """The default of a `coadapt run` option that is a config field: the value, or the value
+    per preset when the presets differ."""
+    from coadapt_core.coadapt.config import FIELD_NAMES, PRESETS, CoadaptConfig
+
+    if name not in FIELD_NAMES or name == "preset":
+        return None
+    base = CoadaptConfig.__dataclass_fields__[name]
+    if base.default is dataclasses.MISSING:
+        return None
+    values = {p: PRESETS[p].get(name, base.default) for p in PRESETS}
+
+    if all(v == "" for v in values.values()):
+        return None  # the help text says what an empty value means
+    if len(set(map(repr, values.values()))) == 1:
+        return show_default(next(iter(values.values())))
+    return ", ".join(f"{show_default(v)} ({p})" for p, v in values.items())
+
+
+def show_default(value: object) -> str:
+    """A default as help shows it: on/off, 1_000_000, lists comma-separated."""
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    if isinstance(value, int) and abs(value) >= 10_000:
+        return f"{value:_}"
+    if isinstance(value, list | tuple):
+        return ",".join(map(str, value))
+    return str(value)
+
+
+def style_help(command: Any, *, config_options: bool = False) -> None:
+    """One help style for every command: plain Click help (no table: option names are never
+    cut at 80 columns) and every known default as `[default: X]` at the end of the text. For
+    `coadapt run` (config_options) an option left unset takes the preset's value: shown per
+    preset when the presets differ."""
+    if hasattr(command, "rich_markup_mode"):
+        command.rich_markup_mode = None
+    for param in command.params:
+        kind = getattr(param, "param_type_name", "")
+        if kind == "argument" and getattr(param, "help", None):
+            found = _HAND_DEFAULT.search(param.help)
+            if found:  # arguments: the same style, the text they were given
+                rest = (param.help[: found.start()] + param.help[found.end():]).strip()
+                param.help = f"{rest} [default: {(found.group(1) or found.group(2) or '').strip()}]"
+            continue
+        if kind != "option" or param.hidden:
+            continue
+        text = param.help or ""
+        found = _HAND_DEFAULT.search(text)
+        default = None
+        if found:
+            default = (found.group(1) or found.group(2) or "").strip()
+            text = (text[: found.start()] + text[found.end():]).strip()
+        elif config_options and param.default is None and param.name:
+            default = _preset_default(param.name)
+        elif param.default is not None and not (param.is_flag and param.default is False) and param.name != "help":
+            value = param.default
+            if param.is_flag and param.secondary_opts:
+                default = "on" if value else "off"
+            elif not param.is_flag:
+                default = show_default(value)
+        param.show_default = False
+        if default:
+            text = text.rstrip()
+            text = f"{text} [default: {default}]" if text else f"[default: {default}]"
+        param.help = text
+    for sub in getattr(command, "commands", {}).values():
+        style_help(sub, config_options=sub.name == "run" and command.name in (None, "coadapt", "main"))
