@@ -30,9 +30,13 @@ class PluginError(CoadaptError):
 class UnknownPluginError(UserError):
     """A plugin name that no loaded plugin provides."""
 
-    def __init__(self, kind: str, name: str, available: list[str]):
+    def __init__(self, kind: str, name: str, available: list[str], broken: list[str] | None = None):
         listing = ", ".join(sorted(available)) or "(none loaded)"
-        super().__init__(f"unknown {kind} '{name}'; available: {listing}", field=kind)
+        message = f"unknown {kind} '{name}'; available: {listing}"
+        if broken:  # the name may belong to a plugin that failed to load: say which and why
+            message += "; " + "; ".join(broken)
+        super().__init__(message, field=kind)
+        self.broken = list(broken or [])
         self.kind = kind
         self.name = name
         self.available = sorted(available)

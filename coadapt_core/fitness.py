@@ -45,6 +45,9 @@ class RealFitness:
     per_scenario: np.ndarray | None = None  # [K, A, M] each scenario's mean per-step cost
     cost_se: np.ndarray | None = None  # [K, M] standard error of `costs` over scenarios
     fall_rate: np.ndarray | None = None  # [K] share of scenarios (agents) that fell at least once
+    # the walking gate (coadapt_core.coadapt.reliability): RMS velocity tracking error over the
+    # RMS commanded velocity, per design (0 = perfect, 1 = no better than standing still)
+    tracking_ratio: np.ndarray | None = None  # [K]
 
 
 @runtime_checkable

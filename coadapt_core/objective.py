@@ -1,15 +1,23 @@
 """The `Objective` plugin kind: a per-step design cost (paper equations 6-8).
 
 An objective turns one batched step of locomotion (commands, base velocities, joint
-torques and speeds) into a cost per environment. Real fitness is its mean over rollouts
-(Algorithm 2); its pseudo-critic learns to predict it (section 3.2.2). Costs are minimised.
+torques, speeds and targets, and the context of each environment: its design, total mass,
+base height, foot contacts and the step's duration) into a cost per environment. Real
+fitness is its mean over rollouts (Algorithm 2); its pseudo-critic learns to predict it
+(section 3.2.2). Costs are minimised.
+
+Options: an objective declares its settings in `option_specs` (see `coadapt_core.options`);
+they reach it as constructor keywords from YAML `objective_options:` and the CLI's
+`--objective-option KEY=VALUE`, checked, defaults filled in, in `self.options`.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar
+from dataclasses import dataclass, fields
+from typing import TYPE_CHECKING, Any, ClassVar
+
+from coadapt_core.options import PluginOption, resolve_options
 
 if TYPE_CHECKING:
     import torch
@@ -17,14 +25,28 @@ if TYPE_CHECKING:
 
 @dataclass
 class StepBatch:
-    """What an objective may look at, one policy step of N environments (base frame)."""
+    """What an objective may look at, one policy step of N environments (base frame).
+
+    Every tensor's first axis is the environment; row i depends on environment i only.
+    J actuated joints in the robot's `joint_names` order, L legs in its `legs` order."""
 
     command: torch.Tensor  # [N, 3] (vx, vy, yaw rate) commanded
     base_lin_vel: torch.Tensor  # [N, 3] base frame, m/s
     base_ang_vel: torch.Tensor  # [N, 3] base frame, rad/s
     joint_torque: torch.Tensor  # [N, J] N m
     joint_vel: torch.Tensor  # [N, J] rad/s
-    action: torch.Tensor  # [N, J] joint targets issued
+    joint_targets: torch.Tensor  # [N, J] PD position targets the policy issued this step, rad
+    design: torch.Tensor  # [N, D] each environment's design vector
+    total_mass: torch.Tensor  # [N] kg, of each environment's robot (designs change it)
+    base_height: torch.Tensor  # [N] base origin above the terrain under it, m
+    foot_contact: torch.Tensor  # [N, L] bool, foot touching the ground
+    dt: float  # seconds of simulated time this step covers (the policy period)
+
+    def rows(self, index: Any) -> StepBatch:
+        """The same step restricted to some environments (`index` into the first axis)."""
+        return StepBatch(**{
+            f.name: getattr(self, f.name) if f.name == "dt" else getattr(self, f.name)[index] for f in fields(self)
+        })
 
     @property
     def linear_tracking_error(self) -> torch.Tensor:
@@ -47,6 +69,15 @@ class Objective(ABC):
     #: always "minimize" for costs; kept explicit for reports
     direction: ClassVar[str] = "minimize"
     description: ClassVar[str] = ""
+    #: the plugin's own options (`coadapt_core.options.PluginOption`), read from `self.options`
+    option_specs: ClassVar[tuple[PluginOption, ...]] = ()
+
+    def __init__(self, **options: Any):
+        """Options declared in `option_specs`, checked, with defaults filled in; an
+        undeclared one is a user error. A subclass with its own constructor calls this."""
+        self.options = resolve_options(
+            type(self).option_specs, options, owner=f"objective '{self.name}'", field="objective_options"
+        )
 
     @abstractmethod
     def step_cost(self, step: StepBatch) -> torch.Tensor:

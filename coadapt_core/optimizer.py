@@ -21,6 +21,22 @@ import numpy as np
 
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
+from coadapt_core.options import PluginOption, resolve_options
+
+#: seeds an optimizer must accept: any integer in [0, SEED_LIMIT)
+SEED_LIMIT = 2**63
+
+
+def _optimizers_where(flag: str) -> str:
+    """Registered optimizer names with a class flag set (for error messages only)."""
+    try:
+        from coadapt_core.plugins import get_registry
+
+        registry = get_registry()
+        names = [n for n in registry.names("optimizer") if getattr(registry.get("optimizer", n), flag, False)]
+    except Exception:
+        names = []
+    return ", ".join(names) or "none installed"
 
 
 class Optimizer(ABC):
@@ -29,6 +45,28 @@ class Optimizer(ABC):
     `population` designs per `ask` (1 for sequential optimizers such as BO), `budget`
     ask/tell rounds in all. Costs are minimised; a multi-objective optimizer receives
     costs [n, num_objectives].
+
+    Constructor contract (the co-adaptation loop relies on every point):
+
+    - `seed`: any integer in [0, 2**63). The loop derives one per outer iteration from the
+      run's seed. Same seed, same costs told -> same proposals. Libraries that take 32-bit
+      seeds (numpy's legacy `RandomState`, pymoo, optuna samplers) get `self.seed32`; do not
+      pass `seed` to them directly (seeds above 2**32 crash them, and some, such as `cma`,
+      read 0 as "random").
+    - `initial_designs`: None, or designs [n, dim] inside `space` the first proposals must
+      start from. A population optimizer gets exactly `population` rows and its first `ask`
+      returns them (the loop trains the universal policy on K sampled designs and the swarm
+      starts from those same designs, Algorithm 4 line 10). A sequential optimizer's first n
+      asks return the n rows in order. The base class validates them (`self.initial_designs`,
+      or None); ignoring them is a broken contract the conformance suite catches.
+    - `**options`: the plugin's own settings, declared in `option_specs` (typed, with
+      defaults and help; see `coadapt_core.options`). The base class checks them, fills in
+      defaults and stores them in `self.options`; an undeclared option is a one-line user
+      error. They reach the plugin from YAML `optimizer_options:` and the CLI's
+      `--optimizer-option KEY=VALUE`.
+    - State must survive a resume: a run checkpoints the optimizer between rounds
+      (`state_dict()` / `load_state_dict()` below); the conformance suite checks that a
+      restored optimizer proposes what the original would have.
     """
 
     #: user-facing key (`--optimizer pso`)
@@ -40,6 +78,10 @@ class Optimizer(ABC):
     multi_objective: ClassVar[bool] = False
     #: proposes one design at a time (population is forced to 1)
     sequential: ClassVar[bool] = False
+    #: choosing this optimizer switches a run to the robot's mixed design space
+    implies_mixed: ClassVar[bool] = False
+    #: the plugin's own options (`coadapt_core.options.PluginOption`), read from `self.options`
+    option_specs: ClassVar[tuple[PluginOption, ...]] = ()
 
     def __init__(
         self,
@@ -49,8 +91,11 @@ class Optimizer(ABC):
         budget: int = 5,
         seed: int = 0,
         num_objectives: int = 1,
+        initial_designs: np.ndarray | None = None,
         **options: Any,
     ):
+        if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or not (0 <= int(seed) < SEED_LIMIT):
+            raise UserError(f"optimizer seed must be an integer in [0, 2**63), got {seed!r}", field="seed")
         if population < 1:
             raise UserError(f"population must be >= 1, got {population}", field="population")
         if budget < 1:
@@ -58,7 +103,7 @@ class Optimizer(ABC):
         if space.is_mixed and not self.supports_mixed:
             raise UserError(
                 f"optimizer '{self.name}' handles continuous variables only; the design space has "
-                "discrete ones (use mixed-pso or bo)",
+                f"discrete ones (optimizers that handle them: {_optimizers_where('supports_mixed')})",
                 field="optimizer",
             )
         if self.multi_objective and num_objectives < 2:
@@ -68,8 +113,8 @@ class Optimizer(ABC):
             )
         if not self.multi_objective and num_objectives != 1:
             raise UserError(
-                f"optimizer '{self.name}' optimizes one objective; got {num_objectives} "
-                "(use a composite objective or nsga2)",
+                f"optimizer '{self.name}' optimizes one objective; got {num_objectives} (use a "
+                f"weighted objective, or a multi-objective optimizer: {_optimizers_where('multi_objective')})",
                 field="objective",
             )
         self.space = space
@@ -77,12 +122,38 @@ class Optimizer(ABC):
         self.budget = int(budget)
         self.seed = int(seed)
         self.num_objectives = int(num_objectives)
-        self.options = options
+        self.options = resolve_options(
+            type(self).option_specs, options, owner=f"optimizer '{self.name}'", field="optimizer_options"
+        )
+        self.initial_designs = self._check_initial(initial_designs)
         self.iteration = 0  # completed ask/tell rounds
         self._best_design: np.ndarray | None = None
         self._best_cost: float = float("inf")
         self._last_asked: np.ndarray | None = None
         self._history: list[tuple[np.ndarray, np.ndarray]] = []  # every told (designs, costs)
+
+    @property
+    def seed32(self) -> int:
+        """A seed in [1, 2**32) for libraries that take 32-bit seeds: `seed` itself when it
+        fits (and is not 0), else one derived from it (numpy `SeedSequence`)."""
+        if 0 < self.seed < 2**32:
+            return self.seed
+        return int(np.random.SeedSequence(self.seed).generate_state(1)[0]) or 1
+
+    def _check_initial(self, designs: np.ndarray | None) -> np.ndarray | None:
+        """`initial_designs` validated: [population, dim] (sequential: [n >= 1, dim]) inside
+        the space, or None."""
+        if designs is None:
+            return None
+        designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        rows_ok = designs.shape[0] >= 1 if self.sequential else designs.shape[0] == self.population
+        if designs.ndim != 2 or designs.shape[1] != self.space.dim or not rows_ok:
+            rows = "n" if self.sequential else str(self.population)
+            raise UserError(
+                f"initial_designs must have shape ({rows}, {self.space.dim}), got {designs.shape}",
+                field="initial_designs",
+            )
+        return self.space.validate_batch(designs)
 
     @abstractmethod
     def _ask(self) -> np.ndarray:

@@ -21,7 +21,8 @@ from typing import Any
 import pluggy
 
 from coadapt_core import hookspecs
-from coadapt_core.errors import PluginError, UnknownPluginError
+from coadapt_core.errors import PluginError, UnknownPluginError, UserError
+from coadapt_core.options import check_specs
 
 ENTRY_POINT_GROUP = "coadapt"
 BUILTIN_DISTRIBUTION = "coadapt"
@@ -52,8 +53,8 @@ class PluginInfo:
     version: str
     entry_point: str
 
-    def to_dict(self) -> dict[str, str]:
-        return {
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
             "kind": self.kind,
             "name": self.name,
             "class": f"{self.cls.__module__}.{self.cls.__qualname__}",
@@ -61,6 +62,10 @@ class PluginInfo:
             "version": self.version,
             "entry_point": self.entry_point,
         }
+        specs = getattr(self.cls, "option_specs", None)
+        if specs is not None:  # optimizers and objectives: the options they declare
+            out["options"] = [spec.to_dict() for spec in specs]
+        return out
 
 
 @dataclass
@@ -86,11 +91,12 @@ class Registry:
 
     def get(self, kind: str, name: str) -> type:
         """The class registered as `name` for `kind`; `UnknownPluginError` (a user error,
-        listing what is available) otherwise."""
+        listing what is available and every plugin that failed to load, with its error)
+        otherwise."""
         try:
             return self.entries[kind][name].cls
         except KeyError:
-            raise UnknownPluginError(kind, name, self.names(kind)) from None
+            raise UnknownPluginError(kind, name, self.names(kind), [b.line() for b in self.broken]) from None
 
     def create(self, kind: str, name: str, *args: Any, **kwargs: Any) -> Any:
         return self.get(kind, name)(*args, **kwargs)
@@ -170,6 +176,11 @@ def load_registry(extra_plugins: list[tuple[ModuleType | object, str]] | None = 
                 name = getattr(cls, "name", None)
                 if not isinstance(name, str) or not name:
                     registry.broken.append(BrokenPlugin(ep_name, dist, f"{cls.__qualname__} has no `name`"))
+                    continue
+                try:  # declared options must be well formed before anyone passes values to them
+                    check_specs(getattr(cls, "option_specs", ()), f"{kind} '{name}'")
+                except (TypeError, UserError) as exc:
+                    registry.broken.append(BrokenPlugin(ep_name, dist, str(exc)))
                     continue
                 existing = registry.entries[kind].get(name)
                 if existing is not None and existing.cls is not cls:

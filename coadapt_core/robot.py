@@ -2,13 +2,22 @@
 
 A robot plugin owns its design space, turns a design into model descriptions (MJCF for
 MuJoCo, URDF for Pinocchio and PyBullet) plus the actuator facts a simulator needs, knows its
-leg kinematics (for the Raibert foot-placement reward) and validates designs.
+leg kinematics (for the Raibert foot-placement reward), declares its legs (order and gait
+phase offsets), validates designs and may ship trained universal policies.
+
+The MJCF contract (checked by `coadapt_core.testing.RobotConformance`): the floating base is
+the first joint, then the actuated joints; exactly one actuator per actuated joint (a
+`<motor>` whose `joint` is that joint); one body per foot named in `foot_bodies`, in leg
+order; collision geoms that touch the ground have `conaffinity="0"` and `contype="1"` (the
+terrain's geoms have conaffinity 1, so robots do not self-collide); `total_mass` equals the
+model's mass.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
@@ -32,7 +41,7 @@ class RobotModel:
     urdf: str  # URDF with a floating base implied (root link = base); same frames as the MJCF
     base_body: str  # name of the floating base body / root link
     joint_names: list[str]  # actuated joints, the order of every [num_joints] array below
-    foot_bodies: list[str]  # one per leg, in leg order (left, right)
+    foot_bodies: list[str]  # one per leg, in the order of `Robot.legs()` (and of the IK's legs)
     default_joint_pos: np.ndarray  # [num_joints] standing pose
     kp: np.ndarray  # [num_joints] PD stiffness, N m / rad
     kd: np.ndarray  # [num_joints] PD damping, N m s / rad
@@ -48,6 +57,18 @@ class RobotModel:
     @property
     def num_joints(self) -> int:
         return len(self.joint_names)
+
+
+@dataclass(frozen=True)
+class Leg:
+    """One leg, as the gait clock and the metrics see it.
+
+    Leg l's gait phase is (clock + phase_offset) mod 1; it is in stance for phase in
+    [0, 0.5) and swings in [0.5, 1). A biped alternates with offsets (0, 0.5); a trotting
+    quadruped moves diagonal pairs together, e.g. FL 0, FR 0.5, RL 0.5, RR 0."""
+
+    name: str  # e.g. "left", "front_right"
+    phase_offset: float  # in [0, 1)
 
 
 @dataclass
@@ -76,11 +97,17 @@ class ValidationReport:
         return [f"{f.check}: {f.message}" for f in self.findings if not f.ok]
 
     def to_dict(self) -> dict:
+        """Plain JSON values only (numpy bools and floats a check produced are converted)."""
+
+        def num(x: Any) -> float | None:
+            return None if x is None else float(x)
+
         return {
             "design": [float(x) for x in self.design],
-            "feasible": self.feasible,
+            "feasible": bool(self.feasible),
             "findings": [
-                {"check": f.check, "ok": f.ok, "message": f.message, "value": f.value, "limit": f.limit}
+                {"check": str(f.check), "ok": bool(f.ok), "message": str(f.message), "value": num(f.value),
+                 "limit": num(f.limit)}
                 for f in self.findings
             ],
         }
@@ -122,6 +149,36 @@ class Robot(ABC):
     def default_foot_positions(self, designs: torch.Tensor) -> torch.Tensor:
         """[n, num_legs, 3] each foot (the point `leg_inverse_kinematics` places) relative to
         its hip at the default standing pose, base frame."""
+
+    # -- legs and gait ------------------------------------------------------------------
+    def legs(self) -> list[Leg]:
+        """The legs in order: the order of `foot_bodies`, of the IK's `foot_pos` and of every
+        [.., num_legs] array. Default: as many legs as `default_foot_positions` returns,
+        named leg0, leg1, ..., with evenly spread phase offsets l / L (a biped alternates; a
+        quadruped gets a four-beat walk, so a quadruped that should trot overrides this)."""
+        import torch
+
+        nominal = torch.as_tensor(self.nominal_design(False), dtype=torch.float64)[None]
+        count = int(self.default_foot_positions(nominal).shape[1])
+        return [Leg(f"leg{i}", i / count) for i in range(count)]
+
+    # -- shipped policies ---------------------------------------------------------------
+    def shipped_policy(self, terrain: str, mixed: bool = False) -> Path | None:
+        """The universal policy checkpoint this robot ships for `terrain` and the continuous
+        (`mixed=False`) or mixed design space, or None when it ships none.
+
+        Default: the file `policies/<terrain>.pt` (`policies/<terrain>-mixed.pt` for the
+        mixed space) in the folder of the module that defines the robot class, so a plugin
+        ships a policy by putting a `coadapt train` checkpoint there and listing it as
+        package data. Override to look elsewhere (a download cache, several versions)."""
+        import inspect
+
+        try:
+            folder = Path(inspect.getfile(type(self))).parent
+        except (TypeError, OSError):
+            return None
+        path = folder / "policies" / (f"{terrain}-mixed.pt" if mixed else f"{terrain}.pt")
+        return path if path.is_file() else None
 
     def hip_height(self, designs: torch.Tensor) -> torch.Tensor:
         """[n] vertical hip-to-foot distance at the default standing pose."""

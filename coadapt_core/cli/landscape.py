@@ -51,12 +51,10 @@ def register(app: typer.Typer) -> None:
         if agents < 1 or steps < 1:
             fail("--agents and --steps must be >= 1")
         if checkpoint is None:
-            import inspect
-
-            shipped = Path(inspect.getfile(robot_cls)).parent / "policies" / f"{terrain}.pt"
-            if not shipped.exists():
-                fail(f"no --checkpoint given and robot '{robot}' ships no policy for terrain '{terrain}' ({shipped}); "
-                     "train one with `coadapt train` or pass a run's checkpoint")
+            shipped = robot_cls().shipped_policy(terrain, False)
+            if shipped is None:
+                fail(f"no --checkpoint given and robot '{robot}' ships no policy for terrain '{terrain}'; "
+                     f"train one with `coadapt train --robot {robot} --terrain {terrain}` or pass a run's checkpoint")
             checkpoint = shipped
         elif not checkpoint.exists():
             fail(f"--checkpoint {checkpoint} does not exist")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -112,6 +113,8 @@ def _print_summary(summary: dict[str, Any], space_names: list[str] | None) -> No
     if summary.get("final_scenarios"):
         console.print(f"final check: {summary['final_scenarios']} paired scenarios per design "
                       f"({summary.get('final_blocks')} blocks); SE = standard error over scenarios")
+    if summary.get("reliable") is False:
+        console.print(f"[bold red]UNRELIABLE[/]: {summary.get('reliability')}")
     improvement_se = summary.get("improvements_se") or {}
     first = next(iter(summary["improvements"]), None)
     parts = []
@@ -150,7 +153,9 @@ def register(app: typer.Typer) -> None:
         out: str = typer.Option(None, help="Parent folder of run folders (default runs)."),
         resume: str = typer.Option(None, help="Resume the run with this id (a folder under --out) or this run folder."),
         as_json: bool = typer.Option(False, "--json", help="Last stdout line: a JSON summary."),
-        objective_weights: str = typer.Option(None, help="Composite weights, e.g. tracking=1,power=1,torque=1."),
+        optimizer_option: list[str] = typer.Option(None, "--optimizer-option", help="KEY=VALUE: an option the optimizer plugin declares (repeatable; `coadapt plugins --json` lists them); wins over the YAML file's optimizer_options."),
+        objective_option: list[str] = typer.Option(None, "--objective-option", help="KEY=VALUE: an option the objective plugin declares (repeatable); wins over the YAML file's objective_options."),
+        objective_weights: str = typer.Option(None, help="Alias of --objective-option weights=... (composite weights, e.g. tracking=1,power=1,torque=1)."),
         mixed: bool = typer.Option(None, "--mixed/--no-mixed", help="Add the robot's discrete variables (motor types); implied by mixed-pso."),
         design_ranges: str = typer.Option(None, help="Initial range low:high per continuous variable, e.g. 0.5:1.5,0.5:1.0."),
         outer_iterations: int = typer.Option(None, help="N: outer iterations (train, optimise, narrow)."),
@@ -165,11 +170,11 @@ def register(app: typer.Typer) -> None:
         measure_surrogate_error: bool = typer.Option(None, "--measure-surrogate-error/--no-measure-surrogate-error", help="Run the surrogate on real batches too, to record its error."),
         final_candidates: int = typer.Option(None, help="Lowest-real-cost designs re-evaluated in the final check (default 3)."),
         final_max_blocks: int = typer.Option(None, help="Final check: at most this many blocks of agents-per-design paired scenarios (default 8)."),
-        inertia: float = typer.Option(None, help="PSO inertia (momentum) (default 0.9)."),
-        c1: float = typer.Option(None, help="PSO cognitive impact (default 2.0)."),
-        c2: float = typer.Option(None, help="PSO social impact (default 2.0)."),
-        bo_sampler: str = typer.Option(None, help="BO sampler: tpe or gp."),
-        bo_storage: str = typer.Option(None, help="Optuna storage URL for the BO study."),
+        inertia: float = typer.Option(None, help="Alias of --optimizer-option inertia=... (swarm optimizers)."),
+        c1: float = typer.Option(None, help="Alias of --optimizer-option c1=... (swarm optimizers)."),
+        c2: float = typer.Option(None, help="Alias of --optimizer-option c2=... (swarm optimizers)."),
+        bo_sampler: str = typer.Option(None, help="Alias of --optimizer-option sampler=... (BO: tpe or gp)."),
+        bo_storage: str = typer.Option(None, help="Alias of --optimizer-option storage=... (BO: optuna storage URL)."),
         narrow_margin: float = typer.Option(None, help="Narrowing: widen the particles' span by this fraction per side."),
         narrow_min_width: float = typer.Option(None, help="Narrowing: minimum width as a fraction of the full range."),
         bo_designs: int = typer.Option(None, help="bo-specialized: designs BO proposes."),
@@ -212,6 +217,12 @@ def register(app: typer.Typer) -> None:
                 kwargs: dict[str, Any] = {"resume": run_dir}
                 cfg = None
             else:
+                from coadapt_core.options import parse_assignments
+
+                if optimizer_option:
+                    overrides["optimizer_options"] = parse_assignments(optimizer_option, "optimizer_options")
+                if objective_option:
+                    overrides["objective_options"] = parse_assignments(objective_option, "objective_options")
                 cfg = make_config(preset, config, overrides)
                 resolve("optimizer", cfg.optimizer)
                 check_logger(cfg.logger)  # wandb asked for but not installed: one line, exit 2
@@ -219,6 +230,12 @@ def register(app: typer.Typer) -> None:
                 resolve("robot", cfg.robot)
                 for name in cfg.objectives:
                     resolve("objective", name)
+                if cfg.checkpoint.strip().lower() == "none":
+                    from coadapt_core.coadapt.reliability import WALKING_GATE
+
+                    print(f"note: no starting policy (--checkpoint none): robot '{cfg.robot}' is trained from "
+                          f"scratch in this run; its result is marked unreliable unless the real rounds pass "
+                          f"the walking gate ({WALKING_GATE.describe()})", file=sys.stderr)
                 kwargs = {}
             with _ProgressView(enabled=not as_json) as view:
                 result = run_coadaptation(cfg, progress=view, **kwargs)

@@ -247,12 +247,12 @@ def register(app: typer.Typer) -> None:
             from coadapt_core.learning import shipped_checkpoint
 
             mixed = robot_obj.design_space_for(design_values).is_mixed
-            checkpoint = shipped_checkpoint(robot, terrain, mixed=mixed)
+            checkpoint = shipped_checkpoint(robot_obj, terrain, mixed=mixed)
             if checkpoint is None:
-                name = f"{terrain}-mixed.pt" if mixed else f"{terrain}.pt"
+                space = "mixed" if mixed else "continuous"
                 fail(
-                    f"no policy is shipped yet for robot '{robot}' on terrain '{terrain}' "
-                    f"(looked for plugins/robots/{robot}/policies/{name}); pass --checkpoint"
+                    f"robot '{robot}' ships no policy for terrain '{terrain}' and the {space} design space; "
+                    f"pass --checkpoint (e.g. one `coadapt train --robot {robot} --terrain {terrain}` wrote)"
                 )
         result = evaluate_checkpoint(
             checkpoint, robot_obj, sim_cls, design_values, terrain=terrain, command=values, agents=agents,

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass, fields
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -26,7 +27,6 @@ class CoadaptConfig:
     sim: str = "mujoco"  # simulator plugin
     optimizer: str = "pso"  # optimizer plugin; mixed-pso switches to the mixed design space
     objective: str = "torque"  # objective plugin, or a comma list of 2-3 for nsga2
-    objective_weights: str = ""  # composite weights 'tracking=1,power=1,torque=1' (default all 1)
     terrain: str = "flat"  # flat | slope | random
     method: str = "ours"  # ours | no-surrogate | no-real | no-retrain | bo-specialized
     mixed: bool = False  # add the robot's discrete variables (motor types); implied by mixed-pso
@@ -45,12 +45,9 @@ class CoadaptConfig:
     measure_surrogate_error: bool = True  # also run the surrogate on every real batch (no interactions)
     final_candidates: int = 3  # lowest-real-cost designs re-evaluated in the final check
     final_max_blocks: int = 8  # final check: at most this many blocks of agents_per_design paired scenarios
-    # -- optimizer -----------------------------------------------------------------------------
-    inertia: float = 0.9  # PSO momentum w
-    c1: float = 2.0  # PSO cognitive impact
-    c2: float = 2.0  # PSO social impact
-    bo_sampler: str = "tpe"  # tpe | gp
-    bo_storage: str = ""  # optuna storage URL for the BO study (default in memory)
+    # -- plugin options: declared by the optimizer / objective plugin (`option_specs`) ------
+    optimizer_options: dict[str, Any] = field(default_factory=dict)  # e.g. {inertia: 0.9} for pso
+    objective_options: dict[str, Any] = field(default_factory=dict)  # e.g. {weights: 'torque=1'} for composite
     # -- narrowing (Algorithm 4 line 22) -----------------------------------------------------
     narrow_margin: float = 0.25  # widen the particles' span by this fraction on each side
     narrow_min_width: float = 0.1  # ... to at least this fraction of the full range
@@ -97,8 +94,12 @@ class CoadaptConfig:
             raise UserError(
                 f"evaluation_probability must be a probability in [0, 1], got {p}", field="evaluation_probability"
             )
-        for name in ("inertia", "c1", "c2", "narrow_margin"):
-            _finite_at_least(name, getattr(self, name), 0.0)
+        for name in ("optimizer_options", "objective_options"):
+            value = getattr(self, name)
+            if not isinstance(value, Mapping):
+                raise UserError(f"{name} must be a mapping of option names to values, got {value!r}", field=name)
+            setattr(self, name, {str(k).replace("-", "_"): v for k, v in value.items()})
+        _finite_at_least("narrow_margin", self.narrow_margin, 0.0)
         if not (0.0 < self.narrow_min_width <= 1.0):
             raise UserError(
                 f"narrow_min_width must be in (0, 1] (a fraction of the full range), got {self.narrow_min_width}",
@@ -108,15 +109,9 @@ class CoadaptConfig:
             raise UserError(
                 f"specialized_init '{self.specialized_init}' is not one of scratch, universal", field="specialized_init"
             )
-        if self.bo_sampler not in ("tpe", "gp"):
-            raise UserError(f"bo_sampler '{self.bo_sampler}' is not one of tpe, gp", field="bo_sampler")
         if self.logger not in ("tensorboard", "wandb", "none"):
             raise UserError(f"logger '{self.logger}' is not one of tensorboard, wandb, none", field="logger")
         parse_ranges(self.design_ranges)
-        if self.objective_weights:
-            from coadapt_plugins.objectives.locomotion import parse_weights
-
-            parse_weights(self.objective_weights)
         return self
 
 
@@ -169,13 +164,24 @@ PRESETS: dict[str, dict[str, Any]] = {
     # section 4.1.3: N = 3, K = 100, J = 5, 50 agents, w = 0.5, inertia 0.9, c1 = c2 = 2
     "paper": dict(
         outer_iterations=3, population=100, optimizer_iterations=5, agents_per_design=50,
-        evaluation_probability=0.5, inertia=0.9, c1=2.0, c2=2.0,
+        evaluation_probability=0.5,
         train_steps=24_000_000, retrain_steps=24_000_000, eval_steps=800, bo_designs=20,
         specialized_train_steps=10_000_000,
     ),
 }
 
 FIELD_NAMES = tuple(f.name for f in fields(CoadaptConfig))
+#: config keys that are plugin-option mappings, merged key by key (CLI over YAML over preset)
+OPTION_FIELDS = ("optimizer_options", "objective_options")
+#: keys of earlier versions, still accepted: (mapping they now go to, option name there)
+LEGACY_KEYS: dict[str, tuple[str, str]] = {
+    "inertia": ("optimizer_options", "inertia"),
+    "c1": ("optimizer_options", "c1"),
+    "c2": ("optimizer_options", "c2"),
+    "bo_sampler": ("optimizer_options", "sampler"),
+    "bo_storage": ("optimizer_options", "storage"),
+    "objective_weights": ("objective_options", "weights"),
+}
 
 
 def _coerce(name: str, value: Any) -> Any:
@@ -183,6 +189,10 @@ def _coerce(name: str, value: Any) -> Any:
     kind = {f.name: f.type for f in fields(CoadaptConfig)}[name]
     if value is None:
         raise UserError(f"config key '{name}' has no value", field=name)
+    if name in OPTION_FIELDS:
+        if not isinstance(value, Mapping):
+            raise UserError(f"config key '{name}' must be a mapping of option names to values, got {value!r}", field=name)
+        return {str(k).replace("-", "_"): v for k, v in value.items()}
     try:
         if kind == "float" and not isinstance(value, bool):
             return float(value)
@@ -224,11 +234,18 @@ def make_config(
     values: dict[str, Any] = {**PRESETS[preset], "preset": preset}
     for source, label in ((yaml_values, "config file"), (overrides, "option")):
         for key, value in source.items():
+            if key in LEGACY_KEYS:  # an earlier version's key: one option of a plugin now
+                target, option = LEGACY_KEYS[key]
+                values[target] = {**values.get(target, {}), option: value}
+                continue
             if key not in FIELD_NAMES:
                 raise UserError(
                     f"unknown {label} key '{key}'; accepted keys: {', '.join(FIELD_NAMES)}", field=key
                 )
-            values[key] = _coerce(key, value)
+            value = _coerce(key, value)
+            if key in OPTION_FIELDS:  # merged key by key: a CLI option keeps the YAML file's others
+                value = {**values.get(key, {}), **value}
+            values[key] = value
     values["preset"] = preset
     return CoadaptConfig(**values).validate()
 
@@ -236,6 +253,12 @@ def make_config(
 def config_from_dict(data: dict[str, Any]) -> CoadaptConfig:
     """Rebuild a recorded config (e.g. from a run folder's config.yaml)."""
     known = {k: _coerce(k, v) for k, v in data.items() if k in FIELD_NAMES}
+    # a config.yaml of an earlier version recorded every legacy key; their old defaults are the
+    # plugins' defaults now, so only values that differed are carried over
+    old_defaults = {"inertia": 0.9, "c1": 2.0, "c2": 2.0, "bo_sampler": "tpe", "bo_storage": "", "objective_weights": ""}
+    for key, (target, option) in LEGACY_KEYS.items():
+        if key in data and data[key] is not None and data[key] != old_defaults[key]:
+            known[target] = {option: data[key], **known.get(target, {})}
     return CoadaptConfig(**known).validate()
 
 

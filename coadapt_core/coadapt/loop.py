@@ -25,6 +25,7 @@ import numpy as np
 from coadapt_core.coadapt.config import CoadaptConfig, config_from_dict
 from coadapt_core.coadapt.final_check import final_check, no_uncertainty
 from coadapt_core.coadapt.recorders import make_recorder
+from coadapt_core.coadapt.reliability import assess, walking
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
 from coadapt_core.fitness import CoadaptationBackend, RunRecorder
@@ -107,9 +108,13 @@ class CoadaptResult:
 
     def json_line(self) -> dict[str, Any]:
         s = self.summary
-        return {k: s.get(k) for k in ("run_id", "best_design", "best_cost", "best_cost_se", "nominal_cost", "nominal_cost_se",
+        line = {k: s.get(k) for k in ("run_id", "best_design", "best_cost", "best_cost_se", "nominal_cost", "nominal_cost_se",
                                  "improvement", "improvement_se", "significant", "best_fall_rate", "nominal_fall_rate",
                                  "interactions", "seconds")}
+        # the walking gate's verdict travels with every improvement (reliability.py)
+        line["reliable"] = s.get("reliable")
+        line["reliability"] = s.get("reliability")
+        return line
 
 
 ProgressFn = Callable[[dict[str, Any]], None]
@@ -250,6 +255,7 @@ class CoadaptationLoop:
         self.started = time.perf_counter()
         self.backend: CoadaptationBackend | None = None
         self._last_survival: float | None = None  # mean survival of the last real batch
+        self._last_tracking: float | None = None  # mean tracking ratio of the last real batch
         p = self.switches.surrogate_probability
         self.w = config.evaluation_probability if p is None else p
         if state.optimizer is None and state.optimizer_init is not None:  # resumed: rebuild from data
@@ -326,16 +332,9 @@ class CoadaptationLoop:
         return self.backend
 
     def optimizer_options(self) -> dict[str, Any]:
-        c = self.config
-        name = self.optimizer_cls.name
-        if name in ("pso", "mixed-pso"):
-            return {"inertia": c.inertia, "c1": c.c1, "c2": c.c2}
-        if name == "bo":
-            opts: dict[str, Any] = {"sampler": c.bo_sampler}
-            if c.bo_storage:
-                opts.update(storage=c.bo_storage, study_name=f"{self.state.run_id}-outer{self.state.outer}")
-            return opts
-        return {}
+        """The run's `optimizer_options`, as the optimizer plugin declared them (checked
+        against its `option_specs` by the optimizer's constructor)."""
+        return dict(self.config.optimizer_options)
 
     # -- the phases ------------------------------------------------------------------------
     def run(self) -> dict[str, Any]:
@@ -447,6 +446,7 @@ class CoadaptationLoop:
             s.counters["real_evaluations"] += 1
             if fit.survival is not None:
                 self._last_survival = float(np.mean(fit.survival))
+            self._last_tracking = walking(fit)["tracking_ratio"]
             return costs, int(fit.interactions), float(fit.seconds), errors
         t0 = time.perf_counter()
         predicted = backend.surrogate_fitness(designs, self.objectives, s.buffer, samples=c.surrogate_samples, seed=seed)
@@ -528,8 +528,9 @@ class CoadaptationLoop:
             "nonfinite_costs": int((~finite).sum()),
             "surrogate_abs_error": float(np.abs(errors[error_finite, 0]).mean()) if errors is not None and error_finite.any() else None,
             "survival": self._last_survival,
+            "tracking_ratio": self._last_tracking,
         })
-        self._last_survival = None
+        self._last_survival = self._last_tracking = None
 
     def end_outer(self) -> None:
         """Algorithm 4 line 22: the next range, around the final particles."""
@@ -563,6 +564,7 @@ class CoadaptationLoop:
                     candidates.append(np.asarray(item[0]))
         designs = np.stack([*candidates, self.nominal])  # [C + 1, dim]
         uncertainty = no_uncertainty(self.names)
+        final_walking: dict[str, dict[str, Any]] = {}
         if self.switches.specialized:
             # every BO cost is already real with its own policy; the nominal design needs its own
             best_design, best_cost = np.asarray(s.best_real[0]), s.best_real[1]
@@ -597,10 +599,12 @@ class CoadaptationLoop:
                 front = {"designs": front_designs.tolist(),
                          "costs": [dict(zip(self.names, map(float, r), strict=True)) for r in front_costs]}
                 best_design, best_costs = front_designs[0], front_costs[0]  # lowest first cost
+                i = int(np.flatnonzero(np.all(np.isclose(designs[:-1], best_design), axis=1))[0])
             else:
                 i = int(np.argmin(costs[:-1, 0]))
                 best_design, best_costs = designs[i], costs[i]
             best_cost = float(best_costs[0])
+            final_walking = {"best": walking(fit, [i]), "nominal": walking(fit, [len(designs) - 1])}
         improvements = {
             o.name: float(o.improvement(float(best_costs[j]) if j < len(best_costs) else float("nan"), float(nominal_costs[j])))
             for j, o in enumerate(self.objectives) if j < len(best_costs)
@@ -633,6 +637,8 @@ class CoadaptationLoop:
             "batches": s.batches,
             "pareto_front": front,
         }
+        summary["reliable"], summary["reliability"] = assess(s.batches, final_walking)
+        summary["final_walking"] = final_walking
         summary.update(uncertainty)
         s.summary = summary
         s.phase = "done"
@@ -658,7 +664,7 @@ def run_coadaptation(
     """Run (or resume) Algorithm 4 and return its summary.
 
     Anything not given is built from the registry and the config: the robot's design space
-    (mixed for mixed-pso or `mixed`) narrowed to `design_ranges`, its nominal design, the
+    (mixed for `mixed` or an optimizer that implies it) narrowed to `design_ranges`, its nominal design, the
     objectives, the optimizer class and the universal-policy backend. With `resume` (a run
     folder) the recorded config and state are used and `config` is ignored.
     """

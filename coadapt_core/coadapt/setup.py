@@ -3,7 +3,6 @@ objectives, optimizer class and the backend factory (the universal-policy learne
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -29,21 +28,51 @@ class LoopParts:
 
 
 def uses_mixed_space(config: CoadaptConfig) -> bool:
-    return bool(config.mixed) or config.optimizer == "mixed-pso"
+    """`mixed`, or an optimizer that declares `implies_mixed` (searching discrete variables
+    is what it is for)."""
+    if config.mixed:
+        return True
+    from coadapt_core.plugins import get_registry
+
+    try:
+        cls = get_registry().get("optimizer", config.optimizer)
+    except UserError:
+        return False
+    return bool(getattr(cls, "implies_mixed", False))
 
 
 def make_objectives(config: CoadaptConfig) -> list[Objective]:
+    """The configured objectives, each given the `objective_options` it declares; an option
+    no objective of the run declares is a user error."""
     from coadapt_core.plugins import get_registry
 
     registry = get_registry()
+    classes = [registry.get("objective", name) for name in config.objectives]
+    given = dict(config.objective_options)
+    declared = {spec.name for cls in classes for spec in getattr(cls, "option_specs", ())}
+    for key in given:
+        if key not in declared:
+            names = ", ".join(f"'{c.name}'" for c in classes)
+            raise UserError(
+                f"objective {names} has no option '{key}'; its options: {', '.join(sorted(declared)) or 'none'}",
+                field="objective_options",
+            )
     out = []
-    for name in config.objectives:
-        cls = registry.get("objective", name)
-        if name == "composite" and config.objective_weights:
-            out.append(cls(weights=config.objective_weights))
-        else:
-            out.append(cls())
+    for cls in classes:
+        mine = {spec.name for spec in getattr(cls, "option_specs", ())}
+        out.append(cls(**{k: v for k, v in given.items() if k in mine}))
     return out
+
+
+def check_optimizer_options(config: CoadaptConfig, optimizer_cls: type[Optimizer]) -> dict:
+    """`optimizer_options` checked against the optimizer's declarations now, before any
+    training is paid for (the optimizer itself is built after the first training phase)."""
+    from coadapt_core.options import resolve_options
+
+    return resolve_options(
+        getattr(optimizer_cls, "option_specs", ()), config.optimizer_options,
+        owner=f"optimizer '{optimizer_cls.name}'", field="optimizer_options",
+    )
 
 
 def build_parts(
@@ -62,7 +91,13 @@ def build_parts(
     switches = METHOD_SWITCHES[config.method]
     if optimizer_cls is None:
         optimizer_cls = registry.get("optimizer", switches.optimizer or config.optimizer)
-    objectives = list(objectives) if objectives is not None else make_objectives(config)
+    # checked now, before any training; recorded typed, with the defaults in force
+    config.optimizer_options = check_optimizer_options(config, optimizer_cls)
+    if objectives is None:
+        objectives = make_objectives(config)
+        given = set(config.objective_options)  # recorded typed, as the objectives converted them
+        config.objective_options = {k: v for o in objectives for k, v in getattr(o, "options", {}).items() if k in given}
+    objectives = list(objectives)
     mixed = uses_mixed_space(config)
     robot = None
     if design_space is None or nominal_design is None or backend_factory is None:
@@ -88,7 +123,7 @@ def build_parts(
     if full_space.is_mixed and not optimizer_cls.supports_mixed:
         raise UserError(
             f"optimizer '{optimizer_cls.name}' handles continuous variables only; the mixed design "
-            "space needs mixed-pso or bo",
+            "space needs one that declares supports_mixed (see `coadapt plugins`)",
             field="optimizer",
         )
     pretrained = False
@@ -131,9 +166,22 @@ def universal_policy_factory(
     return factory
 
 
+def no_policy_message(robot: str, terrain: str, mixed: bool, why: str = "ships no policy") -> str:
+    space = "mixed" if mixed else "continuous"
+    return (
+        f"robot '{robot}' {why} for terrain '{terrain}' and the {space} design space: train one with "
+        f"`coadapt train --robot {robot} --terrain {terrain}{' --mixed' if mixed else ''}` and pass "
+        "--checkpoint PATH, or pass --checkpoint none to train from scratch in this run (its result is "
+        "then marked unreliable unless the real rounds pass the walking gate, docs/plugins.md)"
+    )
+
+
 def resolve_checkpoint(config: CoadaptConfig) -> str | None:
-    """'' -> the shipped universal policy when the learner ships one, 'none' -> from scratch,
-    else a path that must exist."""
+    """'' -> the policy the robot ships for the terrain and design space
+    (`Robot.shipped_policy`), 'none' -> from scratch, else a path that must exist.
+
+    No silent meaningless result: when the robot ships no fitting policy, this is a user
+    error saying how to get one (a run from scratch must be asked for with 'none')."""
     from pathlib import Path
 
     text = config.checkpoint.strip()
@@ -143,32 +191,19 @@ def resolve_checkpoint(config: CoadaptConfig) -> str | None:
         if not Path(text).is_file():
             raise UserError(f"checkpoint '{text}' does not exist", field="checkpoint")
         return text
-    try:
-        from coadapt_core.learning import shipped_checkpoint  # type: ignore[attr-defined]
-    except ImportError:
-        return None
-    mixed = uses_mixed_space(config)
-    path = shipped_checkpoint(config.robot, config.terrain, mixed=mixed)
-    if path is None:
-        if mixed and shipped_checkpoint(config.robot, config.terrain) is not None:
-            print(
-                f"note: no {config.robot} policy for the mixed design space on {config.terrain} is shipped "
-                f"(policies/{config.terrain}-mixed.pt); training starts from scratch. `coadapt train --mixed "
-                f"--init-from` the continuous one makes one (docs/training.md)",
-                file=sys.stderr,
-            )
-        return None
-    # a shipped policy takes the design input it was trained on; check it matches this space
-    from coadapt_core.learning import read_checkpoint
     from coadapt_core.plugins import get_registry
 
+    robot = get_registry().create("robot", config.robot)
+    mixed = uses_mixed_space(config)
+    path = robot.shipped_policy(config.terrain, mixed)
+    if path is None:
+        raise UserError(no_policy_message(config.robot, config.terrain, mixed), field="checkpoint")
+    # a shipped policy takes the design input it was trained on; check it matches this space
+    from coadapt_core.learning import read_checkpoint
+
     trained_dim = int(read_checkpoint(path)["dims"]["num_design"])
-    wanted_dim = get_registry().get("robot", config.robot)().design_space(mixed).dim
+    wanted_dim = robot.design_space(mixed).dim
     if trained_dim != wanted_dim:
-        print(
-            f"note: the shipped {config.robot} policy {path.name} takes {trained_dim} design values, this "
-            f"run's design space has {wanted_dim}: training starts from scratch",
-            file=sys.stderr,
-        )
-        return None
+        why = f"ships a policy ({Path(path).name}) taking {trained_dim} design values, not {wanted_dim},"
+        raise UserError(no_policy_message(config.robot, config.terrain, mixed, why), field="checkpoint")
     return str(path)

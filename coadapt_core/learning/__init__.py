@@ -16,14 +16,12 @@ from coadapt_core.learning.trainer import (
 __all__ = ["PPO", "Dims", "IterationStats", "TrainConfig", "Trainer", "read_checkpoint", "shipped_checkpoint", "widen_design_input"]
 
 
-def shipped_checkpoint(robot: str, terrain: str, mixed: bool = False):
-    """The policy shipped with a built-in robot for a terrain, or None when none is shipped:
-    `plugins/robots/<robot>/policies/<terrain>.pt` for the continuous design space,
-    `<terrain>-mixed.pt` for the mixed one (discrete variables such as motor types too)."""
-    from pathlib import Path
+def shipped_checkpoint(robot, terrain: str, mixed: bool = False):
+    """The policy a robot plugin ships for a terrain and the continuous (or, `mixed`, the
+    mixed) design space, or None: the robot's `Robot.shipped_policy` hook. `robot` is a
+    `Robot` instance or a registered robot name."""
+    if isinstance(robot, str):
+        from coadapt_core.plugins import get_registry
 
-    import coadapt_plugins
-
-    name = f"{terrain}-mixed.pt" if mixed else f"{terrain}.pt"
-    path = Path(coadapt_plugins.__file__).parent / "robots" / robot / "policies" / name
-    return path if path.is_file() else None
+        robot = get_registry().create("robot", robot)
+    return robot.shipped_policy(terrain, mixed)

@@ -187,6 +187,9 @@ class UniversalPolicyBackend:
         # and power are lower while the policy's std is large)
         result = rollout(self.ppo, env, k, steps, seed=seed, stochastic=self.stochastic_evaluation)
         per_scenario = result.per_agent[:, :, columns]  # [K, A, M]
+        # the walking gate's tracking measure: RMS tracking error over RMS command, per design
+        command_ms = (env.command.detach().float().cpu().reshape(k, agents, 3) ** 2).sum(-1).mean(1).numpy()
+        ratio = np.where(command_ms > 1e-4, np.sqrt(np.asarray(result.tracking_error, dtype=float) / np.maximum(command_ms, 1e-4)), np.nan)
         return RealFitness(
             costs=result.metrics[:, columns],
             buffer=result.buffer,
@@ -196,6 +199,7 @@ class UniversalPolicyBackend:
             per_scenario=per_scenario,
             cost_se=scenario_se(per_scenario),
             fall_rate=1.0 - result.survival,
+            tracking_ratio=ratio,
         )
 
     def unpaired_scenarios(self, env: LocomotionEnv, agents: int, designs: int, seed: int) -> None:

@@ -87,6 +87,14 @@ class LocomotionEnv:
         state = simulator.reset()
         self._refresh_params()
         self.num_legs = int(state.foot_pos.shape[1])
+        legs = robot.legs()
+        if len(legs) != self.num_legs:
+            raise ValueError(
+                f"robot '{robot.name}' declares {len(legs)} legs but its model has {self.num_legs} feet"
+            )
+        # the gait clock's per-leg offsets (a trotting quadruped moves diagonal pairs together)
+        self.leg_offsets = torch.tensor([float(leg.phase_offset) for leg in legs], device=self.device)
+        self._mass_cache: dict[tuple[float, ...], float] = {}
         self.policy_layout = layout.policy_layout(self.num_actions, self.cfg.history)
         self.critic_layout = self.policy_layout + layout.privileged_layout(self.num_legs)
         self.obs_slices = layout.slices(self.policy_layout)
@@ -139,6 +147,18 @@ class LocomotionEnv:
         self.default_joint_pos = self.sim.default_joint_pos.to(self.device).float()  # [N, J]
         with torch.no_grad():
             self.default_feet = self.robot.default_foot_positions(self.designs).to(self.device).float()  # [N, L, 3]
+        masses = []  # [N] kg, for objectives (cost of transport); one build per distinct design
+        if len(self._mass_cache) > 4096:
+            self._mass_cache.clear()
+        for row in np.asarray(self.sim.designs, dtype=float):
+            key = tuple(row.tolist())
+            if key not in self._mass_cache:
+                try:
+                    self._mass_cache[key] = float(self.robot.build(row).total_mass)
+                except NotImplementedError:  # a test robot without models: mass unknown
+                    self._mass_cache[key] = float("nan")
+            masses.append(self._mass_cache[key])
+        self.total_mass = torch.tensor(masses, dtype=torch.float32, device=self.device)
 
     def set_designs(self, env_ids: torch.Tensor | np.ndarray, designs: np.ndarray) -> None:
         """Rebuild the given environments for new designs [len(env_ids), D] (they restart)."""
@@ -294,7 +314,7 @@ class LocomotionEnv:
 
     def raibert_joint_targets(self, command: torch.Tensor, lin_vel: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """(q* [N, J], expected stance [N, L]) of the paper's Raibert reference at this step."""
-        phases = leg_phases(self.phase, self.num_legs)
+        phases = leg_phases(self.phase, self.num_legs, self.leg_offsets)
         moving = command.abs().sum(dim=-1) > 0
         stance = expected_stance(phases)
         if self.cfg.gait.freeze_on_zero_command:
@@ -364,7 +384,9 @@ class LocomotionEnv:
         reward, weighted = combine(terms, cfg.rewards, self.dt)
 
         step_batch = StepBatch(
-            command=self.command, base_lin_vel=lin, base_ang_vel=ang, joint_torque=torque, joint_vel=joint_vel, action=targets
+            command=self.command, base_lin_vel=lin, base_ang_vel=ang, joint_torque=torque, joint_vel=joint_vel,
+            joint_targets=targets, design=self.designs, total_mass=self.total_mass, base_height=height,
+            foot_contact=contact, dt=self.dt,
         )
         if self.objectives:
             metrics = torch.stack([o.step_cost(step_batch).float() for o in self.objectives], dim=-1)  # [N, M]

@@ -2,8 +2,8 @@
 (section 3.2.3): Raibert foot placement in x-y and a von Mises swing height in z, turned into
 joint targets q* by the robot's leg inverse kinematics.
 
-Leg l has phase (phase + l / L) mod 1; it is in stance for phase in [0, 0.5) and swings in
-[0.5, 1). Under a moving command the stance foot travels backwards relative to its hip at
+Leg l has phase (phase + offset_l) mod 1, offset_l from the robot's `legs()` (default
+l / L); it is in stance for phase in [0, 0.5) and swings in [0.5, 1). Under a moving command the stance foot travels backwards relative to its hip at
 the commanded speed, from +v T_st / 2 at touchdown to -v T_st / 2 at lift-off, and swings
 forward again to the Raibert touchdown point v T_st / 2 + k (v - v_cmd).
 """
@@ -17,9 +17,13 @@ import torch
 from coadapt_core.task.config import GaitConfig
 
 
-def leg_phases(phase: torch.Tensor, num_legs: int) -> torch.Tensor:
-    """[N, L] per-leg phase in [0, 1) from the clock phase [N] (legs evenly offset)."""
-    offsets = torch.arange(num_legs, device=phase.device, dtype=phase.dtype) / num_legs
+def leg_phases(phase: torch.Tensor, num_legs: int, offsets: torch.Tensor | None = None) -> torch.Tensor:
+    """[N, L] per-leg phase in [0, 1) from the clock phase [N]: leg l's is
+    (phase + offsets[l]) mod 1, with the robot's declared offsets (`Robot.legs()`), or evenly
+    spread ones (l / L) when none are given."""
+    if offsets is None:
+        offsets = torch.arange(num_legs, device=phase.device, dtype=phase.dtype) / num_legs
+    offsets = offsets.to(device=phase.device, dtype=phase.dtype)
     return torch.remainder(phase[:, None] + offsets[None, :], 1.0)
 
 

@@ -7,7 +7,10 @@ import pytest
 from coadapt_core.objective import Objective, StepBatch
 
 
-def make_step(n: int = 16, joints: int = 8, seed: int = 0, scale: float = 1.0) -> StepBatch:
+def make_step(
+    n: int = 16, joints: int = 8, seed: int = 0, scale: float = 1.0, legs: int = 2, design_dim: int = 2
+) -> StepBatch:
+    """A random step of `n` environments with every field of `StepBatch` filled."""
     import torch
 
     g = torch.Generator().manual_seed(seed)
@@ -17,7 +20,12 @@ def make_step(n: int = 16, joints: int = 8, seed: int = 0, scale: float = 1.0) -
         base_ang_vel=torch.rand(n, 3, generator=g) * scale,
         joint_torque=(torch.rand(n, joints, generator=g) - 0.5) * 100 * scale,
         joint_vel=(torch.rand(n, joints, generator=g) - 0.5) * 10 * scale,
-        action=torch.rand(n, joints, generator=g) * scale,
+        joint_targets=(torch.rand(n, joints, generator=g) - 0.5) * scale,
+        design=0.5 + torch.rand(n, design_dim, generator=g),
+        total_mass=5.0 + 10.0 * torch.rand(n, generator=g),
+        base_height=0.3 + 0.5 * torch.rand(n, generator=g),
+        foot_contact=torch.rand(n, legs, generator=g) < 0.5,
+        dt=0.02,
     )
 
 
@@ -50,8 +58,22 @@ class ObjectiveConformance:
 
         step = make_step(n=8, seed=2)
         full = objective.step_cost(step)
-        single = StepBatch(**{k: getattr(step, k)[3:4] for k in step.__dataclass_fields__})
-        assert torch.allclose(full[3:4], objective.step_cost(single))
+        assert torch.allclose(full[3:4], objective.step_cost(step.rows(slice(3, 4))))
+
+    @pytest.mark.parametrize("joints,legs", [(4, 2), (12, 4)])
+    def test_any_joint_and_leg_count(self, objective: Objective, joints: int, legs: int) -> None:
+        """Robots differ: a cost must not assume Kuafu's 8 joints or two legs."""
+        import torch
+
+        cost = objective.step_cost(make_step(n=5, joints=joints, legs=legs))
+        assert cost.shape == (5,) and torch.isfinite(cost).all()
+
+    def test_declared_options_are_well_formed(self, objective: Objective) -> None:
+        from coadapt_core.options import check_specs
+
+        specs = check_specs(type(objective).option_specs, objective.name)
+        if specs:  # built with no options, every default is in force
+            assert set(objective.options) >= {s.name for s in specs}
 
     def test_improvement_sign(self, objective: Objective) -> None:
         assert objective.improvement(0.5, 1.0) > 0

@@ -104,6 +104,62 @@ class OptimizerConformance:
         assert best < convergence_tolerance, f"best sphere cost {best:.2e} after {convergence_budget} rounds"
         assert best <= first_best
 
+    def test_initial_designs_are_the_first_proposals(self, optimizer_cls, optimizer_options, space) -> None:
+        """The loop trains the policy on K sampled designs and passes them as
+        `initial_designs`: a population optimizer's first `ask` returns them; a sequential
+        one's first n asks return the n rows in order."""
+        n_obj = self._objectives(optimizer_cls)
+        initial = space.sample(3 if optimizer_cls.sequential else 6, rng=np.random.default_rng(11))
+        opt = optimizer_cls(space, population=6, budget=4, seed=2, num_objectives=n_obj,
+                            initial_designs=initial, **optimizer_options)
+        if optimizer_cls.sequential:
+            asked = []
+            for _ in range(len(initial)):
+                d = opt.ask()
+                asked.append(d[0])
+                opt.tell(d, self._costs(optimizer_cls, d, np.array([1.0, 1.0])))
+            first = np.stack(asked)
+        else:
+            first = opt.ask()
+        np.testing.assert_allclose(first, initial, atol=1e-9, err_msg="initial_designs were not the first proposals")
+
+    def test_initial_designs_of_wrong_shape_refused(self, optimizer_cls, optimizer_options, space) -> None:
+        with pytest.raises(UserError):
+            optimizer_cls(space, population=6, budget=2, seed=0, num_objectives=self._objectives(optimizer_cls),
+                          initial_designs=np.ones((2, 5)), **optimizer_options)
+
+    @pytest.mark.parametrize("seed", [0, 1, 2**32 - 1, 2**32, 2**62 + 12345, 2**63 - 1])
+    def test_any_seed_below_2_to_63_works(self, optimizer_cls, optimizer_options, space, seed) -> None:
+        """The loop derives seeds from the run seed and the iteration: any integer in
+        [0, 2**63) must work, and the same seed must give the same proposals."""
+        n_obj = self._objectives(optimizer_cls)
+        runs = []
+        for _ in range(2):
+            opt = optimizer_cls(space, population=4, budget=2, seed=seed, num_objectives=n_obj, **optimizer_options)
+            seq = []
+            for _ in range(2):
+                d = opt.ask()
+                assert np.all(d >= 0.5 - 1e-9) and np.all(d <= 1.5 + 1e-9)
+                seq.append(d)
+                opt.tell(d, self._costs(optimizer_cls, d, np.array([0.8, 0.8])))
+            runs.append(np.concatenate(seq))
+        np.testing.assert_array_equal(runs[0], runs[1])
+
+    def test_declared_options_are_well_formed_and_defaults_work(self, optimizer_cls, space) -> None:
+        """`option_specs` are `PluginOption`s whose defaults pass their own checks; passing
+        every default explicitly gives the same proposals as passing none; an undeclared
+        option is refused."""
+        from coadapt_core.options import check_specs
+
+        specs = check_specs(optimizer_cls.option_specs, optimizer_cls.name)
+        n_obj = self._objectives(optimizer_cls)
+        explicit = {s.name: s.default for s in specs if s.default is not None}
+        a = optimizer_cls(space, population=4, budget=1, seed=3, num_objectives=n_obj)
+        b = optimizer_cls(space, population=4, budget=1, seed=3, num_objectives=n_obj, **explicit)
+        np.testing.assert_array_equal(a.ask(), b.ask())
+        with pytest.raises(UserError):
+            optimizer_cls(space, population=4, budget=1, seed=3, num_objectives=n_obj, no_such_option_xyz=1)
+
     def test_rejects_bad_population(self, optimizer_cls, space) -> None:
         with pytest.raises(UserError):
             optimizer_cls(space, population=0, budget=3, num_objectives=self._objectives(optimizer_cls))

@@ -195,7 +195,8 @@ def test_run_folder_holds_config_evaluations_and_summary(tmp_path):
     assert len((result.run_dir / "trainings.jsonl").read_text().splitlines()) == 3
     line = result.json_line()
     assert set(line) == {"run_id", "best_design", "best_cost", "best_cost_se", "nominal_cost", "nominal_cost_se", "improvement",
-                         "improvement_se", "significant", "best_fall_rate", "nominal_fall_rate", "interactions", "seconds"}
+                         "improvement_se", "significant", "best_fall_rate", "nominal_fall_rate", "interactions", "seconds",
+                         "reliable", "reliability"}
     assert line["interactions"] == result.summary["train_interactions"] + result.summary["eval_interactions"] + result.summary["final_interactions"]
 
 

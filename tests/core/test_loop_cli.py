@@ -23,7 +23,12 @@ def fake_learner(monkeypatch):
 def test_paper_preset_has_section_4_1_3_settings():
     c = make_config("paper")
     assert (c.outer_iterations, c.population, c.optimizer_iterations, c.agents_per_design) == (3, 100, 5, 50)
-    assert (c.evaluation_probability, c.inertia, c.c1, c.c2) == (0.5, 0.9, 2.0, 2.0)
+    assert c.evaluation_probability == 0.5
+    assert c.optimizer_options == {}  # pso's declared defaults are the paper's: inertia 0.9, c1 = c2 = 2
+    from coadapt_core.plugins import get_registry
+
+    defaults = {s.name: s.default for s in get_registry().get("optimizer", "pso").option_specs}
+    assert (defaults["inertia"], defaults["c1"], defaults["c2"]) == (0.9, 2.0, 2.0)
 
 
 def test_cli_beats_yaml_beats_preset(tmp_path):
@@ -41,6 +46,8 @@ def test_every_field_has_a_cli_option():
 
     run = get_command(app).commands["run"]
     options = {opt.lstrip("-").replace("-", "_") for p in run.params for opt in p.opts}
+    # the plugin-option mappings are filled by the repeatable --optimizer-option / --objective-option
+    options |= {f"{name}s" for name in ("optimizer_option", "objective_option") if name in options}
     assert set(CoadaptConfig.__dataclass_fields__) <= options | {"preset"}
 
 
@@ -86,8 +93,10 @@ def test_run_json_last_line_and_resume(tmp_path, capsys, fake_learner):
             "--population", "12", "--optimizer-iterations", "4", "--agents-per-design", "30", "--out", str(tmp_path), "--json"]
     assert main(args) == 0
     line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
-    assert set(line) == {"run_id", "best_design", "best_cost", "best_cost_se", "nominal_cost", "nominal_cost_se", "improvement",
-                         "improvement_se", "significant", "best_fall_rate", "nominal_fall_rate", "interactions", "seconds"}
+    assert {"run_id", "best_design", "best_cost", "best_cost_se", "nominal_cost", "nominal_cost_se", "improvement",
+                         "improvement_se", "significant", "best_fall_rate", "nominal_fall_rate", "interactions", "seconds",
+            "reliable", "reliability"} <= set(line)
+    assert line["reliable"] is None  # the analytic fake measures no walking: not marked either way
     assert np.abs(np.array(line["best_design"]) - optimum_of("torque")).max() < 0.15
     assert line["improvement"] > 0.15 and line["interactions"] > 0
     # resuming a finished run by id prints the same result

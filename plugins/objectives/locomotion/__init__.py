@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, ClassVar
 from coadapt_core import hookimpl
 from coadapt_core.errors import UserError
 from coadapt_core.objective import Objective, StepBatch
+from coadapt_core.options import PluginOption
 
 if TYPE_CHECKING:
     import torch
@@ -96,8 +97,16 @@ class CompositeObjective(Objective):
     display_name: ClassVar[str] = "Composite"
     description: ClassVar[str] = "weighted sum of tracking, power and torque (default P_cmd + P_p + P_tau)"
 
-    def __init__(self, weights: Mapping[str, float] | str | None = None):
-        self.weights = parse_weights(weights)
+    option_specs: ClassVar[tuple[PluginOption, ...]] = (
+        PluginOption(
+            "weights", "str", "", "component weights, e.g. 'tracking=1,power=0.5,torque=1' (missing ones "
+            "weigh 0; empty: all 1)",
+        ),
+    )
+
+    def __init__(self, weights: Mapping[str, float] | str | None = None, **options):
+        super().__init__(**options)
+        self.weights = parse_weights(weights if weights is not None else self.options["weights"])
         self._components = [(COMPONENTS[n](), w) for n, w in self.weights.items()]
 
     def step_cost(self, step: StepBatch) -> torch.Tensor:
@@ -124,7 +133,7 @@ def parse_weights(weights: Mapping[str, float] | str | None) -> dict[str, float]
             except ValueError:
                 raise UserError(
                     f"objective weights '{weights}' must look like 'tracking=1,power=1,torque=1'",
-                    field="objective_weights",
+                    field="objective_options",
                 ) from None
         weights = parsed
     out: dict[str, float] = {}
@@ -132,16 +141,16 @@ def parse_weights(weights: Mapping[str, float] | str | None) -> dict[str, float]
         if key not in COMPONENTS:
             raise UserError(
                 f"objective weight for unknown component '{key}'; accepted: {', '.join(COMPONENTS)}",
-                field="objective_weights",
+                field="objective_options",
             )
         value = float(value)
         if not math.isfinite(value) or value < 0:
             raise UserError(
-                f"objective weight '{key}' = {value:g} must be a finite number >= 0", field="objective_weights"
+                f"objective weight '{key}' = {value:g} must be a finite number >= 0", field="objective_options"
             )
         out[key] = value
     if not any(v > 0 for v in out.values()):
-        raise UserError("objective weights must give at least one component a weight > 0", field="objective_weights")
+        raise UserError("objective weights must give at least one component a weight > 0", field="objective_options")
     return out
 
 

@@ -13,6 +13,7 @@ from coadapt_core import hookimpl
 from coadapt_core.design_space import Continuous, DesignSpace
 from coadapt_core.errors import UserError
 from coadapt_core.optimizer import Optimizer
+from coadapt_core.options import PluginOption
 
 SAMPLERS = ("tpe", "gp")
 
@@ -21,33 +22,32 @@ class BOOptimizer(Optimizer):
     """Sequential BO over mixed spaces: continuous variables via float distributions,
     discrete ones as categorical choices.
 
-    Options: sampler ('tpe' | 'gp'), n_startup_trials (random trials before the model, 8),
-    storage (an optuna storage URL, e.g. 'sqlite:///runs/x/results.db', so the study lives in
-    the run's database; default in memory), study_name (default 'coadapt-bo-<seed>'),
-    initial_designs ([n, dim], enqueued as the first trials).
+    Options (`option_specs`): sampler ('tpe' | 'gp'), n_startup_trials (random trials before
+    the model, 8), storage (an optuna storage URL, e.g. 'sqlite:///runs/x/results.db', so the
+    study lives in the run's database; default in memory), study_name (default
+    'coadapt-bo-<seed>'). `initial_designs` ([n, dim]) are enqueued as the first trials. The
+    samplers get `seed32` (optuna's samplers take 32-bit seeds).
     """
 
     name: ClassVar[str] = "bo"
     description: ClassVar[str] = "Bayesian optimisation (optuna TPE or GP), one design at a time"
     supports_mixed: ClassVar[bool] = True
     sequential: ClassVar[bool] = True
+    option_specs: ClassVar[tuple] = (
+        PluginOption("sampler", "str", "tpe", "optuna sampler: tpe or gp", choices=SAMPLERS),
+        PluginOption("n_startup_trials", "int", 8, "random trials before the model is used", minimum=1),
+        PluginOption("storage", "str", None, "optuna storage URL for the study (default: in memory)"),
+        PluginOption("study_name", "str", None, "name of the optuna study (default: coadapt-bo-<seed>)"),
+    )
 
     def __init__(self, space: DesignSpace, **kwargs: Any):
-        sampler = kwargs.pop("sampler", "tpe")
-        n_startup = int(kwargs.pop("n_startup_trials", 8))
-        storage = kwargs.pop("storage", None)
-        study_name = kwargs.pop("study_name", None)
-        initial = kwargs.pop("initial_designs", None)
         super().__init__(space, **kwargs)
-        if sampler not in SAMPLERS:
-            raise UserError(f"BO sampler '{sampler}' is not one of {', '.join(SAMPLERS)}", field="bo_sampler")
-        if n_startup < 1:
-            raise UserError(f"n_startup_trials must be >= 1, got {n_startup}", field="n_startup_trials")
-        self.sampler_name = sampler
-        self.n_startup_trials = n_startup
-        self.storage = storage or None
-        self.study_name = study_name or f"coadapt-bo-{self.seed}"
-        self._initial = None if initial is None else space.validate_batch(initial)
+        o = self.options
+        self.sampler_name = o["sampler"]
+        self.n_startup_trials = o["n_startup_trials"]
+        self.storage = o["storage"] or None
+        self.study_name = o["study_name"] or f"coadapt-bo-{self.seed}"
+        self._initial = self.initial_designs
         self._study = None  # made at the first ask (or rebuilt by load_state_dict)
         self._trial = None
 
@@ -64,8 +64,8 @@ class BOOptimizer(Optimizer):
         import optuna
 
         if self.sampler_name == "gp":
-            return optuna.samplers.GPSampler(seed=self.seed, n_startup_trials=self.n_startup_trials)
-        return optuna.samplers.TPESampler(seed=self.seed, n_startup_trials=self.n_startup_trials)
+            return optuna.samplers.GPSampler(seed=self.seed32, n_startup_trials=self.n_startup_trials)
+        return optuna.samplers.TPESampler(seed=self.seed32, n_startup_trials=self.n_startup_trials)
 
     def _make_study(self, *, load_if_exists: bool, sampler=None) -> None:
         import optuna

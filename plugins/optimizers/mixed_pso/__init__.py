@@ -16,7 +16,7 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 import numpy as np
-from coadapt_plugins.optimizers._common import finite_costs, initial_designs, pop_swarm_options
+from coadapt_plugins.optimizers._common import SWARM_OPTIONS, finite_costs
 
 from coadapt_core import hookimpl
 from coadapt_core.design_space import DesignSpace
@@ -28,20 +28,23 @@ class MixedPSOOptimizer(Optimizer):
 
     v <- w v + c1 r1 (p_best - x) + c2 r2 (g_best - x);  x <- x + v   (unit cube)
 
-    Options: inertia (0.9), c1 (2.0), c2 (2.0), max_velocity_rate (0.2),
-    initial_designs ([population, dim]; default uniform in the cube).
+    Options (`option_specs`): inertia (0.9), c1 (2.0), c2 (2.0), max_velocity_rate (0.2).
+    `initial_designs` are the first swarm (default: uniform in the cube).
     """
 
     name: ClassVar[str] = "mixed-pso"
     description: ClassVar[str] = "particle swarm over continuous + discrete variables (relaxed positions, binned decoding)"
     supports_mixed: ClassVar[bool] = True
+    implies_mixed: ClassVar[bool] = True
+    option_specs: ClassVar[tuple] = SWARM_OPTIONS
 
     def __init__(self, space: DesignSpace, **kwargs: Any):
-        self.inertia, self.c1, self.c2, self.max_velocity, initial = pop_swarm_options(kwargs)
         super().__init__(space, **kwargs)
+        o = self.options
+        self.inertia, self.c1, self.c2, self.max_velocity = o["inertia"], o["c1"], o["c2"], o["max_velocity_rate"]
         self._rng = np.random.default_rng(self.seed)
         n, d = self.population, space.dim
-        initial = initial_designs(space, initial, n)
+        initial = self.initial_designs
         self.x = self._rng.uniform(0, 1, (n, d)) if initial is None else space.encode(initial)  # [n, dim]
         self.v = self._rng.uniform(-self.max_velocity, self.max_velocity, (n, d))  # [n, dim]
         self.p_best = self.x.copy()  # [n, dim] relaxed personal bests

@@ -6,7 +6,7 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 import numpy as np
-from coadapt_plugins.optimizers._common import finite_costs, initial_designs
+from coadapt_plugins.optimizers._common import finite_costs
 
 from coadapt_core import hookimpl
 from coadapt_core.design_space import DesignSpace
@@ -30,17 +30,16 @@ class NSGA2Optimizer(Optimizer):
     multi_objective: ClassVar[bool] = True
 
     def __init__(self, space: DesignSpace, **kwargs: Any):
-        initial = kwargs.pop("initial_designs", None)
         super().__init__(space, **kwargs)
         from pymoo.algorithms.moo.nsga2 import NSGA2
         from pymoo.core.problem import Problem
         from pymoo.operators.sampling.rnd import FloatRandomSampling
 
-        initial = initial_designs(space, initial, self.population)
+        initial = self.initial_designs
         sampling = FloatRandomSampling() if initial is None else space.encode(initial)
         problem = Problem(n_var=space.dim, n_obj=self.num_objectives, xl=np.zeros(space.dim), xu=np.ones(space.dim))
         self._algorithm = NSGA2(pop_size=self.population, sampling=sampling)
-        self._algorithm.setup(problem, seed=self.seed, termination=("n_gen", 10**9), verbose=False)
+        self._algorithm.setup(problem, seed=self.seed32, termination=("n_gen", 10**9), verbose=False)
         self._pending = None
         self._designs: list[np.ndarray] = []  # every told batch [n, dim]
         self._costs: list[np.ndarray] = []  # [n, M]

@@ -6,7 +6,7 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 import numpy as np
-from coadapt_plugins.optimizers._common import finite_costs, initial_designs, pop_swarm_options
+from coadapt_plugins.optimizers._common import SWARM_OPTIONS, finite_costs
 
 from coadapt_core import hookimpl
 from coadapt_core.design_space import DesignSpace
@@ -17,8 +17,9 @@ class PSOOptimizer(Optimizer):
     """pymoo PSO with fixed inertia and acceleration (`adaptive=False`, so w, c1, c2 stay as
     set; the paper uses w = 0.9, c1 = c2 = 2.0). Continuous variables only.
 
-    Options: inertia (0.9), c1 (2.0), c2 (2.0), max_velocity_rate (0.2 of the range, pymoo's
-    default), initial_designs ([population, dim], the first swarm; default Latin hypercube).
+    Options (`option_specs`): inertia (0.9), c1 (2.0), c2 (2.0), max_velocity_rate (0.2 of
+    the range, pymoo's default). `initial_designs` are the first swarm (default: a Latin
+    hypercube). pymoo is seeded with `seed32` (it takes 32-bit seeds only).
 
     State for resumed runs (`state_dict`/`load_state_dict`): the told rounds; the pymoo
     algorithm is rebuilt from them by replay with the same seed (the base class's default),
@@ -27,15 +28,17 @@ class PSOOptimizer(Optimizer):
 
     name: ClassVar[str] = "pso"
     description: ClassVar[str] = "particle swarm (pymoo PSO, inertia 0.9, c1 = c2 = 2.0)"
+    option_specs: ClassVar[tuple] = SWARM_OPTIONS
 
     def __init__(self, space: DesignSpace, **kwargs: Any):
-        self.inertia, self.c1, self.c2, max_velocity_rate, initial = pop_swarm_options(kwargs)
         super().__init__(space, **kwargs)
+        o = self.options
+        self.inertia, self.c1, self.c2 = o["inertia"], o["c1"], o["c2"]
         from pymoo.algorithms.soo.nonconvex.pso import PSO
         from pymoo.core.problem import Problem
         from pymoo.operators.sampling.lhs import LHS
 
-        initial = initial_designs(space, initial, self.population)
+        initial = self.initial_designs
         sampling = LHS() if initial is None else space.encode(initial)
         self._problem = Problem(n_var=space.dim, n_obj=1, xl=np.zeros(space.dim), xu=np.ones(space.dim))
         self._algorithm = PSO(
@@ -45,10 +48,10 @@ class PSOOptimizer(Optimizer):
             c1=self.c1,
             c2=self.c2,
             adaptive=False,
-            max_velocity_rate=max_velocity_rate,
+            max_velocity_rate=o["max_velocity_rate"],
         )
         # the budget is enforced by the Optimizer base; pymoo's own termination never stops it
-        self._algorithm.setup(self._problem, seed=self.seed, termination=("n_gen", 10**9), verbose=False)
+        self._algorithm.setup(self._problem, seed=self.seed32, termination=("n_gen", 10**9), verbose=False)
         self._pending = None
 
     def _ask(self) -> np.ndarray:

@@ -1,4 +1,5 @@
-"""Example coadapt plugin: one objective and one optimizer, registered through pluggy hooks."""
+"""Example coadapt plugin: a robot (the `trotter` quadruped), an objective and an optimizer,
+registered through pluggy hooks."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import numpy as np
 from coadapt_core import hookimpl
 from coadapt_core.objective import Objective, StepBatch
 from coadapt_core.optimizer import Optimizer
+from coadapt_core.options import PluginOption
 
 
 class JointSpeedObjective(Objective):
@@ -21,19 +23,31 @@ class JointSpeedObjective(Objective):
 
 
 class RandomSearch(Optimizer):
-    """Random search whose sampling box halves around the best design every round."""
+    """Random search whose sampling box shrinks around the best design every round.
+
+    The first batch is `initial_designs` when the loop gives them (it does: the designs the
+    policy was just trained on), else uniform samples. Option `shrink` (0.7) is the factor
+    the box's half-width is multiplied by after each round.
+    """
 
     name = "random-search"
     description = "shrinking-box random search (example plugin)"
     supports_mixed = True
+    option_specs = (
+        PluginOption("shrink", "float", 0.7, "box half-width factor per round", minimum=0.01, maximum=1.0),
+    )
 
     def __init__(self, space, **kwargs):
-        super().__init__(space, **kwargs)
-        self._rng = np.random.default_rng(self.seed)
+        super().__init__(space, **kwargs)  # checks seed, initial_designs and options
+        self._rng = np.random.default_rng(self.seed)  # numpy's Generator takes any seed < 2**63
         self._centre = np.full(space.dim, 0.5)  # unit-cube encoding
         self._radius = 0.5
+        self._first = self.initial_designs  # [population, dim] or None
 
     def _ask(self) -> np.ndarray:
+        if self._first is not None:
+            first, self._first = self._first, None
+            return first
         unit = self._centre + self._rng.uniform(-self._radius, self._radius, (self.population, self.space.dim))
         return self.space.decode(np.clip(unit, 0.0, 1.0))
 
@@ -43,7 +57,14 @@ class RandomSearch(Optimizer):
         if best_design is None or costs[i] < best_cost:
             best_design = designs[i]
         self._centre = self.space.encode(best_design[None])[0]
-        self._radius = max(self._radius * 0.7, 0.01)
+        self._radius = max(self._radius * self.options["shrink"], 0.01)
+
+
+@hookimpl
+def coadapt_register_robots():
+    from coadapt_example.robot import Trotter
+
+    return [Trotter]
 
 
 @hookimpl

@@ -27,7 +27,12 @@ def hand_step() -> StepBatch:
         base_ang_vel=torch.tensor([[0.3, 0.1, 0.0], [0.0, 0.0, 0.3]]),
         joint_torque=torch.tensor([[1.0, -2.0, 0, 0, 0, 0, 0, 3.0], [10.0, 0, 0, 0, 0, 0, 0, -1.0]]),
         joint_vel=torch.tensor([[2.0, 1.0, 5.0, 0, 0, 0, 0, -1.0], [-0.5, 4.0, 0, 0, 0, 0, 0, 2.0]]),
-        action=torch.zeros(2, 8),
+        joint_targets=torch.zeros(2, 8),
+        design=torch.ones(2, 2),
+        total_mass=torch.tensor([20.0, 21.0]),
+        base_height=torch.tensor([0.9, 0.9]),
+        foot_contact=torch.ones(2, 2, dtype=torch.bool),
+        dt=0.02,
     )
 
 

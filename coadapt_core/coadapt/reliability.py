@@ -1,0 +1,83 @@
+"""The walking gate: is the policy behind a run's costs walking at all?
+
+Costs of a policy that falls or stands still say nothing about a design (a robot that does
+not walk spends little torque). Every real evaluation of the universal policy records, per
+design, the share of agents that never fell (`survival`) and the RMS velocity tracking
+error relative to the RMS commanded velocity (`tracking_ratio`: 0 tracks perfectly, 1 is
+no better than standing still). A run is **reliable** when
+
+- the final check's best and nominal designs each have survival >= `min_survival` (0.8) and
+  tracking_ratio <= `max_tracking_ratio` (0.5), and
+- the mean over the run's real optimisation rounds passes the same thresholds.
+
+Otherwise its summary, its `--json` line and its report row say `reliable: false` with the
+reason. A backend that reports neither measurement (the analytic fake of the tests) leaves
+`reliable` null ("not measured").
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class WalkingGate:
+    min_survival: float = 0.8
+    max_tracking_ratio: float = 0.5
+
+    def describe(self) -> str:
+        return f"survival >= {self.min_survival:g} and tracking error <= {self.max_tracking_ratio:g} x command"
+
+
+WALKING_GATE = WalkingGate()
+
+
+def walking(fit: Any, rows: list[int] | None = None) -> dict[str, float | None]:
+    """{'survival', 'tracking_ratio'}: means over `rows` (all designs when None) of a
+    `RealFitness`; None where the backend did not measure them."""
+
+    def mean(values: Any) -> float | None:
+        if values is None:
+            return None
+        arr = np.asarray(values, dtype=float).reshape(-1)
+        arr = arr if rows is None else arr[rows]
+        arr = arr[np.isfinite(arr)]
+        return float(arr.mean()) if arr.size else None
+
+    return {"survival": mean(getattr(fit, "survival", None)), "tracking_ratio": mean(getattr(fit, "tracking_ratio", None))}
+
+
+def _fails(measured: dict[str, Any], gate: WalkingGate) -> list[str]:
+    out = []
+    survival, ratio = measured.get("survival"), measured.get("tracking_ratio")
+    if survival is not None and survival < gate.min_survival:
+        out.append(f"survival {survival:.2f} < {gate.min_survival:g}")
+    if ratio is not None and ratio > gate.max_tracking_ratio:
+        out.append(f"tracking error {ratio:.2f} x command > {gate.max_tracking_ratio:g}")
+    return out
+
+
+def assess(
+    batches: list[dict[str, Any]], final: dict[str, dict[str, Any]] | None, gate: WalkingGate = WALKING_GATE
+) -> tuple[bool | None, str]:
+    """(reliable, reason) from the real batches' records and the final check's per-design
+    measurements ({'best': {...}, 'nominal': {...}})."""
+    real = [b for b in batches if b.get("kind") == "real"]
+    rounds: dict[str, float | None] = {}
+    for key in ("survival", "tracking_ratio"):
+        values = [b.get(key) for b in real if b.get(key) is not None and math.isfinite(b.get(key))]
+        rounds[key] = float(np.mean(values)) if values else None
+    measured = [("real rounds", rounds), *((f"final check, {k} design", v) for k, v in (final or {}).items())]
+    if all(m.get("survival") is None and m.get("tracking_ratio") is None for _, m in measured):
+        return None, "not measured (the backend reports neither survival nor tracking)"
+    problems = [f"{where}: {'; '.join(f)}" for where, m in measured if (f := _fails(m, gate))]
+    if problems:
+        return False, "the policy does not walk (" + " | ".join(problems) + f"); gate: {gate.describe()}"
+    return True, f"passed the walking gate ({gate.describe()})"
+
+
+__all__ = ["WALKING_GATE", "WalkingGate", "assess", "walking"]

@@ -1,0 +1,159 @@
+"""Options a plugin declares: typed, with a default and a help line.
+
+An optimizer or objective plugin lists its options in the class attribute `option_specs`
+(a tuple of `PluginOption`). coadapt then
+
+- accepts them from YAML (`optimizer_options:` / `objective_options:` mappings) and from the
+  command line (`--optimizer-option KEY=VALUE`, `--objective-option KEY=VALUE`, repeatable),
+  CLI values winning key by key;
+- converts and checks each value against its declaration (text from the command line is
+  parsed as the declared type), so a bad value is one line naming the plugin, the option and
+  what is accepted (exit 2), before any training is paid for;
+- fills in the defaults, so the plugin reads every declared option from `self.options`;
+- lists them in `coadapt plugins --json` (name, type, default, help, choices, bounds).
+
+An option the plugin does not declare is refused, naming the ones it has.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from coadapt_core.errors import UserError
+
+#: the types an option may declare
+OPTION_TYPES: dict[str, type] = {"int": int, "float": float, "str": str, "bool": bool}
+_TRUE = {"true", "yes", "on", "1"}
+_FALSE = {"false", "no", "off", "0"}
+
+
+@dataclass(frozen=True)
+class PluginOption:
+    """One declared option.
+
+    type: "int", "float", "str" or "bool". `choices` (a tuple of accepted values) and
+    `minimum` / `maximum` (inclusive bounds, numbers only) are checked; a default of None
+    means "not set" (the plugin decides, e.g. an in-memory study when no storage is given)."""
+
+    name: str
+    type: str
+    default: Any
+    help: str
+    choices: tuple[Any, ...] | None = None
+    minimum: float | None = None
+    maximum: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.type not in OPTION_TYPES:
+            raise TypeError(f"option '{self.name}' has type {self.type!r}; use one of {', '.join(OPTION_TYPES)}")
+
+    def convert(self, value: Any, owner: str, field: str) -> Any:
+        """`value` (a YAML value or command-line text) as the declared type, checked."""
+        if value is None:
+            return None
+        what = f"{owner} option '{self.name}'"
+        accepted = self.accepted()
+        try:
+            if self.type == "bool":
+                if isinstance(value, bool):
+                    out: Any = value
+                elif isinstance(value, str) and value.strip().lower() in _TRUE | _FALSE:
+                    out = value.strip().lower() in _TRUE
+                else:
+                    raise ValueError
+            elif self.type == "int":
+                if isinstance(value, bool) or (isinstance(value, float) and not value.is_integer()):
+                    raise ValueError
+                out = int(value.replace("_", "")) if isinstance(value, str) else int(value)
+            elif self.type == "float":
+                if isinstance(value, bool):
+                    raise ValueError
+                out = float(value)
+                if not math.isfinite(out):
+                    raise ValueError
+            else:
+                if isinstance(value, Mapping | list | tuple):
+                    raise ValueError
+                out = str(value)
+        except (TypeError, ValueError):
+            raise UserError(f"{what} must be {accepted}, got {value!r}", field=field) from None
+        if self.choices is not None and out not in self.choices:
+            raise UserError(f"{what} must be {accepted}, got {value!r}", field=field)
+        if self.minimum is not None and out < self.minimum:
+            raise UserError(f"{what} must be {accepted}, got {value!r}", field=field)
+        if self.maximum is not None and out > self.maximum:
+            raise UserError(f"{what} must be {accepted}, got {value!r}", field=field)
+        return out
+
+    def accepted(self) -> str:
+        if self.choices is not None:
+            return "one of " + ", ".join(str(c) for c in self.choices)
+        kind = {"int": "an integer", "float": "a finite number", "str": "text", "bool": "true or false"}[self.type]
+        if self.minimum is not None and self.maximum is not None:
+            return f"{kind} in [{self.minimum:g}, {self.maximum:g}]"
+        if self.minimum is not None:
+            return f"{kind} >= {self.minimum:g}"
+        if self.maximum is not None:
+            return f"{kind} <= {self.maximum:g}"
+        return kind
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "name": self.name, "type": self.type, "default": self.default, "help": self.help,
+            "choices": None if self.choices is None else list(self.choices),
+            "minimum": self.minimum, "maximum": self.maximum,
+        }
+
+
+def resolve_options(
+    specs: Sequence[PluginOption], given: Mapping[str, Any] | None, *, owner: str, field: str
+) -> dict[str, Any]:
+    """`given` checked against `specs`, with every declared default filled in.
+
+    `owner` names the plugin in messages ("optimizer 'pso'"); `field` is the config key the
+    values came from ("optimizer_options")."""
+    by_name = {spec.name: spec for spec in specs}
+    out = {spec.name: spec.default for spec in specs}
+    for key, value in (given or {}).items():
+        key = str(key).replace("-", "_")
+        spec = by_name.get(key)
+        if spec is None:
+            listing = ", ".join(by_name) or "none"
+            raise UserError(f"{owner} has no option '{key}'; its options: {listing}", field=field)
+        out[key] = spec.convert(value, owner, field)
+    return out
+
+
+def parse_assignments(items: Sequence[str] | None, field: str) -> dict[str, str]:
+    """['sigma=0.3', 'popsize=8'] (repeated `--optimizer-option`) -> {'sigma': '0.3', ...};
+    values stay text until the plugin's declarations convert them."""
+    out: dict[str, str] = {}
+    for item in items or []:
+        key, sep, value = str(item).partition("=")
+        if not sep or not key.strip():
+            raise UserError(f"--{field.replace('_', '-')[:-1]} '{item}' must look like KEY=VALUE", field=field)
+        out[key.strip().replace("-", "_")] = value.strip()
+    return out
+
+
+def check_specs(specs: Any, owner: str) -> tuple[PluginOption, ...]:
+    """The declared specs as a tuple, or a TypeError naming what is wrong (registry and
+    conformance suites use it)."""
+    if not isinstance(specs, tuple | list):
+        raise TypeError(f"{owner}: option_specs must be a tuple of PluginOption, got {type(specs).__name__}")
+    names = set()
+    for spec in specs:
+        if not isinstance(spec, PluginOption):
+            raise TypeError(f"{owner}: option_specs holds {spec!r}, not a PluginOption")
+        if spec.name in names:
+            raise TypeError(f"{owner}: option '{spec.name}' is declared twice")
+        names.add(spec.name)
+        if spec.default is not None:
+            spec.convert(spec.default, owner, "option_specs")
+    return tuple(specs)
+
+
+__all__ = ["OPTION_TYPES", "PluginOption", "check_specs", "parse_assignments", "resolve_options"]

@@ -1,0 +1,156 @@
+"""A third-party robot, optimizer and objective can do what a built-in can: the example
+plugin's `trotter` quadruped ships a policy through the `Robot.shipped_policy` hook (trained
+here with `coadapt train`, as docs/plugins.md tells an author), runs `coadapt run --preset
+smoke`, takes optimizer options from YAML and the CLI, and a robot without a policy never
+yields an unmarked improvement."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from tests.conftest import EXAMPLE_PLUGIN, make_dist, run_cli
+
+sys.path.insert(0, str(EXAMPLE_PLUGIN))
+
+from coadapt_example.robot import Trotter
+
+from coadapt_core.testing import RobotConformance, SimulatorConformance
+
+
+class TestTrotterRobot(RobotConformance):
+    @pytest.fixture
+    def robot(self):
+        return Trotter()
+
+
+class TestTrotterOnMujoco(SimulatorConformance):
+    @pytest.fixture
+    def robot(self):
+        return Trotter()
+
+    @pytest.fixture
+    def simulator_cls(self):
+        from coadapt_core.plugins import get_registry
+
+        return get_registry().get("simulator", "mujoco")
+
+
+def test_trotter_trots_on_the_gait_clock():
+    """Declared legs reach the task: diagonal pairs share a phase, the pairs alternate."""
+    import torch
+
+    from coadapt_core.task.gait import expected_stance, leg_phases
+
+    offsets = torch.tensor([leg.phase_offset for leg in Trotter().legs()])
+    stance = expected_stance(leg_phases(torch.linspace(0, 0.99, 50), 4, offsets))  # [50, 4] FL FR RL RR
+    assert torch.equal(stance[:, 0], stance[:, 3]) and torch.equal(stance[:, 1], stance[:, 2])
+    assert torch.equal(stance[:, 0], ~stance[:, 1])
+
+
+@pytest.fixture(scope="module")
+def site_with_policy(example_plugin_site, tmp_path_factory) -> Path:
+    """The installed example plugin with a policy shipped the documented way: a `coadapt
+    train` export copied to `coadapt_example/policies/flat.pt` (a 2-iteration policy: it
+    does not walk, which the walking gate must notice)."""
+    site = tmp_path_factory.mktemp("site_with_policy")
+    shutil.copytree(example_plugin_site, site, dirs_exist_ok=True)
+    out = tmp_path_factory.mktemp("trotter_train")
+    done = run_cli("train", "--robot", "trotter", "--steps", "200", "--num-designs", "2", "--agents", "4",
+                   "--out", str(out), "--quiet", pythonpath=[site], timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    (site / "coadapt_example" / "policies").mkdir()
+    shutil.copy(out / "policy.pt", site / "coadapt_example" / "policies" / "flat.pt")
+    return site
+
+
+@pytest.mark.slow
+def test_example_robot_smoke_run_with_options_from_yaml_and_cli(site_with_policy, tmp_path):
+    config = tmp_path / "run.yaml"
+    config.write_text("optimizer: random-search\noptimizer_options:\n  shrink: 0.6\n")
+    done = run_cli("run", "--robot", "trotter", "--preset", "smoke", "--config", str(config),
+                   "--optimizer-option", "shrink=0.5", "--out", str(tmp_path / "runs"), "--store", "none", "--json",
+                   pythonpath=[site_with_policy], timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    line = json.loads(done.stdout.strip().splitlines()[-1])
+    assert len(line["best_design"]) == 2 and np.isfinite(line["improvement"])
+    # a 2-iteration policy does not walk: the improvement is there, and marked
+    assert line["reliable"] is False and "does not walk" in line["reliability"]
+    recorded = yaml.safe_load(next((tmp_path / "runs").glob("*/config.yaml")).read_text())
+    assert recorded["robot"] == "trotter"
+    assert recorded["optimizer_options"] == {"shrink": 0.5}  # the CLI's, typed, over the YAML's 0.6
+    summary = json.loads(next((tmp_path / "runs").glob("*/summary.json")).read_text())
+    assert summary["reliable"] is False
+
+
+@pytest.mark.parametrize("where", ["cli", "yaml"])
+def test_bad_optimizer_option_is_one_line_exit_2(example_plugin_site, tmp_path, where):
+    args = ["run", "--robot", "trotter", "--optimizer", "random-search", "--preset", "smoke", "--out", str(tmp_path)]
+    if where == "cli":
+        args += ["--optimizer-option", "shrink=5"]
+    else:
+        (tmp_path / "c.yaml").write_text("optimizer_options: {shrink: 5}\n")
+        args += ["--config", str(tmp_path / "c.yaml")]
+    done = run_cli(*args, pythonpath=[example_plugin_site])
+    assert done.returncode == 2
+    assert done.stderr.strip().splitlines() == [
+        "error: optimizer 'random-search' option 'shrink' must be a finite number in [0.01, 1], got "
+        + ("'5'" if where == "cli" else "5")
+    ]
+    unknown = run_cli("run", "--robot", "trotter", "--optimizer", "random-search", "--optimizer-option", "sigma=1",
+                      "--out", str(tmp_path), pythonpath=[example_plugin_site])
+    assert unknown.returncode == 2 and "has no option 'sigma'; its options: shrink" in unknown.stderr
+
+
+def test_plugins_json_lists_declared_options(example_plugin_site):
+    done = run_cli("plugins", "--json", pythonpath=[example_plugin_site])
+    data = json.loads(done.stdout)
+    search = next(p for p in data["plugins"]["optimizer"] if p["name"] == "random-search")
+    assert search["options"] == [{"name": "shrink", "type": "float", "default": 0.7, "help": "box half-width factor per round",
+                                  "choices": None, "minimum": 0.01, "maximum": 1.0}]
+    pso = next(p for p in data["plugins"]["optimizer"] if p["name"] == "pso")
+    assert [o["name"] for o in pso["options"]] == ["inertia", "c1", "c2", "max_velocity_rate"]
+    assert any(p["name"] == "trotter" for p in data["plugins"]["robot"])
+
+
+def test_robot_without_policy_stops_with_how_to_train_one(example_plugin_site, tmp_path):
+    """No shipped policy for the terrain: the first (and only) line says so and how to get
+    one; nothing is trained, no run summary is written."""
+    done = run_cli("run", "--robot", "trotter", "--terrain", "slope", "--preset", "smoke", "--out", str(tmp_path),
+                   pythonpath=[example_plugin_site])
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1
+    assert lines[0].startswith("error: robot 'trotter' ships no policy for terrain 'slope'")
+    assert "coadapt train --robot trotter --terrain slope" in lines[0] and "--checkpoint none" in lines[0]
+    assert not list(tmp_path.glob("*/summary.json"))
+
+
+@pytest.mark.slow
+def test_robot_trained_from_scratch_in_the_run_is_marked_unreliable(example_plugin_site, tmp_path):
+    done = run_cli("run", "--robot", "trotter", "--terrain", "slope", "--preset", "smoke", "--checkpoint", "none",
+                   "--population", "2", "--out", str(tmp_path), "--store", "none", "--json",
+                   pythonpath=[example_plugin_site], timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stderr.splitlines()[0].startswith("note: no starting policy (--checkpoint none): robot 'trotter'")
+    line = json.loads(done.stdout.strip().splitlines()[-1])
+    assert line["reliable"] is False and "does not walk" in line["reliability"]
+
+
+def test_failed_plugin_is_named_where_it_would_have_been_used(tmp_path):
+    site = make_dist(tmp_path / "site", "coadapt-quadbot", "[coadapt]\ncoadapt-quadbot = quadbot_plugin\n",
+                     {"quadbot_plugin": "import no_such_dependency_xyz\n"})
+    done = run_cli("run", "--robot", "quadbot", "--out", str(tmp_path / "runs"), pythonpath=[site])
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    error = [line for line in lines if line.startswith("error:")]
+    assert len(error) == 1
+    assert "unknown robot 'quadbot'" in error[0]
+    assert "plugin 'coadapt-quadbot' (distribution coadapt-quadbot) failed to load: ModuleNotFoundError" in error[0]
+    assert "no_such_dependency_xyz" in error[0]
