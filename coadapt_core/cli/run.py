@@ -16,6 +16,7 @@ from typing import Any
 import typer
 
 from coadapt_core.cli.common import choice_help, fail, resolve
+from coadapt_core.cli.progress import ProgressLine
 from coadapt_core.errors import UserError
 from coadapt_core.tracking import check_logger
 
@@ -30,56 +31,26 @@ def _fmt_duration(seconds: float | None) -> str:
 
 
 class _ProgressView:
-    """A rich live line: phase, outer/inner iteration, best real cost, interactions, ETA."""
+    """One progress line: phase, outer/inner iteration, best real cost, interactions,
+    elapsed and ETA (a bar on a terminal, a plain line every 10 s otherwise)."""
 
     def __init__(self, enabled: bool):
-        self.enabled = enabled
-        self.progress = None
-        self.task = None
+        self.line = ProgressLine("run", 1.0, enabled=enabled)
 
     def __enter__(self) -> _ProgressView:
         return self
 
-    def _start(self) -> None:
-        """Shown from the first event on, so a config error is never preceded by a bar."""
-        if self.enabled and self.progress is None:
-            from rich.console import Console
-            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-
-            self.progress = Progress(
-                TextColumn("[bold]{task.fields[phase]:<22}"),
-                BarColumn(),
-                TextColumn("outer {task.fields[outer]} round {task.fields[inner]}"),
-                TextColumn("best {task.fields[best]}"),
-                TextColumn("{task.fields[interactions]} interactions"),
-                TimeElapsedColumn(),
-                TextColumn("ETA {task.fields[eta]}"),
-                console=Console(stderr=True),
-                transient=False,
-            )
-            self.progress.__enter__()
-            self.task = self.progress.add_task("run", total=1.0, phase="starting", outer="-", inner="-", best="-", interactions=0, eta="?")
-
     def __call__(self, event: dict[str, Any]) -> None:
-        self._start()
-        if self.progress is None:
-            return
-        fraction = event["fraction"]
-        eta = event["elapsed"] * (1 - fraction) / fraction if fraction > 0 else None
         best = event["best_cost"] if event["best_cost"] is not None else event.get("best_any")
-        self.progress.update(
-            self.task, completed=fraction, phase=event["phase"],
-            outer=f"{min(event['outer'] + 1, event['outer_total'])}/{event['outer_total']}",
-            inner=f"{event['inner']}/{event['inner_total']}",
-            best="-" if best is None else f"{best:.4g}", interactions=f"{event['interactions']:,}",
-            eta=_fmt_duration(eta),
+        outer = f"{min(event['outer'] + 1, event['outer_total'])}/{event['outer_total']}"
+        self.line.update(
+            event["fraction"],
+            f"{event['phase']}  outer {outer} round {event['inner']}/{event['inner_total']}  best "
+            f"{'-' if best is None else f'{best:.4g}'}  {event['interactions']:,} interactions",
         )
 
     def __exit__(self, *exc: Any) -> None:
-        if self.progress is not None:
-            if exc and exc[0] is not None:  # an error: its one line is all that stays on screen
-                self.progress.live.transient = True
-            self.progress.__exit__(*exc)
+        self.line.close()
 
 
 def _with_se(value: float, se: float | None) -> str:
@@ -88,6 +59,21 @@ def _with_se(value: float, se: float | None) -> str:
 
 def _rate(value: float | None) -> str:
     return "-" if value is None else f"{value:.2f}"
+
+
+def _render_video(run_dir: Path, summary: dict[str, Any]) -> None:
+    """Best vs nominal, walking, from the run's final policy; smoke runs get a short one."""
+    import yaml
+
+    from coadapt_core.video import render_run_video
+
+    try:
+        config = yaml.safe_load((run_dir / "config.yaml").read_text()) or {}
+    except (OSError, yaml.YAMLError):
+        config = {}
+    smoke = summary.get("preset") == "smoke"
+    render_run_video(run_dir, summary, config, seconds=1.0 if smoke else 4.0, width=240 if smoke else 320,
+                     height=240 if smoke else 320)
 
 
 def _print_summary(summary: dict[str, Any], space_names: list[str] | None) -> None:
@@ -153,6 +139,7 @@ def register(app: typer.Typer) -> None:
         out: str = typer.Option(None, help="Parent folder of run folders (default runs)."),
         resume: str = typer.Option(None, help="Resume the run with this id (a folder under --out) or this run folder."),
         as_json: bool = typer.Option(False, "--json", help="Last stdout line: a JSON summary."),
+        video: bool = typer.Option(True, "--video/--no-video", help="End by rendering the best and the nominal design walking side by side: <run folder>/best_vs_nominal.gif (and .mp4 with ffmpeg)."),
         optimizer_option: list[str] = typer.Option(None, "--optimizer-option", help="KEY=VALUE: an option the optimizer plugin declares (repeatable; `coadapt plugins --json` lists them); wins over the YAML file's optimizer_options."),
         objective_option: list[str] = typer.Option(None, "--objective-option", help="KEY=VALUE: an option the objective plugin declares (repeatable); wins over the YAML file's objective_options."),
         objective_weights: str = typer.Option(None, help="Alias of --objective-option weights=... (composite weights, e.g. tracking=1,power=1,torque=1)."),
@@ -242,6 +229,8 @@ def register(app: typer.Typer) -> None:
         except UserError as exc:
             fail(str(exc))
         summary = result.summary
+        if video:
+            _render_video(result.run_dir, summary)
         if as_json:
             print(json.dumps(result.json_line()))
         else:

@@ -51,3 +51,34 @@ def test_wandb_without_wandb_is_one_line_exit_2(tmp_path, capsys, fake_learner):
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "pip install wandb" in err[0]
     assert not any(tmp_path.iterdir())  # checked before anything runs
+
+
+@pytest.mark.slow
+def test_real_smoke_run_leaves_event_files_and_a_best_vs_nominal_gif(tmp_path, capsys):
+    """The real learner on MuJoCo at a tiny size: the run folder holds TensorBoard events
+    with per-iteration training curves and a GIF of both designs walking side by side."""
+    from PIL import Image
+
+    args = ["run", "--preset", "smoke", "--population", "3", "--agents-per-design", "2", "--eval-steps", "10",
+            "--train-steps", "100", "--retrain-steps", "50", "--store", "none", "--out", str(tmp_path), "--json"]
+    assert main(args) == 0
+    (run_dir,) = [p for p in tmp_path.iterdir() if p.is_dir()]
+    found = scalars(run_dir / "tb")
+    assert len(found["train/mean_reward"]) >= 2 and len(found["round/best_real_torque"]) == 4
+    err = capsys.readouterr().err
+    gif = run_dir / "best_vs_nominal.gif"
+    if "no offscreen GL" in err:
+        pytest.skip("no EGL/OSMesa here: " + err.split("video:")[-1].strip())
+    with Image.open(gif) as image:
+        assert image.n_frames >= 10 and image.size == (480, 240)  # two 240 x 240 panels
+
+
+def test_run_without_gl_still_finishes_with_one_line_note(tmp_path, capsys, monkeypatch):
+    from coadapt_core.video import render_run_video
+
+    monkeypatch.setenv("MUJOCO_GL", "not-a-backend")
+    (tmp_path / "checkpoints").mkdir()
+    (tmp_path / "checkpoints" / "backend-outer0.pt").write_bytes(b"not a checkpoint")
+    written = render_run_video(tmp_path, {"best_design": [1.0, 1.0], "nominal_design": [1.0, 1.0]}, {"robot": "kuafu"})
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert written == [] and len(lines) == 1 and lines[0].startswith("video: not rendered")

@@ -1,0 +1,157 @@
+"""A picture of a run's answer: the best design and the nominal one walking side by side
+under the run's final policy, rendered offscreen by MuJoCo (EGL, else OSMesa) into a GIF,
+plus an MP4 when ffmpeg is installed. The camera is framed by each robot's own size, read
+from its model. No GL backend is a one-line note, never a failed run."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+VIDEO_NAME = "best_vs_nominal"
+
+
+def run_checkpoint(run_dir: Path, config: dict[str, Any]) -> Path | None:
+    """The run's final universal policy: its last backend checkpoint, else the policy it
+    started from (a path, or the robot's shipped one); None when there is none."""
+    found = sorted((run_dir / "checkpoints").glob("backend-outer*.pt"),
+                   key=lambda p: int("".join(ch for ch in p.stem if ch.isdigit()) or 0))
+    if found:
+        return found[-1]
+    given = str(config.get("checkpoint") or "")
+    if given and given != "none" and Path(given).is_file():
+        return Path(given)
+    return None
+
+
+def render_run_video(
+    run_dir: str | os.PathLike, summary: dict[str, Any], config: dict[str, Any], *, seconds: float = 4.0,
+    width: int = 320, height: int = 320, stream: Any = None,
+) -> list[Path]:
+    """Roll out the best and the nominal design (one agent each, no randomization, command
+    0.5 m/s forward) and write `<run_dir>/best_vs_nominal.gif` (and `.mp4` when ffmpeg
+    exists). Returns the files written; prints one line saying what happened."""
+    stream = stream or sys.stderr
+    run_dir = Path(run_dir)
+    want_mp4 = shutil.which("ffmpeg") is not None  # checked before any rollout
+    try:
+        from coadapt_core.plugins import get_registry
+
+        registry = get_registry()
+        robot = registry.get("robot", config.get("robot", "kuafu"))()
+        checkpoint = run_checkpoint(run_dir, config)
+        if checkpoint is None:  # e.g. bo-specialized keeps no policy; a stand-in would mislead
+            print("video: not rendered (the run kept no universal policy checkpoint)", file=stream)
+            return []
+        sim_cls = registry.get("simulator", config.get("sim", "mujoco"))
+        from coadapt_core.cli.train import evaluate_checkpoint
+
+        panels = []
+        for label, design in (("best", summary["best_design"]), ("nominal", summary["nominal_design"])):
+            result = evaluate_checkpoint(
+                checkpoint, robot, sim_cls, design, terrain=config.get("terrain", "flat"), command=[0.5, 0.0, 0.0],
+                agents=1, seconds=seconds, seed=int(config.get("seed") or 0), randomize=False, record=True,
+            )
+            trajectory = result["_trajectory"]
+            model = robot.build(robot.check_design(design) if hasattr(robot, "check_design") else design)
+            panels.append({"mjcf": model.mjcf, "joint_names": model.joint_names, "frames": trajectory["frames"][::2],
+                           "label": f"{label} " + ", ".join(f"{x:.2f}" for x in design) + f"  vx {result['vx_mean']:.2f} m/s"})
+        fps = 1.0 / (2 * trajectory["dt"])
+    except Exception as exc:  # the run's result stands; the picture is a bonus
+        print(f"video: not rendered ({type(exc).__name__}: {' '.join(str(exc).split())[:160]})", file=stream)
+        return []
+    outputs = [run_dir / f"{VIDEO_NAME}.gif"] + ([run_dir / f"{VIDEO_NAME}.mp4"] if want_mp4 else [])
+    payload = {"panels": panels, "outputs": [str(p) for p in outputs], "width": width, "height": height, "fps": fps}
+    code = "import json, sys\nfrom coadapt_core.video import render_panels\nrender_panels(**json.loads(sys.stdin.read()))\n"
+    backends = [os.environ["MUJOCO_GL"]] if os.environ.get("MUJOCO_GL") else ["egl", "osmesa"]
+    errors = []
+    for backend in backends:
+        env = dict(os.environ, MUJOCO_GL=backend, PYOPENGL_PLATFORM=backend)
+        proc = subprocess.run([sys.executable, "-c", code], input=json.dumps(payload), capture_output=True, text=True,
+                              env=env, timeout=900)
+        if proc.returncode == 0:
+            written = [p for p in outputs if p.is_file()]
+            print(f"video: {', '.join(str(p) for p in written)} (best left, nominal right; MUJOCO_GL={backend})",
+                  file=stream)
+            return written
+        errors.append(f"{backend}: {(proc.stderr.strip().splitlines() or ['no output'])[-1][:120]}")
+    print("video: not rendered, no offscreen GL here (" + "; ".join(errors) + ")", file=stream)
+    return []
+
+
+def camera_for(model: Any, data: Any) -> tuple[float, float]:
+    """(camera distance, look-at height) from the robot's own size: the height of its
+    bodies' bounding spheres above the floor at the first frame (never a fixed 1.6 m)."""
+    import numpy as np
+
+    mask = model.geom_type != 0  # not the floor plane
+    top = float(np.max(data.geom_xpos[mask, 2] + model.geom_rbound[mask]))
+    bottom = float(np.min(data.geom_xpos[mask, 2] - model.geom_rbound[mask]))
+    height = max(top - min(bottom, 0.0), 0.1)
+    return 1.9 * height + 0.4, 0.5 * height
+
+
+def render_panels(panels: list[dict], outputs: list[str], width: int, height: int, fps: float) -> None:
+    """Replay each panel's base poses and joint angles in its own MuJoCo model, offscreen,
+    and write the panels side by side, one frame per recorded step (the shorter rollout
+    holds its last frame). Runs in a fresh interpreter: MUJOCO_GL is read at import."""
+    import mujoco
+    import numpy as np
+    from PIL import Image, ImageDraw
+
+    rendered = []
+    for panel in panels:
+        spec = mujoco.MjSpec.from_string(panel["mjcf"])
+        texture = spec.add_texture(name="grid", type=mujoco.mjtTexture.mjTEXTURE_2D,
+                                   builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, rgb1=[0.82, 0.84, 0.86],
+                                   rgb2=[0.68, 0.7, 0.72], width=256, height=256)
+        material = spec.add_material(name="grid", texrepeat=[40, 40], reflectance=0.05)
+        material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = texture.name
+        spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[20, 20, 0.05], material="grid")
+        spec.worldbody.add_light(pos=[0, -2, 4], dir=[0, 0.4, -1], diffuse=[0.8, 0.8, 0.8])
+        model = spec.compile()
+        model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
+        model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+        data = mujoco.MjData(model)
+        addresses = [model.jnt_qposadr[model.joint(name).id] for name in panel["joint_names"]]
+        camera = mujoco.MjvCamera()
+        camera.azimuth, camera.elevation = 90.0, -10.0
+        images = []
+        with mujoco.Renderer(model, height, width) as renderer:
+            for k, frame in enumerate(panel["frames"]):
+                data.qpos[0:3] = frame["pos"]
+                data.qpos[3:7] = frame["quat"]
+                data.qpos[addresses] = frame["q"]
+                mujoco.mj_forward(model, data)
+                if k == 0:
+                    distance, look_z = camera_for(model, data)
+                    camera.distance = distance
+                camera.lookat[:] = [frame["pos"][0], frame["pos"][1], look_z]
+                renderer.update_scene(data, camera=camera)
+                image = Image.fromarray(np.array(renderer.render()))
+                ImageDraw.Draw(image).text((6, 6), panel["label"], fill=(0, 0, 0))
+                images.append(np.array(image))
+        rendered.append(images)
+    n = max(len(images) for images in rendered)
+    frames = [np.concatenate([images[min(i, len(images) - 1)] for images in rendered], axis=1) for i in range(n)]
+    for output in outputs:
+        if output.endswith(".gif"):
+            pil = [Image.fromarray(f) for f in frames]
+            pil[0].save(output, save_all=True, append_images=pil[1:], duration=int(1000 / fps), loop=0)
+        else:
+            proc = subprocess.run(
+                ["ffmpeg", "-y", "-loglevel", "error", "-f", "rawvideo", "-pix_fmt", "rgb24",
+                 "-s", f"{frames[0].shape[1]}x{frames[0].shape[0]}", "-r", str(fps), "-i", "-", "-pix_fmt", "yuv420p",
+                 output],
+                input=np.stack(frames).tobytes(), capture_output=True,
+            )
+            if proc.returncode != 0:
+                raise RuntimeError(proc.stderr.decode().strip().splitlines()[-1])
+
+
+__all__ = ["VIDEO_NAME", "camera_for", "render_panels", "render_run_video", "run_checkpoint"]
