@@ -30,13 +30,6 @@ def register(app: typer.Typer) -> None:
         """Run an ablation grid locally or on a Ray cluster, skipping cells the store holds
         as finished and resuming cells a killed grid left unfinished."""
         from rich.console import Console
-        from rich.progress import (
-            BarColumn,
-            MofNCompleteColumn,
-            Progress,
-            TextColumn,
-            TimeElapsedColumn,
-        )
 
         from coadapt_core.results.grid import GridSpec, parse_list, plan_grid, run_grid
         from coadapt_core.results.store import ResultsStore
@@ -62,29 +55,33 @@ def register(app: typer.Typer) -> None:
             print(f"grid {spec.grid_id}: {len(skipped)} finished, {len(tasks)} to run")
             return
         counts = {"finished": 0, "failed": 0, "skipped": 0}
-        cells = spec.cells()
-        with Progress(
-            TextColumn("[bold]grid {task.fields[grid]}"),
-            BarColumn(),
-            MofNCompleteColumn(),
-            TextColumn("{task.fields[counts]}"),
-            TimeElapsedColumn(),
-            console=console,
-            transient=False,
-        ) as progress:
-            bar = progress.add_task("grid", total=len(cells), grid=spec.grid_id, counts="")
+        started: list[str] = []  # cells handed to the executor, in the order it starts them
+        done: set[str] = set()
+        from coadapt_core.cli.progress import ProgressLine
+        from coadapt_core.results.grid import default_workers
+
+        width = workers or default_workers()
+
+        def short(key: str) -> str:
+            fields = dict(part.split("=", 1) for part in key.split("|"))
+            return f"{fields['method']}/{fields['objective']}/{fields['terrain']}/s{fields['seed']}"
+
+        with ProgressLine("grid", None, unit=" cells") as line:
 
             def on_event(kind, cell, outcome):
                 if kind == "started":
+                    started.append(cell.key)
+                    line.update(0, total=len(started))
                     return
                 counts[kind] += 1
-                progress.update(
-                    bar,
-                    advance=1,
-                    counts=f"done {counts['finished']}  skipped {counts['skipped']}  failed {counts['failed']}",
-                )
+                if kind == "skipped":
+                    return
+                done.add(cell.key)
+                running = [k for k in started if k not in done][:width]
+                line.update(len(done), f"failed {counts['failed']}, skipped {counts['skipped']}; running "
+                            + (", ".join(short(k) for k in running) or "-"))
                 if kind == "failed":
-                    progress.console.print(f"[red]failed[/red] {cell.key}: {outcome.error}")
+                    console.print(f"[red]failed[/red] {cell.key}: {outcome.error}")
 
             report = run_grid(
                 spec, results, executor=executor, workers=workers, address=address, out_dir=out,

@@ -74,13 +74,17 @@ def register(app: typer.Typer) -> None:
                 fail(f"--resume: run '{resume}' is not in store {recorder.url}")
             config["run_id"] = resume
 
-        def on_row(row: int, total: int) -> None:
-            print(f"row {row + 1}/{total} done", flush=True)
+        from coadapt_core.cli.progress import ProgressLine
 
-        summary = run_landscape(
-            backend, objectives, recorder, config=config, grid=grid, low=low, high=high,
-            nominal=nominal_design(robot, space.dim), agents=agents, steps=steps, seed=seed, on_row=on_row,
-        )
+        with ProgressLine("landscape", grid, unit=" rows") as line:
+
+            def on_row(row: int, total: int) -> None:
+                line.update(row + 1, f"{grid} designs a row, {agents} agents x {steps} steps each", total=total)
+
+            summary = run_landscape(
+                backend, objectives, recorder, config=config, grid=grid, low=low, high=high,
+                nominal=nominal_design(robot, space.dim), agents=agents, steps=steps, seed=seed, on_row=on_row,
+            )
         print(f"landscape {summary['run_id']}: grid optimum {summary['best_design'][:2]} cost {summary['best_cost']:.4g}; "
               f"nominal cost {summary['nominal_cost']:.4g}")
         if as_json:

@@ -7,6 +7,28 @@ from pathlib import Path
 import typer
 
 
+def _quiet_pybullet_import() -> None:
+    """Import pybullet once with the C-level stdout closed: its "pybullet build time" line
+    would otherwise land in the middle of the progress line (and once per worker)."""
+    import contextlib
+    import os
+    import sys
+
+    try:
+        sys.stdout.flush()
+        saved = os.dup(1)
+    except (OSError, ValueError):  # no real stdout (captured): nothing to protect
+        return
+    try:
+        with open(os.devnull, "w") as devnull:
+            os.dup2(devnull.fileno(), 1)
+            with contextlib.suppress(ImportError):
+                import pybullet  # noqa: F401
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
 def register(app: typer.Typer) -> None:
     @app.command("report")
     def report_command(
@@ -25,10 +47,18 @@ def register(app: typer.Typer) -> None:
 
         if transfer_agents < 1 or transfer_steps < 1:
             fail("--transfer-agents and --transfer-steps must be >= 1")
-        with ResultsStore(store) as results:
+        from coadapt_core.cli.progress import ProgressLine
+
+        if sim_to_sim and transfer_sim == "pybullet":
+            _quiet_pybullet_import()
+        with ResultsStore(store) as results, ProgressLine("report", None) as line:
+
+            def progress(done: int, total: int, what: str) -> None:
+                line.update(done, what, total=total)
+
             files = write_report(
                 results, selection, out, sim2sim=sim_to_sim, transfer_simulator=transfer_sim,
-                transfer_agents=transfer_agents, transfer_steps=transfer_steps,
+                transfer_agents=transfer_agents, transfer_steps=transfer_steps, progress=progress,
             )
         for name, path in files.items():
             print(f"{name}: {path}")

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -231,6 +232,8 @@ def register(app: typer.Typer) -> None:
             fail(f"--seconds must lie in (0, 3600], got {seconds}")
         if video is not None and video.suffix.lower() not in (".gif", ".mp4"):
             fail(f"--video '{video}' must end in .gif or .mp4")
+        if video is not None and video.suffix.lower() == ".mp4" and shutil.which("ffmpeg") is None:
+            fail("--video .mp4 needs ffmpeg on PATH, which is not installed; write a .gif instead")  # before the rollout
         _check_device(device)
         try:
             values = [float(v) for v in command.split(",")]
@@ -254,10 +257,12 @@ def register(app: typer.Typer) -> None:
                     f"robot '{robot}' ships no policy for terrain '{terrain}' and the {space} design space; "
                     f"pass --checkpoint (e.g. one `coadapt train --robot {robot} --terrain {terrain}` wrote)"
                 )
-        result = evaluate_checkpoint(
-            checkpoint, robot_obj, sim_cls, design_values, terrain=terrain, command=values, agents=agents,
-            seconds=seconds, device=device, seed=seed, randomize=randomize, record=video is not None,
-        )
+        with ProgressLine("eval", None, unit=" steps", enabled=not as_json) as bar:
+            result = evaluate_checkpoint(
+                checkpoint, robot_obj, sim_cls, design_values, terrain=terrain, command=values, agents=agents,
+                seconds=seconds, device=device, seed=seed, randomize=randomize, record=video is not None,
+                progress=bar.update,
+            )
         trajectory = result.pop("_trajectory", None)
         if as_json:
             print(json.dumps(result))
@@ -289,6 +294,7 @@ def evaluate_checkpoint(
     seed: int = 0,
     randomize: bool = True,
     record: bool = False,
+    progress: Any = None,
 ) -> dict[str, Any]:
     """Survival, mean forward speed and costs of a policy on one design under a fixed
     command (the policy mean; falls auto-reset but count against survival)."""
@@ -329,7 +335,16 @@ def evaluate_checkpoint(
             "pos": s.base_pos[0].tolist(), "quat": s.base_quat[0].tolist(), "q": s.joint_pos[0].tolist(),
         })
 
-    result = rollout(trainer.ppo, env, 1, steps, seed=seed, on_step=capture if record else None)
+    done = [0]
+
+    def on_step(e: LocomotionEnv) -> None:
+        if record:
+            capture(e)
+        done[0] += 1
+        if progress is not None:
+            progress(done[0], f"{agents} agents on one design, {seconds:g} s simulated", total=steps)
+
+    result = rollout(trainer.ppo, env, 1, steps, seed=seed, on_step=on_step if record or progress is not None else None)
     sim.close()
     out: dict[str, Any] = {
         "survival": float(result.survival[0]),
@@ -369,8 +384,10 @@ def render_frames(mjcf: str, joint_names: list[str], frames: list[dict], output:
     model.vis.global_.offheight = max(model.vis.global_.offheight, height)
     data = mujoco.MjData(model)
     addresses = [model.jnt_qposadr[model.joint(name).id] for name in joint_names]
+    from coadapt_core.video import camera_for
+
     camera = mujoco.MjvCamera()
-    camera.distance, camera.azimuth, camera.elevation = 3.0, 90.0, -10.0
+    camera.azimuth, camera.elevation = 90.0, -10.0
     images = []
     with mujoco.Renderer(model, height, width) as renderer:
         for frame in frames:
@@ -378,7 +395,9 @@ def render_frames(mjcf: str, joint_names: list[str], frames: list[dict], output:
             data.qpos[3:7] = frame["quat"]
             data.qpos[addresses] = frame["q"]
             mujoco.mj_forward(model, data)
-            camera.lookat[:] = [frame["pos"][0], frame["pos"][1], 0.7]
+            if camera.distance <= 0 or frame is frames[0]:  # framed by this robot's size, not a 1.6 m one
+                camera.distance, look_z = camera_for(model, data)
+            camera.lookat[:] = [frame["pos"][0], frame["pos"][1], look_z]
             renderer.update_scene(data, camera=camera)
             images.append(np.array(renderer.render()))
     if output.endswith(".gif"):
