@@ -10,6 +10,26 @@ import typer
 from coadapt_core.cli.common import choice_help, fail, resolve
 
 
+def landscape_line(summary: dict, agents: int, steps: int) -> str:
+    """One line: the grid optimum and the nominal design, costs with standard errors,
+    improvement with its paired standard error, fall rates."""
+
+    def se(key: str, scale: float = 1.0) -> str:
+        value = summary.get(key)
+        return "" if value is None else f" +- {scale * value:.2g}"
+
+    def rate(key: str) -> str:
+        value = summary.get(key)
+        return "-" if value is None else f"{value:.2f}"
+
+    return (
+        f"landscape {summary['run_id']} ({agents} paired scenarios x {steps} steps per design): grid optimum "
+        f"{summary['best_design'][:2]} cost {summary['best_cost']:.4g}{se('best_cost_se')} (fall rate {rate('best_fall_rate')}); "
+        f"nominal cost {summary['nominal_cost']:.4g}{se('nominal_cost_se')} (fall rate {rate('nominal_fall_rate')}); "
+        f"improvement {100 * summary['improvement']:+.1f}{se('improvement_se', 100.0)} %"
+    )
+
+
 def register(app: typer.Typer) -> None:
     @app.command("landscape")
     def landscape_command(
@@ -19,8 +39,8 @@ def register(app: typer.Typer) -> None:
         sim: str = typer.Option("mujoco", help=choice_help("simulator", "Simulator backend.")),
         robot: str = typer.Option("kuafu", help=choice_help("robot", "Robot.")),
         checkpoint: Path = typer.Option(None, help="Universal policy checkpoint (default: the robot's shipped policy for the terrain)."),
-        agents: int = typer.Option(16, help="Agents per design."),
-        steps: int = typer.Option(500, help="Policy steps per agent (T_eval)."),
+        agents: int = typer.Option(None, help="Paired scenarios (agents) per design (default: the quick preset's evaluation size)."),
+        steps: int = typer.Option(None, help="Policy steps per agent, T_eval (default: the quick preset's)."),
         seed: int = typer.Option(0, help="Random seed."),
         device: str = typer.Option("cpu", help="Torch device for the policy."),
         resume: str = typer.Option(None, "--resume", help="Continue an interrupted landscape run (its id)."),
@@ -48,6 +68,13 @@ def register(app: typer.Typer) -> None:
             fail(f"--terrain '{terrain}' is not one of {', '.join(TERRAINS)}")
         if grid < 2 or grid > 101:
             fail(f"--grid must be between 2 and 101 points per axis, got {grid}")
+        from coadapt_core.coadapt.config import PRESETS
+
+        quick = PRESETS["quick"]
+        if agents is None:
+            agents = quick.get("eval_agents") or quick["agents_per_design"]
+        if steps is None:
+            steps = quick["eval_steps"]
         if agents < 1 or steps < 1:
             fail("--agents and --steps must be >= 1")
         if checkpoint is None:
@@ -85,7 +112,6 @@ def register(app: typer.Typer) -> None:
                 backend, objectives, recorder, config=config, grid=grid, low=low, high=high,
                 nominal=nominal_design(robot, space.dim), agents=agents, steps=steps, seed=seed, on_row=on_row,
             )
-        print(f"landscape {summary['run_id']}: grid optimum {summary['best_design'][:2]} cost {summary['best_cost']:.4g}; "
-              f"nominal cost {summary['nominal_cost']:.4g}")
+        print(landscape_line(summary, agents, steps))
         if as_json:
             print(json.dumps(summary))

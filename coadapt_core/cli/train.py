@@ -280,6 +280,13 @@ def register(app: typer.Typer) -> None:
             write_video(robot_obj, design_values, trajectory, video)
 
 
+def _mean_se(values: Any) -> float:
+    import numpy as np
+
+    v = np.asarray(values, dtype=float)
+    return float(v.std(ddof=1) / np.sqrt(len(v))) if len(v) > 1 else 0.0
+
+
 def evaluate_checkpoint(
     checkpoint: Path | str,
     robot_obj: Any,
@@ -301,8 +308,10 @@ def evaluate_checkpoint(
     import numpy as np
     import torch
 
+    from coadapt_core.fitness import scenario_seed
     from coadapt_core.learning import TrainConfig, Trainer, read_checkpoint
     from coadapt_core.learning.evaluate import rollout
+    from coadapt_core.learning.scenarios import apply_scenarios
     from coadapt_core.plugins import get_registry
     from coadapt_core.randomization import RandomizationConfig
     from coadapt_core.task import LocomotionEnv, TaskConfig
@@ -325,7 +334,8 @@ def evaluate_checkpoint(
     sim = sim_cls(robot_obj, designs, terrain=terrain, randomization=randomization, seed=seed)
     env = LocomotionEnv(sim, robot_obj, task, objectives, seed=seed, device=device)
     trainer.ensure_ppo(env)
-    env.set_commands(torch.tensor(command, dtype=torch.float32))
+    # the scenario set of `seed` (as `coadapt run/landscape --seed`), under the given command
+    apply_scenarios(env, agents, 1, scenario_seed(seed), commands=torch.tensor(command, dtype=torch.float32).expand(agents, 3))
     steps = max(1, int(round(seconds / env.dt)))
     frames: list[dict] = []
 
@@ -354,6 +364,11 @@ def evaluate_checkpoint(
         "power_cost": float(result.metrics[0, 1]),
         "vx_command": float(command[0]),
         "foot_alternation": float(result.alternation[0]),
+        # standard errors of the three means over the agents (paired scenarios), fall rate
+        "tracking_error_se": _mean_se(result.per_agent[0, :, 0]),
+        "power_cost_se": _mean_se(result.per_agent[0, :, 1]),
+        "torque_cost_se": _mean_se(result.per_agent[0, :, 2]),
+        "fall_rate": float(1.0 - result.survival[0]),
         "steps": int(result.steps),
         "dt": float(env.dt),
     }

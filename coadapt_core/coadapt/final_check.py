@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from coadapt_core.fitness import RealFitness, improvement_se, scenario_se
+from coadapt_core.fitness import RealFitness, improvement_se, robust_cost, scenario_se
 from coadapt_core.objective import Objective
 
 #: the improvement must be at least this many paired standard errors to count as significant
@@ -58,12 +58,13 @@ class FinalCheck:
 
 
 def _pool(fits: list[RealFitness]) -> RealFitness:
-    """One RealFitness over all scenarios of several blocks (equal sizes: plain means)."""
+    """One RealFitness over all scenarios of several blocks (costs and errors over the pooled
+    scenarios; [K] figures such as survival averaged, the blocks being of equal size)."""
     out = copy.copy(fits[-1])
     if all(f.per_scenario is not None for f in fits):
         per = np.concatenate([np.asarray(f.per_scenario, dtype=float) for f in fits], axis=1)
         out.per_scenario = per
-        out.costs = per.mean(axis=1)
+        out.costs = robust_cost(per)
         out.cost_se = scenario_se(per)
     else:
         out.costs = np.mean([np.asarray(f.costs, dtype=float) for f in fits], axis=0)

@@ -28,7 +28,7 @@ from coadapt_core.coadapt.recorders import make_recorder
 from coadapt_core.coadapt.reliability import assess, walking
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
-from coadapt_core.fitness import CoadaptationBackend, RunRecorder
+from coadapt_core.fitness import CoadaptationBackend, RunRecorder, scenario_seed
 from coadapt_core.objective import Objective
 from coadapt_core.optimizer import Optimizer
 from coadapt_core.pareto import pareto_front
@@ -322,7 +322,7 @@ class CoadaptationLoop:
         """The seed of the run's scenario set (common random numbers, docs/coadaptation.md):
         block 0 serves every real round, so all designs of a run are compared on the same
         scenarios; the final check adds blocks 1, 2, ... (fresh scenarios, same seed)."""
-        return self.seed_for(7, block)
+        return scenario_seed(self.config.seed, block)
 
     def get_backend(self) -> CoadaptationBackend:
         if self.backend is None:
@@ -431,7 +431,7 @@ class CoadaptationLoop:
         backend = self.get_backend()
         seed = self.seed_for(3, s.outer, s.inner)
         if kind == "real":  # every real round on the run's one scenario set (paired designs)
-            fit = backend.real_fitness(designs, self.objectives, agents=c.agents_per_design, steps=c.eval_steps, seed=self.scenario_seed())
+            fit = backend.real_fitness(designs, self.objectives, agents=c.evaluation_agents, steps=c.eval_steps, seed=self.scenario_seed())
             s.buffer, s.buffer_outer = fit.buffer, s.outer  # line 15: R_eval from this rollout
             s.buffer_serial += 1
             costs = np.asarray(fit.costs, dtype=float).reshape(len(designs), -1)
@@ -468,7 +468,7 @@ class CoadaptationLoop:
             s.counters["train_seconds"] += float(result.seconds)
             self.recorder.record_training(s.run_id, outer=s.outer, result=result)
             self.emit("real evaluation")
-            fit = backend.real_fitness(design[None, :], self.objectives, agents=c.agents_per_design, steps=c.eval_steps, seed=self.scenario_seed())
+            fit = backend.real_fitness(design[None, :], self.objectives, agents=c.evaluation_agents, steps=c.eval_steps, seed=self.scenario_seed())
             costs.append(np.asarray(fit.costs, dtype=float).reshape(-1))
             interactions += int(fit.interactions)
             seconds += float(fit.seconds)
@@ -581,7 +581,7 @@ class CoadaptationLoop:
             # paired blocks of fresh scenarios until the improvement is >= 4 standard errors
             check = final_check(
                 lambda d, block: self.get_backend().real_fitness(
-                    d, self.objectives, agents=c.agents_per_design, steps=c.eval_steps, seed=self.scenario_seed(block)),
+                    d, self.objectives, agents=c.evaluation_agents, steps=c.eval_steps, seed=self.scenario_seed(block)),
                 designs, self.objectives, max_blocks=c.final_max_blocks,
                 on_block=lambda b: self.emit(f"final check, scenario block {b}"),
             )

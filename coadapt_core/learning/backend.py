@@ -14,12 +14,12 @@ import torch
 
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
-from coadapt_core.fitness import RealFitness, TrainingResult, scenario_se
+from coadapt_core.fitness import RealFitness, TrainingResult, robust_cost, scenario_se
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.evaluate import EvalBuffer, rollout
+from coadapt_core.learning.scenarios import apply_scenarios
 from coadapt_core.learning.trainer import Trainer, read_checkpoint, reseed_simulator
 from coadapt_core.objective import Objective
-from coadapt_core.randomization import EnvParams, sample_env_params
 from coadapt_core.robot import Robot
 from coadapt_core.task.config import TaskConfig
 from coadapt_core.task.env import LocomotionEnv
@@ -48,10 +48,13 @@ class UniversalPolicyBackend:
 
     `train(designs, steps)` trains on the given designs (K of them, `agents_per_design` each)
     for about `steps` interactions; its `TrainingResult.buffer` holds critic states of the
-    last rollout. `real_fitness` rolls out the (stochastic, seeded) policy with commands drawn
-    once per agent from the current command box (the same commands for every design) and
-    returns the mean per-step metric [K, M] (set `stochastic_evaluation = False` for the
-    policy mean); `surrogate_fitness` averages the pseudo-critics over `samples`
+    last rollout. `real_fitness` rolls out the (stochastic, seeded) policy on the scenario set
+    of its `seed` (`pair_scenarios`: agent i of every design gets the same command, stratified
+    over the current command box, the same randomization, spawn, noise and action noise) and
+    returns each design's cost [K, M]: the upper-trimmed mean over scenarios of each agent's
+    mean per-step metric (`coadapt_core.fitness.robust_cost`), with standard errors,
+    per-scenario costs and fall rates (set `stochastic_evaluation = False` for the policy
+    mean); `surrogate_fitness` averages the pseudo-critics over `samples`
     buffer states with each candidate's xi substituted.
 
     Exact resume: `train` and `real_fitness` restart every random stream of their
@@ -191,7 +194,7 @@ class UniversalPolicyBackend:
         command_ms = (env.command.detach().float().cpu().reshape(k, agents, 3) ** 2).sum(-1).mean(1).numpy()
         ratio = np.where(command_ms > 1e-4, np.sqrt(np.asarray(result.tracking_error, dtype=float) / np.maximum(command_ms, 1e-4)), np.nan)
         return RealFitness(
-            costs=result.metrics[:, columns],
+            costs=robust_cost(per_scenario),  # upper-trimmed mean over scenarios (TRIM_SHARE)
             buffer=result.buffer,
             interactions=result.steps,
             seconds=time.perf_counter() - t0,
@@ -222,19 +225,7 @@ class UniversalPolicyBackend:
         each of the `designs` groups gets scenario i — its command (stratified over the
         current command box), randomization draw (Table 2), spawn point, initial gait phase,
         observation-noise and action-noise streams — whatever the designs and the batch."""
-        commands = self.trainer.command_state()  # the curriculum's box (live, or the checkpoint's)
-        if commands is not None:
-            env.commands.load_state_dict(commands)
-        gen = torch.Generator()
-        gen.manual_seed(int(seed))
-        per_agent = env.commands.stratified(agents, gen)  # [A, 3]
-        env.set_commands(per_agent.repeat(designs, 1))
-        rng = np.random.default_rng([int(seed), 0xC0]) # the randomization draw of each scenario
-        params = sample_env_params(env.sim.randomization, agents, rng)
-        spawn = rng.random((agents, 2))
-        tiled = EnvParams(**{f: np.tile(v, (designs,) + (1,) * (v.ndim - 1)) for f, v in vars(params).items()})
-        env.sim.fix_scenarios(tiled, np.tile(spawn, (designs, 1)))
-        env.pair_scenarios(agents, int(seed))
+        apply_scenarios(env, agents, designs, seed, command_state=self.trainer.command_state())
 
     # -- Algorithm 3 ------------------------------------------------------------------------
     @torch.no_grad()

@@ -11,7 +11,13 @@ from typing import Any
 import numpy as np
 
 from coadapt_core.errors import UserError
-from coadapt_core.fitness import CoadaptationBackend
+from coadapt_core.fitness import (
+    CoadaptationBackend,
+    improvement_se,
+    robust_cost,
+    scenario_se,
+    scenario_seed,
+)
 from coadapt_core.objective import Objective
 from coadapt_core.results.recorder import SqliteRecorder
 
@@ -51,8 +57,12 @@ def run_landscape(
     on_row: Any = None,
 ) -> dict[str, Any]:
     """Evaluate every grid design for real, one grid row (fixed thigh scale) per batch, each
-    row committed as it finishes. With `config["run_id"]` of an interrupted landscape, rows
-    already stored are not evaluated again. Returns the run's summary."""
+    row committed as it finishes. Every row runs on the same scenario set (`seed`), so any two
+    designs of the grid are paired (docs/coadaptation.md, "Evaluation protocol"). With
+    `config["run_id"]` of an interrupted landscape, rows already stored are not evaluated
+    again (their standard errors are then not known to the summary). Returns the run's
+    summary, with the standard errors of the optimum's and the nominal cost, the paired
+    standard error of the improvement, fall rates and each evaluated design's error bars."""
     designs = landscape_designs(grid, low, high, nominal)
     names = [o.name for o in objectives]
     cfg = {**config, "method": LANDSCAPE_METHOD, "objectives": names, "grid": grid, "agents": agents,
@@ -61,11 +71,20 @@ def run_landscape(
     store = recorder.store
     done_rows = {e.inner for e in store.evaluations(run_id, kind="real")}
     start = time.perf_counter()
+    per_scenario: dict[tuple[float, ...], np.ndarray] = {}  # design -> [A, M], rows run here
+    fall_rate: dict[tuple[float, ...], float] = {}
     for row in range(grid):
         if row in done_rows and store.count_evaluations(run_id) >= (row + 1) * grid:
             continue
         batch = designs[row * grid : (row + 1) * grid]  # [grid, dim]
-        fit = backend.real_fitness(batch, objectives, agents=agents, steps=steps, seed=seed + row)
+        # one scenario set for the whole grid: the one a run with this seed evaluates on
+        fit = backend.real_fitness(batch, objectives, agents=agents, steps=steps, seed=scenario_seed(seed))
+        if getattr(fit, "per_scenario", None) is not None:
+            for design, per in zip(batch, np.asarray(fit.per_scenario, dtype=float), strict=True):
+                per_scenario[tuple(np.round(design, 9))] = per
+        if getattr(fit, "fall_rate", None) is not None:
+            for design, rate in zip(batch, np.asarray(fit.fall_rate, dtype=float), strict=True):
+                fall_rate[tuple(np.round(design, 9))] = float(rate)
         costs = np.asarray(fit.costs, dtype=float).reshape(len(batch), len(names))  # [grid, M]
         recorder.record_evaluation_batch(
             run_id,
@@ -94,6 +113,30 @@ def run_landscape(
         "interactions": int(sum(e.interactions for e in rows)),
         "seconds": time.perf_counter() - start,
         "grid": grid,
+        "agents": agents,
+        "steps": steps,
+        **_uncertainty(objectives[0], best.design, nominal_row.design, per_scenario, fall_rate),
     }
     recorder.finish(run_id, summary)
     return summary
+
+
+def _uncertainty(objective: Objective, best: Sequence[float], nominal: Sequence[float],
+                 per_scenario: dict[tuple[float, ...], np.ndarray], fall_rate: dict[tuple[float, ...], float]) -> dict[str, Any]:
+    """Standard errors (first objective) of the optimum's and the nominal cost, the paired
+    standard error of the improvement, fall rates and the grid's median relative error."""
+    key_b, key_n = tuple(np.round(best, 9)), tuple(np.round(nominal, 9))
+    out: dict[str, Any] = {"best_cost_se": None, "nominal_cost_se": None, "improvement_se": None,
+                           "best_fall_rate": fall_rate.get(key_b), "nominal_fall_rate": fall_rate.get(key_n),
+                           "median_relative_se": None}
+    if key_b in per_scenario and key_n in per_scenario:
+        pair = np.stack([per_scenario[key_b], per_scenario[key_n]])  # [2, A, M]
+        se = scenario_se(pair)
+        out["best_cost_se"], out["nominal_cost_se"] = float(se[0, 0]), float(se[1, 0])
+        value = improvement_se(objective, pair[0, :, 0], pair[1, :, 0])
+        out["improvement_se"] = float(value) if np.isfinite(value) else None
+    if per_scenario:
+        per = np.stack(list(per_scenario.values()))  # [D, A, M]
+        rel = scenario_se(per)[:, 0] / np.abs(robust_cost(per)[:, 0])
+        out["median_relative_se"] = float(np.median(rel[np.isfinite(rel)])) if np.isfinite(rel).any() else None
+    return out
