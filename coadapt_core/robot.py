@@ -52,7 +52,9 @@ class RobotModel:
     standing_base_height: float  # base origin height above flat ground at the default pose
     total_mass: float
     foot_contact_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # [k, 3] in the foot frame
-    info: dict[str, Any] = field(default_factory=dict)  # lengths, segment masses, motor types, ...
+    # lengths, segment masses, motor types, ...; an optional "units" entry maps keys to units
+    # ({"thigh_length": "m"}), which `coadapt robot show` prints next to the values
+    info: dict[str, Any] = field(default_factory=dict)
 
     @property
     def num_joints(self) -> int:

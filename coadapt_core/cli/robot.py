@@ -115,11 +115,16 @@ def _print_description(data: dict) -> None:
     summary.add_column("value", justify="right")
     summary.add_row("total mass", f"{data['total_mass']:.3f} kg")
     summary.add_row("standing base height", f"{data['standing_base_height']:.3f} m")
+    units = data["info"].get("units") if isinstance(data["info"].get("units"), dict) else {}
     for key, value in data["info"].items():
-        if isinstance(value, int | float) and not isinstance(value, bool):
-            summary.add_row(key.replace("_", " "), f"{value:.4g}")
-        elif isinstance(value, dict) and all(isinstance(v, int | float) for v in value.values()):
-            summary.add_row(key.replace("_", " "), ", ".join(f"{k} {v:.3g}" for k, v in value.items()))
+        unit = f" {units[key]}" if key in units and units[key] != "type" else ""
+        if isinstance(value, int) and not isinstance(value, bool):
+            summary.add_row(key.replace("_", " "), f"{value:d}{unit}")  # a motor type is an integer
+        elif isinstance(value, float):
+            summary.add_row(key.replace("_", " "), f"{value:.4g}{unit}")
+        elif key != "units" and isinstance(value, dict) and all(isinstance(v, int | float) for v in value.values()):
+            text = ", ".join(f"{k} {v:.3g}" for k, v in value.items())
+            summary.add_row(key.replace("_", " ") + (f" ({unit.strip()})" if unit else ""), text)
     console.print(summary)
     joints = Table(title="actuated joints")
     motors = data["info"].get("motor_types")

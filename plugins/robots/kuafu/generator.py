@@ -504,6 +504,11 @@ def build_cached(key: tuple[float, ...]) -> RobotModel:
         "joint_swing_inertia": dict(inertias["swing"]),
         "hip_offset": _readonly(C.HIP_OFFSET),
         "gear_ratio": C.GEAR_RATIO,
+        # the unit of each entry above, for `coadapt robot show` (the key convention of RobotModel.info)
+        "units": {"thigh_length": "m", "shank_length": "m", "standing_height": "m", "hip_to_ankle": "m",
+                  "segment_masses": "kg", "joint_load_inertia": "kg m^2", "joint_swing_inertia": "kg m^2",
+                  "armature": "kg m^2", "joint_damping": "N m s/rad", "hip_offset": "m", "hip_motor": "type",
+                  "knee_motor": "type", "ankle_motor": "type"},
     }
     return RobotModel(
         design=_readonly(np.array(key)),
