@@ -9,7 +9,7 @@ with the shipped flat policy under two scenario seeds and prints, per objective:
   the nominal design (what common random numbers buy; 1 = nothing),
 - each seed's fall rate (share of agents that fell at least once), mean and worst design.
 
-    python benchmarks/fitness_noise.py                      # 5 x 5, quick preset's size
+    python benchmarks/fitness_noise.py                      # 5 x 5, the quick preset's 32 x 250
     python benchmarks/fitness_noise.py --grid 5 --json      # one JSON line last
     python benchmarks/fitness_noise.py --protocol unpaired  # the protocol before pairing
     python benchmarks/fitness_noise.py --agents 32 --steps 500
@@ -69,7 +69,8 @@ def main(argv: list[str] | None = None) -> int:
     quick = PRESETS["quick"]
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--grid", type=int, default=5, help="points per axis (grid x grid designs)")
-    p.add_argument("--agents", type=int, default=quick["agents_per_design"], help="scenarios (agents) per design")
+    p.add_argument("--agents", type=int, default=quick.get("eval_agents") or quick["agents_per_design"],
+                   help="paired scenarios (agents) per design (default: the quick preset's)")
     p.add_argument("--steps", type=int, default=quick["eval_steps"], help="policy steps per agent")
     p.add_argument("--seeds", default="0,1", help="the two scenario seeds")
     p.add_argument("--protocol", choices=("paired", "unpaired"), default="paired")
