@@ -333,8 +333,18 @@ class CoadaptationLoop:
 
     def optimizer_options(self) -> dict[str, Any]:
         """The run's `optimizer_options`, as the optimizer plugin declared them (checked
-        against its `option_specs` by the optimizer's constructor)."""
-        return dict(self.config.optimizer_options)
+        against its `option_specs` by the optimizer's constructor). An optimizer that keeps a
+        study (it declares `study_name` / `storage`, as BO does) keeps it in the run's results
+        store under `<run id>-outer<k>` unless told otherwise: optuna's tools and
+        optuna-dashboard read it there, and no two runs of a grid share a name."""
+        options = dict(self.config.optimizer_options)
+        declared = {spec.name for spec in getattr(self.optimizer_cls, "option_specs", ())}
+        if "study_name" in declared and not options.get("study_name"):
+            options["study_name"] = f"{self.state.run_id}-outer{self.state.outer}"
+        url = getattr(self.recorder, "url", None)
+        if "storage" in declared and not options.get("storage") and isinstance(url, str) and "://" in url:
+            options["storage"] = url
+        return options
 
     # -- the phases ------------------------------------------------------------------------
     def run(self) -> dict[str, Any]:

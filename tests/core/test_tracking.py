@@ -82,3 +82,19 @@ def test_run_without_gl_still_finishes_with_one_line_note(tmp_path, capsys, monk
     written = render_run_video(tmp_path, {"best_design": [1.0, 1.0], "nominal_design": [1.0, 1.0]}, {"robot": "kuafu"})
     lines = capsys.readouterr().err.strip().splitlines()
     assert written == [] and len(lines) == 1 and lines[0].startswith("video: not rendered")
+
+
+def test_bo_study_is_kept_in_the_run_store_under_the_run_id(tmp_path, fake_learner):
+    """bo-specialized keeps its optuna study in the run's results store by default, named
+    `<run id>-outer0`, readable by optuna's own tools; the run records optimizer bo."""
+    import optuna
+
+    from coadapt_core.results import ResultsStore
+
+    db = tmp_path / "s.db"
+    assert main(["run", "--method", "bo-specialized", "--preset", "smoke", "--bo-designs", "3", "--out", str(tmp_path),
+                 "--store", str(db), "--json", "--no-video"]) == 0
+    (run,) = ResultsStore(db).list_runs()
+    assert run["optimizer"] == "bo" and "-bo-specialized-bo-" in run["id"]
+    study = optuna.load_study(study_name=f"{run['id']}-outer0", storage=f"sqlite:///{db}")
+    assert len(study.trials) == 3
