@@ -212,7 +212,7 @@ def register(app: typer.Typer) -> None:
     @app.command("eval")
     def eval_command(
         checkpoint: Path | None = typer.Option(None, help="Checkpoint or weights file (default: the policy shipped for the robot and terrain)."),
-        robot: str = typer.Option("kuafu", help=choice_help("robot", "Robot.")),
+        robot: str | None = typer.Option(None, help=choice_help("robot", "Robot (default: the one the checkpoint was trained for; without --checkpoint, the only installed robot).")),
         design: str | None = typer.Option(None, help="Design, comma-separated (default: the nominal design)."),
         sim: str = typer.Option("mujoco", help=choice_help("simulator", "Simulator backend.")),
         terrain: str = typer.Option("flat", help="Terrain: flat, slope or random."),
@@ -241,6 +241,21 @@ def register(app: typer.Typer) -> None:
             values = []
         if len(values) != 3 or not all(math.isfinite(v) for v in values):
             fail(f"--command '{command}' must be three numbers vx,vy,yaw_rate, e.g. 0.5,0,0")
+        if robot is None:  # the checkpoint records its robot; else the one installed robot
+            if checkpoint is not None and checkpoint.is_file():
+                from coadapt_core.learning import read_checkpoint
+
+                try:
+                    robot = str(read_checkpoint(checkpoint)["robot"])
+                except Exception as exc:
+                    fail(f"--checkpoint {checkpoint} is not a coadapt checkpoint ({type(exc).__name__}: {exc})")
+            else:
+                from coadapt_core.plugins import get_registry
+
+                installed = get_registry().names("robot")
+                if len(installed) != 1:
+                    fail(f"--robot is needed: {len(installed)} robots are installed ({', '.join(installed)})")
+                robot = installed[0]
         robot_obj = resolve("robot", robot)()
         sim_cls = _simulator(sim, terrain)
         from coadapt_core.cli.robot import parse_design
@@ -357,13 +372,15 @@ def evaluate_checkpoint(
     result = rollout(trainer.ppo, env, 1, steps, seed=seed, on_step=on_step if record or progress is not None else None)
     sim.close()
     out: dict[str, Any] = {
+        "robot": robot_obj.name,
+        "design": [float(x) for x in np.asarray(design, dtype=float)],
         "survival": float(result.survival[0]),
         "vx_mean": float(result.vx[0]),
         "tracking_error": float(result.metrics[0, 0]),
         "torque_cost": float(result.metrics[0, 2]),
         "power_cost": float(result.metrics[0, 1]),
         "vx_command": float(command[0]),
-        "foot_alternation": float(result.alternation[0]),
+        "foot_alternation": None if not math.isfinite(float(result.alternation[0])) else float(result.alternation[0]),
         # standard errors of the three means over the agents (paired scenarios), fall rate
         "tracking_error_se": _mean_se(result.per_agent[0, :, 0]),
         "power_cost_se": _mean_se(result.per_agent[0, :, 1]),

@@ -12,6 +12,7 @@ import torch
 from coadapt_core.learning.ppo import PPO
 from coadapt_core.statefile import register_dataclass
 from coadapt_core.task.env import LocomotionEnv
+from coadapt_core.task.gait import half_stance
 
 
 @register_dataclass  # saved in run folders as arrays (buffer-<n>.npz), never pickled
@@ -31,7 +32,7 @@ class RolloutResult:
     survival: np.ndarray  # [K] share of agents that never fell
     vx: np.ndarray  # [K] mean base-frame forward speed (steps before an agent's first fall)
     tracking_error: np.ndarray  # [K] mean e_v^2 + e_w^2 (steps before the first fall)
-    alternation: np.ndarray  # [K] share of steps with exactly one foot down
+    alternation: np.ndarray  # [K] share of steps with exactly half of the feet down (NaN: odd leg count)
     buffer: EvalBuffer
     steps: int  # environment interactions
     per_agent: np.ndarray | None = None  # [K, A, M] each agent's mean per-step metric
@@ -94,7 +95,7 @@ def rollout(
         alive_f = alive.float()
         vx_sum += lin[:, 0] * alive_f
         err_sum += err * alive_f
-        alt_sum += (info["foot_contact"].sum(-1) == 1).float() * alive_f
+        alt_sum += half_stance(info["foot_contact"]) * alive_f
         alive_steps += alive_f
         alive &= ~info["terminated"]
         fell = info["terminated"].float()

@@ -27,6 +27,7 @@ from coadapt_core.randomization import RandomizationConfig
 from coadapt_core.robot import Robot
 from coadapt_core.task.config import TaskConfig
 from coadapt_core.task.env import LocomotionEnv
+from coadapt_core.task.gait import half_stance
 
 CHECKPOINT_FORMAT = "coadapt-policy-1"
 WEIGHTS_FORMAT = "coadapt-policy-weights-1"
@@ -42,7 +43,7 @@ class IterationStats:
     tracking_error: float  # mean |v_xy_cmd - v_xy| over the rollout, m/s
     vx: float  # mean base-frame forward speed over envs with a forward command
     command_vx: float
-    alternation: float  # share of steps with exactly one foot on the ground
+    alternation: float  # share of steps with exactly half of the feet down (NaN: odd leg count)
     fall_rate: float  # falls per env per second
     command_limit: float  # curriculum half-width
     collect_steps_per_s: float
@@ -230,7 +231,7 @@ class Trainer:
                 rewards.append(res.reward.mean())
                 lin, command = info["base_lin_vel"], info["command"]
                 errors.append((command[:, :2] - lin[:, :2]).norm(dim=-1).mean())
-                alternation.append((info["foot_contact"].sum(dim=-1) == 1).float().mean())
+                alternation.append(half_stance(info["foot_contact"]).mean())
                 forward = (command[:, 0] > 0.1).float()
                 vx_sum += (lin[:, 0] * forward).sum()
                 cmd_sum += (command[:, 0] * forward).sum()

@@ -27,6 +27,16 @@ def leg_phases(phase: torch.Tensor, num_legs: int, offsets: torch.Tensor | None 
     return torch.remainder(phase[:, None] + offsets[None, :], 1.0)
 
 
+def half_stance(contact: torch.Tensor) -> torch.Tensor:
+    """[N] float from foot contacts [N, L]: 1 where exactly half of the feet touch the ground
+    (one of a biped's two; two of a trotting quadruped's four), else 0 — the share of such
+    steps is the "foot alternation" metric. It does not apply to an odd number of legs: NaN."""
+    legs = contact.shape[-1]
+    if legs % 2:
+        return torch.full(contact.shape[:-1], float("nan"), device=contact.device)
+    return (contact.sum(dim=-1) == legs // 2).float()
+
+
 def expected_stance(leg_phase: torch.Tensor) -> torch.Tensor:
     """[N, L] bool: the clock puts this foot on the ground."""
     return leg_phase < 0.5

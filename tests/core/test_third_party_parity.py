@@ -154,3 +154,14 @@ def test_failed_plugin_is_named_where_it_would_have_been_used(tmp_path):
     assert "unknown robot 'quadbot'" in error[0]
     assert "plugin 'coadapt-quadbot' (distribution coadapt-quadbot) failed to load: ModuleNotFoundError" in error[0]
     assert "no_such_dependency_xyz" in error[0]
+
+
+@pytest.mark.slow
+def test_eval_takes_the_robot_from_the_checkpoint(site_with_policy):
+    policy = site_with_policy / "coadapt_example" / "policies" / "flat.pt"
+    done = run_cli("eval", "--checkpoint", str(policy), "--agents", "2", "--seconds", "0.4", "--json",
+                   pythonpath=[site_with_policy], timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert result["robot"] == "trotter" and result["design"] == [1.0, 1.0]  # no --robot given
+    assert "survival" in result
