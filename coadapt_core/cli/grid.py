@@ -71,7 +71,7 @@ def register(app: typer.Typer) -> None:
             def on_event(kind, cell, outcome):
                 if kind == "started":
                     started.append(cell.key)
-                    line.update(0, total=len(started))
+                    line.total = len(started)  # shown from the first finished cell on
                     return
                 counts[kind] += 1
                 if kind == "skipped":
