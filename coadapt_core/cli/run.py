@@ -45,8 +45,9 @@ class _ProgressView:
         outer = f"{min(event['outer'] + 1, event['outer_total'])}/{event['outer_total']}"
         self.line.update(
             event["fraction"],
-            f"{event['phase']}  outer {outer} round {event['inner']}/{event['inner_total']}  best "
-            f"{'-' if best is None else f'{best:.4g}'}  {event['interactions']:,} interactions",
+            # most telling first: at 80 columns the end of the line is cut
+            f"best {'-' if best is None else f'{best:.4g}'}  outer {outer} round {event['inner']}/"
+            f"{event['inner_total']}  {event['phase']}  {event['interactions']:,} interactions",
         )
 
     def __exit__(self, *exc: Any) -> None:
