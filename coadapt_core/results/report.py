@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from coadapt_core.errors import UserError
+from coadapt_core.fitness import scenario_seed
 from coadapt_core.pareto import pareto_mask
 from coadapt_core.results.backends import (
     BackendFactory,
@@ -206,7 +207,9 @@ def sim_to_sim(
             )
             best = np.asarray(facts.best_design, dtype=float)
             nominal = nominal_design(run_request(run).robot, best.shape[0])
-            fit = backend.real_fitness(np.stack([best, nominal]), objectives, agents=agents, steps=steps, seed=int(run["seed"] or 0))
+            # the run's own scenario set (paired with the run's real rounds, docs/coadaptation.md)
+            fit = backend.real_fitness(np.stack([best, nominal]), objectives, agents=agents, steps=steps,
+                                       seed=scenario_seed(int(run["seed"] or 0)))
         except BackendUnavailable as exc:
             return None, f"n/a: {exc}"
         costs = np.asarray(fit.costs, dtype=float).reshape(2, -1)  # [2, M]
