@@ -3,9 +3,13 @@
 Measures, separately: (1) the physics ceiling — the simulator stepped with fixed targets,
 no task and no policy; (2) rollout collection — policy act + task + physics, env steps/s,
 with the share of time in physics, task code and the policy; (3) the PPO update — samples/s
-(rollout samples per second of update, all epochs) and sample-epochs/s. Prints JSON.
+(rollout samples per second of update, all epochs) and sample-epochs/s. Prints JSON, with
+`end_to_end_vs_physics_ceiling` (training env steps/s over the physics ceiling measured in
+the same run) and `pseudo_critic_share` (the pseudo-critics' part of the update's time:
+their targets in compute_returns and their regression steps, over compute_returns + update).
 
     .venv/bin/python benchmarks/train_throughput.py --num-designs 16 --agents 16
+    .venv/bin/python benchmarks/train_throughput.py --num-designs 128 --agents 32 --device cuda --threads 16
 """
 
 from __future__ import annotations
@@ -17,7 +21,6 @@ import platform
 import time
 
 import numpy as np
-import torch
 
 
 def main() -> None:
@@ -34,20 +37,24 @@ def main() -> None:
     parser.add_argument("--iterations", type=int, default=2, help="rollouts (and updates) timed after one warm-up")
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--threads", type=int, default=None, help="physics threads")
-    parser.add_argument("--torch-threads", type=int, default=0)
+    parser.add_argument("--torch-threads", type=int, default=0, help="torch threads of the update (0: every core)")
+    parser.add_argument("--precision", default="float32", choices=["float32", "bf16"], help="numerics of the update")
     parser.add_argument("--objectives", default="tracking,power,torque", help="pseudo-critics to train ('' for none)")
     args = parser.parse_args()
 
+    # coadapt_core before torch: it sets torch's OpenMP wait policy (coadapt_core/__init__.py)
     from coadapt_core.learning import TrainConfig, Trainer
     from coadapt_core.plugins import get_registry
 
     registry = get_registry()
+    import torch  # after coadapt_core (see above)
     robot = registry.get("robot", args.robot)()
     sim_cls = registry.get("simulator", args.sim)
     objectives = [registry.get("objective", n)() for n in args.objectives.split(",") if n]
     config = TrainConfig(
         num_designs=args.num_designs, agents_per_design=args.agents, steps_per_env=args.steps_per_env,
         epochs=args.epochs, minibatches=args.minibatches, pseudo_epochs=args.pseudo_epochs, device=args.device, torch_threads=args.torch_threads,
+        precision=args.precision,
     )
     trainer = Trainer(robot, sim_cls, objectives, terrain=args.terrain, train_config=config, num_threads=args.threads)
     t0 = time.perf_counter()
@@ -68,8 +75,13 @@ def main() -> None:
 
     # (2) + (3): PPO iterations, the first one a warm-up
     trainer.learn(1)
+    ppo = trainer.ppo
+    ppo.profile = True  # exact section timings on a GPU (a synchronisation at each boundary)
+    ppo.timing = dict.fromkeys(ppo.timing, 0.0)
     rows = []
     trainer.learn(args.iterations, rows.append)
+    learner_seconds = ppo.timing["returns"] + ppo.timing["update"]
+    pseudo_share = ppo.timing["pseudo"] / learner_seconds if learner_seconds > 0 else 0.0
     collect = float(np.mean([r.collect_steps_per_s for r in rows]))
     update_sample_epochs = float(np.mean([r.update_samples_per_s for r in rows]))
     physics = float(np.mean([r.physics_share for r in rows]))
@@ -79,10 +91,11 @@ def main() -> None:
     collect_s = samples / collect
     update_s = samples * args.epochs / update_sample_epochs
     result = {
-        "machine": {"cpus": os.cpu_count(), "platform": platform.platform(), "torch_threads": torch.get_num_threads(),
+        "machine": {"cpus": os.cpu_count(), "platform": platform.platform(), "load_average": os.getloadavg(),
+                    "torch_threads_update": trainer.learner_threads, "torch_threads_collect": trainer.collect_threads,
                     "device": args.device, "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None},
         "setup": {"robot": args.robot, "sim": args.sim, "num_envs": n, "pseudo_critics": len(objectives), "num_designs": args.num_designs,
-                  "steps_per_env": args.steps_per_env, "epochs": args.epochs, "minibatches": args.minibatches,
+                  "steps_per_env": args.steps_per_env, "epochs": args.epochs, "minibatches": args.minibatches, "precision": args.precision,
                   "physics_threads": getattr(sim, "num_threads_used", None), "build_seconds": round(build_seconds, 2)},
         "physics_ceiling_env_steps_per_s": round(physics_ceiling),
         "collection_env_steps_per_s": round(collect),
@@ -90,6 +103,8 @@ def main() -> None:
         "update_samples_per_s": round(samples / update_s),
         "update_sample_epochs_per_s": round(update_sample_epochs),
         "end_to_end_env_steps_per_s": round(samples / (collect_s + update_s)),
+        "end_to_end_vs_physics_ceiling": round(samples / (collect_s + update_s) / physics_ceiling, 3),
+        "pseudo_critic_share": round(pseudo_share, 3),
         "time_share": {"physics": round(physics, 3), "task": round(task, 3), "learner": round(learner, 3)},
     }
     trainer.close()

@@ -325,7 +325,7 @@ class MujocoSimulator(Simulator):
     def default_joint_pos(self) -> torch.Tensor:
         import torch
 
-        return torch.as_tensor(self._default_q[self._row], dtype=torch.float32).to(self.device)
+        return torch.as_tensor(self._default_q[self._row], dtype=torch.float32, device=self.device)
 
     @property
     def num_threads_used(self) -> int:
