@@ -122,6 +122,13 @@ class OptimizerConformance:
         else:
             first = opt.ask()
         np.testing.assert_allclose(first, initial, atol=1e-9, err_msg="initial_designs were not the first proposals")
+        if not optimizer_cls.sequential:
+            opt.tell(first, self._costs(optimizer_cls, first, np.array([1.0, 1.0])))
+        # and the search goes on from there as usual (the loop runs J rounds after them)
+        while not opt.done:
+            d = opt.ask()
+            assert np.all(d >= 0.5 - 1e-9) and np.all(d <= 1.5 + 1e-9)
+            opt.tell(d, self._costs(optimizer_cls, d, np.array([1.0, 1.0])))
 
     def test_initial_designs_of_wrong_shape_refused(self, optimizer_cls, optimizer_options, space) -> None:
         with pytest.raises(UserError):
