@@ -1,7 +1,7 @@
 """Training throughput of the universal-policy learner on this machine.
 
 Measures, separately: (1) the physics ceiling — the simulator stepped with fixed targets,
-no task and no policy; (2) rollout collection — policy act + task + physics, env steps/s,
+no task and no policy, before and after the training iterations (their mean is used); (2) rollout collection — policy act + task + physics, env steps/s,
 with the share of time in physics, task code and the policy; (3) the PPO update — samples/s
 (rollout samples per second of update, all epochs) and sample-epochs/s. Prints JSON, with
 `end_to_end_vs_physics_ceiling` (training env steps/s over the physics ceiling measured in
@@ -68,10 +68,14 @@ def main() -> None:
     targets = sim.default_joint_pos.clone()
     sim.step(targets)
     steps = max(args.steps_per_env * args.iterations, 20)
-    t0 = time.perf_counter()
-    for _ in range(steps):
-        sim.step(targets)
-    physics_ceiling = n * steps / (time.perf_counter() - t0)
+
+    def ceiling() -> float:
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            sim.step(targets)
+        return n * steps / (time.perf_counter() - t0)
+
+    ceilings = [ceiling()]
 
     # (2) + (3): PPO iterations, the first one a warm-up
     trainer.learn(1)
@@ -80,6 +84,11 @@ def main() -> None:
     ppo.timing = dict.fromkeys(ppo.timing, 0.0)
     rows = []
     trainer.learn(args.iterations, rows.append)
+    # measured again after training (the simulator keeps its state): on a shared machine the
+    # load drifts, and the ratio uses the mean of the two
+    sim.reset()
+    ceilings.append(ceiling())
+    physics_ceiling = float(np.mean(ceilings))
     learner_seconds = ppo.timing["returns"] + ppo.timing["update"]
     pseudo_share = ppo.timing["pseudo"] / learner_seconds if learner_seconds > 0 else 0.0
     collect = float(np.mean([r.collect_steps_per_s for r in rows]))
@@ -98,6 +107,7 @@ def main() -> None:
                   "steps_per_env": args.steps_per_env, "epochs": args.epochs, "minibatches": args.minibatches, "precision": args.precision,
                   "physics_threads": getattr(sim, "num_threads_used", None), "build_seconds": round(build_seconds, 2)},
         "physics_ceiling_env_steps_per_s": round(physics_ceiling),
+        "physics_ceiling_before_after": [round(c) for c in ceilings],
         "collection_env_steps_per_s": round(collect),
         "collection_vs_physics_ceiling": round(collect / physics_ceiling, 3),
         "update_samples_per_s": round(samples / update_s),
