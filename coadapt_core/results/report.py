@@ -318,6 +318,10 @@ def table6_rows(facts: Sequence[RunFacts]) -> list[dict[str, Any]]:
                 row["design_units"] = "|".join(group[0].design_units)
                 row["design_discrete"] = " ".join(str(int(d)) for d in group[0].design_discrete)
                 row["run_ids"] = " ".join(f.run["id"] for f in group)
+                # the walking gate (coadapt_core/coadapt/reliability.py): runs whose policy did not walk
+                bad = [f for f in group if f.summary.get("reliable") is False]
+                row["unreliable_runs"] = len(bad)
+                row["reliability"] = "; ".join(sorted({str(f.summary.get("reliability")) for f in bad}))
                 rows.append(row)
     return rows
 
@@ -403,6 +407,13 @@ def _design_columns(rows: Sequence[dict[str, Any]]) -> list[tuple[str, str, bool
     return out
 
 
+def _unreliable_mark(row: dict[str, Any]) -> str:
+    """' UNRELIABLE (k of n runs: the policy does not walk)' for a row with runs below the
+    walking gate, else ''."""
+    k = int(row.get("unreliable_runs") or 0)
+    return f" UNRELIABLE ({k} of {row['runs']} runs: the policy does not walk)" if k else ""
+
+
 def table6_markdown(rows: Sequence[dict[str, Any]]) -> str:
     design = _design_columns(rows)
     head = (["Objective", "Method", "Optimizer", "Terrain", "Runs"] + [_design_header(n, u) for n, u, _ in design]
@@ -412,7 +423,8 @@ def table6_markdown(rows: Sequence[dict[str, Any]]) -> str:
         cells = [OBJECTIVE_LABELS.get(r["objective"], r["objective"]), METHOD_LABELS.get(r["method"], r["method"]),
                  r["optimizer"], r["terrain"], str(r["runs"])]
         cells += [_design_cell(r, n, d) if f"{n}_n" in r else "" for n, _, d in design]
-        cells += [_cell(r, "best_cost", spec=".4g"), _cell(r, "nominal_cost", spec=".4g"), _cell(r, "improvement", pct=True),
+        cells += [_cell(r, "best_cost", spec=".4g"), _cell(r, "nominal_cost", spec=".4g"),
+                  _cell(r, "improvement", pct=True) + _unreliable_mark(r),
                   _cell(r, "sim2sim_improvement", pct=True), r["sim2sim_note"] or ""]
         lines.append("| " + " | ".join(cells) + " |")
     lines += ["", "Each number: mean ± sample standard deviation over the runs (seeds) of the row, and how many "
@@ -884,7 +896,7 @@ def write_report(
     for r in t6:
         row = {"objective": r["objective"], "method": METHOD_LABELS.get(r["method"], r["method"]), "optimizer": r["optimizer"],
                "terrain": r["terrain"], "runs": r["runs"], "best_cost": _cell(r, "best_cost", spec=".4g"),
-               "nominal_cost": _cell(r, "nominal_cost", spec=".4g"), "improvement": _cell(r, "improvement", pct=True),
+               "nominal_cost": _cell(r, "nominal_cost", spec=".4g"), "improvement": _cell(r, "improvement", pct=True) + _unreliable_mark(r),
                "sim2sim": _cell(r, "sim2sim_improvement", pct=True), "sim2sim_note": r["sim2sim_note"]}
         row.update({f"d:{n}": _design_cell(r, n, d) if f"{n}_n" in r else "" for n, _, d in design})
         t6_html.append(row)

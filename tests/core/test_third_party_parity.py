@@ -135,7 +135,8 @@ def test_robot_without_policy_stops_with_how_to_train_one(example_plugin_site, t
 @pytest.mark.slow
 def test_robot_trained_from_scratch_in_the_run_is_marked_unreliable(example_plugin_site, tmp_path):
     done = run_cli("run", "--robot", "trotter", "--terrain", "slope", "--preset", "smoke", "--checkpoint", "none",
-                   "--population", "2", "--out", str(tmp_path), "--store", "none", "--json",
+                   "--population", "2", "--outer-iterations", "1", "--optimizer-iterations", "1",
+                   "--out", str(tmp_path), "--store", "none", "--json",
                    pythonpath=[example_plugin_site], timeout=600)
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stderr.splitlines()[0].startswith("note: no starting policy (--checkpoint none): robot 'trotter'")
@@ -165,3 +166,18 @@ def test_eval_takes_the_robot_from_the_checkpoint(site_with_policy):
     result = json.loads(done.stdout.strip().splitlines()[-1])
     assert result["robot"] == "trotter" and result["design"] == [1.0, 1.0]  # no --robot given
     assert "survival" in result
+
+
+def test_report_rows_mark_runs_below_the_walking_gate(tmp_path):
+    from coadapt_core.results.report import write_report
+    from tests.core.test_report import SqliteRecorder, read_csv, record_run
+
+    rec = SqliteRecorder(tmp_path / "r.db")
+    ids = [record_run(rec, "ours", seed) for seed in (0, 1)]
+    summary = rec.store.get_run(ids[1])["summary"]
+    rec.finish(ids[1], {**summary, "reliable": False, "reliability": "the policy does not walk (survival 0.40 < 0.8)"})
+    files = write_report(rec.store, None, tmp_path / "rep", sim2sim=False)
+    row = read_csv(files["table6.csv"])[0]
+    assert int(row["unreliable_runs"]) == 1 and "survival 0.40" in row["reliability"]
+    assert "UNRELIABLE (1 of 2 runs: the policy does not walk)" in files["table6.md"].read_text()
+    assert "UNRELIABLE (1 of 2 runs" in files["report.html"].read_text()
