@@ -10,7 +10,7 @@ import typer
 
 from coadapt_core import __version__
 from coadapt_core.cli import export, grid, landscape, plugins, report, robot, run, train
-from coadapt_core.cli.common import EXIT_USAGE, style_help
+from coadapt_core.cli.common import EXIT_USAGE, one_line, os_error_line, style_help
 from coadapt_core.errors import CoadaptError, PluginError, UserError
 
 app = typer.Typer(
@@ -66,11 +66,22 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error{where}: {message}", file=sys.stderr)
         return int(getattr(exc, "exit_code", EXIT_USAGE) or EXIT_USAGE)
     except (UserError, PluginError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {one_line(exc)}", file=sys.stderr)
         return EXIT_USAGE
     except CoadaptError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {one_line(exc)}", file=sys.stderr)
         return 1
+    except OSError as exc:  # the file system said no: full disk, read-only folder, a file for a folder
+        print(f"error: {os_error_line(exc)}", file=sys.stderr)
+        return EXIT_USAGE
+    except Exception as exc:
+        if type(exc).__module__.split(".")[0] != "sqlalchemy":
+            raise
+        # the results store failed under a command (damaged, emptied, locked, unreachable)
+        detail = one_line(getattr(exc, "orig", None) or exc)[:200]
+        print(f"error: the results store failed ({detail}); check --store / $COADAPT_STORE, or move a damaged "
+              "store aside and resume the runs (`coadapt run --resume`) to record them again", file=sys.stderr)
+        return EXIT_USAGE
     return result if isinstance(result, int) else 0
 
 

@@ -24,6 +24,30 @@ def fail(message: str, code: int = EXIT_USAGE) -> NoReturn:
     raise typer.Exit(code)
 
 
+def one_line(text: object) -> str:
+    """`text` on one line (whitespace runs, newlines included, become one space)."""
+    return " ".join(str(text).split())
+
+
+def os_error_line(exc: OSError) -> str:
+    """One line for an error of the file system (full disk, read-only or missing folder, a
+    file where a folder is expected), naming the path and what would work."""
+    import errno
+
+    where = f"'{exc.filename}'" if exc.filename else "a file"
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return f"disk full writing {where}; free some space and run the command again (nothing partial was kept)"
+    if exc.errno in (errno.EROFS, errno.EACCES, errno.EPERM):
+        return f"cannot write {where} ({exc.strerror}); give a folder you can write to (--out / -o)"
+    if exc.errno in (errno.EEXIST, errno.ENOTDIR):
+        return f"{where} is a file where a folder is needed; give a folder path (--out / -o)"
+    if exc.errno == errno.EISDIR:
+        return f"{where} is a folder where a file is needed"
+    if exc.errno == errno.ENOENT:
+        return f"{where} does not exist"
+    return f"{exc.strerror or type(exc).__name__}: {where}"
+
+
 def not_available(command: str, arrives_with: str) -> NoReturn:
     """A command whose implementation arrives with a later piece of work: say so, exit 3."""
     print(

@@ -7,6 +7,32 @@ import json
 import typer
 
 
+def _check_cells(spec, out: str, store_url: str) -> None:
+    """Run `coadapt run <cell's arguments> --check` in this process for every cell: a bad
+    objective, terrain, preset, simulator, optimizer or --run-arg is one line naming the cell
+    before anything starts, not a failed cell after others ran."""
+    import contextlib
+    import io
+
+    from coadapt_core.cli.common import fail
+
+    checked: dict[tuple, str | None] = {}
+    for cell in spec.cells():
+        argv = [a for a in cell.run_args(out_dir=out, extra=spec.extra_args, store=store_url) if a != "--json"]
+        key = tuple(a for a, b in zip(argv, ["", *argv[:-1]], strict=True) if b != "--seed")  # seeds share a verdict
+        if key not in checked:
+            from coadapt_core.cli import main
+
+            err = io.StringIO()
+            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+                code = main([*argv, "--check"])
+            lines = [line for line in err.getvalue().splitlines() if line.strip()]
+            checked[key] = None if code == 0 else (lines[-1] if lines else f"exit code {code}")
+        if checked[key] is not None:
+            message = checked[key].removeprefix("error: ").removeprefix("error (coadapt run): ")
+            fail(f"grid cell {cell.key}: {message}; nothing was started")
+
+
 def register(app: typer.Typer) -> None:
     @app.command("grid")
     def grid_command(
@@ -31,7 +57,13 @@ def register(app: typer.Typer) -> None:
         as finished and resuming cells a killed grid left unfinished."""
         from rich.console import Console
 
-        from coadapt_core.results.grid import GridSpec, parse_list, plan_grid, run_grid
+        from coadapt_core.results.grid import (
+            GridSpec,
+            check_grid_options,
+            parse_list,
+            plan_grid,
+            run_grid,
+        )
         from coadapt_core.results.store import ResultsStore
 
         spec = GridSpec(
@@ -44,7 +76,9 @@ def register(app: typer.Typer) -> None:
             optimizer=optimizer,
             extra_args=list(run_arg or []),
         )
+        check_grid_options(executor=executor, workers=workers, timeout=timeout, address=address)
         results = ResultsStore(store)
+        _check_cells(spec, out, results.url)  # every cell's arguments, before any cell starts
         console = Console(stderr=True)
         if dry_run:
             tasks, skipped = plan_grid(results, spec, out_dir=out)

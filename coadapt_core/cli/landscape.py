@@ -77,6 +77,9 @@ def register(app: typer.Typer) -> None:
             steps = quick["eval_steps"]
         if agents < 1 or steps < 1:
             fail("--agents and --steps must be >= 1")
+        from coadapt_core.coadapt.config import check_device
+
+        check_device(device, field="--device")
         if checkpoint is None:
             shipped = robot_cls().shipped_policy(terrain, False)
             if shipped is None:
@@ -85,6 +88,12 @@ def register(app: typer.Typer) -> None:
             checkpoint = shipped
         elif not checkpoint.exists():
             fail(f"--checkpoint {checkpoint} does not exist")
+        else:
+            from coadapt_core.learning import read_checkpoint
+
+            trained_for = read_checkpoint(checkpoint).get("robot")  # weights_only=True; one line if not a checkpoint
+            if trained_for != robot:
+                fail(f"--checkpoint {checkpoint} was trained for robot '{trained_for}', not '{robot}'")
         request = BackendRequest(robot=robot, simulator=sim, objectives=names, terrain=terrain, checkpoint=str(checkpoint),
                                  agents_per_design=agents, device=device, seed=seed)
         try:

@@ -47,6 +47,12 @@ def register(app: typer.Typer) -> None:
 
         if transfer_agents < 1 or transfer_steps < 1:
             fail("--transfer-agents and --transfer-steps must be >= 1")
+        if sim_to_sim:
+            from coadapt_core.cli.common import choices
+
+            simulators = choices("simulator")  # names only: no simulator library is imported here
+            if transfer_sim not in simulators:
+                fail(f"--transfer-sim '{transfer_sim}' is not a simulator; available: {', '.join(simulators)}")
         from coadapt_core.cli.progress import ProgressLine
 
         if sim_to_sim and transfer_sim == "pybullet":

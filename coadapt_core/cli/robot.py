@@ -286,6 +286,14 @@ def render_command(
         fail(f"--width and --height must lie in [16, 4096], got {width} x {height}")
     if not output.parent.is_dir():
         fail(f"cannot write -o {output}: folder {output.parent} does not exist")
+    existed = output.exists()
+    try:  # a read-only folder is said as such, not blamed on the GL backend after rendering
+        with open(output, "ab"):
+            pass
+    except OSError as exc:
+        fail(f"cannot write -o {output} ({exc.strerror}); give a writable path")
+    if not existed:
+        output.unlink()
     instance = load_robot(robot)
     model = instance.build(parse_design(instance, design))
     payload = {

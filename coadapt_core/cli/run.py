@@ -54,6 +54,29 @@ class _ProgressView:
         self.line.close()
 
 
+def _check_run_config(cfg: Any) -> None:
+    """What `coadapt run` would only find out later: the store URL and its driver, the BO
+    study's storage URL, and that --out is (or can be made) a folder."""
+    import os
+
+    from coadapt_core.results.store import (
+        ENV_STORE,
+        NO_STORE,
+        check_database_url,
+        resolve_store_url,
+    )
+
+    store = cfg.store or os.environ.get(ENV_STORE) or ""
+    if store and store.strip().lower() not in NO_STORE:
+        check_database_url(resolve_store_url(store), field="store")
+    options = getattr(cfg, "optimizer_options", None) or {}
+    storage = options.get("storage") if isinstance(options, dict) else None
+    storage = storage or getattr(cfg, "bo_storage", None)
+    if storage:
+        check_database_url(str(storage), field="bo_storage")
+    Path(cfg.out).mkdir(parents=True, exist_ok=True)  # an OSError here is one line (cli.main)
+
+
 def _with_se(value: float, se: float | None) -> str:
     return f"{value:.5g}" if se is None else f"{value:.5g} +- {se:.2g}"
 
@@ -172,6 +195,7 @@ def register(app: typer.Typer) -> None:
         checkpoint: str = typer.Option(None, help="Universal policy to start from ('none' = from scratch)."),
         device: str = typer.Option(None, help="Torch device of the learner (default cpu)."),
         store: str = typer.Option(None, help="Results store URL or path (default: $COADAPT_STORE, else coadapt.db beside --out; none: JSON files only)."),
+        check: bool = typer.Option(False, "--check", hidden=True, help="Check the options (config, plugins, store, --out) and exit without running."),
         logger: str = typer.Option(None, help="Experiment tracking: tensorboard (event files in <run folder>/tb), wandb (if installed) or none [default: tensorboard]."),
     ) -> None:
         """Co-adapt design and policy: universal policy + pseudo-critics, optimizer with hybrid
@@ -219,6 +243,9 @@ def register(app: typer.Typer) -> None:
                 resolve("robot", cfg.robot)
                 for name in cfg.objectives:
                     resolve("objective", name)
+                if check:  # `coadapt grid` checks every cell's arguments before it starts any
+                    _check_run_config(cfg)
+                    return
                 if cfg.checkpoint.strip().lower() == "none":
                     from coadapt_core.coadapt.reliability import WALKING_GATE
 

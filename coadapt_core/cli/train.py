@@ -33,6 +33,8 @@ def _objectives(text: str) -> list:
     names = [n.strip() for n in text.split(",") if n.strip()]
     if not names:
         fail("--objectives needs at least one objective name, e.g. tracking,power,torque")
+    if len(set(names)) != len(names):
+        fail(f"--objectives '{text}' names an objective twice; each pseudo-critic is trained once")
     return [resolve("objective", n)() for n in names]
 
 
@@ -106,6 +108,8 @@ def register(app: typer.Typer) -> None:
             fail(f"--resample-designs must be >= 0, got {resample_designs}")
         if checkpoint_every < 1:
             fail(f"--checkpoint-every must be >= 1, got {checkpoint_every}")
+        if torch_threads < 0:
+            fail(f"--torch-threads must be >= 0 (0: automatic), got {torch_threads}")
         _check_device(device)
         try:
             check_logger(logger)

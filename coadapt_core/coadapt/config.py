@@ -117,6 +117,10 @@ class CoadaptConfig:
             )
         if self.logger not in ("tensorboard", "wandb", "none"):
             raise UserError(f"logger '{self.logger}' is not one of tensorboard, wandb, none", field="logger")
+        for f in fields(self):
+            if f.type == "bool":
+                setattr(self, f.name, _boolean(f.name, getattr(self, f.name)))
+        check_device(self.device)
         parse_ranges(self.design_ranges)
         return self
 
@@ -202,6 +206,8 @@ def _coerce(name: str, value: Any) -> Any:
         if not isinstance(value, Mapping):
             raise UserError(f"config key '{name}' must be a mapping of option names to values, got {value!r}", field=name)
         return {str(k).replace("-", "_"): v for k, v in value.items()}
+    if kind == "bool":
+        return _boolean(name, value)
     try:
         if kind == "float" and not isinstance(value, bool):
             return float(value)
@@ -216,6 +222,31 @@ def _coerce(name: str, value: Any) -> Any:
     return value
 
 
+_TRUE, _FALSE = ("true", "yes", "on", "1"), ("false", "no", "off", "0")
+
+
+def _boolean(name: str, value: Any) -> bool:
+    """A YAML/CLI boolean: true/false (also yes/no, on/off, 1/0, in any case, quoted or not);
+    anything else is a one-line error, never read as true because it is a non-empty string."""
+    if isinstance(value, bool):
+        return value
+    text = str(value).strip().lower() if isinstance(value, str | int) else None
+    if text in _TRUE:
+        return True
+    if text in _FALSE:
+        return False
+    raise UserError(f"config key '{name}' must be true or false, got {value!r}", field=name)
+
+
+def check_device(device: Any, field: str = "device") -> str:
+    """A torch device name coadapt accepts: cpu, cuda or cuda:N (one line otherwise)."""
+    text = str(device)
+    index = text[5:] if text.startswith("cuda:") else "0"
+    if text not in ("cpu", "cuda") and not (text.startswith("cuda:") and index.isdigit()):
+        raise UserError(f"{field} '{device}' is not one of: cpu, cuda, cuda:N", field=field)
+    return text
+
+
 def load_yaml(path: str | Path) -> dict[str, Any]:
     import yaml
 
@@ -223,7 +254,11 @@ def load_yaml(path: str | Path) -> dict[str, Any]:
     if not path.is_file():
         raise UserError(f"config file '{path}' does not exist", field="config")
     try:
-        data = yaml.safe_load(path.read_text()) or {}
+        data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+    except UnicodeDecodeError:
+        raise UserError(f"config file '{path}' is not a text (YAML) file", field="config") from None
+    except OSError as exc:
+        raise UserError(f"config file '{path}' cannot be read ({exc.strerror})", field="config") from None
     except yaml.YAMLError as exc:
         raise UserError(f"config file '{path}' is not valid YAML: {str(exc).splitlines()[0]}", field="config") from None
     if not isinstance(data, dict):

@@ -190,6 +190,13 @@ def resolve_checkpoint(config: CoadaptConfig) -> str | None:
     if text:
         if not Path(text).is_file():
             raise UserError(f"checkpoint '{text}' does not exist", field="checkpoint")
+        from coadapt_core.learning import read_checkpoint
+
+        trained_for = read_checkpoint(text).get("robot")  # weights_only; one line if not a checkpoint
+        if trained_for != config.robot:
+            raise UserError(
+                f"checkpoint '{text}' was trained for robot '{trained_for}', not '{config.robot}'; "
+                "give a policy of this robot or --checkpoint none", field="checkpoint")
         return text
     from coadapt_core.plugins import get_registry
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import shlex
 import subprocess
@@ -412,6 +413,39 @@ def local_executor(tasks: Sequence[CellTask], workers: int) -> Iterator[tuple[Ce
             yield futures[future], future.result()
 
 
+def check_grid_options(
+    *, executor: str, workers: int | None, timeout: float | None, address: str | None, connect_timeout: float = 10.0
+) -> None:
+    """One-line `UserError` for a bad executor, worker count, cell timeout, or a Ray address
+    that does not answer within `connect_timeout` seconds (checked before anything starts)."""
+    if executor not in EXECUTORS:
+        raise UserError(f"--executor '{executor}' is not one of {', '.join(EXECUTORS)}", field="executor")
+    if workers is not None and workers < 1:
+        raise UserError(f"--workers must be >= 1, got {workers}", field="workers")
+    if timeout is not None and not (math.isfinite(timeout) and timeout > 0):
+        raise UserError(f"--timeout must be a number of seconds > 0, got {timeout}", field="timeout")
+    if executor == "ray" and address and address not in ("auto", "local"):
+        check_ray_address(address, connect_timeout)
+
+
+def check_ray_address(address: str, connect_timeout: float = 10.0) -> None:
+    """The Ray head at `address` (host:port, or ray://host:port) accepts a TCP connection;
+    otherwise one line instead of Ray's own minutes of retries."""
+    import socket
+
+    target = address.split("://", 1)[1] if "://" in address else address
+    host, _, port = target.rpartition(":")
+    if not host or not port.isdigit():
+        raise UserError(f"--address '{address}' is not host:port (e.g. 10.0.0.5:6379 or ray://head:10001)", field="address")
+    try:
+        with socket.create_connection((host, int(port)), timeout=connect_timeout):
+            pass
+    except OSError as exc:
+        reason = exc.strerror or type(exc).__name__
+        raise UserError(f"cannot reach a Ray cluster at --address '{address}' ({reason}); check the head node's "
+                        "host and port, or use --executor local", field="address") from None
+
+
 def ray_executor(
     tasks: Sequence[CellTask], workers: int, address: str | None = None
 ) -> Iterator[tuple[CellTask, CellOutcome]]:
@@ -476,10 +510,7 @@ def run_grid(
 ) -> GridReport:
     """Run every cell the store does not already hold as finished; returns what happened.
     `on_event(kind, cell, outcome)` reports "skipped", "started", "finished", "failed"."""
-    if executor not in EXECUTORS:
-        raise UserError(f"executor '{executor}' is not one of {', '.join(EXECUTORS)}", field="executor")
-    if workers is not None and workers < 1:
-        raise UserError(f"--workers must be >= 1, got {workers}", field="workers")
+    check_grid_options(executor=executor, workers=workers, timeout=timeout, address=address)
     workers = workers or default_workers()
     grid_id = spec.grid_id
     store.save_grid(grid_id, spec.to_dict())

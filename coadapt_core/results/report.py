@@ -212,6 +212,8 @@ def sim_to_sim(
                                        seed=scenario_seed(int(run["seed"] or 0)))
         except BackendUnavailable as exc:
             return None, f"n/a: {exc}"
+        except UserError as exc:  # e.g. a checkpoint that is not one (refused unread): this run only
+            return None, f"n/a: {' '.join(str(exc).split())}"
         costs = np.asarray(fit.costs, dtype=float).reshape(2, -1)  # [2, M]
         names = [o.name for o in objectives]
         store.record_evaluations(

@@ -244,6 +244,47 @@ class Evaluation:
     created_at: float
 
 
+class StoreError(UserError):
+    """The results store cannot be used (not a database, damaged, unreachable): one line
+    naming it and how to recover."""
+
+    def __init__(self, url: str, exc: BaseException):
+        detail = " ".join(str(getattr(exc, "orig", None) or exc).split())[:160]
+        hint = ""
+        if url.startswith("sqlite"):
+            hint = (
+                "; if the file is damaged, move it aside and run `coadapt run --resume <run folder>` for each run: "
+                "a resumed run records its rows again from its run folder"
+            )
+        super().__init__(f"store '{url}' cannot be used: {detail}{hint}", field="store")
+
+
+def check_database_url(url: str, *, field: str = "store") -> str:
+    """`url` if SQLAlchemy knows its dialect and the database driver is installed; a one-line
+    `UserError` naming `field` otherwise (e.g. 'bad://x', or PostgreSQL without psycopg)."""
+    try:
+        parsed = sa.engine.make_url(url)
+    except Exception:
+        raise UserError(
+            f"{field} '{url}' is not a valid database URL; give a file path or a URL such as "
+            "sqlite:///coadapt.db or postgresql://user@host/db", field=field) from None
+    try:
+        dialect = parsed.get_dialect()
+    except Exception:
+        raise UserError(
+            f"{field} '{url}': unknown database kind '{parsed.drivername}'; accepted: a file path, "
+            "sqlite:///file.db, postgresql://user@host/db (with psycopg installed) or another SQLAlchemy URL",
+            field=field) from None
+    try:
+        dialect.import_dbapi() if hasattr(dialect, "import_dbapi") else dialect.dbapi()
+    except ImportError as exc:
+        raise UserError(
+            f"{field} '{url}': the database driver for '{parsed.drivername}' is not installed ({exc.name or exc}); "
+            "install it (for PostgreSQL: pip install 'psycopg[binary]') or use an SQLite file",
+            field=field) from None
+    return url
+
+
 def run_folder_of(run: dict[str, Any]) -> Path | None:
     """The run folder a store row names, or None when the row cannot be trusted with a path:
     its id must be a well-formed run id and its `run_dir` a folder named after that id (every
@@ -279,6 +320,7 @@ class ResultsStore:
     def __init__(self, url: str | os.PathLike | None = None, *, create: bool = True):
         self.url = resolve_store_url(url)
         self.is_sqlite = self.url.startswith("sqlite")
+        check_database_url(self.url, field="store")
         if self.is_sqlite:
             self.engine = sa.create_engine(self.url, connect_args={"timeout": 60})
             sa.event.listen(self.engine, "connect", _sqlite_pragmas)
@@ -299,6 +341,8 @@ class ResultsStore:
                     time.sleep(0.2)
                     continue
                 raise UserError(f"store '{self.url}' cannot be opened: {exc.orig}", field="store") from None
+            except sa.exc.SQLAlchemyError as exc:  # not a database, damaged, unreachable server
+                raise StoreError(self.url, exc) from None
 
     def close(self) -> None:
         self.engine.dispose()
