@@ -8,7 +8,8 @@
 #     command: bash benchmarks/gpu_check.sh     carry: [".whl"]     timeout_s: 540
 # It installs the wheels and this checkout into a temporary folder, then
 #   1. benchmarks/train_throughput.py at 4096 environments (128 designs x 32 agents), the
-#      learner on the GPU, MuJoCo on every CPU core (float32, then bf16 if time is left);
+#      learner on the GPU, MuJoCo on every CPU core (TrainConfig's default precisions, then
+#      everything in bf16 if time is left);
 #   2. `coadapt train` for TRAIN_SECONDS (default 180) of wall time at the same size;
 # and prints one JSON object (also $OUT/gpu_check.json). Logs go to $OUT (or a temporary folder).
 #
@@ -50,14 +51,16 @@ fi
 threads=$($python -c "import os; print(len(os.sched_getaffinity(0)))")
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader >"$out/gpu.txt" 2>/dev/null || true
 
-run_throughput() {  # $1 precision
+run_throughput() {  # $1 label, then extra options
+  local label=$1
+  shift
   timeout 240 $python benchmarks/train_throughput.py --num-designs "$designs" --agents "$agents" \
-    --device "$device" --threads "$threads" --iterations 3 --precision "$1" \
-    >"$out/throughput_$1.json" 2>"$out/throughput_$1.err"
-  echo "throughput $1: exit $? after $(elapsed) s" >>"$out/steps.log"
+    --device "$device" --threads "$threads" --iterations 3 "$@" \
+    >"$out/throughput_$label.json" 2>"$out/throughput_$label.err"
+  echo "throughput $label: exit $? after $(elapsed) s" >>"$out/steps.log"
 }
 
-run_throughput float32
+run_throughput default  # TrainConfig's precisions
 
 if [ $(( $(elapsed) + train_seconds + 60 )) -lt "$budget" ]; then
   # far more steps than fit: the time limit ends the run; progress.jsonl holds every iteration
@@ -70,7 +73,7 @@ else
 fi
 
 if [ $(( $(elapsed) + 150 )) -lt "$budget" ]; then
-  run_throughput bf16
+  run_throughput bf16 --precision bf16 --pseudo-precision bf16
 else
   echo "throughput bf16: skipped (budget) after $(elapsed) s" >>"$out/steps.log"
 fi
@@ -93,9 +96,9 @@ def load(name):
 
 result = {"gpu": (out / "gpu.txt").read_text().strip() if (out / "gpu.txt").exists() else None,
           "seconds": seconds, "steps": (out / "steps.log").read_text().splitlines()}
-for precision in ("float32", "bf16"):
-    if (out / f"throughput_{precision}.json").exists() or precision == "float32":
-        result[f"throughput_{precision}"] = load(f"throughput_{precision}.json")
+for label in ("default", "bf16"):
+    if (out / f"throughput_{label}.json").exists() or label == "default":
+        result[f"throughput_{label}"] = load(f"throughput_{label}.json")
 rows = []
 for line in (out / "train.jsonl").read_text().splitlines() if (out / "train.jsonl").exists() else []:
     try:

@@ -39,9 +39,12 @@ class TrainConfig:
     # epochs of pseudo-critic regression per update (0: as many as PPO's); on a CPU the three
     # pseudo-critics cost 2.7x the PPO update itself, so fewer epochs buy throughput
     pseudo_epochs: int = 0
-    # numerics of the update's forward passes: "float32", or "bf16" (autocast to bfloat16
-    # where the hardware supports it; see docs/training.md for when it is worth it)
+    # numerics of the forward passes of the PPO loss (precision) and of the pseudo-critic
+    # regression (pseudo_precision): "float32", or "bf16" (autocast to bfloat16; parameters,
+    # optimizer states and losses stay float32). docs/training.md (Throughput) has the
+    # measurements behind the defaults
     precision: str = "float32"
+    pseudo_precision: str = "float32"
     # -- bookkeeping ------------------------------------------------------------------------
     checkpoint_every: int = 100  # iterations
     device: str = "cpu"
@@ -62,8 +65,9 @@ class TrainConfig:
             raise UserError(f"train.schedule '{self.schedule}' is not one of: adaptive, fixed", field="schedule")
         if not (0.0 < self.gamma < 1.0) or not (0.0 <= self.lam <= 1.0):
             raise UserError("train.gamma must lie in (0, 1) and train.lam in [0, 1]", field="gamma")
-        if self.precision not in ("float32", "bf16"):
-            raise UserError(f"train.precision '{self.precision}' is not one of: float32, bf16", field="precision")
+        for name in ("precision", "pseudo_precision"):
+            if getattr(self, name) not in ("float32", "bf16"):
+                raise UserError(f"train.{name} '{getattr(self, name)}' is not one of: float32, bf16", field=name)
         if self.activation not in ("elu", "relu", "tanh"):
             raise UserError(f"train.activation '{self.activation}' is not one of: elu, relu, tanh", field="activation")
         self.hidden = tuple(int(h) for h in self.hidden)

@@ -204,11 +204,11 @@ class PPO:
         return td
 
     # -- update -----------------------------------------------------------------------------
-    def _autocast(self):
-        """bf16 autocast of the update's forward passes where `TrainConfig.precision` asks
-        for it (float32 otherwise: a no-op context)."""
-        enabled = self.config.precision == "bf16"
-        return torch.autocast(self.device.type, dtype=torch.bfloat16, enabled=enabled)
+    def _autocast(self, precision: str):
+        """bf16 autocast of forward passes where `precision` (`TrainConfig.precision` for the
+        PPO loss, `pseudo_precision` for the pseudo-critic regression) asks for it; float32
+        otherwise (a no-op context). Parameters, optimizer states and losses stay float32."""
+        return torch.autocast(self.device.type, dtype=torch.bfloat16, enabled=precision == "bf16")
 
     def _clock(self) -> float:
         """Wall time for the section timings; with `profile` set on an accelerator, after
@@ -242,7 +242,7 @@ class PPO:
             order = torch.randperm(n, device=self.device)
             for start in range(0, n - size + 1, size):
                 batch = flat[order[start : start + size]]
-                with self._autocast():
+                with self._autocast(c.precision):
                     out = self.loss(batch)
                 loss = out["loss_objective"] + out["loss_critic"] + out["loss_entropy"]
                 pseudo = self.pseudo_critic is not None and epoch < pseudo_epochs
@@ -250,7 +250,7 @@ class PPO:
                 if pseudo:
                     tick = self._clock()
                     # the pseudo-critics see data only: no path from their loss to the actor
-                    with self._autocast():
+                    with self._autocast(c.pseudo_precision):
                         pred = self.pseudo_critic(batch["critic_obs"], batch["design_obs"])
                     loss_pseudo = torch.nn.functional.mse_loss(pred.float(), batch["pseudo_target"])
                     flags.append(torch.isfinite(loss_pseudo).float())

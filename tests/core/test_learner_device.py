@@ -80,7 +80,7 @@ def test_randomized_parameters_are_converted_once_per_reset(fake_robot, fake_sim
 
 
 def test_bf16_and_profiled_update_run_on_the_cpu(fake_robot, sim_cls) -> None:
-    trainer = make_trainer(fake_robot, sim_cls, small_config(precision="bf16"))
+    trainer = make_trainer(fake_robot, sim_cls, small_config(precision="bf16", pseudo_precision="bf16"))
     trainer.set_designs(np.array([[1.0, 1.0]]))
     trainer.ppo.profile = True
     stats = trainer.learn(2)
