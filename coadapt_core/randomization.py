@@ -26,6 +26,13 @@ class RandomizationConfig:
     pd_factor: tuple[float, float] = (0.9, 1.1)  # scales kp and kd
     motor_strength: tuple[float, float] = (0.9, 1.1)  # scales the commanded torque
     delay: tuple[float, float] = (0.0, 0.020)  # s, system delay of the joint targets
+    # -- engine robustness (ours, not the paper's Table 2): what differs between MuJoCo and
+    # PyBullet. Off by default (each range is its nominal point, and a point range draws
+    # nothing, so default configurations keep their random streams); `engine_robust()`
+    # turns them on. Applied by the MuJoCo backend; other backends run them at nominal.
+    contact_timeconst: tuple[float, float] = (0.02, 0.02)  # s, contact softness (MuJoCo solref[0])
+    joint_damping: tuple[float, float] = (0.0, 0.0)  # N m s/rad added to every joint's damping
+    armature: tuple[float, float] = (1.0, 1.0)  # scales every joint's armature (reflected rotor inertia)
 
     NOMINAL = {
         "friction": 1.0,
@@ -34,7 +41,13 @@ class RandomizationConfig:
         "pd_factor": 1.0,
         "motor_strength": 1.0,
         "delay": 0.0,
+        "contact_timeconst": 0.02,
+        "joint_damping": 0.0,
+        "armature": 1.0,
     }
+    #: parameters drawn only when their range is not a single point (added after Table 2's:
+    #: a configuration that leaves them at a point consumes the randomness it always did)
+    OPTIONAL = ("contact_timeconst", "joint_damping", "armature")
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -45,12 +58,12 @@ class RandomizationConfig:
                 raise UserError(
                     f"randomization.{f.name}: inverted range [{lo}, {hi}]", field=f"randomization.{f.name}"
                 )
-            if f.name in ("friction", "pd_factor", "motor_strength") and lo <= 0:
+            if f.name in ("friction", "pd_factor", "motor_strength", "contact_timeconst", "armature") and lo <= 0:
                 raise UserError(
                     f"randomization.{f.name}: range must be positive, got [{lo}, {hi}]",
                     field=f"randomization.{f.name}",
                 )
-            if f.name in ("delay", "restitution") and lo < 0:
+            if f.name in ("delay", "restitution", "joint_damping") and lo < 0:
                 raise UserError(
                     f"randomization.{f.name}: range must be >= 0, got [{lo}, {hi}]",
                     field=f"randomization.{f.name}",
@@ -60,6 +73,26 @@ class RandomizationConfig:
     @classmethod
     def off(cls) -> RandomizationConfig:
         return cls(enabled=False)
+
+    @classmethod
+    def engine_robust(cls) -> RandomizationConfig:
+        """Table 2 plus what differs between the engines (docs/training.md): contacts from
+        twice as stiff to twice as soft as MuJoCo's default (Bullet's are rigid), up to
+        1 N m s/rad of extra joint damping, armature +-25 %, and system delay to 25 ms."""
+        return cls(
+            delay=(0.0, 0.025), contact_timeconst=(0.01, 0.04), joint_damping=(0.0, 1.0), armature=(0.75, 1.25)
+        )
+
+    @classmethod
+    def preset(cls, name: str) -> RandomizationConfig:
+        """A named configuration: "table2" (the paper's, the default), "engine" (table2 plus
+        engine robustness, `engine_robust`) or "off"."""
+        presets = {"table2": cls, "engine": cls.engine_robust, "off": cls.off}
+        if name not in presets:
+            raise UserError(
+                f"randomization preset '{name}' is not one of: {', '.join(presets)}", field="randomization"
+            )
+        return presets[name]()
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -76,6 +109,9 @@ class EnvParams:
     pd_factor: np.ndarray
     motor_strength: np.ndarray
     delay: np.ndarray  # s
+    contact_timeconst: np.ndarray  # s
+    joint_damping: np.ndarray  # N m s/rad, added to each joint's own
+    armature: np.ndarray  # factor on each joint's armature
 
     def delay_steps(self, physics_dt: float) -> np.ndarray:
         """[num_envs] int: the delay in whole physics steps (rounded)."""
@@ -83,7 +119,8 @@ class EnvParams:
 
     def privileged(self, device: str | torch.device = "cpu") -> torch.Tensor:
         """[num_envs, 8] float32 tensor on `device`: friction, restitution, PD factor, motor
-        strength, delay (s), CoM shift (3), the critic state's randomized parameters."""
+        strength, delay (s), CoM shift (3), the critic state's randomized parameters (the
+        engine-robustness ones are not in it: the critic input keeps its size)."""
         columns = np.column_stack(
             [self.friction, self.restitution, self.pd_factor, self.motor_strength, self.delay,
              np.reshape(self.com_shift, (-1, 3))]
@@ -104,11 +141,15 @@ def nominal_env_params(num_envs: int) -> EnvParams:
 
 def sample_env_params(config: RandomizationConfig, num_envs: int, rng: np.random.Generator) -> EnvParams:
     """Draw parameters for `num_envs` environments (always consumes the same amount of
-    randomness whether or not randomization is enabled, so seeds stay aligned)."""
+    randomness whether or not randomization is enabled, so seeds stay aligned; the
+    engine-robustness parameters draw only when their range is not a point, after Table 2's)."""
 
     def draw(name: str, shape: tuple[int, ...]) -> np.ndarray:
         lo, hi = getattr(config, name)
-        value = rng.uniform(lo, hi, size=shape)
+        if name in RandomizationConfig.OPTIONAL and lo == hi:
+            value = np.full(shape, lo, dtype=float)
+        else:
+            value = rng.uniform(lo, hi, size=shape)
         if not config.enabled:
             value = np.full(shape, RandomizationConfig.NOMINAL[name], dtype=float)
         return value
@@ -120,4 +161,7 @@ def sample_env_params(config: RandomizationConfig, num_envs: int, rng: np.random
         pd_factor=draw("pd_factor", (num_envs,)),
         motor_strength=draw("motor_strength", (num_envs,)),
         delay=draw("delay", (num_envs,)),
+        contact_timeconst=draw("contact_timeconst", (num_envs,)),
+        joint_damping=draw("joint_damping", (num_envs,)),
+        armature=draw("armature", (num_envs,)),
     )

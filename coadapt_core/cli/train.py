@@ -96,6 +96,15 @@ def register(app: typer.Typer) -> None:
         logger: str = typer.Option(
             "tensorboard", help="Experiment tracking: tensorboard (event files in OUT/logs), wandb (if installed) or none."
         ),
+        randomization: str | None = typer.Option(
+            None, help="Domain randomization: table2 (the paper's), engine (table2 plus contact softness, joint "
+            "damping, armature and delay: robustness to another simulator) or off (default: table2; on --resume "
+            "or --init-from: the checkpoint's).",
+        ),
+        yaw_range: str | None = typer.Option(
+            None, "--yaw-range", help="Yaw-rate command range low:high in rad/s, e.g. -1:1 (default: the task's, "
+            "-1:1 for a new run; on --resume or --init-from: the checkpoint's).",
+        ),
     ) -> None:
         """Train the universal policy pi(a|o, xi) with its critic and pseudo-critics (PPO)."""
         if steps < 0 or (steps == 0 and resume is None and init_from is None):
@@ -144,7 +153,23 @@ def register(app: typer.Typer) -> None:
             if value is not None:
                 setattr(base, key, value)
         base.device, base.seed, base.checkpoint_every, base.torch_threads = device, seed, checkpoint_every, torch_threads
+        if randomization is not None:
+            from coadapt_core.randomization import RandomizationConfig
+
+            try:
+                RandomizationConfig.preset(randomization)
+            except UserError as exc:
+                fail(f"--randomization: {exc}")
+            base.extra = {**base.extra, "randomization": randomization}
         task = TaskConfig.from_dict(state["task_config"]) if state is not None else TaskConfig()
+        if yaw_range is not None:
+            try:
+                lo, hi = (float(v) for v in yaw_range.split(":"))
+            except ValueError:
+                lo = hi = math.nan
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+                fail(f"--yaw-range '{yaw_range}' must be low:high in rad/s with low <= high, e.g. -1:1")
+            task.commands.yaw_range = (lo, hi)
         full = robot_obj.design_space(mixed)
         if designs is not None:
             space = full.parse_ranges(designs)
@@ -182,7 +207,8 @@ def register(app: typer.Typer) -> None:
         print(
             f"training {robot} on {sim}/{terrain}: {base.num_designs} designs x {base.agents_per_design} agents = "
             f"{trainer.env.num_envs} envs, {iterations} iterations of {trainer.samples_per_iteration} samples, "
-            f"range {space.describe()}, device {device}",
+            f"range {space.describe()}, device {device}, randomization {base.extra.get('randomization', 'table2')}, "
+            f"yaw {task.commands.yaw_range[0]:g}:{task.commands.yaw_range[1]:g} rad/s",
             file=sys.stderr,
         )
 

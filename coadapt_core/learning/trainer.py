@@ -97,7 +97,12 @@ class Trainer:
         if self.config.device.startswith("cuda") and not torch.cuda.is_available():
             raise UserError("device 'cuda' requested but no CUDA device is available; use --device cpu", field="device")
         self.task_config = task_config or TaskConfig()
-        self.randomization = randomization
+        # None: the preset the training configuration names (TrainConfig.extra["randomization"],
+        # "table2" unless set; stored in checkpoints, so a resumed run keeps it)
+        self.randomization = (
+            randomization if randomization is not None
+            else RandomizationConfig.preset(str(self.config.extra.get("randomization", "table2")))
+        )
         self.num_threads = num_threads
         self.device = torch.device(self.config.device)
         self.env: LocomotionEnv | None = None

@@ -41,7 +41,9 @@ class CommandConfig:
 
     vx_range: tuple[float, float] = (-0.5, 1.25)  # m/s, paper section 4
     vy_range: tuple[float, float] = (0.0, 0.0)  # m/s
-    yaw_range: tuple[float, float] = (0.0, 0.0)  # rad/s
+    # rad/s; the paper's policies follow yaw-rate commands. Checkpoints store their own range
+    # (flat.pt and flat-mixed.pt were trained with (0, 0): they hold the heading)
+    yaw_range: tuple[float, float] = (-1.0, 1.0)
     zero_share: float = 0.05  # share of commands set exactly to zero
     zero_threshold: float = 0.1  # a planar command slower than this becomes zero (m/s)
     resample_seconds: float = 10.0  # redraw mid-episode every so often; 0 = once per episode

@@ -86,7 +86,7 @@ def test_design_input_is_normalised_to_the_design_space(fake_robot, fake_sim_fac
 
 def test_commands_have_zeros_threshold_and_a_widening_curriculum() -> None:
     gen = torch.Generator().manual_seed(0)
-    sampler = CommandSampler(CommandConfig(zero_share=0.1, zero_threshold=0.1), "cpu", gen)
+    sampler = CommandSampler(CommandConfig(zero_share=0.1, zero_threshold=0.1, yaw_range=(0.0, 0.0)), "cpu", gen)
     cmd = sampler.sample(20_000)
     assert float(cmd[:, 0].max()) <= 0.3 + 1e-6 and float(cmd[:, 0].min()) >= -0.3 - 1e-6
     assert float(cmd[:, 1:].abs().max()) == 0.0
@@ -168,3 +168,33 @@ def test_curriculum_widens_only_on_a_full_window_of_well_tracked_upright_episode
     assert sampler.limit == pytest.approx(0.4)
     # one fall in 80 s of 20 s episodes (a quarter of the episodes fell) no longer blocks it
     assert sampler.record_episodes(4, 1, 190.0, 200.0, 80.0) and sampler.limit == pytest.approx(0.5)
+
+
+def test_default_commands_cover_the_papers_range_and_yaw_rates_once_the_curriculum_is_wide() -> None:
+    """Issue 17: training draws vx over [-0.5, 1.25] m/s and yaw rates over [-1, 1] rad/s (the
+    yaw range was (0, 0), so no policy ever saw a turn command)."""
+    sampler = CommandSampler(CommandConfig(zero_share=0.0), "cpu", torch.Generator().manual_seed(1))
+    assert sampler.ranges()[2] == (-0.3, 0.3)  # the curriculum's first box limits yaw too
+    while sampler.update_curriculum(1.0):
+        pass
+    assert sampler.ranges() == [(-0.5, 1.25), (0.0, 0.0), (-1.0, 1.0)]
+    cmd = sampler.sample(20_000)
+    assert -0.5 <= float(cmd[:, 0].min()) < -0.49 and 1.24 < float(cmd[:, 0].max()) <= 1.25
+    assert -1.0 <= float(cmd[:, 2].min()) < -0.99 and 0.99 < float(cmd[:, 2].max()) <= 1.0
+    turning = cmd[:, 2].abs() >= 0.1
+    assert 0.88 < float(turning.float().mean()) < 0.92  # |yaw| < 0.1 of U(-1, 1) becomes 0
+    # vx and yaw are drawn independently: turns happen at every speed, standing turns too
+    assert float(((cmd[:, 0] == 0) & turning).float().mean()) > 0.04
+
+
+def test_a_turn_in_place_command_runs_the_gait_clock_and_pays_for_yaw_tracking(fake_robot, fake_sim_factory) -> None:
+    env = LocomotionEnv(fake_sim_factory(2), fake_robot, quiet_task())
+    env.reset()
+    env.set_commands(torch.tensor([0.0, 0.0, 0.5]))
+    phase = env.phase.clone()
+    res = env.step(torch.zeros(2, 8))
+    assert torch.allclose(env.phase, phase + 0.02 * 1.5)  # a yaw command alone is a moving command
+    _, stance = env.raibert_joint_targets(env.command, torch.zeros(2, 3))
+    assert not bool(stance.all())  # one foot swings
+    # the observation carries the yaw command (slice 9:12) and the yaw rate (3:6)
+    assert torch.allclose(res.obs[:, 11], torch.full((2,), 0.5))

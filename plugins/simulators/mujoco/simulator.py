@@ -169,7 +169,7 @@ class MujocoSimulator(Simulator):
 
         # per-environment model fields: those the designs differ in, plus randomization's
         self._expanded: dict[str, np.ndarray] = {}
-        for name in ("geom_friction", "geom_solref", "body_ipos", "body_pos"):
+        for name in ("geom_friction", "geom_solref", "body_ipos", "body_pos", "dof_damping", "dof_armature"):
             self._expanded[name] = b.expand(name)
         self._design_fields: set[str] = set()
         self._field_diff_cache: dict[int, tuple[CompiledDesign, list[str]]] = {}
@@ -186,6 +186,8 @@ class MujocoSimulator(Simulator):
         self._base_ipos = np.zeros((n, 3))  # [N, 3] the design's base CoM, before the shift
         self._geom_friction = np.zeros((n, ref.model.ngeom, 3))
         self._geom_solref = np.zeros((n, ref.model.ngeom, 2))
+        self._dof_damping = np.zeros((n, ref.model.nv))  # [N, nv] the design's own, before randomization
+        self._dof_armature = np.zeros((n, ref.model.nv))
         self._base_pos0 = np.zeros((n, 3))
         self._write_designs(self._row, compiled)
 
@@ -302,6 +304,8 @@ class MujocoSimulator(Simulator):
             self._base_ipos[ids] = m.body_ipos[item.base_body_id]
             self._geom_friction[ids] = m.geom_friction
             self._geom_solref[ids] = m.geom_solref
+            self._dof_damping[ids] = m.dof_damping
+            self._dof_armature[ids] = m.dof_armature
             self._base_pos0[ids] = m.body_pos[item.base_body_id]
 
     # -- sizes and facts -----------------------------------------------------------------
@@ -386,7 +390,19 @@ class MujocoSimulator(Simulator):
         self._expanded["geom_friction"][ids] = friction
         solref = self._geom_solref[ids].copy()
         solref[..., 1] = restitution_to_dampratio(params.restitution)[:, None]
+        # engine robustness (RandomizationConfig.contact_timeconst, joint_damping, armature):
+        # contact softness, extra damping and armature of the robot's joints; a contact time
+        # constant left at its nominal point keeps the model's own
+        if self._timeconst_randomized():
+            solref[..., 0] = params.contact_timeconst[:, None]
         self._expanded["geom_solref"][ids] = solref
+        dofs = self._dq_index
+        damping = self._dof_damping[ids].copy()
+        damping[:, dofs] += params.joint_damping[:, None]
+        self._expanded["dof_damping"][ids] = damping
+        armature = self._dof_armature[ids].copy()
+        armature[:, dofs] *= params.armature[:, None]
+        self._expanded["dof_armature"][ids] = armature
         base = self._ref.base_body_id
         ipos = self._expanded["body_ipos"]
         ipos[ids, base] = self._base_ipos[ids] + params.com_shift
@@ -425,6 +441,11 @@ class MujocoSimulator(Simulator):
         self._expected_time[ids] = RESET_CLOCK
         self._warnings_seen[ids] = self._warnings[ids][:, _BAD_STATE_WARNINGS, 1]
         self._torque[ids] = 0.0
+
+    def _timeconst_randomized(self) -> bool:
+        lo, hi = self.randomization.contact_timeconst
+        nominal = RandomizationConfig.NOMINAL["contact_timeconst"]
+        return self.randomization.enabled and not (lo == hi == nominal)
 
     def set_designs(self, env_ids: torch.Tensor | np.ndarray, designs: np.ndarray) -> None:
         ids = self._ids(env_ids)
