@@ -111,5 +111,16 @@ def run_request(run: dict[str, Any], *, simulator: str | None = None, checkpoint
         agents_per_design=agents,
         device=str(cfg.get("device", "cpu")),
         seed=int(run.get("seed") or 0),
-        mixed=bool(cfg.get("mixed", False)) or str(run.get("optimizer")) == "mixed-pso",
+        mixed=bool(cfg.get("mixed", False)) or _implies_mixed(run.get("optimizer")),
     )
+
+
+def _implies_mixed(optimizer: Any) -> bool:
+    """The run's optimizer declares that choosing it means the mixed design space."""
+    from coadapt_core.errors import UserError
+    from coadapt_core.plugins import get_registry
+
+    try:
+        return bool(getattr(get_registry().get("optimizer", str(optimizer)), "implies_mixed", False))
+    except UserError:
+        return False
