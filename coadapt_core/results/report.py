@@ -425,7 +425,7 @@ def table6_markdown(rows: Sequence[dict[str, Any]]) -> str:
         cells = [OBJECTIVE_LABELS.get(r["objective"], r["objective"]), METHOD_LABELS.get(r["method"], r["method"]),
                  r["optimizer"], r["terrain"], str(r["runs"])]
         cells += [_design_cell(r, n, d) if f"{n}_n" in r else "" for n, _, d in design]
-        cells += [_cell(r, "best_cost", spec=".4g"), _cell(r, "nominal_cost", spec=".4g"),
+        cells += [_cell(r, "best_cost", spec=".5g"), _cell(r, "nominal_cost", spec=".5g"),
                   _cell(r, "improvement", pct=True) + _unreliable_mark(r),
                   _cell(r, "sim2sim_improvement", pct=True), r["sim2sim_note"] or ""]
         lines.append("| " + " | ".join(cells) + " |")
@@ -523,6 +523,15 @@ def _panels(plt: Any, n: int, height: float = PANEL_H) -> tuple[Any, Any]:
     for ax in axes.ravel()[n:]:
         ax.axis("off")
     return fig, axes.ravel()[:n]
+
+
+def _tidy(ax: Any) -> None:
+    """At most five ticks on a linear axis: cost labels like 12000 would run into each other."""
+    from matplotlib.ticker import MaxNLocator
+
+    for axis, scale in ((ax.xaxis, ax.get_xscale()), (ax.yaxis, ax.get_yscale())):
+        if scale == "linear":
+            axis.set_major_locator(MaxNLocator(5))
 
 
 def _space_slug(names: Sequence[str]) -> str:
@@ -692,6 +701,7 @@ def figure_convergence(store: ResultsStore, facts: Sequence[RunFacts], out: Path
         if _spans_decades([y for _, ys in series.values() for y in ys]):
             ax.set_yscale("log")
         ax.set_title(f"{o} on {t}", fontsize=10)
+        _tidy(ax)
     # one legend for the whole figure, in the tables' order: the same in every panel
     handles = [Line2D([], [], color=METHOD_COLORS.get(m, "black"), linestyle=OPTIMIZER_LINESTYLES.get(opt, "-"),
                       marker=METHOD_MARKERS.get(m, "x"), markerfacecolor=METHOD_COLORS.get(m, "black")
@@ -746,6 +756,7 @@ def figure_surrogate_error(facts: Sequence[RunFacts], out: Path) -> list[tuple[P
         ax.set_xlabel(f"real {key[0]} cost")
         ax.set_ylabel("(surrogate − real) / |real|  [%]")
         ax.legend(fontsize=7)
+        _tidy(ax)
     fig.tight_layout()
     path = out / "surrogate_error.png"
     fig.savefig(path, dpi=DPI)
@@ -801,6 +812,7 @@ def figure_pareto(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]
             ax.set_yscale("log")
         ax.set_title(f"{f.run['id']}\n{f.optimizer} on {f.terrain}", fontsize=8)
         ax.legend(fontsize=7)
+        _tidy(ax)
         sources.add(d["source"])
     fig.tight_layout()
     path = out / "pareto.png"
@@ -897,8 +909,8 @@ def write_report(
     t6_html = []
     for r in t6:
         row = {"objective": r["objective"], "method": METHOD_LABELS.get(r["method"], r["method"]), "optimizer": r["optimizer"],
-               "terrain": r["terrain"], "runs": r["runs"], "best_cost": _cell(r, "best_cost", spec=".4g"),
-               "nominal_cost": _cell(r, "nominal_cost", spec=".4g"), "improvement": _cell(r, "improvement", pct=True) + _unreliable_mark(r),
+               "terrain": r["terrain"], "runs": r["runs"], "best_cost": _cell(r, "best_cost", spec=".5g"),
+               "nominal_cost": _cell(r, "nominal_cost", spec=".5g"), "improvement": _cell(r, "improvement", pct=True) + _unreliable_mark(r),
                "sim2sim": _cell(r, "sim2sim_improvement", pct=True), "sim2sim_note": r["sim2sim_note"]}
         row.update({f"d:{n}": _design_cell(r, n, d) if f"{n}_n" in r else "" for n, _, d in design})
         t6_html.append(row)
@@ -912,18 +924,18 @@ def write_report(
         "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em}"
         "table{border-collapse:collapse;margin:1em 0;font-size:90%}"
         "td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#eee}"
-        "img{max-width:100%;height:auto}figure{margin:1.5em 0}figcaption{color:#444;font-size:90%;max-width:60em}"
+        ".scroll{overflow-x:auto}img{max-width:100%;height:auto}figure{margin:1.5em 0}figcaption{color:#444;font-size:90%;max-width:60em}"
         "</style></head><body>",
         f"<h1>coadapt report — {html.escape(title)}</h1>",
         f"<p>Store: <code>{html.escape(store.url)}</code>; {len(runs)} runs. Each number is the mean ± sample standard "
         "deviation over the runs (seeds) of its row, with how many runs had it (n); one row per method and optimizer. "
         "A single run shows its own standard error (SE) when it recorded one.</p>",
         "<h2>Table 6 — optimization results</h2>",
-        _html_table(t6_html, [("objective", "objective"), ("method", "method"), ("optimizer", "optimizer"),
+        "<div class='scroll'>" + _html_table(t6_html, [("objective", "objective"), ("method", "method"), ("optimizer", "optimizer"),
                               ("terrain", "terrain"), ("runs", "runs")]
                     + [(f"d:{n}", _design_header(n, u)) for n, u, _ in design]
                     + [("best_cost", "best cost"), ("nominal_cost", "nominal cost"), ("improvement", "improvement"),
-                       ("sim2sim", "sim-to-sim improvement"), ("sim2sim_note", "sim-to-sim note")]),
+                       ("sim2sim", "sim-to-sim improvement"), ("sim2sim_note", "sim-to-sim note")]) + "</div>",
         "<h2>Table 7 — computational cost</h2>",
         _html_table(t7_html, [("method", "method"), ("optimizer", "optimizer"), ("runs", "runs"),
                               ("inter_t", f"interactions training ({iname})"), ("inter_e", f"interactions evaluation ({iname})"),
