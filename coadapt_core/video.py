@@ -60,7 +60,8 @@ def render_run_video(
             trajectory = result["_trajectory"]
             model = robot.build(robot.check_design(design) if hasattr(robot, "check_design") else design)
             panels.append({"mjcf": model.mjcf, "joint_names": model.joint_names, "frames": trajectory["frames"][::2],
-                           "label": f"{label} " + ", ".join(f"{x:.2f}" for x in design) + f"  vx {result['vx_mean']:.2f} m/s"})
+                           "label": f"{label} " + ", ".join(f"{x:.0f}" if float(x).is_integer() else f"{x:.2f}" for x in design)
+                           + f"  vx {result['vx_mean']:.2f} m/s"})
         fps = 1.0 / (2 * trajectory["dt"])
     except Exception as exc:  # the run's result stands; the picture is a bonus
         print(f"video: not rendered ({type(exc).__name__}: {' '.join(str(exc).split())[:160]})", file=stream)
@@ -134,7 +135,8 @@ def render_panels(panels: list[dict], outputs: list[str], width: int, height: in
                 camera.lookat[:] = [frame["pos"][0], frame["pos"][1], look_z]
                 renderer.update_scene(data, camera=camera)
                 image = Image.fromarray(np.array(renderer.render()))
-                ImageDraw.Draw(image).text((6, 6), panel["label"], fill=(0, 0, 0))
+                ImageDraw.Draw(image).text((6, 6), panel["label"], fill=(255, 255, 255), stroke_width=1,
+                                           stroke_fill=(0, 0, 0))  # readable on the dark sky and the floor
                 images.append(np.array(image))
         rendered.append(images)
     n = max(len(images) for images in rendered)
