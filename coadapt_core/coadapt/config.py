@@ -291,7 +291,32 @@ def make_config(
                 value = {**values.get(key, {}), **value}
             values[key] = value
     values["preset"] = preset
-    return CoadaptConfig(**values).validate()
+    return _typed_options(CoadaptConfig(**values).validate())
+
+
+def _typed_options(config: CoadaptConfig) -> CoadaptConfig:
+    """Plugin option values as the plugins declare them (command-line text '0.5' -> 0.5), so
+    a config means one thing however its options were written (config.yaml, grid hashes).
+    A bad value is the one-line user error the run would give; unknown plugins or
+    undeclared keys are left for the run's own checks to report."""
+    try:
+        from coadapt_core.plugins import get_registry
+
+        registry = get_registry()
+        optimizer = registry.get("optimizer", config.optimizer)
+        objectives = [registry.get("objective", n) for n in config.objectives]
+    except Exception:
+        return config
+    sources = [("optimizer_options", [optimizer], "optimizer"), ("objective_options", objectives, "objective")]
+    for field_name, classes, kind in sources:
+        given = dict(getattr(config, field_name))
+        for key, value in given.items():
+            owner = next((c for c in classes if any(s.name == key for s in getattr(c, "option_specs", ()))), None)
+            if owner is not None:
+                spec = next(s for s in owner.option_specs if s.name == key)
+                given[key] = spec.convert(value, f"{kind} '{owner.name}'", field_name)
+        setattr(config, field_name, given)
+    return config
 
 
 def config_from_dict(data: dict[str, Any]) -> CoadaptConfig:

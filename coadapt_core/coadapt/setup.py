@@ -91,8 +91,10 @@ def build_parts(
     switches = METHOD_SWITCHES[config.method]
     if optimizer_cls is None:
         optimizer_cls = registry.get("optimizer", switches.optimizer or config.optimizer)
-    # checked now, before any training; recorded typed, with the defaults in force
-    config.optimizer_options = check_optimizer_options(config, optimizer_cls)
+    # checked now, before any training; recorded typed (only the options given: the
+    # plugin's defaults stay the plugin's)
+    resolved = check_optimizer_options(config, optimizer_cls)
+    config.optimizer_options = {k: resolved[k] for k in config.optimizer_options}
     if objectives is None:
         objectives = make_objectives(config)
         given = set(config.objective_options)  # recorded typed, as the objectives converted them

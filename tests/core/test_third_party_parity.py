@@ -181,3 +181,15 @@ def test_report_rows_mark_runs_below_the_walking_gate(tmp_path):
     assert int(row["unreliable_runs"]) == 1 and "survival 0.40" in row["reliability"]
     assert "UNRELIABLE (1 of 2 runs: the policy does not walk)" in files["table6.md"].read_text()
     assert "UNRELIABLE (1 of 2 runs" in files["report.html"].read_text()
+
+
+def test_option_text_from_the_cli_is_typed_in_the_config():
+    """'--optimizer-option inertia=0.5' and YAML 'inertia: 0.5' make the same config (and
+    the same grid config hash); a legacy key is an alias."""
+    from coadapt_core.coadapt.config import make_config
+    from coadapt_core.results.grid import config_hash
+
+    cli = make_config("smoke", None, {"optimizer_options": {"inertia": "0.5"}})
+    legacy = make_config("smoke", None, {"inertia": 0.5})
+    assert cli.optimizer_options == legacy.optimizer_options == {"inertia": 0.5}
+    assert config_hash(cli.to_dict()) == config_hash(legacy.to_dict())
