@@ -54,6 +54,34 @@ def _check_device(device: str) -> None:
         fail("--device cuda requested but torch sees no CUDA device; use --device cpu")
 
 
+class _Interrupted(Exception):
+    """Ctrl-C was pressed: `coadapt train` stops after the iteration under way."""
+
+
+def _catch_ctrl_c() -> dict:
+    """The first Ctrl-C (SIGINT) only asks `train` to stop at the end of the iteration under
+    way and write a checkpoint; a second one interrupts at once. Returns the flag holder and
+    a `restore` callable putting the previous handler back."""
+    import signal
+    import threading
+
+    state: dict[str, Any] = {"requested": False, "restore": lambda: None}
+    if threading.current_thread() is not threading.main_thread():
+        return state
+    previous = signal.getsignal(signal.SIGINT)
+
+    def handler(signum, frame) -> None:
+        if state["requested"]:
+            raise KeyboardInterrupt
+        state["requested"] = True
+        print("\nCtrl-C: stopping after this iteration and writing a checkpoint (Ctrl-C again: stop now, "
+              "without one)", file=sys.stderr, flush=True)
+
+    signal.signal(signal.SIGINT, handler)
+    state["restore"] = lambda: signal.signal(signal.SIGINT, previous)
+    return state
+
+
 def register(app: typer.Typer) -> None:
     @app.command("train")
     def train_command(
@@ -220,7 +248,10 @@ def register(app: typer.Typer) -> None:
                 trainer.save(out / "checkpoints" / f"model_{stats.iteration}.pt")
             if quiet:
                 print(json.dumps(row), flush=True)
+            if interrupt["requested"]:  # Ctrl-C during this iteration: stop at its end
+                raise _Interrupted
 
+        interrupt = _catch_ctrl_c()
         with tracking.active(tracker), ProgressLine("train", iterations, unit=" it", enabled=not quiet) as bar:
 
             def show(stats) -> None:
@@ -230,8 +261,20 @@ def register(app: typer.Typer) -> None:
                            f"err {stats.tracking_error:.3f} m/s  ep {stats.episode_length_s:.1f} s")
 
             first_iteration = trainer.iteration
-            if iterations > 0:
-                trainer.learn(iterations, show)
+            try:
+                if iterations > 0:
+                    trainer.learn(iterations, show)
+            except _Interrupted:
+                path = trainer.save(out / "checkpoints" / f"model_{trainer.iteration}.pt")
+                interrupt["restore"]()
+                tracker.close()
+                progress_file.close()
+                trainer.close()
+                print(f"interrupted: wrote {path} after iteration {trainer.iteration}; continue with "
+                      f"coadapt train --resume {path} --out {out}", file=sys.stderr)
+                raise typer.Exit(130) from None
+            finally:
+                interrupt["restore"]()
         tracker.close()
         progress_file.close()
         final = trainer.save(out / "model_final.pt")
@@ -391,15 +434,19 @@ def evaluate_checkpoint(
         })
 
     done = [0]
+    divergences = [0]  # agent-steps whose physics blew up (the simulator reset those agents)
 
     def on_step(e: LocomotionEnv) -> None:
+        diverged = getattr(e.state, "diverged", None)
+        if diverged is not None:
+            divergences[0] += int(torch.as_tensor(diverged).sum())
         if record:
             capture(e)
         done[0] += 1
         if progress is not None:
             progress(done[0], f"{agents} agents on one design, {seconds:g} s simulated", total=steps)
 
-    result = rollout(trainer.ppo, env, 1, steps, seed=seed, on_step=on_step if record or progress is not None else None)
+    result = rollout(trainer.ppo, env, 1, steps, seed=seed, on_step=on_step)
     sim.close()
     out: dict[str, Any] = {
         "robot": robot_obj.name,
@@ -417,6 +464,7 @@ def evaluate_checkpoint(
         "torque_cost_se": _mean_se(result.per_agent[0, :, 2]),
         "fall_rate": float(1.0 - result.survival[0]),
         "steps": int(result.steps),
+        "divergences": int(divergences[0]),
         "dt": float(env.dt),
     }
     if record:

@@ -703,8 +703,15 @@ def run_coadaptation(
     recorder = recorder or make_recorder(run_path, config.store or None)
     recorder.start_run({**config.to_dict(), "run_id": state.run_id, "run_dir": str(run_path),
                         "design_space": parts.full_space.to_dict()})
+    if resume is not None:
+        # a store that lost this run's rows (emptied, replaced, an old copy) gets them back
+        # from the run folder's JSON lines before anything new is recorded
+        refill = getattr(recorder, "refill_from_run_folder", None)
+        if refill is not None:
+            refill(state.run_id, run_path)
     if state.phase == "done":
         assert state.summary is not None
+        recorder.finish(state.run_id, state.summary, "finished")  # resuming a finished run leaves it finished
         return CoadaptResult(state.run_id, run_path, state.summary)
     from coadapt_core import tracking
 

@@ -33,9 +33,10 @@ def _jsonable(value: Any) -> Any:
 
 
 def write_json_atomic(path: Path, data: Any) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(_jsonable(data), indent=2))
-    os.replace(tmp, path)
+    """Through a temporary file and a rename; on a full disk, one line and no partial file."""
+    from coadapt_core.statefile import write_atomic
+
+    write_atomic(path, json.dumps(_jsonable(data), indent=2).encode("utf-8"))
 
 
 class JsonRecorder:
@@ -56,9 +57,9 @@ class JsonRecorder:
         self.run_dir.mkdir(parents=True, exist_ok=True)
         config_path = self.run_dir / "config.yaml"
         if not config_path.exists():  # a resumed run keeps the config it started with
-            tmp = config_path.with_suffix(".yaml.tmp")
-            tmp.write_text(yaml.safe_dump(_jsonable(dict(config)), sort_keys=False))
-            os.replace(tmp, config_path)
+            from coadapt_core.statefile import write_atomic
+
+            write_atomic(config_path, yaml.safe_dump(_jsonable(dict(config)), sort_keys=False).encode("utf-8"))
         return self.run_dir.name
 
     def record_evaluation(
@@ -105,7 +106,15 @@ def read_jsonl(path: str | os.PathLike) -> list[dict[str, Any]]:
     path = Path(path)
     if not path.exists():
         return []
-    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    records = []
+    for line in path.read_text().splitlines():
+        if not line.strip():
+            continue
+        try:
+            records.append(json.loads(line))
+        except json.JSONDecodeError:  # a line torn by a kill or a full disk: that record is redone
+            continue
+    return records
 
 
 def read_evaluations(run_dir: str | os.PathLike) -> list[dict[str, Any]]:

@@ -315,9 +315,7 @@ class Trainer:
             state["commands"] = commands
         state["design_rng"] = self.rng.bit_generator.state  # sample_designs / design resampling
         # written to a temporary file first: a kill mid-write leaves the previous checkpoint
-        tmp = path.with_name(path.name + ".tmp")
-        torch.save(state, tmp)
-        os.replace(tmp, path)
+        _save_atomic(state, path)
         return path
 
     def export_weights(self, path: str | Path) -> Path:
@@ -340,7 +338,7 @@ class Trainer:
         commands = self.command_state()
         if commands is not None:  # the command box the policy was trained to (real fitness draws from it)
             state["commands"] = commands
-        torch.save(state, path)
+        _save_atomic(state, path)
         return path
 
     def load(self, path: str | Path, *, optimizers: bool = True, widen: bool = False) -> dict:
@@ -461,6 +459,18 @@ def _remap_norm(saved: dict, saved_names: list[str], names: list[str], ppo: PPO)
             out["var"][i] = saved["var"][j]
     out["count"] = saved["count"]
     return out
+
+
+def _save_atomic(state: dict, path: Path) -> None:
+    """torch.save through a temporary file and a rename: a kill or a full disk leaves the
+    previous file and no partial one (the temporary file is removed on any error)."""
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        torch.save(state, tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def read_checkpoint(path: str | Path) -> dict:

@@ -170,6 +170,59 @@ class SqliteRecorder:
         if self.tee is not None:
             self.tee.record_checkpoint(run_id, outer=outer, path=path)
 
+    def refill_from_run_folder(self, run_id: str, run_dir: str | os.PathLike) -> dict[str, int]:
+        """Record again what the run folder holds and the store lost (a store emptied, replaced
+        or restored from an old copy): evaluations missing by (outer, inner, kind, idx),
+        training phases of outer iterations the store has none of, and checkpoints inside the
+        run folder. Called on resume, before the run continues; returns the counts refilled."""
+        import math
+        from pathlib import Path
+
+        from coadapt_core.coadapt.recorders import read_evaluations, read_jsonl
+        from coadapt_core.errors import UserError
+        from coadapt_core.validation import inside
+
+        folder = Path(run_dir)
+        have = {(e.outer, e.inner, e.kind, e.idx) for e in self.store.evaluations(run_id)}
+
+        def number(value: Any) -> float:
+            return math.nan if value is None else float(value)
+
+        rows = [
+            {**r, "costs": {k: number(v) for k, v in (r.get("costs") or {}).items()},
+             "surrogate_error": None if r.get("surrogate_error") is None
+             else {k: number(v) for k, v in r["surrogate_error"].items()}}
+            for r in read_evaluations(folder)
+            if (int(r["outer"]), int(r["inner"]), str(r["kind"]), int(r["idx"])) not in have
+        ]
+        self.store.record_evaluations(run_id, rows)
+        trained = {int(t["outer"]) for t in self.store.training(run_id)}
+        per_outer: dict[int, int] = defaultdict(int)
+        refilled_training = 0
+        for t in read_jsonl(folder / "trainings.jsonl"):
+            outer = int(t["outer"])
+            if outer in trained:
+                continue
+            self.store.record_training(run_id, outer=outer, idx=per_outer[outer], steps=int(t["steps"]),
+                                       seconds=float(t["seconds"]), final_reward=t.get("mean_reward"),
+                                       extra=t.get("extra") or {})
+            per_outer[outer] += 1
+            refilled_training += 1
+        known = {(c["outer"], c["path"]) for c in self.store.checkpoints(run_id)}
+        refilled_checkpoints = 0
+        for c in read_jsonl(folder / "checkpoints.jsonl"):
+            parts = Path(str(c.get("path", ""))).parts[-2:]  # checkpoints/<file>, wherever the folder was
+            try:  # a path read from a file is used only inside the run folder
+                path = str(inside(folder, Path(*parts), field="checkpoint")) if parts else None
+            except UserError:
+                path = None
+            if path is None:
+                continue
+            if (int(c["outer"]), path) not in known:
+                self.store.record_checkpoint(run_id, outer=int(c["outer"]), path=path)
+                refilled_checkpoints += 1
+        return {"evaluations": len(rows), "training_phases": refilled_training, "checkpoints": refilled_checkpoints}
+
     def finish(self, run_id: str, summary: dict[str, Any], status: str = "finished") -> None:
         self.store.finish_run(run_id, summary, status)
         if self.tee is not None:

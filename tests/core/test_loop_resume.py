@@ -22,7 +22,9 @@ class TrainFails(AnalyticBackend):
 
 
 def start(tmp_path, name, factory, **overrides):
-    config = make_config("smoke", overrides={**BASE, **overrides})
+    # a store of this test's own (the default, beside the runs folder, is shared by every test
+    # of the session, and BO studies are named after the run folder)
+    config = make_config("smoke", overrides={**BASE, "store": str(tmp_path / "coadapt.db"), **overrides})
     space, nominal = (MIXED_SPACE, MIXED_NOMINAL) if overrides.get("optimizer") == "mixed-pso" else (SPACE, NOMINAL)
     return run_coadaptation(config, backend_factory=factory, design_space=space, nominal_design=nominal,
                             objectives=[TorqueObjective()], run_dir=tmp_path / name)

@@ -134,13 +134,18 @@ class BOOptimizer(Optimizer):
             from optuna.search_space import IntersectionSearchSpace
 
             # the replayed sampler's random streams (and model caches) go to a fresh sampler;
-            # only its per-study search-space cache stays the fresh one's
-            replayed, sampler = self._study.sampler, self._sampler()
-            for key, value in vars(replayed).items():
-                if not isinstance(value, IntersectionSearchSpace):
-                    setattr(sampler, key, value)
+            # only its per-study search-space cache stays the fresh one's (nothing told yet:
+            # the fresh sampler is where the run was)
+            sampler = self._sampler()
+            if self._study is not None:
+                for key, value in vars(self._study.sampler).items():
+                    if not isinstance(value, IntersectionSearchSpace):
+                        setattr(sampler, key, value)
             self._study = None
             self._make_study(load_if_exists=True, sampler=sampler)
+            if self._initial is not None and not self._study.trials:  # stopped before its first ask
+                for design in self._initial:
+                    self._study.enqueue_trial(self._params(design))
 
 
 @hookimpl
