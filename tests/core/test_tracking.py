@@ -5,6 +5,7 @@ line and exit 2; `--logger none` writes nothing."""
 from __future__ import annotations
 
 import importlib.util
+import re
 
 import pytest
 
@@ -98,3 +99,18 @@ def test_bo_study_is_kept_in_the_run_store_under_the_run_id(tmp_path, fake_learn
     assert run["optimizer"] == "bo" and "-bo-specialized-bo-" in run["id"]
     study = optuna.load_study(study_name=f"{run['id']}-outer0", storage=f"sqlite:///{db}")
     assert len(study.trials) == 3
+
+
+def test_export_names_design_columns_after_the_run_design_space(tmp_path, fake_learner):
+    """A run records its design space, so `coadapt export` names the design columns
+    thigh_scale, shank_scale, hip_motor, knee_motor (not x0, x1, ...)."""
+    import csv
+
+    db = tmp_path / "s.db"
+    assert main(["run", "--optimizer", "mixed-pso", "--preset", "smoke", "--out", str(tmp_path / "runs"),
+                 "--store", str(db), "--json", "--no-video"]) == 0
+    assert main(["export", "--store", str(db), "-o", str(tmp_path / "x")]) == 0
+    with (tmp_path / "x" / "evaluations.csv").open() as fh:
+        header = next(csv.reader(fh))
+    assert {"thigh_scale", "shank_scale", "hip_motor", "knee_motor"} <= set(header)
+    assert not any(re.fullmatch(r"x\d+", h) for h in header)
