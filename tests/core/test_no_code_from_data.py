@@ -221,3 +221,18 @@ def test_grid_never_resumes_a_run_id_that_leaves_the_runs_folder(tmp_path):
         with sqlite3.connect(tmp_path / "g.db") as db:
             db.execute("DELETE FROM runs")
     assert not marker.exists()
+
+
+def test_shipped_policies_load_as_weights_only():
+    """The policies the robot ships are read with weights_only=True (read_checkpoint) and hold
+    tensors and plain values only: a trainer built from one acts exactly as the file says."""
+    from coadapt_core.learning import read_checkpoint
+
+    folder = Path(__file__).resolve().parents[2] / "plugins" / "robots" / "kuafu" / "policies"
+    shipped = sorted(folder.glob("*.pt"))
+    assert len(shipped) >= 2
+    for path in shipped:
+        state = read_checkpoint(path)
+        assert state["robot"] == "kuafu"
+        actor = state["ppo"]["actor"]
+        assert actor and all(isinstance(t, torch.Tensor) and torch.isfinite(t).all() for t in actor.values())
