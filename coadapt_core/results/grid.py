@@ -437,13 +437,25 @@ def check_ray_address(address: str, connect_timeout: float = 10.0) -> None:
     host, _, port = target.rpartition(":")
     if not host or not port.isdigit():
         raise UserError(f"--address '{address}' is not host:port (e.g. 10.0.0.5:6379 or ray://head:10001)", field="address")
-    try:
+    from concurrent.futures import ThreadPoolExecutor
+    from concurrent.futures import TimeoutError as Timeout
+
+    def connect() -> None:
         with socket.create_connection((host, int(port)), timeout=connect_timeout):
             pass
+
+    pool = ThreadPoolExecutor(max_workers=1)  # name resolution has no timeout of its own
+    try:
+        pool.submit(connect).result(timeout=connect_timeout + 1)
+    except Timeout:
+        raise UserError(f"cannot reach a Ray cluster at --address '{address}' (no answer in {connect_timeout:g} s); "
+                        "check the head node's host and port, or use --executor local", field="address") from None
     except OSError as exc:
         reason = exc.strerror or type(exc).__name__
         raise UserError(f"cannot reach a Ray cluster at --address '{address}' ({reason}); check the head node's "
                         "host and port, or use --executor local", field="address") from None
+    finally:
+        pool.shutdown(wait=False)
 
 
 def ray_executor(
