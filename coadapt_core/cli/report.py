@@ -8,7 +8,7 @@ import typer
 
 
 def _quiet_pybullet_import() -> None:
-    """Import pybullet once with the C-level stdout closed: its "pybullet build time" line
+    """Import pybullet once with the C-level output closed: its "pybullet build time" line
     would otherwise land in the middle of the progress line (and once per worker)."""
     import contextlib
     import os
@@ -16,17 +16,20 @@ def _quiet_pybullet_import() -> None:
 
     try:
         sys.stdout.flush()
-        saved = os.dup(1)
-    except (OSError, ValueError):  # no real stdout (captured): nothing to protect
+        sys.stderr.flush()
+        saved = (os.dup(1), os.dup(2))
+    except (OSError, ValueError):  # no real stdout/stderr (captured): nothing to protect
         return
     try:
         with open(os.devnull, "w") as devnull:
             os.dup2(devnull.fileno(), 1)
+            os.dup2(devnull.fileno(), 2)  # the line goes to stderr, where the progress line is
             with contextlib.suppress(ImportError):
                 import pybullet  # noqa: F401
     finally:
-        os.dup2(saved, 1)
-        os.close(saved)
+        for fd, copy in zip((1, 2), saved, strict=True):
+            os.dup2(copy, fd)
+            os.close(copy)
 
 
 def register(app: typer.Typer) -> None:
