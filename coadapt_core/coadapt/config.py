@@ -168,7 +168,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     # meaningful on a 2-core laptop in <= 30 min, starting from the shipped universal policy.
     # Real evaluation 32 paired scenarios x 250 steps per design (8,000 interactions, as many as
     # the 16 x 500 before): the smallest size measured to rank a 5 x 5 grid alike under two
-    # scenario seeds (Spearman >= 0.96 for tracking, power, torque; benchmarks/fitness_noise.py)
+    # scenario seeds (Spearman 0.95-0.97 for tracking, power, torque; benchmarks/fitness_noise.py)
     "quick": dict(
         outer_iterations=3, population=16, optimizer_iterations=5, agents_per_design=16,
         train_steps=200_000, retrain_steps=100_000, eval_agents=32, eval_steps=250, surrogate_samples=4096,
