@@ -214,7 +214,7 @@ def config_hash(config: dict[str, Any]) -> str:
 
 
 def _extra_overrides(extra: Sequence[str]) -> dict[str, Any] | None:
-    """`coadapt run` options given as grid --extra (`--population 3`, `--no-mixed`) as config
+    """`coadapt run` options given as grid --run-arg (`--population 3`, `--no-mixed`) as config
     overrides; None when one of them is not a plain config option (the hash is then unknown)."""
     from coadapt_core.coadapt.config import CoadaptConfig
 
@@ -247,7 +247,7 @@ def _extra_overrides(extra: Sequence[str]) -> dict[str, Any] | None:
 
 def cell_config_hash(cell: Cell, extra: Sequence[str] = ()) -> str | None:
     """The config hash `coadapt run` will record for this cell, or None when it cannot be
-    known here (an --extra option that is not a config field, a config that does not validate)."""
+    known here (an --run-arg option that is not a config field, a config that does not validate)."""
     from coadapt_core.coadapt.config import make_config
 
     overrides = _extra_overrides(extra)
@@ -278,8 +278,8 @@ def run_config_hash(run: dict[str, Any]) -> str | None:
 def finished_run(store: ResultsStore, cell: Cell, spec: GridSpec | None = None) -> dict[str, Any] | None:
     """A finished run that answers this cell: launched for it by this very grid (same grid
     id: the same command line), or any other run whose whole resolved config matches the
-    cell's (`config_hash`: method, objective, terrain, seed, preset values, --extra options).
-    A hand-made run with another population, or a cell of a grid with other --extra
+    cell's (`config_hash`: method, objective, terrain, seed, preset values, --run-arg options).
+    A hand-made run with another population, or a cell of a grid with other --run-arg
     options, is not reused: the cell runs."""
     grid_id = spec.grid_id if spec is not None else None
     expected = cell_config_hash(cell, spec.extra_args if spec is not None else ())
