@@ -35,7 +35,7 @@ MISSING_PYBULLET = "the pybullet simulator needs the pybullet package: pip insta
 IN_PROCESS_MAX_ENVS = 8
 #: random terrain: spawn points stay this far inside the height field's edge (as MuJoCo)
 SPAWN_MARGIN = 3.0
-ARMATURE_MODES = ("joint_space", "link_inertia", "none")
+ARMATURE_MODES = ("foot_link", "joint_space", "link_inertia", "none")
 
 
 class PyBulletMissing(UserError, ImportError):
@@ -70,14 +70,15 @@ class PyBulletSimulator(Simulator):
         num_threads: int | None = None,
         fixed_base: bool = False,
         processes: int | None = None,
-        armature: str = "joint_space",
+        armature: str = "foot_link",
     ):
         """`processes`: worker processes (0 = in this process; None = in-process up to
         IN_PROCESS_MAX_ENVS environments, else one per CPU core or `num_threads`).
-        `armature`: how MJCF joint armature is carried over: "joint_space" (taken off the
-        motor torque as A ddq, ddq predicted from Bullet's joint-space mass matrix),
-        "link_inertia" (added to the child link's inertia) or "none"; see
-        docs/sim-to-sim.md."""
+        `armature`: how MJCF joint armature is carried over: "foot_link" (the feet joints'
+        in the foot links' inertia, the rest as "joint_space", the coupling corrected),
+        "joint_space" (taken off the motor torque as A ddq, ddq predicted from Bullet's
+        joint-space mass matrix), "link_inertia" (added to the child link's inertia) or
+        "none"; see docs/sim-to-sim.md."""
         require_pybullet()
         super().__init__(
             robot, designs, terrain=terrain, randomization=randomization, physics_dt=physics_dt,
