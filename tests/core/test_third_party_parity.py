@@ -193,3 +193,14 @@ def test_option_text_from_the_cli_is_typed_in_the_config():
     legacy = make_config("smoke", None, {"inertia": 0.5})
     assert cli.optimizer_options == legacy.optimizer_options == {"inertia": 0.5}
     assert config_hash(cli.to_dict()) == config_hash(legacy.to_dict())
+
+
+def test_validation_report_to_dict_is_json_even_with_numpy_values():
+    """`coadapt robot show --json` writes `to_dict()`: numpy bools and floats from a plugin's
+    checks must not crash it (the suite also asks plugins for plain values)."""
+    from coadapt_core.robot import Finding, ValidationReport
+
+    report = ValidationReport(np.array([1.0, 1.0]), [Finding("a", np.bool_(True), "m", np.float32(0.5), np.float64(1.0)),
+                                                     Finding("b", np.bool_(False), "n")])
+    data = json.loads(json.dumps(report.to_dict()))
+    assert data["feasible"] is False and data["findings"][0] == {"check": "a", "ok": True, "message": "m", "value": 0.5, "limit": 1.0}
