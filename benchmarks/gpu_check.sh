@@ -64,7 +64,7 @@ run_throughput default  # TrainConfig's precisions
 
 if [ $(( $(elapsed) + train_seconds + 60 )) -lt "$budget" ]; then
   # far more steps than fit: the time limit ends the run; progress.jsonl holds every iteration
-  timeout --signal=INT "$train_seconds" $python -m coadapt_core train --device "$device" --threads "$threads" \
+  timeout -k 30 --signal=INT "$train_seconds" $python -m coadapt_core train --device "$device" --threads "$threads" \
     --num-designs "$designs" --agents "$agents" --steps 1000000000 --seed 0 --quiet --checkpoint-every 100000 \
     --out "$out/train" >"$out/train.jsonl" 2>"$out/train.err"
   echo "train: exit $? after $(elapsed) s" >>"$out/steps.log"

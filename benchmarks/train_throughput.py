@@ -38,8 +38,8 @@ def main() -> None:
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--threads", type=int, default=None, help="physics threads")
     parser.add_argument("--torch-threads", type=int, default=0, help="torch threads of the update (0: every core)")
-    parser.add_argument("--precision", default=None, choices=["float32", "bf16"], help="numerics of the PPO loss (default: TrainConfig's)")
-    parser.add_argument("--pseudo-precision", default=None, choices=["float32", "bf16"],
+    parser.add_argument("--precision", default=None, choices=["auto", "float32", "bf16"], help="numerics of the PPO loss (default: TrainConfig's)")
+    parser.add_argument("--pseudo-precision", default=None, choices=["auto", "float32", "bf16"],
                         help="numerics of the pseudo-critic regression (default: TrainConfig's)")
     parser.add_argument("--objectives", default="tracking,power,torque", help="pseudo-critics to train ('' for none)")
     args = parser.parse_args()
@@ -107,7 +107,7 @@ def main() -> None:
                     "device": args.device, "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None},
         "setup": {"robot": args.robot, "sim": args.sim, "num_envs": n, "pseudo_critics": len(objectives), "num_designs": args.num_designs,
                   "steps_per_env": args.steps_per_env, "epochs": args.epochs, "minibatches": args.minibatches,
-                  "precision": config.precision, "pseudo_precision": config.pseudo_precision,
+                  "precision": trainer.ppo.precision, "pseudo_precision": trainer.ppo.pseudo_precision,
                   "physics_threads": getattr(sim, "num_threads_used", None), "build_seconds": round(build_seconds, 2)},
         "physics_ceiling_env_steps_per_s": round(physics_ceiling),
         "physics_ceiling_before_after": [round(c) for c in ceilings],

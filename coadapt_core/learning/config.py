@@ -7,7 +7,24 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
+import torch
+
 from coadapt_core.errors import UserError
+
+PRECISIONS = ("auto", "float32", "bf16")
+
+
+def resolve_precision(precision: str, device: str | torch.device) -> str:
+    """"float32" or "bf16" for a configured precision on `device` ("auto": bf16 where the
+    device computes bfloat16 natively)."""
+    if precision != "auto":
+        return precision
+    device = torch.device(device)
+    if device.type == "cuda":
+        return "bf16" if torch.cuda.is_available() and torch.cuda.is_bf16_supported() else "float32"
+    if device.type == "cpu":
+        return "bf16" if torch.backends.mkldnn.is_available() and torch.ops.mkldnn._is_mkldnn_bf16_supported() else "float32"
+    return "float32"
 
 
 @dataclass
@@ -40,11 +57,15 @@ class TrainConfig:
     # pseudo-critics cost 2.7x the PPO update itself, so fewer epochs buy throughput
     pseudo_epochs: int = 0
     # numerics of the forward passes of the PPO loss (precision) and of the pseudo-critic
-    # regression (pseudo_precision): "float32", or "bf16" (autocast to bfloat16; parameters,
-    # optimizer states and losses stay float32). docs/training.md (Throughput) has the
-    # measurements behind the defaults
-    precision: str = "float32"
-    pseudo_precision: str = "float32"
+    # regression (pseudo_precision): "float32", "bf16" (autocast to bfloat16; parameters,
+    # optimizer states and losses stay float32) or "auto" (bf16 where the device computes it
+    # natively: a CUDA GPU with bf16, a CPU with avx512_bf16/AMX; float32 elsewhere).
+    # docs/training.md (Throughput) has the measurements behind the defaults: with bf16
+    # pseudo-critics the policy's curve is float32's exactly (they never touch the policy) and
+    # their loss stays within 0.5 % of float32's on the same data; with a bf16 PPO loss three
+    # seeds' rewards stayed within the float32 seeds' spread
+    precision: str = "auto"
+    pseudo_precision: str = "auto"
     # -- bookkeeping ------------------------------------------------------------------------
     checkpoint_every: int = 100  # iterations
     device: str = "cpu"
@@ -66,8 +87,8 @@ class TrainConfig:
         if not (0.0 < self.gamma < 1.0) or not (0.0 <= self.lam <= 1.0):
             raise UserError("train.gamma must lie in (0, 1) and train.lam in [0, 1]", field="gamma")
         for name in ("precision", "pseudo_precision"):
-            if getattr(self, name) not in ("float32", "bf16"):
-                raise UserError(f"train.{name} '{getattr(self, name)}' is not one of: float32, bf16", field=name)
+            if getattr(self, name) not in PRECISIONS:
+                raise UserError(f"train.{name} '{getattr(self, name)}' is not one of: {', '.join(PRECISIONS)}", field=name)
         if self.activation not in ("elu", "relu", "tanh"):
             raise UserError(f"train.activation '{self.activation}' is not one of: elu, relu, tanh", field="activation")
         self.hidden = tuple(int(h) for h in self.hidden)

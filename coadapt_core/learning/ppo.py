@@ -24,7 +24,7 @@ import torch
 from tensordict import TensorDict
 from tensordict.nn import TensorDictModule
 
-from coadapt_core.learning.config import TrainConfig
+from coadapt_core.learning.config import TrainConfig, resolve_precision
 from coadapt_core.learning.networks import ActorNet, CriticBank, EmpiricalNormalization, ValueNet
 
 #: per-step metrics are clamped to +-METRIC_LIMIT before the pseudo-critics see them
@@ -119,6 +119,10 @@ class PPO:
         #: pseudo-critics' part of both ("pseudo"); `profile` makes them exact on a GPU
         self.timing = {"returns": 0.0, "update": 0.0, "pseudo": 0.0}
         self.profile = False
+        #: numerics in force ("float32" | "bf16"), `TrainConfig.precision` / `pseudo_precision`
+        #: resolved for this device
+        self.precision = resolve_precision(c.precision, self.device)
+        self.pseudo_precision = resolve_precision(c.pseudo_precision, self.device)
 
     # -- acting -----------------------------------------------------------------------------
     @torch.no_grad()
@@ -242,7 +246,7 @@ class PPO:
             order = torch.randperm(n, device=self.device)
             for start in range(0, n - size + 1, size):
                 batch = flat[order[start : start + size]]
-                with self._autocast(c.precision):
+                with self._autocast(self.precision):
                     out = self.loss(batch)
                 loss = out["loss_objective"] + out["loss_critic"] + out["loss_entropy"]
                 pseudo = self.pseudo_critic is not None and epoch < pseudo_epochs
@@ -250,7 +254,7 @@ class PPO:
                 if pseudo:
                     tick = self._clock()
                     # the pseudo-critics see data only: no path from their loss to the actor
-                    with self._autocast(c.pseudo_precision):
+                    with self._autocast(self.pseudo_precision):
                         pred = self.pseudo_critic(batch["critic_obs"], batch["design_obs"])
                     loss_pseudo = torch.nn.functional.mse_loss(pred.float(), batch["pseudo_target"])
                     flags.append(torch.isfinite(loss_pseudo).float())

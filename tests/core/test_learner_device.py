@@ -88,3 +88,15 @@ def test_bf16_and_profiled_update_run_on_the_cpu(fake_robot, sim_cls) -> None:
     assert all(p.dtype == torch.float32 for p in trainer.ppo.pseudo_critic.parameters())  # autocast, not a cast
     timing = trainer.ppo.timing
     assert 0 < timing["pseudo"] < timing["returns"] + timing["update"]
+
+
+def test_auto_precision_is_bf16_only_where_the_device_has_it() -> None:
+    from coadapt_core.errors import UserError
+    from coadapt_core.learning.config import resolve_precision
+
+    native = torch.backends.mkldnn.is_available() and torch.ops.mkldnn._is_mkldnn_bf16_supported()
+    assert resolve_precision("auto", "cpu") == ("bf16" if native else "float32")
+    assert resolve_precision("float32", "cpu") == "float32" and resolve_precision("bf16", "cpu") == "bf16"
+    assert TrainConfig().precision == TrainConfig().pseudo_precision == "auto"
+    with pytest.raises(UserError, match="pseudo_precision"):
+        TrainConfig(pseudo_precision="fp8")
