@@ -129,3 +129,25 @@ def no_uncertainty(names: Sequence[str]) -> dict[str, Any]:
             "nominal_costs_se": dict(empty), "improvement_se": None, "improvements_se": dict(empty),
             "significant": None, "best_fall_rate": None, "nominal_fall_rate": None, "final_scenarios": 0,
             "final_blocks": 0}
+
+
+def batch_errors(fit: RealFitness) -> dict[str, Any]:
+    """What a real optimisation round records beside its costs (the run summary's `batches`):
+    the standard error of its best design's cost and its fall rate (first objective), the
+    median relative standard error and the mean fall rate over its designs. Empty when the
+    backend gives no per-scenario costs."""
+    if getattr(fit, "cost_se", None) is None:
+        return {}
+    costs = np.asarray(fit.costs, dtype=float).reshape(len(fit.cost_se), -1)
+    se = np.asarray(fit.cost_se, dtype=float).reshape(costs.shape)
+    best = int(np.nanargmin(costs[:, 0])) if np.isfinite(costs[:, 0]).any() else 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = se[:, 0] / np.abs(costs[:, 0])
+    rel = rel[np.isfinite(rel)]
+    falls = None if fit.fall_rate is None else np.asarray(fit.fall_rate, dtype=float)
+    return {
+        "best_cost_se": float(se[best, 0]),
+        "median_relative_se": float(np.median(rel)) if rel.size else None,
+        "best_fall_rate": None if falls is None else float(falls[best]),
+        "fall_rate": None if falls is None else float(falls.mean()),
+    }

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from coadapt_core.coadapt.config import CoadaptConfig, config_from_dict
-from coadapt_core.coadapt.final_check import final_check, no_uncertainty
+from coadapt_core.coadapt.final_check import batch_errors, final_check, no_uncertainty
 from coadapt_core.coadapt.recorders import make_recorder
 from coadapt_core.coadapt.reliability import assess, walking
 from coadapt_core.design_space import DesignSpace
@@ -256,6 +256,7 @@ class CoadaptationLoop:
         self.backend: CoadaptationBackend | None = None
         self._last_survival: float | None = None  # mean survival of the last real batch
         self._last_tracking: float | None = None  # mean tracking ratio of the last real batch
+        self._last_errors: dict[str, Any] = {}  # error bars and fall rate of the last real batch
         p = self.switches.surrogate_probability
         self.w = config.evaluation_probability if p is None else p
         if state.optimizer is None and state.optimizer_init is not None:  # resumed: rebuild from data
@@ -457,6 +458,7 @@ class CoadaptationLoop:
             if fit.survival is not None:
                 self._last_survival = float(np.mean(fit.survival))
             self._last_tracking = walking(fit)["tracking_ratio"]
+            self._last_errors = batch_errors(fit)
             return costs, int(fit.interactions), float(fit.seconds), errors
         t0 = time.perf_counter()
         predicted = backend.surrogate_fitness(designs, self.objectives, s.buffer, samples=c.surrogate_samples, seed=seed)
@@ -539,8 +541,10 @@ class CoadaptationLoop:
             "surrogate_abs_error": float(np.abs(errors[error_finite, 0]).mean()) if errors is not None and error_finite.any() else None,
             "survival": self._last_survival,
             "tracking_ratio": self._last_tracking,
+            **self._last_errors,  # real rounds: best design's cost SE, median relative SE, fall rate
         })
         self._last_survival = self._last_tracking = None
+        self._last_errors = {}
 
     def end_outer(self) -> None:
         """Algorithm 4 line 22: the next range, around the final particles."""

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import torch
 
-from coadapt_core.coadapt.final_check import final_check
+from coadapt_core.coadapt.final_check import batch_errors, final_check
 from coadapt_core.fitness import (
     TRIM_SHARE,
     RealFitness,
@@ -48,7 +48,8 @@ def test_stratified_commands_are_a_fixed_vx_grid_and_a_latin_hypercube():
 
 
 def test_stratified_commands_keep_the_zero_rules():
-    cfg = CommandConfig(curriculum=False)  # vx in [-0.5, 1.25], zero_share 0.05, threshold 0.1
+    cfg = CommandConfig(vx_range=(-0.5, 1.25), vy_range=(0.0, 0.0), yaw_range=(0.0, 0.0), zero_share=0.05,
+                        zero_threshold=0.1, curriculum=False)
     cmd = CommandSampler(cfg, "cpu", torch.Generator()).stratified(40).numpy()
     standing = np.abs(cmd).sum(axis=1) == 0
     # the strata with |vx| < 0.1 stand (the threshold), and round(0.05 * 40) = 2 more, the slowest
@@ -138,6 +139,17 @@ def test_final_check_without_per_scenario_costs_evaluates_once():
 
     check = final_check(plain, np.array([[0.5, 0.5], [1.0, 1.0]]), [Cost()], max_blocks=5)
     assert check.blocks == 1 and check.significant is None and check.uncertainty(["cost"])["improvement_se"] is None
+
+
+def test_a_real_round_records_its_error_bars_and_fall_rate():
+    fitness, _ = _synthetic(0.3)
+    fit = fitness(np.array([[0.5, 0.5], [1.0, 1.0]]), 1)
+    fit.fall_rate = np.array([0.25, 0.0])
+    errors = batch_errors(fit)
+    assert errors["best_cost_se"] == pytest.approx(fit.cost_se[0, 0]) and errors["best_cost_se"] > 0
+    assert errors["best_fall_rate"] == 0.25 and errors["fall_rate"] == 0.125
+    assert 0 < errors["median_relative_se"] < 1
+    assert batch_errors(RealFitness(costs=np.ones((2, 1)), buffer=None, interactions=2, seconds=0.0)) == {}
 
 
 # -- real MuJoCo, the shipped policy ---------------------------------------------------------
