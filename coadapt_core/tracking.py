@@ -138,6 +138,13 @@ def active(logger: ExperimentLogger | None) -> Iterator[ExperimentLogger | None]
         _active.remove(logger)
 
 
+def log_values(prefix: str, values: Mapping[str, Any], step: int) -> None:
+    """`prefix/<name>` scalars at `step` to every active logger (the loop's surrogate
+    quality per real round: `surrogate_quality/<objective>_<figure>`)."""
+    for logger in _active:
+        logger.log_scalars(prefix, values, step)
+
+
 def on_training_iteration(stats: Any, samples: int) -> None:
     """Called by the trainer after each PPO iteration: `train/<stat>` at the interactions
     trained so far in this command (phases of a co-adaptation run follow one another)."""
@@ -149,7 +156,7 @@ def on_training_iteration(stats: Any, samples: int) -> None:
         logger.log_scalars("train", {k: v for k, v in values.items() if k not in ("iteration",)}, logger.train_step)
 
 
-__all__ = ["LOGGERS", "ExperimentLogger", "active", "check_logger", "make_logger", "on_training_iteration"]
+__all__ = ["LOGGERS", "ExperimentLogger", "active", "check_logger", "log_values", "make_logger", "on_training_iteration"]
 
 
 # -- the co-adaptation loop -----------------------------------------------------------------

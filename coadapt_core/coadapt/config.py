@@ -15,6 +15,8 @@ from coadapt_core.simulator import TERRAINS
 
 #: --method choices; see `METHOD_SWITCHES` in coadapt_core/coadapt/loop.py
 METHODS: tuple[str, ...] = ("ours", "no-surrogate", "no-real", "no-retrain", "bo-specialized")
+#: --evaluation-policy choices: the paper's fixed probability w, or the ensemble's agreement
+EVALUATION_POLICIES: tuple[str, ...] = ("fixed", "uncertainty")
 
 
 @dataclass
@@ -44,6 +46,10 @@ class CoadaptConfig:
     eval_agents: int = 0  # paired scenarios (agents) per design in a real evaluation; 0 = agents_per_design
     surrogate_samples: int = 4096  # T_eval states drawn from R_eval by the surrogate (Alg. 3)
     measure_surrogate_error: bool = True  # also run the surrogate on every real batch (no interactions)
+    # -- the surrogate (docs/coadaptation.md, "The surrogate") --------------------------------
+    fit_surrogate: bool = True  # fit the pseudo-critics to each real round's measured designs before trusting them
+    evaluation_policy: str = "fixed"  # fixed: surrogate round with probability w (paper) | uncertainty: when the ensemble agrees
+    uncertainty_threshold: float = 0.5  # uncertainty: surrogate round when members' spread / designs' spread <= this
     final_candidates: int = 3  # lowest-real-cost designs re-evaluated in the final check
     final_max_blocks: int = 8  # final check: at most this many blocks of agents_per_design paired scenarios
     # -- plugin options: declared by the optimizer / objective plugin (`option_specs`) ------
@@ -115,11 +121,20 @@ class CoadaptConfig:
             raise UserError(
                 f"specialized_init '{self.specialized_init}' is not one of scratch, universal", field="specialized_init"
             )
+        if self.evaluation_policy not in EVALUATION_POLICIES:
+            raise UserError(
+                f"evaluation_policy '{self.evaluation_policy}' is not one of {', '.join(EVALUATION_POLICIES)}",
+                field="evaluation_policy",
+            )
+        _finite_at_least("uncertainty_threshold", self.uncertainty_threshold, 0.0)
         if self.logger not in ("tensorboard", "wandb", "none"):
             raise UserError(f"logger '{self.logger}' is not one of tensorboard, wandb, none", field="logger")
         for f in fields(self):
             if f.type == "bool":
                 setattr(self, f.name, _boolean(f.name, getattr(self, f.name)))
+        if self.evaluation_policy == "uncertainty" and not self.fit_surrogate:
+            raise UserError("evaluation_policy 'uncertainty' needs fit_surrogate (the fitted ensemble decides)",
+                            field="evaluation_policy")
         check_device(self.device)
         parse_ranges(self.design_ranges)
         return self

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from coadapt_core import surrogate_quality as sq
 from coadapt_core.coadapt.config import CoadaptConfig, config_from_dict
 from coadapt_core.coadapt.final_check import batch_errors, final_check, no_uncertainty
 from coadapt_core.coadapt.recorders import make_recorder
@@ -95,6 +96,11 @@ class LoopState:
         "real_evaluations": 0, "surrogate_evaluations": 0, "designs_evaluated": 0,
     })
     batches: list[dict[str, Any]] = field(default_factory=list)  # one summary per evaluation batch
+    # real rounds of the current policy, the labels the pseudo-critics are fitted to:
+    # {"designs": [[...]], "costs": [[...]]} (issue 16, docs/coadaptation.md "The surrogate")
+    labels: list[dict[str, Any]] = field(default_factory=list)
+    # surrogate against real cost on each real round's designs (coadapt_core.surrogate_quality)
+    quality_rounds: list[dict[str, Any]] = field(default_factory=list)
     spaces: list[dict] = field(default_factory=list)  # the range of each outer iteration
     elapsed: float = 0.0  # wall-clock seconds spent before the current process
     summary: dict[str, Any] | None = None
@@ -203,6 +209,32 @@ def _check_state(state: LoopState) -> None:
         raise ValueError("torch RNG state is not a tensor")
 
 
+def quality_of(surrogate: list[float], real: list[float]) -> dict[str, Any]:
+    return sq.clean({k: v for k, v in sq.quality(surrogate, real).items()})
+
+
+def _floats(values: list[Any]) -> list[float]:
+    """JSON lists with None (a non-finite value) as NaN."""
+    return [float("nan") if v is None else float(v) for v in values]
+
+
+def spread_ratio(members: np.ndarray) -> float:
+    """The ensemble's disagreement on a round, members [E, K, M]: per objective, the mean
+    over designs of the members' standard deviation over the standard deviation of the
+    members' mean across the designs; the largest over objectives. Below 1 the members
+    disagree less than the designs differ; infinite when the designs are predicted alike
+    or a prediction is not finite."""
+    members = np.asarray(members, dtype=float)
+    if members.shape[0] < 2 or members.shape[1] < 2 or not np.isfinite(members).all():
+        return float("inf")
+    ratios = []
+    for j in range(members.shape[2]):
+        between = members[:, :, j].mean(axis=0).std()
+        within = members[:, :, j].std(axis=0).mean()
+        ratios.append(within / between if between > 0 else float("inf"))
+    return float(max(ratios))
+
+
 def _split(total: float, n: int) -> list[float]:
     """Share a batch's cost among its n designs (integers stay integers and sum exactly)."""
     if isinstance(total, int):
@@ -257,6 +289,9 @@ class CoadaptationLoop:
         self._last_survival: float | None = None  # mean survival of the last real batch
         self._last_tracking: float | None = None  # mean tracking ratio of the last real batch
         self._last_errors: dict[str, Any] = {}  # error bars and fall rate of the last real batch
+        self._fitted_for: tuple[int, int, int] | None = None  # (outer, labels, buffer) the backend's fit is for
+        self._pending: tuple[int, np.ndarray] | None = None  # (inner, ensemble's costs) of a trusted round
+        self._last_uncertainty: float | None = None  # the ensemble's spread ratio of this round
         p = self.switches.surrogate_probability
         self.w = config.evaluation_probability if p is None else p
         if state.optimizer is None and state.optimizer_init is not None:  # resumed: rebuild from data
@@ -328,6 +363,7 @@ class CoadaptationLoop:
     def get_backend(self) -> CoadaptationBackend:
         if self.backend is None:
             self.backend = self.backend_factory(self.seed_for(0))
+            self._fitted_for = None
             if self.state.backend_checkpoint:
                 self.backend.load(str(self.run_dir / self.state.backend_checkpoint))
         return self.backend
@@ -378,6 +414,8 @@ class CoadaptationLoop:
                 # as the paper's (0 training interactions in its Table 7)
                 steps = 0
             if (s.outer == 0 or self.switches.retrain) and steps > 0:
+                s.labels = []  # a new policy: earlier real rounds no longer label it
+                self._fitted_for = None
                 self.emit("training")
                 result = self.get_backend().train(s.train_designs, steps, seed=self.seed_for(1, s.outer))
                 s.counters["train_interactions"] += int(result.steps)
@@ -402,16 +440,58 @@ class CoadaptationLoop:
         s.phase, s.inner = "optimize", 0
         self.checkpoint()
 
-    def choose_kind(self) -> str:
+    def choose_kind(self, designs: np.ndarray | None = None) -> str:
         """Hybrid evaluation (Algorithm 4 line 14): surrogate with probability w, else real.
         The draw is made every round so the random stream does not depend on the buffer; the
         surrogate needs an evaluation buffer from the current policy, so without one the
-        round is real (the first of each outer iteration, unless training filled it)."""
-        s = self.state
+        round is real (the first of each outer iteration, unless training filled it).
+
+        `evaluation_policy: uncertainty` (method ours only; beyond the paper): the fitted
+        ensemble predicts the round's designs, and the round is a surrogate round when its
+        members agree — their spread over the designs' spread (`spread_ratio`) at most
+        `uncertainty_threshold` — else real. No fit (no real round of this policy yet, or a
+        backend without an ensemble): real."""
+        s, c = self.state, self.config
         draw = self.rng.random()
+        self._last_uncertainty = None
         if s.buffer is None or s.buffer_outer != s.outer:
             return "real"
+        if c.evaluation_policy == "uncertainty" and self.switches.surrogate_probability is None and designs is not None:
+            members_of = getattr(self.get_backend(), "surrogate_members", None)
+            if members_of is None or not self.ensure_fitted():
+                return "real"
+            t0 = time.perf_counter()
+            members = members_of(designs, self.objectives, s.buffer, samples=c.surrogate_samples,
+                                 seed=self.seed_for(3, s.outer, s.inner))
+            s.counters["surrogate_seconds"] += time.perf_counter() - t0
+            if members is None:
+                return "real"
+            members = np.asarray(members, dtype=float).reshape(-1, len(designs), len(self.objectives))
+            self._last_uncertainty = spread_ratio(members)
+            if self._last_uncertainty <= c.uncertainty_threshold:
+                self._pending = (s.inner, members.mean(axis=0))
+                return "surrogate"
+            return "real"
         return "surrogate" if draw < self.w else "real"
+
+    def ensure_fitted(self) -> bool:
+        """Fit the backend's pseudo-critics to this policy's real rounds (`LoopState.labels`)
+        unless its fit already covers them (also after a resume: the fit is a function of the
+        labels, the buffer and the seed). False when there is nothing to fit or no fit."""
+        s, c = self.state, self.config
+        backend = self.get_backend()
+        fit = getattr(backend, "fit_surrogate", None)
+        if not c.fit_surrogate or fit is None or not s.labels or s.buffer is None or s.buffer_outer != s.outer:
+            return False
+        key = (s.outer, len(s.labels), s.buffer_serial)
+        if self._fitted_for != key:
+            t0 = time.perf_counter()
+            designs = np.concatenate([np.asarray(item["designs"], dtype=float) for item in s.labels])
+            costs = np.concatenate([np.asarray(item["costs"], dtype=float) for item in s.labels])
+            fit(designs, costs, self.objectives, s.buffer, seed=self.seed_for(6, s.outer, len(s.labels)))
+            s.counters["surrogate_seconds"] += time.perf_counter() - t0
+            self._fitted_for = key
+        return True
 
     def optimize_round(self) -> None:
         """One optimizer ask/tell round (Algorithm 4 lines 13-20)."""
@@ -426,7 +506,7 @@ class CoadaptationLoop:
             kind = "real"
             costs, interactions, seconds, errors = self.specialized_evaluation(designs)
         else:
-            kind = self.choose_kind()
+            kind = self.choose_kind(designs)
             self.emit(f"{kind} evaluation")
             costs, interactions, seconds, errors = self.evaluate(designs, kind)
         target = costs[:, 0] if len(self.objectives) == 1 else costs
@@ -442,6 +522,13 @@ class CoadaptationLoop:
         backend = self.get_backend()
         seed = self.seed_for(3, s.outer, s.inner)
         if kind == "real":  # every real round on the run's one scenario set (paired designs)
+            # a surrogate round would have been allowed here (a real round of this policy came
+            # before): its prediction, made before this round's costs are known, is what the
+            # quality figures judge (the first round of a policy: the paper's estimator on its
+            # own buffer, marked not eligible)
+            eligible = s.buffer is not None and s.buffer_outer == s.outer
+            fitted = eligible and c.measure_surrogate_error and self.ensure_fitted()
+            previous = s.buffer
             fit = backend.real_fitness(designs, self.objectives, agents=c.evaluation_agents, steps=c.eval_steps, seed=self.scenario_seed())
             s.buffer, s.buffer_outer = fit.buffer, s.outer  # line 15: R_eval from this rollout
             s.buffer_serial += 1
@@ -449,9 +536,13 @@ class CoadaptationLoop:
             errors = None
             if c.measure_surrogate_error:
                 t0 = time.perf_counter()
-                predicted = backend.surrogate_fitness(designs, self.objectives, fit.buffer, samples=c.surrogate_samples, seed=seed)
+                states = previous if eligible else fit.buffer
+                predicted = backend.surrogate_fitness(designs, self.objectives, states, samples=c.surrogate_samples, seed=seed)
                 s.counters["surrogate_seconds"] += time.perf_counter() - t0
-                errors = np.asarray(predicted, dtype=float).reshape(costs.shape) - costs
+                predicted = np.asarray(predicted, dtype=float).reshape(costs.shape)
+                errors = predicted - costs
+                self.record_quality(predicted, costs, eligible=eligible, fitted=fitted)
+            s.labels.append({"designs": designs.tolist(), "costs": costs.tolist()})
             s.counters["eval_interactions"] += int(fit.interactions)
             s.counters["eval_seconds"] += float(fit.seconds)
             s.counters["real_evaluations"] += 1
@@ -461,12 +552,58 @@ class CoadaptationLoop:
             self._last_errors = batch_errors(fit)
             return costs, int(fit.interactions), float(fit.seconds), errors
         t0 = time.perf_counter()
-        predicted = backend.surrogate_fitness(designs, self.objectives, s.buffer, samples=c.surrogate_samples, seed=seed)
+        if self._pending is not None and self._pending[0] == s.inner:  # the ensemble's, just computed
+            predicted = self._pending[1]
+        else:
+            self.ensure_fitted()
+            predicted = backend.surrogate_fitness(designs, self.objectives, s.buffer, samples=c.surrogate_samples, seed=seed)
+        self._pending = None
         seconds = time.perf_counter() - t0
         s.counters["surrogate_seconds"] += seconds
         s.counters["eval_seconds"] += seconds
         s.counters["surrogate_evaluations"] += 1
         return np.asarray(predicted, dtype=float).reshape(len(designs), -1), 0, seconds, None
+
+    def record_quality(self, predicted: np.ndarray, costs: np.ndarray, *, eligible: bool, fitted: bool) -> None:
+        """One entry of `surrogate_quality.rounds`: the round's (surrogate, real) pairs per
+        objective and their figures (coadapt_core/surrogate_quality.py)."""
+        s = self.state
+        entry: dict[str, Any] = {"outer": s.outer, "inner": s.inner, "eligible": bool(eligible),
+                                 "estimator": "fitted" if fitted else "paper", "objectives": {}}
+        for j, name in enumerate(self.names):
+            pairs = {"surrogate": predicted[:, j].tolist(), "real": costs[:, j].tolist()}
+            entry["objectives"][name] = {**quality_of(pairs["surrogate"], pairs["real"]), **pairs}
+        s.quality_rounds.append(sq.clean(entry))
+        from coadapt_core import tracking
+
+        tracking.log_values("surrogate_quality", {
+            f"{name}_{m}": q[m] for name, q in entry["objectives"].items() for m in sq.METRICS
+            if isinstance(q.get(m), float) and np.isfinite(q[m])
+        } | {"eligible": float(eligible)}, len(s.quality_rounds))
+
+    def surrogate_quality(self) -> dict[str, Any]:
+        """summary.json's `surrogate_quality`: pooled over the eligible rounds (those where a
+        surrogate round was allowed: what the surrogate rounds of the run relied on), the
+        first objective's figures in `pooled`, every objective's in `by_objective`."""
+        rounds = self.state.quality_rounds
+        used = [r for r in rounds if r["eligible"]]
+        by_objective = {}
+        for name in self.names:
+            pairs = [{"surrogate": _floats(r["objectives"][name]["surrogate"]), "real": _floats(r["objectives"][name]["real"])}
+                     for r in used if name in r["objectives"]]
+            by_objective[name] = sq.clean(sq.pooled(pairs))
+        brief = [{k: v for k, v in r.items() if k != "objectives"}
+                 | {"objectives": {n: {m: q.get(m) for m in (*sq.METRICS, "n")} for n, q in r["objectives"].items()}}
+                 for r in rounds]
+        return {
+            "pooled": by_objective[self.names[0]] if self.names else {},
+            "by_objective": by_objective,
+            "rounds": brief,
+            "estimator": "fitted" if self.config.fit_surrogate else "paper",
+            "definition": "over eligible real rounds (a real round of the same policy came before); relative error "
+                          "(surrogate - real) / |real|; top_k_regret: (best real cost among the surrogate's "
+                          f"{sq.TOP_K} cheapest - best real cost) / |best real cost|, mean over rounds",
+        }
 
     def specialized_evaluation(self, designs: np.ndarray) -> tuple[np.ndarray, int, float, None]:
         """BO baseline: train a fresh policy on each design alone, then evaluate it for real."""
@@ -542,7 +679,9 @@ class CoadaptationLoop:
             "survival": self._last_survival,
             "tracking_ratio": self._last_tracking,
             **self._last_errors,  # real rounds: best design's cost SE, median relative SE, fall rate
+            "uncertainty": self._last_uncertainty,
         })
+        self._last_uncertainty = None
         self._last_survival = self._last_tracking = None
         self._last_errors = {}
 
@@ -650,6 +789,8 @@ class CoadaptationLoop:
             "final_space": s.space,
             "batches": s.batches,
             "pareto_front": front,
+            "evaluation_policy": c.evaluation_policy,
+            "surrogate_quality": self.surrogate_quality(),
         }
         summary["reliable"], summary["reliability"] = assess(s.batches, final_walking)
         summary["final_walking"] = final_walking

@@ -18,6 +18,7 @@ from coadapt_core.fitness import RealFitness, TrainingResult, robust_cost, scena
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.evaluate import EvalBuffer, rollout
 from coadapt_core.learning.scenarios import apply_scenarios
+from coadapt_core.learning.surrogate import MEMBERS, FittedEnsemble, fit_ensemble
 from coadapt_core.learning.trainer import Trainer, read_checkpoint, reseed_simulator
 from coadapt_core.objective import Objective
 from coadapt_core.robot import Robot
@@ -104,6 +105,11 @@ class UniversalPolicyBackend:
         # common random numbers across designs (docs/coadaptation.md, evaluation protocol)
         self.paired_evaluation = True
         self.eval_env: LocomotionEnv | None = None
+        # pseudo-critics fitted to real rounds of the current policy (fit_surrogate)
+        self.fitted: FittedEnsemble | None = None
+        self.fitted_columns: list[int] | None = None
+        self.use_fitted = True  # False: surrogate_fitness is the paper's estimator even when fitted
+        self.surrogate_members_count = MEMBERS
         if checkpoint:
             self.load(checkpoint)
 
@@ -116,6 +122,7 @@ class UniversalPolicyBackend:
         t0 = time.perf_counter()
         steps0 = self.trainer.total_steps
         torch.manual_seed(seed)
+        self.fitted = None  # a new policy: the fit to the last one's real rounds is stale
         self.trainer.set_designs(designs)
         # the environment's streams restart from `seed`, so this phase is a function of the
         # checkpointed state, the designs and the seed (exact resume, docs/coadaptation.md)
@@ -238,16 +245,59 @@ class UniversalPolicyBackend:
         if not isinstance(buffer, EvalBuffer) or len(buffer) == 0:
             raise UserError("surrogate fitness needs a non-empty evaluation buffer from real_fitness or train", field="buffer")
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
-        gen = torch.Generator(device="cpu")
-        gen.manual_seed(int(seed))
-        rows = torch.randint(len(buffer), (int(samples),), generator=gen)
-        states = self.ppo.critic_norm(buffer.critic_obs[rows].to(self.ppo.device))  # [S, C]
+        if self.fitted is not None and self.use_fitted and columns == self.fitted_columns:
+            return self.surrogate_members(designs, objectives, buffer, samples=samples, seed=seed).mean(axis=0)
+        states = self._states(buffer, samples, seed)  # [S, C]
         xi = self.trainer_normalize(designs)  # [K, D]
         out = []
         for k in range(xi.shape[0]):  # one candidate at a time keeps memory at [S, C]
             values = self.ppo.pseudo_values(states, xi[k].expand(states.shape[0], -1))  # [S, M]
             out.append(values.mean(dim=0))
         return torch.stack(out)[:, columns].cpu().numpy()
+
+    # -- pseudo-critics fitted to the current range (issue 16; learning/surrogate.py) -------
+    def _states(self, buffer: Any, samples: int, seed: int) -> torch.Tensor:
+        gen = torch.Generator(device="cpu")
+        gen.manual_seed(int(seed))
+        rows = torch.randint(len(buffer), (int(samples),), generator=gen)
+        return self.ppo.critic_norm(buffer.critic_obs[rows].to(self.ppo.device))
+
+    def fit_surrogate(
+        self, designs: np.ndarray, costs: np.ndarray, objectives: Sequence[Objective], buffer: Any, *, seed: int = 0
+    ) -> None:
+        """Fit an ensemble of copies of the pseudo-critics of `objectives` to labelled designs
+        [N, D] with their real costs [N, M] (every real round of the current policy), on the
+        states of `buffer` (`coadapt_core.learning.surrogate.fit_ensemble`). Until `train`
+        changes the policy, `surrogate_fitness` is the members' mean and `surrogate_members`
+        their predictions."""
+        columns = self._check_objectives(objectives)
+        designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        costs = np.asarray(costs, dtype=float).reshape(len(designs), len(columns))
+        ok = np.isfinite(costs).all(axis=1)
+        if self.ppo is None or self.ppo.pseudo_critic is None or ok.sum() < 2:
+            return
+        norm = self.ppo.pseudo_norm
+        m = self.ppo.dims.num_metrics
+        scale = torch.sqrt(norm.var[:m] + norm.eps)
+        states = self._states(buffer, min(len(buffer), 65536), seed)
+        self.fitted = fit_ensemble(
+            self.ppo.pseudo_critic, columns, scale, norm.mean[:m], states, self.trainer_normalize(designs[ok]),
+            torch.as_tensor(costs[ok], dtype=torch.float32), members=self.surrogate_members_count, seed=seed,
+        )
+        self.fitted_columns = columns
+
+    @torch.no_grad()
+    def surrogate_members(
+        self, designs: np.ndarray, objectives: Sequence[Objective], buffer: Any, *, samples: int, seed: int = 0
+    ) -> np.ndarray | None:
+        """[E, K, M] each fitted member's surrogate (mean over `samples` buffer states), or
+        None before `fit_surrogate` (or after `train`)."""
+        columns = self._check_objectives(objectives)
+        if self.fitted is None or columns != self.fitted_columns:
+            return None
+        designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        states = self._states(buffer, samples, seed)
+        return self.fitted.predict(states, self.trainer_normalize(designs)).cpu().numpy()
 
     def trainer_normalize(self, designs: np.ndarray) -> torch.Tensor:
         space = self.trainer.robot.design_space_for(designs[0])
@@ -265,6 +315,7 @@ class UniversalPolicyBackend:
 
     def load(self, path: str) -> None:
         self.trainer.load(path)
+        self.fitted = None
 
     def close(self) -> None:
         self.trainer.close()

@@ -1,0 +1,149 @@
+"""Pseudo-critics fitted to the current design range (issue 16; docs/coadaptation.md, "The
+surrogate").
+
+The paper's surrogate (Algorithm 3) is the mean of V_pseudo(s, xi) over states s drawn from
+the evaluation buffer with the candidate's xi substituted. Trained only through PPO's
+TD targets, the pseudo-critics barely depend on xi (the state already tells them how the
+robot moves), so substituting xi changes little and the estimate does not rank designs.
+
+A real round measures each of its designs' cost exactly on one scenario set. `fit_ensemble`
+uses those labels: it copies the trained pseudo-critics of the run's objectives into
+`members` heads (one `CriticBank`, so all members cost one batched pass) and regresses each
+on pairs (s, xi_j) -> cost_j, s drawn uniformly from the buffer and j from that member's
+bootstrap resample of the labelled designs. The state is drawn independently of the design
+on purpose: the regression target is then E_s[V(s, xi_j)] = cost_j, exactly the quantity
+Algorithm 3 computes, and the only way to fit it is through xi. The estimator stays the
+paper's (mean of V over buffer states), averaged over the members; the members' spread is
+the ensemble's uncertainty (`--evaluation-policy uncertainty`).
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+
+import torch
+
+from coadapt_core.learning.networks import CriticBank
+
+#: defaults of the fit (measured on flat with the shipped policy; docs/coadaptation.md)
+MEMBERS = 5
+FIT_STEPS = 200
+BATCH = 128
+#: buffer states behind the fit's final level correction (members average 1/E of them each)
+CHECK_STATES = 2560
+LEARNING_RATE = 3e-3
+
+
+@dataclass
+class FittedEnsemble:
+    bank: CriticBank  # members x M heads, member-major (head e * M + j)
+    members: int
+    scale: torch.Tensor  # [M] member e's output = raw * scale + offset[e] (in cost units)
+    offset: torch.Tensor  # [E, M]
+    labels: int  # labelled designs it was fitted on
+
+    @torch.no_grad()
+    def predict(self, states: torch.Tensor, xi: torch.Tensor, chunk: int = 8) -> torch.Tensor:
+        """[E, K, M]: each member's mean prediction for each design xi [K, D] (normalised)
+        over its share of `states` [S, C] (normalised): member e averages states e, e + E,
+        e + 2 E, ..., so the ensemble costs what one pass of the paper's surrogate over S
+        states costs, and the members' spread includes the sampling of states."""
+        m, e = self.scale.shape[0], self.members
+        per = max(1, states.shape[0] // e)
+        shares = states[: per * e].reshape(per, e, -1).transpose(0, 1) if states.shape[0] >= e else states.expand(e, -1, -1)
+        out = []
+        for k0 in range(0, xi.shape[0], chunk):
+            block = xi[k0 : k0 + chunk]  # [b, D]
+            b = block.shape[0]
+            s = shares.unsqueeze(1).expand(-1, b, -1, -1)  # [E, b, S/E, C]
+            x = block.view(1, b, 1, -1).expand(e, -1, shares.shape[1], -1)  # [E, b, S/E, D]
+            rows = torch.cat([s, x], dim=-1).reshape(e, -1, s.shape[-1] + x.shape[-1])
+            raw = _per_head(self.bank, rows.repeat_interleave(m, dim=0))  # [E M, b S/E]
+            raw = raw.reshape(e, m, b, -1).mean(dim=-1).transpose(1, 2)  # [E, b, M]
+            out.append(raw * self.scale + self.offset.unsqueeze(1))
+        return torch.cat(out, dim=1)  # [E, K, M]
+
+
+def fit_ensemble(
+    pseudo: CriticBank,
+    columns: list[int],
+    pseudo_scale: torch.Tensor,
+    pseudo_offset: torch.Tensor,
+    states: torch.Tensor,
+    xi: torch.Tensor,
+    costs: torch.Tensor,
+    *,
+    members: int = MEMBERS,
+    steps: int = FIT_STEPS,
+    batch: int = BATCH,
+    lr: float = LEARNING_RATE,
+    seed: int = 0,
+) -> FittedEnsemble:
+    """Fit `members` copies of the pseudo-critics `columns` of `pseudo` (whose output in cost
+    units is raw * pseudo_scale + pseudo_offset, per column) to labelled designs: xi [N, D]
+    (normalised) with costs [N, M], on normalised buffer states [S, C]. Deterministic for a
+    seed (its own generator)."""
+    m = len(columns)
+    n = xi.shape[0]
+    device = states.device
+    gen = torch.Generator(device="cpu")
+    gen.manual_seed(int(seed))
+    bank = copy.deepcopy(pseudo)
+    idx = torch.as_tensor(columns, dtype=torch.long)
+    with torch.no_grad():
+        for k in range(bank.num_layers):
+            weight, bias = bank.layer(k)
+            setattr(bank, f"weight_{k}", torch.nn.Parameter(weight[idx].repeat(members, 1, 1).clone()))
+            setattr(bank, f"bias_{k}", torch.nn.Parameter(bias[idx].repeat(members, 1).clone()))
+    bank.num_heads = members * m
+    scale = pseudo_scale[idx].to(device).float()
+    offset = pseudo_offset[idx].to(device).float()
+    costs = costs.to(device).float()
+    # the loss in units of the labelled costs' spread (at least 5 % of their mean), per
+    # objective, so every objective and every cost scale weighs alike
+    spread = torch.maximum(costs.std(dim=0, unbiased=False) if n > 1 else torch.zeros(m, device=device),
+                           0.05 * costs.abs().mean(dim=0)).clamp(min=1e-9)
+    # each member sees its own bootstrap resample of the labelled designs (member 0: all)
+    picks = [torch.arange(n)] + [torch.randint(n, (n,), generator=gen) for _ in range(members - 1)]
+    picks = torch.stack(picks)  # [E, N]
+    optimizer = torch.optim.Adam(bank.parameters(), lr=lr)
+    bank.train()
+    for _ in range(int(steps)):
+        rows = torch.randint(states.shape[0], (batch,), generator=gen)
+        which = torch.randint(n, (members, batch), generator=gen)
+        labels = torch.gather(picks, 1, which)  # [E, B] labelled design per member and sample
+        # each member's heads read that member's own batch of (state, design) rows
+        s = states[rows.to(device)]  # [B, C], shared by the members
+        x = xi[labels.to(device)]  # [E, B, D]
+        inputs = torch.cat([s.unsqueeze(0).expand(members, -1, -1), x], dim=-1)  # [E, B, C + D]
+        raw = _per_head(bank, inputs.repeat_interleave(m, dim=0))  # [E M, B]
+        own = raw.reshape(members, m, batch).transpose(1, 2)  # [E, B, M]
+        pred = own * scale + offset
+        target = costs[labels.reshape(-1).to(device)].reshape(members, batch, m)
+        loss = (((pred - target) / spread) ** 2).mean()
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        optimizer.step()
+    bank.eval()
+    for p in bank.parameters():
+        p.requires_grad_(False)
+    fitted = FittedEnsemble(bank=bank, members=members, scale=scale, offset=offset.expand(members, m).clone(), labels=n)
+    # a short fit starts from the pseudo-critic's level and stops short of the labels' mean:
+    # each member's remaining mean residual over its own labelled designs is removed
+    check = states[torch.randperm(states.shape[0], generator=gen)[: CHECK_STATES].to(device)]
+    with torch.no_grad():
+        residual = fitted.predict(check, xi) - costs.unsqueeze(0)  # [E, N, M]
+        own = torch.stack([residual[e, picks[e].to(device)].mean(dim=0) for e in range(members)])  # [E, M]
+        fitted.offset -= own
+    return fitted
+
+
+def _per_head(bank: CriticBank, h: torch.Tensor) -> torch.Tensor:
+    """[H, B] outputs of each head of `bank` on its own rows h [H, B, in]."""
+    for k in range(bank.num_layers):
+        weight, bias = bank.layer(k)
+        h = torch.baddbmm(bias.unsqueeze(1), h, weight.transpose(1, 2))
+        if k < bank.num_layers - 1:
+            h = bank.act(h)
+    return h.squeeze(-1)
