@@ -414,7 +414,7 @@ def local_executor(tasks: Sequence[CellTask], workers: int) -> Iterator[tuple[Ce
 
 
 def check_grid_options(
-    *, executor: str, workers: int | None, timeout: float | None, address: str | None, connect_timeout: float = 10.0
+    *, executor: str, workers: int | None, timeout: float | None, address: str | None, connect_timeout: float = 5.0
 ) -> None:
     """One-line `UserError` for a bad executor, worker count, cell timeout, or a Ray address
     that does not answer within `connect_timeout` seconds (checked before anything starts)."""
