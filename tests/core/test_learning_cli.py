@@ -61,6 +61,6 @@ def test_bad_options_give_one_line_and_exit_2(args, message, capsys) -> None:
 
 
 def test_eval_without_checkpoint_says_no_policy_is_shipped(capsys) -> None:
-    # Kuafu ships flat.pt only: its Robot.shipped_policy hook has nothing for slope
-    assert main(["eval", "--terrain", "slope"]) == 2
-    assert "robot 'kuafu' ships no policy for terrain 'slope' and the continuous design space" in capsys.readouterr().err
+    # Kuafu ships slope.pt for the leg scales only: nothing for slope and the mixed space
+    assert main(["eval", "--terrain", "slope", "--design", "1,1,1,1"]) == 2
+    assert "robot 'kuafu' ships no policy for terrain 'slope' and the mixed design space" in capsys.readouterr().err
