@@ -414,8 +414,10 @@ class Engine:
         lags one physics step.
 
         "foot_link": a foot joint's armature a is already in its foot link's inertia (about
-        the joint axis), so Bullet's matrix is M_b = M + dM, dM = a v v^T with v_k the
-        cosine between joint k's axis and the foot joint's (the foot's angular Jacobian);
+        the joint axis, plus c about the perpendicular axes where the foot's principal
+        moments needed it), so Bullet's matrix is M_b = M + dM, dM = (a - c) v v^T + c W^T W,
+        W the foot's angular Jacobian and v_k = W^T s the cosine between joint k's axis and
+        the foot joint's axis s;
         the correction becomes tau' = tau - (A - dM) ddq, ddq = (M_b - dM + A)^-1 (tau + h).
         The contact solver then sees the foot as heavy as MuJoCo's does (without it, a light
         foot under stiff PD chattered on a bouncy ground, docs/sim-to-sim.md).
