@@ -11,7 +11,8 @@
 #      learner on the GPU, MuJoCo on every CPU core (TrainConfig's default precisions, then
 #      everything in bf16 if time is left);
 #   2. `coadapt train` for TRAIN_SECONDS (default 180) of wall time at the same size;
-# and prints one JSON object (also $OUT/gpu_check.json). Logs go to $OUT (or a temporary folder).
+# and prints one JSON object. Into $OUT (when set; the device tool brings back at most 8 files)
+# go only gpu_check.json and logs.tar.gz (every log and JSON, no checkpoints).
 #
 # Knobs (environment): DEVICE (cuda), DESIGNS (128), AGENTS (32), TRAIN_SECONDS (180),
 # BUDGET_SECONDS (500: steps that would not finish inside it are skipped), SKIP_INSTALL=1
@@ -26,8 +27,7 @@ designs=${DESIGNS:-128}
 agents=${AGENTS:-32}
 train_seconds=${TRAIN_SECONDS:-180}
 budget=${BUDGET_SECONDS:-500}
-out=${OUT:-$(mktemp -d)}
-mkdir -p "$out"
+out=$(mktemp -d)  # logs and results; $OUT receives a copy at the end
 export PYTHONUNBUFFERED=1 MUJOCO_GL=disable
 python=python3
 elapsed() { echo $(($(date +%s) - begin)); }
@@ -39,10 +39,10 @@ if [ "${SKIP_INSTALL:-0}" != 1 ]; then
     exit 1
   fi
   python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target "$site" .whl/*.whl \
-    >"$out/install.log" 2>&1 || { echo '{"error": "installing the wheels failed (see install.log)"}'; exit 1; }
+    >"$out/install.log" 2>&1 || { echo '{"error": "installing the wheels failed"}'; tail -20 "$out/install.log"; exit 1; }
   # the checkout itself, with its entry points (built-in plugins): setuptools is on the machine
   python3 -m pip install -q --no-index --no-deps --no-build-isolation --no-compile --no-cache-dir --target "$site" . \
-    >>"$out/install.log" 2>&1 || { echo '{"error": "installing coadapt failed (see install.log)"}'; exit 1; }
+    >>"$out/install.log" 2>&1 || { echo '{"error": "installing coadapt failed"}'; tail -20 "$out/install.log"; exit 1; }
   export PYTHONPATH="$site"
   python=python3
 else
@@ -132,3 +132,8 @@ text = json.dumps(result, indent=1)
 (out / "gpu_check.json").write_text(text)
 print(text)
 EOF
+if [ -n "${OUT:-}" ]; then
+  mkdir -p "$OUT"
+  cp "$out/gpu_check.json" "$OUT/" 2>/dev/null
+  tar czf "$OUT/logs.tar.gz" -C "$out" --exclude='*.pt' . 2>/dev/null
+fi
