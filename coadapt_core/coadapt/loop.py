@@ -537,11 +537,20 @@ class CoadaptationLoop:
             if c.measure_surrogate_error:
                 t0 = time.perf_counter()
                 states = previous if eligible else fit.buffer
-                predicted = backend.surrogate_fitness(designs, self.objectives, states, samples=c.surrogate_samples, seed=seed)
+                members_of = getattr(backend, "surrogate_members", None)
+                members = None
+                if fitted and members_of is not None:  # the members too: their spread ratio is recorded
+                    members = members_of(designs, self.objectives, states, samples=c.surrogate_samples, seed=seed)
+                if members is not None:
+                    members = np.asarray(members, dtype=float).reshape(-1, *costs.shape)
+                    predicted = members.mean(axis=0)
+                else:
+                    predicted = backend.surrogate_fitness(designs, self.objectives, states, samples=c.surrogate_samples, seed=seed)
                 s.counters["surrogate_seconds"] += time.perf_counter() - t0
                 predicted = np.asarray(predicted, dtype=float).reshape(costs.shape)
                 errors = predicted - costs
-                self.record_quality(predicted, costs, eligible=eligible, fitted=fitted)
+                self.record_quality(predicted, costs, eligible=eligible, fitted=fitted,
+                                    spread=None if members is None else spread_ratio(members))
             s.labels.append({"designs": designs.tolist(), "costs": costs.tolist()})
             s.counters["eval_interactions"] += int(fit.interactions)
             s.counters["eval_seconds"] += float(fit.seconds)
@@ -564,12 +573,14 @@ class CoadaptationLoop:
         s.counters["surrogate_evaluations"] += 1
         return np.asarray(predicted, dtype=float).reshape(len(designs), -1), 0, seconds, None
 
-    def record_quality(self, predicted: np.ndarray, costs: np.ndarray, *, eligible: bool, fitted: bool) -> None:
+    def record_quality(self, predicted: np.ndarray, costs: np.ndarray, *, eligible: bool, fitted: bool,
+                       spread: float | None = None) -> None:
         """One entry of `surrogate_quality.rounds`: the round's (surrogate, real) pairs per
-        objective and their figures (coadapt_core/surrogate_quality.py)."""
+        objective and their figures (coadapt_core/surrogate_quality.py), and the fitted
+        ensemble's spread ratio on the round (what the uncertainty policy would have seen)."""
         s = self.state
         entry: dict[str, Any] = {"outer": s.outer, "inner": s.inner, "eligible": bool(eligible),
-                                 "estimator": "fitted" if fitted else "paper", "objectives": {}}
+                                 "estimator": "fitted" if fitted else "paper", "spread_ratio": spread, "objectives": {}}
         for j, name in enumerate(self.names):
             pairs = {"surrogate": predicted[:, j].tolist(), "real": costs[:, j].tolist()}
             entry["objectives"][name] = {**quality_of(pairs["surrogate"], pairs["real"]), **pairs}

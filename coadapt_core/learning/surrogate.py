@@ -30,6 +30,12 @@ from coadapt_core.learning.networks import CriticBank
 MEMBERS = 5
 FIT_STEPS = 200
 BATCH = 128
+#: the members read designs in the frame of the labelled designs' box (False: the full space's)
+LOCAL_FRAME = False
+#: at most this half-width of the box (in the full space's [-1, 1] units) is stretched to 1
+MIN_HALF_WIDTH = 0.05
+#: the loss's unit: the labelled costs' spread, at least this share of their mean
+SPREAD_FLOOR = 0.05
 #: buffer states behind the fit's final level correction (members average 1/E of them each)
 CHECK_STATES = 2560
 LEARNING_RATE = 3e-3
@@ -42,6 +48,11 @@ class FittedEnsemble:
     scale: torch.Tensor  # [M] member e's output = raw * scale + offset[e] (in cost units)
     offset: torch.Tensor  # [E, M]
     labels: int  # labelled designs it was fitted on
+    center: torch.Tensor | None = None  # [D] the members read (xi - center) / half (local design frame)
+    half: torch.Tensor | None = None  # [D]
+
+    def frame(self, xi: torch.Tensor) -> torch.Tensor:
+        return xi if self.center is None else (xi - self.center) / self.half
 
     @torch.no_grad()
     def predict(self, states: torch.Tensor, xi: torch.Tensor, chunk: int = 8) -> torch.Tensor:
@@ -50,6 +61,7 @@ class FittedEnsemble:
         e + 2 E, ..., so the ensemble costs what one pass of the paper's surrogate over S
         states costs, and the members' spread includes the sampling of states."""
         m, e = self.scale.shape[0], self.members
+        xi = self.frame(xi)
         per = max(1, states.shape[0] // e)
         shares = states[: per * e].reshape(per, e, -1).transpose(0, 1) if states.shape[0] >= e else states.expand(e, -1, -1)
         out = []
@@ -79,6 +91,8 @@ def fit_ensemble(
     batch: int = BATCH,
     lr: float = LEARNING_RATE,
     seed: int = 0,
+    local: bool = LOCAL_FRAME,
+    floor: float = SPREAD_FLOOR,
 ) -> FittedEnsemble:
     """Fit `members` copies of the pseudo-critics `columns` of `pseudo` (whose output in cost
     units is raw * pseudo_scale + pseudo_offset, per column) to labelled designs: xi [N, D]
@@ -103,7 +117,12 @@ def fit_ensemble(
     # the loss in units of the labelled costs' spread (at least 5 % of their mean), per
     # objective, so every objective and every cost scale weighs alike
     spread = torch.maximum(costs.std(dim=0, unbiased=False) if n > 1 else torch.zeros(m, device=device),
-                           0.05 * costs.abs().mean(dim=0)).clamp(min=1e-9)
+                           floor * costs.abs().mean(dim=0)).clamp(min=1e-9)
+    center = half = None
+    if local:  # the labelled designs' box as [-1, 1]: a narrowed range is as easy to fit as the full one
+        lo, hi = xi.min(dim=0).values, xi.max(dim=0).values
+        center, half = 0.5 * (lo + hi), (0.5 * (hi - lo)).clamp(min=MIN_HALF_WIDTH)
+        xi = (xi - center) / half
     # each member sees its own bootstrap resample of the labelled designs (member 0: all)
     picks = [torch.arange(n)] + [torch.randint(n, (n,), generator=gen) for _ in range(members - 1)]
     picks = torch.stack(picks)  # [E, N]
@@ -128,7 +147,9 @@ def fit_ensemble(
     bank.eval()
     for p in bank.parameters():
         p.requires_grad_(False)
-    fitted = FittedEnsemble(bank=bank, members=members, scale=scale, offset=offset.expand(members, m).clone(), labels=n)
+    fitted = FittedEnsemble(bank=bank, members=members, scale=scale, offset=offset.expand(members, m).clone(), labels=n,
+                            center=center, half=half)
+    xi = xi if center is None else xi * half + center  # predict() applies the frame itself
     # a short fit starts from the pseudo-critic's level and stops short of the labels' mean:
     # each member's remaining mean residual over its own labelled designs is removed
     check = states[torch.randperm(states.shape[0], generator=gen)[: CHECK_STATES].to(device)]

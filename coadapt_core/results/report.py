@@ -30,6 +30,7 @@ from coadapt_core.results.export import space_of_run
 from coadapt_core.results.grid import METHODS
 from coadapt_core.results.landscape import LANDSCAPE_METHOD
 from coadapt_core.results.store import Evaluation, ResultsStore, checkpoint_of, run_folder_of
+from coadapt_core.results.surrogate_figure import figure_surrogate_quality
 
 #: the paper's row labels
 METHOD_LABELS = {
@@ -873,7 +874,7 @@ def write_report(
     out.mkdir(parents=True, exist_ok=True)
     facts = [run_facts(store, r) for r in runs]
     todo = [f for f in facts if f.method != LANDSCAPE_METHOD]
-    total = len(todo) + 5
+    total = len(todo) + 6
     for i, f in enumerate(todo):
         if progress is not None:
             progress(i, total, f"sim-to-sim {f.run['id']}" if sim2sim else "reading runs")
@@ -894,6 +895,7 @@ def write_report(
     steps = (("heat-maps", lambda: figure_heatmaps(store, facts, out)),
              ("convergence", lambda: figure_convergence(store, facts, out)),
              ("surrogate error", lambda: figure_surrogate_error(facts, out)),
+             ("surrogate quality", lambda: figure_surrogate_quality(facts, out)),
              ("Pareto fronts", lambda: figure_pareto(facts, out)),
              ("videos", lambda: figure_videos(facts, out)))
     for j, (what, draw) in enumerate(steps):

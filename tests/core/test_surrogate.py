@@ -167,3 +167,18 @@ def test_bad_evaluation_policy_is_one_line_error(tmp_path):
         run(tmp_path, agreeing(0.0), evaluation_policy="sometimes")
     with pytest.raises(UserError, match="uncertainty_threshold"):
         run(tmp_path, agreeing(0.0), uncertainty_threshold=-1)
+
+
+def test_report_figure_reads_each_runs_surrogate_quality(tmp_path):
+    from types import SimpleNamespace
+
+    from coadapt_core.results.surrogate_figure import figure_surrogate_quality, quality_series
+
+    result = run(tmp_path, agreeing(None), evaluation_probability=0.0)
+    facts = [SimpleNamespace(run={"summary": result.summary, "seed": 0}, method="ours", terrain="flat")]
+    series = quality_series(facts)
+    rounds = [r for r in result.summary["surrogate_quality"]["rounds"] if r["eligible"]]
+    assert series[("torque", "flat")][0]["spearman"] == pytest.approx([r["objectives"]["torque"]["spearman"] for r in rounds])
+    figures = figure_surrogate_quality(facts, tmp_path)
+    assert len(figures) == 1 and figures[0][0].stat().st_size > 1000
+    assert figure_surrogate_quality([SimpleNamespace(run={"summary": {}}, method="ours", terrain="flat")], tmp_path) == []
