@@ -31,11 +31,11 @@ MEMBERS = 5
 FIT_STEPS = 200
 BATCH = 128
 #: the members read designs in the frame of the labelled designs' box (False: the full space's)
-LOCAL_FRAME = False
+LOCAL_FRAME = True
 #: at most this half-width of the box (in the full space's [-1, 1] units) is stretched to 1
 MIN_HALF_WIDTH = 0.05
 #: the loss's unit: the labelled costs' spread, at least this share of their mean
-SPREAD_FLOOR = 0.05
+SPREAD_FLOOR = 0.001
 #: buffer states behind the fit's final level correction (members average 1/E of them each)
 CHECK_STATES = 2560
 LEARNING_RATE = 3e-3
