@@ -326,6 +326,8 @@ def register(app: typer.Typer) -> None:
                 from coadapt_core.plugins import get_registry
 
                 installed = get_registry().names("robot")
+                if checkpoint is not None and len(installed) != 1:
+                    fail(f"--checkpoint {checkpoint} does not exist")
                 if len(installed) != 1:
                     fail(f"--robot is needed: {len(installed)} robots are installed ({', '.join(installed)})")
                 robot = installed[0]

@@ -50,7 +50,8 @@ def test_train_writes_a_checkpoint_that_eval_and_resume_read(tmp_path, capsys) -
         (["train", "--reset-pseudo-critics", "--steps", "8"], "--reset-pseudo-critics needs --resume or --init-from"),
         (["eval", "--command", "fast"], "--command 'fast'"),
         (["eval", "--checkpoint", "/no/such.pt"], "does not exist"),
-        (["eval", "--design", "3,3", "--checkpoint", "x.pt"], "outside its bounds"),
+        # --robot given: another test may have left a second robot (the example plugin's) registered
+        (["eval", "--robot", "kuafu", "--design", "3,3", "--checkpoint", "x.pt"], "outside its bounds"),
         (["eval", "--video", "out.avi", "--checkpoint", "x.pt"], ".gif or .mp4"),
     ],
 )
@@ -62,5 +63,5 @@ def test_bad_options_give_one_line_and_exit_2(args, message, capsys) -> None:
 
 def test_eval_without_checkpoint_says_no_policy_is_shipped(capsys) -> None:
     # Kuafu ships slope.pt for the leg scales only: nothing for slope and the mixed space
-    assert main(["eval", "--terrain", "slope", "--design", "1,1,1,1"]) == 2
+    assert main(["eval", "--robot", "kuafu", "--terrain", "slope", "--design", "1,1,1,1"]) == 2
     assert "robot 'kuafu' ships no policy for terrain 'slope' and the mixed design space" in capsys.readouterr().err
