@@ -97,6 +97,25 @@ def camera_for(model: Any, data: Any) -> tuple[float, float]:
     return 1.9 * height + 0.4, 0.5 * height
 
 
+def scene_model(mjcf: str, width: int, height: int) -> Any:
+    """The design's MJCF with a checkered floor and a light, compiled for offscreen frames of
+    `width` x `height` (shared by `coadapt eval --video` and the run's best-vs-nominal GIF)."""
+    import mujoco
+
+    spec = mujoco.MjSpec.from_string(mjcf)
+    texture = spec.add_texture(name="grid", type=mujoco.mjtTexture.mjTEXTURE_2D,
+                               builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, rgb1=[0.82, 0.84, 0.86],
+                               rgb2=[0.68, 0.7, 0.72], width=256, height=256)
+    material = spec.add_material(name="grid", texrepeat=[40, 40], reflectance=0.05)
+    material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = texture.name
+    spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[20, 20, 0.05], material="grid")
+    spec.worldbody.add_light(pos=[0, -2, 4], dir=[0, 0.4, -1], diffuse=[0.8, 0.8, 0.8])
+    model = spec.compile()
+    model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
+    model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+    return model
+
+
 def render_panels(panels: list[dict], outputs: list[str], width: int, height: int, fps: float) -> None:
     """Replay each panel's base poses and joint angles in its own MuJoCo model, offscreen,
     and write the panels side by side, one frame per recorded step (the shorter rollout
@@ -107,17 +126,7 @@ def render_panels(panels: list[dict], outputs: list[str], width: int, height: in
 
     rendered = []
     for panel in panels:
-        spec = mujoco.MjSpec.from_string(panel["mjcf"])
-        texture = spec.add_texture(name="grid", type=mujoco.mjtTexture.mjTEXTURE_2D,
-                                   builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, rgb1=[0.82, 0.84, 0.86],
-                                   rgb2=[0.68, 0.7, 0.72], width=256, height=256)
-        material = spec.add_material(name="grid", texrepeat=[40, 40], reflectance=0.05)
-        material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = texture.name
-        spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[20, 20, 0.05], material="grid")
-        spec.worldbody.add_light(pos=[0, -2, 4], dir=[0, 0.4, -1], diffuse=[0.8, 0.8, 0.8])
-        model = spec.compile()
-        model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
-        model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+        model = scene_model(panel["mjcf"], width, height)
         data = mujoco.MjData(model)
         addresses = [model.jnt_qposadr[model.joint(name).id] for name in panel["joint_names"]]
         camera = mujoco.MjvCamera()

@@ -484,19 +484,11 @@ def render_frames(mjcf: str, joint_names: list[str], frames: list[dict], output:
     import numpy as np
     from PIL import Image
 
-    spec = mujoco.MjSpec.from_string(mjcf)
-    texture = spec.add_texture(name="grid", type=mujoco.mjtTexture.mjTEXTURE_2D, builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
-                               rgb1=[0.82, 0.84, 0.86], rgb2=[0.68, 0.7, 0.72], width=256, height=256)
-    material = spec.add_material(name="grid", texrepeat=[40, 40], reflectance=0.05)
-    material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = texture.name
-    spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[20, 20, 0.05], material="grid")
-    spec.worldbody.add_light(pos=[0, -2, 4], dir=[0, 0.4, -1], diffuse=[0.8, 0.8, 0.8])
-    model = spec.compile()
-    model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
-    model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+    from coadapt_core.video import camera_for, scene_model
+
+    model = scene_model(mjcf, width, height)
     data = mujoco.MjData(model)
     addresses = [model.jnt_qposadr[model.joint(name).id] for name in joint_names]
-    from coadapt_core.video import camera_for
 
     camera = mujoco.MjvCamera()
     camera.azimuth, camera.elevation = 90.0, -10.0
