@@ -176,3 +176,17 @@ def fake_sim_factory(fake_robot):
         return FakeSim(fake_robot, designs, randomization=config, seed=seed)
 
     return make
+
+
+@pytest.fixture
+def fake_sim_cls(fake_sim_factory):
+    """A simulator class over the fake backend with Table 2 randomization off (what the
+    learner tests train on)."""
+    sim_type = type(fake_sim_factory(1))
+
+    def build(robot, designs, **kwargs):
+        kwargs["randomization"] = RandomizationConfig.off()
+        return sim_type(robot, designs, **kwargs)
+
+    build.name = "fake"
+    return build

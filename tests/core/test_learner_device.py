@@ -11,23 +11,10 @@ import torch
 
 from coadapt_core.learning import TrainConfig, Trainer
 from coadapt_core.plugins import get_registry
-from coadapt_core.randomization import RandomizationConfig
 from coadapt_core.task import TaskConfig
 from coadapt_core.task.config import NoiseConfig
 from coadapt_core.task.env import LocomotionEnv
 from tests.core.test_learning_ppo import make_trainer, small_config
-
-
-@pytest.fixture
-def sim_cls(fake_sim_factory):
-    sim_type = type(fake_sim_factory(1))
-
-    def build(robot, designs, **kwargs):
-        kwargs["randomization"] = RandomizationConfig.off()
-        return sim_type(robot, designs, **kwargs)
-
-    build.name = "fake"
-    return build
 
 
 def test_training_allocates_nothing_on_the_default_device() -> None:
@@ -49,8 +36,8 @@ def test_training_allocates_nothing_on_the_default_device() -> None:
     assert trainer.total_steps == 2 * 4 * 8
 
 
-def test_update_uses_every_core_and_collection_one(fake_robot, sim_cls) -> None:
-    trainer = make_trainer(fake_robot, sim_cls, small_config(torch_threads=2))
+def test_update_uses_every_core_and_collection_one(fake_robot, fake_sim_cls) -> None:
+    trainer = make_trainer(fake_robot, fake_sim_cls, small_config(torch_threads=2))
     trainer.set_designs(np.array([[1.0, 1.0], [0.8, 1.2]]))
     seen = {"update": set(), "step": set()}
     update, step = trainer.ppo.update, trainer.env.step
@@ -59,7 +46,7 @@ def test_update_uses_every_core_and_collection_one(fake_robot, sim_cls) -> None:
     trainer.learn(2)
     assert seen == {"update": {2}, "step": {1}}
     assert torch.get_num_threads() == 1  # back to one outside the update
-    assert Trainer(fake_robot, sim_cls, [], train_config=small_config(torch_threads=0)).learner_threads >= 1
+    assert Trainer(fake_robot, fake_sim_cls, [], train_config=small_config(torch_threads=0)).learner_threads >= 1
 
 
 def test_randomized_parameters_are_converted_once_per_reset(fake_robot, fake_sim_factory) -> None:
@@ -79,8 +66,8 @@ def test_randomized_parameters_are_converted_once_per_reset(fake_robot, fake_sim
     assert torch.equal(res.critic_obs[:, -8], friction)  # the restarted episodes' own parameters
 
 
-def test_bf16_and_profiled_update_run_on_the_cpu(fake_robot, sim_cls) -> None:
-    trainer = make_trainer(fake_robot, sim_cls, small_config(precision="bf16", pseudo_precision="bf16"))
+def test_bf16_and_profiled_update_run_on_the_cpu(fake_robot, fake_sim_cls) -> None:
+    trainer = make_trainer(fake_robot, fake_sim_cls, small_config(precision="bf16", pseudo_precision="bf16"))
     trainer.set_designs(np.array([[1.0, 1.0]]))
     trainer.ppo.profile = True
     stats = trainer.learn(2)

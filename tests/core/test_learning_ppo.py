@@ -43,20 +43,6 @@ def make_trainer(fake_robot, fake_sim_cls, config: TrainConfig | None = None, ob
     return Trainer(fake_robot, fake_sim_cls, objectives, train_config=config or small_config(), task_config=task)
 
 
-@pytest.fixture
-def fake_sim_cls(fake_sim_factory):
-    from coadapt_core.randomization import RandomizationConfig
-
-    sim_type = type(fake_sim_factory(1))
-
-    def build(robot, designs, **kwargs):
-        kwargs["randomization"] = RandomizationConfig.off()
-        return sim_type(robot, designs, **kwargs)
-
-    build.name = "fake"
-    return build
-
-
 def test_pseudo_targets_are_the_discounted_average_of_the_metric() -> None:
     metrics = torch.full((3, 5, 2), 2.5)  # [N, T, M]
     value = torch.full((3, 5, 2), 2.5)
