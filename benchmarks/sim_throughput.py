@@ -69,7 +69,7 @@ def measure_mujoco(
     import torch
     from coadapt_plugins.simulators.mujoco.simulator import MujocoSimulator
 
-    from coadapt_core.randomization import RandomizationConfig
+    from coadapt_core.physics.randomization import RandomizationConfig
 
     rng = np.random.default_rng(seed)
     space = robot.design_space()
@@ -166,7 +166,7 @@ def measure_layouts(robot, designs: int, agents: int, threads: int | None, seed:
     import torch
     from coadapt_plugins.simulators.mujoco.simulator import MujocoSimulator
 
-    from coadapt_core.randomization import RandomizationConfig
+    from coadapt_core.physics.randomization import RandomizationConfig
 
     space = robot.design_space()
     unique = space.sample(designs, rng=seed)
@@ -227,7 +227,7 @@ def measure_pybullet(robot, envs: int, seconds: float, seed: int) -> dict | None
     except Exception as exc:  # optional: absent package or plugin
         return {"skipped": f"{type(exc).__name__}: {exc}"}
 
-    from coadapt_core.randomization import RandomizationConfig
+    from coadapt_core.physics.randomization import RandomizationConfig
 
     designs = robot.design_space().sample(envs, rng=seed)
     with cls(robot, designs, randomization=RandomizationConfig(), seed=seed) as sim:

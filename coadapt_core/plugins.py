@@ -31,7 +31,7 @@ ENV_LOAD_PLUGINS = "COADAPT_LOAD_PLUGINS"
 #: kind -> (hook name, base class import path)
 KINDS: dict[str, tuple[str, str]] = {
     "robot": ("coadapt_register_robots", "coadapt_core.robot:Robot"),
-    "simulator": ("coadapt_register_simulators", "coadapt_core.simulator:Simulator"),
+    "simulator": ("coadapt_register_simulators", "coadapt_core.physics.simulator:Simulator"),
     "optimizer": ("coadapt_register_optimizers", "coadapt_core.optimizer:Optimizer"),
     "objective": ("coadapt_register_objectives", "coadapt_core.objective:Objective"),
 }

@@ -182,7 +182,7 @@ def register(app: typer.Typer) -> None:
                 setattr(base, key, value)
         base.device, base.seed, base.checkpoint_every, base.torch_threads = device, seed, checkpoint_every, torch_threads
         if randomization is not None:
-            from coadapt_core.randomization import RandomizationConfig
+            from coadapt_core.physics.randomization import RandomizationConfig
 
             try:
                 RandomizationConfig.preset(randomization)
@@ -402,8 +402,8 @@ def evaluate_checkpoint(
     from coadapt_core.learning import TrainConfig, Trainer, read_checkpoint
     from coadapt_core.learning.evaluate import rollout
     from coadapt_core.learning.scenarios import apply_scenarios
+    from coadapt_core.physics.randomization import RandomizationConfig
     from coadapt_core.plugins import get_registry
-    from coadapt_core.randomization import RandomizationConfig
     from coadapt_core.task import LocomotionEnv, TaskConfig
 
     state = read_checkpoint(checkpoint)

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from coadapt_core.errors import UserError
-from coadapt_core.simulator import TERRAINS
+from coadapt_core.physics.simulator import TERRAINS
 
 #: --method choices; see `METHOD_SWITCHES` in coadapt_core/coadapt/loop.py
 METHODS: tuple[str, ...] = ("ours", "no-surrogate", "no-real", "no-retrain", "bo-specialized")

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from coadapt_core.randomization import EnvParams, sample_env_params
+from coadapt_core.physics.randomization import EnvParams, sample_env_params
 from coadapt_core.task.env import LocomotionEnv
 
 

@@ -23,7 +23,7 @@ from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.networks import CriticBank
 from coadapt_core.learning.ppo import PPO, Dims
 from coadapt_core.objective import Objective
-from coadapt_core.randomization import RandomizationConfig
+from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.robot import Robot
 from coadapt_core.task.config import TaskConfig
 from coadapt_core.task.env import LocomotionEnv

@@ -14,8 +14,8 @@ import torch
 
 from coadapt_core.errors import UserError
 from coadapt_core.objective import Objective, StepBatch
+from coadapt_core.physics.simulator import SimState, Simulator
 from coadapt_core.robot import Robot
-from coadapt_core.simulator import SimState, Simulator
 from coadapt_core.task import observations as layout
 from coadapt_core.task.commands import CommandSampler
 from coadapt_core.task.config import TaskConfig

@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from coadapt_core.randomization import RandomizationConfig
+from coadapt_core.physics.randomization import RandomizationConfig
+from coadapt_core.physics.simulator import SimState, Simulator
 from coadapt_core.robot import Robot
-from coadapt_core.simulator import SimState, Simulator
 
 
 def _designs(robot: Robot, n: int) -> np.ndarray:

@@ -10,9 +10,9 @@ import pytest
 import torch
 
 from coadapt_core.design_space import Continuous, DesignSpace
-from coadapt_core.randomization import RandomizationConfig, sample_env_params
+from coadapt_core.physics.randomization import RandomizationConfig, sample_env_params
+from coadapt_core.physics.simulator import SimState, Simulator
 from coadapt_core.robot import Robot, RobotModel, ValidationReport
-from coadapt_core.simulator import SimState, Simulator
 
 DEFAULT_LEG = np.array([0.0, -0.4, 0.8, -0.4])  # hip roll, hip pitch, knee, ankle
 

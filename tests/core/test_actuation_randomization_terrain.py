@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
 
-from coadapt_core.actuation import DelayLine, pd_torque, torque_speed_bounds
 from coadapt_core.errors import UserError
-from coadapt_core.randomization import RandomizationConfig, sample_env_params
-from coadapt_core.terrain import make_terrain
+from coadapt_core.physics.actuation import DelayLine, pd_torque, torque_speed_bounds
+from coadapt_core.physics.randomization import RandomizationConfig, sample_env_params
+from coadapt_core.physics.terrain import make_terrain
 
 
 def test_envelope_full_torque_at_rest_zero_at_no_load_speed():

@@ -13,7 +13,7 @@ from coadapt_core.learning import TrainConfig
 from coadapt_core.learning.backend import UniversalPolicyBackend
 from coadapt_core.learning.evaluate import EvalBuffer
 from coadapt_core.objective import Objective, StepBatch
-from coadapt_core.randomization import RandomizationConfig
+from coadapt_core.physics.randomization import RandomizationConfig
 
 
 class SquaredTorque(Objective):

@@ -21,7 +21,7 @@ RANDOM_CONFIGURATIONS = 5
 
 def _largest_gain_factor() -> float:
     """Largest PD factor x motor strength the default domain randomization (Table 2) draws."""
-    from coadapt_core.randomization import RandomizationConfig
+    from coadapt_core.physics.randomization import RandomizationConfig
 
     config = RandomizationConfig()
     return float(config.pd_factor[1] * config.motor_strength[1])

@@ -1,7 +1,7 @@
 """Compose a robot's MJCF with a terrain into one compiled MuJoCo model, and cache it.
 
 The robot plugin gives the robot alone (no floor). Here `mujoco.MjSpec` adds the terrain
-(plane, tilted plane or height field from `coadapt_core.terrain`), one contact sensor per
+(plane, tilted plane or height field from `coadapt_core.physics.terrain`), one contact sensor per
 foot, the physics step, and for `fixed_base` removes the free joint. Compiled models are
 cached per (design, terrain, fixed_base, physics_dt): environments sharing a design share a
 compilation, and the next PSO iteration re-uses what it has seen.
@@ -17,8 +17,8 @@ import mujoco
 import numpy as np
 
 from coadapt_core.errors import UserError
+from coadapt_core.physics.terrain import Terrain, make_terrain
 from coadapt_core.robot import Robot, RobotModel
-from coadapt_core.terrain import Terrain, make_terrain
 
 #: name prefix of everything this module adds, so it never clashes with a robot's names
 PREFIX = "coadapt_"
@@ -88,7 +88,7 @@ def compose_spec(robot_model: RobotModel, terrain: Terrain, *, physics_dt: float
             name=TERRAIN_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1],
             quat=[math.cos(half), 0.0, math.sin(half), 0.0], contype=0, conaffinity=1,
         )
-    # The envelope in coadapt_core.actuation is the one torque limit; MuJoCo's own ctrl
+    # The envelope in coadapt_core.physics.actuation is the one torque limit; MuJoCo's own ctrl
     # clamp would be a second, possibly different one (rounding of the MJCF's ctrlrange).
     for act in spec.actuators:
         act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE

@@ -26,10 +26,10 @@ from coadapt_plugins.simulators.mujoco.compose import (
     terrain_normal,
 )
 
-from coadapt_core.actuation import DelayLine, pd_torque
 from coadapt_core.errors import UserError
-from coadapt_core.randomization import EnvParams, RandomizationConfig, sample_env_params
-from coadapt_core.simulator import SimState, Simulator
+from coadapt_core.physics.actuation import DelayLine, pd_torque
+from coadapt_core.physics.randomization import EnvParams, RandomizationConfig, sample_env_params
+from coadapt_core.physics.simulator import SimState, Simulator
 
 if TYPE_CHECKING:
     import torch
@@ -480,7 +480,7 @@ class MujocoSimulator(Simulator):
         params = self._params
         for _sub in range(self.decimation):
             t0 = perf()
-            # coadapt_core.actuation: delayed target, PD, strength, torque-speed envelope
+            # coadapt_core.physics.actuation: delayed target, PD, strength, torque-speed envelope
             self._delay.push(targets)
             q = self._qpos[:, self._q_index]  # [N, J]
             dq = self._qvel[:, self._dq_index]  # [N, J]

@@ -19,8 +19,8 @@ import pybullet as p
 from coadapt_plugins.simulators.pybullet.spec import EnvSpec
 from coadapt_plugins.simulators.pybullet.urdf import prepare_urdf
 
-from coadapt_core.actuation import DelayLine, pd_torque
-from coadapt_core.terrain import Terrain
+from coadapt_core.physics.actuation import DelayLine, pd_torque
+from coadapt_core.physics.terrain import Terrain
 
 #: gravity, m/s^2 (MuJoCo's default)
 GRAVITY = 9.81

@@ -1,8 +1,8 @@
 """`PyBulletSimulator`: the `Simulator` interface on PyBullet, for sim-to-sim transfer.
 
 Same semantics as the MuJoCo backend from the same robot model: torque control through
-`coadapt_core.actuation`, Table 2 randomization drawn by `coadapt_core.randomization` from
-the simulator's seed, terrains from `coadapt_core.terrain`. Small batches run in this
+`coadapt_core.physics.actuation`, Table 2 randomization drawn by `coadapt_core.physics.randomization` from
+the simulator's seed, terrains from `coadapt_core.physics.terrain`. Small batches run in this
 process; larger ones in worker processes (see `workers.py`), with identical numbers.
 """
 
@@ -16,12 +16,12 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 
 from coadapt_core.errors import DesignError, UserError
-from coadapt_core.randomization import (
+from coadapt_core.physics.randomization import (
     EnvParams,
     RandomizationConfig,
     nominal_env_params,
 )
-from coadapt_core.simulator import TERRAINS, SimState, Simulator
+from coadapt_core.physics.simulator import TERRAINS, SimState, Simulator
 
 if TYPE_CHECKING:
     import torch
@@ -201,7 +201,7 @@ class PyBulletSimulator(Simulator):
             return torch.as_tensor(np.ascontiguousarray(x), dtype=dtype, device=self.device)
 
         xy = raw["base_pos"][:, :2]
-        from coadapt_core.terrain import make_terrain
+        from coadapt_core.physics.terrain import make_terrain
 
         terrain_height = make_terrain(self.terrain, seed=self.seed).height_at(xy)
         return SimState(
@@ -242,7 +242,7 @@ class PyBulletSimulator(Simulator):
         self._params.put(ids, self.draw_env_params(ids, self._rng))
         spawn_xy = np.zeros((len(ids), 2))
         if self.terrain == "random":
-            from coadapt_core.terrain import make_terrain
+            from coadapt_core.physics.terrain import make_terrain
 
             half = make_terrain(self.terrain, seed=self.seed).size / 2 - SPAWN_MARGIN
             spawn_xy = self.draw_spawn_xy(ids, self._spawn_rng, half)

@@ -11,7 +11,7 @@ from coadapt_plugins.robots.kuafu.robot import Kuafu
 from coadapt_plugins.simulators.mujoco.simulator import MujocoSimulator
 
 from coadapt_core.errors import UserError
-from coadapt_core.randomization import RandomizationConfig, sample_env_params
+from coadapt_core.physics.randomization import RandomizationConfig, sample_env_params
 
 
 @pytest.fixture(scope="module")

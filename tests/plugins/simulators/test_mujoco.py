@@ -17,11 +17,11 @@ from coadapt_plugins.simulators.mujoco.simulator import (
     restitution_to_dampratio,
 )
 
-from coadapt_core.actuation import pd_torque
 from coadapt_core.errors import DesignError, UserError
-from coadapt_core.randomization import RandomizationConfig
-from coadapt_core.simulator import SLOPE_DEGREES
-from coadapt_core.terrain import make_terrain
+from coadapt_core.physics.actuation import pd_torque
+from coadapt_core.physics.randomization import RandomizationConfig
+from coadapt_core.physics.simulator import SLOPE_DEGREES
+from coadapt_core.physics.terrain import make_terrain
 from coadapt_core.testing import SimulatorConformance
 
 G = 9.81
@@ -228,7 +228,7 @@ def test_base_angular_velocity_is_in_the_world_frame(kuafu) -> None:
 
 # -- actuation ----------------------------------------------------------------------------
 def test_applied_torque_follows_the_shared_actuation_law(kuafu) -> None:
-    """One physics step from rest: joint_torque equals coadapt_core.actuation with each
+    """One physics step from rest: joint_torque equals coadapt_core.physics.actuation with each
     environment's own PD factor and motor strength."""
     rand = RandomizationConfig(friction=(1.0, 1.0), restitution=(0.0, 0.0), com_shift=(0.0, 0.0), delay=(0.0, 0.0))
     with MujocoSimulator(kuafu, _designs(kuafu, 8, mixed=True), randomization=rand, decimation=1, fixed_base=True) as sim:
@@ -439,7 +439,7 @@ def test_device_and_dtype(kuafu) -> None:
 def test_same_seed_draws_the_same_parameters_as_the_core_sampler(kuafu) -> None:
     """Construction consumes no randomness: the first reset's parameters are the first draw
     of default_rng(seed), as on every backend."""
-    from coadapt_core.randomization import sample_env_params
+    from coadapt_core.physics.randomization import sample_env_params
 
     rand = RandomizationConfig()
     with MujocoSimulator(kuafu, _designs(kuafu, 5), randomization=rand, seed=9) as sim:

@@ -14,10 +14,10 @@ from coadapt_plugins.robots.kuafu.robot import Kuafu
 from coadapt_plugins.simulators.pybullet import PyBulletSimulator
 from coadapt_plugins.simulators.pybullet import simulator as pb_simulator
 
-from coadapt_core.actuation import pd_torque
 from coadapt_core.errors import UserError
-from coadapt_core.randomization import RandomizationConfig
-from coadapt_core.terrain import make_terrain
+from coadapt_core.physics.actuation import pd_torque
+from coadapt_core.physics.randomization import RandomizationConfig
+from coadapt_core.physics.terrain import make_terrain
 from coadapt_core.testing import SimulatorConformance
 
 NOMINAL = np.array([[1.0, 1.0]])
@@ -148,7 +148,7 @@ def test_delay_holds_the_old_targets_for_the_delay(kuafu):
 
 
 def test_torque_follows_the_shared_actuation_law(kuafu):
-    """With decimation 1 the reported torque is exactly coadapt_core.actuation's output at
+    """With decimation 1 the reported torque is exactly coadapt_core.physics.actuation's output at
     the state before the step (far targets: the torque-speed envelope clips it)."""
     with PyBulletSimulator(kuafu, NOMINAL, randomization=RandomizationConfig.off(), decimation=1, fixed_base=True) as sim:
         state = sim.reset()

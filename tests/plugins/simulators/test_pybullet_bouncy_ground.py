@@ -15,7 +15,7 @@ pytest.importorskip("pybullet")
 from coadapt_plugins.robots.kuafu.robot import Kuafu
 from coadapt_plugins.simulators.pybullet.simulator import PyBulletSimulator
 
-from coadapt_core.randomization import RandomizationConfig
+from coadapt_core.physics.randomization import RandomizationConfig
 
 
 def _late_joint_speed(mode: str) -> float:

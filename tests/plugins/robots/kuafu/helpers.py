@@ -5,7 +5,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from coadapt_core.actuation import pd_torque
+from coadapt_core.physics.actuation import pd_torque
 from coadapt_core.robot import RobotModel
 
 

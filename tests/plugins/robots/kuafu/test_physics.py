@@ -7,7 +7,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from coadapt_core.actuation import pd_torque
+from coadapt_core.physics.actuation import pd_torque
 
 from .helpers import stand_under_pd
 

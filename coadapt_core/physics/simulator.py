@@ -1,7 +1,7 @@
 """The `Simulator` plugin kind: a batched physics backend.
 
 A simulator moves `num_envs` robots, each built from its own design, on one terrain. It
-steps them with joint position targets (turned into torques by `coadapt_core.actuation`,
+steps them with joint position targets (turned into torques by `coadapt_core.physics.actuation`,
 including motor limits, randomized PD factor, motor strength and system delay) and reports
 state as batched torch tensors. It knows nothing of commands, observations or rewards: that
 is the locomotion task's room, which runs unchanged on every backend.
@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from coadapt_core.randomization import EnvParams, RandomizationConfig, sample_env_params
+from coadapt_core.physics.randomization import EnvParams, RandomizationConfig, sample_env_params
 
 if TYPE_CHECKING:
     import torch
@@ -141,10 +141,10 @@ class Simulator(ABC):
         """The current state without stepping."""
 
     def terrain_height_at(self, xy: torch.Tensor) -> torch.Tensor:
-        """Terrain height [...] at world points xy [..., 2] (see `coadapt_core.terrain`)."""
+        """Terrain height [...] at world points xy [..., 2] (see `coadapt_core.physics.terrain`)."""
         import torch
 
-        from coadapt_core.terrain import make_terrain
+        from coadapt_core.physics.terrain import make_terrain
 
         heights = make_terrain(self.terrain, seed=self.seed).height_at(xy.detach().cpu().numpy())
         return torch.as_tensor(heights, dtype=xy.dtype, device=xy.device)

@@ -17,7 +17,7 @@ from functools import lru_cache
 import numpy as np
 
 from coadapt_core.errors import UserError
-from coadapt_core.simulator import RANDOM_MAX_HEIGHT, SLOPE_DEGREES, TERRAINS
+from coadapt_core.physics.simulator import RANDOM_MAX_HEIGHT, SLOPE_DEGREES, TERRAINS
 
 
 @dataclass(frozen=True)
