@@ -42,5 +42,10 @@ class UnknownPluginError(UserError):
         self.available = sorted(available)
 
 
+class BackendUnavailable(CoadaptError):
+    """A learner backend that cannot be built here (a simulator whose library is missing, a
+    broken plugin); the message says why and is shown to the user as is."""
+
+
 class NotYetAvailable(CoadaptError):
     """A command or feature whose implementation arrives with a later piece of work."""

@@ -138,17 +138,15 @@ def build_parts(
 def universal_policy_factory(
     config: CoadaptConfig, robot, full_space: DesignSpace, objectives: Sequence[Objective]
 ) -> Callable[[int], CoadaptationBackend]:
-    """The real backend: `coadapt_core.learning.backend.UniversalPolicyBackend` on the
-    configured simulator and terrain."""
+    """The real backend: the learner's universal policy (`coadapt_core.learning.factory`) on
+    the configured simulator and terrain."""
     from coadapt_core.plugins import get_registry
 
     simulator_cls = get_registry().get("simulator", config.sim)
     try:
-        from coadapt_core.learning.backend import UniversalPolicyBackend
+        from coadapt_core.learning.factory import make_backend
     except ImportError as exc:
-        raise CoadaptError(
-            f"the universal-policy learner (coadapt_core.learning.backend) is not available: {exc}"
-        ) from None
+        raise CoadaptError(f"the universal-policy learner (coadapt_core.learning) is not available: {exc}") from None
     from coadapt_core.coadapt.loop import METHOD_SWITCHES
 
     # a specialised policy (BO baseline) is trained on its one design from scratch (the
@@ -159,10 +157,9 @@ def universal_policy_factory(
     agents = config.population * config.agents_per_design if specialized else config.agents_per_design
 
     def factory(seed: int) -> CoadaptationBackend:
-        return UniversalPolicyBackend(
+        return make_backend(
             robot, simulator_cls, list(objectives), terrain=config.terrain, design_space=full_space,
-            agents_per_design=agents, device=config.device, seed=seed,
-            checkpoint=checkpoint,
+            agents_per_design=agents, device=config.device, seed=seed, checkpoint=checkpoint,
         )
 
     return factory
