@@ -114,10 +114,10 @@ def table(rows: list[dict]) -> str:
 def ground_truth(args: argparse.Namespace, out: Path) -> dict:
     """The landscape of --grid x --grid designs on the runs' scenario set (seed of the first
     run; every run of a seed shares its set, and the fake's truth does not depend on it),
-    evaluated with the starting policy through `coadapt_core.results.landscape.run_landscape`.
+    evaluated with the starting policy through `coadapt_core.experiments.landscape.run_landscape`.
     Returns the grid axes and costs [grid, grid] of the first objective."""
     from coadapt_core.coadapt import make_config
-    from coadapt_core.results.landscape import run_landscape
+    from coadapt_core.experiments.landscape import run_landscape
     from coadapt_core.results.recorder import SqliteRecorder
 
     config = make_config(args.preset, None, {"objective": args.objective, "sim": args.sim, "terrain": args.terrain})
@@ -129,9 +129,9 @@ def ground_truth(args: argparse.Namespace, out: Path) -> dict:
         backend, objectives = AnalyticBackend(0), [get_registry().get("objective", args.objective)()]
         low, high, nominal = SPACE.lower, SPACE.upper, (1.0, 1.0)
     else:
+        from coadapt_core.experiments.backends import BackendRequest, universal_policy_backend
         from coadapt_core.learning import shipped_checkpoint
         from coadapt_core.plugins import get_registry
-        from coadapt_core.results.backends import BackendRequest, universal_policy_backend
 
         robot = get_registry().get("robot", config.robot)()
         space = robot.design_space()

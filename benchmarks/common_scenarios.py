@@ -22,9 +22,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(ROOT))
+    from coadapt_core.experiments.backends import BackendRequest, universal_policy_backend
     from coadapt_core.fitness import improvement_se, robust_cost, scenario_se, scenario_seed
     from coadapt_core.learning import shipped_checkpoint
-    from coadapt_core.results.backends import BackendRequest, universal_policy_backend
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("runs", nargs="+", help="run folders (each with a summary.json)")

@@ -61,10 +61,10 @@ def evaluate_grid(backend, objectives, designs: np.ndarray, *, agents: int, step
 def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(ROOT))
     from coadapt_core.coadapt.config import PRESETS
+    from coadapt_core.experiments.backends import BackendRequest, universal_policy_backend
+    from coadapt_core.experiments.landscape import landscape_designs
     from coadapt_core.fitness import paired_difference, scenario_se, scenario_seed
     from coadapt_core.learning import shipped_checkpoint
-    from coadapt_core.results.backends import BackendRequest, universal_policy_backend
-    from coadapt_core.results.landscape import landscape_designs
 
     quick = PRESETS["quick"]
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])

@@ -16,14 +16,14 @@ import pytest
 
 pytest.importorskip("pybullet")
 
-from coadapt_core.plugins import get_registry
-from coadapt_core.sim2sim import (
+from coadapt_core.experiments.transfer import (
     DEFAULT_DESIGNS,
     ErrorFigure,
     compare_backends,
     markdown_tables,
     swing_targets,
 )
+from coadapt_core.plugins import get_registry
 
 
 @pytest.fixture(scope="module")
@@ -74,7 +74,7 @@ def test_error_figure_and_swing_targets():
 @pytest.mark.parametrize("terrain", ["flat", "random"])
 def test_same_seed_same_parameters_and_spawn_on_both_backends(terrain):
     """Randomized parameters and spawn points come from the seed alone, not the backend."""
-    from coadapt_core.randomization import RandomizationConfig
+    from coadapt_core.physics.randomization import RandomizationConfig
 
     registry = get_registry()
     robot = registry.create("robot", "kuafu")

@@ -57,7 +57,7 @@ def register(app: typer.Typer) -> None:
         as finished and resuming cells a killed grid left unfinished."""
         from rich.console import Console
 
-        from coadapt_core.results.grid import (
+        from coadapt_core.experiments.grid import (
             GridSpec,
             check_grid_options,
             parse_list,
@@ -92,7 +92,7 @@ def register(app: typer.Typer) -> None:
         started: list[str] = []  # cells handed to the executor, in the order it starts them
         done: set[str] = set()
         from coadapt_core.cli.progress import ProgressLine
-        from coadapt_core.results.grid import default_workers
+        from coadapt_core.experiments.grid import default_workers
 
         width = workers or default_workers()
 

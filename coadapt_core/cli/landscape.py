@@ -49,15 +49,15 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Evaluate the real cost (Algorithm 2) of a grid of (thigh, shank) designs with the
         universal policy; reports draw it as a heat-map and mark each method's optimum."""
-        from coadapt_core.results.backends import (
+        from coadapt_core.experiments.backends import (
             BackendRequest,
             BackendUnavailable,
             nominal_design,
             universal_policy_backend,
         )
-        from coadapt_core.results.landscape import run_landscape
+        from coadapt_core.experiments.landscape import run_landscape
+        from coadapt_core.physics.simulator import TERRAINS
         from coadapt_core.results.recorder import SqliteRecorder
-        from coadapt_core.simulator import TERRAINS
 
         names = [o.strip() for o in objective.split(",") if o.strip()]
         for name in names:

@@ -1,5 +1,6 @@
-"""Results that last: the results store (SQLite by default), its `RunRecorder`, export,
-ablation grids, reports (Table 6/7 layouts, Fig. 6-style figures) and cost landscapes."""
+"""Results that last: the results store (SQLite by default), its `RunRecorder` and export.
+Experiments that write rows live in `coadapt_core.experiments`, reports in
+`coadapt_core.analysis`."""
 
 from coadapt_core.results.recorder import SqliteRecorder
 from coadapt_core.results.store import (

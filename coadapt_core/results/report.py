@@ -17,18 +17,18 @@ from typing import Any
 import numpy as np
 
 from coadapt_core.errors import UserError
-from coadapt_core.fitness import scenario_seed
-from coadapt_core.pareto import pareto_mask
-from coadapt_core.results.backends import (
+from coadapt_core.experiments.backends import (
     BackendFactory,
     BackendUnavailable,
     nominal_design,
     run_request,
     universal_policy_backend,
 )
+from coadapt_core.experiments.grid import METHODS
+from coadapt_core.experiments.landscape import LANDSCAPE_METHOD
+from coadapt_core.fitness import scenario_seed
+from coadapt_core.pareto import pareto_mask
 from coadapt_core.results.export import space_of_run
-from coadapt_core.results.grid import METHODS
-from coadapt_core.results.landscape import LANDSCAPE_METHOD
 from coadapt_core.results.store import Evaluation, ResultsStore, checkpoint_of, run_folder_of
 from coadapt_core.results.surrogate_figure import figure_surrogate_quality
 
@@ -229,7 +229,7 @@ def sim_to_sim(
         cached = [e for e in store.evaluations(run["id"], kind="sim2sim") if e.simulator == simulator]
     by_idx = {e.idx: e for e in cached}
     best_cost, nominal_cost = by_idx[0].costs[first], by_idx[1].costs[first]
-    from coadapt_core.results.backends import objective_instances
+    from coadapt_core.experiments.backends import objective_instances
 
     try:
         (objective,) = objective_instances([first])

@@ -41,7 +41,7 @@ def resume(run_dir):
 def test_grid_restarts_a_cell_killed_before_its_first_state_file(tmp_path):
     """Registered in the store, folder made, no state.json yet: the next grid starts it afresh
     (it used to resume it and fail for good)."""
-    from coadapt_core.results.grid import GridSpec, plan_grid
+    from coadapt_core.experiments.grid import GridSpec, plan_grid
 
     store = ResultsStore(tmp_path / "g.db")
     spec = GridSpec(methods=["ours"], objectives=["torque"], terrains=["flat"], seeds=[0, 1], preset="smoke")

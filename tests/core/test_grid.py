@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from coadapt_core.errors import UserError
+from coadapt_core.experiments.grid import GridSpec, plan_grid, run_grid
 from coadapt_core.results import ResultsStore
-from coadapt_core.results.grid import GridSpec, plan_grid, run_grid
 
 FAKE_RUN = [sys.executable, str(Path(__file__).resolve())]
 OPTIMUM = {"torque": (0.5, 0.5), "tracking": (1.4, 1.1), "power": (1.3, 1.3)}

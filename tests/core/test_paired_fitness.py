@@ -155,8 +155,8 @@ def test_a_real_round_records_its_error_bars_and_fall_rate():
 # -- real MuJoCo, the shipped policy ---------------------------------------------------------
 @pytest.fixture(scope="module")
 def shipped_backend():
+    from coadapt_core.experiments.backends import BackendRequest, universal_policy_backend
     from coadapt_core.learning import shipped_checkpoint
-    from coadapt_core.results.backends import BackendRequest, universal_policy_backend
 
     checkpoint = shipped_checkpoint("kuafu", "flat")
     assert checkpoint is not None, "the built-in Kuafu robot ships flat.pt"

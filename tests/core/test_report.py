@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 from coadapt_core.errors import UserError
+from coadapt_core.experiments.backends import objective_instances
+from coadapt_core.experiments.landscape import run_landscape
 from coadapt_core.fitness import CoadaptationBackend, RealFitness, TrainingResult
 from coadapt_core.pareto import pareto_mask
 from coadapt_core.results import ResultsStore, SqliteRecorder
-from coadapt_core.results.backends import objective_instances
-from coadapt_core.results.landscape import run_landscape
 from coadapt_core.results.report import write_report
 
 OPTIMUM = np.array([0.62, 0.57])

@@ -10,7 +10,7 @@ compared:
 2. standing — on flat ground holding the default pose: base height, base orientation and
    joint positions (adds the contact models).
 
-`python -m coadapt_core.sim2sim` prints the figures as the Markdown tables of
+`python -m coadapt_core.experiments.transfer` prints the figures as the Markdown tables of
 docs/sim-to-sim.md.
 """
 
@@ -21,9 +21,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from coadapt_core.randomization import RandomizationConfig
+from coadapt_core.physics.randomization import RandomizationConfig
+from coadapt_core.physics.simulator import Simulator
 from coadapt_core.robot import Robot
-from coadapt_core.simulator import Simulator
 
 #: designs the check runs by default: nominal, both extremes, a mixed one
 DEFAULT_DESIGNS = ((1.0, 1.0), (0.5, 0.5), (1.5, 1.5), (0.7, 1.3))
