@@ -44,8 +44,8 @@ def register(app: typer.Typer) -> None:
         transfer_steps: int = typer.Option(400, help="Policy steps per agent in the sim-to-sim evaluation."),
     ) -> None:
         """Write tables (Markdown, CSV) and figures (PNG, HTML) from a run or grid."""
+        from coadapt_core.analysis.report import write_report
         from coadapt_core.cli.common import fail
-        from coadapt_core.results.report import write_report
         from coadapt_core.results.store import ResultsStore
 
         if transfer_agents < 1 or transfer_steps < 1:

@@ -127,7 +127,7 @@ def test_local_grid_runs_cells_then_skips_them(tmp_path):
     assert sorted(again.skipped) == sorted(report.finished) and not again.finished
     assert len(store.list_runs()) == 4
     # the grid's report covers its runs, one Table 7 row per method
-    from coadapt_core.results.report import write_report
+    from coadapt_core.analysis.report import write_report
 
     files = write_report(store, spec.grid_id, tmp_path / "report", sim2sim=False)
     t7 = files["table7.csv"].read_text().splitlines()

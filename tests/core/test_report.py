@@ -11,13 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from coadapt_core.analysis.report import write_report
 from coadapt_core.errors import UserError
 from coadapt_core.experiments.backends import objective_instances
 from coadapt_core.experiments.landscape import run_landscape
 from coadapt_core.fitness import CoadaptationBackend, RealFitness, TrainingResult
 from coadapt_core.pareto import pareto_mask
 from coadapt_core.results import ResultsStore, SqliteRecorder
-from coadapt_core.results.report import write_report
 
 OPTIMUM = np.array([0.62, 0.57])
 
@@ -216,7 +216,7 @@ def test_interrupted_landscape_resumes_without_reevaluating_rows(tmp_path):
 
 
 def test_axes_go_logarithmic_only_for_costs_over_three_decades():
-    from coadapt_core.results.report import _spans_decades
+    from coadapt_core.analysis.report import _spans_decades
 
     assert _spans_decades([900.0, 2.0e3, 3.5e11])  # one diverged rollout among sane costs
     assert not _spans_decades([900.0, 2.0e3, 8.0e5])

@@ -172,7 +172,7 @@ def test_bad_evaluation_policy_is_one_line_error(tmp_path):
 def test_report_figure_reads_each_runs_surrogate_quality(tmp_path):
     from types import SimpleNamespace
 
-    from coadapt_core.results.surrogate_figure import figure_surrogate_quality, quality_series
+    from coadapt_core.analysis.surrogate_figure import figure_surrogate_quality, quality_series
 
     result = run(tmp_path, agreeing(None), evaluation_probability=0.0)
     facts = [SimpleNamespace(run={"summary": result.summary, "seed": 0}, method="ours", terrain="flat")]

@@ -169,7 +169,7 @@ def test_eval_takes_the_robot_from_the_checkpoint(site_with_policy):
 
 
 def test_report_rows_mark_runs_below_the_walking_gate(tmp_path):
-    from coadapt_core.results.report import write_report
+    from coadapt_core.analysis.report import write_report
     from tests.core.test_report import SqliteRecorder, read_csv, record_run
 
     rec = SqliteRecorder(tmp_path / "r.db")

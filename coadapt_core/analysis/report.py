@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from coadapt_core.analysis.surrogate_figure import figure_surrogate_quality
 from coadapt_core.errors import UserError
 from coadapt_core.experiments.backends import (
     BackendFactory,
@@ -30,7 +31,6 @@ from coadapt_core.fitness import scenario_seed
 from coadapt_core.pareto import pareto_mask
 from coadapt_core.results.export import space_of_run
 from coadapt_core.results.store import Evaluation, ResultsStore, checkpoint_of, run_folder_of
-from coadapt_core.results.surrogate_figure import figure_surrogate_quality
 
 #: the paper's row labels
 METHOD_LABELS = {

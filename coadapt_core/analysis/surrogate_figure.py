@@ -31,7 +31,7 @@ def quality_series(facts: Sequence[Any]) -> dict[tuple[str, str], list[dict[str,
 
 
 def figure_surrogate_quality(facts: Sequence[Any], out: Path) -> list[tuple[Path, str]]:
-    from coadapt_core.results import report
+    from coadapt_core.analysis import report
 
     series = quality_series(facts)
     if not series:
