@@ -29,7 +29,7 @@ KNOWN_DEBT = {
     "coadapt_core/experiments/grid.py": "default simulator mujoco",
     "coadapt_core/analysis/report.py": "table order and line styles of the built-in optimizers; pybullet transfer",
     "coadapt_core/experiments/transfer.py": "reference/target backends and the comparison script's robot",
-    "coadapt_core/video.py": "fallbacks for run configs without robot/sim",
+    "coadapt_core/viz/video.py": "fallbacks for run configs without robot/sim",
 }
 
 

@@ -89,7 +89,7 @@ def _render_video(run_dir: Path, summary: dict[str, Any]) -> None:
     """Best vs nominal, walking, from the run's final policy; smoke runs get a short one."""
     import yaml
 
-    from coadapt_core.video import render_run_video
+    from coadapt_core.viz.video import render_run_video
 
     try:
         config = yaml.safe_load((run_dir / "config.yaml").read_text()) or {}

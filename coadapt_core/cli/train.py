@@ -484,7 +484,7 @@ def render_frames(mjcf: str, joint_names: list[str], frames: list[dict], output:
     import numpy as np
     from PIL import Image
 
-    from coadapt_core.video import camera_for, scene_model
+    from coadapt_core.viz.video import camera_for, scene_model
 
     model = scene_model(mjcf, width, height)
     data = mujoco.MjData(model)

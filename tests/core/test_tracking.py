@@ -75,7 +75,7 @@ def test_real_smoke_run_leaves_event_files_and_a_best_vs_nominal_gif(tmp_path, c
 
 
 def test_run_without_gl_still_finishes_with_one_line_note(tmp_path, capsys, monkeypatch):
-    from coadapt_core.video import render_run_video
+    from coadapt_core.viz.video import render_run_video
 
     monkeypatch.setenv("MUJOCO_GL", "not-a-backend")
     (tmp_path / "checkpoints").mkdir()

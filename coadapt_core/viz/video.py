@@ -68,7 +68,7 @@ def render_run_video(
         return []
     outputs = [run_dir / f"{VIDEO_NAME}.gif"] + ([run_dir / f"{VIDEO_NAME}.mp4"] if want_mp4 else [])
     payload = {"panels": panels, "outputs": [str(p) for p in outputs], "width": width, "height": height, "fps": fps}
-    code = "import json, sys\nfrom coadapt_core.video import render_panels\nrender_panels(**json.loads(sys.stdin.read()))\n"
+    code = "import json, sys\nfrom coadapt_core.viz.video import render_panels\nrender_panels(**json.loads(sys.stdin.read()))\n"
     backends = [os.environ["MUJOCO_GL"]] if os.environ.get("MUJOCO_GL") else ["egl", "osmesa"]
     errors = []
     for backend in backends:
