@@ -129,16 +129,16 @@ def ground_truth(args: argparse.Namespace, out: Path) -> dict:
         backend, objectives = AnalyticBackend(0), [get_registry().get("objective", args.objective)()]
         low, high, nominal = SPACE.lower, SPACE.upper, (1.0, 1.0)
     else:
-        from coadapt_core.experiments.backends import BackendRequest, universal_policy_backend
         from coadapt_core.learning import shipped_checkpoint
+        from coadapt_core.learning.factory import make_backend, resolve_plugins
         from coadapt_core.plugins import get_registry
 
         robot = get_registry().get("robot", config.robot)()
         space = robot.design_space()
         checkpoint = config.checkpoint or str(shipped_checkpoint(config.robot, config.terrain))
-        backend, objectives = universal_policy_backend(BackendRequest(
-            robot=config.robot, simulator=config.sim, objectives=[args.objective], terrain=config.terrain,
-            checkpoint=checkpoint, agents_per_design=config.agents_per_design, device=config.device))
+        _, sim_cls, objectives = resolve_plugins(robot, config.sim, [args.objective])
+        backend = make_backend(robot, sim_cls, objectives, terrain=config.terrain, checkpoint=checkpoint,
+                               agents_per_design=config.agents_per_design, device=config.device)
         low, high, nominal = space.lower[:2], space.upper[:2], robot.nominal_design()[:2]
     recorder = SqliteRecorder(out / "landscape.db")
     summary = run_landscape(backend, objectives, recorder, config={"benchmark": "coadapt_cost"}, grid=args.grid,

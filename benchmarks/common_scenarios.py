@@ -22,9 +22,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(ROOT))
-    from coadapt_core.experiments.backends import BackendRequest, universal_policy_backend
     from coadapt_core.fitness import improvement_se, robust_cost, scenario_se, scenario_seed
     from coadapt_core.learning import shipped_checkpoint
+    from coadapt_core.learning.factory import make_backend, resolve_plugins
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("runs", nargs="+", help="run folders (each with a summary.json)")
@@ -39,9 +39,8 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         summaries.append(json.loads(path.read_text()))
     checkpoint = args.checkpoint or str(shipped_checkpoint("kuafu", "flat"))
-    backend, objectives = universal_policy_backend(BackendRequest(
-        robot="kuafu", simulator="mujoco", objectives=["tracking", "power", "torque"], terrain="flat",
-        checkpoint=checkpoint))
+    robot, sim_cls, objectives = resolve_plugins("kuafu", "mujoco", ["tracking", "power", "torque"])
+    backend = make_backend(robot, sim_cls, objectives, terrain="flat", checkpoint=checkpoint)
     designs = np.array([s["best_design"] for s in summaries] + [[1.0, 1.0]])
     per = np.concatenate([backend.real_fitness(designs, objectives, agents=32, steps=250, seed=scenario_seed(1000, b)).per_scenario
                           for b in range(max(1, args.blocks))], axis=1)

@@ -61,10 +61,10 @@ def evaluate_grid(backend, objectives, designs: np.ndarray, *, agents: int, step
 def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(ROOT))
     from coadapt_core.coadapt.config import PRESETS
-    from coadapt_core.experiments.backends import BackendRequest, universal_policy_backend
     from coadapt_core.experiments.landscape import landscape_designs
     from coadapt_core.fitness import paired_difference, scenario_se, scenario_seed
     from coadapt_core.learning import shipped_checkpoint
+    from coadapt_core.learning.factory import make_backend, resolve_plugins
 
     quick = PRESETS["quick"]
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -87,9 +87,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
     checkpoint = shipped_checkpoint("kuafu", "flat")
-    backend, objectives = universal_policy_backend(BackendRequest(
-        robot="kuafu", simulator="mujoco", objectives=list(OBJECTIVES), terrain="flat", checkpoint=str(checkpoint),
-        agents_per_design=args.agents))
+    robot, sim_cls, objectives = resolve_plugins("kuafu", "mujoco", list(OBJECTIVES))
+    backend = make_backend(robot, sim_cls, objectives, terrain="flat", checkpoint=str(checkpoint),
+                           agents_per_design=args.agents)
     designs = landscape_designs(args.grid, (0.5, 0.5), (1.5, 1.5), (1.0, 1.0))
     nominal = int(np.argmin(np.abs(designs - 1.0).sum(axis=1)))
     paired = args.protocol == "paired"

@@ -25,10 +25,8 @@ KNOWN_DEBT = {
     "coadapt_core/cli/train.py": "default --robot kuafu, --sim mujoco",
     "coadapt_core/coadapt/config.py": "run defaults (kuafu, mujoco, pso); bo-specialized records optimizer bo",
     "coadapt_core/coadapt/loop.py": "METHOD_SWITCHES: bo-specialized forces optimizer bo",
-    "coadapt_core/experiments/backends.py": "fallbacks for runs recorded without robot/simulator",
     "coadapt_core/experiments/grid.py": "default simulator mujoco",
-    "coadapt_core/analysis/report.py": "table order and line styles of the built-in optimizers; pybullet transfer",
-    "coadapt_core/experiments/transfer.py": "reference/target backends and the comparison script's robot",
+    "coadapt_core/analysis/report.py": "table order and line styles of the built-in optimizers",
     "coadapt_core/viz/video.py": "fallbacks for run configs without robot/sim",
 }
 

@@ -29,7 +29,7 @@ from coadapt_core.plugins import get_registry
 @pytest.fixture(scope="module")
 def figures():
     registry = get_registry()
-    return compare_backends(registry.create("robot", "kuafu"))
+    return compare_backends(registry.create("robot", "kuafu"), reference="mujoco", other="pybullet")
 
 
 @pytest.mark.slow

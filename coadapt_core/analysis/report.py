@@ -18,19 +18,17 @@ import numpy as np
 
 from coadapt_core.analysis.surrogate_figure import figure_surrogate_quality
 from coadapt_core.errors import UserError
-from coadapt_core.experiments.backends import (
-    BackendFactory,
-    BackendUnavailable,
-    nominal_design,
-    run_request,
-    universal_policy_backend,
-)
 from coadapt_core.experiments.grid import METHODS
-from coadapt_core.experiments.landscape import LANDSCAPE_METHOD
-from coadapt_core.fitness import scenario_seed
 from coadapt_core.pareto import pareto_mask
 from coadapt_core.results.export import space_of_run
-from coadapt_core.results.store import Evaluation, ResultsStore, checkpoint_of, run_folder_of
+from coadapt_core.results.store import (
+    LANDSCAPE_METHOD,
+    TRANSFER_KIND,
+    Evaluation,
+    ResultsStore,
+    best_of,
+    run_folder_of,
+)
 
 #: the paper's row labels
 METHOD_LABELS = {
@@ -42,8 +40,6 @@ METHOD_LABELS = {
 }
 OBJECTIVE_LABELS = {"tracking": "Cmd", "power": "P", "torque": "τ"}
 TERRAIN_ORDER = ("flat", "slope", "random")
-#: sim2sim rows are stored with this outer index: they belong to no iteration of the run
-TRANSFER_OUTER = -1
 
 
 @dataclass
@@ -125,13 +121,8 @@ def run_facts(store: ResultsStore, run: dict[str, Any]) -> RunFacts:
     evals = store.evaluations(run["id"])
     real = [e for e in evals if e.kind == "real"]
     surrogate = [e for e in evals if e.kind == "surrogate"]
-    first = run["objectives"][0] if run["objectives"] else None
     summary = run["summary"] or {}
-    best_design = summary.get("best_design")
-    best_cost = summary.get("best_cost")
-    if (best_design is None or best_cost is None) and real and first:
-        best = min(real, key=lambda e: e.costs.get(first, math.inf))
-        best_design, best_cost = best.design, best.costs.get(first)
+    best_design, best_cost = best_of(run, real)
     training = store.training(run["id"])
     dim = len(best_design) if best_design is not None else (len(real[0].design) if real else None)
     space = space_of_run(run, dim)
@@ -164,79 +155,26 @@ def _float(value: Any) -> float | None:
 
 
 # -- sim-to-sim (Table 6's last column) ---------------------------------------------------------
-def sim_to_sim(
-    store: ResultsStore,
-    facts: RunFacts,
-    *,
-    simulator: str = "pybullet",
-    agents: int = 8,
-    steps: int = 400,
-    factory: BackendFactory | None = None,
-) -> tuple[float | None, str]:
-    """Improvement of the best design over the nominal one when the run's final policy is
-    evaluated on `simulator` (the paper transfers Isaac Gym -> PyBullet; we transfer the
-    run's simulator -> PyBullet). Stored as kind "sim2sim" rows (idx 0 best, 1 nominal) and
-    read back on later reports. Returns (improvement, note); improvement None = n/a."""
+def transfer_improvement(store: ResultsStore, facts: RunFacts, simulator: str | None = None,
+                         note: str = "") -> tuple[float | None, str]:
+    """(improvement of the best design over the nominal one, note) from the run's transfer
+    rows (kind "sim2sim", idx 0 best, 1 nominal, written by `coadapt_core.experiments.transfer`)
+    on `simulator` (None: any). Without rows: (None, `note`, or that there are none). Reads
+    only: the report never runs a simulation."""
     run = facts.run
-    if not run["objectives"] or facts.best_design is None:
-        return None, "n/a: the run has no best design"
-    first = run["objectives"][0]
-    cached = [e for e in store.evaluations(run["id"], kind="sim2sim") if e.simulator == simulator]
-    if len(cached) < 2:
-        if run.get("simulator") == simulator:
-            return None, f"n/a: the run itself used {simulator}"
-        checkpoints = store.checkpoints(run["id"])
-        recorded = (run["summary"] or {}).get("checkpoint") or (checkpoints[-1]["path"] if checkpoints else None)
-        if recorded is None:
-            return None, "n/a: the run recorded no policy checkpoint"
-        # a store row is never trusted as a path: only a checkpoint inside the run's own folder
-        # (named after its run id) is used; paths relative to the folder a run was started
-        # from (older rows) are looked up inside the run folder by their last parts
-        found = checkpoint_of(run, recorded)
-        if found is None and not Path(str(recorded)).is_absolute():
-            parts = Path(str(recorded)).parts
-            if len(parts) >= 2 and parts[-2] == "checkpoints":
-                found = checkpoint_of(run, str(Path(*parts[-2:])))
-        if found is None:
-            return None, "n/a: the recorded checkpoint is not inside the run's folder (refused)"
-        checkpoint = str(found)
-        if not found.exists():
-            return None, f"n/a: checkpoint {checkpoint} is gone"
-        try:
-            backend, objectives = (factory or universal_policy_backend)(
-                run_request(run, simulator=simulator, checkpoint=checkpoint, agents=agents)
-            )
-            best = np.asarray(facts.best_design, dtype=float)
-            nominal = nominal_design(run_request(run).robot, best.shape[0])
-            # the run's own scenario set (paired with the run's real rounds, docs/coadaptation.md)
-            fit = backend.real_fitness(np.stack([best, nominal]), objectives, agents=agents, steps=steps,
-                                       seed=scenario_seed(int(run["seed"] or 0)))
-        except BackendUnavailable as exc:
-            return None, f"n/a: {exc}"
-        except UserError as exc:  # e.g. a checkpoint that is not one (refused unread): this run only
-            return None, f"n/a: {' '.join(str(exc).split())}"
-        costs = np.asarray(fit.costs, dtype=float).reshape(2, -1)  # [2, M]
-        names = [o.name for o in objectives]
-        store.record_evaluations(
-            run["id"],
-            [
-                {"outer": TRANSFER_OUTER, "inner": 0, "idx": i, "kind": "sim2sim", "design": d.tolist(),
-                 "costs": dict(zip(names, costs[i].tolist(), strict=True)), "interactions": fit.interactions // 2,
-                 "seconds": fit.seconds / 2, "simulator": simulator}
-                for i, d in enumerate((best, nominal))
-            ],
-        )
-        cached = [e for e in store.evaluations(run["id"], kind="sim2sim") if e.simulator == simulator]
-    by_idx = {e.idx: e for e in cached}
+    rows = [e for e in store.evaluations(run["id"], kind=TRANSFER_KIND) if simulator in (None, e.simulator)]
+    by_idx = {e.idx: e for e in rows}
+    first = run["objectives"][0] if run["objectives"] else None
+    if first is None or 0 not in by_idx or 1 not in by_idx or first not in by_idx[0].costs:
+        return None, note or "n/a: no sim-to-sim rows (`coadapt report --sim-to-sim` evaluates them)"
     best_cost, nominal_cost = by_idx[0].costs[first], by_idx[1].costs[first]
-    from coadapt_core.experiments.backends import objective_instances
-
     try:
-        (objective,) = objective_instances([first])
-        value = objective.improvement(best_cost, nominal_cost)
-    except Exception:
+        from coadapt_core.plugins import get_registry
+
+        value = get_registry().create("objective", first).improvement(best_cost, nominal_cost)
+    except Exception:  # an objective plugin not installed here: the default definition
         value = (nominal_cost - best_cost) / abs(nominal_cost) if nominal_cost else 0.0
-    return float(value), f"{simulator}, {len(cached)} designs"
+    return float(value), f"{by_idx[0].simulator}, {len(rows)} designs"
 
 
 # -- tables ------------------------------------------------------------------------------------
@@ -553,13 +491,13 @@ def _landscape_for(store: ResultsStore, objective: str, terrain: str, names: Seq
 
 
 def heatmap_data(
-    store: ResultsStore, facts: Sequence[RunFacts], objective: str, terrain: str, names: Sequence[str] | None = None
+    store: ResultsStore, facts: Sequence[RunFacts], objective: str, terrain: str, names: Sequence[str]
 ) -> dict[str, Any] | None:
     """What one panel draws for an objective, terrain and design space: a landscape grid
     ("grid": [n_b, n_a] indexed [second variable, first]) when a landscape run exists,
     else the evaluated designs as points ("points" [n, 2], "values" [n]); None when
     neither exists."""
-    names = list(names or ["thigh_scale", "shank_scale"])
+    names = list(names)
     land = _landscape_for(store, objective, terrain, names)
     if land is not None:
         rows = store.evaluations(land["id"], kind="real")
@@ -632,7 +570,8 @@ def figure_heatmaps(store: ResultsStore, facts: Sequence[RunFacts], out: Path) -
                 ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, fontsize=7, frameon=False)
                 sources.append(f"{o}: {d['source']}")
             fig.tight_layout()
-            suffix = "" if list(names) == ["thigh_scale", "shank_scale"] else "_" + _space_slug(names)
+            # a two-variable space is the figure's own name; a larger one (motor types too) is named
+            suffix = "" if len(names) == 2 else "_" + _space_slug(names)
             path = out / f"heatmap_{t}{suffix}.png"
             fig.savefig(path, dpi=DPI)
             plt.close(fig)
@@ -860,28 +799,28 @@ def write_report(
     out_dir: str | Path,
     *,
     sim2sim: bool = True,
-    transfer_simulator: str = "pybullet",
-    transfer_agents: int = 8,
-    transfer_steps: int = 400,
-    backend_factory: BackendFactory | None = None,
+    transfer_simulator: str | None = None,
+    transfer_notes: dict[str, str] | None = None,
     progress: Any = None,
 ) -> dict[str, Path]:
     """Tables (Markdown + CSV), figures (PNG) and report.html for `selection` (a grid id, a
-    run id, or None for every finished run). Returns the files written by name.
-    `progress(done, total, what)` hears of each step (sim-to-sim transfers take longest)."""
+    run id, or None for every finished run). Returns the files written by name. The
+    sim-to-sim column reads the runs' transfer rows on `transfer_simulator` (None: any;
+    `coadapt_core.experiments.transfer` writes them), `transfer_notes` saying why a run has
+    none. `progress(done, total, what)` hears of each step."""
     runs, title = select_runs(store, selection)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     facts = [run_facts(store, r) for r in runs]
-    todo = [f for f in facts if f.method != LANDSCAPE_METHOD]
-    total = len(todo) + 6
-    for i, f in enumerate(todo):
-        if progress is not None:
-            progress(i, total, f"sim-to-sim {f.run['id']}" if sim2sim else "reading runs")
+    total = 7
+    if progress is not None:
+        progress(0, total, "reading runs")
+    for f in facts:
+        if f.method == LANDSCAPE_METHOD:
+            continue
         if sim2sim:
-            f.sim2sim, f.sim2sim_note = sim_to_sim(
-                store, f, simulator=transfer_simulator, agents=transfer_agents, steps=transfer_steps, factory=backend_factory
-            )
+            f.sim2sim, f.sim2sim_note = transfer_improvement(store, f, transfer_simulator,
+                                                             (transfer_notes or {}).get(f.run["id"], ""))
         else:
             f.sim2sim, f.sim2sim_note = None, "n/a: not requested (--no-sim-to-sim)"
     t6, t7 = table6_rows(facts), table7_rows(facts)
@@ -900,7 +839,7 @@ def write_report(
              ("videos", lambda: figure_videos(facts, out)))
     for j, (what, draw) in enumerate(steps):
         if progress is not None:
-            progress(len(todo) + j, total, what)
+            progress(1 + j, total, what)
         figures += draw()
     if progress is not None:
         progress(total, total, "done")

@@ -47,16 +47,13 @@ def register(app: typer.Typer) -> None:
         store: str = typer.Option(None, "--store", help="Results store: a path or SQLAlchemy URL (default $COADAPT_STORE or ./coadapt.db)."),
         as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON on the last line."),
     ) -> None:
-        """Evaluate the real cost (Algorithm 2) of a grid of (thigh, shank) designs with the
-        universal policy; reports draw it as a heat-map and mark each method's optimum."""
-        from coadapt_core.experiments.backends import (
-            BackendRequest,
-            BackendUnavailable,
-            nominal_design,
-            universal_policy_backend,
-        )
+        """Evaluate the real cost (Algorithm 2) of a grid over the robot's first two design
+        variables (Kuafu: thigh and shank scale) with the universal policy; reports draw it as
+        a heat-map and mark each method's optimum."""
+        from coadapt_core.errors import BackendUnavailable
         from coadapt_core.experiments.landscape import run_landscape
-        from coadapt_core.physics.simulator import TERRAINS
+        from coadapt_core.learning.factory import make_backend, resolve_plugins
+        from coadapt_core.physics.terrain import TERRAINS
         from coadapt_core.results.recorder import SqliteRecorder
 
         names = [o.strip() for o in objective.split(",") if o.strip()]
@@ -94,13 +91,14 @@ def register(app: typer.Typer) -> None:
             trained_for = read_checkpoint(checkpoint).get("robot")  # weights_only=True; one line if not a checkpoint
             if trained_for != robot:
                 fail(f"--checkpoint {checkpoint} was trained for robot '{trained_for}', not '{robot}'")
-        request = BackendRequest(robot=robot, simulator=sim, objectives=names, terrain=terrain, checkpoint=str(checkpoint),
-                                 agents_per_design=agents, device=device, seed=seed)
+        robot_obj = robot_cls()
+        space = robot_obj.design_space()
         try:
-            backend, objectives = universal_policy_backend(request)
+            robot_obj, sim_cls, objectives = resolve_plugins(robot_obj, sim, names)
+            backend = make_backend(robot_obj, sim_cls, objectives, terrain=terrain, design_space=space,
+                                   checkpoint=str(checkpoint), agents_per_design=agents, device=device, seed=seed)
         except BackendUnavailable as exc:
             fail(f"cannot evaluate designs: {exc}")
-        space = robot_cls().design_space()
         low, high = space.lower[:2], space.upper[:2]
         recorder = SqliteRecorder(store)
         config = {"objective": ",".join(names), "terrain": terrain, "sim": sim, "robot": robot, "checkpoint": str(checkpoint),
@@ -119,7 +117,7 @@ def register(app: typer.Typer) -> None:
 
             summary = run_landscape(
                 backend, objectives, recorder, config=config, grid=grid, low=low, high=high,
-                nominal=nominal_design(robot, space.dim), agents=agents, steps=steps, seed=seed, on_row=on_row,
+                nominal=robot_obj.nominal_design(), agents=agents, steps=steps, seed=seed, on_row=on_row,
             )
         print(landscape_line(summary, agents, steps))
         if as_json:

@@ -65,9 +65,16 @@ def register(app: typer.Typer) -> None:
             def progress(done: int, total: int, what: str) -> None:
                 line.update(done, what, total=total)
 
-            files = write_report(
-                results, selection, out, sim2sim=sim_to_sim, transfer_simulator=transfer_sim,
-                transfer_agents=transfer_agents, transfer_steps=transfer_steps, progress=progress,
-            )
+            notes = None
+            if sim_to_sim:  # the transfer experiment writes its rows; the report only reads them
+                from coadapt_core.analysis.report import select_runs
+                from coadapt_core.experiments.transfer import transfer_runs
+                from coadapt_core.results.store import LANDSCAPE_METHOD
+
+                runs = [r for r in select_runs(results, selection)[0] if r["method"] != LANDSCAPE_METHOD]
+                notes = transfer_runs(results, runs, simulator=transfer_sim, agents=transfer_agents,
+                                      steps=transfer_steps, progress=progress)
+            files = write_report(results, selection, out, sim2sim=sim_to_sim, transfer_simulator=transfer_sim,
+                                 transfer_notes=notes, progress=progress)
         for name, path in files.items():
             print(f"{name}: {path}")

@@ -1,6 +1,7 @@
-"""Cost landscapes: the real cost (Algorithm 2) of an n x n grid over the two leg scales,
-evaluated with one universal policy and stored like any run (method "landscape"), so reports
-can draw Fig. 6-style heat-maps and show how far each method's optimum is from the grid's."""
+"""Cost landscapes: the real cost (Algorithm 2) of an n x n grid over the first two design
+variables (Kuafu: the two leg scales), evaluated with one universal policy and stored like
+any run (method "landscape"), so reports can draw Fig. 6-style heat-maps and show how far
+each method's optimum is from the grid's."""
 
 from __future__ import annotations
 
@@ -20,15 +21,14 @@ from coadapt_core.fitness import (
 )
 from coadapt_core.objective import Objective
 from coadapt_core.results.recorder import SqliteRecorder
-
-LANDSCAPE_METHOD = "landscape"
+from coadapt_core.results.store import LANDSCAPE_METHOD
 
 
 def landscape_designs(
     grid: int, low: Sequence[float], high: Sequence[float], nominal: Sequence[float]
 ) -> np.ndarray:
-    """[grid*grid, dim]: rows sweep the first variable (thigh), columns the second (shank);
-    the other variables (motor types) stay at their nominal values."""
+    """[grid*grid, dim]: rows sweep the first design variable, columns the second; the
+    other variables (e.g. motor types) stay at their nominal values."""
     if grid < 2:
         raise UserError(f"--grid must be >= 2 points per axis, got {grid}", field="grid")
     nominal = np.asarray(nominal, dtype=float)
@@ -56,7 +56,7 @@ def run_landscape(
     seed: int = 0,
     on_row: Any = None,
 ) -> dict[str, Any]:
-    """Evaluate every grid design for real, one grid row (fixed thigh scale) per batch, each
+    """Evaluate every grid design for real, one grid row (fixed first variable) per batch, each
     row committed as it finishes. Every row runs on the same scenario set (`seed`), so any two
     designs of the grid are paired (docs/coadaptation.md, "Evaluation protocol"). With
     `config["run_id"]` of an interrupted landscape, rows already stored are not evaluated

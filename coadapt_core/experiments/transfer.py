@@ -1,8 +1,13 @@
-"""Sim-to-sim check: do two simulator backends move the same robot the same way?
+"""Sim-to-sim: the same robot and policy on a second simulator.
 
-The same open-loop joint-target sequence from the same initial state, randomization off,
-on two backends (MuJoCo and PyBullet by default), for a few designs; the first second is
-compared:
+Policy transfer (`transfer_runs`, Table 6's last column): the run's final universal policy
+evaluates its best and its nominal design on another simulator, on the run's own scenario
+set; the costs are written to the store as rows of kind "sim2sim", which `coadapt report`
+reads. A run whose rows exist is not evaluated again.
+
+Backend check (`compare_backends`): do two simulator backends move the same robot the same
+way? The same open-loop joint-target sequence from the same initial state, randomization
+off, on two backends, for a few designs; the first second is compared:
 
 1. swing — base welded in the air (`fixed_base=True`), sinusoidal targets on every
    actuated joint: joint position, velocity and torque trajectories (no contact, so this
@@ -10,19 +15,31 @@ compared:
 2. standing — on flat ground holding the default pose: base height, base orientation and
    joint positions (adds the contact models).
 
-`python -m coadapt_core.experiments.transfer` prints the figures as the Markdown tables of
-docs/sim-to-sim.md.
+`python -m coadapt_core.experiments.transfer ROBOT REFERENCE OTHER` prints the backend
+check's figures as the Markdown tables of docs/sim-to-sim.md.
 """
 
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from coadapt_core.errors import BackendUnavailable, UserError
+from coadapt_core.fitness import CoadaptationBackend, scenario_seed
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.physics.simulator import Simulator
+from coadapt_core.results.store import (
+    TRANSFER_KIND,
+    TRANSFER_OUTER,
+    ResultsStore,
+    best_of,
+    checkpoint_of,
+)
 from coadapt_core.robot import Robot
 
 #: designs the check runs by default: nominal, both extremes, a mixed one
@@ -119,8 +136,8 @@ def compare_backends(
     robot: Robot,
     designs: np.ndarray | None = None,
     *,
-    reference: str | type[Simulator] = "mujoco",
-    other: str | type[Simulator] = "pybullet",
+    reference: str | type[Simulator],
+    other: str | type[Simulator],
     duration: float = 1.0,
     physics_dt: float = 0.005,
     decimation: int = 4,
@@ -181,11 +198,146 @@ def markdown_tables(figures: list[DesignFigures]) -> str:
     return "\n".join(lines)
 
 
+# -- policy transfer (Table 6's last column) ----------------------------------------------------
+#: builds a run's backend: `coadapt_core.learning.factory.make_backend`'s signature
+BackendFactory = Callable[..., CoadaptationBackend]
+
+
+def run_checkpoint_in_store(store: ResultsStore, run: dict[str, Any]) -> tuple[Path | None, str]:
+    """The run's final policy checkpoint as its store rows name it, resolved inside the
+    run's own folder, or (None, why not). A store row is never trusted as a path: paths
+    relative to the folder a run was started from (older rows) are looked up inside the run
+    folder by their last two parts."""
+    checkpoints = store.checkpoints(run["id"])
+    recorded = (run.get("summary") or {}).get("checkpoint") or (checkpoints[-1]["path"] if checkpoints else None)
+    if recorded is None:
+        return None, "n/a: the run recorded no policy checkpoint"
+    found = checkpoint_of(run, recorded)
+    if found is None and not Path(str(recorded)).is_absolute():
+        parts = Path(str(recorded)).parts
+        if len(parts) >= 2 and parts[-2] == "checkpoints":
+            found = checkpoint_of(run, str(Path(*parts[-2:])))
+    if found is None:
+        return None, "n/a: the recorded checkpoint is not inside the run's folder (refused)"
+    if not found.exists():
+        return None, f"n/a: checkpoint {found} is gone"
+    return found, ""
+
+
+def transfer_rows(store: ResultsStore, run_id: str, simulator: str) -> list:
+    """The run's transfer rows on `simulator` (idx 0 best design, 1 nominal)."""
+    return [e for e in store.evaluations(run_id, kind=TRANSFER_KIND) if e.simulator == simulator]
+
+
+def _nominal(robot: Robot, run: dict[str, Any], dim: int) -> np.ndarray:
+    """The nominal design the run compared against: its summary's, else the robot's of the
+    design space with the run's dimension."""
+    recorded = (run.get("summary") or {}).get("nominal_design")
+    if isinstance(recorded, list) and len(recorded) == dim:
+        return np.asarray(recorded, dtype=float)
+    for mixed in (False, True):
+        nominal = np.asarray(robot.nominal_design(mixed=mixed), dtype=float)
+        if nominal.shape[0] == dim:
+            return nominal
+    raise BackendUnavailable(f"robot '{robot.name}' has no design space of {dim} variables")
+
+
+def transfer_run(
+    store: ResultsStore,
+    run: dict[str, Any],
+    best_design: Sequence[float] | None,
+    *,
+    simulator: str,
+    agents: int = 8,
+    steps: int = 400,
+    factory: BackendFactory | None = None,
+) -> str:
+    """Evaluate `best_design` and the run's nominal design with the run's final policy on
+    `simulator` and record them (kind "sim2sim", idx 0 best, 1 nominal), unless the store
+    already holds them. Returns '' when the rows exist, else why not ("n/a: ...")."""
+    if not run["objectives"] or best_design is None:
+        return "n/a: the run has no best design"
+    if len(transfer_rows(store, run["id"], simulator)) >= 2:
+        return ""
+    if run.get("simulator") == simulator:
+        return f"n/a: the run itself used {simulator}"
+    checkpoint, why = run_checkpoint_in_store(store, run)
+    if checkpoint is None:
+        return why
+    cfg = run.get("config") or {}
+    best = np.asarray(best_design, dtype=float)
+    try:
+        from coadapt_core.learning.factory import make_backend, resolve_plugins
+
+        robot_name = run.get("robot") or cfg.get("robot")
+        if not robot_name:
+            return "n/a: the run recorded no robot"
+        robot, sim_cls, objectives = resolve_plugins(str(robot_name), simulator, list(run["objectives"]))
+        nominal = _nominal(robot, run, best.shape[0])
+        space = next((s for s in (robot.design_space(False), robot.design_space(True)) if s.dim == best.shape[0]), None)
+        backend = (factory or make_backend)(
+            robot, sim_cls, objectives, terrain=run.get("terrain") or "flat", design_space=space,
+            agents_per_design=agents, device=str(cfg.get("device", "cpu")), seed=int(run.get("seed") or 0),
+            checkpoint=str(checkpoint),
+        )
+        # the run's own scenario set (paired with the run's real rounds, docs/coadaptation.md)
+        fit = backend.real_fitness(np.stack([best, nominal]), objectives, agents=agents, steps=steps,
+                                   seed=scenario_seed(int(run.get("seed") or 0)))
+    except BackendUnavailable as exc:
+        return f"n/a: {exc}"
+    except UserError as exc:  # e.g. a checkpoint that is not one (refused unread): this run only
+        return f"n/a: {' '.join(str(exc).split())}"
+    costs = np.asarray(fit.costs, dtype=float).reshape(2, -1)  # [2, M]
+    names = [o.name for o in objectives]
+    store.record_evaluations(
+        run["id"],
+        [
+            {"outer": TRANSFER_OUTER, "inner": 0, "idx": i, "kind": TRANSFER_KIND, "design": d.tolist(),
+             "costs": dict(zip(names, costs[i].tolist(), strict=True)), "interactions": fit.interactions // 2,
+             "seconds": fit.seconds / 2, "simulator": simulator}
+            for i, d in enumerate((best, nominal))
+        ],
+    )
+    return ""
+
+
+def transfer_runs(
+    store: ResultsStore,
+    runs: Sequence[dict[str, Any]],
+    *,
+    simulator: str,
+    agents: int = 8,
+    steps: int = 400,
+    factory: BackendFactory | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
+) -> dict[str, str]:
+    """`transfer_run` for each run's best design (`best_of`); returns run id -> why it has
+    no rows (only runs without them). `progress(done, total, what)` hears of each run."""
+    notes = {}
+    for i, run in enumerate(runs):
+        if progress is not None:
+            progress(i, len(runs), f"sim-to-sim {run['id']}")
+        best, _ = best_of(run, store.evaluations(run["id"], kind="real"))
+        note = transfer_run(store, run, best, simulator=simulator, agents=agents, steps=steps, factory=factory)
+        if note:
+            notes[run["id"]] = note
+    if progress is not None:
+        progress(len(runs), len(runs), "sim-to-sim done")
+    return notes
+
+
 def main(argv: list[str] | None = None) -> int:
+    """`python -m coadapt_core.experiments.transfer ROBOT REFERENCE OTHER`: the backend
+    check's tables for the registered robot on two registered simulators."""
     from coadapt_core.plugins import get_registry
 
-    robot = get_registry().create("robot", "kuafu")
-    print(markdown_tables(compare_backends(robot)))
+    args = list(sys.argv[1:] if argv is None else argv)
+    if len(args) != 3:
+        print("usage: python -m coadapt_core.experiments.transfer ROBOT REFERENCE_SIMULATOR OTHER_SIMULATOR",
+              file=sys.stderr)
+        return 2
+    robot = get_registry().create("robot", args[0])
+    print(markdown_tables(compare_backends(robot, reference=args[1], other=args[2])))
     return 0
 
 

@@ -34,6 +34,11 @@ DEFAULT_STORE_FILE = "coadapt.db"
 #: evaluation kinds: the loop's two, plus transfer to a second simulator (report) and
 #: the grid evaluations of `coadapt landscape` (stored as "real")
 EVALUATION_KINDS = ("real", "surrogate", "sim2sim")
+#: rows of sim-to-sim transfer (coadapt_core.experiments.transfer): their kind, and the outer
+#: index they are stored with (they belong to no iteration of the run)
+TRANSFER_KIND, TRANSFER_OUTER = "sim2sim", -1
+#: the method recorded by cost-landscape runs (coadapt_core.experiments.landscape)
+LANDSCAPE_METHOD = "landscape"
 #: statuses the store and the grid use (the loop may report others; they are kept as given)
 RUN_STATUSES = ("running", "finished", "failed", "interrupted")
 
@@ -311,6 +316,18 @@ def checkpoint_of(run: dict[str, Any], path: str | None) -> Path | None:
         return inside(folder, str(path))
     except UserError:
         return None
+
+
+def best_of(run: dict[str, Any], real: Sequence[Evaluation]) -> tuple[list[float] | None, Any]:
+    """(best design, its cost) of a run: what its summary recorded, else its real evaluation
+    with the lowest cost of the first objective; (None, None) when it has neither."""
+    summary = run.get("summary") or {}
+    design, cost = summary.get("best_design"), summary.get("best_cost")
+    first = run["objectives"][0] if run.get("objectives") else None
+    if (design is None or cost is None) and real and first:
+        best = min(real, key=lambda e: e.costs.get(first, float("inf")))
+        design, cost = best.design, best.costs.get(first)
+    return design, cost
 
 
 class ResultsStore:

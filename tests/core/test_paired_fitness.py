@@ -155,14 +155,13 @@ def test_a_real_round_records_its_error_bars_and_fall_rate():
 # -- real MuJoCo, the shipped policy ---------------------------------------------------------
 @pytest.fixture(scope="module")
 def shipped_backend():
-    from coadapt_core.experiments.backends import BackendRequest, universal_policy_backend
     from coadapt_core.learning import shipped_checkpoint
+    from coadapt_core.learning.factory import make_backend, resolve_plugins
 
     checkpoint = shipped_checkpoint("kuafu", "flat")
     assert checkpoint is not None, "the built-in Kuafu robot ships flat.pt"
-    backend, objectives = universal_policy_backend(BackendRequest(
-        robot="kuafu", simulator="mujoco", objectives=["tracking", "power", "torque"], terrain="flat",
-        checkpoint=str(checkpoint), agents_per_design=4))
+    robot, sim_cls, objectives = resolve_plugins("kuafu", "mujoco", ["tracking", "power", "torque"])
+    backend = make_backend(robot, sim_cls, objectives, terrain="flat", checkpoint=str(checkpoint), agents_per_design=4)
     yield backend, objectives
     backend.close()
 

@@ -1,6 +1,7 @@
 """`coadapt report` and `coadapt landscape`: the tables' numbers are the store's numbers, the
-figures exist, sim-to-sim goes through a `CoadaptationBackend` (or says n/a and why), and a
-landscape run is stored like any run and resumable."""
+figures exist, the sim-to-sim transfer goes through a `CoadaptationBackend` and writes rows
+the report only reads (or says n/a and why), and a landscape run is stored like any run and
+resumable."""
 
 from __future__ import annotations
 
@@ -13,13 +14,18 @@ import pytest
 
 from coadapt_core.analysis.report import write_report
 from coadapt_core.errors import UserError
-from coadapt_core.experiments.backends import objective_instances
 from coadapt_core.experiments.landscape import run_landscape
+from coadapt_core.experiments.transfer import transfer_runs
 from coadapt_core.fitness import CoadaptationBackend, RealFitness, TrainingResult
 from coadapt_core.pareto import pareto_mask
+from coadapt_core.plugins import get_registry
 from coadapt_core.results import ResultsStore, SqliteRecorder
 
 OPTIMUM = np.array([0.62, 0.57])
+
+
+def objective_instances(names):
+    return [get_registry().create("objective", n) for n in names]
 
 
 def analytic_cost(designs: np.ndarray, scale: float = 1.0) -> np.ndarray:
@@ -149,34 +155,50 @@ def test_report_tables_match_the_store(filled_store, tmp_path):
     assert all(f"src='{p}'" in html for p in ("heatmap_flat.png", "convergence.png", "surrogate_error.png"))
 
 
-def test_sim_to_sim_column_uses_the_backend_and_is_cached(filled_store, tmp_path):
+def test_sim_to_sim_transfer_uses_the_backend_writes_rows_the_report_reads(filled_store, tmp_path):
     store, ids = filled_store
     built = []
 
-    def factory(request):
-        assert request.simulator == "pybullet" and request.checkpoint.endswith("policy.pt") and request.terrain == "flat"
+    def factory(robot, simulator, objectives, *, terrain, checkpoint, **kwargs):
+        assert simulator.name == "pybullet" and checkpoint.endswith("policy.pt") and terrain == "flat"
         backend = AnalyticBackend(scale=1.5)
         built.append(backend)
         assert isinstance(backend, CoadaptationBackend)
-        return backend, objective_instances(request.objectives)
+        return backend
 
-    files = write_report(store, ids[("ours", 0)], tmp_path / "rep", backend_factory=factory)
-    (row,) = read_csv(files["table6.csv"])
     run = store.get_run(ids[("ours", 0)])
+    assert transfer_runs(store, [run], simulator="pybullet", factory=factory) == {}
+    files = write_report(store, ids[("ours", 0)], tmp_path / "rep", transfer_simulator="pybullet")
+    (row,) = read_csv(files["table6.csv"])
     best = np.array(run["summary"]["best_design"])
     b, n = analytic_cost(best, 1.5)[0], analytic_cost(np.ones(2), 1.5)[0]
     assert float(row["sim2sim_improvement"]) == pytest.approx((n - b) / n)
+    assert row["sim2sim_note"] == "pybullet, 2 designs"
     rows = store.evaluations(run["id"], kind="sim2sim")
     assert [(e.idx, e.simulator) for e in rows] == [(0, "pybullet"), (1, "pybullet")]
     assert store.count_evaluations(run["id"], kind="real") == 16  # transfer rows are not real-run evidence
-    write_report(store, ids[("ours", 0)], tmp_path / "rep2", backend_factory=factory)
-    assert len(built) == 1  # second report reads the stored transfer
+    assert transfer_runs(store, [run], simulator="pybullet", factory=factory) == {}
+    assert len(built) == 1  # the second transfer finds the stored rows
+
+
+def test_the_report_reads_and_never_writes(filled_store, tmp_path):
+    """The report runs no simulation and writes no row: without transfer rows its column
+    says so; every table's row count is the same after it."""
+    store, _ = filled_store
+    before = {t: len(store.table_rows(t)) for t in ("runs", "evaluations", "training_phases", "checkpoints")}
+    files = write_report(store, None, tmp_path / "rep")
+    after = {t: len(store.table_rows(t)) for t in before}
+    assert after == before and before["evaluations"] > 0
+    rows = read_csv(files["table6.csv"])
+    assert rows and all(r["sim2sim_improvement"] == "" and "no sim-to-sim rows" in r["sim2sim_note"] for r in rows)
 
 
 def test_sim_to_sim_says_why_when_not_available(tmp_path):
     rec = SqliteRecorder(tmp_path / "r.db")
     run_id = record_run(rec, "ours", 0)  # no checkpoint recorded
-    files = write_report(rec.store, run_id, tmp_path / "rep")
+    notes = transfer_runs(rec.store, [rec.store.get_run(run_id)], simulator="pybullet")
+    assert notes == {run_id: "n/a: the run recorded no policy checkpoint"}
+    files = write_report(rec.store, run_id, tmp_path / "rep", transfer_simulator="pybullet", transfer_notes=notes)
     (row,) = read_csv(files["table6.csv"])
     assert row["sim2sim_improvement"] == "" and row["sim2sim_note"] == "n/a: the run recorded no policy checkpoint"
     assert "| n/a | n/a: the run recorded no policy checkpoint |" in files["table6.md"].read_text()
