@@ -33,7 +33,7 @@ def main() -> None:
     parser.add_argument("--steps-per-env", type=int, default=24)
     parser.add_argument("--epochs", type=int, default=5)
     parser.add_argument("--minibatches", type=int, default=4)
-    parser.add_argument("--pseudo-epochs", type=int, default=0)
+    parser.add_argument("--pseudo-epochs", type=int, default=None, help="pseudo-critic epochs per update (default: TrainConfig's; 0: as PPO's)")
     parser.add_argument("--iterations", type=int, default=2, help="rollouts (and updates) timed after one warm-up")
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--threads", type=int, default=None, help="physics threads")
@@ -55,8 +55,9 @@ def main() -> None:
     objectives = [registry.get("objective", n)() for n in args.objectives.split(",") if n]
     config = TrainConfig(
         num_designs=args.num_designs, agents_per_design=args.agents, steps_per_env=args.steps_per_env,
-        epochs=args.epochs, minibatches=args.minibatches, pseudo_epochs=args.pseudo_epochs, device=args.device, torch_threads=args.torch_threads,
-        **{k: v for k, v in (("precision", args.precision), ("pseudo_precision", args.pseudo_precision)) if v is not None},
+        epochs=args.epochs, minibatches=args.minibatches, device=args.device, torch_threads=args.torch_threads,
+        **{k: v for k, v in (("precision", args.precision), ("pseudo_precision", args.pseudo_precision),
+                             ("pseudo_epochs", args.pseudo_epochs)) if v is not None},
     )
     trainer = Trainer(robot, sim_cls, objectives, terrain=args.terrain, train_config=config, num_threads=args.threads)
     t0 = time.perf_counter()

@@ -100,7 +100,7 @@ def register(app: typer.Typer) -> None:
         ),
         epochs: int | None = typer.Option(None, help="PPO epochs per update (default 5)."),
         minibatches: int | None = typer.Option(None, help="Minibatches per epoch (default 4)."),
-        pseudo_epochs: int | None = typer.Option(None, "--pseudo-epochs", help="Pseudo-critic epochs per update (default: as PPO's)."),
+        pseudo_epochs: int | None = typer.Option(None, "--pseudo-epochs", help="Pseudo-critic epochs per update (default 1; 0: as many as PPO's)."),
         lr: float | None = typer.Option(None, "--lr", help="Initial learning rate (default 1e-3, KL-adaptive)."),
         torch_threads: int = typer.Option(0, "--torch-threads", help="Torch CPU threads of the update (0: every core); collection always uses one."),
         objectives: str = typer.Option(DEFAULT_OBJECTIVES, help="Objectives whose pseudo-critics are trained, comma-separated."),

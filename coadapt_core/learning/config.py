@@ -53,9 +53,13 @@ class TrainConfig:
     # -- pseudo-critics (section 3.2.2) ----------------------------------------------------
     pseudo_learning_rate: float = 1.0e-3
     pseudo_lam: float = 0.95  # TD(lambda) of the discounted-average metric target
-    # epochs of pseudo-critic regression per update (0: as many as PPO's); on a CPU the three
-    # pseudo-critics cost 2.7x the PPO update itself, so fewer epochs buy throughput
-    pseudo_epochs: int = 0
+    # epochs of pseudo-critic regression per update (0: as many as PPO's). One epoch: the
+    # three [512, 256, 128] pseudo-critics are 1.5x the multiply-adds of actor + critic, so at
+    # PPO's 5 epochs they were 0.55 of the update on a CPU (the paper: 3 % of training time);
+    # at 1 they are about 0.2 and still see every sample of every rollout once. The surrogate
+    # is fitted to each real round's labelled designs from them anyway (learning/surrogate.py).
+    # docs/training.md (Throughput) has the measurements
+    pseudo_epochs: int = 1
     # numerics of the forward passes of the PPO loss (precision) and of the pseudo-critic
     # regression (pseudo_precision): "float32", "bf16" (autocast to bfloat16; parameters,
     # optimizer states and losses stay float32) or "auto" (bf16 where the device computes it

@@ -195,7 +195,8 @@ class PPO:
         self.gae(td)
         if self.pseudo_critic is not None:
             tick = self._clock()
-            value_next = self.pseudo_values(td["next", "critic_obs"], td["next", "design_obs"])  # [N, T, M]
+            with self._autocast(self.pseudo_precision):  # the regression's numerics
+                value_next = self.pseudo_values(td["next", "critic_obs"], td["next", "design_obs"]).float()  # [N, T, M]
             target = discounted_average_targets(
                 td["metrics"], value_next, td["next", "done"], self.config.gamma, self.config.pseudo_lam
             )
@@ -230,7 +231,9 @@ class PPO:
         learning rate) and whether the pseudo-critic loss is finite travel together; the
         loss sums stay on the device until the end."""
         c = self.config
-        flat = self.rollout.reshape(-1)
+        # the minibatches gather only what the losses read (not the next-state entries, which
+        # GAE and the pseudo-critic targets have used up)
+        flat = self.rollout.exclude("next").reshape(-1)
         n = flat.shape[0]
         size = max(n // c.minibatches, 1)
         keys = ("loss_objective", "loss_critic", "loss_entropy", "entropy")

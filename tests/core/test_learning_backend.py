@@ -43,7 +43,8 @@ def backend(fake_robot, fake_sim_factory):
         return sim_type(robot, designs, **kwargs)
 
     build.name = "fake"
-    config = TrainConfig(num_designs=2, agents_per_design=8, steps_per_env=16, hidden=(64, 64), epochs=2, minibatches=2, torch_threads=1)
+    # pseudo-critics train in every PPO epoch here: the test is about their target's scale
+    config = TrainConfig(num_designs=2, agents_per_design=8, steps_per_env=16, hidden=(64, 64), epochs=2, minibatches=2, pseudo_epochs=0, torch_threads=1)
     out = UniversalPolicyBackend(
         fake_robot, build, [SquaredTorque(), ShankLength()], terrain="flat", design_space=fake_robot.design_space(),
         agents_per_design=8, device="cpu", seed=0, train_config=config,
