@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from coadapt_core.physics.randomization import EnvParams, sample_env_params
+from coadapt_core.physics.randomization import sample_env_params
 from coadapt_core.task.env import LocomotionEnv
 
 
@@ -38,7 +38,6 @@ def apply_scenarios(
     rng = np.random.default_rng([int(seed), 0xC0])  # the randomization draw of each scenario
     params = sample_env_params(env.sim.randomization, agents, rng)
     spawn = rng.random((agents, 2))
-    tiled = EnvParams(**{f: np.tile(v, (designs,) + (1,) * (v.ndim - 1)) for f, v in vars(params).items()})
-    env.sim.fix_scenarios(tiled, np.tile(spawn, (designs, 1)))
+    env.sim.fix_scenarios(params.repeat(designs), np.tile(spawn, (designs, 1)))
     env.pair_scenarios(agents, int(seed))
     return commands

@@ -1,5 +1,6 @@
 """Joint actuation shared by every simulator backend: PD law, motor torque-speed envelope
-and system delay. One definition, so MuJoCo and PyBullet apply identical semantics.
+and system delay, on torch tensors of the backend's device and dtype. One definition, so
+MuJoCo, PyBullet and any GPU backend apply identical semantics.
 
 Per physics step, for each environment and actuated joint:
 
@@ -14,45 +15,50 @@ with the linear envelope of a DC motor behind its gearbox (limits at the joint):
     lower(dq) = -tau_max * clip(1 + dq / dq_max, 0, 1)
 
 so full torque is available at rest and for braking, and no torque can push a joint
-further beyond its no-load speed `dq_max`.
+further beyond its no-load speed `dq_max`. A CPU backend whose state lives in numpy arrays
+passes `torch.from_numpy` views (no copy) and reads the result back the same way.
 """
 
 from __future__ import annotations
 
-import numpy as np
+import torch
 
 
-def torque_speed_bounds(dq: np.ndarray, tau_max: np.ndarray, dq_max: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def torque_speed_bounds(
+    dq: torch.Tensor, tau_max: torch.Tensor, dq_max: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
     """(lower, upper) torque bounds [..., J] at joint speeds dq [..., J]."""
     ratio = dq / dq_max
-    upper = tau_max * np.clip(1.0 - ratio, 0.0, 1.0)
-    lower = -tau_max * np.clip(1.0 + ratio, 0.0, 1.0)
+    upper = tau_max * torch.clamp(1.0 - ratio, 0.0, 1.0)
+    lower = -tau_max * torch.clamp(1.0 + ratio, 0.0, 1.0)
     return lower, upper
 
 
+def _per_env(factor: torch.Tensor | float) -> torch.Tensor | float:
+    """A per-environment factor [N] as a column [N, 1]; scalars and [N, 1] pass through."""
+    if isinstance(factor, torch.Tensor) and factor.dim() == 1:
+        return factor[:, None]
+    return factor
+
+
 def pd_torque(
-    q_target: np.ndarray,
-    q: np.ndarray,
-    dq: np.ndarray,
-    kp: np.ndarray,
-    kd: np.ndarray,
-    tau_max: np.ndarray,
-    dq_max: np.ndarray,
-    pd_factor: np.ndarray | float = 1.0,
-    motor_strength: np.ndarray | float = 1.0,
-    out: np.ndarray | None = None,
-) -> np.ndarray:
+    q_target: torch.Tensor,
+    q: torch.Tensor,
+    dq: torch.Tensor,
+    kp: torch.Tensor,
+    kd: torch.Tensor,
+    tau_max: torch.Tensor,
+    dq_max: torch.Tensor,
+    pd_factor: torch.Tensor | float = 1.0,
+    motor_strength: torch.Tensor | float = 1.0,
+    out: torch.Tensor | None = None,
+) -> torch.Tensor:
     """Joint torques [N, J]. `pd_factor` and `motor_strength` are [N] or scalars; the rest
-    [N, J] (or broadcastable). Written to `out` when given (no allocation in the hot loop)."""
-    pd_factor = np.asarray(pd_factor, dtype=float)
-    motor_strength = np.asarray(motor_strength, dtype=float)
-    if pd_factor.ndim == 1:
-        pd_factor = pd_factor[:, None]
-    if motor_strength.ndim == 1:
-        motor_strength = motor_strength[:, None]
-    tau = (kp * (q_target - q) - kd * dq) * (pd_factor * motor_strength)
+    [N, J] (or broadcastable), all on one device. Written to `out` when given (no
+    allocation for the result in the hot loop)."""
+    tau = (kp * (q_target - q) - kd * dq) * (_per_env(pd_factor) * _per_env(motor_strength))
     lower, upper = torque_speed_bounds(dq, tau_max, dq_max)
-    return np.clip(tau, lower, upper, out=out)
+    return torch.clamp(tau, min=lower, max=upper, out=out)
 
 
 class DelayLine:
@@ -61,28 +67,40 @@ class DelayLine:
     `push(targets)` once per physics step, then `current()` gives for each environment the
     targets pushed `delay_steps[env]` steps ago (0 = the newest). After `reset(env_ids,
     targets)` those environments see `targets` until enough new ones have been pushed.
+    Tensors live on `device` in `dtype`; env ids may be tensors or numpy arrays.
     """
 
-    def __init__(self, num_envs: int, num_joints: int, max_delay_steps: int):
+    def __init__(
+        self,
+        num_envs: int,
+        num_joints: int,
+        max_delay_steps: int,
+        *,
+        device: str | torch.device = "cpu",
+        dtype: torch.dtype = torch.float64,
+    ):
         self.capacity = int(max_delay_steps) + 1
-        self.buffer = np.zeros((self.capacity, num_envs, num_joints))  # [capacity, N, J] ring
+        self.buffer = torch.zeros((self.capacity, num_envs, num_joints), dtype=dtype, device=device)  # ring
         self.head = 0  # slot of the newest entry
-        self.delay_steps = np.zeros(num_envs, dtype=int)  # [N]
-        self._envs = np.arange(num_envs)
+        self.delay_steps = torch.zeros(num_envs, dtype=torch.long, device=device)  # [N]
+        self._envs = torch.arange(num_envs, device=device)
 
-    def set_delay(self, env_ids: np.ndarray, delay_steps: np.ndarray) -> None:
-        delay_steps = np.asarray(delay_steps, dtype=int)
-        if np.any(delay_steps < 0) or np.any(delay_steps >= self.capacity):
+    def _index(self, env_ids) -> torch.Tensor:
+        return torch.as_tensor(env_ids, dtype=torch.long, device=self.buffer.device)
+
+    def set_delay(self, env_ids, delay_steps) -> None:
+        delay_steps = torch.as_tensor(delay_steps, dtype=torch.long, device=self.buffer.device)
+        if bool((delay_steps < 0).any()) or bool((delay_steps >= self.capacity).any()):
             raise ValueError(f"delay steps must lie in [0, {self.capacity - 1}]")
-        self.delay_steps[env_ids] = delay_steps
+        self.delay_steps[self._index(env_ids)] = delay_steps
 
-    def reset(self, env_ids: np.ndarray, targets: np.ndarray) -> None:
-        self.buffer[:, env_ids] = targets[None]
+    def reset(self, env_ids, targets: torch.Tensor) -> None:
+        self.buffer[:, self._index(env_ids)] = torch.as_tensor(targets, dtype=self.buffer.dtype, device=self.buffer.device)[None]
 
-    def push(self, targets: np.ndarray) -> None:
+    def push(self, targets: torch.Tensor) -> None:
         self.head = (self.head + 1) % self.capacity
         self.buffer[self.head] = targets
 
-    def current(self) -> np.ndarray:
+    def current(self) -> torch.Tensor:
         slots = (self.head - self.delay_steps) % self.capacity
         return self.buffer[slots, self._envs]

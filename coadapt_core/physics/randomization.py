@@ -100,51 +100,91 @@ class RandomizationConfig:
 
 @dataclass
 class EnvParams:
-    """Physical parameters of a batch of environments, each array [num_envs] (com_shift
-    [num_envs, 3]). Produced by `sample_env_params`, applied by the simulator at reset."""
+    """Physical parameters of a batch of environments, each a tensor [num_envs] (com_shift
+    [num_envs, 3]) on the simulator's device in its dtype (float64 on the built-in
+    backends). Produced by `sample_env_params`, applied by the simulator at reset."""
 
-    friction: np.ndarray
-    restitution: np.ndarray
-    com_shift: np.ndarray
-    pd_factor: np.ndarray
-    motor_strength: np.ndarray
-    delay: np.ndarray  # s
-    contact_timeconst: np.ndarray  # s
-    joint_damping: np.ndarray  # N m s/rad, added to each joint's own
-    armature: np.ndarray  # factor on each joint's armature
+    friction: torch.Tensor
+    restitution: torch.Tensor
+    com_shift: torch.Tensor
+    pd_factor: torch.Tensor
+    motor_strength: torch.Tensor
+    delay: torch.Tensor  # s
+    contact_timeconst: torch.Tensor  # s
+    joint_damping: torch.Tensor  # N m s/rad, added to each joint's own
+    armature: torch.Tensor  # factor on each joint's armature
 
-    def delay_steps(self, physics_dt: float) -> np.ndarray:
-        """[num_envs] int: the delay in whole physics steps (rounded)."""
-        return np.rint(self.delay / physics_dt).astype(int)
+    def _map(self, fn) -> EnvParams:
+        return EnvParams(**{f.name: fn(getattr(self, f.name)) for f in fields(self)})
 
-    def privileged(self, device: str | torch.device = "cpu") -> torch.Tensor:
-        """[num_envs, 8] float32 tensor on `device`: friction, restitution, PD factor, motor
-        strength, delay (s), CoM shift (3), the critic state's randomized parameters (the
-        engine-robustness ones are not in it: the critic input keeps its size)."""
-        columns = np.column_stack(
-            [self.friction, self.restitution, self.pd_factor, self.motor_strength, self.delay,
-             np.reshape(self.com_shift, (-1, 3))]
+    @property
+    def device(self) -> torch.device:
+        return self.friction.device
+
+    def __len__(self) -> int:
+        return int(self.friction.shape[0])
+
+    def delay_steps(self, physics_dt: float) -> torch.Tensor:
+        """[num_envs] long: the delay in whole physics steps (rounded half to even)."""
+        return torch.round(self.delay / physics_dt).long()
+
+    def privileged(self, device: str | torch.device | None = None) -> torch.Tensor:
+        """[num_envs, 8] float32 tensor on `device` (default: the parameters' own): friction,
+        restitution, PD factor, motor strength, delay (s), CoM shift (3), the critic state's
+        randomized parameters (the engine-robustness ones are not in it: the critic input
+        keeps its size)."""
+        columns = torch.cat(
+            [torch.stack([self.friction, self.restitution, self.pd_factor, self.motor_strength, self.delay], dim=1),
+             self.com_shift.reshape(-1, 3)],
+            dim=1,
         )
-        return torch.from_numpy(columns.astype(np.float32)).to(device)
+        return columns.to(device=device if device is not None else self.device, dtype=torch.float32)
 
-    def take(self, env_ids: np.ndarray) -> EnvParams:
-        return EnvParams(**{k: v[env_ids] for k, v in asdict(self).items()})
+    def to(self, device: str | torch.device | None = None, dtype: torch.dtype | None = None) -> EnvParams:
+        return self._map(lambda v: v.to(device=device, dtype=dtype))
 
-    def put(self, env_ids: np.ndarray, other: EnvParams) -> None:
-        for k, v in asdict(other).items():
-            getattr(self, k)[env_ids] = v
+    def numpy(self) -> dict[str, np.ndarray]:
+        """Every field as a float64 numpy array on the CPU (for engines that take numpy)."""
+        return {f.name: getattr(self, f.name).detach().cpu().numpy().astype(np.float64, copy=False) for f in fields(self)}
+
+    def take(self, env_ids) -> EnvParams:
+        """The parameters of environments `env_ids` (tensor, numpy array or list), a copy."""
+        index = torch.as_tensor(env_ids, dtype=torch.long, device=self.device)
+        return self._map(lambda v: v[index])
+
+    def put(self, env_ids, other: EnvParams) -> None:
+        """Write `other` (one row per id) into environments `env_ids`."""
+        index = torch.as_tensor(env_ids, dtype=torch.long, device=self.device)
+        for f in fields(self):
+            value = getattr(self, f.name)
+            value[index] = getattr(other, f.name).to(device=value.device, dtype=value.dtype)
+
+    def repeat(self, times: int) -> EnvParams:
+        """The batch repeated `times` times end to end ([times * num_envs] rows)."""
+        return self._map(lambda v: v.repeat((times,) + (1,) * (v.dim() - 1)))
 
 
-def nominal_env_params(num_envs: int) -> EnvParams:
-    return sample_env_params(RandomizationConfig.off(), num_envs, np.random.default_rng(0))
+def nominal_env_params(
+    num_envs: int, *, device: str | torch.device = "cpu", dtype: torch.dtype = torch.float64
+) -> EnvParams:
+    return sample_env_params(RandomizationConfig.off(), num_envs, np.random.default_rng(0), device=device, dtype=dtype)
 
 
-def sample_env_params(config: RandomizationConfig, num_envs: int, rng: np.random.Generator) -> EnvParams:
-    """Draw parameters for `num_envs` environments (always consumes the same amount of
+def sample_env_params(
+    config: RandomizationConfig,
+    num_envs: int,
+    rng: np.random.Generator,
+    *,
+    device: str | torch.device = "cpu",
+    dtype: torch.dtype = torch.float64,
+) -> EnvParams:
+    """Draw parameters for `num_envs` environments from numpy's `rng` (so one seed gives
+    the same numbers on every backend and device; always consumes the same amount of
     randomness whether or not randomization is enabled, so seeds stay aligned; the
-    engine-robustness parameters draw only when their range is not a point, after Table 2's)."""
+    engine-robustness parameters draw only when their range is not a point, after Table
+    2's), returned as tensors on `device` in `dtype`."""
 
-    def draw(name: str, shape: tuple[int, ...]) -> np.ndarray:
+    def draw(name: str, shape: tuple[int, ...]) -> torch.Tensor:
         lo, hi = getattr(config, name)
         if name in RandomizationConfig.OPTIONAL and lo == hi:
             value = np.full(shape, lo, dtype=float)
@@ -152,7 +192,7 @@ def sample_env_params(config: RandomizationConfig, num_envs: int, rng: np.random
             value = rng.uniform(lo, hi, size=shape)
         if not config.enabled:
             value = np.full(shape, RandomizationConfig.NOMINAL[name], dtype=float)
-        return value
+        return torch.as_tensor(value, dtype=dtype, device=device)
 
     return EnvParams(
         friction=draw("friction", (num_envs,)),

@@ -1,33 +1,50 @@
 """The `Simulator` plugin kind: a batched physics backend.
 
 A simulator moves `num_envs` robots, each built from its own design, on one terrain. It
-steps them with joint position targets (turned into torques by `coadapt_core.physics.actuation`,
-including motor limits, randomized PD factor, motor strength and system delay) and reports
-state as batched torch tensors. It knows nothing of commands, observations or rewards: that
-is the locomotion task's room, which runs unchanged on every backend.
+steps them with joint position targets (turned into torques by
+`coadapt_core.physics.actuation`, including motor limits, randomized PD factor, motor
+strength and system delay) and reports state as batched torch tensors. It knows nothing of
+commands, observations or rewards: that is the locomotion task's room, which runs unchanged
+on every backend.
+
+The base class owns everything sim-to-sim honesty rests on, so that two backends cannot
+drift apart in it: the option rules, the named random streams and their `reseed`, Table 2
+parameter draws (`draw_env_params`), spawn points and spawn height (`draw_spawn_xy`,
+`spawn_base_height`), environment-id parsing (`parse_env_ids`) and the paired-evaluation
+scenarios (`fix_scenarios`). A backend fills in building its worlds, applying parameters,
+stepping and reading state (docs/plugins.md, "Simulators").
 """
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
+import torch
 
-from coadapt_core.physics.randomization import EnvParams, RandomizationConfig, sample_env_params
+from coadapt_core.errors import DesignError, UserError
+from coadapt_core.physics.randomization import (
+    EnvParams,
+    RandomizationConfig,
+    nominal_env_params,
+    sample_env_params,
+)
+from coadapt_core.physics.terrain import TERRAINS, Terrain, make_terrain
 
 if TYPE_CHECKING:
-    import torch
-
     from coadapt_core.robot import Robot
 
-#: terrain names every backend understands (paper section 4.4)
-TERRAINS: tuple[str, ...] = ("flat", "slope", "random")
-#: slope terrain inclination, degrees (rising along +x)
-SLOPE_DEGREES = 10.0
-#: random terrain: uniform height noise in [0, RANDOM_MAX_HEIGHT] m
-RANDOM_MAX_HEIGHT = 0.05
+#: spawn clearance between the lowest sole point and the highest ground near it, m
+SPAWN_CLEARANCE = 0.002
+#: random terrain: spawn points stay this far inside the height field's edge, m
+SPAWN_MARGIN = 3.0
+#: fixed-base robots hang this far above their standing spawn height, m (contact-free tests)
+FIXED_BASE_LIFT = 0.5
+#: entropy key of the spawn stream at construction (`default_rng([seed, SPAWN_STREAM_KEY])`)
+SPAWN_STREAM_KEY = 0x5A
 
 
 @dataclass
@@ -56,14 +73,53 @@ class SimState:
         return SimState(**{f.name: getattr(self, f.name).to(device) for f in fields(self)})
 
 
+def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vectors v [N, 3] by unit quaternions q [N, 4] (w, x, y, z)."""
+    w = q[:, :1]
+    u = q[:, 1:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def spawn_base_height(
+    terrain: Terrain,
+    xy: np.ndarray,  # [n, 2] base spawn points
+    foot_xy: np.ndarray,  # [n, L, 2] each foot's offset from the base in the default pose
+    foot_radius: np.ndarray,  # [n] reach of each sole around its foot's origin
+    standing_height: np.ndarray,  # [n] the design's standing base height over flat ground
+    fixed_base: bool = False,
+) -> np.ndarray:
+    """[n] base height at spawn: the standing height above the highest ground within reach
+    of either sole, plus SPAWN_CLEARANCE (plus FIXED_BASE_LIFT for a welded base), so no
+    foot starts inside the ground on the slope or the bumps."""
+    feet = np.asarray(xy, dtype=float)[:, None, :] + foot_xy  # [n, L, 2]
+    ground = np.empty(feet.shape[:2])  # [n, L] highest ground within each sole's reach
+    radii = np.asarray(foot_radius, dtype=float)
+    for radius in np.unique(radii):  # one value unless designs change the foot
+        rows = radii == radius
+        ground[rows] = terrain.max_height_near(feet[rows], float(radius))
+    z = standing_height + ground.max(axis=1) + SPAWN_CLEARANCE
+    return z + FIXED_BASE_LIFT if fixed_base else z
+
+
 class Simulator(ABC):
-    """A batched physics backend. Construct, `reset()`, then `step(targets)` repeatedly."""
+    """A batched physics backend. Construct, `reset()`, then `step(targets)` repeatedly.
+
+    A backend calls `super().__init__` first (it checks every option and the designs, and
+    sets up the random streams, the nominal parameters and the terrain), then builds its
+    worlds. At each reset of some environments it takes their parameters from
+    `draw_env_params(ids)` and their spawn points from `draw_spawn_xy(ids)` (in the order of
+    the ids asked for) and applies them; it implements `step`, `get_state`, `set_designs`,
+    `num_joints` and `default_joint_pos`.
+    """
 
     #: user-facing key (`--sim mujoco`)
     name: ClassVar[str]
     description: ClassVar[str] = ""
     #: terrains this backend supports
     terrains: ClassVar[tuple[str, ...]] = TERRAINS
+    #: dtype of the backend's actuation and of `env_params` (the state stays float32)
+    dtype: ClassVar[torch.dtype] = torch.float64
 
     def __init__(
         self,
@@ -80,21 +136,60 @@ class Simulator(ABC):
         fixed_base: bool = False,
     ):
         """`fixed_base=True` welds the base where it spawns, raised clear of the terrain
-        (contact-free swing tests, sim-to-sim checks)."""
+        (contact-free swing tests, sim-to-sim checks). Bad options are one-line `UserError`s
+        naming the field."""
+        if terrain not in self.terrains:
+            raise UserError(
+                f"unknown terrain '{terrain}'; {self.name} offers: {', '.join(self.terrains)}", field="terrain"
+            )
+        if isinstance(decimation, bool) or not (isinstance(decimation, int | np.integer) and decimation >= 1):
+            raise UserError(f"decimation must be a whole number >= 1, got {decimation!r}", field="decimation")
+        if isinstance(physics_dt, bool) or not (
+            isinstance(physics_dt, int | float | np.number) and math.isfinite(physics_dt) and physics_dt > 0
+        ):
+            raise UserError(f"physics_dt must be a positive number of seconds, got {physics_dt!r}", field="physics_dt")
+        if num_threads is not None and (
+            isinstance(num_threads, bool) or not isinstance(num_threads, int | np.integer) or num_threads < 1
+        ):
+            raise UserError(f"num_threads must be a whole number >= 1, got {num_threads!r}", field="num_threads")
+        if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+            raise UserError(f"seed must be a whole number >= 0, got {seed!r}", field="seed")
+        try:
+            torch_device = torch.device(device)
+        except (RuntimeError, TypeError) as exc:
+            raise UserError(f"device must be a torch device such as 'cpu' or 'cuda', got {device!r}", field="device") from exc
+        designs = np.asarray(designs, dtype=float)
+        designs = designs.reshape(1, -1) if designs.ndim == 1 else designs
+        if designs.ndim != 2 or designs.shape[0] < 1:
+            raise UserError(
+                f"designs must be a non-empty [num_envs, design_dim] array, got shape {designs.shape}", field="designs"
+            )
         self.robot = robot
-        self.fixed_base = fixed_base
+        self.fixed_base = bool(fixed_base)
         self.terrain = terrain
         self.randomization = randomization if randomization is not None else RandomizationConfig()
-        self.physics_dt = physics_dt
-        self.decimation = decimation
-        self.seed = seed
+        self.physics_dt = float(physics_dt)
+        self.decimation = int(decimation)
+        self.seed = int(seed)
         self.device = device
-        self.num_threads = num_threads
+        self.torch_device = torch_device
+        self.num_threads = None if num_threads is None else int(num_threads)
+        self.terrain_model: Terrain = make_terrain(terrain, seed=self.seed)
+        self._designs = designs.copy()
+        #: named random streams, restarted together by `reseed` (see `add_random_stream`)
+        self._streams: dict[str, np.random.Generator] = {}
+        # "params" (Table 2) and "spawn" are two streams, so the parameter draws stay
+        # aligned between backends whatever the terrain
+        self.add_random_stream("params", np.random.SeedSequence(self.seed))
+        self.add_random_stream("spawn", np.random.SeedSequence([self.seed, SPAWN_STREAM_KEY]))
+        # construction draws nothing: nominal parameters until the first reset
+        self._params: EnvParams = nominal_env_params(len(designs), device=torch_device, dtype=self.dtype)
+        self._scenario: tuple[EnvParams, np.ndarray | None] | None = None
 
     # -- sizes ---------------------------------------------------------------------------
     @property
-    @abstractmethod
-    def num_envs(self) -> int: ...
+    def num_envs(self) -> int:
+        return int(self._designs.shape[0])
 
     @property
     @abstractmethod
@@ -106,14 +201,15 @@ class Simulator(ABC):
         return self.physics_dt * self.decimation
 
     @property
-    @abstractmethod
     def designs(self) -> np.ndarray:
-        """[num_envs, design_dim] the design each environment currently simulates."""
+        """[num_envs, design_dim] the design each environment currently simulates (a copy)."""
+        return self._designs.copy()
 
     @property
-    @abstractmethod
     def env_params(self) -> EnvParams:
-        """The randomized physical parameters currently in force, per environment."""
+        """The randomized physical parameters currently in force, per environment: tensors
+        on the simulator's device in `dtype` (a copy)."""
+        return self._params.take(torch.arange(self.num_envs, device=self._params.device))
 
     @property
     @abstractmethod
@@ -124,7 +220,8 @@ class Simulator(ABC):
     @abstractmethod
     def reset(self, env_ids: torch.Tensor | np.ndarray | None = None) -> SimState:
         """Reset the given environments (all when None) to the standing pose above the
-        terrain, drawing new randomized parameters; others are untouched."""
+        terrain, drawing new randomized parameters (`draw_env_params`) and spawn points
+        (`draw_spawn_xy`); others are untouched."""
 
     @abstractmethod
     def step(self, joint_targets: torch.Tensor) -> SimState:
@@ -134,7 +231,7 @@ class Simulator(ABC):
     @abstractmethod
     def set_designs(self, env_ids: torch.Tensor | np.ndarray, designs: np.ndarray) -> None:
         """Rebuild the given environments for new designs [len(env_ids), design_dim] (they
-        are reset); the rest keep running."""
+        are reset); the rest keep running. Check the arguments with `parse_new_designs`."""
 
     @abstractmethod
     def get_state(self) -> SimState:
@@ -142,53 +239,111 @@ class Simulator(ABC):
 
     def terrain_height_at(self, xy: torch.Tensor) -> torch.Tensor:
         """Terrain height [...] at world points xy [..., 2] (see `coadapt_core.physics.terrain`)."""
-        import torch
-
-        from coadapt_core.physics.terrain import make_terrain
-
-        heights = make_terrain(self.terrain, seed=self.seed).height_at(xy.detach().cpu().numpy())
+        heights = self.terrain_model.height_at(xy.detach().cpu().numpy())
         return torch.as_tensor(heights, dtype=xy.dtype, device=xy.device)
 
+    def max_delay_steps(self) -> int:
+        """Physics steps of the longest delay the randomization can draw (a delay line's
+        length; 0 with randomization off)."""
+        cfg = self.randomization
+        longest = max(cfg.delay[1], RandomizationConfig.NOMINAL["delay"]) if cfg.enabled else 0.0
+        return int(np.rint(longest / self.physics_dt))
+
+    # -- arguments -------------------------------------------------------------------------
+    def parse_env_ids(self, env_ids: torch.Tensor | np.ndarray | None) -> np.ndarray:
+        """Environment ids [n] (int numpy) from None (all), an index tensor or array, or a
+        boolean mask; ids outside [0, num_envs) are a `UserError`."""
+        if env_ids is None:
+            return np.arange(self.num_envs)
+        if isinstance(env_ids, torch.Tensor):
+            env_ids = env_ids.detach().cpu().numpy()
+        ids = np.asarray(env_ids)
+        if ids.dtype == bool:
+            ids = np.flatnonzero(ids)
+        ids = ids.astype(int).reshape(-1)
+        if ids.size and (ids.min() < 0 or ids.max() >= self.num_envs):
+            raise UserError(f"env_ids must lie in [0, {self.num_envs - 1}], got {ids.tolist()}", field="env_ids")
+        return ids
+
+    def parse_new_designs(self, env_ids: torch.Tensor | np.ndarray, designs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(ids [n], designs [n, design_dim]) for `set_designs`, checked: one design of the
+        simulator's length per id (`DesignError` otherwise)."""
+        ids = self.parse_env_ids(env_ids)
+        designs = np.asarray(designs, dtype=float)
+        designs = designs.reshape(1, -1) if designs.ndim == 1 else designs
+        if designs.shape != (ids.size, self._designs.shape[1]):
+            raise DesignError(
+                f"set_designs needs one design of {self._designs.shape[1]} values per env id "
+                f"({ids.size} ids), got an array of shape {designs.shape}",
+                field="designs",
+            )
+        return ids, designs
+
+    # -- randomness ------------------------------------------------------------------------
+    def add_random_stream(self, name: str, entropy: np.random.SeedSequence | None = None) -> np.random.Generator:
+        """Register a named random stream of this backend and return it. Every draw a
+        backend makes must come from a registered stream, so that `reseed` restarts it.
+        Default seeding: SeedSequence([seed, k]) for the k-th stream."""
+        if name in self._streams:
+            raise ValueError(f"random stream '{name}' exists already")
+        if entropy is None:
+            entropy = np.random.SeedSequence([self.seed, len(self._streams)])
+        self._streams[name] = np.random.Generator(np.random.PCG64(entropy))
+        return self._streams[name]
+
+    def random_stream(self, name: str) -> np.random.Generator:
+        """The named random stream ("params": Table 2 draws, "spawn": spawn points, or one
+        the backend added)."""
+        return self._streams[name]
+
     def reseed(self, seed: int) -> None:
-        """Restart every random stream of the backend from `seed` (the next `reset` then
-        draws randomization and spawn points from it). Exact resume of a co-adaptation run
-        relies on it. Default: each `numpy.random.Generator` attribute, sorted by name, is
-        restarted in place from SeedSequence([seed, k]); a backend that keeps randomness
-        elsewhere overrides this."""
-        names = sorted(k for k, v in vars(self).items() if isinstance(v, np.random.Generator))
-        for k, name in enumerate(names):
-            gen = getattr(self, name)
+        """Restart every named random stream from `seed` (the next `reset` then draws
+        randomization and spawn points from it): the k-th stream in order of registration
+        from SeedSequence([seed, k]), in place. Exact resume of a co-adaptation run relies
+        on it."""
+        for k, gen in enumerate(self._streams.values()):
             gen.bit_generator.state = type(gen.bit_generator)(np.random.SeedSequence([int(seed), k])).state
 
-    # -- paired evaluation (common random numbers) -----------------------------------------
+    # -- per-reset draws (paired evaluation: common random numbers) --------------------------
     def fix_scenarios(self, params: EnvParams | None, spawn: np.ndarray | None = None) -> None:
         """Hold each environment's randomized parameters (`params` over all `num_envs`) and,
         on the random terrain, its spawn point (`spawn` [num_envs, 2], fractions in [0, 1) of
         the spawn square) at every later reset, including restarts after a fall; None draws
         them again. Real fitness uses this to give agent i of every design the same draw
-        (docs/coadaptation.md, "Evaluation protocol"). A backend honours it by drawing through
-        `draw_env_params` and `draw_spawn_xy`; one that does not still runs, unpaired."""
+        (docs/coadaptation.md, "Evaluation protocol"); `draw_env_params` and `draw_spawn_xy`
+        honour it."""
         if params is None:
             self._scenario = None
             return
         frac = None if spawn is None else np.asarray(spawn, dtype=float).reshape(-1, 2)
-        self._scenario = (params, frac)
+        self._scenario = (params.to(self._params.device, self.dtype), frac)
 
-    def draw_env_params(self, env_ids: np.ndarray, rng: np.random.Generator) -> EnvParams:
-        """Randomized parameters for environments `env_ids` at a reset: the fixed scenario's
-        when `fix_scenarios` set one (consuming no randomness), else a fresh draw from `rng`."""
-        scenario = getattr(self, "_scenario", None)
-        if scenario is not None:
-            return scenario[0].take(np.asarray(env_ids, dtype=int))
-        return sample_env_params(self.randomization, len(env_ids), rng)
+    def draw_env_params(self, env_ids: np.ndarray) -> EnvParams:
+        """New randomized parameters for environments `env_ids` at their reset, recorded as
+        the ones in force (`env_params`) and returned (tensors on the simulator's device):
+        the fixed scenario's when `fix_scenarios` set one (consuming no randomness), else a
+        draw from the "params" stream, in the order of the ids."""
+        ids = np.asarray(env_ids, dtype=int)
+        if self._scenario is not None:
+            params = self._scenario[0].take(ids)
+        else:
+            params = sample_env_params(
+                self.randomization, len(ids), self._streams["params"], device=self._params.device, dtype=self.dtype
+            )
+        self._params.put(ids, params)
+        return params
 
-    def draw_spawn_xy(self, env_ids: np.ndarray, rng: np.random.Generator, half: float) -> np.ndarray:
-        """[n, 2] spawn points in [-half, half]^2 for `env_ids` (random terrain): the fixed
-        scenario's when set, else drawn from `rng`."""
-        scenario = getattr(self, "_scenario", None)
-        if scenario is not None and scenario[1] is not None:
-            return -half + 2.0 * half * scenario[1][np.asarray(env_ids, dtype=int)]
-        return rng.uniform(-half, half, size=(len(env_ids), 2))
+    def draw_spawn_xy(self, env_ids: np.ndarray) -> np.ndarray:
+        """[n, 2] base spawn points (x, y) for `env_ids`: the origin, except on the random
+        terrain a point at least SPAWN_MARGIN inside the height field's edge, the fixed
+        scenario's when set, else drawn from the "spawn" stream."""
+        ids = np.asarray(env_ids, dtype=int)
+        if self.terrain_model.name != "random":
+            return np.zeros((ids.size, 2))
+        half = self.terrain_model.size / 2 - SPAWN_MARGIN
+        if self._scenario is not None and self._scenario[1] is not None:
+            return -half + 2.0 * half * self._scenario[1][ids]
+        return self._streams["spawn"].uniform(-half, half, size=(ids.size, 2))
 
     def close(self) -> None:  # noqa: B027 - optional hook
         """Release processes, threads or native resources."""

@@ -303,8 +303,10 @@ class LocomotionEnv:
 
     def _refresh_params(self) -> None:
         """The randomized parameters' part of the critic state [N, 8] (friction, restitution,
-        PD factor, motor strength, delay, CoM shift), converted once per reset of the
-        simulator, not at every step: they change only when an environment restarts."""
+        PD factor, motor strength, delay, CoM shift), read once per reset of the simulator,
+        not at every step: they change only when an environment restarts. The simulator
+        holds them as tensors on its device, so this is a gather and a cast, never a copy
+        from numpy."""
         self._param_obs = self.sim.env_params.privileged(self.device)
 
     # -- stepping ---------------------------------------------------------------------------

@@ -9,8 +9,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from coadapt_core.physics.randomization import RandomizationConfig
-from coadapt_core.physics.simulator import SimState, Simulator
+from coadapt_core.errors import UserError
+from coadapt_core.physics.actuation import pd_torque
+from coadapt_core.physics.randomization import RandomizationConfig, sample_env_params
+from coadapt_core.physics.simulator import SPAWN_MARGIN, SPAWN_STREAM_KEY, SimState, Simulator
 from coadapt_core.robot import Robot
 
 
@@ -145,17 +147,90 @@ class SimulatorConformance:
         resume of co-adaptation runs depends on it)."""
         import torch
 
-        with self.make(simulator_cls, robot, randomization=RandomizationConfig(), seed=3) as sim:
-            finals, frictions = [], []
+        terrain = "random" if "random" in simulator_cls.terrains else "flat"  # spawn points too
+        with self.make(simulator_cls, robot, randomization=RandomizationConfig(), seed=3, terrain=terrain) as sim:
+            finals, frictions, spawns = [], [], []
             for _ in range(2):
                 sim.reseed(21)
-                sim.reset()
-                frictions.append(sim.env_params.friction.copy())
+                spawns.append(sim.reset().base_pos.clone())
+                frictions.append(sim.env_params.friction.clone())
                 for _ in range(5):
                     state = sim.step(sim.default_joint_pos)
                 finals.append(state.joint_pos.clone())
-            np.testing.assert_array_equal(frictions[0], frictions[1])
+            assert torch.equal(frictions[0], frictions[1])
+            assert torch.equal(spawns[0], spawns[1])
             assert torch.equal(finals[0], finals[1])
+            sim.reseed(22)
+            sim.reset()
+            assert not torch.equal(sim.env_params.friction, frictions[0])  # a different seed draws anew
+
+    def test_bad_options_are_one_line_user_errors(self, simulator_cls, robot) -> None:
+        for option, value in (("terrain", "mars"), ("decimation", 0), ("physics_dt", -0.005), ("num_threads", 0)):
+            with pytest.raises(UserError) as info:
+                self.make(simulator_cls, robot, **{option: value})
+            assert info.value.field == option and "\n" not in str(info.value)
+        with self.make(simulator_cls, robot) as sim, pytest.raises(UserError) as info:
+            sim.reset(np.array([sim.num_envs]))
+        assert info.value.field == "env_ids"
+
+    def test_env_params_are_tensors_on_the_simulators_device(self, simulator_cls, robot) -> None:
+        import torch
+
+        with self.make(simulator_cls, robot, randomization=RandomizationConfig()) as sim:
+            sim.reset()
+            params = sim.env_params
+            n = sim.num_envs
+            for name, value in vars(params).items():
+                assert isinstance(value, torch.Tensor), name
+                assert value.device == torch.device(sim.device) and value.dtype == sim.dtype, name
+                assert tuple(value.shape) == ((n, 3) if name == "com_shift" else (n,)), name
+            assert params.privileged().device == torch.device(sim.device)
+
+    def test_one_seed_draws_the_shared_parameters_and_spawn_points(self, simulator_cls, robot) -> None:
+        """Construction draws nothing; the first reset draws Table 2 parameters from the
+        "params" stream (default_rng(seed)) and, on the random terrain, spawn points from the
+        "spawn" stream: the same numbers on every backend."""
+        import torch
+
+        terrain = "random" if "random" in simulator_cls.terrains else "flat"
+        rand = RandomizationConfig()
+        with self.make(simulator_cls, robot, randomization=rand, seed=13, terrain=terrain) as sim:
+            state = sim.reset()
+            expected = sample_env_params(rand, sim.num_envs, np.random.default_rng(13))
+            for name, value in vars(sim.env_params).items():
+                assert torch.equal(value.cpu(), getattr(expected, name).to(sim.dtype)), name
+            if terrain == "random":
+                half = sim.terrain_model.size / 2 - SPAWN_MARGIN
+                xy = np.random.default_rng([13, SPAWN_STREAM_KEY]).uniform(-half, half, (sim.num_envs, 2))
+                np.testing.assert_allclose(state.base_pos[:, :2].double().cpu().numpy(), xy, atol=1e-5)
+
+    def test_torque_is_the_shared_actuation_law(self, simulator_cls, robot) -> None:
+        """With decimation 1 the reported torque is `pd_torque` at the state before the step,
+        with each environment's own PD factor and motor strength (and the robot's gains and
+        motor limits); far targets make the torque-speed envelope clip part of it."""
+        import torch
+
+        rand = RandomizationConfig(
+            friction=(1.0, 1.0), restitution=(0.0, 0.0), com_shift=(0.0, 0.0), delay=(0.0, 0.0)
+        )
+        with self.make(simulator_cls, robot, randomization=rand, decimation=1, fixed_base=True) as sim:
+            state = sim.reset()
+            params = sim.env_params
+            models = [robot.build(d) for d in sim.designs]
+            gains = [
+                torch.as_tensor(np.stack([getattr(m, k) for m in models]), dtype=torch.float64)
+                for k in ("kp", "kd", "torque_limit", "speed_limit")
+            ]
+            offsets = torch.linspace(-2.0, 2.0, sim.num_joints, dtype=torch.float64)
+            targets = sim.default_joint_pos.double().cpu() + offsets
+            for _ in range(3):
+                before = state
+                state = sim.step(targets.to(sim.default_joint_pos))
+                expected = pd_torque(
+                    targets, before.joint_pos.double().cpu(), before.joint_vel.double().cpu(), *gains,
+                    params.pd_factor.double().cpu(), params.motor_strength.double().cpu(),
+                )
+                torch.testing.assert_close(state.joint_torque.double().cpu(), expected, rtol=1e-4, atol=2e-2)
 
     def test_same_seed_same_trajectory(self, simulator_cls, robot) -> None:
         import torch

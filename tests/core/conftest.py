@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from coadapt_core.design_space import Continuous, DesignSpace
-from coadapt_core.physics.randomization import RandomizationConfig, sample_env_params
+from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.physics.simulator import SimState, Simulator
 from coadapt_core.robot import Robot, RobotModel, ValidationReport
 
@@ -73,28 +73,13 @@ class FakeSim(Simulator):
 
     def __init__(self, robot, designs, **kwargs):
         super().__init__(robot, designs, **kwargs)
-        self._designs = np.asarray(designs, dtype=float).copy()
-        self.rng = np.random.default_rng(self.seed)
-        n = len(self._designs)
-        self.params = sample_env_params(self.randomization, n, self.rng)
+        n = self.num_envs
         self.q0 = torch.as_tensor(np.tile(DEFAULT_LEG, 2), dtype=torch.float32).expand(n, 8).clone()
         self.reset()
 
     @property
-    def num_envs(self) -> int:
-        return len(self._designs)
-
-    @property
     def num_joints(self) -> int:
         return 8
-
-    @property
-    def designs(self) -> np.ndarray:
-        return self._designs
-
-    @property
-    def env_params(self):
-        return self.params
 
     @property
     def default_joint_pos(self) -> torch.Tensor:
@@ -118,7 +103,7 @@ class FakeSim(Simulator):
         self.pos[ids] = 0.0
         self.pos[ids, 2] = self._height()[ids]
         self.vel[ids] = 0.0
-        self.params.put(ids.numpy(), sample_env_params(self.randomization, len(ids), self.rng))
+        self.draw_env_params(ids.numpy())
         return self.get_state()
 
     def step(self, joint_targets: torch.Tensor) -> SimState:

@@ -1,5 +1,6 @@
 """The batched MuJoCo backend: every environment its own design, stepped in C on a thread
-pool by `mujoco.batch.Batch`, with the shared actuation law applied in numpy per physics step.
+pool by `mujoco.batch.Batch`, with the shared actuation law (torch, on zero-copy views of
+the batch's state) applied per physics step.
 
 One `Batch` holds all environments. Its model is the first design's compiled model; the
 model fields in which other designs (and the per-environment randomization) differ are
@@ -10,7 +11,6 @@ this choice (expand vs `set_models` vs `mujoco.rollout`).
 
 from __future__ import annotations
 
-import math
 import os
 import time
 from typing import TYPE_CHECKING
@@ -18,35 +18,27 @@ from typing import TYPE_CHECKING
 import mujoco
 import mujoco.batch
 import numpy as np
+import torch
 from coadapt_plugins.simulators.mujoco.compose import (
     CONTACT_SENSOR_DIM,
     CompiledDesign,
     ModelCache,
-    terrain_for,
     terrain_normal,
 )
 
 from coadapt_core.errors import UserError
 from coadapt_core.physics.actuation import DelayLine, pd_torque
-from coadapt_core.physics.randomization import EnvParams, RandomizationConfig, sample_env_params
-from coadapt_core.physics.simulator import SimState, Simulator
+from coadapt_core.physics.randomization import RandomizationConfig
+from coadapt_core.physics.simulator import SimState, Simulator, quat_rotate, spawn_base_height
 
 if TYPE_CHECKING:
-    import torch
-
     from coadapt_core.robot import Robot
 
 #: |qvel| above this (rad/s or m/s) counts as a blow-up: no walking robot gets near it
 MAX_QVEL = 1e3
-#: fixed-base robots hang this far above their standing height (contact-free swing tests)
-FIXED_BASE_LIFT = 0.5
 #: each environment's MuJoCo clock restarts here at reset, so that MuJoCo resetting a
 #: simulation itself on a bad state (clock back to 0) is always visible
 RESET_CLOCK = 1.0
-#: spawn clearance between the lowest sole point and the highest ground near it
-SPAWN_CLEARANCE = 0.002
-#: random terrain: spawn points stay this far inside the height field's edge
-SPAWN_MARGIN = 3.0
 
 #: MuJoCo's warnings for a bad state, after which it resets the simulation itself
 _BAD_STATE_WARNINGS = [
@@ -80,14 +72,6 @@ def restitution_to_dampratio(restitution: np.ndarray) -> np.ndarray:
     return np.interp(e, RESTITUTION_MEASURED, RESTITUTION_DAMPRATIO)
 
 
-def _quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate vectors v [N, 3] by unit quaternions q [N, 4] (w, x, y, z)."""
-    w = q[:, :1]
-    u = q[:, 1:]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
-
-
 def _default_threads() -> int:
     try:
         return len(os.sched_getaffinity(0))
@@ -119,22 +103,10 @@ class MujocoSimulator(Simulator):
             robot, designs, terrain=terrain, randomization=randomization, physics_dt=physics_dt,
             decimation=decimation, seed=seed, device=device, num_threads=num_threads, fixed_base=fixed_base,
         )
-        if not (isinstance(decimation, int | np.integer) and decimation >= 1):
-            raise UserError(f"decimation must be an integer >= 1, got {decimation!r}", field="decimation")
-        if not (math.isfinite(physics_dt) and physics_dt > 0):
-            raise UserError(f"physics_dt must be a positive number of seconds, got {physics_dt!r}", field="physics_dt")
-        if num_threads is not None and int(num_threads) < 1:
-            raise UserError(f"num_threads must be >= 1, got {num_threads}", field="num_threads")
-        designs = np.atleast_2d(np.asarray(designs, dtype=float))
-        if designs.shape[0] < 1:
-            raise UserError("a simulator needs at least one environment (designs is empty)", field="designs")
-        self._terrain = terrain_for(terrain, seed)
-        self._normal = terrain_normal(self._terrain)
-        n = designs.shape[0]
+        self._normal = terrain_normal(self.terrain_model)
+        n = self.num_envs
         self._n = n
-        self._designs = designs.copy()
-
-        compiled = [self._compile(d) for d in designs]
+        compiled = [self._compile(d) for d in self._designs]
         ref = compiled[0]
         self._ref = ref
         self._j = ref.robot_model.num_joints
@@ -144,6 +116,7 @@ class MujocoSimulator(Simulator):
         # whatever makes some environments costlier, such as falling) over all threads.
         self._row = np.random.default_rng(ROW_SHUFFLE_SEED).permutation(n) if ROW_SHUFFLE_SEED is not None else np.arange(n)  # [N] env -> row
         self._env_of_row = np.argsort(self._row)  # [N] row -> env
+        self._env_of_row_t = torch.from_numpy(self._env_of_row)
         self._batch = mujoco.batch.Batch(ref.model, n, nthread=self._threads)
         b = self._batch
         self._qpos = b.bind("qpos")  # [N, nq] live state rows
@@ -166,6 +139,10 @@ class MujocoSimulator(Simulator):
         self._q_index = self._as_slice(ref.qpos_adr)
         self._dq_index = self._as_slice(ref.dof_adr)
         self._act_index = self._as_slice(ref.actuator_ids)
+        # the actuation law reads joint state through zero-copy torch views of the live rows
+        # (views only when the joints are contiguous; otherwise gathered per physics step)
+        self._q_view = self._joint_view(self._qpos, self._q_index)
+        self._dq_view = self._joint_view(self._qvel, self._dq_index)
 
         # per-environment model fields: those the designs differ in, plus randomization's
         self._expanded: dict[str, np.ndarray] = {}
@@ -175,10 +152,11 @@ class MujocoSimulator(Simulator):
         self._field_diff_cache: dict[int, tuple[CompiledDesign, list[str]]] = {}
 
         j = self._j
-        self._kp = np.zeros((n, j))  # [N, J]
+        self._kp = np.zeros((n, j))  # [N, J] row order, as every per-environment array here
         self._kd = np.zeros((n, j))
         self._tau_max = np.zeros((n, j))
         self._dq_max = np.zeros((n, j))
+        self._gains = tuple(torch.from_numpy(a) for a in (self._kp, self._kd, self._tau_max, self._dq_max))
         self._default_q = np.zeros((n, j))
         self._standing_height = np.zeros(n)
         self._foot_xy = np.zeros((n, len(ref.robot_model.foot_bodies), 2))
@@ -191,16 +169,13 @@ class MujocoSimulator(Simulator):
         self._base_pos0 = np.zeros((n, 3))
         self._write_designs(self._row, compiled)
 
-        self._rng = np.random.default_rng(seed)
-        # spawn points come from their own stream, so env params stay aligned with any
-        # backend that draws them from default_rng(seed) in the same order
-        self._spawn_rng = np.random.default_rng([seed, 0x5A])
-        cfg = self.randomization
-        max_delay = max(cfg.delay[1], RandomizationConfig.NOMINAL["delay"]) if cfg.enabled else 0.0
-        self._delay = DelayLine(n, j, int(np.rint(max_delay / physics_dt)))
-        self._params: EnvParams = sample_env_params(RandomizationConfig.off(), n, np.random.default_rng(0))
+        # the actuation runs where the physics state lives: on the CPU, in float64
+        self._delay = DelayLine(n, j, self.max_delay_steps(), dtype=self.dtype)
+        self._pd_factor = torch.ones(n, dtype=self.dtype)  # [N] row order, of the parameters in force
+        self._motor_strength = torch.ones(n, dtype=self.dtype)
         self._torque = np.zeros((n, j))  # [N, J] mean applied torque of the last policy step
         self._tau = np.zeros((n, j))  # [N, J] scratch, one physics step
+        self._tau_t = torch.from_numpy(self._tau)
         self._diverged = np.zeros(n, dtype=bool)
         self._expected_time = np.zeros(n)
         self._state: SimState | None = None
@@ -221,6 +196,16 @@ class MujocoSimulator(Simulator):
         return index
 
     @staticmethod
+    def _joint_view(live: np.ndarray, index: slice | np.ndarray) -> torch.Tensor | None:
+        return torch.from_numpy(live[:, index]) if isinstance(index, slice) else None
+
+    def _joint_state(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """(q, dq) [N, J] of the actuated joints, row order, as float64 tensors."""
+        q = self._q_view if self._q_view is not None else torch.from_numpy(self._qpos[:, self._q_index])
+        dq = self._dq_view if self._dq_view is not None else torch.from_numpy(self._qvel[:, self._dq_index])
+        return q, dq
+
+    @staticmethod
     def _ancestor_dofs(model: mujoco.MjModel, body: int) -> np.ndarray:
         """Degrees of freedom that move `body` (its own and its ancestors')."""
         dofs = []
@@ -231,7 +216,7 @@ class MujocoSimulator(Simulator):
         return np.array(sorted(dofs), dtype=int)
 
     def _compile(self, design: np.ndarray) -> CompiledDesign:
-        return _CACHE.get(self.robot, design, self._terrain, physics_dt=self.physics_dt, fixed_base=self.fixed_base)
+        return _CACHE.get(self.robot, design, self.terrain_model, physics_dt=self.physics_dt, fixed_base=self.fixed_base)
 
     def _diff_fields(self, item: CompiledDesign) -> list[str]:
         """Model fields in which `item` differs from the batch's reference model."""
@@ -310,20 +295,8 @@ class MujocoSimulator(Simulator):
 
     # -- sizes and facts -----------------------------------------------------------------
     @property
-    def num_envs(self) -> int:
-        return self._n
-
-    @property
     def num_joints(self) -> int:
         return self._j
-
-    @property
-    def designs(self) -> np.ndarray:
-        return self._designs.copy()
-
-    @property
-    def env_params(self) -> EnvParams:
-        return self._params.take(self._row)
 
     @property
     def default_joint_pos(self) -> torch.Tensor:
@@ -349,21 +322,8 @@ class MujocoSimulator(Simulator):
             raise RuntimeError("this MujocoSimulator was closed")
         return self._batch
 
-    def _ids(self, env_ids: torch.Tensor | np.ndarray | None) -> np.ndarray:
-        if env_ids is None:
-            return np.arange(self._n)
-        if hasattr(env_ids, "detach"):
-            env_ids = env_ids.detach().cpu().numpy()
-        ids = np.asarray(env_ids)
-        if ids.dtype == bool:
-            ids = np.flatnonzero(ids)
-        ids = ids.astype(int).reshape(-1)
-        if ids.size and (ids.min() < 0 or ids.max() >= self._n):
-            raise UserError(f"env_ids must lie in [0, {self._n - 1}], got {ids.tolist()}", field="env_ids")
-        return ids
-
     def reset(self, env_ids: torch.Tensor | np.ndarray | None = None) -> SimState:
-        rows = self._row[self._ids(env_ids)]
+        rows = self._row[self.parse_env_ids(env_ids)]
         self._live()
         self._reset_rows(rows)
         self._diverged[rows] = False
@@ -379,49 +339,47 @@ class MujocoSimulator(Simulator):
         if ids.size == 0:
             return
         b = self._live()
-        if draw:
-            self._params.put(ids, self.draw_env_params(self._env_of_row[ids], self._rng))
-        params = self._params.take(ids)
+        envs = self._env_of_row[ids]
+        params = self.draw_env_params(envs) if draw else self._params.take(envs)
+        rows = torch.from_numpy(ids)
+        self._pd_factor[rows] = params.pd_factor.cpu()
+        self._motor_strength[rows] = params.motor_strength.cpu()
+        delay_steps = params.delay_steps(self.physics_dt).clamp(max=self._delay.capacity - 1)
+        params = params.numpy()
         # Table 2 parameters living in the model: sliding friction of every geom (MuJoCo
         # combines a contact's two geoms by max, so robot and terrain both carry it),
         # restitution as contact damping, base CoM shift
         friction = self._geom_friction[ids].copy()
-        friction[..., 0] = params.friction[:, None]
+        friction[..., 0] = params["friction"][:, None]
         self._expanded["geom_friction"][ids] = friction
         solref = self._geom_solref[ids].copy()
-        solref[..., 1] = restitution_to_dampratio(params.restitution)[:, None]
+        solref[..., 1] = restitution_to_dampratio(params["restitution"])[:, None]
         # engine robustness (RandomizationConfig.contact_timeconst, joint_damping, armature):
         # contact softness, extra damping and armature of the robot's joints; a contact time
         # constant left at its nominal point keeps the model's own
         if self._timeconst_randomized():
-            solref[..., 0] = params.contact_timeconst[:, None]
+            solref[..., 0] = params["contact_timeconst"][:, None]
         self._expanded["geom_solref"][ids] = solref
         dofs = self._dq_index
         damping = self._dof_damping[ids].copy()
-        damping[:, dofs] += params.joint_damping[:, None]
+        damping[:, dofs] += params["joint_damping"][:, None]
         self._expanded["dof_damping"][ids] = damping
         armature = self._dof_armature[ids].copy()
-        armature[:, dofs] *= params.armature[:, None]
+        armature[:, dofs] *= params["armature"][:, None]
         self._expanded["dof_armature"][ids] = armature
         base = self._ref.base_body_id
         ipos = self._expanded["body_ipos"]
-        ipos[ids, base] = self._base_ipos[ids] + params.com_shift
+        ipos[ids, base] = self._base_ipos[ids] + params["com_shift"]
 
         # spawn: standing height above the highest ground under either foot
-        xy = np.zeros((ids.size, 2))
-        if draw and self._terrain.name == "random":
-            half = self._terrain.size / 2 - SPAWN_MARGIN
-            xy = self.draw_spawn_xy(self._env_of_row[ids], self._spawn_rng, half)
-        feet = xy[:, None, :] + self._foot_xy[ids]  # [n, L, 2]
-        ground = np.empty(feet.shape[:2])  # [n, L] highest ground within each sole's reach
-        radii = self._foot_radius[ids]
-        for radius in np.unique(radii):  # one value unless designs change the foot
-            rows = radii == radius
-            ground[rows] = self._terrain.max_height_near(feet[rows], float(radius))
-        z = self._standing_height[ids] + ground.max(axis=1) + SPAWN_CLEARANCE
+        xy = self.draw_spawn_xy(envs) if draw else np.zeros((ids.size, 2))
+        z = spawn_base_height(
+            self.terrain_model, xy, self._foot_xy[ids], self._foot_radius[ids], self._standing_height[ids],
+            fixed_base=self.fixed_base,
+        )
         if self.fixed_base:
             body_pos = self._expanded["body_pos"]
-            body_pos[ids, base] = np.column_stack([xy, z + FIXED_BASE_LIFT])
+            body_pos[ids, base] = np.column_stack([xy, z])
         batch_ids = np.unique(ids)  # mujoco.batch takes sorted, unique ids
         b.set_const(batch_ids)
         b.reset(batch_ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
@@ -436,8 +394,8 @@ class MujocoSimulator(Simulator):
         self._ctrl[ids] = 0.0
         self._time[ids] = RESET_CLOCK
         b.forward(batch_ids, stage=mujoco.mjtStage.mjSTAGE_ACC)
-        self._delay.reset(ids, self._default_q[ids])
-        self._delay.set_delay(ids, np.minimum(params.delay_steps(self.physics_dt), self._delay.capacity - 1))
+        self._delay.reset(ids, torch.from_numpy(self._default_q[ids]))
+        self._delay.set_delay(ids, delay_steps)
         self._expected_time[ids] = RESET_CLOCK
         self._warnings_seen[ids] = self._warnings[ids][:, _BAD_STATE_WARNINGS, 1]
         self._torque[ids] = 0.0
@@ -448,14 +406,7 @@ class MujocoSimulator(Simulator):
         return self.randomization.enabled and not (lo == hi == nominal)
 
     def set_designs(self, env_ids: torch.Tensor | np.ndarray, designs: np.ndarray) -> None:
-        ids = self._ids(env_ids)
-        designs = np.atleast_2d(np.asarray(designs, dtype=float))
-        if designs.shape != (ids.size, self._designs.shape[1]):
-            raise UserError(
-                f"set_designs needs one design of {self._designs.shape[1]} values per env id "
-                f"({ids.size} ids), got an array of shape {designs.shape}",
-                field="designs",
-            )
+        ids, designs = self.parse_new_designs(env_ids, designs)
         self._live()
         compiled = [self._compile(d) for d in designs]
         rows = self._row[ids]
@@ -467,27 +418,25 @@ class MujocoSimulator(Simulator):
 
     def step(self, joint_targets: torch.Tensor) -> SimState:
         b = self._live()
-        if hasattr(joint_targets, "detach"):
-            joint_targets = joint_targets.detach().cpu().numpy()
-        targets = np.asarray(joint_targets, dtype=float)  # [N, J] environment order
-        if targets.shape != (self._n, self._j):
+        if not isinstance(joint_targets, torch.Tensor):
+            joint_targets = torch.as_tensor(np.asarray(joint_targets, dtype=float), device="cpu")
+        targets = joint_targets.detach().to("cpu", self.dtype)  # [N, J] environment order
+        if tuple(targets.shape) != (self._n, self._j):
             raise UserError(f"joint_targets must be [{self._n}, {self._j}], got {tuple(targets.shape)}", field="joint_targets")
-        targets = targets[self._env_of_row]  # [N, J] row order, as everything below
+        targets = targets[self._env_of_row_t]  # [N, J] row order, as everything below
         timings = self.timings
         perf = time.perf_counter
         self._torque[:] = 0.0
         diverged = np.zeros(self._n, dtype=bool)
-        params = self._params
         for _sub in range(self.decimation):
             t0 = perf()
             # coadapt_core.physics.actuation: delayed target, PD, strength, torque-speed envelope
             self._delay.push(targets)
-            q = self._qpos[:, self._q_index]  # [N, J]
-            dq = self._qvel[:, self._dq_index]  # [N, J]
-            tau = pd_torque(
-                self._delay.current(), q, dq, self._kp, self._kd, self._tau_max, self._dq_max,
-                params.pd_factor, params.motor_strength, out=self._tau,
+            q, dq = self._joint_state()  # [N, J]
+            pd_torque(
+                self._delay.current(), q, dq, *self._gains, self._pd_factor, self._motor_strength, out=self._tau_t
             )
+            tau = self._tau  # the numpy face of _tau_t
             self._ctrl[:, self._act_index] = tau
             self._torque += tau
             if self.record_controls is not None:
@@ -546,12 +495,12 @@ class MujocoSimulator(Simulator):
             base_pos = qpos[:, 0:3]
             base_quat = qpos[:, 3:7]
             lin_vel = qvel[:, 0:3]  # free joint: linear velocity in the world frame
-            ang_vel = _quat_rotate(base_quat, qvel[:, 3:6])  # free joint: angular in the body frame
+            ang_vel = quat_rotate(base_quat, qvel[:, 3:6])  # free joint: angular in the body frame
         sd = self._sensordata[order]
         found = np.stack([sd[:, a] for a in self._sensor_adr], axis=1)  # [N, L] number of contacts
         force = np.stack([sd[:, a + 1 : a + CONTACT_SENSOR_DIM] for a in self._sensor_adr], axis=1)  # [N, L, 3]
         normal_force = np.abs(force @ self._normal)  # [N, L]
-        terrain_h = self._terrain.height_at(base_pos[:, :2])  # [N]
+        terrain_h = self.terrain_model.height_at(base_pos[:, :2])  # [N]
 
         def f32(x: np.ndarray) -> torch.Tensor:
             return torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32))
@@ -598,5 +547,6 @@ class MujocoSimulator(Simulator):
         self._batch = None
         for name in _BOUND:
             setattr(self, name, None)
+        self._q_view = self._dq_view = None
         self._expanded = {}
         self.record_controls = None

@@ -16,20 +16,18 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pybullet as p
+import torch
 from coadapt_plugins.simulators.pybullet.spec import EnvSpec
 from coadapt_plugins.simulators.pybullet.urdf import prepare_urdf
 
 from coadapt_core.physics.actuation import DelayLine, pd_torque
+from coadapt_core.physics.simulator import spawn_base_height
 from coadapt_core.physics.terrain import Terrain
 
 #: gravity, m/s^2 (MuJoCo's default)
 GRAVITY = 9.81
-#: the soles spawn this far above the highest ground under either foot, m (as MuJoCo)
-SPAWN_CLEARANCE = 0.002
 #: random terrain: the safety floor lies this far below z = 0 (as in MuJoCo), m
 FLOOR_BELOW_FIELD = 0.001
-#: with `fixed_base`, the base is welded this far above its standing spawn height, m
-FIXED_BASE_LIFT = 0.5
 #: divergence: any state beyond these magnitudes (or not finite) resets the environment
 MAX_BASE_DISTANCE = 1.0e3  # m
 MAX_BASE_SPEED = 1.0e2  # m/s
@@ -47,13 +45,6 @@ STATE_KEYS = (
     "foot_contact",
     "foot_contact_force",
 )
-
-
-def _quat_rotate(q_xyzw: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate vectors v [k, 3] by quaternions [k, 4] (x, y, z, w)."""
-    xyz, w = q_xyzw[:, :3], q_xyzw[:, 3:4]
-    t = 2.0 * np.cross(xyz, v)
-    return v + w * t + np.cross(xyz, t)
 
 
 class Engine:
@@ -92,6 +83,10 @@ class Engine:
         self.default_joint_pos = np.zeros((self.k, j))
         self.pd_factor = np.ones(self.k)
         self.motor_strength = np.ones(self.k)
+        # zero-copy torch faces of the actuation inputs (the shared law is torch)
+        self._actuation = tuple(
+            torch.from_numpy(a) for a in (self.kp, self.kd, self.tau_max, self.dq_max, self.pd_factor, self.motor_strength)
+        )
         self.friction = np.ones(self.k)
         self.restitution = np.zeros(self.k)
         self.delay = DelayLine(self.k, j, max_delay_steps)
@@ -319,13 +314,13 @@ class Engine:
     # -- commands ------------------------------------------------------------------------
     def spawn_pose(self, e: int) -> np.ndarray:
         """[3] base link origin at reset: standing height above the highest ground under
-        either foot (the MuJoCo backend's rule)."""
+        either foot (`coadapt_core.physics.simulator.spawn_base_height`, every backend's rule)."""
         xy = self.spawn_xy[e]
-        feet = xy[None, :] + self.foot_xy[e]  # [L, 2]
-        ground = float(self.terrain.max_height_near(feet, self.specs[e].foot_radius).max())
-        z = ground + self.specs[e].standing_base_height + SPAWN_CLEARANCE
-        if self.fixed_base:
-            z += FIXED_BASE_LIFT
+        spec = self.specs[e]
+        (z,) = spawn_base_height(
+            self.terrain, xy[None], self.foot_xy[e][None], np.array([spec.foot_radius]),
+            np.array([spec.standing_base_height]), fixed_base=self.fixed_base,
+        )
         return np.array([xy[0], xy[1], z])
 
     def set_specs(self, env_ids: np.ndarray, specs: list[EnvSpec]) -> None:
@@ -378,12 +373,9 @@ class Engine:
         tau_sum = np.zeros((self.k, self.num_joints))
         broken = np.zeros(self.k, dtype=bool)
         for _ in range(self.decimation):
-            self.delay.push(targets)
+            self.delay.push(torch.from_numpy(targets))
             q, dq = self._joints()
-            tau = pd_torque(
-                self.delay.current(), q, dq, self.kp, self.kd, self.tau_max, self.dq_max,
-                self.pd_factor, self.motor_strength,
-            )  # [k, J]
+            tau = pd_torque(self.delay.current(), torch.from_numpy(q), torch.from_numpy(dq), *self._actuation).numpy()  # [k, J]
             applied = tau - self._armature_torque(q, dq, tau)  # [k, J]
             bad = ~np.isfinite(applied).all(axis=1)
             broken |= bad

@@ -16,12 +16,8 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 
 from coadapt_core.errors import DesignError, UserError
-from coadapt_core.physics.randomization import (
-    EnvParams,
-    RandomizationConfig,
-    nominal_env_params,
-)
-from coadapt_core.physics.simulator import TERRAINS, SimState, Simulator
+from coadapt_core.physics.randomization import RandomizationConfig
+from coadapt_core.physics.simulator import SimState, Simulator
 
 if TYPE_CHECKING:
     import torch
@@ -33,8 +29,6 @@ MISSING_PYBULLET = "the pybullet simulator needs the pybullet package: pip insta
 #: batches up to this size run in-process (worker start-up and pipe traffic cost more
 #: than they save below it; see docs/sim-to-sim.md)
 IN_PROCESS_MAX_ENVS = 8
-#: random terrain: spawn points stay this far inside the height field's edge (as MuJoCo)
-SPAWN_MARGIN = 3.0
 ARMATURE_MODES = ("foot_link", "joint_space", "link_inertia", "none")
 
 
@@ -54,7 +48,6 @@ class PyBulletSimulator(Simulator):
 
     name: ClassVar[str] = "pybullet"
     description: ClassVar[str] = "PyBullet (Bullet) backend for sim-to-sim transfer; one process per CPU core for large batches"
-    terrains: ClassVar[tuple[str, ...]] = TERRAINS
 
     def __init__(
         self,
@@ -84,35 +77,19 @@ class PyBulletSimulator(Simulator):
             robot, designs, terrain=terrain, randomization=randomization, physics_dt=physics_dt,
             decimation=decimation, seed=seed, device=device, num_threads=num_threads, fixed_base=fixed_base,
         )
-        if terrain not in self.terrains:
-            raise UserError(f"unknown terrain '{terrain}'; available: {', '.join(self.terrains)}", field="terrain")
-        if not physics_dt > 0:
-            raise UserError(f"physics_dt must be a positive number of seconds, got {physics_dt}", field="physics_dt")
-        if int(decimation) != decimation or decimation < 1:
-            raise UserError(f"decimation must be a whole number >= 1, got {decimation}", field="decimation")
         if armature not in ARMATURE_MODES:
             raise UserError(f"armature must be one of {', '.join(ARMATURE_MODES)}, got '{armature}'", field="armature")
-        designs = np.atleast_2d(np.asarray(designs, dtype=float))
-        if designs.shape[0] == 0:
-            raise UserError("a simulator needs at least one design", field="designs")
         self._spec_cache: dict[tuple[float, ...], EnvSpec] = {}
-        specs = [self._spec(d) for d in designs]
-        self._designs = designs.copy()
+        specs = [self._spec(d) for d in self._designs]
         self._num_joints = len(specs[0].joint_names)
         self._default_joint_pos = np.stack([s.default_joint_pos for s in specs])  # [N, J]
-        self._rng = np.random.default_rng(seed)
-        # spawn points on random terrain: their own stream, drawn as the MuJoCo backend does
-        self._spawn_rng = np.random.default_rng([seed, 0x5A])
-        self._params = nominal_env_params(len(specs))
-        rand = self.randomization
-        max_delay = rand.delay[1] if rand.enabled else 0.0
         options = {
-            "terrain": terrain,
-            "terrain_seed": seed,
-            "physics_dt": physics_dt,
-            "decimation": int(decimation),
-            "fixed_base": fixed_base,
-            "max_delay_steps": int(np.rint(max_delay / physics_dt)),
+            "terrain": self.terrain,
+            "terrain_seed": self.seed,
+            "physics_dt": self.physics_dt,
+            "decimation": self.decimation,
+            "fixed_base": self.fixed_base,
+            "max_delay_steps": self.max_delay_steps(),
             "armature": armature,
         }
         n = len(specs)
@@ -148,20 +125,8 @@ class PyBulletSimulator(Simulator):
 
     # -- sizes ---------------------------------------------------------------------------
     @property
-    def num_envs(self) -> int:
-        return self._designs.shape[0]
-
-    @property
     def num_joints(self) -> int:
         return self._num_joints
-
-    @property
-    def designs(self) -> np.ndarray:
-        return self._designs.copy()
-
-    @property
-    def env_params(self) -> EnvParams:
-        return self._params.take(np.arange(self.num_envs))
 
     @property
     def default_joint_pos(self) -> torch.Tensor:
@@ -184,14 +149,11 @@ class PyBulletSimulator(Simulator):
 
     def _engine_params(self, env_ids: np.ndarray, spawn_xy: np.ndarray) -> dict[str, np.ndarray]:
         sub = self._params.take(env_ids)
+        values = sub.numpy()
         return {
             "spawn_xy": spawn_xy,
-            "friction": sub.friction,
-            "restitution": sub.restitution,
-            "com_shift": sub.com_shift,
-            "pd_factor": sub.pd_factor,
-            "motor_strength": sub.motor_strength,
-            "delay_steps": sub.delay_steps(self.physics_dt),
+            **{k: values[k] for k in ("friction", "restitution", "com_shift", "pd_factor", "motor_strength")},
+            "delay_steps": sub.delay_steps(self.physics_dt).cpu().numpy(),
         }
 
     def _to_state(self, raw: dict[str, np.ndarray]) -> SimState:
@@ -200,10 +162,7 @@ class PyBulletSimulator(Simulator):
         def t(x: np.ndarray, dtype=torch.float32) -> torch.Tensor:
             return torch.as_tensor(np.ascontiguousarray(x), dtype=dtype, device=self.device)
 
-        xy = raw["base_pos"][:, :2]
-        from coadapt_core.physics.terrain import make_terrain
-
-        terrain_height = make_terrain(self.terrain, seed=self.seed).height_at(xy)
+        terrain_height = self.terrain_model.height_at(raw["base_pos"][:, :2])
         return SimState(
             base_pos=t(raw["base_pos"]),
             base_quat=t(raw["base_quat"]),
@@ -225,27 +184,9 @@ class PyBulletSimulator(Simulator):
         return self._gather(self._pool.call("get_state", [()] * len(self._slices)))
 
     # -- control -------------------------------------------------------------------------
-    def _ids(self, env_ids: torch.Tensor | np.ndarray | None) -> np.ndarray:
-        if env_ids is None:
-            return np.arange(self.num_envs)
-        if hasattr(env_ids, "detach"):
-            env_ids = env_ids.detach().cpu().numpy()
-        ids = np.asarray(env_ids).reshape(-1)
-        if ids.dtype == bool:
-            ids = np.nonzero(ids)[0]
-        ids = ids.astype(int)
-        if ids.size and (ids.min() < 0 or ids.max() >= self.num_envs):
-            raise UserError(f"env_ids must lie in [0, {self.num_envs - 1}], got {ids.tolist()}", field="env_ids")
-        return ids
-
     def _reset_engines(self, ids: np.ndarray) -> None:
-        self._params.put(ids, self.draw_env_params(ids, self._rng))
-        spawn_xy = np.zeros((len(ids), 2))
-        if self.terrain == "random":
-            from coadapt_core.physics.terrain import make_terrain
-
-            half = make_terrain(self.terrain, seed=self.seed).size / 2 - SPAWN_MARGIN
-            spawn_xy = self.draw_spawn_xy(ids, self._spawn_rng, half)
+        self.draw_env_params(ids)
+        spawn_xy = self.draw_spawn_xy(ids)
         if self._engine is not None:
             self._engine.reset(ids, self._engine_params(ids, spawn_xy))
             return
@@ -255,7 +196,7 @@ class PyBulletSimulator(Simulator):
         )
 
     def reset(self, env_ids: torch.Tensor | np.ndarray | None = None) -> SimState:
-        ids = self._ids(env_ids)
+        ids = self.parse_env_ids(env_ids)
         if ids.size:
             self._reset_engines(ids)
         self._diverged[ids] = False
@@ -283,12 +224,7 @@ class PyBulletSimulator(Simulator):
         return self._to_state(raw)
 
     def set_designs(self, env_ids: torch.Tensor | np.ndarray, designs: np.ndarray) -> None:
-        ids = self._ids(env_ids)
-        designs = np.atleast_2d(np.asarray(designs, dtype=float))
-        if designs.shape[0] != ids.size:
-            raise DesignError(
-                f"set_designs: {ids.size} env_ids but {designs.shape[0]} designs", field="designs"
-            )
+        ids, designs = self.parse_new_designs(env_ids, designs)
         specs = [self._spec(d) for d in designs]  # validates every design before touching any env
         if specs and len(specs[0].joint_names) != self._num_joints:
             raise DesignError("set_designs: the new design has a different number of joints", field="designs")
@@ -332,7 +268,7 @@ class PyBulletSimulator(Simulator):
 
     def _inject(self, env_ids: np.ndarray, base_velocity: float) -> None:
         """Test hook: kick bases to an absurd speed to exercise divergence handling."""
-        ids = self._ids(env_ids)
+        ids = self.parse_env_ids(env_ids)
         if self._engine is not None:
             self._engine.inject(ids, base_velocity)
         else:

@@ -4,6 +4,8 @@ off by default without disturbing Table 2's random stream."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import mujoco
 import numpy as np
 import pytest
@@ -20,7 +22,8 @@ def kuafu() -> Kuafu:
 
 
 def test_default_keeps_table_2_and_its_random_stream() -> None:
-    default = sample_env_params(RandomizationConfig(), 64, np.random.default_rng(7))
+    drawn = sample_env_params(RandomizationConfig(), 64, np.random.default_rng(7))
+    default = SimpleNamespace(**drawn.numpy())
     assert np.all(default.contact_timeconst == 0.02) and np.all(default.joint_damping == 0.0)
     assert np.all(default.armature == 1.0)
     # the same draws as Table 2 alone: friction, restitution, CoM shift, PD, strength, delay
@@ -29,7 +32,7 @@ def test_default_keeps_table_2_and_its_random_stream() -> None:
                         ("pd_factor", (64,)), ("motor_strength", (64,)), ("delay", (64,))):
         lo, hi = getattr(RandomizationConfig(), name)
         np.testing.assert_array_equal(getattr(default, name), rng.uniform(lo, hi, size=shape))
-    assert default.privileged().shape == (64, 8)  # the critic input keeps its size
+    assert drawn.privileged().shape == (64, 8)  # the critic input keeps its size
 
 
 def test_presets_and_bad_ranges() -> None:
@@ -51,7 +54,7 @@ def test_engine_parameters_are_drawn_in_range_and_written_into_each_model(kuafu)
     designs = kuafu.design_space().sample(24, rng=3)
     with MujocoSimulator(kuafu, designs, randomization=rand, seed=5) as sim:
         sim.reset()
-        params = sim.env_params
+        params = SimpleNamespace(**sim.env_params.numpy())
         for name in ("contact_timeconst", "joint_damping", "armature"):
             lo, hi = getattr(rand, name)
             values = getattr(params, name)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -61,7 +62,7 @@ def test_worker_processes_match_in_process_and_close_cleanly(kuafu):
         sim.reset(torch.tensor([1]))
         state = sim.step(targets)
         finals[processes] = state
-        params = sim.env_params
+        params = SimpleNamespace(**sim.env_params.numpy())
         sim.close()
         for pid in pids:
             with pytest.raises(ProcessLookupError):
@@ -103,7 +104,7 @@ def test_friction_restitution_and_com_shift_are_applied(kuafu):
     rand = RandomizationConfig(delay=(0.0, 0.0))
     with PyBulletSimulator(kuafu, np.repeat(NOMINAL, 3, axis=0), randomization=rand, seed=3) as sim:
         sim.reset()
-        params = sim.env_params
+        params = SimpleNamespace(**sim.env_params.numpy())
         with PyBulletSimulator(kuafu, NOMINAL, randomization=RandomizationConfig.off()) as plain:
             base_ipos = np.array(plain.dynamics_info(0)["inertial_pos"])  # the URDF's own base CoM
         assert np.any(base_ipos != 0)
@@ -157,10 +158,11 @@ def test_torque_follows_the_shared_actuation_law(kuafu):
         for _ in range(5):
             before = state
             state = sim.step(targets)
+        gains = (model.kp, model.kd, model.torque_limit, model.speed_limit)
         expected = pd_torque(
-            targets.double().numpy(), before.joint_pos.double().numpy(), before.joint_vel.double().numpy(),
-            model.kp, model.kd, model.torque_limit, model.speed_limit,
-        )
+            targets.double(), before.joint_pos.double(), before.joint_vel.double(),
+            *(torch.tensor(a, dtype=torch.float64) for a in gains),
+        ).numpy()
         np.testing.assert_allclose(state.joint_torque.double().numpy(), expected, rtol=1e-4, atol=1e-3)
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
+import torch
 
 from coadapt_core.physics.actuation import pd_torque
 from coadapt_core.robot import RobotModel
@@ -36,9 +37,10 @@ def stand_under_pd(model: RobotModel, seconds: float, push: tuple[float, float] 
     data = standing_data(model, mj)
     target = model.default_joint_pos[None]  # [1, 8]
     for k in range(int(round(seconds / mj.opt.timestep))):
-        data.ctrl[:] = pd_torque(target, data.qpos[None, 7:15], data.qvel[None, 6:14], model.kp, model.kd,
-                                 model.torque_limit, model.speed_limit, pd_factor=gain_factor,
-                                 motor_strength=gain_factor)[0]
+        state = (target, data.qpos[None, 7:15], data.qvel[None, 6:14], model.kp, model.kd, model.torque_limit,
+                 model.speed_limit)
+        data.ctrl[:] = pd_torque(*(torch.tensor(a, dtype=torch.float64) for a in state), pd_factor=gain_factor,
+                                 motor_strength=gain_factor)[0].numpy()
         if k == int(round(1.0 / mj.opt.timestep)):
             data.qvel[0] += push[0]
             data.qvel[1] += push[1]

@@ -6,6 +6,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
+import torch
 
 from coadapt_core.physics.actuation import pd_torque
 
@@ -56,8 +57,10 @@ def test_hanging_legs_settle_after_a_step_at_the_highest_gains(kuafu, design):
     target = (model.default_joint_pos + np.array([0.1, -0.3, 0.3, -0.3] * 2)).clip(model.joint_lower, model.joint_upper)
     speeds = []
     for _ in range(400):  # 2 s
-        data.ctrl[:] = pd_torque(target[None], data.qpos[None], data.qvel[None], model.kp, model.kd,
-                                 model.torque_limit, model.speed_limit, pd_factor=1.1, motor_strength=1.1)[0]
+        state = (target[None], data.qpos[None], data.qvel[None], model.kp, model.kd, model.torque_limit,
+                 model.speed_limit)
+        data.ctrl[:] = pd_torque(*(torch.tensor(a, dtype=torch.float64) for a in state), pd_factor=1.1,
+                                 motor_strength=1.1)[0].numpy()
         mujoco.mj_step(mj, data)
         speeds.append(np.abs(data.qvel).max())
     assert np.abs(data.qpos - target).max() < 0.02  # gravity sag only
