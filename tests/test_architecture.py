@@ -29,7 +29,7 @@ KNOWN_CYCLES: dict[frozenset[str], str] = {
         "the surrogate figure borrows the report's plotting helpers",
     frozenset({"coadapt_core.cli.train", "coadapt_core.viz.video"}):
         "the run's video rolls out with the eval command's evaluate_checkpoint",
-    frozenset({"coadapt_core.coadapt.recorders", "coadapt_core.results", "coadapt_core.results.recorder"}):
+    frozenset({"coadapt_core.results", "coadapt_core.results.recorder", "coadapt_core.results.recorders"}):
         "JSON and store recorders in two rooms; refilling the store reads the JSON files",
 }
 

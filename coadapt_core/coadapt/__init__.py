@@ -8,7 +8,7 @@ from coadapt_core.coadapt.loop import (
     MethodSwitches,
     run_coadaptation,
 )
-from coadapt_core.coadapt.recorders import JsonRecorder, make_recorder, read_evaluations
+from coadapt_core.results.recorders import JsonRecorder, make_recorder, read_evaluations
 
 __all__ = [
     "METHODS",

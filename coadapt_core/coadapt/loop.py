@@ -25,7 +25,6 @@ import numpy as np
 from coadapt_core import surrogate_quality as sq
 from coadapt_core.coadapt.config import CoadaptConfig, config_from_dict
 from coadapt_core.coadapt.final_check import batch_errors, final_check, no_uncertainty
-from coadapt_core.coadapt.recorders import make_recorder
 from coadapt_core.coadapt.reliability import assess, walking
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
@@ -33,6 +32,7 @@ from coadapt_core.fitness import CoadaptationBackend, RunRecorder, scenario_seed
 from coadapt_core.objective import Objective
 from coadapt_core.optimizer import Optimizer
 from coadapt_core.pareto import pareto_front
+from coadapt_core.results.recorders import make_recorder
 from coadapt_core.statefile import StateFileError, read_json, read_npz, write_json, write_npz
 
 STATE_FILE = "state.json"

@@ -178,7 +178,7 @@ class SqliteRecorder:
         import math
         from pathlib import Path
 
-        from coadapt_core.coadapt.recorders import read_evaluations, read_jsonl
+        from coadapt_core.results.recorders import read_evaluations, read_jsonl
         from coadapt_core.errors import UserError
         from coadapt_core.validation import inside
 

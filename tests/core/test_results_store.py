@@ -210,7 +210,7 @@ def test_bo_study_lives_in_the_store_and_optuna_finds_it(tmp_path):
 
 
 def test_make_recorder_tees_json_files_into_the_store_beside_the_runs_folder(tmp_path, monkeypatch):
-    from coadapt_core.coadapt.recorders import JsonRecorder, make_recorder
+    from coadapt_core.results.recorders import JsonRecorder, make_recorder
 
     monkeypatch.delenv("COADAPT_STORE", raising=False)
     run_dir = tmp_path / "runs" / "r1"
