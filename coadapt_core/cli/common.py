@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import re
 import sys
 from typing import Any, NoReturn
@@ -83,19 +82,18 @@ def resolve(kind: str, name: str) -> type:
 _HAND_DEFAULT = re.compile(r"\s*(?:\(default:?\s+((?:[^()]|\([^()]*\))*)\)|\[default:\s*([^\]]*)\])")
 
 
-def _preset_default(name: str) -> str | None:
-    """The default of a `coadapt run` option that is a config field: the value, or the value
-    per preset when the presets differ."""
-    from coadapt_core.coadapt.config import FIELD_NAMES, PRESETS, CoadaptConfig
+def config_default(name: str) -> str | None:
+    """The default of a `coadapt run` option that is a config setting: the value, or the
+    value per preset when the presets differ; for a learner setting, the starting policy's."""
+    from coadapt_core.coadapt.config import preset_defaults
 
-    if name not in FIELD_NAMES or name == "preset":
+    found = preset_defaults().get(name)
+    if found is None:
         return None
-    base = CoadaptConfig.__dataclass_fields__[name]
-    if base.default is dataclasses.MISSING:
-        return None
-    values = {p: PRESETS[p].get(name, base.default) for p in PRESETS}
-
-    if all(v == "" for v in values.values()):
+    leaf, values = found
+    if leaf.extra.get("unset"):
+        return f"{leaf.extra['unset']}, else {show_default(leaf.extra['base_default'])}"
+    if all(v in ("", None) for v in values.values()):
         return None  # the help text says what an empty value means
     if len(set(map(repr, values.values()))) == 1:
         return show_default(next(iter(values.values())))
@@ -109,7 +107,9 @@ def show_default(value: object) -> str:
     if isinstance(value, int) and abs(value) >= 10_000:
         return f"{value:_}"
     if isinstance(value, list | tuple):
-        return ",".join(map(str, value))
+        return (":" if len(value) == 2 and all(isinstance(v, float) for v in value) else ",").join(map(str, value))
+    if isinstance(value, dict):
+        return ",".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in value.items())
     return str(value)
 
 
@@ -137,7 +137,7 @@ def style_help(command: Any, *, config_options: bool = False) -> None:
             default = (found.group(1) or found.group(2) or "").strip()
             text = (text[: found.start()] + text[found.end():]).strip()
         elif config_options and param.default is None and param.name:
-            default = _preset_default(param.name)
+            default = config_default(param.name)
         elif param.default is not None and not (param.is_flag and param.default is False) and param.name != "help":
             value = param.default
             if param.is_flag and param.secondary_opts:

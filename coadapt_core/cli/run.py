@@ -148,78 +148,74 @@ def _print_summary(summary: dict[str, Any], space_names: list[str] | None) -> No
             console.print("  " + ", ".join(f"{x:.3f}" for x in design) + "  ->  " + ", ".join(f"{k} {v:.4g}" for k, v in costs.items()))
 
 
+#: `coadapt run` options that are not config fields: (name, type, typer.Option)
+def _command_options() -> list[tuple[str, Any, Any]]:
+    return [
+        ("config", Path, typer.Option(None, "--config", help="YAML file of config keys (CLI options win over it); a run folder's config.yaml repeats that run's config.")),
+        ("resume", str, typer.Option(None, help="Resume the run with this id (a folder under --out) or this run folder.")),
+        ("as_json", bool, typer.Option(False, "--json", help="Last stdout line: a JSON summary.")),
+        ("video", bool, typer.Option(True, "--video/--no-video", help="End by rendering the best and the nominal design walking side by side: <run folder>/best_vs_nominal.gif (and .mp4 with ffmpeg).")),
+        ("optimizer_option", list[str], typer.Option(None, "--optimizer-option", help="KEY=VALUE: an option the optimizer plugin declares (repeatable; `coadapt plugins --json` lists them); wins over the YAML file's optimizer_options.")),
+        ("objective_option", list[str], typer.Option(None, "--objective-option", help="KEY=VALUE: an option the objective plugin declares (repeatable); wins over the YAML file's objective_options.")),
+        ("objective_weights", str, typer.Option(None, help="Alias of --objective-option weights=... (composite weights, e.g. tracking=1,power=1,torque=1).")),
+        ("inertia", float, typer.Option(None, help="Alias of --optimizer-option inertia=... (swarm optimizers).")),
+        ("c1", float, typer.Option(None, help="Alias of --optimizer-option c1=... (swarm optimizers).")),
+        ("c2", float, typer.Option(None, help="Alias of --optimizer-option c2=... (swarm optimizers).")),
+        ("bo_sampler", str, typer.Option(None, help="Alias of --optimizer-option sampler=... (BO: tpe or gp).")),
+        ("bo_storage", str, typer.Option(None, help="Alias of --optimizer-option storage=... (BO: optuna storage URL).")),
+        ("check", bool, typer.Option(False, "--check", hidden=True, help="Check the options (config, plugins, store, --out) and exit without running.")),
+    ]
+
+
+#: the command-line type of each kind of setting (text is parsed by the setting's type)
+_CLI_TYPES = {"bool": bool, "int": int, "float": float}
+
+
+def option_help(leaf: Any) -> str:
+    """The help of a config setting's option: its declared help, what it accepts when that
+    is a choice, the installed plugins when it names one."""
+    text = leaf.help
+    if leaf.extra.get("plugin"):
+        return choice_help(leaf.extra["plugin"], text)
+    if leaf.kind == "choice":
+        return f"{text} One of: {', '.join(map(str, leaf.choices))}."
+    if leaf.kind in ("range", "ints", "weights"):
+        return f"{text} ({leaf.accepted()})"
+    return text
+
+
+def config_options() -> list[tuple[str, Any, Any, Any]]:
+    """(parameter name, type, typer.Option, leaf) for every config setting on the command line."""
+    from coadapt_core.coadapt.config import CoadaptConfig
+    from coadapt_core.settings import leaves
+
+    out = []
+    for leaf in leaves(CoadaptConfig):
+        if not leaf.extra.get("cli", True):
+            continue
+        kind = _CLI_TYPES.get(leaf.kind, str)
+        names = [f"{leaf.option}/--no-{leaf.option[2:]}"] if kind is bool else [leaf.option]
+        out.append((leaf.param, kind, typer.Option(None, *names, help=option_help(leaf)), leaf))
+    return out
+
+
 def register(app: typer.Typer) -> None:
-    @app.command("run")
-    def run_command(
-        optimizer: str = typer.Option(None, help=choice_help("optimizer", "Design optimizer (default pso).")),
-        sim: str = typer.Option(None, help=choice_help("simulator", "Simulator backend (default mujoco).")),
-        objective: str = typer.Option(None, help=choice_help("objective", "Objective to minimise, or a comma list of 2-3 for nsga2 (default torque).")),
-        robot: str = typer.Option(None, help=choice_help("robot", "Robot (default kuafu).")),
-        terrain: str = typer.Option(None, help="Terrain: flat, slope or random (default flat)."),
-        method: str = typer.Option(None, help=_METHOD_HELP + " (default ours)"),
-        preset: str = typer.Option(None, help="Preset: smoke, quick or paper (default quick)."),
-        seed: int = typer.Option(None, help="Random seed (default 0)."),
-        config: Path = typer.Option(None, "--config", help="YAML file of config keys (CLI options win over it)."),
-        out: str = typer.Option(None, help="Parent folder of run folders (default runs)."),
-        resume: str = typer.Option(None, help="Resume the run with this id (a folder under --out) or this run folder."),
-        as_json: bool = typer.Option(False, "--json", help="Last stdout line: a JSON summary."),
-        video: bool = typer.Option(True, "--video/--no-video", help="End by rendering the best and the nominal design walking side by side: <run folder>/best_vs_nominal.gif (and .mp4 with ffmpeg)."),
-        optimizer_option: list[str] = typer.Option(None, "--optimizer-option", help="KEY=VALUE: an option the optimizer plugin declares (repeatable; `coadapt plugins --json` lists them); wins over the YAML file's optimizer_options."),
-        objective_option: list[str] = typer.Option(None, "--objective-option", help="KEY=VALUE: an option the objective plugin declares (repeatable); wins over the YAML file's objective_options."),
-        objective_weights: str = typer.Option(None, help="Alias of --objective-option weights=... (composite weights, e.g. tracking=1,power=1,torque=1)."),
-        mixed: bool = typer.Option(None, "--mixed/--no-mixed", help="Add the robot's discrete variables (motor types); implied by mixed-pso."),
-        design_ranges: str = typer.Option(None, help="Initial range low:high per continuous variable, e.g. 0.5:1.5,0.5:1.0."),
-        outer_iterations: int = typer.Option(None, help="N: outer iterations (train, optimise, narrow)."),
-        population: int = typer.Option(None, help="K: designs per training phase = swarm size."),
-        optimizer_iterations: int = typer.Option(None, help="J: optimizer rounds per outer iteration."),
-        evaluation_probability: float = typer.Option(None, help="w: probability of a surrogate (not real) round."),
-        agents_per_design: int = typer.Option(None, help="Agents per design in training and real evaluation."),
-        train_steps: int = typer.Option(None, help="Interactions of the first training phase."),
-        retrain_steps: int = typer.Option(None, help="Interactions of each later retraining phase."),
-        eval_steps: int = typer.Option(None, help="T_eval: policy steps per agent in a real evaluation."),
-        eval_agents: int = typer.Option(None, help="Paired scenarios (agents) per design in a real evaluation (0 = --agents-per-design)."),
-        surrogate_samples: int = typer.Option(None, help="States drawn from the evaluation buffer by the surrogate."),
-        measure_surrogate_error: bool = typer.Option(None, "--measure-surrogate-error/--no-measure-surrogate-error", help="Run the surrogate on real batches too, to record its error."),
-        fit_surrogate: bool = typer.Option(None, "--fit-surrogate/--no-fit-surrogate", help="Fit the pseudo-critics to each real round's measured designs before a surrogate round (default on; off: the paper's pseudo-critics as trained)."),
-        evaluation_policy: str = typer.Option(None, help="fixed: a surrogate round with probability w (the paper's); uncertainty: a surrogate round when the fitted ensemble agrees (spread ratio <= --uncertainty-threshold) [default: fixed]."),
-        uncertainty_threshold: float = typer.Option(None, help="uncertainty policy: trust the surrogate when the members' spread over the designs' spread is at most this [default: 0.5]."),
-        final_candidates: int = typer.Option(None, help="Lowest-real-cost designs re-evaluated in the final check (default 3)."),
-        final_max_blocks: int = typer.Option(None, help="Final check: at most this many blocks of agents-per-design paired scenarios (default 8)."),
-        inertia: float = typer.Option(None, help="Alias of --optimizer-option inertia=... (swarm optimizers)."),
-        c1: float = typer.Option(None, help="Alias of --optimizer-option c1=... (swarm optimizers)."),
-        c2: float = typer.Option(None, help="Alias of --optimizer-option c2=... (swarm optimizers)."),
-        bo_sampler: str = typer.Option(None, help="Alias of --optimizer-option sampler=... (BO: tpe or gp)."),
-        bo_storage: str = typer.Option(None, help="Alias of --optimizer-option storage=... (BO: optuna storage URL)."),
-        narrow_margin: float = typer.Option(None, help="Narrowing: widen the particles' span by this fraction per side."),
-        narrow_min_width: float = typer.Option(None, help="Narrowing: minimum width as a fraction of the full range."),
-        bo_designs: int = typer.Option(None, help="bo-specialized: designs BO proposes."),
-        specialized_train_steps: int = typer.Option(None, help="bo-specialized: interactions per specialised policy."),
-        specialized_init: str = typer.Option(None, help="bo-specialized: scratch (the paper's) or universal (fine-tune the universal policy per design)."),
-        checkpoint: str = typer.Option(None, help="Universal policy to start from ('none' = from scratch)."),
-        device: str = typer.Option(None, help="Torch device of the learner (default cpu)."),
-        store: str = typer.Option(None, help="Results store URL or path (default: $COADAPT_STORE, else coadapt.db beside --out; none: JSON files only)."),
-        check: bool = typer.Option(False, "--check", hidden=True, help="Check the options (config, plugins, store, --out) and exit without running."),
-        logger: str = typer.Option(None, help="Experiment tracking: tensorboard (event files in <run folder>/tb), wandb (if installed) or none [default: tensorboard]."),
-    ) -> None:
+    import inspect
+
+    settings = config_options()
+
+    def run_command(**values: Any) -> None:
         """Co-adapt design and policy: universal policy + pseudo-critics, optimizer with hybrid
         real/surrogate fitness, range narrowing (paper Algorithm 4)."""
         from coadapt_core.coadapt.config import make_config
         from coadapt_core.coadapt.loop import run_coadaptation
 
-        overrides = {
-            "optimizer": optimizer, "sim": sim, "objective": objective, "robot": robot, "terrain": terrain,
-            "method": method, "seed": seed, "out": out, "objective_weights": objective_weights, "mixed": mixed,
-            "design_ranges": design_ranges, "outer_iterations": outer_iterations, "population": population,
-            "optimizer_iterations": optimizer_iterations, "evaluation_probability": evaluation_probability,
-            "agents_per_design": agents_per_design, "train_steps": train_steps, "retrain_steps": retrain_steps,
-            "eval_steps": eval_steps, "eval_agents": eval_agents, "surrogate_samples": surrogate_samples,
-            "measure_surrogate_error": measure_surrogate_error, "fit_surrogate": fit_surrogate,
-            "evaluation_policy": evaluation_policy, "uncertainty_threshold": uncertainty_threshold, "final_candidates": final_candidates, "final_max_blocks": final_max_blocks, "inertia": inertia, "c1": c1, "c2": c2,
-            "bo_sampler": bo_sampler, "bo_storage": bo_storage, "narrow_margin": narrow_margin,
-            "narrow_min_width": narrow_min_width, "bo_designs": bo_designs,
-            "specialized_train_steps": specialized_train_steps, "specialized_init": specialized_init, "checkpoint": checkpoint, "device": device,
-            "store": store, "logger": logger,
-        }
+        config, resume, out, preset = values["config"], values["resume"], values["out"], values["preset"]
+        as_json, video, check = values["as_json"], values["video"], values["check"]
+        optimizer_option, objective_option = values["optimizer_option"], values["objective_option"]
+        overrides = {leaf.key: values[name] for name, _, _, leaf in settings}
+        for legacy in ("objective_weights", "inertia", "c1", "c2", "bo_sampler", "bo_storage"):
+            overrides[legacy] = values[legacy]
         try:
             if resume:
                 from coadapt_core.validation import is_run_id, run_folder
@@ -276,3 +272,14 @@ def register(app: typer.Typer) -> None:
                 names = None
             _print_summary(summary, names)
             print(f"run folder: {result.run_dir}")
+
+    params = [
+        inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=kind)
+        for name, kind, option, _ in settings
+    ] + [
+        inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=kind)
+        for name, kind, option in _command_options()
+    ]
+    run_command.__signature__ = inspect.Signature(params)
+    run_command.__annotations__ = {p.name: p.annotation for p in params}
+    app.command("run")(run_command)

@@ -1,17 +1,34 @@
-"""The co-adaptation run's settings: one documented dataclass (CleanRL style), presets, YAML
-files and validation. Precedence: CLI option > YAML key > preset > dataclass default."""
+"""The co-adaptation run's settings: one typed tree (`CoadaptConfig`, a settings dataclass of
+`coadapt_core.settings`), presets, YAML files and validation. The `coadapt run` options, the
+YAML keys, the checks and docs/settings.md all come from the fields declared here.
+Precedence: CLI option > YAML key > preset > declared default."""
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import fields
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
+
+from pydantic import field_validator
 
 from coadapt_core.errors import UserError
-from coadapt_core.physics.simulator import TERRAINS
+from coadapt_core.learning.config import TrainConfig
+from coadapt_core.physics.randomization import RANDOMIZATION_PRESETS, RandomizationConfig
+from coadapt_core.physics.terrain import TERRAINS
+from coadapt_core.settings import (
+    Float,
+    Int,
+    apply_overrides,
+    overrides,
+    partial,
+    sections,
+    setting,
+    settings,
+    to_plain,
+)
+from coadapt_core.task.config import TaskConfig
 
 #: --method choices; see `METHOD_SWITCHES` in coadapt_core/coadapt/loop.py
 METHODS: tuple[str, ...] = ("ours", "no-surrogate", "no-real", "no-retrain", "bo-specialized")
@@ -19,157 +36,15 @@ METHODS: tuple[str, ...] = ("ours", "no-surrogate", "no-real", "no-retrain", "bo
 EVALUATION_POLICIES: tuple[str, ...] = ("fixed", "uncertainty")
 
 
-@dataclass
-class CoadaptConfig:
-    """Every setting of `coadapt run`. Each field is a CLI option (`--outer-iterations`) and
-    a YAML key (`outer_iterations`)."""
-
-    # -- what to co-adapt ------------------------------------------------------------------
-    robot: str = "kuafu"  # robot plugin
-    sim: str = "mujoco"  # simulator plugin
-    optimizer: str = "pso"  # optimizer plugin; mixed-pso switches to the mixed design space
-    objective: str = "torque"  # objective plugin, or a comma list of 2-3 for nsga2
-    terrain: str = "flat"  # flat | slope | random
-    method: str = "ours"  # ours | no-surrogate | no-real | no-retrain | bo-specialized
-    mixed: bool = False  # add the robot's discrete variables (motor types); implied by mixed-pso
-    design_ranges: str = ""  # initial range 'low:high,...' per continuous variable (default full)
-    seed: int = 0
-    # -- Algorithm 4 -------------------------------------------------------------------------
-    outer_iterations: int = 3  # N: train / optimise / narrow rounds
-    population: int = 100  # K: designs sampled for training = particles of the swarm
-    optimizer_iterations: int = 5  # J: optimizer ask/tell rounds per outer iteration
-    evaluation_probability: float = 0.5  # w: probability of surrogate (not real) evaluation
-    agents_per_design: int = 50  # parallel agents per design in training and real evaluation
-    train_steps: int = 24_000_000  # environment interactions of the first training phase
-    retrain_steps: int = 24_000_000  # environment interactions of each later (re)training
-    eval_steps: int = 800  # T_eval: policy steps per agent in a real evaluation (Alg. 2)
-    eval_agents: int = 0  # paired scenarios (agents) per design in a real evaluation; 0 = agents_per_design
-    surrogate_samples: int = 4096  # T_eval states drawn from R_eval by the surrogate (Alg. 3)
-    measure_surrogate_error: bool = True  # also run the surrogate on every real batch (no interactions)
-    # -- the surrogate (docs/coadaptation.md, "The surrogate") --------------------------------
-    fit_surrogate: bool = True  # fit the pseudo-critics to each real round's measured designs before trusting them
-    evaluation_policy: str = "fixed"  # fixed: surrogate round with probability w (paper) | uncertainty: when the ensemble agrees
-    uncertainty_threshold: float = 0.5  # uncertainty: surrogate round when members' spread / designs' spread <= this
-    final_candidates: int = 3  # lowest-real-cost designs re-evaluated in the final check
-    final_max_blocks: int = 8  # final check: at most this many blocks of agents_per_design paired scenarios
-    # -- plugin options: declared by the optimizer / objective plugin (`option_specs`) ------
-    optimizer_options: dict[str, Any] = field(default_factory=dict)  # e.g. {inertia: 0.9} for pso
-    objective_options: dict[str, Any] = field(default_factory=dict)  # e.g. {weights: 'torque=1'} for composite
-    # -- narrowing (Algorithm 4 line 22) -----------------------------------------------------
-    narrow_margin: float = 0.25  # widen the particles' span by this fraction on each side
-    narrow_min_width: float = 0.1  # ... to at least this fraction of the full range
-    # -- BO with specialised policies (Table 7 baseline) -------------------------------------
-    bo_designs: int = 20  # designs BO proposes, each with its own specialised policy
-    specialized_train_steps: int = 10_000_000  # interactions per specialised policy
-    specialized_init: str = "scratch"  # scratch (the paper's) | universal: fine-tune the universal policy on the design
-    # -- infrastructure ----------------------------------------------------------------------
-    checkpoint: str = ""  # universal policy to start from ('' = the shipped one if any, 'none' = scratch)
-    device: str = "cpu"  # torch device of the learner
-    logger: str = "tensorboard"  # tensorboard | wandb | none: curves and rounds in <run folder>/tb
-    out: str = "runs"  # parent folder of run folders
-    store: str = ""  # results store URL or path (empty: $COADAPT_STORE, else coadapt.db beside `out`; "none": JSON files only)
-    preset: str = "quick"  # the preset this config started from (recorded)
-
-    # -----------------------------------------------------------------------------------------
-    def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
-
-    @property
-    def evaluation_agents(self) -> int:
-        """Scenarios (agents) per design in real evaluation: eval_agents, else agents_per_design."""
-        return int(self.eval_agents) or int(self.agents_per_design)
-
-    @property
-    def objectives(self) -> list[str]:
-        return [o.strip() for o in self.objective.split(",") if o.strip()]
-
-    def validate(self) -> CoadaptConfig:
-        """Raise `UserError` (one line naming the field and what is accepted) on a bad value."""
-        if self.method not in METHODS:
-            raise UserError(f"method '{self.method}' is not one of {', '.join(METHODS)}", field="method")
-        if self.method == "bo-specialized":
-            # the BO baseline always searches with BO: record the optimizer it really uses
-            # (run id, config.yaml, store), whatever the preset's or the option's optimizer
-            self.optimizer = "bo"
-        if self.terrain not in TERRAINS:
-            raise UserError(f"terrain '{self.terrain}' is not one of {', '.join(TERRAINS)}", field="terrain")
-        if not self.objectives:
-            raise UserError("objective must name at least one objective", field="objective")
-        if len(set(self.objectives)) != len(self.objectives):
-            raise UserError(f"objective list '{self.objective}' repeats a name", field="objective")
-        for name in ("outer_iterations", "population", "optimizer_iterations", "agents_per_design", "eval_steps", "surrogate_samples", "bo_designs", "final_candidates", "final_max_blocks"):
-            _int_at_least(name, getattr(self, name), 1)
-        for name in ("train_steps", "retrain_steps", "specialized_train_steps", "seed", "eval_agents"):
-            _int_at_least(name, getattr(self, name), 0)
-        p = self.evaluation_probability
-        if not isinstance(p, int | float) or not (0.0 <= p <= 1.0):
-            raise UserError(
-                f"evaluation_probability must be a probability in [0, 1], got {p}", field="evaluation_probability"
-            )
-        for name in ("optimizer_options", "objective_options"):
-            value = getattr(self, name)
-            if not isinstance(value, Mapping):
-                raise UserError(f"{name} must be a mapping of option names to values, got {value!r}", field=name)
-            setattr(self, name, {str(k).replace("-", "_"): v for k, v in value.items()})
-        _finite_at_least("narrow_margin", self.narrow_margin, 0.0)
-        if not (0.0 < self.narrow_min_width <= 1.0):
-            raise UserError(
-                f"narrow_min_width must be in (0, 1] (a fraction of the full range), got {self.narrow_min_width}",
-                field="narrow_min_width",
-            )
-        if self.specialized_init not in ("scratch", "universal"):
-            raise UserError(
-                f"specialized_init '{self.specialized_init}' is not one of scratch, universal", field="specialized_init"
-            )
-        if self.evaluation_policy not in EVALUATION_POLICIES:
-            raise UserError(
-                f"evaluation_policy '{self.evaluation_policy}' is not one of {', '.join(EVALUATION_POLICIES)}",
-                field="evaluation_policy",
-            )
-        _finite_at_least("uncertainty_threshold", self.uncertainty_threshold, 0.0)
-        if self.logger not in ("tensorboard", "wandb", "none"):
-            raise UserError(f"logger '{self.logger}' is not one of tensorboard, wandb, none", field="logger")
-        for f in fields(self):
-            if f.type == "bool":
-                setattr(self, f.name, _boolean(f.name, getattr(self, f.name)))
-        if self.evaluation_policy == "uncertainty" and not self.fit_surrogate:
-            raise UserError("evaluation_policy 'uncertainty' needs fit_surrogate (the fitted ensemble decides)",
-                            field="evaluation_policy")
-        check_device(self.device)
-        parse_ranges(self.design_ranges)
-        return self
-
-
-def _int_at_least(name: str, value: Any, low: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, int) or value < low:
-        raise UserError(f"{name} must be an integer >= {low}, got {value!r}", field=name)
-
-
-def _finite_at_least(name: str, value: Any, low: float) -> None:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value < low:
-        raise UserError(f"{name} must be a finite number >= {low:g}, got {value!r}", field=name)
-
-
-def parse_ranges(text: str) -> list[tuple[float, float]]:
-    """'0.5:1.5,0.6:1.2' -> [(0.5, 1.5), (0.6, 1.2)]; inverted or malformed ranges are user errors."""
-    out = []
-    for part in [p.strip() for p in str(text).split(",") if p.strip()]:
-        try:
-            lo_s, hi_s = part.split(":")
-            lo, hi = float(lo_s), float(hi_s)
-        except ValueError:
-            raise UserError(
-                f"design range '{part}' must look like low:high, e.g. 0.5:1.5", field="design_ranges"
-            ) from None
-        if not (math.isfinite(lo) and math.isfinite(hi)):
-            raise UserError(f"design range '{part}' must have finite bounds", field="design_ranges")
-        if lo > hi:
-            raise UserError(
-                f"design range '{part}' has inverted bounds; the lower bound must not exceed the upper",
-                field="design_ranges",
-            )
-        out.append((lo, hi))
-    return out
+UNSET = "the starting policy's"
+#: the run sets these itself (population, agents_per_design, device, seed)
+TrainSection = partial(TrainConfig, "TrainSection", unset=UNSET,
+                       exclude=("num_designs", "agents_per_design", "device", "seed", "extra"))
+TaskSection = partial(TaskConfig, "TaskSection", unset=UNSET)
+RandomizationSection = partial(RandomizationConfig, "RandomizationSection", unset=UNSET, extra={
+    "preset": (Literal[RANDOMIZATION_PRESETS] | None, setting(
+        None, "Named ranges the others apply over: table2 (the paper's), engine (table2 plus contact softness, "
+        "joint damping, armature and delay) or off (unset: the starting policy's, table2 when it names none)."))})
 
 
 #: presets: only the fields that differ from the dataclass defaults (which are the paper's)
@@ -198,7 +73,174 @@ PRESETS: dict[str, dict[str, Any]] = {
     ),
 }
 
+@settings
+class CoadaptConfig:
+    """Every setting of `coadapt run`. Each field is a CLI option (`--outer-iterations`) and
+    a YAML key (`outer_iterations`); its help, default and constraints are declared here
+    once (`coadapt_core.settings`), and docs/settings.md is generated from them."""
+
+    # -- what to co-adapt ------------------------------------------------------------------
+    robot: str = setting("kuafu", "Robot.", plugin="robot")
+    sim: str = setting("mujoco", "Simulator backend.", plugin="simulator")
+    optimizer: str = setting("pso", "Design optimizer; one that declares implies_mixed searches the mixed design space.",
+                             plugin="optimizer")
+    objective: str = setting("torque", "Objective to minimise, or a comma list of 2-3 for a multi-objective optimizer.",
+                             plugin="objective")
+    terrain: Literal[TERRAINS] = setting("flat", "Terrain.")
+    method: Literal[METHODS] = setting("ours", "Method: ours (Algorithm 4) or an ablation / baseline of docs/coadaptation.md.")
+    mixed: bool = setting(False, "Add the robot's discrete variables (motor types); implied by an optimizer that declares implies_mixed.")
+    design_ranges: str = setting("", "Initial range low:high per continuous variable, e.g. 0.5:1.5,0.5:1.0 (empty: the full range).")
+    seed: Int = setting(0, "Random seed.", ge=0)
+    # -- Algorithm 4 -------------------------------------------------------------------------
+    outer_iterations: Int = setting(3, "N: outer iterations (train, optimise, narrow).", ge=1)
+    population: Int = setting(100, "K: designs per training phase = swarm size.", ge=1)
+    optimizer_iterations: Int = setting(5, "J: optimizer rounds per outer iteration.", ge=1)
+    evaluation_probability: Float = setting(0.5, "w: probability of a surrogate (not real) round.", ge=0, le=1,
+                                           accepted="a probability in [0, 1]")
+    agents_per_design: Int = setting(50, "Agents per design in training and real evaluation.", ge=1)
+    train_steps: Int = setting(24_000_000, "Interactions of the first training phase.", ge=0)
+    retrain_steps: Int = setting(24_000_000, "Interactions of each later retraining phase.", ge=0)
+    eval_steps: Int = setting(800, "T_eval: policy steps per agent in a real evaluation (Algorithm 2).", ge=1)
+    eval_agents: Int = setting(0, "Paired scenarios (agents) per design in a real evaluation (0: agents_per_design).", ge=0)
+    surrogate_samples: Int = setting(4096, "States drawn from the evaluation buffer by the surrogate (Algorithm 3).", ge=1)
+    measure_surrogate_error: bool = setting(True, "Run the surrogate on real batches too, to record its error (no interactions).")
+    # -- the surrogate (docs/coadaptation.md, "The surrogate") --------------------------------
+    fit_surrogate: bool = setting(True, "Fit the pseudo-critics to each real round's measured designs before a surrogate "
+                                  "round (off: the paper's pseudo-critics as trained).")
+    evaluation_policy: Literal[EVALUATION_POLICIES] = setting(
+        "fixed", "fixed: a surrogate round with probability w (the paper's); uncertainty: a surrogate round when the "
+        "fitted ensemble agrees (spread ratio <= uncertainty_threshold).")
+    uncertainty_threshold: Float = setting(0.5, "uncertainty policy: trust the surrogate when the members' spread over "
+                                           "the designs' spread is at most this.", ge=0)
+    final_candidates: Int = setting(3, "Lowest-real-cost designs re-evaluated in the final check.", ge=1)
+    final_max_blocks: Int = setting(8, "Final check: at most this many blocks of agents_per_design paired scenarios.", ge=1)
+    # -- plugin options: declared by the optimizer / objective plugin (`option_specs`) ------
+    optimizer_options: dict[str, Any] = setting(
+        default_factory=dict, help="Options the optimizer plugin declares (`coadapt plugins --json`), e.g. {inertia: 0.9}.",
+        cli=False)
+    objective_options: dict[str, Any] = setting(
+        default_factory=dict, help="Options the objective plugin declares, e.g. {weights: 'torque=1'}.", cli=False)
+    # -- narrowing (Algorithm 4 line 22) -----------------------------------------------------
+    narrow_margin: Float = setting(0.25, "Narrowing: widen the final particles' span by this fraction on each side.", ge=0)
+    narrow_min_width: Float = setting(0.1, "Narrowing: minimum width as a fraction of the full range.", gt=0, le=1)
+    # -- BO with specialised policies (Table 7 baseline) -------------------------------------
+    bo_designs: Int = setting(20, "bo-specialized: designs BO proposes, each with its own specialised policy.", ge=1)
+    specialized_train_steps: Int = setting(10_000_000, "bo-specialized: interactions per specialised policy.", ge=0)
+    specialized_init: Literal["scratch", "universal"] = setting(
+        "scratch", "bo-specialized: scratch (the paper's) or universal (fine-tune the universal policy per design).")
+    # -- infrastructure ----------------------------------------------------------------------
+    checkpoint: str = setting("", "Universal policy to start from (empty: the one the robot ships, if any; none: from scratch).")
+    device: str = setting("cpu", "Torch device of the learner.", accepted="one of cpu, cuda, cuda:N")
+    logger: Literal["tensorboard", "wandb", "none"] = setting(
+        "tensorboard", "Experiment tracking: tensorboard (event files in <run folder>/tb), wandb (if installed) or none.")
+    out: str = setting("runs", "Parent folder of run folders.")
+    store: str = setting("", "Results store URL or path (empty: $COADAPT_STORE, else coadapt.db beside out; none: JSON files only).")
+    preset: Literal[tuple(PRESETS)] = setting("quick", "Preset the other defaults come from (recorded).")
+    # -- the learner: overrides of the starting policy's settings ----------------------------
+    train: TrainSection = setting(default_factory=TrainSection, help=(
+        "PPO and training settings of the universal policy (`coadapt_core.learning.config.TrainConfig`). "
+        "Unset keys keep the starting policy's (its checkpoint records them), else the defaults shown. The batch "
+        "size, device and seed are the run's own population, agents_per_design, device and seed."))
+    task: TaskSection = setting(default_factory=TaskSection, help=(
+        "The locomotion task: commands, rewards, gait reference, observation noise, termination "
+        "(`coadapt_core.task.config.TaskConfig`). Unset keys keep the starting policy's; weights given replace "
+        "those terms' weights only."))
+    randomization: RandomizationSection = setting(default_factory=RandomizationSection, help=(
+        "Domain randomization (paper Table 2; `coadapt_core.physics.randomization.RandomizationConfig`): a "
+        "preset, then single ranges over it. Unset: the starting policy's preset (table2 when it names none)."))
+
+    @field_validator("objective", mode="before")
+    @classmethod
+    def _objective_list(cls, value: Any) -> Any:
+        if isinstance(value, list | tuple):  # YAML: objective: [power, torque]
+            return ",".join(str(v) for v in value)
+        return value
+
+    @field_validator("optimizer_options", "objective_options", mode="before")
+    @classmethod
+    def _option_keys(cls, value: Any) -> Any:
+        if isinstance(value, Mapping):
+            return {str(k).replace("-", "_"): v for k, v in value.items()}
+        return value
+
+    @field_validator("device")
+    @classmethod
+    def _device(cls, value: str) -> str:
+        return check_device(value)
+
+    @field_validator("design_ranges")
+    @classmethod
+    def _ranges(cls, value: str) -> str:
+        parse_ranges(value)
+        return value
+
+    # -----------------------------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        return to_plain(self)
+
+    @property
+    def evaluation_agents(self) -> int:
+        """Scenarios (agents) per design in real evaluation: eval_agents, else agents_per_design."""
+        return int(self.eval_agents) or int(self.agents_per_design)
+
+    @property
+    def objectives(self) -> list[str]:
+        return [o.strip() for o in self.objective.split(",") if o.strip()]
+
+    def validate(self) -> CoadaptConfig:
+        """Every field checked again (values may have been assigned since construction), then
+        what involves several fields; a `UserError` (one line naming the field) otherwise."""
+        checked = type(self)(**{f.name: getattr(self, f.name) for f in fields(self)})
+        for f in fields(self):
+            setattr(self, f.name, getattr(checked, f.name))
+        if self.method == "bo-specialized":
+            # the BO baseline always searches with BO: record the optimizer it really uses
+            # (run id, config.yaml, store), whatever the preset's or the option's optimizer
+            self.optimizer = "bo"
+        if not self.objectives:
+            raise UserError("objective must name at least one objective", field="objective")
+        if len(set(self.objectives)) != len(self.objectives):
+            raise UserError(f"objective list '{self.objective}' repeats a name", field="objective")
+        if self.evaluation_policy == "uncertainty" and not self.fit_surrogate:
+            raise UserError("evaluation_policy 'uncertainty' needs fit_surrogate (the fitted ensemble decides)",
+                            field="evaluation_policy")
+        _learner_settings(self, None)  # the sections' keys applied over the defaults: checked together
+        return self
+
+
+def parse_ranges(text: str) -> list[tuple[float, float]]:
+    """'0.5:1.5,0.6:1.2' -> [(0.5, 1.5), (0.6, 1.2)]; inverted or malformed ranges are user errors."""
+    out = []
+    for part in [p.strip() for p in str(text).split(",") if p.strip()]:
+        try:
+            lo_s, hi_s = part.split(":")
+            lo, hi = float(lo_s), float(hi_s)
+        except ValueError:
+            raise UserError(
+                f"design range '{part}' must look like low:high, e.g. 0.5:1.5", field="design_ranges"
+            ) from None
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            raise UserError(f"design range '{part}' must have finite bounds", field="design_ranges")
+        if lo > hi:
+            raise UserError(
+                f"design range '{part}' has inverted bounds; the lower bound must not exceed the upper",
+                field="design_ranges",
+            )
+        out.append((lo, hi))
+    return out
+
+
 FIELD_NAMES = tuple(f.name for f in fields(CoadaptConfig))
+#: the nested sections of the config (YAML mappings; options --train-..., --task-..., ...)
+SECTIONS = tuple(sections(CoadaptConfig))
+
+
+def _merge(tree: dict[str, Any], new: Mapping[str, Any]) -> None:
+    for key, value in new.items():
+        if isinstance(value, Mapping) and isinstance(tree.get(key), dict):
+            _merge(tree[key], value)
+        else:
+            tree[str(key)] = dict(value) if isinstance(value, Mapping) else value
 #: config keys that are plugin-option mappings, merged key by key (CLI over YAML over preset)
 OPTION_FIELDS = ("optimizer_options", "objective_options")
 #: keys of earlier versions, still accepted: (mapping they now go to, option name there)
@@ -210,47 +252,6 @@ LEGACY_KEYS: dict[str, tuple[str, str]] = {
     "bo_storage": ("optimizer_options", "storage"),
     "objective_weights": ("objective_options", "weights"),
 }
-
-
-def _coerce(name: str, value: Any) -> Any:
-    """YAML gives ints for floats and strings for anything quoted: bring values to the field's type."""
-    kind = {f.name: f.type for f in fields(CoadaptConfig)}[name]
-    if value is None:
-        raise UserError(f"config key '{name}' has no value", field=name)
-    if name in OPTION_FIELDS:
-        if not isinstance(value, Mapping):
-            raise UserError(f"config key '{name}' must be a mapping of option names to values, got {value!r}", field=name)
-        return {str(k).replace("-", "_"): v for k, v in value.items()}
-    if kind == "bool":
-        return _boolean(name, value)
-    try:
-        if kind == "float" and not isinstance(value, bool):
-            return float(value)
-        if kind == "int" and isinstance(value, str):
-            return int(value.replace("_", ""))
-        if kind == "str":
-            if isinstance(value, list | tuple):  # objective: [power, torque]
-                return ",".join(str(v) for v in value)
-            return str(value)
-    except ValueError:
-        raise UserError(f"config key '{name}' must be a {kind}, got {value!r}", field=name) from None
-    return value
-
-
-_TRUE, _FALSE = ("true", "yes", "on", "1"), ("false", "no", "off", "0")
-
-
-def _boolean(name: str, value: Any) -> bool:
-    """A YAML/CLI boolean: true/false (also yes/no, on/off, 1/0, in any case, quoted or not);
-    anything else is a one-line error, never read as true because it is a non-empty string."""
-    if isinstance(value, bool):
-        return value
-    text = str(value).strip().lower() if isinstance(value, str | int) else None
-    if text in _TRUE:
-        return True
-    if text in _FALSE:
-        return False
-    raise UserError(f"config key '{name}' must be true or false, got {value!r}", field=name)
 
 
 def check_device(device: Any, field: str = "device") -> str:
@@ -281,11 +282,61 @@ def load_yaml(path: str | Path) -> dict[str, Any]:
     return {str(k).replace("-", "_"): v for k, v in data.items()}
 
 
+def preset_defaults() -> dict[str, tuple[Any, dict[str, Any]]]:
+    """{option parameter name: (its `Leaf`, {preset: default})} for every config setting
+    (the preset itself excluded): what an option left unset takes."""
+    from coadapt_core.settings import leaves
+
+    out = {}
+    for leaf in leaves(CoadaptConfig):
+        if leaf.key != "preset":
+            out[leaf.param] = (leaf, {p: PRESETS[p].get(leaf.key, leaf.default) for p in PRESETS})
+    return out
+
+
+def learner_settings(config: CoadaptConfig, checkpoint: str | None) -> dict[str, Any]:
+    """The backend's `train_config`, `task_config` and `randomization` where the run sets
+    any of them: the starting policy's (the `checkpoint` file's; the defaults without one)
+    with the run's keys applied. Sections the run leaves unset are not returned, so the
+    backend takes them from the checkpoint as it always has."""
+    if not any(overrides(getattr(config, name)) for name in SECTIONS):
+        return {}
+    saved = None
+    if checkpoint:
+        from coadapt_core.learning.trainer import read_checkpoint
+
+        saved = read_checkpoint(checkpoint)
+    return _learner_settings(config, saved)
+
+
+def _learner_settings(config: CoadaptConfig, saved: Mapping[str, Any] | None) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    saved_train = TrainConfig.from_dict(saved["train_config"]) if saved else TrainConfig()
+    train = overrides(config.train)
+    if train:
+        out["train_config"] = apply_overrides(saved_train, train)
+    task = overrides(config.task)
+    if task:
+        out["task_config"] = apply_overrides(TaskConfig.from_dict(saved["task_config"]) if saved else TaskConfig(), task)
+    randomization = overrides(config.randomization)
+    if randomization:
+        preset = randomization.pop("preset", None) or str(saved_train.extra.get("randomization", "table2"))
+        out["randomization"] = apply_overrides(RandomizationConfig.preset(preset), randomization)
+    return out
+
+
+#: keys a run folder's config.yaml records beside the config (where and what it ran on);
+#: a config file may hold them (a run's config.yaml given to --config) and they are ignored
+RECORD_KEYS = ("run_id", "run_dir", "design_space", "grid_id", "grid_cell")
+
+
 def make_config(
     preset: str | None = None, yaml_file: str | Path | None = None, overrides: dict[str, Any] | None = None
 ) -> CoadaptConfig:
     """Preset, then YAML keys, then overrides (CLI options that were given), validated."""
     yaml_values = load_yaml(yaml_file) if yaml_file else {}
+    for key in RECORD_KEYS:
+        yaml_values.pop(key, None)
     overrides = {k: v for k, v in (overrides or {}).items() if v is not None}
     preset = preset or overrides.get("preset") or yaml_values.get("preset") or "quick"
     if preset not in PRESETS:
@@ -297,13 +348,29 @@ def make_config(
                 target, option = LEGACY_KEYS[key]
                 values[target] = {**values.get(target, {}), option: value}
                 continue
-            if key not in FIELD_NAMES:
+            section, dot, rest = key.partition(".")
+            if section not in FIELD_NAMES or (dot and section not in SECTIONS):
                 raise UserError(
                     f"unknown {label} key '{key}'; accepted keys: {', '.join(FIELD_NAMES)}", field=key
                 )
-            value = _coerce(key, value)
+            if value is None:
+                raise UserError(f"config key '{key}' has no value", field=key)
+            if dot or section in SECTIONS:  # a nested key: merged into its section
+                tree = values.setdefault(section, {})
+                if not isinstance(value, Mapping) and not dot:
+                    raise UserError(f"{key} must be a mapping of its settings, got {value!r}", field=key)
+                path = rest.split(".") if dot else []
+                for name in path[:-1]:
+                    tree = tree.setdefault(name, {})
+                if path:
+                    tree[path[-1]] = value
+                else:
+                    _merge(tree, value)
+                continue
             if key in OPTION_FIELDS:  # merged key by key: a CLI option keeps the YAML file's others
-                value = {**values.get(key, {}), **value}
+                if not isinstance(value, Mapping):
+                    raise UserError(f"{key} must be a mapping of option names to values, got {value!r}", field=key)
+                value = {**values.get(key, {}), **{str(k).replace("-", "_"): v for k, v in value.items()}}
             values[key] = value
     values["preset"] = preset
     return _typed_options(CoadaptConfig(**values).validate())
@@ -336,7 +403,7 @@ def _typed_options(config: CoadaptConfig) -> CoadaptConfig:
 
 def config_from_dict(data: dict[str, Any]) -> CoadaptConfig:
     """Rebuild a recorded config (e.g. from a run folder's config.yaml)."""
-    known = {k: _coerce(k, v) for k, v in data.items() if k in FIELD_NAMES}
+    known = {k: v for k, v in data.items() if k in FIELD_NAMES and v is not None}
     # a config.yaml of an earlier version recorded every legacy key; their old defaults are the
     # plugins' defaults now, so only values that differed are carried over
     old_defaults = {"inertia": 0.9, "c1": 2.0, "c2": 2.0, "bo_sampler": "tpe", "bo_storage": "", "objective_weights": ""}

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from coadapt_core.coadapt.config import CoadaptConfig
+from coadapt_core.coadapt.config import CoadaptConfig, learner_settings
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import CoadaptError, UserError
 from coadapt_core.fitness import CoadaptationBackend
@@ -155,11 +155,12 @@ def universal_policy_factory(
     specialized = METHOD_SWITCHES[config.method].specialized
     checkpoint = resolve_checkpoint(config) if not specialized or config.specialized_init == "universal" else None
     agents = config.population * config.agents_per_design if specialized else config.agents_per_design
+    learner = learner_settings(config, checkpoint)  # the run's train / task / randomization keys
 
     def factory(seed: int) -> CoadaptationBackend:
         return make_backend(
             robot, simulator_cls, list(objectives), terrain=config.terrain, design_space=full_space,
-            agents_per_design=agents, device=config.device, seed=seed, checkpoint=checkpoint,
+            agents_per_design=agents, device=config.device, seed=seed, checkpoint=checkpoint, **learner,
         )
 
     return factory

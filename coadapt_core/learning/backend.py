@@ -21,6 +21,7 @@ from coadapt_core.learning.scenarios import apply_scenarios
 from coadapt_core.learning.surrogate import MEMBERS, FittedEnsemble, fit_ensemble
 from coadapt_core.learning.trainer import Trainer, read_checkpoint, reseed_simulator
 from coadapt_core.objective import Objective
+from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.robot import Robot
 from coadapt_core.task.config import TaskConfig
 from coadapt_core.task.env import LocomotionEnv
@@ -45,7 +46,8 @@ class UniversalPolicyBackend:
       name, missing ones start fresh.
     - train_config: `TrainConfig` (sizes, PPO settings; default: the checkpoint's, else the
       defaults); its device, seed and agents_per_design are overridden. The task settings
-      come from the checkpoint when one is given.
+      (task_config) come from the checkpoint when one is given and none is passed;
+      randomization: domain randomization (default: the preset the train config names).
 
     `train(designs, steps)` trains on the given designs (K of them, `agents_per_design` each)
     for about `steps` interactions; its `TrainingResult.buffer` holds critic states of the
@@ -81,6 +83,7 @@ class UniversalPolicyBackend:
         checkpoint: str | None = None,
         train_config: TrainConfig | None = None,
         task_config: TaskConfig | None = None,
+        randomization: RandomizationConfig | None = None,
     ):
         saved = read_checkpoint(checkpoint) if checkpoint else None
         if train_config is None:
@@ -97,6 +100,7 @@ class UniversalPolicyBackend:
             design_space=design_space,
             train_config=config,
             task_config=task_config,
+            randomization=randomization,
             device=device,
             seed=seed,
         )

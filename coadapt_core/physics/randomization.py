@@ -7,34 +7,38 @@ seed gives the same physical parameters on MuJoCo and PyBullet.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields
+from typing import ClassVar
 
 import numpy as np
 import torch
 
 from coadapt_core.errors import UserError
+from coadapt_core.settings import NonNegativeRange, PositiveRange, Range, setting, settings
 
 
-@dataclass
+@settings(prefix="randomization")
 class RandomizationConfig:
     """Ranges drawn uniformly per environment at each reset. `enabled=False` (or a range
     with equal ends) turns a parameter off; the nominal value is then used."""
 
-    enabled: bool = True
-    friction: tuple[float, float] = (0.5, 1.25)  # sliding friction coefficient
-    restitution: tuple[float, float] = (0.0, 0.4)
-    com_shift: tuple[float, float] = (-0.025, 0.025)  # m, base CoM offset per axis x, y, z
-    pd_factor: tuple[float, float] = (0.9, 1.1)  # scales kp and kd
-    motor_strength: tuple[float, float] = (0.9, 1.1)  # scales the commanded torque
-    delay: tuple[float, float] = (0.0, 0.020)  # s, system delay of the joint targets
+    enabled: bool = setting(True, "Draw the ranges below at each reset (off: every parameter nominal).")
+    friction: PositiveRange = setting((0.5, 1.25), "Sliding friction coefficient (Table 2).")
+    restitution: NonNegativeRange = setting((0.0, 0.4), "Restitution (Table 2).")
+    com_shift: Range = setting((-0.025, 0.025), "Base centre-of-mass offset per axis x, y, z, m (Table 2).")
+    pd_factor: PositiveRange = setting((0.9, 1.1), "Factor on kp and kd (Table 2).")
+    motor_strength: PositiveRange = setting((0.9, 1.1), "Factor on the commanded torque (Table 2).")
+    delay: NonNegativeRange = setting((0.0, 0.020), "System delay of the joint targets, s (Table 2).")
     # -- engine robustness (ours, not the paper's Table 2): what differs between MuJoCo and
     # PyBullet. Off by default (each range is its nominal point, and a point range draws
     # nothing, so default configurations keep their random streams); `engine_robust()`
     # turns them on. Applied by the MuJoCo backend; other backends run them at nominal.
-    contact_timeconst: tuple[float, float] = (0.02, 0.02)  # s, contact softness (MuJoCo solref[0])
-    joint_damping: tuple[float, float] = (0.0, 0.0)  # N m s/rad added to every joint's damping
-    armature: tuple[float, float] = (1.0, 1.0)  # scales every joint's armature (reflected rotor inertia)
+    contact_timeconst: PositiveRange = setting(
+        (0.02, 0.02), "Contact softness, s (MuJoCo solref[0]; engine robustness, not Table 2).")
+    joint_damping: NonNegativeRange = setting(
+        (0.0, 0.0), "N m s/rad added to every joint's damping (engine robustness).")
+    armature: PositiveRange = setting((1.0, 1.0), "Factor on every joint's armature (engine robustness).")
 
-    NOMINAL = {
+    NOMINAL: ClassVar[dict[str, float]] = {
         "friction": 1.0,
         "restitution": 0.0,
         "com_shift": 0.0,
@@ -47,28 +51,7 @@ class RandomizationConfig:
     }
     #: parameters drawn only when their range is not a single point (added after Table 2's:
     #: a configuration that leaves them at a point consumes the randomness it always did)
-    OPTIONAL = ("contact_timeconst", "joint_damping", "armature")
-
-    def __post_init__(self) -> None:
-        for f in fields(self):
-            if f.name == "enabled":
-                continue
-            lo, hi = getattr(self, f.name)
-            if lo > hi:
-                raise UserError(
-                    f"randomization.{f.name}: inverted range [{lo}, {hi}]", field=f"randomization.{f.name}"
-                )
-            if f.name in ("friction", "pd_factor", "motor_strength", "contact_timeconst", "armature") and lo <= 0:
-                raise UserError(
-                    f"randomization.{f.name}: range must be positive, got [{lo}, {hi}]",
-                    field=f"randomization.{f.name}",
-                )
-            if f.name in ("delay", "restitution", "joint_damping") and lo < 0:
-                raise UserError(
-                    f"randomization.{f.name}: range must be >= 0, got [{lo}, {hi}]",
-                    field=f"randomization.{f.name}",
-                )
-            setattr(self, f.name, (float(lo), float(hi)))
+    OPTIONAL: ClassVar[tuple[str, ...]] = ("contact_timeconst", "joint_damping", "armature")
 
     @classmethod
     def off(cls) -> RandomizationConfig:
@@ -96,6 +79,10 @@ class RandomizationConfig:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+#: the named randomization configurations (`RandomizationConfig.preset`)
+RANDOMIZATION_PRESETS = ("table2", "engine", "off")
 
 
 @dataclass

@@ -7,10 +7,11 @@ in each checkpoint so a policy is always evaluated on the task it was trained on
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, fields
-from typing import Any
+from dataclasses import asdict
+from typing import Any, Literal
 
 from coadapt_core.errors import UserError
+from coadapt_core.settings import Float, Int, Range, Weights, setting, settings
 
 #: Paper Table 1 (weights as printed; multiplied by the policy period dt when summed,
 #: the legged_gym convention the paper's code base [40] follows).
@@ -35,18 +36,18 @@ EXTRA_REWARD_WEIGHTS: dict[str, float] = {
 }
 
 
-@dataclass
+@settings(prefix="task.commands")
 class CommandConfig:
     """Velocity commands (vx, vy, yaw rate), drawn per episode and optionally mid-episode."""
 
-    vx_range: tuple[float, float] = (-0.5, 1.25)  # m/s, paper section 4
-    vy_range: tuple[float, float] = (0.0, 0.0)  # m/s
-    # rad/s; the paper's policies follow yaw-rate commands. Checkpoints store their own range
+    vx_range: Range = setting((-0.5, 1.25), "Forward velocity commands, m/s (paper section 4).")
+    vy_range: Range = setting((0.0, 0.0), "Lateral velocity commands, m/s.")
+    # the paper's policies follow yaw-rate commands. Checkpoints store their own range
     # (flat.pt and flat-mixed.pt were trained with (0, 0): they hold the heading)
-    yaw_range: tuple[float, float] = (-1.0, 1.0)
-    zero_share: float = 0.05  # share of commands set exactly to zero
-    zero_threshold: float = 0.1  # a planar command slower than this becomes zero (m/s)
-    resample_seconds: float = 10.0  # redraw mid-episode every so often; 0 = once per episode
+    yaw_range: Range = setting((-1.0, 1.0), "Yaw-rate commands, rad/s.")
+    zero_share: Float = setting(0.05, "Share of commands set exactly to zero.", ge=0, le=1)
+    zero_threshold: Float = setting(0.1, "A planar command slower than this (m/s) becomes zero.", ge=0)
+    resample_seconds: Float = setting(10.0, "Redraw mid-episode every so often, s (0: once per episode).", ge=0)
     # curriculum (walking-notes remedy 6): the command box starts at +-curriculum_start
     # (clipped to the ranges above) and widens by curriculum_step whenever, over a window of
     # finished episodes, the mean unweighted linear tracking term on steps with a moving
@@ -54,35 +55,28 @@ class CommandConfig:
     # curriculum_max_fall_rate times per second of episode time. (A share of fallen episodes
     # is no gate: with 20 s episodes a policy falling once a minute loses ~27 % of them, which
     # held the box at +-0.3 m/s for 6 M steps of a run that tracked it well.)
-    curriculum: bool = True
-    curriculum_start: float = 0.3
-    curriculum_step: float = 0.1
-    curriculum_threshold: float = 0.8
-    curriculum_max_fall_rate: float = 0.03  # falls per second of episode time
-    curriculum_window: int = 64  # finished episodes per curriculum decision
-
-    def __post_init__(self) -> None:
-        for name in ("vx_range", "vy_range", "yaw_range"):
-            lo, hi = getattr(self, name)
-            if lo > hi:
-                raise UserError(f"task.commands.{name}: inverted range [{lo}, {hi}]", field=f"commands.{name}")
-            setattr(self, name, (float(lo), float(hi)))
-        if not 0.0 <= self.zero_share <= 1.0:
-            raise UserError("task.commands.zero_share must lie in [0, 1]", field="commands.zero_share")
+    curriculum: bool = setting(True, "Widen the command box as tracking improves (off: the full ranges at once).")
+    curriculum_start: Float = setting(0.3, "Curriculum: initial half-width of the command box.", ge=0)
+    curriculum_step: Float = setting(0.1, "Curriculum: widening per promotion.", ge=0)
+    curriculum_threshold: Float = setting(0.8, "Curriculum: mean linear tracking term needed to widen.", ge=0)
+    curriculum_max_fall_rate: Float = setting(0.03, "Curriculum: at most this many falls per second of episode time.", ge=0)
+    curriculum_window: Int = setting(64, "Curriculum: finished episodes per decision.", ge=1)
 
 
-@dataclass
+@settings(prefix="task.rewards")
 class RewardConfig:
     """Reward weights by term name; a weight of 0 switches a term off."""
 
-    weights: dict[str, float] = field(
-        default_factory=lambda: {**PAPER_REWARD_WEIGHTS, **EXTRA_REWARD_WEIGHTS}
+    weights: Weights = setting(
+        default_factory=lambda: {**PAPER_REWARD_WEIGHTS, **EXTRA_REWARD_WEIGHTS},
+        help="Weight per reward term (Table 1 plus ours; 0 switches a term off): "
+        + ", ".join([*PAPER_REWARD_WEIGHTS, *EXTRA_REWARD_WEIGHTS]) + ".",
     )
-    tracking_sigma: float = 0.25  # exp(-e^2 / sigma): 0.25 is the paper's exp(-4 e^2)
-    clip_at_zero: bool = True  # ours: clip the per-step sum (before termination) at 0
-    scale_by_dt: bool = True  # multiply every weight by the policy period
-    air_time_offset: float = 0.25  # s, feet_air_time pays t_air - offset at touchdown
-    contact_mismatch: float = -0.3  # contact_match value of a foot out of its schedule
+    tracking_sigma: Float = setting(0.25, "Tracking kernel exp(-e^2 / sigma): 0.25 is the paper's exp(-4 e^2).", gt=0)
+    clip_at_zero: bool = setting(True, "Clip the per-step sum (before termination) at 0 (ours).")
+    scale_by_dt: bool = setting(True, "Multiply every weight by the policy period.")
+    air_time_offset: Float = setting(0.25, "feet_air_time pays t_air - this at touchdown, s.", ge=0)
+    contact_mismatch: Float = setting(-0.3, "contact_match value of a foot out of its schedule.")
 
     def __post_init__(self) -> None:
         known = set(PAPER_REWARD_WEIGHTS) | set(EXTRA_REWARD_WEIGHTS)
@@ -95,73 +89,54 @@ class RewardConfig:
         self.weights = {**{k: 0.0 for k in known}, **{k: float(v) for k, v in self.weights.items()}}
 
 
-@dataclass
+@settings(prefix="task.gait")
 class GaitConfig:
     """The gait clock and the Raibert/von Mises reference behind the `raibert` term."""
 
-    frequency: float = 1.5  # Hz, one full cycle = two steps
-    swing_height: float = 0.08  # m, apex of the von Mises swing profile
-    von_mises_kappa: float = 4.0  # concentration of the swing-height bump around mid-swing
-    raibert_gain: float = 0.05  # k in foot = hip + v T_stance / 2 + k (v - v_cmd), s
-    raibert_max_offset: float = 0.15  # m, clip of the x-y placement offset
-    command_full_scale: float = 0.3  # m/s: reference offsets grow linearly up to this |command|
-    freeze_on_zero_command: bool = True  # both feet stance under a zero command (remedy 7)
+    frequency: Float = setting(1.5, "Gait clock, Hz (one full cycle = two steps).", gt=0)
+    swing_height: Float = setting(0.08, "Apex of the von Mises swing profile, m.", ge=0)
+    von_mises_kappa: Float = setting(4.0, "Concentration of the swing-height bump around mid-swing.", gt=0)
+    raibert_gain: Float = setting(0.05, "k in foot = hip + v T_stance / 2 + k (v - v_cmd), s.")
+    raibert_max_offset: Float = setting(0.15, "Clip of the x-y placement offset, m.", ge=0)
+    command_full_scale: Float = setting(0.3, "Reference offsets grow linearly up to this |command|, m/s.", gt=0)
+    freeze_on_zero_command: bool = setting(True, "Both feet in stance under a zero command.")
 
 
-@dataclass
+@settings(prefix="task.noise")
 class NoiseConfig:
     """Observation noise, paper Table 3 (uniform in [-s, s] or gaussian with std s)."""
 
-    enabled: bool = True
-    kind: str = "uniform"  # "uniform" | "gaussian"
-    joint_pos: float = 0.01  # rad
-    joint_vel: float = 1.5  # rad/s
-    base_lin_vel: float = 0.01  # m/s
-    base_ang_vel: float = 0.2  # rad/s
-    projected_gravity: float = 0.05
-
-    def __post_init__(self) -> None:
-        if self.kind not in ("uniform", "gaussian"):
-            raise UserError(
-                f"task.noise.kind '{self.kind}' is not one of: uniform, gaussian", field="noise.kind"
-            )
+    enabled: bool = setting(True, "Add observation noise.")
+    kind: Literal["uniform", "gaussian"] = setting("uniform", "Uniform in [-s, s] or gaussian with std s.")
+    joint_pos: Float = setting(0.01, "Joint positions, rad.", ge=0)
+    joint_vel: Float = setting(1.5, "Joint velocities, rad/s.", ge=0)
+    base_lin_vel: Float = setting(0.01, "Base linear velocity, m/s.", ge=0)
+    base_ang_vel: Float = setting(0.2, "Base angular velocity, rad/s.", ge=0)
+    projected_gravity: Float = setting(0.05, "Projected gravity.", ge=0)
 
 
-@dataclass
+@settings(prefix="task")
 class TaskConfig:
     """The whole locomotion task."""
 
-    commands: CommandConfig = field(default_factory=CommandConfig)
-    rewards: RewardConfig = field(default_factory=RewardConfig)
-    gait: GaitConfig = field(default_factory=GaitConfig)
-    noise: NoiseConfig = field(default_factory=NoiseConfig)
-    action_scale: float = 0.25  # rad per unit action around the default pose
-    action_clip: float = 10.0  # raw actions clipped to +-action_clip before scaling
-    history: int = 5  # past actions in the observation (5 x 8 = 40 of the 70)
-    episode_seconds: float = 20.0  # timeout (bootstrapped, not a failure)
-    min_base_height: float = 0.5  # fall: base above terrain below this share of standing height
-    max_tilt_cos: float = 0.5  # fall: projected gravity z above -this (tilt beyond 60 deg)
+    commands: CommandConfig = setting(default_factory=CommandConfig, help="Velocity commands and their curriculum.")
+    rewards: RewardConfig = setting(default_factory=RewardConfig, help="Reward weights (Table 1) and shaping.")
+    gait: GaitConfig = setting(default_factory=GaitConfig, help="Gait clock and Raibert reference.")
+    noise: NoiseConfig = setting(default_factory=NoiseConfig, help="Observation noise (Table 3).")
+    action_scale: Float = setting(0.25, "Rad per unit action around the default pose.", gt=0)
+    action_clip: Float = setting(10.0, "Raw actions clipped to +-this before scaling.", gt=0)
+    history: Int = setting(5, "Past actions in the observation (5 x 8 = 40 of the 70).", ge=0)
+    episode_seconds: Float = setting(20.0, "Timeout, s (bootstrapped, not a failure).", gt=0)
+    min_base_height: Float = setting(0.5, "Fall: base above terrain below this share of standing height.", ge=0)
+    max_tilt_cos: Float = setting(0.5, "Fall: projected gravity z above -this (tilt beyond 60 deg).", ge=-1, le=1)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any] | None) -> TaskConfig:
+        """A recorded task config (a checkpoint's); unknown keys are one-line errors."""
         data = dict(data or {})
-        parts = {"commands": CommandConfig, "rewards": RewardConfig, "gait": GaitConfig, "noise": NoiseConfig}
-        kwargs: dict[str, Any] = {}
-        names = {f.name for f in fields(cls)}
-        for key, value in data.items():
-            if key not in names:
-                raise UserError(f"task config: unknown field '{key}'; known: {sorted(names)}", field=key)
-            if key in parts:
-                sub = parts[key]
-                sub_names = {f.name for f in fields(sub)}
-                if key == "commands":  # replaced by curriculum_max_fall_rate (older checkpoints)
-                    value = {k: v for k, v in value.items() if k != "curriculum_max_fall_share"}
-                bad = sorted(set(value) - sub_names)
-                if bad:
-                    raise UserError(f"task config '{key}': unknown field(s) {bad}", field=key)
-                value = sub(**{k: tuple(v) if isinstance(v, list) else v for k, v in value.items()})
-            kwargs[key] = value
-        return cls(**kwargs)
+        if isinstance(data.get("commands"), dict):  # replaced by curriculum_max_fall_rate (older checkpoints)
+            data["commands"] = {k: v for k, v in data["commands"].items() if k != "curriculum_max_fall_share"}
+        return cls(**data)

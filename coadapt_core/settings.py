@@ -1,0 +1,438 @@
+"""Typed settings: each setting is defined once, as a field of a settings dataclass.
+
+A settings class is a pydantic dataclass made with `@settings`; each field is declared with
+`setting(default, help, **constraints)`. From that one definition coadapt derives
+
+- the YAML keys of a config file (nested sections are nested mappings),
+- the command-line options of `coadapt run` (`leaves` walks the tree; a nested key
+  `task.commands.yaw_range` becomes `--task-commands-yaw-range`),
+- the checks: a bad value is a one-line `UserError` naming the key and what is accepted
+  (`user_error` turns pydantic's report into that line),
+- the table of settings in docs/settings.md (`coadapt_core.coadapt.config.settings_markdown`).
+
+Command-line and YAML text is read by the field's type: a range `(low, high)` is written
+`low:high` (or a YAML list), a mapping of numbers `name=value,name=value` (or a YAML mapping),
+a tuple of integers `512,256,128` (or a YAML list).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import types
+import typing
+from collections.abc import Mapping
+from typing import Annotated, Any, Literal
+
+from pydantic import AfterValidator, BeforeValidator, ConfigDict, Field, ValidationError
+from pydantic.dataclasses import dataclass as _pydantic_dataclass
+from pydantic.fields import FieldInfo
+
+from coadapt_core.errors import UserError
+
+#: every settings class: unknown keys refused, no inf/nan
+SETTINGS_CONFIG = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+def _not_bool(value: Any) -> Any:
+    if isinstance(value, bool):
+        raise ValueError("a number, not true/false")
+    return value
+
+
+def _split_text(value: Any) -> Any:
+    """'0.5:1.5' -> ['0.5', '1.5']; '512,256' -> ['512', '256']; other values unchanged."""
+    if isinstance(value, str):
+        separator = ":" if ":" in value else ","
+        return [p.strip() for p in value.split(separator) if p.strip()]
+    return value
+
+
+def _pairs_text(value: Any) -> Any:
+    """'a=1,b=2' -> {'a': '1', 'b': '2'} (repeated command-line options arrive as a list)."""
+    if isinstance(value, list | tuple) and all(isinstance(v, str) for v in value):
+        value = ",".join(value)
+    if isinstance(value, str):
+        out = {}
+        for part in [p.strip() for p in value.split(",") if p.strip()]:
+            key, sep, number = part.partition("=")
+            if not sep or not key.strip():
+                raise ValueError(f"'{part}' is not name=value")
+            out[key.strip()] = number.strip()
+        return out
+    return value
+
+
+def _ordered(value: tuple[float, float]) -> tuple[float, float]:
+    if value[0] > value[1]:
+        raise ValueError("inverted: low must not exceed high")
+    return value
+
+
+def _positive(value: tuple[float, float]) -> tuple[float, float]:
+    if value[0] <= 0:
+        raise ValueError("both ends must be > 0")
+    return value
+
+
+def _nonnegative(value: tuple[float, float]) -> tuple[float, float]:
+    if value[0] < 0:
+        raise ValueError("both ends must be >= 0")
+    return value
+
+
+#: an integer (true/false refused; YAML and command-line text '24_000_000' accepted)
+Int = Annotated[int, BeforeValidator(_not_bool)]
+#: a finite number (true/false refused)
+Float = Annotated[float, BeforeValidator(_not_bool)]
+#: a range (low, high): 'low:high' on the command line, a two-item list in YAML
+Range = Annotated[tuple[float, float], BeforeValidator(_split_text), AfterValidator(_ordered)]
+#: a range of positive numbers
+PositiveRange = Annotated[Range, AfterValidator(_positive)]
+#: a range of numbers >= 0
+NonNegativeRange = Annotated[Range, AfterValidator(_nonnegative)]
+#: integers, 'a,b,c' on the command line
+Ints = Annotated[tuple[int, ...], BeforeValidator(_split_text)]
+#: name -> number, 'a=1,b=2' on the command line
+Weights = Annotated[dict[str, float], BeforeValidator(_pairs_text)]
+
+
+def setting(
+    default: Any = dataclasses.MISSING,
+    help: str = "",
+    *,
+    default_factory: Any = None,
+    accepted: str | None = None,
+    plugin: str | None = None,
+    cli: bool = True,
+    **constraints: Any,
+) -> Any:
+    """One setting: its default, one line of help and its constraints (`ge`, `gt`, `le`,
+    `lt`). `accepted` replaces the generated "what is accepted" text; `plugin` names the
+    plugin kind whose installed names the help lists; `cli=False` keeps it off the command
+    line (YAML only)."""
+    extra = {"accepted": accepted, "plugin": plugin, "cli": cli}
+    kwargs: dict[str, Any] = dict(description=help, json_schema_extra=extra, **constraints)
+    if default_factory is not None:
+        return Field(default_factory=default_factory, **kwargs)
+    return Field(default, **kwargs)
+
+
+def settings(cls: type | None = None, *, prefix: str = "") -> Any:
+    """Class decorator: `cls` as a pydantic dataclass whose construction turns a bad value
+    into a one-line `UserError` (an error a `__post_init__` raises is passed on as is).
+    `prefix` names the section in messages when the class is built on its own
+    (`@settings(prefix="train")`: "train.epochs must be ...")."""
+    if cls is None:
+        return lambda c: settings(c, prefix=prefix)
+    cls = _pydantic_dataclass(cls, config=SETTINGS_CONFIG)
+    init = cls.__init__
+
+    def __init__(self: Any, *args: Any, **kwargs: Any) -> None:
+        try:
+            init(self, *args, **kwargs)
+        except ValidationError as exc:
+            raise user_error(exc, type(self), prefix) from None
+
+    __init__.__doc__ = init.__doc__
+    cls.__init__ = __init__
+    cls.__coadapt_settings__ = True
+    return cls
+
+
+def is_settings(cls: Any) -> bool:
+    return isinstance(cls, type) and getattr(cls, "__coadapt_settings__", False)
+
+
+# -- walking the tree ----------------------------------------------------------------------
+def _unwrap(annotation: Any) -> tuple[Any, list[Any]]:
+    """Annotated[Annotated[T, a], b] -> (T, [a, b])."""
+    metadata: list[Any] = []
+    while typing.get_origin(annotation) is Annotated:
+        args = typing.get_args(annotation)
+        annotation, metadata = args[0], [*args[1:], *metadata]
+    return annotation, metadata
+
+
+def _strip_optional(annotation: Any) -> tuple[Any, bool]:
+    origin = typing.get_origin(annotation)
+    if origin in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(annotation) if a is not type(None)]
+        if len(args) == 1:
+            return args[0], True
+    return annotation, False
+
+
+@dataclasses.dataclass(frozen=True)
+class Leaf:
+    """One setting of a settings tree: its key path, type, default, help and constraints."""
+
+    path: tuple[str, ...]
+    info: FieldInfo
+    owner: type
+
+    @property
+    def key(self) -> str:
+        """The dotted YAML key: `task.commands.yaw_range`."""
+        return ".".join(self.path)
+
+    @property
+    def option(self) -> str:
+        """The command-line option: `--task-commands-yaw-range`."""
+        return "--" + "-".join(self.path).replace("_", "-")
+
+    @property
+    def param(self) -> str:
+        """The Python parameter name of the option: `task_commands_yaw_range`."""
+        return "_".join(self.path)
+
+    @property
+    def annotation(self) -> Any:
+        return _unwrap(_strip_optional(self.info.annotation)[0])[0]
+
+    @property
+    def metadata(self) -> list[Any]:
+        return [*self.info.metadata, *_unwrap(_strip_optional(self.info.annotation)[0])[1]]
+
+    @property
+    def optional(self) -> bool:
+        return _strip_optional(self.info.annotation)[1]
+
+    @property
+    def kind(self) -> str:
+        """bool | int | float | str | choice | range | ints | weights | mapping."""
+        ann = self.annotation
+        if typing.get_origin(ann) is Literal:
+            return "choice"
+        if ann in (bool, int, float, str):
+            return ann.__name__
+        args = typing.get_args(ann)
+        if typing.get_origin(ann) is tuple:
+            return "ints" if args[-1] is Ellipsis else "range"
+        if typing.get_origin(ann) is dict:
+            return "weights" if args[1] is float else "mapping"
+        return "str"
+
+    @property
+    def choices(self) -> tuple[Any, ...] | None:
+        return typing.get_args(self.annotation) if self.kind == "choice" else None
+
+    @property
+    def help(self) -> str:
+        return self.info.description or ""
+
+    @property
+    def extra(self) -> dict[str, Any]:
+        return dict(self.info.json_schema_extra or {}) if isinstance(self.info.json_schema_extra, dict) else {}
+
+    @property
+    def default(self) -> Any:
+        if self.info.default_factory is not None:
+            return self.info.default_factory()
+        return None if self.info.default is dataclasses.MISSING else self.info.default
+
+    def bounds(self) -> dict[str, float]:
+        out: dict[str, float] = {}
+        for item in self.metadata:
+            for name in ("ge", "gt", "le", "lt"):
+                value = getattr(item, name, None)
+                if value is not None:
+                    out[name] = value
+        return out
+
+    def accepted(self) -> str:
+        """What the setting accepts, in words: 'an integer >= 1', 'one of a, b'."""
+        if self.extra.get("accepted"):
+            return str(self.extra["accepted"])
+        kind = self.kind
+        if kind == "choice":
+            return "one of " + ", ".join(str(c) for c in self.choices or ())
+        words = {
+            "bool": "true or false", "int": "an integer", "float": "a finite number", "str": "text",
+            "range": "a range low:high", "ints": "comma-separated integers",
+            "weights": "name=number pairs, comma-separated", "mapping": "a mapping of names to values",
+        }[kind]
+        b = self.bounds()
+        low = ("ge", b["ge"]) if "ge" in b else ("gt", b["gt"]) if "gt" in b else None
+        high = ("le", b["le"]) if "le" in b else ("lt", b["lt"]) if "lt" in b else None
+        if low and high:
+            words += f" in {'[' if low[0] == 'ge' else '('}{low[1]:g}, {high[1]:g}{']' if high[0] == 'le' else ')'}"
+        elif low:
+            words += f" {'>=' if low[0] == 'ge' else '>'} {low[1]:g}"
+        elif high:
+            words += f" {'<=' if high[0] == 'le' else '<'} {high[1]:g}"
+        validators = {getattr(getattr(m, "func", None), "__name__", "") for m in self.metadata}
+        if "_positive" in validators:
+            words += " of positive numbers"
+        elif "_nonnegative" in validators:
+            words += " of numbers >= 0"
+        return words
+
+
+def leaves(cls: type, prefix: tuple[str, ...] = ()) -> list[Leaf]:
+    """Every setting of the tree rooted at settings class `cls`, nested sections expanded,
+    in declaration order."""
+    out: list[Leaf] = []
+    for name, info in cls.__pydantic_fields__.items():
+        inner = _strip_optional(info.annotation)[0]
+        if is_settings(inner):
+            out.extend(leaves(inner, (*prefix, name)))
+        else:
+            out.append(Leaf((*prefix, name), info, cls))
+    return out
+
+
+def sections(cls: type) -> list[str]:
+    """Names of the nested settings sections of `cls`."""
+    return [n for n, i in cls.__pydantic_fields__.items() if is_settings(_strip_optional(i.annotation)[0])]
+
+
+def to_plain(value: Any) -> Any:
+    """A settings object (or anything inside one) as YAML/JSON data: tuples become lists."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: to_plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, Mapping):
+        return {str(k): to_plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [to_plain(v) for v in value]
+    return value
+
+
+# -- partial trees: overrides of a configuration that comes from elsewhere ------------------
+def partial(
+    cls: type, name: str, *, unset: str, doc: str = "", extra: dict[str, tuple[Any, Any]] | None = None,
+    exclude: tuple[str, ...] = (),
+) -> type:
+    """A settings class with the fields of `cls`, each unset (None) by default: the
+    overrides of a configuration that comes from elsewhere (a checkpoint). Types, help and
+    constraints are `cls`'s; `unset` says in the help what an unset field means; `extra`
+    adds fields ({name: (annotation, setting(...))}); `exclude` leaves fields out."""
+    specs: list[tuple[str, Any, Any]] = []
+    for field_name, info in cls.__pydantic_fields__.items():
+        if field_name in exclude:
+            continue
+        inner = _strip_optional(info.annotation)[0]
+        base = {**(info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {})}
+        if is_settings(inner):
+            sub = partial(inner, f"{name}_{field_name}", unset=unset, doc=info.description or "")
+            specs.append((field_name, sub, setting(default_factory=sub, help=info.description or "")))
+            continue
+        default = info.default_factory() if info.default_factory is not None else info.default
+        annotation = Annotated[(inner, *info.metadata)] if info.metadata else inner
+        field = Field(None, description=info.description,
+                      json_schema_extra={**base, "unset": unset, "base_default": default})
+        specs.append((field_name, annotation | None, field))
+    for field_name, (annotation, field) in (extra or {}).items():
+        specs.append((field_name, annotation, field))
+    made = dataclasses.make_dataclass(name, specs)
+    made.__doc__ = doc or cls.__doc__
+    made.__module__ = cls.__module__
+    made = settings(made)
+    made.__base_settings__ = cls
+    return made
+
+
+def overrides(value: Any) -> dict[str, Any]:
+    """The fields of a partial tree that are set, as nested plain data (unset ones left out)."""
+    out: dict[str, Any] = {}
+    for f in dataclasses.fields(value):
+        item = getattr(value, f.name)
+        if is_settings(type(item)):
+            sub = overrides(item)
+            if sub:
+                out[f.name] = sub
+        elif item is not None:
+            out[f.name] = to_plain(item)
+    return out
+
+
+def apply_overrides(base: Any, changes: Mapping[str, Any]) -> Any:
+    """A copy of settings object `base` with the nested `changes` applied, checked."""
+
+    def merge(data: dict[str, Any], new: Mapping[str, Any]) -> dict[str, Any]:
+        for key, value in new.items():
+            nested = isinstance(value, Mapping) and isinstance(data.get(key), Mapping)
+            data[key] = merge(dict(data[key]), value) if nested else value
+        return data
+
+    return type(base)(**merge(to_plain(base), changes))
+
+
+# -- errors --------------------------------------------------------------------------------
+def _find_leaf(cls: type, loc: tuple[Any, ...]) -> Leaf | None:
+    names = tuple(str(p) for p in loc if not isinstance(p, int))
+    best = None
+    for leaf in leaves(cls):
+        if names[: len(leaf.path)] == leaf.path and (best is None or len(leaf.path) > len(best.path)):
+            best = leaf
+    return best
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def user_error(exc: ValidationError, cls: type, prefix: str = "") -> UserError:
+    """pydantic's report of a bad value as one line naming the key and what is accepted."""
+    err = exc.errors()[0]
+    cause = (err.get("ctx") or {}).get("error")
+    if isinstance(cause, UserError):
+        return cause
+    loc = tuple(err.get("loc") or ())
+    if loc and loc[0] == 0 and len(loc) == 1:  # a positional argument
+        loc = ()
+    leaf = _find_leaf(cls, loc) if loc else None
+    names = [str(p) for p in loc if not isinstance(p, int)]
+    key = ".".join(([prefix] if prefix else []) + (list(leaf.path) if leaf else names))
+    value = err.get("input")
+    if err.get("type") in ("unexpected_keyword_argument", "extra_forbidden"):
+        known = ", ".join(n for n in cls.__pydantic_fields__) if not leaf else ""
+        parent = cls
+        for name in names[:-1]:
+            field = parent.__pydantic_fields__.get(name)
+            parent = _strip_optional(field.annotation)[0] if field else parent
+        known = ", ".join(parent.__pydantic_fields__) if is_settings(parent) else known
+        return UserError(f"unknown key '{key}'; accepted keys: {known}", field=key)
+    if err.get("type") == "missing":
+        return UserError(f"{key} is required", field=key)
+    if leaf is None:
+        return UserError(f"{key or cls.__name__}: {err.get('msg')}", field=key or None)
+    if leaf.kind == "choice":
+        return UserError(f"{key} '{value}' is not one of {', '.join(map(str, leaf.choices or ()))}", field=key)
+    detail = ""
+    if err.get("type") == "value_error":
+        detail = " (" + str(err.get("msg", "")).removeprefix("Value error, ") + ")"
+    return UserError(f"{key} must be {leaf.accepted()}, got {_short(value)}{detail}", field=key)
+
+
+def check_range(name: str, value: tuple[float, float], *, positive: bool = False, nonnegative: bool = False) -> None:
+    """A range must not be inverted (and, if asked, must be positive / non-negative)."""
+    lo, hi = value
+    if not (math.isfinite(lo) and math.isfinite(hi)) or lo > hi:
+        raise UserError(f"{name}: inverted range [{lo:g}, {hi:g}]; give low:high with low <= high", field=name)
+    if positive and lo <= 0:
+        raise UserError(f"{name}: range must be positive, got [{lo:g}, {hi:g}]", field=name)
+    if nonnegative and lo < 0:
+        raise UserError(f"{name}: range must be >= 0, got [{lo:g}, {hi:g}]", field=name)
+
+
+__all__ = [
+    "SETTINGS_CONFIG",
+    "Float",
+    "Int",
+    "Ints",
+    "Leaf",
+    "NonNegativeRange",
+    "PositiveRange",
+    "Range",
+    "Weights",
+    "check_range",
+    "is_settings",
+    "leaves",
+    "sections",
+    "setting",
+    "settings",
+    "to_plain",
+    "user_error",
+]

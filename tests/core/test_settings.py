@@ -1,0 +1,159 @@
+"""The settings tree of `coadapt run`: one definition gives the options, the YAML keys, the
+checks and docs/settings.md; a run's config.yaml repeats its config; the learner's sections
+reach the backend."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+import yaml
+
+from coadapt_core.coadapt.config import (
+    CoadaptConfig,
+    config_from_dict,
+    learner_settings,
+    make_config,
+)
+from coadapt_core.coadapt.settings_doc import settings_markdown
+from coadapt_core.errors import UserError
+from coadapt_core.settings import leaves
+
+ROOT = Path(__file__).resolve().parents[2]
+DOC = ROOT / "docs" / "settings.md"
+
+
+def _run_command():
+    from typer.main import get_command
+
+    from coadapt_core.cli import app
+    from coadapt_core.cli.common import style_help
+
+    command = get_command(app)
+    style_help(command)
+    return command.commands["run"]
+
+
+def test_docs_table_is_generated_from_the_tree():
+    """docs/settings.md is exactly what the tree generates (regenerate it with
+    `python -m coadapt_core.coadapt.settings_doc > docs/settings.md`)."""
+    assert DOC.read_text() == settings_markdown()
+
+
+def test_docs_table_and_run_help_list_the_same_options_helps_and_defaults():
+    run = _run_command()
+    helps = {opt: " ".join((p.help or "").split()) for p in run.params if not p.hidden for opt in p.opts}
+    rows = [line for line in DOC.read_text().splitlines() if line.startswith("| `")]
+    documented = {}
+    for row in rows:
+        _, option, default, _, meaning = [c.strip() for c in re.split(r"(?<!\\)\|", row)[1:-1]]
+        if option.startswith("`--"):
+            documented[option.strip("`")] = (meaning.replace("\\|", "|"), default.replace("\\|", "|"))
+    config_options = {o for o in helps if o.lstrip("-").replace("-", "_") in
+                      {leaf.param for leaf in leaves(CoadaptConfig)}}
+    assert set(documented) == config_options
+    assert len(documented) > 100  # the run's own settings and every train / task / randomization one
+    for option, (meaning, default) in documented.items():
+        assert meaning in helps[option], option  # the declared help, word for word
+        if default != "''":
+            assert f"[default: {default}]" in helps[option], option
+
+
+def test_every_setting_is_an_option_or_a_yaml_key():
+    run = _run_command()
+    options = {opt for p in run.params for opt in p.opts}
+    for leaf in leaves(CoadaptConfig):
+        if leaf.extra.get("cli", True):
+            assert leaf.option in options, leaf.key
+    # train, task and randomization settings all reach the command line
+    for section in ("train", "task", "randomization"):
+        assert sum(o.startswith(f"--{section}-") for o in options) >= 10, section
+
+
+def test_a_runs_config_yaml_round_trips(tmp_path, monkeypatch):
+    """A run folder's config.yaml, given back to --config, is the identical config."""
+    import coadapt_core.coadapt.setup as loop_setup
+    from coadapt_core.cli import main
+    from tests.fakes.analytic import AnalyticBackend
+
+    monkeypatch.setattr(loop_setup, "universal_policy_factory", lambda *a, **k: (lambda seed: AnalyticBackend(seed)))
+    args = ["run", "--preset", "smoke", "--population", "6", "--narrow-margin", "0.3", "--train-epochs", "3",
+            "--task-commands-yaw-range", "-0.5:0.5", "--task-rewards-weights", "raibert=-1",
+            "--randomization-preset", "engine", "--randomization-friction", "0.6:1.1", "--store", "none",
+            "--out", str(tmp_path), "--no-video", "--json"]
+    assert main(args) == 0
+    (folder,) = [p for p in tmp_path.iterdir() if (p / "config.yaml").is_file()]
+    recorded = yaml.safe_load((folder / "config.yaml").read_text())
+    assert recorded["train"]["epochs"] == 3 and recorded["train"]["learning_rate"] is None
+    assert recorded["task"]["commands"]["yaw_range"] == [-0.5, 0.5]
+    assert recorded["randomization"] == {**{k: None for k in recorded["randomization"]}, "preset": "engine",
+                                         "friction": [0.6, 1.1]}
+    again = make_config(None, folder / "config.yaml", {})
+    assert again == config_from_dict(recorded)
+    assert again.to_dict() == {k: v for k, v in recorded.items() if k not in ("run_id", "run_dir", "design_space")}
+    assert (again.population, again.narrow_margin, again.preset) == (6, 0.3, "smoke")
+
+
+def test_sections_apply_over_the_starting_policys_settings(tmp_path):
+    import torch
+
+    from coadapt_core.learning.config import TrainConfig
+    from coadapt_core.learning.trainer import CHECKPOINT_FORMAT
+    from coadapt_core.physics.randomization import RandomizationConfig
+    from coadapt_core.task.config import TaskConfig
+
+    # a checkpoint's recorded settings are the base the run's keys apply over
+    saved_task = TaskConfig.from_dict({"commands": {"yaw_range": [0.0, 0.0]}, "history": 5})
+    path = tmp_path / "policy.pt"
+    torch.save({"format": CHECKPOINT_FORMAT, "train_config": TrainConfig(epochs=7, extra={"randomization": "engine"}).to_dict(),
+                "task_config": saved_task.to_dict()}, path)
+    config = make_config("smoke", None, {"train.learning_rate": 3e-4, "task.rewards.weights": "raibert=-1",
+                                         "randomization.delay": "0:0.01"})
+    got = learner_settings(config, str(path))
+    assert got["train_config"].epochs == 7 and got["train_config"].learning_rate == 3e-4
+    assert got["task_config"].commands.yaw_range == (0.0, 0.0)  # kept from the checkpoint
+    weights = got["task_config"].rewards.weights
+    assert weights["raibert"] == -1.0 and weights["termination"] == -200.0  # other terms keep theirs
+    engine = RandomizationConfig.engine_robust()  # the checkpoint's preset, one range replaced
+    assert got["randomization"].delay == (0.0, 0.01) and got["randomization"].joint_damping == engine.joint_damping
+    # nothing set: the backend takes everything from the checkpoint, as before
+    assert learner_settings(make_config("smoke"), str(path)) == {}
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        ({"population": 0}, "population must be an integer >= 1, got 0"),
+        ({"narrow_margin": -1}, "narrow_margin must be a finite number >= 0, got -1"),
+        ({"narrow_min_width": 1.5}, "narrow_min_width must be a finite number in (0, 1], got 1.5"),
+        ({"seed": True}, "seed must be an integer >= 0"),
+        ({"mixed": "maybe"}, "mixed must be true or false, got 'maybe'"),
+        ({"logger": "csv"}, "logger 'csv' is not one of tensorboard, wandb, none"),
+        ({"train.epochs": 0}, "train.epochs must be an integer >= 1, got 0"),
+        ({"train.gamma": 1.5}, "train.gamma must be a finite number in (0, 1), got 1.5"),
+        ({"task.commands.vx_range": "1:-1"}, "task.commands.vx_range must be a range low:high, got '1:-1'"),
+        ({"task.noise.kind": "pink"}, "task.noise.kind 'pink' is not one of uniform, gaussian"),
+        ({"task.rewards.weights": "speed=1"}, "task.rewards.weights: unknown term(s) ['speed']"),
+        ({"randomization.friction": "0:1"}, "randomization.friction must be a range low:high of positive numbers"),
+        ({"randomization.preset": "wild"}, "randomization.preset 'wild' is not one of table2, engine, off"),
+        ({"train.nope": 1}, "unknown key 'train.nope'"),
+    ],
+)
+def test_bad_values_name_the_key_and_what_it_accepts(overrides, message):
+    with pytest.raises(UserError) as info:
+        make_config("smoke", None, overrides)
+    text = str(info.value)
+    assert message in text and "\n" not in text
+    assert info.value.field == next(iter(overrides)) or "unknown" in text
+
+
+def test_yaml_sections_merge_with_options(tmp_path):
+    path = tmp_path / "c.yaml"
+    path.write_text("train: {epochs: 2, gamma: 0.98}\ntask:\n  commands: {yaw_range: [0, 0]}\n")
+    config = make_config("smoke", path, {"train.epochs": 4})
+    assert (config.train.epochs, config.train.gamma) == (4, 0.98)  # the option wins key by key
+    assert config.task.commands.yaw_range == (0.0, 0.0)
+    path.write_text("train: 3\n")
+    with pytest.raises(UserError, match="train must be a mapping"):
+        make_config("smoke", path, {})
