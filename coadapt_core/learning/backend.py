@@ -201,9 +201,12 @@ class UniversalPolicyBackend:
         # and power are lower while the policy's std is large)
         result = rollout(self.ppo, env, k, steps, seed=seed, stochastic=self.stochastic_evaluation)
         per_scenario = result.per_agent[:, :, columns]  # [K, A, M]
-        # the walking gate's tracking measure: RMS tracking error over RMS command, per design
+        # the walking gate's tracking measure, per design: the RMS over scenarios of the error
+        # of each scenario's mean velocity (v_x, v_y, yaw rate) over the RMS command
+        # (coadapt/reliability.py): 0 goes where commanded, 1 is no better than standing still
         command_ms = (env.command.detach().float().cpu().reshape(k, agents, 3) ** 2).sum(-1).mean(1).numpy()
-        ratio = np.where(command_ms > 1e-4, np.sqrt(np.asarray(result.tracking_error, dtype=float) / np.maximum(command_ms, 1e-4)), np.nan)
+        error_ms = np.asarray(result.mean_velocity_error, dtype=float)
+        ratio = np.where(command_ms > 1e-4, np.sqrt(error_ms / np.maximum(command_ms, 1e-4)), np.nan)
         return RealFitness(
             costs=robust_cost(per_scenario),  # upper-trimmed mean over scenarios (TRIM_SHARE)
             buffer=result.buffer,

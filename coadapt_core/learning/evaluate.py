@@ -38,6 +38,10 @@ class RolloutResult:
     per_agent: np.ndarray | None = None  # [K, A, M] each agent's mean per-step metric
     falls: np.ndarray | None = None  # [K, A] falls of each agent (it restarts after each)
     fall_metric: np.ndarray | None = None  # [K, M] mean per-step metric accrued on fall steps
+    #: [K] mean over agents of |mean velocity - mean command|^2 over (v_x, v_y, yaw rate), each
+    #: agent's means over its steps before its first fall: a gait's oscillation and the
+    #: policy's action noise average out, a robot that stands still scores |command|^2
+    mean_velocity_error: np.ndarray | None = None
 
 
 @torch.no_grad()
@@ -71,6 +75,8 @@ def rollout(
     alive_steps = torch.zeros(n, device=env.device)
     vx_sum = torch.zeros(n, device=env.device)
     err_sum = torch.zeros(n, device=env.device)
+    vel_sum = torch.zeros(n, 3, device=env.device)  # (v_x, v_y, yaw rate) and command sums
+    cmd_sum = torch.zeros(n, 3, device=env.device)
     alt_sum = torch.zeros(n, device=env.device)
     falls = torch.zeros(n, device=env.device)
     fall_metric = torch.zeros(n, m, device=env.device)
@@ -95,6 +101,8 @@ def rollout(
         alive_f = alive.float()
         vx_sum += lin[:, 0] * alive_f
         err_sum += err * alive_f
+        vel_sum += torch.cat([lin[:, :2], info["base_ang_vel"][:, 2:3]], dim=-1) * alive_f[:, None]
+        cmd_sum += command * alive_f[:, None]
         alt_sum += half_stance(info["foot_contact"]) * alive_f
         alive_steps += alive_f
         alive &= ~info["terminated"]
@@ -121,4 +129,5 @@ def rollout(
         per_agent=(metric_sum / steps).reshape(num_designs, agents, m).cpu().numpy(),
         falls=falls.reshape(num_designs, agents).cpu().numpy(),
         fall_metric=per_design(fall_metric / steps),
+        mean_velocity_error=per_design(((vel_sum - cmd_sum) / safe[:, None]).pow(2).sum(-1)),
     )
