@@ -64,6 +64,9 @@ class Objective(ABC):
 
     #: user-facing key (`--objective torque`)
     name: ClassVar[str]
+    #: rank as the default of its kind: with no name given, a command takes the installed
+    #: plugin of highest rank (ties: the first name in alphabetical order; docs/plugins.md)
+    default_rank: ClassVar[int] = 0
     #: label for tables and plots
     display_name: ClassVar[str]
     #: always "minimize" for costs; kept explicit for reports

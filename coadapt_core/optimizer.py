@@ -71,6 +71,9 @@ class Optimizer(ABC):
 
     #: user-facing key (`--optimizer pso`)
     name: ClassVar[str]
+    #: rank as the default of its kind: with no name given, a command takes the installed
+    #: plugin of highest rank (ties: the first name in alphabetical order; docs/plugins.md)
+    default_rank: ClassVar[int] = 0
     description: ClassVar[str] = ""
     #: handles discrete variables of a mixed design space
     supports_mixed: ClassVar[bool] = False

@@ -98,6 +98,16 @@ class Registry:
         except KeyError:
             raise UnknownPluginError(kind, name, self.names(kind), [b.line() for b in self.broken]) from None
 
+    def default(self, kind: str) -> str:
+        """The name a command takes for `kind` when none is given: the registered class with
+        the highest `default_rank` class attribute (0 when it declares none); ties go to the
+        name first in alphabetical order, so the choice never depends on load order. A kind
+        with nothing registered is the registry's one-line `UnknownPluginError`."""
+        infos = list(self.entries[kind].values())
+        if not infos:
+            raise UnknownPluginError(kind, "(default)", [], [b.line() for b in self.broken])
+        return min(infos, key=lambda i: (-int(getattr(i.cls, "default_rank", 0)), i.name)).name
+
     def create(self, kind: str, name: str, *args: Any, **kwargs: Any) -> Any:
         return self.get(kind, name)(*args, **kwargs)
 
@@ -195,6 +205,11 @@ def load_registry(extra_plugins: list[tuple[ModuleType | object, str]] | None = 
 
 
 _REGISTRY: Registry | None = None
+
+
+def default_plugin(kind: str) -> str:
+    """`get_registry().default(kind)`: the plugin a command takes when none is named."""
+    return get_registry().default(kind)
 
 
 def get_registry(refresh: bool = False) -> Registry:

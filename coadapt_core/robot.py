@@ -120,6 +120,9 @@ class Robot(ABC):
 
     #: user-facing key (`--robot kuafu`)
     name: ClassVar[str]
+    #: rank as the default of its kind: with no name given, a command takes the installed
+    #: plugin of highest rank (ties: the first name in alphabetical order; docs/plugins.md)
+    default_rank: ClassVar[int] = 0
     #: one line for `coadapt plugins` and docs
     description: ClassVar[str] = ""
 

@@ -91,6 +91,12 @@ def config_default(name: str) -> str | None:
     if found is None:
         return None
     leaf, values = found
+    if leaf.extra.get("plugin"):  # declared by the plugins themselves (`default_rank`)
+        rule = f"the installed {leaf.extra['plugin']} of highest default_rank"
+        try:
+            return f"{leaf.default}, {rule}"
+        except Exception:  # the registry cannot be built: the command reports why
+            return rule
     if leaf.extra.get("unset"):
         return f"{leaf.extra['unset']}, else {show_default(leaf.extra['base_default'])}"
     if all(v in ("", None) for v in values.values()):

@@ -17,6 +17,7 @@ from coadapt_core.errors import UserError
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.physics.randomization import RANDOMIZATION_PRESETS, RandomizationConfig
 from coadapt_core.physics.terrain import TERRAINS
+from coadapt_core.plugins import default_plugin
 from coadapt_core.settings import (
     Float,
     Int,
@@ -80,12 +81,14 @@ class CoadaptConfig:
     once (`coadapt_core.settings`), and docs/settings.md is generated from them."""
 
     # -- what to co-adapt ------------------------------------------------------------------
-    robot: str = setting("kuafu", "Robot.", plugin="robot")
-    sim: str = setting("mujoco", "Simulator backend.", plugin="simulator")
-    optimizer: str = setting("pso", "Design optimizer; one that declares implies_mixed searches the mixed design space.",
-                             plugin="optimizer")
-    objective: str = setting("torque", "Objective to minimise, or a comma list of 2-3 for a multi-objective optimizer.",
-                             plugin="objective")
+    robot: str = setting(default_factory=lambda: default_plugin("robot"), help="Robot.", plugin="robot")
+    sim: str = setting(default_factory=lambda: default_plugin("simulator"), help="Simulator backend.", plugin="simulator")
+    optimizer: str = setting(
+        default_factory=lambda: default_plugin("optimizer"), plugin="optimizer",
+        help="Design optimizer; one that declares implies_mixed searches the mixed design space.")
+    objective: str = setting(
+        default_factory=lambda: default_plugin("objective"), plugin="objective",
+        help="Objective to minimise, or a comma list of 2-3 for a multi-objective optimizer.")
     terrain: Literal[TERRAINS] = setting("flat", "Terrain.")
     method: Literal[METHODS] = setting("ours", "Method: ours (Algorithm 4) or an ablation / baseline of docs/coadaptation.md.")
     mixed: bool = setting(False, "Add the robot's discrete variables (motor types); implied by an optimizer that declares implies_mixed.")
@@ -289,8 +292,9 @@ def preset_defaults() -> dict[str, tuple[Any, dict[str, Any]]]:
 
     out = {}
     for leaf in leaves(CoadaptConfig):
-        if leaf.key != "preset":
-            out[leaf.param] = (leaf, {p: PRESETS[p].get(leaf.key, leaf.default) for p in PRESETS})
+        if leaf.key != "preset":  # a plugin's default is looked up when shown (`default_rank`)
+            values = {} if leaf.extra.get("plugin") else {p: PRESETS[p].get(leaf.key, leaf.default) for p in PRESETS}
+            out[leaf.param] = (leaf, values)
     return out
 
 

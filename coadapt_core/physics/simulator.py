@@ -115,6 +115,9 @@ class Simulator(ABC):
 
     #: user-facing key (`--sim mujoco`)
     name: ClassVar[str]
+    #: rank as the default of its kind: with no name given, a command takes the installed
+    #: plugin of highest rank (ties: the first name in alphabetical order; docs/plugins.md)
+    default_rank: ClassVar[int] = 0
     description: ClassVar[str] = ""
     #: terrains this backend supports
     terrains: ClassVar[tuple[str, ...]] = TERRAINS

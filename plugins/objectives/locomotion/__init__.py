@@ -76,6 +76,7 @@ class TorqueObjective(Objective):
     """P_tau = w_t sum_i tau_i^2 (eq. 8)."""
 
     name: ClassVar[str] = "torque"
+    default_rank: ClassVar[int] = 10  # the default --objective
     display_name: ClassVar[str] = "Joint torque"
     description: ClassVar[str] = "P_tau = w_t sum tau^2, squared joint torque with tracking penalty (eq. 8)"
 

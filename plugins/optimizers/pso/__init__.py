@@ -27,6 +27,7 @@ class PSOOptimizer(Optimizer):
     """
 
     name: ClassVar[str] = "pso"
+    default_rank: ClassVar[int] = 10  # the default --optimizer (the paper's)
     description: ClassVar[str] = "particle swarm (pymoo PSO, inertia 0.9, c1 = c2 = 2.0)"
     option_specs: ClassVar[tuple] = SWARM_OPTIONS
 

@@ -31,6 +31,7 @@ class Kuafu(Robot):
     """The Kuafu humanoid: thigh and shank scale (and hip/knee motor types when mixed)."""
 
     name: ClassVar[str] = "kuafu"
+    default_rank: ClassVar[int] = 10  # the default --robot
     description: ClassVar[str] = "Kuafu humanoid (42 kg, 1.6 m): thigh/shank scale in [0.5, 1.5], hip/knee motor types 1-3"
 
     def design_space(self, mixed: bool = False) -> DesignSpace:

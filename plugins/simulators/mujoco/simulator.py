@@ -83,6 +83,7 @@ class MujocoSimulator(Simulator):
     """MuJoCo 4 batched backend (`mujoco.batch`), one compiled model per design."""
 
     name = "mujoco"
+    default_rank = 10  # the default --sim (the reference backend)
     description = "MuJoCo 4 on a C thread pool (mujoco.batch), one model per design, CPU"
 
     def __init__(
