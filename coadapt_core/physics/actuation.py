@@ -56,8 +56,12 @@ def pd_torque(
     """Joint torques [N, J]. `pd_factor` and `motor_strength` are [N] or scalars; the rest
     [N, J] (or broadcastable), all on one device. Written to `out` when given (no
     allocation for the result in the hot loop)."""
-    tau = (kp * (q_target - q) - kd * dq) * (_per_env(pd_factor) * _per_env(motor_strength))
-    lower, upper = torque_speed_bounds(dq, tau_max, dq_max)
+    # torque_speed_bounds and the PD law, with the temporaries reused in place (this runs
+    # every physics step; the numbers are the same to the last bit)
+    ratio = dq / dq_max
+    upper = tau_max * torch.rsub(ratio, 1.0).clamp_(0.0, 1.0)
+    lower = (tau_max * ratio.add_(1.0).clamp_(0.0, 1.0)).neg_()
+    tau = (kp * (q_target - q) - kd * dq).mul_(_per_env(pd_factor) * _per_env(motor_strength))
     return torch.clamp(tau, min=lower, max=upper, out=out)
 
 
@@ -81,9 +85,13 @@ class DelayLine:
     ):
         self.capacity = int(max_delay_steps) + 1
         self.buffer = torch.zeros((self.capacity, num_envs, num_joints), dtype=dtype, device=device)  # ring
+        self._rows = self.buffer.view(self.capacity * num_envs, num_joints)  # the ring as rows
         self.head = 0  # slot of the newest entry
         self.delay_steps = torch.zeros(num_envs, dtype=torch.long, device=device)  # [N]
-        self._envs = torch.arange(num_envs, device=device)
+        # [capacity, N]: for each head slot, the row of every environment's delayed target
+        # (rebuilt for the environments whose delay changes), so `current` is one gather
+        self._slots = torch.arange(self.capacity, device=device)[:, None]
+        self._lookup = self._slots * num_envs + torch.arange(num_envs, device=device)
 
     def _index(self, env_ids) -> torch.Tensor:
         return torch.as_tensor(env_ids, dtype=torch.long, device=self.buffer.device)
@@ -92,7 +100,10 @@ class DelayLine:
         delay_steps = torch.as_tensor(delay_steps, dtype=torch.long, device=self.buffer.device)
         if bool((delay_steps < 0).any()) or bool((delay_steps >= self.capacity).any()):
             raise ValueError(f"delay steps must lie in [0, {self.capacity - 1}]")
-        self.delay_steps[self._index(env_ids)] = delay_steps
+        ids = self._index(env_ids)
+        self.delay_steps[ids] = delay_steps
+        slots = torch.remainder(self._slots - delay_steps, self.capacity)  # [capacity, n]
+        self._lookup[:, ids] = slots * self.buffer.shape[1] + ids
 
     def reset(self, env_ids, targets: torch.Tensor) -> None:
         self.buffer[:, self._index(env_ids)] = torch.as_tensor(targets, dtype=self.buffer.dtype, device=self.buffer.device)[None]
@@ -102,5 +113,5 @@ class DelayLine:
         self.buffer[self.head] = targets
 
     def current(self) -> torch.Tensor:
-        slots = (self.head - self.delay_steps) % self.capacity
-        return self.buffer[slots, self._envs]
+        """[N, J] each environment's target of `delay_steps` pushes ago."""
+        return self._rows.index_select(0, self._lookup[self.head])
