@@ -118,7 +118,7 @@ def ground_truth(args: argparse.Namespace, out: Path) -> dict:
     Returns the grid axes and costs [grid, grid] of the first objective."""
     from coadapt_core.coadapt import make_config
     from coadapt_core.experiments.landscape import run_landscape
-    from coadapt_core.results.recorder import SqliteRecorder
+    from coadapt_core.results.recorders import SqliteRecorder
 
     config = make_config(args.preset, None, {"objective": args.objective, "sim": args.sim, "terrain": args.terrain})
     if args.fake:

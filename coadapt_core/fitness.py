@@ -82,19 +82,22 @@ class RunRecorder(Protocol):
     def start_run(self, config: dict[str, Any]) -> str:
         """Register a run; returns its id."""
 
-    def record_evaluation(
+    def record_evaluations(
         self,
         run_id: str,
         *,
         outer: int,
         inner: int,
-        design: Sequence[float],
-        costs: dict[str, float],
-        kind: str,  # "real" | "surrogate"
-        interactions: int,
-        seconds: float,
-        surrogate_error: dict[str, float] | None = None,
-    ) -> None: ...
+        kind: str,  # "real" | "surrogate" | "sim2sim"
+        designs: Sequence[Sequence[float]],  # [K, dim]
+        costs: Sequence[dict[str, float]],  # [K] objective -> cost
+        interactions: Sequence[int] | int,  # [K], or each design's
+        seconds: Sequence[float] | float,  # [K], or each design's
+        surrogate_errors: Sequence[dict[str, float] | None] | None = None,  # [K]
+        simulator: str | None = None,
+    ) -> None:
+        """One evaluation batch of (outer, inner, kind), its designs idx 0..K-1: recording
+        the same batch again (a resumed run redoing it) replaces it."""
 
     def record_training(self, run_id: str, *, outer: int, result: TrainingResult) -> None: ...
 

@@ -21,9 +21,7 @@ naming the file and how to recover) for a damaged file.
 from __future__ import annotations
 
 import base64
-import contextlib
 import dataclasses
-import errno
 import io
 import json
 import os
@@ -33,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from coadapt_core.errors import UserError
+from coadapt_core.io import write_atomic
 
 _NUMERIC_KINDS = "biufc"
 _DATACLASSES: dict[str, type] = {}
@@ -161,32 +160,6 @@ def _decode_array(head: dict, arrays: Any) -> Any:
 
 
 # -- atomic files ---------------------------------------------------------------------------
-def _disk_error(path: Path, exc: OSError) -> UserError:
-    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
-        return UserError(f"disk full writing '{path}'; nothing partial was left, free space and run the command again", field="out")
-    if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
-        return UserError(f"cannot write '{path}' ({os.strerror(exc.errno)}); pick a writable --out folder", field="out")
-    return UserError(f"cannot write '{path}' ({exc.strerror or type(exc).__name__})", field="out")
-
-
-def write_atomic(path: str | os.PathLike, data: bytes) -> Path:
-    """Write `data` to `path` through a temporary file and a rename. On any OS error the
-    temporary file is removed and a one-line `UserError` names the file."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    try:
-        with open(tmp, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except OSError as exc:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise _disk_error(path, exc) from None
-    return path
-
-
 def dumps(obj: Any) -> bytes:
     return json.dumps(encode(obj), separators=(",", ":")).encode("utf-8")
 

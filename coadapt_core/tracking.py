@@ -182,18 +182,8 @@ class TrackingRecorder:
                                           "mean_reward": result.mean_reward, **dict(result.extra or {})}, self.phases)
         self.logger.flush()
 
-    def record_evaluation_batch(self, run_id: str, **batch: Any) -> None:
-        writer = getattr(self.inner, "record_evaluation_batch", None)
-        if writer is not None:
-            writer(run_id, **batch)
-        else:
-            errors = batch.get("surrogate_errors")
-            for i, design in enumerate(batch["designs"]):
-                self.inner.record_evaluation(
-                    run_id, outer=batch["outer"], inner=batch["inner"], design=design, costs=batch["costs"][i],
-                    kind=batch["kind"], interactions=batch["interactions"][i], seconds=batch["seconds"][i],
-                    surrogate_error=None if errors is None else errors[i],
-                )
+    def record_evaluations(self, run_id: str, **batch: Any) -> None:
+        self.inner.record_evaluations(run_id, **batch)
         self._log_round(batch["costs"], batch["kind"], batch.get("surrogate_errors"))
 
     def _log_round(self, costs: list[dict[str, float]], kind: str, errors: list[dict[str, float]] | None) -> None:

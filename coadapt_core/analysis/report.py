@@ -17,8 +17,8 @@ from typing import Any
 import numpy as np
 
 from coadapt_core.analysis.surrogate_figure import figure_surrogate_quality
+from coadapt_core.coadapt.config import METHODS
 from coadapt_core.errors import UserError
-from coadapt_core.experiments.grid import METHODS
 from coadapt_core.pareto import pareto_mask
 from coadapt_core.results.export import space_of_run
 from coadapt_core.results.store import (

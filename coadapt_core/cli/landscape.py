@@ -54,7 +54,7 @@ def register(app: typer.Typer) -> None:
         from coadapt_core.experiments.landscape import run_landscape
         from coadapt_core.learning.factory import make_backend, resolve_plugins
         from coadapt_core.physics.terrain import TERRAINS
-        from coadapt_core.results.recorder import SqliteRecorder
+        from coadapt_core.results.recorders import SqliteRecorder
 
         names = [o.strip() for o in objective.split(",") if o.strip()]
         for name in names:

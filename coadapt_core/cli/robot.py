@@ -18,6 +18,7 @@ import typer
 
 from coadapt_core.cli.common import fail, resolve
 from coadapt_core.errors import DesignError
+from coadapt_core.io import jsonable
 
 app = typer.Typer(help="Inspect, export, validate and render robot designs.", no_args_is_help=True)
 
@@ -52,18 +53,6 @@ def parse_design(robot: Any, text: str | None) -> np.ndarray:
     raise DesignError(f"--design '{text}' has {values.shape[0]} values; {robot.name} takes {expected}", field="design")
 
 
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_jsonable(v) for v in value]
-    return value
-
-
 def describe(robot: Any, design: np.ndarray, validate: bool = True) -> dict:
     """Everything `show` prints, as plain data."""
     model = robot.build(design)
@@ -88,7 +77,7 @@ def describe(robot: Any, design: np.ndarray, validate: bool = True) -> dict:
         "design": dict(zip(space.names, (float(x) for x in design), strict=True)),
         "total_mass": float(model.total_mass),
         "standing_base_height": float(model.standing_base_height),
-        "info": _jsonable(model.info),
+        "info": jsonable(model.info),
         "joints": joints,
     }
     if validate:

@@ -667,16 +667,8 @@ class CoadaptationLoop:
         cost_dicts = [dict(zip(self.names, map(float, row), strict=True)) for row in costs]
         error_dicts = None if errors is None else [dict(zip(self.names, map(float, row), strict=True)) for row in errors]
         shares, secs = _split(int(interactions), n), _split(float(seconds), n)
-        batch_writer = getattr(self.recorder, "record_evaluation_batch", None)
-        if batch_writer is not None:
-            batch_writer(s.run_id, outer=s.outer, inner=s.inner, designs=designs.tolist(), costs=cost_dicts, kind=kind,
-                         interactions=shares, seconds=secs, surrogate_errors=error_dicts)
-        else:
-            for i in range(n):
-                self.recorder.record_evaluation(
-                    s.run_id, outer=s.outer, inner=s.inner, design=designs[i].tolist(), costs=cost_dicts[i], kind=kind,
-                    interactions=shares[i], seconds=secs[i], surrogate_error=None if error_dicts is None else error_dicts[i],
-                )
+        self.recorder.record_evaluations(s.run_id, outer=s.outer, inner=s.inner, designs=designs.tolist(), costs=cost_dicts,
+                                         kind=kind, interactions=shares, seconds=secs, surrogate_errors=error_dicts)
         finite = np.isfinite(costs[:, 0])
         error_finite = None if errors is None else np.isfinite(errors[:, 0])
         s.batches.append({

@@ -20,7 +20,7 @@ from coadapt_core.fitness import (
     scenario_seed,
 )
 from coadapt_core.objective import Objective
-from coadapt_core.results.recorder import SqliteRecorder
+from coadapt_core.results.recorders import SqliteRecorder
 from coadapt_core.results.store import LANDSCAPE_METHOD
 
 
@@ -86,7 +86,7 @@ def run_landscape(
             for design, rate in zip(batch, np.asarray(fit.fall_rate, dtype=float), strict=True):
                 fall_rate[tuple(np.round(design, 9))] = float(rate)
         costs = np.asarray(fit.costs, dtype=float).reshape(len(batch), len(names))  # [grid, M]
-        recorder.record_evaluation_batch(
+        recorder.record_evaluations(
             run_id,
             outer=0,
             inner=row,

@@ -33,6 +33,7 @@ from coadapt_core.errors import BackendUnavailable, UserError
 from coadapt_core.fitness import CoadaptationBackend, scenario_seed
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.physics.simulator import Simulator
+from coadapt_core.results.recorders import batch_rows
 from coadapt_core.results.store import (
     TRANSFER_KIND,
     TRANSFER_OUTER,
@@ -289,15 +290,10 @@ def transfer_run(
         return f"n/a: {' '.join(str(exc).split())}"
     costs = np.asarray(fit.costs, dtype=float).reshape(2, -1)  # [2, M]
     names = [o.name for o in objectives]
-    store.record_evaluations(
-        run["id"],
-        [
-            {"outer": TRANSFER_OUTER, "inner": 0, "idx": i, "kind": TRANSFER_KIND, "design": d.tolist(),
-             "costs": dict(zip(names, costs[i].tolist(), strict=True)), "interactions": fit.interactions // 2,
-             "seconds": fit.seconds / 2, "simulator": simulator}
-            for i, d in enumerate((best, nominal))
-        ],
-    )
+    store.record_evaluations(run["id"], batch_rows(
+        outer=TRANSFER_OUTER, inner=0, kind=TRANSFER_KIND, designs=[best.tolist(), nominal.tolist()],
+        costs=[dict(zip(names, row.tolist(), strict=True)) for row in costs], interactions=fit.interactions // 2,
+        seconds=fit.seconds / 2, simulator=simulator))
     return ""
 
 

@@ -19,6 +19,7 @@ import torch
 from coadapt_core import tracking
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
+from coadapt_core.io import write_atomic
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.networks import CriticBank
 from coadapt_core.learning.ppo import PPO, Dims
@@ -315,7 +316,7 @@ class Trainer:
             state["commands"] = commands
         state["design_rng"] = self.rng.bit_generator.state  # sample_designs / design resampling
         # written to a temporary file first: a kill mid-write leaves the previous checkpoint
-        _save_atomic(state, path)
+        write_atomic(path, lambda tmp: torch.save(state, tmp))
         return path
 
     def export_weights(self, path: str | Path) -> Path:
@@ -338,7 +339,7 @@ class Trainer:
         commands = self.command_state()
         if commands is not None:  # the command box the policy was trained to (real fitness draws from it)
             state["commands"] = commands
-        _save_atomic(state, path)
+        write_atomic(path, lambda tmp: torch.save(state, tmp))
         return path
 
     def load(self, path: str | Path, *, optimizers: bool = True, widen: bool = False) -> dict:
@@ -459,18 +460,6 @@ def _remap_norm(saved: dict, saved_names: list[str], names: list[str], ppo: PPO)
             out["var"][i] = saved["var"][j]
     out["count"] = saved["count"]
     return out
-
-
-def _save_atomic(state: dict, path: Path) -> None:
-    """torch.save through a temporary file and a rename: a kill or a full disk leaves the
-    previous file and no partial one (the temporary file is removed on any error)."""
-    tmp = path.with_name(path.name + ".tmp")
-    try:
-        torch.save(state, tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
 
 
 def read_checkpoint(path: str | Path) -> dict:

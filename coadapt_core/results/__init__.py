@@ -2,7 +2,7 @@
 Experiments that write rows live in `coadapt_core.experiments`, reports in
 `coadapt_core.analysis`."""
 
-from coadapt_core.results.recorder import SqliteRecorder
+from coadapt_core.results.recorders import SqliteRecorder
 from coadapt_core.results.store import (
     DEFAULT_STORE_FILE,
     ENV_GRID_CELL,

@@ -1,10 +1,15 @@
-"""Where a co-adaptation run writes its evidence: JSON files in the run folder, and the one
-factory (`make_recorder`) that also hands out the results store's recorder.
+"""Where a run writes its evidence, behind the one `RunRecorder` protocol
+(coadapt_core/fitness.py): JSON files in the run folder (`JsonRecorder`), the results store
+(`SqliteRecorder`, optionally teeing every call to a JSON recorder), and the factory
+(`make_recorder`) that picks them for a run folder.
 
 Run folder: `config.yaml`, `evaluations.jsonl` (one line per evaluated design),
-`trainings.jsonl`, `checkpoints.jsonl`, `summary.json`. Lines are keyed by
-(outer, inner, kind, idx); a resumed run that redoes an interrupted batch appends the same
-keys again, and `read_evaluations` keeps the last line of each key.
+`trainings.jsonl`, `checkpoints.jsonl`, `summary.json`.
+
+Idempotence is what makes resume safe: an evaluation batch is recorded at once, its designs
+keyed by (run, outer, inner, kind, idx) with idx 0..K-1. A resumed run that redoes the batch
+it was interrupted in records the same keys again: the store replaces those rows (all of a
+batch or none, in one transaction) and `read_evaluations` keeps the last line of each key.
 """
 
 from __future__ import annotations
@@ -18,25 +23,36 @@ from pathlib import Path
 from typing import Any
 
 from coadapt_core.fitness import RunRecorder, TrainingResult
+from coadapt_core.io import jsonable, write_atomic, write_json_atomic
+from coadapt_core.results.store import ResultsStore
 
 
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_jsonable(v) for v in value]
-    if hasattr(value, "tolist"):
-        return value.tolist()
-    if isinstance(value, float) and value != value:  # NaN is not JSON
-        return None
-    return value
-
-
-def write_json_atomic(path: Path, data: Any) -> None:
-    """Through a temporary file and a rename; on a full disk, one line and no partial file."""
-    from coadapt_core.statefile import write_atomic
-
-    write_atomic(path, json.dumps(_jsonable(data), indent=2).encode("utf-8"))
+def batch_rows(
+    *,
+    outer: int,
+    inner: int,
+    kind: str,
+    designs: Sequence[Sequence[float]],
+    costs: Sequence[dict[str, float]],
+    interactions: Sequence[int] | int,
+    seconds: Sequence[float] | float,
+    surrogate_errors: Sequence[dict[str, float] | None] | None = None,
+    simulator: str | None = None,
+) -> list[dict[str, Any]]:
+    """One row per design of an evaluation batch (idx 0..K-1); a single `interactions` or
+    `seconds` number is each design's."""
+    k = len(designs)
+    inter = [int(interactions)] * k if isinstance(interactions, int) else [int(x) for x in interactions]
+    secs = [float(seconds)] * k if isinstance(seconds, int | float) else [float(x) for x in seconds]
+    errs = list(surrogate_errors) if surrogate_errors is not None else [None] * k
+    if not len(costs) == len(inter) == len(secs) == len(errs) == k:
+        raise ValueError(f"an evaluation batch of {k} designs needs {k} costs, interactions, seconds and errors")
+    return [
+        {"outer": int(outer), "inner": int(inner), "idx": i, "kind": str(kind), "design": [float(x) for x in designs[i]],
+         "costs": dict(costs[i]), "surrogate_error": errs[i], "interactions": inter[i], "seconds": secs[i],
+         "simulator": simulator}
+        for i in range(k)
+    ]
 
 
 class JsonRecorder:
@@ -44,11 +60,10 @@ class JsonRecorder:
 
     def __init__(self, run_dir: str | os.PathLike):
         self.run_dir = Path(run_dir)
-        self._next_eval: dict[tuple[int, int, str], int] = defaultdict(int)
 
     def _append(self, name: str, record: dict[str, Any]) -> None:
         with open(self.run_dir / name, "a") as f:
-            f.write(json.dumps(_jsonable(record)) + "\n")
+            f.write(json.dumps(jsonable(record)) + "\n")
             f.flush()
 
     def start_run(self, config: dict[str, Any]) -> str:
@@ -57,36 +72,17 @@ class JsonRecorder:
         self.run_dir.mkdir(parents=True, exist_ok=True)
         config_path = self.run_dir / "config.yaml"
         if not config_path.exists():  # a resumed run keeps the config it started with
-            from coadapt_core.statefile import write_atomic
-
-            write_atomic(config_path, yaml.safe_dump(_jsonable(dict(config)), sort_keys=False).encode("utf-8"))
+            write_atomic(config_path, yaml.safe_dump(jsonable(dict(config)), sort_keys=False).encode("utf-8"))
         return self.run_dir.name
 
-    def record_evaluation(
-        self,
-        run_id: str,
-        *,
-        outer: int,
-        inner: int,
-        design: Sequence[float],
-        costs: dict[str, float],
-        kind: str,
-        interactions: int,
-        seconds: float,
-        surrogate_error: dict[str, float] | None = None,
-        index: int | None = None,
-    ) -> None:
-        key = (int(outer), int(inner), str(kind))
-        idx = self._next_eval[key] if index is None else int(index)
-        self._next_eval[key] = max(self._next_eval[key], idx + 1)
-        self._append(
-            "evaluations.jsonl",
-            {
-                "run_id": run_id, "outer": outer, "inner": inner, "idx": idx, "kind": kind,
-                "design": [float(x) for x in design], "costs": costs, "interactions": int(interactions),
-                "seconds": float(seconds), "surrogate_error": surrogate_error, "time": time.time(),
-            },
-        )
+    def record_evaluations(self, run_id: str, **batch: Any) -> None:
+        """One line per design of the batch (see `batch_rows` for the fields)."""
+        now = time.time()
+        with open(self.run_dir / "evaluations.jsonl", "a") as f:
+            for row in batch_rows(**batch):
+                row.pop("simulator")
+                f.write(json.dumps(jsonable({"run_id": run_id, **row, "time": now})) + "\n")
+            f.flush()
 
     def record_training(self, run_id: str, *, outer: int, result: TrainingResult) -> None:
         self._append(
@@ -137,6 +133,121 @@ def make_recorder(run_dir: str | os.PathLike, store: str | None = None) -> RunRe
     url = store_url_for_run(run_dir, store)
     if url is None:
         return json_recorder
-    from coadapt_core.results import SqliteRecorder
-
     return SqliteRecorder(url, run_dir=run_dir, tee=json_recorder)
+
+
+class SqliteRecorder:
+    """Records a run in a `ResultsStore` (SQLite by default; any SQLAlchemy URL works)."""
+
+    def __init__(
+        self,
+        store: ResultsStore | str | os.PathLike | None = None,
+        *,
+        run_dir: str | os.PathLike | None = None,
+        tee: RunRecorder | None = None,
+    ):
+        self.store = store if isinstance(store, ResultsStore) else ResultsStore(store)
+        # absolute, so reports and grids started from another folder still find them
+        self.run_dir = None if run_dir is None else os.path.abspath(run_dir)
+        self.tee = tee
+        # next idx per (run, outer) for training phases
+        self._next_train: dict[tuple[str, int], int] = defaultdict(int)
+
+    @property
+    def url(self) -> str:
+        return self.store.url
+
+    def start_run(self, config: dict[str, Any]) -> str:
+        """Register the run. When teeing, the other recorder picks the id (it may name the
+        run folder after it) and the store uses the same id; a `run_id` already in the
+        store (resume) keeps its rows."""
+        config = dict(config)
+        run_id = config.get("run_id")
+        if self.tee is not None:
+            run_id = self.tee.start_run(config)
+        return self.store.create_run(config, run_id=run_id, run_dir=self.run_dir)
+
+    def record_evaluations(self, run_id: str, **batch: Any) -> None:
+        """A whole evaluation batch (see `batch_rows`) in one transaction, committed before
+        returning: all or nothing, and a crash right after this call loses nothing."""
+        self.store.record_evaluations(run_id, batch_rows(**batch))
+        if self.tee is not None:
+            self.tee.record_evaluations(run_id, **batch)
+
+    def record_training(self, run_id: str, *, outer: int, result: TrainingResult) -> None:
+        key = (run_id, int(outer))
+        idx = self._next_train[key]
+        self._next_train[key] = idx + 1
+        self.store.record_training(
+            run_id,
+            outer=outer,
+            idx=idx,
+            steps=result.steps,
+            seconds=result.seconds,
+            final_reward=result.mean_reward,
+            extra=dict(result.extra),
+        )
+        if self.tee is not None:
+            self.tee.record_training(run_id, outer=outer, result=result)
+
+    def record_checkpoint(self, run_id: str, *, outer: int, path: str) -> None:
+        self.store.record_checkpoint(run_id, outer=outer, path=os.path.abspath(path))
+        if self.tee is not None:
+            self.tee.record_checkpoint(run_id, outer=outer, path=path)
+
+    def refill_from_run_folder(self, run_id: str, run_dir: str | os.PathLike) -> dict[str, int]:
+        """Record again what the run folder holds and the store lost (a store emptied, replaced
+        or restored from an old copy): evaluations missing by (outer, inner, kind, idx),
+        training phases of outer iterations the store has none of, and checkpoints inside the
+        run folder. Called on resume, before the run continues; returns the counts refilled."""
+        import math
+        from pathlib import Path
+
+        from coadapt_core.errors import UserError
+        from coadapt_core.validation import inside
+
+        folder = Path(run_dir)
+        have = {(e.outer, e.inner, e.kind, e.idx) for e in self.store.evaluations(run_id)}
+
+        def number(value: Any) -> float:
+            return math.nan if value is None else float(value)
+
+        rows = [
+            {**r, "costs": {k: number(v) for k, v in (r.get("costs") or {}).items()},
+             "surrogate_error": None if r.get("surrogate_error") is None
+             else {k: number(v) for k, v in r["surrogate_error"].items()}}
+            for r in read_evaluations(folder)
+            if (int(r["outer"]), int(r["inner"]), str(r["kind"]), int(r["idx"])) not in have
+        ]
+        self.store.record_evaluations(run_id, rows)
+        trained = {int(t["outer"]) for t in self.store.training(run_id)}
+        per_outer: dict[int, int] = defaultdict(int)
+        refilled_training = 0
+        for t in read_jsonl(folder / "trainings.jsonl"):
+            outer = int(t["outer"])
+            if outer in trained:
+                continue
+            self.store.record_training(run_id, outer=outer, idx=per_outer[outer], steps=int(t["steps"]),
+                                       seconds=float(t["seconds"]), final_reward=t.get("mean_reward"),
+                                       extra=t.get("extra") or {})
+            per_outer[outer] += 1
+            refilled_training += 1
+        known = {(c["outer"], c["path"]) for c in self.store.checkpoints(run_id)}
+        refilled_checkpoints = 0
+        for c in read_jsonl(folder / "checkpoints.jsonl"):
+            parts = Path(str(c.get("path", ""))).parts[-2:]  # checkpoints/<file>, wherever the folder was
+            try:  # a path read from a file is used only inside the run folder
+                path = str(inside(folder, Path(*parts), field="checkpoint")) if parts else None
+            except UserError:
+                path = None
+            if path is None:
+                continue
+            if (int(c["outer"]), path) not in known:
+                self.store.record_checkpoint(run_id, outer=int(c["outer"]), path=path)
+                refilled_checkpoints += 1
+        return {"evaluations": len(rows), "training_phases": refilled_training, "checkpoints": refilled_checkpoints}
+
+    def finish(self, run_id: str, summary: dict[str, Any], status: str = "finished") -> None:
+        self.store.finish_run(run_id, summary, status)
+        if self.tee is not None:
+            self.tee.finish(run_id, summary, status)

@@ -9,6 +9,7 @@ the batch it was interrupted in) replaces the row instead of duplicating it.
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 import time
@@ -22,6 +23,7 @@ import sqlalchemy as sa
 
 from coadapt_core import __version__
 from coadapt_core.errors import UserError
+from coadapt_core.io import jsonable
 
 #: environment variable naming the store (a path or an SQLAlchemy URL)
 ENV_STORE = "COADAPT_STORE"
@@ -204,18 +206,8 @@ def code_commit() -> str | None:
 
 
 def _dumps(value: Any) -> str:
-    return json.dumps(value, default=_json_default, sort_keys=True)
-
-
-def _json_default(value: Any) -> Any:
-    # numpy scalars and arrays, paths and dataclass-like configs end up in run configs
-    if hasattr(value, "tolist"):
-        return value.tolist()
-    if isinstance(value, os.PathLike):
-        return os.fspath(value)
-    if hasattr(value, "__dict__"):
-        return vars(value)
-    return str(value)
+    # numpy scalars and arrays, paths and dataclass configs end up in run configs; NaN costs stay NaN
+    return json.dumps(jsonable(value, nan=math.nan), default=str, sort_keys=True)
 
 
 def _loads(text: str | None) -> Any:

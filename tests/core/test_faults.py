@@ -183,8 +183,8 @@ def test_checkpoint_write_on_a_full_disk_leaves_no_partial_file(tmp_path, monkey
 
     monkeypatch.setattr(torch, "save", save)
     target = tmp_path / "model.pt"
-    with pytest.raises(OSError):
-        trainer_module._save_atomic({"x": 1}, target)
+    with pytest.raises(UserError, match=r"disk full writing .*model\.pt"):
+        trainer_module.write_atomic(target, lambda tmp: torch.save({"x": 1}, tmp))
     assert list(tmp_path.iterdir()) == []
     from coadapt_core.cli.common import os_error_line
 

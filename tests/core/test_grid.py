@@ -26,7 +26,7 @@ def fake_run(argv: list[str]) -> int:
     """A stand-in for `coadapt run ... --json`: 2 outer x 2 inner batches of 3 real
     evaluations of an analytic cost; saves its position after every batch in its run folder
     and continues from it with --resume, like the real loop. FAKE_CRASH_AT=<cell>:<n> makes
-    the cell die after n evaluations (once: a marker file records it)."""
+    the cell die after n batches (once: a marker file records it)."""
     from coadapt_core.fitness import TrainingResult
     from coadapt_core.results import SqliteRecorder
 
@@ -61,14 +61,12 @@ def fake_run(argv: list[str]) -> int:
             continue
         if inner == 0:
             rec.record_training(run_id, outer=outer, result=TrainingResult(steps=2000, seconds=0.5, mean_reward=0.1 * b))
-        for d in designs:
-            cost = float(((d - opt) ** 2).sum())
-            rec.record_evaluation(run_id, outer=outer, inner=inner, design=d, costs={args.objective: cost},
-                                  kind="real", interactions=300, seconds=0.01)
-            count += 1
-            if crash_cell == os.environ.get("COADAPT_GRID_CELL") and count == int(crash_n or 0) and not marker.exists():
-                marker.write_text("x")
-                os._exit(9)
+        rec.record_evaluations(run_id, outer=outer, inner=inner, designs=designs, kind="real", interactions=300, seconds=0.01,
+                               costs=[{args.objective: float(((d - opt) ** 2).sum())} for d in designs])
+        count += 1
+        if crash_cell == os.environ.get("COADAPT_GRID_CELL") and count == int(crash_n or 0) and not marker.exists():
+            marker.write_text("x")
+            os._exit(9)  # after recording batch `count`, before saving the state that says so
         state_file.write_text(json.dumps({"done": b + 1}))
     real = rec.store.evaluations(run_id, kind="real")
     i = int(np.argmin([e.costs[args.objective] for e in real]))
@@ -142,11 +140,11 @@ def test_killed_cell_is_resumed_without_losing_or_duplicating_evaluations(tmp_pa
     store = ResultsStore(tmp_path / "g.db")
     spec = _spec(methods=["ours"])
     (cell,) = spec.cells()
-    monkeypatch.setenv("FAKE_CRASH_AT", f"{cell.key}:5")  # dies in the middle of batch 1 (3 + 2)
+    monkeypatch.setenv("FAKE_CRASH_AT", f"{cell.key}:2")  # dies after batch 1 is recorded, before its state is saved
     first = run_grid(spec, store, workers=1, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
     assert first.failed == [cell.key]
     (run,) = store.list_runs(cell=cell.key)
-    assert run["status"] == "interrupted" and store.count_evaluations(run["id"]) == 5
+    assert run["status"] == "interrupted" and store.count_evaluations(run["id"]) == 6
     assert store.cells(spec.grid_id)[cell.key]["status"] == "failed"
     tasks, skipped = plan_grid(store, spec, out_dir=str(tmp_path / "runs"))
     assert not skipped and tasks[0].resume == run["id"] and tasks[0].argv[-3:] == ["--resume", run["id"], "--json"]
@@ -156,7 +154,7 @@ def test_killed_cell_is_resumed_without_losing_or_duplicating_evaluations(tmp_pa
     (resumed,) = store.list_runs(cell=cell.key)  # the same run, continued
     assert resumed["id"] == run["id"] and resumed["status"] == "finished"
     rows = store.evaluations(run["id"])
-    assert len(rows) == 12  # batch 1 redone: its 2 early rows replaced, not duplicated
+    assert len(rows) == 12  # batch 1 redone: its 3 rows replaced, not duplicated
     assert len({(e.outer, e.inner, e.idx) for e in rows}) == 12
     assert store.cells(spec.grid_id)[cell.key]["attempts"] == 2
 

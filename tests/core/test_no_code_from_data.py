@@ -176,8 +176,8 @@ def test_store_checkpoint_rows_outside_the_run_folder_are_ignored(tmp_path, caps
     run_dir.mkdir(parents=True)
     rec.store.create_run({"method": "ours", "objective": "torque", "terrain": "flat", "seed": 0, "preset": "smoke",
                           "sim": "mujoco", "robot": "kuafu", "optimizer": "pso"}, run_id="r8", run_dir=str(run_dir))
-    rec.record_evaluation("r8", outer=0, inner=0, design=[1.0, 1.0], costs={"torque": 1.0}, kind="real",
-                          interactions=10, seconds=0.1)
+    rec.record_evaluations("r8", outer=0, inner=0, designs=[[1.0, 1.0]], costs=[{"torque": 1.0}], kind="real",
+                           interactions=10, seconds=0.1)
     rec.store.record_checkpoint("r8", outer=0, path=str(evil))
     rec.store.finish_run("r8", {"run_id": "r8", "best_design": [1.0, 1.0], "best_cost": 1.0, "nominal_cost": 1.1,
                                 "improvement": 0.1})

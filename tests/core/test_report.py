@@ -82,13 +82,12 @@ def record_run(rec: SqliteRecorder, method: str, seed: int, *, objectives=("torq
         for inner in range(2):
             designs = rng.uniform(0.5, 1.5, size=(4, 2))
             real = analytic_cost(designs)
-            for d, c in zip(designs, real, strict=True):
-                costs = {o: float(c) * (1 + i) for i, o in enumerate(objectives)}
-                rec.record_evaluation(run_id, outer=outer, inner=inner, design=d, costs=costs, kind="real",
-                                      interactions=1000, seconds=0.5, surrogate_error={objectives[0]: 0.1 * (d[0] - 1)})
-            for d in rng.uniform(0.5, 1.5, size=(1, 2)):
-                rec.record_evaluation(run_id, outer=outer, inner=inner, design=d, costs={objectives[0]: 1.0},
-                                      kind="surrogate", interactions=0, seconds=0.05)
+            rec.record_evaluations(run_id, outer=outer, inner=inner, designs=designs, kind="real",
+                                   costs=[{o: float(c) * (1 + i) for i, o in enumerate(objectives)} for c in real],
+                                   interactions=1000, seconds=0.5,
+                                   surrogate_errors=[{objectives[0]: 0.1 * (d[0] - 1)} for d in designs])
+            rec.record_evaluations(run_id, outer=outer, inner=inner, designs=rng.uniform(0.5, 1.5, size=(1, 2)),
+                                   costs=[{objectives[0]: 1.0}], kind="surrogate", interactions=0, seconds=0.05)
         if checkpoint is not None:
             rec.record_checkpoint(run_id, outer=outer, path=str(checkpoint))
     real = rec.store.evaluations(run_id, kind="real")

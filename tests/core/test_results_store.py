@@ -47,11 +47,12 @@ def test_round_trip_of_runs_evaluations_training_and_checkpoints(tmp_path):
     run_id = rec.start_run(CONFIG)
     rng = np.random.default_rng(0)
     designs = rng.uniform(0.5, 1.5, size=(6, 2))
-    for i, d in enumerate(designs):
-        rec.record_evaluation(run_id, outer=0, inner=i // 3, design=d, costs={"torque": _cost(d)}, kind="real",
-                              interactions=500, seconds=0.25)
-    rec.record_evaluation(run_id, outer=0, inner=2, design=designs[0], costs={"torque": 0.5}, kind="surrogate",
-                          interactions=0, seconds=0.01, surrogate_error={"torque": 0.125})
+    for inner in range(2):
+        batch = designs[3 * inner : 3 * inner + 3]
+        rec.record_evaluations(run_id, outer=0, inner=inner, designs=batch, costs=[{"torque": _cost(d)} for d in batch],
+                               kind="real", interactions=500, seconds=0.25)
+    rec.record_evaluations(run_id, outer=0, inner=2, designs=designs[:1], costs=[{"torque": 0.5}], kind="surrogate",
+                           interactions=[0], seconds=[0.01], surrogate_errors=[{"torque": 0.125}])
     rec.record_training(run_id, outer=0, result=TrainingResult(steps=12_000, seconds=4.5, mean_reward=1.25, extra={"kl": 0.01}))
     rec.record_checkpoint(run_id, outer=0, path="/tmp/ckpt-0.pt")
     rec.finish(run_id, {"best_cost": 0.02, "best_design": [0.7, 0.6]})
@@ -82,22 +83,22 @@ def test_sqlite_store_is_in_wal_mode(tmp_path):
 
 
 def test_redone_batch_on_resume_replaces_rows_instead_of_duplicating(tmp_path):
-    """A run interrupted in the middle of batch (1, 0) is resumed by a new process, which
-    redoes that batch from its start: the store ends with each design once."""
+    """A run recorded batch (1, 0), then was interrupted before it finished; a new process
+    resumes it and redoes batch (1, 0) (the loop's state predates it): the store ends with
+    each design once."""
     first = SqliteRecorder(tmp_path / "r.db")
     run_id = first.start_run(CONFIG)
     batch0 = np.array([[0.6, 0.6], [0.8, 0.9], [1.2, 1.1]])
     batch1 = np.array([[0.7, 0.65], [0.75, 0.6], [0.9, 0.8]])
-    for d in batch0:
-        first.record_evaluation(run_id, outer=0, inner=0, design=d, costs={"torque": _cost(d)}, kind="real", interactions=10, seconds=0.1)
-    for d in batch1[:2]:  # crash after two of the three designs of the second batch
-        first.record_evaluation(run_id, outer=1, inner=0, design=d, costs={"torque": _cost(d)}, kind="real", interactions=10, seconds=0.1)
-    assert first.store.count_evaluations(run_id) == 5
+    for outer, batch in ((0, batch0), (1, batch1)):
+        first.record_evaluations(run_id, outer=outer, inner=0, designs=batch, costs=[{"torque": _cost(d)} for d in batch],
+                                 kind="real", interactions=10, seconds=0.1)
+    assert first.store.count_evaluations(run_id) == 6
 
-    resumed = SqliteRecorder(tmp_path / "r.db")  # new process: fresh counters
+    resumed = SqliteRecorder(tmp_path / "r.db")  # new process
     assert resumed.start_run({**CONFIG, "run_id": run_id}) == run_id
-    for d in batch1:
-        resumed.record_evaluation(run_id, outer=1, inner=0, design=d, costs={"torque": _cost(d)}, kind="real", interactions=10, seconds=0.1)
+    resumed.record_evaluations(run_id, outer=1, inner=0, designs=batch1, costs=[{"torque": _cost(d)} for d in batch1],
+                               kind="real", interactions=10, seconds=0.1)
     resumed.finish(run_id, {"best_cost": _cost(batch1[0])})
     rows = resumed.store.evaluations(run_id)
     assert len(rows) == 6
@@ -114,19 +115,19 @@ def _crashing_run(db: str, crash_after: int, queue) -> None:
     for outer in range(2):
         rec.record_training(run_id, outer=outer, result=TrainingResult(steps=1000, seconds=1.0, mean_reward=0.5))
         for inner in range(3):
-            for k in range(4):
-                d = [0.5 + 0.1 * k, 0.5 + 0.1 * inner]
-                rec.record_evaluation(run_id, outer=outer, inner=inner, design=d, costs={"torque": _cost(d)},
-                                      kind="real", interactions=100, seconds=0.01)
-                n += 1
-                if n == crash_after:
-                    os._exit(9)  # no cleanup, no flush: a killed process
+            batch = [[0.5 + 0.1 * k, 0.5 + 0.1 * inner] for k in range(4)]
+            rec.record_evaluations(run_id, outer=outer, inner=inner, designs=batch, costs=[{"torque": _cost(d)} for d in batch],
+                                   kind="real", interactions=100, seconds=0.01)
+            n += 1
+            if n == crash_after:
+                os._exit(9)  # no cleanup, no flush: a killed process
 
 
-@pytest.mark.parametrize("crash_after", [5, 12, 13])
+@pytest.mark.parametrize("crash_after", [1, 3, 4])
 def test_crash_loses_no_recorded_evaluation(tmp_path, crash_after):
-    """Killed between evaluations (5: mid-batch; 12: at the end of outer iteration 0, before
-    the second training phase; 13: after it), everything recorded before survives."""
+    """Killed between evaluation batches of 4 designs (1: mid outer iteration; 3: at the end
+    of outer iteration 0, before the second training phase; 4: after it), everything
+    recorded before survives."""
     ctx = multiprocessing.get_context("fork")
     queue = ctx.Queue()
     proc = ctx.Process(target=_crashing_run, args=(str(tmp_path / "c.db"), crash_after, queue))
@@ -135,8 +136,8 @@ def test_crash_loses_no_recorded_evaluation(tmp_path, crash_after):
     proc.join(timeout=60)
     assert proc.exitcode == 9
     store = ResultsStore(tmp_path / "c.db")
-    assert store.count_evaluations(run_id) == crash_after
-    assert len(store.training(run_id)) == (1 if crash_after <= 12 else 2)
+    assert store.count_evaluations(run_id) == 4 * crash_after
+    assert len(store.training(run_id)) == (1 if crash_after <= 3 else 2)
     assert store.get_run(run_id)["status"] == "running"  # never finished: the grid resumes it
 
 
@@ -145,9 +146,10 @@ def test_export_csv_matches_store(tmp_path):
     run_id = rec.start_run(CONFIG)
     other = rec.start_run({**CONFIG, "seed": 4})
     designs = [[0.6, 0.7], [1.1, 0.9]]
-    for d in designs:
-        rec.record_evaluation(run_id, outer=0, inner=0, design=d, costs={"torque": _cost(d)}, kind="real", interactions=7, seconds=0.5)
-        rec.record_evaluation(other, outer=0, inner=0, design=d, costs={"torque": 9.0}, kind="real", interactions=7, seconds=0.5)
+    rec.record_evaluations(run_id, outer=0, inner=0, designs=designs, costs=[{"torque": _cost(d)} for d in designs],
+                           kind="real", interactions=7, seconds=0.5)
+    rec.record_evaluations(other, outer=0, inner=0, designs=designs, costs=[{"torque": 9.0}] * 2, kind="real",
+                           interactions=7, seconds=0.5)
     rec.record_training(run_id, outer=0, result=TrainingResult(steps=99, seconds=1.5, mean_reward=0.25))
     rec.finish(run_id, {"best_cost": 0.02})
     written = export_tables(rec.store, tmp_path / "out", fmt="csv", run_ids=[run_id])
@@ -217,8 +219,8 @@ def test_make_recorder_tees_json_files_into_the_store_beside_the_runs_folder(tmp
     rec = make_recorder(run_dir)
     assert isinstance(rec, SqliteRecorder) and rec.url == f"sqlite:///{tmp_path / 'coadapt.db'}"
     assert rec.start_run(CONFIG) == "r1"  # the JSON recorder names the run after its folder
-    rec.record_evaluation("r1", outer=0, inner=0, design=[1.0, 1.0], costs={"torque": 2.0}, kind="real",
-                          interactions=5, seconds=0.1)
+    rec.record_evaluations("r1", outer=0, inner=0, designs=[[1.0, 1.0]], costs=[{"torque": 2.0}], kind="real",
+                           interactions=5, seconds=0.1)
     rec.record_checkpoint("r1", outer=0, path="runs/r1/ckpt.pt")
     assert (run_dir / "evaluations.jsonl").read_text().count("\n") == 1
     store = ResultsStore(tmp_path / "coadapt.db")
@@ -233,8 +235,8 @@ def _open_and_record(db: str, n: int) -> None:
     rec = SqliteRecorder(db)
     run_id = rec.start_run({**CONFIG, "seed": n})
     for i in range(20):
-        rec.record_evaluation(run_id, outer=0, inner=i, design=[1.0, 1.0], costs={"torque": float(i)}, kind="real",
-                              interactions=1, seconds=0.0)
+        rec.record_evaluations(run_id, outer=0, inner=i, designs=[[1.0, 1.0]], costs=[{"torque": float(i)}], kind="real",
+                               interactions=1, seconds=0.0)
     rec.finish(run_id, {"n": n})
 
 
