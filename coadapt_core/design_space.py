@@ -16,6 +16,35 @@ import numpy as np
 from coadapt_core.errors import DesignError, UserError
 
 
+def parse_numbers(text: str, *, what: str) -> list[float]:
+    """'1.2, 0.8,2' -> [1.2, 0.8, 2.0]; a `DesignError` naming `what` (e.g. "design '1,x' must
+    be 2 comma-separated numbers (thigh_scale, shank_scale)") otherwise."""
+    try:
+        return [float(p) for p in (p.strip() for p in str(text).split(",")) if p]
+    except ValueError:
+        raise DesignError(what, field="design") from None
+
+
+def parse_range_pairs(text: str, *, field: str = "design_ranges") -> list[tuple[float, float]]:
+    """'0.5:1.5,0.6:1.2' -> [(0.5, 1.5), (0.6, 1.2)]; malformed, infinite or inverted ranges
+    are one-line user errors naming `field`."""
+    out = []
+    for part in [p.strip() for p in str(text).split(",") if p.strip()]:
+        try:
+            lo_s, hi_s = part.split(":")
+            lo, hi = float(lo_s), float(hi_s)
+        except ValueError:
+            raise UserError(f"design range '{part}' must look like low:high, e.g. 0.5:1.5", field=field) from None
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            raise UserError(f"design range '{part}' must have finite bounds", field=field)
+        if lo > hi:
+            raise UserError(
+                f"design range '{part}' has inverted bounds; the lower bound must not exceed the upper", field=field
+            )
+        out.append((lo, hi))
+    return out
+
+
 @dataclass(frozen=True)
 class Continuous:
     """A real variable in [low, high]."""
@@ -173,15 +202,8 @@ class DesignSpace:
 
     def parse(self, text: str) -> np.ndarray:
         """Parse '1.2,0.8[,2,3]' into a validated design."""
-        parts = [p.strip() for p in str(text).split(",") if p.strip() != ""]
-        try:
-            values = [float(p) for p in parts]
-        except ValueError:
-            raise DesignError(
-                f"design '{text}' must be {self.dim} comma-separated numbers ({', '.join(self.names)})",
-                field="design",
-            ) from None
-        return self.validate(values)
+        what = f"design '{text}' must be {self.dim} comma-separated numbers ({', '.join(self.names)})"
+        return self.validate(parse_numbers(text, what=what))
 
     def format(self, design: Iterable[float]) -> str:
         out = []
@@ -238,8 +260,8 @@ class DesignSpace:
         self,
         points: np.ndarray,
         *,
-        margin: float = 0.25,
-        min_width_fraction: float = 0.1,
+        margin: float,
+        min_width_fraction: float,
         reference: DesignSpace | None = None,
     ) -> DesignSpace:
         """The design range for the next outer iteration, around the final particles.
@@ -247,6 +269,7 @@ class DesignSpace:
         Rule (ours; the paper does not give one): per continuous variable, take the span
         [min, max] of the points, widen it by `margin` times that span on each side, make it
         at least `min_width_fraction` of the width of `reference` (default: this space)
+        (a run's `narrow_margin` and `narrow_min_width`, coadapt_core/coadapt/config.py)
         centred on the points' mean, and clip to this space's bounds. A discrete variable
         keeps the choices that some point uses. The result is always inside `self`.
         """
@@ -307,25 +330,14 @@ class DesignSpace:
                 variables.append(var)
         return DesignSpace(variables)
 
-    def parse_ranges(self, text: str) -> DesignSpace:
+    def parse_ranges(self, text: str, *, field: str = "designs") -> DesignSpace:
         """Parse '0.5:1.5,0.5:1.0' (one low:high per continuous variable, in order)."""
         cont = [v for v in self.variables if isinstance(v, Continuous)]
-        parts = [p.strip() for p in str(text).split(",") if p.strip()]
-        if len(parts) != len(cont):
+        pairs = parse_range_pairs(text, field=field)
+        if len(pairs) != len(cont):
             raise UserError(
                 f"design ranges '{text}' need one low:high per continuous variable "
                 f"({', '.join(v.name for v in cont)})",
-                field="designs",
+                field=field,
             )
-        bounds: dict[str, tuple[float, float]] = {}
-        for part, var in zip(parts, cont, strict=True):
-            try:
-                lo_s, hi_s = part.split(":")
-                bounds[var.name] = (float(lo_s), float(hi_s))
-            except ValueError:
-                raise UserError(
-                    f"design range '{part}' for '{var.name}' must look like low:high, e.g. "
-                    f"{var.low:g}:{var.high:g}",
-                    field="designs",
-                ) from None
-        return self.with_bounds(bounds)
+        return self.with_bounds({var.name: pair for var, pair in zip(cont, pairs, strict=True)})

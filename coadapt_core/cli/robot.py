@@ -37,20 +37,18 @@ def load_robot(name: str) -> Any:
 def parse_design(robot: Any, text: str | None) -> np.ndarray:
     """`text` as a design of the robot's continuous or mixed space (picked by arity), or the
     nominal design when `text` is None. Raises `DesignError` (one line) otherwise."""
+    from coadapt_core.design_space import parse_numbers
+
     if text is None:
         return robot.nominal_design()
     plain, mixed = robot.design_space(False), robot.design_space(True)
-    parts = [p.strip() for p in text.split(",") if p.strip()]
     spaces = [plain] if plain.dim == mixed.dim else [plain, mixed]
     expected = " or ".join(f"{s.dim} values ({', '.join(s.names)})" for s in spaces)
-    try:
-        values = np.array([float(p) for p in parts])
-    except ValueError:
-        raise DesignError(f"--design '{text}' must be comma-separated numbers: {expected}", field="design") from None
+    values = parse_numbers(text, what=f"--design '{text}' must be comma-separated numbers: {expected}")
     for space in spaces:
-        if values.shape[0] == space.dim:
+        if len(values) == space.dim:
             return space.validate(values)
-    raise DesignError(f"--design '{text}' has {values.shape[0]} values; {robot.name} takes {expected}", field="design")
+    raise DesignError(f"--design '{text}' has {len(values)} values; {robot.name} takes {expected}", field="design")
 
 
 def describe(robot: Any, design: np.ndarray, validate: bool = True) -> dict:

@@ -5,7 +5,6 @@ Precedence: CLI option > YAML key > preset > declared default."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import fields
 from pathlib import Path
@@ -13,6 +12,7 @@ from typing import Any, Literal
 
 from pydantic import field_validator
 
+from coadapt_core.design_space import parse_range_pairs
 from coadapt_core.errors import UserError
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.physics.randomization import RANDOMIZATION_PRESETS, RandomizationConfig
@@ -174,7 +174,7 @@ class CoadaptConfig:
     @field_validator("design_ranges")
     @classmethod
     def _ranges(cls, value: str) -> str:
-        parse_ranges(value)
+        parse_range_pairs(value, field="design_ranges")
         return value
 
     # -----------------------------------------------------------------------------------------
@@ -209,28 +209,6 @@ class CoadaptConfig:
                             field="evaluation_policy")
         _learner_settings(self, None)  # the sections' keys applied over the defaults: checked together
         return self
-
-
-def parse_ranges(text: str) -> list[tuple[float, float]]:
-    """'0.5:1.5,0.6:1.2' -> [(0.5, 1.5), (0.6, 1.2)]; inverted or malformed ranges are user errors."""
-    out = []
-    for part in [p.strip() for p in str(text).split(",") if p.strip()]:
-        try:
-            lo_s, hi_s = part.split(":")
-            lo, hi = float(lo_s), float(hi_s)
-        except ValueError:
-            raise UserError(
-                f"design range '{part}' must look like low:high, e.g. 0.5:1.5", field="design_ranges"
-            ) from None
-        if not (math.isfinite(lo) and math.isfinite(hi)):
-            raise UserError(f"design range '{part}' must have finite bounds", field="design_ranges")
-        if lo > hi:
-            raise UserError(
-                f"design range '{part}' has inverted bounds; the lower bound must not exceed the upper",
-                field="design_ranges",
-            )
-        out.append((lo, hi))
-    return out
 
 
 FIELD_NAMES = tuple(f.name for f in fields(CoadaptConfig))
@@ -417,4 +395,4 @@ def config_from_dict(data: dict[str, Any]) -> CoadaptConfig:
     return CoadaptConfig(**known).validate()
 
 
-__all__ = ["FIELD_NAMES", "METHODS", "PRESETS", "CoadaptConfig", "config_from_dict", "make_config", "parse_ranges"]
+__all__ = ["FIELD_NAMES", "METHODS", "PRESETS", "CoadaptConfig", "config_from_dict", "make_config"]

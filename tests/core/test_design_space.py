@@ -75,7 +75,7 @@ def test_narrow_around_points_stays_inside(mixed):
 
 def test_narrow_enforces_minimum_width_at_bound(mixed):
     pts = np.array([[0.5, 1.5, 1], [0.5, 1.5, 1]])
-    narrowed = mixed.narrow(pts, min_width_fraction=0.2)
+    narrowed = mixed.narrow(pts, margin=0.25, min_width_fraction=0.2)
     thigh, shank, _ = narrowed.variables
     assert (thigh.low, thigh.high) == pytest.approx((0.5, 0.7))
     assert (shank.low, shank.high) == pytest.approx((1.3, 1.5))
@@ -83,7 +83,7 @@ def test_narrow_enforces_minimum_width_at_bound(mixed):
 
 def test_narrow_rejects_empty_points(mixed):
     with pytest.raises(UserError):
-        mixed.narrow(np.zeros((0, 3)))
+        mixed.narrow(np.zeros((0, 3)), margin=0.25, min_width_fraction=0.1)
 
 
 def test_parse_ranges_and_dict_round_trip(mixed):

@@ -54,18 +54,6 @@ class Kuafu(Robot):
             )
         return self.design_space(values.shape[0] == 4).validate(values)
 
-    def parse_design(self, text: str) -> np.ndarray:
-        """'1.2,0.8' or '1.2,0.8,2,3' -> a validated design."""
-        parts = [p.strip() for p in str(text).split(",") if p.strip()]
-        try:
-            values = [float(p) for p in parts]
-        except ValueError:
-            raise DesignError(
-                f"design '{text}' must be comma-separated numbers: thigh_scale,shank_scale[,hip_motor,knee_motor]",
-                field="design",
-            ) from None
-        return self.check_design(np.array(values))
-
     def build(self, design: np.ndarray) -> RobotModel:
         values = self.check_design(design)
         if values.shape[0] == 4:
