@@ -29,8 +29,6 @@ KNOWN_CYCLES: dict[frozenset[str], str] = {
         "the bo-specialized method's branches (the method registry removes it)",
     frozenset({"coadapt_core.analysis.report", "coadapt_core.analysis.surrogate_figure"}):
         "the surrogate figure borrows the report's plotting helpers",
-    frozenset({"coadapt_core.cli.train", "coadapt_core.viz.video"}):
-        "the run's video rolls out with the eval command's evaluate_checkpoint",
 }
 
 

@@ -7,8 +7,6 @@ order of the robot's continuous or mixed design space; the nominal design when l
 from __future__ import annotations
 
 import json
-import os
-import subprocess
 import sys
 from pathlib import Path
 from typing import Any
@@ -25,8 +23,6 @@ app = typer.Typer(help="Inspect, export, validate and render robot designs.", no
 DESIGN_HELP = "Design values, comma-separated in the order of the robot's design space (e.g. 1.2,0.8 or 1.2,0.8,2,3 for kuafu). Default: the nominal design."
 #: exit code of `validate` for a design that fails a check
 EXIT_INFEASIBLE = 1
-#: GL backends tried in turn for offscreen rendering (MUJOCO_GL), unless MUJOCO_GL is set
-GL_BACKENDS = ("egl", "osmesa")
 
 
 def load_robot(name: str) -> Any:
@@ -209,56 +205,6 @@ def validate_command(
 
 
 # -- render ----------------------------------------------------------------------------------
-def render_png(mjcf: str, qpos_joints: list[float], base_height: float, output: str, width: int, height: int) -> None:
-    """Draw the robot at the given pose, standing on a checker floor, into a PNG. Runs in a
-    fresh interpreter (see `render_command`) because MuJoCo picks its GL backend from
-    MUJOCO_GL when it is first imported."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.image
-    import mujoco
-
-    spec = mujoco.MjSpec.from_string(mjcf)
-    texture = spec.add_texture(name="grid", type=mujoco.mjtTexture.mjTEXTURE_2D, builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
-                               rgb1=[0.82, 0.84, 0.86], rgb2=[0.68, 0.7, 0.72], width=256, height=256)
-    material = spec.add_material(name="grid", texrepeat=[8, 8], reflectance=0.05)
-    material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = texture.name
-    floor = spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[4, 4, 0.05], material="grid")
-    floor.contype, floor.conaffinity = 0, 0
-    spec.worldbody.add_light(pos=[1.5, -1.5, 3.5], dir=[-0.4, 0.4, -1], diffuse=[0.8, 0.8, 0.8])
-    spec.worldbody.add_light(pos=[-2, 2, 3], dir=[0.5, -0.5, -1], diffuse=[0.4, 0.4, 0.4])
-    model = spec.compile()
-    model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
-    model.vis.global_.offheight = max(model.vis.global_.offheight, height)
-    data = mujoco.MjData(model)
-    data.qpos[2] = base_height
-    data.qpos[3:7] = [1, 0, 0, 0]
-    data.qpos[7 : 7 + len(qpos_joints)] = qpos_joints
-    mujoco.mj_forward(model, data)
-    camera = mujoco.MjvCamera()
-    top = float(max(data.geom_xpos[:, 2].max(), base_height))
-    camera.lookat[:] = [0.0, 0.0, 0.5 * top]
-    camera.distance = 1.4 + 1.6 * top
-    camera.azimuth, camera.elevation = 140.0, -12.0
-    options = mujoco.MjvOption()
-    options.geomgroup[:] = 1  # collision shapes and visual-only geoms
-    with mujoco.Renderer(model, height, width) as renderer:
-        renderer.update_scene(data, camera=camera, scene_option=options)
-        pixels = renderer.render()
-    matplotlib.image.imsave(output, pixels)
-
-
-def _render_in_subprocess(payload: dict, backend: str) -> subprocess.CompletedProcess:
-    env = dict(os.environ, MUJOCO_GL=backend, PYOPENGL_PLATFORM=backend)
-    code = (
-        "import json, sys\n"
-        "from coadapt_core.cli.robot import render_png\n"
-        "render_png(**json.loads(sys.stdin.read()))\n"
-    )
-    return subprocess.run([sys.executable, "-c", code], input=json.dumps(payload), capture_output=True, text=True, env=env, timeout=300)
-
-
 @app.command("render")
 def render_command(
     robot: str = typer.Argument(..., help="Registered robot name."),
@@ -291,15 +237,12 @@ def render_command(
         "width": width,
         "height": height,
     }
-    backends = [os.environ["MUJOCO_GL"]] if os.environ.get("MUJOCO_GL") else list(GL_BACKENDS)
-    errors = []
-    for backend in backends:
-        result = _render_in_subprocess(payload, backend)
-        if result.returncode == 0:
-            print(f"wrote {output} ({width} x {height}, MUJOCO_GL={backend})", file=sys.stderr)
-            return
-        last = (result.stderr.strip().splitlines() or ["no output"])[-1]
-        errors.append(f"{backend}: {last}")
+    from coadapt_core.viz.video import offscreen
+
+    backend, errors = offscreen("render_pose_png", payload, timeout=300)
+    if backend is not None:
+        print(f"wrote {output} ({width} x {height}, MUJOCO_GL={backend})", file=sys.stderr)
+        return
     fail(
         "offscreen rendering failed (" + "; ".join(errors) + "); install an EGL or OSMesa GL "
         "library, e.g. apt-get install -y libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 (EGL) or libosmesa6 (OSMesa)",

@@ -10,9 +10,7 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import shutil
-import subprocess
 import sys
 from pathlib import Path
 from typing import Any
@@ -347,6 +345,8 @@ def register(app: typer.Typer) -> None:
                     f"robot '{robot}' ships no policy for terrain '{terrain}' and the {space} design space; "
                     f"pass --checkpoint (e.g. one `coadapt train --robot {robot} --terrain {terrain}` wrote)"
                 )
+        from coadapt_core.experiments.evaluate import evaluate_checkpoint
+
         with ProgressLine("eval", None, unit=" steps", enabled=not as_json) as bar:
             result = evaluate_checkpoint(
                 checkpoint, robot_obj, sim_cls, design_values, terrain=terrain, command=values, agents=agents,
@@ -367,175 +367,9 @@ def register(app: typer.Typer) -> None:
                 table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
             Console().print(table)
         if video is not None:
-            write_video(robot_obj, design_values, trajectory, video)
+            from coadapt_core.viz.video import write_rollout_video
 
-
-def _mean_se(values: Any) -> float:
-    import numpy as np
-
-    v = np.asarray(values, dtype=float)
-    return float(v.std(ddof=1) / np.sqrt(len(v))) if len(v) > 1 else 0.0
-
-
-def evaluate_checkpoint(
-    checkpoint: Path | str,
-    robot_obj: Any,
-    sim_cls: type,
-    design: Any,
-    *,
-    terrain: str,
-    command: list[float],
-    agents: int,
-    seconds: float,
-    device: str = "cpu",
-    seed: int = 0,
-    randomize: bool = True,
-    record: bool = False,
-    progress: Any = None,
-) -> dict[str, Any]:
-    """Survival, mean forward speed and costs of a policy on one design under a fixed
-    command (the policy mean; falls auto-reset but count against survival)."""
-    import numpy as np
-    import torch
-
-    from coadapt_core.fitness import scenario_seed
-    from coadapt_core.learning import TrainConfig, Trainer, read_checkpoint
-    from coadapt_core.learning.evaluate import rollout
-    from coadapt_core.learning.scenarios import apply_scenarios
-    from coadapt_core.physics.randomization import RandomizationConfig
-    from coadapt_core.plugins import get_registry
-    from coadapt_core.task import LocomotionEnv, TaskConfig
-
-    state = read_checkpoint(checkpoint)
-    if state["robot"] != robot_obj.name:
-        raise UserError(f"checkpoint '{checkpoint}' was trained for robot '{state['robot']}', not '{robot_obj.name}'", field="checkpoint")
-    registry = get_registry()
-    metric_names = ["tracking", "power", "torque"]
-    objectives = [registry.get("objective", n)() for n in metric_names]
-    config = TrainConfig.from_dict(state["train_config"])
-    config.device = device
-    task = TaskConfig.from_dict(state["task_config"])
-    task.commands.resample_seconds = 0.0
-    task.episode_seconds = seconds + 1.0
-    trainer = Trainer(robot_obj, sim_cls, objectives, terrain=terrain, train_config=config, task_config=task, device=device, seed=seed)
-    trainer.load(checkpoint, optimizers=False)
-    randomization = RandomizationConfig() if randomize else RandomizationConfig.off()
-    designs = np.tile(np.asarray(design, dtype=float), (agents, 1))
-    sim = sim_cls(robot_obj, designs, terrain=terrain, randomization=randomization, seed=seed)
-    env = LocomotionEnv(sim, robot_obj, task, objectives, seed=seed, device=device)
-    trainer.ensure_ppo(env)
-    # the scenario set of `seed` (as `coadapt run/landscape --seed`), under the given command
-    apply_scenarios(env, agents, 1, scenario_seed(seed), commands=torch.tensor(command, dtype=torch.float32).expand(agents, 3))
-    steps = max(1, int(round(seconds / env.dt)))
-    frames: list[dict] = []
-
-    def capture(e: LocomotionEnv) -> None:
-        s = e.state
-        frames.append({
-            "pos": s.base_pos[0].tolist(), "quat": s.base_quat[0].tolist(), "q": s.joint_pos[0].tolist(),
-        })
-
-    done = [0]
-    divergences = [0]  # agent-steps whose physics blew up (the simulator reset those agents)
-
-    def on_step(e: LocomotionEnv) -> None:
-        diverged = getattr(e.state, "diverged", None)
-        if diverged is not None:
-            divergences[0] += int(torch.as_tensor(diverged).sum())
-        if record:
-            capture(e)
-        done[0] += 1
-        if progress is not None:
-            progress(done[0], f"{agents} agents on one design, {seconds:g} s simulated", total=steps)
-
-    result = rollout(trainer.ppo, env, 1, steps, seed=seed, on_step=on_step)
-    sim.close()
-    out: dict[str, Any] = {
-        "robot": robot_obj.name,
-        "design": [float(x) for x in np.asarray(design, dtype=float)],
-        "survival": float(result.survival[0]),
-        "vx_mean": float(result.vx[0]),
-        "tracking_error": float(result.metrics[0, 0]),
-        "torque_cost": float(result.metrics[0, 2]),
-        "power_cost": float(result.metrics[0, 1]),
-        "vx_command": float(command[0]),
-        "foot_alternation": None if not math.isfinite(float(result.alternation[0])) else float(result.alternation[0]),
-        # standard errors of the three means over the agents (paired scenarios), fall rate
-        "tracking_error_se": _mean_se(result.per_agent[0, :, 0]),
-        "power_cost_se": _mean_se(result.per_agent[0, :, 1]),
-        "torque_cost_se": _mean_se(result.per_agent[0, :, 2]),
-        "fall_rate": float(1.0 - result.survival[0]),
-        "steps": int(result.steps),
-        "divergences": int(divergences[0]),
-        "dt": float(env.dt),
-    }
-    if record:
-        out["_trajectory"] = {"frames": frames, "dt": env.dt, "terrain": terrain}
-    return out
-
-
-def render_frames(mjcf: str, joint_names: list[str], frames: list[dict], output: str, width: int, height: int, fps: float) -> None:
-    """Replay base poses and joint angles in a MuJoCo model of the design, offscreen, into a
-    GIF (PIL) or MP4 (ffmpeg). Runs in a fresh interpreter: MUJOCO_GL is read at import."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import mujoco
-    import numpy as np
-    from PIL import Image
-
-    from coadapt_core.viz.video import camera_for, scene_model
-
-    model = scene_model(mjcf, width, height)
-    data = mujoco.MjData(model)
-    addresses = [model.jnt_qposadr[model.joint(name).id] for name in joint_names]
-
-    camera = mujoco.MjvCamera()
-    camera.azimuth, camera.elevation = 90.0, -10.0
-    images = []
-    with mujoco.Renderer(model, height, width) as renderer:
-        for frame in frames:
-            data.qpos[0:3] = frame["pos"]
-            data.qpos[3:7] = frame["quat"]
-            data.qpos[addresses] = frame["q"]
-            mujoco.mj_forward(model, data)
-            if camera.distance <= 0 or frame is frames[0]:  # framed by this robot's size, not a 1.6 m one
-                camera.distance, look_z = camera_for(model, data)
-            camera.lookat[:] = [frame["pos"][0], frame["pos"][1], look_z]
-            renderer.update_scene(data, camera=camera)
-            images.append(np.array(renderer.render()))
-    if output.endswith(".gif"):
-        pil = [Image.fromarray(im) for im in images]
-        pil[0].save(output, save_all=True, append_images=pil[1:], duration=int(1000 / fps), loop=0)
-    else:
-        proc = subprocess.run(
-            ["ffmpeg", "-y", "-loglevel", "error", "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{width}x{height}",
-             "-r", str(fps), "-i", "-", "-pix_fmt", "yuv420p", output],
-            input=np.stack(images).tobytes(), capture_output=True,
-        )
-        if proc.returncode != 0:
-            raise RuntimeError(proc.stderr.decode().strip().splitlines()[-1])
-
-
-def write_video(robot_obj: Any, design: Any, trajectory: dict, output: Path, width: int = 480, height: int = 360) -> None:
-    import shutil
-
-    if output.suffix.lower() == ".mp4" and shutil.which("ffmpeg") is None:
-        fail("--video .mp4 needs ffmpeg on PATH, which is not installed; write a .gif instead", code=1)
-    model = robot_obj.build(design)
-    frames = trajectory["frames"][::2]  # every other policy step: 25 fps at dt = 0.02 s
-    payload = {
-        "mjcf": model.mjcf, "joint_names": model.joint_names, "frames": frames, "output": str(output),
-        "width": width, "height": height, "fps": 1.0 / (2 * trajectory["dt"]),
-    }
-    code = "import json, sys\nfrom coadapt_core.cli.train import render_frames\nrender_frames(**json.loads(sys.stdin.read()))\n"
-    backends = [os.environ["MUJOCO_GL"]] if os.environ.get("MUJOCO_GL") else ["egl", "osmesa"]
-    errors = []
-    for backend in backends:
-        env = dict(os.environ, MUJOCO_GL=backend, PYOPENGL_PLATFORM=backend)
-        proc = subprocess.run([sys.executable, "-c", code], input=json.dumps(payload), capture_output=True, text=True, env=env, timeout=1800)
-        if proc.returncode == 0:
-            print(f"wrote {output} ({len(frames)} frames, MUJOCO_GL={backend})", file=sys.stderr)
-            return
-        errors.append(f"{backend}: {(proc.stderr.strip().splitlines() or ['no output'])[-1]}")
-    fail("offscreen rendering is unavailable here (" + "; ".join(errors) + "); no video written", code=1)
+            backend, errors = write_rollout_video(robot_obj, design_values, trajectory, video)
+            if backend is None:
+                fail("offscreen rendering is unavailable here (" + "; ".join(errors) + "); no video written", code=1)
+            print(f"wrote {video} ({len(trajectory['frames'][::2])} frames, MUJOCO_GL={backend})", file=sys.stderr)

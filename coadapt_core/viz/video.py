@@ -1,7 +1,11 @@
-"""A picture of a run's answer: the best design and the nominal one walking side by side
-under the run's final policy, rendered offscreen by MuJoCo (EGL, else OSMesa) into a GIF,
-plus an MP4 when ffmpeg is installed. The camera is framed by each robot's own size, read
-from its model. No GL backend is a one-line note, never a failed run."""
+"""Offscreen MuJoCo rendering (EGL, else OSMesa) of robot designs: a design's default pose
+as a PNG (`coadapt robot render`), a recorded rollout as a GIF or MP4 (`coadapt eval
+--video`), and a run's answer, the best design and the nominal one walking side by side
+under the run's final policy (`coadapt run`; no GL backend there is a one-line note, never
+a failed run). The camera is framed by each robot's own size, read from its model.
+
+MuJoCo picks its GL backend when first imported, so every picture is drawn in a fresh
+interpreter (`offscreen`) that tries the backends in turn."""
 
 from __future__ import annotations
 
@@ -49,7 +53,7 @@ def render_run_video(
             print("video: not rendered (the run kept no universal policy checkpoint)", file=stream)
             return []
         sim_cls = registry.get("simulator", config.get("sim", "mujoco"))
-        from coadapt_core.cli.train import evaluate_checkpoint
+        from coadapt_core.experiments.evaluate import evaluate_checkpoint
 
         panels = []
         for label, design in (("best", summary["best_design"]), ("nominal", summary["nominal_design"])):
@@ -58,31 +62,59 @@ def render_run_video(
                 agents=1, seconds=seconds, seed=int(config.get("seed") or 0), randomize=False, record=True,
             )
             trajectory = result["_trajectory"]
-            model = robot.build(robot.check_design(design) if hasattr(robot, "check_design") else design)
-            panels.append({"mjcf": model.mjcf, "joint_names": model.joint_names, "frames": trajectory["frames"][::2],
-                           "label": f"{label} " + ", ".join(f"{x:.0f}" if float(x).is_integer() else f"{x:.2f}" for x in design)
-                           + f"  vx {result['vx_mean']:.2f} m/s"})
+            panels.append(rollout_panel(robot, design, trajectory, f"{label} " + ", ".join(
+                f"{x:.0f}" if float(x).is_integer() else f"{x:.2f}" for x in design) + f"  vx {result['vx_mean']:.2f} m/s"))
         fps = 1.0 / (2 * trajectory["dt"])
     except Exception as exc:  # the run's result stands; the picture is a bonus
         print(f"video: not rendered ({type(exc).__name__}: {' '.join(str(exc).split())[:160]})", file=stream)
         return []
     outputs = [run_dir / f"{VIDEO_NAME}.gif"] + ([run_dir / f"{VIDEO_NAME}.mp4"] if want_mp4 else [])
     payload = {"panels": panels, "outputs": [str(p) for p in outputs], "width": width, "height": height, "fps": fps}
-    code = "import json, sys\nfrom coadapt_core.viz.video import render_panels\nrender_panels(**json.loads(sys.stdin.read()))\n"
-    backends = [os.environ["MUJOCO_GL"]] if os.environ.get("MUJOCO_GL") else ["egl", "osmesa"]
+    backend, errors = offscreen("render_panels", payload, timeout=900)
+    if backend is not None:
+        written = [p for p in outputs if p.is_file()]
+        print(f"video: {', '.join(str(p) for p in written)} (best left, nominal right; MUJOCO_GL={backend})", file=stream)
+        return written
+    print("video: not rendered, no offscreen GL here (" + "; ".join(errors) + ")", file=stream)
+    return []
+
+
+#: GL backends tried in turn for offscreen rendering (MUJOCO_GL), unless MUJOCO_GL is set
+GL_BACKENDS = ("egl", "osmesa")
+
+
+def offscreen(function: str, kwargs: dict[str, Any], *, timeout: float) -> tuple[str | None, list[str]]:
+    """Call `coadapt_core.viz.video.<function>(**kwargs)` in a fresh interpreter under each GL
+    backend in turn (MUJOCO_GL when set). Returns (the backend that worked, or None, and
+    the last error line of each backend tried)."""
+    code = f"import json, sys\nfrom coadapt_core.viz.video import {function}\n{function}(**json.loads(sys.stdin.read()))\n"
+    backends = [os.environ["MUJOCO_GL"]] if os.environ.get("MUJOCO_GL") else list(GL_BACKENDS)
     errors = []
     for backend in backends:
         env = dict(os.environ, MUJOCO_GL=backend, PYOPENGL_PLATFORM=backend)
-        proc = subprocess.run([sys.executable, "-c", code], input=json.dumps(payload), capture_output=True, text=True,
-                              env=env, timeout=900)
+        proc = subprocess.run([sys.executable, "-c", code], input=json.dumps(kwargs), capture_output=True, text=True,
+                              env=env, timeout=timeout)
         if proc.returncode == 0:
-            written = [p for p in outputs if p.is_file()]
-            print(f"video: {', '.join(str(p) for p in written)} (best left, nominal right; MUJOCO_GL={backend})",
-                  file=stream)
-            return written
-        errors.append(f"{backend}: {(proc.stderr.strip().splitlines() or ['no output'])[-1][:120]}")
-    print("video: not rendered, no offscreen GL here (" + "; ".join(errors) + ")", file=stream)
-    return []
+            return backend, errors
+        errors.append(f"{backend}: {(proc.stderr.strip().splitlines() or ['no output'])[-1][:160]}")
+    return None, errors
+
+
+def rollout_panel(robot: Any, design: Any, trajectory: dict, label: str | None = None) -> dict[str, Any]:
+    """What `render_panels` draws of one recorded rollout (`evaluate_checkpoint(record=True)`):
+    the design's model, every other frame (25 fps at a 0.02 s policy step), a label."""
+    model = robot.build(robot.check_design(design) if hasattr(robot, "check_design") else design)
+    return {"mjcf": model.mjcf, "joint_names": model.joint_names, "frames": trajectory["frames"][::2], "label": label}
+
+
+def write_rollout_video(robot: Any, design: Any, trajectory: dict, output: Path, width: int = 480,
+                        height: int = 360) -> tuple[str | None, list[str]]:
+    """`coadapt eval --video`: one recorded rollout into `output` (.gif, or .mp4 with ffmpeg).
+    Returns `offscreen`'s (backend, errors)."""
+    panel = rollout_panel(robot, design, trajectory)
+    payload = {"panels": [panel], "outputs": [str(output)], "width": width, "height": height,
+               "fps": 1.0 / (2 * trajectory["dt"])}
+    return offscreen("render_panels", payload, timeout=1800)
 
 
 def camera_for(model: Any, data: Any) -> tuple[float, float]:
@@ -97,23 +129,60 @@ def camera_for(model: Any, data: Any) -> tuple[float, float]:
     return 1.9 * height + 0.4, 0.5 * height
 
 
-def scene_model(mjcf: str, width: int, height: int) -> Any:
-    """The design's MJCF with a checkered floor and a light, compiled for offscreen frames of
-    `width` x `height` (shared by `coadapt eval --video` and the run's best-vs-nominal GIF)."""
+def scene_model(mjcf: str, width: int, height: int, *, floor: float = 20.0, texrepeat: int = 40,
+                lights: tuple[tuple[tuple[float, float, float], tuple[float, float, float], float], ...] = (
+                    ((0.0, -2.0, 4.0), (0.0, 0.4, -1.0), 0.8),),
+                floor_collides: bool = True) -> Any:
+    """The design's MJCF with a checkered floor (half size `floor` m) and lights ((pos, dir,
+    diffuse) each), compiled for offscreen frames of `width` x `height` (shared by
+    `coadapt robot render`, `coadapt eval --video` and the run's best-vs-nominal GIF)."""
     import mujoco
 
     spec = mujoco.MjSpec.from_string(mjcf)
     texture = spec.add_texture(name="grid", type=mujoco.mjtTexture.mjTEXTURE_2D,
                                builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, rgb1=[0.82, 0.84, 0.86],
                                rgb2=[0.68, 0.7, 0.72], width=256, height=256)
-    material = spec.add_material(name="grid", texrepeat=[40, 40], reflectance=0.05)
+    material = spec.add_material(name="grid", texrepeat=[texrepeat, texrepeat], reflectance=0.05)
     material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = texture.name
-    spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[20, 20, 0.05], material="grid")
-    spec.worldbody.add_light(pos=[0, -2, 4], dir=[0, 0.4, -1], diffuse=[0.8, 0.8, 0.8])
+    plane = spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[floor, floor, 0.05],
+                                    material="grid")
+    if not floor_collides:
+        plane.contype, plane.conaffinity = 0, 0
+    for pos, direction, diffuse in lights:
+        spec.worldbody.add_light(pos=list(pos), dir=list(direction), diffuse=[diffuse] * 3)
     model = spec.compile()
     model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
     model.vis.global_.offheight = max(model.vis.global_.offheight, height)
     return model
+
+
+def render_pose_png(mjcf: str, qpos_joints: list[float], base_height: float, output: str, width: int, height: int) -> None:
+    """Draw the robot at the given pose, standing on a checker floor, into a PNG (run through
+    `offscreen`)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.image
+    import mujoco
+
+    model = scene_model(mjcf, width, height, floor=4.0, texrepeat=8, floor_collides=False,
+                        lights=(((1.5, -1.5, 3.5), (-0.4, 0.4, -1.0), 0.8), ((-2.0, 2.0, 3.0), (0.5, -0.5, -1.0), 0.4)))
+    data = mujoco.MjData(model)
+    data.qpos[2] = base_height
+    data.qpos[3:7] = [1, 0, 0, 0]
+    data.qpos[7 : 7 + len(qpos_joints)] = qpos_joints
+    mujoco.mj_forward(model, data)
+    camera = mujoco.MjvCamera()
+    top = float(max(data.geom_xpos[:, 2].max(), base_height))
+    camera.lookat[:] = [0.0, 0.0, 0.5 * top]
+    camera.distance = 1.4 + 1.6 * top
+    camera.azimuth, camera.elevation = 140.0, -12.0
+    options = mujoco.MjvOption()
+    options.geomgroup[:] = 1  # collision shapes and visual-only geoms
+    with mujoco.Renderer(model, height, width) as renderer:
+        renderer.update_scene(data, camera=camera, scene_option=options)
+        pixels = renderer.render()
+    matplotlib.image.imsave(output, pixels)
 
 
 def render_panels(panels: list[dict], outputs: list[str], width: int, height: int, fps: float) -> None:
@@ -144,8 +213,9 @@ def render_panels(panels: list[dict], outputs: list[str], width: int, height: in
                 camera.lookat[:] = [frame["pos"][0], frame["pos"][1], look_z]
                 renderer.update_scene(data, camera=camera)
                 image = Image.fromarray(np.array(renderer.render()))
-                ImageDraw.Draw(image).text((6, 6), panel["label"], fill=(255, 255, 255), stroke_width=1,
-                                           stroke_fill=(0, 0, 0))  # readable on the dark sky and the floor
+                if panel.get("label"):  # readable on the dark sky and the floor
+                    ImageDraw.Draw(image).text((6, 6), panel["label"], fill=(255, 255, 255), stroke_width=1,
+                                               stroke_fill=(0, 0, 0))
                 images.append(np.array(image))
         rendered.append(images)
     n = max(len(images) for images in rendered)
@@ -165,4 +235,7 @@ def render_panels(panels: list[dict], outputs: list[str], width: int, height: in
                 raise RuntimeError(proc.stderr.decode().strip().splitlines()[-1])
 
 
-__all__ = ["VIDEO_NAME", "camera_for", "render_panels", "render_run_video", "run_checkpoint"]
+__all__ = [
+    "GL_BACKENDS", "VIDEO_NAME", "camera_for", "offscreen", "render_panels", "render_pose_png", "render_run_video",
+    "rollout_panel", "run_checkpoint", "scene_model", "write_rollout_video",
+]

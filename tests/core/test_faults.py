@@ -245,7 +245,7 @@ def test_eval_counts_divergences_the_simulator_flags(monkeypatch):
         return out
 
     monkeypatch.setattr(env_module.LocomotionEnv, "step", step)
-    from coadapt_core.cli.train import evaluate_checkpoint
+    from coadapt_core.experiments.evaluate import evaluate_checkpoint
     from coadapt_core.plugins import get_registry
 
     registry = get_registry()
