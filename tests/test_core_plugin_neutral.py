@@ -27,7 +27,6 @@ KNOWN_DEBT = {
     "coadapt_core/coadapt/loop.py": "METHOD_SWITCHES: bo-specialized forces optimizer bo",
     "coadapt_core/experiments/grid.py": "default simulator mujoco",
     "coadapt_core/analysis/report.py": "table order and line styles of the built-in optimizers",
-    "coadapt_core/viz/video.py": "fallbacks for run configs without robot/sim",
 }
 
 

@@ -47,12 +47,13 @@ def render_run_video(
         from coadapt_core.plugins import get_registry
 
         registry = get_registry()
-        robot = registry.get("robot", config.get("robot", "kuafu"))()
+        # a run config without robot or simulator (older runs) means the defaults in force
+        robot = registry.get("robot", config.get("robot") or registry.default("robot"))()
         checkpoint = run_checkpoint(run_dir, config)
         if checkpoint is None:  # e.g. bo-specialized keeps no policy; a stand-in would mislead
             print("video: not rendered (the run kept no universal policy checkpoint)", file=stream)
             return []
-        sim_cls = registry.get("simulator", config.get("sim", "mujoco"))
+        sim_cls = registry.get("simulator", config.get("sim") or registry.default("simulator"))
         from coadapt_core.experiments.evaluate import evaluate_checkpoint
 
         panels = []
