@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import os
 import time
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import mujoco.batch
@@ -86,24 +86,10 @@ class MujocoSimulator(Simulator):
     default_rank = 10  # the default --sim (the reference backend)
     description = "MuJoCo 4 on a C thread pool (mujoco.batch), one model per design, CPU"
 
-    def __init__(
-        self,
-        robot: Robot,
-        designs: np.ndarray,  # [num_envs, design_dim]
-        *,
-        terrain: str = "flat",
-        randomization: RandomizationConfig | None = None,
-        physics_dt: float = 0.005,
-        decimation: int = 4,
-        seed: int = 0,
-        device: str = "cpu",
-        num_threads: int | None = None,
-        fixed_base: bool = False,
-    ):
-        super().__init__(
-            robot, designs, terrain=terrain, randomization=randomization, physics_dt=physics_dt,
-            decimation=decimation, seed=seed, device=device, num_threads=num_threads, fixed_base=fixed_base,
-        )
+    def __init__(self, robot: Robot, designs: np.ndarray, **options: Any):
+        """The `Simulator` options (terrain, randomization, physics_dt, decimation, seed,
+        device, num_threads, fixed_base), checked by the base class."""
+        super().__init__(robot, designs, **options)
         self._normal = terrain_normal(self.terrain_model)
         n = self.num_envs
         self._n = n
@@ -111,7 +97,7 @@ class MujocoSimulator(Simulator):
         ref = compiled[0]
         self._ref = ref
         self._j = ref.robot_model.num_joints
-        self._threads = int(num_threads) if num_threads is not None else _default_threads()
+        self._threads = self.num_threads if self.num_threads is not None else _default_threads()
         # Environment e lives in batch row _row[e]. mujoco.batch hands each thread one
         # contiguous block of rows, so a fixed shuffle spreads each design's agents (and
         # whatever makes some environments costlier, such as falling) over all threads.

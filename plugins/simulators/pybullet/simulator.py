@@ -11,12 +11,11 @@ from __future__ import annotations
 import contextlib
 import importlib.util
 import os
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from coadapt_core.errors import DesignError, UserError
-from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.physics.simulator import SimState, Simulator
 
 if TYPE_CHECKING:
@@ -54,18 +53,13 @@ class PyBulletSimulator(Simulator):
         robot: Robot,
         designs: np.ndarray,  # [num_envs, design_dim]
         *,
-        terrain: str = "flat",
-        randomization: RandomizationConfig | None = None,
-        physics_dt: float = 0.005,
-        decimation: int = 4,
-        seed: int = 0,
-        device: str = "cpu",
-        num_threads: int | None = None,
-        fixed_base: bool = False,
         processes: int | None = None,
         armature: str = "foot_link",
+        **options: Any,
     ):
-        """`processes`: worker processes (0 = in this process; None = in-process up to
+        """The `Simulator` options (terrain, randomization, physics_dt, decimation, seed,
+        device, num_threads, fixed_base), checked by the base class, and
+        `processes`: worker processes (0 = in this process; None = in-process up to
         IN_PROCESS_MAX_ENVS environments, else one per CPU core or `num_threads`).
         `armature`: how MJCF joint armature is carried over: "foot_link" (the feet joints'
         in the foot links' inertia, the rest as "joint_space", the coupling corrected),
@@ -73,10 +67,7 @@ class PyBulletSimulator(Simulator):
         joint-space mass matrix), "link_inertia" (added to the child link's inertia) or
         "none"; see docs/sim-to-sim.md."""
         require_pybullet()
-        super().__init__(
-            robot, designs, terrain=terrain, randomization=randomization, physics_dt=physics_dt,
-            decimation=decimation, seed=seed, device=device, num_threads=num_threads, fixed_base=fixed_base,
-        )
+        super().__init__(robot, designs, **options)
         if armature not in ARMATURE_MODES:
             raise UserError(f"armature must be one of {', '.join(ARMATURE_MODES)}, got '{armature}'", field="armature")
         self._spec_cache: dict[tuple[float, ...], EnvSpec] = {}
@@ -94,7 +85,7 @@ class PyBulletSimulator(Simulator):
         }
         n = len(specs)
         if processes is None:
-            processes = 0 if n <= IN_PROCESS_MAX_ENVS else min(num_threads or os.cpu_count() or 1, n)
+            processes = 0 if n <= IN_PROCESS_MAX_ENVS else min(self.num_threads or os.cpu_count() or 1, n)
         if processes < 0:
             raise UserError(f"processes must be >= 0, got {processes}", field="processes")
         self.processes = min(int(processes), n)

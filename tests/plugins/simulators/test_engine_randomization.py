@@ -9,16 +9,10 @@ from types import SimpleNamespace
 import mujoco
 import numpy as np
 import pytest
-from coadapt_plugins.robots.kuafu.robot import Kuafu
 from coadapt_plugins.simulators.mujoco.simulator import MujocoSimulator
 
 from coadapt_core.errors import UserError
 from coadapt_core.physics.randomization import RandomizationConfig, sample_env_params
-
-
-@pytest.fixture(scope="module")
-def kuafu() -> Kuafu:
-    return Kuafu()
 
 
 def test_default_keeps_table_2_and_its_random_stream() -> None:

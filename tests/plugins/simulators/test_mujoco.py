@@ -23,11 +23,6 @@ from coadapt_core.testing import SimulatorConformance
 G = 9.81
 
 
-@pytest.fixture(scope="module")
-def kuafu() -> Kuafu:
-    return Kuafu()
-
-
 class TestMujocoConformance(SimulatorConformance):
     @pytest.fixture
     def robot(self, kuafu):

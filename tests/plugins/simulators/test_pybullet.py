@@ -11,7 +11,6 @@ import pytest
 pytest.importorskip("pybullet")
 
 import torch
-from coadapt_plugins.robots.kuafu.robot import Kuafu
 from coadapt_plugins.simulators.pybullet import PyBulletSimulator
 from coadapt_plugins.simulators.pybullet import simulator as pb_simulator
 
@@ -29,11 +28,6 @@ def fixed(name: str, value: float) -> RandomizationConfig:
     ranges = {k: (v, v) for k, v in RandomizationConfig.NOMINAL.items()}
     ranges[name] = (value, value)
     return RandomizationConfig(**ranges)
-
-
-@pytest.fixture(scope="module")
-def kuafu() -> Kuafu:
-    return Kuafu()
 
 
 class TestPyBulletConformance(SimulatorConformance):
