@@ -27,8 +27,6 @@ KNOWN_CYCLES: dict[frozenset[str], str] = {
         "`coadapt grid --dry-run` checks each cell's argv with the CLI's own main (cli owns both)",
     frozenset({"coadapt_core.coadapt.loop", "coadapt_core.coadapt.setup"}):
         "the bo-specialized method's branches (the method registry removes it)",
-    frozenset({"coadapt_core.analysis.report", "coadapt_core.analysis.surrogate_figure"}):
-        "the surrogate figure borrows the report's plotting helpers",
 }
 
 

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from coadapt_core.analysis.figures import DPI, PANEL_H, panel_grid, pyplot, spans_decades, tidy_axes
 from coadapt_core.analysis.surrogate_figure import figure_surrogate_quality
 from coadapt_core.coadapt.config import METHODS
 from coadapt_core.errors import UserError
@@ -423,29 +424,6 @@ def write_csv(path: Path, rows: Sequence[dict[str, Any]]) -> None:
 
 
 # -- figures ------------------------------------------------------------------------------------
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")  # files only; no display on CI or cluster nodes
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-#: figure width per panel (inches) and resolution: at most two panels a row keeps a figure
-#: under ~1000 px, shown at its own size in report.html (no shrinking of its labels)
-PANEL_W, PANEL_H, DPI, MAX_COLS = 4.8, 4.0, 100, 2
-
-
-def _spans_decades(values: Any, decades: float = 3.0) -> bool:
-    """True when positive finite values spread over more than `decades` orders of magnitude:
-    one diverged rollout (cost 1e10 next to 1e3) would flatten a linear axis, so such axes
-    go logarithmic."""
-    v = np.asarray(values, dtype=float)
-    v = v[np.isfinite(v)]
-    return v.size > 1 and bool((v > 0).all()) and float(v.max() / v.min()) > 10**decades
-
-
 METHOD_MARKERS = {"ours": "o", "no-surrogate": "s", "no-real": "^", "no-retrain": "D", "bo-specialized": "P"}
 METHOD_COLORS = {"ours": "tab:red", "no-surrogate": "tab:blue", "no-real": "tab:green", "no-retrain": "tab:purple",
                  "bo-specialized": "tab:orange"}
@@ -453,24 +431,6 @@ METHOD_COLORS = {"ours": "tab:red", "no-surrogate": "tab:blue", "no-real": "tab:
 #: differ in both, the methods in colour and marker shape
 OPTIMIZER_LINESTYLES = {"pso": "-", "mixed-pso": (0, (5, 2)), "bo": (0, (3, 1, 1, 1)), "nsga2": (0, (1, 1.2))}
 OPTIMIZER_FILLED = {"pso": False, "mixed-pso": True, "bo": False, "nsga2": True}
-
-
-def _panels(plt: Any, n: int, height: float = PANEL_H) -> tuple[Any, Any]:
-    cols = min(MAX_COLS, n)
-    rows = math.ceil(n / cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(PANEL_W * cols, height * rows), squeeze=False)
-    for ax in axes.ravel()[n:]:
-        ax.axis("off")
-    return fig, axes.ravel()[:n]
-
-
-def _tidy(ax: Any) -> None:
-    """At most five ticks on a linear axis: cost labels like 12000 would run into each other."""
-    from matplotlib.ticker import MaxNLocator
-
-    for axis, scale in ((ax.xaxis, ax.get_xscale()), (ax.yaxis, ax.get_yscale())):
-        if scale == "linear":
-            axis.set_major_locator(MaxNLocator(5))
 
 
 def _space_slug(names: Sequence[str]) -> str:
@@ -525,7 +485,7 @@ def heatmap_data(
 def figure_heatmaps(store: ResultsStore, facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]]:
     """One PNG per terrain and design space, one panel per objective: the landscape grid when
     one exists, else the designs the runs evaluated, coloured by their real cost."""
-    plt = _pyplot()
+    plt = pyplot()
     from matplotlib.colors import LogNorm
 
     written = []
@@ -538,11 +498,11 @@ def figure_heatmaps(store: ResultsStore, facts: Sequence[RunFacts], out: Path) -
             panels = [(o, d) for o, d in panels if d is not None]
             if not panels:
                 continue
-            fig, axes = _panels(plt, len(panels), height=PANEL_H + 0.6)
+            fig, axes = panel_grid(plt, len(panels), height=PANEL_H + 0.6)
             sources, drew_star, drew_methods = [], False, set()
             for ax, (o, d) in zip(axes, panels, strict=True):
                 values = d["grid"] if d["kind"] == "landscape" else d["values"]
-                log = _spans_decades(values)
+                log = spans_decades(values)
                 norm = LogNorm(vmin=float(np.nanmin(values)), vmax=float(np.nanmax(values))) if log else None
                 if d["kind"] == "landscape":
                     # each grid cell one evaluated design: no interpolation between them
@@ -610,7 +570,7 @@ def convergence_series(store: ResultsStore, f: RunFacts) -> tuple[np.ndarray, np
 
 
 def figure_convergence(store: ResultsStore, facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]]:
-    plt = _pyplot()
+    plt = pyplot()
     from matplotlib.lines import Line2D
 
     runs = [f for f in facts if f.method != LANDSCAPE_METHOD and f.real and "," not in f.objective]
@@ -621,7 +581,7 @@ def figure_convergence(store: ResultsStore, facts: Sequence[RunFacts], out: Path
     series = {f.run["id"]: convergence_series(store, f) for f in runs}
     most = max((x.max(initial=0.0) for x, _ in series.values()), default=0.0)
     unit, unit_name = (1e6, "million") if most >= 1e5 else (1e3, "thousand")
-    fig, axes = _panels(plt, len(keys))
+    fig, axes = panel_grid(plt, len(keys))
     groups = _group_order([(f.method, f.optimizer) for f in runs])
     for ax, (o, t) in zip(axes, keys, strict=True):
         for m, opt in groups:
@@ -638,10 +598,10 @@ def figure_convergence(store: ResultsStore, facts: Sequence[RunFacts], out: Path
                         markerfacecolor=color if OPTIMIZER_FILLED.get(opt, False) else "none", linestyle="none")
         ax.set_xlabel(f"environment interactions ({unit_name})")
         ax.set_ylabel(f"best real {o} cost so far")
-        if _spans_decades([y for _, ys in series.values() for y in ys]):
+        if spans_decades([y for _, ys in series.values() for y in ys]):
             ax.set_yscale("log")
         ax.set_title(f"{o} on {t}", fontsize=10)
-        _tidy(ax)
+        tidy_axes(ax)
     # one legend for the whole figure, in the tables' order: the same in every panel
     handles = [Line2D([], [], color=METHOD_COLORS.get(m, "black"), linestyle=OPTIMIZER_LINESTYLES.get(opt, "-"),
                       marker=METHOD_MARKERS.get(m, "x"), markerfacecolor=METHOD_COLORS.get(m, "black")
@@ -659,7 +619,7 @@ def figure_convergence(store: ResultsStore, facts: Sequence[RunFacts], out: Path
 def figure_surrogate_error(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]]:
     """Relative surrogate error against the real cost of the same design, one panel per
     objective and terrain (costs of different terrains differ by orders of magnitude)."""
-    plt = _pyplot()
+    plt = pyplot()
     series: dict[tuple[str, str], list[tuple[float, float, str]]] = defaultdict(list)
     for f in facts:
         for e in f.real:
@@ -671,7 +631,7 @@ def figure_surrogate_error(facts: Sequence[RunFacts], out: Path) -> list[tuple[P
         return []
     keys = sorted(series, key=lambda k: (list(OBJECTIVE_LABELS).index(k[0]) if k[0] in OBJECTIVE_LABELS else 9,
                                          TERRAIN_ORDER.index(k[1]) if k[1] in TERRAIN_ORDER else 9))
-    fig, axes = _panels(plt, len(keys))
+    fig, axes = panel_grid(plt, len(keys))
     for ax, key in zip(axes, keys, strict=True):
         pts = series[key]
         for m in _ordered({p[2] for p in pts}, METHODS):
@@ -682,7 +642,7 @@ def figure_surrogate_error(facts: Sequence[RunFacts], out: Path) -> list[tuple[P
         ax.axhline(0.0, color="grey", linewidth=0.8)
         errs = np.array([100 * p[1] for p in pts])
         reals = np.array([p[0] for p in pts])
-        if _spans_decades(reals):
+        if spans_decades(reals):
             ax.set_xscale("log")
         finite = np.isfinite(errs)
         if finite.any():
@@ -696,7 +656,7 @@ def figure_surrogate_error(facts: Sequence[RunFacts], out: Path) -> list[tuple[P
         ax.set_xlabel(f"real {key[0]} cost")
         ax.set_ylabel("(surrogate − real) / |real|  [%]")
         ax.legend(fontsize=7)
-        _tidy(ax)
+        tidy_axes(ax)
     fig.tight_layout()
     path = out / "surrogate_error.png"
     fig.savefig(path, dpi=DPI)
@@ -728,11 +688,11 @@ def pareto_points(f: RunFacts) -> dict[str, Any]:
 
 
 def figure_pareto(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]]:
-    plt = _pyplot()
+    plt = pyplot()
     multi = [f for f in facts if len(f.run["objectives"]) >= 2 and (f.real or f.summary.get("pareto_front"))][:6]
     if not multi:
         return []
-    fig, axes = _panels(plt, len(multi), height=PANEL_H + 0.4)
+    fig, axes = panel_grid(plt, len(multi), height=PANEL_H + 0.4)
     sources = set()
     for ax, f in zip(axes, multi, strict=True):
         d = pareto_points(f)
@@ -746,13 +706,13 @@ def figure_pareto(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]
         ax.set_xlabel(f"{o1} cost")
         ax.set_ylabel(f"{o2} cost")
         both = np.vstack([d["evaluated"], d["front"]])
-        if _spans_decades(both[:, 0]):
+        if spans_decades(both[:, 0]):
             ax.set_xscale("log")
-        if _spans_decades(both[:, 1]):
+        if spans_decades(both[:, 1]):
             ax.set_yscale("log")
         ax.set_title(f"{f.run['id']}\n{f.optimizer} on {f.terrain}", fontsize=8)
         ax.legend(fontsize=7)
-        _tidy(ax)
+        tidy_axes(ax)
         sources.add(d["source"])
     fig.tight_layout()
     path = out / "pareto.png"

@@ -10,6 +10,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from coadapt_core.analysis.figures import DPI, panel_grid, pyplot, tidy_axes
+
 
 def quality_series(facts: Sequence[Any]) -> dict[tuple[str, str], list[dict[str, Any]]]:
     """(objective, terrain) -> one entry per run: its label, the Spearman of each eligible
@@ -31,14 +33,12 @@ def quality_series(facts: Sequence[Any]) -> dict[tuple[str, str], list[dict[str,
 
 
 def figure_surrogate_quality(facts: Sequence[Any], out: Path) -> list[tuple[Path, str]]:
-    from coadapt_core.analysis import report
-
     series = quality_series(facts)
     if not series:
         return []
-    plt = report._pyplot()
+    plt = pyplot()
     keys = sorted(series)
-    fig, axes = report._panels(plt, len(keys))
+    fig, axes = panel_grid(plt, len(keys))
     for ax, key in zip(axes, keys, strict=True):
         lines = []
         for entry in series[key]:
@@ -54,10 +54,10 @@ def figure_surrogate_quality(facts: Sequence[Any], out: Path) -> list[tuple[Path
         ax.set_ylabel("Spearman (surrogate, real cost)")
         ax.set_title(f"{key[0]} on {key[1]}\n" + "; ".join(lines[:2]), fontsize=8)
         ax.legend(fontsize=7)
-        report._tidy(ax)
+        tidy_axes(ax)
     fig.tight_layout()
     path = out / "surrogate_quality.png"
-    fig.savefig(path, dpi=report.DPI)
+    fig.savefig(path, dpi=DPI)
     plt.close(fig)
     return [(path, "Surrogate quality per objective and terrain: Spearman rank correlation between the surrogate's "
                    "prediction (made before the round's real costs were known) and the real cost of the same designs, "

@@ -237,12 +237,12 @@ def test_interrupted_landscape_resumes_without_reevaluating_rows(tmp_path):
 
 
 def test_axes_go_logarithmic_only_for_costs_over_three_decades():
-    from coadapt_core.analysis.report import _spans_decades
+    from coadapt_core.analysis.figures import spans_decades
 
-    assert _spans_decades([900.0, 2.0e3, 3.5e11])  # one diverged rollout among sane costs
-    assert not _spans_decades([900.0, 2.0e3, 8.0e5])
-    assert not _spans_decades([-1.0, 1e6])  # signed values: never a log axis
-    assert not _spans_decades([np.nan, 5.0])
+    assert spans_decades([900.0, 2.0e3, 3.5e11])  # one diverged rollout among sane costs
+    assert not spans_decades([900.0, 2.0e3, 8.0e5])
+    assert not spans_decades([-1.0, 1e6])  # signed values: never a log axis
+    assert not spans_decades([np.nan, 5.0])
 
 
 def test_pareto_front_of_a_two_objective_run(tmp_path):
