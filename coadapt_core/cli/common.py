@@ -119,6 +119,72 @@ def show_default(value: object) -> str:
     return str(value)
 
 
+#: the command-line type of each kind of setting (text is parsed by the setting's type)
+_CLI_TYPES = {"bool": bool, "int": int, "float": float}
+
+
+def option_help(leaf: Any) -> str:
+    """The help of a setting's option: its declared help, what it accepts when that is a
+    choice or a structured value, the installed plugins when it names one, and, for an
+    override of settings that come from elsewhere, what unset means."""
+    text = leaf.help
+    if leaf.extra.get("plugin"):
+        return choice_help(leaf.extra["plugin"], text)
+    if leaf.kind == "choice":
+        text = f"{text} One of: {', '.join(map(str, leaf.choices))}."
+    elif leaf.kind in ("range", "ints", "weights"):
+        text = f"{text} ({leaf.accepted()})"
+    if leaf.extra.get("unset"):
+        text = f"{text} [default: {leaf.extra['unset']}, else {show_default(leaf.extra['base_default'])}]"
+    return text
+
+
+def settings_options(cls: type, *, aliases: dict[str, tuple[str, ...]] | None = None) -> list[tuple[str, Any, Any, Any]]:
+    """(parameter name, type, typer.Option, leaf) for every command-line setting of the
+    settings tree `cls` (`coadapt_core.settings`); `aliases` adds option names per key."""
+    from coadapt_core.settings import leaves
+
+    out = []
+    for leaf in leaves(cls):
+        if not leaf.extra.get("cli", True):
+            continue
+        kind = _CLI_TYPES.get(leaf.kind, str)
+        names = [f"{leaf.option}/--no-{leaf.option[2:]}"] if kind is bool else [leaf.option]
+        names += list((aliases or {}).get(leaf.key, ()))
+        out.append((leaf.param, kind, typer.Option(None, *names, help=option_help(leaf)), leaf))
+    return out
+
+
+def given_settings(values: dict[str, Any], options: list[tuple[str, Any, Any, Any]]) -> dict[str, Any]:
+    """The settings given on the command line, as a nested mapping of their keys."""
+    out: dict[str, Any] = {}
+    for name, _, _, leaf in options:
+        if values.get(name) is not None:
+            tree = out
+            for part in leaf.path[:-1]:
+                tree = tree.setdefault(part, {})
+            tree[leaf.path[-1]] = values[name]
+    return out
+
+
+def with_options(
+    func: Any, settings: list[tuple[str, Any, Any, Any]], others: list[tuple[str, Any, Any]], *, others_first: bool = False
+) -> Any:
+    """`func(**values)` with a signature typer reads: the generated `settings` options and
+    the hand-written `others` (name, type, typer.Option), these after (or before) them."""
+    import inspect
+
+    generated = [(n, k, o) for n, k, o, _ in settings]
+    ordered = list(others) + generated if others_first else generated + list(others)
+    params = [
+        inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=kind)
+        for name, kind, option in ordered
+    ]
+    func.__signature__ = inspect.Signature(params)
+    func.__annotations__ = {p.name: p.annotation for p in params}
+    return func
+
+
 def style_help(command: Any, *, config_options: bool = False) -> None:
     """One help style for every command: plain Click help (no table: option names are never
     cut at 80 columns) and every known default as `[default: X]` at the end of the text. For

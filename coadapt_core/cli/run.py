@@ -15,12 +15,10 @@ from typing import Any
 
 import typer
 
-from coadapt_core.cli.common import choice_help, fail, resolve
+from coadapt_core.cli.common import fail, resolve, settings_options, with_options
 from coadapt_core.cli.progress import ProgressLine
 from coadapt_core.errors import UserError
 from coadapt_core.tracking import check_logger
-
-_METHOD_HELP = "Method: ours, no-surrogate, no-real, no-retrain or bo-specialized."
 
 
 def _fmt_duration(seconds: float | None) -> str:
@@ -167,41 +165,14 @@ def _command_options() -> list[tuple[str, Any, Any]]:
     ]
 
 
-#: the command-line type of each kind of setting (text is parsed by the setting's type)
-_CLI_TYPES = {"bool": bool, "int": int, "float": float}
-
-
-def option_help(leaf: Any) -> str:
-    """The help of a config setting's option: its declared help, what it accepts when that
-    is a choice, the installed plugins when it names one."""
-    text = leaf.help
-    if leaf.extra.get("plugin"):
-        return choice_help(leaf.extra["plugin"], text)
-    if leaf.kind == "choice":
-        return f"{text} One of: {', '.join(map(str, leaf.choices))}."
-    if leaf.kind in ("range", "ints", "weights"):
-        return f"{text} ({leaf.accepted()})"
-    return text
-
-
 def config_options() -> list[tuple[str, Any, Any, Any]]:
     """(parameter name, type, typer.Option, leaf) for every config setting on the command line."""
     from coadapt_core.coadapt.config import CoadaptConfig
-    from coadapt_core.settings import leaves
 
-    out = []
-    for leaf in leaves(CoadaptConfig):
-        if not leaf.extra.get("cli", True):
-            continue
-        kind = _CLI_TYPES.get(leaf.kind, str)
-        names = [f"{leaf.option}/--no-{leaf.option[2:]}"] if kind is bool else [leaf.option]
-        out.append((leaf.param, kind, typer.Option(None, *names, help=option_help(leaf)), leaf))
-    return out
+    return settings_options(CoadaptConfig)
 
 
 def register(app: typer.Typer) -> None:
-    import inspect
-
     settings = config_options()
 
     def run_command(**values: Any) -> None:
@@ -273,13 +244,4 @@ def register(app: typer.Typer) -> None:
             _print_summary(summary, names)
             print(f"run folder: {result.run_dir}")
 
-    params = [
-        inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=kind)
-        for name, kind, option, _ in settings
-    ] + [
-        inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=kind)
-        for name, kind, option in _command_options()
-    ]
-    run_command.__signature__ = inspect.Signature(params)
-    run_command.__annotations__ = {p.name: p.annotation for p in params}
-    app.command("run")(run_command)
+    app.command("run")(with_options(run_command, settings, _command_options()))

@@ -18,9 +18,17 @@ from typing import Any
 import typer
 
 from coadapt_core import tracking
-from coadapt_core.cli.common import choice_help, fail, resolve
+from coadapt_core.cli.common import (
+    choice_help,
+    fail,
+    given_settings,
+    resolve,
+    settings_options,
+    with_options,
+)
 from coadapt_core.cli.progress import ProgressLine
 from coadapt_core.errors import UserError
+from coadapt_core.settings import overrides
 from coadapt_core.tracking import check_logger, make_logger
 
 #: the objectives whose pseudo-critics `coadapt train` trains by default (paper section 4)
@@ -80,80 +88,97 @@ def _catch_ctrl_c() -> dict:
     return state
 
 
+#: older option names of `coadapt train`, still accepted
+TRAIN_ALIASES: dict[str, tuple[str, ...]] = {
+    "learning_rate": ("--lr",), "agents_per_design": ("--agents",), "design_resample_every": ("--resample-designs",),
+    "task.commands.yaw_range": ("--yaw-range",), "randomization.preset": ("--randomization",),
+}
+
+
+def train_settings_class() -> type:
+    """`coadapt train`'s settings tree: the trainer's (`TrainConfig`), the task's and the
+    randomization's, each an override of the checkpoint's (--resume / --init-from) or of
+    the default; the sections are those of `coadapt run` (`coadapt_core.coadapt.config`)."""
+    global _TRAIN_SETTINGS
+    if _TRAIN_SETTINGS is None:
+        from coadapt_core.coadapt.config import (
+            UNSET,
+            CoadaptConfig,
+            RandomizationSection,
+            TaskSection,
+        )
+        from coadapt_core.learning.config import TrainConfig
+        from coadapt_core.settings import partial, setting
+
+        fields = CoadaptConfig.__pydantic_fields__
+        _TRAIN_SETTINGS = partial(TrainConfig, "TrainCommandSettings", unset=UNSET, exclude=("device", "seed", "extra"),
+                                  extra={
+            "task": (TaskSection, setting(default_factory=TaskSection, help=fields["task"].description)),
+            "randomization": (RandomizationSection, setting(default_factory=RandomizationSection,
+                                                            help=fields["randomization"].description)),
+        })
+    return _TRAIN_SETTINGS
+
+
+_TRAIN_SETTINGS: type | None = None
+
+
+def train_options() -> list[tuple[str, Any, Any, Any]]:
+    return settings_options(train_settings_class(), aliases=TRAIN_ALIASES)
+
+
+def _train_command_options() -> list[tuple[str, Any, Any]]:
+    """`coadapt train`'s options that are not learner settings."""
+    return [
+        ("robot", str, typer.Option(None, help=choice_help("robot", "Robot (default: the installed robot of highest default_rank)."))),
+        ("sim", str, typer.Option(None, help=choice_help("simulator", "Simulator backend (default: the installed simulator of highest default_rank)."))),
+        ("terrain", str, typer.Option("flat", help="Terrain: flat, slope or random.")),
+        ("designs", str, typer.Option(None, help="Design range, one low:high per continuous variable, e.g. 0.5:1.5,0.5:1.5 (default: the full space; on --resume: the checkpoint's).")),
+        ("steps", int, typer.Option(1_000_000, help="Environment interactions to train for (this invocation).")),
+        ("objectives", str, typer.Option(DEFAULT_OBJECTIVES, help="Objectives whose pseudo-critics are trained, comma-separated.")),
+        ("device", str, typer.Option("cpu", help="Learner device: cpu or cuda.")),
+        ("threads", int, typer.Option(None, help="Physics threads (default: the backend's choice).")),
+        ("seed", int, typer.Option(0, help="Random seed.")),
+        ("resume", Path, typer.Option(None, help="Checkpoint to resume from (networks, optimizers, normalisers, counters).")),
+        ("init_from", Path, typer.Option(None, "--init-from", help="Start from this policy's weights and normalisers (fresh optimizer state); one taking fewer design values (e.g. the leg scales only, for --mixed) gets zero weights for the new ones.")),
+        ("out", Path, typer.Option(Path("runs/train"), help="Output directory (checkpoints, logs, progress.jsonl).")),
+        ("mixed", bool, typer.Option(False, help="Also sample the discrete design variables (motor types).")),
+        ("reset_pseudo_critics", bool, typer.Option(False, "--reset-pseudo-critics", help="With --resume or --init-from: restart the pseudo-critics from scratch (after an objective's definition changed).")),
+        ("quiet", bool, typer.Option(False, help="No progress bar; one JSON line per iteration on stdout.")),
+        ("logger", str, typer.Option("tensorboard", help="Experiment tracking: tensorboard (event files in OUT/logs), wandb (if installed) or none.")),
+    ]
+
+
 def register(app: typer.Typer) -> None:
-    @app.command("train")
-    def train_command(
-        robot: str = typer.Option("kuafu", help=choice_help("robot", "Robot.")),
-        sim: str = typer.Option("mujoco", help=choice_help("simulator", "Simulator backend.")),
-        terrain: str = typer.Option("flat", help="Terrain: flat, slope or random."),
-        designs: str | None = typer.Option(
-            None, help="Design range, one low:high per continuous variable, e.g. 0.5:1.5,0.5:1.5 (default: the full space; on --resume: the checkpoint's)."
-        ),
-        steps: int = typer.Option(1_000_000, help="Environment interactions to train for (this invocation)."),
-        num_designs: int | None = typer.Option(None, "--num-designs", help="K designs sampled from the range (default 128)."),
-        agents: int | None = typer.Option(None, help="Environments per design (default 32); num envs = K x agents."),
-        steps_per_env: int | None = typer.Option(None, "--steps-per-env", help="Rollout length per PPO update (default 24)."),
-        resample_designs: int | None = typer.Option(
-            None, "--resample-designs", help="Draw new designs every N iterations (default 0: keep the K designs, Algorithm 1)."
-        ),
-        epochs: int | None = typer.Option(None, help="PPO epochs per update (default 5)."),
-        minibatches: int | None = typer.Option(None, help="Minibatches per epoch (default 4)."),
-        pseudo_epochs: int | None = typer.Option(None, "--pseudo-epochs", help="Pseudo-critic epochs per update (default 1; 0: as many as PPO's)."),
-        lr: float | None = typer.Option(None, "--lr", help="Initial learning rate (default 1e-3, KL-adaptive)."),
-        torch_threads: int = typer.Option(0, "--torch-threads", help="Torch CPU threads of the update (0: every core); collection always uses one."),
-        objectives: str = typer.Option(DEFAULT_OBJECTIVES, help="Objectives whose pseudo-critics are trained, comma-separated."),
-        device: str = typer.Option("cpu", help="Learner device: cpu or cuda."),
-        threads: int | None = typer.Option(None, help="Physics threads (default: the backend's choice)."),
-        seed: int = typer.Option(0, help="Random seed."),
-        resume: Path | None = typer.Option(None, help="Checkpoint to resume from (networks, optimizers, normalisers, counters)."),
-        init_from: Path | None = typer.Option(
-            None, "--init-from",
-            help="Start from this policy's weights and normalisers (fresh optimizer state); one taking fewer design "
-            "values (e.g. the leg scales only, for --mixed) gets zero weights for the new ones.",
-        ),
-        out: Path = typer.Option(Path("runs/train"), help="Output directory (checkpoints, logs, progress.jsonl)."),
-        checkpoint_every: int = typer.Option(50, "--checkpoint-every", help="Iterations between checkpoints."),
-        mixed: bool = typer.Option(False, help="Also sample the discrete design variables (motor types)."),
-        reset_pseudo_critics: bool = typer.Option(
-            False, "--reset-pseudo-critics",
-            help="With --resume or --init-from: restart the pseudo-critics from scratch (after an objective's definition changed).",
-        ),
-        quiet: bool = typer.Option(False, help="No progress bar; one JSON line per iteration on stdout."),
-        logger: str = typer.Option(
-            "tensorboard", help="Experiment tracking: tensorboard (event files in OUT/logs), wandb (if installed) or none."
-        ),
-        randomization: str | None = typer.Option(
-            None, help="Domain randomization: table2 (the paper's), engine (table2 plus contact softness, joint "
-            "damping, armature and delay: robustness to another simulator) or off (default: table2; on --resume "
-            "or --init-from: the checkpoint's).",
-        ),
-        yaw_range: str | None = typer.Option(
-            None, "--yaw-range", help="Yaw-rate command range low:high in rad/s, e.g. -1:1 (default: the task's, "
-            "-1:1 for a new run; on --resume or --init-from: the checkpoint's).",
-        ),
-    ) -> None:
+    settings = train_options()
+
+    def train_command(**values: Any) -> None:
         """Train the universal policy pi(a|o, xi) with its critic and pseudo-critics (PPO)."""
+        from coadapt_core.plugins import default_plugin
+
+        try:
+            robot = values["robot"] or default_plugin("robot")
+            sim = values["sim"] or default_plugin("simulator")
+        except UserError as exc:
+            fail(str(exc))
+        terrain, designs, steps, mixed = values["terrain"], values["designs"], values["steps"], values["mixed"]
+        resume, init_from, out, quiet = values["resume"], values["init_from"], values["out"], values["quiet"]
+        device, seed, logger, threads = values["device"], values["seed"], values["logger"], values["threads"]
+        reset_pseudo_critics = values["reset_pseudo_critics"]
         if steps < 0 or (steps == 0 and resume is None and init_from is None):
             fail(f"--steps must be >= 1 (or 0 with --resume or --init-from: export without training), got {steps}")
-        for name, value in (("--num-designs", num_designs), ("--agents", agents), ("--steps-per-env", steps_per_env),
-                            ("--epochs", epochs), ("--minibatches", minibatches), ("--pseudo-epochs", pseudo_epochs)):
-            if value is not None and value < 1:
-                fail(f"{name} must be >= 1, got {value}")
-        if resample_designs is not None and resample_designs < 0:
-            fail(f"--resample-designs must be >= 0, got {resample_designs}")
-        if checkpoint_every < 1:
-            fail(f"--checkpoint-every must be >= 1, got {checkpoint_every}")
-        if torch_threads < 0:
-            fail(f"--torch-threads must be >= 0 (0: automatic), got {torch_threads}")
         _check_device(device)
         try:
             check_logger(logger)
+            # the settings given: checked against their declarations (one line naming the option)
+            given = overrides(train_settings_class()(**given_settings(values, settings)))
         except UserError as exc:
             fail(str(exc))
         robot_obj = resolve("robot", robot)()
         sim_cls = _simulator(sim, terrain)
-        objective_objs = _objectives(objectives)
+        objective_objs = _objectives(values["objectives"])
 
+        from coadapt_core.coadapt.config import resolve_learner
         from coadapt_core.design_space import DesignSpace
         from coadapt_core.learning import TrainConfig, Trainer, read_checkpoint
         from coadapt_core.task import TaskConfig
@@ -167,35 +192,15 @@ def register(app: typer.Typer) -> None:
         if state is not None and state["robot"] != robot:
             flag = "--resume" if resume is not None else "--init-from"
             fail(f"{flag} checkpoint was trained for robot '{state['robot']}', not '{robot}'")
-        base = TrainConfig.from_dict(state["train_config"]) if state is not None else TrainConfig()
-        if lr is not None and not (0 < lr < 1):
-            fail(f"--lr must lie in (0, 1), got {lr}")
-        overrides = {
-            "num_designs": num_designs, "agents_per_design": agents, "steps_per_env": steps_per_env,
-            "epochs": epochs, "minibatches": minibatches, "learning_rate": lr,
-            "design_resample_every": resample_designs, "pseudo_epochs": pseudo_epochs,
-        }
-        for key, value in overrides.items():
-            if value is not None:
-                setattr(base, key, value)
-        base.device, base.seed, base.checkpoint_every, base.torch_threads = device, seed, checkpoint_every, torch_threads
-        if randomization is not None:
-            from coadapt_core.physics.randomization import RandomizationConfig
-
-            try:
-                RandomizationConfig.preset(randomization)
-            except UserError as exc:
-                fail(f"--randomization: {exc}")
-            base.extra = {**base.extra, "randomization": randomization}
-        task = TaskConfig.from_dict(state["task_config"]) if state is not None else TaskConfig()
-        if yaw_range is not None:
-            try:
-                lo, hi = (float(v) for v in yaw_range.split(":"))
-            except ValueError:
-                lo = hi = math.nan
-            if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
-                fail(f"--yaw-range '{yaw_range}' must be low:high in rad/s with low <= high, e.g. -1:1")
-            task.commands.yaw_range = (lo, hi)
+        # the checkpoint's settings (the defaults for a new run) with the options given
+        try:
+            learner = resolve_learner(state, given, given.pop("task", {}), given.pop("randomization", {}))
+        except UserError as exc:
+            fail(str(exc))
+        base = learner.get("train_config") or (TrainConfig.from_dict(state["train_config"]) if state else TrainConfig())
+        task = learner.get("task_config") or (TaskConfig.from_dict(state["task_config"]) if state else TaskConfig())
+        base.device, base.seed = device, seed
+        checkpoint_every, lr = base.checkpoint_every, given.get("learning_rate")
         full = robot_obj.design_space(mixed)
         if designs is not None:
             space = full.parse_ranges(designs)
@@ -206,7 +211,7 @@ def register(app: typer.Typer) -> None:
 
         trainer = Trainer(
             robot_obj, sim_cls, objective_objs, terrain=terrain, design_space=space, train_config=base,
-            task_config=task, num_threads=threads,
+            task_config=task, randomization=learner.get("randomization"), num_threads=threads,
         )
         if resume is not None:
             trainer.load(resume)
@@ -279,6 +284,8 @@ def register(app: typer.Typer) -> None:
         weights = trainer.export_weights(out / "policy.pt")
         trainer.close()
         print(f"wrote {final} and {weights} ({weights.stat().st_size / 1e6:.1f} MB) after {trainer.total_steps} steps", file=sys.stderr)
+
+    app.command("train")(with_options(train_command, settings, _train_command_options(), others_first=True))
 
     @app.command("eval")
     def eval_command(

@@ -38,9 +38,9 @@ EVALUATION_POLICIES: tuple[str, ...] = ("fixed", "uncertainty")
 
 
 UNSET = "the starting policy's"
-#: the run sets these itself (population, agents_per_design, device, seed)
+#: the run sets these itself (population, agents_per_design, device, seed; its own checkpoints)
 TrainSection = partial(TrainConfig, "TrainSection", unset=UNSET,
-                       exclude=("num_designs", "agents_per_design", "device", "seed", "extra"))
+                       exclude=("num_designs", "agents_per_design", "device", "seed", "extra", "checkpoint_every"))
 TaskSection = partial(TaskConfig, "TaskSection", unset=UNSET)
 RandomizationSection = partial(RandomizationConfig, "RandomizationSection", unset=UNSET, extra={
     "preset": (Literal[RANDOMIZATION_PRESETS] | None, setting(
@@ -292,18 +292,34 @@ def learner_settings(config: CoadaptConfig, checkpoint: str | None) -> dict[str,
 
 
 def _learner_settings(config: CoadaptConfig, saved: Mapping[str, Any] | None) -> dict[str, Any]:
+    return resolve_learner(saved, overrides(config.train), overrides(config.task), overrides(config.randomization))
+
+
+def resolve_learner(
+    saved: Mapping[str, Any] | None, train: dict[str, Any], task: dict[str, Any], randomization: dict[str, Any]
+) -> dict[str, Any]:
+    """`train_config`, `task_config` and `randomization` for the learner: a checkpoint's
+    (`saved`, None: the defaults) with the given nested overrides applied; only the parts
+    with overrides are returned. A randomization `preset` replaces the checkpoint's before
+    single ranges apply; the train config records both (`extra`), so a resumed training
+    draws the same ranges."""
     out: dict[str, Any] = {}
     saved_train = TrainConfig.from_dict(saved["train_config"]) if saved else TrainConfig()
-    train = overrides(config.train)
-    if train:
-        out["train_config"] = apply_overrides(saved_train, train)
-    task = overrides(config.task)
+    randomization = dict(randomization)
+    preset = randomization.pop("preset", None)
+    if train or preset or randomization:
+        config = apply_overrides(saved_train, train)
+        extra = dict(config.extra)
+        if preset:
+            extra.update(randomization=preset, randomization_ranges={})
+        if randomization:
+            extra["randomization_ranges"] = {**extra.get("randomization_ranges", {}), **randomization}
+        config.extra = extra
+        out["train_config"] = config
+        if preset or randomization:
+            out["randomization"] = RandomizationConfig.recorded(extra)
     if task:
         out["task_config"] = apply_overrides(TaskConfig.from_dict(saved["task_config"]) if saved else TaskConfig(), task)
-    randomization = overrides(config.randomization)
-    if randomization:
-        preset = randomization.pop("preset", None) or str(saved_train.extra.get("randomization", "table2"))
-        out["randomization"] = apply_overrides(RandomizationConfig.preset(preset), randomization)
     return out
 
 

@@ -71,7 +71,7 @@ class TrainConfig:
     precision: Literal[PRECISIONS] = setting("auto", "Numerics of the PPO loss's forward passes (auto: bf16 where native).")
     pseudo_precision: Literal[PRECISIONS] = setting("auto", "Numerics of the pseudo-critic regression.")
     # -- bookkeeping ------------------------------------------------------------------------
-    checkpoint_every: Int = setting(100, "Iterations between checkpoints.", ge=1)
+    checkpoint_every: Int = setting(50, "Iterations between checkpoints (coadapt train).", ge=1)
     device: str = setting("cpu", "Torch device of the learner.", cli=False)
     # CPU threads of the learner's update (compute_returns + PPO epochs); 0 = every core the
     # process may use. Collection always runs torch on one thread: the physics backend's

@@ -102,7 +102,7 @@ class Trainer:
         # "table2" unless set; stored in checkpoints, so a resumed run keeps it)
         self.randomization = (
             randomization if randomization is not None
-            else RandomizationConfig.preset(str(self.config.extra.get("randomization", "table2")))
+            else RandomizationConfig.recorded(self.config.extra)
         )
         self.num_threads = num_threads
         self.device = torch.device(self.config.device)

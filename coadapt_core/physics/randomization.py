@@ -13,7 +13,14 @@ import numpy as np
 import torch
 
 from coadapt_core.errors import UserError
-from coadapt_core.settings import NonNegativeRange, PositiveRange, Range, setting, settings
+from coadapt_core.settings import (
+    NonNegativeRange,
+    PositiveRange,
+    Range,
+    apply_overrides,
+    setting,
+    settings,
+)
 
 
 @settings(prefix="randomization")
@@ -76,6 +83,14 @@ class RandomizationConfig:
                 f"randomization preset '{name}' is not one of: {', '.join(presets)}", field="randomization"
             )
         return presets[name]()
+
+    @classmethod
+    def recorded(cls, extra: dict) -> RandomizationConfig:
+        """The randomization a training configuration records in `TrainConfig.extra`: its
+        preset (`randomization`, table2 when none) with the ranges it overrides
+        (`randomization_ranges`, {name: [low, high]})."""
+        base = cls.preset(str(extra.get("randomization", "table2")))
+        return apply_overrides(base, extra.get("randomization_ranges") or {})
 
     def to_dict(self) -> dict:
         return asdict(self)

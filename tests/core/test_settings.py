@@ -157,3 +157,29 @@ def test_yaml_sections_merge_with_options(tmp_path):
     path.write_text("train: 3\n")
     with pytest.raises(UserError, match="train must be a mapping"):
         make_config("smoke", path, {})
+
+
+def test_train_takes_the_same_sections_and_a_resume_keeps_them(tmp_path, capsys):
+    """`coadapt train` reads the trainer, task and randomization settings from the same
+    declarations as the run; what it was given is recorded in the checkpoint, so --resume
+    trains on the same task and draws the same randomization ranges."""
+    from coadapt_core.cli import main
+    from coadapt_core.learning import read_checkpoint
+    from coadapt_core.physics.randomization import RandomizationConfig
+
+    out = tmp_path / "run"
+    assert main(["train", "--steps", "64", "--num-designs", "2", "--agents", "4", "--steps-per-env", "8",
+                 "--epochs", "1", "--minibatches", "2", "--gamma", "0.98", "--yaw-range=0:0",
+                 "--task-rewards-weights", "raibert=-1", "--randomization", "engine",
+                 "--randomization-delay", "0:0.01", "--out", str(out), "--quiet"]) == 0
+    state = read_checkpoint(out / "model_final.pt")
+    assert state["train_config"]["gamma"] == 0.98
+    assert state["train_config"]["extra"] == {"randomization": "engine", "randomization_ranges": {"delay": [0.0, 0.01]}}
+    assert tuple(state["task_config"]["commands"]["yaw_range"]) == (0.0, 0.0)
+    assert state["task_config"]["rewards"]["weights"]["raibert"] == -1.0
+    recorded = RandomizationConfig.recorded(state["train_config"]["extra"])
+    assert recorded.delay == (0.0, 0.01) and recorded.joint_damping == RandomizationConfig.engine_robust().joint_damping
+    capsys.readouterr()
+    # a bad value is one line naming the setting, exit 2
+    assert main(["train", "--steps", "64", "--epochs", "0", "--out", str(tmp_path / "bad")]) == 2
+    assert capsys.readouterr().err.strip() == "error: epochs must be an integer >= 1, got 0"
