@@ -33,6 +33,7 @@ from coadapt_core.objective import Objective
 from coadapt_core.optimizer import Optimizer
 from coadapt_core.pareto import pareto_front
 from coadapt_core.results.recorders import make_recorder
+from coadapt_core.results.store import new_run_id
 from coadapt_core.statefile import StateFileError, read_json, read_npz, write_json, write_npz
 
 STATE_FILE = "state.json"
@@ -241,12 +242,6 @@ def _split(total: float, n: int) -> list[float]:
         base, rest = divmod(total, n)
         return [base + (1 if i < rest else 0) for i in range(n)]
     return [total / n] * n
-
-
-def new_run_id(config: CoadaptConfig) -> str:
-    stamp = time.strftime("%Y%m%d-%H%M%S")
-    objective = config.objective.replace(",", "+")
-    return f"{stamp}-{config.method}-{config.optimizer}-{objective}-s{config.seed}-{os.getpid() % 10000:04d}"
 
 
 # ------------------------------------------------------------------------------------------
@@ -841,7 +836,8 @@ def run_coadaptation(
     parts = build_parts(config, design_space=design_space, nominal_design=nominal_design, objectives=objectives,
                         optimizer_cls=optimizer_cls, backend_factory=backend_factory)
     if state is None:
-        run_id = new_run_id(config) if run_dir is None else Path(run_dir).name
+        run_id = (new_run_id(config.method, config.objective.split(","), config.seed, config.optimizer)
+                  if run_dir is None else Path(run_dir).name)
         run_path = (Path(run_dir) if run_dir is not None else Path(config.out) / run_id).absolute()
         if (run_path / STATE_FILE).exists():
             raise UserError(f"run folder '{run_path}' already holds a run; resume it or pick another", field="out")

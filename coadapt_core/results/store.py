@@ -370,7 +370,7 @@ class ResultsStore:
         objectives = _objective_list(config)
         method = str(config.get("method", "ours"))
         seed = config.get("seed")
-        run_id = run_id or config.get("run_id") or _new_run_id(method, objectives, seed)
+        run_id = run_id or config.get("run_id") or new_run_id(method, objectives, seed, config.get("optimizer"))
         now = time.time()
         row = {
             "grid_id": config.get("grid_id") or os.environ.get(ENV_GRID_ID),
@@ -652,9 +652,14 @@ def _run_dict(row: Any) -> dict[str, Any]:
     return d
 
 
-def _new_run_id(method: str, objectives: Sequence[str], seed: Any) -> str:
-    stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
-    parts = [method, "+".join(objectives) or "run"]
+def new_run_id(method: str, objectives: Sequence[str], seed: Any = None, optimizer: str | None = None) -> str:
+    """The one run-id scheme, for run folders and store rows alike:
+    `<UTC yyyymmdd-hhmmss>-<method>[-<optimizer>]-<objectives joined by +>[-s<seed>]-<6 hex>`
+    (time first, so ids sort by start; random last, so two processes never share one)."""
+    parts = [time.strftime("%Y%m%d-%H%M%S", time.gmtime()), str(method)]
+    if optimizer:
+        parts.append(str(optimizer))
+    parts.append("+".join(objectives) or "run")
     if seed is not None:
         parts.append(f"s{seed}")
-    return "-".join([*parts, stamp, uuid.uuid4().hex[:6]])
+    return "-".join([*parts, uuid.uuid4().hex[:6]])
