@@ -26,7 +26,7 @@ KNOWN_DEBT = {
     "coadapt_core/coadapt/config.py": "run defaults (kuafu, mujoco, pso); bo-specialized records optimizer bo",
     "coadapt_core/coadapt/loop.py": "METHOD_SWITCHES: bo-specialized forces optimizer bo",
     "coadapt_core/experiments/grid.py": "default simulator mujoco",
-    "coadapt_core/analysis/report.py": "table order and line styles of the built-in optimizers",
+    "coadapt_core/analysis/report.py": "the BO baseline's optimizer for older rows (the method registry removes it)",
 }
 
 

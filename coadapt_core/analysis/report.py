@@ -184,16 +184,25 @@ def _ordered(values: Sequence[str], order: Sequence[str]) -> list[str]:
     return known + sorted(v for v in set(values) if v not in order)
 
 
-OPTIMIZER_ORDER = ("pso", "mixed-pso", "bo", "nsga2")
+def optimizer_order() -> tuple[str, ...]:
+    """Installed optimizers in the order of every table, legend and figure: the default one
+    first (highest `default_rank`), then by name; one not installed here sorts after them."""
+    from coadapt_core.plugins import get_registry
+
+    registry = get_registry()
+    return tuple(sorted(registry.names("optimizer"),
+                        key=lambda n: (-int(getattr(registry.get("optimizer", n), "default_rank", 0)), n)))
 
 
 def _group_order(keys: Sequence[tuple[str, str]]) -> list[tuple[str, str]]:
     """(method, optimizer) keys in the paper's method order, then optimizer order: the same
     order in every table, legend and figure."""
+    order = optimizer_order()
+
     def rank(key: tuple[str, str]) -> tuple[int, str, int, str]:
         m, o = key
         mi = METHODS.index(m) if m in METHODS else len(METHODS)
-        oi = OPTIMIZER_ORDER.index(o) if o in OPTIMIZER_ORDER else len(OPTIMIZER_ORDER)
+        oi = order.index(o) if o in order else len(order)
         return (mi, m, oi, o)
 
     return sorted(set(keys), key=rank)
@@ -429,8 +438,15 @@ METHOD_COLORS = {"ours": "tab:red", "no-surrogate": "tab:blue", "no-real": "tab:
                  "bo-specialized": "tab:orange"}
 #: the optimizer sets a run's line style and its marker's fill: two optimizers of one method
 #: differ in both, the methods in colour and marker shape
-OPTIMIZER_LINESTYLES = {"pso": "-", "mixed-pso": (0, (5, 2)), "bo": (0, (3, 1, 1, 1)), "nsga2": (0, (1, 1.2))}
-OPTIMIZER_FILLED = {"pso": False, "mixed-pso": True, "bo": False, "nsga2": True}
+LINESTYLES = ("-", (0, (5, 2)), (0, (3, 1, 1, 1)), (0, (1, 1.2)))
+
+
+def optimizer_style(name: str) -> tuple[Any, bool]:
+    """(line style, marker filled) of an optimizer: by its place in `optimizer_order`, styles
+    in turn and every second one filled."""
+    order = optimizer_order()
+    i = order.index(name) if name in order else len(order)
+    return LINESTYLES[i % len(LINESTYLES)], i % 2 == 1
 
 
 def _space_slug(names: Sequence[str]) -> str:
@@ -593,9 +609,9 @@ def figure_convergence(store: ResultsStore, facts: Sequence[RunFacts], out: Path
                     continue
                 color = METHOD_COLORS.get(m, "black")
                 ax.step(x / unit, y, where="post", color=color, alpha=0.85, linewidth=1.6,
-                        linestyle=OPTIMIZER_LINESTYLES.get(opt, "-"))
+                        linestyle=optimizer_style(opt)[0])
                 ax.plot(x[-1:] / unit, y[-1:], marker=METHOD_MARKERS.get(m, "x"), markersize=7, color=color,
-                        markerfacecolor=color if OPTIMIZER_FILLED.get(opt, False) else "none", linestyle="none")
+                        markerfacecolor=color if optimizer_style(opt)[1] else "none", linestyle="none")
         ax.set_xlabel(f"environment interactions ({unit_name})")
         ax.set_ylabel(f"best real {o} cost so far")
         if spans_decades([y for _, ys in series.values() for y in ys]):
@@ -603,9 +619,9 @@ def figure_convergence(store: ResultsStore, facts: Sequence[RunFacts], out: Path
         ax.set_title(f"{o} on {t}", fontsize=10)
         tidy_axes(ax)
     # one legend for the whole figure, in the tables' order: the same in every panel
-    handles = [Line2D([], [], color=METHOD_COLORS.get(m, "black"), linestyle=OPTIMIZER_LINESTYLES.get(opt, "-"),
+    handles = [Line2D([], [], color=METHOD_COLORS.get(m, "black"), linestyle=optimizer_style(opt)[0],
                       marker=METHOD_MARKERS.get(m, "x"), markerfacecolor=METHOD_COLORS.get(m, "black")
-                      if OPTIMIZER_FILLED.get(opt, False) else "none", label=_label(m, opt)) for m, opt in groups]
+                      if optimizer_style(opt)[1] else "none", label=_label(m, opt)) for m, opt in groups]
     fig.legend(handles=handles, loc="lower center", ncol=min(3, len(handles)), fontsize=8, frameon=False)
     fig.tight_layout(rect=(0, 0.06 + 0.03 * math.ceil(len(handles) / 3), 1, 1))
     path = out / "convergence.png"
