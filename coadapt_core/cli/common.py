@@ -65,6 +65,22 @@ def choices(kind: str) -> list[str]:
         return []
 
 
+def plugin_name(kind: str, given: str | None) -> str:
+    """`given`, or the installed plugin of `kind` with the highest `default_rank` (one-line
+    error when none is installed)."""
+    if given:
+        return given
+    try:
+        return get_registry().default(kind)
+    except UnknownPluginError as exc:
+        fail(str(exc))
+
+
+def default_help(kind: str, text: str) -> str:
+    """`choice_help` for an option whose default is the plugins' declared one."""
+    return choice_help(kind, f"{text} (default: the installed {kind} of highest default_rank)")
+
+
 def choice_help(kind: str, text: str) -> str:
     names = choices(kind)
     return f"{text} One of: {', '.join(names)}." if names else text

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from coadapt_core.cli.common import choice_help, fail, resolve
+from coadapt_core.cli.common import choice_help, default_help, fail, plugin_name, resolve
 
 
 def landscape_line(summary: dict, agents: int, steps: int) -> str:
@@ -36,8 +36,8 @@ def register(app: typer.Typer) -> None:
         objective: str = typer.Option("torque", help=choice_help("objective", "Objective (comma list for several).")),
         grid: int = typer.Option(11, help="Points per axis (grid x grid designs)."),
         terrain: str = typer.Option("flat", help="Terrain: flat, slope or random."),
-        sim: str = typer.Option("mujoco", help=choice_help("simulator", "Simulator backend.")),
-        robot: str = typer.Option("kuafu", help=choice_help("robot", "Robot.")),
+        sim: str = typer.Option(None, help=default_help("simulator", "Simulator backend.")),
+        robot: str = typer.Option(None, help=default_help("robot", "Robot.")),
         checkpoint: Path = typer.Option(None, help="Universal policy checkpoint (default: the robot's shipped policy for the terrain)."),
         agents: int = typer.Option(None, help="Paired scenarios (agents) per design (default: the quick preset's evaluation size)."),
         steps: int = typer.Option(None, help="Policy steps per agent, T_eval (default: the quick preset's)."),
@@ -56,6 +56,7 @@ def register(app: typer.Typer) -> None:
         from coadapt_core.physics.terrain import TERRAINS
         from coadapt_core.results.recorders import SqliteRecorder
 
+        sim, robot = plugin_name("simulator", sim), plugin_name("robot", robot)
         names = [o.strip() for o in objective.split(",") if o.strip()]
         for name in names:
             resolve("objective", name)

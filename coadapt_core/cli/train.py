@@ -20,8 +20,10 @@ import typer
 from coadapt_core import tracking
 from coadapt_core.cli.common import (
     choice_help,
+    default_help,
     fail,
     given_settings,
+    plugin_name,
     resolve,
     settings_options,
     with_options,
@@ -130,8 +132,8 @@ def train_options() -> list[tuple[str, Any, Any, Any]]:
 def _train_command_options() -> list[tuple[str, Any, Any]]:
     """`coadapt train`'s options that are not learner settings."""
     return [
-        ("robot", str, typer.Option(None, help=choice_help("robot", "Robot (default: the installed robot of highest default_rank)."))),
-        ("sim", str, typer.Option(None, help=choice_help("simulator", "Simulator backend (default: the installed simulator of highest default_rank)."))),
+        ("robot", str, typer.Option(None, help=default_help("robot", "Robot."))),
+        ("sim", str, typer.Option(None, help=default_help("simulator", "Simulator backend."))),
         ("terrain", str, typer.Option("flat", help="Terrain: flat, slope or random.")),
         ("designs", str, typer.Option(None, help="Design range, one low:high per continuous variable, e.g. 0.5:1.5,0.5:1.5 (default: the full space; on --resume: the checkpoint's).")),
         ("steps", int, typer.Option(1_000_000, help="Environment interactions to train for (this invocation).")),
@@ -154,13 +156,7 @@ def register(app: typer.Typer) -> None:
 
     def train_command(**values: Any) -> None:
         """Train the universal policy pi(a|o, xi) with its critic and pseudo-critics (PPO)."""
-        from coadapt_core.plugins import default_plugin
-
-        try:
-            robot = values["robot"] or default_plugin("robot")
-            sim = values["sim"] or default_plugin("simulator")
-        except UserError as exc:
-            fail(str(exc))
+        robot, sim = plugin_name("robot", values["robot"]), plugin_name("simulator", values["sim"])
         terrain, designs, steps, mixed = values["terrain"], values["designs"], values["steps"], values["mixed"]
         resume, init_from, out, quiet = values["resume"], values["init_from"], values["out"], values["quiet"]
         device, seed, logger, threads = values["device"], values["seed"], values["logger"], values["threads"]
@@ -292,7 +288,7 @@ def register(app: typer.Typer) -> None:
         checkpoint: Path | None = typer.Option(None, help="Checkpoint or weights file (default: the policy shipped for the robot and terrain)."),
         robot: str | None = typer.Option(None, help=choice_help("robot", "Robot (default: the one the checkpoint was trained for; without --checkpoint, the only installed robot).")),
         design: str | None = typer.Option(None, help="Design, comma-separated (default: the nominal design)."),
-        sim: str = typer.Option("mujoco", help=choice_help("simulator", "Simulator backend.")),
+        sim: str | None = typer.Option(None, help=default_help("simulator", "Simulator backend.")),
         terrain: str = typer.Option("flat", help="Terrain: flat, slope or random."),
         command: str = typer.Option("0.5,0,0", help="Velocity command vx,vy,yaw_rate (m/s, m/s, rad/s)."),
         agents: int = typer.Option(50, help="Agents (environments) on the design."),
@@ -337,6 +333,7 @@ def register(app: typer.Typer) -> None:
                     fail(f"--robot is needed: {len(installed)} robots are installed ({', '.join(installed)})")
                 robot = installed[0]
         robot_obj = resolve("robot", robot)()
+        sim = plugin_name("simulator", sim)
         sim_cls = _simulator(sim, terrain)
         from coadapt_core.cli.robot import parse_design
 
