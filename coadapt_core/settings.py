@@ -18,7 +18,6 @@ a tuple of integers `512,256,128` (or a YAML list).
 from __future__ import annotations
 
 import dataclasses
-import math
 import types
 import typing
 from collections.abc import Mapping
@@ -406,17 +405,6 @@ def user_error(exc: ValidationError, cls: type, prefix: str = "") -> UserError:
     return UserError(f"{key} must be {leaf.accepted()}, got {_short(value)}{detail}", field=key)
 
 
-def check_range(name: str, value: tuple[float, float], *, positive: bool = False, nonnegative: bool = False) -> None:
-    """A range must not be inverted (and, if asked, must be positive / non-negative)."""
-    lo, hi = value
-    if not (math.isfinite(lo) and math.isfinite(hi)) or lo > hi:
-        raise UserError(f"{name}: inverted range [{lo:g}, {hi:g}]; give low:high with low <= high", field=name)
-    if positive and lo <= 0:
-        raise UserError(f"{name}: range must be positive, got [{lo:g}, {hi:g}]", field=name)
-    if nonnegative and lo < 0:
-        raise UserError(f"{name}: range must be >= 0, got [{lo:g}, {hi:g}]", field=name)
-
-
 __all__ = [
     "SETTINGS_CONFIG",
     "Float",
@@ -427,7 +415,6 @@ __all__ = [
     "PositiveRange",
     "Range",
     "Weights",
-    "check_range",
     "is_settings",
     "leaves",
     "sections",

@@ -56,8 +56,12 @@ def _simulator(sim: str, terrain: str) -> type:
 def _check_device(device: str) -> None:
     import torch
 
-    if device not in ("cpu", "cuda") and not device.startswith("cuda:"):
-        fail(f"--device '{device}' is not one of: cpu, cuda, cuda:N")
+    from coadapt_core.coadapt.config import check_device
+
+    try:
+        check_device(device, field="--device")
+    except UserError as exc:
+        fail(str(exc))
     if device.startswith("cuda") and not torch.cuda.is_available():
         fail("--device cuda requested but torch sees no CUDA device; use --device cpu")
 
