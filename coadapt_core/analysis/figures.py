@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -51,4 +52,14 @@ def tidy_axes(ax: Any) -> None:
             axis.set_major_locator(MaxNLocator(5))
 
 
-__all__ = ["DPI", "MAX_COLS", "PANEL_H", "PANEL_W", "panel_grid", "pyplot", "spans_decades", "tidy_axes"]
+def save_figure(plt: Any, fig: Any, path: Path, caption: str, *, layout: bool = True) -> list[tuple[Path, str]]:
+    """Write `fig` as a PNG at DPI (laid out tight unless `layout` is False: the caller did)
+    and close it; returns the report's entry for it, [(path, caption)]."""
+    if layout:
+        fig.tight_layout()
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return [(path, caption)]
+
+
+__all__ = ["DPI", "MAX_COLS", "PANEL_H", "PANEL_W", "panel_grid", "pyplot", "save_figure", "spans_decades", "tidy_axes"]

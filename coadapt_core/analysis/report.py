@@ -16,7 +16,14 @@ from typing import Any
 
 import numpy as np
 
-from coadapt_core.analysis.figures import DPI, PANEL_H, panel_grid, pyplot, spans_decades, tidy_axes
+from coadapt_core.analysis.figures import (
+    PANEL_H,
+    panel_grid,
+    pyplot,
+    save_figure,
+    spans_decades,
+    tidy_axes,
+)
 from coadapt_core.analysis.surrogate_figure import figure_surrogate_quality
 from coadapt_core.coadapt.config import METHODS
 from coadapt_core.errors import UserError
@@ -545,12 +552,9 @@ def figure_heatmaps(store: ResultsStore, facts: Sequence[RunFacts], out: Path) -
                              fontsize=10)
                 ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, fontsize=7, frameon=False)
                 sources.append(f"{o}: {d['source']}")
-            fig.tight_layout()
             # a two-variable space is the figure's own name; a larger one (motor types too) is named
             suffix = "" if len(names) == 2 else "_" + _space_slug(names)
             path = out / f"heatmap_{t}{suffix}.png"
-            fig.savefig(path, dpi=DPI)
-            plt.close(fig)
             kinds = {d["kind"] for _, d in panels}
             what = []
             if "landscape" in kinds:
@@ -564,7 +568,7 @@ def figure_heatmaps(store: ResultsStore, facts: Sequence[RunFacts], out: Path) -
                 caption += " Hollow markers: each method's best design, one per seed."
             if drew_star:
                 caption += " Star: the landscape grid's lowest cost."
-            written.append((path, caption + " Sources: " + "; ".join(sources) + "."))
+            written += save_figure(plt, fig, path, caption + " Sources: " + "; ".join(sources) + ".")
     return written
 
 
@@ -624,12 +628,9 @@ def figure_convergence(store: ResultsStore, facts: Sequence[RunFacts], out: Path
                       if optimizer_style(opt)[1] else "none", label=_label(m, opt)) for m, opt in groups]
     fig.legend(handles=handles, loc="lower center", ncol=min(3, len(handles)), fontsize=8, frameon=False)
     fig.tight_layout(rect=(0, 0.06 + 0.03 * math.ceil(len(handles) / 3), 1, 1))
-    path = out / "convergence.png"
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
-    return [(path, "Convergence: best real cost found so far against environment interactions spent "
+    return save_figure(plt, fig, out / "convergence.png", "Convergence: best real cost found so far against environment interactions spent "
                    "(training + real evaluation), one line per run; colour and marker shape = method, "
-                   "line style and marker fill = optimizer; the marker sits at the run's last evaluation.")]
+                   "line style and marker fill = optimizer; the marker sits at the run's last evaluation.", layout=False)
 
 
 def figure_surrogate_error(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]]:
@@ -673,13 +674,9 @@ def figure_surrogate_error(facts: Sequence[RunFacts], out: Path) -> list[tuple[P
         ax.set_ylabel("(surrogate − real) / |real|  [%]")
         ax.legend(fontsize=7)
         tidy_axes(ax)
-    fig.tight_layout()
-    path = out / "surrogate_error.png"
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
-    return [(path, "Pseudo-critic surrogate error relative to the real cost of the same design (paper Fig. 4, "
+    return save_figure(plt, fig, out / "surrogate_error.png", "Pseudo-critic surrogate error relative to the real cost of the same design (paper Fig. 4, "
                    "right), one panel per objective and terrain. Sign: (surrogate − real) / |real|, so a point "
-                   "above the zero line is a design the surrogate scored worse (costlier) than it is; below, better.")]
+                   "above the zero line is a design the surrogate scored worse (costlier) than it is; below, better.")
 
 
 def pareto_points(f: RunFacts) -> dict[str, Any]:
@@ -730,13 +727,9 @@ def figure_pareto(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]
         ax.legend(fontsize=7)
         tidy_axes(ax)
         sources.add(d["source"])
-    fig.tight_layout()
-    path = out / "pareto.png"
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
-    return [(path, "Pareto fronts of multi-objective runs: grey, every real evaluation during the run; red, the "
+    return save_figure(plt, fig, out / "pareto.png", "Pareto fronts of multi-objective runs: grey, every real evaluation during the run; red, the "
                    f"front ({'; '.join(sorted(sources))}), the same designs `coadapt run` printed and the store holds; "
-                   "diamond, the design Table 6 reports.")]
+                   "diamond, the design Table 6 reports.")
 
 
 def figure_videos(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]]:

@@ -10,7 +10,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from coadapt_core.analysis.figures import DPI, panel_grid, pyplot, tidy_axes
+from coadapt_core.analysis.figures import panel_grid, pyplot, save_figure, tidy_axes
 
 
 def quality_series(facts: Sequence[Any]) -> dict[tuple[str, str], list[dict[str, Any]]]:
@@ -55,11 +55,7 @@ def figure_surrogate_quality(facts: Sequence[Any], out: Path) -> list[tuple[Path
         ax.set_title(f"{key[0]} on {key[1]}\n" + "; ".join(lines[:2]), fontsize=8)
         ax.legend(fontsize=7)
         tidy_axes(ax)
-    fig.tight_layout()
-    path = out / "surrogate_quality.png"
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
-    return [(path, "Surrogate quality per objective and terrain: Spearman rank correlation between the surrogate's "
+    return save_figure(plt, fig, out / "surrogate_quality.png", "Surrogate quality per objective and terrain: Spearman rank correlation between the surrogate's "
                    "prediction (made before the round's real costs were known) and the real cost of the same designs, "
                    "on every real round where a surrogate round was allowed; the title gives each run's pooled "
-                   "Spearman and bias ((surrogate − real) / |real|). Dotted: 0.7.")]
+                   "Spearman and bias ((surrogate − real) / |real|). Dotted: 0.7.")
