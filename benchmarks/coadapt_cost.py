@@ -220,8 +220,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", default=None, help="also write the rows to this JSON file")
     args = parser.parse_args(argv)
 
-    from coadapt_core.coadapt.config import METHODS
     from coadapt_core.errors import UserError
+    from coadapt_core.methods import METHOD_NAMES as METHODS
 
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     unknown = [m for m in methods if split_method(m)[0] not in METHODS or split_method(m)[1] not in (None, "fixed", "uncertainty")]

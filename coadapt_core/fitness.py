@@ -48,6 +48,10 @@ class RealFitness:
     # the walking gate (coadapt_core.coadapt.reliability): RMS velocity tracking error over the
     # RMS commanded velocity, per design (0 = perfect, 1 = no better than standing still)
     tracking_ratio: np.ndarray | None = None  # [K]
+    # policies this evaluation had to train first (a backend without a shared policy trains
+    # one per design, `coadapt_core.coadapt.specialized`): the loop counts their steps as
+    # training interactions and records each phase; `interactions` above excludes them
+    training: list[TrainingResult] = field(default_factory=list)
 
 
 @runtime_checkable

@@ -21,10 +21,7 @@ BUILTIN_NAMES = {"kuafu", "mujoco", "pybullet", "pso", "mixed-pso", "bo", "nsga2
 KNOWN_DEBT = {
     "coadapt_core/cli/grid.py": "default --sim mujoco",
     "coadapt_core/cli/report.py": "sim-to-sim target defaults to pybullet",
-    "coadapt_core/coadapt/config.py": "run defaults (kuafu, mujoco, pso); bo-specialized records optimizer bo",
-    "coadapt_core/coadapt/loop.py": "METHOD_SWITCHES: bo-specialized forces optimizer bo",
     "coadapt_core/experiments/grid.py": "default simulator mujoco",
-    "coadapt_core/analysis/report.py": "the BO baseline's optimizer for older rows (the method registry removes it)",
 }
 
 

@@ -25,8 +25,8 @@ from coadapt_core.analysis.figures import (
     tidy_axes,
 )
 from coadapt_core.analysis.surrogate_figure import figure_surrogate_quality
-from coadapt_core.coadapt.config import METHODS
 from coadapt_core.errors import UserError
+from coadapt_core.methods import METHOD_NAMES, METHODS
 from coadapt_core.pareto import pareto_mask
 from coadapt_core.results.export import space_of_run
 from coadapt_core.results.store import (
@@ -38,14 +38,10 @@ from coadapt_core.results.store import (
     run_folder_of,
 )
 
-#: the paper's row labels
-METHOD_LABELS = {
-    "ours": "Ours",
-    "no-surrogate": "Ours w/o Surrogate",
-    "no-real": "Ours w/o Real",
-    "no-retrain": "Ours w/o Retraining",
-    "bo-specialized": "BO",
-}
+#: the paper's row labels, and each method's marker and colour in the figures (the method registry's)
+METHOD_LABELS = {m.name: m.label for m in METHODS.values()}
+METHOD_MARKERS = {m.name: m.marker for m in METHODS.values()}
+METHOD_COLORS = {m.name: m.color for m in METHODS.values()}
 OBJECTIVE_LABELS = {"tracking": "Cmd", "power": "P", "torque": "τ"}
 TERRAIN_ORDER = ("flat", "slope", "random")
 
@@ -78,9 +74,7 @@ class RunFacts:
 
     @property
     def optimizer(self) -> str:
-        """The optimizer the run used (the BO baseline always used BO, whatever older rows say)."""
-        if self.method == "bo-specialized":
-            return "bo"
+        """The optimizer the run used."""
         return str(self.run.get("optimizer") or "unknown")
 
     @property
@@ -208,7 +202,7 @@ def _group_order(keys: Sequence[tuple[str, str]]) -> list[tuple[str, str]]:
 
     def rank(key: tuple[str, str]) -> tuple[int, str, int, str]:
         m, o = key
-        mi = METHODS.index(m) if m in METHODS else len(METHODS)
+        mi = METHOD_NAMES.index(m) if m in METHOD_NAMES else len(METHOD_NAMES)
         oi = order.index(o) if o in order else len(order)
         return (mi, m, oi, o)
 
@@ -440,9 +434,6 @@ def write_csv(path: Path, rows: Sequence[dict[str, Any]]) -> None:
 
 
 # -- figures ------------------------------------------------------------------------------------
-METHOD_MARKERS = {"ours": "o", "no-surrogate": "s", "no-real": "^", "no-retrain": "D", "bo-specialized": "P"}
-METHOD_COLORS = {"ours": "tab:red", "no-surrogate": "tab:blue", "no-real": "tab:green", "no-retrain": "tab:purple",
-                 "bo-specialized": "tab:orange"}
 #: the optimizer sets a run's line style and its marker's fill: two optimizers of one method
 #: differ in both, the methods in colour and marker shape
 LINESTYLES = ("-", (0, (5, 2)), (0, (3, 1, 1, 1)), (0, (1, 1.2)))
@@ -651,7 +642,7 @@ def figure_surrogate_error(facts: Sequence[RunFacts], out: Path) -> list[tuple[P
     fig, axes = panel_grid(plt, len(keys))
     for ax, key in zip(axes, keys, strict=True):
         pts = series[key]
-        for m in _ordered({p[2] for p in pts}, METHODS):
+        for m in _ordered({p[2] for p in pts}, METHOD_NAMES):
             xy = np.array([(p[0], 100 * p[1]) for p in pts if p[2] == m])
             ax.scatter(xy[:, 0], xy[:, 1], s=30, facecolors="none", linewidths=1.2,
                        edgecolors=METHOD_COLORS.get(m, "black"), marker=METHOD_MARKERS.get(m, "x"),

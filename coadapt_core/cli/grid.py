@@ -6,6 +6,8 @@ import json
 
 import typer
 
+from coadapt_core.methods import METHOD_NAMES
+
 
 def _check_cells(spec, out: str, store_url: str) -> None:
     """Run `coadapt run <cell's arguments> --check` in this process for every cell: a bad
@@ -36,7 +38,7 @@ def _check_cells(spec, out: str, store_url: str) -> None:
 def register(app: typer.Typer) -> None:
     @app.command("grid")
     def grid_command(
-        methods: str = typer.Option("ours,no-surrogate,no-real,no-retrain,bo-specialized", help="Comma list of methods."),
+        methods: str = typer.Option(",".join(METHOD_NAMES), help="Comma list of methods."),
         objectives: str = typer.Option("tracking,power,torque", help="Comma list of objectives (one cell each)."),
         terrains: str = typer.Option("flat,slope,random", help="Comma list of terrains."),
         seeds: str = typer.Option("0,1,2", help="Comma list of integer seeds."),

@@ -1,23 +1,19 @@
-"""The co-adaptation loop (paper Algorithm 4): config and presets, the loop with its method
-switches and resumable state, and the run recorders."""
+"""The co-adaptation loop (paper Algorithm 4): config and presets, the method registry, the
+loop with its resumable state, and the run recorders."""
 
-from coadapt_core.coadapt.config import METHODS, PRESETS, CoadaptConfig, make_config
-from coadapt_core.coadapt.loop import (
-    METHOD_SWITCHES,
-    CoadaptResult,
-    MethodSwitches,
-    run_coadaptation,
-)
+from coadapt_core.coadapt.config import PRESETS, CoadaptConfig, make_config
+from coadapt_core.coadapt.loop import CoadaptResult, run_coadaptation
+from coadapt_core.methods import METHOD_NAMES, METHODS, Method
 from coadapt_core.results.recorders import JsonRecorder, make_recorder, read_evaluations
 
 __all__ = [
     "METHODS",
-    "METHOD_SWITCHES",
+    "METHOD_NAMES",
     "PRESETS",
     "CoadaptConfig",
     "CoadaptResult",
     "JsonRecorder",
-    "MethodSwitches",
+    "Method",
     "make_config",
     "make_recorder",
     "read_evaluations",

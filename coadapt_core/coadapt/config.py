@@ -15,6 +15,7 @@ from pydantic import field_validator
 from coadapt_core.design_space import parse_range_pairs
 from coadapt_core.errors import UserError
 from coadapt_core.learning.config import TrainConfig
+from coadapt_core.methods import DEFAULT_METHOD, METHOD_NAMES, method_help, optimizer_for
 from coadapt_core.physics.randomization import RANDOMIZATION_PRESETS, RandomizationConfig
 from coadapt_core.physics.terrain import TERRAINS
 from coadapt_core.plugins import default_plugin
@@ -31,8 +32,6 @@ from coadapt_core.settings import (
 )
 from coadapt_core.task.config import TaskConfig
 
-#: --method choices; see `METHOD_SWITCHES` in coadapt_core/coadapt/loop.py
-METHODS: tuple[str, ...] = ("ours", "no-surrogate", "no-real", "no-retrain", "bo-specialized")
 #: --evaluation-policy choices: the paper's fixed probability w, or the ensemble's agreement
 EVALUATION_POLICIES: tuple[str, ...] = ("fixed", "uncertainty")
 
@@ -90,7 +89,7 @@ class CoadaptConfig:
         default_factory=lambda: default_plugin("objective"), plugin="objective",
         help="Objective to minimise, or a comma list of 2-3 for a multi-objective optimizer.")
     terrain: Literal[TERRAINS] = setting("flat", "Terrain.")
-    method: Literal[METHODS] = setting("ours", "Method: ours (Algorithm 4) or an ablation / baseline of docs/coadaptation.md.")
+    method: Literal[METHOD_NAMES] = setting(DEFAULT_METHOD, method_help())
     mixed: bool = setting(False, "Add the robot's discrete variables (motor types); implied by an optimizer that declares implies_mixed.")
     design_ranges: str = setting("", "Initial range low:high per continuous variable, e.g. 0.5:1.5,0.5:1.0 (empty: the full range).")
     seed: Int = setting(0, "Random seed.", ge=0)
@@ -196,10 +195,9 @@ class CoadaptConfig:
         checked = type(self)(**{f.name: getattr(self, f.name) for f in fields(self)})
         for f in fields(self):
             setattr(self, f.name, getattr(checked, f.name))
-        if self.method == "bo-specialized":
-            # the BO baseline always searches with BO: record the optimizer it really uses
-            # (run id, config.yaml, store), whatever the preset's or the option's optimizer
-            self.optimizer = "bo"
+        # a method that needs an optimizer capability (the BO baseline: `sequential`) records
+        # the optimizer it really searches with (run id, config.yaml, store)
+        self.optimizer = optimizer_for(self.method, self.optimizer)
         if not self.objectives:
             raise UserError("objective must name at least one objective", field="objective")
         if len(set(self.objectives)) != len(self.objectives):
@@ -411,4 +409,4 @@ def config_from_dict(data: dict[str, Any]) -> CoadaptConfig:
     return CoadaptConfig(**known).validate()
 
 
-__all__ = ["FIELD_NAMES", "METHODS", "PRESETS", "CoadaptConfig", "config_from_dict", "make_config"]
+__all__ = ["FIELD_NAMES", "PRESETS", "CoadaptConfig", "config_from_dict", "make_config"]

@@ -3,7 +3,9 @@
 real/surrogate fitness, narrow the range around the final particles; finally re-evaluate the
 best design and the nominal one for real.
 
-One code path serves every method of the paper's comparison through `MethodSwitches`. The
+One code path serves every method of the paper's comparison, each a row of the method
+registry (`coadapt_core.methods`): its switches, and the kind of backend its designs
+are evaluated with (the universal policy, or a policy per design for the BO baseline). The
 loop's whole state is written into the run folder after every training phase and every
 evaluation batch, as data only (`state.json`, the evaluation buffer as `buffer-<n>.npz`, the
 optimizer as its `state_dict()`; never a pickle), so `run_coadaptation(..., resume=run_dir)`
@@ -26,9 +28,11 @@ from coadapt_core import surrogate_quality as sq
 from coadapt_core.coadapt.config import CoadaptConfig, config_from_dict
 from coadapt_core.coadapt.final_check import batch_errors, final_check, no_uncertainty
 from coadapt_core.coadapt.reliability import assess, walking
+from coadapt_core.coadapt.setup import build_parts
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
-from coadapt_core.fitness import CoadaptationBackend, RunRecorder, scenario_seed
+from coadapt_core.fitness import CoadaptationBackend, RunRecorder, TrainingResult, scenario_seed
+from coadapt_core.methods import get_method
 from coadapt_core.objective import Objective
 from coadapt_core.optimizer import Optimizer
 from coadapt_core.pareto import pareto_front
@@ -40,31 +44,6 @@ STATE_FILE = "state.json"
 BUFFER_FILE_STEM = "buffer"  # <run_dir>/buffer-<serial>.npz: the evaluation buffer R_eval
 LEGACY_STATE_FILE = "state.pkl"  # written by coadapt before state files were data only; never read
 STATE_FORMAT = "coadapt-loop-state-1"
-
-
-@dataclass(frozen=True)
-class MethodSwitches:
-    """What distinguishes the methods of the paper's Tables 6-7."""
-
-    retrain: bool = True  # retrain the universal policy every outer iteration on the new range
-    narrow: bool = True  # narrow the range around the final particles
-    surrogate_probability: float | None = None  # None: the config's w; else forced
-    specialized: bool = False  # a policy trained from scratch per proposed design (BO baseline)
-    optimizer: str | None = None  # forced optimizer
-    # take R_eval from the training rollouts when the backend offers it (no-real only: the
-    # other methods fill it with the first, real, round of each outer iteration, as in the
-    # paper where R_eval comes from Algorithm 2)
-    buffer_from_training: bool = False
-
-
-METHOD_SWITCHES: dict[str, MethodSwitches] = {
-    "ours": MethodSwitches(),
-    "no-surrogate": MethodSwitches(surrogate_probability=0.0),
-    "no-real": MethodSwitches(surrogate_probability=1.0, buffer_from_training=True),
-    # one universal policy over the full range, trained once; N*J real-only rounds, one swarm
-    "no-retrain": MethodSwitches(retrain=False, narrow=False, surrogate_probability=0.0),
-    "bo-specialized": MethodSwitches(retrain=False, narrow=False, surrogate_probability=0.0, specialized=True, optimizer="bo"),
-}
 
 
 @dataclass
@@ -265,7 +244,10 @@ class CoadaptationLoop:
     ):
         self.config = config
         self.pretrained = pretrained
-        self.switches = METHOD_SWITCHES[config.method]
+        self.method = get_method(config.method)
+        # the method's backend shares one policy between designs (universal) or not (a
+        # policy per design: nothing to train up front, no surrogate, real costs are final)
+        self.shared = self.method.backend_kind.shared_policy
         self.backend_factory = backend_factory
         self.full_space = design_space
         self.nominal = np.asarray(nominal_design, dtype=float)
@@ -287,7 +269,7 @@ class CoadaptationLoop:
         self._fitted_for: tuple[int, int, int] | None = None  # (outer, labels, buffer) the backend's fit is for
         self._pending: tuple[int, np.ndarray] | None = None  # (inner, ensemble's costs) of a trusted round
         self._last_uncertainty: float | None = None  # the ensemble's spread ratio of this round
-        p = self.switches.surrogate_probability
+        p = self.method.surrogate_probability
         self.w = config.evaluation_probability if p is None else p
         if state.optimizer is None and state.optimizer_init is not None:  # resumed: rebuild from data
             state.optimizer = self.make_optimizer(state.optimizer_init)
@@ -306,12 +288,12 @@ class CoadaptationLoop:
     # -- bookkeeping -----------------------------------------------------------------------
     @property
     def outer_count(self) -> int:
-        return 1 if not (self.switches.retrain or self.switches.narrow) else self.config.outer_iterations
+        return 1 if not (self.method.retrain or self.method.narrow) else self.config.outer_iterations
 
     @property
     def rounds_per_outer(self) -> int:
-        if self.switches.specialized:
-            return self.config.bo_designs
+        if self.method.rounds_setting is not None:
+            return int(getattr(self.config, self.method.rounds_setting))
         if self.outer_count == 1 and self.config.outer_iterations > 1:  # no-retrain: N*J in one swarm
             return self.config.outer_iterations * self.config.optimizer_iterations
         return self.config.optimizer_iterations
@@ -329,10 +311,11 @@ class CoadaptationLoop:
         if self.progress is None:
             return
         s = self.state
-        total = self.outer_count * (self.rounds_per_outer + (0 if self.switches.specialized else 1)) + 1
-        done = s.outer * (self.rounds_per_outer + (0 if self.switches.specialized else 1))
+        training = 1 if self.shared else 0  # a training step per outer iteration
+        total = self.outer_count * (self.rounds_per_outer + training) + 1
+        done = s.outer * (self.rounds_per_outer + training)
         if s.phase == "optimize":
-            done += (0 if self.switches.specialized else 1) + s.inner
+            done += training + s.inner
         if s.phase in ("final", "done"):
             done = total - (1 if s.phase == "final" else 0)
         c = s.counters
@@ -397,35 +380,11 @@ class CoadaptationLoop:
         space = DesignSpace.from_dict(s.space)
         s.spaces.append(space.to_dict())
         population = 1 if self.optimizer_cls.sequential else c.population
-        if self.switches.specialized:  # BO baseline: nothing shared to train
-            s.train_designs = None
-            initial = None
-        else:
+        s.train_designs, initial = None, None
+        if self.shared:
             s.train_designs = space.sample(c.population, self.rng)  # [K, dim], line 10
             initial = s.train_designs[:population] if population == c.population else None
-            steps = c.train_steps if s.outer == 0 else c.retrain_steps
-            if self.pretrained and not self.switches.retrain:
-                # no-retrain starting from a universal policy over the full range trains nothing,
-                # as the paper's (0 training interactions in its Table 7)
-                steps = 0
-            if (s.outer == 0 or self.switches.retrain) and steps > 0:
-                s.labels = []  # a new policy: earlier real rounds no longer label it
-                self._fitted_for = None
-                self.emit("training")
-                result = self.get_backend().train(s.train_designs, steps, seed=self.seed_for(1, s.outer))
-                s.counters["train_interactions"] += int(result.steps)
-                s.counters["train_seconds"] += float(result.seconds)
-                self.recorder.record_training(s.run_id, outer=s.outer, result=result)
-                if self.switches.buffer_from_training and getattr(result, "buffer", None) is not None:
-                    s.buffer, s.buffer_outer = result.buffer, s.outer
-                    s.buffer_serial += 1
-            else:
-                self.get_backend()
-            path = self.run_dir / "checkpoints" / f"backend-outer{s.outer}.pt"
-            path.parent.mkdir(exist_ok=True)
-            self.get_backend().save(str(path))
-            s.backend_checkpoint = str(path.relative_to(self.run_dir))
-            self.recorder.record_checkpoint(s.run_id, outer=s.outer, path=str(path))
+            self.train_shared_policy()
         s.optimizer_init = {
             "space": space.to_dict(), "population": population, "budget": self.rounds_per_outer,
             "seed": self.seed_for(2, s.outer), "num_objectives": len(self.objectives),
@@ -434,6 +393,39 @@ class CoadaptationLoop:
         s.optimizer = self.make_optimizer(s.optimizer_init)
         s.phase, s.inner = "optimize", 0
         self.checkpoint()
+
+    def train_shared_policy(self) -> None:
+        """Algorithm 4 line 11: (re)train the shared policy on this outer iteration's designs
+        and checkpoint it."""
+        s, c = self.state, self.config
+        steps = c.train_steps if s.outer == 0 else c.retrain_steps
+        if self.pretrained and not self.method.retrain:
+            # no-retrain starting from a universal policy over the full range trains nothing,
+            # as the paper's (0 training interactions in its Table 7)
+            steps = 0
+        if (s.outer == 0 or self.method.retrain) and steps > 0:
+            s.labels = []  # a new policy: earlier real rounds no longer label it
+            self._fitted_for = None
+            self.emit("training")
+            result = self.get_backend().train(s.train_designs, steps, seed=self.seed_for(1, s.outer))
+            self.count_training([result])
+            if self.method.buffer_from_training and getattr(result, "buffer", None) is not None:
+                s.buffer, s.buffer_outer = result.buffer, s.outer
+                s.buffer_serial += 1
+        path = self.run_dir / "checkpoints" / f"backend-outer{s.outer}.pt"
+        path.parent.mkdir(exist_ok=True)
+        self.get_backend().save(str(path))
+        s.backend_checkpoint = str(path.relative_to(self.run_dir))
+        self.recorder.record_checkpoint(s.run_id, outer=s.outer, path=str(path))
+
+    def count_training(self, results: Sequence[TrainingResult]) -> None:
+        """Training phases into the counters and the recorder (the shared policy's, or the
+        per-design policies a real evaluation trained first: `RealFitness.training`)."""
+        s = self.state
+        for result in results:
+            s.counters["train_interactions"] += int(result.steps)
+            s.counters["train_seconds"] += float(result.seconds)
+            self.recorder.record_training(s.run_id, outer=s.outer, result=result)
 
     def choose_kind(self, designs: np.ndarray | None = None) -> str:
         """Hybrid evaluation (Algorithm 4 line 14): surrogate with probability w, else real.
@@ -451,7 +443,7 @@ class CoadaptationLoop:
         self._last_uncertainty = None
         if s.buffer is None or s.buffer_outer != s.outer:
             return "real"
-        if c.evaluation_policy == "uncertainty" and self.switches.surrogate_probability is None and designs is not None:
+        if c.evaluation_policy == "uncertainty" and self.method.surrogate_probability is None and designs is not None:
             members_of = getattr(self.get_backend(), "surrogate_members", None)
             if members_of is None or not self.ensure_fitted():
                 return "real"
@@ -497,13 +489,9 @@ class CoadaptationLoop:
             self.end_outer()
             return
         designs = opt.ask()  # [P, dim]
-        if self.switches.specialized:
-            kind = "real"
-            costs, interactions, seconds, errors = self.specialized_evaluation(designs)
-        else:
-            kind = self.choose_kind(designs)
-            self.emit(f"{kind} evaluation")
-            costs, interactions, seconds, errors = self.evaluate(designs, kind)
+        kind = self.choose_kind(designs)
+        self.emit(f"{kind} evaluation")
+        costs, interactions, seconds, errors = self.evaluate(designs, kind)
         target = costs[:, 0] if len(self.objectives) == 1 else costs
         opt.tell(designs, target)
         self.record_batch(designs, costs, kind, interactions, seconds, errors)
@@ -525,11 +513,12 @@ class CoadaptationLoop:
             fitted = eligible and c.measure_surrogate_error and self.ensure_fitted()
             previous = s.buffer
             fit = backend.real_fitness(designs, self.objectives, agents=c.evaluation_agents, steps=c.eval_steps, seed=self.scenario_seed())
+            self.count_training(fit.training)
             s.buffer, s.buffer_outer = fit.buffer, s.outer  # line 15: R_eval from this rollout
             s.buffer_serial += 1
             costs = np.asarray(fit.costs, dtype=float).reshape(len(designs), -1)
             errors = None
-            if c.measure_surrogate_error:
+            if c.measure_surrogate_error and self.shared:  # no shared policy, no surrogate
                 t0 = time.perf_counter()
                 states = previous if eligible else fit.buffer
                 members_of = getattr(backend, "surrogate_members", None)
@@ -611,27 +600,6 @@ class CoadaptationLoop:
                           f"{sq.TOP_K} cheapest - best real cost) / |best real cost|, mean over rounds",
         }
 
-    def specialized_evaluation(self, designs: np.ndarray) -> tuple[np.ndarray, int, float, None]:
-        """BO baseline: train a fresh policy on each design alone, then evaluate it for real."""
-        s, c = self.state, self.config
-        costs, interactions, seconds = [], 0, 0.0
-        for i, design in enumerate(designs):
-            self.emit("training specialised policy")
-            backend = self.backend_factory(self.seed_for(4, s.inner, i))
-            result = backend.train(design[None, :], c.specialized_train_steps, seed=self.seed_for(5, s.inner, i))
-            s.counters["train_interactions"] += int(result.steps)
-            s.counters["train_seconds"] += float(result.seconds)
-            self.recorder.record_training(s.run_id, outer=s.outer, result=result)
-            self.emit("real evaluation")
-            fit = backend.real_fitness(design[None, :], self.objectives, agents=c.evaluation_agents, steps=c.eval_steps, seed=self.scenario_seed())
-            costs.append(np.asarray(fit.costs, dtype=float).reshape(-1))
-            interactions += int(fit.interactions)
-            seconds += float(fit.seconds)
-        s.counters["eval_interactions"] += interactions
-        s.counters["eval_seconds"] += seconds
-        s.counters["real_evaluations"] += 1
-        return np.stack(costs), interactions, seconds, None
-
     def _keep_top(self, design: np.ndarray, cost: float) -> None:
         """The `final_candidates` lowest real costs over distinct designs (a noisy evaluation
         flatters the luckiest design; the final check re-evaluates several)."""
@@ -687,7 +655,7 @@ class CoadaptationLoop:
         """Algorithm 4 line 22: the next range, around the final particles."""
         s, c = self.state, self.config
         space = DesignSpace.from_dict(s.space)
-        if self.switches.narrow:
+        if self.method.narrow:
             narrowed = space.narrow(
                 s.optimizer.final_population(), margin=c.narrow_margin, min_width_fraction=c.narrow_min_width,
                 reference=self.full_space,
@@ -716,16 +684,17 @@ class CoadaptationLoop:
         designs = np.stack([*candidates, self.nominal])  # [C + 1, dim]
         uncertainty = no_uncertainty(self.names)
         final_walking: dict[str, dict[str, Any]] = {}
-        if self.switches.specialized:
-            # every BO cost is already real with its own policy; the nominal design needs its own
+        if not self.shared:
+            # every real cost came with the design's own policy: the best one stands, and the
+            # nominal design is evaluated with a policy of its own
             best_design, best_cost = np.asarray(s.best_real[0]), s.best_real[1]
-            costs, inter, secs, _ = self.specialized_evaluation(self.nominal[None, :])
-            s.counters["eval_interactions"] -= inter
-            s.counters["eval_seconds"] -= secs
-            s.counters["real_evaluations"] -= 1
-            s.counters["final_interactions"] += inter
-            s.counters["final_seconds"] += secs
-            nominal_costs = costs[0]
+            fit = self.get_backend().real_fitness(
+                self.nominal[None, :], self.objectives, agents=c.evaluation_agents, steps=c.eval_steps,
+                seed=self.scenario_seed())
+            self.count_training(fit.training)
+            s.counters["final_interactions"] += int(fit.interactions)
+            s.counters["final_seconds"] += float(fit.seconds)
+            nominal_costs = np.asarray(fit.costs, dtype=float).reshape(-1)
             front = None
             best_costs = np.array([best_cost])
         else:
@@ -831,8 +800,6 @@ def run_coadaptation(
         config.validate()
         state = None
         run_path = None
-    from coadapt_core.coadapt.setup import build_parts
-
     parts = build_parts(config, design_space=design_space, nominal_design=nominal_design, objectives=objectives,
                         optimizer_cls=optimizer_cls, backend_factory=backend_factory)
     if state is None:

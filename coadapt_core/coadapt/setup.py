@@ -1,5 +1,6 @@
 """Turn a `CoadaptConfig` into the parts the loop needs: design spaces, nominal design,
-objectives, optimizer class and the backend factory (the universal-policy learner)."""
+objectives, optimizer class and the backend factory of the method's backend kind (the
+universal-policy learner, or a policy per design for the BO baseline)."""
 
 from __future__ import annotations
 
@@ -9,9 +10,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from coadapt_core.coadapt.config import CoadaptConfig, learner_settings
+from coadapt_core.coadapt.specialized import SpecializedPolicyBackend
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import CoadaptError, UserError
 from coadapt_core.fitness import CoadaptationBackend
+from coadapt_core.methods import get_method
 from coadapt_core.objective import Objective
 from coadapt_core.optimizer import Optimizer
 
@@ -24,7 +27,7 @@ class LoopParts:
     objectives: list[Objective]
     optimizer_cls: type[Optimizer]
     backend_factory: Callable[[int], CoadaptationBackend]
-    pretrained: bool = False  # the backend starts from a universal policy over the full range
+    pretrained: bool = False  # the shared policy starts from a universal policy over the full range
 
 
 def uses_mixed_space(config: CoadaptConfig) -> bool:
@@ -84,13 +87,12 @@ def build_parts(
     optimizer_cls: type[Optimizer] | None = None,
     backend_factory: Callable[[int], CoadaptationBackend] | None = None,
 ) -> LoopParts:
-    from coadapt_core.coadapt.loop import METHOD_SWITCHES
     from coadapt_core.plugins import get_registry
 
     registry = get_registry()
-    switches = METHOD_SWITCHES[config.method]
-    if optimizer_cls is None:
-        optimizer_cls = registry.get("optimizer", switches.optimizer or config.optimizer)
+    shared = get_method(config.method).backend_kind.shared_policy
+    if optimizer_cls is None:  # the config's, as validation chose it for the method (`methods.optimizer_for`)
+        optimizer_cls = registry.get("optimizer", config.optimizer)
     # checked now, before any training; recorded typed (only the options given: the
     # plugin's defaults stay the plugin's)
     resolved = check_optimizer_options(config, optimizer_cls)
@@ -131,7 +133,9 @@ def build_parts(
     pretrained = False
     if backend_factory is None:
         backend_factory = universal_policy_factory(config, robot, full_space, objectives)
-        pretrained = not switches.specialized and resolve_checkpoint(config) is not None
+        pretrained = shared and resolve_checkpoint(config) is not None
+    if not shared:  # the factory builds each design's policy
+        backend_factory = specialized_factory(config, backend_factory)
     return LoopParts(full_space, space, nominal, objectives, optimizer_cls, backend_factory, pretrained)
 
 
@@ -147,14 +151,12 @@ def universal_policy_factory(
         from coadapt_core.learning.factory import make_backend
     except ImportError as exc:
         raise CoadaptError(f"the universal-policy learner (coadapt_core.learning) is not available: {exc}") from None
-    from coadapt_core.coadapt.loop import METHOD_SWITCHES
-
-    # a specialised policy (BO baseline) is trained on its one design from scratch (the
-    # paper's), or fine-tuned from the universal policy (`specialized_init: universal`), with
-    # the universal training's batch (K x agents environments) on that design
-    specialized = METHOD_SWITCHES[config.method].specialized
-    checkpoint = resolve_checkpoint(config) if not specialized or config.specialized_init == "universal" else None
-    agents = config.population * config.agents_per_design if specialized else config.agents_per_design
+    # a policy of one design (a method without a shared policy: the BO baseline) is trained
+    # from scratch (the paper's), or fine-tuned from the universal policy (`specialized_init:
+    # universal`), with the universal training's batch (K x agents environments) on that design
+    per_design = not get_method(config.method).backend_kind.shared_policy
+    checkpoint = resolve_checkpoint(config) if not per_design or config.specialized_init == "universal" else None
+    agents = config.population * config.agents_per_design if per_design else config.agents_per_design
     learner = learner_settings(config, checkpoint)  # the run's train / task / randomization keys
 
     def factory(seed: int) -> CoadaptationBackend:
@@ -162,6 +164,18 @@ def universal_policy_factory(
             robot, simulator_cls, list(objectives), terrain=config.terrain, design_space=full_space,
             agents_per_design=agents, device=config.device, seed=seed, checkpoint=checkpoint, **learner,
         )
+
+    return factory
+
+
+def specialized_factory(
+    config: CoadaptConfig, policy_factory: Callable[[int], CoadaptationBackend]
+) -> Callable[[int], CoadaptationBackend]:
+    """The backend of a method without a shared policy: `SpecializedPolicyBackend` training
+    each design's policy (`policy_factory`) for `specialized_train_steps` interactions."""
+
+    def factory(seed: int) -> CoadaptationBackend:
+        return SpecializedPolicyBackend(policy_factory, train_steps=config.specialized_train_steps, seed=seed)
 
     return factory
 

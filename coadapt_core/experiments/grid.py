@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from coadapt_core.errors import UserError
+from coadapt_core.methods import METHOD_NAMES
 from coadapt_core.results.store import (
     ENV_GRID_CELL,
     ENV_GRID_ID,
@@ -33,8 +34,6 @@ from coadapt_core.results.store import (
     run_folder_of,
 )
 
-#: the methods the paper compares (section 4.4), as `coadapt run --method` names them
-METHODS = ("ours", "no-surrogate", "no-real", "no-retrain", "bo-specialized")
 EXECUTORS = ("local", "ray")
 #: how a cell process starts coadapt when no command is given: the interpreter running the
 #: grid (or the Ray worker), so it works without the console script on PATH
@@ -51,7 +50,7 @@ class Cell:
     seed: int
     preset: str
     sim: str = "mujoco"
-    optimizer: str | None = None  # None: the method's default (the loop picks BO for bo-specialized)
+    optimizer: str | None = None  # None: the method's default (`coadapt_core.methods.optimizer_for`)
 
     @property
     def key(self) -> str:
@@ -75,8 +74,9 @@ class Cell:
     def run_args(
         self, *, out_dir: str | None = None, resume: str | None = None, extra: Sequence[str] = (), store: str | None = None
     ) -> list[str]:
-        """The `coadapt run` arguments of this cell. With `store`, the run records into it
-        and the BO baseline keeps its optuna study there too."""
+        """The `coadapt run` arguments of this cell. With `store`, the run records into it,
+        and an optimizer that keeps a study (it declares a `storage` option, as BO does)
+        keeps it there too."""
         args = [
             "run",
             "--method", self.method,
@@ -92,11 +92,24 @@ class Cell:
             args += ["--out", out_dir]
         if store:
             args += ["--store", store]
-            if self.method == "bo-specialized":
+            if _keeps_study(self.method, self.optimizer):
                 args += ["--bo-storage", store]
         if resume:
             args += ["--resume", resume]
         return [*args, *extra, "--json"]
+
+
+def _keeps_study(method: str, optimizer: str | None) -> bool:
+    """The optimizer a cell of `method` runs declares a `storage` option (a study kept in a
+    database); a cell without an optimizer runs the method's default one."""
+    from coadapt_core.methods import optimizer_for
+    from coadapt_core.plugins import get_registry
+
+    try:
+        cls = get_registry().get("optimizer", optimizer_for(method, optimizer or ""))
+    except UserError:
+        return False
+    return any(spec.name == "storage" for spec in getattr(cls, "option_specs", ()))
 
 
 @dataclass
@@ -119,9 +132,9 @@ class GridSpec:
                 raise UserError(f"grid --{name} needs at least one value", field=name)
             if len(set(values)) != len(values):
                 raise UserError(f"grid --{name} lists a value twice: {values}", field=name)
-        unknown = [m for m in self.methods if m not in METHODS]
+        unknown = [m for m in self.methods if m not in METHOD_NAMES]
         if unknown:
-            raise UserError(f"unknown method '{unknown[0]}'; methods are {', '.join(METHODS)}", field="methods")
+            raise UserError(f"unknown method '{unknown[0]}'; methods are {', '.join(METHOD_NAMES)}", field="methods")
 
     def cells(self) -> list[Cell]:
         return [

@@ -24,6 +24,7 @@ import sqlalchemy as sa
 from coadapt_core import __version__
 from coadapt_core.errors import UserError
 from coadapt_core.io import jsonable
+from coadapt_core.methods import DEFAULT_METHOD
 
 #: environment variable naming the store (a path or an SQLAlchemy URL)
 ENV_STORE = "COADAPT_STORE"
@@ -368,7 +369,7 @@ class ResultsStore:
         and keeps its rows."""
         config = dict(config)
         objectives = _objective_list(config)
-        method = str(config.get("method", "ours"))
+        method = str(config.get("method", DEFAULT_METHOD))
         seed = config.get("seed")
         run_id = run_id or config.get("run_id") or new_run_id(method, objectives, seed, config.get("optimizer"))
         now = time.time()

@@ -35,7 +35,7 @@ def test_specialised_policies_start_from_the_universal_policy_or_from_scratch(in
     config = make_config("quick", overrides={"method": "bo-specialized", "specialized_init": init, "population": 3, "agents_per_design": 2})
     parts = build_parts(config)
     assert not parts.pretrained  # the BO baseline shares no universal policy
-    backend = parts.backend_factory(0)
+    backend = parts.backend_factory(0).policy_factory(0)  # the policy of one design
     try:
         backend.train(np.array([[1.0, 1.0]]), 1, seed=0)  # builds the networks; one PPO iteration
         assert backend.trainer.env.num_envs == 3 * 2  # the universal training's batch, on one design
