@@ -25,24 +25,35 @@ KNOWN_DEBT = {
 }
 
 
-def findings(path: Path) -> list[str]:
-    tree = ast.parse(path.read_text())
-    docstrings = set()
+def docstring_ids(tree: ast.AST) -> set[int]:
+    """id() of every docstring constant of a parsed module (module, class, function)."""
+    out = set()
     for node in ast.walk(tree):
         body = getattr(node, "body", None)
         if isinstance(node, ast.Module | ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef) and body:
             first = body[0]
             if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant):
-                docstrings.add(id(first.value))
+                out.add(id(first.value))
+    return out
+
+
+def string_constants(tree: ast.AST) -> list[ast.Constant]:
+    """The string constants of a parsed module that are not docstrings."""
+    docstrings = docstring_ids(tree)
+    return [node for node in ast.walk(tree)
+            if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docstrings]
+
+
+def findings(path: Path) -> list[str]:
+    tree = ast.parse(path.read_text())
     out = []
     for node in ast.walk(tree):
         if isinstance(node, ast.Import | ast.ImportFrom):
             modules = [a.name for a in node.names] + [getattr(node, "module", None) or ""]
             if any(m.startswith("coadapt_plugins") for m in modules):
                 out.append(f"{node.lineno}: imports coadapt_plugins")
-        elif (isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docstrings
-              and (node.value in BUILTIN_NAMES or "coadapt_plugins" in node.value)):
-            out.append(f"{node.lineno}: {node.value!r}")
+    out += [f"{node.lineno}: {node.value!r}" for node in string_constants(tree)
+            if node.value in BUILTIN_NAMES or "coadapt_plugins" in node.value]
     return out
 
 

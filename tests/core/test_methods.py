@@ -24,6 +24,7 @@ from coadapt_core.methods import (
 )
 from coadapt_core.optimizer import Optimizer
 from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend, optimum_of
+from tests.test_core_plugin_neutral import string_constants
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -111,20 +112,8 @@ def test_the_method_scan_finds_a_planted_name(tmp_path):
 
 
 def method_literals(path: Path) -> list[str]:
-    tree = ast.parse(path.read_text())
-    docstrings = set()
-    for node in ast.walk(tree):
-        body = getattr(node, "body", None)
-        if isinstance(node, ast.Module | ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef) and body:
-            first = body[0]
-            if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant):
-                docstrings.add(id(first.value))
-    out = []
-    for node in ast.walk(tree):
-        if (isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docstrings
-                and any(part.strip() in METHODS for part in node.value.split(","))):
-            out.append(f"{node.lineno}: {node.value!r}")
-    return sorted(out)
+    return sorted(f"{node.lineno}: {node.value!r}" for node in string_constants(ast.parse(path.read_text()))
+                  if any(part.strip() in METHODS for part in node.value.split(",")))
 
 
 def test_every_method_is_complete_and_told_apart_in_figures():
