@@ -25,8 +25,6 @@ CORE = "coadapt_core"
 KNOWN_CYCLES: dict[frozenset[str], str] = {
     frozenset({"coadapt_core.cli", "coadapt_core.cli.grid"}):
         "`coadapt grid --dry-run` checks each cell's argv with the CLI's own main (cli owns both)",
-    frozenset({"coadapt_core.coadapt.loop", "coadapt_core.coadapt.setup"}):
-        "the bo-specialized method's branches (the method registry removes it)",
 }
 
 
