@@ -5,6 +5,7 @@ Precedence: CLI option > YAML key > preset > declared default."""
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping
 from dataclasses import fields
 from pathlib import Path
@@ -261,6 +262,7 @@ def load_yaml(path: str | Path) -> dict[str, Any]:
     return {str(k).replace("-", "_"): v for k, v in data.items()}
 
 
+@functools.cache
 def preset_defaults() -> dict[str, tuple[Any, dict[str, Any]]]:
     """{option parameter name: (its `Leaf`, {preset: default})} for every config setting
     (the preset itself excluded): what an option left unset takes."""

@@ -2,16 +2,30 @@
 critic V(s, xi) and the pseudo-critics V_pseudo(s, xi); training across designs,
 checkpoints, evaluation and the `UniversalPolicyBackend` of the co-adaptation loop.
 
-Imports torch and torchrl: import it lazily from plugin modules and the CLI."""
+Imports torch and torchrl when its learner is used (the names below are looked up lazily)."""
 
-from coadapt_core.learning.config import TrainConfig
-from coadapt_core.learning.ppo import PPO, Dims
-from coadapt_core.learning.trainer import (
-    IterationStats,
-    Trainer,
-    read_checkpoint,
-    widen_design_input,
-)
+from importlib import import_module
+from typing import Any
+
+#: what the package exports, imported on first use: importing a light submodule (the
+#: settings in `coadapt_core.learning.config`, which the CLI reads to build its options)
+#: does not pay for torchrl and tensordict
+_EXPORTS = {
+    "TrainConfig": "coadapt_core.learning.config",
+    "PPO": "coadapt_core.learning.ppo",
+    "Dims": "coadapt_core.learning.ppo",
+    "IterationStats": "coadapt_core.learning.trainer",
+    "Trainer": "coadapt_core.learning.trainer",
+    "read_checkpoint": "coadapt_core.learning.trainer",
+    "widen_design_input": "coadapt_core.learning.trainer",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _EXPORTS:
+        return getattr(import_module(_EXPORTS[name]), name)
+    raise AttributeError(f"module 'coadapt_core.learning' has no attribute '{name}'")
+
 
 __all__ = ["PPO", "Dims", "IterationStats", "TrainConfig", "Trainer", "read_checkpoint", "shipped_checkpoint", "widen_design_input"]
 
