@@ -19,9 +19,7 @@ BUILTIN_NAMES = {"kuafu", "mujoco", "pybullet", "pso", "mixed-pso", "bo", "nsga2
 
 #: module -> why it still names a built-in (architecture issue: defaults and presentation)
 KNOWN_DEBT = {
-    "coadapt_core/cli/grid.py": "default --sim mujoco",
     "coadapt_core/cli/report.py": "sim-to-sim target defaults to pybullet",
-    "coadapt_core/experiments/grid.py": "default simulator mujoco",
 }
 
 

@@ -6,6 +6,7 @@ import json
 
 import typer
 
+from coadapt_core.cli.common import default_help, plugin_name
 from coadapt_core.methods import METHOD_NAMES
 
 
@@ -43,7 +44,7 @@ def register(app: typer.Typer) -> None:
         terrains: str = typer.Option("flat,slope,random", help="Comma list of terrains."),
         seeds: str = typer.Option("0,1,2", help="Comma list of integer seeds."),
         preset: str = typer.Option("quick", help="`coadapt run` preset for every cell."),
-        sim: str = typer.Option("mujoco", help="Simulator for every cell."),
+        sim: str = typer.Option(None, help=default_help("simulator", "Simulator for every cell.")),
         optimizer: str = typer.Option(None, help="Optimizer for every cell (default: each method's own)."),
         executor: str = typer.Option("local", help="local (process pool on this machine) or ray."),
         address: str = typer.Option(None, help="Ray cluster address (default: start a local Ray instance)."),
@@ -74,7 +75,7 @@ def register(app: typer.Typer) -> None:
             terrains=parse_list(terrains, "terrains"),
             seeds=parse_list(seeds, "seeds", integers=True),
             preset=preset,
-            sim=sim,
+            sim=plugin_name("simulator", sim),
             optimizer=optimizer,
             extra_args=list(run_arg or []),
         )

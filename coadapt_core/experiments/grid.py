@@ -26,6 +26,7 @@ from typing import Any
 
 from coadapt_core.errors import UserError
 from coadapt_core.methods import METHOD_NAMES
+from coadapt_core.plugins import default_plugin
 from coadapt_core.results.store import (
     ENV_GRID_CELL,
     ENV_GRID_ID,
@@ -49,7 +50,7 @@ class Cell:
     terrain: str
     seed: int
     preset: str
-    sim: str = "mujoco"
+    sim: str
     optimizer: str | None = None  # None: the method's default (`coadapt_core.methods.optimizer_for`)
 
     @property
@@ -121,7 +122,8 @@ class GridSpec:
     terrains: list[str]
     seeds: list[int]
     preset: str = "quick"
-    sim: str = "mujoco"
+    #: default: the installed simulator of highest `default_rank` (docs/plugins.md)
+    sim: str = field(default_factory=lambda: default_plugin("simulator"))
     optimizer: str | None = None
     extra_args: list[str] = field(default_factory=list)  # appended to every `coadapt run`
 
