@@ -98,12 +98,13 @@ class Registry:
         except KeyError:
             raise UnknownPluginError(kind, name, self.names(kind), [b.line() for b in self.broken]) from None
 
-    def default(self, kind: str) -> str:
+    def default(self, kind: str, exclude: tuple[str, ...] = ()) -> str:
         """The name a command takes for `kind` when none is given: the registered class with
         the highest `default_rank` class attribute (0 when it declares none); ties go to the
-        name first in alphabetical order, so the choice never depends on load order. A kind
-        with nothing registered is the registry's one-line `UnknownPluginError`."""
-        infos = list(self.entries[kind].values())
+        name first in alphabetical order, so the choice never depends on load order. `exclude`
+        leaves names out (a second simulator: exclude the default one). A kind with nothing
+        left is the registry's one-line `UnknownPluginError`."""
+        infos = [i for i in self.entries[kind].values() if i.name not in exclude]
         if not infos:
             raise UnknownPluginError(kind, "(default)", [], [b.line() for b in self.broken])
         return min(infos, key=lambda i: (-int(getattr(i.cls, "default_rank", 0)), i.name)).name

@@ -7,13 +7,17 @@ from pathlib import Path
 import typer
 
 
-def _quiet_pybullet_import() -> None:
-    """Import pybullet once with the C-level output closed: its "pybullet build time" line
-    would otherwise land in the middle of the progress line (and once per worker)."""
+def _quiet_imports(modules: tuple[str, ...]) -> None:
+    """Import `modules` once with the C-level output closed: a line a library prints on
+    import (a simulator declares them in `quiet_imports`) would otherwise land in the middle
+    of the progress line (and once per worker)."""
     import contextlib
+    import importlib
     import os
     import sys
 
+    if not modules:
+        return
     try:
         sys.stdout.flush()
         sys.stderr.flush()
@@ -24,8 +28,9 @@ def _quiet_pybullet_import() -> None:
         with open(os.devnull, "w") as devnull:
             os.dup2(devnull.fileno(), 1)
             os.dup2(devnull.fileno(), 2)  # the line goes to stderr, where the progress line is
-            with contextlib.suppress(ImportError):
-                import pybullet  # noqa: F401
+            for name in modules:
+                with contextlib.suppress(ImportError):
+                    importlib.import_module(name)
     finally:
         for fd, copy in zip((1, 2), saved, strict=True):
             os.dup2(copy, fd)
@@ -39,7 +44,7 @@ def register(app: typer.Typer) -> None:
         out: Path = typer.Option(Path("report"), "-o", "--out", help="Folder for the tables, figures and report.html."),
         store: str = typer.Option(None, "--store", help="Results store: a path or SQLAlchemy URL (default $COADAPT_STORE or ./coadapt.db)."),
         sim_to_sim: bool = typer.Option(True, "--sim-to-sim/--no-sim-to-sim", help="Evaluate each best design's policy on a second simulator (Table 6's last column)."),
-        transfer_sim: str = typer.Option("pybullet", help="Simulator for the sim-to-sim column."),
+        transfer_sim: str = typer.Option(None, help="Simulator for the sim-to-sim column (default: the installed simulator of highest default_rank after the default one)."),
         transfer_agents: int = typer.Option(8, help="Agents per design in the sim-to-sim evaluation."),
         transfer_steps: int = typer.Option(400, help="Policy steps per agent in the sim-to-sim evaluation."),
     ) -> None:
@@ -52,14 +57,22 @@ def register(app: typer.Typer) -> None:
             fail("--transfer-agents and --transfer-steps must be >= 1")
         if sim_to_sim:
             from coadapt_core.cli.common import choices
+            from coadapt_core.errors import UserError
+            from coadapt_core.plugins import get_registry
 
-            simulators = choices("simulator")  # names only: no simulator library is imported here
+            registry = get_registry()  # names and classes only: no simulator library is imported here
+            if transfer_sim is None:  # a second simulator: the first by default_rank after the default
+                try:
+                    transfer_sim = registry.default("simulator", exclude=(registry.default("simulator"),))
+                except UserError:
+                    fail("the sim-to-sim column needs a second simulator installed (one more simulator plugin or extra); "
+                         "pass --no-sim-to-sim or --transfer-sim NAME")
+            simulators = choices("simulator")
             if transfer_sim not in simulators:
                 fail(f"--transfer-sim '{transfer_sim}' is not a simulator; available: {', '.join(simulators)}")
+            _quiet_imports(tuple(getattr(registry.get("simulator", transfer_sim), "quiet_imports", ())))
         from coadapt_core.cli.progress import ProgressLine
 
-        if sim_to_sim and transfer_sim == "pybullet":
-            _quiet_pybullet_import()
         with ResultsStore(store) as results, ProgressLine("report", None) as line:
 
             def progress(done: int, total: int, what: str) -> None:

@@ -119,6 +119,9 @@ class Simulator(ABC):
     #: plugin of highest rank (ties: the first name in alphabetical order; docs/plugins.md)
     default_rank: ClassVar[int] = 0
     description: ClassVar[str] = ""
+    #: modules the backend imports that print at import time (at the C level, past Python's
+    #: streams); a command showing a progress line imports them first with the output closed
+    quiet_imports: ClassVar[tuple[str, ...]] = ()
     #: terrains this backend supports
     terrains: ClassVar[tuple[str, ...]] = TERRAINS
     #: dtype of the backend's actuation and of `env_params` (the state stays float32)

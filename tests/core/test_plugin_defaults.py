@@ -28,6 +28,9 @@ def test_highest_rank_wins_and_ties_go_to_the_first_name():
     assert _registry(other_high, high, low).default("robot") == "mid"
     # nothing declared anywhere: the first name
     assert _registry(_robot("b"), _robot("a")).default("robot") == "a"
+    # a second one (the report's transfer simulator): the next by rank after the default
+    assert _registry(low, high, other_high).default("robot", exclude=("mid",)) == "zeta"
+    assert _registry(low, high).default("robot", exclude=("zeta",)) == "alpha"
 
 
 def test_a_third_party_plugin_can_become_the_default():

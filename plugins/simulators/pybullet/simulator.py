@@ -47,6 +47,7 @@ class PyBulletSimulator(Simulator):
 
     name: ClassVar[str] = "pybullet"
     description: ClassVar[str] = "PyBullet (Bullet) backend for sim-to-sim transfer; one process per CPU core for large batches"
+    quiet_imports: ClassVar[tuple[str, ...]] = ("pybullet",)  # prints "pybullet build time" on import
 
     def __init__(
         self,
