@@ -229,11 +229,13 @@ def config_hash(config: dict[str, Any]) -> str:
 
 
 def _extra_overrides(extra: Sequence[str]) -> dict[str, Any] | None:
-    """`coadapt run` options given as grid --run-arg (`--population 3`, `--no-mixed`) as config
-    overrides; None when one of them is not a plain config option (the hash is then unknown)."""
+    """`coadapt run` options given as grid --run-arg (`--population 3`, `--no-mixed`,
+    `--train-epochs 3`) as config overrides (keys of the settings tree, dotted for a section);
+    None when one of them is not a config option (the hash is then unknown)."""
     from coadapt_core.coadapt.config import CoadaptConfig
+    from coadapt_core.settings import leaves
 
-    types = {f: str(t.type) for f, t in CoadaptConfig.__dataclass_fields__.items()}
+    settings = {leaf.param: leaf for leaf in leaves(CoadaptConfig) if leaf.extra.get("cli", True)}
     out: dict[str, Any] = {}
     items = list(extra)
     i = 0
@@ -242,18 +244,20 @@ def _extra_overrides(extra: Sequence[str]) -> dict[str, Any] | None:
         if not token.startswith("--"):
             return None
         name, eq, value = token[2:].partition("=")
-        key = name.replace("-", "_")
-        if not eq and key.startswith("no_") and types.get(key[3:]) == "bool":
-            out[key[3:]] = False
-        elif not eq and types.get(key) == "bool":
-            out[key] = True
-        elif key in types and key != "preset":
+        param = name.replace("-", "_")
+        negated = settings.get(param[3:]) if param.startswith("no_") else None
+        leaf = settings.get(param)
+        if not eq and negated is not None and negated.kind == "bool":
+            out[negated.key] = False
+        elif not eq and leaf is not None and leaf.kind == "bool":
+            out[leaf.key] = True
+        elif leaf is not None and leaf.key != "preset":
             if not eq:
                 i += 1
                 if i >= len(items):
                     return None
                 value = items[i]
-            out[key] = value
+            out[leaf.key] = value
         else:
             return None
         i += 1

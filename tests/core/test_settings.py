@@ -183,3 +183,19 @@ def test_train_takes_the_same_sections_and_a_resume_keeps_them(tmp_path, capsys)
     # a bad value is one line naming the setting, exit 2
     assert main(["train", "--steps", "64", "--epochs", "0", "--out", str(tmp_path / "bad")]) == 2
     assert capsys.readouterr().err.strip() == "error: epochs must be an integer >= 1, got 0"
+
+
+def test_grid_run_args_of_any_setting_count_in_the_config_hash():
+    """A grid's --run-arg may be any setting of the tree (a section's too): the cell's config
+    hash is then known and equals that of a run made by hand with the same setting."""
+    from coadapt_core.experiments.grid import Cell, cell_config_hash, config_hash
+
+    cell = Cell("ours", "torque", "flat", 0, "smoke", "mujoco")
+    base = {"method": "ours", "objective": "torque", "terrain": "flat", "seed": 0, "sim": "mujoco"}
+    with_epochs = cell_config_hash(cell, ["--train-epochs", "3"])
+    assert with_epochs is not None and with_epochs != cell_config_hash(cell)
+    assert with_epochs == config_hash(make_config("smoke", None, {**base, "train.epochs": 3}).to_dict())
+    no_fit = cell_config_hash(cell, ["--no-fit-surrogate", "--task-commands-yaw-range=0:0"])
+    expected = make_config("smoke", None, {**base, "fit_surrogate": False, "task.commands.yaw_range": "0:0"})
+    assert no_fit == config_hash(expected.to_dict())
+    assert cell_config_hash(cell, ["--no-such-option", "1"]) is None
