@@ -15,7 +15,6 @@ from coadapt_plugins.simulators.pybullet import PyBulletSimulator
 from coadapt_plugins.simulators.pybullet import simulator as pb_simulator
 
 from coadapt_core.errors import UserError
-from coadapt_core.physics.actuation import pd_torque
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.physics.terrain import make_terrain
 from coadapt_core.testing import SimulatorConformance
@@ -140,24 +139,6 @@ def test_delay_holds_the_old_targets_for_the_delay(kuafu):
     assert hold[0] > 100.0  # the step target acts at once without delay
     assert all(abs(t) < 20.0 for t in late[:4])  # still holding the default pose
     assert late[4] > 100.0  # the delayed target arrives on the fifth step
-
-
-def test_torque_follows_the_shared_actuation_law(kuafu):
-    """With decimation 1 the reported torque is exactly coadapt_core.physics.actuation's output at
-    the state before the step (far targets: the torque-speed envelope clips it)."""
-    with PyBulletSimulator(kuafu, NOMINAL, randomization=RandomizationConfig.off(), decimation=1, fixed_base=True) as sim:
-        state = sim.reset()
-        model = kuafu.build(NOMINAL[0])
-        targets = sim.default_joint_pos + torch.tensor([3.0, -3.0] * 4)
-        for _ in range(5):
-            before = state
-            state = sim.step(targets)
-        gains = (model.kp, model.kd, model.torque_limit, model.speed_limit)
-        expected = pd_torque(
-            targets.double(), before.joint_pos.double(), before.joint_vel.double(),
-            *(torch.tensor(a, dtype=torch.float64) for a in gains),
-        ).numpy()
-        np.testing.assert_allclose(state.joint_torque.double().numpy(), expected, rtol=1e-4, atol=1e-3)
 
 
 def test_random_terrain_height_field_is_the_core_grid(kuafu):
