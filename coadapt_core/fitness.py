@@ -56,7 +56,13 @@ class RealFitness:
 
 @runtime_checkable
 class CoadaptationBackend(Protocol):
-    """Inner loop and fitness evaluation over designs [K, design_dim]."""
+    """Inner loop and fitness evaluation over designs [K, design_dim].
+
+    The universal-policy learner (`coadapt_core.learning.factory.make_backend`) shares one
+    policy between designs. A method whose backend kind shares none (`BACKEND_KINDS` in
+    `coadapt_core.methods`; the BO baseline's `coadapt_core.coadapt.specialized`) is never
+    asked to `train` or for `surrogate_fitness`: its `real_fitness` trains what it needs and
+    reports those phases in `RealFitness.training`."""
 
     def train(self, designs: np.ndarray, steps: int, *, seed: int = 0) -> TrainingResult:
         """Train (or fine-tune) the universal policy, critic and pseudo-critics on `designs`."""
