@@ -13,7 +13,7 @@ import errno
 import json
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +29,7 @@ def jsonable(value: Any, *, nan: Any = None) -> Any:
         value = dataclasses.asdict(value)
     elif hasattr(value, "model_dump") and not isinstance(value, type):
         value = value.model_dump()
-    if isinstance(value, dict):
+    if isinstance(value, Mapping):
         return {str(k): jsonable(v, nan=nan) for k, v in value.items()}
     if isinstance(value, list | tuple):
         return [jsonable(v, nan=nan) for v in value]

@@ -18,6 +18,7 @@ a tuple of integers `512,256,128` (or a YAML list).
 from __future__ import annotations
 
 import dataclasses
+import math
 import types
 import typing
 from collections.abc import Mapping
@@ -28,6 +29,7 @@ from pydantic.dataclasses import dataclass as _pydantic_dataclass
 from pydantic.fields import FieldInfo
 
 from coadapt_core.errors import UserError
+from coadapt_core.io import jsonable
 
 #: every settings class: unknown keys refused, no inf/nan
 SETTINGS_CONFIG = ConfigDict(extra="forbid", allow_inf_nan=False)
@@ -287,14 +289,9 @@ def sections(cls: type) -> list[str]:
 
 
 def to_plain(value: Any) -> Any:
-    """A settings object (or anything inside one) as YAML/JSON data: tuples become lists."""
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {f.name: to_plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
-    if isinstance(value, Mapping):
-        return {str(k): to_plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [to_plain(v) for v in value]
-    return value
+    """A settings object (or anything inside one) as YAML/JSON data: tuples become lists
+    (`coadapt_core.io.jsonable`, NaN kept)."""
+    return jsonable(value, nan=math.nan)
 
 
 # -- partial trees: overrides of a configuration that comes from elsewhere ------------------
