@@ -92,3 +92,16 @@ def test_same_seed_same_parameters_and_spawn_on_both_backends(terrain):
     assert not np.array_equal(a_first.friction, a_params.friction)  # reset drew new ones
     np.testing.assert_allclose(b_pos, a_pos, atol=1e-6)  # the same spawn point and height
     np.testing.assert_allclose(b_q, a_q, atol=1e-6)
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["nope", "mujoco", "pybullet"], "error: unknown robot 'nope'"),
+    (["kuafu", "mujoco", "nosim"], "error: unknown simulator 'nosim'"),
+    (["kuafu"], "usage: python -m coadapt_core.experiments.transfer"),
+])
+def test_the_check_script_says_bad_arguments_in_one_line(capsys, argv, message):
+    from coadapt_core.experiments.transfer import main
+
+    assert main(argv) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith(message)

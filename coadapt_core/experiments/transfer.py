@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from coadapt_core.errors import BackendUnavailable, UserError
+from coadapt_core.errors import BackendUnavailable, CoadaptError, UserError
 from coadapt_core.fitness import CoadaptationBackend, scenario_seed
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.physics.simulator import Simulator
@@ -332,8 +332,13 @@ def main(argv: list[str] | None = None) -> int:
         print("usage: python -m coadapt_core.experiments.transfer ROBOT REFERENCE_SIMULATOR OTHER_SIMULATOR",
               file=sys.stderr)
         return 2
-    robot = get_registry().create("robot", args[0])
-    print(markdown_tables(compare_backends(robot, reference=args[1], other=args[2])))
+    try:
+        robot = get_registry().create("robot", args[0])
+        figures = compare_backends(robot, reference=args[1], other=args[2])
+    except CoadaptError as exc:  # an unknown robot or simulator: one line
+        print(f"error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 2
+    print(markdown_tables(figures))
     return 0
 
 
