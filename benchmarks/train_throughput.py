@@ -34,7 +34,7 @@ def main() -> None:
     parser.add_argument("--epochs", type=int, default=5)
     parser.add_argument("--minibatches", type=int, default=4)
     parser.add_argument("--pseudo-epochs", type=int, default=None, help="pseudo-critic epochs per update (default: TrainConfig's; 0: as PPO's)")
-    parser.add_argument("--iterations", type=int, default=2, help="rollouts (and updates) timed after one warm-up")
+    parser.add_argument("--iterations", type=int, default=6, help="rollouts (and updates) timed after one warm-up (default 6)")
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--threads", type=int, default=None, help="physics threads")
     parser.add_argument("--torch-threads", type=int, default=0, help="torch threads of the update (0: every core)")
@@ -105,6 +105,7 @@ def main() -> None:
     result = {
         "machine": {"cpus": os.cpu_count(), "platform": platform.platform(), "load_average": os.getloadavg(),
                     "torch_threads_update": trainer.learner_threads, "torch_threads_collect": trainer.collect_threads,
+                    "omp_wait": {k: os.environ.get(k) for k in ("OMP_WAIT_POLICY", "GOMP_SPINCOUNT")},
                     "device": args.device, "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None},
         "setup": {"robot": args.robot, "sim": args.sim, "num_envs": n, "pseudo_critics": len(objectives), "num_designs": args.num_designs,
                   "steps_per_env": args.steps_per_env, "epochs": args.epochs, "minibatches": args.minibatches,

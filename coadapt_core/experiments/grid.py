@@ -567,6 +567,10 @@ def run_grid(
     threads = str(max(1, (os.cpu_count() or 1) // min(workers, len(tasks))))
     for task in tasks:
         task.env.setdefault("OMP_NUM_THREADS", os.environ.get("OMP_NUM_THREADS", threads))
+        if min(workers, len(tasks)) > 1 and "GOMP_SPINCOUNT" not in os.environ:
+            # cells started together share the cores: their OpenMP workers sleep when idle
+            # instead of spinning (coadapt_core.omp_wait_settings)
+            task.env.setdefault("OMP_WAIT_POLICY", os.environ.get("OMP_WAIT_POLICY", "PASSIVE"))
     if executor == "local":
         stream = local_executor(tasks, workers)
     else:
