@@ -22,10 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 CORE = "coadapt_core"
 
 #: strongly connected components of the full import graph still there, and why (may only shrink)
-KNOWN_CYCLES: dict[frozenset[str], str] = {
-    frozenset({"coadapt_core.cli", "coadapt_core.cli.grid"}):
-        "`coadapt grid --dry-run` checks each cell's argv with the CLI's own main (cli owns both)",
-}
+KNOWN_CYCLES: dict[frozenset[str], str] = {}
 
 
 def module_name(path: Path, root: Path) -> str:

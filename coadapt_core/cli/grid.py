@@ -10,25 +10,23 @@ from coadapt_core.cli.common import default_help, plugin_name
 from coadapt_core.methods import METHOD_NAMES
 
 
-def _check_cells(spec, out: str, store_url: str) -> None:
+def _check_cells(app: typer.Typer, spec, out: str, store_url: str) -> None:
     """Run `coadapt run <cell's arguments> --check` in this process for every cell: a bad
     objective, terrain, preset, simulator, optimizer or --run-arg is one line naming the cell
     before anything starts, not a failed cell after others ran."""
     import contextlib
     import io
 
-    from coadapt_core.cli.common import fail
+    from coadapt_core.cli.common import fail, run_app
 
     checked: dict[tuple, str | None] = {}
     for cell in spec.cells():
         argv = [a for a in cell.run_args(out_dir=out, extra=spec.extra_args, store=store_url) if a != "--json"]
         key = tuple(a for a, b in zip(argv, ["", *argv[:-1]], strict=True) if b != "--seed")  # seeds share a verdict
         if key not in checked:
-            from coadapt_core.cli import main
-
             err = io.StringIO()
             with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-                code = main([*argv, "--check"])
+                code = run_app(app, [*argv, "--check"])
             lines = [line for line in err.getvalue().splitlines() if line.strip()]
             checked[key] = None if code == 0 else (lines[-1] if lines else f"exit code {code}")
         if checked[key] is not None:
@@ -81,7 +79,7 @@ def register(app: typer.Typer) -> None:
         )
         check_grid_options(executor=executor, workers=workers, timeout=timeout, address=address)
         results = ResultsStore(store)
-        _check_cells(spec, out, results.url)  # every cell's arguments, before any cell starts
+        _check_cells(app, spec, out, results.url)  # every cell's arguments, before any cell starts
         console = Console(stderr=True)
         if dry_run:
             tasks, skipped = plan_grid(results, spec, out_dir=out)
