@@ -275,3 +275,28 @@ def test_weights_export_carries_the_command_curriculum_and_learning_rate(fake_ro
     assert all(g["lr"] == pytest.approx(1.3e-4) for g in restored.ppo.optimizer.param_groups)
     restored.set_designs(np.array([[1.0, 1.0]]))
     assert restored.env.commands.limit == pytest.approx(0.9)
+
+
+def test_act_is_the_torchrl_actors_sample_to_the_bit(fake_robot, fake_sim_cls) -> None:
+    """`PPO.act` computes what the TorchRL actor does under ExplorationType.RANDOM (without its
+    module dispatch): the same action, log-probability, loc and scale from the same seed."""
+    from tensordict import TensorDict
+    from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+    trainer = make_trainer(fake_robot, fake_sim_cls, small_config())
+    trainer.learn(1)
+    ppo = trainer.ppo
+    obs, critic_obs, design_obs = trainer._obs
+    ppo.training = False  # the normalisers stay as they are between the two calls
+    torch.manual_seed(11)
+    action = ppo.act(obs, critic_obs, design_obs)
+    mine = ppo.transitions.pop()
+    torch.manual_seed(11)
+    reference = TensorDict({"obs": ppo.obs_norm(obs), "design_obs": design_obs}, batch_size=[obs.shape[0]])
+    with torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
+        ppo.actor(reference)
+    key = ppo.loss.tensor_keys.sample_log_prob
+    assert torch.equal(action, reference["action"]) and torch.equal(mine["action"], reference["action"])
+    assert torch.equal(mine[key], reference[key])
+    assert torch.equal(mine["loc"], reference["loc"]) and torch.equal(mine["scale"], reference["scale"])
+    assert not torch.equal(action, mine["loc"])  # a sample, not the mean
