@@ -101,6 +101,10 @@ def evaluate_checkpoint(
         "torque_cost": float(result.metrics[0, 2]),
         "power_cost": float(result.metrics[0, 1]),
         "vx_command": float(command[0]),
+        # the yaw rate the robots turned at (mean over agents of each one's mean before its
+        # first fall) against the commanded one
+        "yaw_rate_mean": float(result.yaw_rate[0]),
+        "yaw_rate_command": float(command[2]),
         "foot_alternation": None if not math.isfinite(float(result.alternation[0])) else float(result.alternation[0]),
         # standard errors of the three means over the agents (paired scenarios), fall rate
         "tracking_error_se": _mean_se(result.per_agent[0, :, 0]),

@@ -42,6 +42,7 @@ class RolloutResult:
     #: agent's means over its steps before its first fall: a gait's oscillation and the
     #: policy's action noise average out, a robot that stands still scores |command|^2
     mean_velocity_error: np.ndarray | None = None
+    yaw_rate: np.ndarray | None = None  # [K] mean base yaw rate, rad/s (steps before an agent's first fall)
 
 
 @torch.no_grad()
@@ -130,4 +131,5 @@ def rollout(
         falls=falls.reshape(num_designs, agents).cpu().numpy(),
         fall_metric=per_design(fall_metric / steps),
         mean_velocity_error=per_design(((vel_sum - cmd_sum) / safe[:, None]).pow(2).sum(-1)),
+        yaw_rate=per_design(vel_sum[:, 2] / safe),
     )

@@ -24,10 +24,11 @@ def test_train_writes_a_checkpoint_that_eval_and_resume_read(tmp_path, capsys) -
     assert any((out / "logs").glob("events.out.tfevents.*"))  # TensorBoard, a dependency
 
     code = main(["eval", "--checkpoint", str(out / "model_final.pt"), "--design", "1.0,1.0", "--agents", "2",
-                 "--seconds", "0.4", "--command", "0.5,0,0", "--json"])
+                 "--seconds", "0.4", "--command", "0.5,0,0.3", "--json"])
     assert code == 0
     result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
-    assert {"survival", "vx_mean", "tracking_error", "torque_cost", "power_cost"} <= set(result)
+    assert {"survival", "vx_mean", "yaw_rate_mean", "tracking_error", "torque_cost", "power_cost"} <= set(result)
+    assert result["yaw_rate_command"] == pytest.approx(0.3) and abs(result["yaw_rate_mean"]) < 20.0
     assert 0.0 <= result["survival"] <= 1.0 and result["torque_cost"] > 0 and result["steps"] == 2 * 20
 
     resumed = tmp_path / "resumed"
