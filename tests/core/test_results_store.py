@@ -128,12 +128,14 @@ def test_crash_loses_no_recorded_evaluation(tmp_path, crash_after):
     """Killed between evaluation batches of 4 designs (1: mid outer iteration; 3: at the end
     of outer iteration 0, before the second training phase; 4: after it), everything
     recorded before survives."""
-    ctx = multiprocessing.get_context("fork")
+    # a fresh interpreter ("spawn"), not a fork of this one: a fork copies whatever locks the
+    # suite's other threads held at that moment, and its child then waited forever on one
+    ctx = multiprocessing.get_context("spawn")
     queue = ctx.Queue()
     proc = ctx.Process(target=_crashing_run, args=(str(tmp_path / "c.db"), crash_after, queue))
     proc.start()
-    run_id = queue.get(timeout=30)
-    proc.join(timeout=60)
+    run_id = queue.get(timeout=120)
+    proc.join(timeout=120)
     assert proc.exitcode == 9
     store = ResultsStore(tmp_path / "c.db")
     assert store.count_evaluations(run_id) == 4 * crash_after
