@@ -26,9 +26,10 @@ from coadapt_core.learning.ppo import PPO, Dims
 from coadapt_core.objective import Objective
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.robot import Robot
-from coadapt_core.task.config import TaskConfig
+from coadapt_core.task.config import CommandConfig, TaskConfig
 from coadapt_core.task.env import LocomotionEnv
 from coadapt_core.task.gait import half_stance
+from coadapt_core.task.observations import policy_layout, slices
 
 CHECKPOINT_FORMAT = "coadapt-policy-1"
 WEIGHTS_FORMAT = "coadapt-policy-weights-1"
@@ -353,6 +354,13 @@ class Trainer:
         if widen and int(state["dims"]["num_design"]) < wanted:
             state = widen_design_input(state, wanted)
             optimizers = False
+        state, opened = open_command_inputs(state, self.task_config.commands)
+        if opened:
+            print(
+                f"note: '{path}' never saw {' or '.join(opened)} commands vary; their inputs start with zero "
+                "weights and the new range's scale",
+                file=sys.stderr,
+            )
         self.config.hidden = tuple(state["train_config"]["hidden"])
         self.config.activation = state["train_config"]["activation"]
         saved_names = list(state["objectives"])
@@ -413,6 +421,59 @@ def widen_design_input(state: dict, num_design: int) -> dict:
     out["ppo"] = ppo
     out["widened_from"] = old
     return out
+
+
+#: below this running variance a normaliser channel counts as constant (never varied)
+_CONSTANT_VAR = 1e-8
+_COMMAND_NAMES = ("vx", "vy", "yaw-rate")
+
+
+def open_command_inputs(state: dict, commands: CommandConfig) -> tuple[dict, list[str]]:
+    """A copy of checkpoint `state` ready for a task whose commands vary where its training's
+    did not (e.g. yaw rates in [-1, 1] for a policy trained at yaw 0), and the names of the
+    channels opened.
+
+    A channel that never varied has a running variance of 0, so its normalised input was 0
+    throughout training: the weights that read it never learned anything, and the normaliser,
+    whose count is the whole training's, would scale a new command by 1/sqrt(eps) and clip it
+    at +-clip for millions of steps (a 0.5 rad/s yaw command read as 5 standard deviations,
+    whatever its size). Such a channel gets zero first-layer weights in the actor, critic and
+    pseudo-critics, so the policy acts exactly as before whatever the new command, and the
+    mean and variance of a uniform draw from the new range in both normalisers, so training
+    sees the command at its true scale and learns how to use it."""
+    ranges = (commands.vx_range, commands.vy_range, commands.yaw_range)
+    offset = slices(policy_layout(1, 1))["command"].start  # the same column in o and s
+    obs_var = state["ppo"]["obs_norm"]["var"]
+    opened = [
+        j for j, (lo, hi) in enumerate(ranges)
+        if hi > lo and float(obs_var[offset + j]) < _CONSTANT_VAR
+    ]
+    if not opened:
+        return state, []
+    out = dict(state)
+    ppo = dict(state["ppo"])
+    columns = [offset + j for j in opened]
+    for net in ("actor", "critic", "pseudo_critic"):
+        if ppo.get(net) is None:
+            continue
+        weights = dict(ppo[net])
+        for key, tensor in weights.items():
+            if _DESIGN_INPUT_LAYER.match(key):  # the first layers: observation columns first
+                tensor = tensor.clone()
+                tensor[..., columns] = 0.0
+                weights[key] = tensor
+        ppo[net] = weights
+    for norm in ("obs_norm", "critic_norm"):
+        buffers = dict(ppo[norm])
+        mean, var = buffers["mean"].clone(), buffers["var"].clone()
+        for j in opened:
+            lo, hi = ranges[j]
+            mean[offset + j] = 0.5 * (lo + hi)
+            var[offset + j] = (hi - lo) ** 2 / 12.0
+        buffers["mean"], buffers["var"] = mean, var
+        ppo[norm] = buffers
+    out["ppo"] = ppo
+    return out, [_COMMAND_NAMES[j] for j in opened]
 
 
 def usable_cpus() -> int:

@@ -238,6 +238,49 @@ def test_widened_policy_acts_exactly_as_before_whatever_the_new_design_values(fa
 
 
 
+def test_a_command_never_varied_opens_with_zero_weights_and_its_true_scale(fake_robot, fake_sim_cls, tmp_path, capsys) -> None:
+    """A policy trained at yaw rate 0 and fine-tuned on yaw commands: its yaw input was always 0
+    (variance 0), so it must start with zero weights (acting as before whatever the command)
+    and the normaliser must scale the new command by the new range, not by 1/sqrt(eps)."""
+    still = TaskConfig(noise=NoiseConfig(enabled=False), commands=CommandConfig(yaw_range=(0.0, 0.0)))
+    trainer = make_trainer(fake_robot, fake_sim_cls, task=still)
+    trainer.set_designs(np.array([[1.0, 1.0], [0.6, 1.4]]))
+    trainer.learn(2)
+    yaw = 11  # o: base_lin_vel 3, base_ang_vel 3, projected_gravity 3, command (vx, vy, yaw)
+    assert float(trainer.ppo.obs_norm.var[yaw]) == 0.0
+    path = trainer.save(tmp_path / "still.pt")
+    obs, critic_obs, design = trainer.env.reset()
+    assert torch.count_nonzero(obs[:, yaw]) == 0
+
+    turning = TaskConfig(noise=NoiseConfig(enabled=False), commands=CommandConfig(yaw_range=(-1.0, 1.0)))
+    tuned = make_trainer(fake_robot, fake_sim_cls, task=turning)
+    tuned.load(path)
+    assert "yaw-rate" in capsys.readouterr().err
+    ppo = tuned.ppo
+    for norm in (ppo.obs_norm, ppo.critic_norm):
+        assert float(norm.mean[yaw]) == 0.0 and float(norm.var[yaw]) == pytest.approx(4.0 / 12.0)
+    assert torch.count_nonzero(ppo.actor_net.body[0].weight[:, yaw]) == 0
+    # any yaw command: the same actions and pseudo-values as the original policy at yaw 0
+    for rate in (-1.0, 0.3, 1.0):
+        turned, turned_critic = obs.clone(), critic_obs.clone()
+        turned[:, yaw], turned_critic[:, yaw] = rate, rate
+        assert torch.allclose(ppo.act_inference(turned, design), trainer.ppo.act_inference(obs, design), atol=1e-6)
+        assert torch.allclose(ppo.pseudo_values(ppo.critic_norm(turned_critic), design),
+                              trainer.ppo.pseudo_values(trainer.ppo.critic_norm(critic_obs), design), rtol=1e-5)
+        # and the input reaches the network at its true scale (the old normaliser clipped it at 5)
+        assert float(ppo.obs_norm(turned)[0, yaw]) == pytest.approx(rate / (1.0 / 3.0 + ppo.obs_norm.eps) ** 0.5, rel=1e-5)
+    assert abs(float(trainer.ppo.obs_norm(turned)[0, yaw])) == pytest.approx(5.0)
+    # the vx channel varied in training: left alone
+    assert torch.equal(ppo.obs_norm.var[9], trainer.ppo.obs_norm.var[9])
+    # loading it again (now it has seen yaw commands vary) opens nothing
+    tuned.set_designs(np.array([[1.0, 1.0]]))
+    tuned.learn(1)
+    again = make_trainer(fake_robot, fake_sim_cls, task=turning)
+    again.load(tuned.save(tmp_path / "turning.pt"))
+    assert "never saw" not in capsys.readouterr().err
+    assert torch.equal(again.ppo.obs_norm.var, tuned.ppo.obs_norm.var)
+
+
 def test_non_finite_pseudo_critics_in_a_checkpoint_restart_fresh(fake_robot, fake_sim_cls, tmp_path, capsys) -> None:
     trainer = make_trainer(fake_robot, fake_sim_cls)
     trainer.set_designs(np.array([[1.0, 1.0]]))
