@@ -24,7 +24,8 @@ paper reports the episode reward of its own task, so only ratios compare with it
         --steps 2000000 --seeds 3 --device cuda --designs 64 --agents 32           # a real table
     python benchmarks/universal_vs_specialized.py ... --json                      # one JSON line last
 
-Prints a markdown table (and the ratio of each universal row to the specialized one).
+Prints a markdown table and the ratio of each universal row to the specialized one: per seed
+(seed s of every row is evaluated on the same scenarios), mean +- standard error over seeds.
 """
 
 from __future__ import annotations
@@ -128,12 +129,16 @@ def main(argv: list[str] | None = None) -> int:
                          "std": float(np.std(rewards, ddof=1)) if len(rewards) > 1 else 0.0})
             print(f"{design} {label}: {rows[-1]['mean']:.3f} +- {rows[-1]['std']:.3f} ({len(rewards)} seeds)",
                   file=sys.stderr, flush=True)
-    print(f"| design | policy | reward (mean +- std, {args.seeds} seeds) | / specialized |")
+    print(f"| design | policy | reward (mean +- std, {args.seeds} seeds) | / specialized (+- SE) |")
     print("|---|---|---|---|")
     for row in rows:
         spec = next(r for r in rows if r["design"] == row["design"] and r["policy"] == "specialized")
-        ratio = row["mean"] / spec["mean"] if spec["mean"] else float("nan")
-        print(f"| ({row['design'][0]}, {row['design'][1]}) | {row['policy']} | {row['mean']:.2f} +- {row['std']:.2f} | {ratio:.2f} |")
+        # seed s of every row is evaluated on the same scenarios: the ratio is taken per seed
+        ratios = np.array(row["rewards"]) / np.array(spec["rewards"])
+        row["ratio"] = float(ratios.mean())
+        row["ratio_se"] = float(ratios.std(ddof=1) / np.sqrt(len(ratios))) if len(ratios) > 1 else float("nan")
+        print(f"| ({row['design'][0]}, {row['design'][1]}) | {row['policy']} | {row['mean']:.2f} +- {row['std']:.2f} "
+              f"| {row['ratio']:.3f} +- {row['ratio_se']:.3f} |")
     seconds = time.perf_counter() - t0
     print(f"{len(rows) * args.seeds} policies x {args.steps} steps, {seconds:.0f} s", file=sys.stderr)
     if args.json:
