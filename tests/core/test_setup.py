@@ -27,7 +27,10 @@ def test_shipped_policies_match_their_design_spaces() -> None:
     for terrain in ("slope", "random"):  # issue 17: fine-tuned from flat.pt on their terrain
         policy = read_checkpoint(shipped_checkpoint("kuafu", terrain))
         assert policy["terrain"] == terrain and int(policy["dims"]["num_design"]) == 2
-    assert shipped_checkpoint("kuafu", "slope", mixed=True) is None
+    random_mixed = read_checkpoint(shipped_checkpoint("kuafu", "random", mixed=True))
+    assert random_mixed["terrain"] == "random" and int(random_mixed["dims"]["num_design"]) == 4
+    assert resolve_checkpoint(make_config("quick", overrides={"optimizer": "mixed-pso", "terrain": "random"})) == str(
+        shipped_checkpoint("kuafu", "random", mixed=True))
 
 
 @pytest.mark.parametrize(("init", "warm"), [("universal", True), ("scratch", False)])
