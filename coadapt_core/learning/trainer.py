@@ -388,10 +388,11 @@ class Trainer:
         return state
 
 
-#: first layers that read the design input xi (the last columns of their input, after the
-#: observation): the actor's trunk, the critic's and every pseudo-critic's (per-head layout
-#: `heads.<h>.0.weight` [out, in], or the stacked bank's `weight_0` [H, out, in])
-_DESIGN_INPUT_LAYER = re.compile(r"^((body|heads\.\d+)\.0\.weight|weight_0)$")
+#: the first layers, which read the observation (the leading columns of their input) and the
+#: design input xi (the last columns): the actor's trunk, the critic's and every
+#: pseudo-critic's (per-head layout `heads.<h>.0.weight` [out, in], or the stacked bank's
+#: `weight_0` [H, out, in])
+_FIRST_LAYER = re.compile(r"^((body|heads\.\d+)\.0\.weight|weight_0)$")
 
 
 def widen_design_input(state: dict, num_design: int) -> dict:
@@ -414,7 +415,7 @@ def widen_design_input(state: dict, num_design: int) -> dict:
             continue
         weights = dict(ppo[net])
         for key, tensor in weights.items():
-            if _DESIGN_INPUT_LAYER.match(key):
+            if _FIRST_LAYER.match(key):
                 zeros = torch.zeros(*tensor.shape[:-1], extra, dtype=tensor.dtype)
                 weights[key] = torch.cat([tensor, zeros], dim=-1)
         ppo[net] = weights
@@ -458,7 +459,7 @@ def open_command_inputs(state: dict, commands: CommandConfig) -> tuple[dict, lis
             continue
         weights = dict(ppo[net])
         for key, tensor in weights.items():
-            if _DESIGN_INPUT_LAYER.match(key):  # the first layers: observation columns first
+            if _FIRST_LAYER.match(key):
                 tensor = tensor.clone()
                 tensor[..., columns] = 0.0
                 weights[key] = tensor
