@@ -395,6 +395,17 @@ class Trainer:
 _FIRST_LAYER = re.compile(r"^((body|heads\.\d+)\.0\.weight|weight_0)$")
 
 
+def _map_first_layers(ppo: dict, fn: Callable[[torch.Tensor], torch.Tensor]) -> dict:
+    """A copy of a PPO state dict whose first-layer weights (actor, critic, pseudo-critics)
+    are replaced by fn(weight)."""
+    ppo = dict(ppo)
+    for net in ("actor", "critic", "pseudo_critic"):
+        if ppo.get(net) is None:
+            continue
+        ppo[net] = {key: fn(t) if _FIRST_LAYER.match(key) else t for key, t in ppo[net].items()}
+    return ppo
+
+
 def widen_design_input(state: dict, num_design: int) -> dict:
     """A copy of checkpoint `state` whose networks take `num_design` design values instead of
     fewer: the new inputs (appended after the existing ones, as the design space appends its
@@ -410,16 +421,9 @@ def widen_design_input(state: dict, num_design: int) -> dict:
     out["dims"] = {**state["dims"], "num_design": int(num_design)}
     ppo = {k: v for k, v in state["ppo"].items() if k not in ("optimizer", "pseudo_optimizer")}
     extra = num_design - old
-    for net in ("actor", "critic", "pseudo_critic"):
-        if ppo.get(net) is None:
-            continue
-        weights = dict(ppo[net])
-        for key, tensor in weights.items():
-            if _FIRST_LAYER.match(key):
-                zeros = torch.zeros(*tensor.shape[:-1], extra, dtype=tensor.dtype)
-                weights[key] = torch.cat([tensor, zeros], dim=-1)
-        ppo[net] = weights
-    out["ppo"] = ppo
+    out["ppo"] = _map_first_layers(
+        ppo, lambda w: torch.cat([w, torch.zeros(*w.shape[:-1], extra, dtype=w.dtype)], dim=-1)
+    )
     out["widened_from"] = old
     return out
 
@@ -454,16 +458,13 @@ def open_command_inputs(state: dict, commands: CommandConfig) -> tuple[dict, lis
     out = dict(state)
     ppo = dict(state["ppo"])
     columns = [offset + j for j in opened]
-    for net in ("actor", "critic", "pseudo_critic"):
-        if ppo.get(net) is None:
-            continue
-        weights = dict(ppo[net])
-        for key, tensor in weights.items():
-            if _FIRST_LAYER.match(key):
-                tensor = tensor.clone()
-                tensor[..., columns] = 0.0
-                weights[key] = tensor
-        ppo[net] = weights
+
+    def zero_columns(w: torch.Tensor) -> torch.Tensor:
+        w = w.clone()
+        w[..., columns] = 0.0
+        return w
+
+    ppo = _map_first_layers(ppo, zero_columns)
     for norm in ("obs_norm", "critic_norm"):
         buffers = dict(ppo[norm])
         mean, var = buffers["mean"].clone(), buffers["var"].clone()
