@@ -150,6 +150,7 @@ def _train_command_options() -> list[tuple[str, Any, Any]]:
         ("out", Path, typer.Option(Path("runs/train"), help="Output directory (checkpoints, logs, progress.jsonl).")),
         ("mixed", bool, typer.Option(False, help="Also sample the discrete design variables (motor types).")),
         ("reset_pseudo_critics", bool, typer.Option(False, "--reset-pseudo-critics", help="With --resume or --init-from: restart the pseudo-critics from scratch (after an objective's definition changed).")),
+        ("pseudo_critics_only", bool, typer.Option(False, "--pseudo-critics-only", help="With --resume or --init-from: train only the pseudo-critics; the policy, critic and observation normalisers stay exactly as loaded (refit a finished policy's surrogate, or give it a new objective).")),
         ("quiet", bool, typer.Option(False, help="No progress bar; one JSON line per iteration on stdout.")),
         ("logger", str, typer.Option("tensorboard", help="Experiment tracking: tensorboard (event files in OUT/logs), wandb (if installed) or none.")),
     ]
@@ -164,7 +165,7 @@ def register(app: typer.Typer) -> None:
         terrain, designs, steps, mixed = values["terrain"], values["designs"], values["steps"], values["mixed"]
         resume, init_from, out, quiet = values["resume"], values["init_from"], values["out"], values["quiet"]
         device, seed, logger, threads = values["device"], values["seed"], values["logger"], values["threads"]
-        reset_pseudo_critics = values["reset_pseudo_critics"]
+        reset_pseudo_critics, pseudo_only = values["reset_pseudo_critics"], values["pseudo_critics_only"]
         if steps < 0 or (steps == 0 and resume is None and init_from is None):
             fail(f"--steps must be >= 1 (or 0 with --resume or --init-from: export without training), got {steps}")
         _check_device(device)
@@ -187,6 +188,8 @@ def register(app: typer.Typer) -> None:
             fail("--resume and --init-from exclude each other: resume continues a run, --init-from starts a new one from its weights")
         if reset_pseudo_critics and resume is None and init_from is None:
             fail("--reset-pseudo-critics needs --resume or --init-from (a new run's pseudo-critics are fresh anyway)")
+        if pseudo_only and resume is None and init_from is None:
+            fail("--pseudo-critics-only needs --resume or --init-from: the policy whose pseudo-critics are trained")
         source = resume if resume is not None else init_from
         state = read_checkpoint(source) if source is not None else None
         if state is not None and state["robot"] != robot:
@@ -225,6 +228,10 @@ def register(app: typer.Typer) -> None:
                 )
         if reset_pseudo_critics and trainer.ppo.pseudo_critic is not None:
             trainer.ppo.reset_pseudo_critics()
+        if pseudo_only:
+            if trainer.ppo.pseudo_critic is None:
+                fail("--pseudo-critics-only: no objectives, so no pseudo-critics to train (see --objectives)")
+            trainer.ppo.freeze_policy()
         if lr is not None and source is not None:  # --lr wins over the rate the checkpoint reached
             trainer.ppo.learning_rate = lr
             for group in trainer.ppo.optimizer.param_groups:
@@ -239,7 +246,8 @@ def register(app: typer.Typer) -> None:
             f"training {robot} on {sim}/{terrain}: {base.num_designs} designs x {base.agents_per_design} agents = "
             f"{trainer.env.num_envs} envs, {iterations} iterations of {trainer.samples_per_iteration} samples, "
             f"range {space.describe()}, device {device}, randomization {base.extra.get('randomization', 'table2')}, "
-            f"yaw {task.commands.yaw_range[0]:g}:{task.commands.yaw_range[1]:g} rad/s",
+            f"yaw {task.commands.yaw_range[0]:g}:{task.commands.yaw_range[1]:g} rad/s"
+            + (", pseudo-critics only (the policy stays as loaded)" if pseudo_only else ""),
             file=sys.stderr,
         )
 

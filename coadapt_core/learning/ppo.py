@@ -11,8 +11,16 @@ objective m, the discounted-average metric
 per-step metric — so the surrogate fitness (mean of V_pseudo over states, Algorithm 3) is
 directly comparable with the real fitness (mean of P over steps, Algorithm 2). A fall does
 not end the metric stream (the real fitness keeps averaging after an auto-reset), so both
-terminations and timeouts bootstrap from the pseudo-critic at the final state. Targets are
-normalised per objective by running statistics; predictions are de-normalised.
+terminations and timeouts bootstrap from the pseudo-critic at the final state.
+
+Two things keep the bootstrap from feeding on itself (before they did, every long fine-tune
+diverged: the bootstrap values grew past anything the metric reached, the running scale grew
+with them, and after ~1 M steps the surrogate ranked designs backwards):
+- targets are normalised per objective by running statistics of the per-step metric P itself,
+  data the pseudo-critics do not produce, so their own errors cannot inflate the scale
+  (predictions are de-normalised with the same statistics);
+- bootstrap values are clamped to the range the metric spans in the rollout: a discounted
+  average of P cannot leave [min P, max P].
 """
 
 from __future__ import annotations
@@ -70,7 +78,8 @@ class PPO:
     actor_net: pi(a | o, xi) mean MLP + log-std; critic_net: V(s, xi);
     pseudo_critic: V_pseudo(s, xi), a `CriticBank` of one MLP per objective computed as one
     batched ensemble (None when M = 0);
-    obs_norm / critic_norm: running normalisers of o and s; pseudo_norm: of pseudo targets;
+    obs_norm / critic_norm: running normalisers of o and s; pseudo_norm: of the per-step metrics
+    (the pseudo-critics' target scale);
     loss: TorchRL ClipPPOLoss over actor + critic; gae: TorchRL GAE;
     optimizer: Adam over actor + critic; pseudo_optimizer: Adam over the pseudo-critics only.
     """
@@ -115,6 +124,9 @@ class PPO:
         self.transitions: list[TensorDict] = []  # one [N] TensorDict per rollout step
         self.rollout: TensorDict | None = None  # [N, T] after compute_returns
         self.training = True
+        #: `freeze_policy`: only the pseudo-critics learn (actor, critic, their optimizer and
+        #: the observation normalisers stay exactly as they are)
+        self.policy_frozen = False
         #: wall seconds of compute_returns ("returns") and update ("update") and of the
         #: pseudo-critics' part of both ("pseudo"); `profile` makes them exact on a GPU
         self.timing = {"returns": 0.0, "update": 0.0, "pseudo": 0.0}
@@ -130,7 +142,7 @@ class PPO:
         """Sample actions [N, A] for a rollout step and start its transition record."""
         from torchrl.modules import IndependentNormal
 
-        if self.training:
+        if self.training and not self.policy_frozen:
             self.obs_norm.update(obs)
             self.critic_norm.update(critic_obs)
         normed = self.obs_norm(obs)
@@ -198,16 +210,18 @@ class PPO:
         td = torch.stack(self.transitions, dim=1)  # [N, T]
         self.transitions = []
         begin = self._clock()
-        self.gae(td)
+        if not self.policy_frozen:
+            self.gae(td)
         if self.pseudo_critic is not None:
             tick = self._clock()
             with self._autocast(self.pseudo_precision):  # the regression's numerics
                 value_next = self.pseudo_values(td["next", "critic_obs"], td["next", "design_obs"]).float()  # [N, T, M]
-            target = discounted_average_targets(
-                td["metrics"], value_next, td["next", "done"], self.config.gamma, self.config.pseudo_lam
-            )
-            self.pseudo_norm.update(target)
             m = self.dims.num_metrics
+            metrics = td["metrics"]
+            seen = metrics.reshape(-1, m)
+            value_next = torch.clamp(value_next, min=seen.amin(dim=0), max=seen.amax(dim=0))
+            target = discounted_average_targets(metrics, value_next, td["next", "done"], self.config.gamma, self.config.pseudo_lam)
+            self.pseudo_norm.update(metrics)
             td["pseudo_target"] = (target - self.pseudo_norm.mean[:m]) / torch.sqrt(self.pseudo_norm.var[:m] + self.pseudo_norm.eps)
             self.timing["pseudo"] += self._clock() - tick
         self.rollout = td
@@ -251,13 +265,18 @@ class PPO:
         pseudo_epochs = c.pseudo_epochs or c.epochs
         pseudo_seconds = 0.0
         begin = self._clock()
-        for epoch in range(c.epochs):
+        frozen = self.policy_frozen
+        for epoch in range(pseudo_epochs if frozen else c.epochs):
             order = torch.randperm(n, device=self.device)
             for start in range(0, n - size + 1, size):
                 batch = flat[order[start : start + size]]
-                with self._autocast(self.precision):
-                    out = self.loss(batch)
-                loss = out["loss_objective"] + out["loss_critic"] + out["loss_entropy"]
+                if frozen:
+                    out = {k: torch.zeros((), device=self.device) for k in keys}
+                    out["kl_approx"] = torch.zeros((), device=self.device)
+                else:
+                    with self._autocast(self.precision):
+                        out = self.loss(batch)
+                    loss = out["loss_objective"] + out["loss_critic"] + out["loss_entropy"]
                 pseudo = self.pseudo_critic is not None and epoch < pseudo_epochs
                 flags = [out["kl_approx"].detach().float().reshape(())]
                 if pseudo:
@@ -270,7 +289,7 @@ class PPO:
                     pseudo_seconds += self._clock() - tick
                 host = torch.stack(flags).tolist()  # the one synchronisation
                 kl = host[0]
-                if c.schedule == "adaptive":
+                if c.schedule == "adaptive" and not frozen:
                     # rsl_rl's rule on the (approximate) KL between behaviour and current policy
                     if kl > 2.0 * c.desired_kl:
                         self.learning_rate = max(1e-5, self.learning_rate / 1.5)
@@ -278,10 +297,11 @@ class PPO:
                         self.learning_rate = min(1e-2, self.learning_rate * 1.5)
                     for group in self.optimizer.param_groups:
                         group["lr"] = self.learning_rate
-                self.optimizer.zero_grad(set_to_none=True)
-                loss.backward()
-                torch.nn.utils.clip_grad_norm_(params, c.max_grad_norm, foreach=True)
-                self.optimizer.step()
+                if not frozen:
+                    self.optimizer.zero_grad(set_to_none=True)
+                    loss.backward()
+                    torch.nn.utils.clip_grad_norm_(params, c.max_grad_norm, foreach=True)
+                    self.optimizer.step()
                 if pseudo and host[1] > 0:  # never step on a non-finite loss
                     tick = self._clock()
                     self.pseudo_optimizer.zero_grad(set_to_none=True)
@@ -354,6 +374,13 @@ class PPO:
             return None, norm, None
         net = CriticBank(d.num_critic_obs, d.num_design, c.hidden, c.activation, outputs=d.num_metrics).to(self.device)
         return net, norm, torch.optim.Adam(net.parameters(), lr=c.pseudo_learning_rate, foreach=True)
+
+    def freeze_policy(self) -> None:
+        """Train only the pseudo-critics from now on: refit the surrogate of a finished policy
+        (or give it a new objective) without changing how it acts."""
+        if self.pseudo_critic is None:
+            raise ValueError("no pseudo-critics to train: the policy has no objectives")
+        self.policy_frozen = True
 
     def reset_pseudo_critics(self) -> None:
         """Restart the pseudo-critics, their target normaliser and optimizer from scratch."""

@@ -49,6 +49,7 @@ def test_train_writes_a_checkpoint_that_eval_and_resume_read(tmp_path, capsys) -
         (["train", "--device", "tpu"], "--device 'tpu'"),
         (["train", "--resume", "a.pt", "--init-from", "b.pt"], "--resume and --init-from exclude each other"),
         (["train", "--reset-pseudo-critics", "--steps", "8"], "--reset-pseudo-critics needs --resume or --init-from"),
+        (["train", "--pseudo-critics-only", "--steps", "8"], "--pseudo-critics-only needs --resume or --init-from"),
         (["eval", "--command", "fast"], "--command 'fast'"),
         (["eval", "--checkpoint", "/no/such.pt"], "does not exist"),
         # --robot given: another test may have left a second robot (the example plugin's) registered

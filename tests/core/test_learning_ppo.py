@@ -343,3 +343,57 @@ def test_act_is_the_torchrl_actors_sample_to_the_bit(fake_robot, fake_sim_cls) -
     assert torch.equal(mine[key], reference[key])
     assert torch.equal(mine["loc"], reference["loc"]) and torch.equal(mine["scale"], reference["scale"])
     assert not torch.equal(action, mine["loc"])  # a sample, not the mean
+
+
+def _rollout(ppo, env, steps: int) -> None:
+    obs, critic, design = env.reset()
+    for _ in range(steps):
+        actions = ppo.act(obs, critic, design)
+        res = env.step(actions)
+        ppo.process_env_step(res.reward, res.done, res.timeout, res.info["final_critic_obs"], res.design_obs, res.info["metrics"])
+        obs, critic, design = res.obs, res.critic_obs, res.design_obs
+
+
+def test_a_runaway_pseudo_critic_cannot_inflate_its_own_targets(fake_robot, fake_sim_cls) -> None:
+    # a pseudo-critic predicting absurd values everywhere (as an extrapolating one did on
+    # unfamiliar states, which once fed back until every long fine-tune's surrogate ranked
+    # designs backwards): its bootstrap is held to the metric's range and the target scale is
+    # the metric's own, so neither moves
+    trainer = make_trainer(fake_robot, fake_sim_cls)
+    trainer.set_designs(np.array([[1.0, 1.0], [0.7, 1.2]]))
+    ppo, env = trainer.ppo, trainer.env
+    bank = ppo.pseudo_critic
+    with torch.no_grad():
+        getattr(bank, f"bias_{bank.num_layers - 1}").fill_(1e4)  # 1e4 "standard deviations"
+    _rollout(ppo, env, 12)
+    batch = ppo.compute_returns()
+    metrics = batch["metrics"].reshape(-1, 2)
+    lo, hi = metrics.amin(0), metrics.amax(0)
+    norm = ppo.pseudo_norm
+    target = batch["pseudo_target"].reshape(-1, 2) * torch.sqrt(norm.var[:2] + norm.eps) + norm.mean[:2]
+    assert bool((target >= lo - 1e-4 * hi.abs()).all()) and bool((target <= hi * (1 + 1e-4)).all())
+    # the normaliser holds the statistics of the per-step metric, whatever the critic says
+    torch.testing.assert_close(norm.mean[:2], metrics.mean(0), rtol=1e-4, atol=1e-6)
+    torch.testing.assert_close(norm.var[:2], metrics.var(0, unbiased=False), rtol=1e-3, atol=1e-6)
+
+
+def test_pseudo_critics_only_leaves_the_policy_exactly_as_loaded(fake_robot, fake_sim_cls) -> None:
+    trainer = make_trainer(fake_robot, fake_sim_cls)
+    trainer.set_designs(np.array([[1.0, 1.0], [0.7, 1.2]]))
+    trainer.learn(1)
+    ppo = trainer.ppo
+    before = {name: {k: t.clone() for k, t in getattr(ppo, attr).state_dict().items()}
+              for name, attr in (("actor", "actor_net"), ("critic", "critic_net"), ("obs", "obs_norm"), ("critic_obs", "critic_norm"))}
+    pseudo_before = {k: t.clone() for k, t in ppo.pseudo_critic.state_dict().items()}
+    adam_steps = int(ppo.optimizer.state_dict()["state"][0]["step"])
+    rate = ppo.learning_rate
+    ppo.freeze_policy()
+    trainer.learn(2)
+    for name, attr in (("actor", "actor_net"), ("critic", "critic_net"), ("obs", "obs_norm"), ("critic_obs", "critic_norm")):
+        for k, t in getattr(ppo, attr).state_dict().items():
+            assert torch.equal(t, before[name][k]), (name, k)
+    assert int(ppo.optimizer.state_dict()["state"][0]["step"]) == adam_steps and ppo.learning_rate == rate
+    moved = [k for k, t in ppo.pseudo_critic.state_dict().items() if not torch.equal(t, pseudo_before[k])]
+    assert len(moved) == len(pseudo_before)  # every pseudo-critic parameter learned
+    per_iteration = (ppo.config.pseudo_epochs or ppo.config.epochs) * ppo.config.minibatches
+    assert int(ppo.pseudo_optimizer.state_dict()["state"][0]["step"]) == 3 * per_iteration  # 1 + 2 iterations
