@@ -106,7 +106,9 @@ def evaluate_checkpoint(
         "yaw_rate_mean": float(result.yaw_rate[0]),
         "yaw_rate_command": float(command[2]),
         "foot_alternation": None if not math.isfinite(float(result.alternation[0])) else float(result.alternation[0]),
-        # standard errors of the three means over the agents (paired scenarios), fall rate
+        # standard errors over the agents (paired scenarios) of the speeds and the three costs
+        "vx_mean_se": _mean_se(result.per_agent_velocity[0, :, 0]),
+        "yaw_rate_mean_se": _mean_se(result.per_agent_velocity[0, :, 2]),
         "tracking_error_se": _mean_se(result.per_agent[0, :, 0]),
         "power_cost_se": _mean_se(result.per_agent[0, :, 1]),
         "torque_cost_se": _mean_se(result.per_agent[0, :, 2]),

@@ -43,6 +43,9 @@ class RolloutResult:
     #: policy's action noise average out, a robot that stands still scores |command|^2
     mean_velocity_error: np.ndarray | None = None
     yaw_rate: np.ndarray | None = None  # [K] mean base yaw rate, rad/s (steps before an agent's first fall)
+    #: [K, A, 3] each agent's mean (v_x, v_y, yaw rate) before its first fall (the spread
+    #: behind `vx` and `yaw_rate`: their standard errors)
+    per_agent_velocity: np.ndarray | None = None
 
 
 @torch.no_grad()
@@ -132,4 +135,5 @@ def rollout(
         fall_metric=per_design(fall_metric / steps),
         mean_velocity_error=per_design(((vel_sum - cmd_sum) / safe[:, None]).pow(2).sum(-1)),
         yaw_rate=per_design(vel_sum[:, 2] / safe),
+        per_agent_velocity=(vel_sum / safe[:, None]).reshape(num_designs, agents, 3).cpu().numpy(),
     )

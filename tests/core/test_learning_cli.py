@@ -30,6 +30,8 @@ def test_train_writes_a_checkpoint_that_eval_and_resume_read(tmp_path, capsys) -
     assert {"survival", "vx_mean", "yaw_rate_mean", "tracking_error", "torque_cost", "power_cost"} <= set(result)
     assert result["yaw_rate_command"] == pytest.approx(0.3) and abs(result["yaw_rate_mean"]) < 20.0
     assert 0.0 <= result["survival"] <= 1.0 and result["torque_cost"] > 0 and result["steps"] == 2 * 20
+    # speeds carry their standard error over the (two) agents: half the gap between them
+    assert result["vx_mean_se"] > 0 and result["yaw_rate_mean_se"] > 0
 
     resumed = tmp_path / "resumed"
     assert main(["train", "--resume", str(out / "model_final.pt"), "--steps", "64", "--out", str(resumed), "--quiet",

@@ -397,3 +397,17 @@ def test_pseudo_critics_only_leaves_the_policy_exactly_as_loaded(fake_robot, fak
     assert len(moved) == len(pseudo_before)  # every pseudo-critic parameter learned
     per_iteration = (ppo.config.pseudo_epochs or ppo.config.epochs) * ppo.config.minibatches
     assert int(ppo.pseudo_optimizer.state_dict()["state"][0]["step"]) == 3 * per_iteration  # 1 + 2 iterations
+
+
+def test_rollout_speeds_are_the_mean_of_each_agents_mean(fake_robot, fake_sim_cls) -> None:
+    from coadapt_core.learning.evaluate import rollout
+
+    task = TaskConfig(noise=NoiseConfig(enabled=False), commands=CommandConfig(curriculum=False, vx_range=(0.5, 1.0), yaw_range=(-0.5, 0.5), zero_share=0.0))
+    trainer = make_trainer(fake_robot, fake_sim_cls, task=task)
+    trainer.set_designs(np.array([[1.0, 1.0], [0.7, 1.2]]))
+    result = rollout(trainer.ppo, trainer.env, 2, 20, seed=3)
+    per_agent = result.per_agent_velocity
+    assert per_agent.shape == (2, 16, 3)
+    np.testing.assert_allclose(per_agent[:, :, 0].mean(axis=1), result.vx, rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(per_agent[:, :, 2].mean(axis=1), result.yaw_rate, rtol=1e-5, atol=1e-7)
+    assert per_agent[:, :, 0].std(axis=1).min() > 0  # agents differ: the standard error has something to measure
