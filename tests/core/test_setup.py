@@ -33,6 +33,30 @@ def test_shipped_policies_match_their_design_spaces() -> None:
         shipped_checkpoint("kuafu", "random", mixed=True))
 
 
+SHIPPED = [(t, m) for t in ("flat", "slope", "random") for m in (False, True)]
+
+
+@pytest.mark.parametrize(("terrain", "mixed"), SHIPPED)
+def test_shipped_pseudo_critics_are_trained_in_the_metrics_units(terrain, mixed) -> None:
+    # the surrogate of a shipped policy: trained (a normaliser that has seen data) and in the
+    # units of the per-step metrics, which are all non-negative costs. Checkpoints whose
+    # bootstrap had run away (docs/training.md, Pseudo-critics) held means of -1e9..1e13, or
+    # NaN, which loads as untrained pseudo-critics (count 0)
+    path = shipped_checkpoint("kuafu", terrain, mixed=mixed)
+    if path is None:
+        pytest.skip(f"no {terrain} policy for the {'mixed' if mixed else 'continuous'} space")
+    state = read_checkpoint(path)
+    norm = state["ppo"]["pseudo_norm"]
+    mean, std = norm["mean"].double(), norm["var"].double().sqrt()
+    assert state["objectives"] == ["tracking", "power", "torque"]
+    assert float(norm["count"]) >= 500_000, "pseudo-critics never trained"
+    assert torch.isfinite(mean).all() and torch.isfinite(std).all()
+    assert (mean > 0).all(), mean
+    assert (std < 100 * mean).all(), (mean, std)
+    bank = state["ppo"]["pseudo_critic"]
+    assert all(torch.isfinite(t).all() for t in bank.values())
+
+
 @pytest.mark.parametrize(("init", "warm"), [("universal", True), ("scratch", False)])
 def test_specialised_policies_start_from_the_universal_policy_or_from_scratch(init, warm) -> None:
     config = make_config("quick", overrides={"method": "bo-specialized", "specialized_init": init, "population": 3, "agents_per_design": 2})
