@@ -65,7 +65,12 @@ def test_bad_options_give_one_line_and_exit_2(args, message, capsys) -> None:
     assert message in err and len(err.splitlines()) == 1, err
 
 
-def test_eval_without_checkpoint_says_no_policy_is_shipped(capsys) -> None:
-    # Kuafu ships slope.pt for the leg scales only: nothing for slope and the mixed space
+def test_eval_without_checkpoint_says_no_policy_is_shipped(capsys, monkeypatch) -> None:
+    # Kuafu ships a policy for every terrain and both spaces; a robot that ships none for
+    # slope and the mixed space (as Kuafu did before slope-mixed.pt) gets one line, exit 2
+    from coadapt_core.robot import Robot
+
+    shipped = Robot.shipped_policy
+    monkeypatch.setattr(Robot, "shipped_policy", lambda self, terrain, mixed=False: None if (terrain, mixed) == ("slope", True) else shipped(self, terrain, mixed))
     assert main(["eval", "--robot", "kuafu", "--terrain", "slope", "--design", "1,1,1,1"]) == 2
     assert "robot 'kuafu' ships no policy for terrain 'slope' and the mixed design space" in capsys.readouterr().err

@@ -27,10 +27,11 @@ def test_shipped_policies_match_their_design_spaces() -> None:
     for terrain in ("slope", "random"):  # issue 17: fine-tuned from flat.pt on their terrain
         policy = read_checkpoint(shipped_checkpoint("kuafu", terrain))
         assert policy["terrain"] == terrain and int(policy["dims"]["num_design"]) == 2
-    random_mixed = read_checkpoint(shipped_checkpoint("kuafu", "random", mixed=True))
-    assert random_mixed["terrain"] == "random" and int(random_mixed["dims"]["num_design"]) == 4
-    assert resolve_checkpoint(make_config("quick", overrides={"optimizer": "mixed-pso", "terrain": "random"})) == str(
-        shipped_checkpoint("kuafu", "random", mixed=True))
+    for terrain in ("slope", "random"):  # widened from the terrain's checkpoint to the motor types
+        mixed_policy = read_checkpoint(shipped_checkpoint("kuafu", terrain, mixed=True))
+        assert mixed_policy["terrain"] == terrain and int(mixed_policy["dims"]["num_design"]) == 4
+        assert resolve_checkpoint(make_config("quick", overrides={"optimizer": "mixed-pso", "terrain": terrain})) == str(
+            shipped_checkpoint("kuafu", terrain, mixed=True))
 
 
 SHIPPED = [(t, m) for t in ("flat", "slope", "random") for m in (False, True)]
