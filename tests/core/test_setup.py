@@ -44,8 +44,7 @@ def test_shipped_pseudo_critics_are_trained_in_the_metrics_units(terrain, mixed)
     # bootstrap had run away (docs/training.md, Pseudo-critics) held means of -1e9..1e13, or
     # NaN, which loads as untrained pseudo-critics (count 0)
     path = shipped_checkpoint("kuafu", terrain, mixed=mixed)
-    if path is None:
-        pytest.skip(f"no {terrain} policy for the {'mixed' if mixed else 'continuous'} space")
+    assert path is not None, f"Kuafu ships a {terrain} policy for the {'mixed' if mixed else 'continuous'} space"
     state = read_checkpoint(path)
     norm = state["ppo"]["pseudo_norm"]
     mean, std = norm["mean"].double(), norm["var"].double().sqrt()
