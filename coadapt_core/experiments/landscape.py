@@ -82,13 +82,6 @@ def run_landscape(
     scenario_falls: dict[tuple[float, ...], np.ndarray] = {}  # design -> [A] bool
     fall_rate: dict[tuple[float, ...], float] = {}
     reference, extra_interactions = None, 0
-    if rule.needs_reference:  # the nominal design on the grid's scenario set: the rule's reference level
-        ref_fit = backend.real_fitness(np.asarray(nominal, dtype=float)[None, :], objectives, agents=agents, steps=steps,
-                                       seed=scenario_seed(seed))
-        extra_interactions = int(ref_fit.interactions)
-        if getattr(ref_fit, "per_scenario", None) is not None:
-            falls = getattr(ref_fit, "scenario_falls", None)
-            reference = rule.reference(np.asarray(ref_fit.per_scenario)[0], None if falls is None else np.asarray(falls)[0])
     for row in range(grid):
         if row in done_rows and store.count_evaluations(run_id) >= (row + 1) * grid:
             continue
@@ -104,6 +97,13 @@ def run_landscape(
         if getattr(fit, "scenario_falls", None) is not None:
             for design, falls in zip(batch, np.asarray(fit.scenario_falls, dtype=bool), strict=True):
                 scenario_falls[tuple(np.round(design, 9))] = falls
+        if getattr(fit, "per_scenario", None) is not None and rule.needs_reference and reference is None:
+            # the nominal design on the grid's scenario set: the rule's reference level
+            ref_fit = backend.real_fitness(np.asarray(nominal, dtype=float)[None, :], objectives, agents=agents,
+                                           steps=steps, seed=scenario_seed(seed))
+            extra_interactions = int(ref_fit.interactions)
+            falls = getattr(ref_fit, "scenario_falls", None)
+            reference = rule.reference(np.asarray(ref_fit.per_scenario)[0], None if falls is None else np.asarray(falls)[0])
         if getattr(fit, "per_scenario", None) is not None and (reference is not None or not rule.needs_reference):
             costs = rule.cost(fit.per_scenario, getattr(fit, "scenario_falls", None), reference)
         else:
