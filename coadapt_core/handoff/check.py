@@ -162,8 +162,8 @@ def fell(spec: dict, robot: Robot) -> bool:
     return bool(height < end["min_base_height"] * robot.standing_height or gravity_z > -end["max_tilt_cos"])
 
 
-def check_reference(spec: dict, folder: Path) -> float | None:
-    """Max |ONNX - torch| action difference on the recorded observations of reference.npz."""
+def check_reference(spec: dict, folder: Path) -> tuple[float, int] | None:
+    """(max |ONNX - torch| action difference, rows) on the recorded observations of reference.npz."""
     path = folder / spec["files"]["reference"]
     if not path.is_file():
         return None
@@ -172,7 +172,7 @@ def check_reference(spec: dict, folder: Path) -> float | None:
     data = np.load(path, allow_pickle=False)
     session = ort.InferenceSession(str(folder / spec["files"]["onnx"]), providers=["CPUExecutionProvider"])
     (actions,) = session.run(["actions"], {"obs": data["obs"].astype(np.float32)})
-    return float(np.max(np.abs(actions - data["actions"])))
+    return float(np.max(np.abs(actions - data["actions"]))), len(actions)
 
 
 def walk(folder: Path, seconds: float, command: list[float], terrain: str | None = None, phase: float = 0.0) -> dict:
@@ -191,7 +191,8 @@ def walk(folder: Path, seconds: float, command: list[float], terrain: str | None
         robot.step(targets.astype(np.float64))
         controller.advance(actions)
         obs = controller.observe(robot)
-        vx.append(float(obs[0, 0]))  # base-frame forward velocity
+        _, quat, lin_world, _ = robot.base()
+        vx.append(float(quat_rotate_inverse(quat, lin_world)[0]))  # base-frame forward velocity
         if fell(spec, robot):
             break
         survived += 1
@@ -223,7 +224,8 @@ def main(argv: list[str] | None = None) -> int:
         print("error: --seconds must be > 0 and --phase in [0, 1)", file=sys.stderr)
         return 2
     spec = json.loads((HERE / "policy.json").read_text())
-    difference = check_reference(spec, HERE)
+    reference = check_reference(spec, HERE)
+    difference, rows = reference if reference is not None else (None, 0)
     tolerance = spec["onnx"]["tolerance"]
     result = walk(HERE, args.seconds, [args.vx, args.vy, args.yaw], args.terrain, args.phase)
     result["onnx_vs_torch_max_abs_action_difference"] = difference
@@ -231,7 +233,7 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(result))
     else:
         if difference is not None:
-            print(f"ONNX vs torch on {spec['onnx']['recorded_observations']} recorded observations: "
+            print(f"ONNX vs torch on {rows} recorded observations (reference.npz): "
                   f"max |action difference| {difference:.2e} (tolerance {tolerance:g})")
         print(f"{spec['robot']} {spec['design_text']} on {result['terrain']} ground, command vx {args.vx:g} m/s "
               f"vy {args.vy:g} m/s yaw {args.yaw:g} rad/s for {args.seconds:g} s: survival {result['survival']:.2f} "

@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import io
 import logging
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -39,7 +40,15 @@ def missing_deploy_modules() -> list[str]:
     """The packages of the `deploy` extra that cannot be imported here."""
     import importlib.util
 
-    return [name for name in DEPLOY_MODULES if importlib.util.find_spec(name) is None]
+    missing = []
+    for name in DEPLOY_MODULES:
+        try:
+            found = sys.modules[name] is not None if name in sys.modules else importlib.util.find_spec(name) is not None
+        except (ImportError, ValueError):
+            found = False
+        if not found:
+            missing.append(name)
+    return missing
 
 
 class SpecialisedPolicy(nn.Module):
