@@ -20,8 +20,8 @@ def register(app: typer.Typer) -> None:
         run: str = typer.Argument(..., help="Run folder, or a run id under --runs-dir."),
         out: Path = typer.Option(None, "-o", "--out", help="Folder to write (default: ./handoff-<run id>)."),
         design: str = typer.Option(None, "--design", help=DESIGN_HELP),
-        sim: list[str] = typer.Option(None, "--sim", help="Simulator to evaluate the design and the nominal one on "
-                                      "(repeatable; default: the run's and every other installed simulator)."),
+        sim: list[str] = typer.Option(None, "--sim", help="Simulator to evaluate the design and the nominal one on; "
+                                      "repeatable (default: the run's and every other installed one)."),
         agents: int = typer.Option(16, "--agents", help="Paired scenarios per design and simulator."),
         seconds: float = typer.Option(5.0, "--seconds", help="Simulated seconds per scenario."),
         check: bool = typer.Option(True, "--check/--no-check", help="Walk the folder's check.py once written (10 s at 0.5 m/s)."),
