@@ -321,7 +321,8 @@ def policy_spec(*, robot: Any, model: Any, design: np.ndarray, space: Any, state
                     "observation's clock is (sin, cos)(2 pi phase); training started each episode at a random phase",
         },
         "commands": _trained_command_ranges(task, state.get("commands")),
-        "terrain": {"name": terrain, "slope_degrees": SLOPE_DEGREES if terrain == "slope" else 0.0},
+        "terrain": {"name": terrain, "slope_degrees": SLOPE_DEGREES,
+                    "note": "the ground trained on; slope_degrees is the slope terrain's rise along +x"},
         "termination": {"min_base_height": task.min_base_height, "max_tilt_cos": task.max_tilt_cos,
                         "rule": "a fall: base height above the ground < min_base_height x its standing height, or "
                                 "projected gravity z > -max_tilt_cos"},

@@ -248,9 +248,11 @@ def test_readme_snippet_runs_the_controller(kuafu_handoff):
 
 
 @pytest.mark.slow
-def test_check_script_rebuilds_the_task_observation(kuafu_handoff):
+@pytest.mark.parametrize("terrain", ["flat", "slope"])
+def test_check_script_rebuilds_the_task_observation(kuafu_handoff, terrain):
     """Step for step, the script's observation equals the locomotion task's on the run's
-    simulator (randomization and noise off, same command and clock) under the same actions."""
+    simulator (randomization and noise off, same command and clock, same spawn) under the
+    same actions, on flat ground and on the slope."""
     import importlib.util
 
     import torch
@@ -267,7 +269,7 @@ def test_check_script_rebuilds_the_task_observation(kuafu_handoff):
     registry = get_registry()
     robot = registry.create("robot", "kuafu")
     design = np.array(list(spec["design"].values()))
-    sim = registry.get("simulator", "mujoco")(robot, design[None], terrain="flat", randomization=RandomizationConfig.off())
+    sim = registry.get("simulator", "mujoco")(robot, design[None], terrain=terrain, randomization=RandomizationConfig.off())
     task = TaskConfig()
     task.noise.enabled = False
     env = LocomotionEnv(sim, robot, task, [], seed=0)
@@ -275,7 +277,7 @@ def test_check_script_rebuilds_the_task_observation(kuafu_handoff):
     env.reset()
     env.phase[:] = 0.0
     expected = env._observe(env.state)[0].numpy()
-    mine = check.Robot(spec, out, "flat")
+    mine = check.Robot(spec, out, terrain)
     mine.reset()
     controller = check.Controller(spec, out / "policy.onnx", np.array([0.5, 0.0, 0.0]), 0.0)
     got = controller.observe(mine)
