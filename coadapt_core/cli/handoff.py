@@ -23,7 +23,7 @@ def register(app: typer.Typer) -> None:
         sim: list[str] = typer.Option(None, "--sim", help="Simulator to evaluate the design and the nominal one on; "
                                       "repeatable (default: the run's and every other installed one)."),
         agents: int = typer.Option(16, "--agents", help="Paired scenarios per design and simulator."),
-        seconds: float = typer.Option(5.0, "--seconds", help="Simulated seconds per scenario."),
+        seconds: float = typer.Option(4.0, "--seconds", help="Simulated seconds per scenario."),
         check: bool = typer.Option(True, "--check/--no-check", help="Walk the folder's check.py once written (10 s at 0.5 m/s)."),
         video: bool = typer.Option(True, "--video/--no-video", help="Render a GIF when the run has none of this design."),
         force: bool = typer.Option(False, "--force", help="Replace an earlier handoff folder at --out."),

@@ -64,7 +64,7 @@ class HandoffOptions:
     design: np.ndarray | None = None  # None: the run's best design
     simulators: Sequence[str] | None = None  # None: the run's simulator and every other installed one
     agents: int = 16  # paired scenarios per design and simulator
-    seconds: float = 5.0  # simulated seconds per scenario
+    seconds: float = 4.0  # simulated seconds per scenario
     check: bool = True  # walk the folder's check.py once it is written
     check_seconds: float = 10.0
     video: bool = True  # render a GIF when the run has none for the design
@@ -380,11 +380,13 @@ def evaluate_on(simulator: str, *, robot: Any, checkpoint: Path, objectives: lis
         space = robot.design_space_for(design)
         backend = make_backend(robot, sim_cls, made, terrain=terrain, design_space=space, agents_per_design=agents,
                                seed=seed, checkpoint=str(checkpoint))
-        fit = backend.real_fitness(np.stack([design, nominal]), made, agents=agents, steps=steps,
-                                   seed=scenario_seed(seed, 1))
-        close = getattr(backend, "close", None)
-        if callable(close):
-            close()
+        try:
+            fit = backend.real_fitness(np.stack([design, nominal]), made, agents=agents, steps=steps,
+                                       seed=scenario_seed(seed, 1))
+        finally:
+            close = getattr(backend, "close", None)
+            if callable(close):
+                close()
     except (BackendUnavailable, UserError, ImportError) as exc:
         out["error"] = " ".join(str(exc).split())
         return out

@@ -140,9 +140,11 @@ def render_markdown(sheet: dict[str, Any]) -> str:
               f"{', '.join(prov['objectives'])}, terrain {d['terrain']}, seed {prov['seed']}); "
               f"{'the run' + chr(39) + 's best design' if d['is_run_best'] else 'a design chosen with --design'}. "
               "Units: SI (m, kg, s, rad, N m).", ""]
-    lines += ["## Design parameters", "", "| parameter | value | unit | bounds |", "|---|---|---|---|"]
+    lines += ["## Design parameters", "", "| parameter | value | unit | allowed |", "|---|---|---|---|"]
     for p in d["parameters"]:
-        lines.append(f"| {p['name']} | {_num(p['value'])} | {p['unit']} | [{_num(p['bounds'][0])}, {_num(p['bounds'][1])}] |")
+        allowed = ("one of " + ", ".join(_num(c) for c in p["choices"]) if p.get("choices")
+                   else f"[{_num(p['bounds'][0])}, {_num(p['bounds'][1])}]")
+        lines.append(f"| {p['name']} | {_num(p['value'])} | {p['unit']} | {allowed} |")
     body = d["body"]
     lines += ["", "## Body", "", f"Total mass {_num(body['total_mass'])} kg; overall height {_num(body['height'], 3)} m "
               f"(bounding boxes of the collision and visual geometry at the standing pose); standing base height "
