@@ -464,7 +464,7 @@ q0 = np.array(p["action"]["default_joint_pos"]); kp, kd = np.array(p["joints"]["
 d.qpos[:7] = [0, 0, p["simulation"]["standing_base_height"] + 0.002, 1, 0, 0, 0]; d.qpos[qa] = q0; mujoco.mj_forward(m, d)
 rot = lambda q, v: v * (2 * q[0] ** 2 - 1) - np.cross(q[1:], v) * 2 * q[0] + q[1:] * 2 * q[1:] @ v  # world -> base
 hist, phase, cmd = np.zeros((p["observation"]["history"], len(J))), 0.0, np.array([0.5, 0.0, 0.0])
-for step in range(500):  # 10 s at 50 Hz
+for step in range(round(10 / p["rates"]["control_dt"])):  # 10 s
     obs = np.concatenate([rot(d.qpos[3:7], d.qvel[:3]), d.qvel[3:6], rot(d.qpos[3:7], g), cmd, d.qpos[qa] - q0,
                           d.qvel[va], hist.ravel(), [math.sin(2 * math.pi * phase), math.cos(2 * math.pi * phase)]])
     action, target = policy.run(None, {{"obs": obs[None].astype(np.float32)}})
