@@ -9,7 +9,7 @@ import sys
 import typer
 
 from coadapt_core import __version__
-from coadapt_core.cli import export, grid, landscape, plugins, report, robot, run, train
+from coadapt_core.cli import export, grid, handoff, landscape, plugins, report, robot, run, train
 from coadapt_core.cli.common import run_app
 
 app = typer.Typer(
@@ -42,6 +42,7 @@ grid.register(app)
 report.register(app)
 export.register(app)
 landscape.register(app)
+handoff.register(app)
 
 
 def main(argv: list[str] | None = None) -> int:
