@@ -256,11 +256,26 @@ class UniversalPolicyBackend:
             return self.surrogate_members(designs, objectives, buffer, samples=samples, seed=seed).mean(axis=0)
         states = self._states(buffer, samples, seed)  # [S, C]
         xi = self.trainer_normalize(designs)  # [K, D]
+        # only the pseudo-critics of `objectives` (each head is its own MLP: the same values, to
+        # the bit, as computing every head and keeping these columns; one head alone is computed
+        # twice, because a batch of one takes another matrix-product path, 1e-6 apart)
+        bank = self.ppo.pseudo_critic
+        idx = torch.as_tensor(columns * 2 if len(columns) == 1 and bank.num_heads > 1 else columns, dtype=torch.long)
+        layers = [(w[idx], b[idx]) for w, b in (bank.layer(k) for k in range(bank.num_layers))]
+        norm, m = self.ppo.pseudo_norm, self.ppo.dims.num_metrics
+        scale, offset = torch.sqrt(norm.var[:m] + norm.eps)[idx], norm.mean[:m][idx]
+        n = len(columns)
         out = []
         for k in range(xi.shape[0]):  # one candidate at a time keeps memory at [S, C]
-            values = self.ppo.pseudo_values(states, xi[k].expand(states.shape[0], -1))  # [S, M]
-            out.append(values.mean(dim=0))
-        return torch.stack(out)[:, columns].cpu().numpy()
+            h = torch.cat([states, xi[k].expand(states.shape[0], -1)], dim=-1)
+            h = h.unsqueeze(0).expand(len(idx), -1, -1)
+            for j, (weight, bias) in enumerate(layers):
+                h = torch.baddbmm(bias.unsqueeze(1), h, weight.transpose(1, 2))
+                if j < len(layers) - 1:
+                    h = bank.act(h)
+            values = h.squeeze(-1).transpose(0, 1) * scale + offset  # [S, M]
+            out.append(values.mean(dim=0)[:n])
+        return torch.stack(out).cpu().numpy()
 
     # -- pseudo-critics fitted to the current range (issue 16; learning/surrogate.py) -------
     def _states(self, buffer: Any, samples: int, seed: int) -> torch.Tensor:
