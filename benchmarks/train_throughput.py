@@ -44,12 +44,15 @@ def main() -> None:
     parser.add_argument("--objectives", default="tracking,power,torque", help="pseudo-critics to train ('' for none)")
     args = parser.parse_args()
 
-    # coadapt_core before torch: it sets torch's OpenMP wait policy (coadapt_core/__init__.py)
+    # the `coadapt` command's OpenMP wait policy, chosen before torch is imported (coadapt_core/launch.py)
+    from coadapt_core.launch import apply_omp_wait_policy
+
+    apply_omp_wait_policy()
     from coadapt_core.learning import TrainConfig, Trainer
     from coadapt_core.plugins import get_registry
 
     registry = get_registry()
-    import torch  # after coadapt_core (see above)
+    import torch
     robot = registry.get("robot", args.robot)()
     sim_cls = registry.get("simulator", args.sim)
     objectives = [registry.get("objective", n)() for n in args.objectives.split(",") if n]

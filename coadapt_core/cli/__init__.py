@@ -50,5 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     return run_app(app, argv)
 
 
-def entry() -> None:  # pragma: no cover - console script
+def entry() -> None:  # pragma: no cover - console script of older installs
+    """Runs the app without choosing the OpenMP wait policy (torch is already imported
+    here); the console script is `coadapt_core.launch.entry`, which chooses it first."""
     sys.exit(main())

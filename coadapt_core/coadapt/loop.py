@@ -596,6 +596,8 @@ class CoadaptationLoop:
             self._last_errors = batch_errors(fit, self.cost_rule, self.reference_level(fit))
             return costs, int(fit.interactions), float(fit.seconds), errors
         t0 = time.perf_counter()
+        # the round's seconds include a fit it needs: counted once (ensure_fitted counts it too)
+        counted = s.counters["surrogate_seconds"]
         if self._pending is not None and self._pending[0] == s.inner:  # the ensemble's, just computed
             predicted = self._pending[1]
         else:
@@ -603,7 +605,7 @@ class CoadaptationLoop:
             predicted = backend.surrogate_fitness(designs, self.objectives, s.buffer, samples=c.surrogate_samples, seed=seed)
         self._pending = None
         seconds = time.perf_counter() - t0
-        s.counters["surrogate_seconds"] += seconds
+        s.counters["surrogate_seconds"] = counted + seconds
         s.counters["eval_seconds"] += seconds
         s.counters["surrogate_evaluations"] += 1
         return np.asarray(predicted, dtype=float).reshape(len(designs), -1), 0, seconds, None

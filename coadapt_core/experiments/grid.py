@@ -569,7 +569,7 @@ def run_grid(
         task.env.setdefault("OMP_NUM_THREADS", os.environ.get("OMP_NUM_THREADS", threads))
         if min(workers, len(tasks)) > 1 and "GOMP_SPINCOUNT" not in os.environ:
             # cells started together share the cores: their OpenMP workers sleep when idle
-            # instead of spinning (coadapt_core.omp_wait_settings)
+            # instead of spinning (coadapt_core.launch.omp_wait_settings)
             task.env.setdefault("OMP_WAIT_POLICY", os.environ.get("OMP_WAIT_POLICY", "PASSIVE"))
     if executor == "local":
         stream = local_executor(tasks, workers)

@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import time
 from collections.abc import Sequence
@@ -260,13 +261,47 @@ class UniversalPolicyBackend:
             return self.surrogate_members(designs, objectives, buffer, samples=samples, seed=seed).mean(axis=0)
         states = self._states(buffer, samples, seed)  # [S, C]
         xi = self.trainer_normalize(designs)  # [K, D]
+        # only the pseudo-critics of `objectives` (each head is its own MLP: the same values, to
+        # the bit, as computing every head and keeping these columns; one head alone is computed
+        # twice, because a batch of one takes another matrix-product path, 1e-6 apart)
+        bank = self.ppo.pseudo_critic
+        idx = torch.as_tensor(columns * 2 if len(columns) == 1 and bank.num_heads > 1 else columns, dtype=torch.long)
+        layers = [(w[idx], b[idx]) for w, b in (bank.layer(k) for k in range(bank.num_layers))]
+        norm, m = self.ppo.pseudo_norm, self.ppo.dims.num_metrics
+        scale, offset = torch.sqrt(norm.var[:m] + norm.eps)[idx], norm.mean[:m][idx]
+        n = len(columns)
+        with self._learner_threads():
+            return self._paper_estimate(states, xi, bank, layers, scale, offset, n)
+
+    @staticmethod
+    def _paper_estimate(states, xi, bank, layers, scale, offset, n: int) -> np.ndarray:
+        """[K, n]: the mean over `states` of the heads `layers` (weights, biases per layer)
+        at each design of `xi`, in cost units, the first `n` heads."""
         out = []
         for k in range(xi.shape[0]):  # one candidate at a time keeps memory at [S, C]
-            values = self.ppo.pseudo_values(states, xi[k].expand(states.shape[0], -1))  # [S, M]
-            out.append(values.mean(dim=0))
-        return torch.stack(out)[:, columns].cpu().numpy()
+            h = torch.cat([states, xi[k].expand(states.shape[0], -1)], dim=-1)
+            h = h.unsqueeze(0).expand(layers[0][0].shape[0], -1, -1)
+            for j, (weight, bias) in enumerate(layers):
+                h = torch.baddbmm(bias.unsqueeze(1), h, weight.transpose(1, 2))
+                if j < len(layers) - 1:
+                    h = bank.act(h)
+            values = h.squeeze(-1).transpose(0, 1) * scale + offset  # [S, M]
+            out.append(values.mean(dim=0)[:n])
+        return torch.stack(out).cpu().numpy()
 
     # -- pseudo-critics fitted to the current range (issue 16; learning/surrogate.py) -------
+    @contextlib.contextmanager
+    def _learner_threads(self):
+        """The fit and the predictions on the learner's torch threads (every core unless
+        configured, as the PPO update), not the single one of collection: no physics runs
+        beside them. Their outputs do not depend on the thread count (checked to the bit)."""
+        before = torch.get_num_threads()
+        torch.set_num_threads(self.trainer.learner_threads)
+        try:
+            yield
+        finally:
+            torch.set_num_threads(before)
+
     def _states(self, buffer: Any, samples: int, seed: int) -> torch.Tensor:
         gen = torch.Generator(device="cpu")
         gen.manual_seed(int(seed))
@@ -291,10 +326,11 @@ class UniversalPolicyBackend:
         m = self.ppo.dims.num_metrics
         scale = torch.sqrt(norm.var[:m] + norm.eps)
         states = self._states(buffer, min(len(buffer), 65536), seed)
-        self.fitted = fit_ensemble(
-            self.ppo.pseudo_critic, columns, scale, norm.mean[:m], states, self.trainer_normalize(designs[ok]),
-            torch.as_tensor(costs[ok], dtype=torch.float32), members=self.surrogate_members_count, seed=seed,
-        )
+        with self._learner_threads():
+            self.fitted = fit_ensemble(
+                self.ppo.pseudo_critic, columns, scale, norm.mean[:m], states, self.trainer_normalize(designs[ok]),
+                torch.as_tensor(costs[ok], dtype=torch.float32), members=self.surrogate_members_count, seed=seed,
+            )
         self.fitted_columns = columns
 
     @torch.no_grad()
@@ -308,7 +344,8 @@ class UniversalPolicyBackend:
             return None
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
         states = self._states(buffer, samples, seed)
-        return self.fitted.predict(states, self.trainer_normalize(designs)).cpu().numpy()
+        with self._learner_threads():
+            return self.fitted.predict(states, self.trainer_normalize(designs)).cpu().numpy()
 
     def trainer_normalize(self, designs: np.ndarray) -> torch.Tensor:
         space = self.trainer.robot.design_space_for(designs[0])

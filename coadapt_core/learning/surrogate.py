@@ -126,7 +126,7 @@ def fit_ensemble(
     # each member sees its own bootstrap resample of the labelled designs (member 0: all)
     picks = [torch.arange(n)] + [torch.randint(n, (n,), generator=gen) for _ in range(members - 1)]
     picks = torch.stack(picks)  # [E, N]
-    optimizer = torch.optim.Adam(bank.parameters(), lr=lr)
+    optimizer = torch.optim.Adam(bank.parameters(), lr=lr, foreach=True)
     bank.train()
     for _ in range(int(steps)):
         rows = torch.randint(states.shape[0], (batch,), generator=gen)

@@ -1,0 +1,83 @@
+"""benchmarks/run_cost.py: a run's wall clock split into phases, and the loop counting each
+second of surrogate work once (a fit made for a surrogate round used to count twice)."""
+
+from __future__ import annotations
+
+import importlib.util
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from coadapt_core.coadapt import make_config, run_coadaptation
+from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def load_benchmark():
+    spec = importlib.util.spec_from_file_location("run_cost", ROOT / "benchmarks" / "run_cost.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_phases_take_surrogate_rounds_out_of_real_evaluation():
+    summary = {"train_seconds": 30.0, "train_interactions": 3000, "eval_seconds": 50.0, "eval_interactions": 8000,
+               "surrogate_seconds": 12.0, "final_seconds": 5.0, "final_interactions": 400}
+    evaluations = [{"kind": "real", "seconds": 10.0}, {"kind": "surrogate", "seconds": 3.0},
+                   {"kind": "surrogate", "seconds": 4.0}]
+    parts = load_benchmark().phases(summary, evaluations, wall=100.0)
+    assert parts["real evaluation"] == (43.0, 8000)
+    assert parts["surrogate"] == (12.0, 0)
+    assert parts["other"] == (pytest.approx(100.0 - 30.0 - 43.0 - 12.0 - 5.0), 0)
+
+
+class SlowFit(AnalyticBackend):
+    """The analytic backend whose surrogate fit takes FIT seconds."""
+
+    FIT = 0.3
+
+    def fit_surrogate(self, *args, **kwargs):
+        time.sleep(self.FIT)
+        super().fit_surrogate(*args, **kwargs)
+
+
+def test_a_fit_for_a_surrogate_round_counts_once(tmp_path):
+    backends = []
+
+    def factory(seed):
+        backends.append(SlowFit(seed))
+        return backends[-1]
+
+    from coadapt_plugins.objectives.locomotion import TorqueObjective
+
+    config = make_config("smoke", overrides=dict(
+        population=4, optimizer_iterations=6, outer_iterations=1, agents_per_design=4, eval_steps=5, train_steps=100,
+        retrain_steps=50, seed=3, evaluation_probability=0.5, store="none", out=str(tmp_path)))
+    result = run_coadaptation(config, backend_factory=factory, design_space=SPACE, nominal_design=NOMINAL,
+                              objectives=[TorqueObjective()], run_dir=tmp_path / "r")
+    s = result.summary
+    fits = sum(getattr(b, "fits", 0) for b in backends)
+    assert s["surrogate_evaluations"] >= 1 and fits >= 2
+    # every fit's sleep is surrogate time, once: the fake's predictions cost next to nothing
+    assert fits * SlowFit.FIT <= s["surrogate_seconds"] < (fits + 0.5) * SlowFit.FIT
+    assert s["surrogate_seconds"] <= s["seconds"]
+
+
+@pytest.mark.slow
+def test_smoke_run_cost_splits_the_wall_clock(capsys, tmp_path):
+    """The real learner at the smoke size: the phases add up to the wall clock and each
+    rate is set against a ceiling measured in the same process."""
+    import json
+
+    assert load_benchmark().main(["--size", "smoke", "--json", "--out", str(tmp_path)]) == 0
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    phases = report["phases"]
+    assert sum(p["seconds"] for p in phases.values()) == pytest.approx(report["wall_seconds"], abs=0.3)
+    assert all(p["seconds"] >= 0 for p in phases.values())
+    assert phases["real evaluation"]["interactions"] > 0 and phases["train"]["interactions"] > 0
+    assert 0 < report["evaluation_vs_physics_ceiling"] < 2 and 0 < report["training_vs_physics_ceiling"] < 2
+    assert report["surrogate_share"] == pytest.approx(phases["surrogate"]["seconds"] / report["wall_seconds"], abs=0.01)
+    assert np.isfinite(report["improvement"])
