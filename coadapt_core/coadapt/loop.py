@@ -84,6 +84,8 @@ class LoopState:
     spaces: list[dict] = field(default_factory=list)  # the range of each outer iteration
     elapsed: float = 0.0  # wall-clock seconds spent before the current process
     summary: dict[str, Any] | None = None
+    policy: dict[str, Any] | None = None  # the starting policy's provenance (setup.policy_provenance)
+    notes: list[str] = field(default_factory=list)  # warnings printed at the start, kept in the summary
 
 
 @dataclass
@@ -759,6 +761,8 @@ class CoadaptationLoop:
             "evaluation_policy": c.evaluation_policy,
             "surrogate_quality": self.surrogate_quality(),
         }
+        summary["policy"] = s.policy
+        summary["notes"] = list(s.notes)
         summary["reliable"], summary["reliability"] = assess(s.batches, final_walking)
         summary["final_walking"] = final_walking
         summary.update(uncertainty)
@@ -767,6 +771,22 @@ class CoadaptationLoop:
         self.checkpoint()
         self.recorder.finish(s.run_id, summary, "finished")
         self.emit("done")
+
+
+def _check_same_policy(state: LoopState, policy: dict[str, Any] | None) -> None:
+    """A resumed run starts from the policy file it started from: a file whose SHA-256
+    changed since (a reinstalled plugin shipping a retrained policy, an overwritten path) is
+    refused in one line. A run recorded before provenance existed takes today's."""
+    recorded = (state.policy or {}).get("sha256")
+    if policy is None or not recorded or state.phase == "done":
+        state.policy = state.policy or policy
+        return
+    if policy.get("sha256") != recorded:
+        now = policy.get("sha256")
+        raise UserError(
+            f"cannot resume run {state.run_id}: its starting policy {state.policy.get('path')} changed since the run "
+            f"started (SHA-256 {recorded[:12]}... then, {now[:12] + '...' if now else 'no file'} now); restore that "
+            "file, or start a new run", field="resume")
 
 
 # ------------------------------------------------------------------------------------------
@@ -809,11 +829,16 @@ def run_coadaptation(
         if (run_path / STATE_FILE).exists():
             raise UserError(f"run folder '{run_path}' already holds a run; resume it or pick another", field="out")
         run_path.mkdir(parents=True, exist_ok=True)
-        state = LoopState(run_id=run_id, config=config.to_dict(), space=parts.space.to_dict())
+        state = LoopState(run_id=run_id, config=config.to_dict(), space=parts.space.to_dict(), policy=parts.policy,
+                          notes=list(parts.notes))
+        for note in parts.notes:
+            print(f"warning: {note}", file=sys.stderr)
+    else:
+        _check_same_policy(state, parts.policy)
     assert run_path is not None
     recorder = recorder or make_recorder(run_path, config.store or None)
     recorder.start_run({**config.to_dict(), "run_id": state.run_id, "run_dir": str(run_path),
-                        "design_space": parts.full_space.to_dict()})
+                        "design_space": parts.full_space.to_dict(), "policy": state.policy})
     if resume is not None:
         # a store that lost this run's rows (emptied, replaced, an old copy) gets them back
         # from the run folder's JSON lines before anything new is recorded

@@ -5,7 +5,7 @@ universal-policy learner, or a policy per design for the BO baseline)."""
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -28,6 +28,10 @@ class LoopParts:
     optimizer_cls: type[Optimizer]
     backend_factory: Callable[[int], CoadaptationBackend]
     pretrained: bool = False  # the shared policy starts from a universal policy over the full range
+    #: the starting policy's provenance (`policy_provenance`); None when the backend was given
+    policy: dict | None = None
+    #: lines the run prints at its start and records in its summary (`notes`)
+    notes: list[str] = field(default_factory=list)
 
 
 def uses_mixed_space(config: CoadaptConfig) -> bool:
@@ -131,12 +135,64 @@ def build_parts(
             field="optimizer",
         )
     pretrained = False
+    policy = None
     if backend_factory is None:
         backend_factory = universal_policy_factory(config, robot, full_space, objectives)
         pretrained = shared and resolve_checkpoint(config) is not None
+        policy = policy_provenance(config, used=shared or config.specialized_init == "universal")
     if not shared:  # the factory builds each design's policy
         backend_factory = specialized_factory(config, backend_factory)
-    return LoopParts(full_space, space, nominal, objectives, optimizer_cls, backend_factory, pretrained)
+    notes = []
+    if shared:  # the optimizer starts from the designs the policy is trained on (Algorithm 4 line 10)
+        population = 1 if optimizer_cls.sequential else config.population
+        if population == config.population:
+            note = initial_designs_note(optimizer_cls, space, population, len(objectives), config.optimizer_options)
+            notes += [note] if note else []
+    return LoopParts(full_space, space, nominal, objectives, optimizer_cls, backend_factory, pretrained, policy, notes)
+
+
+def initial_designs_note(optimizer_cls: type[Optimizer], space: DesignSpace, population: int, num_objectives: int,
+                         options: dict) -> str | None:
+    """A warning when the optimizer's first `ask` does not return the `initial_designs` it was
+    built with (a plugin written before they were a constructor argument ignores them: the
+    run would still finish, its first round not the designs the policy was trained on). One
+    throwaway optimizer on sampled designs, before any training; a study kept in a database
+    (options `storage` / `study_name`) is left out of the probe. None when it complies or
+    cannot be probed (its own errors are reported when the run builds it)."""
+    probe_options = {k: v for k, v in options.items() if k not in ("storage", "study_name")}
+    initial = space.sample(population, np.random.default_rng(0))
+    try:
+        first = optimizer_cls(space, population=population, budget=2, seed=1, num_objectives=num_objectives,
+                              initial_designs=initial, **probe_options).ask()
+    except Exception:
+        return None
+    first = np.atleast_2d(np.asarray(first, dtype=float))
+    if first.shape == initial.shape and np.allclose(first, initial, atol=1e-9):
+        return None
+    return (f"optimizer '{optimizer_cls.name}' ignores `initial_designs`: its first round is not the {population} "
+            "designs the policy is trained on (Algorithm 4 line 10), so this run does not follow the paper; "
+            "the plugin needs updating (docs/plugins.md#migration; OptimizerConformance checks it)")
+
+
+def policy_provenance(config: CoadaptConfig, *, used: bool = True) -> dict:
+    """Which policy the run starts from: `source` 'shipped' (the robot's, `Robot.shipped_policy`),
+    'path' (--checkpoint PATH) or 'none' (from scratch), the file's name and absolute path
+    and its SHA-256, recorded in config.yaml, the summary and the store."""
+    import hashlib
+    from pathlib import Path
+
+    path = resolve_checkpoint(config) if used else None
+    if path is None:
+        return {"source": "none", "file": None, "path": None, "sha256": None}
+    try:
+        digest = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError:  # resolve_checkpoint found it; gone since: nothing to vouch for
+        digest = None
+    source = "path" if config.checkpoint.strip() else "shipped"
+    out = {"source": source, "file": Path(path).name, "path": str(Path(path).resolve()), "sha256": digest}
+    if source == "shipped":
+        out["robot"] = config.robot
+    return out
 
 
 def universal_policy_factory(
