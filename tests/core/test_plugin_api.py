@@ -6,6 +6,7 @@ each plugin declares, and a run says at its start when its optimizer ignores
 from __future__ import annotations
 
 import copy
+import itertools
 import json
 from pathlib import Path
 
@@ -39,7 +40,7 @@ def test_recorded_signature_matches_the_interfaces_and_the_version():
             + f"; then run `python -m coadapt_core.plugin_api {SIGNATURE_FILE.relative_to(Path.cwd())}`"
         )
     assert latest["version"] == PLUGIN_API_VERSION, "PLUGIN_API_VERSION changed: record it (python -m coadapt_core.plugin_api)"
-    for old, new in zip(history, history[1:], strict=False):  # every recorded step was bumped enough
+    for old, new in itertools.pairwise(history):  # every recorded step was bumped enough
         assert bump_problem(old["version"], old["signature"], new["version"], new["signature"]) is None
 
 
@@ -196,11 +197,11 @@ class _IgnoresInitial:
 
 
 def test_an_optimizer_ignoring_initial_designs_is_named_at_the_start_of_a_run(tmp_path, capsys):
+    from coadapt_plugins.objectives.locomotion import TorqueObjective
+
     from coadapt_core.coadapt.config import make_config
     from coadapt_core.coadapt.loop import run_coadaptation
     from coadapt_core.coadapt.setup import initial_designs_note
-    from coadapt_plugins.objectives.locomotion import TorqueObjective
-
     from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend
 
     old = _IgnoresInitial.make()
