@@ -240,3 +240,27 @@ def test_grid_over_two_robots_reports_one_row_per_robot(site_with_policy, tmp_pa
     assert runs["kuafu"]["config"]["policy"]["source"] == "shipped"
     assert runs["kuafu"]["config"]["policy"]["file"] == "flat.pt" and len(runs["kuafu"]["config"]["policy"]["sha256"]) == 64
     assert runs["trotter"]["cell"].startswith("robot=trotter|")
+
+
+@pytest.mark.slow
+def test_eval_evaluates_a_plugin_objective_with_its_standard_error(site_with_policy):
+    """`coadapt eval --objective joint-speed --json`: the example plugin's objective, its cost
+    per step and standard error over the agents; a built-in asked for the same way matches
+    the built-in column."""
+    policy = site_with_policy / "coadapt_example" / "policies" / "flat.pt"
+    done = run_cli("eval", "--checkpoint", str(policy), "--agents", "4", "--seconds", "0.4", "--json",
+                   "--objective", "joint-speed", "--objective", "torque", pythonpath=[site_with_policy], timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert list(result["costs"]) == ["joint-speed", "torque"]
+    assert np.isfinite(result["costs"]["joint-speed"]) and result["costs"]["joint-speed"] > 0
+    assert np.isfinite(result["costs_se"]["joint-speed"]) and result["costs_se"]["joint-speed"] > 0  # 4 agents differ
+    assert result["costs"]["torque"] == pytest.approx(result["torque_cost"])
+    assert result["costs_se"]["torque"] == pytest.approx(result["torque_cost_se"])
+
+
+def test_eval_of_an_unknown_objective_is_one_line(example_plugin_site):
+    done = run_cli("eval", "--robot", "trotter", "--objective", "joint-sped", "--json", pythonpath=[example_plugin_site])
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "unknown objective 'joint-sped'" in lines[0] and "joint-speed" in lines[0]
