@@ -13,12 +13,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from coadapt_core import plugin_api
+from coadapt_core import api_signature, plugin_api
+from coadapt_core.api_signature import interface_signature
 from coadapt_core.plugin_api import (
     PLUGIN_API_VERSION,
     api_problem,
     bump_problem,
-    interface_signature,
     required_bump,
 )
 from tests.conftest import make_dist, run_cli
@@ -37,9 +37,9 @@ def test_recorded_signature_matches_the_interfaces_and_the_version():
         problem = bump_problem(latest["version"], latest["signature"], PLUGIN_API_VERSION, now)
         pytest.fail(
             (problem or f"the plugin interfaces changed since {latest['version']} was recorded")
-            + f"; then run `python -m coadapt_core.plugin_api {SIGNATURE_FILE.relative_to(Path.cwd())}`"
+            + f"; then run `python -m coadapt_core.api_signature {SIGNATURE_FILE.relative_to(Path.cwd())}`"
         )
-    assert latest["version"] == PLUGIN_API_VERSION, "PLUGIN_API_VERSION changed: record it (python -m coadapt_core.plugin_api)"
+    assert latest["version"] == PLUGIN_API_VERSION, "PLUGIN_API_VERSION changed: record it (python -m coadapt_core.api_signature)"
     for old, new in itertools.pairwise(history):  # every recorded step was bumped enough
         assert bump_problem(old["version"], old["signature"], new["version"], new["signature"]) is None
 
@@ -77,18 +77,18 @@ def test_bump_rules_catch_a_change_the_version_does_not_account_for():
 
 def test_record_refuses_an_unbumped_change(tmp_path, monkeypatch):
     path = tmp_path / "sig.json"
-    assert plugin_api.record(path) == "recorded"
-    assert plugin_api.record(path) == "unchanged"
+    assert api_signature.record(path) == "recorded"
+    assert api_signature.record(path) == "unchanged"
     data = json.loads(path.read_text())
     data["history"][-1]["signature"]["coadapt_core.optimizer.Optimizer"]["gone"] = "method(self)"
     path.write_text(json.dumps(data))
     with pytest.raises(ValueError, match="PLUGIN_API_VERSION"):
-        plugin_api.record(path)
+        api_signature.record(path)
     monkeypatch.setattr(plugin_api, "PLUGIN_API_VERSION", "2.1.0")  # 'gone' removed: minor is not enough
     with pytest.raises(ValueError, match="major"):
-        plugin_api.record(path)
+        api_signature.record(path)
     monkeypatch.setattr(plugin_api, "PLUGIN_API_VERSION", "3.0.0")
-    assert plugin_api.record(path) == "recorded"
+    assert api_signature.record(path) == "recorded"
     assert [e["version"] for e in json.loads(path.read_text())["history"]] == ["2.0.0", "3.0.0"]
 
 
