@@ -86,6 +86,7 @@ class LoopState:
     summary: dict[str, Any] | None = None
     policy: dict[str, Any] | None = None  # the starting policy's provenance (setup.policy_provenance)
     notes: list[str] = field(default_factory=list)  # warnings printed at the start, kept in the summary
+    no_critic: list[str] = field(default_factory=list)  # objectives without a pseudo-critic in the starting policy
 
 
 @dataclass
@@ -444,6 +445,10 @@ class CoadaptationLoop:
         draw = self.rng.random()
         self._last_uncertainty = None
         if s.buffer is None or s.buffer_outer != s.outer:
+            return "real"
+        if s.no_critic and not self.ensure_fitted():
+            # an objective without a pseudo-critic in the starting policy: the fit to this
+            # policy's real rounds stands in for it, or the round is real (setup.objectives_without_critic)
             return "real"
         if c.evaluation_policy == "uncertainty" and self.method.surrogate_probability is None and designs is not None:
             members_of = getattr(self.get_backend(), "surrogate_members", None)
@@ -830,9 +835,9 @@ def run_coadaptation(
             raise UserError(f"run folder '{run_path}' already holds a run; resume it or pick another", field="out")
         run_path.mkdir(parents=True, exist_ok=True)
         state = LoopState(run_id=run_id, config=config.to_dict(), space=parts.space.to_dict(), policy=parts.policy,
-                          notes=list(parts.notes))
+                          notes=list(parts.notes), no_critic=list(parts.no_critic))
         for note in parts.notes:
-            print(f"warning: {note}", file=sys.stderr)
+            print(note, file=sys.stderr)
     else:
         _check_same_policy(state, parts.policy)
     assert run_path is not None

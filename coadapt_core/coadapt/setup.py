@@ -32,6 +32,8 @@ class LoopParts:
     policy: dict | None = None
     #: lines the run prints at its start and records in its summary (`notes`)
     notes: list[str] = field(default_factory=list)
+    #: objectives the starting policy has no pseudo-critic for (`objectives_without_critic`)
+    no_critic: list[str] = field(default_factory=list)
 
 
 def uses_mixed_space(config: CoadaptConfig) -> bool:
@@ -136,19 +138,64 @@ def build_parts(
         )
     pretrained = False
     policy = None
+    notes: list[str] = []
+    no_critic: list[str] = []
     if backend_factory is None:
         backend_factory = universal_policy_factory(config, robot, full_space, objectives)
         pretrained = shared and resolve_checkpoint(config) is not None
         policy = policy_provenance(config, used=shared or config.specialized_init == "universal")
+        if pretrained:
+            no_critic, note = objectives_without_critic(config, resolve_checkpoint(config), objectives)
+            notes += [note] if note else []
     if not shared:  # the factory builds each design's policy
         backend_factory = specialized_factory(config, backend_factory)
-    notes = []
     if shared:  # the optimizer starts from the designs the policy is trained on (Algorithm 4 line 10)
         population = 1 if optimizer_cls.sequential else config.population
         if population == config.population:
             note = initial_designs_note(optimizer_cls, space, population, len(objectives), config.optimizer_options)
-            notes += [note] if note else []
-    return LoopParts(full_space, space, nominal, objectives, optimizer_cls, backend_factory, pretrained, policy, notes)
+            notes += [f"warning: {note}"] if note else []
+    return LoopParts(full_space, space, nominal, objectives, optimizer_cls, backend_factory, pretrained, policy, notes,
+                     no_critic)
+
+
+def objectives_without_critic(config: CoadaptConfig, checkpoint: str, objectives: Sequence[Objective]
+                              ) -> tuple[list[str], str | None]:
+    """(names, note): the run's objectives the starting policy carries no pseudo-critic for
+    (its checkpoint's `objectives`), and the line the run starts with about them.
+
+    The learner gives such an objective a fresh, untrained pseudo-critic head, whose
+    predictions mean nothing. So, defined behaviour: a surrogate round of the run waits until
+    the pseudo-critics have been fitted to a real round of the current policy (`fit_surrogate`;
+    before that, and always with `fit_surrogate` off, rounds are real); a method evaluating
+    with the surrogate only (no real rounds to fit to) is refused."""
+    from pathlib import Path
+
+    from coadapt_core.learning import read_checkpoint
+
+    method = get_method(config.method)
+    if method.surrogate_probability == 0.0:
+        return [], None  # a method that never asks the surrogate
+    saved = read_checkpoint(checkpoint).get("objectives")
+    if not isinstance(saved, list | tuple):
+        return [], None  # a checkpoint that does not say
+    missing = [o.name for o in objectives if o.name not in saved]
+    if not missing:
+        return [], None
+    what = (f"objective{'s' if len(missing) > 1 else ''} {', '.join(repr(m) for m in missing)} "
+            f"{'have' if len(missing) > 1 else 'has'} no pseudo-critic in the starting policy {Path(checkpoint).name} "
+            f"(it has {', '.join(saved) or 'none'})")
+    if method.surrogate_probability == 1.0:
+        raise UserError(
+            f"{what}, and method '{config.method}' evaluates with the surrogate only; train a policy with one "
+            f"(`coadapt train --robot {config.robot} --terrain {config.terrain} --objectives "
+            f"{','.join([*saved, *missing])}`) and pass --checkpoint PATH, or use a method with real rounds",
+            field="objective")
+    if config.fit_surrogate:
+        then = ("a surrogate round of this run waits until the pseudo-critics are fitted to a real round of the "
+                "current policy (fit_surrogate); until then rounds are real")
+    else:
+        then = "every round of this run is real (no surrogate rounds: fit_surrogate is off)"
+    return missing, f"note: {what}: {then} (docs/plugins.md, section 5)"
 
 
 def initial_designs_note(optimizer_cls: type[Optimizer], space: DesignSpace, population: int, num_objectives: int,
