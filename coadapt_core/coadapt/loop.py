@@ -496,6 +496,9 @@ class CoadaptationLoop:
             self.end_outer()
             return
         designs = opt.ask()  # [P, dim]
+        initial = (s.optimizer_init or {}).get("initial_designs")
+        if s.inner == 0 and initial is not None:  # the swarm starts from the training designs (line 10)
+            self._check_first_round(np.asarray(initial, dtype=float), designs)
         kind = self.choose_kind(designs)
         self.emit(f"{kind} evaluation")
         costs, interactions, seconds, errors = self.evaluate(designs, kind)
@@ -505,6 +508,18 @@ class CoadaptationLoop:
         s.inner += 1
         self.checkpoint()
         self.emit("evaluated", kind=kind)
+
+    def _check_first_round(self, initial: np.ndarray, designs: np.ndarray) -> None:
+        """Say (once per run, stderr and the summary's notes) when the optimizer's first round
+        is not the initial designs it was built with (`setup.initial_designs_note` probes for
+        it before training where it can)."""
+        from coadapt_core.coadapt.setup import first_round_note
+
+        rows = 1 if self.optimizer_cls.sequential else len(initial)
+        note = first_round_note(self.optimizer_cls.name, initial[:rows], designs)
+        if note is not None and not any(n.startswith(f"warning: {note[:40]}") for n in self.state.notes):
+            self.state.notes.append(f"warning: {note}")
+            print(f"warning: {note}", file=sys.stderr)
 
     def evaluate(self, designs: np.ndarray, kind: str) -> tuple[np.ndarray, int, float, np.ndarray | None]:
         """costs [P, M], interactions, seconds, surrogate errors [P, M] (real rounds only)."""

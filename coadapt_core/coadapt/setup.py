@@ -149,7 +149,11 @@ def build_parts(
             notes += [note] if note else []
     if not shared:  # the factory builds each design's policy
         backend_factory = specialized_factory(config, backend_factory)
-    if shared:  # the optimizer starts from the designs the policy is trained on (Algorithm 4 line 10)
+    # the optimizer starts from the designs the policy is trained on (Algorithm 4 line 10): a
+    # throwaway copy is asked now, unless building one has side effects (a study kept in a
+    # database: options storage / study_name); the loop checks the real first round too
+    keeps_study = {"storage", "study_name"} & {spec.name for spec in getattr(optimizer_cls, "option_specs", ())}
+    if shared and not keeps_study:
         population = 1 if optimizer_cls.sequential else config.population
         if population == config.population:
             note = initial_designs_note(optimizer_cls, space, population, len(objectives), config.optimizer_options)
@@ -204,21 +208,27 @@ def initial_designs_note(optimizer_cls: type[Optimizer], space: DesignSpace, pop
     built with (a plugin written before they were a constructor argument ignores them: the
     run would still finish, its first round not the designs the policy was trained on). One
     throwaway optimizer on sampled designs, before any training; a study kept in a database
-    (options `storage` / `study_name`) is left out of the probe. None when it complies or
+    (options `storage` / `study_name`) is not probed: the loop checks its real first round. None when it complies or
     cannot be probed (its own errors are reported when the run builds it)."""
-    probe_options = {k: v for k, v in options.items() if k not in ("storage", "study_name")}
     initial = space.sample(population, np.random.default_rng(0))
     try:
         first = optimizer_cls(space, population=population, budget=2, seed=1, num_objectives=num_objectives,
-                              initial_designs=initial, **probe_options).ask()
+                              initial_designs=initial, **options).ask()
     except Exception:
         return None
+    return first_round_note(optimizer_cls.name, initial, first)
+
+
+def first_round_note(name: str, initial: np.ndarray, first: np.ndarray) -> str | None:
+    """The warning (without its 'warning: ' prefix) when an optimizer's first proposals
+    `first` are not the `initial` designs it was given; None when they are."""
     first = np.atleast_2d(np.asarray(first, dtype=float))
+    initial = np.atleast_2d(np.asarray(initial, dtype=float))
     if first.shape == initial.shape and np.allclose(first, initial, atol=1e-9):
         return None
-    return (f"optimizer '{optimizer_cls.name}' ignores `initial_designs`: its first round is not the {population} "
-            "designs the policy is trained on (Algorithm 4 line 10), so this run does not follow the paper; "
-            "the plugin needs updating (docs/plugins.md#migration; OptimizerConformance checks it)")
+    return (f"optimizer '{name}' ignores `initial_designs`: its first round is not the {len(initial)} designs the "
+            "policy is trained on (Algorithm 4 line 10), so this run does not follow the paper; the plugin needs "
+            "updating (docs/plugins.md#migration; OptimizerConformance checks it)")
 
 
 def policy_provenance(config: CoadaptConfig, *, used: bool = True) -> dict:

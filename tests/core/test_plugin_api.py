@@ -218,3 +218,32 @@ def test_an_optimizer_ignoring_initial_designs_is_named_at_the_start_of_a_run(tm
     err = capsys.readouterr().err
     assert err.startswith("warning: optimizer 'old-random' ignores `initial_designs`"), err
     assert result.summary["notes"] and "old-random" in result.summary["notes"][0]
+
+
+def test_an_optimizer_keeping_a_study_is_checked_at_its_first_round(tmp_path, capsys):
+    """An optimizer that keeps a study in a database is not probed before training (building
+    one has side effects); its real first round is checked instead, once per run."""
+    from coadapt_plugins.objectives.locomotion import TorqueObjective
+
+    from coadapt_core.coadapt.config import make_config
+    from coadapt_core.coadapt.loop import run_coadaptation
+    from coadapt_core.options import PluginOption
+    from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend
+
+    class OldStudy(_IgnoresInitial.make()):
+        name = "old-study"
+        option_specs = (PluginOption("storage", "str", None, "database URL"),)
+        built = 0
+
+        def __init__(self, space, **kwargs):
+            super().__init__(space, **kwargs)
+            type(self).built += 1
+
+    config = make_config("smoke", overrides={"out": str(tmp_path), "population": 5, "outer_iterations": 2,
+                                             "optimizer_iterations": 2, "store": "none"})
+    result = run_coadaptation(config, backend_factory=lambda seed: AnalyticBackend(seed), design_space=SPACE,
+                              nominal_design=NOMINAL, objectives=[TorqueObjective()], optimizer_cls=OldStudy)
+    assert OldStudy.built == 2  # one per outer iteration: no probe
+    warnings = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warning:")]
+    assert len(warnings) == 1 and "optimizer 'old-study' ignores `initial_designs`" in warnings[0]
+    assert result.summary["notes"] == warnings
