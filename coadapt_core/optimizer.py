@@ -14,6 +14,7 @@ whose proposals do not depend only on its seed and the costs told overrides both
 
 from __future__ import annotations
 
+import warnings
 from abc import ABC, abstractmethod
 from typing import Any, ClassVar
 
@@ -25,6 +26,12 @@ from coadapt_core.options import PluginOption, resolve_options
 
 #: seeds an optimizer must accept: any integer in [0, SEED_LIMIT)
 SEED_LIMIT = 2**63
+
+
+class OutOfBoundsProposal(UserWarning):
+    """An optimizer proposed continuous values outside the design space's bounds; they were
+    clipped to the bounds (a proposal the optimizer did not make), and the warning says so.
+    `OptimizerConformance` fails an optimizer that needs the clipping."""
 
 
 def _optimizers_where(flag: str) -> str:
@@ -130,6 +137,7 @@ class Optimizer(ABC):
         )
         self.initial_designs = self._check_initial(initial_designs)
         self.iteration = 0  # completed ask/tell rounds
+        self.out_of_bounds = 0  # proposed designs clipped into the bounds (`OutOfBoundsProposal`)
         self._best_design: np.ndarray | None = None
         self._best_cost: float = float("inf")
         self._last_asked: np.ndarray | None = None
@@ -172,11 +180,34 @@ class Optimizer(ABC):
         designs = np.atleast_2d(np.asarray(raw, dtype=float))
         if designs.shape[1] != self.space.dim:
             raise RuntimeError(f"optimizer '{self.name}' proposed designs of width {designs.shape[1]}, expected {self.space.dim}")
+        self._report_out_of_bounds(designs)
         # discrete values snap to their exact choices; continuous ones are clipped to bounds
         designs = self.space.decode(self.space.encode(designs)) if self.space.is_mixed else np.clip(
             designs, self.space.lower, self.space.upper
         )
         return designs
+
+    def _report_out_of_bounds(self, designs: np.ndarray) -> None:
+        """Warn (`OutOfBoundsProposal`) when continuous values lie outside the bounds by more
+        than rounding (1e-9 of the width): the clipping below changes the proposal. Counted
+        in `self.out_of_bounds` (designs)."""
+        mask = self.space.continuous_mask
+        if not mask.any():
+            return
+        lower, upper = self.space.lower[mask], self.space.upper[mask]
+        tol = 1e-9 * np.maximum(upper - lower, 1e-12)
+        values = designs[:, mask]
+        outside = ((values < lower - tol) | (values > upper + tol)).any(axis=1)
+        if not outside.any():
+            return
+        self.out_of_bounds = getattr(self, "out_of_bounds", 0) + int(outside.sum())
+        first = values[outside][0]
+        warnings.warn(
+            f"optimizer '{self.name}' proposed {int(outside.sum())} of {len(designs)} designs outside the design "
+            f"space's bounds (e.g. {np.round(first, 4).tolist()} against {np.round(lower, 4).tolist()} to "
+            f"{np.round(upper, 4).tolist()}); they were clipped to the bounds (docs/plugins.md, section 4)",
+            OutOfBoundsProposal, stacklevel=3,
+        )
 
     @abstractmethod
     def _tell(self, designs: np.ndarray, costs: np.ndarray) -> None:

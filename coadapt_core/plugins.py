@@ -23,6 +23,7 @@ import pluggy
 from coadapt_core import hookspecs
 from coadapt_core.errors import PluginError, UnknownPluginError, UserError
 from coadapt_core.options import check_specs
+from coadapt_core.plugin_api import api_problem, declared_api
 
 ENTRY_POINT_GROUP = "coadapt"
 BUILTIN_DISTRIBUTION = "coadapt"
@@ -52,6 +53,8 @@ class PluginInfo:
     distribution: str
     version: str
     entry_point: str
+    #: the plugin API version the class declares it was written for (None: undeclared)
+    api: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -61,6 +64,7 @@ class PluginInfo:
             "distribution": self.distribution,
             "version": self.version,
             "entry_point": self.entry_point,
+            "plugin_api": self.api,
         }
         specs = getattr(self.cls, "option_specs", None)
         if specs is not None:  # optimizers and objectives: the options they declare
@@ -188,6 +192,11 @@ def load_registry(extra_plugins: list[tuple[ModuleType | object, str]] | None = 
                 if not isinstance(name, str) or not name:
                     registry.broken.append(BrokenPlugin(ep_name, dist, f"{cls.__qualname__} has no `name`"))
                     continue
+                api = declared_api(cls, plugin)  # the plugin API version it was written for
+                problem = api_problem(api)
+                if problem is not None:
+                    registry.broken.append(BrokenPlugin(ep_name, dist, f"{kind} '{name}' {problem}"))
+                    continue
                 try:  # declared options must be well formed before anyone passes values to them
                     check_specs(getattr(cls, "option_specs", ()), f"{kind} '{name}'")
                 except (TypeError, UserError) as exc:
@@ -200,7 +209,7 @@ def load_registry(extra_plugins: list[tuple[ModuleType | object, str]] | None = 
                         f"distribution {existing.distribution} and by {cls.__qualname__} from "
                         f"distribution {dist}; uninstall one or restrict {ENV_LOAD_PLUGINS}"
                     )
-                registry.entries[kind][name] = PluginInfo(kind, name, cls, dist, version, ep_name)
+                registry.entries[kind][name] = PluginInfo(kind, name, cls, dist, version, ep_name, api)
     pm.check_pending()
     return registry
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import html
+import itertools
 import math
 from collections import defaultdict
 from collections.abc import Sequence
@@ -92,6 +93,24 @@ class RunFacts:
     @property
     def terrain(self) -> str:
         return self.run["terrain"] or "flat"
+
+    @property
+    def setting(self) -> tuple[str, str, str]:
+        """(robot, simulator, preset): runs that differ in any of them are never one row."""
+        return (str(self.run.get("robot") or "?"), str(self.run.get("simulator") or "?"),
+                str(self.run.get("preset") or "?"))
+
+    @property
+    def policy(self) -> str:
+        """The starting policy, as the run recorded it: 'file (sha256 prefix)', 'none' (from
+        scratch), or '?' for a run recorded before provenance existed."""
+        config = self.run.get("config") if isinstance(self.run.get("config"), dict) else {}
+        found = self.summary.get("policy") or config.get("policy")
+        if not isinstance(found, dict):
+            return "?"
+        if found.get("source") == "none":
+            return "none"
+        return f"{found.get('file')} ({str(found.get('sha256') or '')[:12]})"
 
 
 def select_runs(store: ResultsStore, selection: str | None) -> tuple[list[dict[str, Any]], str]:
@@ -237,70 +256,81 @@ def _add_stat(row: dict[str, Any], name: str, values: Sequence[float | None], se
 
 
 def table6_rows(facts: Sequence[RunFacts]) -> list[dict[str, Any]]:
-    """One row per objective x method x optimizer x terrain: mean, sample standard
-    deviation over seeds and count of every number (`<col>`, `<col>_std`, `<col>_n`); the
-    design columns are named after the run's design space."""
-    groups: dict[tuple[str, str, str, str], list[RunFacts]] = defaultdict(list)
+    """One row per robot x simulator x preset x objective x method x optimizer x terrain:
+    mean, sample standard deviation over seeds and count of every number (`<col>`,
+    `<col>_std`, `<col>_n`); the design columns are named after the run's design space. Runs
+    of different robots, simulators or presets are never averaged into one row."""
+    groups: dict[tuple[tuple[str, str, str], str, str, str, str], list[RunFacts]] = defaultdict(list)
     for f in facts:
         if f.method != LANDSCAPE_METHOD:
-            groups[(f.objective, f.method, f.optimizer, f.terrain)].append(f)
+            groups[(f.setting, f.objective, f.method, f.optimizer, f.terrain)].append(f)
     rows = []
-    objectives = _ordered([k[0] for k in groups], list(OBJECTIVE_LABELS))
-    pairs = _group_order([(k[1], k[2]) for k in groups])
-    terrains = _ordered([k[3] for k in groups], TERRAIN_ORDER)
-    for o in objectives:
-        for m, opt in pairs:
-            for t in terrains:
-                group = groups.get((o, m, opt, t))
-                if not group:
-                    continue
-                row: dict[str, Any] = {"objective": o, "method": m, "optimizer": opt, "terrain": t, "runs": len(group),
-                                       "seeds": " ".join(str(f.run.get("seed")) for f in group)}
-                names = group[0].design_names
-                for i, name in enumerate(names):
-                    _add_stat(row, name, [f.best_design[i] if f.best_design and len(f.best_design) > i else None for f in group])
-                _add_stat(row, "best_cost", [f.best_cost for f in group], [_float(f.summary.get("best_cost_se")) for f in group])
-                _add_stat(row, "nominal_cost", [f.nominal_cost for f in group],
-                          [_float(f.summary.get("nominal_cost_se")) for f in group])
-                _add_stat(row, "improvement", [f.improvement for f in group],
-                          [_float(f.summary.get("improvement_se")) for f in group])
-                # the paper's plain mean (eq. 4) and the fall rates beside the run's cost rule
-                _add_stat(row, "improvement_plain", [_float(f.summary.get("improvement_plain")) for f in group],
-                          [_float(f.summary.get("improvement_plain_se")) for f in group])
-                _add_stat(row, "best_fall_rate", [_float(f.summary.get("best_fall_rate")) for f in group],
-                          [_float(f.summary.get("best_fall_rate_se")) for f in group])
-                _add_stat(row, "nominal_fall_rate", [_float(f.summary.get("nominal_fall_rate")) for f in group],
-                          [_float(f.summary.get("nominal_fall_rate_se")) for f in group])
-                row["cost_rule"] = " ".join(sorted({str(f.summary.get("cost_rule") or "trimmed") for f in group}))
-                _add_stat(row, "sim2sim_improvement", [f.sim2sim for f in group])
-                row["sim2sim_note"] = "; ".join(sorted({f.sim2sim_note for f in group if f.sim2sim_note}))
-                row["design_variables"] = " ".join(names)
-                row["design_units"] = "|".join(group[0].design_units)
-                row["design_discrete"] = " ".join(str(int(d)) for d in group[0].design_discrete)
-                row["run_ids"] = " ".join(f.run["id"] for f in group)
-                # the walking gate (coadapt_core/coadapt/reliability.py): runs whose policy did not walk
-                bad = [f for f in group if f.summary.get("reliable") is False]
-                row["unreliable_runs"] = len(bad)
-                row["reliability"] = "; ".join(sorted({str(f.summary.get("reliability")) for f in bad}))
-                rows.append(row)
+    settings = sorted({k[0] for k in groups})
+    objectives = _ordered([k[1] for k in groups], list(OBJECTIVE_LABELS))
+    pairs = _group_order([(k[2], k[3]) for k in groups])
+    terrains = _ordered([k[4] for k in groups], TERRAIN_ORDER)
+    for setting, o, (m, opt), t in itertools.product(settings, objectives, pairs, terrains):
+        group = groups.get((setting, o, m, opt, t))
+        if not group:
+            continue
+        robot, simulator, preset = setting
+        row: dict[str, Any] = {"robot": robot, "simulator": simulator, "preset": preset,
+                               "objective": o, "method": m, "optimizer": opt, "terrain": t, "runs": len(group),
+                               "seeds": " ".join(str(f.run.get("seed")) for f in group),
+                               "policy": "; ".join(sorted({f.policy for f in group}))}
+        names = group[0].design_names
+        for i, name in enumerate(names):
+            _add_stat(row, name, [f.best_design[i] if f.best_design and len(f.best_design) > i else None for f in group])
+        _add_stat(row, "best_cost", [f.best_cost for f in group], [_float(f.summary.get("best_cost_se")) for f in group])
+        _add_stat(row, "nominal_cost", [f.nominal_cost for f in group],
+                  [_float(f.summary.get("nominal_cost_se")) for f in group])
+        _add_stat(row, "improvement", [f.improvement for f in group],
+                  [_float(f.summary.get("improvement_se")) for f in group])
+        # the paper's plain mean (eq. 4) and the fall rates beside the run's cost rule
+        _add_stat(row, "improvement_plain", [_float(f.summary.get("improvement_plain")) for f in group],
+                  [_float(f.summary.get("improvement_plain_se")) for f in group])
+        _add_stat(row, "best_fall_rate", [_float(f.summary.get("best_fall_rate")) for f in group],
+                  [_float(f.summary.get("best_fall_rate_se")) for f in group])
+        _add_stat(row, "nominal_fall_rate", [_float(f.summary.get("nominal_fall_rate")) for f in group],
+                  [_float(f.summary.get("nominal_fall_rate_se")) for f in group])
+        row["cost_rule"] = " ".join(sorted({str(f.summary.get("cost_rule") or "trimmed") for f in group}))
+        _add_stat(row, "sim2sim_improvement", [f.sim2sim for f in group])
+        row["sim2sim_note"] = "; ".join(sorted({f.sim2sim_note for f in group if f.sim2sim_note}))
+        row["design_variables"] = " ".join(names)
+        row["design_units"] = "|".join(group[0].design_units)
+        row["design_discrete"] = " ".join(str(int(d)) for d in group[0].design_discrete)
+        row["run_ids"] = " ".join(f.run["id"] for f in group)
+        # the walking gate (coadapt_core/coadapt/reliability.py): runs whose policy did not walk
+        bad = [f for f in group if f.summary.get("reliable") is False]
+        row["unreliable_runs"] = len(bad)
+        row["reliability"] = "; ".join(sorted({str(f.summary.get("reliability")) for f in bad}))
+        rows.append(row)
     return rows
 
+
+#: what the tables say about how runs are grouped into rows
+POOLING_NOTE = ("Runs of different robots, simulators or presets are never averaged together: each combination "
+                "is a row of its own (Robot, Simulator, Preset columns).")
 
 T7_NUMBERS = ("interactions_training", "interactions_evaluation", "seconds_training", "seconds_evaluation",
               "designs_real", "designs_surrogate")
 
 
 def table7_rows(facts: Sequence[RunFacts]) -> list[dict[str, Any]]:
-    """One row per method x optimizer: mean, std and count over its runs (the paper reports
-    averages); a pso and a mixed-pso run of one method are two rows, as in Table 6."""
-    groups: dict[tuple[str, str], list[RunFacts]] = defaultdict(list)
+    """One row per robot x simulator x preset x method x optimizer: mean, std and count over
+    its runs (the paper reports averages); a pso and a mixed-pso run of one method are two
+    rows, as in Table 6, and so are runs of different robots, simulators or presets."""
+    groups: dict[tuple[tuple[str, str, str], str, str], list[RunFacts]] = defaultdict(list)
     for f in facts:
         if f.method != LANDSCAPE_METHOD:
-            groups[(f.method, f.optimizer)].append(f)
+            groups[(f.setting, f.method, f.optimizer)].append(f)
     rows = []
-    for m, opt in _group_order(list(groups)):
-        g = groups[(m, opt)]
-        row: dict[str, Any] = {"method": m, "optimizer": opt, "runs": len(g)}
+    keys = [(setting, m, opt) for setting in sorted({k[0] for k in groups})
+            for m, opt in _group_order([(k[1], k[2]) for k in groups if k[0] == setting])]
+    for setting, m, opt in keys:
+        g = groups[(setting, m, opt)]
+        row: dict[str, Any] = {"robot": setting[0], "simulator": setting[1], "preset": setting[2],
+                               "method": m, "optimizer": opt, "runs": len(g)}
         values = {
             "interactions_training": [f.train_interactions for f in g],
             "interactions_evaluation": [f.eval_interactions for f in g],
@@ -376,24 +406,27 @@ def _unreliable_mark(row: dict[str, Any]) -> str:
 
 def table6_markdown(rows: Sequence[dict[str, Any]]) -> str:
     design = _design_columns(rows)
-    head = (["Objective", "Method", "Optimizer", "Terrain", "Runs"] + [_design_header(n, u) for n, u, _ in design]
+    head = (["Robot", "Simulator", "Preset", "Objective", "Method", "Optimizer", "Terrain", "Runs"]
+            + [_design_header(n, u) for n, u, _ in design]
             + ["Best cost", "Nominal cost", "Improvement", "Improvement (plain mean)", "Fall rate best / nominal",
-               "Sim-to-sim improvement", "Sim-to-sim note"])
+               "Sim-to-sim improvement", "Sim-to-sim note", "Starting policy"])
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
-        cells = [OBJECTIVE_LABELS.get(r["objective"], r["objective"]), METHOD_LABELS.get(r["method"], r["method"]),
+        cells = [r["robot"], r["simulator"], r["preset"],
+                 OBJECTIVE_LABELS.get(r["objective"], r["objective"]), METHOD_LABELS.get(r["method"], r["method"]),
                  r["optimizer"], r["terrain"], str(r["runs"])]
         cells += [_design_cell(r, n, d) if f"{n}_n" in r else "" for n, _, d in design]
         cells += [_cell(r, "best_cost", spec=".5g"), _cell(r, "nominal_cost", spec=".5g"),
                   _cell(r, "improvement", pct=True) + _unreliable_mark(r), _cell(r, "improvement_plain", pct=True),
                   _cell(r, "best_fall_rate", pct=True) + " / " + _cell(r, "nominal_fall_rate", pct=True),
-                  _cell(r, "sim2sim_improvement", pct=True), r["sim2sim_note"] or ""]
+                  _cell(r, "sim2sim_improvement", pct=True), r["sim2sim_note"] or "", r.get("policy") or "?"]
         lines.append("| " + " | ".join(cells) + " |")
-    lines += ["", "Each number: mean ± sample standard deviation over the runs (seeds) of the row, and how many "
-              "runs had it (n); one run shows its own standard error (SE) when it recorded one. Improvement: "
-              "lower cost than the nominal design, in percent of the nominal cost, under the run's cost rule (column "
-              "`cost_rule` of table6.csv; docs/coadaptation.md) and under the paper's plain mean over the same scenarios; "
-              "fall rate: share of the final check's scenarios in which the robot fell."]
+    lines += ["", POOLING_NOTE + " Each number: mean ± sample standard deviation over the runs (seeds) of the row, "
+              "and how many runs had it (n); one run shows its own standard error (SE) when it recorded one. "
+              "Improvement: lower cost than the nominal design, in percent of the nominal cost, under the run's cost "
+              "rule (column `cost_rule` of table6.csv; docs/coadaptation.md) and under the paper's plain mean over the "
+              "same scenarios; fall rate: share of the final check's scenarios in which the robot fell. Starting policy: "
+              "the policy file each run started from and the start of its SHA-256."]
     return "\n".join(lines) + "\n"
 
 
@@ -418,19 +451,20 @@ def _sum_cell(r: dict[str, Any], a: str, b: str, unit: float, spec: str = ".3g")
 def table7_markdown(rows: Sequence[dict[str, Any]]) -> str:
     iu, iname, tu, tname = table7_units(rows)
     lines = [
-        f"| Method | Optimizer | Runs | Interactions ({iname}, Training+Evaluation) | "
+        f"| Robot | Simulator | Preset | Method | Optimizer | Runs | Interactions ({iname}, Training+Evaluation) | "
         f"Wall clock time ({tname}, Training+Evaluation) | Designs evaluated (real+surrogate) |",
-        "|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         lines.append(
-            f"| {METHOD_LABELS.get(r['method'], r['method'])} | {r['optimizer']} | {r['runs']} | "
+            f"| {r['robot']} | {r['simulator']} | {r['preset']} | "
+            f"{METHOD_LABELS.get(r['method'], r['method'])} | {r['optimizer']} | {r['runs']} | "
             f"{_sum_cell(r, 'interactions_training', 'interactions_evaluation', iu)} | "
             f"{_sum_cell(r, 'seconds_training', 'seconds_evaluation', tu)} | "
             f"{_sum_cell(r, 'designs_real', 'designs_surrogate', 1.0, '.0f')} |"
         )
-    lines += ["", "Means over the runs of each row (± sample standard deviation of the total when a row has "
-              "two or more runs)."]
+    lines += ["", POOLING_NOTE + " Means over the runs of each row (± sample standard deviation of the total when "
+              "a row has two or more runs)."]
     return "\n".join(lines) + "\n"
 
 
@@ -821,7 +855,8 @@ def write_report(
     design = _design_columns(t6)
     t6_html = []
     for r in t6:
-        row = {"objective": r["objective"], "method": METHOD_LABELS.get(r["method"], r["method"]), "optimizer": r["optimizer"],
+        row = {"robot": r["robot"], "simulator": r["simulator"], "preset": r["preset"], "policy": r.get("policy") or "?",
+               "objective": r["objective"], "method": METHOD_LABELS.get(r["method"], r["method"]), "optimizer": r["optimizer"],
                "terrain": r["terrain"], "runs": r["runs"], "best_cost": _cell(r, "best_cost", spec=".5g"),
                "nominal_cost": _cell(r, "nominal_cost", spec=".5g"), "improvement": _cell(r, "improvement", pct=True) + _unreliable_mark(r),
                "improvement_plain": _cell(r, "improvement_plain", pct=True),
@@ -829,7 +864,8 @@ def write_report(
                "sim2sim": _cell(r, "sim2sim_improvement", pct=True), "sim2sim_note": r["sim2sim_note"]}
         row.update({f"d:{n}": _design_cell(r, n, d) if f"{n}_n" in r else "" for n, _, d in design})
         t6_html.append(row)
-    t7_html = [{"method": METHOD_LABELS.get(r["method"], r["method"]), "optimizer": r["optimizer"], "runs": r["runs"],
+    t7_html = [{"robot": r["robot"], "simulator": r["simulator"], "preset": r["preset"],
+                "method": METHOD_LABELS.get(r["method"], r["method"]), "optimizer": r["optimizer"], "runs": r["runs"],
                 "inter_t": _cell(r, "interactions_training", scale=iu), "inter_e": _cell(r, "interactions_evaluation", scale=iu),
                 "time_t": _cell(r, "seconds_training", scale=tu), "time_e": _cell(r, "seconds_evaluation", scale=tu),
                 "designs_real": _cell(r, "designs_real", spec=".0f"), "designs_surrogate": _cell(r, "designs_surrogate", spec=".0f")}
@@ -844,16 +880,20 @@ def write_report(
         f"<h1>coadapt report — {html.escape(title)}</h1>",
         f"<p>Store: <code>{html.escape(store.url)}</code>; {len(runs)} runs. Each number is the mean ± sample standard "
         "deviation over the runs (seeds) of its row, with how many runs had it (n); one row per method and optimizer. "
+        f"{html.escape(POOLING_NOTE)} "
         "A single run shows its own standard error (SE) when it recorded one.</p>",
         "<h2>Table 6 — optimization results</h2>",
-        "<div class='scroll'>" + _html_table(t6_html, [("objective", "objective"), ("method", "method"), ("optimizer", "optimizer"),
+        "<div class='scroll'>" + _html_table(t6_html, [("robot", "robot"), ("simulator", "simulator"), ("preset", "preset"),
+                              ("objective", "objective"), ("method", "method"), ("optimizer", "optimizer"),
                               ("terrain", "terrain"), ("runs", "runs")]
                     + [(f"d:{n}", _design_header(n, u)) for n, u, _ in design]
                     + [("best_cost", "best cost"), ("nominal_cost", "nominal cost"), ("improvement", "improvement"),
                        ("improvement_plain", "improvement (plain mean)"), ("falls", "fall rate best / nominal"),
-                       ("sim2sim", "sim-to-sim improvement"), ("sim2sim_note", "sim-to-sim note")]) + "</div>",
+                       ("sim2sim", "sim-to-sim improvement"), ("sim2sim_note", "sim-to-sim note"),
+                       ("policy", "starting policy")]) + "</div>",
         "<h2>Table 7 — computational cost</h2>",
-        _html_table(t7_html, [("method", "method"), ("optimizer", "optimizer"), ("runs", "runs"),
+        _html_table(t7_html, [("robot", "robot"), ("simulator", "simulator"), ("preset", "preset"),
+                              ("method", "method"), ("optimizer", "optimizer"), ("runs", "runs"),
                               ("inter_t", f"interactions training ({iname})"), ("inter_e", f"interactions evaluation ({iname})"),
                               ("time_t", f"wall clock training ({tname})"), ("time_e", f"wall clock evaluation ({tname})"),
                               ("designs_real", "designs real"), ("designs_surrogate", "designs surrogate")]),

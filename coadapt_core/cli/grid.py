@@ -1,4 +1,4 @@
-"""`coadapt grid`: ablation grids (method x objective x terrain x seed)."""
+"""`coadapt grid`: ablation grids (robot x method x objective x terrain x seed)."""
 
 from __future__ import annotations
 
@@ -43,6 +43,7 @@ def register(app: typer.Typer) -> None:
         seeds: str = typer.Option("0,1,2", help="Comma list of integer seeds."),
         preset: str = typer.Option("quick", help="`coadapt run` preset for every cell."),
         sim: str = typer.Option(None, help=default_help("simulator", "Simulator for every cell.")),
+        robots: str = typer.Option(None, "--robots", "--robot", help=default_help("robot", "Comma list of robots (one cell each; the cell key names it).")),
         optimizer: str = typer.Option(None, help="Optimizer for every cell (default: each method's own)."),
         executor: str = typer.Option("local", help="local (process pool on this machine) or ray."),
         address: str = typer.Option(None, help="Ray cluster address (default: start a local Ray instance)."),
@@ -76,6 +77,7 @@ def register(app: typer.Typer) -> None:
             sim=plugin_name("simulator", sim),
             optimizer=optimizer,
             extra_args=list(run_arg or []),
+            robots=parse_list(robots, "robots") if robots else [plugin_name("robot", None)],
         )
         check_grid_options(executor=executor, workers=workers, timeout=timeout, address=address)
         results = ResultsStore(store)
@@ -99,7 +101,8 @@ def register(app: typer.Typer) -> None:
 
         def short(key: str) -> str:
             fields = dict(part.split("=", 1) for part in key.split("|"))
-            return f"{fields['method']}/{fields['objective']}/{fields['terrain']}/s{fields['seed']}"
+            robot = f"{fields['robot']}/" if "robot" in fields else ""
+            return f"{robot}{fields['method']}/{fields['objective']}/{fields['terrain']}/s{fields['seed']}"
 
         with ProgressLine("grid", None, unit=" cells") as line:
 

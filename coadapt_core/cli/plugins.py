@@ -9,7 +9,8 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from coadapt_core.plugins import KINDS, get_registry
+from coadapt_core.plugin_api import PLUGIN_API_VERSION, undeclared_note
+from coadapt_core.plugins import BUILTIN_DISTRIBUTION, KINDS, get_registry
 
 
 def register(app: typer.Typer) -> None:
@@ -17,20 +18,26 @@ def register(app: typer.Typer) -> None:
     def plugins_command(
         as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
     ) -> None:
-        """List the robots, simulators, optimizers and objectives that are installed."""
+        """List the robots, simulators, optimizers and objectives that are installed, with
+        the plugin API version each was written for (this coadapt's is shown in the title)."""
         registry = get_registry()
         if as_json:
             out = {
+                "plugin_api": PLUGIN_API_VERSION,
                 "plugins": {kind: [info.to_dict() for info in sorted(registry.entries[kind].values(), key=lambda i: i.name)] for kind in KINDS},
                 "broken": [{"entry_point": b.entry_point, "distribution": b.distribution, "error": b.error} for b in registry.broken],
             }
             print(json.dumps(out, indent=2))
         else:
-            table = Table(title="coadapt plugins")
-            for column in ("kind", "name", "distribution", "version", "description"):
+            table = Table(title=f"coadapt plugins (plugin API {PLUGIN_API_VERSION})")
+            for column in ("kind", "name", "distribution", "version", "api", "description"):
                 table.add_column(column)
             for info in registry.all():
-                table.add_row(info.kind, info.name, info.distribution, info.version, getattr(info.cls, "description", ""))
+                table.add_row(info.kind, info.name, info.distribution, info.version, info.api or "-",
+                              getattr(info.cls, "description", ""))
             Console().print(table)
+        undeclared = sorted({i.distribution for i in registry.all() if i.api is None and i.distribution != BUILTIN_DISTRIBUTION})
+        for distribution in undeclared:
+            print(undeclared_note(distribution), file=sys.stderr)
         for broken in registry.broken:
             print(broken.line(), file=sys.stderr)

@@ -310,6 +310,7 @@ def register(app: typer.Typer) -> None:
         randomize: bool = typer.Option(True, help="Domain randomization (Table 2) as in training."),
         as_json: bool = typer.Option(False, "--json", help="Print JSON."),
         video: Path | None = typer.Option(None, help="Render agent 0 offscreen into a .gif (or .mp4 with ffmpeg)."),
+        objective: list[str] = typer.Option(None, "--objective", help=choice_help("objective", "Also evaluate this installed objective (repeatable, or a comma list): its cost per step and standard error over the agents, in `costs` / `costs_se` with --json.")),
     ) -> None:
         """Roll out a policy on one design and report survival, speed and costs."""
         if agents < 1:
@@ -321,6 +322,9 @@ def register(app: typer.Typer) -> None:
         if video is not None and video.suffix.lower() == ".mp4" and shutil.which("ffmpeg") is None:
             fail("--video .mp4 needs ffmpeg on PATH, which is not installed; write a .gif instead")  # before the rollout
         _check_device(device)
+        objective_names = [n.strip() for text in objective or [] for n in text.split(",") if n.strip()]
+        for name in objective_names:
+            resolve("objective", name)  # unknown: one line listing the installed ones
         try:
             values = [float(v) for v in command.split(",")]
         except ValueError:
@@ -367,7 +371,7 @@ def register(app: typer.Typer) -> None:
             result = evaluate_checkpoint(
                 checkpoint, robot_obj, sim_cls, design_values, terrain=terrain, command=values, agents=agents,
                 seconds=seconds, device=device, seed=seed, randomize=randomize, record=video is not None,
-                progress=bar.update,
+                progress=bar.update, objectives=objective_names,
             )
         trajectory = result.pop("_trajectory", None)
         if as_json:
@@ -379,8 +383,11 @@ def register(app: typer.Typer) -> None:
             table = Table(title=f"{robot} design {design_values.tolist()} on {sim}/{terrain}, command {values}")
             table.add_column("metric")
             table.add_column("value", justify="right")
+            costs, costs_se = result.pop("costs", {}), result.pop("costs_se", {})
             for key, value in result.items():
                 table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
+            for name, value in costs.items():
+                table.add_row(f"{name} cost (per step)", f"{value:.4g} +- {costs_se[name]:.2g} SE")
             Console().print(table)
         if video is not None:
             from coadapt_core.viz.video import write_rollout_video

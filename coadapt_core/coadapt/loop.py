@@ -95,6 +95,9 @@ class LoopState:
     reference_outer: int = -1
     elapsed: float = 0.0  # wall-clock seconds spent before the current process
     summary: dict[str, Any] | None = None
+    policy: dict[str, Any] | None = None  # the starting policy's provenance (setup.policy_provenance)
+    notes: list[str] = field(default_factory=list)  # warnings printed at the start, kept in the summary
+    no_critic: list[str] = field(default_factory=list)  # objectives without a pseudo-critic in the starting policy
 
 
 #: the `--json` line's fields beside the rule's cost: the rule, the paper's plain mean (eq. 4)
@@ -463,6 +466,10 @@ class CoadaptationLoop:
         self._last_uncertainty = None
         if s.buffer is None or s.buffer_outer != s.outer:
             return "real"
+        if s.no_critic and not self.ensure_fitted():
+            # an objective without a pseudo-critic in the starting policy: the fit to this
+            # policy's real rounds stands in for it, or the round is real (setup.objectives_without_critic)
+            return "real"
         if c.evaluation_policy == "uncertainty" and self.method.surrogate_probability is None and designs is not None:
             members_of = getattr(self.get_backend(), "surrogate_members", None)
             if members_of is None or not self.ensure_fitted():
@@ -540,6 +547,9 @@ class CoadaptationLoop:
             self.end_outer()
             return
         designs = opt.ask()  # [P, dim]
+        initial = (s.optimizer_init or {}).get("initial_designs")
+        if s.inner == 0 and initial is not None:  # the swarm starts from the training designs (line 10)
+            self._check_first_round(np.asarray(initial, dtype=float), designs)
         kind = self.choose_kind(designs)
         self.emit(f"{kind} evaluation")
         costs, interactions, seconds, errors = self.evaluate(designs, kind)
@@ -549,6 +559,18 @@ class CoadaptationLoop:
         s.inner += 1
         self.checkpoint()
         self.emit("evaluated", kind=kind)
+
+    def _check_first_round(self, initial: np.ndarray, designs: np.ndarray) -> None:
+        """Say (once per run, stderr and the summary's notes) when the optimizer's first round
+        is not the initial designs it was built with (`setup.initial_designs_note` probes for
+        it before training where it can)."""
+        from coadapt_core.coadapt.setup import first_round_note
+
+        rows = 1 if self.optimizer_cls.sequential else len(initial)
+        note = first_round_note(self.optimizer_cls.name, initial[:rows], designs)
+        if note is not None and not any(n.startswith(f"warning: {note[:40]}") for n in self.state.notes):
+            self.state.notes.append(f"warning: {note}")
+            print(f"warning: {note}", file=sys.stderr)
 
     def evaluate(self, designs: np.ndarray, kind: str) -> tuple[np.ndarray, int, float, np.ndarray | None]:
         """costs [P, M], interactions, seconds, surrogate errors [P, M] (real rounds only)."""
@@ -814,6 +836,8 @@ class CoadaptationLoop:
             "cost_rule": c.cost_rule, "cost_cap": c.cost_cap, "cost_reference": s.reference,
             "surrogate_quality": self.surrogate_quality(),
         }
+        summary["policy"] = s.policy
+        summary["notes"] = list(s.notes)
         summary["reliable"], summary["reliability"] = assess(s.batches, final_walking)
         summary["final_walking"] = final_walking
         summary.update(uncertainty)
@@ -823,6 +847,22 @@ class CoadaptationLoop:
         self.checkpoint()
         self.recorder.finish(s.run_id, summary, "finished")
         self.emit("done")
+
+
+def _check_same_policy(state: LoopState, policy: dict[str, Any] | None) -> None:
+    """A resumed run starts from the policy file it started from: a file whose SHA-256
+    changed since (a reinstalled plugin shipping a retrained policy, an overwritten path) is
+    refused in one line. A run recorded before provenance existed takes today's."""
+    recorded = (state.policy or {}).get("sha256")
+    if policy is None or not recorded or state.phase == "done":
+        state.policy = state.policy or policy
+        return
+    if policy.get("sha256") != recorded:
+        now = policy.get("sha256")
+        raise UserError(
+            f"cannot resume run {state.run_id}: its starting policy {state.policy.get('path')} changed since the run "
+            f"started (SHA-256 {recorded[:12]}... then, {now[:12] + '...' if now else 'no file'} now); restore that "
+            "file, or start a new run", field="resume")
 
 
 # ------------------------------------------------------------------------------------------
@@ -865,11 +905,16 @@ def run_coadaptation(
         if (run_path / STATE_FILE).exists():
             raise UserError(f"run folder '{run_path}' already holds a run; resume it or pick another", field="out")
         run_path.mkdir(parents=True, exist_ok=True)
-        state = LoopState(run_id=run_id, config=config.to_dict(), space=parts.space.to_dict())
+        state = LoopState(run_id=run_id, config=config.to_dict(), space=parts.space.to_dict(), policy=parts.policy,
+                          notes=list(parts.notes), no_critic=list(parts.no_critic))
+        for note in parts.notes:
+            print(note, file=sys.stderr)
+    else:
+        _check_same_policy(state, parts.policy)
     assert run_path is not None
     recorder = recorder or make_recorder(run_path, config.store or None)
     recorder.start_run({**config.to_dict(), "run_id": state.run_id, "run_dir": str(run_path),
-                        "design_space": parts.full_space.to_dict()})
+                        "design_space": parts.full_space.to_dict(), "policy": state.policy})
     if resume is not None:
         # a store that lost this run's rows (emptied, replaced, an old copy) gets them back
         # from the run folder's JSON lines before anything new is recorded

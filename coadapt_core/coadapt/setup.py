@@ -5,7 +5,7 @@ universal-policy learner, or a policy per design for the BO baseline)."""
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -28,6 +28,12 @@ class LoopParts:
     optimizer_cls: type[Optimizer]
     backend_factory: Callable[[int], CoadaptationBackend]
     pretrained: bool = False  # the shared policy starts from a universal policy over the full range
+    #: the starting policy's provenance (`policy_provenance`); None when the backend was given
+    policy: dict | None = None
+    #: lines the run prints at its start and records in its summary (`notes`)
+    notes: list[str] = field(default_factory=list)
+    #: objectives the starting policy has no pseudo-critic for (`objectives_without_critic`)
+    no_critic: list[str] = field(default_factory=list)
 
 
 def uses_mixed_space(config: CoadaptConfig) -> bool:
@@ -131,12 +137,119 @@ def build_parts(
             field="optimizer",
         )
     pretrained = False
+    policy = None
+    notes: list[str] = []
+    no_critic: list[str] = []
     if backend_factory is None:
         backend_factory = universal_policy_factory(config, robot, full_space, objectives)
         pretrained = shared and resolve_checkpoint(config) is not None
+        policy = policy_provenance(config, used=shared or config.specialized_init == "universal")
+        if pretrained:
+            no_critic, note = objectives_without_critic(config, resolve_checkpoint(config), objectives)
+            notes += [note] if note else []
     if not shared:  # the factory builds each design's policy
         backend_factory = specialized_factory(config, backend_factory)
-    return LoopParts(full_space, space, nominal, objectives, optimizer_cls, backend_factory, pretrained)
+    # the optimizer starts from the designs the policy is trained on (Algorithm 4 line 10): a
+    # throwaway copy is asked now, unless building one has side effects (a study kept in a
+    # database: options storage / study_name); the loop checks the real first round too
+    keeps_study = {"storage", "study_name"} & {spec.name for spec in getattr(optimizer_cls, "option_specs", ())}
+    if shared and not keeps_study:
+        population = 1 if optimizer_cls.sequential else config.population
+        if population == config.population:
+            note = initial_designs_note(optimizer_cls, space, population, len(objectives), config.optimizer_options)
+            notes += [f"warning: {note}"] if note else []
+    return LoopParts(full_space, space, nominal, objectives, optimizer_cls, backend_factory, pretrained, policy, notes,
+                     no_critic)
+
+
+def objectives_without_critic(config: CoadaptConfig, checkpoint: str, objectives: Sequence[Objective]
+                              ) -> tuple[list[str], str | None]:
+    """(names, note): the run's objectives the starting policy carries no pseudo-critic for
+    (its checkpoint's `objectives`), and the line the run starts with about them.
+
+    The learner gives such an objective a fresh, untrained pseudo-critic head, whose
+    predictions mean nothing. So, defined behaviour: a surrogate round of the run waits until
+    the pseudo-critics have been fitted to a real round of the current policy (`fit_surrogate`;
+    before that, and always with `fit_surrogate` off, rounds are real); a method evaluating
+    with the surrogate only (no real rounds to fit to) is refused."""
+    from pathlib import Path
+
+    from coadapt_core.learning import read_checkpoint
+
+    method = get_method(config.method)
+    if method.surrogate_probability == 0.0:
+        return [], None  # a method that never asks the surrogate
+    saved = read_checkpoint(checkpoint).get("objectives")
+    if not isinstance(saved, list | tuple):
+        return [], None  # a checkpoint that does not say
+    missing = [o.name for o in objectives if o.name not in saved]
+    if not missing:
+        return [], None
+    what = (f"objective{'s' if len(missing) > 1 else ''} {', '.join(repr(m) for m in missing)} "
+            f"{'have' if len(missing) > 1 else 'has'} no pseudo-critic in the starting policy {Path(checkpoint).name} "
+            f"(it has {', '.join(saved) or 'none'})")
+    if method.surrogate_probability == 1.0:
+        raise UserError(
+            f"{what}, and method '{config.method}' evaluates with the surrogate only; train a policy with one "
+            f"(`coadapt train --robot {config.robot} --terrain {config.terrain} --objectives "
+            f"{','.join([*saved, *missing])}`) and pass --checkpoint PATH, or use a method with real rounds",
+            field="objective")
+    if config.fit_surrogate:
+        then = ("a surrogate round of this run waits until the pseudo-critics are fitted to a real round of the "
+                "current policy (fit_surrogate); until then rounds are real")
+    else:
+        then = "every round of this run is real (no surrogate rounds: fit_surrogate is off)"
+    return missing, f"note: {what}: {then} (docs/plugins.md, section 5)"
+
+
+def initial_designs_note(optimizer_cls: type[Optimizer], space: DesignSpace, population: int, num_objectives: int,
+                         options: dict) -> str | None:
+    """A warning when the optimizer's first `ask` does not return the `initial_designs` it was
+    built with (a plugin written before they were a constructor argument ignores them: the
+    run would still finish, its first round not the designs the policy was trained on). One
+    throwaway optimizer on sampled designs, before any training; a study kept in a database
+    (options `storage` / `study_name`) is not probed: the loop checks its real first round. None when it complies or
+    cannot be probed (its own errors are reported when the run builds it)."""
+    initial = space.sample(population, np.random.default_rng(0))
+    try:
+        first = optimizer_cls(space, population=population, budget=2, seed=1, num_objectives=num_objectives,
+                              initial_designs=initial, **options).ask()
+    except Exception:
+        return None
+    return first_round_note(optimizer_cls.name, initial, first)
+
+
+def first_round_note(name: str, initial: np.ndarray, first: np.ndarray) -> str | None:
+    """The warning (without its 'warning: ' prefix) when an optimizer's first proposals
+    `first` are not the `initial` designs it was given; None when they are."""
+    first = np.atleast_2d(np.asarray(first, dtype=float))
+    initial = np.atleast_2d(np.asarray(initial, dtype=float))
+    if first.shape == initial.shape and np.allclose(first, initial, atol=1e-9):
+        return None
+    return (f"optimizer '{name}' ignores `initial_designs`: its first round is not the {len(initial)} designs the "
+            "policy is trained on (Algorithm 4 line 10), so this run does not follow the paper; the plugin needs "
+            "updating (docs/plugins.md#migration; OptimizerConformance checks it)")
+
+
+def policy_provenance(config: CoadaptConfig, *, used: bool = True) -> dict:
+    """Which policy the run starts from: `source` 'shipped' (the robot's, `Robot.shipped_policy`),
+    'path' (--checkpoint PATH) or 'none' (from scratch), the file's name and absolute path
+    and its SHA-256, recorded in config.yaml, the summary and the store."""
+    import hashlib
+    from pathlib import Path
+
+    path = resolve_checkpoint(config) if used else None
+    if path is None:
+        return {"source": "none", "file": None, "path": None, "sha256": None}
+    try:
+        digest = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError:  # resolve_checkpoint found it; gone since: nothing to vouch for
+        digest = None
+    source = "path" if config.checkpoint.strip() else "shipped"
+    out = {"source": source, "file": Path(path).name, "path": str(Path(path).resolve()), "sha256": digest}
+    if source == "shipped":
+        out["robot"] = config.robot
+    return out
 
 
 def universal_policy_factory(

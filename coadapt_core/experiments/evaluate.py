@@ -6,6 +6,7 @@ base poses and joint angles of agent 0 for rendering."""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -34,9 +35,13 @@ def evaluate_checkpoint(
     randomize: bool = True,
     record: bool = False,
     progress: Any = None,
+    objectives: Sequence[str] = (),
 ) -> dict[str, Any]:
     """Survival, mean forward speed and costs of a policy on one design under a fixed
-    command (the policy mean; falls auto-reset but count against survival)."""
+    command (the policy mean; falls auto-reset but count against survival). `objectives`
+    names further installed objectives (a plugin's included, built with their default
+    options): `costs` and `costs_se` hold each one's mean cost per step and its standard
+    error over the agents."""
     import numpy as np
     import torch
 
@@ -53,6 +58,8 @@ def evaluate_checkpoint(
         raise UserError(f"checkpoint '{checkpoint}' was trained for robot '{state['robot']}', not '{robot_obj.name}'", field="checkpoint")
     registry = get_registry()
     metric_names = ["tracking", "power", "torque"]
+    metric_names += [n for n in dict.fromkeys(objectives) if n not in metric_names]
+    requested = list(dict.fromkeys(objectives))
     objectives = [registry.get("objective", n)() for n in metric_names]
     config = TrainConfig.from_dict(state["train_config"])
     config.device = device
@@ -122,6 +129,9 @@ def evaluate_checkpoint(
         "divergences": int(divergences[0]),
         "dt": float(env.dt),
     }
+    if requested:  # each asked-for objective: mean cost per step and its SE over the agents
+        out["costs"] = {n: float(result.metrics[0, metric_names.index(n)]) for n in requested}
+        out["costs_se"] = {n: _mean_se(result.per_agent[0, :, metric_names.index(n)]) for n in requested}
     if record:
         out["_trajectory"] = {"frames": frames, "dt": env.dt, "terrain": terrain}
     return out

@@ -52,11 +52,14 @@ class Cell:
     preset: str
     sim: str
     optimizer: str | None = None  # None: the method's default (`coadapt_core.methods.optimizer_for`)
+    robot: str | None = None  # None: `coadapt run`'s default robot (a cell made by a GridSpec always names it)
 
     @property
     def key(self) -> str:
-        """Stable text key; what the store's `runs.cell` and `grid_cells.cell` hold."""
-        parts = [
+        """Stable text key; what the store's `runs.cell` and `grid_cells.cell` hold (the
+        robot first, when the cell names one)."""
+        parts = [f"robot={self.robot}"] if self.robot else []
+        parts += [
             f"method={self.method}",
             f"objective={self.objective}",
             f"terrain={self.terrain}",
@@ -87,6 +90,8 @@ class Cell:
             "--preset", self.preset,
             "--sim", self.sim,
         ]  # fmt: skip
+        if self.robot:
+            args += ["--robot", self.robot]
         if self.optimizer:
             args += ["--optimizer", self.optimizer]
         if out_dir:
@@ -126,9 +131,11 @@ class GridSpec:
     sim: str = field(default_factory=lambda: default_plugin("simulator"))
     optimizer: str | None = None
     extra_args: list[str] = field(default_factory=list)  # appended to every `coadapt run`
+    #: default: the installed robot of highest `default_rank`; every cell names its robot
+    robots: list[str] = field(default_factory=lambda: [default_plugin("robot")])
 
     def __post_init__(self) -> None:
-        for name in ("methods", "objectives", "terrains", "seeds"):
+        for name in ("methods", "objectives", "terrains", "seeds", "robots"):
             values = getattr(self, name)
             if not values:
                 raise UserError(f"grid --{name} needs at least one value", field=name)
@@ -140,7 +147,8 @@ class GridSpec:
 
     def cells(self) -> list[Cell]:
         return [
-            Cell(m, o, t, int(s), self.preset, self.sim, self.optimizer)
+            Cell(m, o, t, int(s), self.preset, self.sim, self.optimizer, r)
+            for r in self.robots
             for o in self.objectives
             for t in self.terrains
             for m in self.methods
@@ -273,6 +281,8 @@ def cell_config_hash(cell: Cell, extra: Sequence[str] = ()) -> str | None:
     if overrides is None:
         return None
     overrides.update(method=cell.method, objective=cell.objective, terrain=cell.terrain, seed=cell.seed, sim=cell.sim)
+    if cell.robot:
+        overrides["robot"] = cell.robot
     if cell.optimizer:
         overrides["optimizer"] = cell.optimizer
     try:
@@ -313,7 +323,7 @@ def finished_run(store: ResultsStore, cell: Cell, spec: GridSpec | None = None) 
             return run  # another grid ran this cell with the same command line
     candidates = by_cell + store.list_runs(
         method=cell.method, objectives=cell.objective, terrain=cell.terrain, seed=cell.seed, preset=cell.preset,
-        simulator=cell.sim, status="finished",
+        simulator=cell.sim, status="finished", **({"robot": cell.robot} if cell.robot else {}),
     )
     if expected is None:
         return None

@@ -29,8 +29,46 @@ def make_step(
     )
 
 
+def standing_step(n: int = 6, joints: int = 8, legs: int = 2, design_dim: int = 2) -> StepBatch:
+    """A robot standing still under zero commands: every velocity and command 0, feet down,
+    joints holding the pose (torques only against gravity). Costs that divide by speed or by
+    the command must stay finite here."""
+    import torch
+
+    step = make_step(n=n, joints=joints, legs=legs, design_dim=design_dim, seed=9)
+    zero3 = torch.zeros(n, 3)
+    return StepBatch(
+        command=zero3, base_lin_vel=zero3.clone(), base_ang_vel=zero3.clone(), joint_torque=step.joint_torque * 0.2,
+        joint_vel=torch.zeros(n, joints), joint_targets=step.joint_targets, design=step.design, total_mass=step.total_mass,
+        base_height=step.base_height, foot_contact=torch.ones(n, legs, dtype=torch.bool), dt=step.dt,
+    )
+
+
 class ObjectiveConformance:
     """Every objective: one finite cost per environment, deterministic, labelled."""
+
+    def test_calls_the_base_initialiser(self, objective: Objective) -> None:
+        """A constructor of its own calls `super().__init__(**options)`: the base class checks
+        the options and fills in their defaults (`self.options`)."""
+        assert hasattr(objective, "options"), (
+            "Objective.__init__ did not run (no `self.options`): call super().__init__(**options)")
+        declared = {s.name for s in type(objective).option_specs}
+        assert set(objective.options) >= declared
+
+    def test_standing_still_and_zero_commands_give_finite_costs(self, objective: Objective) -> None:
+        """A robot standing still (zero speed, zero joint speed, feet down) under a zero
+        command, alone and beside moving ones: a real rollout has such steps (a fallen-back
+        robot, a command of 0)."""
+        import torch
+
+        still = standing_step(n=6)
+        cost = objective.step_cost(still)
+        assert cost.shape == (6,) and torch.isfinite(cost).all(), f"non-finite cost when standing still: {cost}"
+        moving = make_step(n=6, seed=3)
+        mixed = StepBatch(**{f: (getattr(still, f) if f == "dt" else torch.cat([getattr(still, f), getattr(moving, f)]))
+                             for f in StepBatch.__dataclass_fields__})
+        cost = objective.step_cost(mixed)
+        assert cost.shape == (12,) and torch.isfinite(cost).all(), f"non-finite cost beside moving robots: {cost}"
 
     def test_is_objective_with_labels(self, objective: Objective) -> None:
         assert isinstance(objective, Objective)

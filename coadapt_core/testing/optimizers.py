@@ -8,13 +8,14 @@ sphere test, default 30).
 from __future__ import annotations
 
 import json
+import warnings
 
 import numpy as np
 import pytest
 
 from coadapt_core.design_space import Continuous, DesignSpace, Discrete
 from coadapt_core.errors import UserError
-from coadapt_core.optimizer import Optimizer
+from coadapt_core.optimizer import Optimizer, OutOfBoundsProposal
 
 
 def sphere(designs: np.ndarray, optimum: np.ndarray) -> np.ndarray:
@@ -70,6 +71,32 @@ class OptimizerConformance:
             opt.tell(designs, self._costs(optimizer_cls, designs, np.array([0.7, 1.2])))
         assert opt.done
         assert opt.iteration == 3
+
+    def test_calls_the_base_initialiser(self, optimizer_cls, optimizer_options, space) -> None:
+        """A constructor of its own calls `super().__init__(space, **kwargs)`: the base class
+        checks the seed, options and initial designs and keeps the state a resume needs."""
+        opt = optimizer_cls(space, population=4, budget=2, seed=3, num_objectives=self._objectives(optimizer_cls),
+                            **optimizer_options)
+        missing = [a for a in ("space", "seed", "options", "initial_designs", "iteration", "_history") if not hasattr(opt, a)]
+        assert not missing, f"Optimizer.__init__ did not run (no {', '.join(missing)}): call super().__init__(space, **kwargs)"
+        assert opt.space is space and opt.seed == 3 and opt.iteration == 0
+
+    def test_proposals_stay_inside_the_bounds_without_clipping(self, optimizer_cls, optimizer_options, space,
+                                                               mixed_space) -> None:
+        """Proposals lie inside the bounds as made: the base class clips one that does not,
+        but warns (`OutOfBoundsProposal`), since the design evaluated is not the one proposed."""
+        spaces = [space] + ([mixed_space] if optimizer_cls.supports_mixed else [])
+        for sp in spaces:
+            opt = optimizer_cls(sp, population=8, budget=4, seed=4, num_objectives=self._objectives(optimizer_cls),
+                                **optimizer_options)
+            optimum = np.array([0.55, 1.45, 1.0][: sp.dim])
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", OutOfBoundsProposal)
+                while not opt.done:
+                    d = opt.ask()
+                    opt.tell(d, self._costs(optimizer_cls, d, optimum))
+            clipped = [str(w.message) for w in caught if issubclass(w.category, OutOfBoundsProposal)]
+            assert not clipped, clipped[0]
 
     def test_same_seed_same_proposals(self, optimizer_cls, optimizer_options, space) -> None:
         runs = []

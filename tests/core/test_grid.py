@@ -31,7 +31,7 @@ def fake_run(argv: list[str]) -> int:
     from coadapt_core.results import SqliteRecorder
 
     p = argparse.ArgumentParser()
-    for opt in ("--method", "--objective", "--terrain", "--preset", "--sim", "--out", "--resume", "--optimizer", "--store",
+    for opt in ("--method", "--objective", "--terrain", "--preset", "--sim", "--robot", "--out", "--resume", "--optimizer", "--store",
                 "--bo-storage"):
         p.add_argument(opt)
     p.add_argument("--seed", type=int)
@@ -129,7 +129,8 @@ def test_local_grid_runs_cells_then_skips_them(tmp_path):
 
     files = write_report(store, spec.grid_id, tmp_path / "report", sim2sim=False)
     t7 = files["table7.csv"].read_text().splitlines()
-    assert len(t7) == 3 and t7[1].startswith("ours,unknown,2,") and t7[2].startswith("no-surrogate,unknown,2,")
+    assert len(t7) == 3 and t7[1].startswith("kuafu,mujoco,smoke,ours,unknown,2,")
+    assert t7[2].startswith("kuafu,mujoco,smoke,no-surrogate,unknown,2,")
     # a bigger grid runs only the new cells
     bigger = _spec(seeds=[0, 1, 2])
     third = run_grid(bigger, store, workers=2, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)

@@ -204,3 +204,63 @@ def test_validation_report_to_dict_is_json_even_with_numpy_values():
                                                      Finding("b", np.bool_(False), "n")])
     data = json.loads(json.dumps(report.to_dict()))
     assert data["feasible"] is False and data["findings"][0] == {"check": "a", "ok": True, "message": "m", "value": 0.5, "limit": 1.0}
+
+
+@pytest.mark.slow
+def test_grid_over_two_robots_reports_one_row_per_robot(site_with_policy, tmp_path):
+    """`coadapt grid --robots kuafu,trotter ... --preset smoke` then `coadapt report`: one
+    row per robot, never averaged together; the cell key names the robot, and each run
+    records the policy its robot ships (name and SHA-256)."""
+    import hashlib
+
+    from coadapt_core.results.store import ResultsStore
+
+    store = tmp_path / "grid.db"
+    done = run_cli("grid", "--robots", "kuafu,trotter", "--methods", "ours", "--objectives", "torque", "--terrains", "flat",
+                   "--seeds", "0", "--preset", "smoke", "--workers", "2", "--store", str(store),
+                   "--run-arg=--population=2", "--run-arg=--outer-iterations=1", "--run-arg=--optimizer-iterations=1",
+                   "--run-arg=--no-video",
+                   "--out", str(tmp_path / "runs"), "--json", pythonpath=[site_with_policy], timeout=900)
+    assert done.returncode == 0, done.stderr[-3000:]
+    grid = json.loads(done.stdout.strip().splitlines()[-1])
+    assert sorted(k.split("|")[0] for k in grid["finished"]) == ["robot=kuafu", "robot=trotter"]
+    report = run_cli("report", grid["grid_id"], "--store", str(store), "--no-sim-to-sim", "-o", str(tmp_path / "rep"),
+                     pythonpath=[site_with_policy], timeout=300)
+    assert report.returncode == 0, report.stderr[-2000:]
+    import csv
+
+    with open(tmp_path / "rep" / "table6.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert sorted((r["robot"], r["runs"]) for r in rows) == [("kuafu", "1"), ("trotter", "1")]
+    shipped = site_with_policy / "coadapt_example" / "policies" / "flat.pt"
+    trotter = next(r for r in rows if r["robot"] == "trotter")
+    assert trotter["policy"] == f"flat.pt ({hashlib.sha256(shipped.read_bytes()).hexdigest()[:12]})"
+    with ResultsStore(store) as results:
+        runs = {r["robot"]: r for r in results.list_runs(grid_id=grid["grid_id"])}
+    assert runs["kuafu"]["config"]["policy"]["source"] == "shipped"
+    assert runs["kuafu"]["config"]["policy"]["file"] == "flat.pt" and len(runs["kuafu"]["config"]["policy"]["sha256"]) == 64
+    assert runs["trotter"]["cell"].startswith("robot=trotter|")
+
+
+@pytest.mark.slow
+def test_eval_evaluates_a_plugin_objective_with_its_standard_error(site_with_policy):
+    """`coadapt eval --objective joint-speed --json`: the example plugin's objective, its cost
+    per step and standard error over the agents; a built-in asked for the same way matches
+    the built-in column."""
+    policy = site_with_policy / "coadapt_example" / "policies" / "flat.pt"
+    done = run_cli("eval", "--checkpoint", str(policy), "--agents", "4", "--seconds", "0.4", "--json",
+                   "--objective", "joint-speed", "--objective", "torque", pythonpath=[site_with_policy], timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert list(result["costs"]) == ["joint-speed", "torque"]
+    assert np.isfinite(result["costs"]["joint-speed"]) and result["costs"]["joint-speed"] > 0
+    assert np.isfinite(result["costs_se"]["joint-speed"]) and result["costs_se"]["joint-speed"] > 0  # 4 agents differ
+    assert result["costs"]["torque"] == pytest.approx(result["torque_cost"])
+    assert result["costs_se"]["torque"] == pytest.approx(result["torque_cost_se"])
+
+
+def test_eval_of_an_unknown_objective_is_one_line(example_plugin_site):
+    done = run_cli("eval", "--robot", "trotter", "--objective", "joint-sped", "--json", pythonpath=[example_plugin_site])
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "unknown objective 'joint-sped'" in lines[0] and "joint-speed" in lines[0]

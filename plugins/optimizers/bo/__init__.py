@@ -15,6 +15,9 @@ from coadapt_core.errors import UserError
 from coadapt_core.optimizer import Optimizer
 from coadapt_core.options import PluginOption
 
+#: the coadapt plugin API version this plugin is written for (docs/plugins.md#migration)
+COADAPT_PLUGIN_API = "2.0"
+
 SAMPLERS = ("tpe", "gp")
 
 

@@ -22,6 +22,9 @@ from coadapt_core import hookimpl
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.optimizer import Optimizer
 
+#: the coadapt plugin API version this plugin is written for (docs/plugins.md#migration)
+COADAPT_PLUGIN_API = "2.0"
+
 
 class MixedPSOOptimizer(Optimizer):
     """Global-best PSO with relaxed discrete coordinates.

@@ -13,6 +13,9 @@ from coadapt_core.design_space import DesignSpace
 from coadapt_core.optimizer import Optimizer
 from coadapt_core.pareto import pareto_front
 
+#: the coadapt plugin API version this plugin is written for (docs/plugins.md#migration)
+COADAPT_PLUGIN_API = "2.0"
+
 
 class NSGA2Optimizer(Optimizer):
     """pymoo NSGA-II in the unit-cube encoding; continuous variables only.

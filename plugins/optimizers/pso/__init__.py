@@ -12,6 +12,9 @@ from coadapt_core import hookimpl
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.optimizer import Optimizer
 
+#: the coadapt plugin API version this plugin is written for (docs/plugins.md#migration)
+COADAPT_PLUGIN_API = "2.0"
+
 
 class PSOOptimizer(Optimizer):
     """pymoo PSO with fixed inertia and acceleration (`adaptive=False`, so w, c1, c2 stay as

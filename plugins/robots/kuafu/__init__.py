@@ -5,6 +5,9 @@ from __future__ import annotations
 
 from coadapt_core import hookimpl
 
+#: the coadapt plugin API version this plugin is written for (docs/plugins.md#migration)
+COADAPT_PLUGIN_API = "2.0"
+
 
 @hookimpl
 def coadapt_register_robots() -> list[type]:

@@ -8,6 +8,9 @@ from coadapt_plugins.simulators.pybullet.simulator import PyBulletSimulator
 
 from coadapt_core import hookimpl
 
+#: the coadapt plugin API version this plugin is written for (docs/plugins.md#migration)
+COADAPT_PLUGIN_API = "2.0"
+
 
 @hookimpl
 def coadapt_register_simulators() -> list[type]:

@@ -10,6 +10,9 @@ from coadapt_core.objective import Objective, StepBatch
 from coadapt_core.optimizer import Optimizer
 from coadapt_core.options import PluginOption
 
+#: the coadapt plugin API version this plugin is written for (docs/plugins.md#migration)
+COADAPT_PLUGIN_API = "2.0"
+
 
 class JointSpeedObjective(Objective):
     """Mean squared joint speed: penalises fast, jerky leg motion."""

@@ -1,0 +1,179 @@
+"""The plugin API's version, and what a plugin declares to say which version it was written for.
+
+The plugin interfaces — the four base classes (`Robot`, `Simulator`, `Optimizer`,
+`Objective`), the records they exchange (`StepBatch`, `RobotModel`, `SimState`, ...), the
+design spaces, the shared actuation, the hooks and the conformance suites — carry one
+semantic version, `PLUGIN_API_VERSION`: the major number changes when a plugin written for
+the previous one may stop working (a field removed, a contract changed), the minor one when
+something is only added.
+
+A plugin declares the version it was written for, either for every class its hook module
+registers (a module attribute of the module named by its entry point)::
+
+    COADAPT_PLUGIN_API = "2.0"
+
+or per class (`plugin_api = "2.0"`, a class attribute; it wins over the module's). The
+registry then
+
+- loads a plugin written for this major version and a minor version up to this one;
+- refuses one written for an older major version with one line naming what changed since and
+  where the migration guide is (docs/plugins.md#migration); it is listed as broken, and a
+  command that names it exits 2 with that line;
+- refuses one written for a newer version (upgrade coadapt), or declaring something that is
+  not a version;
+- loads a plugin that declares nothing (written before versions were declared) and
+  `coadapt plugins` says so.
+
+`tests/core/plugin_api_signature.json` records the interfaces' signatures at each version
+(`coadapt_core.api_signature`); a test fails when they change without the version changing
+as much as the change requires (`required_bump`). After a deliberate change: raise
+`PLUGIN_API_VERSION`, add the change to `BREAKING_CHANGES` (major) and CHANGELOG.md, then
+`python -m coadapt_core.api_signature tests/core/plugin_api_signature.json`.
+"""
+
+from __future__ import annotations
+
+import re
+
+#: the version of the plugin interfaces (semantic: major.minor.patch)
+PLUGIN_API_VERSION = "2.0.0"
+#: where a plugin author reads what changed and how to adapt
+MIGRATION_DOC = "docs/plugins.md#migration"
+#: the module attribute of a plugin's hook module declaring the version its classes target
+MODULE_ATTRIBUTE = "COADAPT_PLUGIN_API"
+#: the class attribute declaring it for one class (wins over the module's)
+CLASS_ATTRIBUTE = "plugin_api"
+
+#: what each major version broke, one short clause each (the refusal line lists them).
+#: Version 1 is the interface before versions were declared.
+BREAKING_CHANGES: dict[int, tuple[str, ...]] = {
+    2: (
+        "StepBatch has no `action` field (read `joint_targets`)",
+        "`initial_designs` is a constructor argument checked by Optimizer.__init__, not an option",
+        "an optimizer's first ask must return `initial_designs` (a run warns at its start when it does not)",
+        "undeclared options are refused (declare them in `option_specs`)",
+        "optimizer state is plain JSON through state_dict/load_state_dict, never a pickle",
+        "seeds are any integer in [0, 2**63) (32-bit libraries get `self.seed32`)",
+    ),
+}
+
+_VERSION = re.compile(r"^\s*v?(\d+)(?:\.(\d+))?(?:\.(\d+))?\s*$")
+
+
+def parse_version(value: object) -> tuple[int, int, int]:
+    """'2', '2.1', '2.1.3' (or an int) as (major, minor, patch); ValueError otherwise."""
+    if isinstance(value, bool):
+        raise ValueError(f"not a version: {value!r}")
+    if isinstance(value, int):
+        return (value, 0, 0)
+    found = _VERSION.match(str(value)) if isinstance(value, str) else None
+    if found is None:
+        raise ValueError(f"not a version: {value!r}")
+    return tuple(int(g or 0) for g in found.groups())  # type: ignore[return-value]
+
+
+def current() -> tuple[int, int, int]:
+    return parse_version(PLUGIN_API_VERSION)
+
+
+def declared_api(cls: type, module: object | None = None) -> str | None:
+    """The plugin API version `cls` declares (its class attribute, else its hook module's),
+    as text; None when neither declares one."""
+    value = getattr(cls, CLASS_ATTRIBUTE, None)
+    if value is None and module is not None:
+        value = getattr(module, MODULE_ATTRIBUTE, None)
+    return None if value is None else str(value)
+
+
+def changes_since(major: int) -> list[str]:
+    """The breaking changes of every major version after `major`, up to this one."""
+    return [c for m in sorted(BREAKING_CHANGES) if major < m <= current()[0] for c in BREAKING_CHANGES[m]]
+
+
+def api_problem(declared: str | None) -> str | None:
+    """Why a plugin declaring `declared` cannot be loaded, in one clause; None when it can
+    (undeclared included)."""
+    if declared is None:
+        return None
+    try:
+        major, minor, _ = parse_version(declared)
+    except ValueError:
+        return (f"declares plugin API {declared!r}, which is not a version; declare the version it was written "
+                f"for, e.g. {MODULE_ATTRIBUTE} = \"{current()[0]}.{current()[1]}\"")
+    have_major, have_minor, _ = current()
+    if major < have_major:
+        changed = "; ".join(changes_since(major)) or "see the changelog"
+        return (f"was written for coadapt plugin API {major}.x and this coadapt has {PLUGIN_API_VERSION}, which "
+                f"changed: {changed}; adapt it as {MIGRATION_DOC} says, then declare "
+                f"{MODULE_ATTRIBUTE} = \"{have_major}.{have_minor}\"")
+    if major > have_major or minor > have_minor:
+        return (f"needs coadapt plugin API {major}.{minor}, newer than this coadapt's {PLUGIN_API_VERSION}: "
+                "upgrade coadapt (pip install -U coadapt)")
+    return None
+
+
+def undeclared_note(distribution: str) -> str:
+    return (f"note: plugin distribution {distribution} declares no plugin API version (this coadapt's is "
+            f"{PLUGIN_API_VERSION}); check it against {MIGRATION_DOC} and declare "
+            f"{MODULE_ATTRIBUTE} = \"{current()[0]}.{current()[1]}\" in its hook module")
+
+
+# -- comparing recorded signatures (coadapt_core.api_signature records them) ----------------
+def _flat(signature: dict[str, dict[str, str]]) -> dict[str, str]:
+    return {f"{where}::{name}": text for where, members in signature.items() for name, text in members.items()}
+
+
+def signature_changes(old: dict[str, dict[str, str]], new: dict[str, dict[str, str]]) -> dict[str, list[str]]:
+    """{'removed': [...], 'changed': [...], 'added': [...]} between two signatures."""
+    a, b = _flat(old), _flat(new)
+    return {
+        "removed": sorted(k for k in a if k not in b),
+        "changed": sorted(k for k in a if k in b and a[k] != b[k]),
+        "added": sorted(k for k in b if k not in a),
+    }
+
+
+def required_bump(old: dict[str, dict[str, str]], new: dict[str, dict[str, str]]) -> str | None:
+    """'major' when a plugin written against `old` may break under `new` (something removed
+    or changed, an abstract method or a required record field added), 'minor' when things
+    were only added, None when nothing changed."""
+    diff = signature_changes(old, new)
+    flat = _flat(new)
+    breaking_additions = [k for k in diff["added"] if flat[k].startswith("abstract ") or flat[k].endswith("(required)")]
+    if diff["removed"] or diff["changed"] or breaking_additions:
+        return "major"
+    return "minor" if diff["added"] else None
+
+
+def bump_of(old_version: str, new_version: str) -> str | None:
+    """'major', 'minor', 'patch' or None: how far `new_version` is above `old_version`
+    ('backwards' when it is below)."""
+    a, b = parse_version(old_version), parse_version(new_version)
+    if b < a:
+        return "backwards"
+    if b[0] > a[0]:
+        return "major"
+    if b[1] > a[1]:
+        return "minor"
+    if b[2] > a[2]:
+        return "patch"
+    return None
+
+
+_RANK = {None: 0, "patch": 1, "minor": 2, "major": 3}
+
+
+def bump_problem(old_version: str, old_sig: dict, new_version: str, new_sig: dict) -> str | None:
+    """Why going from (old_version, old_sig) to (new_version, new_sig) is not a correct
+    version bump; None when it is."""
+    need = required_bump(old_sig, new_sig)
+    have = bump_of(old_version, new_version)
+    if have == "backwards":
+        return f"version {new_version} is below {old_version}"
+    if _RANK[have] < _RANK[need]:
+        diff = signature_changes(old_sig, new_sig)
+        shown = "; ".join(f"{kind}: {', '.join(keys[:5])}{' ...' if len(keys) > 5 else ''}"
+                          for kind, keys in diff.items() if keys)
+        return (f"the plugin interfaces changed ({shown}) and need a {need} version bump over {old_version}; "
+                f"the version is {new_version}")
+    return None
