@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import re
 import sys
+from collections.abc import Iterator
 from typing import Any, NoReturn
 
 import typer
@@ -45,6 +47,52 @@ def os_error_line(exc: OSError) -> str:
     if exc.errno == errno.ENOENT:
         return f"{where} does not exist"
     return f"{exc.strerror or type(exc).__name__}: {where}"
+
+
+#: exit code of a command stopped by Ctrl-C (128 + SIGINT, as a shell reports it)
+EXIT_INTERRUPTED = 130
+
+
+@contextlib.contextmanager
+def ctrl_c_once() -> Iterator[None]:
+    """Within: the first Ctrl-C (SIGINT) raises KeyboardInterrupt where the command is, and
+    later ones are ignored while it records where it stopped and says how to resume (a
+    second Ctrl-C used to cut that short). The previous handler is restored on exit."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.getsignal(signal.SIGINT)
+
+    def handler(signum: int, frame: Any) -> None:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def interrupted(what: str, resume: str | None) -> NoReturn:
+    """After Ctrl-C: one line saying what stopped and the exact command that continues it
+    (or that nothing can be continued), then exit 130."""
+    if resume:
+        print(f"\ninterrupted: {what}; continue it with: {resume}", file=sys.stderr, flush=True)
+    else:
+        print(f"\ninterrupted: {what}", file=sys.stderr, flush=True)
+    raise typer.Exit(EXIT_INTERRUPTED)
+
+
+def invocation() -> list[str]:
+    """The arguments of the command being run (after `coadapt`), as `run_app` was given them."""
+    return list(_INVOCATION)
+
+
+_INVOCATION: list[str] = []
 
 
 def not_available(command: str, arrives_with: str) -> NoReturn:
@@ -246,13 +294,14 @@ def run_app(app: typer.Typer, argv: list[str] | None = None) -> int:
     stderr and exit code 2 (`coadapt_core.cli.main`, and `coadapt grid`'s check of its cells)."""
     command = typer.main.get_command(app)
     style_help(command)
+    _INVOCATION[:] = list(sys.argv[1:] if argv is None else argv)
     try:
         result = command.main(args=argv, prog_name="coadapt", standalone_mode=False)
     except typer.Exit as exc:
         return exc.exit_code
     except typer.Abort:
         print("aborted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
     except typer.TyperException as exc:  # usage errors: bad option, missing argument, ...
         ctx = getattr(exc, "ctx", None)
         if type(exc).__name__ == "NoArgsIsHelpError" and ctx is not None:

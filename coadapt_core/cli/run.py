@@ -15,7 +15,7 @@ from typing import Any
 
 import typer
 
-from coadapt_core.cli.common import fail, resolve, settings_options, with_options
+from coadapt_core.cli.common import ctrl_c_once, fail, interrupted, resolve, settings_options, with_options
 from coadapt_core.cli.progress import ProgressLine
 from coadapt_core.errors import UserError
 from coadapt_core.tracking import check_logger
@@ -30,10 +30,12 @@ def _fmt_duration(seconds: float | None) -> str:
 
 class _ProgressView:
     """One progress line: phase, outer/inner iteration, best real cost, interactions,
-    elapsed and ETA (a bar on a terminal, a plain line every 10 s otherwise)."""
+    elapsed and ETA (a bar on a terminal, a plain line every 10 s otherwise, also during a
+    long phase). The ETA is the loop's (`CoadaptationLoop.eta_seconds`: measured seconds per
+    training interaction and per round), "?" until a training phase and a real round ran."""
 
     def __init__(self, enabled: bool):
-        self.line = ProgressLine("run", 1.0, enabled=enabled)
+        self.line = ProgressLine("run", 1.0, enabled=enabled, own_eta=True)
 
     def __enter__(self) -> _ProgressView:
         return self
@@ -46,7 +48,11 @@ class _ProgressView:
             # most telling first: at 80 columns the end of the line is cut
             f"best {'-' if best is None else f'{best:.4g}'}  outer {outer} round {event['inner']}/"
             f"{event['inner_total']}  {event['phase']}  {event['interactions']:,} interactions",
+            eta=event.get("eta"),
         )
+
+    def close(self) -> None:
+        self.line.close()
 
     def __exit__(self, *exc: Any) -> None:
         self.line.close()
@@ -83,7 +89,7 @@ def _rate(value: float | None) -> str:
     return "-" if value is None else f"{value:.2f}"
 
 
-def _render_video(run_dir: Path, summary: dict[str, Any]) -> None:
+def _render_video(run_dir: Path, summary: dict[str, Any], *, progress: bool = True) -> None:
     """Best vs nominal, walking, from the run's final policy; smoke runs get a short one."""
     import yaml
 
@@ -94,8 +100,27 @@ def _render_video(run_dir: Path, summary: dict[str, Any]) -> None:
     except (OSError, yaml.YAMLError):
         config = {}
     smoke = summary.get("preset") == "smoke"
-    render_run_video(run_dir, summary, config, seconds=1.0 if smoke else 4.0, width=240 if smoke else 320,
-                     height=240 if smoke else 320)
+    with ProgressLine("video", 1.0, enabled=progress) as line:
+        render_run_video(run_dir, summary, config, seconds=1.0 if smoke else 4.0, width=240 if smoke else 320,
+                         height=240 if smoke else 320, progress=lambda done, detail: line.update(done, detail))
+
+
+def resume_command(run_id: str, run_dir: Path, *, video: bool = True, as_json: bool = False) -> str:
+    """The exact `coadapt run --resume` command line that continues this run from here (the
+    run folder's parent as --out unless it is the default ./runs)."""
+    import os
+    import shlex
+
+    parts = ["coadapt", "run", "--resume", run_id]
+    parent = Path(run_dir).absolute().parent
+    if parent != Path("runs").absolute():
+        relative = os.path.relpath(parent)
+        parts += ["--out", relative if not relative.startswith("..") else str(parent)]
+    if not video:
+        parts.append("--no-video")
+    if as_json:
+        parts.append("--json")
+    return shlex.join(parts)
 
 
 def _print_summary(summary: dict[str, Any], space_names: list[str] | None) -> None:
@@ -224,13 +249,31 @@ def register(app: typer.Typer) -> None:
                           f"scratch in this run; its result is marked unreliable unless the real rounds pass "
                           f"the walking gate ({WALKING_GATE.describe()})", file=sys.stderr)
                 kwargs = {}
-            with _ProgressView(enabled=not as_json) as view:
-                result = run_coadaptation(cfg, progress=view, **kwargs)
+            started: dict[str, Any] = {}
+
+            def on_start(run_id: str, run_dir: Path) -> None:
+                started.update(run_id=run_id, run_dir=run_dir)
+                print(f"run {run_id}: {run_dir}", file=sys.stderr, flush=True)
+
+            def finishing(result: Any) -> None:
+                view.close()
+                # a finished run resumed again keeps the video it has
+                if video and not (resume and (result.run_dir / "best_vs_nominal.gif").is_file()):
+                    _render_video(result.run_dir, result.summary, progress=not as_json)
+
+            with ctrl_c_once(), _ProgressView(enabled=not as_json) as view:
+                try:
+                    result = run_coadaptation(cfg, progress=view, on_start=on_start, finishing=finishing, **kwargs)
+                except KeyboardInterrupt:
+                    view.close()
+                    if not started:
+                        interrupted("the run had not started; nothing to resume", None)
+                    interrupted(f"run {started['run_id']} stopped; its folder {started['run_dir']} keeps the last state "
+                                "and the store marks it interrupted",
+                                resume_command(started["run_id"], started["run_dir"], video=video, as_json=as_json))
         except UserError as exc:
             fail(str(exc))
         summary = result.summary
-        if video:
-            _render_video(result.run_dir, summary)
         if as_json:
             print(json.dumps(result.json_line()))
         else:

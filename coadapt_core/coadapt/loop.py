@@ -119,7 +119,12 @@ def save_state(run_dir: Path, state: LoopState) -> None:
         state.torch_rng_state = sys.modules["torch"].get_rng_state()
     buffer = state.buffer
     stale = None
-    if buffer is not None and state.buffer_saved_serial != state.buffer_serial:
+    if state.phase == "done" and state.buffer_saved_serial >= 0:
+        # a finished run is resumed from its summary alone: the buffer (tens of MB for a
+        # quick run) is kept only while the run can still continue
+        stale = run_dir / f"{BUFFER_FILE_STEM}-{state.buffer_saved_serial}.npz"
+        state.buffer_saved_serial = -1
+    elif buffer is not None and state.buffer_saved_serial != state.buffer_serial:
         write_npz(run_dir / f"{BUFFER_FILE_STEM}-{state.buffer_serial}.npz", buffer)
         stale = run_dir / f"{BUFFER_FILE_STEM}-{state.buffer_saved_serial}.npz"
         state.buffer_saved_serial = state.buffer_serial
@@ -319,14 +324,57 @@ class CoadaptationLoop:
         if s.phase in ("final", "done"):
             done = total - (1 if s.phase == "final" else 0)
         c = s.counters
+        eta, elapsed = self.eta_seconds(), self.elapsed()
+        # the share of the time, once the ETA is known; else the share of the steps
+        fraction = elapsed / (elapsed + eta) if eta is not None and elapsed + eta > 0 else min(done / total, 1.0)
         self.progress({
             "phase": phase, "outer": s.outer, "outer_total": self.outer_count, "inner": s.inner,
-            "inner_total": self.rounds_per_outer, "fraction": min(done / total, 1.0),
+            "inner_total": self.rounds_per_outer, "fraction": fraction,
             "best_cost": None if s.best_real is None else s.best_real[1],
             "best_any": None if s.best_any is None else s.best_any[1],
             "interactions": int(c["train_interactions"] + c["eval_interactions"] + c["final_interactions"]),
-            "elapsed": self.elapsed(), **extra,
+            "elapsed": elapsed, "eta": eta, **extra,
         })
+
+    def eta_seconds(self) -> float | None:
+        """Seconds left, from the wall clock this run has measured per unit of work (it
+        survives a resume: the counters are part of the state): the training phases still to
+        come at the measured seconds per training interaction, the rounds still to come at the
+        measured seconds of a real and of a surrogate round (real in the share seen so far,
+        else 1 - w), and the final check as its designs' share of a real round per block, two
+        blocks expected. None until a training phase (when one is to come) and a real round
+        have been timed; the video is not included."""
+        s, c = self.state, self.config
+        cnt = s.counters
+        if s.phase == "done":
+            return 0.0
+        real_rounds, real_wall = cnt.get("real_rounds_timed", 0), cnt.get("real_round_wall", 0.0)
+        if real_rounds <= 0:
+            return None
+        per_real = real_wall / real_rounds
+        surrogate_rounds = cnt.get("surrogate_rounds_timed", 0)
+        per_surrogate = cnt.get("surrogate_round_wall", 0.0) / surrogate_rounds if surrogate_rounds else 0.05 * per_real
+        # training phases still to come (this outer iteration's if it has not trained yet)
+        steps_left = 0
+        if self.shared and not (self.pretrained and not self.method.retrain):
+            first = s.outer if s.phase == "train" else s.outer + 1
+            for outer in range(first, self.outer_count):
+                if outer == 0 or self.method.retrain:
+                    steps_left += c.train_steps if outer == 0 else c.retrain_steps
+        train_wall, train_steps = cnt.get("train_wall", 0.0), cnt.get("train_steps_timed", 0)
+        if steps_left and train_steps <= 0:
+            return None
+        seconds = steps_left * (train_wall / train_steps if train_steps else 0.0)
+        if s.phase in ("train", "optimize"):
+            rounds_left = self.rounds_per_outer * (self.outer_count - s.outer) - (s.inner if s.phase == "optimize" else 0)
+            done_rounds = real_rounds + surrogate_rounds
+            real_share = real_rounds / done_rounds if done_rounds else 1.0 - self.w
+            seconds += rounds_left * (real_share * per_real + (1 - real_share) * per_surrogate)
+        if s.phase != "done":  # the final check: its designs' share of a real round, per block
+            designs = (len(s.top_real) + 2) if len(self.objectives) == 1 else c.population + 1
+            blocks = min(2, c.final_max_blocks) if self.shared else 1
+            seconds += per_real * blocks * designs / max(c.population, 1)
+        return float(seconds)
 
     def seed_for(self, *parts: int) -> int:
         """A seed fixed by position in the run, so a resumed run draws what it would have."""
@@ -407,7 +455,10 @@ class CoadaptationLoop:
             s.labels = []  # a new policy: earlier real rounds no longer label it
             self._fitted_for = None
             self.emit("training")
+            t0 = time.perf_counter()
             result = self.get_backend().train(s.train_designs, steps, seed=self.seed_for(1, s.outer))
+            s.counters["train_wall"] = s.counters.get("train_wall", 0.0) + time.perf_counter() - t0
+            s.counters["train_steps_timed"] = s.counters.get("train_steps_timed", 0) + int(steps)
             self.count_training([result])
             if self.method.buffer_from_training and getattr(result, "buffer", None) is not None:
                 s.buffer, s.buffer_outer = result.buffer, s.outer
@@ -488,6 +539,7 @@ class CoadaptationLoop:
         if opt.done:
             self.end_outer()
             return
+        t0 = time.perf_counter()
         designs = opt.ask()  # [P, dim]
         kind = self.choose_kind(designs)
         self.emit(f"{kind} evaluation")
@@ -496,6 +548,9 @@ class CoadaptationLoop:
         opt.tell(designs, target)
         self.record_batch(designs, costs, kind, interactions, seconds, errors)
         s.inner += 1
+        # wall clock per kind of round, for the ETA (`eta_seconds`); saved with the state
+        s.counters[f"{kind}_round_wall"] = s.counters.get(f"{kind}_round_wall", 0.0) + time.perf_counter() - t0
+        s.counters[f"{kind}_rounds_timed"] = s.counters.get(f"{kind}_rounds_timed", 0) + 1
         self.checkpoint()
         self.emit("evaluated", kind=kind)
 
@@ -765,7 +820,8 @@ class CoadaptationLoop:
         s.summary = summary
         s.phase = "done"
         self.checkpoint()
-        self.recorder.finish(s.run_id, summary, "finished")
+        # the store says "finished" once the caller's last step (`run_coadaptation(finishing=)`,
+        # e.g. the CLI's video) is done too: an interrupt there leaves the run resumable
         self.emit("done")
 
 
@@ -782,6 +838,8 @@ def run_coadaptation(
     resume: str | os.PathLike | None = None,
     run_dir: str | os.PathLike | None = None,
     progress: ProgressFn | None = None,
+    on_start: Callable[[str, Path], None] | None = None,
+    finishing: Callable[[CoadaptResult], None] | None = None,
 ) -> CoadaptResult:
     """Run (or resume) Algorithm 4 and return its summary.
 
@@ -789,6 +847,11 @@ def run_coadaptation(
     (mixed for `mixed` or an optimizer that implies it) narrowed to `design_ranges`, its nominal design, the
     objectives, the optimizer class and the universal-policy backend. With `resume` (a run
     folder) the recorded config and state are used and `config` is ignored.
+
+    `on_start(run_id, run_dir)` is called as soon as the run folder holds a state to resume
+    from; `finishing(result)` after the final check and before the store says "finished"
+    (the CLI renders its video there). An interrupt anywhere (Ctrl-C included) marks the run
+    "interrupted" and propagates; `resume=run_dir` continues from the last state written.
     """
     if resume is not None:
         run_path = Path(resume).absolute()
@@ -810,20 +873,42 @@ def run_coadaptation(
             raise UserError(f"run folder '{run_path}' already holds a run; resume it or pick another", field="out")
         run_path.mkdir(parents=True, exist_ok=True)
         state = LoopState(run_id=run_id, config=config.to_dict(), space=parts.space.to_dict())
+        # the state first, then the store's row: a run the store knows can always be resumed
+        # (a grid killed in between used to leave a row "running" over a folder without one)
+        save_state(run_path, state)
     assert run_path is not None
+    if on_start is not None:
+        on_start(state.run_id, run_path)
     recorder = recorder or make_recorder(run_path, config.store or None)
     recorder.start_run({**config.to_dict(), "run_id": state.run_id, "run_dir": str(run_path),
                         "design_space": parts.full_space.to_dict()})
-    if resume is not None:
-        # a store that lost this run's rows (emptied, replaced, an old copy) gets them back
-        # from the run folder's JSON lines before anything new is recorded
-        refill = getattr(recorder, "refill_from_run_folder", None)
-        if refill is not None:
-            refill(state.run_id, run_path)
-    if state.phase == "done":
-        assert state.summary is not None
-        recorder.finish(state.run_id, state.summary, "finished")  # resuming a finished run leaves it finished
-        return CoadaptResult(state.run_id, run_path, state.summary)
+    try:
+        if resume is not None:
+            # a store that lost this run's rows (emptied, replaced, an old copy) gets them back
+            # from the run folder's JSON lines before anything new is recorded
+            refill = getattr(recorder, "refill_from_run_folder", None)
+            if refill is not None:
+                refill(state.run_id, run_path)
+        if state.phase == "done":  # resuming a finished run (or one stopped in `finishing`)
+            assert state.summary is not None
+            summary = state.summary
+        else:
+            summary = _continue(config, state, parts, run_path, recorder, progress)
+        result = CoadaptResult(state.run_id, run_path, summary)
+        if finishing is not None:
+            finishing(result)
+    except BaseException as exc:
+        # the last state stays in the run folder; `resume=run_dir` continues from it
+        recorder.finish(state.run_id, {"run_id": state.run_id, "error": f"{type(exc).__name__}: {exc}",
+                                       "outer": state.outer, "inner": state.inner, "phase": state.phase}, "interrupted")
+        raise
+    recorder.finish(state.run_id, summary, "finished")
+    return result
+
+
+def _continue(config: CoadaptConfig, state: LoopState, parts: Any, run_path: Path, recorder: RunRecorder,
+              progress: ProgressFn | None) -> dict[str, Any]:
+    """Run the loop from `state` to its summary, with the run's TensorBoard/wandb logger."""
     from coadapt_core import tracking
 
     # TensorBoard (default) / wandb: training curves, best cost per round, surrogate error
@@ -835,16 +920,10 @@ def run_coadaptation(
         objectives=parts.objectives, optimizer_cls=parts.optimizer_cls, run_dir=run_path, recorder=recorder,
         state=state, progress=progress, pretrained=parts.pretrained,
     )
-    if resume is None:
-        loop.checkpoint()  # a run folder with a state from the start: resumable at once
     try:
         with tracking.active(logger):
             summary = loop.run()
-    except BaseException as exc:
-        # the last checkpoint stays in the run folder; `resume=run_dir` continues from it
-        recorder.finish(state.run_id, {"run_id": state.run_id, "error": f"{type(exc).__name__}: {exc}",
-                                       "outer": loop.state.outer, "inner": loop.state.inner}, "interrupted")
-        raise
+            recorder.log_final(summary)
+            return summary
     finally:
         logger.close()
-    return CoadaptResult(state.run_id, run_path, summary)
