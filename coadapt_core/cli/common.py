@@ -35,7 +35,10 @@ def os_error_line(exc: OSError) -> str:
     file where a folder is expected), naming the path and what would work."""
     import errno
 
-    where = f"'{exc.filename}'" if exc.filename else "a file"
+    import os
+
+    # some libraries (TensorBoard's writer) pass the path as bytes: shown as text all the same
+    where = f"'{os.fsdecode(exc.filename)}'" if exc.filename else "a file"
     if exc.errno in (errno.ENOSPC, errno.EDQUOT):
         return f"disk full writing {where}; free some space and run the command again (nothing partial was kept)"
     if exc.errno in (errno.EROFS, errno.EACCES, errno.EPERM):

@@ -3,11 +3,22 @@
 from __future__ import annotations
 
 import json
+import shlex
+import sys
 from pathlib import Path
 
 import typer
 
-from coadapt_core.cli.common import choice_help, default_help, fail, plugin_name, resolve
+from coadapt_core.cli.common import (
+    choice_help,
+    ctrl_c_once,
+    default_help,
+    fail,
+    interrupted,
+    invocation,
+    plugin_name,
+    resolve,
+)
 
 
 def landscape_line(summary: dict, agents: int, steps: int) -> str:
@@ -28,6 +39,22 @@ def landscape_line(summary: dict, agents: int, steps: int) -> str:
         f"nominal cost {summary['nominal_cost']:.4g}{se('nominal_cost_se')} (fall rate {rate('nominal_fall_rate')}); "
         f"improvement {100 * summary['improvement']:+.1f}{se('improvement_se', 100.0)} %"
     )
+
+
+def with_resume(argv: list[str], run_id: str) -> list[str]:
+    """The command's arguments with `--resume <run_id>` in place of any --resume given."""
+    out, skip = [], False
+    for arg in argv:
+        if skip:
+            skip = False
+            continue
+        if arg == "--resume":
+            skip = True
+            continue
+        if arg.startswith("--resume="):
+            continue
+        out.append(arg)
+    return [*out, "--resume", run_id]
 
 
 def register(app: typer.Typer) -> None:
@@ -111,15 +138,29 @@ def register(app: typer.Typer) -> None:
 
         from coadapt_core.cli.progress import ProgressLine
 
-        with ProgressLine("landscape", grid, unit=" rows") as line:
+        started: list[str] = []
+        argv = invocation()
+        with ctrl_c_once(), ProgressLine("landscape", grid, unit=" rows") as line:
 
             def on_row(row: int, total: int) -> None:
                 line.update(row + 1, f"{grid} designs a row, {agents} agents x {steps} steps each", total=total)
 
-            summary = run_landscape(
-                backend, objectives, recorder, config=config, grid=grid, low=low, high=high,
-                nominal=robot_obj.nominal_design(), agents=agents, steps=steps, seed=seed, on_row=on_row,
-            )
+            def on_start(run_id: str) -> None:
+                started.append(run_id)
+                print(f"landscape {run_id}: store {recorder.url}", file=sys.stderr, flush=True)
+
+            try:
+                summary = run_landscape(
+                    backend, objectives, recorder, config=config, grid=grid, low=low, high=high,
+                    nominal=robot_obj.nominal_design(), agents=agents, steps=steps, seed=seed, on_row=on_row,
+                    on_start=on_start,
+                )
+            except KeyboardInterrupt:
+                line.close()
+                if not started:
+                    interrupted("the landscape had not started; nothing to resume", None)
+                interrupted(f"landscape {started[0]} stopped; its finished rows are stored and the store marks it "
+                            "interrupted", shlex.join(["coadapt", *with_resume(argv, started[0])]))
         print(landscape_line(summary, agents, steps))
         if as_json:
             print(json.dumps(summary))

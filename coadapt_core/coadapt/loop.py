@@ -857,6 +857,7 @@ def run_coadaptation(
         run_path = Path(resume).absolute()
         state = load_state(run_path)
         config = config_from_dict(state.config)
+        _check_writable(run_path, state)
     else:
         if config is None:
             raise UserError("run_coadaptation needs a config or a run folder to resume", field="config")
@@ -898,12 +899,31 @@ def run_coadaptation(
         if finishing is not None:
             finishing(result)
     except BaseException as exc:
-        # the last state stays in the run folder; `resume=run_dir` continues from it
-        recorder.finish(state.run_id, {"run_id": state.run_id, "error": f"{type(exc).__name__}: {exc}",
-                                       "outer": state.outer, "inner": state.inner, "phase": state.phase}, "interrupted")
+        # the last state stays in the run folder; `resume=run_dir` continues from it. A failure
+        # to record that (a folder gone read-only) must not hide what stopped the run.
+        try:
+            recorder.finish(state.run_id, {"run_id": state.run_id, "error": f"{type(exc).__name__}: {exc}",
+                                           "outer": state.outer, "inner": state.inner, "phase": state.phase},
+                            "interrupted")
+        except Exception:
+            pass
         raise
     recorder.finish(state.run_id, summary, "finished")
     return result
+
+
+def _check_writable(run_path: Path, state: LoopState) -> None:
+    """A resumed run writes its folder: one that cannot be written is one line here, before
+    the store or a logger thread (TensorBoard's) touches it."""
+    probe = run_path / f".{state.run_id}.write-check"
+    try:
+        with open(probe, "wb"):
+            pass
+        probe.unlink()
+    except OSError as exc:
+        raise UserError(f"cannot resume: run folder '{run_path}' cannot be written ({exc.strerror or type(exc).__name__}); "
+                        "make it writable, or copy it to a folder you can write and resume the copy",
+                        field="resume") from None
 
 
 def _continue(config: CoadaptConfig, state: LoopState, parts: Any, run_path: Path, recorder: RunRecorder,

@@ -55,6 +55,7 @@ def run_landscape(
     steps: int = 500,
     seed: int = 0,
     on_row: Any = None,
+    on_start: Any = None,
 ) -> dict[str, Any]:
     """Evaluate every grid design for real, one grid row (fixed first variable) per batch, each
     row committed as it finishes. Every row runs on the same scenario set (`seed`), so any two
@@ -62,12 +63,30 @@ def run_landscape(
     `config["run_id"]` of an interrupted landscape, rows already stored are not evaluated
     again (their standard errors are then not known to the summary). Returns the run's
     summary, with the standard errors of the optimum's and the nominal cost, the paired
-    standard error of the improvement, fall rates and each evaluated design's error bars."""
+    standard error of the improvement, fall rates and each evaluated design's error bars.
+    `on_start(run_id)` is told the run's id once it is registered; an interrupt (Ctrl-C)
+    marks the run "interrupted" (its finished rows stay) and propagates."""
     designs = landscape_designs(grid, low, high, nominal)
     names = [o.name for o in objectives]
     cfg = {**config, "method": LANDSCAPE_METHOD, "objectives": names, "grid": grid, "agents": agents,
            "steps": steps, "seed": seed, "low": list(low), "high": list(high)}
     run_id = recorder.start_run(cfg)
+    if on_start is not None:
+        on_start(run_id)
+    try:
+        summary = _evaluate_grid(backend, objectives, recorder, run_id, designs, names, grid, agents, steps, seed,
+                                 nominal, on_row)
+    except BaseException as exc:
+        recorder.finish(run_id, {"run_id": run_id, "error": f"{type(exc).__name__}: {exc}"}, "interrupted")
+        raise
+    recorder.finish(run_id, summary)
+    return summary
+
+
+def _evaluate_grid(backend: CoadaptationBackend, objectives: Sequence[Objective], recorder: SqliteRecorder, run_id: str,
+                   designs: np.ndarray, names: list[str], grid: int, agents: int, steps: int, seed: int,
+                   nominal: Sequence[float], on_row: Any) -> dict[str, Any]:
+    """The rows not yet stored, evaluated and recorded one by one; the run's summary."""
     store = recorder.store
     done_rows = {e.inner for e in store.evaluations(run_id, kind="real")}
     start = time.perf_counter()
@@ -117,7 +136,6 @@ def run_landscape(
         "steps": steps,
         **_uncertainty(objectives[0], best.design, nominal_row.design, per_scenario, fall_rate),
     }
-    recorder.finish(run_id, summary)
     return summary
 
 

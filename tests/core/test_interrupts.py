@@ -116,3 +116,48 @@ def test_ctrl_c_prints_the_resume_command_and_the_resume_finishes_the_run(tmp_pa
         with ResultsStore(folders[where] / "s.db") as store:
             assert store.get_run(run_id)["status"] == "finished"
         assert (run_dir / "best_vs_nominal.gif").stat().st_size > 0
+
+
+@pytest.mark.slow
+def test_ctrl_c_on_a_grid_stops_its_cells_and_the_same_command_resumes_them(tmp_path, monkeypatch, capsys):
+    """Ctrl-C while both cells train: each cell's run is stopped and marked interrupted with
+    its state kept; the printed command (the same grid) resumes both and finishes them."""
+    import threading
+
+    import coadapt_core.experiments.grid as grid_module
+    from coadapt_core.cli import main
+
+    monkeypatch.setattr(grid_module, "ENTRY_CODE", "import sys; from tests.fakes.fake_learner_cli import main; sys.exit(main())")
+    monkeypatch.setenv("PYTHONPATH", str(ROOT))
+    monkeypatch.setenv("FAKE_DELAY", "3")
+    monkeypatch.setenv("FAKE_VIDEO_SECONDS", "0.2")
+    monkeypatch.chdir(tmp_path)
+    args = ["grid", "--methods", "ours", "--objectives", "torque", "--terrains", "flat", "--seeds", "0,1",
+            "--preset", "smoke", "--workers", "2", "--store", "g.db", "--out", "runs"]
+
+    def press_ctrl_c_once_both_started() -> None:
+        deadline = time.monotonic() + 120
+        while len(list((tmp_path / "runs").glob("*/state.json"))) < 2 and time.monotonic() < deadline:
+            time.sleep(0.2)
+        time.sleep(0.5)
+        os.kill(os.getpid(), signal.SIGINT)
+
+    presser = threading.Thread(target=press_ctrl_c_once_both_started, daemon=True)
+    presser.start()
+    code = main(args)
+    presser.join()
+    err = capsys.readouterr().err
+    assert code == 130, err
+    (line,) = [x for x in err.splitlines() if x.startswith("interrupted: grid")]
+    assert line.endswith("continue it with: coadapt " + shlex.join(args))
+    with ResultsStore(tmp_path / "g.db") as store:
+        runs = store.list_runs()
+        assert len(runs) == 2 and {r["status"] for r in runs} == {"interrupted"}
+    assert all((tmp_path / "runs" / r["id"] / "state.json").is_file() for r in runs)
+
+    monkeypatch.setenv("FAKE_DELAY", "0")
+    assert main([*args, "--json"]) == 0
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert len(report["resumed"]) == 2 and len(report["finished"]) == 2
+    with ResultsStore(tmp_path / "g.db") as store:
+        assert {r["id"]: r["status"] for r in store.list_runs()} == {r["id"]: "finished" for r in runs}
