@@ -144,10 +144,15 @@ def _print_summary(summary: dict[str, Any], space_names: list[str] | None) -> No
                   _rate(summary.get("nominal_fall_rate")))
     console.print(table)
     if summary.get("final_scenarios"):
+        blocks = summary.get("final_blocks")
         console.print(f"final check: {summary['final_scenarios']} paired scenarios per design "
-                      f"({summary.get('final_blocks')} blocks); SE = standard error over scenarios")
+                      f"({blocks} {'block' if blocks == 1 else 'blocks'}); SE = standard error over scenarios")
+    if "starting_policy" in summary:
+        console.print(f"starting policy: {summary['starting_policy'] or 'none (trained from scratch in this run)'}")
     if summary.get("reliable") is False:
         console.print(f"[bold red]UNRELIABLE[/]: {summary.get('reliability')}")
+    elif summary.get("reliability"):  # passed, not judged or not measured: said as well
+        console.print(f"walking gate: {summary.get('reliability')}")
     improvement_se = summary.get("improvements_se") or {}
     first = next(iter(summary["improvements"]), None)
     parts = []

@@ -27,7 +27,7 @@ import numpy as np
 from coadapt_core import surrogate_quality as sq
 from coadapt_core.coadapt.config import CoadaptConfig, config_from_dict
 from coadapt_core.coadapt.final_check import batch_errors, final_check, no_uncertainty
-from coadapt_core.coadapt.reliability import assess, walking
+from coadapt_core.coadapt.reliability import assess, judge_short, walking
 from coadapt_core.coadapt.setup import build_parts
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
@@ -814,7 +814,13 @@ class CoadaptationLoop:
             "evaluation_policy": c.evaluation_policy,
             "surrogate_quality": self.surrogate_quality(),
         }
-        summary["reliable"], summary["reliability"] = assess(s.batches, final_walking)
+        # a policy trained from scratch in this run (no starting policy, or the BO baseline's
+        # per-design policies from scratch) is vouched for by nothing but this gate
+        scratch = (str(c.checkpoint).strip().lower() == "none" if self.shared
+                   else getattr(c, "specialized_init", "scratch") != "universal")
+        summary["reliable"], summary["reliability"] = judge_short(assess(s.batches, final_walking), c.eval_steps,
+                                                                  from_scratch=scratch)
+        summary["starting_policy"] = None if str(c.checkpoint).strip().lower() == "none" else _starting_policy(c)
         summary["final_walking"] = final_walking
         summary.update(uncertainty)
         s.summary = summary
@@ -910,6 +916,19 @@ def run_coadaptation(
         raise
     recorder.finish(state.run_id, summary, "finished")
     return result
+
+
+def _starting_policy(config: CoadaptConfig) -> str | None:
+    """The policy the run started from, as a path (the robot's shipped one when not given)."""
+    if config.checkpoint.strip():
+        return config.checkpoint.strip()
+    try:
+        from coadapt_core.coadapt.setup import resolve_checkpoint
+
+        found = resolve_checkpoint(config)
+    except Exception:  # a fake or third-party robot without one
+        return None
+    return None if found is None else str(found)
 
 
 def _check_writable(run_path: Path, state: LoopState) -> None:

@@ -87,4 +87,25 @@ def assess(
     return True, f"passed the walking gate ({gate.describe()})"
 
 
-__all__ = ["WALKING_GATE", "WalkingGate", "assess", "walking"]
+#: the shortest real evaluation, in policy steps per scenario, whose "does not walk" the
+#: gate trusts. Every scenario starts from rest, so over a short one the mean velocity lags
+#: the command whatever the policy: the shipped flat policy (Kuafu, 0.02 s steps, 8 agents,
+#: the nominal design and two corners) misses by 0.51-0.56 x command over 20 steps (the
+#: smoke preset's), 0.32-0.35 over 50 and 0.22-0.30 over 100.
+MIN_JUDGED_STEPS = 50
+
+
+def judge_short(verdict: tuple[bool | None, str], eval_steps: int, *, from_scratch: bool) -> tuple[bool | None, str]:
+    """`assess`'s verdict for an evaluation of `eval_steps` steps per scenario: a failure
+    under `MIN_JUDGED_STEPS` is "not judged" (None) for a policy that came trained, and
+    stays a failure for one trained from scratch in the run (nothing vouches for it)."""
+    reliable, reason = verdict
+    if reliable is not False or eval_steps >= MIN_JUDGED_STEPS:
+        return verdict
+    short = f"{eval_steps} steps per scenario are too short to judge walking (the gate needs >= {MIN_JUDGED_STEPS})"
+    if from_scratch:
+        return False, f"trained from scratch in this run, and {short}; measured: {reason}"
+    return None, f"not judged: {short}; measured: {reason}"
+
+
+__all__ = ["MIN_JUDGED_STEPS", "WALKING_GATE", "WalkingGate", "assess", "judge_short", "walking"]
