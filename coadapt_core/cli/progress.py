@@ -1,8 +1,8 @@
 """Progress for long commands: elapsed time and ETA on one line. On a terminal a rich bar
 whose fields fit 80 columns (the free text is cut, never the numbers); when the output is a
-file or a pipe, a plain line every `every` seconds, at the end, and in between a heartbeat:
-a long phase that reports nothing (a training phase, the video render) still prints its
-line every `every` seconds, so a log is never silent for longer than that."""
+file or a pipe, a plain line every `every` seconds (10; $COADAPT_PROGRESS_EVERY) and at the
+end, and a heartbeat in between: a long phase that reports nothing (a training phase, the
+video render) still prints its line every `every` seconds, so a log is never silent longer."""
 
 from __future__ import annotations
 
@@ -22,6 +22,21 @@ def fmt_duration(seconds: float | None) -> str:
     return f"{seconds // 3600}:{seconds % 3600 // 60:02d}:{seconds % 60:02d}"
 
 
+#: seconds between plain lines (a pipe or a file); COADAPT_PROGRESS_EVERY overrides it
+EVERY = 10.0
+
+
+def default_every() -> float:
+    """COADAPT_PROGRESS_EVERY (seconds, > 0) when set to a number, else `EVERY`."""
+    import os
+
+    try:
+        value = float(os.environ.get("COADAPT_PROGRESS_EVERY", EVERY))
+    except ValueError:
+        return EVERY
+    return value if math.isfinite(value) and value > 0 else EVERY
+
+
 #: the share of the work that must be seen done (in this process) before the fraction alone
 #: gives an ETA: the first updates come after start-up costs and would extrapolate them
 MIN_FRACTION_FOR_ETA = 0.02
@@ -35,13 +50,13 @@ class ProgressLine:
     With `own_eta` the ETA is only ever the caller's ("?" while it gives None). `clock` is
     for tests (a fake clock); `heartbeat=False` prints only on updates."""
 
-    def __init__(self, label: str, total: float | None, *, stream: TextIO | None = None, every: float = 10.0,
+    def __init__(self, label: str, total: float | None, *, stream: TextIO | None = None, every: float | None = None,
                  enabled: bool = True, unit: str = "", clock: Callable[[], float] = time.perf_counter,
                  heartbeat: bool = True, own_eta: bool = False):
         self.label = label
         self.total = total
         self.stream = stream or sys.stderr
-        self.every = every
+        self.every = every if every is not None else default_every()
         self.enabled = enabled
         self.unit = unit
         self.clock = clock
@@ -197,4 +212,4 @@ class ProgressLine:
         self.close()
 
 
-__all__ = ["MIN_FRACTION_FOR_ETA", "ProgressLine", "fmt_duration"]
+__all__ = ["EVERY", "MIN_FRACTION_FOR_ETA", "ProgressLine", "default_every", "fmt_duration"]

@@ -337,13 +337,14 @@ class CoadaptationLoop:
         })
 
     def eta_seconds(self) -> float | None:
-        """Seconds left, from the wall clock this run has measured per unit of work (it
-        survives a resume: the counters are part of the state): the training phases still to
-        come at the measured seconds per training interaction, the rounds still to come at the
-        measured seconds of a real and of a surrogate round (real in the share seen so far,
-        else 1 - w), and the final check as its designs' share of a real round per block, two
-        blocks expected. None until a training phase (when one is to come) and a real round
-        have been timed; the video is not included."""
+        """Seconds left, from the wall clock this run has measured (the counters are part of
+        the state, so this holds right after a resume): the training phases still to come at
+        the measured seconds per training interaction; the rounds still to come at the
+        measured seconds of a real round and of a surrogate round (each including the
+        pseudo-critics' fits it triggered), a share 1 - w of them real (the share seen so far
+        under the uncertainty policy); the final check at the measured rollout seconds per
+        design, for its designs and one block. None until a training phase (when one is to
+        come) and a real round have been timed. The video is not included."""
         s, c = self.state, self.config
         cnt = s.counters
         if s.phase == "done":
@@ -353,7 +354,7 @@ class CoadaptationLoop:
             return None
         per_real = real_wall / real_rounds
         surrogate_rounds = cnt.get("surrogate_rounds_timed", 0)
-        per_surrogate = cnt.get("surrogate_round_wall", 0.0) / surrogate_rounds if surrogate_rounds else 0.05 * per_real
+        per_surrogate = cnt.get("surrogate_round_wall", 0.0) / surrogate_rounds if surrogate_rounds else 0.5 * per_real
         # training phases still to come (this outer iteration's if it has not trained yet)
         steps_left = 0
         if self.shared and not (self.pretrained and not self.method.retrain):
@@ -367,14 +368,14 @@ class CoadaptationLoop:
         seconds = steps_left * (train_wall / train_steps if train_steps else 0.0)
         if s.phase in ("train", "optimize"):
             rounds_left = self.rounds_per_outer * (self.outer_count - s.outer) - (s.inner if s.phase == "optimize" else 0)
-            done_rounds = real_rounds + surrogate_rounds
-            real_share = real_rounds / done_rounds if done_rounds else 1.0 - self.w
+            real_share = 1.0 - self.w
+            if c.evaluation_policy == "uncertainty" and self.method.surrogate_probability is None:
+                real_share = real_rounds / (real_rounds + surrogate_rounds)
             seconds += rounds_left * (real_share * per_real + (1 - real_share) * per_surrogate)
-        if s.phase != "done":  # the final check: its designs' share of a real round, per block
-            designs = (len(s.top_real) + 2) if len(self.objectives) == 1 else c.population + 1
-            blocks = min(2, c.final_max_blocks) if self.shared else 1
-            seconds += per_real * blocks * designs / max(c.population, 1)
-        return float(seconds)
+        real = [b for b in s.batches if b.get("kind") == "real"]
+        per_design = sum(b["seconds"] for b in real) / max(sum(b["designs"] for b in real), 1)
+        designs = (len(s.top_real) + 2) if len(self.objectives) == 1 else c.population + 1
+        return float(seconds + per_design * designs)
 
     def seed_for(self, *parts: int) -> int:
         """A seed fixed by position in the run, so a resumed run draws what it would have."""

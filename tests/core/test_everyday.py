@@ -34,3 +34,121 @@ def test_smoke_run_with_the_shipped_policy_is_not_called_unreliable_but_one_from
     assert main(["run", *small, "--checkpoint", "none"]) == 0
     out = capsys.readouterr().out
     assert "UNRELIABLE" in out and "starting policy: none" in out
+
+
+# -- progress -------------------------------------------------------------------------------
+class FakeClock:
+    def __init__(self) -> None:
+        self.t = 1000.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+def test_piped_progress_prints_a_heartbeat_during_a_silent_phase():
+    """Nothing reports for 60 s (a training phase): the plain line still comes every 10 s."""
+    import io
+
+    from coadapt_core.cli.progress import ProgressLine
+
+    clock, stream = FakeClock(), io.StringIO()
+    printed = []
+    line = ProgressLine("run", 1.0, stream=stream, every=10.0, clock=clock, heartbeat=False, own_eta=True)
+    line.update(0.1, "training", eta=120.0)
+    printed.append(clock.t)
+    for _ in range(240):  # a quarter of a second at a time, as the heartbeat thread wakes
+        clock.t += 0.25
+        if line.heartbeat():
+            printed.append(clock.t)
+    line.update(0.5, "real evaluation", eta=60.0)
+    line.close()
+    assert len(printed) == 7 and max(b - a for a, b in zip(printed, printed[1:], strict=False)) <= 10.0
+    lines = stream.getvalue().splitlines()
+    assert lines[0].startswith("run   10%  elapsed 0:00:00  ETA 0:02:00")
+    assert "elapsed 0:01:00  ETA 0:01:00  training" in lines[-2]  # counted down while silent
+    assert "50%" in lines[-1] and "real evaluation" in lines[-1]
+
+
+def test_eta_after_a_resume_counts_only_this_process_rate():
+    """Resumed at 90 %: the ETA is not 'almost done' but the rate seen since."""
+    import io
+
+    from coadapt_core.cli.progress import ProgressLine
+
+    clock = FakeClock()
+    line = ProgressLine("eval", 100, stream=io.StringIO(), clock=clock, heartbeat=False)
+    line.update(90)
+    clock.t += 10.0
+    line.update(92)  # 2 % in 10 s: 8 % left is 40 s
+    assert line.eta == pytest.approx(40.0)
+    fresh = ProgressLine("eval", 100, stream=io.StringIO(), clock=clock, heartbeat=False)
+    fresh.update(0.5)  # start-up: no ETA from half a percent
+    assert fresh.eta is None
+
+
+def test_run_eta_after_the_first_outer_iteration_is_within_half_of_the_truth(tmp_path, monkeypatch):
+    """A fake clock that the fake learner advances as a real one would (seconds per training
+    interaction, per evaluated agent-step, per surrogate call): the ETA the loop reports at
+    the start of the second outer iteration against the time the run then really took."""
+    import types
+
+    import numpy as np
+    from coadapt_plugins.objectives.locomotion import TorqueObjective
+
+    import coadapt_core.coadapt.loop as loop_module
+    from coadapt_core.coadapt import make_config, run_coadaptation
+    from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend
+
+    clock = FakeClock()
+    monkeypatch.setattr(loop_module, "time", types.SimpleNamespace(perf_counter=clock))
+
+    class Timed(AnalyticBackend):
+        def train(self, designs, steps, *, seed=0):
+            clock.t += steps * 2e-4 + 3.0  # PPO: ~5,000 interactions a second, start-up
+            return super().train(designs, steps, seed=seed)
+
+        def real_fitness(self, designs, objectives, *, agents, steps, seed=0):
+            clock.t += len(np.atleast_2d(designs)) * agents * steps * 2e-5 + 0.5  # rollouts
+            return super().real_fitness(designs, objectives, agents=agents, steps=steps, seed=seed)
+
+        def surrogate_fitness(self, *args, **kwargs):
+            clock.t += 0.3
+            return super().surrogate_fitness(*args, **kwargs)
+
+    events = []
+    config = make_config("quick", overrides={"store": "none", "population": 16, "seed": 2})
+    result = run_coadaptation(config, backend_factory=lambda s: Timed(s), design_space=SPACE, nominal_design=NOMINAL,
+                              objectives=[TorqueObjective()], run_dir=tmp_path / "r",
+                              progress=lambda e: events.append((clock.t, e)))
+    end = clock.t
+    t, first = next((t, e) for t, e in events if e["outer"] == 1 and e["phase"] == "training")
+    truth = end - t
+    print(f"ETA {first['eta']:.0f} s, truth {truth:.0f} s")
+    assert truth > 60 and first["eta"] == pytest.approx(truth, rel=0.5), (first["eta"], truth)
+    assert all(e["eta"] is None for _, e in events[:1])  # nothing timed yet: no guess
+    assert result.summary["seconds"] == pytest.approx(end - events[0][0], rel=0.05)
+
+
+@pytest.mark.slow
+def test_piped_run_output_has_no_long_gap_while_a_phase_reports_nothing(tmp_path):
+    """`coadapt run` piped, each training phase and real round silent for 2.5 s (the fake
+    learner sleeps), lines due every 1 s (COADAPT_PROGRESS_EVERY): read as they come, no gap
+    between two lines is much over 1 s (the docs promise every 10 s, the issue's limit is 15)."""
+    import os
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "PYTHONPATH": str(root), "FAKE_DELAY": "2.5", "COADAPT_PROGRESS_EVERY": "1"}
+    proc = subprocess.Popen([sys.executable, "-m", "tests.fakes.fake_learner_cli", "run", "--preset", "smoke",
+                             "--outer-iterations", "1", "--out", "runs", "--store", "none", "--no-video"],
+                            cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    stamps = []
+    for line in proc.stderr:
+        if line.startswith("run "):
+            stamps.append(time.monotonic())
+    assert proc.wait(timeout=60) == 0
+    gaps = [b - a for a, b in zip(stamps, stamps[1:], strict=False)]
+    assert len(stamps) >= 10 and max(gaps) < 2.5, gaps  # 7+ s of silent phases, a line every ~1 s
