@@ -289,7 +289,49 @@ def style_help(command: Any, *, config_options: bool = False) -> None:
             text = f"{text} [default: {default}]" if text else f"[default: {default}]"
         param.help = text
     for sub in getattr(command, "commands", {}).values():
-        style_help(sub, config_options=sub.name == "run" and command.name in (None, "coadapt", "main"))
+        top_run = sub.name == "run" and command.name in (None, "coadapt", "main")
+        style_help(sub, config_options=top_run)
+        if top_run:
+            short_help(sub, RUN_COMMON_OPTIONS)
+
+
+#: what `coadapt run --help` shows, in this order; `--help-all` shows every option
+RUN_COMMON_OPTIONS = (
+    "config", "resume", "preset", "objective", "optimizer", "terrain", "method", "seed", "robot", "sim", "mixed",
+    "checkpoint", "out", "store", "as_json", "video", "device", "logger", "population", "outer_iterations",
+    "optimizer_iterations", "train_steps", "eval_steps", "design_ranges",
+)
+
+
+def short_help(command: Any, common: tuple[str, ...]) -> None:
+    """`--help` lists only the `common` options (in that order) and says how to see the
+    rest; the command's `--help-all` option (`help_all`) lists every option, in its order."""
+    original = command.format_options
+
+    def format_options(ctx: Any, formatter: Any) -> None:
+        if ctx.meta.get("coadapt_help_all"):
+            return original(ctx, formatter)
+        by_name = {p.name: p for p in command.get_params(ctx)}
+        shown = [by_name[n] for n in common if n in by_name] + [by_name[n] for n in ("help_all", "help") if n in by_name]
+        records = [r for r in (p.get_help_record(ctx) for p in shown) if r]
+        with formatter.section("Common options"):
+            formatter.write_dl(records)
+        hidden = sum(1 for p in by_name.values() if getattr(p, "param_type_name", "") == "option" and not p.hidden
+                     and p not in shown)
+        formatter.write_paragraph()
+        formatter.write_text(f"{hidden} more options (training, task, randomization, surrogate, final check, "
+                             "optimizer aliases): `coadapt run --help-all`, or docs/settings.md.")
+
+    command.format_options = format_options
+
+
+def help_all(ctx: typer.Context, value: bool) -> None:
+    """`--help-all`: the command's help with every option (see `short_help`)."""
+    if not value or ctx.resilient_parsing:
+        return
+    ctx.meta["coadapt_help_all"] = True
+    typer.echo(ctx.get_help())
+    raise typer.Exit(0)
 
 
 def run_app(app: typer.Typer, argv: list[str] | None = None) -> int:

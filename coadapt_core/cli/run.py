@@ -15,7 +15,15 @@ from typing import Any
 
 import typer
 
-from coadapt_core.cli.common import ctrl_c_once, fail, interrupted, resolve, settings_options, with_options
+from coadapt_core.cli.common import (
+    ctrl_c_once,
+    fail,
+    help_all,
+    interrupted,
+    resolve,
+    settings_options,
+    with_options,
+)
 from coadapt_core.cli.progress import ProgressLine
 from coadapt_core.errors import UserError
 from coadapt_core.tracking import check_logger
@@ -191,6 +199,8 @@ def _command_options() -> list[tuple[str, Any, Any]]:
         ("c2", float, typer.Option(None, help="Alias of --optimizer-option c2=... (swarm optimizers).")),
         ("bo_sampler", str, typer.Option(None, help="Alias of --optimizer-option sampler=... (BO: tpe or gp).")),
         ("bo_storage", str, typer.Option(None, help="Alias of --optimizer-option storage=... (BO: optuna storage URL).")),
+        ("help_all", bool, typer.Option(False, "--help-all", is_eager=True, callback=help_all,
+                                        help="Show every option (training, task, randomization, ...) and exit.")),
         ("check", bool, typer.Option(False, "--check", hidden=True, help="Check the options (config, plugins, store, --out) and exit without running.")),
     ]
 

@@ -152,3 +152,23 @@ def test_piped_run_output_has_no_long_gap_while_a_phase_reports_nothing(tmp_path
     assert proc.wait(timeout=60) == 0
     gaps = [b - a for a, b in zip(stamps, stamps[1:], strict=False)]
     assert len(stamps) >= 10 and max(gaps) < 2.5, gaps  # 7+ s of silent phases, a line every ~1 s
+
+
+# -- help -----------------------------------------------------------------------------------
+def test_run_help_is_short_with_the_common_options_first_and_help_all_has_every_option(monkeypatch, capsys):
+    import re
+
+    monkeypatch.setenv("COLUMNS", "80")
+    assert main(["run", "--help"]) == 0
+    short = capsys.readouterr().out
+    assert main(["run", "--help-all"]) == 0
+    full = capsys.readouterr().out
+    names = [m.group(1) for m in re.finditer(r"^  (--[a-z0-9-]+)", short, re.M)]
+    assert names[:4] == ["--config", "--resume", "--preset", "--objective"]
+    assert {"--json", "--video", "--out", "--seed", "--optimizer"} <= set(names)
+    assert not any(n.startswith(("--task-", "--randomization-", "--train-steps-per")) for n in names)
+    assert len(short.splitlines()) < 100 and "coadapt run --help-all" in short
+    more = int(re.search(r"(\d+) more options", short).group(1))
+    full_names = set(re.findall(r"^  (--[a-z0-9-]+)", full, re.M))
+    assert len(full_names) == len(names) + more and len(full.splitlines()) > 3 * len(short.splitlines())
+    assert "--task-commands-yaw-range" in full_names and "--randomization-preset" in full_names
