@@ -34,7 +34,6 @@ def os_error_line(exc: OSError) -> str:
     """One line for an error of the file system (full disk, read-only or missing folder, a
     file where a folder is expected), naming the path and what would work."""
     import errno
-
     import os
 
     # some libraries (TensorBoard's writer) pass the path as bytes: shown as text all the same

@@ -44,11 +44,15 @@ class _ProgressView:
 
     def __init__(self, enabled: bool):
         self.line = ProgressLine("run", 1.0, enabled=enabled, own_eta=True)
+        self.announce: str | None = None  # "run <id>: <folder>", said once the run is under way
 
     def __enter__(self) -> _ProgressView:
         return self
 
     def __call__(self, event: dict[str, Any]) -> None:
+        if self.announce:  # not before: a bad option found while starting stays one line
+            print(self.announce, file=sys.stderr, flush=True)
+            self.announce = None
         best = event["best_cost"] if event["best_cost"] is not None else event.get("best_any")
         outer = f"{min(event['outer'] + 1, event['outer_total'])}/{event['outer_total']}"
         self.line.update(
@@ -90,7 +94,20 @@ def _check_run_config(cfg: Any) -> None:
 
 
 def _with_se(value: float, se: float | None) -> str:
-    return f"{value:.5g}" if se is None else f"{value:.5g} +- {se:.2g}"
+    """A cost and its standard error to the SE's two significant digits, in one notation
+    (6645 +- 480, 1.258 +- 0.012), never mixed (6644.7 +- 4.8e+02)."""
+    if se is None or not math.isfinite(se) or se <= 0 or not math.isfinite(value):
+        return f"{value:.5g}"
+    places = 1 - math.floor(math.log10(se))
+    if places <= 0:
+        step = 10 ** -places
+        return f"{round(value / step) * step:.0f} +- {round(se / step) * step:.0f}"
+    return f"{value:.{places}f} +- {se:.{places}f}"
+
+
+def _design_value(x: float, discrete: bool) -> str:
+    """A design variable: a discrete one (a motor type) as a whole number, a scale to 3 decimals."""
+    return f"{x:.0f}" if discrete else f"{x:.3f}"
 
 
 def _rate(value: float | None) -> str:
@@ -131,30 +148,38 @@ def resume_command(run_id: str, run_dir: Path, *, video: bool = True, as_json: b
     return shlex.join(parts)
 
 
-def _print_summary(summary: dict[str, Any], space_names: list[str] | None) -> None:
+def _print_summary(summary: dict[str, Any], space_names: list[str] | None, discrete: list[bool] | None = None) -> None:
     from rich.console import Console
     from rich.table import Table
 
     console = Console()
     names = space_names or [f"x{i}" for i in range(len(summary["best_design"]))]
-    table = Table(title=f"coadapt run {summary['run_id']}")
+    from rich import box
+
+    # light borders and headers over two lines: 4 design variables and a cost fit 80 columns
+    table = Table(title=f"coadapt run {summary['run_id']}", box=box.SIMPLE_HEAD, pad_edge=False, collapse_padding=True)
     table.add_column("")
     for name in names:
-        table.add_column(name)
+        table.add_column(name, min_width=len(name))
+    units = summary.get("cost_units") or {}
     for objective in summary["best_costs"]:
-        table.add_column(f"{objective} cost +- SE")
-    table.add_column("fall rate")
+        unit = f" [{units[objective]}]" if units.get(objective) else ""
+        table.add_column(f"{objective}{unit}\n+- SE")
+    table.add_column("fall\nrate", min_width=4)
+    discrete = discrete or [False] * len(names)
     best_se, nominal_se = summary.get("best_costs_se") or {}, summary.get("nominal_costs_se") or {}
-    table.add_row("best", *[f"{x:.3f}" for x in summary["best_design"]],
+    table.add_row("best", *[_design_value(x, d) for x, d in zip(summary["best_design"], discrete, strict=False)],
                   *[_with_se(v, best_se.get(k)) for k, v in summary["best_costs"].items()], _rate(summary.get("best_fall_rate")))
-    table.add_row("nominal", *[f"{x:.3f}" for x in summary["nominal_design"]],
+    table.add_row("nominal", *[_design_value(x, d) for x, d in zip(summary["nominal_design"], discrete, strict=False)],
                   *[_with_se(summary["nominal_costs"][k], nominal_se.get(k)) for k in summary["best_costs"]],
                   _rate(summary.get("nominal_fall_rate")))
     console.print(table)
-    if summary.get("final_scenarios"):
-        blocks = summary.get("final_blocks")
-        console.print(f"final check: {summary['final_scenarios']} paired scenarios per design "
-                      f"({blocks} {'block' if blocks == 1 else 'blocks'}); SE = standard error over scenarios")
+    blocks, scenarios = summary.get("final_blocks"), summary.get("final_scenarios")
+    steps = f" of {summary['eval_steps']} steps" if summary.get("eval_steps") else ""
+    size = f"{scenarios} paired scenarios{steps} per design ({blocks} {'block' if blocks == 1 else 'blocks'}; " \
+        if scenarios else f"paired scenarios{steps} ("
+    console.print(f"costs: mean per step over the final check's {size}`coadapt run` protocol, not comparable with "
+                  "other commands or sizes); SE = standard error over scenarios")
     if "starting_policy" in summary:
         console.print(f"starting policy: {summary['starting_policy'] or 'none (trained from scratch in this run)'}")
     if summary.get("reliable") is False:
@@ -268,7 +293,7 @@ def register(app: typer.Typer) -> None:
 
             def on_start(run_id: str, run_dir: Path) -> None:
                 started.update(run_id=run_id, run_dir=run_dir)
-                print(f"run {run_id}: {run_dir}", file=sys.stderr, flush=True)
+                view.announce = f"run {run_id}: {run_dir}"
 
             def finishing(result: Any) -> None:
                 view.close()
@@ -292,14 +317,16 @@ def register(app: typer.Typer) -> None:
         if as_json:
             print(json.dumps(result.json_line()))
         else:
-            names = None
+            names, discrete = None, None
             try:
                 from coadapt_core.design_space import DesignSpace
 
-                names = DesignSpace.from_dict(summary["final_space"]).names
+                space = DesignSpace.from_dict(summary["final_space"])
+                names = space.names
+                discrete = [not hasattr(v, "low") for v in space.variables]
             except Exception:
                 names = None
-            _print_summary(summary, names)
+            _print_summary(summary, names, discrete)
             print(f"run folder: {result.run_dir}")
 
     app.command("run")(with_options(run_command, settings, _command_options()))

@@ -14,6 +14,7 @@ continues where it stopped.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 import time
@@ -814,6 +815,10 @@ class CoadaptationLoop:
             "pareto_front": front,
             "evaluation_policy": c.evaluation_policy,
             "surrogate_quality": self.surrogate_quality(),
+            # what a printed cost is: per-step mean of the final check's paired scenarios of
+            # eval_steps steps each (costs of other commands or sizes are not comparable)
+            "cost_units": {o.name: getattr(o, "unit", "") for o in self.objectives},
+            "eval_steps": int(c.eval_steps),
         }
         # a policy trained from scratch in this run (no starting policy, or the BO baseline's
         # per-design policies from scratch) is vouched for by nothing but this gate
@@ -880,14 +885,15 @@ def run_coadaptation(
         if (run_path / STATE_FILE).exists():
             raise UserError(f"run folder '{run_path}' already holds a run; resume it or pick another", field="out")
         run_path.mkdir(parents=True, exist_ok=True)
+        recorder = recorder or make_recorder(run_path, config.store or None)  # a bad store: one line, nothing written
         state = LoopState(run_id=run_id, config=config.to_dict(), space=parts.space.to_dict())
         # the state first, then the store's row: a run the store knows can always be resumed
         # (a grid killed in between used to leave a row "running" over a folder without one)
         save_state(run_path, state)
     assert run_path is not None
+    recorder = recorder or make_recorder(run_path, config.store or None)
     if on_start is not None:
         on_start(state.run_id, run_path)
-    recorder = recorder or make_recorder(run_path, config.store or None)
     recorder.start_run({**config.to_dict(), "run_id": state.run_id, "run_dir": str(run_path),
                         "design_space": parts.full_space.to_dict()})
     try:
@@ -908,12 +914,10 @@ def run_coadaptation(
     except BaseException as exc:
         # the last state stays in the run folder; `resume=run_dir` continues from it. A failure
         # to record that (a folder gone read-only) must not hide what stopped the run.
-        try:
+        with contextlib.suppress(Exception):
             recorder.finish(state.run_id, {"run_id": state.run_id, "error": f"{type(exc).__name__}: {exc}",
                                            "outer": state.outer, "inner": state.inner, "phase": state.phase},
                             "interrupted")
-        except Exception:
-            pass
         raise
     recorder.finish(state.run_id, summary, "finished")
     return result

@@ -3,7 +3,7 @@ whose ETA holds, a short `run --help`, and small things a user reads."""
 
 from __future__ import annotations
 
-import json
+import itertools
 
 import pytest
 
@@ -62,7 +62,7 @@ def test_piped_progress_prints_a_heartbeat_during_a_silent_phase():
             printed.append(clock.t)
     line.update(0.5, "real evaluation", eta=60.0)
     line.close()
-    assert len(printed) == 7 and max(b - a for a, b in zip(printed, printed[1:], strict=False)) <= 10.0
+    assert len(printed) == 7 and max(b - a for a, b in itertools.pairwise(printed)) <= 10.0
     lines = stream.getvalue().splitlines()
     assert lines[0].startswith("run   10%  elapsed 0:00:00  ETA 0:02:00")
     assert "elapsed 0:01:00  ETA 0:01:00  training" in lines[-2]  # counted down while silent
@@ -150,7 +150,7 @@ def test_piped_run_output_has_no_long_gap_while_a_phase_reports_nothing(tmp_path
         if line.startswith("run "):
             stamps.append(time.monotonic())
     assert proc.wait(timeout=60) == 0
-    gaps = [b - a for a, b in zip(stamps, stamps[1:], strict=False)]
+    gaps = [b - a for a, b in itertools.pairwise(stamps)]
     assert len(stamps) >= 10 and max(gaps) < 2.5, gaps  # 7+ s of silent phases, a line every ~1 s
 
 
@@ -172,3 +172,53 @@ def test_run_help_is_short_with_the_common_options_first_and_help_all_has_every_
     full_names = set(re.findall(r"^  (--[a-z0-9-]+)", full, re.M))
     assert len(full_names) == len(names) + more and len(full.splitlines()) > 3 * len(short.splitlines())
     assert "--task-commands-yaw-range" in full_names and "--randomization-preset" in full_names
+
+
+# -- small things a user reads --------------------------------------------------------------
+def test_plugin_and_choice_names_are_case_folded(tmp_path):
+    from coadapt_core.coadapt.config import make_config
+
+    config = make_config("smoke", overrides={"objective": "Torque,POWER", "terrain": "Flat", "optimizer": "NSGA2",
+                                             "method": "Ours"})
+    assert (config.objective, config.terrain, config.optimizer, config.method) == ("torque,power", "flat", "nsga2", "ours")
+
+
+def test_a_misspelt_name_or_yaml_key_gets_a_suggestion(tmp_path, capsys):
+    assert main(["run", "--objective", "torqe", "--check"]) == 2
+    assert "did you mean 'torque'?" in capsys.readouterr().err
+    path = tmp_path / "c.yaml"
+    path.write_text("populaton: 3\n")
+    assert main(["run", "--config", str(path), "--check"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown config file key 'populaton'; did you mean 'population'?" in err and len(err.splitlines()) == 1
+    path.write_text("zzzz: 3\n")  # nothing close: the accepted keys are listed
+    assert main(["run", "--config", str(path), "--check"]) == 2
+    assert "accepted keys:" in capsys.readouterr().err
+
+
+def test_costs_print_with_their_error_in_one_notation():
+    from coadapt_core.cli.run import _with_se
+
+    assert _with_se(6644.7, 480.0) == "6640 +- 480"
+    assert _with_se(1.25791, 0.0123) == "1.258 +- 0.012"
+    assert _with_se(10436.2, 4.8) == "10436.2 +- 4.8"
+    assert _with_se(2.5, None) == "2.5"
+
+
+def test_the_run_table_fits_80_columns_with_motor_types_as_whole_numbers_and_cost_units(tmp_path, capsys, monkeypatch):
+    import coadapt_core.coadapt.setup as loop_setup
+    from tests.fakes.analytic import AnalyticBackend
+
+    monkeypatch.setattr(loop_setup, "universal_policy_factory", lambda *a, **k: (lambda seed: AnalyticBackend(seed)))
+    monkeypatch.setenv("COLUMNS", "80")
+    assert main(["run", "--optimizer", "mixed-pso", "--preset", "smoke", "--out", str(tmp_path), "--store", "none",
+                 "--no-video"]) == 0
+    out = capsys.readouterr().out
+    table = out.split("starting policy")[0]
+    assert "…" not in table and max(map(len, table.splitlines())) <= 80
+    for header in ("thigh_scale", "shank_scale", "hip_motor", "knee_motor", "(Nm)^2", "fall", "rate"):
+        assert header in table, header
+    nominal = next(line for line in table.splitlines() if line.strip().startswith("nominal")).split()
+    assert nominal[1:5] == ["1.000", "1.000", "1", "1"]  # scales to 3 decimals, motor types whole
+    words = " ".join(out.split())  # rich wraps lines at 80 columns
+    assert "costs: mean per step over the final check's paired scenarios of 20 steps (`coadapt run` protocol" in words
