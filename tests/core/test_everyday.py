@@ -222,3 +222,12 @@ def test_the_run_table_fits_80_columns_with_motor_types_as_whole_numbers_and_cos
     assert nominal[1:5] == ["1.000", "1.000", "1", "1"]  # scales to 3 decimals, motor types whole
     words = " ".join(out.split())  # rich wraps lines at 80 columns
     assert "costs: mean per step over the final check's paired scenarios of 20 steps (`coadapt run` protocol" in words
+
+
+def test_report_in_a_folder_without_a_store_says_so_and_creates_none(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("COADAPT_STORE", raising=False)
+    assert main(["report", "--no-sim-to-sim"]) == 2
+    err = capsys.readouterr().err
+    assert "no results store at" in err and "coadapt.db" in err and len(err.splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []
