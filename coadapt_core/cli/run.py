@@ -273,6 +273,11 @@ def register(app: typer.Typer) -> None:
                 if objective_option:
                     overrides["objective_options"] = parse_assignments(objective_option, "objective_options")
                 cfg = make_config(preset, config, overrides)
+                if cfg.checkpoint.strip() and Path(cfg.checkpoint.strip()).is_dir():
+                    from coadapt_core.io import checkpoint_path
+
+                    # a `coadapt train --out` folder: its newest checkpoint, recorded as that file
+                    cfg.checkpoint = str(checkpoint_path(cfg.checkpoint.strip(), field="--checkpoint"))
                 resolve("optimizer", cfg.optimizer)
                 check_logger(cfg.logger)  # wandb asked for but not installed: one line, exit 2
                 resolve("simulator", cfg.sim)

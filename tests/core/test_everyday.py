@@ -4,6 +4,7 @@ whose ETA holds, a short `run --help`, and small things a user reads."""
 from __future__ import annotations
 
 import itertools
+import json
 
 import pytest
 
@@ -231,3 +232,42 @@ def test_report_in_a_folder_without_a_store_says_so_and_creates_none(tmp_path, m
     err = capsys.readouterr().err
     assert "no results store at" in err and "coadapt.db" in err and len(err.splitlines()) == 1
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_training_folder_stands_for_its_newest_checkpoint(tmp_path):
+    """An interrupted `coadapt train` leaves checkpoints/model_<n>.pt but no model_final.pt:
+    the folder given to --resume, --init-from or --checkpoint means the newest of them."""
+    import os
+
+    from coadapt_core.errors import UserError
+    from coadapt_core.io import checkpoint_path, latest_checkpoint
+
+    folder = tmp_path / "flat"
+    (folder / "checkpoints").mkdir(parents=True)
+    for k, name in enumerate(["checkpoints/model_90.pt", "checkpoints/model_100.pt"]):
+        (folder / name).write_bytes(b"x")
+        os.utime(folder / name, (1000 + k, 1000 + k))
+    assert latest_checkpoint(folder) == folder / "checkpoints" / "model_100.pt"
+    (folder / "model_final.pt").write_bytes(b"x")  # written last: training finished
+    assert checkpoint_path(folder, field="--resume") == folder / "model_final.pt"
+    assert checkpoint_path(folder / "model_final.pt", field="--resume") == folder / "model_final.pt"
+    with pytest.raises(UserError, match=r"without model_final\.pt"):
+        checkpoint_path(tmp_path, field="--resume")
+
+
+def test_run_checkpoint_folder_is_recorded_as_the_file_it_stands_for(tmp_path, monkeypatch, capsys):
+    import coadapt_core.coadapt.setup as loop_setup
+    from tests.fakes.analytic import AnalyticBackend
+
+    monkeypatch.setattr(loop_setup, "universal_policy_factory", lambda *a, **k: (lambda seed: AnalyticBackend(seed)))
+    monkeypatch.setattr(loop_setup, "resolve_checkpoint", lambda config: config.checkpoint)
+    folder = tmp_path / "train"
+    (folder / "checkpoints").mkdir(parents=True)
+    (folder / "checkpoints" / "model_7.pt").write_bytes(b"x")
+    assert main(["run", "--preset", "smoke", "--checkpoint", str(folder), "--out", str(tmp_path / "runs"),
+                 "--store", "none", "--no-video", "--json"]) == 0
+    run_id = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["run_id"]
+    import yaml
+
+    recorded = yaml.safe_load((tmp_path / "runs" / run_id / "config.yaml").read_text())["checkpoint"]
+    assert recorded == str(folder / "checkpoints" / "model_7.pt")
