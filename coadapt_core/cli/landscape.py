@@ -21,9 +21,10 @@ from coadapt_core.cli.common import (
 )
 
 
-def landscape_line(summary: dict, agents: int, steps: int) -> str:
-    """One line: the grid optimum and the nominal design, costs with standard errors,
-    improvement with its paired standard error, fall rates."""
+def landscape_line(summary: dict, agents: int, steps: int, unit: str = "") -> str:
+    """One line: the grid optimum and the nominal design, costs (in `unit`, the first
+    objective's) with standard errors, improvement with its paired standard error, fall rates,
+    and the protocol the costs belong to."""
 
     def se(key: str, scale: float = 1.0) -> str:
         value = summary.get(key)
@@ -33,10 +34,12 @@ def landscape_line(summary: dict, agents: int, steps: int) -> str:
         value = summary.get(key)
         return "-" if value is None else f"{value:.2f}"
 
+    unit = f" {unit}" if unit else ""
     return (
-        f"landscape {summary['run_id']} ({agents} paired scenarios x {steps} steps per design): grid optimum "
-        f"{summary['best_design'][:2]} cost {summary['best_cost']:.4g}{se('best_cost_se')} (fall rate {rate('best_fall_rate')}); "
-        f"nominal cost {summary['nominal_cost']:.4g}{se('nominal_cost_se')} (fall rate {rate('nominal_fall_rate')}); "
+        f"landscape {summary['run_id']} (costs{unit}, mean per step over {agents} paired scenarios x {steps} steps per "
+        "design: the landscape's protocol, comparable within it, not with `coadapt run`'s final check): grid optimum "
+        f"{summary['best_design'][:2]} cost {summary['best_cost']:.4g}{se('best_cost_se')}{unit} (fall rate {rate('best_fall_rate')}); "
+        f"nominal cost {summary['nominal_cost']:.4g}{se('nominal_cost_se')}{unit} (fall rate {rate('nominal_fall_rate')}); "
         f"improvement {100 * summary['improvement']:+.1f}{se('improvement_se', 100.0)} %"
     )
 
@@ -161,6 +164,6 @@ def register(app: typer.Typer) -> None:
                     interrupted("the landscape had not started; nothing to resume", None)
                 interrupted(f"landscape {started[0]} stopped; its finished rows are stored and the store marks it "
                             "interrupted", shlex.join(["coadapt", *with_resume(argv, started[0])]))
-        print(landscape_line(summary, agents, steps))
+        print(landscape_line(summary, agents, steps, getattr(objectives[0], "unit", "")))
         if as_json:
             print(json.dumps(summary))

@@ -93,6 +93,10 @@ def _check_run_config(cfg: Any) -> None:
     Path(cfg.out).mkdir(parents=True, exist_ok=True)  # an OSError here is one line (cli.main)
 
 
+#: a final check on fewer paired scenarios than this (the smoke preset's 2) is said to be one
+FEW_SCENARIOS = 8
+
+
 def _with_se(value: float, se: float | None) -> str:
     """A cost and its standard error to the SE's two significant digits, in one notation
     (6645 +- 480, 1.258 +- 0.012), never mixed (6644.7 +- 4.8e+02)."""
@@ -196,6 +200,8 @@ def _print_summary(summary: dict[str, Any], space_names: list[str] | None, discr
             text = f"{k} not significant ({text.split(' ', 1)[1]}, under 4 paired standard errors)"
         parts.append(text)
     improvements = ", ".join(parts)
+    if scenarios and scenarios < FEW_SCENARIOS:
+        improvements += f" (from {scenarios} paired scenarios only: a check that the run is wired, not a result)"
     console.print(
         f"improvement over nominal: {improvements}; interactions {summary['interactions']:,} "
         f"(training {summary['train_interactions']:,}, evaluation {summary['eval_interactions']:,}, "

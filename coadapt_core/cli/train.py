@@ -396,6 +396,17 @@ def register(app: typer.Typer) -> None:
             for key, value in result.items():
                 table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
             Console().print(table)
+            from coadapt_core.plugins import get_registry
+
+            units = []  # each `<objective>_cost` in the objective's declared unit
+            for key in result:
+                name = key.removesuffix("_cost")
+                if key.endswith("_cost") and name in get_registry().names("objective"):
+                    unit = getattr(get_registry().get("objective", name), "unit", "")
+                    units += [f"{name} {unit}"] if unit else []
+            Console().print(f"costs: mean per step over {agents} agents of {seconds:g} s under this one command "
+                            "(`coadapt eval` protocol: not comparable with `coadapt run` or `coadapt landscape`, "
+                            "whose scenarios draw their commands)" + (f"; units: {', '.join(units)}" if units else ""))
         if video is not None:
             from coadapt_core.viz.video import write_rollout_video
 

@@ -271,3 +271,20 @@ def test_run_checkpoint_folder_is_recorded_as_the_file_it_stands_for(tmp_path, m
 
     recorded = yaml.safe_load((tmp_path / "runs" / run_id / "config.yaml").read_text())["checkpoint"]
     assert recorded == str(folder / "checkpoints" / "model_7.pt")
+
+
+def test_surrogate_quality_legend_tells_runs_of_one_method_and_seed_apart():
+    from types import SimpleNamespace
+
+    from coadapt_core.analysis.surrogate_figure import quality_series
+
+    def fact(run_id, optimizer, preset):
+        quality = {"by_objective": {"torque": {"spearman": 0.8}}, "rounds": []}
+        run = {"id": run_id, "seed": 0, "optimizer": optimizer, "preset": preset, "summary": {"surrogate_quality": quality}}
+        return SimpleNamespace(run=run, method="ours", terrain="flat")
+
+    facts = [fact("r-aaaaaa", "pso", "quick"), fact("r-bbbbbb", "mixed-pso", "quick"), fact("r-cccccc", "pso", "smoke"),
+             fact("r-dddddd", "pso", "smoke"), fact("r-eeeeee", "bo", "quick")]
+    labels = [e["label"] for e in quality_series(facts)[("torque", "flat")]]
+    assert len(set(labels)) == 5, labels
+    assert labels[1] == "ours s0 mixed-pso" and labels[4] == "ours s0 bo" and labels[2] == "ours s0 pso smoke cccccc"
