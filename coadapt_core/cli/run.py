@@ -317,10 +317,14 @@ def register(app: typer.Typer) -> None:
                     result = run_coadaptation(cfg, progress=view, on_start=on_start, finishing=finishing, **kwargs)
                 except KeyboardInterrupt:
                     view.close()
+                    if not started and resume:  # stopped while loading it: it is where it was
+                        import shlex
+
+                        interrupted(f"run {resume} was not continued", shlex.join(
+                            ["coadapt", "run", "--resume", resume, *(["--out", out] if out and out != "runs" else [])]))
                     if not started:
                         interrupted("the run had not started; nothing to resume", None)
-                    interrupted(f"run {started['run_id']} stopped; its folder {started['run_dir']} keeps the last state "
-                                "and the store marks it interrupted",
+                    interrupted(f"run {started['run_id']} stopped; its folder {started['run_dir']} keeps the last state",
                                 resume_command(started["run_id"], started["run_dir"], video=video, as_json=as_json))
         except UserError as exc:
             fail(str(exc))
