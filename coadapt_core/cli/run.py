@@ -114,8 +114,10 @@ def _design_value(x: float, discrete: bool) -> str:
     return f"{x:.0f}" if discrete else f"{x:.3f}"
 
 
-def _rate(value: float | None) -> str:
-    return "-" if value is None else f"{value:.2f}"
+def _rate(value: float | None, se: float | None = None) -> str:
+    if value is None:
+        return "-"
+    return f"{100 * value:.1f} %" if se is None else f"{100 * value:.1f} +- {100 * se:.1f} %"
 
 
 def _render_video(run_dir: Path, summary: dict[str, Any], *, progress: bool = True) -> None:
@@ -169,20 +171,35 @@ def _print_summary(summary: dict[str, Any], space_names: list[str] | None, discr
     for objective in summary["best_costs"]:
         unit = f" [{units[objective]}]" if units.get(objective) else ""
         table.add_column(f"{objective}{unit}\n+- SE")
-    table.add_column("fall\nrate", min_width=4)
+    plain = summary.get("best_plain_means") or {}
+    for objective in plain:
+        table.add_column(f"{objective} plain\nmean +- SE")
+    table.add_column("fall rate\n+- SE", min_width=4)
     discrete = discrete or [False] * len(names)
     best_se, nominal_se = summary.get("best_costs_se") or {}, summary.get("nominal_costs_se") or {}
+    plain_se = summary.get("best_plain_means_se") or {}
+    nominal_plain, nominal_plain_se = summary.get("nominal_plain_means") or {}, summary.get("nominal_plain_means_se") or {}
     table.add_row("best", *[_design_value(x, d) for x, d in zip(summary["best_design"], discrete, strict=False)],
-                  *[_with_se(v, best_se.get(k)) for k, v in summary["best_costs"].items()], _rate(summary.get("best_fall_rate")))
+                  *[_with_se(v, best_se.get(k)) for k, v in summary["best_costs"].items()],
+                  *[_with_se(v, plain_se.get(k)) for k, v in plain.items()],
+                  _rate(summary.get("best_fall_rate"), summary.get("best_fall_rate_se")))
     table.add_row("nominal", *[_design_value(x, d) for x, d in zip(summary["nominal_design"], discrete, strict=False)],
                   *[_with_se(summary["nominal_costs"][k], nominal_se.get(k)) for k in summary["best_costs"]],
-                  _rate(summary.get("nominal_fall_rate")))
+                  *[_with_se(nominal_plain[k], nominal_plain_se.get(k)) for k in plain],
+                  _rate(summary.get("nominal_fall_rate"), summary.get("nominal_fall_rate_se")))
     console.print(table)
     blocks, scenarios = summary.get("final_blocks"), summary.get("final_scenarios")
+    if summary.get("cost_rule"):
+        from coadapt_core.fitness import CostRule
+
+        rule = CostRule.from_config(summary | {"cost_cap": summary.get("cost_cap")})
+        console.print(f"cost: {rule.describe()}; plain mean: the paper's eq. 4 over the same scenarios")
+    if summary.get("best_is_nominal"):
+        console.print("no candidate beat the nominal design without falling more often than it: the nominal design stands")
     steps = f" of {summary['eval_steps']} steps" if summary.get("eval_steps") else ""
     size = f"{scenarios} paired scenarios{steps} per design ({blocks} {'block' if blocks == 1 else 'blocks'}; " \
         if scenarios else f"paired scenarios{steps} ("
-    console.print(f"costs: mean per step over the final check's {size}`coadapt run` protocol, not comparable with "
+    console.print(f"costs: per step over the final check's {size}`coadapt run` protocol, not comparable with "
                   "other commands or sizes); SE = standard error over scenarios")
     if "starting_policy" in summary:
         console.print(f"starting policy: {summary['starting_policy'] or 'none (trained from scratch in this run)'}")
@@ -200,6 +217,14 @@ def _print_summary(summary: dict[str, Any], space_names: list[str] | None, discr
             text = f"{k} not significant ({text.split(' ', 1)[1]}, under 4 paired standard errors)"
         parts.append(text)
     improvements = ", ".join(parts)
+    plain_imp, plain_imp_se = summary.get("improvements_plain") or {}, summary.get("improvements_plain_se") or {}
+    if plain_imp:
+        improvements += " (plain mean: " + ", ".join(
+            f"{k} {100 * v:+.1f} %" if plain_imp_se.get(k) is None else f"{k} {100 * v:+.1f} +- {100 * plain_imp_se[k]:.1f} %"
+            for k, v in plain_imp.items()) + ")"
+    if summary.get("fall_rate_difference") is not None:
+        d, se = summary["fall_rate_difference"], summary.get("fall_rate_difference_se")
+        improvements += f"; falls {100 * d:+.1f}{'' if se is None else f' +- {100 * se:.1f}'} points against nominal"
     if scenarios and scenarios < FEW_SCENARIOS:
         improvements += f" (from {scenarios} paired scenarios only: a check that the run is wired, not a result)"
     console.print(

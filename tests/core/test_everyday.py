@@ -222,7 +222,7 @@ def test_the_run_table_fits_80_columns_with_motor_types_as_whole_numbers_and_cos
     nominal = next(line for line in table.splitlines() if line.strip().startswith("nominal")).split()
     assert nominal[1:5] == ["1.000", "1.000", "1", "1"]  # scales to 3 decimals, motor types whole
     words = " ".join(out.split())  # rich wraps lines at 80 columns
-    assert "costs: mean per step over the final check's paired scenarios of 20 steps (`coadapt run` protocol" in words
+    assert "costs: per step over the final check's paired scenarios of 20 steps (`coadapt run` protocol" in words
 
 
 def test_report_in_a_folder_without_a_store_says_so_and_creates_none(tmp_path, monkeypatch, capsys):
