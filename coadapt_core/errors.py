@@ -31,8 +31,13 @@ class UnknownPluginError(UserError):
     """A plugin name that no loaded plugin provides."""
 
     def __init__(self, kind: str, name: str, available: list[str], broken: list[str] | None = None):
+        import difflib
+
         listing = ", ".join(sorted(available)) or "(none loaded)"
         message = f"unknown {kind} '{name}'; available: {listing}"
+        close = difflib.get_close_matches(str(name).lower(), list(available), n=1, cutoff=0.6)
+        if close:
+            message += f"; did you mean '{close[0]}'?"
         if broken:  # the name may belong to a plugin that failed to load: say which and why
             message += "; " + "; ".join(broken)
         super().__init__(message, field=kind)

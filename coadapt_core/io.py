@@ -80,4 +80,31 @@ def write_json_atomic(path: str | os.PathLike, data: Any, *, indent: int | None 
     return write_atomic(path, json.dumps(jsonable(data), indent=indent).encode("utf-8"))
 
 
-__all__ = ["disk_error", "jsonable", "write_atomic", "write_json_atomic"]
+def latest_checkpoint(folder: str | os.PathLike) -> Path | None:
+    """The newest checkpoint a `coadapt train --out FOLDER` left: `model_final.pt` or the
+    last `checkpoints/model_<iteration>.pt`, whichever was written last (an interrupted or
+    stopped training has no model_final.pt). None when the folder holds neither."""
+    folder = Path(folder)
+    found = [p for p in (folder / "model_final.pt", *(folder / "checkpoints").glob("model_*.pt")) if p.is_file()]
+
+    def order(path: Path) -> tuple[float, int]:
+        digits = "".join(ch for ch in path.stem if ch.isdigit())
+        return (path.stat().st_mtime, int(digits) if digits else 1 << 62)
+
+    return max(found, key=order) if found else None
+
+
+def checkpoint_path(given: str | os.PathLike, *, field: str) -> Path:
+    """A checkpoint option's value: a file as given, or a training folder's newest checkpoint
+    (`latest_checkpoint`); a folder without one is a one-line `UserError`."""
+    path = Path(given)
+    if not path.is_dir():
+        return path
+    found = latest_checkpoint(path)
+    if found is None:
+        raise UserError(f"{field} {path} is a folder without model_final.pt or checkpoints/model_*.pt; give a "
+                        "checkpoint file or the --out folder of a `coadapt train`", field=field.lstrip("-"))
+    return found
+
+
+__all__ = ["checkpoint_path", "disk_error", "jsonable", "latest_checkpoint", "write_atomic", "write_json_atomic"]

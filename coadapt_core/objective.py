@@ -69,6 +69,8 @@ class Objective(ABC):
     default_rank: ClassVar[int] = 0
     #: label for tables and plots
     display_name: ClassVar[str]
+    #: the unit of the per-step cost (`coadapt run` prints it with every cost; "" when none)
+    unit: ClassVar[str] = ""
     #: always "minimize" for costs; kept explicit for reports
     direction: ClassVar[str] = "minimize"
     description: ClassVar[str] = ""

@@ -212,6 +212,10 @@ class TrackingRecorder:
 
     def finish(self, run_id: str, summary: dict[str, Any], status: str = "finished") -> None:
         self.inner.finish(run_id, summary, status)
+        self.log_final(summary)
+
+    def log_final(self, summary: dict[str, Any]) -> None:
+        """The run's final figures (`final/*`), without recording the run as finished."""
         final = {k: summary[k] for k in ("best_cost", "nominal_cost", "improvement", "interactions", "seconds")
                  if isinstance(summary.get(k), int | float)}
         if final:

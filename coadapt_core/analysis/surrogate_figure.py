@@ -26,10 +26,26 @@ def quality_series(facts: Sequence[Any]) -> dict[tuple[str, str], list[dict[str,
             values = [(r.get("objectives") or {}).get(name, {}).get("spearman") for r in rounds]
             series[(name, f.terrain)].append({
                 "label": f"{f.method} s{f.run.get('seed', '?')}",
+                "run": f.run,
                 "spearman": [float(v) if isinstance(v, int | float) else math.nan for v in values],
                 "pooled": pooled or {},
             })
+    for entries in series.values():
+        _distinct_labels(entries)
     return series
+
+
+def _distinct_labels(entries: list[dict[str, Any]]) -> None:
+    """Runs sharing a label (method and seed) are told apart by what differs: the optimizer,
+    then the preset, then the end of the run id."""
+    for key in ("optimizer", "preset", "id"):
+        labels = [e["label"] for e in entries]
+        for e in entries:
+            if labels.count(e["label"]) > 1:
+                value = str(e["run"].get(key) or "?")
+                e["label"] += f" {value[-6:] if key == 'id' else value}"
+    for e in entries:
+        e.pop("run", None)
 
 
 def figure_surrogate_quality(facts: Sequence[Any], out: Path) -> list[tuple[Path, str]]:

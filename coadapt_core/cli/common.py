@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import re
 import sys
+from collections.abc import Iterator
 from typing import Any, NoReturn
 
 import typer
@@ -32,8 +34,10 @@ def os_error_line(exc: OSError) -> str:
     """One line for an error of the file system (full disk, read-only or missing folder, a
     file where a folder is expected), naming the path and what would work."""
     import errno
+    import os
 
-    where = f"'{exc.filename}'" if exc.filename else "a file"
+    # some libraries (TensorBoard's writer) pass the path as bytes: shown as text all the same
+    where = f"'{os.fsdecode(exc.filename)}'" if exc.filename else "a file"
     if exc.errno in (errno.ENOSPC, errno.EDQUOT):
         return f"disk full writing {where}; free some space and run the command again (nothing partial was kept)"
     if exc.errno in (errno.EROFS, errno.EACCES, errno.EPERM):
@@ -45,6 +49,52 @@ def os_error_line(exc: OSError) -> str:
     if exc.errno == errno.ENOENT:
         return f"{where} does not exist"
     return f"{exc.strerror or type(exc).__name__}: {where}"
+
+
+#: exit code of a command stopped by Ctrl-C (128 + SIGINT, as a shell reports it)
+EXIT_INTERRUPTED = 130
+
+
+@contextlib.contextmanager
+def ctrl_c_once() -> Iterator[None]:
+    """Within: the first Ctrl-C (SIGINT) raises KeyboardInterrupt where the command is, and
+    later ones are ignored while it records where it stopped and says how to resume (a
+    second Ctrl-C used to cut that short). The previous handler is restored on exit."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.getsignal(signal.SIGINT)
+
+    def handler(signum: int, frame: Any) -> None:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def interrupted(what: str, resume: str | None) -> NoReturn:
+    """After Ctrl-C: one line saying what stopped and the exact command that continues it
+    (or that nothing can be continued), then exit 130."""
+    if resume:
+        print(f"\ninterrupted: {what}; continue it with: {resume}", file=sys.stderr, flush=True)
+    else:
+        print(f"\ninterrupted: {what}", file=sys.stderr, flush=True)
+    raise typer.Exit(EXIT_INTERRUPTED)
+
+
+def invocation() -> list[str]:
+    """The arguments of the command being run (after `coadapt`), as `run_app` was given them."""
+    return list(_INVOCATION)
+
+
+_INVOCATION: list[str] = []
 
 
 def not_available(command: str, arrives_with: str) -> NoReturn:
@@ -238,7 +288,49 @@ def style_help(command: Any, *, config_options: bool = False) -> None:
             text = f"{text} [default: {default}]" if text else f"[default: {default}]"
         param.help = text
     for sub in getattr(command, "commands", {}).values():
-        style_help(sub, config_options=sub.name == "run" and command.name in (None, "coadapt", "main"))
+        top_run = sub.name == "run" and command.name in (None, "coadapt", "main")
+        style_help(sub, config_options=top_run)
+        if top_run:
+            short_help(sub, RUN_COMMON_OPTIONS)
+
+
+#: what `coadapt run --help` shows, in this order; `--help-all` shows every option
+RUN_COMMON_OPTIONS = (
+    "config", "resume", "preset", "objective", "optimizer", "terrain", "method", "seed", "robot", "sim", "mixed",
+    "checkpoint", "out", "store", "as_json", "video", "device", "logger", "population", "outer_iterations",
+    "optimizer_iterations", "train_steps", "eval_steps", "design_ranges",
+)
+
+
+def short_help(command: Any, common: tuple[str, ...]) -> None:
+    """`--help` lists only the `common` options (in that order) and says how to see the
+    rest; the command's `--help-all` option (`help_all`) lists every option, in its order."""
+    original = command.format_options
+
+    def format_options(ctx: Any, formatter: Any) -> None:
+        if ctx.meta.get("coadapt_help_all"):
+            return original(ctx, formatter)
+        by_name = {p.name: p for p in command.get_params(ctx)}
+        shown = [by_name[n] for n in common if n in by_name] + [by_name[n] for n in ("help_all", "help") if n in by_name]
+        records = [r for r in (p.get_help_record(ctx) for p in shown) if r]
+        with formatter.section("Common options"):
+            formatter.write_dl(records)
+        hidden = sum(1 for p in by_name.values() if getattr(p, "param_type_name", "") == "option" and not p.hidden
+                     and p not in shown)
+        formatter.write_paragraph()
+        formatter.write_text(f"{hidden} more options (training, task, randomization, surrogate, final check, "
+                             "optimizer aliases): `coadapt run --help-all`, or docs/settings.md.")
+
+    command.format_options = format_options
+
+
+def help_all(ctx: typer.Context, value: bool) -> None:
+    """`--help-all`: the command's help with every option (see `short_help`)."""
+    if not value or ctx.resilient_parsing:
+        return
+    ctx.meta["coadapt_help_all"] = True
+    typer.echo(ctx.get_help())
+    raise typer.Exit(0)
 
 
 def run_app(app: typer.Typer, argv: list[str] | None = None) -> int:
@@ -246,13 +338,14 @@ def run_app(app: typer.Typer, argv: list[str] | None = None) -> int:
     stderr and exit code 2 (`coadapt_core.cli.main`, and `coadapt grid`'s check of its cells)."""
     command = typer.main.get_command(app)
     style_help(command)
+    _INVOCATION[:] = list(sys.argv[1:] if argv is None else argv)
     try:
         result = command.main(args=argv, prog_name="coadapt", standalone_mode=False)
     except typer.Exit as exc:
         return exc.exit_code
     except typer.Abort:
         print("aborted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
     except typer.TyperException as exc:  # usage errors: bad option, missing argument, ...
         ctx = getattr(exc, "ctx", None)
         if type(exc).__name__ == "NoArgsIsHelpError" and ctx is not None:

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import json
+import shlex
 
 import typer
 
-from coadapt_core.cli.common import default_help, plugin_name
+from coadapt_core.cli.common import ctrl_c_once, default_help, interrupted, invocation, plugin_name
 from coadapt_core.methods import METHOD_NAMES
 
 
@@ -68,6 +69,7 @@ def register(app: typer.Typer) -> None:
         )
         from coadapt_core.results.store import ResultsStore
 
+        command_line = shlex.join(["coadapt", *invocation()])  # before the cells' checks run `coadapt run`
         spec = GridSpec(
             methods=parse_list(methods, "methods"),
             objectives=parse_list(objectives, "objectives"),
@@ -121,10 +123,20 @@ def register(app: typer.Typer) -> None:
                 if kind == "failed":
                     console.print(f"[red]failed[/red] {cell.key}: {outcome.error}")
 
-            report = run_grid(
-                spec, results, executor=executor, workers=workers, address=address, out_dir=out,
-                timeout=timeout, on_event=on_event,
-            )
+            try:
+                with ctrl_c_once():
+                    report = run_grid(
+                        spec, results, executor=executor, workers=workers, address=address, out_dir=out,
+                        timeout=timeout, on_event=on_event,
+                    )
+            except KeyboardInterrupt as exc:
+                line.close()
+                stopped = getattr(exc, "report", None)
+                done_cells = len(stopped.finished) + len(stopped.skipped) if stopped is not None else 0
+                results.close()
+                interrupted(f"grid {spec.grid_id} stopped ({done_cells} cells finished; the running cells keep their "
+                            "last state and resume, the rest start)",
+                            command_line)
         results.close()
         console.print(
             f"grid {report.grid_id}: {len(report.finished)} finished, {len(report.skipped)} skipped "

@@ -3,16 +3,28 @@
 from __future__ import annotations
 
 import json
+import shlex
+import sys
 from pathlib import Path
 
 import typer
 
-from coadapt_core.cli.common import choice_help, default_help, fail, plugin_name, resolve
+from coadapt_core.cli.common import (
+    choice_help,
+    ctrl_c_once,
+    default_help,
+    fail,
+    interrupted,
+    invocation,
+    plugin_name,
+    resolve,
+)
 
 
-def landscape_line(summary: dict, agents: int, steps: int) -> str:
-    """One line: the grid optimum and the nominal design, costs with standard errors,
-    improvement with its paired standard error, fall rates."""
+def landscape_line(summary: dict, agents: int, steps: int, unit: str = "") -> str:
+    """One line: the grid optimum and the nominal design, costs (in `unit`, the first
+    objective's) with standard errors, improvement with its paired standard error, fall rates,
+    and the protocol the costs belong to."""
 
     def se(key: str, scale: float = 1.0) -> str:
         value = summary.get(key)
@@ -22,11 +34,13 @@ def landscape_line(summary: dict, agents: int, steps: int) -> str:
         value = summary.get(key)
         return "-" if value is None else f"{value:.3f}{se(key + '_se')}"
 
+    unit = f" {unit}" if unit else ""
     line = (
-        f"landscape {summary['run_id']} ({agents} paired scenarios x {steps} steps per design, "
-        f"{summary.get('cost_rule', 'capped')} cost): grid optimum "
-        f"{summary['best_design'][:2]} cost {summary['best_cost']:.4g}{se('best_cost_se')} (fall rate {rate('best_fall_rate')}); "
-        f"nominal cost {summary['nominal_cost']:.4g}{se('nominal_cost_se')} (fall rate {rate('nominal_fall_rate')}); "
+        f"landscape {summary['run_id']} (costs{unit} per step over {agents} paired scenarios x {steps} steps per design, "
+        f"{summary.get('cost_rule', 'capped')} cost: the landscape's protocol, comparable within it, not with "
+        "`coadapt run`'s final check): grid optimum "
+        f"{summary['best_design'][:2]} cost {summary['best_cost']:.4g}{se('best_cost_se')}{unit} (fall rate {rate('best_fall_rate')}); "
+        f"nominal cost {summary['nominal_cost']:.4g}{se('nominal_cost_se')}{unit} (fall rate {rate('nominal_fall_rate')}); "
         f"improvement {100 * summary['improvement']:+.1f}{se('improvement_se', 100.0)} %"
     )
     if summary.get("improvement_plain") is not None:
@@ -34,6 +48,22 @@ def landscape_line(summary: dict, agents: int, steps: int) -> str:
                  f"{summary['nominal_plain_mean']:.4g}{se('nominal_plain_mean_se')}, improvement "
                  f"{100 * summary['improvement_plain']:+.1f}{se('improvement_plain_se', 100.0)} %")
     return line
+
+
+def with_resume(argv: list[str], run_id: str) -> list[str]:
+    """The command's arguments with `--resume <run_id>` in place of any --resume given."""
+    out, skip = [], False
+    for arg in argv:
+        if skip:
+            skip = False
+            continue
+        if arg == "--resume":
+            skip = True
+            continue
+        if arg.startswith("--resume="):
+            continue
+        out.append(arg)
+    return [*out, "--resume", run_id]
 
 
 def register(app: typer.Typer) -> None:
@@ -125,16 +155,29 @@ def register(app: typer.Typer) -> None:
 
         from coadapt_core.cli.progress import ProgressLine
 
-        with ProgressLine("landscape", grid, unit=" rows") as line:
+        started: list[str] = []
+        argv = invocation()
+        with ctrl_c_once(), ProgressLine("landscape", grid, unit=" rows") as line:
 
             def on_row(row: int, total: int) -> None:
                 line.update(row + 1, f"{grid} designs a row, {agents} agents x {steps} steps each", total=total)
 
-            summary = run_landscape(
-                backend, objectives, recorder, config=config, grid=grid, low=low, high=high,
-                nominal=robot_obj.nominal_design(), agents=agents, steps=steps, seed=seed, on_row=on_row,
-                rule=CostRule(cost_rule, cost_cap),
-            )
-        print(landscape_line(summary, agents, steps))
+            def on_start(run_id: str) -> None:
+                started.append(run_id)
+                print(f"landscape {run_id}: store {recorder.url}", file=sys.stderr, flush=True)
+
+            try:
+                summary = run_landscape(
+                    backend, objectives, recorder, config=config, grid=grid, low=low, high=high,
+                    nominal=robot_obj.nominal_design(), agents=agents, steps=steps, seed=seed, on_row=on_row,
+                    rule=CostRule(cost_rule, cost_cap), on_start=on_start,
+                )
+            except KeyboardInterrupt:
+                line.close()
+                if not started:
+                    interrupted("the landscape had not started; nothing to resume", None)
+                interrupted(f"landscape {started[0]} stopped; its finished rows are stored and the store marks it "
+                            "interrupted", shlex.join(["coadapt", *with_resume(argv, started[0])]))
+        print(landscape_line(summary, agents, steps, getattr(objectives[0], "unit", "")))
         if as_json:
             print(json.dumps(summary))

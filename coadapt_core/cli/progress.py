@@ -1,12 +1,16 @@
 """Progress for long commands: elapsed time and ETA on one line. On a terminal a rich bar
 whose fields fit 80 columns (the free text is cut, never the numbers); when the output is a
-file or a pipe, a plain line every `every` seconds and at the end, so logs show progress."""
+file or a pipe, a plain line every `every` seconds (10; $COADAPT_PROGRESS_EVERY) and at the
+end, and a heartbeat in between: a long phase that reports nothing (a training phase, the
+video render) still prints its line every `every` seconds, so a log is never silent longer."""
 
 from __future__ import annotations
 
 import math
 import sys
+import threading
 import time
+from collections.abc import Callable
 from typing import Any, TextIO
 
 
@@ -18,30 +22,67 @@ def fmt_duration(seconds: float | None) -> str:
     return f"{seconds // 3600}:{seconds % 3600 // 60:02d}:{seconds % 60:02d}"
 
 
-class ProgressLine:
-    """`update(done, detail)` of `total` steps (a fraction when total is 1.0); ETA from the
-    elapsed time and the fraction done. Use as a context manager."""
+#: seconds between plain lines (a pipe or a file); COADAPT_PROGRESS_EVERY overrides it
+EVERY = 10.0
 
-    def __init__(self, label: str, total: float | None, *, stream: TextIO | None = None, every: float = 10.0,
-                 enabled: bool = True, unit: str = ""):
+
+def default_every() -> float:
+    """COADAPT_PROGRESS_EVERY (seconds, > 0) when set to a number, else `EVERY`."""
+    import os
+
+    try:
+        value = float(os.environ.get("COADAPT_PROGRESS_EVERY", EVERY))
+    except ValueError:
+        return EVERY
+    return value if math.isfinite(value) and value > 0 else EVERY
+
+
+#: the share of the work that must be seen done (in this process) before the fraction alone
+#: gives an ETA: the first updates come after start-up costs and would extrapolate them
+MIN_FRACTION_FOR_ETA = 0.02
+
+
+class ProgressLine:
+    """`update(done, detail)` of `total` steps (a fraction when total is 1.0). The ETA is the
+    caller's own estimate when it gives one (`update(eta=seconds)`, counted down between
+    updates), else extrapolated from the rate seen in this process (so a resumed command
+    does not count the work done before it as done in no time). Use as a context manager.
+    With `own_eta` the ETA is only ever the caller's ("?" while it gives None). `clock` is
+    for tests (a fake clock); `heartbeat=False` prints only on updates."""
+
+    def __init__(self, label: str, total: float | None, *, stream: TextIO | None = None, every: float | None = None,
+                 enabled: bool = True, unit: str = "", clock: Callable[[], float] = time.perf_counter,
+                 heartbeat: bool = True, own_eta: bool = False):
         self.label = label
         self.total = total
         self.stream = stream or sys.stderr
-        self.every = every
+        self.every = every if every is not None else default_every()
         self.enabled = enabled
         self.unit = unit
-        self.start = time.perf_counter()
+        self.clock = clock
+        self.own_eta = own_eta
+        self.start = clock()
         self.done = 0.0
         self.detail = ""
         self._last_plain = -math.inf
+        self._last_text: str | None = None
+        self._first: tuple[float, float] | None = None  # (time, fraction) of the first update
+        self._eta: tuple[float, float] | None = None  # (caller's ETA, time it was given)
         self._rich = None
         self._task = None
+        self._closed = False
+        self._lock = threading.Lock()
         self.interactive = bool(getattr(self.stream, "isatty", lambda: False)())
+        self._stop = threading.Event()
+        self._beat: threading.Thread | None = None
+        if enabled and heartbeat and not self.interactive:
+            self._beat = threading.Thread(target=self._heartbeat_loop, name=f"progress-{label}", daemon=True)
+            self._beat.start()
 
     # -- numbers ----------------------------------------------------------------------------
     @property
     def elapsed(self) -> float:
-        return time.perf_counter() - self.start
+        return self.clock() - self.start
 
     @property
     def fraction(self) -> float | None:
@@ -51,10 +92,20 @@ class ProgressLine:
 
     @property
     def eta(self) -> float | None:
+        now = self.clock()
+        if self._eta is not None:
+            return max(self._eta[0] - (now - self._eta[1]), 0.0)
         f = self.fraction
-        if f is None or f <= 0:
+        if self.own_eta:
             return None
-        return self.elapsed * (1 - f) / f
+        if f is None or self._first is None:
+            return None
+        t0, f0 = self._first
+        if f >= 1.0:
+            return 0.0
+        if f - f0 < MIN_FRACTION_FOR_ETA or now <= t0:
+            return None
+        return (now - t0) * (1 - f) / (f - f0)
 
     def counts(self) -> str:
         if self.total is None:
@@ -65,7 +116,7 @@ class ProgressLine:
 
     def plain_line(self) -> str:
         parts = [self.label, self.counts(), f"elapsed {fmt_duration(self.elapsed)}"]
-        if self.total is not None:
+        if self.total is not None or self._eta is not None:
             parts.append(f"ETA {fmt_duration(self.eta)}")
         if self.detail:
             parts.append(self.detail)
@@ -96,39 +147,69 @@ class ProgressLine:
         self._task = self._rich.add_task(self.label, total=self.total or None, label=self.label, counts="",
                                          eta="?", detail="")
 
-    def update(self, done: float | None = None, detail: str | None = None, *, total: float | None = None) -> None:
+    def update(self, done: float | None = None, detail: str | None = None, *, total: float | None = None,
+               eta: float | None = None) -> None:
         if total is not None:
             self.total = total
         if done is not None:
             self.done = float(done)
         if detail is not None:
             self.detail = detail
-        if not self.enabled:
+        now = self.clock()
+        if eta is not None:
+            self._eta = (float(eta), now)
+        elif self.own_eta:
+            self._eta = None
+        if self._first is None and self.fraction is not None:
+            self._first = (now, self.fraction)
+        if not self.enabled or self._closed:
             return
         if self.interactive:
             if self._rich is None:
                 self._start_rich()
             self._rich.update(self._task, completed=self.done, total=self.total or None, counts=self.counts(),
                               eta=fmt_duration(self.eta), detail=self.detail)
-        elif time.perf_counter() - self._last_plain >= self.every:
+        elif now - self._last_plain >= self.every:
             self._emit_plain()
 
+    def heartbeat(self) -> bool:
+        """Print the line again if nothing was printed for `every` seconds (plain output);
+        True when it printed. The heartbeat thread calls this about once a second."""
+        if not self.enabled or self.interactive or self._closed:
+            return False
+        last = self._last_plain if self._last_plain > -math.inf else self.start
+        if self.clock() - last >= self.every:
+            self._emit_plain()
+            return True
+        return False
+
+    def _heartbeat_loop(self) -> None:
+        while not self._stop.wait(min(1.0, self.every / 4)):
+            try:
+                self.heartbeat()
+            except (OSError, ValueError):  # the stream was closed under us
+                return
+
     def _emit_plain(self) -> None:
-        self._last_plain = time.perf_counter()
-        self._last_text = self.plain_line()
-        print(self._last_text, file=self.stream, flush=True)
+        with self._lock:
+            self._last_plain = self.clock()
+            self._last_text = self.plain_line()
+            print(self._last_text, file=self.stream, flush=True)
 
     def close(self) -> None:
-        if not self.enabled:
+        self._stop.set()
+        if not self.enabled or self._closed:
+            self._closed = True
             return
         if self._rich is not None:
             self._rich.__exit__(None, None, None)
             self._rich = None
-        elif not self.interactive and self.counts() not in getattr(self, "_last_text", self.counts()):
+        elif not self.interactive and self._last_text is not None and self.counts() not in self._last_text:
             self._emit_plain()  # the last state, whatever the period
+        self._closed = True
 
     def __exit__(self, *exc: Any) -> None:
         self.close()
 
 
-__all__ = ["ProgressLine", "fmt_duration"]
+__all__ = ["EVERY", "MIN_FRACTION_FOR_ETA", "ProgressLine", "default_every", "fmt_duration"]

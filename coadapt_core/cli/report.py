@@ -55,6 +55,13 @@ def register(app: typer.Typer) -> None:
 
         if transfer_agents < 1 or transfer_steps < 1:
             fail("--transfer-agents and --transfer-steps must be >= 1")
+        from coadapt_core.results.store import resolve_store_url
+
+        url = resolve_store_url(store)
+        if url.startswith("sqlite:///") and not Path(url.removeprefix("sqlite:///")).is_file():
+            # reading a store that is not there must not leave an empty one behind
+            fail(f"no results store at {url.removeprefix('sqlite:///')}: run `coadapt run` or `coadapt grid` first, "
+                 "or pass --store (or $COADAPT_STORE)")
         if sim_to_sim:
             from coadapt_core.cli.common import choices
             from coadapt_core.errors import UserError

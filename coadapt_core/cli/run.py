@@ -15,7 +15,15 @@ from typing import Any
 
 import typer
 
-from coadapt_core.cli.common import fail, resolve, settings_options, with_options
+from coadapt_core.cli.common import (
+    ctrl_c_once,
+    fail,
+    help_all,
+    interrupted,
+    resolve,
+    settings_options,
+    with_options,
+)
 from coadapt_core.cli.progress import ProgressLine
 from coadapt_core.errors import UserError
 from coadapt_core.tracking import check_logger
@@ -30,15 +38,21 @@ def _fmt_duration(seconds: float | None) -> str:
 
 class _ProgressView:
     """One progress line: phase, outer/inner iteration, best real cost, interactions,
-    elapsed and ETA (a bar on a terminal, a plain line every 10 s otherwise)."""
+    elapsed and ETA (a bar on a terminal, a plain line every 10 s otherwise, also during a
+    long phase). The ETA is the loop's (`CoadaptationLoop.eta_seconds`: measured seconds per
+    training interaction and per round), "?" until a training phase and a real round ran."""
 
     def __init__(self, enabled: bool):
-        self.line = ProgressLine("run", 1.0, enabled=enabled)
+        self.line = ProgressLine("run", 1.0, enabled=enabled, own_eta=True)
+        self.announce: str | None = None  # "run <id>: <folder>", said once the run is under way
 
     def __enter__(self) -> _ProgressView:
         return self
 
     def __call__(self, event: dict[str, Any]) -> None:
+        if self.announce:  # not before: a bad option found while starting stays one line
+            print(self.announce, file=sys.stderr, flush=True)
+            self.announce = None
         best = event["best_cost"] if event["best_cost"] is not None else event.get("best_any")
         outer = f"{min(event['outer'] + 1, event['outer_total'])}/{event['outer_total']}"
         self.line.update(
@@ -46,7 +60,11 @@ class _ProgressView:
             # most telling first: at 80 columns the end of the line is cut
             f"best {'-' if best is None else f'{best:.4g}'}  outer {outer} round {event['inner']}/"
             f"{event['inner_total']}  {event['phase']}  {event['interactions']:,} interactions",
+            eta=event.get("eta"),
         )
+
+    def close(self) -> None:
+        self.line.close()
 
     def __exit__(self, *exc: Any) -> None:
         self.line.close()
@@ -75,8 +93,25 @@ def _check_run_config(cfg: Any) -> None:
     Path(cfg.out).mkdir(parents=True, exist_ok=True)  # an OSError here is one line (cli.main)
 
 
+#: a final check on fewer paired scenarios than this (the smoke preset's 2) is said to be one
+FEW_SCENARIOS = 8
+
+
 def _with_se(value: float, se: float | None) -> str:
-    return f"{value:.5g}" if se is None else f"{value:.5g} +- {se:.2g}"
+    """A cost and its standard error to the SE's two significant digits, in one notation
+    (6645 +- 480, 1.258 +- 0.012), never mixed (6644.7 +- 4.8e+02)."""
+    if se is None or not math.isfinite(se) or se <= 0 or not math.isfinite(value):
+        return f"{value:.5g}"
+    places = 1 - math.floor(math.log10(se))
+    if places <= 0:
+        step = 10 ** -places
+        return f"{round(value / step) * step:.0f} +- {round(se / step) * step:.0f}"
+    return f"{value:.{places}f} +- {se:.{places}f}"
+
+
+def _design_value(x: float, discrete: bool) -> str:
+    """A design variable: a discrete one (a motor type) as a whole number, a scale to 3 decimals."""
+    return f"{x:.0f}" if discrete else f"{x:.3f}"
 
 
 def _rate(value: float | None, se: float | None = None) -> str:
@@ -85,7 +120,7 @@ def _rate(value: float | None, se: float | None = None) -> str:
     return f"{100 * value:.1f} %" if se is None else f"{100 * value:.1f} +- {100 * se:.1f} %"
 
 
-def _render_video(run_dir: Path, summary: dict[str, Any]) -> None:
+def _render_video(run_dir: Path, summary: dict[str, Any], *, progress: bool = True) -> None:
     """Best vs nominal, walking, from the run's final policy; smoke runs get a short one."""
     import yaml
 
@@ -96,38 +131,64 @@ def _render_video(run_dir: Path, summary: dict[str, Any]) -> None:
     except (OSError, yaml.YAMLError):
         config = {}
     smoke = summary.get("preset") == "smoke"
-    render_run_video(run_dir, summary, config, seconds=1.0 if smoke else 4.0, width=240 if smoke else 320,
-                     height=240 if smoke else 320)
+    with ProgressLine("video", 1.0, enabled=progress) as line:
+        render_run_video(run_dir, summary, config, seconds=1.0 if smoke else 4.0, width=240 if smoke else 320,
+                         height=240 if smoke else 320, progress=lambda done, detail: line.update(done, detail))
 
 
-def _print_summary(summary: dict[str, Any], space_names: list[str] | None) -> None:
+def resume_command(run_id: str, run_dir: Path, *, video: bool = True, as_json: bool = False) -> str:
+    """The exact `coadapt run --resume` command line that continues this run from here (the
+    run folder's parent as --out unless it is the default ./runs)."""
+    import os
+    import shlex
+
+    parts = ["coadapt", "run", "--resume", run_id]
+    parent = Path(run_dir).absolute().parent
+    if parent != Path("runs").absolute():
+        relative = os.path.relpath(parent)
+        parts += ["--out", relative if not relative.startswith("..") else str(parent)]
+    if not video:
+        parts.append("--no-video")
+    if as_json:
+        parts.append("--json")
+    return shlex.join(parts)
+
+
+def _print_summary(summary: dict[str, Any], space_names: list[str] | None, discrete: list[bool] | None = None) -> None:
     from rich.console import Console
     from rich.table import Table
 
     console = Console()
     names = space_names or [f"x{i}" for i in range(len(summary["best_design"]))]
-    table = Table(title=f"coadapt run {summary['run_id']}")
+    from rich import box
+
+    # light borders and headers over two lines: 4 design variables and a cost fit 80 columns
+    table = Table(title=f"coadapt run {summary['run_id']}", box=box.SIMPLE_HEAD, pad_edge=False, collapse_padding=True)
     table.add_column("")
     for name in names:
-        table.add_column(name)
+        table.add_column(name, min_width=len(name))
+    units = summary.get("cost_units") or {}
     for objective in summary["best_costs"]:
-        table.add_column(f"{objective} cost +- SE")
+        unit = f" [{units[objective]}]" if units.get(objective) else ""
+        table.add_column(f"{objective}{unit}\n+- SE")
     plain = summary.get("best_plain_means") or {}
     for objective in plain:
-        table.add_column(f"{objective} plain mean +- SE")
-    table.add_column("fall rate +- SE")
+        table.add_column(f"{objective} plain\nmean +- SE")
+    table.add_column("fall rate\n+- SE", min_width=4)
+    discrete = discrete or [False] * len(names)
     best_se, nominal_se = summary.get("best_costs_se") or {}, summary.get("nominal_costs_se") or {}
     plain_se = summary.get("best_plain_means_se") or {}
     nominal_plain, nominal_plain_se = summary.get("nominal_plain_means") or {}, summary.get("nominal_plain_means_se") or {}
-    table.add_row("best", *[f"{x:.3f}" for x in summary["best_design"]],
+    table.add_row("best", *[_design_value(x, d) for x, d in zip(summary["best_design"], discrete, strict=False)],
                   *[_with_se(v, best_se.get(k)) for k, v in summary["best_costs"].items()],
                   *[_with_se(v, plain_se.get(k)) for k, v in plain.items()],
                   _rate(summary.get("best_fall_rate"), summary.get("best_fall_rate_se")))
-    table.add_row("nominal", *[f"{x:.3f}" for x in summary["nominal_design"]],
+    table.add_row("nominal", *[_design_value(x, d) for x, d in zip(summary["nominal_design"], discrete, strict=False)],
                   *[_with_se(summary["nominal_costs"][k], nominal_se.get(k)) for k in summary["best_costs"]],
                   *[_with_se(nominal_plain[k], nominal_plain_se.get(k)) for k in plain],
                   _rate(summary.get("nominal_fall_rate"), summary.get("nominal_fall_rate_se")))
     console.print(table)
+    blocks, scenarios = summary.get("final_blocks"), summary.get("final_scenarios")
     if summary.get("cost_rule"):
         from coadapt_core.fitness import CostRule
 
@@ -135,11 +196,17 @@ def _print_summary(summary: dict[str, Any], space_names: list[str] | None) -> No
         console.print(f"cost: {rule.describe()}; plain mean: the paper's eq. 4 over the same scenarios")
     if summary.get("best_is_nominal"):
         console.print("no candidate beat the nominal design without falling more often than it: the nominal design stands")
-    if summary.get("final_scenarios"):
-        console.print(f"final check: {summary['final_scenarios']} paired scenarios per design "
-                      f"({summary.get('final_blocks')} blocks); SE = standard error over scenarios")
+    steps = f" of {summary['eval_steps']} steps" if summary.get("eval_steps") else ""
+    size = f"{scenarios} paired scenarios{steps} per design ({blocks} {'block' if blocks == 1 else 'blocks'}; " \
+        if scenarios else f"paired scenarios{steps} ("
+    console.print(f"costs: per step over the final check's {size}`coadapt run` protocol, not comparable with "
+                  "other commands or sizes); SE = standard error over scenarios")
+    if "starting_policy" in summary:
+        console.print(f"starting policy: {summary['starting_policy'] or 'none (trained from scratch in this run)'}")
     if summary.get("reliable") is False:
         console.print(f"[bold red]UNRELIABLE[/]: {summary.get('reliability')}")
+    elif summary.get("reliability"):  # passed, not judged or not measured: said as well
+        console.print(f"walking gate: {summary.get('reliability')}")
     improvement_se = summary.get("improvements_se") or {}
     first = next(iter(summary["improvements"]), None)
     parts = []
@@ -158,6 +225,8 @@ def _print_summary(summary: dict[str, Any], space_names: list[str] | None) -> No
     if summary.get("fall_rate_difference") is not None:
         d, se = summary["fall_rate_difference"], summary.get("fall_rate_difference_se")
         improvements += f"; falls {100 * d:+.1f}{'' if se is None else f' +- {100 * se:.1f}'} points against nominal"
+    if scenarios and scenarios < FEW_SCENARIOS:
+        improvements += f" (from {scenarios} paired scenarios only: a check that the run is wired, not a result)"
     console.print(
         f"improvement over nominal: {improvements}; interactions {summary['interactions']:,} "
         f"(training {summary['train_interactions']:,}, evaluation {summary['eval_interactions']:,}, "
@@ -186,6 +255,8 @@ def _command_options() -> list[tuple[str, Any, Any]]:
         ("c2", float, typer.Option(None, help="Alias of --optimizer-option c2=... (swarm optimizers).")),
         ("bo_sampler", str, typer.Option(None, help="Alias of --optimizer-option sampler=... (BO: tpe or gp).")),
         ("bo_storage", str, typer.Option(None, help="Alias of --optimizer-option storage=... (BO: optuna storage URL).")),
+        ("help_all", bool, typer.Option(False, "--help-all", is_eager=True, callback=help_all,
+                                        help="Show every option (training, task, randomization, ...) and exit.")),
         ("check", bool, typer.Option(False, "--check", hidden=True, help="Check the options (config, plugins, store, --out) and exit without running.")),
     ]
 
@@ -233,6 +304,11 @@ def register(app: typer.Typer) -> None:
                 if objective_option:
                     overrides["objective_options"] = parse_assignments(objective_option, "objective_options")
                 cfg = make_config(preset, config, overrides)
+                if cfg.checkpoint.strip() and Path(cfg.checkpoint.strip()).is_dir():
+                    from coadapt_core.io import checkpoint_path
+
+                    # a `coadapt train --out` folder: its newest checkpoint, recorded as that file
+                    cfg.checkpoint = str(checkpoint_path(cfg.checkpoint.strip(), field="--checkpoint"))
                 resolve("optimizer", cfg.optimizer)
                 check_logger(cfg.logger)  # wandb asked for but not installed: one line, exit 2
                 resolve("simulator", cfg.sim)
@@ -249,24 +325,48 @@ def register(app: typer.Typer) -> None:
                           f"scratch in this run; its result is marked unreliable unless the real rounds pass "
                           f"the walking gate ({WALKING_GATE.describe()})", file=sys.stderr)
                 kwargs = {}
-            with _ProgressView(enabled=not as_json) as view:
-                result = run_coadaptation(cfg, progress=view, **kwargs)
+            started: dict[str, Any] = {}
+
+            def on_start(run_id: str, run_dir: Path) -> None:
+                started.update(run_id=run_id, run_dir=run_dir)
+                view.announce = f"run {run_id}: {run_dir}"
+
+            def finishing(result: Any) -> None:
+                view.close()
+                # a finished run resumed again keeps the video it has
+                if video and not (resume and (result.run_dir / "best_vs_nominal.gif").is_file()):
+                    _render_video(result.run_dir, result.summary, progress=not as_json)
+
+            with ctrl_c_once(), _ProgressView(enabled=not as_json) as view:
+                try:
+                    result = run_coadaptation(cfg, progress=view, on_start=on_start, finishing=finishing, **kwargs)
+                except KeyboardInterrupt:
+                    view.close()
+                    if not started and resume:  # stopped while loading it: it is where it was
+                        import shlex
+
+                        interrupted(f"run {resume} was not continued", shlex.join(
+                            ["coadapt", "run", "--resume", resume, *(["--out", out] if out and out != "runs" else [])]))
+                    if not started:
+                        interrupted("the run had not started; nothing to resume", None)
+                    interrupted(f"run {started['run_id']} stopped; its folder {started['run_dir']} keeps the last state",
+                                resume_command(started["run_id"], started["run_dir"], video=video, as_json=as_json))
         except UserError as exc:
             fail(str(exc))
         summary = result.summary
-        if video:
-            _render_video(result.run_dir, summary)
         if as_json:
             print(json.dumps(result.json_line()))
         else:
-            names = None
+            names, discrete = None, None
             try:
                 from coadapt_core.design_space import DesignSpace
 
-                names = DesignSpace.from_dict(summary["final_space"]).names
+                space = DesignSpace.from_dict(summary["final_space"])
+                names = space.names
+                discrete = [not hasattr(v, "low") for v in space.variables]
             except Exception:
                 names = None
-            _print_summary(summary, names)
+            _print_summary(summary, names, discrete)
             print(f"run folder: {result.run_dir}")
 
     app.command("run")(with_options(run_command, settings, _command_options()))

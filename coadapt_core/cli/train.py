@@ -186,6 +186,13 @@ def register(app: typer.Typer) -> None:
 
         if resume is not None and init_from is not None:
             fail("--resume and --init-from exclude each other: resume continues a run, --init-from starts a new one from its weights")
+        from coadapt_core.io import checkpoint_path
+
+        try:  # a training folder means its newest checkpoint (model_final.pt or the last one saved)
+            resume = checkpoint_path(resume, field="--resume") if resume is not None else None
+            init_from = checkpoint_path(init_from, field="--init-from") if init_from is not None else None
+        except UserError as exc:
+            fail(str(exc))
         if reset_pseudo_critics and resume is None and init_from is None:
             fail("--reset-pseudo-critics needs --resume or --init-from (a new run's pseudo-critics are fresh anyway)")
         if pseudo_only and resume is None and init_from is None:
@@ -331,6 +338,13 @@ def register(app: typer.Typer) -> None:
             values = []
         if len(values) != 3 or not all(math.isfinite(v) for v in values):
             fail(f"--command '{command}' must be three numbers vx,vy,yaw_rate, e.g. 0.5,0,0")
+        if checkpoint is not None:  # a training folder: its newest checkpoint
+            from coadapt_core.io import checkpoint_path
+
+            try:
+                checkpoint = checkpoint_path(checkpoint, field="--checkpoint")
+            except UserError as exc:
+                fail(str(exc))
         if robot is None:  # the checkpoint records its robot; else the one installed robot
             if checkpoint is not None and checkpoint.is_file():
                 from coadapt_core.learning import read_checkpoint
@@ -389,6 +403,17 @@ def register(app: typer.Typer) -> None:
             for name, value in costs.items():
                 table.add_row(f"{name} cost (per step)", f"{value:.4g} +- {costs_se[name]:.2g} SE")
             Console().print(table)
+            from coadapt_core.plugins import get_registry
+
+            units = []  # each `<objective>_cost` in the objective's declared unit
+            for key in result:
+                name = key.removesuffix("_cost")
+                if key.endswith("_cost") and name in get_registry().names("objective"):
+                    unit = getattr(get_registry().get("objective", name), "unit", "")
+                    units += [f"{name} {unit}"] if unit else []
+            Console().print(f"costs: mean per step over {agents} agents of {seconds:g} s under this one command "
+                            "(`coadapt eval` protocol: not comparable with `coadapt run` or `coadapt landscape`, "
+                            "whose scenarios draw their commands)" + (f"; units: {', '.join(units)}" if units else ""))
         if video is not None:
             from coadapt_core.viz.video import write_rollout_video
 

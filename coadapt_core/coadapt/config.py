@@ -6,6 +6,7 @@ Precedence: CLI option > YAML key > preset > declared default."""
 from __future__ import annotations
 
 import functools
+import typing
 from collections.abc import Mapping
 from dataclasses import fields
 from pathlib import Path
@@ -360,6 +361,12 @@ def make_config(
                 continue
             section, dot, rest = key.partition(".")
             if section not in FIELD_NAMES or (dot and section not in SECTIONS):
+                import difflib
+
+                close = difflib.get_close_matches(section, FIELD_NAMES, n=1, cutoff=0.75)
+                if close:
+                    raise UserError(f"unknown {label} key '{key}'; did you mean '{close[0]}'? (every key: "
+                                    "docs/settings.md)", field=key)
                 raise UserError(
                     f"unknown {label} key '{key}'; accepted keys: {', '.join(FIELD_NAMES)}", field=key
                 )
@@ -383,7 +390,34 @@ def make_config(
                 value = {**values.get(key, {}), **{str(k).replace("-", "_"): v for k, v in value.items()}}
             values[key] = value
     values["preset"] = preset
+    _fold_names(values)
     return _typed_options(CoadaptConfig(**values).validate())
+
+
+#: settings that name a plugin or a fixed choice: `Torque` or `FLAT` is taken as written in
+#: lower case when only that spelling is known
+_FOLDED = ("robot", "sim", "optimizer", "objective", "terrain", "method", "evaluation_policy")
+
+
+def _fold_names(values: dict[str, Any]) -> None:
+    from coadapt_core.plugins import get_registry
+
+    kinds = {"robot": "robot", "sim": "simulator", "optimizer": "optimizer", "objective": "objective"}
+    for key in _FOLDED:
+        value = values.get(key)
+        if isinstance(value, list | tuple):
+            value = ",".join(map(str, value))
+        if not isinstance(value, str) or value == value.lower():
+            continue
+        if key in kinds:
+            try:
+                known = set(get_registry().names(kinds[key]))
+            except Exception:  # the registry cannot be built: the run's own checks report it
+                continue
+        else:
+            known = set(typing.get_args(CoadaptConfig.__pydantic_fields__[key].annotation))
+        names = [n.strip() for n in value.split(",")]
+        values[key] = ",".join(n.lower() if n not in known and n.lower() in known else n for n in names)
 
 
 def _typed_options(config: CoadaptConfig) -> CoadaptConfig:

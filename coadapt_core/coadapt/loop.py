@@ -14,6 +14,7 @@ continues where it stopped.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 import time
@@ -27,7 +28,7 @@ import numpy as np
 from coadapt_core import surrogate_quality as sq
 from coadapt_core.coadapt.config import CoadaptConfig, config_from_dict
 from coadapt_core.coadapt.final_check import batch_errors, final_check, no_uncertainty
-from coadapt_core.coadapt.reliability import assess, fall_verdict, walking
+from coadapt_core.coadapt.reliability import assess, fall_verdict, judge_short, walking
 from coadapt_core.coadapt.setup import build_parts
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
@@ -141,7 +142,12 @@ def save_state(run_dir: Path, state: LoopState) -> None:
         state.torch_rng_state = sys.modules["torch"].get_rng_state()
     buffer = state.buffer
     stale = None
-    if buffer is not None and state.buffer_saved_serial != state.buffer_serial:
+    if state.phase == "done" and state.buffer_saved_serial >= 0:
+        # a finished run is resumed from its summary alone: the buffer (tens of MB for a
+        # quick run) is kept only while the run can still continue
+        stale = run_dir / f"{BUFFER_FILE_STEM}-{state.buffer_saved_serial}.npz"
+        state.buffer_saved_serial = -1
+    elif buffer is not None and state.buffer_saved_serial != state.buffer_serial:
         write_npz(run_dir / f"{BUFFER_FILE_STEM}-{state.buffer_serial}.npz", buffer)
         stale = run_dir / f"{BUFFER_FILE_STEM}-{state.buffer_saved_serial}.npz"
         state.buffer_saved_serial = state.buffer_serial
@@ -342,14 +348,58 @@ class CoadaptationLoop:
         if s.phase in ("final", "done"):
             done = total - (1 if s.phase == "final" else 0)
         c = s.counters
+        eta, elapsed = self.eta_seconds(), self.elapsed()
+        # the share of the time, once the ETA is known; else the share of the steps
+        fraction = elapsed / (elapsed + eta) if eta is not None and elapsed + eta > 0 else min(done / total, 1.0)
         self.progress({
             "phase": phase, "outer": s.outer, "outer_total": self.outer_count, "inner": s.inner,
-            "inner_total": self.rounds_per_outer, "fraction": min(done / total, 1.0),
+            "inner_total": self.rounds_per_outer, "fraction": fraction,
             "best_cost": None if s.best_real is None else s.best_real[1],
             "best_any": None if s.best_any is None else s.best_any[1],
             "interactions": int(c["train_interactions"] + c["eval_interactions"] + c["final_interactions"]),
-            "elapsed": self.elapsed(), **extra,
+            "elapsed": elapsed, "eta": eta, **extra,
         })
+
+    def eta_seconds(self) -> float | None:
+        """Seconds left, from the wall clock this run has measured (the counters are part of
+        the state, so this holds right after a resume): the training phases still to come at
+        the measured seconds per training interaction; the rounds still to come at the
+        measured seconds of a real round and of a surrogate round (each including the
+        pseudo-critics' fits it triggered), a share 1 - w of them real (the share seen so far
+        under the uncertainty policy); the final check at the measured rollout seconds per
+        design, for its designs and one block. None until a training phase (when one is to
+        come) and a real round have been timed. The video is not included."""
+        s, c = self.state, self.config
+        cnt = s.counters
+        if s.phase == "done":
+            return 0.0
+        real_rounds, real_wall = cnt.get("real_rounds_timed", 0), cnt.get("real_round_wall", 0.0)
+        if real_rounds <= 0:
+            return None
+        per_real = real_wall / real_rounds
+        surrogate_rounds = cnt.get("surrogate_rounds_timed", 0)
+        per_surrogate = cnt.get("surrogate_round_wall", 0.0) / surrogate_rounds if surrogate_rounds else 0.5 * per_real
+        # training phases still to come (this outer iteration's if it has not trained yet)
+        steps_left = 0
+        if self.shared and not (self.pretrained and not self.method.retrain):
+            first = s.outer if s.phase == "train" else s.outer + 1
+            for outer in range(first, self.outer_count):
+                if outer == 0 or self.method.retrain:
+                    steps_left += c.train_steps if outer == 0 else c.retrain_steps
+        train_wall, train_steps = cnt.get("train_wall", 0.0), cnt.get("train_steps_timed", 0)
+        if steps_left and train_steps <= 0:
+            return None
+        seconds = steps_left * (train_wall / train_steps if train_steps else 0.0)
+        if s.phase in ("train", "optimize"):
+            rounds_left = self.rounds_per_outer * (self.outer_count - s.outer) - (s.inner if s.phase == "optimize" else 0)
+            real_share = 1.0 - self.w
+            if c.evaluation_policy == "uncertainty" and self.method.surrogate_probability is None:
+                real_share = real_rounds / (real_rounds + surrogate_rounds)
+            seconds += rounds_left * (real_share * per_real + (1 - real_share) * per_surrogate)
+        real = [b for b in s.batches if b.get("kind") == "real"]
+        per_design = sum(b["seconds"] for b in real) / max(sum(b["designs"] for b in real), 1)
+        designs = (len(s.top_real) + 2) if len(self.objectives) == 1 else c.population + 1
+        return float(seconds + per_design * designs)
 
     def seed_for(self, *parts: int) -> int:
         """A seed fixed by position in the run, so a resumed run draws what it would have."""
@@ -430,7 +480,10 @@ class CoadaptationLoop:
             s.labels = []  # a new policy: earlier real rounds no longer label it
             self._fitted_for = None
             self.emit("training")
+            t0 = time.perf_counter()
             result = self.get_backend().train(s.train_designs, steps, seed=self.seed_for(1, s.outer))
+            s.counters["train_wall"] = s.counters.get("train_wall", 0.0) + time.perf_counter() - t0
+            s.counters["train_steps_timed"] = s.counters.get("train_steps_timed", 0) + int(steps)
             self.count_training([result])
             if self.method.buffer_from_training and getattr(result, "buffer", None) is not None:
                 s.buffer, s.buffer_outer = result.buffer, s.outer
@@ -546,6 +599,7 @@ class CoadaptationLoop:
         if opt.done:
             self.end_outer()
             return
+        t0 = time.perf_counter()
         designs = opt.ask()  # [P, dim]
         initial = (s.optimizer_init or {}).get("initial_designs")
         if s.inner == 0 and initial is not None:  # the swarm starts from the training designs (line 10)
@@ -557,6 +611,9 @@ class CoadaptationLoop:
         opt.tell(designs, target)
         self.record_batch(designs, costs, kind, interactions, seconds, errors)
         s.inner += 1
+        # wall clock per kind of round, for the ETA (`eta_seconds`); saved with the state
+        s.counters[f"{kind}_round_wall"] = s.counters.get(f"{kind}_round_wall", 0.0) + time.perf_counter() - t0
+        s.counters[f"{kind}_rounds_timed"] = s.counters.get(f"{kind}_rounds_timed", 0) + 1
         self.checkpoint()
         self.emit("evaluated", kind=kind)
 
@@ -835,17 +892,28 @@ class CoadaptationLoop:
             "evaluation_policy": c.evaluation_policy,
             "cost_rule": c.cost_rule, "cost_cap": c.cost_cap, "cost_reference": s.reference,
             "surrogate_quality": self.surrogate_quality(),
+            # what a printed cost is: per-step mean of the final check's paired scenarios of
+            # eval_steps steps each (costs of other commands or sizes are not comparable)
+            "cost_units": {o.name: getattr(o, "unit", "") for o in self.objectives},
+            "eval_steps": int(c.eval_steps),
         }
         summary["policy"] = s.policy
         summary["notes"] = list(s.notes)
-        summary["reliable"], summary["reliability"] = assess(s.batches, final_walking)
+        # a policy trained from scratch in this run (no starting policy, or the BO baseline's
+        # per-design policies from scratch) is vouched for by nothing but this gate
+        scratch = (str(c.checkpoint).strip().lower() == "none" if self.shared
+                   else getattr(c, "specialized_init", "scratch") != "universal")
+        summary["reliable"], summary["reliability"] = judge_short(assess(s.batches, final_walking), c.eval_steps,
+                                                                  from_scratch=scratch)
+        summary["starting_policy"] = None if str(c.checkpoint).strip().lower() == "none" else _starting_policy(c)
         summary["final_walking"] = final_walking
         summary.update(uncertainty)
         summary.update(fall_verdict(summary))
         s.summary = summary
         s.phase = "done"
         self.checkpoint()
-        self.recorder.finish(s.run_id, summary, "finished")
+        # the store says "finished" once the caller's last step (`run_coadaptation(finishing=)`,
+        # e.g. the CLI's video) is done too: an interrupt there leaves the run resumable
         self.emit("done")
 
 
@@ -878,6 +946,8 @@ def run_coadaptation(
     resume: str | os.PathLike | None = None,
     run_dir: str | os.PathLike | None = None,
     progress: ProgressFn | None = None,
+    on_start: Callable[[str, Path], None] | None = None,
+    finishing: Callable[[CoadaptResult], None] | None = None,
 ) -> CoadaptResult:
     """Run (or resume) Algorithm 4 and return its summary.
 
@@ -885,11 +955,17 @@ def run_coadaptation(
     (mixed for `mixed` or an optimizer that implies it) narrowed to `design_ranges`, its nominal design, the
     objectives, the optimizer class and the universal-policy backend. With `resume` (a run
     folder) the recorded config and state are used and `config` is ignored.
+
+    `on_start(run_id, run_dir)` is called as soon as the run folder holds a state to resume
+    from; `finishing(result)` after the final check and before the store says "finished"
+    (the CLI renders its video there). An interrupt anywhere (Ctrl-C included) marks the run
+    "interrupted" and propagates; `resume=run_dir` continues from the last state written.
     """
     if resume is not None:
         run_path = Path(resume).absolute()
         state = load_state(run_path)
         config = config_from_dict(state.config)
+        _check_writable(run_path, state)
     else:
         if config is None:
             raise UserError("run_coadaptation needs a config or a run folder to resume", field="config")
@@ -905,26 +981,79 @@ def run_coadaptation(
         if (run_path / STATE_FILE).exists():
             raise UserError(f"run folder '{run_path}' already holds a run; resume it or pick another", field="out")
         run_path.mkdir(parents=True, exist_ok=True)
+        recorder = recorder or make_recorder(run_path, config.store or None)  # a bad store: one line, nothing written
         state = LoopState(run_id=run_id, config=config.to_dict(), space=parts.space.to_dict(), policy=parts.policy,
                           notes=list(parts.notes), no_critic=list(parts.no_critic))
         for note in parts.notes:
             print(note, file=sys.stderr)
+        # the state first, then the store's row: a run the store knows can always be resumed
+        # (a grid killed in between used to leave a row "running" over a folder without one)
+        save_state(run_path, state)
     else:
         _check_same_policy(state, parts.policy)
     assert run_path is not None
     recorder = recorder or make_recorder(run_path, config.store or None)
+    if on_start is not None:
+        on_start(state.run_id, run_path)
     recorder.start_run({**config.to_dict(), "run_id": state.run_id, "run_dir": str(run_path),
                         "design_space": parts.full_space.to_dict(), "policy": state.policy})
-    if resume is not None:
-        # a store that lost this run's rows (emptied, replaced, an old copy) gets them back
-        # from the run folder's JSON lines before anything new is recorded
-        refill = getattr(recorder, "refill_from_run_folder", None)
-        if refill is not None:
-            refill(state.run_id, run_path)
-    if state.phase == "done":
-        assert state.summary is not None
-        recorder.finish(state.run_id, state.summary, "finished")  # resuming a finished run leaves it finished
-        return CoadaptResult(state.run_id, run_path, state.summary)
+    try:
+        if resume is not None:
+            # a store that lost this run's rows (emptied, replaced, an old copy) gets them back
+            # from the run folder's JSON lines before anything new is recorded
+            refill = getattr(recorder, "refill_from_run_folder", None)
+            if refill is not None:
+                refill(state.run_id, run_path)
+        if state.phase == "done":  # resuming a finished run (or one stopped in `finishing`)
+            assert state.summary is not None
+            summary = state.summary
+        else:
+            summary = _continue(config, state, parts, run_path, recorder, progress)
+        result = CoadaptResult(state.run_id, run_path, summary)
+        if finishing is not None:
+            finishing(result)
+    except BaseException as exc:
+        # the last state stays in the run folder; `resume=run_dir` continues from it. A failure
+        # to record that (a folder gone read-only) must not hide what stopped the run.
+        with contextlib.suppress(Exception):
+            recorder.finish(state.run_id, {"run_id": state.run_id, "error": f"{type(exc).__name__}: {exc}",
+                                           "outer": state.outer, "inner": state.inner, "phase": state.phase},
+                            "interrupted")
+        raise
+    recorder.finish(state.run_id, summary, "finished")
+    return result
+
+
+def _starting_policy(config: CoadaptConfig) -> str | None:
+    """The policy the run started from, as a path (the robot's shipped one when not given)."""
+    if config.checkpoint.strip():
+        return config.checkpoint.strip()
+    try:
+        from coadapt_core.coadapt.setup import resolve_checkpoint
+
+        found = resolve_checkpoint(config)
+    except Exception:  # a fake or third-party robot without one
+        return None
+    return None if found is None else str(found)
+
+
+def _check_writable(run_path: Path, state: LoopState) -> None:
+    """A resumed run writes its folder: one that cannot be written is one line here, before
+    the store or a logger thread (TensorBoard's) touches it."""
+    probe = run_path / f".{state.run_id}.write-check"
+    try:
+        with open(probe, "wb"):
+            pass
+        probe.unlink()
+    except OSError as exc:
+        raise UserError(f"cannot resume: run folder '{run_path}' cannot be written ({exc.strerror or type(exc).__name__}); "
+                        "make it writable, or copy it to a folder you can write and resume the copy",
+                        field="resume") from None
+
+
+def _continue(config: CoadaptConfig, state: LoopState, parts: Any, run_path: Path, recorder: RunRecorder,
+              progress: ProgressFn | None) -> dict[str, Any]:
+    """Run the loop from `state` to its summary, with the run's TensorBoard/wandb logger."""
     from coadapt_core import tracking
 
     # TensorBoard (default) / wandb: training curves, best cost per round, surrogate error
@@ -936,16 +1065,10 @@ def run_coadaptation(
         objectives=parts.objectives, optimizer_cls=parts.optimizer_cls, run_dir=run_path, recorder=recorder,
         state=state, progress=progress, pretrained=parts.pretrained,
     )
-    if resume is None:
-        loop.checkpoint()  # a run folder with a state from the start: resumable at once
     try:
         with tracking.active(logger):
             summary = loop.run()
-    except BaseException as exc:
-        # the last checkpoint stays in the run folder; `resume=run_dir` continues from it
-        recorder.finish(state.run_id, {"run_id": state.run_id, "error": f"{type(exc).__name__}: {exc}",
-                                       "outer": loop.state.outer, "inner": loop.state.inner}, "interrupted")
-        raise
+            recorder.log_final(summary)
+            return summary
     finally:
         logger.close()
-    return CoadaptResult(state.run_id, run_path, summary)

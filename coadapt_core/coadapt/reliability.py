@@ -89,6 +89,27 @@ def assess(
     return True, f"passed the walking gate ({gate.describe()})"
 
 
+#: the shortest real evaluation, in policy steps per scenario, whose "does not walk" the
+#: gate trusts. Every scenario starts from rest, so over a short one the mean velocity lags
+#: the command whatever the policy: the shipped flat policy (Kuafu, 0.02 s steps, 8 agents,
+#: the nominal design and two corners) misses by 0.51-0.56 x command over 20 steps (the
+#: smoke preset's), 0.32-0.35 over 50 and 0.22-0.30 over 100.
+MIN_JUDGED_STEPS = 50
+
+
+def judge_short(verdict: tuple[bool | None, str], eval_steps: int, *, from_scratch: bool) -> tuple[bool | None, str]:
+    """`assess`'s verdict for an evaluation of `eval_steps` steps per scenario: a failure
+    under `MIN_JUDGED_STEPS` is "not judged" (None) for a policy that came trained, and
+    stays a failure for one trained from scratch in the run (nothing vouches for it)."""
+    reliable, reason = verdict
+    if reliable is not False or eval_steps >= MIN_JUDGED_STEPS:
+        return verdict
+    short = f"{eval_steps} steps per scenario are too short to judge walking (the gate needs >= {MIN_JUDGED_STEPS})"
+    if from_scratch:
+        return False, f"trained from scratch in this run, and {short}; measured: {reason}"
+    return None, f"not judged: {short}; measured: {reason}"
+
+
 #: a best design may fall this much more often than the nominal one (or 2 paired standard
 #: errors, if more) before the run says its gain was bought with falls
 FALL_MARGIN = 0.01
@@ -112,4 +133,4 @@ def fall_verdict(summary: dict[str, Any], margin: float = FALL_MARGIN) -> dict[s
             "reliability": why if summary.get("reliable") is not False else f"{why}; {previous}"}
 
 
-__all__ = ["FALL_MARGIN", "WALKING_GATE", "WalkingGate", "assess", "fall_verdict", "walking"]
+__all__ = ["FALL_MARGIN", "MIN_JUDGED_STEPS", "WALKING_GATE", "WalkingGate", "assess", "fall_verdict", "judge_short", "walking"]

@@ -3,7 +3,7 @@
     python -m coadapt_core.coadapt.settings_doc > docs/settings.md
 
 tests/core/test_settings.py regenerates the page and compares it with the committed one, and
-compares its options with those of `coadapt run --help`."""
+compares its options with those of `coadapt run --help-all`."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ HEADER = """# Settings of `coadapt run`
 
 Generated from the one definition of every setting (`CoadaptConfig` in
 `coadapt_core/coadapt/config.py`) by `python -m coadapt_core.coadapt.settings_doc >
-docs/settings.md`; a test regenerates this page and compares it with `coadapt run --help`.
+docs/settings.md`; a test regenerates this page and compares it with `coadapt run --help-all`.
 Each setting is a YAML key of a `--config` file and of a run folder's `config.yaml` (a
 dotted key is a nested mapping: `task.commands.yaw_range` is `task: {commands: {yaw_range:
 [-1, 1]}}`) and a command-line option. Precedence: option > YAML key > preset > default.

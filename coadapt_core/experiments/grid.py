@@ -10,6 +10,7 @@ commands. The cell's run finds the store, grid and cell through environment vari
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
@@ -17,6 +18,7 @@ import os
 import shlex
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
@@ -355,6 +357,33 @@ def unfinished_run(store: ResultsStore, cell: Cell, out_dir: str | os.PathLike |
     return None
 
 
+def settle_abandoned(store: ResultsStore, spec: GridSpec, out_dir: str | os.PathLike | None) -> list[str]:
+    """Runs of this grid's cells that a killed grid left "running" without a state file to
+    resume from (killed before their first one, by an older coadapt that registered a run
+    before writing its state): marked failed, and their folders removed when they are inside
+    `out_dir` and hold nothing but what the start wrote (config.yaml, an empty tb/). The
+    cell then starts afresh. Returns the run ids settled."""
+    from coadapt_core.coadapt.loop import STATE_FILE
+
+    settled = []
+    for cell in spec.cells():
+        for run in store.list_runs(cell=cell.key, status="running"):
+            folder = run_folder_of(run)
+            if folder is None or (folder / STATE_FILE).is_file():
+                continue
+            store.finish_run(run["id"], {"run_id": run["id"], "error": "killed before its first state file; the "
+                                         "grid starts the cell again"}, "failed")
+            settled.append(run["id"])
+            if out_dir is None or folder.parent != Path(out_dir).resolve() or not folder.is_dir():
+                continue
+            leftovers = [p for p in folder.rglob("*") if p.is_file() and p.name != "config.yaml"]
+            if not leftovers:
+                import shutil
+
+                shutil.rmtree(folder, ignore_errors=True)
+    return settled
+
+
 def plan_grid(
     store: ResultsStore,
     spec: GridSpec,
@@ -391,24 +420,70 @@ def plan_grid(
 
 
 # -- executing one cell -----------------------------------------------------------------------
+#: cell processes running in this process, and whether the grid is stopping (Ctrl-C): then
+#: no further cell starts, and `stop_cells` passes the interrupt on to those running
+_LIVE: set[subprocess.Popen] = set()
+_LIVE_LOCK = threading.Lock()
+_STOPPING = threading.Event()
+#: exit code of a cell that was not started because the grid was stopping
+NOT_STARTED = -2
+
+
+def stop_cells(grace: float = 60.0) -> None:
+    """Ctrl-C for the running cells: each gets SIGINT (a cell run records itself interrupted,
+    keeps its last state and exits), and is killed if still running after `grace` seconds;
+    cells not yet started never start."""
+    import signal
+
+    _STOPPING.set()
+    with _LIVE_LOCK:
+        live = list(_LIVE)
+    for proc in live:
+        with contextlib.suppress(OSError):
+            proc.send_signal(signal.SIGINT)
+    deadline = time.monotonic() + grace
+    for proc in live:
+        try:
+            proc.wait(timeout=max(0.1, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            proc.kill()
+
+
 def execute_cell(task: CellTask) -> CellOutcome:
     """Run one cell's process to the end (module level, so Ray can ship it to a worker)."""
     prefix = task.command if task.command is not None else [sys.executable, "-c", ENTRY_CODE]
     env = {**os.environ, **task.env}
     start = time.perf_counter()
+    if _STOPPING.is_set():
+        return CellOutcome(task.cell.key, NOT_STARTED, 0.0, None, "not started: the grid was interrupted")
     try:
-        proc = subprocess.run(
-            [*prefix, *task.argv], capture_output=True, text=True, env=env, timeout=task.timeout
-        )
-        returncode, stdout, stderr = proc.returncode, proc.stdout, proc.stderr
-    except subprocess.TimeoutExpired as exc:
-        returncode = 124
-        stdout = exc.stdout.decode() if isinstance(exc.stdout, bytes) else (exc.stdout or "")
-        stderr = (exc.stderr.decode() if isinstance(exc.stderr, bytes) else (exc.stderr or "")) + (
-            f"\ncell timed out after {task.timeout:g} s"
-        )
+        proc = subprocess.Popen([*prefix, *task.argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     except OSError as exc:
+        proc = None
         returncode, stdout, stderr = 127, "", f"cannot start {prefix[0]}: {exc}"
+    if proc is not None:
+        with _LIVE_LOCK:
+            _LIVE.add(proc)
+        try:
+            stdout, stderr = proc.communicate(timeout=task.timeout)
+            returncode = proc.returncode
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            stdout, stderr = proc.communicate()
+            returncode = 124
+            stderr = (stderr or "") + f"\ncell timed out after {task.timeout:g} s"
+        except BaseException:  # interrupted here (a Ray task cancelled): the cell stops too
+            import signal
+
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout=60)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+            raise
+        finally:
+            with _LIVE_LOCK:
+                _LIVE.discard(proc)
     seconds = time.perf_counter() - start
     if task.log_path:
         path = Path(task.log_path)
@@ -435,11 +510,19 @@ def execute_cell(task: CellTask) -> CellOutcome:
 
 # -- executors -----------------------------------------------------------------------------
 def local_executor(tasks: Sequence[CellTask], workers: int) -> Iterator[tuple[CellTask, CellOutcome]]:
-    """A pool of `workers` cell processes on this machine (threads only wait on them)."""
-    with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
+    """A pool of `workers` cell processes on this machine (threads only wait on them). An
+    interrupt (Ctrl-C) is passed on to the running cells (`stop_cells`) before it propagates."""
+    _STOPPING.clear()
+    pool = ThreadPoolExecutor(max_workers=max(1, workers))
+    try:
         futures = {pool.submit(execute_cell, t): t for t in tasks}
         for future in as_completed(futures):
             yield futures[future], future.result()
+    except BaseException:
+        stop_cells()
+        raise
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def check_grid_options(
@@ -514,18 +597,28 @@ def ray_executor(
     try:
         remote = ray.remote(num_cpus=1, max_retries=0)(execute_cell)
         pending = {remote.remote(t): t for t in tasks}
-        while pending:
-            done, _ = ray.wait(list(pending), num_returns=1)
-            ref = done[0]
-            task = pending.pop(ref)
-            try:
-                outcome = ray.get(ref)
-            except Exception as exc:  # the worker died (node lost, OOM kill)
-                outcome = CellOutcome(task.cell.key, 1, 0.0, None, f"ray task failed: {exc}")
-            yield task, outcome
+        try:
+            yield from _ray_results(ray, pending)
+        except BaseException:  # Ctrl-C: each cell's task passes it on to its process
+            for ref in pending:
+                with contextlib.suppress(Exception):
+                    ray.cancel(ref, force=False)
+            raise
     finally:
         if started_here:
             ray.shutdown()
+
+
+def _ray_results(ray: Any, pending: dict[Any, CellTask]) -> Iterator[tuple[CellTask, CellOutcome]]:
+    while pending:
+        done, _ = ray.wait(list(pending), num_returns=1)
+        ref = done[0]
+        task = pending.pop(ref)
+        try:
+            outcome = ray.get(ref)
+        except Exception as exc:  # the worker died (node lost, OOM kill)
+            outcome = CellOutcome(task.cell.key, 1, 0.0, None, f"ray task failed: {exc}")
+        yield task, outcome
 
 
 Executor = Callable[[Sequence[CellTask], int], Iterator[tuple[CellTask, CellOutcome]]]
@@ -557,6 +650,7 @@ def run_grid(
     store.save_grid(grid_id, spec.to_dict())
     if log_dir is None and out_dir is not None:
         log_dir = Path(out_dir) / "grid-logs" / grid_id
+    settle_abandoned(store, spec, out_dir)
     tasks, skipped = plan_grid(store, spec, out_dir=out_dir, command=command, timeout=timeout, log_dir=log_dir)
     report = GridReport(grid_id)
     for cell in skipped:
@@ -585,6 +679,37 @@ def run_grid(
         stream = local_executor(tasks, workers)
     else:
         stream = ray_executor(tasks, workers, address)
+    try:
+        _collect(store, grid_id, stream, report, on_event)
+    except BaseException as exc:  # Ctrl-C: the running cells were told (`stop_cells`)
+        if hasattr(stream, "close"):
+            stream.close()
+        for task in tasks:
+            if task.cell.key in report.outcomes:
+                continue
+            started = store.list_runs(cell=task.cell.key)
+            run = started[-1] if started else None
+            if run is not None and run["status"] == "running" and run.get("grid_id") == grid_id:
+                store.set_status(run["id"], "interrupted")  # killed before it could say so
+            store.set_cell(grid_id, task.cell.key, status="interrupted", run_id=run["id"] if run else None,
+                           error="the grid was interrupted")
+        if isinstance(exc, KeyboardInterrupt):
+            raise GridInterrupted(report) from None
+        raise
+    return report
+
+
+class GridInterrupted(KeyboardInterrupt):
+    """Ctrl-C stopped the grid: `report` says what had finished; running the same grid
+    again skips those and resumes the rest."""
+
+    def __init__(self, report: GridReport):
+        super().__init__(report.grid_id)
+        self.report = report
+
+
+def _collect(store: ResultsStore, grid_id: str, stream: Iterator[tuple[CellTask, CellOutcome]], report: GridReport,
+             on_event: Callable[[str, Cell, CellOutcome | None], None] | None) -> None:
     for task, outcome in stream:
         key = task.cell.key
         report.outcomes[key] = outcome
@@ -604,4 +729,3 @@ def run_grid(
             report.failed.append(key)
         if on_event:
             on_event("finished" if outcome.returncode == 0 else "failed", task.cell, outcome)
-    return report

@@ -55,6 +55,7 @@ def run_landscape(
     steps: int = 500,
     seed: int = 0,
     on_row: Any = None,
+    on_start: Any = None,
     rule: CostRule | None = None,
 ) -> dict[str, Any]:
     """Evaluate every grid design for real, one grid row (fixed first variable) per batch, each
@@ -67,7 +68,9 @@ def run_landscape(
 
     Costs follow `rule` (default: the capped rule, its reference level the nominal design's
     median scenario cost, from one evaluation of the nominal design on the same scenarios);
-    the summary has the plain mean (eq. 4) and the fall rates beside them."""
+    the summary has the plain mean (eq. 4) and the fall rates beside them. `on_start(run_id)`
+    is told the run's id once it is registered; an interrupt (Ctrl-C) marks the run
+    "interrupted" (its finished rows stay) and propagates."""
     rule = rule or CostRule()
     designs = landscape_designs(grid, low, high, nominal)
     names = [o.name for o in objectives]
@@ -75,6 +78,22 @@ def run_landscape(
            "steps": steps, "seed": seed, "low": list(low), "high": list(high), "cost_rule": rule.rule,
            "cost_cap": rule.cap}
     run_id = recorder.start_run(cfg)
+    if on_start is not None:
+        on_start(run_id)
+    try:
+        summary = _evaluate_grid(backend, objectives, recorder, run_id, designs, names, grid, agents, steps, seed,
+                                 nominal, on_row, rule)
+    except BaseException as exc:
+        recorder.finish(run_id, {"run_id": run_id, "error": f"{type(exc).__name__}: {exc}"}, "interrupted")
+        raise
+    recorder.finish(run_id, summary)
+    return summary
+
+
+def _evaluate_grid(backend: CoadaptationBackend, objectives: Sequence[Objective], recorder: SqliteRecorder, run_id: str,
+                   designs: np.ndarray, names: list[str], grid: int, agents: int, steps: int, seed: int,
+                   nominal: Sequence[float], on_row: Any, rule: CostRule) -> dict[str, Any]:
+    """The rows not yet stored, evaluated and recorded one by one; the run's summary."""
     store = recorder.store
     done_rows = {e.inner for e in store.evaluations(run_id, kind="real")}
     start = time.perf_counter()
@@ -141,7 +160,6 @@ def run_landscape(
         "steps": steps,
         **_uncertainty(rule, objectives, best.design, nominal_row.design, per_scenario, scenario_falls, fall_rate),
     }
-    recorder.finish(run_id, summary)
     return summary
 
 

@@ -35,12 +35,19 @@ def run_checkpoint(run_dir: Path, config: dict[str, Any]) -> Path | None:
 
 def render_run_video(
     run_dir: str | os.PathLike, summary: dict[str, Any], config: dict[str, Any], *, seconds: float = 4.0,
-    width: int = 320, height: int = 320, stream: Any = None,
+    width: int = 320, height: int = 320, stream: Any = None, progress: Any = None,
 ) -> list[Path]:
     """Roll out the best and the nominal design (one agent each, no randomization, command
     0.5 m/s forward) and write `<run_dir>/best_vs_nominal.gif` (and `.mp4` when ffmpeg
-    exists). Returns the files written; prints one line saying what happened."""
+    exists), each through a temporary file and a rename: an interrupt leaves the old file or
+    none, never a partial one. Returns the files written; prints one line saying what
+    happened. `progress(fraction, text)` is told each rollout and every drawn frame."""
     stream = stream or sys.stderr
+
+    def tell(fraction: float, text: str) -> None:
+        if progress is not None:
+            progress(fraction, text)
+
     run_dir = Path(run_dir)
     want_mp4 = shutil.which("ffmpeg") is not None  # checked before any rollout
     try:
@@ -57,7 +64,8 @@ def render_run_video(
         from coadapt_core.experiments.evaluate import evaluate_checkpoint
 
         panels = []
-        for label, design in (("best", summary["best_design"]), ("nominal", summary["nominal_design"])):
+        for k, (label, design) in enumerate((("best", summary["best_design"]), ("nominal", summary["nominal_design"]))):
+            tell(0.2 * k, f"rolling out the {label} design ({seconds:g} s)")
             result = evaluate_checkpoint(
                 checkpoint, robot, sim_cls, design, terrain=config.get("terrain", "flat"), command=[0.5, 0.0, 0.0],
                 agents=1, seconds=seconds, seed=int(config.get("seed") or 0), randomize=False, record=True,
@@ -70,8 +78,18 @@ def render_run_video(
         print(f"video: not rendered ({type(exc).__name__}: {' '.join(str(exc).split())[:160]})", file=stream)
         return []
     outputs = [run_dir / f"{VIDEO_NAME}.gif"] + ([run_dir / f"{VIDEO_NAME}.mp4"] if want_mp4 else [])
-    payload = {"panels": panels, "outputs": [str(p) for p in outputs], "width": width, "height": height, "fps": fps}
-    backend, errors = offscreen("render_panels", payload, timeout=900)
+    payload = {"panels": panels, "outputs": [str(p) for p in outputs], "width": width, "height": height, "fps": fps,
+               "report": True}
+    tell(0.4, "drawing frames")
+    frames = sum(len(p["frames"]) for p in panels)
+
+    def on_line(line: str) -> None:  # "frame <k>" from render_panels, one per drawn frame
+        if line.startswith("frame ") and line[6:].strip().isdigit():
+            k = int(line[6:])
+            tell(0.4 + 0.55 * k / max(frames, 1), f"drawing frame {k}/{frames}")
+
+    backend, errors = offscreen("render_panels", payload, timeout=900, on_line=on_line)
+    tell(1.0, "written" if backend is not None else "not rendered")
     if backend is not None:
         written = [p for p in outputs if p.is_file()]
         print(f"video: {', '.join(str(p) for p in written)} (best left, nominal right; MUJOCO_GL={backend})", file=stream)
@@ -84,21 +102,54 @@ def render_run_video(
 GL_BACKENDS = ("egl", "osmesa")
 
 
-def offscreen(function: str, kwargs: dict[str, Any], *, timeout: float) -> tuple[str | None, list[str]]:
+def offscreen(function: str, kwargs: dict[str, Any], *, timeout: float,
+              on_line: Any = None) -> tuple[str | None, list[str]]:
     """Call `coadapt_core.viz.video.<function>(**kwargs)` in a fresh interpreter under each GL
     backend in turn (MUJOCO_GL when set). Returns (the backend that worked, or None, and
-    the last error line of each backend tried)."""
+    the last error line of each backend tried). `on_line(text)` gets each line the function
+    prints, as it prints it (progress). An interrupt stops the interpreter and removes the
+    temporary files of the `outputs` it was writing."""
+    import tempfile
+    import threading
+
     code = f"import json, sys\nfrom coadapt_core.viz.video import {function}\n{function}(**json.loads(sys.stdin.read()))\n"
     backends = [os.environ["MUJOCO_GL"]] if os.environ.get("MUJOCO_GL") else list(GL_BACKENDS)
     errors = []
     for backend in backends:
         env = dict(os.environ, MUJOCO_GL=backend, PYOPENGL_PLATFORM=backend)
-        proc = subprocess.run([sys.executable, "-c", code], input=json.dumps(kwargs), capture_output=True, text=True,
-                              env=env, timeout=timeout)
-        if proc.returncode == 0:
+        with tempfile.TemporaryFile("w+") as err:
+            proc = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                    stderr=err, text=True, env=env)
+            timer = threading.Timer(timeout, proc.kill)
+            timer.start()
+            try:
+                assert proc.stdin is not None and proc.stdout is not None
+                proc.stdin.write(json.dumps(kwargs))
+                proc.stdin.close()
+                for line in proc.stdout:
+                    if on_line is not None:
+                        on_line(line.strip())
+                returncode = proc.wait()
+            except BaseException:
+                proc.kill()
+                proc.wait()
+                for output in kwargs.get("outputs") or []:
+                    Path(partial_name(output)).unlink(missing_ok=True)
+                raise
+            finally:
+                timer.cancel()
+            err.seek(0)
+            stderr = err.read()
+        if returncode == 0:
             return backend, errors
-        errors.append(f"{backend}: {(proc.stderr.strip().splitlines() or ['no output'])[-1][:160]}")
+        errors.append(f"{backend}: {(stderr.strip().splitlines() or ['no output'])[-1][:160]}")
     return None, errors
+
+
+def partial_name(output: str | os.PathLike) -> str:
+    """Where `output` is written before its rename (same folder, same extension)."""
+    path = Path(output)
+    return str(path.with_name(f".{path.stem}.partial{path.suffix}"))
 
 
 def rollout_panel(robot: Any, design: Any, trajectory: dict, label: str | None = None) -> dict[str, Any]:
@@ -193,7 +244,8 @@ def render_pose_png(mjcf: str, qpos_joints: list[float], base_height: float, out
     matplotlib.image.imsave(output, pixels)
 
 
-def render_panels(panels: list[dict], outputs: list[str], width: int, height: int, fps: float) -> None:
+def render_panels(panels: list[dict], outputs: list[str], width: int, height: int, fps: float,
+                  report: bool = False) -> None:
     """Replay each panel's base poses and joint angles in its own MuJoCo model, offscreen,
     and write the panels side by side, one frame per recorded step (the shorter rollout
     holds its last frame). Runs in a fresh interpreter: MUJOCO_GL is read at import."""
@@ -225,22 +277,28 @@ def render_panels(panels: list[dict], outputs: list[str], width: int, height: in
                     ImageDraw.Draw(image).text((6, 6), panel["label"], fill=(255, 255, 255), stroke_width=1,
                                                stroke_fill=(0, 0, 0))
                 images.append(np.array(image))
+                if report:
+                    print(f"frame {sum(map(len, rendered)) + len(images)}", flush=True)
         rendered.append(images)
     n = max(len(images) for images in rendered)
     frames = [np.concatenate([images[min(i, len(images) - 1)] for images in rendered], axis=1) for i in range(n)]
     for output in outputs:
+        partial = partial_name(output)  # renamed once whole: an interrupt never leaves half a file
         if output.endswith(".gif"):
             pil = [Image.fromarray(f) for f in frames]
-            pil[0].save(output, save_all=True, append_images=pil[1:], duration=int(1000 / fps), loop=0)
+            pil[0].save(partial, format="GIF", save_all=True, append_images=pil[1:], duration=int(1000 / fps), loop=0)
+            os.replace(partial, output)
         else:
             proc = subprocess.run(
                 ["ffmpeg", "-y", "-loglevel", "error", "-f", "rawvideo", "-pix_fmt", "rgb24",
                  "-s", f"{frames[0].shape[1]}x{frames[0].shape[0]}", "-r", str(fps), "-i", "-", "-pix_fmt", "yuv420p",
-                 output],
+                 "-f", "mp4", partial],
                 input=np.stack(frames).tobytes(), capture_output=True,
             )
             if proc.returncode != 0:
+                Path(partial).unlink(missing_ok=True)
                 raise RuntimeError(proc.stderr.decode().strip().splitlines()[-1])
+            os.replace(partial, output)
 
 
 __all__ = [

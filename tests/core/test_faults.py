@@ -255,3 +255,119 @@ def test_eval_counts_divergences_the_simulator_flags(monkeypatch):
     result = evaluate_checkpoint(shipped, robot, sim_cls, robot.nominal_design(), terrain="flat", command=[0.5, 0, 0],
                                  agents=2, seconds=0.2)
     assert result["divergences"] == 3
+
+
+def read_only(monkeypatch, folder: Path) -> None:
+    """Writes under `folder` fail as on a read-only file system (EROFS), whoever runs the test
+    (root ignores a chmod): Python's own file functions are wrapped."""
+    import builtins
+
+    folder = str(folder.resolve())
+
+    def under(path) -> bool:
+        try:
+            return os.path.abspath(os.fsdecode(path)).startswith(folder)
+        except TypeError:  # a file descriptor
+            return False
+
+    def refuse(path):
+        raise OSError(errno.EROFS, "Read-only file system", os.fsencode(path))  # as some libraries pass it: bytes
+
+    real_open, real_os_open = builtins.open, os.open
+    real_replace, real_makedirs, real_mkdir, real_unlink = os.replace, os.makedirs, os.mkdir, os.unlink
+
+    def open_(file, mode="r", *a, **k):
+        if any(c in mode for c in "wax+") and under(file):
+            refuse(file)
+        return real_open(file, mode, *a, **k)
+
+    def os_open(path, flags, *a, **k):
+        if flags & (os.O_WRONLY | os.O_RDWR | os.O_CREAT) and under(path):
+            refuse(path)
+        return real_os_open(path, flags, *a, **k)
+
+    def guard(real):
+        def wrapped(path, *a, **k):
+            if under(path) and not (real is real_makedirs and os.path.isdir(path)):
+                refuse(path)
+            return real(path, *a, **k)
+        return wrapped
+
+    monkeypatch.setattr(builtins, "open", open_)
+    monkeypatch.setattr(os, "open", os_open)
+    monkeypatch.setattr(os, "replace", lambda src, dst, *a, **k: refuse(dst) if under(dst) else real_replace(src, dst, *a, **k))
+    for name, real in (("makedirs", real_makedirs), ("mkdir", real_mkdir), ("unlink", real_unlink)):
+        monkeypatch.setattr(os, name, guard(real))
+
+
+def test_resuming_a_run_in_a_read_only_folder_is_one_line_naming_it(interrupted, capsys, monkeypatch):
+    """The run folder can be read, not written: one line naming the folder as text (not
+    b'...'), exit 2, and no traceback from TensorBoard's writer thread."""
+    import shutil
+    import threading
+
+    shutil.rmtree(interrupted / "tb", ignore_errors=True)  # TensorBoard would make its folder first
+    capsys.readouterr()
+    threads = set(threading.enumerate())
+    read_only(monkeypatch, interrupted)
+    code = main(["run", "--resume", str(interrupted)])
+    monkeypatch.undo()
+    for thread in set(threading.enumerate()) - threads:
+        thread.join(timeout=5)
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert code == 2 and "Traceback" not in err, err
+    assert len(lines) == 1 and f"'{interrupted}'" in lines[0] and "b'/" not in lines[0], err
+    assert "writ" in lines[0]  # says it cannot write there
+
+
+def test_a_path_given_as_bytes_is_shown_as_text():
+    from coadapt_core.cli.common import os_error_line
+
+    line = os_error_line(OSError(errno.EROFS, "Read-only file system", b"/data/runs/r/events"))
+    assert line.startswith("cannot write '/data/runs/r/events' (Read-only file system)") and "b'/" not in line
+
+
+def test_a_grid_settles_runs_killed_before_their_first_state_file(tmp_path):
+    """An older coadapt registered a run before writing its state; a grid killed in between
+    left it "running" over a folder holding only config.yaml. The next grid marks it failed,
+    removes that folder (and only such a folder, only inside --out) and starts the cell again."""
+    from coadapt_core.experiments.grid import GridSpec, plan_grid, settle_abandoned
+
+    store = ResultsStore(tmp_path / "g.db")
+    spec = GridSpec(methods=["ours"], objectives=["torque"], terrains=["flat"], seeds=[0, 1, 2], preset="smoke")
+    cells = spec.cells()
+    runs = tmp_path / "runs"
+    ids = ["20260101-000000-ours-pso-torque-s0-aaaaaa", "20260101-000000-ours-pso-torque-s1-bbbbbb",
+           "20260101-000000-ours-pso-torque-s2-cccccc"]
+    for cell, run_id in zip(cells, ids, strict=True):
+        (runs / run_id / "tb").mkdir(parents=True)
+        (runs / run_id / "config.yaml").write_text("seed: 0\n")
+        store.create_run({"method": "ours", "objective": "torque", "seed": cell.seed, "grid_cell": cell.key},
+                         run_id=run_id, run_dir=str(runs / run_id))
+    (runs / ids[1] / "state.json").write_text("{}")  # this one can be resumed: left alone
+    (runs / ids[2] / "notes.txt").write_text("mine")  # a file coadapt did not write: folder kept
+    settled = settle_abandoned(store, spec, runs)
+    assert sorted(settled) == sorted([ids[0], ids[2]])
+    status = {r["id"]: r["status"] for r in store.list_runs()}
+    assert status == {ids[0]: "failed", ids[1]: "running", ids[2]: "failed"}
+    assert not (runs / ids[0]).exists() and (runs / ids[1]).is_dir() and (runs / ids[2] / "notes.txt").is_file()
+    tasks, _ = plan_grid(store, spec, out_dir=str(runs))
+    assert {t.cell.seed: t.resume for t in tasks} == {0: None, 1: ids[1], 2: None}
+
+
+def test_a_run_is_registered_in_the_store_only_once_its_state_exists(tmp_path):
+    seen = []
+
+    class Spy:
+        def __getattr__(self, name):
+            return lambda *a, **k: None
+
+        def start_run(self, config):
+            seen.append((Path(config["run_dir"]) / "state.json").is_file())
+            return config["run_id"]
+
+    config = make_config("smoke", overrides={**BASE, "store": "none"})
+    run_coadaptation(config, backend_factory=lambda s: AnalyticBackend(s), design_space=SPACE, nominal_design=NOMINAL,
+                     objectives=[TorqueObjective()], run_dir=tmp_path / "r", recorder=Spy())
+    assert seen == [True]

@@ -228,7 +228,7 @@ def test_interrupted_landscape_resumes_without_reevaluating_rows(tmp_path):
     with pytest.raises(RuntimeError):
         run_landscape(crashing, [torque], rec, config={"terrain": "flat"}, grid=5, agents=1, steps=1)
     (run,) = rec.store.list_runs(method="landscape")
-    assert rec.store.count_evaluations(run["id"]) == 15 and run["status"] == "running"
+    assert rec.store.count_evaluations(run["id"]) == 15 and run["status"] == "interrupted"
     again = AnalyticBackend()
     summary = run_landscape(again, [torque], SqliteRecorder(tmp_path / "l.db"), config={"terrain": "flat", "run_id": run["id"]},
                             grid=5, agents=1, steps=1)
