@@ -1,11 +1,17 @@
-"""Re-evaluate the best designs of several runs and the nominal design together, with one
-policy (default: the shipped flat policy), on one common set of paired scenarios, so their
-costs and improvements can be compared directly (each with its standard error).
+"""Re-evaluate designs (the best designs of several runs, or designs given by hand) and the
+nominal design together, with one policy (default: the robot's shipped policy for the terrain),
+on one common set of paired scenarios, so their costs and improvements can be compared
+directly, each with its standard error, under the cost rule and under the paper's plain mean.
 
-    python benchmarks/common_scenarios.py runs/RUN_A runs/RUN_B runs/RUN_C --blocks 2
+    python benchmarks/common_scenarios.py RUN_A RUN_B --blocks 8 --json
+    python benchmarks/common_scenarios.py --design 0.5,0.66 --design 1.08,1.43 --objectives torque
 
-The scenarios are blocks of 32 x 250 (the quick preset's size) drawn from
-`scenario_seed(1000, b)`, a set no run with a small seed uses. One JSON line per design.
+Runs are run folders or run ids (folders under --runs-dir) holding a summary.json. The
+scenarios are blocks of 32 x 250 (the quick preset's size) drawn from `scenario_seed(1000, b)`,
+a set no run with a small seed uses. One JSON line per design (`--json`), the nominal design
+last: per objective `cost`, `cost_se`, `plain_mean`, `plain_mean_se` and, against nominal
+(paired), `improvement`, `improvement_se`, `improvement_plain`, `improvement_plain_se`; and
+`fall_rate`, `fall_rate_se`, `fall_rate_difference`, `fall_rate_difference_se`.
 """
 
 from __future__ import annotations
@@ -20,39 +26,120 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def _fail(message: str) -> int:
+    print(f"error: {message}", file=sys.stderr)
+    return 2
+
+
 def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(ROOT))
-    from coadapt_core.fitness import improvement_se, robust_cost, scenario_se, scenario_seed
-    from coadapt_core.learning import shipped_checkpoint
-    from coadapt_core.learning.factory import make_backend, resolve_plugins
+    from coadapt_core.fitness import COST_RULES, CostRule, compare_designs, scenario_seed
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("runs", nargs="+", help="run folders (each with a summary.json)")
-    p.add_argument("--blocks", type=int, default=2, help="blocks of 32 paired scenarios")
-    p.add_argument("--checkpoint", default=None, help="policy (default: the shipped flat policy)")
+    p.add_argument("runs", nargs="*", help="run folders or run ids (each with a summary.json)")
+    p.add_argument("--design", action="append", default=[], help="a design as comma-separated values (repeatable)")
+    p.add_argument("--runs-dir", default="runs", help="where run ids are looked up (default: runs)")
+    p.add_argument("--blocks", type=int, default=2, help="blocks of 32 paired scenarios (default 2)")
+    p.add_argument("--agents", type=int, default=32, help="scenarios per block (default 32)")
+    p.add_argument("--steps", type=int, default=250, help="policy steps per scenario (default 250)")
+    p.add_argument("--robot", default=None, help="robot (default: the runs' robot, else the default robot)")
+    p.add_argument("--sim", default=None, help="simulator (default: the default simulator)")
+    p.add_argument("--terrain", default=None, help="terrain (default: the runs' terrain, else flat)")
+    p.add_argument("--objectives", default=None, help="comma list (default: every objective the robot's policy learned)")
+    p.add_argument("--checkpoint", default=None, help="policy (default: the robot's shipped policy for the terrain)")
+    p.add_argument("--cost-rule", choices=COST_RULES, default="capped", help="how scenarios make a cost (default: capped)")
+    p.add_argument("--cost-cap", type=float, default=3.0, help="the capped rule's cap (nominal median scenarios)")
+    p.add_argument("--json", action="store_true", help="one JSON line per design")
     args = p.parse_args(argv)
-    summaries = []
-    for folder in args.runs:
-        path = Path(folder) / "summary.json"
+    if args.blocks < 1 or args.agents < 2 or args.steps < 1:
+        return _fail("--blocks must be >= 1, --agents >= 2, --steps >= 1")
+    if not args.cost_cap > 1:
+        return _fail(f"--cost-cap must be > 1, got {args.cost_cap}")
+    summaries: list[dict] = []
+    for name in args.runs:
+        folder = Path(name) if Path(name).is_dir() else Path(args.runs_dir) / name
+        path = folder / "summary.json"
         if not path.is_file():
-            print(f"error: {folder} has no summary.json", file=sys.stderr)
-            return 2
-        summaries.append(json.loads(path.read_text()))
-    checkpoint = args.checkpoint or str(shipped_checkpoint("kuafu", "flat"))
-    robot, sim_cls, objectives = resolve_plugins("kuafu", "mujoco", ["tracking", "power", "torque"])
-    backend = make_backend(robot, sim_cls, objectives, terrain="flat", checkpoint=checkpoint)
-    designs = np.array([s["best_design"] for s in summaries] + [[1.0, 1.0]])
-    per = np.concatenate([backend.real_fitness(designs, objectives, agents=32, steps=250, seed=scenario_seed(1000, b)).per_scenario
-                          for b in range(max(1, args.blocks))], axis=1)
-    cost, se = robust_cost(per), scenario_se(per)
-    for i, s in enumerate([*summaries, {"seed": "nominal", "best_design": [1.0, 1.0]}]):
-        row = {"run_seed": s.get("seed"), "design": [round(float(x), 3) for x in s["best_design"]], "scenarios": int(per.shape[1])}
-        for j, o in enumerate(objectives):
-            row[o.name], row[f"{o.name}_se"] = float(cost[i, j]), float(se[i, j])
-            if i < len(summaries):
-                row[f"{o.name}_improvement"] = float(o.improvement(cost[i, j], cost[-1, j]))
-                row[f"{o.name}_improvement_se"] = improvement_se(o, per[i, :, j], per[-1, :, j])
-        print(json.dumps(row))
+            return _fail(f"run '{name}' has no summary.json (looked in {folder})")
+        summary = json.loads(path.read_text())
+        if "best_design" not in summary:
+            return _fail(f"run '{name}' did not finish (its summary has no best_design)")
+        summaries.append({**summary, "label": summary.get("run_id", name), "folder": folder})
+    for text in args.design:
+        try:
+            design = [float(x) for x in text.split(",")]
+        except ValueError:
+            return _fail(f"--design '{text}' is not comma-separated numbers")
+        summaries.append({"best_design": design, "label": f"design {text}"})
+    if not summaries:
+        return _fail("give run folders / ids or at least one --design t,s")
+
+    from coadapt_core.errors import CoadaptError
+    from coadapt_core.learning import shipped_checkpoint
+    from coadapt_core.learning.factory import make_backend, resolve_plugins
+    from coadapt_core.plugins import default_plugin, get_registry
+
+    config: dict = {}
+    folders = [s["folder"] for s in summaries if "folder" in s and (s["folder"] / "config.yaml").is_file()]
+    if folders:
+        import yaml
+
+        config = yaml.safe_load((folders[0] / "config.yaml").read_text()) or {}
+    robot_name = args.robot or config.get("robot") or default_plugin("robot")
+    terrain = args.terrain or summaries[0].get("terrain") or config.get("terrain") or "flat"
+    try:
+        robot = get_registry().create("robot", robot_name)
+        dims = {len(s["best_design"]) for s in summaries}
+        if len(dims) != 1:
+            return _fail(f"designs of different lengths {sorted(dims)}: compare one design space at a time")
+        dim = dims.pop()
+        mixed = dim != robot.design_space(False).dim
+        space = robot.design_space(mixed)
+        if space.dim != dim:
+            return _fail(f"designs have {dim} values; robot '{robot_name}' has {robot.design_space(False).dim} "
+                         f"(continuous) or {robot.design_space(True).dim} (mixed)")
+        nominal = np.asarray(robot.nominal_design(mixed), dtype=float)
+        checkpoint = args.checkpoint or shipped_checkpoint(robot, terrain, mixed)
+        if checkpoint is None:
+            return _fail(f"robot '{robot_name}' ships no policy for terrain '{terrain}'; pass --checkpoint")
+        names = ([o.strip() for o in args.objectives.split(",") if o.strip()] if args.objectives
+                 else list(dict.fromkeys(summaries[0].get("best_costs", {}) or ["tracking", "power", "torque"])))
+        robot, sim_cls, objectives = resolve_plugins(robot, args.sim or default_plugin("simulator"), names)
+        backend = make_backend(robot, sim_cls, objectives, terrain=terrain, design_space=space, mixed=mixed,
+                               checkpoint=str(checkpoint), agents_per_design=args.agents)
+        designs = np.array([s["best_design"] for s in summaries] + [nominal.tolist()], dtype=float)
+        fits = [backend.real_fitness(designs, objectives, agents=args.agents, steps=args.steps, seed=scenario_seed(1000, b))
+                for b in range(args.blocks)]
+    except CoadaptError as exc:
+        return _fail(" ".join(str(exc).split()))
+    per = np.concatenate([f.per_scenario for f in fits], axis=1)  # [D, A, M]
+    falls = np.concatenate([f.scenario_falls for f in fits], axis=1)  # [D, A]
+    rule = CostRule(args.cost_rule, args.cost_cap)
+    nominal_row = len(designs) - 1
+    for i, s in enumerate([*summaries, {"label": "nominal", "best_design": nominal.tolist()}]):
+        comp = compare_designs(rule, objectives, per, falls, i, nominal_row)
+        row = {"label": s["label"], "run_seed": s.get("seed"), "design": [round(float(x), 3) for x in designs[i]],
+               "scenarios": int(per.shape[1]), "cost_rule": rule.rule, "terrain": terrain,
+               "policy": Path(str(checkpoint)).name}
+        for name, v in comp["objectives"].items():
+            entry = {k: v[k] for k in ("cost", "cost_se", "plain_mean", "plain_mean_se")}
+            if i != nominal_row:
+                entry.update({k: v[k] for k in ("improvement", "improvement_se", "improvement_plain", "improvement_plain_se")})
+            row[name] = entry
+        row["fall_rate"], row["fall_rate_se"] = comp["fall_rate"], comp["fall_rate_se"]
+        if i != nominal_row:
+            row["fall_rate_difference"] = comp["fall_rate_difference"]
+            row["fall_rate_difference_se"] = comp["fall_rate_difference_se"]
+        if args.json:
+            print(json.dumps(row))
+        else:
+            parts = [f"{n} {e['cost']:.4g} +- {e['cost_se']:.2g} (plain {e['plain_mean']:.4g} +- {e['plain_mean_se']:.2g})"
+                     + (f" improvement {100 * e['improvement']:+.1f} +- {100 * e['improvement_se']:.1f} % "
+                        f"(plain {100 * e['improvement_plain']:+.1f} +- {100 * e['improvement_plain_se']:.1f} %)"
+                        if "improvement" in e else "")
+                     for n, e in ((n, row[n]) for n in comp["objectives"])]
+            print(f"{row['label']} {row['design']}: " + "; ".join(parts)
+                  + f"; fall rate {100 * row['fall_rate']:.1f} +- {100 * row['fall_rate_se']:.1f} %")
     backend.close()
     return 0
 

@@ -286,6 +286,14 @@ def table6_rows(facts: Sequence[RunFacts]) -> list[dict[str, Any]]:
                   [_float(f.summary.get("nominal_cost_se")) for f in group])
         _add_stat(row, "improvement", [f.improvement for f in group],
                   [_float(f.summary.get("improvement_se")) for f in group])
+        # the paper's plain mean (eq. 4) and the fall rates beside the run's cost rule
+        _add_stat(row, "improvement_plain", [_float(f.summary.get("improvement_plain")) for f in group],
+                  [_float(f.summary.get("improvement_plain_se")) for f in group])
+        _add_stat(row, "best_fall_rate", [_float(f.summary.get("best_fall_rate")) for f in group],
+                  [_float(f.summary.get("best_fall_rate_se")) for f in group])
+        _add_stat(row, "nominal_fall_rate", [_float(f.summary.get("nominal_fall_rate")) for f in group],
+                  [_float(f.summary.get("nominal_fall_rate_se")) for f in group])
+        row["cost_rule"] = " ".join(sorted({str(f.summary.get("cost_rule") or "trimmed") for f in group}))
         _add_stat(row, "sim2sim_improvement", [f.sim2sim for f in group])
         row["sim2sim_note"] = "; ".join(sorted({f.sim2sim_note for f in group if f.sim2sim_note}))
         row["design_variables"] = " ".join(names)
@@ -400,7 +408,8 @@ def table6_markdown(rows: Sequence[dict[str, Any]]) -> str:
     design = _design_columns(rows)
     head = (["Robot", "Simulator", "Preset", "Objective", "Method", "Optimizer", "Terrain", "Runs"]
             + [_design_header(n, u) for n, u, _ in design]
-            + ["Best cost", "Nominal cost", "Improvement", "Sim-to-sim improvement", "Sim-to-sim note", "Starting policy"])
+            + ["Best cost", "Nominal cost", "Improvement", "Improvement (plain mean)", "Fall rate best / nominal",
+               "Sim-to-sim improvement", "Sim-to-sim note", "Starting policy"])
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         cells = [r["robot"], r["simulator"], r["preset"],
@@ -408,13 +417,16 @@ def table6_markdown(rows: Sequence[dict[str, Any]]) -> str:
                  r["optimizer"], r["terrain"], str(r["runs"])]
         cells += [_design_cell(r, n, d) if f"{n}_n" in r else "" for n, _, d in design]
         cells += [_cell(r, "best_cost", spec=".5g"), _cell(r, "nominal_cost", spec=".5g"),
-                  _cell(r, "improvement", pct=True) + _unreliable_mark(r),
+                  _cell(r, "improvement", pct=True) + _unreliable_mark(r), _cell(r, "improvement_plain", pct=True),
+                  _cell(r, "best_fall_rate", pct=True) + " / " + _cell(r, "nominal_fall_rate", pct=True),
                   _cell(r, "sim2sim_improvement", pct=True), r["sim2sim_note"] or "", r.get("policy") or "?"]
         lines.append("| " + " | ".join(cells) + " |")
     lines += ["", POOLING_NOTE + " Each number: mean ± sample standard deviation over the runs (seeds) of the row, "
               "and how many runs had it (n); one run shows its own standard error (SE) when it recorded one. "
-              "Improvement: lower cost than the nominal design, in percent of the nominal cost. Starting policy: "
-              "the policy file each run started from and the start of its SHA-256."]
+              "Improvement: lower cost than the nominal design, in percent of the nominal cost, under the run's cost "
+              "rule (column `cost_rule` of table6.csv; docs/coadaptation.md) and under the paper's plain mean over "
+              "the same scenarios; fall rate: share of the final check's scenarios in which the robot fell. Starting "
+              "policy: the policy file each run started from and the start of its SHA-256."]
     return "\n".join(lines) + "\n"
 
 
@@ -847,6 +859,8 @@ def write_report(
                "objective": r["objective"], "method": METHOD_LABELS.get(r["method"], r["method"]), "optimizer": r["optimizer"],
                "terrain": r["terrain"], "runs": r["runs"], "best_cost": _cell(r, "best_cost", spec=".5g"),
                "nominal_cost": _cell(r, "nominal_cost", spec=".5g"), "improvement": _cell(r, "improvement", pct=True) + _unreliable_mark(r),
+               "improvement_plain": _cell(r, "improvement_plain", pct=True),
+               "falls": _cell(r, "best_fall_rate", pct=True) + " / " + _cell(r, "nominal_fall_rate", pct=True),
                "sim2sim": _cell(r, "sim2sim_improvement", pct=True), "sim2sim_note": r["sim2sim_note"]}
         row.update({f"d:{n}": _design_cell(r, n, d) if f"{n}_n" in r else "" for n, _, d in design})
         t6_html.append(row)
@@ -874,6 +888,7 @@ def write_report(
                               ("terrain", "terrain"), ("runs", "runs")]
                     + [(f"d:{n}", _design_header(n, u)) for n, u, _ in design]
                     + [("best_cost", "best cost"), ("nominal_cost", "nominal cost"), ("improvement", "improvement"),
+                       ("improvement_plain", "improvement (plain mean)"), ("falls", "fall rate best / nominal"),
                        ("sim2sim", "sim-to-sim improvement"), ("sim2sim_note", "sim-to-sim note"),
                        ("policy", "starting policy")]) + "</div>",
         "<h2>Table 7 — computational cost</h2>",

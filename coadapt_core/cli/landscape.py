@@ -20,14 +20,20 @@ def landscape_line(summary: dict, agents: int, steps: int) -> str:
 
     def rate(key: str) -> str:
         value = summary.get(key)
-        return "-" if value is None else f"{value:.2f}"
+        return "-" if value is None else f"{value:.3f}{se(key + '_se')}"
 
-    return (
-        f"landscape {summary['run_id']} ({agents} paired scenarios x {steps} steps per design): grid optimum "
+    line = (
+        f"landscape {summary['run_id']} ({agents} paired scenarios x {steps} steps per design, "
+        f"{summary.get('cost_rule', 'capped')} cost): grid optimum "
         f"{summary['best_design'][:2]} cost {summary['best_cost']:.4g}{se('best_cost_se')} (fall rate {rate('best_fall_rate')}); "
         f"nominal cost {summary['nominal_cost']:.4g}{se('nominal_cost_se')} (fall rate {rate('nominal_fall_rate')}); "
         f"improvement {100 * summary['improvement']:+.1f}{se('improvement_se', 100.0)} %"
     )
+    if summary.get("improvement_plain") is not None:
+        line += (f"; plain mean (eq. 4) {summary['best_plain_mean']:.4g}{se('best_plain_mean_se')} vs "
+                 f"{summary['nominal_plain_mean']:.4g}{se('nominal_plain_mean_se')}, improvement "
+                 f"{100 * summary['improvement_plain']:+.1f}{se('improvement_plain_se', 100.0)} %")
+    return line
 
 
 def register(app: typer.Typer) -> None:
@@ -42,6 +48,8 @@ def register(app: typer.Typer) -> None:
         agents: int = typer.Option(None, help="Paired scenarios (agents) per design (default: the quick preset's evaluation size)."),
         steps: int = typer.Option(None, help="Policy steps per agent, T_eval (default: the quick preset's)."),
         seed: int = typer.Option(0, help="Random seed."),
+        cost_rule: str = typer.Option("capped", "--cost-rule", help="How scenarios make a cost: capped, mean (eq. 4) or trimmed (docs/settings.md)."),
+        cost_cap: float = typer.Option(3.0, "--cost-cap", help="capped rule: cap and fall cost in units of the nominal design's median scenario."),
         device: str = typer.Option("cpu", help="Torch device for the policy."),
         resume: str = typer.Option(None, "--resume", help="Continue an interrupted landscape run (its id)."),
         store: str = typer.Option(None, "--store", help="Results store: a path or SQLAlchemy URL (default $COADAPT_STORE or ./coadapt.db)."),
@@ -64,6 +72,12 @@ def register(app: typer.Typer) -> None:
         robot_cls = resolve("robot", robot)
         if terrain not in TERRAINS:
             fail(f"--terrain '{terrain}' is not one of {', '.join(TERRAINS)}")
+        from coadapt_core.fitness import COST_RULES, CostRule
+
+        if cost_rule not in COST_RULES:
+            fail(f"--cost-rule '{cost_rule}' is not one of {', '.join(COST_RULES)}")
+        if not cost_cap > 1:
+            fail(f"--cost-cap must be > 1, got {cost_cap}")
         if grid < 2 or grid > 101:
             fail(f"--grid must be between 2 and 101 points per axis, got {grid}")
         from coadapt_core.coadapt.config import PRESETS
@@ -119,6 +133,7 @@ def register(app: typer.Typer) -> None:
             summary = run_landscape(
                 backend, objectives, recorder, config=config, grid=grid, low=low, high=high,
                 nominal=robot_obj.nominal_design(), agents=agents, steps=steps, seed=seed, on_row=on_row,
+                rule=CostRule(cost_rule, cost_cap),
             )
         print(landscape_line(summary, agents, steps))
         if as_json:

@@ -79,8 +79,10 @@ def _with_se(value: float, se: float | None) -> str:
     return f"{value:.5g}" if se is None else f"{value:.5g} +- {se:.2g}"
 
 
-def _rate(value: float | None) -> str:
-    return "-" if value is None else f"{value:.2f}"
+def _rate(value: float | None, se: float | None = None) -> str:
+    if value is None:
+        return "-"
+    return f"{100 * value:.1f} %" if se is None else f"{100 * value:.1f} +- {100 * se:.1f} %"
 
 
 def _render_video(run_dir: Path, summary: dict[str, Any]) -> None:
@@ -110,14 +112,29 @@ def _print_summary(summary: dict[str, Any], space_names: list[str] | None) -> No
         table.add_column(name)
     for objective in summary["best_costs"]:
         table.add_column(f"{objective} cost +- SE")
-    table.add_column("fall rate")
+    plain = summary.get("best_plain_means") or {}
+    for objective in plain:
+        table.add_column(f"{objective} plain mean +- SE")
+    table.add_column("fall rate +- SE")
     best_se, nominal_se = summary.get("best_costs_se") or {}, summary.get("nominal_costs_se") or {}
+    plain_se = summary.get("best_plain_means_se") or {}
+    nominal_plain, nominal_plain_se = summary.get("nominal_plain_means") or {}, summary.get("nominal_plain_means_se") or {}
     table.add_row("best", *[f"{x:.3f}" for x in summary["best_design"]],
-                  *[_with_se(v, best_se.get(k)) for k, v in summary["best_costs"].items()], _rate(summary.get("best_fall_rate")))
+                  *[_with_se(v, best_se.get(k)) for k, v in summary["best_costs"].items()],
+                  *[_with_se(v, plain_se.get(k)) for k, v in plain.items()],
+                  _rate(summary.get("best_fall_rate"), summary.get("best_fall_rate_se")))
     table.add_row("nominal", *[f"{x:.3f}" for x in summary["nominal_design"]],
                   *[_with_se(summary["nominal_costs"][k], nominal_se.get(k)) for k in summary["best_costs"]],
-                  _rate(summary.get("nominal_fall_rate")))
+                  *[_with_se(nominal_plain[k], nominal_plain_se.get(k)) for k in plain],
+                  _rate(summary.get("nominal_fall_rate"), summary.get("nominal_fall_rate_se")))
     console.print(table)
+    if summary.get("cost_rule"):
+        from coadapt_core.fitness import CostRule
+
+        rule = CostRule.from_config(summary | {"cost_cap": summary.get("cost_cap")})
+        console.print(f"cost: {rule.describe()}; plain mean: the paper's eq. 4 over the same scenarios")
+    if summary.get("best_is_nominal"):
+        console.print("no candidate beat the nominal design without falling more often than it: the nominal design stands")
     if summary.get("final_scenarios"):
         console.print(f"final check: {summary['final_scenarios']} paired scenarios per design "
                       f"({summary.get('final_blocks')} blocks); SE = standard error over scenarios")
@@ -133,6 +150,14 @@ def _print_summary(summary: dict[str, Any], space_names: list[str] | None) -> No
             text = f"{k} not significant ({text.split(' ', 1)[1]}, under 4 paired standard errors)"
         parts.append(text)
     improvements = ", ".join(parts)
+    plain_imp, plain_imp_se = summary.get("improvements_plain") or {}, summary.get("improvements_plain_se") or {}
+    if plain_imp:
+        improvements += " (plain mean: " + ", ".join(
+            f"{k} {100 * v:+.1f} %" if plain_imp_se.get(k) is None else f"{k} {100 * v:+.1f} +- {100 * plain_imp_se[k]:.1f} %"
+            for k, v in plain_imp.items()) + ")"
+    if summary.get("fall_rate_difference") is not None:
+        d, se = summary["fall_rate_difference"], summary.get("fall_rate_difference_se")
+        improvements += f"; falls {100 * d:+.1f}{'' if se is None else f' +- {100 * se:.1f}'} points against nominal"
     console.print(
         f"improvement over nominal: {improvements}; interactions {summary['interactions']:,} "
         f"(training {summary['train_interactions']:,}, evaluation {summary['eval_interactions']:,}, "

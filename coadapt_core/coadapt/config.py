@@ -15,6 +15,7 @@ from pydantic import field_validator
 
 from coadapt_core.design_space import parse_range_pairs
 from coadapt_core.errors import UserError
+from coadapt_core.fitness import COST_RULES
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.methods import DEFAULT_METHOD, METHOD_NAMES, method_help, optimizer_for
 from coadapt_core.physics.randomization import RANDOMIZATION_PRESETS, RandomizationConfig
@@ -117,6 +118,17 @@ class CoadaptConfig:
                                            "the designs' spread is at most this.", ge=0)
     final_candidates: Int = setting(3, "Lowest-real-cost designs re-evaluated in the final check.", ge=1)
     final_max_blocks: Int = setting(8, "Final check: at most this many blocks of agents_per_design paired scenarios.", ge=1)
+    final_min_blocks: Int = setting(4, "Final check: at least this many blocks (the fall-rate comparison needs scenarios).", ge=1)
+    # -- the cost of a design over its scenarios (docs/coadaptation.md, "How a fall enters the fitness") --
+    cost_rule: Literal[COST_RULES] = setting(
+        "capped", "capped: each scenario costs at most cost_cap x the nominal design's median scenario and a fall costs "
+        "that cap (every design on the same scenarios, the same rule); mean: the paper's plain mean (eq. 4); trimmed: "
+        "each design's costliest quarter of scenarios left out (the rule before, falls unpriced).")
+    cost_cap: Float = setting(3.0, "capped rule: a scenario's cost cap, and a fall's cost, in units of the nominal "
+                              "design's median scenario cost.", gt=1)
+    fall_tolerance: Float = setting(0.01, "Final check: a candidate whose fall rate exceeds the nominal design's by more "
+                                    "than max(this, 2 paired standard errors) cannot be the best (1: no fall gate).",
+                                    ge=0, le=1)
     # -- plugin options: declared by the optimizer / objective plugin (`option_specs`) ------
     optimizer_options: dict[str, Any] = setting(
         default_factory=dict, help="Options the optimizer plugin declares (`coadapt plugins --json`), e.g. {inertia: 0.9}.",

@@ -27,11 +27,18 @@ import numpy as np
 from coadapt_core import surrogate_quality as sq
 from coadapt_core.coadapt.config import CoadaptConfig, config_from_dict
 from coadapt_core.coadapt.final_check import batch_errors, final_check, no_uncertainty
-from coadapt_core.coadapt.reliability import assess, walking
+from coadapt_core.coadapt.reliability import assess, fall_verdict, walking
 from coadapt_core.coadapt.setup import build_parts
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
-from coadapt_core.fitness import CoadaptationBackend, RunRecorder, TrainingResult, scenario_seed
+from coadapt_core.fitness import (
+    CoadaptationBackend,
+    CostRule,
+    RealFitness,
+    RunRecorder,
+    TrainingResult,
+    scenario_seed,
+)
 from coadapt_core.methods import get_method
 from coadapt_core.objective import Objective
 from coadapt_core.optimizer import Optimizer
@@ -82,11 +89,23 @@ class LoopState:
     # surrogate against real cost on each real round's designs (coadapt_core.surrogate_quality)
     quality_rounds: list[dict[str, Any]] = field(default_factory=list)
     spaces: list[dict] = field(default_factory=list)  # the range of each outer iteration
+    # the cost rule's reference level [M] (`capped`: the nominal design's median scenario cost
+    # under the policy of outer iteration `reference_outer`, on the run's scenario set)
+    reference: list[float] | None = None
+    reference_outer: int = -1
     elapsed: float = 0.0  # wall-clock seconds spent before the current process
     summary: dict[str, Any] | None = None
     policy: dict[str, Any] | None = None  # the starting policy's provenance (setup.policy_provenance)
     notes: list[str] = field(default_factory=list)  # warnings printed at the start, kept in the summary
     no_critic: list[str] = field(default_factory=list)  # objectives without a pseudo-critic in the starting policy
+
+
+#: the `--json` line's fields beside the rule's cost: the rule, the paper's plain mean (eq. 4)
+#: with its standard error and improvement, fall rates with standard errors and their paired
+#: difference, and whether the best design falls significantly more often than nominal
+JSON_PLAIN_AND_FALLS = ("cost_rule", "best_plain_mean", "best_plain_mean_se", "nominal_plain_mean",
+                        "nominal_plain_mean_se", "improvement_plain", "improvement_plain_se", "best_fall_rate_se",
+                        "nominal_fall_rate_se", "fall_rate_difference", "fall_rate_difference_se", "falls_more")
 
 
 @dataclass
@@ -99,7 +118,7 @@ class CoadaptResult:
         s = self.summary
         line = {k: s.get(k) for k in ("run_id", "best_design", "best_cost", "best_cost_se", "nominal_cost", "nominal_cost_se",
                                  "improvement", "improvement_se", "significant", "best_fall_rate", "nominal_fall_rate",
-                                 "interactions", "seconds")}
+                                 *JSON_PLAIN_AND_FALLS, "interactions", "seconds")}
         # the walking gate's verdict travels with every improvement (reliability.py)
         line["reliable"] = s.get("reliable")
         line["reliability"] = s.get("reliability")
@@ -257,6 +276,7 @@ class CoadaptationLoop:
         self.objectives = list(objectives)
         self.names = [o.name for o in self.objectives]
         self.optimizer_cls = optimizer_cls
+        self.cost_rule = CostRule(config.cost_rule, config.cost_cap)
         self.run_dir = run_dir
         self.recorder = recorder
         self.state = state
@@ -487,6 +507,37 @@ class CoadaptationLoop:
             self._fitted_for = key
         return True
 
+    def reference_level(self, fit: RealFitness | None = None) -> np.ndarray | None:
+        """The cost rule's reference level [M] for the current policy (`capped`: the nominal
+        design's median scenario cost on the run's scenario set). The nominal design is
+        evaluated once per policy (per outer iteration; once per run without a shared policy)
+        and its interactions count as evaluation. None when the rule needs none or `fit` has
+        no per-scenario costs (a backend without them reports its own costs)."""
+        s, c = self.state, self.config
+        if not self.cost_rule.needs_reference or (fit is not None and fit.per_scenario is None):
+            return None
+        key = s.outer if self.shared else 0
+        if s.reference is not None and s.reference_outer == key:
+            return np.asarray(s.reference, dtype=float)
+        nominal = self.get_backend().real_fitness(self.nominal[None, :], self.objectives, agents=c.evaluation_agents,
+                                                  steps=c.eval_steps, seed=self.scenario_seed())
+        self.count_training(nominal.training)
+        s.counters["eval_interactions"] += int(nominal.interactions)
+        s.counters["eval_seconds"] += float(nominal.seconds)
+        if nominal.per_scenario is None:
+            return None
+        falls = None if nominal.scenario_falls is None else np.asarray(nominal.scenario_falls)[0]
+        ref = self.cost_rule.reference(np.asarray(nominal.per_scenario, dtype=float)[0], falls)
+        s.reference, s.reference_outer = [float(x) for x in ref], key
+        return ref
+
+    def rule_costs(self, fit: RealFitness) -> np.ndarray:
+        """[K, M] the costs of a real evaluation under the run's cost rule (`cost_rule`), from
+        its per-scenario costs and falls; the backend's own costs when it gives none."""
+        if fit.per_scenario is None:
+            return np.asarray(fit.costs, dtype=float)
+        return self.cost_rule.cost(fit.per_scenario, fit.scenario_falls, self.reference_level(fit))
+
     def optimize_round(self) -> None:
         """One optimizer ask/tell round (Algorithm 4 lines 13-20)."""
         s = self.state
@@ -538,7 +589,7 @@ class CoadaptationLoop:
             self.count_training(fit.training)
             s.buffer, s.buffer_outer = fit.buffer, s.outer  # line 15: R_eval from this rollout
             s.buffer_serial += 1
-            costs = np.asarray(fit.costs, dtype=float).reshape(len(designs), -1)
+            costs = self.rule_costs(fit).reshape(len(designs), -1)
             errors = None
             if c.measure_surrogate_error and self.shared:  # no shared policy, no surrogate
                 t0 = time.perf_counter()
@@ -564,7 +615,7 @@ class CoadaptationLoop:
             if fit.survival is not None:
                 self._last_survival = float(np.mean(fit.survival))
             self._last_tracking = walking(fit)["tracking_ratio"]
-            self._last_errors = batch_errors(fit)
+            self._last_errors = batch_errors(fit, self.cost_rule, self.reference_level(fit))
             return costs, int(fit.interactions), float(fit.seconds), errors
         t0 = time.perf_counter()
         if self._pending is not None and self._pending[0] == s.inner:  # the ensemble's, just computed
@@ -716,7 +767,7 @@ class CoadaptationLoop:
             self.count_training(fit.training)
             s.counters["final_interactions"] += int(fit.interactions)
             s.counters["final_seconds"] += float(fit.seconds)
-            nominal_costs = np.asarray(fit.costs, dtype=float).reshape(-1)
+            nominal_costs = self.rule_costs(fit).reshape(-1)
             front = None
             best_costs = np.array([best_cost])
         else:
@@ -724,7 +775,8 @@ class CoadaptationLoop:
             check = final_check(
                 lambda d, block: self.get_backend().real_fitness(
                     d, self.objectives, agents=c.evaluation_agents, steps=c.eval_steps, seed=self.scenario_seed(block)),
-                designs, self.objectives, max_blocks=c.final_max_blocks,
+                designs, self.objectives, max_blocks=c.final_max_blocks, min_blocks=min(c.final_min_blocks, c.final_max_blocks),
+                rule=self.cost_rule, fall_tolerance=c.fall_tolerance if len(self.objectives) == 1 else None,
                 on_block=lambda b: self.emit(f"final check, scenario block {b}"),
             )
             fit = check.fit
@@ -743,7 +795,7 @@ class CoadaptationLoop:
                 best_design, best_costs = front_designs[0], front_costs[0]  # lowest first cost
                 i = int(np.flatnonzero(np.all(np.isclose(designs[:-1], best_design), axis=1))[0])
             else:
-                i = int(np.argmin(costs[:-1, 0]))
+                i = check.best  # the lowest cost among candidates that do not fall more (the nominal design if none)
                 best_design, best_costs = designs[i], costs[i]
             best_cost = float(best_costs[0])
             final_walking = {"best": walking(fit, [i]), "nominal": walking(fit, [len(designs) - 1])}
@@ -779,6 +831,7 @@ class CoadaptationLoop:
             "batches": s.batches,
             "pareto_front": front,
             "evaluation_policy": c.evaluation_policy,
+            "cost_rule": c.cost_rule, "cost_cap": c.cost_cap, "cost_reference": s.reference,
             "surrogate_quality": self.surrogate_quality(),
         }
         summary["policy"] = s.policy
@@ -786,6 +839,7 @@ class CoadaptationLoop:
         summary["reliable"], summary["reliability"] = assess(s.batches, final_walking)
         summary["final_walking"] = final_walking
         summary.update(uncertainty)
+        summary.update(fall_verdict(summary))
         s.summary = summary
         s.phase = "done"
         self.checkpoint()

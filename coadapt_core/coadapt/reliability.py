@@ -18,7 +18,9 @@ is **reliable** when
 - the mean over the run's real optimisation rounds passes the same thresholds.
 
 Otherwise its summary, its `--json` line and its report row say `reliable: false` with the
-reason. A backend that reports neither measurement (the analytic fake of the tests) leaves
+reason. A run whose best design falls significantly more often than the nominal design (its
+paired fall-rate difference over the final check's scenarios above max(1 percentage point,
+2 standard errors), `fall_verdict`) is not reliable either: its cost was bought with falls. A backend that reports neither measurement (the analytic fake of the tests) leaves
 `reliable` null ("not measured").
 """
 
@@ -87,4 +89,27 @@ def assess(
     return True, f"passed the walking gate ({gate.describe()})"
 
 
-__all__ = ["WALKING_GATE", "WalkingGate", "assess", "walking"]
+#: a best design may fall this much more often than the nominal one (or 2 paired standard
+#: errors, if more) before the run says its gain was bought with falls
+FALL_MARGIN = 0.01
+
+
+def fall_verdict(summary: dict[str, Any], margin: float = FALL_MARGIN) -> dict[str, Any]:
+    """`falls_more` (None: not measured) and, when the best design falls significantly more
+    often than the nominal one, `reliable: false` with the figures in `reliability`."""
+    from coadapt_core.fitness import falls_more
+
+    d, se = summary.get("fall_rate_difference"), summary.get("fall_rate_difference_se")
+    if d is None:
+        return {"falls_more": None}
+    if not falls_more(d, se, margin):
+        return {"falls_more": False}
+    why = (f"the best design falls more often than the nominal design ({100 * summary.get('best_fall_rate', 0):.1f} % "
+           f"against {100 * summary.get('nominal_fall_rate', 0):.1f} % of scenarios, difference "
+           f"{100 * d:.1f} +- {100 * (se or 0):.1f} points > max({100 * margin:g}, 2 SE))")
+    previous = summary.get("reliability") or ""
+    return {"falls_more": True, "reliable": False,
+            "reliability": why if summary.get("reliable") is not False else f"{why}; {previous}"}
+
+
+__all__ = ["FALL_MARGIN", "WALKING_GATE", "WalkingGate", "assess", "fall_verdict", "walking"]

@@ -120,6 +120,11 @@ def evaluate_checkpoint(
         "power_cost_se": _mean_se(result.per_agent[0, :, 1]),
         "torque_cost_se": _mean_se(result.per_agent[0, :, 2]),
         "fall_rate": float(1.0 - result.survival[0]),
+        "fall_rate_se": _mean_se(1.0 - (np.asarray(result.falls[0]) > 0)) if result.falls is not None else None,
+        # one design alone, so no nominal reference for the capped rule: the costs above are
+        # the paper's plain mean (eq. 4) over the agents; `coadapt landscape` and the run's
+        # final check give the capped cost beside it
+        "cost_rule": "mean",
         "steps": int(result.steps),
         "divergences": int(divergences[0]),
         "dt": float(env.dt),

@@ -14,8 +14,8 @@ import numpy as np
 from coadapt_core.errors import UserError
 from coadapt_core.fitness import (
     CoadaptationBackend,
-    improvement_se,
-    robust_cost,
+    CostRule,
+    compare_designs,
     scenario_se,
     scenario_seed,
 )
@@ -55,6 +55,7 @@ def run_landscape(
     steps: int = 500,
     seed: int = 0,
     on_row: Any = None,
+    rule: CostRule | None = None,
 ) -> dict[str, Any]:
     """Evaluate every grid design for real, one grid row (fixed first variable) per batch, each
     row committed as it finishes. Every row runs on the same scenario set (`seed`), so any two
@@ -62,17 +63,25 @@ def run_landscape(
     `config["run_id"]` of an interrupted landscape, rows already stored are not evaluated
     again (their standard errors are then not known to the summary). Returns the run's
     summary, with the standard errors of the optimum's and the nominal cost, the paired
-    standard error of the improvement, fall rates and each evaluated design's error bars."""
+    standard error of the improvement, fall rates and each evaluated design's error bars.
+
+    Costs follow `rule` (default: the capped rule, its reference level the nominal design's
+    median scenario cost, from one evaluation of the nominal design on the same scenarios);
+    the summary has the plain mean (eq. 4) and the fall rates beside them."""
+    rule = rule or CostRule()
     designs = landscape_designs(grid, low, high, nominal)
     names = [o.name for o in objectives]
     cfg = {**config, "method": LANDSCAPE_METHOD, "objectives": names, "grid": grid, "agents": agents,
-           "steps": steps, "seed": seed, "low": list(low), "high": list(high)}
+           "steps": steps, "seed": seed, "low": list(low), "high": list(high), "cost_rule": rule.rule,
+           "cost_cap": rule.cap}
     run_id = recorder.start_run(cfg)
     store = recorder.store
     done_rows = {e.inner for e in store.evaluations(run_id, kind="real")}
     start = time.perf_counter()
     per_scenario: dict[tuple[float, ...], np.ndarray] = {}  # design -> [A, M], rows run here
+    scenario_falls: dict[tuple[float, ...], np.ndarray] = {}  # design -> [A] bool
     fall_rate: dict[tuple[float, ...], float] = {}
+    reference, extra_interactions = None, 0
     for row in range(grid):
         if row in done_rows and store.count_evaluations(run_id) >= (row + 1) * grid:
             continue
@@ -85,7 +94,21 @@ def run_landscape(
         if getattr(fit, "fall_rate", None) is not None:
             for design, rate in zip(batch, np.asarray(fit.fall_rate, dtype=float), strict=True):
                 fall_rate[tuple(np.round(design, 9))] = float(rate)
-        costs = np.asarray(fit.costs, dtype=float).reshape(len(batch), len(names))  # [grid, M]
+        if getattr(fit, "scenario_falls", None) is not None:
+            for design, falls in zip(batch, np.asarray(fit.scenario_falls, dtype=bool), strict=True):
+                scenario_falls[tuple(np.round(design, 9))] = falls
+        if getattr(fit, "per_scenario", None) is not None and rule.needs_reference and reference is None:
+            # the nominal design on the grid's scenario set: the rule's reference level
+            ref_fit = backend.real_fitness(np.asarray(nominal, dtype=float)[None, :], objectives, agents=agents,
+                                           steps=steps, seed=scenario_seed(seed))
+            extra_interactions = int(ref_fit.interactions)
+            falls = getattr(ref_fit, "scenario_falls", None)
+            reference = rule.reference(np.asarray(ref_fit.per_scenario)[0], None if falls is None else np.asarray(falls)[0])
+        if getattr(fit, "per_scenario", None) is not None and (reference is not None or not rule.needs_reference):
+            costs = rule.cost(fit.per_scenario, getattr(fit, "scenario_falls", None), reference)
+        else:
+            costs = np.asarray(fit.costs, dtype=float)
+        costs = costs.reshape(len(batch), len(names))  # [grid, M]
         recorder.record_evaluations(
             run_id,
             outer=0,
@@ -110,33 +133,57 @@ def run_landscape(
         "nominal_design": nominal_row.design,
         "nominal_cost": nominal_row.costs[first],
         "improvement": objectives[0].improvement(best.costs[first], nominal_row.costs[first]),
-        "interactions": int(sum(e.interactions for e in rows)),
+        "interactions": int(sum(e.interactions for e in rows)) + extra_interactions,
+        "cost_rule": rule.rule,
         "seconds": time.perf_counter() - start,
         "grid": grid,
         "agents": agents,
         "steps": steps,
-        **_uncertainty(objectives[0], best.design, nominal_row.design, per_scenario, fall_rate),
+        **_uncertainty(rule, objectives, best.design, nominal_row.design, per_scenario, scenario_falls, fall_rate),
     }
     recorder.finish(run_id, summary)
     return summary
 
 
-def _uncertainty(objective: Objective, best: Sequence[float], nominal: Sequence[float],
-                 per_scenario: dict[tuple[float, ...], np.ndarray], fall_rate: dict[tuple[float, ...], float]) -> dict[str, Any]:
+def _uncertainty(rule: CostRule, objectives: Sequence[Objective], best: Sequence[float], nominal: Sequence[float],
+                 per_scenario: dict[tuple[float, ...], np.ndarray], scenario_falls: dict[tuple[float, ...], np.ndarray],
+                 fall_rate: dict[tuple[float, ...], float]) -> dict[str, Any]:
     """Standard errors (first objective) of the optimum's and the nominal cost, the paired
-    standard error of the improvement, fall rates and the grid's median relative error."""
+    standard error of the improvement, the plain mean (eq. 4) with its standard error and
+    the improvement under it, fall rates with standard errors, and the grid's median relative
+    error (all from the rows evaluated in this process)."""
     key_b, key_n = tuple(np.round(best, 9)), tuple(np.round(nominal, 9))
     out: dict[str, Any] = {"best_cost_se": None, "nominal_cost_se": None, "improvement_se": None,
                            "best_fall_rate": fall_rate.get(key_b), "nominal_fall_rate": fall_rate.get(key_n),
                            "median_relative_se": None}
     if key_b in per_scenario and key_n in per_scenario:
         pair = np.stack([per_scenario[key_b], per_scenario[key_n]])  # [2, A, M]
-        se = scenario_se(pair)
-        out["best_cost_se"], out["nominal_cost_se"] = float(se[0, 0]), float(se[1, 0])
-        value = improvement_se(objective, pair[0, :, 0], pair[1, :, 0])
-        out["improvement_se"] = float(value) if np.isfinite(value) else None
+        falls = (np.stack([scenario_falls[key_b], scenario_falls[key_n]])
+                 if key_b in scenario_falls and key_n in scenario_falls else None)
+        comp = compare_designs(rule, objectives, pair, falls, 0, 1)
+        first = comp["objectives"][objectives[0].name]
+        finite = (lambda v: float(v) if v is not None and np.isfinite(v) else None)  # noqa: E731
+        out.update({
+            "best_cost_se": first["cost_se"], "nominal_cost_se": first["nominal_cost_se"],
+            "improvement_se": finite(first["improvement_se"]),
+            "best_plain_mean": first["plain_mean"], "best_plain_mean_se": first["plain_mean_se"],
+            "nominal_plain_mean": first["nominal_plain_mean"], "nominal_plain_mean_se": first["nominal_plain_mean_se"],
+            "improvement_plain": first["improvement_plain"], "improvement_plain_se": finite(first["improvement_plain_se"]),
+        })
+        if comp.get("fall_rate") is not None:
+            out.update({"best_fall_rate_se": finite(comp["fall_rate_se"]),
+                        "nominal_fall_rate_se": finite(comp["reference_fall_rate_se"]),
+                        "fall_rate_difference": comp["fall_rate_difference"],
+                        "fall_rate_difference_se": finite(comp["fall_rate_difference_se"])})
     if per_scenario:
         per = np.stack(list(per_scenario.values()))  # [D, A, M]
-        rel = scenario_se(per)[:, 0] / np.abs(robust_cost(per)[:, 0])
-        out["median_relative_se"] = float(np.median(rel[np.isfinite(rel)])) if np.isfinite(rel).any() else None
+        keys = list(per_scenario)
+        falls = np.stack([scenario_falls[k] for k in keys]) if all(k in scenario_falls for k in keys) else None
+        ref = None
+        if rule.needs_reference and key_n in per_scenario:
+            ref = rule.reference(per_scenario[key_n], scenario_falls.get(key_n))
+        if ref is not None or not rule.needs_reference:
+            values = rule.scenario_values(per, falls, ref)
+            rel = scenario_se(values, rule.aggregate)[:, 0] / np.abs(rule.aggregate(values)[:, 0])
+            out["median_relative_se"] = float(np.median(rel[np.isfinite(rel)])) if np.isfinite(rel).any() else None
     return out

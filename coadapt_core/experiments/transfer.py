@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from coadapt_core.errors import BackendUnavailable, CoadaptError, UserError
-from coadapt_core.fitness import CoadaptationBackend, scenario_seed
+from coadapt_core.fitness import CoadaptationBackend, CostRule, scenario_seed
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.physics.simulator import Simulator
 from coadapt_core.results.recorders import batch_rows
@@ -288,7 +288,8 @@ def transfer_run(
         return f"n/a: {exc}"
     except UserError as exc:  # e.g. a checkpoint that is not one (refused unread): this run only
         return f"n/a: {' '.join(str(exc).split())}"
-    costs = np.asarray(fit.costs, dtype=float).reshape(2, -1)  # [2, M]
+    # the run's own cost rule, the nominal design (row 1) giving its reference level
+    costs = CostRule.from_config(cfg).costs_of(fit, nominal=1).reshape(2, -1)  # [2, M]
     names = [o.name for o in objectives]
     store.record_evaluations(run["id"], batch_rows(
         outer=TRANSFER_OUTER, inner=0, kind=TRANSFER_KIND, designs=[best.tolist(), nominal.tolist()],

@@ -14,7 +14,7 @@ import torch
 
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
-from coadapt_core.fitness import RealFitness, TrainingResult, robust_cost, scenario_se
+from coadapt_core.fitness import RealFitness, TrainingResult, plain_mean, scenario_se
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.evaluate import EvalBuffer, rollout
 from coadapt_core.learning.scenarios import apply_scenarios
@@ -54,9 +54,10 @@ class UniversalPolicyBackend:
     last rollout. `real_fitness` rolls out the (stochastic, seeded) policy on the scenario set
     of its `seed` (`pair_scenarios`: agent i of every design gets the same command, stratified
     over the current command box, the same randomization, spawn, noise and action noise) and
-    returns each design's cost [K, M]: the upper-trimmed mean over scenarios of each agent's
-    mean per-step metric (`coadapt_core.fitness.robust_cost`), with standard errors,
-    per-scenario costs and fall rates (set `stochastic_evaluation = False` for the policy
+    returns each design's cost [K, M]: the plain mean over scenarios of each agent's mean
+    per-step metric (eq. 4), with standard errors, per-scenario costs [K, A, M] and which
+    scenarios fell [K, A], from which callers compute their cost rule
+    (`coadapt_core.fitness.CostRule`) (set `stochastic_evaluation = False` for the policy
     mean); `surrogate_fitness` averages the pseudo-critics over `samples`
     buffer states with each candidate's xi substituted.
 
@@ -208,14 +209,17 @@ class UniversalPolicyBackend:
         error_ms = np.asarray(result.mean_velocity_error, dtype=float)
         ratio = np.where(command_ms > 1e-4, np.sqrt(error_ms / np.maximum(command_ms, 1e-4)), np.nan)
         return RealFitness(
-            costs=robust_cost(per_scenario),  # upper-trimmed mean over scenarios (TRIM_SHARE)
+            # the paper's plain mean (Algorithm 2, eq. 4); the caller applies its cost rule
+            # (fitness.CostRule) to `per_scenario` and `scenario_falls`
+            costs=plain_mean(per_scenario),
             buffer=result.buffer,
             interactions=result.steps,
             seconds=time.perf_counter() - t0,
             survival=result.survival,
             per_scenario=per_scenario,
-            cost_se=scenario_se(per_scenario),
+            cost_se=scenario_se(per_scenario, plain_mean),
             fall_rate=1.0 - result.survival,
+            scenario_falls=np.asarray(result.falls) > 0,
             tracking_ratio=ratio,
         )
 

@@ -11,6 +11,7 @@ import pytest
 from coadapt_plugins.objectives.locomotion import PowerObjective, TorqueObjective, TrackingObjective
 
 from coadapt_core.coadapt import make_config, read_evaluations, run_coadaptation
+from coadapt_core.coadapt.loop import JSON_PLAIN_AND_FALLS as PLAIN_AND_FALLS
 from coadapt_core.design_space import DesignSpace
 from tests.fakes.analytic import (
     MIXED_NOMINAL,
@@ -196,7 +197,7 @@ def test_run_folder_holds_config_evaluations_and_summary(tmp_path):
     assert len((result.run_dir / "trainings.jsonl").read_text().splitlines()) == 3
     line = result.json_line()
     assert set(line) == {"run_id", "best_design", "best_cost", "best_cost_se", "nominal_cost", "nominal_cost_se", "improvement",
-                         "improvement_se", "significant", "best_fall_rate", "nominal_fall_rate", "interactions", "seconds",
+                         "improvement_se", "significant", "best_fall_rate", "nominal_fall_rate", *PLAIN_AND_FALLS, "interactions", "seconds",
                          "reliable", "reliability"}
     assert line["interactions"] == result.summary["train_interactions"] + result.summary["eval_interactions"] + result.summary["final_interactions"]
 

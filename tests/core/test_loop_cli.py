@@ -11,6 +11,7 @@ import pytest
 import coadapt_core.coadapt.setup as loop_setup
 from coadapt_core.cli import main
 from coadapt_core.coadapt.config import PRESETS, make_config
+from coadapt_core.coadapt.loop import JSON_PLAIN_AND_FALLS as PLAIN_AND_FALLS
 from coadapt_core.errors import UserError
 from tests.fakes.analytic import AnalyticBackend, optimum_of
 
@@ -82,7 +83,7 @@ def test_run_json_last_line_and_resume(tmp_path, capsys, fake_learner):
     assert main(args) == 0
     line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert {"run_id", "best_design", "best_cost", "best_cost_se", "nominal_cost", "nominal_cost_se", "improvement",
-                         "improvement_se", "significant", "best_fall_rate", "nominal_fall_rate", "interactions", "seconds",
+                         "improvement_se", "significant", "best_fall_rate", "nominal_fall_rate", *PLAIN_AND_FALLS, "interactions", "seconds",
             "reliable", "reliability"} <= set(line)
     assert line["reliable"] is None  # the analytic fake measures no walking: not marked either way
     assert np.abs(np.array(line["best_design"]) - optimum_of("torque")).max() < 0.15
