@@ -424,9 +424,9 @@ def table6_markdown(rows: Sequence[dict[str, Any]]) -> str:
     lines += ["", POOLING_NOTE + " Each number: mean ± sample standard deviation over the runs (seeds) of the row, "
               "and how many runs had it (n); one run shows its own standard error (SE) when it recorded one. "
               "Improvement: lower cost than the nominal design, in percent of the nominal cost, under the run's cost "
-              "rule (column `cost_rule` of table6.csv; docs/coadaptation.md) and under the paper's plain mean over the "
-              "same scenarios; fall rate: share of the final check's scenarios in which the robot fell. Starting policy: "
-              "the policy file each run started from and the start of its SHA-256."]
+              "rule (column `cost_rule` of table6.csv; docs/coadaptation.md) and under the paper's plain mean over "
+              "the same scenarios; fall rate: share of the final check's scenarios in which the robot fell. Starting "
+              "policy: the policy file each run started from and the start of its SHA-256."]
     return "\n".join(lines) + "\n"
 
 

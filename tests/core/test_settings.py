@@ -91,7 +91,7 @@ def test_a_runs_config_yaml_round_trips(tmp_path, monkeypatch):
                                          "friction": [0.6, 1.1]}
     again = make_config(None, folder / "config.yaml", {})
     assert again == config_from_dict(recorded)
-    assert again.to_dict() == {k: v for k, v in recorded.items() if k not in ("run_id", "run_dir", "design_space")}
+    assert again.to_dict() == {k: v for k, v in recorded.items() if k not in ("run_id", "run_dir", "design_space", "policy")}
     assert (again.population, again.narrow_margin, again.preset) == (6, 0.3, "smoke")
 
 
