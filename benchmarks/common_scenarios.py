@@ -45,7 +45,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--robot", default=None, help="robot (default: the runs' robot, else the default robot)")
     p.add_argument("--sim", default=None, help="simulator (default: the default simulator)")
     p.add_argument("--terrain", default=None, help="terrain (default: the runs' terrain, else flat)")
-    p.add_argument("--objectives", default=None, help="comma list (default: every objective the robot's policy learned)")
+    p.add_argument("--objectives", default=None, help="comma list (default: every objective the runs optimised)")
     p.add_argument("--checkpoint", default=None, help="policy (default: the robot's shipped policy for the terrain)")
     p.add_argument("--cost-rule", choices=COST_RULES, default="capped", help="how scenarios make a cost (default: capped)")
     p.add_argument("--cost-cap", type=float, default=3.0, help="the capped rule's cap (nominal median scenarios)")
@@ -102,8 +102,10 @@ def main(argv: list[str] | None = None) -> int:
         checkpoint = args.checkpoint or shipped_checkpoint(robot, terrain, mixed)
         if checkpoint is None:
             return _fail(f"robot '{robot_name}' ships no policy for terrain '{terrain}'; pass --checkpoint")
+        # default: every objective any of the runs optimised (each design is scored on all of them)
         names = ([o.strip() for o in args.objectives.split(",") if o.strip()] if args.objectives
-                 else list(dict.fromkeys(summaries[0].get("best_costs", {}) or ["tracking", "power", "torque"])))
+                 else list(dict.fromkeys(k for s in summaries for k in (s.get("best_costs") or {})))
+                 or ["tracking", "power", "torque"])
         robot, sim_cls, objectives = resolve_plugins(robot, args.sim or default_plugin("simulator"), names)
         backend = make_backend(robot, sim_cls, objectives, terrain=terrain, design_space=space, mixed=mixed,
                                checkpoint=str(checkpoint), agents_per_design=args.agents)
