@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from coadapt_core.analysis.paper import PaperTables, paper_tables
+from coadapt_core.methods import METHODS
 
 #: a design scale within this of 1.0 is "at nominal" (the paper prints two decimals: 0.98-1.02)
 NOMINAL_BAND = 0.025
@@ -311,16 +312,11 @@ def _ratio(v: float | None) -> str:
     return "n/a" if v is None else f"{v:.2f}"
 
 
-def _labels() -> tuple[dict[str, str], dict[str, str]]:
-    from coadapt_core.analysis.report import METHOD_LABELS, OBJECTIVE_LABELS
-
-    return METHOD_LABELS, OBJECTIVE_LABELS
-
-
 def _display(rows6: Sequence[dict[str, Any]], order: Sequence[dict[str, Any]], rows7: Sequence[dict[str, Any]],
-             rows9: Sequence[dict[str, Any]]) -> list[tuple[str, list[str], list[list[str]]]]:
-    """(title, header, cells) of each comparison table, shared by Markdown and HTML."""
-    methods, objectives = _labels()
+             rows9: Sequence[dict[str, Any]], objectives: dict[str, str]) -> list[tuple[str, list[str], list[list[str]]]]:
+    """(title, header, cells) of each comparison table, shared by Markdown and HTML;
+    methods by their table labels, objectives by `objectives` (name -> label)."""
+    methods = {m.name: m.label for m in METHODS.values()}
     sections = []
     head6 = ["Objective", "Method", "Optimizer", "Terrain", "Runs", "Thigh ours / paper", "Shank ours / paper", "Direction",
              "Improvement ours / paper", "Verdict", "Plain-mean improvement ours", "Verdict",
@@ -380,10 +376,11 @@ def _explanation(paper: PaperTables, rows6: Sequence[dict[str, Any]], rows9: Seq
             f"(Table 6), {miss9} of {len(paper.table9)} (Table 9): not yet run.")
 
 
-def comparison_markdown(rows6, order, rows7, rows9, paper: PaperTables | None = None) -> str:
+def comparison_markdown(rows6, order, rows7, rows9, paper: PaperTables | None = None,
+                        objectives: dict[str, str] | None = None) -> str:
     paper = paper or paper_tables()
     lines = ["# Beside the paper", ""]
-    for title, head, cells in _display(rows6, order, rows7, rows9):
+    for title, head, cells in _display(rows6, order, rows7, rows9, objectives or {}):
         lines += [f"## {title}", ""]
         if not cells:
             lines += ["No run of this report has a cell in this table of the paper.", ""]
@@ -395,10 +392,11 @@ def comparison_markdown(rows6, order, rows7, rows9, paper: PaperTables | None = 
     return "\n".join(lines) + "\n"
 
 
-def comparison_html(rows6, order, rows7, rows9, paper: PaperTables | None = None) -> str:
+def comparison_html(rows6, order, rows7, rows9, paper: PaperTables | None = None,
+                    objectives: dict[str, str] | None = None) -> str:
     paper = paper or paper_tables()
     parts = ["<h2>Beside the paper</h2>", f"<p>{html.escape(_explanation(paper, rows6, rows9))}</p>"]
-    for title, head, cells in _display(rows6, order, rows7, rows9):
+    for title, head, cells in _display(rows6, order, rows7, rows9, objectives or {}):
         parts.append(f"<h3>{html.escape(title)}</h3>")
         if not cells:
             parts.append("<p>No run of this report has a cell in this table of the paper.</p>")
@@ -417,23 +415,21 @@ def _write_csv(path: Path, columns: Sequence[str], rows: Sequence[dict[str, Any]
             writer.writerow({k: ("" if r.get(k) is None else repr(r[k]) if isinstance(r[k], float) else r[k]) for k in columns})
 
 
-def write_paper_comparison(facts: Sequence[Any], t6: Sequence[dict[str, Any]], out: Path) -> tuple[dict[str, Path], str]:
-    """Write the comparison files into `out`; returns them by name and the report.html
-    section. `facts` are the report's runs (Table 7 is recomputed over the runs of the
-    continuous space, as the paper's Table 7 covers its Table 6 runs)."""
-    from coadapt_core.analysis.report import table7_rows
-
+def write_paper_comparison(t6: Sequence[dict[str, Any]], t7: Sequence[dict[str, Any]], out: Path, *,
+                           objective_labels: dict[str, str] | None = None) -> tuple[dict[str, Path], str]:
+    """Write the comparison files into `out` from the report's Table 6 rows and its Table 7
+    rows over the runs of continuous design spaces (the paper's Table 7 covers its Table 6
+    runs); returns the files by name and the report.html section."""
     paper = paper_tables()
     rows6 = table6_comparison(t6, paper)
     order = order_comparison(rows6, paper)
-    continuous = [f for f in facts if not any(getattr(f, "design_discrete", ()) or ())]
-    rows7 = table7_comparison(table7_rows(continuous), paper)
+    rows7 = table7_comparison(t7, paper)
     rows9 = table9_comparison(t6, paper)
     files = {}
     for name, columns, rows in (("paper_table6.csv", T6_COLUMNS, rows6), ("paper_order.csv", ORDER_COLUMNS, order),
                                 ("paper_table7.csv", T7_COLUMNS, rows7), ("paper_table9.csv", T9_COLUMNS, rows9)):
         _write_csv(out / name, columns, rows)
         files[name] = out / name
-    (out / "paper_comparison.md").write_text(comparison_markdown(rows6, order, rows7, rows9, paper))
+    (out / "paper_comparison.md").write_text(comparison_markdown(rows6, order, rows7, rows9, paper, objective_labels))
     files["paper_comparison.md"] = out / "paper_comparison.md"
-    return files, comparison_html(rows6, order, rows7, rows9, paper)
+    return files, comparison_html(rows6, order, rows7, rows9, paper, objective_labels)

@@ -805,7 +805,8 @@ def write_report(
     # the paper's figures beside ours (coadapt_core/analysis/paper_comparison.py)
     from coadapt_core.analysis.paper_comparison import write_paper_comparison
 
-    paper_files, paper_html = write_paper_comparison(facts, t6, out)
+    paper_files, paper_html = write_paper_comparison(
+        t6, table7_rows([f for f in facts if not any(f.design_discrete)]), out, objective_labels=OBJECTIVE_LABELS)
     files.update(paper_files)
     figures: list[tuple[Path, str]] = []
     steps = (("heat-maps", lambda: figure_heatmaps(store, facts, out)),
