@@ -21,6 +21,7 @@ def test_wheel_carries_data_and_entry_points(tmp_path):
     names = set(wheel.namelist())
     assert "coadapt_plugins/robots/kuafu/policies/flat.pt" in names
     assert "coadapt_plugins/robots/kuafu/mass_model.json" in names
+    assert "coadapt_core/analysis/paper_du2025.json" in names  # the paper's tables, for `coadapt report`
     entry_points = next(n for n in names if n.endswith("entry_points.txt"))
     text = wheel.read(entry_points).decode()
     for name in ("coadapt.robots.kuafu", "coadapt.simulators.mujoco", "coadapt.optimizers.pso", "coadapt.objectives.locomotion"):

@@ -836,6 +836,12 @@ def write_report(
         (out / f"{name}.md").write_text(md)
         files[f"{name}.csv"] = out / f"{name}.csv"
         files[f"{name}.md"] = out / f"{name}.md"
+    # the paper's figures beside ours (coadapt_core/analysis/paper_comparison.py)
+    from coadapt_core.analysis.paper_comparison import write_paper_comparison
+
+    paper_files, paper_html = write_paper_comparison(
+        t6, table7_rows([f for f in facts if not any(f.design_discrete)]), out, objective_labels=OBJECTIVE_LABELS)
+    files.update(paper_files)
     figures: list[tuple[Path, str]] = []
     steps = (("heat-maps", lambda: figure_heatmaps(store, facts, out)),
              ("convergence", lambda: figure_convergence(store, facts, out)),
@@ -897,6 +903,7 @@ def write_report(
                               ("inter_t", f"interactions training ({iname})"), ("inter_e", f"interactions evaluation ({iname})"),
                               ("time_t", f"wall clock training ({tname})"), ("time_e", f"wall clock evaluation ({tname})"),
                               ("designs_real", "designs real"), ("designs_surrogate", "designs surrogate")]),
+        paper_html,
         "<h2>Figures</h2>",
     ]
     for path, caption in figures:

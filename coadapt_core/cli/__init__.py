@@ -9,7 +9,7 @@ import sys
 import typer
 
 from coadapt_core import __version__
-from coadapt_core.cli import export, grid, handoff, landscape, plugins, report, robot, run, train
+from coadapt_core.cli import export, grid, handoff, importing, landscape, plugins, report, robot, run, train
 from coadapt_core.cli.common import run_app
 
 app = typer.Typer(
@@ -41,6 +41,7 @@ train.register(app)
 grid.register(app)
 report.register(app)
 export.register(app)
+importing.register(app)
 landscape.register(app)
 handoff.register(app)
 

@@ -77,6 +77,9 @@ CASES: list[tuple[str, list[str], dict[str, str]]] = [
     ("landscape --checkpoint of another robot", [*LAND, "--checkpoint", "{T}/other-robot.pt", "--store", "{T}/l.db"], {}),
     ("report --transfer-sim nope", ["report", "--store", "{T}/r.db", "--out", "{T}/rep", "--transfer-sim", "nope"], {}),
     ("yaml mixed: maybe", ["run", "--config", "{T}/maybe.yaml", "--store", "none", "--out", "{T}/o"], {}),
+    ("import a file that is no export", ["import", "{T}/afile", "--store", "{T}/i.db"], {}),
+    ("import binary export files", ["import", "{T}/binexp/runs.csv", "--store", "{T}/i.db"], {}),
+    ("import --store not-a-database", ["import", "{T}/binexp", "--store", "{T}/notdb.db"], {}),
 ]
 
 
@@ -87,6 +90,9 @@ def folder(tmp_path_factory) -> Path:
     (T / "notdb.db").write_text("this is not an SQLite database\n" * 20)
     (T / "binary.yaml").write_bytes(bytes(range(256)) * 8)
     (T / "maybe.yaml").write_text("mixed: maybe\n")
+    (T / "binexp").mkdir()
+    for table in ("runs", "evaluations", "training_phases", "checkpoints"):  # an "export" of binary files
+        (T / "binexp" / f"{table}.csv").write_bytes(bytes(range(256)) * 4)
     shipped = Path(__file__).resolve().parents[2] / "plugins" / "robots" / "kuafu" / "policies" / "flat.pt"
     state = torch.load(shipped, map_location="cpu", weights_only=True)
     state["robot"] = "another-robot"
