@@ -28,7 +28,7 @@ import numpy as np
 from coadapt_core import surrogate_quality as sq
 from coadapt_core.coadapt.config import CoadaptConfig, config_from_dict
 from coadapt_core.coadapt.final_check import batch_errors, final_check, no_uncertainty
-from coadapt_core.coadapt.reliability import assess, fall_verdict, judge_short, walking
+from coadapt_core.coadapt.reliability import fall_verdict, judge_short, walking
 from coadapt_core.coadapt.setup import build_parts
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
@@ -903,7 +903,7 @@ class CoadaptationLoop:
         # per-design policies from scratch) is vouched for by nothing but this gate
         scratch = (str(c.checkpoint).strip().lower() == "none" if self.shared
                    else getattr(c, "specialized_init", "scratch") != "universal")
-        summary["reliable"], summary["reliability"] = judge_short(assess(s.batches, final_walking), c.eval_steps,
+        summary["reliable"], summary["reliability"] = judge_short(s.batches, final_walking, c.eval_steps,
                                                                   from_scratch=scratch)
         summary["starting_policy"] = None if str(c.checkpoint).strip().lower() == "none" else _starting_policy(c)
         summary["final_walking"] = final_walking

@@ -89,24 +89,33 @@ def assess(
     return True, f"passed the walking gate ({gate.describe()})"
 
 
-#: the shortest real evaluation, in policy steps per scenario, whose "does not walk" the
+#: the shortest real evaluation, in policy steps per scenario, whose tracking verdict the
 #: gate trusts. Every scenario starts from rest, so over a short one the mean velocity lags
 #: the command whatever the policy: the shipped flat policy (Kuafu, 0.02 s steps, 8 agents,
 #: the nominal design and two corners) misses by 0.51-0.56 x command over 20 steps (the
 #: smoke preset's), 0.32-0.35 over 50 and 0.22-0.30 over 100.
 MIN_JUDGED_STEPS = 50
+#: over a shorter evaluation a policy still fails when it tracks no better than this (about
+#: standing still, 1.0) or falls: that the start from rest cannot explain
+SHORT_MAX_TRACKING_RATIO = 0.95
 
 
-def judge_short(verdict: tuple[bool | None, str], eval_steps: int, *, from_scratch: bool) -> tuple[bool | None, str]:
-    """`assess`'s verdict for an evaluation of `eval_steps` steps per scenario: a failure
-    under `MIN_JUDGED_STEPS` is "not judged" (None) for a policy that came trained, and
-    stays a failure for one trained from scratch in the run (nothing vouches for it)."""
+def judge_short(batches: list[dict[str, Any]], final: dict[str, dict[str, Any]] | None, eval_steps: int, *,
+                from_scratch: bool, gate: WalkingGate = WALKING_GATE) -> tuple[bool | None, str]:
+    """`assess`, for an evaluation of `eval_steps` steps per scenario: under
+    `MIN_JUDGED_STEPS` a policy that came trained and fails only on tracking by less than
+    `SHORT_MAX_TRACKING_RATIO` is "not judged" (None); one that falls, stands still, or was
+    trained from scratch in the run (nothing else vouches for it) stays a failure."""
+    verdict = assess(batches, final, gate)
     reliable, reason = verdict
     if reliable is not False or eval_steps >= MIN_JUDGED_STEPS:
         return verdict
-    short = f"{eval_steps} steps per scenario are too short to judge walking (the gate needs >= {MIN_JUDGED_STEPS})"
+    short = f"{eval_steps} steps per scenario are too short to judge tracking (the gate needs >= {MIN_JUDGED_STEPS})"
     if from_scratch:
         return False, f"trained from scratch in this run, and {short}; measured: {reason}"
+    loose = WalkingGate(min_survival=gate.min_survival, max_tracking_ratio=SHORT_MAX_TRACKING_RATIO)
+    if assess(batches, final, loose)[0] is False:
+        return False, f"{reason}; it falls or stands still, which {eval_steps} steps per scenario do not explain"
     return None, f"not judged: {short}; measured: {reason}"
 
 
@@ -133,4 +142,4 @@ def fall_verdict(summary: dict[str, Any], margin: float = FALL_MARGIN) -> dict[s
             "reliability": why if summary.get("reliable") is not False else f"{why}; {previous}"}
 
 
-__all__ = ["FALL_MARGIN", "MIN_JUDGED_STEPS", "WALKING_GATE", "WalkingGate", "assess", "fall_verdict", "judge_short", "walking"]
+__all__ = ["FALL_MARGIN", "MIN_JUDGED_STEPS", "SHORT_MAX_TRACKING_RATIO", "WALKING_GATE", "WalkingGate", "assess", "fall_verdict", "judge_short", "walking"]

@@ -11,17 +11,22 @@ import pytest
 from coadapt_core.cli import main
 from coadapt_core.coadapt.reliability import MIN_JUDGED_STEPS, judge_short
 
-FAILED = (False, "the policy does not walk (real rounds: tracking error 0.54 x command > 0.5)")
+
+def batches(tracking: float, survival: float = 1.0) -> list[dict]:
+    return [{"kind": "real", "tracking_ratio": tracking, "survival": survival}]
 
 
 def test_a_short_evaluation_does_not_judge_a_trained_policy_but_still_fails_one_from_scratch():
-    verdict, reason = judge_short(FAILED, 20, from_scratch=False)
+    verdict, reason = judge_short(batches(0.54), None, 20, from_scratch=False)
     assert verdict is None and reason.startswith("not judged: 20 steps per scenario") and "0.54" in reason
-    verdict, reason = judge_short(FAILED, 20, from_scratch=True)
+    verdict, reason = judge_short(batches(0.54), None, 20, from_scratch=True)
     assert verdict is False and "trained from scratch" in reason
-    assert judge_short(FAILED, MIN_JUDGED_STEPS, from_scratch=False) == FAILED  # long enough: the gate stands
-    passed = (True, "passed the walking gate")
-    assert judge_short(passed, 20, from_scratch=True) == passed
+    assert judge_short(batches(0.54), None, MIN_JUDGED_STEPS, from_scratch=False)[0] is False  # long enough
+    assert judge_short(batches(0.3), None, 20, from_scratch=True)[0] is True  # passed is passed
+    # standing still or falling is not explained by a short evaluation
+    assert judge_short(batches(1.02), None, 20, from_scratch=False)[0] is False
+    verdict, reason = judge_short(batches(0.6, survival=0.5), None, 20, from_scratch=False)
+    assert verdict is False and "falls or stands still" in reason
 
 
 @pytest.mark.slow
