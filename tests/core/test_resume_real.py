@@ -99,9 +99,10 @@ def test_smoke_run_interrupted_twice_and_resumed_equals_the_uninterrupted_run(tm
     full = run_coadaptation(config, run_dir=tmp_path / "full").summary
 
     cut = tmp_path / "cut"
-    # 1: between the two evaluation rounds of the first outer iteration
+    # 1: between the two evaluation rounds of the first outer iteration (real calls: round 0, the
+    # nominal design's reference evaluation of the capped cost rule, round 1)
     with pytest.raises(KeyboardInterrupt, match="injected"):
-        run_coadaptation(config, run_dir=cut, backend_factory=interrupting(config, "real", 1))
+        run_coadaptation(config, run_dir=cut, backend_factory=interrupting(config, "real", 2))
     done_first = len(read_evaluations(cut))
     # 2: the resumed process is stopped again as it starts retraining (second outer iteration)
     with pytest.raises(KeyboardInterrupt, match="injected"):
