@@ -9,7 +9,18 @@ import sys
 import typer
 
 from coadapt_core import __version__
-from coadapt_core.cli import export, grid, handoff, importing, landscape, plugins, report, robot, run, train
+from coadapt_core.cli import (
+    export,
+    grid,
+    handoff,
+    importing,
+    landscape,
+    plugins,
+    report,
+    robot,
+    run,
+    train,
+)
 from coadapt_core.cli.common import run_app
 
 app = typer.Typer(
