@@ -55,8 +55,9 @@ class SlowFit(AnalyticBackend):
 
 
 def test_a_fit_for_a_surrogate_round_counts_once(tmp_path, monkeypatch):
-    from coadapt_core.coadapt import loop
     from coadapt_plugins.objectives.locomotion import TorqueObjective
+
+    from coadapt_core.coadapt import loop
 
     clock = Clock()
     monkeypatch.setattr(loop, "time", clock)
