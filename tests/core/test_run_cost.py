@@ -4,7 +4,6 @@ second of surrogate work once (a fit made for a surrogate round used to count tw
 from __future__ import annotations
 
 import importlib.util
-import time
 from pathlib import Path
 
 import numpy as np
@@ -34,24 +33,40 @@ def test_phases_take_surrogate_rounds_out_of_real_evaluation():
     assert parts["other"] == (pytest.approx(100.0 - 30.0 - 43.0 - 12.0 - 5.0), 0)
 
 
-class SlowFit(AnalyticBackend):
-    """The analytic backend whose surrogate fit takes FIT seconds."""
+class Clock:
+    """The loop's clock (its module's `time`), advanced only by the fake's fits."""
 
-    FIT = 0.3
+    def __init__(self):
+        self.now = 0.0
+
+    def perf_counter(self) -> float:
+        return self.now
+
+
+class SlowFit(AnalyticBackend):
+    """The analytic backend whose surrogate fit takes FIT seconds of `clock`."""
+
+    FIT = 1.0
+    clock: Clock
 
     def fit_surrogate(self, *args, **kwargs):
-        time.sleep(self.FIT)
+        self.clock.now += self.FIT
         super().fit_surrogate(*args, **kwargs)
 
 
-def test_a_fit_for_a_surrogate_round_counts_once(tmp_path):
+def test_a_fit_for_a_surrogate_round_counts_once(tmp_path, monkeypatch):
+    from coadapt_plugins.objectives.locomotion import TorqueObjective
+
+    from coadapt_core.coadapt import loop
+
+    clock = Clock()
+    monkeypatch.setattr(loop, "time", clock)
     backends = []
 
     def factory(seed):
         backends.append(SlowFit(seed))
+        backends[-1].clock = clock
         return backends[-1]
-
-    from coadapt_plugins.objectives.locomotion import TorqueObjective
 
     config = make_config("smoke", overrides=dict(
         population=4, optimizer_iterations=6, outer_iterations=1, agents_per_design=4, eval_steps=5, train_steps=100,
@@ -61,8 +76,8 @@ def test_a_fit_for_a_surrogate_round_counts_once(tmp_path):
     s = result.summary
     fits = sum(getattr(b, "fits", 0) for b in backends)
     assert s["surrogate_evaluations"] >= 1 and fits >= 2
-    # every fit's sleep is surrogate time, once: the fake's predictions cost next to nothing
-    assert fits * SlowFit.FIT <= s["surrogate_seconds"] < (fits + 0.5) * SlowFit.FIT
+    # the clock moves only in fits: every fit's second is surrogate time, once
+    assert s["surrogate_seconds"] == pytest.approx(fits * SlowFit.FIT)
     assert s["surrogate_seconds"] <= s["seconds"]
 
 
