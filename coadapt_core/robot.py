@@ -196,3 +196,19 @@ class Robot(ABC):
         if design.shape[0] == mixed.dim and mixed.dim != plain.dim:
             return mixed
         return plain
+
+
+def joint_table(model: RobotModel) -> list[dict[str, Any]]:
+    """A model's actuated joints in policy order, as plain data: default angle, limits, PD
+    gains, motor torque and speed limits (`coadapt robot show`, the handoff's design sheet)."""
+    return [{
+        "name": name,
+        "default": float(model.default_joint_pos[k]),
+        "lower": float(model.joint_lower[k]),
+        "upper": float(model.joint_upper[k]),
+        "kp": float(model.kp[k]),
+        "kd": float(model.kd[k]),
+        "torque_limit": float(model.torque_limit[k]),
+        "speed_limit": float(model.speed_limit[k]),
+        "speed_limit_rpm": float(model.speed_limit[k] * 60.0 / (2.0 * np.pi)),
+    } for k, name in enumerate(model.joint_names)]

@@ -17,6 +17,7 @@ import typer
 from coadapt_core.cli.common import fail, resolve
 from coadapt_core.errors import DesignError
 from coadapt_core.io import jsonable
+from coadapt_core.robot import joint_table
 
 app = typer.Typer(help="Inspect, export, validate and render robot designs.", no_args_is_help=True)
 
@@ -51,21 +52,7 @@ def describe(robot: Any, design: np.ndarray, validate: bool = True) -> dict:
     """Everything `show` prints, as plain data."""
     model = robot.build(design)
     space = robot.design_space_for(design)
-    joints = []
-    for k, name in enumerate(model.joint_names):
-        joints.append(
-            {
-                "name": name,
-                "default": float(model.default_joint_pos[k]),
-                "lower": float(model.joint_lower[k]),
-                "upper": float(model.joint_upper[k]),
-                "kp": float(model.kp[k]),
-                "kd": float(model.kd[k]),
-                "torque_limit": float(model.torque_limit[k]),
-                "speed_limit": float(model.speed_limit[k]),
-                "speed_limit_rpm": float(model.speed_limit[k] * 60.0 / (2.0 * np.pi)),
-            }
-        )
+    joints = joint_table(model)
     out = {
         "robot": robot.name,
         "design": dict(zip(space.names, (float(x) for x in design), strict=True)),

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from coadapt_core.io import jsonable
+from coadapt_core.robot import joint_table
 
 
 def link_facts(model: Any) -> dict[str, Any]:
@@ -61,24 +62,6 @@ def link_facts(model: Any) -> dict[str, Any]:
         "height": high - low if math.isfinite(high) else None,
         "lowest_point": low if math.isfinite(low) else None,
     }
-
-
-def joint_table(model: Any) -> list[dict[str, Any]]:
-    """Actuated joints in policy order: limits, PD gains and motor limits."""
-    rows = []
-    for k, name in enumerate(model.joint_names):
-        rows.append({
-            "name": name,
-            "default": float(model.default_joint_pos[k]),
-            "lower": float(model.joint_lower[k]),
-            "upper": float(model.joint_upper[k]),
-            "kp": float(model.kp[k]),
-            "kd": float(model.kd[k]),
-            "torque_limit": float(model.torque_limit[k]),
-            "speed_limit": float(model.speed_limit[k]),
-            "speed_limit_rpm": float(model.speed_limit[k] * 60.0 / (2.0 * math.pi)),
-        })
-    return rows
 
 
 def design_parameters(space: Any, design: np.ndarray) -> list[dict[str, Any]]:
