@@ -5,6 +5,11 @@ directly, each with its standard error, under the cost rule and under the paper'
 
     python benchmarks/common_scenarios.py RUN_A RUN_B --blocks 8 --json
     python benchmarks/common_scenarios.py --design 0.5,0.66 --design 1.08,1.43 --objectives torque
+    python benchmarks/common_scenarios.py RUN_A RUN_B --policy run --blocks 8 --json
+
+With `--policy run` each run's best design is judged with the policy the run handed back (its
+last checkpoint, `checkpoints/backend-outer<N>.pt`), paired with the nominal design under that
+same policy: one nominal row per run, labelled "nominal (policy of RUN)".
 
 Runs are run folders or run ids (folders under --runs-dir) holding a summary.json. The
 scenarios are blocks of 32 x 250 (the quick preset's size) drawn from `scenario_seed(1000, b)`,
@@ -33,7 +38,7 @@ def _fail(message: str) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(ROOT))
-    from coadapt_core.fitness import COST_RULES, CostRule, compare_designs, scenario_seed
+    from coadapt_core.fitness import COST_RULES, CostRule, scenario_seed
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("runs", nargs="*", help="run folders or run ids (each with a summary.json)")
@@ -47,6 +52,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--terrain", default=None, help="terrain (default: the runs' terrain, else flat)")
     p.add_argument("--objectives", default=None, help="comma list (default: every objective the runs optimised)")
     p.add_argument("--checkpoint", default=None, help="policy (default: the robot's shipped policy for the terrain)")
+    p.add_argument("--policy", choices=("shipped", "run"), default="shipped",
+                   help="shipped: one policy for every design (--checkpoint, else the shipped one); "
+                        "run: each run's own final policy, with nominal evaluated under each")
     p.add_argument("--cost-rule", choices=COST_RULES, default="capped", help="how scenarios make a cost (default: capped)")
     p.add_argument("--cost-cap", type=float, default=3.0, help="the capped rule's cap (nominal median scenarios)")
     p.add_argument("--json", action="store_true", help="one JSON line per design")
@@ -107,22 +115,56 @@ def main(argv: list[str] | None = None) -> int:
                  else list(dict.fromkeys(k for s in summaries for k in (s.get("best_costs") or {})))
                  or ["tracking", "power", "torque"])
         robot, sim_cls, objectives = resolve_plugins(robot, args.sim or default_plugin("simulator"), names)
-        backend = make_backend(robot, sim_cls, objectives, terrain=terrain, design_space=space, mixed=mixed,
-                               checkpoint=str(checkpoint), agents_per_design=args.agents)
-        designs = np.array([s["best_design"] for s in summaries] + [nominal.tolist()], dtype=float)
-        fits = [backend.real_fitness(designs, objectives, agents=args.agents, steps=args.steps, seed=scenario_seed(1000, b))
-                for b in range(args.blocks)]
+        if args.policy == "run":
+            if any("folder" not in s for s in summaries):
+                return _fail("--policy run judges runs with their own policies: give run folders or ids, not --design")
+            groups = [([s], _run_policy(s["folder"]), f"nominal (policy of {s['label']})") for s in summaries]
+        else:
+            groups = [(summaries, Path(str(checkpoint)), "nominal")]
+        rule = CostRule(args.cost_rule, args.cost_cap)
+        for members, policy, nominal_label in groups:
+            backend = make_backend(robot, sim_cls, objectives, terrain=terrain, design_space=space, mixed=mixed,
+                                   checkpoint=str(policy), agents_per_design=args.agents)
+            designs = np.array([s["best_design"] for s in members] + [nominal.tolist()], dtype=float)
+            fits = [backend.real_fitness(designs, objectives, agents=args.agents, steps=args.steps,
+                                         seed=scenario_seed(1000, b)) for b in range(args.blocks)]
+            backend.close()
+            labelled = [*members, {"label": nominal_label, "best_design": nominal.tolist()}]
+            for row in _rows(fits, designs, labelled, objectives, rule, terrain, policy.name):
+                _print_row(row, as_json=args.json)
     except CoadaptError as exc:
         return _fail(" ".join(str(exc).split()))
+    return 0
+
+
+def _run_policy(folder: Path) -> Path:
+    """The last policy a run saved (`checkpoints.jsonl`'s highest outer iteration), looked up
+    by file name inside the run's own checkpoints/ folder (a recorded path is never followed)."""
+    from coadapt_core.errors import UserError
+    from coadapt_core.validation import inside
+
+    rows = [json.loads(line) for line in (folder / "checkpoints.jsonl").read_text().splitlines() if line.strip()] \
+        if (folder / "checkpoints.jsonl").is_file() else []
+    rows = [r for r in rows if isinstance(r, dict) and isinstance(r.get("outer"), int) and isinstance(r.get("path"), str)]
+    if not rows:
+        raise UserError(f"run folder {folder} records no checkpoint (checkpoints.jsonl)", field="policy")
+    path = inside(folder / "checkpoints", Path(max(rows, key=lambda r: r["outer"])["path"]).name, field="policy")
+    if not path.is_file():
+        raise UserError(f"run folder {folder} lacks its checkpoint {path.name}", field="policy")
+    return path
+
+
+def _rows(fits, designs, labelled, objectives, rule, terrain: str, policy: str):
+    """One row per design of a group (its nominal design last), paired against that nominal."""
+    from coadapt_core.fitness import compare_designs
+
     per = np.concatenate([f.per_scenario for f in fits], axis=1)  # [D, A, M]
     falls = np.concatenate([f.scenario_falls for f in fits], axis=1)  # [D, A]
-    rule = CostRule(args.cost_rule, args.cost_cap)
     nominal_row = len(designs) - 1
-    for i, s in enumerate([*summaries, {"label": "nominal", "best_design": nominal.tolist()}]):
+    for i, s in enumerate(labelled):
         comp = compare_designs(rule, objectives, per, falls, i, nominal_row)
         row = {"label": s["label"], "run_seed": s.get("seed"), "design": [round(float(x), 3) for x in designs[i]],
-               "scenarios": int(per.shape[1]), "cost_rule": rule.rule, "terrain": terrain,
-               "policy": Path(str(checkpoint)).name}
+               "scenarios": int(per.shape[1]), "cost_rule": rule.rule, "terrain": terrain, "policy": policy}
         for name, v in comp["objectives"].items():
             entry = {k: v[k] for k in ("cost", "cost_se", "plain_mean", "plain_mean_se")}
             if i != nominal_row:
@@ -132,18 +174,22 @@ def main(argv: list[str] | None = None) -> int:
         if i != nominal_row:
             row["fall_rate_difference"] = comp["fall_rate_difference"]
             row["fall_rate_difference_se"] = comp["fall_rate_difference_se"]
-        if args.json:
-            print(json.dumps(row))
-        else:
-            parts = [f"{n} {e['cost']:.4g} +- {e['cost_se']:.2g} (plain {e['plain_mean']:.4g} +- {e['plain_mean_se']:.2g})"
-                     + (f" improvement {100 * e['improvement']:+.1f} +- {100 * e['improvement_se']:.1f} % "
-                        f"(plain {100 * e['improvement_plain']:+.1f} +- {100 * e['improvement_plain_se']:.1f} %)"
-                        if "improvement" in e else "")
-                     for n, e in ((n, row[n]) for n in comp["objectives"])]
-            print(f"{row['label']} {row['design']}: " + "; ".join(parts)
-                  + f"; fall rate {100 * row['fall_rate']:.1f} +- {100 * row['fall_rate_se']:.1f} %")
-    backend.close()
-    return 0
+        row["_objectives"] = list(comp["objectives"])
+        yield row
+
+
+def _print_row(row: dict, *, as_json: bool) -> None:
+    names = row.pop("_objectives")
+    if as_json:
+        print(json.dumps(row), flush=True)
+        return
+    parts = [f"{n} {e['cost']:.4g} +- {e['cost_se']:.2g} (plain {e['plain_mean']:.4g} +- {e['plain_mean_se']:.2g})"
+             + (f" improvement {100 * e['improvement']:+.1f} +- {100 * e['improvement_se']:.1f} % "
+                f"(plain {100 * e['improvement_plain']:+.1f} +- {100 * e['improvement_plain_se']:.1f} %)"
+                if "improvement" in e else "")
+             for n, e in ((n, row[n]) for n in names)]
+    print(f"{row['label']} {row['design']}: " + "; ".join(parts)
+          + f"; fall rate {100 * row['fall_rate']:.1f} +- {100 * row['fall_rate_se']:.1f} %", flush=True)
 
 
 if __name__ == "__main__":
