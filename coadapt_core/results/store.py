@@ -34,12 +34,14 @@ ENV_GRID_CELL = "COADAPT_GRID_CELL"
 #: default store file, relative to the working directory (the project folder)
 DEFAULT_STORE_FILE = "coadapt.db"
 
-#: evaluation kinds: the loop's two, plus transfer to a second simulator (report) and
-#: the grid evaluations of `coadapt landscape` (stored as "real")
-EVALUATION_KINDS = ("real", "surrogate", "sim2sim")
+#: evaluation kinds: the loop's two, plus transfer to a second simulator (report), the
+#: common yardstick (report) and the grid evaluations of `coadapt landscape` (stored as "real")
+EVALUATION_KINDS = ("real", "surrogate", "sim2sim", "common")
 #: rows of sim-to-sim transfer (coadapt_core.experiments.transfer): their kind, and the outer
 #: index they are stored with (they belong to no iteration of the run)
 TRANSFER_KIND, TRANSFER_OUTER = "sim2sim", -1
+#: rows of the common yardstick (coadapt_core.experiments.yardstick): their kind and outer index
+COMMON_KIND, COMMON_OUTER = "common", -2
 #: the method recorded by cost-landscape runs (coadapt_core.experiments.landscape)
 LANDSCAPE_METHOD = "landscape"
 #: statuses the store and the grid use (the loop may report others; they are kept as given)

@@ -1,0 +1,162 @@
+"""One yardstick for every run: its true cost on a common set of paired scenarios.
+
+A run's own figures come from its own scenario set and its own final check, so two runs (two
+methods, two seeds) are each measured with a different ruler. Here every run's best design and
+its nominal design are evaluated with the policy the run handed back (its last checkpoint) on
+one common set per terrain: `blocks` blocks of `agents` scenarios x `steps` policy steps drawn
+from `scenario_seed(COMMON_SEED, b)`, a set no run with a small seed draws. The costs follow
+the run's own cost rule (the reference level from the nominal row), with the plain mean of
+eq. 4, the fall rates and the paired improvements beside them, each with its standard error.
+
+The figures are stored as two evaluation rows of kind "common" (idx 0 best, 1 nominal); the
+report reads them, an export carries them, and a run that has them is not evaluated again.
+`benchmarks/common_scenarios.py --policy run` computes the same figures without a store.
+
+Keys of a row's `costs` (objective names never hold a "/"): per objective `NAME` (the rule's
+cost), `NAME/se`, `NAME/plain`, `NAME/plain_se`; on the best row also `NAME/improvement`,
+`NAME/improvement_se`, `NAME/improvement_plain`, `NAME/improvement_plain_se`; and `falls`,
+`falls/se` (best row also `falls/difference`, `falls/difference_se`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from coadapt_core.errors import BackendUnavailable, UserError
+from coadapt_core.fitness import CostRule, compare_designs, scenario_seed
+from coadapt_core.results.recorders import batch_rows
+from coadapt_core.results.store import COMMON_KIND, COMMON_OUTER, ResultsStore, best_of
+
+#: the common scenario set: blocks of scenario_seed(COMMON_SEED, b) (benchmarks/common_scenarios.py draws the same)
+COMMON_SEED = 1000
+DEFAULT_BLOCKS, DEFAULT_AGENTS, DEFAULT_STEPS = 8, 32, 250
+
+
+def yardstick_rows(store: ResultsStore, run_id: str) -> list:
+    """The run's common-yardstick rows (idx 0 best design, 1 nominal)."""
+    return sorted(store.evaluations(run_id, kind=COMMON_KIND), key=lambda e: e.idx)
+
+
+def figures(comparison: dict[str, Any], *, best: bool) -> dict[str, float]:
+    """A `compare_designs` result as the flat `costs` mapping of one stored row."""
+    out: dict[str, float] = {}
+    for name, v in comparison["objectives"].items():
+        out[name] = v["cost"]
+        out[f"{name}/se"], out[f"{name}/plain"], out[f"{name}/plain_se"] = v["cost_se"], v["plain_mean"], v["plain_mean_se"]
+        if best:
+            for key in ("improvement", "improvement_se", "improvement_plain", "improvement_plain_se"):
+                out[f"{name}/{key}"] = v[key]
+    out["falls"], out["falls/se"] = comparison["fall_rate"], comparison["fall_rate_se"]
+    if best:
+        out["falls/difference"] = comparison["fall_rate_difference"]
+        out["falls/difference_se"] = comparison["fall_rate_difference_se"]
+    return {k: float(x) for k, x in out.items()}
+
+
+def _backend(run: dict[str, Any], dim: int, agents: int, checkpoint: str, factory: Callable | None):
+    """(backend, objectives, nominal design) for the run's robot, simulator and terrain."""
+    from coadapt_core.experiments.transfer import _nominal
+    from coadapt_core.learning.factory import make_backend, resolve_plugins
+
+    cfg = run.get("config") or {}
+    robot_name, simulator = run.get("robot") or cfg.get("robot"), run.get("simulator") or cfg.get("sim")
+    if not robot_name or not simulator:
+        raise BackendUnavailable("the run recorded no robot or simulator")
+    robot, sim_cls, objectives = resolve_plugins(str(robot_name), str(simulator), list(run["objectives"]))
+    nominal = _nominal(robot, run, dim)
+    space = next((s for s in (robot.design_space(False), robot.design_space(True)) if s.dim == dim), None)
+    backend = (factory or make_backend)(
+        robot, sim_cls, objectives, terrain=run.get("terrain") or "flat", design_space=space,
+        agents_per_design=agents, device=str(cfg.get("device", "cpu")), seed=int(run.get("seed") or 0),
+        checkpoint=checkpoint,
+    )
+    return backend, objectives, nominal
+
+
+def yardstick_run(
+    store: ResultsStore,
+    run: dict[str, Any],
+    best_design: Sequence[float] | None,
+    *,
+    blocks: int = DEFAULT_BLOCKS,
+    agents: int = DEFAULT_AGENTS,
+    steps: int = DEFAULT_STEPS,
+    factory: Callable | None = None,
+) -> str:
+    """Evaluate the run's best and nominal designs on the common set and record them, unless
+    the store holds them already. Returns '' when the rows exist, else why not ("n/a: ...")."""
+    from coadapt_core.experiments.transfer import run_checkpoint_in_store
+
+    if not run.get("objectives") or best_design is None:
+        return "n/a: the run has no best design"
+    if len(yardstick_rows(store, run["id"])) >= 2:
+        return ""
+    checkpoint, why = run_checkpoint_in_store(store, run)
+    if checkpoint is None:
+        return why
+    best = np.asarray(best_design, dtype=float)
+    try:
+        backend, objectives, nominal = _backend(run, best.shape[0], agents, str(checkpoint), factory)
+        designs = np.stack([best, nominal])
+        fits = [backend.real_fitness(designs, objectives, agents=agents, steps=steps, seed=scenario_seed(COMMON_SEED, b))
+                for b in range(blocks)]
+        close = getattr(backend, "close", None)
+        if callable(close):
+            close()
+    except (BackendUnavailable, UserError) as exc:
+        return f"n/a: {' '.join(str(exc).split())}"
+    if any(f.per_scenario is None for f in fits):
+        return "n/a: the backend reports no per-scenario costs"
+    per = np.concatenate([f.per_scenario for f in fits], axis=1)
+    falls = None if any(f.scenario_falls is None for f in fits) else np.concatenate([f.scenario_falls for f in fits], axis=1)
+    rule = CostRule.from_config(run.get("config") or {})
+    rows = [figures(compare_designs(rule, objectives, per, falls, i, 1), best=i == 0) for i in (0, 1)]
+    store.record_evaluations(run["id"], batch_rows(
+        outer=COMMON_OUTER, inner=0, kind=COMMON_KIND, designs=[best.tolist(), nominal.tolist()], costs=rows,
+        interactions=sum(f.interactions for f in fits) // 2, seconds=sum(f.seconds for f in fits) / 2,
+        simulator=str(run.get("simulator") or "")))
+    return ""
+
+
+def yardstick_runs(
+    store: ResultsStore,
+    runs: Sequence[dict[str, Any]],
+    *,
+    blocks: int = DEFAULT_BLOCKS,
+    agents: int = DEFAULT_AGENTS,
+    steps: int = DEFAULT_STEPS,
+    factory: Callable | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
+) -> dict[str, str]:
+    """`yardstick_run` for each run's best design; returns run id -> why it has no rows."""
+    notes = {}
+    for i, run in enumerate(runs):
+        if progress is not None:
+            progress(i, len(runs), f"common scenarios {run['id']}")
+        best, _ = best_of(run, store.evaluations(run["id"], kind="real"))
+        note = yardstick_run(store, run, best, blocks=blocks, agents=agents, steps=steps, factory=factory)
+        if note:
+            notes[run["id"]] = note
+    if progress is not None:
+        progress(len(runs), len(runs), "common scenarios done")
+    return notes
+
+
+def yardstick_improvement(store: ResultsStore, run_id: str, objective: str) -> dict[str, float] | None:
+    """The stored common-yardstick figures of one objective (improvement under the rule and
+    under the plain mean, with SE; fall rates), or None when the run has no such rows."""
+    rows = yardstick_rows(store, run_id)
+    if len(rows) < 2 or objective not in rows[0].costs:
+        return None
+    best, nominal = rows[0].costs, rows[1].costs
+    keys = ("improvement", "improvement_se", "improvement_plain", "improvement_plain_se")
+    if any(f"{objective}/{k}" not in best for k in keys):
+        return None
+    out = {k: float(best[f"{objective}/{k}"]) for k in keys}
+    out.update(fall_rate=float(best.get("falls", np.nan)), nominal_fall_rate=float(nominal.get("falls", np.nan)),
+               fall_rate_difference=float(best.get("falls/difference", np.nan)),
+               fall_rate_difference_se=float(best.get("falls/difference_se", np.nan)))
+    return out
