@@ -3,8 +3,10 @@
 A run's own figures come from its own scenario set and its own final check, so two runs (two
 methods, two seeds) are each measured with a different ruler. Here every run's best design and
 its nominal design are evaluated with the policy the run handed back (its last checkpoint) on
-one common set per terrain: `blocks` blocks of `agents` scenarios x `steps` policy steps drawn
-from `scenario_seed(COMMON_SEED, b)`, a set no run with a small seed draws. The costs follow
+one common set per terrain and preset: `blocks` blocks of scenarios drawn from
+`scenario_seed(COMMON_SEED, b)`, a set no run with a small seed draws, each block as large as
+one of the run's real evaluations (its `eval_agents` scenarios x `eval_steps` policy steps: 32 x
+250 in the quick preset, so 8 blocks are the 256 scenarios of docs/coadaptation.md). The costs follow
 the run's own cost rule (the reference level from the nominal row), with the plain mean of
 eq. 4, the fall rates and the paired improvements beside them, each with its standard error.
 
@@ -32,7 +34,14 @@ from coadapt_core.results.store import COMMON_KIND, COMMON_OUTER, ResultsStore, 
 
 #: the common scenario set: blocks of scenario_seed(COMMON_SEED, b) (benchmarks/common_scenarios.py draws the same)
 COMMON_SEED = 1000
-DEFAULT_BLOCKS, DEFAULT_AGENTS, DEFAULT_STEPS = 8, 32, 250
+DEFAULT_BLOCKS = 8
+
+
+def block_size(run: dict[str, Any]) -> tuple[int, int]:
+    """(scenarios, policy steps) of one block: the run's real evaluation size."""
+    cfg = run.get("config") or {}
+    agents = int(cfg.get("eval_agents") or 0) or int(cfg.get("agents_per_design") or 0) or 32
+    return agents, int(cfg.get("eval_steps") or 0) or 250
 
 
 def yardstick_rows(store: ResultsStore, run_id: str) -> list:
@@ -82,8 +91,8 @@ def yardstick_run(
     best_design: Sequence[float] | None,
     *,
     blocks: int = DEFAULT_BLOCKS,
-    agents: int = DEFAULT_AGENTS,
-    steps: int = DEFAULT_STEPS,
+    agents: int | None = None,
+    steps: int | None = None,
     factory: Callable | None = None,
 ) -> str:
     """Evaluate the run's best and nominal designs on the common set and record them, unless
@@ -98,6 +107,8 @@ def yardstick_run(
     if checkpoint is None:
         return why
     best = np.asarray(best_design, dtype=float)
+    own_agents, own_steps = block_size(run)
+    agents, steps = agents or own_agents, steps or own_steps
     try:
         backend, objectives, nominal = _backend(run, best.shape[0], agents, str(checkpoint), factory)
         designs = np.stack([best, nominal])
@@ -126,12 +137,13 @@ def yardstick_runs(
     runs: Sequence[dict[str, Any]],
     *,
     blocks: int = DEFAULT_BLOCKS,
-    agents: int = DEFAULT_AGENTS,
-    steps: int = DEFAULT_STEPS,
+    agents: int | None = None,
+    steps: int | None = None,
     factory: Callable | None = None,
     progress: Callable[[int, int, str], None] | None = None,
 ) -> dict[str, str]:
-    """`yardstick_run` for each run's best design; returns run id -> why it has no rows."""
+    """`yardstick_run` for each run's best design (blocks of each run's own evaluation size
+    unless `agents`/`steps` are given); returns run id -> why it has no rows."""
     notes = {}
     for i, run in enumerate(runs):
         if progress is not None:

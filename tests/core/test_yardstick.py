@@ -84,3 +84,10 @@ def test_a_run_without_policy_says_why(tmp_path):
     notes = yardstick_runs(rec.store, [rec.store.get_run(run_id)], factory=lambda *a, **k: pytest.fail("no backend"))
     assert notes == {run_id: "n/a: the run recorded no policy checkpoint"}
     assert yardstick_improvement(rec.store, run_id, "torque") is None
+
+
+def test_a_block_is_the_size_of_the_runs_real_evaluation():
+    from coadapt_core.experiments.yardstick import block_size
+
+    assert block_size({"config": {"eval_agents": 32, "eval_steps": 250, "agents_per_design": 16}}) == (32, 250)
+    assert block_size({"config": {"eval_agents": 0, "eval_steps": 20, "agents_per_design": 2}}) == (2, 20)
