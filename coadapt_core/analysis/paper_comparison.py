@@ -42,10 +42,16 @@ PAPER_ROUNDING = 0.0005
 #: a difference is beyond noise when larger than this many standard errors
 Z = 2.0
 
+#: the common yardstick (coadapt_core.experiments.yardstick): every run's best design and its
+#: nominal design with the run's own policy on one common scenario set, under the run's rule
+#: and the plain mean, with the paired fall-rate difference
+COMMON_COLUMNS = ("common_improvement", "common_improvement_se", "common_improvement_verdict",
+                  "common_improvement_plain", "common_improvement_plain_se", "common_improvement_plain_verdict",
+                  "common_fall_rate_difference", "common_fall_rate_difference_se")
 T6_COLUMNS = ("objective", "method", "optimizer", "terrain", "runs", "seeds",
               "thigh", "thigh_se", "paper_thigh", "shank", "shank_se", "paper_shank", "direction",
               "improvement", "improvement_se", "paper_improvement", "improvement_verdict",
-              "improvement_plain", "improvement_plain_se", "improvement_plain_verdict",
+              "improvement_plain", "improvement_plain_se", "improvement_plain_verdict", *COMMON_COLUMNS,
               "sim2sim_improvement", "sim2sim_improvement_se", "paper_sim2sim_improvement", "sim2sim_verdict")
 ORDER_COLUMNS = ("objective", "terrain", "measure", "methods", "paper_order", "our_order", "pairs", "reversed",
                  "clear_reversals", "verdict")
@@ -58,7 +64,7 @@ T9_COLUMNS = ("objective", "method", "optimizer", "terrain", "runs", "seeds",
               "thigh", "thigh_se", "paper_thigh", "shank", "shank_se", "paper_shank", "direction",
               "hip_motor", "paper_hip_motor", "hip_motor_verdict", "knee_motor", "paper_knee_motor", "knee_motor_verdict",
               "improvement", "improvement_se", "paper_improvement", "improvement_verdict",
-              "improvement_plain", "improvement_plain_se", "improvement_plain_verdict")
+              "improvement_plain", "improvement_plain_se", "improvement_plain_verdict", *COMMON_COLUMNS)
 
 
 # -- numbers ------------------------------------------------------------------------------------
@@ -164,6 +170,10 @@ def _improvements(row: dict[str, Any], r: dict[str, Any], paper_imp: float | Non
     row["improvement_verdict"] = value_verdict(row["improvement"], row["improvement_se"], paper_imp)
     row["improvement_plain"], row["improvement_plain_se"] = r.get("improvement_plain"), se_of(r, "improvement_plain")
     row["improvement_plain_verdict"] = value_verdict(row["improvement_plain"], row["improvement_plain_se"], paper_imp)
+    for name in ("common_improvement", "common_improvement_plain", "common_fall_rate_difference"):
+        row[name], row[f"{name}_se"] = r.get(name), se_of(r, name)
+    for name in ("common_improvement", "common_improvement_plain"):
+        row[f"{name}_verdict"] = value_verdict(row[name], row[f"{name}_se"], paper_imp)
     if sim2sim:
         row["sim2sim_improvement"] = r.get("sim2sim_improvement")
         row["sim2sim_improvement_se"] = se_of(r, "sim2sim_improvement")
@@ -172,7 +182,8 @@ def _improvements(row: dict[str, Any], r: dict[str, Any], paper_imp: float | Non
 
 
 def order_comparison(rows6: Sequence[dict[str, Any]], paper: PaperTables | None = None) -> list[dict[str, Any]]:
-    """Per objective and terrain (and measure: the run's cost, the plain mean), whether our
+    """Per objective and terrain (and measure: the run's cost, the plain mean, both on the
+    common scenario set), whether our
     methods order by improvement as the paper's do (`table6_comparison` rows in; a method
     with rows of several optimizers counts with its first, the tables' order)."""
     paper = paper or paper_tables()
@@ -181,10 +192,10 @@ def order_comparison(rows6: Sequence[dict[str, Any]], paper: PaperTables | None 
         groups.setdefault((r["objective"], r["terrain"]), {}).setdefault(r["method"], r)
     out = []
     for (objective, terrain), by_method in groups.items():
-        for measure in ("improvement", "improvement_plain"):
+        for measure in MEASURES:
             rows = {m: r for m, r in by_method.items() if r.get(measure) is not None}
-            if measure == "improvement_plain" and len(rows) < 2:
-                continue  # the runs did not record the plain mean
+            if measure != "improvement" and len(rows) < 2:
+                continue  # the runs did not record the plain mean, or have no common-yardstick rows
             methods = [m for m in paper.methods if m in rows]
             pv = {m: paper.table6[(objective, m, terrain)]["improvement"] for m in methods}
             row: dict[str, Any] = {"objective": objective, "terrain": terrain, "measure": measure,
@@ -213,6 +224,11 @@ def order_comparison(rows6: Sequence[dict[str, Any]], paper: PaperTables | None 
                 row["verdict"] = f"{reversed_} of {pairs} pairs reversed ({clear} beyond {Z:g} SE)"
             out.append(row)
     return out
+
+
+#: the improvements the method order is judged on, and how the tables name them
+MEASURES = {"improvement": "run's cost", "improvement_plain": "plain mean",
+            "common_improvement": "common scenarios", "common_improvement_plain": "common scenarios, plain mean"}
 
 
 # -- Table 7 ------------------------------------------------------------------------------------
@@ -308,6 +324,14 @@ def _num(v: float | None, se: float | None = None, spec: str = ".2f") -> str:
     return format(v, spec) + (f" ± {format(se, spec)}" if se is not None else "")
 
 
+def _common(r: dict[str, Any]) -> str:
+    if r.get("common_improvement") is None:
+        return "n/a (no common-scenario rows)"
+    return (f"{_pct(r['common_improvement'], r['common_improvement_se'])}, "
+            f"{_pct(r['common_improvement_plain'], r['common_improvement_plain_se'])}, "
+            f"{_pct(r['common_fall_rate_difference'], r['common_fall_rate_difference_se'])}")
+
+
 def _ratio(v: float | None) -> str:
     return "n/a" if v is None else f"{v:.2f}"
 
@@ -320,6 +344,7 @@ def _display(rows6: Sequence[dict[str, Any]], order: Sequence[dict[str, Any]], r
     sections = []
     head6 = ["Objective", "Method", "Optimizer", "Terrain", "Runs", "Thigh ours / paper", "Shank ours / paper", "Direction",
              "Improvement ours / paper", "Verdict", "Plain-mean improvement ours", "Verdict",
+             "Common scenarios: improvement, plain mean, fall-rate difference", "Verdict (plain mean)",
              "Sim-to-sim ours / paper", "Verdict"]
     cells6 = [[objectives.get(r["objective"], r["objective"]), methods.get(r["method"], r["method"]), r["optimizer"],
                r["terrain"], str(r["runs"]),
@@ -327,12 +352,13 @@ def _display(rows6: Sequence[dict[str, Any]], order: Sequence[dict[str, Any]], r
                f"{_num(r['shank'], r['shank_se'])} / {r['paper_shank']:.2f}", r["direction"],
                f"{_pct(r['improvement'], r['improvement_se'])} / {_pct(r['paper_improvement'])}", r["improvement_verdict"],
                _pct(r["improvement_plain"], r["improvement_plain_se"]), r["improvement_plain_verdict"],
+               _common(r), r["common_improvement_plain_verdict"],
                f"{_pct(r['sim2sim_improvement'], r['sim2sim_improvement_se'])} / {_pct(r['paper_sim2sim_improvement'])}",
                r["sim2sim_verdict"]] for r in rows6]
     sections.append(("Table 6 beside the paper's", head6, cells6))
     head_o = ["Objective", "Terrain", "Measure", "Paper's order", "Our order", "Verdict"]
     cells_o = [[objectives.get(r["objective"], r["objective"]), r["terrain"],
-                "run's cost" if r["measure"] == "improvement" else "plain mean",
+                MEASURES.get(r["measure"], r["measure"]),
                 " > ".join(methods.get(m, m) for m in r["paper_order"].split(" > ") if m),
                 " > ".join(methods.get(m, m) for m in r["our_order"].split(" > ") if m), r["verdict"]] for r in order]
     sections.append(("Method order by improvement, per objective and terrain", head_o, cells_o))
@@ -345,14 +371,15 @@ def _display(rows6: Sequence[dict[str, Any]], order: Sequence[dict[str, Any]], r
     sections.append(("Table 7 beside the paper's (ratios to the paper's method in the same table)", head7, cells7))
     head9 = ["Objective", "Terrain", "Optimizer", "Runs", "Thigh ours / paper", "Hip motor ours / paper", "Shank ours / paper",
              "Knee motor ours / paper", "Direction", "Improvement ours / paper", "Verdict", "Plain-mean improvement ours",
-             "Verdict"]
+             "Verdict", "Common scenarios: improvement, plain mean, fall-rate difference", "Verdict (plain mean)"]
     cells9 = [[objectives.get(r["objective"], r["objective"]), r["terrain"], r["optimizer"], str(r["runs"]),
                f"{_num(r['thigh'], r['thigh_se'])} / {r['paper_thigh']:.2f}",
                f"{_num(r['hip_motor'], spec='.2g')} / {r['paper_hip_motor']} ({r['hip_motor_verdict']})",
                f"{_num(r['shank'], r['shank_se'])} / {r['paper_shank']:.2f}",
                f"{_num(r['knee_motor'], spec='.2g')} / {r['paper_knee_motor']} ({r['knee_motor_verdict']})", r["direction"],
                f"{_pct(r['improvement'], r['improvement_se'])} / {_pct(r['paper_improvement'])}", r["improvement_verdict"],
-               _pct(r["improvement_plain"], r["improvement_plain_se"]), r["improvement_plain_verdict"]] for r in rows9]
+               _pct(r["improvement_plain"], r["improvement_plain_se"]), r["improvement_plain_verdict"],
+               _common(r), r["common_improvement_plain_verdict"]] for r in rows9]
     sections.append(("Table 9 beside the paper's (mixed variables)", head9, cells9))
     return sections
 
@@ -369,7 +396,10 @@ def _explanation(paper: PaperTables, rows6: Sequence[dict[str, Any]], rows9: Seq
             f"recorded). Direction: thigh and shank longer or shorter than nominal (a scale within {NOMINAL_BAND} of 1.0 "
             "counts as nominal), as the paper's or not. Improvement verdict: 'within' when the paper's figure lies within "
             f"{Z:g} SE of our mean (plus the paper's rounding), else ours is 'above' or 'below' it; the paper's improvement "
-            "is a plain mean over its evaluation scenarios, so the plain-mean column is the like-for-like one. Sim-to-sim: "
+            "is a plain mean over its evaluation scenarios, so the plain-mean column is the like-for-like one. Common "
+            "scenarios: each run's best design and its nominal design re-evaluated with the run's own policy on one "
+            "scenario set shared by every run of a terrain and preset (one yardstick for all methods; fall-rate difference "
+            "in points, paired). Sim-to-sim: "
             "the paper trains in Isaac Gym and transfers to PyBullet; we train in another simulator and transfer to a "
             "second one (the sim-to-sim column of Table 6). Table 7: the paper's hours are on its hardware at its scale; "
             f"ratios to the paper's method compare. Paper cells with no run here: {miss6} of {len(paper.table6)} "
