@@ -49,6 +49,7 @@ def main() -> None:
 
     apply_omp_wait_policy()
     from coadapt_core.learning import TrainConfig, Trainer
+    from coadapt_core.learning.runner import Runner
     from coadapt_core.plugins import get_registry
 
     registry = get_registry()
@@ -63,6 +64,7 @@ def main() -> None:
                              ("pseudo_epochs", args.pseudo_epochs)) if v is not None},
     )
     trainer = Trainer(robot, sim_cls, objectives, terrain=args.terrain, train_config=config, num_threads=args.threads)
+    runner = Runner(trainer)  # what `coadapt train` and the loop's retraining drive (here: nothing written)
     t0 = time.perf_counter()
     trainer.set_designs(trainer.sample_designs())
     build_seconds = time.perf_counter() - t0
@@ -84,12 +86,12 @@ def main() -> None:
     ceilings = [ceiling()]
 
     # (2) + (3): PPO iterations, the first one a warm-up
-    trainer.learn(1)
+    runner.run(1)
     ppo = trainer.ppo
     ppo.profile = True  # exact section timings on a GPU (a synchronisation at each boundary)
     ppo.timing = dict.fromkeys(ppo.timing, 0.0)
     rows = []
-    trainer.learn(args.iterations, rows.append)
+    runner.run(args.iterations, rows.append)
     # measured again after training (the simulator keeps its state): on a shared machine the
     # load drifts, and the ratio uses the mean of the two
     sim.reset()
@@ -125,7 +127,7 @@ def main() -> None:
         "pseudo_critic_share": round(pseudo_share, 3),
         "time_share": {"physics": round(physics, 3), "task": round(task, 3), "learner": round(learner, 3)},
     }
-    trainer.close()
+    runner.close()
     print(json.dumps(result, indent=2))
 
 

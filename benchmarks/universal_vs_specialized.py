@@ -50,6 +50,7 @@ def train_policy(args, ranges: str, seed: int):
     from coadapt_plugins.simulators.mujoco.simulator import MujocoSimulator
 
     from coadapt_core.learning import TrainConfig, Trainer, read_checkpoint
+    from coadapt_core.learning.runner import Runner
     from coadapt_core.task import TaskConfig
 
     robot = Kuafu()
@@ -62,10 +63,11 @@ def train_policy(args, ranges: str, seed: int):
     task = TaskConfig.from_dict(state["task_config"]) if state else TaskConfig()
     trainer = Trainer(robot, MujocoSimulator, [], terrain=args.terrain, design_space=space, train_config=config,
                       task_config=task)
+    runner = Runner(trainer)  # what `coadapt train` drives (here: nothing written)
     if args.init_from:
-        trainer.load(args.init_from, optimizers=False)
+        runner.init_from(args.init_from)
     trainer.set_designs(trainer.sample_designs())
-    trainer.learn(trainer.iterations_for(args.steps))
+    runner.learn(args.steps)
     return trainer
 
 

@@ -221,6 +221,33 @@ def settings_options(cls: type, *, aliases: dict[str, tuple[str, ...]] | None = 
     return out
 
 
+def declared_options(cls: type) -> list[tuple[str, Any, Any]]:
+    """(parameter name, type, typer.Option) for every setting of the settings class `cls`
+    of a command whose options take their declared defaults (`coadapt train`'s and `coadapt
+    eval`'s own): the setting's type (bool, int, float, a path, a repeatable list, else
+    text), its default, its option (`--key`, `--key/--no-key` for a switch, or the names the
+    setting's `names` extra gives) and its help (a setting naming a `plugin` kind lists the
+    installed ones; with the `ranked` extra, unset means the one of highest default_rank)."""
+    import typing
+    from pathlib import Path
+
+    from coadapt_core.settings import leaves
+
+    out = []
+    for leaf in leaves(cls):
+        kind = leaf.annotation
+        if kind not in (bool, int, float, Path) and typing.get_origin(kind) is not list:
+            kind = str
+        names = list(leaf.extra.get("names") or ())
+        if not names:
+            names = [f"{leaf.option}/--no-{leaf.option[2:]}"] if kind is bool else [leaf.option]
+        text, plugin = leaf.help, leaf.extra.get("plugin")
+        if plugin:
+            text = default_help(plugin, text) if leaf.extra.get("ranked") else choice_help(plugin, text)
+        out.append((leaf.param, kind, typer.Option(leaf.default, *names, help=text)))
+    return out
+
+
 def given_settings(values: dict[str, Any], options: list[tuple[str, Any, Any, Any]]) -> dict[str, Any]:
     """The settings given on the command line, as a nested mapping of their keys."""
     out: dict[str, Any] = {}

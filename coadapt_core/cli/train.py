@@ -1,9 +1,11 @@
 """`coadapt train` and `coadapt eval`: the universal locomotion policy.
 
-`train` runs PPO (Algorithm 1) on K designs drawn from a design range, A agents each, with
-a progress bar, CSV scalars (TorchRL's CSVLogger; TensorBoard when installed), periodic
-checkpoints and resume. `eval` rolls a policy out on one design under a fixed command and
-prints survival, speed and costs.
+`train` runs PPO (Algorithm 1) on K designs drawn from a design range, A agents each,
+through the training runner (`coadapt_core.learning.runner.Runner`: checkpoints,
+progress.jsonl, the experiment tracker, Ctrl-C, resume) with a progress bar. `eval` rolls a
+policy out on one design under a fixed command and prints survival, speed and costs. Each
+command's own options are declared once (`TrainCommand`, `EvalCommand`): option, --help and
+docs/settings.md.
 """
 
 from __future__ import annotations
@@ -13,14 +15,14 @@ import math
 import shutil
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import typer
 
-from coadapt_core import tracking
 from coadapt_core.cli.common import (
-    choice_help,
-    default_help,
+    choices,
+    declared_options,
     fail,
     given_settings,
     plugin_name,
@@ -30,17 +32,93 @@ from coadapt_core.cli.common import (
 )
 from coadapt_core.cli.progress import ProgressLine
 from coadapt_core.errors import UserError
-from coadapt_core.settings import overrides
+from coadapt_core.settings import Float, Int, overrides, setting, settings
 from coadapt_core.tracking import check_logger, make_logger
 
-#: the objectives whose pseudo-critics `coadapt train` trains by default (paper section 4)
-DEFAULT_OBJECTIVES = "tracking,power,torque"
+
+def _option(field: Any, *names: str, ranked: bool = False) -> Any:
+    """A setting's command-line form, when not the generated one: its option `names` (e.g. a
+    switch without --no-x), and `ranked`: unset, it names the installed plugin of highest
+    default_rank (`coadapt_core.cli.common.declared_options` reads both)."""
+    field.json_schema_extra.update(names=names, ranked=ranked)
+    return field
 
 
-def _objectives(text: str) -> list:
+@settings
+class TrainCommand:
+    """`coadapt train`'s own settings (the learner's, the task's and the randomization's are
+    `train_settings_class`'s); one declaration each gives the option, its help and its row
+    in docs/settings.md."""
+
+    robot: str | None = _option(setting(None, "Robot.", plugin="robot"), ranked=True)
+    sim: str | None = _option(setting(None, "Simulator backend.", plugin="simulator"), ranked=True)
+    terrain: str = setting("flat", "Terrain: flat, slope or random.")
+    designs: str | None = setting(None, "Design range, one low:high per continuous variable, e.g. 0.5:1.5,0.5:1.5 "
+                                  "(default: the full space; on --resume: the checkpoint's).")
+    steps: Int = setting(1_000_000, "Environment interactions to train for (this invocation).")
+    objectives: str | None = setting(None, "Objectives whose pseudo-critics are trained, comma-separated (default: "
+                                     "every installed objective that declares no options).")
+    device: str = setting("cpu", "Learner device: cpu or cuda.")
+    threads: Int | None = setting(None, "Physics threads (default: the backend's choice).")
+    seed: Int = setting(0, "Random seed.")
+    resume: Path | None = setting(None, "Checkpoint to resume from (networks, optimizers, normalisers, counters).")
+    init_from: Path | None = setting(None, "Start from this policy's weights and normalisers (fresh optimizer state); "
+                                     "one taking fewer design values (e.g. the leg scales only, for --mixed) gets zero "
+                                     "weights for the new ones.")
+    out: Path = setting(Path("runs/train"), "Output directory (checkpoints, logs, progress.jsonl).")
+    mixed: bool = setting(False, "Also sample the discrete design variables (motor types).")
+    reset_pseudo_critics: bool = _option(setting(False, "With --resume or --init-from: restart the pseudo-critics from "
+                                                 "scratch (after an objective's definition changed)."),
+                                         "--reset-pseudo-critics")
+    pseudo_critics_only: bool = _option(setting(False, "With --resume or --init-from: train only the pseudo-critics; the "
+                                                "policy, critic and observation normalisers stay exactly as loaded (refit "
+                                                "a finished policy's surrogate, or give it a new objective)."),
+                                        "--pseudo-critics-only")
+    quiet: bool = setting(False, "No progress bar; one JSON line per iteration on stdout.")
+    logger: str = setting("tensorboard", "Experiment tracking: tensorboard (event files in OUT/logs), wandb (if "
+                          "installed) or none.")
+
+
+@settings
+class EvalCommand:
+    """`coadapt eval`'s settings; one declaration each gives the option, its help and its row
+    in docs/settings.md."""
+
+    checkpoint: Path | None = setting(None, "Checkpoint or weights file (default: the policy shipped for the robot and "
+                                      "terrain).")
+    robot: str | None = setting(None, "Robot (default: the one the checkpoint was trained for; without --checkpoint, "
+                                "the only installed robot).", plugin="robot")
+    design: str | None = setting(None, "Design, comma-separated (default: the nominal design).")
+    sim: str | None = _option(setting(None, "Simulator backend.", plugin="simulator"), ranked=True)
+    terrain: str = setting("flat", "Terrain: flat, slope or random.")
+    command: str = setting("0.5,0,0", "Velocity command vx,vy,yaw_rate (m/s, m/s, rad/s).")
+    agents: Int = setting(50, "Agents (environments) on the design.")
+    seconds: Float = setting(20.0, "Simulated seconds per agent.")
+    device: str = setting("cpu", "Policy device: cpu or cuda.")
+    seed: Int = setting(0, "Random seed.")
+    randomize: bool = setting(True, "Domain randomization (Table 2) as in training.")
+    as_json: bool = _option(setting(False, "Print JSON."), "--json")
+    video: Path | None = setting(None, "Render agent 0 offscreen into a .gif (or .mp4 with ffmpeg).")
+    objective: list[str] | None = _option(setting(None, "Also evaluate this installed objective (repeatable, or a comma "
+                                                  "list): its cost per step and standard error over the agents, in "
+                                                  "`costs` / `costs_se` with --json.", plugin="objective"), "--objective")
+
+
+def default_objectives() -> list[str]:
+    """The objectives whose pseudo-critics `coadapt train` trains when --objectives is not
+    given: every installed objective that declares no options (one with options, such as a
+    weighted sum, depends on values a run chooses), in each plugin's own order."""
+    from coadapt_core.plugins import get_registry
+
+    infos = sorted(get_registry().entries["objective"].values(), key=lambda info: info.distribution)
+    return [info.name for info in infos if not getattr(info.cls, "option_specs", ())]
+
+
+def _objectives(text: str | None) -> list:
+    text = ",".join(default_objectives()) if text is None else text
     names = [n.strip() for n in text.split(",") if n.strip()]
     if not names:
-        fail("--objectives needs at least one objective name, e.g. tracking,power,torque")
+        fail("--objectives needs at least one objective name; installed: " + ", ".join(choices("objective")))
     if len(set(names)) != len(names):
         fail(f"--objectives '{text}' names an objective twice; each pseudo-critic is trained once")
     return [resolve("objective", n)() for n in names]
@@ -64,34 +142,6 @@ def _check_device(device: str) -> None:
         fail(str(exc))
     if device.startswith("cuda") and not torch.cuda.is_available():
         fail("--device cuda requested but torch sees no CUDA device; use --device cpu")
-
-
-class _Interrupted(Exception):
-    """Ctrl-C was pressed: `coadapt train` stops after the iteration under way."""
-
-
-def _catch_ctrl_c() -> dict:
-    """The first Ctrl-C (SIGINT) only asks `train` to stop at the end of the iteration under
-    way and write a checkpoint; a second one interrupts at once. Returns the flag holder and
-    a `restore` callable putting the previous handler back."""
-    import signal
-    import threading
-
-    state: dict[str, Any] = {"requested": False, "restore": lambda: None}
-    if threading.current_thread() is not threading.main_thread():
-        return state
-    previous = signal.getsignal(signal.SIGINT)
-
-    def handler(signum, frame) -> None:
-        if state["requested"]:
-            raise KeyboardInterrupt
-        state["requested"] = True
-        print("\nCtrl-C: stopping after this iteration and writing a checkpoint (Ctrl-C again: stop now, "
-              "without one)", file=sys.stderr, flush=True)
-
-    signal.signal(signal.SIGINT, handler)
-    state["restore"] = lambda: signal.signal(signal.SIGINT, previous)
-    return state
 
 
 #: older option names of `coadapt train`, still accepted
@@ -133,27 +183,239 @@ def train_options() -> list[tuple[str, Any, Any, Any]]:
     return settings_options(train_settings_class(), aliases=TRAIN_ALIASES)
 
 
-def _train_command_options() -> list[tuple[str, Any, Any]]:
-    """`coadapt train`'s options that are not learner settings."""
-    return [
-        ("robot", str, typer.Option(None, help=default_help("robot", "Robot."))),
-        ("sim", str, typer.Option(None, help=default_help("simulator", "Simulator backend."))),
-        ("terrain", str, typer.Option("flat", help="Terrain: flat, slope or random.")),
-        ("designs", str, typer.Option(None, help="Design range, one low:high per continuous variable, e.g. 0.5:1.5,0.5:1.5 (default: the full space; on --resume: the checkpoint's).")),
-        ("steps", int, typer.Option(1_000_000, help="Environment interactions to train for (this invocation).")),
-        ("objectives", str, typer.Option(DEFAULT_OBJECTIVES, help="Objectives whose pseudo-critics are trained, comma-separated.")),
-        ("device", str, typer.Option("cpu", help="Learner device: cpu or cuda.")),
-        ("threads", int, typer.Option(None, help="Physics threads (default: the backend's choice).")),
-        ("seed", int, typer.Option(0, help="Random seed.")),
-        ("resume", Path, typer.Option(None, help="Checkpoint to resume from (networks, optimizers, normalisers, counters).")),
-        ("init_from", Path, typer.Option(None, "--init-from", help="Start from this policy's weights and normalisers (fresh optimizer state); one taking fewer design values (e.g. the leg scales only, for --mixed) gets zero weights for the new ones.")),
-        ("out", Path, typer.Option(Path("runs/train"), help="Output directory (checkpoints, logs, progress.jsonl).")),
-        ("mixed", bool, typer.Option(False, help="Also sample the discrete design variables (motor types).")),
-        ("reset_pseudo_critics", bool, typer.Option(False, "--reset-pseudo-critics", help="With --resume or --init-from: restart the pseudo-critics from scratch (after an objective's definition changed).")),
-        ("pseudo_critics_only", bool, typer.Option(False, "--pseudo-critics-only", help="With --resume or --init-from: train only the pseudo-critics; the policy, critic and observation normalisers stay exactly as loaded (refit a finished policy's surrogate, or give it a new objective).")),
-        ("quiet", bool, typer.Option(False, help="No progress bar; one JSON line per iteration on stdout.")),
-        ("logger", str, typer.Option("tensorboard", help="Experiment tracking: tensorboard (event files in OUT/logs), wandb (if installed) or none.")),
-    ]
+def _checkpoint_sources(values: dict[str, Any]) -> tuple[Path | None, Path | None]:
+    """--resume and --init-from, checked against each other and the options needing one; a
+    training folder stands for its newest checkpoint (model_final.pt or the last one saved)."""
+    from coadapt_core.io import checkpoint_path
+
+    resume, init_from = values["resume"], values["init_from"]
+    if resume is not None and init_from is not None:
+        fail("--resume and --init-from exclude each other: resume continues a run, --init-from starts a new one from its weights")
+    try:
+        resume = checkpoint_path(resume, field="--resume") if resume is not None else None
+        init_from = checkpoint_path(init_from, field="--init-from") if init_from is not None else None
+    except UserError as exc:
+        fail(str(exc))
+    if values["reset_pseudo_critics"] and resume is None and init_from is None:
+        fail("--reset-pseudo-critics needs --resume or --init-from (a new run's pseudo-critics are fresh anyway)")
+    if values["pseudo_critics_only"] and resume is None and init_from is None:
+        fail("--pseudo-critics-only needs --resume or --init-from: the policy whose pseudo-critics are trained")
+    return resume, init_from
+
+
+def _plugins(values: dict[str, Any], robot: str) -> tuple[Any, type, list]:
+    """The robot, the simulator class (checked for --terrain) and the objectives of --objectives."""
+    robot_obj = resolve("robot", robot)()
+    return robot_obj, _simulator(plugin_name("simulator", values["sim"]), values["terrain"]), _objectives(values["objectives"])
+
+
+def _build_trainer(values: dict[str, Any], plugins: tuple[Any, type, list], given: dict[str, Any],
+                   state: dict | None) -> Any:
+    """The trainer `coadapt train` runs: the checkpoint's settings (the defaults of a new
+    run) with the options given, on the design range asked for (on --resume: the
+    checkpoint's)."""
+    from coadapt_core.coadapt.config import resolve_learner
+    from coadapt_core.design_space import DesignSpace
+    from coadapt_core.learning import TrainConfig, Trainer
+    from coadapt_core.task import TaskConfig
+
+    robot_obj, sim_cls, objectives = plugins
+    try:
+        learner = resolve_learner(state, given, given.pop("task", {}), given.pop("randomization", {}))
+    except UserError as exc:
+        fail(str(exc))
+    base = learner.get("train_config") or (TrainConfig.from_dict(state["train_config"]) if state else TrainConfig())
+    task = learner.get("task_config") or (TaskConfig.from_dict(state["task_config"]) if state else TaskConfig())
+    base.device, base.seed = values["device"], values["seed"]
+    if values["designs"] is not None:
+        space = robot_obj.design_space(values["mixed"]).parse_ranges(values["designs"])
+    elif state is not None and values["resume"] is not None:
+        space = DesignSpace.from_dict(state["design_space"])
+    else:
+        space = robot_obj.design_space(values["mixed"])
+    return Trainer(robot_obj, sim_cls, objectives, terrain=values["terrain"], design_space=space, train_config=base,
+                   task_config=task, randomization=learner.get("randomization"), num_threads=values["threads"])
+
+
+def _start_runner(values: dict[str, Any], trainer: Any, source: Path | None, learning_rate: float | None) -> Any:
+    """The runner of `coadapt train` over `trainer`, started where the options say: resumed,
+    initialised from a policy, pseudo-critics reset or alone, the learning rate given."""
+    from coadapt_core.learning.runner import Runner
+
+    runner = Runner(trainer, values["out"], catch_ctrl_c=True)
+    if values["resume"] is not None:
+        runner.resume(values["resume"])
+    elif values["init_from"] is not None:
+        taken = runner.init_from(values["init_from"])
+        if taken is not None:
+            print(f"widened {values['init_from']}'s design input from {taken} to {trainer.design_space.dim} values "
+                  "(zero weights for the new ones)", file=sys.stderr)
+    try:
+        runner.restrict(reset_pseudo_critics=values["reset_pseudo_critics"],
+                        pseudo_critics_only=values["pseudo_critics_only"])
+    except UserError as exc:
+        fail(str(exc))
+    if learning_rate is not None and source is not None:  # --lr wins over the rate the checkpoint reached
+        runner.set_learning_rate(learning_rate)
+    trainer.set_designs(trainer.sample_designs())
+    return runner
+
+
+def _announce(values: dict[str, Any], robot: str, trainer: Any, iterations: int) -> None:
+    base, task, sim = trainer.config, trainer.task_config, getattr(trainer.simulator_cls, "name", "?")
+    print(
+        f"training {robot} on {sim}/{values['terrain']}: {base.num_designs} designs x {base.agents_per_design} agents = "
+        f"{trainer.env.num_envs} envs, {iterations} iterations of {trainer.samples_per_iteration} samples, "
+        f"range {trainer.design_space.describe()}, device {values['device']}, randomization "
+        f"{base.extra.get('randomization', 'table2')}, yaw {task.commands.yaw_range[0]:g}:{task.commands.yaw_range[1]:g} rad/s"
+        + (", pseudo-critics only (the policy stays as loaded)" if values["pseudo_critics_only"] else ""),
+        file=sys.stderr,
+    )
+
+
+def _train(values: dict[str, Any], runner: Any, robot: str) -> None:
+    """Run `runner` for --steps (0: export only), with the progress bar (or, --quiet, one
+    JSON line per iteration), then write model_final.pt and policy.pt; Ctrl-C: exit 130."""
+    from coadapt_core.learning.runner import TrainingInterrupted
+
+    trainer, out, quiet, steps = runner.trainer, values["out"], values["quiet"], values["steps"]
+    iterations = runner.iterations_for(steps) if steps > 0 else 0
+    runner.out.mkdir(parents=True, exist_ok=True)
+    runner.tracker = make_logger(values["logger"], out / "logs", name=f"train-{robot}-{values['terrain']}", config={
+        "robot": robot, "sim": getattr(trainer.simulator_cls, "name", "?"), "terrain": values["terrain"],
+        **trainer.config.__dict__})
+    _announce(values, robot, trainer, iterations)
+    first = trainer.iteration
+    with ProgressLine("train", iterations, unit=" it", enabled=not quiet) as bar:
+
+        def show(stats) -> None:
+            if quiet:
+                print(json.dumps(stats.to_dict()), flush=True)
+            bar.update(stats.iteration - first, f"{stats.collect_steps_per_s:,.0f} steps/s  reward "
+                       f"{stats.mean_reward:.4f}  vx {stats.vx:.2f}/{stats.command_vx:.2f} m/s  "
+                       f"err {stats.tracking_error:.3f} m/s  ep {stats.episode_length_s:.1f} s")
+
+        try:
+            runner.run(iterations, show)
+        except TrainingInterrupted as stop:
+            runner.close()
+            print(f"interrupted: wrote {stop.checkpoint} after iteration {stop.iteration}; continue with "
+                  f"coadapt train --resume {stop.checkpoint} --out {out}", file=sys.stderr)
+            raise typer.Exit(130) from None
+    final, weights = runner.finish()
+    print(f"wrote {final} and {weights} ({weights.stat().st_size / 1e6:.1f} MB) after {trainer.total_steps} steps",
+          file=sys.stderr)
+
+
+def _names(objective: list[str] | None) -> list[str]:
+    """The objective names of repeated or comma-listed --objective options."""
+    return [n.strip() for text in objective or [] for n in text.split(",") if n.strip()]
+
+
+def _eval_checks(agents: int, seconds: float, video: Path | None, device: str, objective: list[str] | None,
+                 command: str) -> list[float]:
+    """`coadapt eval`'s option checks (one line, exit 2, before any rollout); the command's
+    three values."""
+    if agents < 1:
+        fail(f"--agents must be >= 1, got {agents}")
+    if not (0 < seconds <= 3600):
+        fail(f"--seconds must lie in (0, 3600], got {seconds}")
+    if video is not None and video.suffix.lower() not in (".gif", ".mp4"):
+        fail(f"--video '{video}' must end in .gif or .mp4")
+    if video is not None and video.suffix.lower() == ".mp4" and shutil.which("ffmpeg") is None:
+        fail("--video .mp4 needs ffmpeg on PATH, which is not installed; write a .gif instead")  # before the rollout
+    _check_device(device)
+    for name in _names(objective):
+        resolve("objective", name)  # unknown: one line listing the installed ones
+    try:
+        values = [float(v) for v in command.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        fail(f"--command '{command}' must be three numbers vx,vy,yaw_rate, e.g. 0.5,0,0")
+    return values
+
+
+def _eval_checkpoint_path(checkpoint: Path | None) -> Path | None:
+    """--checkpoint; a training folder stands for its newest checkpoint."""
+    if checkpoint is None:
+        return None
+    from coadapt_core.io import checkpoint_path
+
+    try:
+        return checkpoint_path(checkpoint, field="--checkpoint")
+    except UserError as exc:
+        fail(str(exc))
+
+
+def _eval_robot(checkpoint: Path | None) -> str:
+    """The robot a checkpoint records; without one, the only robot installed."""
+    if checkpoint is not None and checkpoint.is_file():
+        from coadapt_core.learning import read_checkpoint
+
+        try:
+            return str(read_checkpoint(checkpoint)["robot"])
+        except Exception as exc:
+            fail(f"--checkpoint {checkpoint} is not a coadapt checkpoint ({type(exc).__name__}: {exc})")
+    from coadapt_core.plugins import get_registry
+
+    installed = get_registry().names("robot")
+    if checkpoint is not None and len(installed) != 1:
+        fail(f"--checkpoint {checkpoint} does not exist")
+    if len(installed) != 1:
+        fail(f"--robot is needed: {len(installed)} robots are installed ({', '.join(installed)})")
+    return installed[0]
+
+
+def _shipped(robot_obj: Any, robot: str, terrain: str, design_values: Any) -> Path:
+    """The policy the robot ships for the terrain and the design's space, or one line, exit 2."""
+    from coadapt_core.learning import shipped_checkpoint
+
+    mixed = robot_obj.design_space_for(design_values).is_mixed
+    checkpoint = shipped_checkpoint(robot_obj, terrain, mixed=mixed)
+    if checkpoint is None:
+        space = "mixed" if mixed else "continuous"
+        fail(
+            f"robot '{robot}' ships no policy for terrain '{terrain}' and the {space} design space; "
+            f"pass --checkpoint (e.g. one `coadapt train --robot {robot} --terrain {terrain}` wrote)"
+        )
+    return checkpoint
+
+
+def _eval_table(result: dict[str, Any], title: str, agents: int, seconds: float) -> None:
+    """`coadapt eval`'s result as a table, each objective's cost in its declared unit."""
+    from rich.console import Console
+    from rich.table import Table
+
+    from coadapt_core.plugins import get_registry
+
+    table = Table(title=title)
+    table.add_column("metric")
+    table.add_column("value", justify="right")
+    costs, costs_se = result.pop("costs", {}), result.pop("costs_se", {})
+    for key, value in result.items():
+        table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
+    for name, value in costs.items():
+        table.add_row(f"{name} cost (per step)", f"{value:.4g} +- {costs_se[name]:.2g} SE")
+    Console().print(table)
+    units = []  # each `<objective>_cost` in the objective's declared unit
+    for key in result:
+        name = key.removesuffix("_cost")
+        if key.endswith("_cost") and name in get_registry().names("objective"):
+            unit = getattr(get_registry().get("objective", name), "unit", "")
+            units += [f"{name} {unit}"] if unit else []
+    Console().print(f"costs: mean per step over {agents} agents of {seconds:g} s under this one command "
+                    "(`coadapt eval` protocol: not comparable with `coadapt run` or `coadapt landscape`, "
+                    "whose scenarios draw their commands)" + (f"; units: {', '.join(units)}" if units else ""))
+
+
+def _eval_video(robot_obj: Any, design_values: Any, trajectory: Any, video: Path) -> None:
+    from coadapt_core.viz.video import write_rollout_video
+
+    backend, errors = write_rollout_video(robot_obj, design_values, trajectory, video)
+    if backend is None:
+        fail("offscreen rendering is unavailable here (" + "; ".join(errors) + "); no video written", code=1)
+    print(f"wrote {video} ({len(trajectory['frames'][::2])} frames, MUJOCO_GL={backend})", file=sys.stderr)
 
 
 def register(app: typer.Typer) -> None:
@@ -161,263 +423,59 @@ def register(app: typer.Typer) -> None:
 
     def train_command(**values: Any) -> None:
         """Train the universal policy pi(a|o, xi) with its critic and pseudo-critics (PPO)."""
-        robot, sim = plugin_name("robot", values["robot"]), plugin_name("simulator", values["sim"])
-        terrain, designs, steps, mixed = values["terrain"], values["designs"], values["steps"], values["mixed"]
-        resume, init_from, out, quiet = values["resume"], values["init_from"], values["out"], values["quiet"]
-        device, seed, logger, threads = values["device"], values["seed"], values["logger"], values["threads"]
-        reset_pseudo_critics, pseudo_only = values["reset_pseudo_critics"], values["pseudo_critics_only"]
-        if steps < 0 or (steps == 0 and resume is None and init_from is None):
+        from coadapt_core.learning import read_checkpoint
+
+        robot = plugin_name("robot", values["robot"])
+        steps = values["steps"]
+        if steps < 0 or (steps == 0 and values["resume"] is None and values["init_from"] is None):
             fail(f"--steps must be >= 1 (or 0 with --resume or --init-from: export without training), got {steps}")
-        _check_device(device)
+        _check_device(values["device"])
         try:
-            check_logger(logger)
+            check_logger(values["logger"])
             # the settings given: checked against their declarations (one line naming the option)
             given = overrides(train_settings_class()(**given_settings(values, settings)))
         except UserError as exc:
             fail(str(exc))
-        robot_obj = resolve("robot", robot)()
-        sim_cls = _simulator(sim, terrain)
-        objective_objs = _objectives(values["objectives"])
-
-        from coadapt_core.coadapt.config import resolve_learner
-        from coadapt_core.design_space import DesignSpace
-        from coadapt_core.learning import TrainConfig, Trainer, read_checkpoint
-        from coadapt_core.task import TaskConfig
-
-        if resume is not None and init_from is not None:
-            fail("--resume and --init-from exclude each other: resume continues a run, --init-from starts a new one from its weights")
-        from coadapt_core.io import checkpoint_path
-
-        try:  # a training folder means its newest checkpoint (model_final.pt or the last one saved)
-            resume = checkpoint_path(resume, field="--resume") if resume is not None else None
-            init_from = checkpoint_path(init_from, field="--init-from") if init_from is not None else None
-        except UserError as exc:
-            fail(str(exc))
-        if reset_pseudo_critics and resume is None and init_from is None:
-            fail("--reset-pseudo-critics needs --resume or --init-from (a new run's pseudo-critics are fresh anyway)")
-        if pseudo_only and resume is None and init_from is None:
-            fail("--pseudo-critics-only needs --resume or --init-from: the policy whose pseudo-critics are trained")
-        source = resume if resume is not None else init_from
+        plugins = _plugins(values, robot)
+        values["resume"], values["init_from"] = _checkpoint_sources(values)
+        source = values["resume"] or values["init_from"]
         state = read_checkpoint(source) if source is not None else None
         if state is not None and state["robot"] != robot:
-            flag = "--resume" if resume is not None else "--init-from"
+            flag = "--resume" if values["resume"] is not None else "--init-from"
             fail(f"{flag} checkpoint was trained for robot '{state['robot']}', not '{robot}'")
-        # the checkpoint's settings (the defaults for a new run) with the options given
-        try:
-            learner = resolve_learner(state, given, given.pop("task", {}), given.pop("randomization", {}))
-        except UserError as exc:
-            fail(str(exc))
-        base = learner.get("train_config") or (TrainConfig.from_dict(state["train_config"]) if state else TrainConfig())
-        task = learner.get("task_config") or (TaskConfig.from_dict(state["task_config"]) if state else TaskConfig())
-        base.device, base.seed = device, seed
-        checkpoint_every, lr = base.checkpoint_every, given.get("learning_rate")
-        full = robot_obj.design_space(mixed)
-        if designs is not None:
-            space = full.parse_ranges(designs)
-        elif state is not None and resume is not None:
-            space = DesignSpace.from_dict(state["design_space"])
-        else:
-            space = full
+        trainer = _build_trainer(values, plugins, given, state)
+        _train(values, _start_runner(values, trainer, source, given.get("learning_rate")), robot)
 
-        trainer = Trainer(
-            robot_obj, sim_cls, objective_objs, terrain=terrain, design_space=space, train_config=base,
-            task_config=task, randomization=learner.get("randomization"), num_threads=threads,
-        )
-        if resume is not None:
-            trainer.load(resume)
-        elif init_from is not None:
-            trainer.load(init_from, optimizers=False, widen=True)
-            if int(state["dims"]["num_design"]) < space.dim:
-                print(
-                    f"widened {init_from}'s design input from {state['dims']['num_design']} to {space.dim} values "
-                    "(zero weights for the new ones)",
-                    file=sys.stderr,
-                )
-        if reset_pseudo_critics and trainer.ppo.pseudo_critic is not None:
-            trainer.ppo.reset_pseudo_critics()
-        if pseudo_only:
-            if trainer.ppo.pseudo_critic is None:
-                fail("--pseudo-critics-only: no objectives, so no pseudo-critics to train (see --objectives)")
-            trainer.ppo.freeze_policy()
-        if lr is not None and source is not None:  # --lr wins over the rate the checkpoint reached
-            trainer.ppo.learning_rate = lr
-            for group in trainer.ppo.optimizer.param_groups:
-                group["lr"] = lr
-        trainer.set_designs(trainer.sample_designs())
-        iterations = trainer.iterations_for(steps) if steps > 0 else 0  # 0: export only
-        out.mkdir(parents=True, exist_ok=True)
-        tracker = make_logger(logger, out / "logs", name=f"train-{robot}-{terrain}", config={"robot": robot, "sim": sim, "terrain": terrain, **base.__dict__})
-        tracker.train_step = trainer.total_steps  # a resumed run continues its curves
-        progress_file = (out / "progress.jsonl").open("a")
-        print(
-            f"training {robot} on {sim}/{terrain}: {base.num_designs} designs x {base.agents_per_design} agents = "
-            f"{trainer.env.num_envs} envs, {iterations} iterations of {trainer.samples_per_iteration} samples, "
-            f"range {space.describe()}, device {device}, randomization {base.extra.get('randomization', 'table2')}, "
-            f"yaw {task.commands.yaw_range[0]:g}:{task.commands.yaw_range[1]:g} rad/s"
-            + (", pseudo-critics only (the policy stays as loaded)" if pseudo_only else ""),
-            file=sys.stderr,
-        )
+    app.command("train")(with_options(train_command, settings, declared_options(TrainCommand), others_first=True))
 
-        def record(stats) -> None:
-            row = stats.to_dict()
-            progress_file.write(json.dumps(row) + "\n")
-            progress_file.flush()
-            if stats.iteration % checkpoint_every == 0:
-                trainer.save(out / "checkpoints" / f"model_{stats.iteration}.pt")
-            if quiet:
-                print(json.dumps(row), flush=True)
-            if interrupt["requested"]:  # Ctrl-C during this iteration: stop at its end
-                raise _Interrupted
-
-        interrupt = _catch_ctrl_c()
-        with tracking.active(tracker), ProgressLine("train", iterations, unit=" it", enabled=not quiet) as bar:
-
-            def show(stats) -> None:
-                record(stats)
-                bar.update(stats.iteration - first_iteration, f"{stats.collect_steps_per_s:,.0f} steps/s  reward "
-                           f"{stats.mean_reward:.4f}  vx {stats.vx:.2f}/{stats.command_vx:.2f} m/s  "
-                           f"err {stats.tracking_error:.3f} m/s  ep {stats.episode_length_s:.1f} s")
-
-            first_iteration = trainer.iteration
-            try:
-                if iterations > 0:
-                    trainer.learn(iterations, show)
-            except _Interrupted:
-                path = trainer.save(out / "checkpoints" / f"model_{trainer.iteration}.pt")
-                interrupt["restore"]()
-                tracker.close()
-                progress_file.close()
-                trainer.close()
-                print(f"interrupted: wrote {path} after iteration {trainer.iteration}; continue with "
-                      f"coadapt train --resume {path} --out {out}", file=sys.stderr)
-                raise typer.Exit(130) from None
-            finally:
-                interrupt["restore"]()
-        tracker.close()
-        progress_file.close()
-        final = trainer.save(out / "model_final.pt")
-        weights = trainer.export_weights(out / "policy.pt")
-        trainer.close()
-        print(f"wrote {final} and {weights} ({weights.stat().st_size / 1e6:.1f} MB) after {trainer.total_steps} steps", file=sys.stderr)
-
-    app.command("train")(with_options(train_command, settings, _train_command_options(), others_first=True))
-
-    @app.command("eval")
-    def eval_command(
-        checkpoint: Path | None = typer.Option(None, help="Checkpoint or weights file (default: the policy shipped for the robot and terrain)."),
-        robot: str | None = typer.Option(None, help=choice_help("robot", "Robot (default: the one the checkpoint was trained for; without --checkpoint, the only installed robot).")),
-        design: str | None = typer.Option(None, help="Design, comma-separated (default: the nominal design)."),
-        sim: str | None = typer.Option(None, help=default_help("simulator", "Simulator backend.")),
-        terrain: str = typer.Option("flat", help="Terrain: flat, slope or random."),
-        command: str = typer.Option("0.5,0,0", help="Velocity command vx,vy,yaw_rate (m/s, m/s, rad/s)."),
-        agents: int = typer.Option(50, help="Agents (environments) on the design."),
-        seconds: float = typer.Option(20.0, help="Simulated seconds per agent."),
-        device: str = typer.Option("cpu", help="Policy device: cpu or cuda."),
-        seed: int = typer.Option(0, help="Random seed."),
-        randomize: bool = typer.Option(True, help="Domain randomization (Table 2) as in training."),
-        as_json: bool = typer.Option(False, "--json", help="Print JSON."),
-        video: Path | None = typer.Option(None, help="Render agent 0 offscreen into a .gif (or .mp4 with ffmpeg)."),
-        objective: list[str] = typer.Option(None, "--objective", help=choice_help("objective", "Also evaluate this installed objective (repeatable, or a comma list): its cost per step and standard error over the agents, in `costs` / `costs_se` with --json.")),
-    ) -> None:
+    def eval_command(**values: Any) -> None:
         """Roll out a policy on one design and report survival, speed and costs."""
-        if agents < 1:
-            fail(f"--agents must be >= 1, got {agents}")
-        if not (0 < seconds <= 3600):
-            fail(f"--seconds must lie in (0, 3600], got {seconds}")
-        if video is not None and video.suffix.lower() not in (".gif", ".mp4"):
-            fail(f"--video '{video}' must end in .gif or .mp4")
-        if video is not None and video.suffix.lower() == ".mp4" and shutil.which("ffmpeg") is None:
-            fail("--video .mp4 needs ffmpeg on PATH, which is not installed; write a .gif instead")  # before the rollout
-        _check_device(device)
-        objective_names = [n.strip() for text in objective or [] for n in text.split(",") if n.strip()]
-        for name in objective_names:
-            resolve("objective", name)  # unknown: one line listing the installed ones
-        try:
-            values = [float(v) for v in command.split(",")]
-        except ValueError:
-            values = []
-        if len(values) != 3 or not all(math.isfinite(v) for v in values):
-            fail(f"--command '{command}' must be three numbers vx,vy,yaw_rate, e.g. 0.5,0,0")
-        if checkpoint is not None:  # a training folder: its newest checkpoint
-            from coadapt_core.io import checkpoint_path
-
-            try:
-                checkpoint = checkpoint_path(checkpoint, field="--checkpoint")
-            except UserError as exc:
-                fail(str(exc))
-        if robot is None:  # the checkpoint records its robot; else the one installed robot
-            if checkpoint is not None and checkpoint.is_file():
-                from coadapt_core.learning import read_checkpoint
-
-                try:
-                    robot = str(read_checkpoint(checkpoint)["robot"])
-                except Exception as exc:
-                    fail(f"--checkpoint {checkpoint} is not a coadapt checkpoint ({type(exc).__name__}: {exc})")
-            else:
-                from coadapt_core.plugins import get_registry
-
-                installed = get_registry().names("robot")
-                if checkpoint is not None and len(installed) != 1:
-                    fail(f"--checkpoint {checkpoint} does not exist")
-                if len(installed) != 1:
-                    fail(f"--robot is needed: {len(installed)} robots are installed ({', '.join(installed)})")
-                robot = installed[0]
+        o = SimpleNamespace(**values)
+        velocity = _eval_checks(o.agents, o.seconds, o.video, o.device, o.objective, o.command)
+        checkpoint = _eval_checkpoint_path(o.checkpoint)
+        robot = o.robot if o.robot is not None else _eval_robot(checkpoint)
         robot_obj = resolve("robot", robot)()
-        sim = plugin_name("simulator", sim)
-        sim_cls = _simulator(sim, terrain)
+        sim = plugin_name("simulator", o.sim)
+        sim_cls = _simulator(sim, o.terrain)
         from coadapt_core.cli.robot import parse_design
 
-        design_values = parse_design(robot_obj, design)
-        if checkpoint is None:
-            from coadapt_core.learning import shipped_checkpoint
-
-            mixed = robot_obj.design_space_for(design_values).is_mixed
-            checkpoint = shipped_checkpoint(robot_obj, terrain, mixed=mixed)
-            if checkpoint is None:
-                space = "mixed" if mixed else "continuous"
-                fail(
-                    f"robot '{robot}' ships no policy for terrain '{terrain}' and the {space} design space; "
-                    f"pass --checkpoint (e.g. one `coadapt train --robot {robot} --terrain {terrain}` wrote)"
-                )
+        design = parse_design(robot_obj, o.design)
+        checkpoint = checkpoint if checkpoint is not None else _shipped(robot_obj, robot, o.terrain, design)
         from coadapt_core.experiments.evaluate import evaluate_checkpoint
 
-        with ProgressLine("eval", None, unit=" steps", enabled=not as_json) as bar:
+        with ProgressLine("eval", None, unit=" steps", enabled=not o.as_json) as bar:
             result = evaluate_checkpoint(
-                checkpoint, robot_obj, sim_cls, design_values, terrain=terrain, command=values, agents=agents,
-                seconds=seconds, device=device, seed=seed, randomize=randomize, record=video is not None,
-                progress=bar.update, objectives=objective_names,
+                checkpoint, robot_obj, sim_cls, design, terrain=o.terrain, command=velocity, agents=o.agents,
+                seconds=o.seconds, device=o.device, seed=o.seed, randomize=o.randomize, record=o.video is not None,
+                progress=bar.update, objectives=_names(o.objective),
             )
         trajectory = result.pop("_trajectory", None)
-        if as_json:
+        if o.as_json:
             print(json.dumps(result))
         else:
-            from rich.console import Console
-            from rich.table import Table
+            _eval_table(result, f"{robot} design {design.tolist()} on {sim}/{o.terrain}, command {velocity}",
+                        o.agents, o.seconds)
+        if o.video is not None:
+            _eval_video(robot_obj, design, trajectory, o.video)
 
-            table = Table(title=f"{robot} design {design_values.tolist()} on {sim}/{terrain}, command {values}")
-            table.add_column("metric")
-            table.add_column("value", justify="right")
-            costs, costs_se = result.pop("costs", {}), result.pop("costs_se", {})
-            for key, value in result.items():
-                table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
-            for name, value in costs.items():
-                table.add_row(f"{name} cost (per step)", f"{value:.4g} +- {costs_se[name]:.2g} SE")
-            Console().print(table)
-            from coadapt_core.plugins import get_registry
-
-            units = []  # each `<objective>_cost` in the objective's declared unit
-            for key in result:
-                name = key.removesuffix("_cost")
-                if key.endswith("_cost") and name in get_registry().names("objective"):
-                    unit = getattr(get_registry().get("objective", name), "unit", "")
-                    units += [f"{name} {unit}"] if unit else []
-            Console().print(f"costs: mean per step over {agents} agents of {seconds:g} s under this one command "
-                            "(`coadapt eval` protocol: not comparable with `coadapt run` or `coadapt landscape`, "
-                            "whose scenarios draw their commands)" + (f"; units: {', '.join(units)}" if units else ""))
-        if video is not None:
-            from coadapt_core.viz.video import write_rollout_video
-
-            backend, errors = write_rollout_video(robot_obj, design_values, trajectory, video)
-            if backend is None:
-                fail("offscreen rendering is unavailable here (" + "; ".join(errors) + "); no video written", code=1)
-            print(f"wrote {video} ({len(trajectory['frames'][::2])} frames, MUJOCO_GL={backend})", file=sys.stderr)
+    app.command("eval")(with_options(eval_command, [], declared_options(EvalCommand)))

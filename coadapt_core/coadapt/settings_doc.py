@@ -1,4 +1,5 @@
-"""docs/settings.md, generated from the settings tree of `coadapt run` (`CoadaptConfig`).
+"""docs/settings.md, generated from the settings tree of `coadapt run` (`CoadaptConfig`) and
+the settings classes of `coadapt train` and `coadapt eval` (`COMMAND_SETTINGS`).
 
     python -m coadapt_core.coadapt.settings_doc > docs/settings.md
 
@@ -7,6 +8,7 @@ compares its options with those of `coadapt run --help-all`."""
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 HEADER = """# Settings of `coadapt run`
@@ -21,6 +23,7 @@ A bad value stops the command with one line naming the key and what it accepts (
 
 Values on the command line: a range is `low:high`, integers `512,256,128`, weights
 `name=value,name=value`; booleans `--x/--no-x` (YAML: true/false, yes/no, on/off).
+The settings of `coadapt train` and `coadapt eval` follow the run's, at the end of the page.
 """
 
 
@@ -54,6 +57,49 @@ def settings_markdown() -> str:
             option = f"`{leaf.option}`" if leaf.extra.get("cli", True) else "(YAML only)"
             meaning = leaf.help.replace("|", "\\|")
             out.append(f"| `{leaf.key}` | {option} | {_default(leaf)} | {leaf.accepted()} | {meaning} |")
+    return "\n".join(out) + "\n" + command_markdown()
+
+
+#: the commands whose own settings follow the run's on the page: (command, module, settings
+#: class, what else the command takes)
+COMMAND_SETTINGS = (
+    ("train", "coadapt_core.cli.train", "TrainCommand",
+     "Also every setting of the `train`, `task` and `randomization` sections above, as the same options, each an "
+     "override of the checkpoint's (--resume / --init-from), else of the default."),
+    ("eval", "coadapt_core.cli.train", "EvalCommand", ""),
+)
+
+
+def _command_default(leaf: Any) -> str:
+    """A command setting's default as its --help shows it: the rule for a plugin left unset,
+    the "(default: ...)" its help writes, else the declared value."""
+    from coadapt_core.cli.common import show_default
+
+    found = re.search(r"\(default: ((?:[^()]|\([^()]*\))*)\)", leaf.help)
+    if found:
+        return found.group(1)
+    if leaf.extra.get("ranked"):
+        return f"the installed {leaf.extra['plugin']} of highest default_rank"
+    return "''" if leaf.default in (None, "") else show_default(leaf.default)
+
+
+def command_markdown() -> str:
+    """One section per command of `COMMAND_SETTINGS`: a table of its own settings (options only)."""
+    from importlib import import_module
+
+    from coadapt_core.settings import leaves
+
+    out = []
+    for command, module, name, note in COMMAND_SETTINGS:
+        cls = getattr(import_module(module), name)
+        out.append(f"\n# Settings of `coadapt {command}`\n\nDeclared once in `{name}` ({module.replace('.', '/')}.py): "
+                   f"each is an option of `coadapt {command}` (no YAML file). {note}".rstrip() + "\n")
+        out.append("| option | default | meaning |")
+        out.append("|---|---|---|")
+        for leaf in leaves(cls):
+            names = " ".join(f"`{n.split('/')[0]}`" for n in leaf.extra.get("names") or ()) or f"`{leaf.option}`"
+            meaning = re.sub(r"\s*\(default: ((?:[^()]|\([^()]*\))*)\)", "", leaf.help).replace("|", "\\|")
+            out.append(f"| {names} | {_command_default(leaf)} | {meaning} |")
     return "\n".join(out) + "\n"
 
 

@@ -18,6 +18,7 @@ from coadapt_core.errors import UserError
 from coadapt_core.fitness import RealFitness, TrainingResult, plain_mean, scenario_se
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.evaluate import EvalBuffer, rollout
+from coadapt_core.learning.runner import Runner
 from coadapt_core.learning.scenarios import apply_scenarios
 from coadapt_core.learning.surrogate import MEMBERS, FittedEnsemble, fit_ensemble
 from coadapt_core.learning.trainer import Trainer, read_checkpoint, reseed_simulator
@@ -133,7 +134,7 @@ class UniversalPolicyBackend:
         # the environment's streams restart from `seed`, so this phase is a function of the
         # checkpointed state, the designs and the seed (exact resume, docs/coadaptation.md)
         self.trainer.reseed(seed)
-        stats = self.trainer.learn(self.trainer.iterations_for(int(steps)))
+        stats = Runner(self.trainer).learn(int(steps))  # the runner `coadapt train` drives; it writes nothing here
         visited = self.trainer.last_rollout_critic_obs
         buffer = EvalBuffer(visited) if visited is not None else None
         return TrainingResult(
