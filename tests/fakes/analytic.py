@@ -61,6 +61,9 @@ def true_cost(designs: np.ndarray, name: str) -> np.ndarray:
 class AnalyticBackend:
     """`CoadaptationBackend` over the analytic bowls (see module docstring)."""
 
+    #: implements `coadapt_core.fitness.SurrogateEnsemble` (fit_surrogate, surrogate_members)
+    surrogate_ensemble = True
+
     def __init__(self, seed: int = 0, *, buffer_from_training: bool = True, fail_on_real_call: int | None = None):
         self.seed = seed
         self.buffer_from_training = buffer_from_training
