@@ -14,6 +14,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from coadapt_core.errors import CoadaptError
 from coadapt_core.objective import Objective
 
 
@@ -84,6 +85,50 @@ class CoadaptationBackend(Protocol):
 
     def load(self, path: str) -> None:
         """Restore what `save` wrote."""
+
+
+@runtime_checkable
+class SurrogateEnsemble(Protocol):
+    """The surrogate fitted to real rounds (docs/coadaptation.md, "The surrogate"): copies of
+    the pseudo-critics refitted, as an ensemble, to the current policy's real rounds. A
+    backend that offers it declares `surrogate_ensemble = True` and implements both methods
+    (`coadapt_core.testing.BackendConformance` checks); the loop then fits it before a
+    surrogate round, records the members' spread on real rounds, and the `uncertainty`
+    evaluation policy asks it. A backend without it runs every surrogate round on the
+    paper's estimator (`CoadaptationBackend.surrogate_fitness`), and under `uncertainty`
+    every round is real."""
+
+    surrogate_ensemble: bool
+
+    def fit_surrogate(
+        self, designs: np.ndarray, costs: np.ndarray, objectives: Sequence[Objective], buffer: Any, *, seed: int = 0
+    ) -> None:
+        """Fit the ensemble to labelled designs [N, D] and their real costs [N, M] on the
+        states of `buffer`; until `train` changes the policy, `surrogate_fitness` is the
+        members' mean."""
+
+    def surrogate_members(
+        self, designs: np.ndarray, objectives: Sequence[Objective], buffer: Any, *, samples: int, seed: int = 0
+    ) -> np.ndarray | None:
+        """[E, K, M] each member's prediction (mean over `samples` states of `buffer`), or
+        None when nothing is fitted (before `fit_surrogate`, after `train`)."""
+
+
+#: the methods a backend declaring `surrogate_ensemble` implements
+SURROGATE_ENSEMBLE_METHODS: tuple[str, ...] = ("fit_surrogate", "surrogate_members")
+
+
+def surrogate_ensemble(backend: object) -> SurrogateEnsemble | None:
+    """`backend` as a `SurrogateEnsemble` when it declares one (`surrogate_ensemble = True`),
+    else None. One that declares it without implementing it is a one-line error naming
+    what is missing."""
+    if getattr(backend, "surrogate_ensemble", False) is not True:
+        return None
+    missing = [name for name in SURROGATE_ENSEMBLE_METHODS if not callable(getattr(backend, name, None))]
+    if missing:
+        raise CoadaptError(f"backend {type(backend).__name__} declares surrogate_ensemble but has no "
+                           f"{', '.join(missing)} (coadapt_core.fitness.SurrogateEnsemble)")
+    return backend  # type: ignore[return-value]
 
 
 @runtime_checkable

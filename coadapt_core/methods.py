@@ -49,7 +49,7 @@ class Method:
     color: str  # matplotlib colour in the figures
     retrain: bool = True  # retrain the shared policy every outer iteration on the new range
     narrow: bool = True  # narrow the range around the final particles
-    surrogate_probability: float | None = None  # None: the config's w; else forced
+    surrogate_probability: float | None = None  # None: the config's `surrogate_probability` (w); else forced
     # take R_eval from the training rollouts when the backend offers it (no-real only: the
     # other methods fill it with the first, real, round of each outer iteration, as in the
     # paper where R_eval comes from Algorithm 2)

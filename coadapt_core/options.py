@@ -13,6 +13,10 @@ An optimizer or objective plugin lists its options in the class attribute `optio
 - lists them in `coadapt plugins --json` (name, type, default, help, choices, bounds).
 
 An option the plugin does not declare is refused, naming the ones it has.
+
+An optimizer option may ask to be filled from the run (`from_run`, one of `RUN_FACTS`) when
+the run leaves it unset: the co-adaptation loop then passes that fact of the run (a name
+unique to the run and outer iteration, the results store's URL), whatever the plugin.
 """
 
 from __future__ import annotations
@@ -26,6 +30,12 @@ from coadapt_core.errors import UserError
 
 #: the types an option may declare
 OPTION_TYPES: dict[str, type] = {"int": int, "float": float, "str": str, "bool": bool}
+#: facts of a run the co-adaptation loop fills into an optimizer option declared with
+#: `from_run` when the run leaves it unset (`fill_from_run`)
+RUN_FACTS: dict[str, str] = {
+    "run_name": "a name unique to the run and its outer iteration: <run id>-outer<k>",
+    "store_url": "the URL of the run's results store, when it is a database URL (scheme://...)",
+}
 _TRUE = {"true", "yes", "on", "1"}
 _FALSE = {"false", "no", "off", "0"}
 
@@ -36,7 +46,9 @@ class PluginOption:
 
     type: "int", "float", "str" or "bool". `choices` (a tuple of accepted values) and
     `minimum` / `maximum` (inclusive bounds, numbers only) are checked; a default of None
-    means "not set" (the plugin decides, e.g. an in-memory study when no storage is given)."""
+    means "not set" (the plugin decides, e.g. an in-memory study when no storage is given).
+    `from_run` (a key of `RUN_FACTS`): an optimizer option the co-adaptation loop fills with
+    that fact of the run when the run leaves it unset."""
 
     name: str
     type: str
@@ -45,10 +57,13 @@ class PluginOption:
     choices: tuple[Any, ...] | None = None
     minimum: float | None = None
     maximum: float | None = None
+    from_run: str | None = None
 
     def __post_init__(self) -> None:
         if self.type not in OPTION_TYPES:
             raise TypeError(f"option '{self.name}' has type {self.type!r}; use one of {', '.join(OPTION_TYPES)}")
+        if self.from_run is not None and self.from_run not in RUN_FACTS:
+            raise TypeError(f"option '{self.name}' is filled from_run={self.from_run!r}; use one of {', '.join(RUN_FACTS)}")
 
     def convert(self, value: Any, owner: str, field: str) -> Any:
         """`value` (a YAML value or command-line text) as the declared type, checked."""
@@ -124,6 +139,18 @@ def resolve_options(
             listing = ", ".join(by_name) or "none"
             raise UserError(f"{owner} has no option '{key}'; its options: {listing}", field=field)
         out[key] = spec.convert(value, owner, field)
+    return out
+
+
+def fill_from_run(specs: Sequence[PluginOption], given: Mapping[str, Any], facts: Mapping[str, Any]) -> dict[str, Any]:
+    """`given` with each option declared `from_run` that is unset (absent, None or empty)
+    set to that fact of the run (`facts`, keys of `RUN_FACTS`); a fact the run does not have
+    (None) leaves the option unset."""
+    out = dict(given)
+    for spec in specs:
+        fact = facts.get(spec.from_run) if spec.from_run else None
+        if fact is not None and not out.get(spec.name):
+            out[spec.name] = fact
     return out
 
 

@@ -263,9 +263,9 @@ def _command_options() -> list[tuple[str, Any, Any]]:
 
 def config_options() -> list[tuple[str, Any, Any, Any]]:
     """(parameter name, type, typer.Option, leaf) for every config setting on the command line."""
-    from coadapt_core.coadapt.config import CoadaptConfig
+    from coadapt_core.coadapt.config import OPTION_ALIASES, CoadaptConfig
 
-    return settings_options(CoadaptConfig)
+    return settings_options(CoadaptConfig, aliases=OPTION_ALIASES)
 
 
 def register(app: typer.Typer) -> None:
@@ -275,7 +275,7 @@ def register(app: typer.Typer) -> None:
         """Co-adapt design and policy: universal policy + pseudo-critics, optimizer with hybrid
         real/surrogate fitness, range narrowing (paper Algorithm 4)."""
         from coadapt_core.coadapt.config import make_config
-        from coadapt_core.coadapt.loop import run_coadaptation
+        from coadapt_core.coadapt.run import run_coadaptation
 
         config, resume, out, preset = values["config"], values["resume"], values["out"], values["preset"]
         as_json, video, check = values["as_json"], values["video"], values["check"]

@@ -2,7 +2,8 @@
 loop with its resumable state, and the run recorders."""
 
 from coadapt_core.coadapt.config import PRESETS, CoadaptConfig, make_config
-from coadapt_core.coadapt.loop import CoadaptResult, run_coadaptation
+from coadapt_core.coadapt.run import run_coadaptation
+from coadapt_core.coadapt.summary import CoadaptResult
 from coadapt_core.methods import METHOD_NAMES, METHODS, Method
 from coadapt_core.results.recorders import JsonRecorder, make_recorder, read_evaluations
 

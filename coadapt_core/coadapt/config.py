@@ -70,7 +70,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     # section 4.1.3: N = 3, K = 100, J = 5, 50 agents, w = 0.5, inertia 0.9, c1 = c2 = 2
     "paper": dict(
         outer_iterations=3, population=100, optimizer_iterations=5, agents_per_design=50,
-        evaluation_probability=0.5,
+        surrogate_probability=0.5,
         train_steps=24_000_000, retrain_steps=24_000_000, eval_steps=800, bo_designs=20,
         specialized_train_steps=10_000_000,
     ),
@@ -100,8 +100,9 @@ class CoadaptConfig:
     outer_iterations: Int = setting(3, "N: outer iterations (train, optimise, narrow).", ge=1)
     population: Int = setting(100, "K: designs per training phase = swarm size.", ge=1)
     optimizer_iterations: Int = setting(5, "J: optimizer rounds per outer iteration.", ge=1)
-    evaluation_probability: Float = setting(0.5, "w: probability of a surrogate (not real) round.", ge=0, le=1,
-                                           accepted="a probability in [0, 1]")
+    surrogate_probability: Float = setting(0.5, "w: probability of a surrogate (not real) round (earlier name: "
+                                          "evaluation_probability).", ge=0, le=1,
+                                          accepted="a probability in [0, 1]")
     agents_per_design: Int = setting(50, "Agents per design in training and real evaluation.", ge=1)
     train_steps: Int = setting(24_000_000, "Interactions of the first training phase.", ge=0)
     retrain_steps: Int = setting(24_000_000, "Interactions of each later retraining phase.", ge=0)
@@ -113,7 +114,7 @@ class CoadaptConfig:
     fit_surrogate: bool = setting(True, "Fit the pseudo-critics to each real round's measured designs before a surrogate "
                                   "round (off: the paper's pseudo-critics as trained).")
     evaluation_policy: Literal[EVALUATION_POLICIES] = setting(
-        "fixed", "fixed: a surrogate round with probability w (the paper's); uncertainty: a surrogate round when the "
+        "fixed", "fixed: a surrogate round with probability surrogate_probability (w, the paper's); uncertainty: a surrogate round when the "
         "fitted ensemble agrees (spread ratio <= uncertainty_threshold).")
     uncertainty_threshold: Float = setting(0.5, "uncertainty policy: trust the surrogate when the members' spread over "
                                            "the designs' spread is at most this.", ge=0)
@@ -245,6 +246,10 @@ LEGACY_KEYS: dict[str, tuple[str, str]] = {
     "bo_storage": ("optimizer_options", "storage"),
     "objective_weights": ("objective_options", "weights"),
 }
+#: settings of earlier versions under another name: old YAML key -> the setting's key now
+#: (the old command-line option is kept as an alias, `OPTION_ALIASES`)
+RENAMED_KEYS: dict[str, str] = {"evaluation_probability": "surrogate_probability"}
+OPTION_ALIASES: dict[str, tuple[str, ...]] = {new: ("--" + old.replace("_", "-"),) for old, new in RENAMED_KEYS.items()}
 
 
 def check_device(device: Any, field: str = "device") -> str:
@@ -355,6 +360,7 @@ def make_config(
     values: dict[str, Any] = {**PRESETS[preset], "preset": preset}
     for source, label in ((yaml_values, "config file"), (overrides, "option")):
         for key, value in source.items():
+            key = RENAMED_KEYS.get(key, key)
             if key in LEGACY_KEYS:  # an earlier version's key: one option of a plugin now
                 target, option = LEGACY_KEYS[key]
                 values[target] = {**values.get(target, {}), option: value}
@@ -447,7 +453,8 @@ def _typed_options(config: CoadaptConfig) -> CoadaptConfig:
 
 def config_from_dict(data: dict[str, Any]) -> CoadaptConfig:
     """Rebuild a recorded config (e.g. from a run folder's config.yaml)."""
-    known = {k: v for k, v in data.items() if k in FIELD_NAMES and v is not None}
+    renamed = {RENAMED_KEYS[k]: v for k, v in data.items() if k in RENAMED_KEYS and RENAMED_KEYS[k] not in data}
+    known = {k: v for k, v in {**data, **renamed}.items() if k in FIELD_NAMES and v is not None}
     # a config.yaml of an earlier version recorded every legacy key; their old defaults are the
     # plugins' defaults now, so only values that differed are carried over
     old_defaults = {"inertia": 0.9, "c1": 2.0, "c2": 2.0, "bo_sampler": "tpe", "bo_storage": "", "objective_weights": ""}

@@ -1,37 +1,40 @@
-"""Algorithm 4, design co-adaptation, end to end: sample designs from the current range,
-(re)train the universal policy and pseudo-critics on them, run the optimizer with hybrid
-real/surrogate fitness, narrow the range around the final particles; finally re-evaluate the
-best design and the nominal one for real.
+"""Algorithm 4, design co-adaptation, as a small state machine over `LoopState`: sample
+designs from the current range, (re)train the universal policy and pseudo-critics on them,
+run the optimizer with hybrid real/surrogate fitness, narrow the range around the final
+particles; finally re-evaluate the best design and the nominal one for real.
 
 One code path serves every method of the paper's comparison, each a row of the method
 registry (`coadapt_core.methods`): its switches, and the kind of backend its designs
 are evaluated with (the universal policy, or a policy per design for the BO baseline). The
-loop's whole state is written into the run folder after every training phase and every
-evaluation batch, as data only (`state.json`, the evaluation buffer as `buffer-<n>.npz`, the
-optimizer as its `state_dict()`; never a pickle), so `run_coadaptation(..., resume=run_dir)`
-continues where it stopped.
+rooms around it: the state and its persistence (`state.py`: written after every training
+phase and every evaluation batch, so a run continues where it stopped), the hybrid
+evaluation policy and the surrogate's records (`hybrid.py`), the final check
+(`final_check.py`) and the summary (`summary.py`); `run.py` starts or resumes a run
+(`run_coadaptation`) and drives this loop.
 """
 
 from __future__ import annotations
 
-import contextlib
-import os
-import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from coadapt_core import surrogate_quality as sq
-from coadapt_core.coadapt.config import CoadaptConfig, config_from_dict
+from coadapt_core.coadapt.config import CoadaptConfig
 from coadapt_core.coadapt.final_check import batch_errors, final_check, no_uncertainty
-from coadapt_core.coadapt.reliability import fall_verdict, judge_short, walking
-from coadapt_core.coadapt.setup import build_parts
+from coadapt_core.coadapt.hybrid import HybridPolicy
+from coadapt_core.coadapt.reliability import walking
+from coadapt_core.coadapt.setup import note_first_round
+from coadapt_core.coadapt.state import STATE_FILE, LoopState, save_state
+from coadapt_core.coadapt.summary import (
+    JSON_PLAIN_AND_FALLS,
+    FinalOutcome,
+    final_candidates,
+    run_summary,
+)
 from coadapt_core.design_space import DesignSpace
-from coadapt_core.errors import UserError
 from coadapt_core.fitness import (
     CoadaptationBackend,
     CostRule,
@@ -43,204 +46,13 @@ from coadapt_core.fitness import (
 from coadapt_core.methods import get_method
 from coadapt_core.objective import Objective
 from coadapt_core.optimizer import Optimizer
+from coadapt_core.options import fill_from_run
 from coadapt_core.pareto import pareto_front
-from coadapt_core.results.recorders import make_recorder
-from coadapt_core.results.store import new_run_id
-from coadapt_core.statefile import StateFileError, read_json, read_npz, write_json, write_npz
 
-STATE_FILE = "state.json"
-BUFFER_FILE_STEM = "buffer"  # <run_dir>/buffer-<serial>.npz: the evaluation buffer R_eval
-LEGACY_STATE_FILE = "state.pkl"  # written by coadapt before state files were data only; never read
-STATE_FORMAT = "coadapt-loop-state-1"
-
-
-@dataclass
-class LoopState:
-    """Everything needed to continue a run; written atomically to `<run_dir>/state.json`."""
-
-    run_id: str
-    config: dict[str, Any]
-    phase: str = "train"  # train | optimize | final | done
-    outer: int = 0
-    inner: int = 0
-    space: dict | None = None  # current design range (DesignSpace.to_dict)
-    train_designs: np.ndarray | None = None  # [K, dim] designs of this outer iteration
-    optimizer: Optimizer | None = None
-    optimizer_init: dict[str, Any] | None = None  # the optimizer's constructor arguments (data)
-    optimizer_state: dict[str, Any] | None = None  # its state_dict(), until the loop rebuilds it
-    buffer: Any = None  # evaluation buffer R_eval (written to its own file, see save_state)
-    buffer_outer: int = -1  # outer iteration whose policy filled the buffer
-    buffer_serial: int = -1  # bumped whenever the buffer is replaced
-    buffer_saved_serial: int = -1  # the serial written to <run_dir>/buffer-<serial>.npz
-    rng_state: dict | None = None  # numpy Generator of sampling and the hybrid switch
-    torch_rng_state: Any = None
-    backend_checkpoint: str | None = None  # relative to the run folder
-    best_real: tuple[list[float], float] | None = None  # (design, cost) lowest real cost seen
-    top_real: list[tuple[list[float], float]] = field(default_factory=list)  # lowest distinct real costs
-    best_any: tuple[list[float], float, str] | None = None  # lowest cost of any kind
-    counters: dict[str, float] = field(default_factory=lambda: {
-        "train_interactions": 0, "eval_interactions": 0, "final_interactions": 0,
-        "train_seconds": 0.0, "eval_seconds": 0.0, "surrogate_seconds": 0.0, "final_seconds": 0.0,
-        "real_evaluations": 0, "surrogate_evaluations": 0, "designs_evaluated": 0,
-    })
-    batches: list[dict[str, Any]] = field(default_factory=list)  # one summary per evaluation batch
-    # real rounds of the current policy, the labels the pseudo-critics are fitted to:
-    # {"designs": [[...]], "costs": [[...]]} (issue 16, docs/coadaptation.md "The surrogate")
-    labels: list[dict[str, Any]] = field(default_factory=list)
-    # surrogate against real cost on each real round's designs (coadapt_core.surrogate_quality)
-    quality_rounds: list[dict[str, Any]] = field(default_factory=list)
-    spaces: list[dict] = field(default_factory=list)  # the range of each outer iteration
-    # the cost rule's reference level [M] (`capped`: the nominal design's median scenario cost
-    # under the policy of outer iteration `reference_outer`, on the run's scenario set)
-    reference: list[float] | None = None
-    reference_outer: int = -1
-    elapsed: float = 0.0  # wall-clock seconds spent before the current process
-    summary: dict[str, Any] | None = None
-    policy: dict[str, Any] | None = None  # the starting policy's provenance (setup.policy_provenance)
-    notes: list[str] = field(default_factory=list)  # warnings printed at the start, kept in the summary
-    no_critic: list[str] = field(default_factory=list)  # objectives without a pseudo-critic in the starting policy
-
-
-#: the `--json` line's fields beside the rule's cost: the rule, the paper's plain mean (eq. 4)
-#: with its standard error and improvement, fall rates with standard errors and their paired
-#: difference, and whether the best design falls significantly more often than nominal
-JSON_PLAIN_AND_FALLS = ("cost_rule", "best_plain_mean", "best_plain_mean_se", "nominal_plain_mean",
-                        "nominal_plain_mean_se", "improvement_plain", "improvement_plain_se", "best_fall_rate_se",
-                        "nominal_fall_rate_se", "fall_rate_difference", "fall_rate_difference_se", "falls_more")
-
-
-@dataclass
-class CoadaptResult:
-    run_id: str
-    run_dir: Path
-    summary: dict[str, Any]
-
-    def json_line(self) -> dict[str, Any]:
-        s = self.summary
-        line = {k: s.get(k) for k in ("run_id", "best_design", "best_cost", "best_cost_se", "nominal_cost", "nominal_cost_se",
-                                 "improvement", "improvement_se", "significant", "best_fall_rate", "nominal_fall_rate",
-                                 *JSON_PLAIN_AND_FALLS, "interactions", "seconds")}
-        # the walking gate's verdict travels with every improvement (reliability.py)
-        line["reliable"] = s.get("reliable")
-        line["reliability"] = s.get("reliability")
-        return line
-
+#: importers of these names from here (the grid, older scripts) keep working
+__all__ = ["JSON_PLAIN_AND_FALLS", "STATE_FILE", "CoadaptationLoop", "LoopState", "ProgressFn", "save_state"]
 
 ProgressFn = Callable[[dict[str, Any]], None]
-
-
-# ------------------------------------------------------------------------------------------
-_RECOVER = "; the run cannot continue from it: start it again with `coadapt run` (same options) in a new --out"
-_NOT_SAVED = ("optimizer", "optimizer_state", "buffer")
-
-
-def save_state(run_dir: Path, state: LoopState) -> None:
-    """Write the state atomically as JSON (arrays inline). The evaluation buffer can be large
-    (every state of a real round), so it goes to its own `.npz`, written only when it changed
-    (`buffer_serial`). The optimizer is saved as its `state_dict()`."""
-    if "torch" in sys.modules:  # the learner's RNG; never import torch just for this
-        state.torch_rng_state = sys.modules["torch"].get_rng_state()
-    buffer = state.buffer
-    stale = None
-    if state.phase == "done" and state.buffer_saved_serial >= 0:
-        # a finished run is resumed from its summary alone: the buffer (tens of MB for a
-        # quick run) is kept only while the run can still continue
-        stale = run_dir / f"{BUFFER_FILE_STEM}-{state.buffer_saved_serial}.npz"
-        state.buffer_saved_serial = -1
-    elif buffer is not None and state.buffer_saved_serial != state.buffer_serial:
-        write_npz(run_dir / f"{BUFFER_FILE_STEM}-{state.buffer_serial}.npz", buffer)
-        stale = run_dir / f"{BUFFER_FILE_STEM}-{state.buffer_saved_serial}.npz"
-        state.buffer_saved_serial = state.buffer_serial
-    data = {"format": STATE_FORMAT}
-    for f in fields(LoopState):
-        if f.name not in _NOT_SAVED:
-            data[f.name] = getattr(state, f.name)
-    data["optimizer_state"] = state.optimizer.state_dict() if state.optimizer is not None else state.optimizer_state
-    write_json(run_dir / STATE_FILE, data)
-    if stale is not None and stale.exists():  # only once the new state points past it
-        stale.unlink()
-
-
-def load_state(run_dir: Path) -> LoopState:
-    """The state `save_state` wrote (the optimizer still as data: `optimizer_state`, rebuilt
-    by the loop). A damaged or foreign file is a one-line `UserError` naming it."""
-    path = run_dir / STATE_FILE
-    if not path.is_file():
-        if (run_dir / LEGACY_STATE_FILE).is_file():
-            raise UserError(
-                f"cannot resume: '{run_dir}' holds a {LEGACY_STATE_FILE} from an older coadapt; pickled state is "
-                "never read (it can run code): start the run again", field="resume")
-        raise UserError(f"cannot resume: '{run_dir}' has no {STATE_FILE} (not a run folder, or it never started)", field="resume")
-    data = read_json(path, what="run state", recover=_RECOVER)
-    names = {f.name for f in fields(LoopState)}
-    if not isinstance(data, dict) or data.get("format") != STATE_FORMAT or not {"run_id", "config"} <= set(data):
-        raise StateFileError(f"run state '{path}' is not a coadapt run state{_RECOVER}", field="resume")
-    try:
-        state = LoopState(**{k: v for k, v in data.items() if k in names and k not in ("optimizer", "buffer")})
-        _check_state(state)
-    except (TypeError, ValueError) as exc:
-        raise StateFileError(f"run state '{path}' is damaged ({type(exc).__name__}: {exc}){_RECOVER}", field="resume") from None
-    if state.buffer_saved_serial >= 0:
-        buffer_path = run_dir / f"{BUFFER_FILE_STEM}-{state.buffer_saved_serial}.npz"
-        if not buffer_path.is_file():
-            raise StateFileError(f"evaluation buffer '{buffer_path}' is missing{_RECOVER}", field="resume")
-        from coadapt_core.plugins import get_registry
-
-        get_registry()  # plugins register their buffer types (statefile.register_dataclass)
-        state.buffer = read_npz(buffer_path, what="evaluation buffer", recover=_RECOVER)
-    if state.torch_rng_state is not None:
-        import torch
-
-        torch.set_rng_state(state.torch_rng_state)
-    return state
-
-
-def _check_state(state: LoopState) -> None:
-    """Types that the loop relies on (a hand-edited or foreign file fails here, in one line)."""
-    if not isinstance(state.run_id, str) or not isinstance(state.config, dict):
-        raise ValueError("run_id or config has the wrong type")
-    if state.phase not in ("train", "optimize", "final", "done"):
-        raise ValueError(f"unknown phase {state.phase!r}")
-    for name in ("outer", "inner", "buffer_serial", "buffer_saved_serial"):
-        if not isinstance(getattr(state, name), int):
-            raise ValueError(f"{name} is not an integer")
-    if state.backend_checkpoint is not None:
-        rel = Path(str(state.backend_checkpoint))
-        if rel.is_absolute() or ".." in rel.parts:
-            raise ValueError("backend checkpoint path leaves the run folder")
-    for name in ("best_real", "best_any"):
-        if getattr(state, name) is not None:
-            setattr(state, name, tuple(getattr(state, name)))
-    state.top_real = [tuple(item) for item in state.top_real]
-    torch_rng = state.torch_rng_state
-    if torch_rng is not None and type(torch_rng).__name__ != "Tensor":
-        raise ValueError("torch RNG state is not a tensor")
-
-
-def quality_of(surrogate: list[float], real: list[float]) -> dict[str, Any]:
-    return sq.clean({k: v for k, v in sq.quality(surrogate, real).items()})
-
-
-def _floats(values: list[Any]) -> list[float]:
-    """JSON lists with None (a non-finite value) as NaN."""
-    return [float("nan") if v is None else float(v) for v in values]
-
-
-def spread_ratio(members: np.ndarray) -> float:
-    """The ensemble's disagreement on a round, members [E, K, M]: per objective, the mean
-    over designs of the members' standard deviation over the standard deviation of the
-    members' mean across the designs; the largest over objectives. Below 1 the members
-    disagree less than the designs differ; infinite when the designs are predicted alike
-    or a prediction is not finite."""
-    members = np.asarray(members, dtype=float)
-    if members.shape[0] < 2 or members.shape[1] < 2 or not np.isfinite(members).all():
-        return float("inf")
-    ratios = []
-    for j in range(members.shape[2]):
-        between = members[:, :, j].mean(axis=0).std()
-        within = members[:, :, j].std(axis=0).mean()
-        ratios.append(within / between if between > 0 else float("inf"))
-    return float(max(ratios))
 
 
 def _split(total: float, n: int) -> list[float]:
@@ -251,7 +63,6 @@ def _split(total: float, n: int) -> list[float]:
     return [total / n] * n
 
 
-# ------------------------------------------------------------------------------------------
 class CoadaptationLoop:
     """Runs Algorithm 4 as a small state machine over `LoopState` (see module docstring)."""
 
@@ -295,11 +106,8 @@ class CoadaptationLoop:
         self._last_survival: float | None = None  # mean survival of the last real batch
         self._last_tracking: float | None = None  # mean tracking ratio of the last real batch
         self._last_errors: dict[str, Any] = {}  # error bars and fall rate of the last real batch
-        self._fitted_for: tuple[int, int, int] | None = None  # (outer, labels, buffer) the backend's fit is for
-        self._pending: tuple[int, np.ndarray] | None = None  # (inner, ensemble's costs) of a trusted round
-        self._last_uncertainty: float | None = None  # the ensemble's spread ratio of this round
-        p = self.method.surrogate_probability
-        self.w = config.evaluation_probability if p is None else p
+        # which kind each round is, and the surrogate's side of it (hybrid.py)
+        self.hybrid = HybridPolicy(config, self.method, self.objectives, state, self.rng, self.get_backend, self.seed_for)
         if state.optimizer is None and state.optimizer_init is not None:  # resumed: rebuild from data
             state.optimizer = self.make_optimizer(state.optimizer_init)
             if state.optimizer_state is not None:
@@ -365,8 +173,8 @@ class CoadaptationLoop:
         the state, so this holds right after a resume): the training phases still to come at
         the measured seconds per training interaction; the rounds still to come at the
         measured seconds of a real round and of a surrogate round (each including the
-        pseudo-critics' fits it triggered), a share 1 - w of them real (the share seen so far
-        under the uncertainty policy); the final check at the measured rollout seconds per
+        pseudo-critics' fits it triggered), the hybrid policy's share of them real
+        (`HybridPolicy.real_share`); the final check at the measured rollout seconds per
         design, for its designs and one block. None until a training phase (when one is to
         come) and a real round have been timed. The video is not included."""
         s, c = self.state, self.config
@@ -392,9 +200,7 @@ class CoadaptationLoop:
         seconds = steps_left * (train_wall / train_steps if train_steps else 0.0)
         if s.phase in ("train", "optimize"):
             rounds_left = self.rounds_per_outer * (self.outer_count - s.outer) - (s.inner if s.phase == "optimize" else 0)
-            real_share = 1.0 - self.w
-            if c.evaluation_policy == "uncertainty" and self.method.surrogate_probability is None:
-                real_share = real_rounds / (real_rounds + surrogate_rounds)
+            real_share = self.hybrid.real_share(real_rounds, surrogate_rounds)
             seconds += rounds_left * (real_share * per_real + (1 - real_share) * per_surrogate)
         real = [b for b in s.batches if b.get("kind") == "real"]
         per_design = sum(b["seconds"] for b in real) / max(sum(b["designs"] for b in real), 1)
@@ -414,25 +220,21 @@ class CoadaptationLoop:
     def get_backend(self) -> CoadaptationBackend:
         if self.backend is None:
             self.backend = self.backend_factory(self.seed_for(0))
-            self._fitted_for = None
+            self.hybrid.forget_fit()
             if self.state.backend_checkpoint:
                 self.backend.load(str(self.run_dir / self.state.backend_checkpoint))
         return self.backend
 
     def optimizer_options(self) -> dict[str, Any]:
         """The run's `optimizer_options`, as the optimizer plugin declared them (checked
-        against its `option_specs` by the optimizer's constructor). An optimizer that keeps a
-        study (it declares `study_name` / `storage`, as BO does) keeps it in the run's results
-        store under `<run id>-outer<k>` unless told otherwise: optuna's tools and
-        optuna-dashboard read it there, and no two runs of a grid share a name."""
-        options = dict(self.config.optimizer_options)
-        declared = {spec.name for spec in getattr(self.optimizer_cls, "option_specs", ())}
-        if "study_name" in declared and not options.get("study_name"):
-            options["study_name"] = f"{self.state.run_id}-outer{self.state.outer}"
+        against its `option_specs` by the optimizer's constructor), with the options it
+        declares `from_run` filled where the run leaves them unset (`coadapt_core.options`):
+        a study kept under `<run id>-outer<k>` in the run's results store, where a study
+        browser reads it and no two runs of a grid share a name."""
         url = getattr(self.recorder, "url", None)
-        if "storage" in declared and not options.get("storage") and isinstance(url, str) and "://" in url:
-            options["storage"] = url
-        return options
+        facts = {"run_name": f"{self.state.run_id}-outer{self.state.outer}",
+                 "store_url": url if isinstance(url, str) and "://" in url else None}
+        return fill_from_run(getattr(self.optimizer_cls, "option_specs", ()), self.config.optimizer_options, facts)
 
     # -- the phases ------------------------------------------------------------------------
     def run(self) -> dict[str, Any]:
@@ -478,7 +280,7 @@ class CoadaptationLoop:
             steps = 0
         if (s.outer == 0 or self.method.retrain) and steps > 0:
             s.labels = []  # a new policy: earlier real rounds no longer label it
-            self._fitted_for = None
+            self.hybrid.forget_fit()
             self.emit("training")
             t0 = time.perf_counter()
             result = self.get_backend().train(s.train_designs, steps, seed=self.seed_for(1, s.outer))
@@ -502,63 +304,6 @@ class CoadaptationLoop:
             s.counters["train_interactions"] += int(result.steps)
             s.counters["train_seconds"] += float(result.seconds)
             self.recorder.record_training(s.run_id, outer=s.outer, result=result)
-
-    def choose_kind(self, designs: np.ndarray | None = None) -> str:
-        """Hybrid evaluation (Algorithm 4 line 14): surrogate with probability w, else real.
-        The draw is made every round so the random stream does not depend on the buffer; the
-        surrogate needs an evaluation buffer from the current policy, so without one the
-        round is real (the first of each outer iteration, unless training filled it).
-
-        `evaluation_policy: uncertainty` (method ours only; beyond the paper): the fitted
-        ensemble predicts the round's designs, and the round is a surrogate round when its
-        members agree — their spread over the designs' spread (`spread_ratio`) at most
-        `uncertainty_threshold` — else real. No fit (no real round of this policy yet, or a
-        backend without an ensemble): real."""
-        s, c = self.state, self.config
-        draw = self.rng.random()
-        self._last_uncertainty = None
-        if s.buffer is None or s.buffer_outer != s.outer:
-            return "real"
-        if s.no_critic and not self.ensure_fitted():
-            # an objective without a pseudo-critic in the starting policy: the fit to this
-            # policy's real rounds stands in for it, or the round is real (setup.objectives_without_critic)
-            return "real"
-        if c.evaluation_policy == "uncertainty" and self.method.surrogate_probability is None and designs is not None:
-            members_of = getattr(self.get_backend(), "surrogate_members", None)
-            if members_of is None or not self.ensure_fitted():
-                return "real"
-            t0 = time.perf_counter()
-            members = members_of(designs, self.objectives, s.buffer, samples=c.surrogate_samples,
-                                 seed=self.seed_for(3, s.outer, s.inner))
-            s.counters["surrogate_seconds"] += time.perf_counter() - t0
-            if members is None:
-                return "real"
-            members = np.asarray(members, dtype=float).reshape(-1, len(designs), len(self.objectives))
-            self._last_uncertainty = spread_ratio(members)
-            if self._last_uncertainty <= c.uncertainty_threshold:
-                self._pending = (s.inner, members.mean(axis=0))
-                return "surrogate"
-            return "real"
-        return "surrogate" if draw < self.w else "real"
-
-    def ensure_fitted(self) -> bool:
-        """Fit the backend's pseudo-critics to this policy's real rounds (`LoopState.labels`)
-        unless its fit already covers them (also after a resume: the fit is a function of the
-        labels, the buffer and the seed). False when there is nothing to fit or no fit."""
-        s, c = self.state, self.config
-        backend = self.get_backend()
-        fit = getattr(backend, "fit_surrogate", None)
-        if not c.fit_surrogate or fit is None or not s.labels or s.buffer is None or s.buffer_outer != s.outer:
-            return False
-        key = (s.outer, len(s.labels), s.buffer_serial)
-        if self._fitted_for != key:
-            t0 = time.perf_counter()
-            designs = np.concatenate([np.asarray(item["designs"], dtype=float) for item in s.labels])
-            costs = np.concatenate([np.asarray(item["costs"], dtype=float) for item in s.labels])
-            fit(designs, costs, self.objectives, s.buffer, seed=self.seed_for(6, s.outer, len(s.labels)))
-            s.counters["surrogate_seconds"] += time.perf_counter() - t0
-            self._fitted_for = key
-        return True
 
     def reference_level(self, fit: RealFitness | None = None) -> np.ndarray | None:
         """The cost rule's reference level [M] for the current policy (`capped`: the nominal
@@ -603,8 +348,8 @@ class CoadaptationLoop:
         designs = opt.ask()  # [P, dim]
         initial = (s.optimizer_init or {}).get("initial_designs")
         if s.inner == 0 and initial is not None:  # the swarm starts from the training designs (line 10)
-            self._check_first_round(np.asarray(initial, dtype=float), designs)
-        kind = self.choose_kind(designs)
+            note_first_round(self.state.notes, self.optimizer_cls, np.asarray(initial, dtype=float), designs)
+        kind = self.hybrid.choose_kind(designs)
         self.emit(f"{kind} evaluation")
         costs, interactions, seconds, errors = self.evaluate(designs, kind)
         target = costs[:, 0] if len(self.objectives) == 1 else costs
@@ -617,169 +362,52 @@ class CoadaptationLoop:
         self.checkpoint()
         self.emit("evaluated", kind=kind)
 
-    def _check_first_round(self, initial: np.ndarray, designs: np.ndarray) -> None:
-        """Say (once per run, stderr and the summary's notes) when the optimizer's first round
-        is not the initial designs it was built with (`setup.initial_designs_note` probes for
-        it before training where it can)."""
-        from coadapt_core.coadapt.setup import first_round_note
-
-        rows = 1 if self.optimizer_cls.sequential else len(initial)
-        note = first_round_note(self.optimizer_cls.name, initial[:rows], designs)
-        if note is not None and not any(n.startswith(f"warning: {note[:40]}") for n in self.state.notes):
-            self.state.notes.append(f"warning: {note}")
-            print(f"warning: {note}", file=sys.stderr)
-
     def evaluate(self, designs: np.ndarray, kind: str) -> tuple[np.ndarray, int, float, np.ndarray | None]:
         """costs [P, M], interactions, seconds, surrogate errors [P, M] (real rounds only)."""
         s, c = self.state, self.config
-        backend = self.get_backend()
         seed = self.seed_for(3, s.outer, s.inner)
-        if kind == "real":  # every real round on the run's one scenario set (paired designs)
-            # a surrogate round would have been allowed here (a real round of this policy came
-            # before): its prediction, made before this round's costs are known, is what the
-            # quality figures judge (the first round of a policy: the paper's estimator on its
-            # own buffer, marked not eligible)
-            eligible = s.buffer is not None and s.buffer_outer == s.outer
-            fitted = eligible and c.measure_surrogate_error and self.ensure_fitted()
-            previous = s.buffer
-            fit = backend.real_fitness(designs, self.objectives, agents=c.evaluation_agents, steps=c.eval_steps, seed=self.scenario_seed())
-            self.count_training(fit.training)
-            s.buffer, s.buffer_outer = fit.buffer, s.outer  # line 15: R_eval from this rollout
-            s.buffer_serial += 1
-            costs = self.rule_costs(fit).reshape(len(designs), -1)
-            errors = None
-            if c.measure_surrogate_error and self.shared:  # no shared policy, no surrogate
-                t0 = time.perf_counter()
-                states = previous if eligible else fit.buffer
-                members_of = getattr(backend, "surrogate_members", None)
-                members = None
-                if fitted and members_of is not None:  # the members too: their spread ratio is recorded
-                    members = members_of(designs, self.objectives, states, samples=c.surrogate_samples, seed=seed)
-                if members is not None:
-                    members = np.asarray(members, dtype=float).reshape(-1, *costs.shape)
-                    predicted = members.mean(axis=0)
-                else:
-                    predicted = backend.surrogate_fitness(designs, self.objectives, states, samples=c.surrogate_samples, seed=seed)
-                s.counters["surrogate_seconds"] += time.perf_counter() - t0
-                predicted = np.asarray(predicted, dtype=float).reshape(costs.shape)
-                errors = predicted - costs
-                self.record_quality(predicted, costs, eligible=eligible, fitted=fitted,
-                                    spread=None if members is None else spread_ratio(members))
-            s.labels.append({"designs": designs.tolist(), "costs": costs.tolist()})
-            s.counters["eval_interactions"] += int(fit.interactions)
-            s.counters["eval_seconds"] += float(fit.seconds)
-            s.counters["real_evaluations"] += 1
-            if fit.survival is not None:
-                self._last_survival = float(np.mean(fit.survival))
-            self._last_tracking = walking(fit)["tracking_ratio"]
-            self._last_errors = batch_errors(fit, self.cost_rule, self.reference_level(fit))
-            return costs, int(fit.interactions), float(fit.seconds), errors
-        t0 = time.perf_counter()
-        # the round's seconds include a fit it needs: counted once (ensure_fitted counts it too)
-        counted = s.counters["surrogate_seconds"]
-        if self._pending is not None and self._pending[0] == s.inner:  # the ensemble's, just computed
-            predicted = self._pending[1]
-        else:
-            self.ensure_fitted()
-            predicted = backend.surrogate_fitness(designs, self.objectives, s.buffer, samples=c.surrogate_samples, seed=seed)
-        self._pending = None
-        seconds = time.perf_counter() - t0
-        s.counters["surrogate_seconds"] = counted + seconds
-        s.counters["eval_seconds"] += seconds
-        s.counters["surrogate_evaluations"] += 1
-        return np.asarray(predicted, dtype=float).reshape(len(designs), -1), 0, seconds, None
-
-    def record_quality(self, predicted: np.ndarray, costs: np.ndarray, *, eligible: bool, fitted: bool,
-                       spread: float | None = None) -> None:
-        """One entry of `surrogate_quality.rounds`: the round's (surrogate, real) pairs per
-        objective and their figures (coadapt_core/surrogate_quality.py), and the fitted
-        ensemble's spread ratio on the round (what the uncertainty policy would have seen)."""
-        s = self.state
-        entry: dict[str, Any] = {"outer": s.outer, "inner": s.inner, "eligible": bool(eligible),
-                                 "estimator": "fitted" if fitted else "paper", "spread_ratio": spread, "objectives": {}}
-        for j, name in enumerate(self.names):
-            pairs = {"surrogate": predicted[:, j].tolist(), "real": costs[:, j].tolist()}
-            entry["objectives"][name] = {**quality_of(pairs["surrogate"], pairs["real"]), **pairs}
-        s.quality_rounds.append(sq.clean(entry))
-        from coadapt_core import tracking
-
-        tracking.log_values("surrogate_quality", {
-            f"{name}_{m}": q[m] for name, q in entry["objectives"].items() for m in sq.METRICS
-            if isinstance(q.get(m), float) and np.isfinite(q[m])
-        } | {"eligible": float(eligible)}, len(s.quality_rounds))
-
-    def surrogate_quality(self) -> dict[str, Any]:
-        """summary.json's `surrogate_quality`: pooled over the eligible rounds (those where a
-        surrogate round was allowed: what the surrogate rounds of the run relied on), the
-        first objective's figures in `pooled`, every objective's in `by_objective`."""
-        rounds = self.state.quality_rounds
-        used = [r for r in rounds if r["eligible"]]
-        by_objective = {}
-        for name in self.names:
-            pairs = [{"surrogate": _floats(r["objectives"][name]["surrogate"]), "real": _floats(r["objectives"][name]["real"])}
-                     for r in used if name in r["objectives"]]
-            by_objective[name] = sq.clean(sq.pooled(pairs))
-        brief = [{k: v for k, v in r.items() if k != "objectives"}
-                 | {"objectives": {n: {m: q.get(m) for m in (*sq.METRICS, "n")} for n, q in r["objectives"].items()}}
-                 for r in rounds]
-        return {
-            "pooled": by_objective[self.names[0]] if self.names else {},
-            "by_objective": by_objective,
-            "rounds": brief,
-            "estimator": "fitted" if self.config.fit_surrogate else "paper",
-            "definition": "over eligible real rounds (a real round of the same policy came before); relative error "
-                          "(surrogate - real) / |real|; top_k_regret: (best real cost among the surrogate's "
-                          f"{sq.TOP_K} cheapest - best real cost) / |best real cost|, mean over rounds",
-        }
-
-    def _keep_top(self, design: np.ndarray, cost: float) -> None:
-        """The `final_candidates` lowest real costs over distinct designs (a noisy evaluation
-        flatters the luckiest design; the final check re-evaluates several)."""
-        top = self.state.top_real
-        for i, (other, other_cost) in enumerate(top):
-            if np.allclose(other, design):
-                if cost < other_cost:
-                    top[i] = (design.tolist(), cost)
-                break
-        else:
-            top.append((design.tolist(), cost))
-        top.sort(key=lambda item: item[1])
-        del top[self.config.final_candidates:]
+        if kind != "real":
+            costs, seconds = self.hybrid.surrogate_round(designs, seed)
+            return costs, 0, seconds, None
+        # every real round on the run's one scenario set (paired designs); a surrogate round
+        # would have been allowed here (a real round of this policy came before): its
+        # prediction, made before this round's costs are known, is what the quality figures judge
+        eligible, fitted, previous = self.hybrid.before_real_round()
+        fit = self.get_backend().real_fitness(designs, self.objectives, agents=c.evaluation_agents, steps=c.eval_steps,
+                                              seed=self.scenario_seed())
+        self.count_training(fit.training)
+        s.buffer, s.buffer_outer = fit.buffer, s.outer  # line 15: R_eval from this rollout
+        s.buffer_serial += 1
+        costs = self.rule_costs(fit).reshape(len(designs), -1)
+        errors = None
+        if c.measure_surrogate_error and self.shared:  # no shared policy, no surrogate
+            errors = self.hybrid.judge_real_round(designs, costs, previous if eligible else fit.buffer,
+                                                  eligible=eligible, fitted=fitted, seed=seed)
+        s.labels.append({"designs": designs.tolist(), "costs": costs.tolist()})
+        s.counters["eval_interactions"] += int(fit.interactions)
+        s.counters["eval_seconds"] += float(fit.seconds)
+        s.counters["real_evaluations"] += 1
+        if fit.survival is not None:
+            self._last_survival = float(np.mean(fit.survival))
+        self._last_tracking = walking(fit)["tracking_ratio"]
+        self._last_errors = batch_errors(fit, self.cost_rule, self.reference_level(fit))
+        return costs, int(fit.interactions), float(fit.seconds), errors
 
     def record_batch(self, designs, costs, kind, interactions, seconds, errors) -> None:
         s = self.state
         n = len(designs)
         s.counters["designs_evaluated"] += n
-        for design, cost in zip(designs, costs[:, 0], strict=True):
-            if not np.isfinite(cost):
-                continue
-            if s.best_any is None or cost < s.best_any[1]:
-                s.best_any = (design.tolist(), float(cost), kind)
-            if kind == "real" and (s.best_real is None or cost < s.best_real[1]):
-                s.best_real = (design.tolist(), float(cost))
-            if kind == "real":
-                self._keep_top(design, float(cost))
+        s.note_costs(designs, costs[:, 0], kind, self.config.final_candidates)
         cost_dicts = [dict(zip(self.names, map(float, row), strict=True)) for row in costs]
         error_dicts = None if errors is None else [dict(zip(self.names, map(float, row), strict=True)) for row in errors]
         shares, secs = _split(int(interactions), n), _split(float(seconds), n)
         self.recorder.record_evaluations(s.run_id, outer=s.outer, inner=s.inner, designs=designs.tolist(), costs=cost_dicts,
                                          kind=kind, interactions=shares, seconds=secs, surrogate_errors=error_dicts)
-        finite = np.isfinite(costs[:, 0])
-        error_finite = None if errors is None else np.isfinite(errors[:, 0])
-        s.batches.append({
-            "outer": s.outer, "inner": s.inner, "kind": kind, "designs": n, "interactions": int(interactions),
-            "seconds": float(seconds),
-            "best_cost": float(costs[finite, 0].min()) if finite.any() else None,
-            "mean_cost": float(costs[finite, 0].mean()) if finite.any() else None,
-            # a diverged pseudo-critic gives NaN/inf: counted, and told to the optimizer as worst
-            "nonfinite_costs": int((~finite).sum()),
-            "surrogate_abs_error": float(np.abs(errors[error_finite, 0]).mean()) if errors is not None and error_finite.any() else None,
-            "survival": self._last_survival,
-            "tracking_ratio": self._last_tracking,
+        s.add_batch(kind, costs, int(interactions), float(seconds), errors, {
+            "survival": self._last_survival, "tracking_ratio": self._last_tracking,
             **self._last_errors,  # real rounds: best design's cost SE, median relative SE, fall rate
-            "uncertainty": self._last_uncertainty,
-        })
-        self._last_uncertainty = None
+            "uncertainty": self.hybrid.last_uncertainty})
+        self.hybrid.last_uncertainty = None
         self._last_survival = self._last_tracking = None
         self._last_errors = {}
 
@@ -803,272 +431,57 @@ class CoadaptationLoop:
         for several objectives) and the nominal design, with the final policy."""
         s, c = self.state, self.config
         self.emit("final evaluation")
-        if len(self.objectives) > 1:
-            front, _ = s.optimizer.pareto_front()  # sorted by the first cost
-            if len(front) > c.population:  # evenly along the front, both ends included
-                front = front[np.unique(np.linspace(0, len(front) - 1, c.population).round().astype(int))]
-            candidates = list(front)
-        else:
-            candidates = []
-            for item in [*s.top_real, s.best_any]:
-                if item is not None and not any(np.allclose(item[0], x) for x in candidates):
-                    candidates.append(np.asarray(item[0]))
+        candidates = final_candidates(s, s.optimizer, len(self.objectives), c.population)
         designs = np.stack([*candidates, self.nominal])  # [C + 1, dim]
-        uncertainty = no_uncertainty(self.names)
-        final_walking: dict[str, dict[str, Any]] = {}
-        if not self.shared:
-            # every real cost came with the design's own policy: the best one stands, and the
-            # nominal design is evaluated with a policy of its own
-            best_design, best_cost = np.asarray(s.best_real[0]), s.best_real[1]
-            fit = self.get_backend().real_fitness(
-                self.nominal[None, :], self.objectives, agents=c.evaluation_agents, steps=c.eval_steps,
-                seed=self.scenario_seed())
-            self.count_training(fit.training)
-            s.counters["final_interactions"] += int(fit.interactions)
-            s.counters["final_seconds"] += float(fit.seconds)
-            nominal_costs = self.rule_costs(fit).reshape(-1)
-            front = None
-            best_costs = np.array([best_cost])
-        else:
-            # paired blocks of fresh scenarios until the improvement is >= 4 standard errors
-            check = final_check(
-                lambda d, block: self.get_backend().real_fitness(
-                    d, self.objectives, agents=c.evaluation_agents, steps=c.eval_steps, seed=self.scenario_seed(block)),
-                designs, self.objectives, max_blocks=c.final_max_blocks, min_blocks=min(c.final_min_blocks, c.final_max_blocks),
-                rule=self.cost_rule, fall_tolerance=c.fall_tolerance if len(self.objectives) == 1 else None,
-                on_block=lambda b: self.emit(f"final check, scenario block {b}"),
-            )
-            fit = check.fit
-            uncertainty = check.uncertainty(self.names)
-            costs = np.asarray(fit.costs, dtype=float).reshape(len(designs), -1)
-            s.counters["final_interactions"] += int(fit.interactions)
-            s.counters["final_seconds"] += float(fit.seconds)
-            nominal_costs = costs[-1]
-            front = None
-            if len(self.objectives) > 1:
-                # the optimizer's front mixes surrogate and noisy real costs: the stored front
-                # is the non-dominated subset of the final real re-evaluation
-                front_designs, front_costs = pareto_front(designs[:-1], costs[:-1])
-                front = {"designs": front_designs.tolist(),
-                         "costs": [dict(zip(self.names, map(float, r), strict=True)) for r in front_costs]}
-                best_design, best_costs = front_designs[0], front_costs[0]  # lowest first cost
-                i = int(np.flatnonzero(np.all(np.isclose(designs[:-1], best_design), axis=1))[0])
-            else:
-                i = check.best  # the lowest cost among candidates that do not fall more (the nominal design if none)
-                best_design, best_costs = designs[i], costs[i]
-            best_cost = float(best_costs[0])
-            final_walking = {"best": walking(fit, [i]), "nominal": walking(fit, [len(designs) - 1])}
-        improvements = {
-            o.name: float(o.improvement(float(best_costs[j]) if j < len(best_costs) else float("nan"), float(nominal_costs[j])))
-            for j, o in enumerate(self.objectives) if j < len(best_costs)
-        }
-        cnt = s.counters
-        interactions = int(cnt["train_interactions"] + cnt["eval_interactions"] + cnt["final_interactions"])
-        summary = {
-            "run_id": s.run_id,
-            "method": c.method, "optimizer": self.optimizer_cls.name, "objective": c.objective, "terrain": c.terrain,
-            "seed": c.seed, "preset": c.preset,
-            "best_design": [float(x) for x in best_design],
-            "best_cost": float(best_cost),
-            "best_costs": dict(zip(self.names, map(float, best_costs), strict=False)),
-            "nominal_design": self.nominal.tolist(),
-            "nominal_cost": float(nominal_costs[0]),
-            "nominal_costs": dict(zip(self.names, map(float, nominal_costs), strict=True)),
-            "improvement": improvements[self.names[0]],
-            "improvements": improvements,
-            "interactions": interactions,
-            "train_interactions": int(cnt["train_interactions"]),
-            "eval_interactions": int(cnt["eval_interactions"]),
-            "final_interactions": int(cnt["final_interactions"]),
-            "seconds": self.elapsed(),
-            "train_seconds": cnt["train_seconds"], "eval_seconds": cnt["eval_seconds"],
-            "surrogate_seconds": cnt["surrogate_seconds"], "final_seconds": cnt["final_seconds"],
-            "real_evaluations": int(cnt["real_evaluations"]), "surrogate_evaluations": int(cnt["surrogate_evaluations"]),
-            "designs_evaluated": int(cnt["designs_evaluated"]),
-            "spaces": s.spaces,
-            "final_space": s.space,
-            "batches": s.batches,
-            "pareto_front": front,
-            "evaluation_policy": c.evaluation_policy,
-            "cost_rule": c.cost_rule, "cost_cap": c.cost_cap, "cost_reference": s.reference,
-            "surrogate_quality": self.surrogate_quality(),
-            # what a printed cost is: per-step mean of the final check's paired scenarios of
-            # eval_steps steps each (costs of other commands or sizes are not comparable)
-            "cost_units": {o.name: getattr(o, "unit", "") for o in self.objectives},
-            "eval_steps": int(c.eval_steps),
-        }
-        summary["policy"] = s.policy
-        summary["notes"] = list(s.notes)
-        # a policy trained from scratch in this run (no starting policy, or the BO baseline's
-        # per-design policies from scratch) is vouched for by nothing but this gate
-        scratch = (str(c.checkpoint).strip().lower() == "none" if self.shared
-                   else getattr(c, "specialized_init", "scratch") != "universal")
-        summary["reliable"], summary["reliability"] = judge_short(s.batches, final_walking, c.eval_steps,
-                                                                  from_scratch=scratch)
-        summary["starting_policy"] = None if str(c.checkpoint).strip().lower() == "none" else _starting_policy(c)
-        summary["final_walking"] = final_walking
-        summary.update(uncertainty)
-        summary.update(fall_verdict(summary))
-        s.summary = summary
+        outcome = self._final_own_policies() if not self.shared else self._final_check(designs)
+        s.summary = run_summary(s, c, self.objectives, outcome, optimizer=self.optimizer_cls.name, nominal=self.nominal,
+                                seconds=self.elapsed(), surrogate_quality=self.hybrid.quality_summary(),
+                                shared=self.shared)
         s.phase = "done"
         self.checkpoint()
         # the store says "finished" once the caller's last step (`run_coadaptation(finishing=)`,
         # e.g. the CLI's video) is done too: an interrupt there leaves the run resumable
         self.emit("done")
 
+    def _final_own_policies(self) -> FinalOutcome:
+        """Without a shared policy every real cost came with the design's own policy: the best
+        one stands, and the nominal design is evaluated with a policy of its own."""
+        s, c = self.state, self.config
+        fit = self.get_backend().real_fitness(self.nominal[None, :], self.objectives, agents=c.evaluation_agents,
+                                              steps=c.eval_steps, seed=self.scenario_seed())
+        self.count_training(fit.training)
+        s.counters["final_interactions"] += int(fit.interactions)
+        s.counters["final_seconds"] += float(fit.seconds)
+        return FinalOutcome(best_design=np.asarray(s.best_real[0]), best_costs=np.array([s.best_real[1]]),
+                            nominal_costs=self.rule_costs(fit).reshape(-1), uncertainty=no_uncertainty(self.names))
 
-def _check_same_policy(state: LoopState, policy: dict[str, Any] | None) -> None:
-    """A resumed run starts from the policy file it started from: a file whose SHA-256
-    changed since (a reinstalled plugin shipping a retrained policy, an overwritten path) is
-    refused in one line. A run recorded before provenance existed takes today's."""
-    recorded = (state.policy or {}).get("sha256")
-    if policy is None or not recorded or state.phase == "done":
-        state.policy = state.policy or policy
-        return
-    if policy.get("sha256") != recorded:
-        now = policy.get("sha256")
-        raise UserError(
-            f"cannot resume run {state.run_id}: its starting policy {state.policy.get('path')} changed since the run "
-            f"started (SHA-256 {recorded[:12]}... then, {now[:12] + '...' if now else 'no file'} now); restore that "
-            "file, or start a new run", field="resume")
-
-
-# ------------------------------------------------------------------------------------------
-def run_coadaptation(
-    config: CoadaptConfig | None = None,
-    *,
-    backend_factory: Callable[[int], CoadaptationBackend] | None = None,
-    design_space: DesignSpace | None = None,
-    nominal_design: np.ndarray | None = None,
-    objectives: Sequence[Objective] | None = None,
-    optimizer_cls: type[Optimizer] | None = None,
-    recorder: RunRecorder | None = None,
-    resume: str | os.PathLike | None = None,
-    run_dir: str | os.PathLike | None = None,
-    progress: ProgressFn | None = None,
-    on_start: Callable[[str, Path], None] | None = None,
-    finishing: Callable[[CoadaptResult], None] | None = None,
-) -> CoadaptResult:
-    """Run (or resume) Algorithm 4 and return its summary.
-
-    Anything not given is built from the registry and the config: the robot's design space
-    (mixed for `mixed` or an optimizer that implies it) narrowed to `design_ranges`, its nominal design, the
-    objectives, the optimizer class and the universal-policy backend. With `resume` (a run
-    folder) the recorded config and state are used and `config` is ignored.
-
-    `on_start(run_id, run_dir)` is called as soon as the run folder holds a state to resume
-    from; `finishing(result)` after the final check and before the store says "finished"
-    (the CLI renders its video there). An interrupt anywhere (Ctrl-C included) marks the run
-    "interrupted" and propagates; `resume=run_dir` continues from the last state written.
-    """
-    if resume is not None:
-        run_path = Path(resume).absolute()
-        state = load_state(run_path)
-        config = config_from_dict(state.config)
-        _check_writable(run_path, state)
-    else:
-        if config is None:
-            raise UserError("run_coadaptation needs a config or a run folder to resume", field="config")
-        config.validate()
-        state = None
-        run_path = None
-    parts = build_parts(config, design_space=design_space, nominal_design=nominal_design, objectives=objectives,
-                        optimizer_cls=optimizer_cls, backend_factory=backend_factory)
-    if state is None:
-        run_id = (new_run_id(config.method, config.objective.split(","), config.seed, config.optimizer)
-                  if run_dir is None else Path(run_dir).name)
-        run_path = (Path(run_dir) if run_dir is not None else Path(config.out) / run_id).absolute()
-        if (run_path / STATE_FILE).exists():
-            raise UserError(f"run folder '{run_path}' already holds a run; resume it or pick another", field="out")
-        run_path.mkdir(parents=True, exist_ok=True)
-        recorder = recorder or make_recorder(run_path, config.store or None)  # a bad store: one line, nothing written
-        state = LoopState(run_id=run_id, config=config.to_dict(), space=parts.space.to_dict(), policy=parts.policy,
-                          notes=list(parts.notes), no_critic=list(parts.no_critic))
-        for note in parts.notes:
-            print(note, file=sys.stderr)
-        # the state first, then the store's row: a run the store knows can always be resumed
-        # (a grid killed in between used to leave a row "running" over a folder without one)
-        save_state(run_path, state)
-    else:
-        _check_same_policy(state, parts.policy)
-    assert run_path is not None
-    recorder = recorder or make_recorder(run_path, config.store or None)
-    if on_start is not None:
-        on_start(state.run_id, run_path)
-    recorder.start_run({**config.to_dict(), "run_id": state.run_id, "run_dir": str(run_path),
-                        "design_space": parts.full_space.to_dict(), "policy": state.policy})
-    try:
-        if resume is not None:
-            # a store that lost this run's rows (emptied, replaced, an old copy) gets them back
-            # from the run folder's JSON lines before anything new is recorded
-            refill = getattr(recorder, "refill_from_run_folder", None)
-            if refill is not None:
-                refill(state.run_id, run_path)
-        if state.phase == "done":  # resuming a finished run (or one stopped in `finishing`)
-            assert state.summary is not None
-            summary = state.summary
+    def _final_check(self, designs: np.ndarray) -> FinalOutcome:
+        """Paired blocks of fresh scenarios for the candidates and the nominal design (last)
+        until the improvement is >= 4 standard errors (final_check.py)."""
+        s, c = self.state, self.config
+        check = final_check(
+            lambda d, block: self.get_backend().real_fitness(
+                d, self.objectives, agents=c.evaluation_agents, steps=c.eval_steps, seed=self.scenario_seed(block)),
+            designs, self.objectives, max_blocks=c.final_max_blocks, min_blocks=min(c.final_min_blocks, c.final_max_blocks),
+            rule=self.cost_rule, fall_tolerance=c.fall_tolerance if len(self.objectives) == 1 else None,
+            on_block=lambda b: self.emit(f"final check, scenario block {b}"),
+        )
+        fit = check.fit
+        costs = np.asarray(fit.costs, dtype=float).reshape(len(designs), -1)
+        s.counters["final_interactions"] += int(fit.interactions)
+        s.counters["final_seconds"] += float(fit.seconds)
+        front = None
+        if len(self.objectives) > 1:
+            # the optimizer's front mixes surrogate and noisy real costs: the stored front
+            # is the non-dominated subset of the final real re-evaluation
+            front_designs, front_costs = pareto_front(designs[:-1], costs[:-1])
+            front = {"designs": front_designs.tolist(),
+                     "costs": [dict(zip(self.names, map(float, r), strict=True)) for r in front_costs]}
+            best_design, best_costs = front_designs[0], front_costs[0]  # lowest first cost
+            i = int(np.flatnonzero(np.all(np.isclose(designs[:-1], best_design), axis=1))[0])
         else:
-            summary = _continue(config, state, parts, run_path, recorder, progress)
-        result = CoadaptResult(state.run_id, run_path, summary)
-        if finishing is not None:
-            finishing(result)
-    except BaseException as exc:
-        # the last state stays in the run folder; `resume=run_dir` continues from it. A failure
-        # to record that (a folder gone read-only) must not hide what stopped the run.
-        with contextlib.suppress(Exception):
-            recorder.finish(state.run_id, {"run_id": state.run_id, "error": f"{type(exc).__name__}: {exc}",
-                                           "outer": state.outer, "inner": state.inner, "phase": state.phase},
-                            "interrupted")
-        raise
-    recorder.finish(state.run_id, summary, "finished")
-    return result
-
-
-def _starting_policy(config: CoadaptConfig) -> str | None:
-    """The policy the run started from, as a path (the robot's shipped one when not given)."""
-    if config.checkpoint.strip():
-        return config.checkpoint.strip()
-    try:
-        from coadapt_core.coadapt.setup import resolve_checkpoint
-
-        found = resolve_checkpoint(config)
-    except Exception:  # a fake or third-party robot without one
-        return None
-    return None if found is None else str(found)
-
-
-def _check_writable(run_path: Path, state: LoopState) -> None:
-    """A resumed run writes its folder: one that cannot be written is one line here, before
-    the store or a logger thread (TensorBoard's) touches it."""
-    probe = run_path / f".{state.run_id}.write-check"
-    try:
-        with open(probe, "wb"):
-            pass
-        probe.unlink()
-    except OSError as exc:
-        raise UserError(f"cannot resume: run folder '{run_path}' cannot be written ({exc.strerror or type(exc).__name__}); "
-                        "make it writable, or copy it to a folder you can write and resume the copy",
-                        field="resume") from None
-
-
-def _continue(config: CoadaptConfig, state: LoopState, parts: Any, run_path: Path, recorder: RunRecorder,
-              progress: ProgressFn | None) -> dict[str, Any]:
-    """Run the loop from `state` to its summary, with the run's TensorBoard/wandb logger."""
-    from coadapt_core import tracking
-
-    # TensorBoard (default) / wandb: training curves, best cost per round, surrogate error
-    logger = tracking.make_logger(getattr(config, "logger", "tensorboard"), run_path / "tb", name=state.run_id,
-                                  config=config.to_dict())
-    recorder = tracking.TrackingRecorder(recorder, logger)
-    loop = CoadaptationLoop(
-        config, backend_factory=parts.backend_factory, design_space=parts.full_space, nominal_design=parts.nominal,
-        objectives=parts.objectives, optimizer_cls=parts.optimizer_cls, run_dir=run_path, recorder=recorder,
-        state=state, progress=progress, pretrained=parts.pretrained,
-    )
-    try:
-        with tracking.active(logger):
-            summary = loop.run()
-            recorder.log_final(summary)
-            return summary
-    finally:
-        logger.close()
+            i = check.best  # the lowest cost among candidates that do not fall more (the nominal design if none)
+            best_design, best_costs = designs[i], costs[i]
+        return FinalOutcome(best_design=best_design, best_costs=best_costs, nominal_costs=costs[-1],
+                            uncertainty=check.uncertainty(self.names), front=front,
+                            walking={"best": walking(fit, [i]), "nominal": walking(fit, [len(designs) - 1])})

@@ -4,6 +4,7 @@ universal-policy learner, or a policy per design for the BO baseline)."""
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -150,9 +151,9 @@ def build_parts(
     if not shared:  # the factory builds each design's policy
         backend_factory = specialized_factory(config, backend_factory)
     # the optimizer starts from the designs the policy is trained on (Algorithm 4 line 10): a
-    # throwaway copy is asked now, unless building one has side effects (a study kept in a
-    # database: options storage / study_name); the loop checks the real first round too
-    keeps_study = {"storage", "study_name"} & {spec.name for spec in getattr(optimizer_cls, "option_specs", ())}
+    # throwaway copy is asked now, unless building one has side effects (a study kept in the
+    # run's store: options the plugin declares `from_run`); the loop checks the real first round too
+    keeps_study = any(spec.from_run for spec in getattr(optimizer_cls, "option_specs", ()))
     if shared and not keeps_study:
         population = 1 if optimizer_cls.sequential else config.population
         if population == config.population:
@@ -207,9 +208,10 @@ def initial_designs_note(optimizer_cls: type[Optimizer], space: DesignSpace, pop
     """A warning when the optimizer's first `ask` does not return the `initial_designs` it was
     built with (a plugin written before they were a constructor argument ignores them: the
     run would still finish, its first round not the designs the policy was trained on). One
-    throwaway optimizer on sampled designs, before any training; a study kept in a database
-    (options `storage` / `study_name`) is not probed: the loop checks its real first round. None when it complies or
-    cannot be probed (its own errors are reported when the run builds it)."""
+    throwaway optimizer on sampled designs, before any training; one with options filled from
+    the run (a study kept in the run's store, `from_run`) is not probed: the loop checks its
+    real first round. None when it complies or cannot be probed (its own errors are reported
+    when the run builds it)."""
     initial = space.sample(population, np.random.default_rng(0))
     try:
         first = optimizer_cls(space, population=population, budget=2, seed=1, num_objectives=num_objectives,
@@ -217,6 +219,17 @@ def initial_designs_note(optimizer_cls: type[Optimizer], space: DesignSpace, pop
     except Exception:
         return None
     return first_round_note(optimizer_cls.name, initial, first)
+
+
+def note_first_round(notes: list[str], optimizer_cls: type[Optimizer], initial: np.ndarray, designs: np.ndarray) -> None:
+    """Say (once per run: stderr and `notes`, the summary's) when the optimizer's first round
+    `designs` is not the `initial` designs it was built with (`initial_designs_note` probes
+    for it before training where it can)."""
+    rows = 1 if optimizer_cls.sequential else len(initial)
+    note = first_round_note(optimizer_cls.name, initial[:rows], designs)
+    if note is not None and not any(n.startswith(f"warning: {note[:40]}") for n in notes):
+        notes.append(f"warning: {note}")
+        print(f"warning: {note}", file=sys.stderr)
 
 
 def first_round_note(name: str, initial: np.ndarray, first: np.ndarray) -> str | None:

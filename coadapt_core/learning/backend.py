@@ -72,6 +72,9 @@ class UniversalPolicyBackend:
     to the one that saved it (CPU), whatever that one did before.
     """
 
+    #: implements `coadapt_core.fitness.SurrogateEnsemble` (fit_surrogate, surrogate_members)
+    surrogate_ensemble = True
+
     def __init__(
         self,
         robot: Robot,

@@ -10,9 +10,10 @@ tests. coadapt's built-in plugins use these suites too.
             return MyOptimizer
 """
 
+from coadapt_core.testing.backends import BackendConformance
 from coadapt_core.testing.objectives import ObjectiveConformance
 from coadapt_core.testing.optimizers import OptimizerConformance
 from coadapt_core.testing.robots import RobotConformance
 from coadapt_core.testing.simulators import SimulatorConformance
 
-__all__ = ["ObjectiveConformance", "OptimizerConformance", "RobotConformance", "SimulatorConformance"]
+__all__ = ["BackendConformance", "ObjectiveConformance", "OptimizerConformance", "RobotConformance", "SimulatorConformance"]

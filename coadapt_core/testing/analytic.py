@@ -60,6 +60,9 @@ class AnalyticBackend:
     """`CoadaptationBackend` over the analytic bowls (see module docstring); `optima` maps an
     objective name to its bowl's minimum (thigh, shank)."""
 
+    #: implements `coadapt_core.fitness.SurrogateEnsemble` (fit_surrogate, surrogate_members)
+    surrogate_ensemble = True
+
     def __init__(self, seed: int = 0, *, optima: Mapping[str, Any] | None = None, buffer_from_training: bool = True,
                  fail_on_real_call: int | None = None):
         self.seed = seed

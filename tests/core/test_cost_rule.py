@@ -245,7 +245,7 @@ def _falling_run(tmp_path, rule: str, fall_tolerance: float = 0.01):
                                                  agents_per_design=64, eval_steps=10, train_steps=1000,
                                                  retrain_steps=1000, out=str(tmp_path / f"{rule}-{fall_tolerance}"),
                                                  cost_rule=rule, fall_tolerance=fall_tolerance,
-                                                 evaluation_probability=0.0))
+                                                 surrogate_probability=0.0))
     result = run_coadaptation(config, backend_factory=factory, design_space=SPACE, nominal_design=NOMINAL,
                               objectives=[TorqueObjective()])
     return result, backends

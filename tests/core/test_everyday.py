@@ -101,12 +101,14 @@ def test_run_eta_after_the_first_outer_iteration_is_within_half_of_the_truth(tmp
     import numpy as np
     from coadapt_plugins.objectives.locomotion import TorqueObjective
 
+    import coadapt_core.coadapt.hybrid as hybrid_module
     import coadapt_core.coadapt.loop as loop_module
     from coadapt_core.coadapt import make_config, run_coadaptation
     from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend
 
     clock = FakeClock()
     monkeypatch.setattr(loop_module, "time", types.SimpleNamespace(perf_counter=clock))
+    monkeypatch.setattr(hybrid_module, "time", types.SimpleNamespace(perf_counter=clock))
 
     class Timed(AnalyticBackend):
         def train(self, designs, steps, *, seed=0):

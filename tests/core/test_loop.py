@@ -89,7 +89,7 @@ def test_nsga2_front_spans_both_optima_with_real_costs(tmp_path):
 def test_hybrid_switch_uses_surrogate_with_probability_w(tmp_path):
     w = 0.3
     summary = run(tmp_path, population=2, agents_per_design=3, eval_steps=7, optimizer_iterations=150,
-                  outer_iterations=2, evaluation_probability=w).summary
+                  outer_iterations=2, surrogate_probability=w).summary
     batches = summary["batches"]
     assert len(batches) == 300
     # the first round of each outer iteration is real (it fills the evaluation buffer)

@@ -24,7 +24,7 @@ def fake_learner(monkeypatch):
 def test_paper_preset_has_section_4_1_3_settings():
     c = make_config("paper")
     assert (c.outer_iterations, c.population, c.optimizer_iterations, c.agents_per_design) == (3, 100, 5, 50)
-    assert c.evaluation_probability == 0.5
+    assert c.surrogate_probability == 0.5
     assert c.optimizer_options == {}  # pso's declared defaults are the paper's: inertia 0.9, c1 = c2 = 2
     from coadapt_core.plugins import get_registry
 
@@ -43,7 +43,8 @@ def test_cli_beats_yaml_beats_preset(tmp_path):
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--evaluation-probability", "1.7"], "evaluation_probability must be a probability in [0, 1]"),
+        (["--surrogate-probability", "1.7"], "surrogate_probability must be a probability in [0, 1]"),
+        (["--evaluation-probability", "1.7"], "surrogate_probability must be a probability in [0, 1]"),  # its earlier name
         (["--population", "0"], "population must be an integer >= 1"),
         (["--design-ranges", "1.5:0.5,0.5:1.5"], "inverted bounds"),
         (["--design-ranges", "0.2:1.5,0.5:1.5"], "leaves its bounds"),

@@ -1,6 +1,6 @@
 """What an optimizer plugin declares is all the loop goes by: a third party's optimizer gets
 the mixed design space by `implies_mixed`, a study name and the run's store by declaring
-`study_name` / `storage` options, exactly as a built-in does (no plugin is named)."""
+options filled `from_run`, exactly as a built-in does (no plugin or option is named)."""
 
 from __future__ import annotations
 
@@ -20,8 +20,8 @@ class StudyKeeper(Optimizer):
 
     name = "study-keeper"
     option_specs = (
-        PluginOption("study_name", "str", "", "name of the study"),
-        PluginOption("storage", "str", "", "database URL of the study"),
+        PluginOption("study_name", "str", "", "name of the study", from_run="run_name"),
+        PluginOption("storage", "str", "", "database URL of the study", from_run="store_url"),
     )
     built: list[dict] = []
 
@@ -80,3 +80,21 @@ def test_a_third_party_optimizer_keeps_its_study_in_the_run_store_under_the_run_
     assert names[:2] == [f"{result.run_id}-outer0", f"{result.run_id}-outer1"]
     assert {o["storage"] for o in StudyKeeper.built} == {f"sqlite:///{store}"}
     assert result.summary["optimizer"] == "study-keeper"
+
+
+def test_only_options_declared_from_run_are_filled():
+    """The loop fills an option from the run because the plugin declares it so, whatever its
+    name; one left undeclared (even called `study_name`) or set by the user is left alone."""
+    import pytest
+
+    from coadapt_core.options import fill_from_run
+
+    specs = (PluginOption("study_name", "str", None, "not declared from_run"),
+             PluginOption("journal", "str", None, "a name", from_run="run_name"),
+             PluginOption("db", "str", None, "a store", from_run="store_url"))
+    facts = {"run_name": "r-outer1", "store_url": None}  # a run without a database store
+    assert fill_from_run(specs, {}, facts) == {"journal": "r-outer1"}
+    assert fill_from_run(specs, {"journal": "mine"}, facts) == {"journal": "mine"}
+    assert fill_from_run(specs, {}, {**facts, "store_url": "sqlite:///x.db"})["db"] == "sqlite:///x.db"
+    with pytest.raises(TypeError, match="from_run"):
+        PluginOption("x", "str", None, "help", from_run="the moon")

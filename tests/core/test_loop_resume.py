@@ -94,6 +94,7 @@ def test_starting_into_an_existing_run_folder_is_refused(tmp_path):
 def test_state_is_saved_after_training_and_every_batch(tmp_path):
     saves = []
     import coadapt_core.coadapt.loop as loop_module
+    import coadapt_core.coadapt.run as run_module
 
     original = loop_module.save_state
 
@@ -101,11 +102,12 @@ def test_state_is_saved_after_training_and_every_batch(tmp_path):
         saves.append((state.phase, state.outer, state.inner))
         original(run_dir, state)
 
-    loop_module.save_state = spy
+    # the first state is written where the run starts (run.py), the others by the loop
+    loop_module.save_state = run_module.save_state = spy
     try:
         start(tmp_path, "spy", lambda s: AnalyticBackend(s), outer_iterations=2, optimizer_iterations=2)
     finally:
-        loop_module.save_state = original
+        loop_module.save_state = run_module.save_state = original
     # start, then per outer: after training, after each of 2 batches, after narrowing; then done
     assert saves == [
         ("train", 0, 0), ("optimize", 0, 0), ("optimize", 0, 1), ("optimize", 0, 2), ("train", 1, 0),

@@ -200,7 +200,7 @@ def test_an_optimizer_ignoring_initial_designs_is_named_at_the_start_of_a_run(tm
     from coadapt_plugins.objectives.locomotion import TorqueObjective
 
     from coadapt_core.coadapt.config import make_config
-    from coadapt_core.coadapt.loop import run_coadaptation
+    from coadapt_core.coadapt.run import run_coadaptation
     from coadapt_core.coadapt.setup import initial_designs_note
     from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend
 
@@ -221,18 +221,19 @@ def test_an_optimizer_ignoring_initial_designs_is_named_at_the_start_of_a_run(tm
 
 
 def test_an_optimizer_keeping_a_study_is_checked_at_its_first_round(tmp_path, capsys):
-    """An optimizer that keeps a study in a database is not probed before training (building
-    one has side effects); its real first round is checked instead, once per run."""
+    """An optimizer that keeps a study in the run's store (an option it declares `from_run`)
+    is not probed before training (building one has side effects); its real first round is
+    checked instead, once per run."""
     from coadapt_plugins.objectives.locomotion import TorqueObjective
 
     from coadapt_core.coadapt.config import make_config
-    from coadapt_core.coadapt.loop import run_coadaptation
+    from coadapt_core.coadapt.run import run_coadaptation
     from coadapt_core.options import PluginOption
     from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend
 
     class OldStudy(_IgnoresInitial.make()):
         name = "old-study"
-        option_specs = (PluginOption("storage", "str", None, "database URL"),)
+        option_specs = (PluginOption("storage", "str", None, "database URL", from_run="store_url"),)
         built = 0
 
         def __init__(self, space, **kwargs):

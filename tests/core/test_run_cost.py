@@ -34,7 +34,7 @@ def test_phases_take_surrogate_rounds_out_of_real_evaluation():
 
 
 class Clock:
-    """The loop's clock (its module's `time`), advanced only by the fake's fits."""
+    """The loop's clock (its modules' `time`), advanced only by the fake's fits."""
 
     def __init__(self):
         self.now = 0.0
@@ -57,10 +57,11 @@ class SlowFit(AnalyticBackend):
 def test_a_fit_for_a_surrogate_round_counts_once(tmp_path, monkeypatch):
     from coadapt_plugins.objectives.locomotion import TorqueObjective
 
-    from coadapt_core.coadapt import loop
+    from coadapt_core.coadapt import hybrid, loop
 
     clock = Clock()
     monkeypatch.setattr(loop, "time", clock)
+    monkeypatch.setattr(hybrid, "time", clock)  # the surrogate's side of a round (its fits)
     backends = []
 
     def factory(seed):
@@ -70,7 +71,7 @@ def test_a_fit_for_a_surrogate_round_counts_once(tmp_path, monkeypatch):
 
     config = make_config("smoke", overrides=dict(
         population=4, optimizer_iterations=6, outer_iterations=1, agents_per_design=4, eval_steps=5, train_steps=100,
-        retrain_steps=50, seed=3, evaluation_probability=0.5, store="none", out=str(tmp_path)))
+        retrain_steps=50, seed=3, surrogate_probability=0.5, store="none", out=str(tmp_path)))
     result = run_coadaptation(config, backend_factory=factory, design_space=SPACE, nominal_design=NOMINAL,
                               objectives=[TorqueObjective()], run_dir=tmp_path / "r")
     s = result.summary

@@ -11,7 +11,7 @@ import torch
 from coadapt_plugins.objectives.locomotion import TorqueObjective
 
 from coadapt_core.coadapt import make_config, run_coadaptation
-from coadapt_core.coadapt.loop import spread_ratio
+from coadapt_core.coadapt.hybrid import spread_ratio
 from coadapt_core.errors import UserError
 from coadapt_core.learning.networks import CriticBank
 from coadapt_core.learning.surrogate import fit_ensemble
@@ -135,14 +135,14 @@ def test_fixed_policy_is_the_papers_draw_and_fits_before_surrogate_rounds(tmp_pa
         made.append(agreeing(50.0)(seed))  # disagreement does not matter to the fixed policy
         return made[-1]
 
-    summary = run(tmp_path, factory, evaluation_probability=1.0).summary
+    summary = run(tmp_path, factory, surrogate_probability=1.0).summary
     assert summary["evaluation_policy"] == "fixed"
     assert summary["real_evaluations"] == 2 and summary["surrogate_evaluations"] == 8
     assert all(b.fits >= 1 for b in made if b.surrogate_calls)  # no surrogate round before a fit
 
 
 def test_surrogate_quality_in_summary_json(tmp_path):
-    result = run(tmp_path, agreeing(None), evaluation_probability=0.0)
+    result = run(tmp_path, agreeing(None), surrogate_probability=0.0)
     summary = json.loads((result.run_dir / "summary.json").read_text())
     summary = summary.get("summary", summary)
     q = summary["surrogate_quality"]
@@ -174,7 +174,7 @@ def test_report_figure_reads_each_runs_surrogate_quality(tmp_path):
 
     from coadapt_core.analysis.surrogate_figure import figure_surrogate_quality, quality_series
 
-    result = run(tmp_path, agreeing(None), evaluation_probability=0.0)
+    result = run(tmp_path, agreeing(None), surrogate_probability=0.0)
     facts = [SimpleNamespace(run={"summary": result.summary, "seed": 0}, method="ours", terrain="flat")]
     series = quality_series(facts)
     rounds = [r for r in result.summary["surrogate_quality"]["rounds"] if r["eligible"]]

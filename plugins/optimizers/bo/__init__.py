@@ -39,8 +39,10 @@ class BOOptimizer(Optimizer):
     option_specs: ClassVar[tuple] = (
         PluginOption("sampler", "str", "tpe", "optuna sampler: tpe or gp", choices=SAMPLERS),
         PluginOption("n_startup_trials", "int", 8, "random trials before the model is used", minimum=1),
-        PluginOption("storage", "str", None, "optuna storage URL for the study (default: in memory)"),
-        PluginOption("study_name", "str", None, "name of the optuna study (default: coadapt-bo-<seed>)"),
+        PluginOption("storage", "str", None, "optuna storage URL for the study (default: in memory)",
+                     from_run="store_url"),
+        PluginOption("study_name", "str", None, "name of the optuna study (default: coadapt-bo-<seed>)",
+                     from_run="run_name"),
     )
 
     def __init__(self, space: DesignSpace, **kwargs: Any):

@@ -1,0 +1,161 @@
+"""Start or resume a co-adaptation run (`run_coadaptation`): the run folder, its first
+state, the results store's rows, the run's TensorBoard/wandb logger, then the loop
+(`loop.CoadaptationLoop`) to its summary. A resumed run is checked first (the folder can be
+written, the starting policy is the file it started from) and a store that lost the run's
+rows gets them back from the run folder before anything new is recorded."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from coadapt_core.coadapt.config import CoadaptConfig, config_from_dict
+from coadapt_core.coadapt.loop import CoadaptationLoop, ProgressFn
+from coadapt_core.coadapt.setup import LoopParts, build_parts
+from coadapt_core.coadapt.state import (
+    STATE_FILE,
+    LoopState,
+    check_same_policy,
+    check_writable,
+    load_state,
+    save_state,
+)
+from coadapt_core.coadapt.summary import CoadaptResult
+from coadapt_core.design_space import DesignSpace
+from coadapt_core.errors import UserError
+from coadapt_core.fitness import CoadaptationBackend, RunRecorder
+from coadapt_core.objective import Objective
+from coadapt_core.optimizer import Optimizer
+from coadapt_core.results.recorders import make_recorder
+from coadapt_core.results.store import new_run_id
+
+
+def run_coadaptation(
+    config: CoadaptConfig | None = None,
+    *,
+    backend_factory: Callable[[int], CoadaptationBackend] | None = None,
+    design_space: DesignSpace | None = None,
+    nominal_design: np.ndarray | None = None,
+    objectives: Sequence[Objective] | None = None,
+    optimizer_cls: type[Optimizer] | None = None,
+    recorder: RunRecorder | None = None,
+    resume: str | os.PathLike | None = None,
+    run_dir: str | os.PathLike | None = None,
+    progress: ProgressFn | None = None,
+    on_start: Callable[[str, Path], None] | None = None,
+    finishing: Callable[[CoadaptResult], None] | None = None,
+) -> CoadaptResult:
+    """Run (or resume) Algorithm 4 and return its summary.
+
+    Anything not given is built from the registry and the config: the robot's design space
+    (mixed for `mixed` or an optimizer that implies it) narrowed to `design_ranges`, its nominal design, the
+    objectives, the optimizer class and the universal-policy backend. With `resume` (a run
+    folder) the recorded config and state are used and `config` is ignored.
+
+    `on_start(run_id, run_dir)` is called as soon as the run folder holds a state to resume
+    from; `finishing(result)` after the final check and before the store says "finished"
+    (the CLI renders its video there). An interrupt anywhere (Ctrl-C included) marks the run
+    "interrupted" and propagates; `resume=run_dir` continues from the last state written.
+    """
+    given = dict(design_space=design_space, nominal_design=nominal_design, objectives=objectives,
+                 optimizer_cls=optimizer_cls, backend_factory=backend_factory)
+    if resume is not None:
+        run_path = Path(resume).absolute()
+        state = load_state(run_path)
+        config = config_from_dict(state.config)
+        check_writable(run_path, state)
+        parts = build_parts(config, **given)
+        check_same_policy(state, parts.policy)
+    else:
+        if config is None:
+            raise UserError("run_coadaptation needs a config or a run folder to resume", field="config")
+        config.validate()
+        parts = build_parts(config, **given)
+        run_path, state, recorder = _new_run(config, parts, run_dir, recorder)
+    recorder = recorder or make_recorder(run_path, config.store or None)
+    if on_start is not None:
+        on_start(state.run_id, run_path)
+    recorder.start_run({**config.to_dict(), "run_id": state.run_id, "run_dir": str(run_path),
+                        "design_space": parts.full_space.to_dict(), "policy": state.policy})
+    return _drive(config, state, parts, run_path, recorder, progress, finishing, resumed=resume is not None)
+
+
+def _new_run(config: CoadaptConfig, parts: LoopParts, run_dir: str | os.PathLike | None,
+             recorder: RunRecorder | None) -> tuple[Path, LoopState, RunRecorder]:
+    """A new run's folder, its first state (written before the store hears of the run) and
+    its recorder."""
+    run_id = (new_run_id(config.method, config.objective.split(","), config.seed, config.optimizer)
+              if run_dir is None else Path(run_dir).name)
+    run_path = (Path(run_dir) if run_dir is not None else Path(config.out) / run_id).absolute()
+    if (run_path / STATE_FILE).exists():
+        raise UserError(f"run folder '{run_path}' already holds a run; resume it or pick another", field="out")
+    run_path.mkdir(parents=True, exist_ok=True)
+    recorder = recorder or make_recorder(run_path, config.store or None)  # a bad store: one line, nothing written
+    state = LoopState(run_id=run_id, config=config.to_dict(), space=parts.space.to_dict(), policy=parts.policy,
+                      notes=list(parts.notes), no_critic=list(parts.no_critic))
+    for note in parts.notes:
+        print(note, file=sys.stderr)
+    # the state first, then the store's row: a run the store knows can always be resumed
+    # (a grid killed in between used to leave a row "running" over a folder without one)
+    save_state(run_path, state)
+    return run_path, state, recorder
+
+
+def _drive(config: CoadaptConfig, state: LoopState, parts: LoopParts, run_path: Path, recorder: RunRecorder,
+           progress: ProgressFn | None, finishing: Callable[[CoadaptResult], None] | None, *,
+           resumed: bool) -> CoadaptResult:
+    """The loop from `state` to the store's "finished" (or "interrupted", re-raising)."""
+    try:
+        if resumed:
+            # a store that lost this run's rows (emptied, replaced, an old copy) gets them back
+            # from the run folder's JSON lines before anything new is recorded
+            refill = getattr(recorder, "refill_from_run_folder", None)
+            if refill is not None:
+                refill(state.run_id, run_path)
+        if state.phase == "done":  # resuming a finished run (or one stopped in `finishing`)
+            assert state.summary is not None
+            summary = state.summary
+        else:
+            summary = _continue(config, state, parts, run_path, recorder, progress)
+        result = CoadaptResult(state.run_id, run_path, summary)
+        if finishing is not None:
+            finishing(result)
+    except BaseException as exc:
+        # the last state stays in the run folder; `resume=run_dir` continues from it. A failure
+        # to record that (a folder gone read-only) must not hide what stopped the run.
+        with contextlib.suppress(Exception):
+            recorder.finish(state.run_id, {"run_id": state.run_id, "error": f"{type(exc).__name__}: {exc}",
+                                           "outer": state.outer, "inner": state.inner, "phase": state.phase},
+                            "interrupted")
+        raise
+    recorder.finish(state.run_id, summary, "finished")
+    return result
+
+
+def _continue(config: CoadaptConfig, state: LoopState, parts: LoopParts, run_path: Path, recorder: RunRecorder,
+              progress: ProgressFn | None) -> dict[str, Any]:
+    """Run the loop from `state` to its summary, with the run's TensorBoard/wandb logger."""
+    from coadapt_core import tracking
+
+    # TensorBoard (default) / wandb: training curves, best cost per round, surrogate error
+    logger = tracking.make_logger(getattr(config, "logger", "tensorboard"), run_path / "tb", name=state.run_id,
+                                  config=config.to_dict())
+    recorder = tracking.TrackingRecorder(recorder, logger)
+    loop = CoadaptationLoop(
+        config, backend_factory=parts.backend_factory, design_space=parts.full_space, nominal_design=parts.nominal,
+        objectives=parts.objectives, optimizer_cls=parts.optimizer_cls, run_dir=run_path, recorder=recorder,
+        state=state, progress=progress, pretrained=parts.pretrained,
+    )
+    try:
+        with tracking.active(logger):
+            summary = loop.run()
+            recorder.log_final(summary)
+            return summary
+    finally:
+        logger.close()
