@@ -17,9 +17,7 @@ from functools import lru_cache
 import numpy as np
 
 from coadapt_core.errors import UserError
-
-#: terrain names every backend understands (paper section 4.4)
-TERRAINS: tuple[str, ...] = ("flat", "slope", "random")
+from coadapt_core.terrains import TERRAINS  # the names, declared once (also read from here)
 #: slope terrain inclination, degrees (rising along +x)
 SLOPE_DEGREES = 10.0
 #: random terrain: uniform height noise in [0, RANDOM_MAX_HEIGHT] m
