@@ -24,7 +24,7 @@ def link_facts(model: Any) -> dict[str, Any]:
     """Bodies, total mass and height of a `RobotModel` at its default pose, read from its MJCF."""
     import mujoco
 
-    mj = mujoco.MjModel.from_xml_string(model.mjcf)
+    mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
     data = mujoco.MjData(mj)
     base = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, model.base_body)
     if base >= 0 and mj.body_jntnum[base] > 0 and mj.jnt_type[mj.body_jntadr[base]] == mujoco.mjtJoint.mjJNT_FREE:

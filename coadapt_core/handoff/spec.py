@@ -192,7 +192,7 @@ def foot_facts(model: Any) -> dict[str, Any]:
     reach around it (the spawn rule of `coadapt_core.physics.simulator.spawn_base_height`)."""
     import mujoco
 
-    mj = mujoco.MjModel.from_xml_string(model.mjcf)
+    mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
     data = mujoco.MjData(mj)
     for name, q in zip(model.joint_names, model.default_joint_pos, strict=True):
         data.qpos[mj.jnt_qposadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, name)]] = q

@@ -18,6 +18,7 @@ import numpy as np
 
 from coadapt_core.errors import UserError
 from coadapt_core.terrains import TERRAINS  # the names, declared once (also read from here)
+
 #: slope terrain inclination, degrees (rising along +x)
 SLOPE_DEGREES = 10.0
 #: random terrain: uniform height noise in [0, RANDOM_MAX_HEIGHT] m
