@@ -69,6 +69,9 @@ class Objective(ABC):
     default_rank: ClassVar[int] = 0
     #: label for tables and plots
     display_name: ClassVar[str]
+    #: short label for a table's objective column (the paper's Table 6 writes "τ" for joint
+    #: torque); "" shows the name
+    short_label: ClassVar[str] = ""
     #: the unit of the per-step cost (`coadapt run` prints it with every cost; "" when none)
     unit: ClassVar[str] = ""
     #: always "minimize" for costs; kept explicit for reports

@@ -28,6 +28,9 @@ from typing import Any
 
 from coadapt_core.errors import UserError
 
+#: the option an optimizer declares when it keeps a study in a database (a URL, e.g. an
+#: optuna storage): the loop and `coadapt grid` fill it with the run's results store
+STUDY_STORAGE_OPTION = "storage"
 #: the types an option may declare
 OPTION_TYPES: dict[str, type] = {"int": int, "float": float, "str": str, "bool": bool}
 #: facts of a run the co-adaptation loop fills into an optimizer option declared with

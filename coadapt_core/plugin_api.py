@@ -54,6 +54,8 @@ BREAKING_CHANGES: dict[int, tuple[str, ...]] = {
         "undeclared options are refused (declare them in `option_specs`)",
         "optimizer state is plain JSON through state_dict/load_state_dict, never a pickle",
         "seeds are any integer in [0, 2**63) (32-bit libraries get `self.seed32`)",
+        "RobotModel carries its descriptions in `formats` {format: text}, not `mjcf`/`urdf` fields "
+        "(read `model.text('mjcf')`; a simulator declares `model_formats`)",
     ),
 }
 

@@ -1,7 +1,8 @@
 """The `Robot` plugin kind: a parametric robot whose model depends on a design vector.
 
-A robot plugin owns its design space, turns a design into model descriptions (MJCF for
-MuJoCo, URDF for Pinocchio and PyBullet) plus the actuator facts a simulator needs, knows its
+A robot plugin owns its design space, turns a design into model descriptions, one per
+format it can write (`RobotModel.formats`: "mjcf" for MuJoCo, "urdf" for Pinocchio and
+PyBullet, any other name a simulator plugin reads), plus the actuator facts a simulator needs, knows its
 leg kinematics (for the Raibert foot-placement reward), declares its legs (order and gait
 phase offsets), validates designs and may ship trained universal policies.
 
@@ -16,6 +17,7 @@ model's mass.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -37,8 +39,12 @@ class RobotModel:
     """
 
     design: np.ndarray  # [design_dim]
-    mjcf: str  # MuJoCo XML; its floating base is the first joint, then the actuated joints in order
-    urdf: str  # URDF with a floating base implied (root link = base); same frames as the MJCF
+    # model descriptions by format name: whatever formats the robot writes, e.g. "mjcf" (MuJoCo
+    # XML; its floating base is the first joint, then the actuated joints in order) and "urdf"
+    # (a floating base implied, root link = base; same frames as the MJCF). A simulator reads
+    # the formats it declares (`Simulator.model_formats`) through `text(format)`; a new format
+    # needs no change here
+    formats: Mapping[str, str]
     base_body: str  # name of the floating base body / root link
     joint_names: list[str]  # actuated joints, the order of every [num_joints] array below
     foot_bodies: list[str]  # one per leg, in the order of `Robot.legs()` (and of the IK's legs)
@@ -59,6 +65,18 @@ class RobotModel:
     @property
     def num_joints(self) -> int:
         return len(self.joint_names)
+
+    def text(self, fmt: str) -> str:
+        """The model description in format `fmt`; a one-line `UserError` naming the formats
+        the robot writes when it writes no such one."""
+        value = self.formats.get(fmt)
+        if not isinstance(value, str) or not value:
+            from coadapt_core.errors import UserError
+
+            given = ", ".join(sorted(self.formats)) or "none"
+            raise UserError(f"the robot model has no '{fmt}' description (it writes: {given}); "
+                            "a simulator that reads it needs a robot plugin that writes it", field="robot")
+        return value
 
 
 @dataclass(frozen=True)

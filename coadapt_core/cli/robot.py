@@ -15,7 +15,7 @@ import numpy as np
 import typer
 
 from coadapt_core.cli.common import fail, resolve
-from coadapt_core.errors import DesignError
+from coadapt_core.errors import DesignError, UserError
 from coadapt_core.io import jsonable
 from coadapt_core.robot import joint_table
 
@@ -161,7 +161,7 @@ def export_command(
         fail(f"--format '{fmt}' is not supported; use mjcf or urdf")
     instance = load_robot(robot)
     model = instance.build(parse_design(instance, design))
-    text = model.mjcf if fmt == "mjcf" else model.urdf
+    text = model.text("mjcf") if fmt == "mjcf" else model.text("urdf")
     if output is None:
         sys.stdout.write(text)
         return
@@ -214,21 +214,26 @@ def render_command(
         fail(f"cannot write -o {output} ({exc.strerror}); give a writable path")
     if not existed:
         output.unlink()
+    from coadapt_core.viz.video import model_format, offscreen, renderer_for
+
     instance = load_robot(robot)
     model = instance.build(parse_design(instance, design))
+    try:
+        renderer = renderer_for()
+    except UserError as exc:  # no simulator can draw here (or its library refused this GL setting)
+        fail(f"offscreen rendering failed ({exc}); install an EGL or OSMesa GL library, e.g. apt-get install -y "
+             "libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 (EGL) or libosmesa6 (OSMesa)", code=1)
     payload = {
-        "mjcf": model.mjcf,
+        "model": model.text(model_format(renderer)),
         "qpos_joints": [float(x) for x in model.default_joint_pos],
         "base_height": float(model.standing_base_height),
         "output": str(output),
         "width": width,
         "height": height,
     }
-    from coadapt_core.viz.video import offscreen
-
-    backend, errors = offscreen("render_pose_png", payload, timeout=300)
+    backend, errors = offscreen("render_pose_png", payload, timeout=300, renderer=renderer)
     if backend is not None:
-        print(f"wrote {output} ({width} x {height}, MUJOCO_GL={backend})", file=sys.stderr)
+        print(f"wrote {output} ({width} x {height}, {backend})", file=sys.stderr)
         return
     fail(
         "offscreen rendering failed (" + "; ".join(errors) + "); install an EGL or OSMesa GL "

@@ -122,8 +122,8 @@ def write_model_files(robot: Any, model: Any, folder: Path) -> ModelFiles:
     bases = [home] if home is not None else []
     copier = _Copier(folder)
     try:
-        mjcf = _mjcf_with_assets(model.mjcf, bases, copier)
-        urdf = _urdf_with_assets(model.urdf, bases, copier)
+        mjcf = _mjcf_with_assets(model.text("mjcf"), bases, copier)
+        urdf = _urdf_with_assets(model.text("urdf"), bases, copier)
     except ET.ParseError as exc:
         raise UserError(f"robot '{robot.name}' gives a model that is not XML ({exc})", field="robot") from None
     (folder / MJCF_NAME).write_text(mjcf)

@@ -24,7 +24,7 @@ def link_facts(model: Any) -> dict[str, Any]:
     """Bodies, total mass and height of a `RobotModel` at its default pose, read from its MJCF."""
     import mujoco
 
-    mj = mujoco.MjModel.from_xml_string(model.mjcf)
+    mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
     data = mujoco.MjData(mj)
     base = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, model.base_body)
     if base >= 0 and mj.body_jntnum[base] > 0 and mj.jnt_type[mj.body_jntadr[base]] == mujoco.mjtJoint.mjJNT_FREE:
@@ -114,6 +114,25 @@ def _info_rows(info: dict[str, Any]) -> list[str]:
     return rows
 
 
+def _evaluation_lines(ev: dict[str, Any]) -> list[str]:
+    """One evaluation of the design sheet: costs with standard errors, improvements, falls."""
+    lines = [f"### {ev['simulator']}: {ev['source']}", ""]
+    if ev.get("error"):
+        return [*lines, f"Not evaluated: {ev['error']}", ""]
+    lines.append(f"{ev['scenarios']} paired scenarios x {ev['steps'] if ev.get('steps') else '?'} steps per design."
+                 if ev.get("scenarios") else "")
+    lines += ["", "| objective | this design | nominal | improvement |", "|---|---|---|---|"]
+    for name, row in ev["objectives"].items():
+        gain = row.get("improvement")
+        gain_text = "-" if gain is None else f"{100 * gain:+.1f} %" + (
+            "" if row.get("improvement_se") is None else f" ± {100 * row['improvement_se']:.1f}")
+        lines.append(f"| {name} | {_pm(row['design'], row.get('design_se'))} | "
+                     f"{_pm(row['nominal'], row.get('nominal_se'))} | {gain_text} |")
+    lines.append(f"| fall rate | {_num(ev.get('design_fall_rate'), 3)} | {_num(ev.get('nominal_fall_rate'), 3)} | |")
+    lines.append("")
+    return lines
+
+
 def render_markdown(sheet: dict[str, Any]) -> str:
     """`design.md`: the design sheet on one page."""
     d = sheet
@@ -160,22 +179,7 @@ def render_markdown(sheet: dict[str, Any]) -> str:
                  "observation noise) is the same for both designs, so the improvement's error is paired.")
     lines.append("")
     for ev in d["evaluations"]:
-        title = f"### {ev['simulator']}: {ev['source']}"
-        lines += [title, ""]
-        if ev.get("error"):
-            lines += [f"Not evaluated: {ev['error']}", ""]
-            continue
-        lines.append(f"{ev['scenarios']} paired scenarios x {ev['steps'] if ev.get('steps') else '?'} steps per design."
-                     if ev.get("scenarios") else "")
-        lines += ["", "| objective | this design | nominal | improvement |", "|---|---|---|---|"]
-        for name, row in ev["objectives"].items():
-            gain = row.get("improvement")
-            gain_text = "-" if gain is None else f"{100 * gain:+.1f} %" + (
-                "" if row.get("improvement_se") is None else f" ± {100 * row['improvement_se']:.1f}")
-            lines.append(f"| {name} | {_pm(row['design'], row.get('design_se'))} | "
-                         f"{_pm(row['nominal'], row.get('nominal_se'))} | {gain_text} |")
-        lines.append(f"| fall rate | {_num(ev.get('design_fall_rate'), 3)} | {_num(ev.get('nominal_fall_rate'), 3)} | |")
-        lines.append("")
+        lines += _evaluation_lines(ev)
     check = d.get("controller_check")
     if check:
         lines += ["## The ONNX controller on the MJCF (check.py)", ""]

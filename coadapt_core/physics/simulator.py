@@ -124,6 +124,11 @@ class Simulator(ABC):
     quiet_imports: ClassVar[tuple[str, ...]] = ()
     #: terrains this backend supports
     terrains: ClassVar[tuple[str, ...]] = TERRAINS
+    #: the robot model formats this backend reads (`RobotModel.formats` keys, e.g. "mjcf")
+    model_formats: ClassVar[tuple[str, ...]] = ()
+    #: the module (dotted path) of the backend's offscreen renderer, "" for none: pictures and
+    #: videos (`coadapt_core.viz.video`) are drawn by it (docs/plugins.md section 7)
+    renderer: ClassVar[str] = ""
     #: dtype of the backend's actuation and of `env_params` (the state stays float32)
     dtype: ClassVar[torch.dtype] = torch.float64
 

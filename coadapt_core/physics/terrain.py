@@ -17,9 +17,8 @@ from functools import lru_cache
 import numpy as np
 
 from coadapt_core.errors import UserError
+from coadapt_core.terrains import TERRAINS  # the names, declared once (also read from here)
 
-#: terrain names every backend understands (paper section 4.4)
-TERRAINS: tuple[str, ...] = ("flat", "slope", "random")
 #: slope terrain inclination, degrees (rising along +x)
 SLOPE_DEGREES = 10.0
 #: random terrain: uniform height noise in [0, RANDOM_MAX_HEIGHT] m

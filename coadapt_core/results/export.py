@@ -11,7 +11,8 @@ from pathlib import Path
 from typing import Any
 
 from coadapt_core.errors import UserError
-from coadapt_core.results.store import ResultsStore, metadata
+from coadapt_core.results.schema import metadata
+from coadapt_core.results.store import ResultsStore
 
 FORMATS = ("csv", "parquet")
 EXPORT_TABLES = ("runs", "evaluations", "training_phases", "checkpoints")

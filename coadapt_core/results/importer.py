@@ -29,7 +29,9 @@ import sqlalchemy as sa
 
 from coadapt_core.errors import UserError
 from coadapt_core.results.export import EXPORT_TABLES, FORMATS
-from coadapt_core.results.store import EVALUATION_KINDS, ResultsStore, StoreError, metadata
+from coadapt_core.results.schema import EVALUATION_KINDS, metadata
+from coadapt_core.results.storage import StoreError
+from coadapt_core.results.store import ResultsStore
 from coadapt_core.validation import is_run_id
 
 #: the unique key of a child table's row (the store's own unique constraints)

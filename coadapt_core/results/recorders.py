@@ -126,8 +126,8 @@ def make_recorder(run_dir: str | os.PathLike, store: str | None = None) -> RunRe
 
     `store` is a results store URL or path; without one, `$COADAPT_STORE`, else coadapt.db
     beside the runs folder (./coadapt.db for ./runs/<id>); "none" records JSON files only.
-    See `coadapt_core.results.store.store_url_for_run`."""
-    from coadapt_core.results.store import store_url_for_run
+    See `coadapt_core.results.storage.store_url_for_run`."""
+    from coadapt_core.results.storage import store_url_for_run
 
     json_recorder = JsonRecorder(run_dir)
     url = store_url_for_run(run_dir, store)

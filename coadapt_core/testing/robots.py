@@ -61,12 +61,12 @@ class RobotConformance:
             assert np.all(model.default_joint_pos >= model.joint_lower)
             assert np.all(model.default_joint_pos <= model.joint_upper)
             assert model.total_mass > 0 and model.standing_base_height > 0
-            mj = mujoco.MjModel.from_xml_string(model.mjcf)
+            mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
             for name in model.joint_names:
                 assert mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, name) >= 0, name
             for name in [*model.foot_bodies, model.base_body]:
                 assert mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, name) >= 0, name
-            assert "<robot" in model.urdf
+            assert "<robot" in model.text("urdf")
             assert float(mj.body_subtreemass[0]) == pytest.approx(model.total_mass, rel=1e-6)
 
     def test_out_of_space_design_rejected(self, robot: Robot) -> None:
@@ -105,7 +105,7 @@ class RobotConformance:
         import mujoco
 
         model = robot.build(robot.nominal_design())
-        mj = mujoco.MjModel.from_xml_string(model.mjcf)
+        mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
         driven = []
         for a in range(mj.nu):
             assert mj.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT, f"actuator {a} does not drive a joint"
@@ -149,7 +149,7 @@ class RobotConformance:
 
         design = robot.nominal_design()
         model = robot.build(design)
-        mj = mujoco.MjModel.from_xml_string(model.mjcf)
+        mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
         data = mujoco.MjData(mj)
         addr = _qpos_addresses(mj, model.joint_names)
         feet_ids = [mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, f) for f in model.foot_bodies]
@@ -182,7 +182,7 @@ class RobotConformance:
         import mujoco
 
         model = robot.build(robot.nominal_design())
-        mj = _floor_model(model.mjcf)
+        mj = _floor_model(model.text("mjcf"))
         data = mujoco.MjData(mj)
         addr = _qpos_addresses(mj, model.joint_names)
         vaddr = np.array([mj.jnt_dofadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, n)] for n in model.joint_names])

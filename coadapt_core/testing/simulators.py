@@ -64,6 +64,15 @@ class SimulatorConformance:
         assert simulator_cls.name
         assert "flat" in simulator_cls.terrains
 
+    def test_declares_the_model_formats_it_reads(self, simulator_cls, robot) -> None:
+        """`model_formats` names formats the robot model carries (`RobotModel.formats`): what
+        the backend asks the robot for, so a robot that writes them runs on it."""
+        formats = simulator_cls.model_formats
+        assert isinstance(formats, tuple) and all(isinstance(f, str) and f for f in formats)
+        model = robot.build(robot.nominal_design())
+        for fmt in formats:
+            assert model.text(fmt).strip(), fmt
+
     def test_reset_and_step_shapes(self, simulator_cls, robot) -> None:
         import torch
 

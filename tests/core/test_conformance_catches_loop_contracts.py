@@ -64,8 +64,9 @@ class NoActuators(Trotter):
     """Point 6: an MJCF without actuators."""
     def build(self, design):
         model = super().build(design)
-        start, end = model.mjcf.index("<actuator>"), model.mjcf.index("</actuator>") + len("</actuator>")
-        model.mjcf = model.mjcf[:start] + model.mjcf[end:]
+        mjcf = model.text("mjcf")
+        start, end = mjcf.index("<actuator>"), mjcf.index("</actuator>") + len("</actuator>")
+        model.formats = {{**model.formats, "mjcf": mjcf[:start] + mjcf[end:]}}
         return model
 
 

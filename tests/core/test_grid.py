@@ -32,13 +32,13 @@ def fake_run(argv: list[str]) -> int:
 
     p = argparse.ArgumentParser()
     for opt in ("--method", "--objective", "--terrain", "--preset", "--sim", "--robot", "--out", "--resume", "--optimizer", "--store",
-                "--bo-storage"):
+                "--optimizer-option"):
         p.add_argument(opt)
     p.add_argument("--seed", type=int)
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv[1:])  # argv[0] == "run"
     rec = SqliteRecorder(args.store)
-    config = {k: v for k, v in vars(args).items() if k not in ("json", "resume", "out", "store", "bo_storage")}
+    config = {k: v for k, v in vars(args).items() if k not in ("json", "resume", "out", "store", "optimizer_option")}
     if args.resume:
         config["run_id"] = args.resume
     run_id = rec.start_run(config)
@@ -95,8 +95,9 @@ def test_grid_expands_every_combination():
     assert argv[:2] == ["run", "--method"] and argv[-1] == "--json" and "--out" in argv
     assert spec.grid_id == GridSpec.from_dict(spec.to_dict()).grid_id  # same grid, same id
     bo = next(c for c in cells if c.method == "bo-specialized").run_args(store="sqlite:///x.db")
-    assert bo[bo.index("--store") + 1] == bo[bo.index("--bo-storage") + 1] == "sqlite:///x.db"
-    assert "--bo-storage" not in cells[0].run_args(store="sqlite:///x.db")  # only BO keeps a study
+    assert bo[bo.index("--store") + 1] == "sqlite:///x.db"
+    assert bo[bo.index("--optimizer-option") + 1] == "storage=sqlite:///x.db"  # the option BO declares for its study
+    assert "--optimizer-option" not in cells[0].run_args(store="sqlite:///x.db")  # only BO keeps a study
 
 
 @pytest.mark.parametrize(("field", "value", "message"), [

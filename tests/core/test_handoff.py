@@ -63,7 +63,10 @@ def _stl(path: Path) -> None:
 
 class _Model:
     def __init__(self, mjcf: str, urdf: str):
-        self.mjcf, self.urdf = mjcf, urdf
+        self.formats = {"mjcf": mjcf, "urdf": urdf}
+
+    def text(self, fmt: str) -> str:
+        return self.formats[fmt]
 
 
 class _MeshRobot:
@@ -182,7 +185,7 @@ def test_kuafu_handoff_folder_holds_models_controller_and_sheet(kuafu_handoff):
     assert result["design"] == summary["best_design"] and result["is_run_best"] is True
     robot = get_registry().create("robot", "kuafu")
     model = robot.build(np.array(result["design"]))
-    assert (out / "robot.xml").read_text() == model.mjcf
+    assert (out / "robot.xml").read_text() == model.text("mjcf")
     assert mujoco.MjModel.from_xml_path(str(out / "robot.xml")).nu == 8
     spec = json.loads((out / "policy.json").read_text())
     assert spec["observation"]["size"] == 70 == spec["observation"]["slices"][-1]["stop"]
@@ -354,7 +357,7 @@ def test_handoff_of_the_example_quadruped(example_plugin_site, tmp_path):
     assert result["robot"] == "trotter" and result["design"] == [1.2, 0.9] and result["is_run_best"] is False
     assert result["max_abs_action_difference"] <= ONNX_TOLERANCE
     model = Trotter().build(np.array([1.2, 0.9]))
-    assert (out / "robot.xml").read_text() == model.mjcf and (out / "robot.urdf").read_text() == model.urdf
+    assert (out / "robot.xml").read_text() == model.text("mjcf") and (out / "robot.urdf").read_text() == model.text("urdf")
     assert mujoco.MjModel.from_xml_path(str(out / "robot.xml")).nu == 8
     spec = json.loads((out / "policy.json").read_text())
     assert spec["action"]["joint_order"] == model.joint_names

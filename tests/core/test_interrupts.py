@@ -124,7 +124,7 @@ def test_ctrl_c_on_a_grid_stops_its_cells_and_the_same_command_resumes_them(tmp_
     its state kept; the printed command (the same grid) resumes both and finishes them."""
     import threading
 
-    import coadapt_core.experiments.grid as grid_module
+    import coadapt_core.experiments.grid_exec as grid_module  # where cells are started
     from coadapt_core.cli import main
 
     monkeypatch.setattr(grid_module, "ENTRY_CODE", "import sys; from tests.fakes.fake_learner_cli import main; sys.exit(main())")

@@ -9,11 +9,12 @@ mujoco = pytest.importorskip("mujoco")
 
 
 def test_the_shadow_map_follows_the_frame():
+    from coadapt_plugins.simulators.mujoco.render import SHADOW_SIZE, scene_model
+
     from coadapt_core.plugins import get_registry
-    from coadapt_core.viz.video import SHADOW_SIZE, scene_model
 
     robot = get_registry().get("robot", "kuafu")()
-    mjcf = robot.build(robot.nominal_design()).mjcf
+    mjcf = robot.build(robot.nominal_design()).text("mjcf")
     assert scene_model(mjcf, 320, 320).vis.quality.shadowsize == SHADOW_SIZE == 1024
     assert scene_model(mjcf, 480, 1600).vis.quality.shadowsize == 3200  # twice the larger side
     assert scene_model(mjcf, 320, 320, shadow_size=4096).vis.quality.shadowsize == 4096

@@ -48,6 +48,7 @@ class TrackingObjective(Objective):
 
     name: ClassVar[str] = "tracking"
     display_name: ClassVar[str] = "Command tracking"
+    short_label: ClassVar[str] = "Cmd"  # Table 6's column
     unit: ClassVar[str] = "(m/s)^2"  # and (rad/s)^2 for the yaw term
     description: ClassVar[str] = "P_cmd = e_v^2 + e_w^2, velocity command tracking error (eq. 6)"
 
@@ -69,6 +70,7 @@ class PowerObjective(Objective):
 
     name: ClassVar[str] = "power"
     display_name: ClassVar[str] = "Power consumption"
+    short_label: ClassVar[str] = "P"  # Table 6's column
     unit: ClassVar[str] = "W"
     description: ClassVar[str] = "P_p = w_t sum |tau| |dtheta|, mechanical power with tracking penalty (eq. 7)"
 
@@ -83,6 +85,7 @@ class TorqueObjective(Objective):
     name: ClassVar[str] = "torque"
     default_rank: ClassVar[int] = 10  # the default --objective
     display_name: ClassVar[str] = "Joint torque"
+    short_label: ClassVar[str] = "τ"  # Table 6's column
     unit: ClassVar[str] = "(Nm)^2"
     description: ClassVar[str] = "P_tau = w_t sum tau^2, squared joint torque with tracking penalty (eq. 8)"
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cache, lru_cache
+from types import MappingProxyType
 
 import numpy as np
 from coadapt_plugins.robots.kuafu import constants as C
@@ -512,8 +513,7 @@ def build_cached(key: tuple[float, ...]) -> RobotModel:
     }
     return RobotModel(
         design=_readonly(np.array(key)),
-        mjcf=_mjcf(geometry),
-        urdf=_urdf(geometry),
+        formats=MappingProxyType({"mjcf": _mjcf(geometry), "urdf": _urdf(geometry)}),
         base_body=C.BASE_BODY,
         joint_names=list(C.JOINT_NAMES),
         foot_bodies=list(C.FOOT_BODIES),

@@ -39,7 +39,7 @@ def pinocchio_model(model: RobotModel):
     """The Pinocchio model of the URDF with a free-flyer root and the joints' armature
     (reflected rotor inertia, which URDF cannot carry) set from the model's info."""
     pin = _pinocchio()
-    pmodel = pin.buildModelFromXML(model.urdf, pin.JointModelFreeFlyer())
+    pmodel = pin.buildModelFromXML(model.text("urdf"), pin.JointModelFreeFlyer())
     armature = np.array(pmodel.armature)
     for name, value in zip(model.joint_names, model.info["armature"], strict=True):
         armature[pmodel.joints[pmodel.getJointId(name)].idx_v] = value
@@ -292,7 +292,7 @@ def consistency(model: RobotModel, pmodel=None, count: int = RANDOM_CONFIGURATIO
     pmodel = pmodel if pmodel is not None else pinocchio_model(model)
     pdata = pmodel.createData()
     ix = _Indexer(pmodel, model.joint_names)
-    mj = mujoco.MjModel.from_xml_string(model.mjcf)
+    mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
     md = mujoco.MjData(mj)
     qadr = np.array([mj.jnt_qposadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, n)] for n in model.joint_names])
     vadr = np.array([mj.jnt_dofadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, n)] for n in model.joint_names])

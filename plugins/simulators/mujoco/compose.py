@@ -59,7 +59,7 @@ def terrain_normal(terrain: Terrain) -> np.ndarray:
 
 
 def compose_spec(robot_model: RobotModel, terrain: Terrain, *, physics_dt: float, fixed_base: bool) -> mujoco.MjSpec:
-    spec = mujoco.MjSpec.from_string(robot_model.mjcf)
+    spec = mujoco.MjSpec.from_string(robot_model.text("mjcf"))
     spec.option.timestep = physics_dt
     world = spec.worldbody
     if terrain.name == "random":

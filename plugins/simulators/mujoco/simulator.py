@@ -85,6 +85,8 @@ class MujocoSimulator(Simulator):
     name = "mujoco"
     default_rank = 10  # the default --sim (the reference backend)
     description = "MuJoCo 4 on a C thread pool (mujoco.batch), one model per design, CPU"
+    model_formats = ("mjcf",)  # the robot model it compiles
+    renderer = "coadapt_plugins.simulators.mujoco.render"  # pictures and videos, offscreen
 
     def __init__(self, robot: Robot, designs: np.ndarray, **options: Any):
         """The `Simulator` options (terrain, randomization, physics_dt, decimation, seed,

@@ -48,6 +48,8 @@ class PyBulletSimulator(Simulator):
     name: ClassVar[str] = "pybullet"
     description: ClassVar[str] = "PyBullet (Bullet) backend for sim-to-sim transfer; one process per CPU core for large batches"
     quiet_imports: ClassVar[tuple[str, ...]] = ("pybullet",)  # prints "pybullet build time" on import
+    #: it loads the URDF and takes the joints' damping and armature from the MJCF
+    model_formats: ClassVar[tuple[str, ...]] = ("urdf", "mjcf")
 
     def __init__(
         self,

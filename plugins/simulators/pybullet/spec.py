@@ -38,11 +38,11 @@ class EnvSpec:
 
     @classmethod
     def from_model(cls, model: RobotModel) -> EnvSpec:
-        dynamics = mjcf_joint_dynamics(model.mjcf, model.joint_names)
+        dynamics = mjcf_joint_dynamics(model.text("mjcf"), model.joint_names)
         damping, armature, frictionloss = dynamics if dynamics is not None else (None, None, None)
         return cls(
             design=np.asarray(model.design, dtype=float).copy(),
-            urdf=model.urdf,
+            urdf=model.text("urdf"),
             base_body=model.base_body,
             joint_names=list(model.joint_names),
             foot_bodies=list(model.foot_bodies),

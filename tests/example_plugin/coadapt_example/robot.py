@@ -113,8 +113,8 @@ class Trotter(Robot):
         standing = height + FOOT_RADIUS
         return RobotModel(
             design=design.copy(),
-            mjcf=self._mjcf(lt, ls, m_thigh, m_shank, m_foot, motor_mass, peak, standing),
-            urdf=self._urdf(lt, ls, m_thigh, m_shank, m_foot, motor_mass),
+            formats={"mjcf": self._mjcf(lt, ls, m_thigh, m_shank, m_foot, motor_mass, peak, standing),
+                     "urdf": self._urdf(lt, ls, m_thigh, m_shank, m_foot, motor_mass)},
             base_body="base",
             joint_names=joint_names,
             foot_bodies=[f"{leg}_foot" for leg in LEGS],

@@ -57,7 +57,7 @@ def test_engine_parameters_are_drawn_in_range_and_written_into_each_model(kuafu)
         dofs = sim._ref.dof_adr
         for env in (0, 11, 23):
             model = sim.env_model(env)
-            own = mujoco.MjModel.from_xml_string(kuafu.build(sim.designs[env]).mjcf)
+            own = mujoco.MjModel.from_xml_string(kuafu.build(sim.designs[env]).text("mjcf"))
             np.testing.assert_allclose(model.geom_solref[:, 0], params.contact_timeconst[env])
             np.testing.assert_allclose(model.dof_damping[dofs], own.dof_damping[dofs] + params.joint_damping[env])
             np.testing.assert_allclose(model.dof_armature[dofs], own.dof_armature[dofs] * params.armature[env])

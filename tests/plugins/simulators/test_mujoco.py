@@ -302,7 +302,7 @@ def test_randomization_draws_every_range_per_environment_in_the_model(kuafu) -> 
             # every geom carries the env's sliding friction (a contact takes the max of its pair)
             np.testing.assert_allclose(model.geom_friction[:, 0], params.friction[env])
             np.testing.assert_allclose(model.geom_solref[:, 1], restitution_to_dampratio(params.restitution[env : env + 1])[0])
-            compiled = mujoco.MjModel.from_xml_string(nominal.mjcf)
+            compiled = mujoco.MjModel.from_xml_string(nominal.text("mjcf"))
             np.testing.assert_allclose(model.body_ipos[base] - compiled.body_ipos[base], params.com_shift[env], atol=1e-12)
             assert sim._delay.delay_steps[sim.rows(env)] == round(params.delay[env] / sim.physics_dt)
 
@@ -315,7 +315,7 @@ def test_randomization_off_means_nominal_everywhere(kuafu) -> None:
         assert np.all(params.motor_strength == 1.0) and np.all(params.com_shift == 0.0)
         assert bool((sim._delay.delay_steps == 0).all())
         model = sim.env_model(2)
-        compiled = mujoco.MjModel.from_xml_string(kuafu.build(sim.designs[2]).mjcf)
+        compiled = mujoco.MjModel.from_xml_string(kuafu.build(sim.designs[2]).text("mjcf"))
         base = sim._ref.base_body_id
         np.testing.assert_allclose(model.body_ipos[base], compiled.body_ipos[base])
         np.testing.assert_allclose(model.geom_solref[:, 1], 1.0)

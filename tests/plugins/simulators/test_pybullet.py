@@ -82,7 +82,7 @@ def test_masses_and_joint_damping_match_the_mujoco_model(kuafu):
 
     design = np.array([0.7, 1.3])
     model = kuafu.build(design)
-    mj = mujoco.MjModel.from_xml_string(model.mjcf)
+    mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
     with PyBulletSimulator(kuafu, design[None]) as sim:
         info = sim.dynamics_info(0)
     for name, mass in info["masses"].items():

@@ -13,7 +13,7 @@ from coadapt_core.robot import RobotModel
 def with_floor(model: RobotModel) -> mujoco.MjModel:
     """The robot's MJCF plus a ground plane that collides with it (the simulators add
     terrain the same way, through MjSpec)."""
-    spec = mujoco.MjSpec.from_string(model.mjcf)
+    spec = mujoco.MjSpec.from_string(model.text("mjcf"))
     floor = spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[5, 5, 0.1])
     floor.contype, floor.conaffinity = 1, 1
     return spec.compile()

@@ -15,7 +15,7 @@ from coadapt_plugins.robots.kuafu.validation import pinocchio_model
 def ankle_relative_to_hip(model, joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """[2, 3] ankle centres relative to the hip centres and [2, 3, 3] foot orientations,
     base at the origin, upright (MuJoCo forward kinematics)."""
-    mj = mujoco.MjModel.from_xml_string(model.mjcf)
+    mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
     data = mujoco.MjData(mj)
     data.qpos[3] = 1.0
     data.qpos[7:15] = joints

@@ -23,7 +23,7 @@ RPM = 2.0 * np.pi / 60.0
 def measured_height(model) -> tuple[float, float]:
     """(top of the head, bottom of the soles) in MuJoCo at the default pose, base at
     `standing_base_height`."""
-    mj = mujoco.MjModel.from_xml_string(model.mjcf)
+    mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
     data = standing_data(model, mj)
     head = mj.geom("head").id
     top = data.geom_xpos[head, 2] + mj.geom_size[head, 0]
@@ -76,7 +76,7 @@ def test_motor_types_set_limits_in_every_description(kuafu, hip, knee):
     assert model.info["motor_types"] == expected_type
     np.testing.assert_allclose(model.torque_limit, [TABLE_8[t][0] for t in expected_type])
     np.testing.assert_allclose(model.speed_limit, [TABLE_8[t][1] * RPM for t in expected_type])
-    mj = mujoco.MjModel.from_xml_string(model.mjcf)
+    mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
     pmodel = pinocchio_model(model)
     for k, name in enumerate(model.joint_names):
         act = mj.actuator(name)
@@ -94,12 +94,12 @@ def test_motor_mass_enters_the_model(kuafu):
     assert kuafu.build(np.array([1.0, 1.0, 1, 3])).total_mass - base == pytest.approx(0.10, abs=1e-9)
     assert kuafu.build(np.array([1.0, 1.0, 3, 1])).total_mass - base == pytest.approx(0.20, abs=1e-9)
     # a 2-vector design is motor types (1, 1)
-    assert kuafu.build(np.array([1.0, 1.0])).mjcf == kuafu.build(np.array([1.0, 1.0, 1, 1])).mjcf
+    assert kuafu.build(np.array([1.0, 1.0])).text("mjcf") == kuafu.build(np.array([1.0, 1.0, 1, 1])).text("mjcf")
 
 
 def test_mjcf_conventions(kuafu):
     model = kuafu.build(np.array([0.8, 1.3]))
-    mj = mujoco.MjModel.from_xml_string(model.mjcf)
+    mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
     assert mj.opt.timestep == pytest.approx(0.005)
     assert mj.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE and mj.joint(0).name == "root"
     assert mj.body(mj.jnt_bodyid[0]).name == "base"
@@ -125,13 +125,13 @@ def test_mjcf_conventions(kuafu):
 
 def test_foot_contact_points_are_the_sole_corners(kuafu):
     model = kuafu.build(np.array([1.2, 0.7]))
-    mj = mujoco.MjModel.from_xml_string(model.mjcf)
+    mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
     sole = mj.geom("left_sole").id
     centre, half = mj.geom_pos[sole], mj.geom_size[sole]
     corners = {tuple(np.round(centre + half * [sx, sy, -1.0], 9)) for sx in (-1, 1) for sy in (-1, 1)}
     assert {tuple(np.round(p, 9)) for p in model.foot_contact_points} == corners
     # the URDF collision box of each foot is the same box
-    root = ET.fromstring(model.urdf)
+    root = ET.fromstring(model.text("urdf"))
     for side in C.SIDES:
         link = root.find(f"link[@name='{side}_foot']")
         box = link.find("collision/geometry/box")
@@ -143,7 +143,7 @@ def test_foot_contact_points_are_the_sole_corners(kuafu):
 def test_default_pose_knees_bent_soles_flat_feet_under_hips(kuafu):
     for design in ([1.0, 1.0], [0.5, 1.5], [1.5, 0.5]):
         model = kuafu.build(np.array(design))
-        mj = mujoco.MjModel.from_xml_string(model.mjcf)
+        mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
         data = standing_data(model, mj)
         q = model.default_joint_pos
         assert q[0] == 0.0 and q[4] == 0.0

@@ -49,7 +49,7 @@ def test_hanging_legs_settle_after_a_step_at_the_highest_gains(kuafu, design):
     randomized PD factor x motor strength): the light swinging chains (the foot at the
     ankle) must settle, not ring, under explicit integration at 5 ms."""
     model = kuafu.build(np.array(design, dtype=float))
-    spec = mujoco.MjSpec.from_string(model.mjcf)
+    spec = mujoco.MjSpec.from_string(model.text("mjcf"))
     spec.delete(spec.joint("root"))
     mj = spec.compile()
     data = mujoco.MjData(mj)

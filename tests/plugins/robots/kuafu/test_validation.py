@@ -40,7 +40,7 @@ def test_mujoco_and_pinocchio_agree_on_random_designs(kuafu):
 
 def test_mass_matrix_check_sees_a_missing_armature(kuafu):
     model = kuafu.build(np.array([1.0, 1.0]))
-    bare = pin.buildModelFromXML(model.urdf, pin.JointModelFreeFlyer())  # URDF alone: no armature
+    bare = pin.buildModelFromXML(model.text("urdf"), pin.JointModelFreeFlyer())  # URDF alone: no armature
     worst = consistency(model, pmodel=bare, count=2)
     assert worst["mass_matrix"] > 1e-4
 
@@ -61,11 +61,11 @@ def test_statics_fail_with_weak_motors(kuafu):
 def test_kinematics_fail_on_a_wrong_urdf(kuafu):
     model = kuafu.build(np.array([1.0, 1.0]))
     # move the left knee 5 mm down in the URDF only
-    broken = model.urdf.replace(
+    broken = model.text("urdf").replace(
         '<child link="left_shank"/><origin xyz="0 0 -0.35"', '<child link="left_shank"/><origin xyz="0 0 -0.355"'
     )
-    assert broken != model.urdf
-    found = _findings(dataclasses.replace(model, urdf=broken))
+    assert broken != model.text("urdf")
+    found = _findings(dataclasses.replace(model, formats={**model.formats, "urdf": broken}))
     assert not found["kinematics.thigh_length"].ok
     assert found["kinematics.shank_length"].ok
     assert not found["consistency.foot_positions"].ok
