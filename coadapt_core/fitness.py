@@ -16,6 +16,7 @@ import numpy as np
 
 from coadapt_core.errors import CoadaptError
 from coadapt_core.objective import Objective
+from coadapt_core.scenarios.seeds import scenario_seed  # noqa: F401 - re-exported: the run's scenario seeds
 
 
 @dataclass
@@ -378,12 +379,3 @@ def compare_designs(rule: CostRule, objectives: Sequence[Any], per_scenario: np.
         }
     out.update(fall_statistics(falls, i, nominal))
     return out
-
-
-def scenario_seed(run_seed: int, block: int = 0) -> int:
-    """The seed of a run's scenario set (block 0: every real round; 1, 2, ...: the final
-    check's fresh blocks). `coadapt landscape --seed s`, `coadapt eval --seed s` and the
-    report's re-evaluations use the same function, so a run with seed s and those commands
-    with seed s evaluate designs on the same scenarios."""
-    seq = np.random.SeedSequence([int(run_seed), 7, int(block)])
-    return int(seq.generate_state(1)[0] % (2**31 - 1))

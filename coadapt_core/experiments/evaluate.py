@@ -48,9 +48,9 @@ def evaluate_checkpoint(
     from coadapt_core.fitness import scenario_seed
     from coadapt_core.learning import TrainConfig, Trainer, read_checkpoint
     from coadapt_core.learning.evaluate import rollout
-    from coadapt_core.learning.scenarios import apply_scenarios
     from coadapt_core.physics.randomization import RandomizationConfig
     from coadapt_core.plugins import get_registry
+    from coadapt_core.scenarios.sets import apply_scenarios
     from coadapt_core.task import LocomotionEnv, TaskConfig
 
     state = read_checkpoint(checkpoint)

@@ -16,8 +16,8 @@ _EXPORTS = {
     "Dims": "coadapt_core.learning.ppo",
     "IterationStats": "coadapt_core.learning.trainer",
     "Trainer": "coadapt_core.learning.trainer",
-    "read_checkpoint": "coadapt_core.learning.trainer",
-    "widen_design_input": "coadapt_core.learning.trainer",
+    "read_checkpoint": "coadapt_core.learning.checkpoints",
+    "widen_design_input": "coadapt_core.learning.checkpoints",
 }
 
 

@@ -16,15 +16,16 @@ import torch
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
 from coadapt_core.fitness import RealFitness, TrainingResult, plain_mean, scenario_se
+from coadapt_core.learning.checkpoints import read_checkpoint
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.evaluate import EvalBuffer, rollout
 from coadapt_core.learning.runner import Runner
-from coadapt_core.learning.scenarios import apply_scenarios
 from coadapt_core.learning.surrogate import MEMBERS, FittedEnsemble, fit_ensemble
-from coadapt_core.learning.trainer import Trainer, read_checkpoint, reseed_simulator
+from coadapt_core.learning.trainer import Trainer
 from coadapt_core.objective import Objective
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.robot import Robot
+from coadapt_core.scenarios.sets import prepare
 from coadapt_core.task.config import TaskConfig
 from coadapt_core.task.env import LocomotionEnv
 
@@ -54,8 +55,9 @@ class UniversalPolicyBackend:
     `train(designs, steps)` trains on the given designs (K of them, `agents_per_design` each)
     for about `steps` interactions; its `TrainingResult.buffer` holds critic states of the
     last rollout. `real_fitness` rolls out the (stochastic, seeded) policy on the scenario set
-    of its `seed` (`pair_scenarios`: agent i of every design gets the same command, stratified
-    over the current command box, the same randomization, spawn, noise and action noise) and
+    of its `seed` (`coadapt_core.scenarios`: agent i of every design gets the same command,
+    stratified over the current command box, the same randomization, spawn, noise and action
+    noise) and
     returns each design's cost [K, M]: the plain mean over scenarios of each agent's mean
     per-step metric (eq. 4), with standard errors, per-scenario costs [K, A, M] and which
     scenarios fell [K, A], from which callers compute their cost rule
@@ -154,22 +156,29 @@ class UniversalPolicyBackend:
         )
 
     # -- Algorithm 2 ------------------------------------------------------------------------
-    def _eval_env(self, designs: np.ndarray, agents: int, steps: int, seed: int) -> LocomotionEnv:
+    def _eval_env(self, designs: np.ndarray, agents: int, steps: int) -> LocomotionEnv:
+        """The evaluation environment for `agents` environments per design (built, or its
+        models swapped in place), with the learner built for it and episodes that outlast
+        `steps` policy steps."""
         tr = self.trainer
         space = tr.robot.design_space_for(designs[0])
         per_env = np.repeat(space.validate_batch(designs), agents, axis=0)
         if self.eval_env is not None and self.eval_env.num_envs == len(per_env):
             self.eval_env.set_designs(np.arange(len(per_env)), per_env)
-            return self.eval_env
-        if self.eval_env is not None:
-            self.eval_env.sim.close()
-        task = copy.deepcopy(tr.task_config)
-        task.commands.resample_seconds = 0.0
-        # built with the backend's seed, not the call's: the terrain (seeded by the simulator's
-        # seed) must not depend on which call happened to build the environment
-        sim = tr.simulator_cls(tr.robot, per_env, terrain=tr.terrain, randomization=tr.randomization, seed=tr.config.seed)
-        self.eval_env = LocomotionEnv(sim, tr.robot, task, tr.objectives, seed=tr.config.seed, device=tr.device)
-        return self.eval_env
+        else:
+            if self.eval_env is not None:
+                self.eval_env.sim.close()
+            task = copy.deepcopy(tr.task_config)
+            task.commands.resample_seconds = 0.0
+            # built with the backend's seed, not the call's: the terrain (seeded by the simulator's
+            # seed) must not depend on which call happened to build the environment
+            sim = tr.simulator_cls(tr.robot, per_env, terrain=tr.terrain, randomization=tr.randomization, seed=tr.config.seed)
+            self.eval_env = LocomotionEnv(sim, tr.robot, task, tr.objectives, seed=tr.config.seed, device=tr.device)
+        env = self.eval_env
+        tr.ensure_ppo(env)
+        env.cfg.episode_seconds = steps * env.dt + 1.0
+        env.max_episode_length = steps + 10
+        return env
 
     def _check_objectives(self, objectives: Sequence[Objective]) -> list[int]:
         names = [o.name for o in self.objectives]
@@ -189,19 +198,11 @@ class UniversalPolicyBackend:
         t0 = time.perf_counter()
         columns = self._check_objectives(objectives)
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
-        env = self._eval_env(designs, agents, steps, seed)
-        self.trainer.ensure_ppo(env)
-        env.cfg.episode_seconds = steps * env.dt + 1.0
-        env.max_episode_length = steps + 10
-        # real fitness is a function of the policy, the curriculum, the designs and `seed`
-        # alone: the randomization and spawn streams restart here (the task's own generator
-        # restarts in `rollout`), whatever earlier calls drew
-        reseed_simulator(env.sim, int(seed))
         k = len(designs)
-        if self.paired_evaluation:
-            self.pair_scenarios(env, agents, k, int(seed))
-        else:
-            self.unpaired_scenarios(env, agents, k, int(seed))
+        env = self._eval_env(designs, agents, steps)
+        # real fitness is a function of the policy, the curriculum, the designs and `seed`
+        # alone: the scenario set of `seed`, paired (common random numbers) or not
+        prepare(env, agents, k, int(seed), paired=self.paired_evaluation, command_state=self.trainer.command_state())
         # the stochastic policy, as in training: the pseudo-critics learn the metric under it,
         # so real and surrogate fitness estimate the same quantity (the mean action's torque
         # and power are lower while the policy's std is large)
@@ -227,28 +228,6 @@ class UniversalPolicyBackend:
             scenario_falls=np.asarray(result.falls) > 0,
             tracking_ratio=ratio,
         )
-
-    def unpaired_scenarios(self, env: LocomotionEnv, agents: int, designs: int, seed: int) -> None:
-        """The protocol before paired evaluation, kept to measure what pairing buys
-        (benchmarks/fitness_noise.py --protocol unpaired): commands drawn independently per
-        agent from the box (shared by the designs of one call), every randomization draw and
-        noise stream independent per environment."""
-        commands = self.trainer.command_state()
-        if commands is not None:
-            env.commands.load_state_dict(commands)
-        gen = torch.Generator(device=env.device)
-        gen.manual_seed(int(seed))
-        env.commands.generator = gen
-        env.set_commands(env.commands.sample(agents).repeat(designs, 1))
-        env.sim.fix_scenarios(None)
-        env.pair_scenarios(None)
-
-    def pair_scenarios(self, env: LocomotionEnv, agents: int, designs: int, seed: int) -> None:
-        """The scenario set of `seed` (common random numbers, docs/coadaptation.md): agent i of
-        each of the `designs` groups gets scenario i — its command (stratified over the
-        current command box), randomization draw (Table 2), spawn point, initial gait phase,
-        observation-noise and action-noise streams — whatever the designs and the batch."""
-        apply_scenarios(env, agents, designs, seed, command_state=self.trainer.command_state())
 
     # -- Algorithm 3 ------------------------------------------------------------------------
     @torch.no_grad()

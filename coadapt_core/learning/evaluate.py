@@ -48,6 +48,66 @@ class RolloutResult:
     per_agent_velocity: np.ndarray | None = None
 
 
+class _Tally:
+    """Per-environment sums of a rollout (on the device), and the `RolloutResult` from them."""
+
+    def __init__(self, n: int, m: int, device: torch.device):
+        z = lambda *shape: torch.zeros(*shape, device=device)  # noqa: E731
+        self.metric_sum = z(n, m)
+        self.alive = torch.ones(n, dtype=torch.bool, device=device)
+        self.alive_steps = z(n)
+        self.vx_sum = z(n)
+        self.err_sum = z(n)
+        self.vel_sum = z(n, 3)  # (v_x, v_y, yaw rate) and command sums
+        self.cmd_sum = z(n, 3)
+        self.alt_sum = z(n)
+        self.falls = z(n)
+        self.fall_metric = z(n, m)
+
+    def add(self, info: dict) -> None:
+        """One step's `info` (`LocomotionEnv.step`): speeds and errors count until an
+        environment's first fall, metrics throughout."""
+        self.metric_sum += info["metrics"]
+        lin, command = info["base_lin_vel"], info["command"]
+        err = ((command[:, :2] - lin[:, :2]) ** 2).sum(-1) + (command[:, 2] - info["base_ang_vel"][:, 2]) ** 2
+        alive_f = self.alive.float()
+        self.vx_sum += lin[:, 0] * alive_f
+        self.err_sum += err * alive_f
+        self.vel_sum += torch.cat([lin[:, :2], info["base_ang_vel"][:, 2:3]], dim=-1) * alive_f[:, None]
+        self.cmd_sum += command * alive_f[:, None]
+        self.alt_sum += half_stance(info["foot_contact"]) * alive_f
+        self.alive_steps += alive_f
+        self.alive &= ~info["terminated"]
+        fell = info["terminated"].float()
+        self.falls += fell
+        self.fall_metric += info["metrics"] * fell[:, None]
+
+    def result(self, num_designs: int, steps: int, buffer: EvalBuffer) -> RolloutResult:
+        n, m = self.metric_sum.shape
+        agents = n // num_designs
+
+        def per_design(x: torch.Tensor) -> np.ndarray:
+            return x.reshape(num_designs, agents, *x.shape[1:]).mean(dim=1).cpu().numpy()
+
+        safe = self.alive_steps.clamp(min=1.0)
+        vel_sum = self.vel_sum
+        return RolloutResult(
+            metrics=per_design(self.metric_sum / steps),
+            survival=per_design(self.alive.float()),
+            vx=per_design(self.vx_sum / safe),
+            tracking_error=per_design(self.err_sum / safe),
+            alternation=per_design(self.alt_sum / safe),
+            buffer=buffer,
+            steps=n * steps,
+            per_agent=(self.metric_sum / steps).reshape(num_designs, agents, m).cpu().numpy(),
+            falls=self.falls.reshape(num_designs, agents).cpu().numpy(),
+            fall_metric=per_design(self.fall_metric / steps),
+            mean_velocity_error=per_design(((vel_sum - self.cmd_sum) / safe[:, None]).pow(2).sum(-1)),
+            yaw_rate=per_design(vel_sum[:, 2] / safe),
+            per_agent_velocity=(vel_sum / safe[:, None]).reshape(num_designs, agents, 3).cpu().numpy(),
+        )
+
+
 @torch.no_grad()
 def rollout(
     ppo: PPO,
@@ -65,7 +125,7 @@ def rollout(
     or samples of the Gaussian policy when `stochastic` (seeded by `seed`, as are the
     observation noise and the buffer sample)."""
     n = env.num_envs
-    agents = n // num_designs
+    tally = _Tally(n, env.num_metrics, env.device)
     gen = torch.Generator(device="cpu")
     gen.manual_seed(int(seed))
     env.generator.manual_seed(int(seed))
@@ -73,17 +133,6 @@ def rollout(
     action_gen.manual_seed(int(seed) + 1)
     ppo.training = False
     obs, critic, design_obs = env.reset()
-    m = env.num_metrics
-    metric_sum = torch.zeros(n, m, device=env.device)
-    alive = torch.ones(n, dtype=torch.bool, device=env.device)
-    alive_steps = torch.zeros(n, device=env.device)
-    vx_sum = torch.zeros(n, device=env.device)
-    err_sum = torch.zeros(n, device=env.device)
-    vel_sum = torch.zeros(n, 3, device=env.device)  # (v_x, v_y, yaw rate) and command sums
-    cmd_sum = torch.zeros(n, 3, device=env.device)
-    alt_sum = torch.zeros(n, device=env.device)
-    falls = torch.zeros(n, device=env.device)
-    fall_metric = torch.zeros(n, m, device=env.device)
     per_step = max(1, -(-buffer_rows // max(steps, 1)))
     kept: list[torch.Tensor] = []
     for _ in range(steps):
@@ -98,42 +147,9 @@ def rollout(
         else:
             actions = ppo.act_inference(obs, design_obs)
         res = env.step(actions)
-        info = res.info
-        metric_sum += info["metrics"]
-        lin, command = info["base_lin_vel"], info["command"]
-        err = ((command[:, :2] - lin[:, :2]) ** 2).sum(-1) + (command[:, 2] - info["base_ang_vel"][:, 2]) ** 2
-        alive_f = alive.float()
-        vx_sum += lin[:, 0] * alive_f
-        err_sum += err * alive_f
-        vel_sum += torch.cat([lin[:, :2], info["base_ang_vel"][:, 2:3]], dim=-1) * alive_f[:, None]
-        cmd_sum += command * alive_f[:, None]
-        alt_sum += half_stance(info["foot_contact"]) * alive_f
-        alive_steps += alive_f
-        alive &= ~info["terminated"]
-        fell = info["terminated"].float()
-        falls += fell
-        fall_metric += info["metrics"] * fell[:, None]
+        tally.add(res.info)
         if on_step is not None:
             on_step(env)
         obs, critic, design_obs = res.obs, res.critic_obs, res.design_obs
     ppo.training = True
-
-    def per_design(x: torch.Tensor) -> np.ndarray:
-        return x.reshape(num_designs, agents, *x.shape[1:]).mean(dim=1).cpu().numpy()
-
-    safe = alive_steps.clamp(min=1.0)
-    return RolloutResult(
-        metrics=per_design(metric_sum / steps),
-        survival=per_design(alive.float()),
-        vx=per_design(vx_sum / safe),
-        tracking_error=per_design(err_sum / safe),
-        alternation=per_design(alt_sum / safe),
-        buffer=EvalBuffer(torch.cat(kept)[:buffer_rows]),
-        steps=n * steps,
-        per_agent=(metric_sum / steps).reshape(num_designs, agents, m).cpu().numpy(),
-        falls=falls.reshape(num_designs, agents).cpu().numpy(),
-        fall_metric=per_design(fall_metric / steps),
-        mean_velocity_error=per_design(((vel_sum - cmd_sum) / safe[:, None]).pow(2).sum(-1)),
-        yaw_rate=per_design(vel_sum[:, 2] / safe),
-        per_agent_velocity=(vel_sum / safe[:, None]).reshape(num_designs, agents, 3).cpu().numpy(),
-    )
+    return tally.result(num_designs, steps, EvalBuffer(torch.cat(kept)[:buffer_rows]))

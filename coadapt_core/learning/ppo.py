@@ -242,6 +242,15 @@ class PPO:
             torch.cuda.synchronize(self.device)
         return time.perf_counter()
 
+    def _adapt_learning_rate(self, kl: float) -> None:
+        """rsl_rl's rule on the (approximate) KL between behaviour and current policy."""
+        if kl > 2.0 * self.config.desired_kl:
+            self.learning_rate = max(1e-5, self.learning_rate / 1.5)
+        elif 0.0 < kl < self.config.desired_kl / 2.0:
+            self.learning_rate = min(1e-2, self.learning_rate * 1.5)
+        for group in self.optimizer.param_groups:
+            group["lr"] = self.learning_rate
+
     def update(self) -> dict[str, float]:
         """Epochs x minibatches of the clipped PPO loss (actor + critic) and, on the same
         minibatch but in its own optimizer, of the pseudo-critic regression. Returns mean
@@ -288,15 +297,8 @@ class PPO:
                     flags.append(torch.isfinite(loss_pseudo).float())
                     pseudo_seconds += self._clock() - tick
                 host = torch.stack(flags).tolist()  # the one synchronisation
-                kl = host[0]
                 if c.schedule == "adaptive" and not frozen:
-                    # rsl_rl's rule on the (approximate) KL between behaviour and current policy
-                    if kl > 2.0 * c.desired_kl:
-                        self.learning_rate = max(1e-5, self.learning_rate / 1.5)
-                    elif 0.0 < kl < c.desired_kl / 2.0:
-                        self.learning_rate = min(1e-2, self.learning_rate * 1.5)
-                    for group in self.optimizer.param_groups:
-                        group["lr"] = self.learning_rate
+                    self._adapt_learning_rate(host[0])
                 if not frozen:
                     self.optimizer.zero_grad(set_to_none=True)
                     loss.backward()

@@ -103,14 +103,8 @@ def fit_ensemble(
     device = states.device
     gen = torch.Generator(device="cpu")
     gen.manual_seed(int(seed))
-    bank = copy.deepcopy(pseudo)
     idx = torch.as_tensor(columns, dtype=torch.long)
-    with torch.no_grad():
-        for k in range(bank.num_layers):
-            weight, bias = bank.layer(k)
-            setattr(bank, f"weight_{k}", torch.nn.Parameter(weight[idx].repeat(members, 1, 1).clone()))
-            setattr(bank, f"bias_{k}", torch.nn.Parameter(bias[idx].repeat(members, 1).clone()))
-    bank.num_heads = members * m
+    bank = _member_bank(pseudo, idx, members)
     scale = pseudo_scale[idx].to(device).float()
     offset = pseudo_offset[idx].to(device).float()
     costs = costs.to(device).float()
@@ -158,6 +152,18 @@ def fit_ensemble(
         own = torch.stack([residual[e, picks[e].to(device)].mean(dim=0) for e in range(members)])  # [E, M]
         fitted.offset -= own
     return fitted
+
+
+def _member_bank(pseudo: CriticBank, idx: torch.Tensor, members: int) -> CriticBank:
+    """A copy of the heads `idx` of `pseudo`, `members` times over (member-major)."""
+    bank = copy.deepcopy(pseudo)
+    with torch.no_grad():
+        for k in range(bank.num_layers):
+            weight, bias = bank.layer(k)
+            setattr(bank, f"weight_{k}", torch.nn.Parameter(weight[idx].repeat(members, 1, 1).clone()))
+            setattr(bank, f"bias_{k}", torch.nn.Parameter(bias[idx].repeat(members, 1).clone()))
+    bank.num_heads = members * idx.numel()
+    return bank
 
 
 def _per_head(bank: CriticBank, h: torch.Tensor) -> torch.Tensor:

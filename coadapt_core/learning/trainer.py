@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import math
 import os
-import pickle  # only for its exception type: nothing is unpickled here
-import re
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -20,19 +18,23 @@ from coadapt_core import tracking
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
 from coadapt_core.io import write_atomic
+from coadapt_core.learning.checkpoints import (
+    CHECKPOINT_FORMAT,
+    WEIGHTS_FORMAT,
+    match_objectives,
+    open_command_inputs,
+    read_checkpoint,
+    widen_design_input,
+)
 from coadapt_core.learning.config import TrainConfig
-from coadapt_core.learning.networks import CriticBank
 from coadapt_core.learning.ppo import PPO, Dims
 from coadapt_core.objective import Objective
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.robot import Robot
-from coadapt_core.task.config import CommandConfig, TaskConfig
+from coadapt_core.scenarios.sets import restart_streams
+from coadapt_core.task.config import TaskConfig
 from coadapt_core.task.env import LocomotionEnv
 from coadapt_core.task.gait import half_stance
-from coadapt_core.task.observations import policy_layout, slices
-
-CHECKPOINT_FORMAT = "coadapt-policy-1"
-WEIGHTS_FORMAT = "coadapt-policy-weights-1"
 
 
 @dataclass
@@ -61,6 +63,21 @@ class IterationStats:
         out.update({f"loss/{k}": v for k, v in self.losses.items()})
         out.update({f"reward/{k}": v for k, v in self.reward_terms.items()})
         return out
+
+
+@dataclass
+class _RolloutSums:
+    """What one training rollout sums up for its statistics (`Trainer._collect`)."""
+
+    vx_sum: torch.Tensor  # forward speed over envs with a forward command, on the device
+    cmd_sum: torch.Tensor
+    vx_count: torch.Tensor
+    rewards: list[torch.Tensor] = field(default_factory=list)  # per step
+    errors: list[torch.Tensor] = field(default_factory=list)
+    alternation: list[torch.Tensor] = field(default_factory=list)
+    episodes: list[dict] = field(default_factory=list)
+    visited: list[torch.Tensor] = field(default_factory=list)  # critic states
+    term_sums: dict[str, torch.Tensor] = field(default_factory=dict)
 
 
 class Trainer:
@@ -186,8 +203,7 @@ class Trainer:
         an uninterrupted one."""
         if self.env is None:
             return
-        self.env.generator.manual_seed(int(seed))
-        reseed_simulator(self.env.sim, int(seed))
+        restart_streams(self.env, int(seed))
         self._obs = None
 
     def close(self) -> None:
@@ -211,44 +227,18 @@ class Trainer:
         ppo.training = True
         if self._obs is None:
             self._obs = env.reset()
-        obs, critic_obs, design_obs = self._obs
+        observed = self._obs
         stats = None
         for _ in range(iterations):
             if cfg.design_resample_every and self.iteration > 0 and self.iteration % cfg.design_resample_every == 0:
                 self.set_designs(self.sample_designs(len(self.designs)), self.agents)
-                obs, critic_obs, design_obs = env.reset()
+                observed = env.reset()
             physics0, step0 = env.timing["physics"], env.timing["step"]
             torch.set_num_threads(self.collect_threads)
             start = time.perf_counter()
-            rewards, errors, alternation = [], [], []
-            # on-device sums: no host synchronisation inside the rollout loop
-            vx_sum = torch.zeros((), device=self.device)
-            cmd_sum = torch.zeros((), device=self.device)
-            vx_count = torch.zeros((), device=self.device)
-            episodes: list[dict] = []
-            visited: list[torch.Tensor] = []
-            term_sums: dict[str, torch.Tensor] = {}
-            for _ in range(cfg.steps_per_env):
-                visited.append(critic_obs)
-                actions = ppo.act(obs, critic_obs, design_obs)
-                res = env.step(actions)
-                ppo.process_env_step(res.reward, res.done, res.timeout, res.info["final_critic_obs"], res.design_obs, res.info["metrics"])
-                obs, critic_obs, design_obs = res.obs, res.critic_obs, res.design_obs
-                info = res.info
-                rewards.append(res.reward.mean())
-                lin, command = info["base_lin_vel"], info["command"]
-                errors.append((command[:, :2] - lin[:, :2]).norm(dim=-1).mean())
-                alternation.append(half_stance(info["foot_contact"]).mean())
-                forward = (command[:, 0] > 0.1).float()
-                vx_sum += (lin[:, 0] * forward).sum()
-                cmd_sum += (command[:, 0] * forward).sum()
-                vx_count += forward.sum()
-                for name, value in info["reward_terms"].items():
-                    term_sums[name] = term_sums.get(name, 0.0) + value
-                if "episode" in info:
-                    episodes.append(info["episode"])
+            observed, sums = self._collect(env, ppo, observed)
             collect_seconds = time.perf_counter() - start
-            self.last_rollout_critic_obs = torch.cat(visited).float().cpu()
+            self.last_rollout_critic_obs = torch.cat(sums.visited).float().cpu()
             torch.set_num_threads(self.learner_threads)
             t_update = time.perf_counter()
             ppo.compute_returns()
@@ -257,36 +247,69 @@ class Trainer:
             self.iteration += 1
             samples = env.num_envs * cfg.steps_per_env
             self.total_steps += samples
-            total = collect_seconds + update_seconds
             physics = env.timing["physics"] - physics0
             task = env.timing["step"] - step0 - physics
-            falls = sum(e["fell"] * e["count"] for e in episodes)
-            stats = IterationStats(
-                iteration=self.iteration,
-                total_steps=self.total_steps,
-                mean_reward=float(torch.stack(rewards).mean()),
-                episode_reward=_weighted_mean(episodes, "reward"),
-                episode_length_s=_weighted_mean(episodes, "length_s"),
-                tracking_error=float(torch.stack(errors).mean()),
-                vx=float(vx_sum / vx_count) if float(vx_count) > 0 else float("nan"),
-                command_vx=float(cmd_sum / vx_count) if float(vx_count) > 0 else float("nan"),
-                alternation=float(torch.stack(alternation).mean()),
-                fall_rate=falls / (env.num_envs * cfg.steps_per_env * env.dt),
-                command_limit=float(env.commands.limit),
-                collect_steps_per_s=samples / collect_seconds,
-                update_samples_per_s=samples * cfg.epochs / update_seconds,
-                physics_share=physics / total,
-                task_share=task / total,
-                learner_share=1.0 - (physics + task) / total,
-                losses=losses,
-                reward_terms={k: float(v) / cfg.steps_per_env for k, v in term_sums.items()},
-            )
+            stats = self._iteration_stats(sums, losses, samples, collect_seconds, update_seconds, physics, task)
             if callback is not None:
                 callback(stats)
             tracking.on_training_iteration(stats, samples)  # TensorBoard / wandb, when one is active
         torch.set_num_threads(self.collect_threads)
-        self._obs = (obs, critic_obs, design_obs)
+        self._obs = observed
         return stats
+
+    def _collect(self, env: LocomotionEnv, ppo: PPO, observed: tuple) -> tuple[tuple, _RolloutSums]:
+        """One rollout of `steps_per_env` steps from the observations `observed` (obs,
+        critic_obs, design_obs) into the learner's storage; the observations after it and
+        the rollout's sums (on the device: no host synchronisation inside the loop)."""
+        obs, critic_obs, design_obs = observed
+        sums = _RolloutSums(*(torch.zeros((), device=self.device) for _ in range(3)))
+        for _ in range(self.config.steps_per_env):
+            sums.visited.append(critic_obs)
+            actions = ppo.act(obs, critic_obs, design_obs)
+            res = env.step(actions)
+            ppo.process_env_step(res.reward, res.done, res.timeout, res.info["final_critic_obs"], res.design_obs, res.info["metrics"])
+            obs, critic_obs, design_obs = res.obs, res.critic_obs, res.design_obs
+            info = res.info
+            sums.rewards.append(res.reward.mean())
+            lin, command = info["base_lin_vel"], info["command"]
+            sums.errors.append((command[:, :2] - lin[:, :2]).norm(dim=-1).mean())
+            sums.alternation.append(half_stance(info["foot_contact"]).mean())
+            forward = (command[:, 0] > 0.1).float()
+            sums.vx_sum += (lin[:, 0] * forward).sum()
+            sums.cmd_sum += (command[:, 0] * forward).sum()
+            sums.vx_count += forward.sum()
+            for name, value in info["reward_terms"].items():
+                sums.term_sums[name] = sums.term_sums.get(name, 0.0) + value
+            if "episode" in info:
+                sums.episodes.append(info["episode"])
+        return (obs, critic_obs, design_obs), sums
+
+    def _iteration_stats(self, sums: _RolloutSums, losses: dict, samples: int, collect_seconds: float,
+                         update_seconds: float, physics: float, task: float) -> IterationStats:
+        env, cfg, episodes = self.env, self.config, sums.episodes
+        total = collect_seconds + update_seconds
+        falls = sum(e["fell"] * e["count"] for e in episodes)
+        vx_count = sums.vx_count
+        return IterationStats(
+            iteration=self.iteration,
+            total_steps=self.total_steps,
+            mean_reward=float(torch.stack(sums.rewards).mean()),
+            episode_reward=_weighted_mean(episodes, "reward"),
+            episode_length_s=_weighted_mean(episodes, "length_s"),
+            tracking_error=float(torch.stack(sums.errors).mean()),
+            vx=float(sums.vx_sum / vx_count) if float(vx_count) > 0 else float("nan"),
+            command_vx=float(sums.cmd_sum / vx_count) if float(vx_count) > 0 else float("nan"),
+            alternation=float(torch.stack(sums.alternation).mean()),
+            fall_rate=falls / (env.num_envs * cfg.steps_per_env * env.dt),
+            command_limit=float(env.commands.limit),
+            collect_steps_per_s=samples / collect_seconds,
+            update_samples_per_s=samples * cfg.epochs / update_seconds,
+            physics_share=physics / total,
+            task_share=task / total,
+            learner_share=1.0 - (physics + task) / total,
+            losses=losses,
+            reward_terms={k: float(v) / cfg.steps_per_env for k, v in sums.term_sums.items()},
+        )
 
     # -- checkpoints ------------------------------------------------------------------------
     def _header(self) -> dict:
@@ -373,8 +396,7 @@ class Trainer:
         ppo_state = dict(state["ppo"])
         same = saved_names == names
         if not same:  # pseudo-critics follow objectives by name; unknown ones start fresh
-            ppo_state["pseudo_critic"] = _remap_heads(ppo_state.get("pseudo_critic"), saved_names, names, self.ppo)
-            ppo_state["pseudo_norm"] = _remap_norm(ppo_state["pseudo_norm"], saved_names, names, self.ppo)
+            ppo_state = match_objectives(ppo_state, saved_names, names, self.ppo)
         self.ppo.load_state_dict(ppo_state, optimizers=same and optimizers and state["format"] == CHECKPOINT_FORMAT)
         if self.ppo.pseudo_reset:
             print(f"note: the pseudo-critics in '{path}' hold non-finite values; they restart from scratch", file=sys.stderr)
@@ -388,96 +410,6 @@ class Trainer:
         return state
 
 
-#: the first layers, which read the observation (the leading columns of their input) and the
-#: design input xi (the last columns): the actor's trunk, the critic's and every
-#: pseudo-critic's (per-head layout `heads.<h>.0.weight` [out, in], or the stacked bank's
-#: `weight_0` [H, out, in])
-_FIRST_LAYER = re.compile(r"^((body|heads\.\d+)\.0\.weight|weight_0)$")
-
-
-def _map_first_layers(ppo: dict, fn: Callable[[torch.Tensor], torch.Tensor]) -> dict:
-    """A copy of a PPO state dict whose first-layer weights (actor, critic, pseudo-critics)
-    are replaced by fn(weight)."""
-    ppo = dict(ppo)
-    for net in ("actor", "critic", "pseudo_critic"):
-        if ppo.get(net) is None:
-            continue
-        ppo[net] = {key: fn(t) if _FIRST_LAYER.match(key) else t for key, t in ppo[net].items()}
-    return ppo
-
-
-def widen_design_input(state: dict, num_design: int) -> dict:
-    """A copy of checkpoint `state` whose networks take `num_design` design values instead of
-    fewer: the new inputs (appended after the existing ones, as the design space appends its
-    variables) get zero weights, so the widened policy, critic and pseudo-critics compute
-    exactly what the original did whatever the new variables' values, and training then
-    learns how much they matter. Optimizer states are dropped (their shapes change)."""
-    old = int(state["dims"]["num_design"])
-    if num_design < old:
-        raise UserError(
-            f"a policy taking {old} design values cannot be narrowed to {num_design}", field="checkpoint"
-        )
-    out = dict(state)
-    out["dims"] = {**state["dims"], "num_design": int(num_design)}
-    ppo = {k: v for k, v in state["ppo"].items() if k not in ("optimizer", "pseudo_optimizer")}
-    extra = num_design - old
-    out["ppo"] = _map_first_layers(
-        ppo, lambda w: torch.cat([w, torch.zeros(*w.shape[:-1], extra, dtype=w.dtype)], dim=-1)
-    )
-    out["widened_from"] = old
-    return out
-
-
-#: below this running variance a normaliser channel counts as constant (never varied)
-_CONSTANT_VAR = 1e-8
-_COMMAND_NAMES = ("vx", "vy", "yaw-rate")
-
-
-def open_command_inputs(state: dict, commands: CommandConfig) -> tuple[dict, list[str]]:
-    """A copy of checkpoint `state` ready for a task whose commands vary where its training's
-    did not (e.g. yaw rates in [-1, 1] for a policy trained at yaw 0), and the names of the
-    channels opened.
-
-    A channel that never varied has a running variance of 0, so its normalised input was 0
-    throughout training: the weights that read it never learned anything, and the normaliser,
-    whose count is the whole training's, would scale a new command by 1/sqrt(eps) and clip it
-    at +-clip for millions of steps (a 0.5 rad/s yaw command read as 5 standard deviations,
-    whatever its size). Such a channel gets zero first-layer weights in the actor, critic and
-    pseudo-critics, so the policy acts exactly as before whatever the new command, and the
-    mean and variance of a uniform draw from the new range in both normalisers, so training
-    sees the command at its true scale and learns how to use it."""
-    ranges = (commands.vx_range, commands.vy_range, commands.yaw_range)
-    offset = slices(policy_layout(1, 1))["command"].start  # the same column in o and s
-    obs_var = state["ppo"]["obs_norm"]["var"]
-    opened = [
-        j for j, (lo, hi) in enumerate(ranges)
-        if hi > lo and float(obs_var[offset + j]) < _CONSTANT_VAR
-    ]
-    if not opened:
-        return state, []
-    out = dict(state)
-    ppo = dict(state["ppo"])
-    columns = [offset + j for j in opened]
-
-    def zero_columns(w: torch.Tensor) -> torch.Tensor:
-        w = w.clone()
-        w[..., columns] = 0.0
-        return w
-
-    ppo = _map_first_layers(ppo, zero_columns)
-    for norm in ("obs_norm", "critic_norm"):
-        buffers = dict(ppo[norm])
-        mean, var = buffers["mean"].clone(), buffers["var"].clone()
-        for j in opened:
-            lo, hi = ranges[j]
-            mean[offset + j] = 0.5 * (lo + hi)
-            var[offset + j] = (hi - lo) ** 2 / 12.0
-        buffers["mean"], buffers["var"] = mean, var
-        ppo[norm] = buffers
-    out["ppo"] = ppo
-    return out, [_COMMAND_NAMES[j] for j in opened]
-
-
 def usable_cpus() -> int:
     """CPU cores this process may run on (its affinity mask where the OS has one)."""
     try:
@@ -486,62 +418,7 @@ def usable_cpus() -> int:
         return os.cpu_count() or 1
 
 
-def reseed_simulator(sim, seed: int) -> None:
-    """Restart a simulator's random streams from `seed` (`Simulator.reseed`, which backends
-    may override; the base class restarts every numpy Generator attribute in place)."""
-    sim.reseed(int(seed))
-
-
 def _weighted_mean(episodes: list[dict], key: str) -> float:
     """Mean of an episode statistic over the episodes that ended (nan when none did)."""
     count = sum(e["count"] for e in episodes)
     return sum(e[key] * e["count"] for e in episodes) / count if count else float("nan")
-
-
-def _remap_heads(saved: dict | None, saved_names: list[str], names: list[str], ppo: PPO) -> dict | None:
-    """The pseudo-critic bank's state with head i taken from the saved head of the same
-    objective name (a fresh head where the name is new); the saved state may be of the
-    per-head layout."""
-    if ppo.pseudo_critic is None:
-        return None
-    out = {k: v.clone() for k, v in ppo.pseudo_critic.state_dict().items()}
-    saved = CriticBank.convert_state_dict(saved)
-    for i, name in enumerate(names):
-        if saved is not None and name in saved_names:
-            j = saved_names.index(name)
-            for key in out:
-                out[key][i] = saved[key][j]
-    return out
-
-
-def _remap_norm(saved: dict, saved_names: list[str], names: list[str], ppo: PPO) -> dict:
-    out = {k: v.clone() for k, v in ppo.pseudo_norm.state_dict().items()}
-    for i, name in enumerate(names):
-        if name in saved_names:
-            j = saved_names.index(name)
-            out["mean"][i] = saved["mean"][j]
-            out["var"][i] = saved["var"][j]
-    out["count"] = saved["count"]
-    return out
-
-
-def read_checkpoint(path: str | Path) -> dict:
-    """The dict saved by `Trainer.save` / `export_weights`; a one-line `UserError` otherwise.
-
-    Loaded with `weights_only=True`: tensors, numbers, strings and containers only. A file
-    carrying anything else (a pickled object, possibly planted to run code) is refused
-    without running it."""
-    path = Path(path)
-    if not path.is_file():
-        raise UserError(f"checkpoint '{path}' does not exist", field="checkpoint")
-    try:
-        state = torch.load(path, map_location="cpu", weights_only=True)
-    except pickle.UnpicklingError:
-        raise UserError(
-            f"checkpoint '{path}' holds objects other than tensors and plain values; refused "
-            "(it is not a coadapt checkpoint, or was altered)", field="checkpoint") from None
-    except Exception as exc:
-        raise UserError(f"checkpoint '{path}' cannot be read ({type(exc).__name__}); it is damaged or not a checkpoint", field="checkpoint") from None
-    if not isinstance(state, dict) or state.get("format") not in (CHECKPOINT_FORMAT, WEIGHTS_FORMAT):
-        raise UserError(f"'{path}' is not a coadapt policy checkpoint", field="checkpoint")
-    return state

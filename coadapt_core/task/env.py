@@ -8,11 +8,11 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 
-from coadapt_core.errors import UserError
 from coadapt_core.objective import Objective, StepBatch
 from coadapt_core.physics.simulator import SimState, Simulator
 from coadapt_core.robot import Robot
@@ -22,6 +22,9 @@ from coadapt_core.task.config import TaskConfig
 from coadapt_core.task.gait import expected_stance, leg_phases, raibert_foot_targets
 from coadapt_core.task.rewards import RewardInputs, combine, compute_terms
 from coadapt_core.task.rotations import quat_rotate_inverse
+
+if TYPE_CHECKING:
+    from coadapt_core.scenarios.sets import PairedStreams
 
 
 @dataclass
@@ -76,9 +79,8 @@ class LocomotionEnv:
         self.design_high = torch.as_tensor(space.upper, dtype=torch.float32, device=self.device)
         self.commands = CommandSampler(self.cfg.commands, self.device, self.generator)
         self.fixed_commands = False
-        # paired evaluation (`pair_scenarios`): (agents per design, seed), or None
-        self.paired: tuple[int, int] | None = None
-        self._paired_phase: torch.Tensor | None = None
+        # paired evaluation: the scenario set's shared streams (`use_scenarios`), or None
+        self.scenarios: PairedStreams | None = None
         self._paired_gen = torch.Generator(device=self.device)
         self._tick = 0  # policy steps since the last full `reset` (keys the paired noise)
         resample = self.cfg.commands.resample_seconds
@@ -179,35 +181,24 @@ class LocomotionEnv:
         self.command[:] = torch.as_tensor(commands, dtype=torch.float32, device=self.device).expand(self.num_envs, 3)
         self._freeze_clock(torch.arange(self.num_envs, device=self.device))
 
-    def pair_scenarios(self, agents: int | None, seed: int = 0) -> None:
-        """Common random numbers across designs (real fitness): the environments form
-        consecutive groups of `agents`, one group per design, and environment
-        k * agents + i sees what environment i sees: the same observation noise at every step
-        (a function of `seed`, the steps since `reset` and i alone, so it depends neither on
-        the other designs in the batch nor on who fell) and the same gait phase at the start
-        of every episode. `agents=None` returns to independent draws."""
-        if agents is None:
-            self.paired, self._paired_phase = None, None
-            return
-        agents = int(agents)
-        if agents < 1 or self.num_envs % agents:
-            raise UserError(
-                f"pair_scenarios: {self.num_envs} environments do not split into groups of {agents} agents",
-                field="agents",
-            )
-        self.paired = (agents, int(seed))
-        gen = torch.Generator(device=self.device)
-        gen.manual_seed(int(seed))
-        self._paired_phase = torch.rand(agents, generator=gen, device=self.device)
+    def use_scenarios(self, scenarios: PairedStreams | None) -> None:
+        """Paired evaluation's hook (`coadapt_core.scenarios`): the environments form
+        consecutive groups of `scenarios.agents`, one group per design, and environment
+        k * agents + i draws what environment i draws: the gait phase `scenarios.phase[i]`
+        at the start of every episode, the same observation noise at every step (a function
+        of `scenarios.seed`, the steps since `reset` and i alone, so it depends neither on
+        the other designs in the batch nor on who fell) and the same `paired_draw`. None
+        returns to independent draws."""
+        self.scenarios = scenarios
 
     def paired_draw(self, shape: tuple[int, ...], generator: torch.Generator, normal: bool = True) -> torch.Tensor:
         """[num_envs, *shape[1:]] random numbers, standard normal or uniform in [0, 1): one
         draw per agent of a group repeated for every design when paired, else one per
         environment."""
-        rows = self.paired[0] if self.paired is not None else shape[0]
+        rows = self.scenarios.agents if self.scenarios is not None else shape[0]
         draw = torch.randn if normal else torch.rand
         x = draw((rows, *shape[1:]), generator=generator, device=self.device)
-        if self.paired is not None:
+        if self.scenarios is not None:
             x = x.repeat(shape[0] // rows, *([1] * (len(shape) - 1)))
         return x
 
@@ -233,8 +224,8 @@ class LocomotionEnv:
         self.episode_moving_steps[ids] = 0.0
         self.episode_speed[ids] = 0.0
         self.episode_command[ids] = 0.0
-        if self._paired_phase is not None:  # paired: agent i always starts at its own phase
-            self.phase[ids] = self._paired_phase[ids % self._paired_phase.numel()]
+        if self.scenarios is not None:  # paired: agent i always starts at its own phase
+            self.phase[ids] = self.scenarios.phase[ids % self.scenarios.phase.numel()]
         else:
             self.phase[ids] = torch.rand(ids.numel(), generator=self.generator, device=self.device)
         if not self.fixed_commands:
@@ -261,7 +252,7 @@ class LocomotionEnv:
         return lin, ang, quat_rotate_inverse(quat, gravity)
 
     def _noise(self, shape: tuple[int, ...], scale: float) -> torch.Tensor:
-        gen = self._paired_gen if self.paired is not None else self.generator
+        gen = self._paired_gen if self.scenarios is not None else self.generator
         if self.cfg.noise.kind == "gaussian":
             return scale * self.paired_draw(shape, gen)
         return scale * (2.0 * self.paired_draw(shape, gen, normal=False) - 1.0)
@@ -279,8 +270,8 @@ class LocomotionEnv:
         obs = clean
         noise = self.cfg.noise
         if noise.enabled:
-            if self.paired is not None:  # the same noise however often this step is observed
-                key = np.random.SeedSequence([self.paired[1], self._tick]).generate_state(2, dtype=np.uint64)
+            if self.scenarios is not None:  # the same noise however often this step is observed
+                key = np.random.SeedSequence([self.scenarios.seed, self._tick]).generate_state(2, dtype=np.uint64)
                 self._paired_gen.manual_seed(int(key[0] >> np.uint64(1)))
             n, s = self.num_envs, self.obs_slices
             obs = clean.clone()
@@ -352,15 +343,8 @@ class LocomotionEnv:
         joint_vel = state.joint_vel.float()
         torque = state.joint_torque.float()
         contact = state.foot_contact
-        first_contact = (self.air_time > 0) & contact
-        self.air_time += self.dt
-        air_time = self.air_time.clone()
-        self.air_time *= ~contact
-
-        height = state.base_pos[:, 2].float() - state.terrain_height.float()
-        fell = (height < cfg.min_base_height * self.standing_height) | (gravity[:, 2] > -cfg.max_tilt_cos)
-        terminated = fell | state.diverged.to(self.device)
-        timeout = (self.episode_length >= self.max_episode_length) & ~terminated
+        first_contact, air_time = self._air_time(contact)
+        height, terminated, timeout = self._termination(state, gravity)
 
         q_star, stance = self.raibert_joint_targets(self.command, lin)
         inputs = RewardInputs(
@@ -384,23 +368,61 @@ class LocomotionEnv:
         )
         terms = compute_terms(inputs, cfg.rewards)
         reward, weighted = combine(terms, cfg.rewards, self.dt)
-
-        step_batch = StepBatch(
+        metrics = self._metrics(StepBatch(
             command=self.command, base_lin_vel=lin, base_ang_vel=ang, joint_torque=torque, joint_vel=joint_vel,
             joint_targets=targets, design=self.designs, total_mass=self.total_mass, base_height=height,
             foot_contact=contact, dt=self.dt,
-        )
-        if self.objectives:
-            metrics = torch.stack([o.step_cost(step_batch).float() for o in self.objectives], dim=-1)  # [N, M]
-        else:
-            metrics = torch.zeros(self.num_envs, 0, device=self.device)
+        ))
+        self._record_step(actions, joint_vel, contact, terms.get("tracking_lin_vel"), reward, moving, lin)
 
-        # bookkeeping for the next observation
+        obs, critic = self._observe(state)
+        done = terminated | timeout
+        info: dict = {
+            "metrics": metrics,
+            "final_critic_obs": critic,
+            "terminated": terminated,
+            "base_lin_vel": lin,
+            "base_ang_vel": ang,
+            "foot_contact": contact,
+            "command": self.command.clone(),
+            "reward_terms": {k: v.mean() for k, v in weighted.items()},  # 0-dim tensors, no sync
+        }
+        state, changed = self._end_episodes(done, terminated, info, state, sim_device)
+        self.state = state
+        if changed:  # observe the restarted environments (and new commands) afresh
+            obs, critic = self._observe(state)
+        return StepResult(obs, critic, self.design_obs, reward, done, timeout, info)
+
+    def _air_time(self, contact: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(first contact [N, L], air time before this step's touch-downs [N, L]); the
+        feet's air clocks advance and restart on contact."""
+        first_contact = (self.air_time > 0) & contact
+        self.air_time += self.dt
+        air_time = self.air_time.clone()
+        self.air_time *= ~contact
+        return first_contact, air_time
+
+    def _termination(self, state: SimState, gravity: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(base height over the terrain [N], terminated [N]: fell or diverged, timeout [N])."""
+        cfg = self.cfg
+        height = state.base_pos[:, 2].float() - state.terrain_height.float()
+        fell = (height < cfg.min_base_height * self.standing_height) | (gravity[:, 2] > -cfg.max_tilt_cos)
+        terminated = fell | state.diverged.to(self.device)
+        timeout = (self.episode_length >= self.max_episode_length) & ~terminated
+        return height, terminated, timeout
+
+    def _metrics(self, step_batch: StepBatch) -> torch.Tensor:
+        """[N, M] the objectives' per-step costs."""
+        if self.objectives:
+            return torch.stack([o.step_cost(step_batch).float() for o in self.objectives], dim=-1)  # [N, M]
+        return torch.zeros(self.num_envs, 0, device=self.device)
+
+    def _record_step(self, actions, joint_vel, contact, tracking, reward, moving, lin) -> None:
+        """Bookkeeping for the next observation and the episodes' statistics."""
         self.action_history = torch.roll(self.action_history, 1, dims=1)
         self.action_history[:, 0] = actions
         self.last_joint_vel = joint_vel
         self.last_contact = contact
-        tracking = terms.get("tracking_lin_vel")
         self.episode_reward += reward
         if tracking is not None:
             self.episode_tracking += tracking
@@ -409,21 +431,11 @@ class LocomotionEnv:
         self.episode_speed += lin[:, 0]
         self.episode_command += self.command[:, 0]
 
-        obs, critic = self._observe(state)
-        final_critic = critic
-        done = terminated | timeout
-        info: dict = {
-            "metrics": metrics,
-            "final_critic_obs": final_critic,
-            "terminated": terminated,
-            "base_lin_vel": lin,
-            "base_ang_vel": ang,
-            "foot_contact": contact,
-            "command": self.command.clone(),
-            "reward_terms": {k: v.mean() for k, v in weighted.items()},  # 0-dim tensors, no sync
-        }
-        # one host synchronisation per step: which environments ended, which are due a new
-        # command, and the sums of the ended episodes' statistics travel together
+    def _end_episodes(self, done, terminated, info: dict, state: SimState, sim_device) -> tuple[SimState, bool]:
+        """Restart the environments that ended (their episodes' statistics into
+        `info["episode"]`) and give new commands to those due one. One host synchronisation:
+        which environments ended, which are due a new command, and the sums of the ended
+        episodes' statistics travel together. Returns the state and whether any changed."""
         resample = self.resample_steps and not self.fixed_commands
         if resample:  # environments that end now restart at length 0: never due
             due = ~done & (self.episode_length % self.resample_steps == 0)
@@ -475,7 +487,4 @@ class LocomotionEnv:
             self.command[due_ids] = self.commands.sample(due_ids.numel())
             self._freeze_clock(due_ids)
             changed = True
-        self.state = state
-        if changed:  # observe the restarted environments (and new commands) afresh
-            obs, critic = self._observe(state)
-        return StepResult(obs, critic, self.design_obs, reward, done, timeout, info)
+        return state, changed
