@@ -36,7 +36,9 @@ class PluginOption:
 
     type: "int", "float", "str" or "bool". `choices` (a tuple of accepted values) and
     `minimum` / `maximum` (inclusive bounds, numbers only) are checked; a default of None
-    means "not set" (the plugin decides, e.g. an in-memory study when no storage is given)."""
+    means "not set" (the plugin decides, e.g. an in-memory study when no storage is given).
+    `alias` (optional) is a top-level config key and `coadapt run` option (`--<alias>`,
+    underscores as dashes) that sets this option: kept for the keys of earlier versions."""
 
     name: str
     type: str
@@ -45,6 +47,7 @@ class PluginOption:
     choices: tuple[Any, ...] | None = None
     minimum: float | None = None
     maximum: float | None = None
+    alias: str | None = None
 
     def __post_init__(self) -> None:
         if self.type not in OPTION_TYPES:
@@ -101,11 +104,12 @@ class PluginOption:
         return kind
 
     def to_dict(self) -> dict[str, Any]:
-        return {
+        out = {
             "name": self.name, "type": self.type, "default": self.default, "help": self.help,
             "choices": None if self.choices is None else list(self.choices),
             "minimum": self.minimum, "maximum": self.maximum,
         }
+        return out | ({"alias": self.alias} if self.alias else {})
 
 
 def resolve_options(
@@ -151,6 +155,8 @@ def check_specs(specs: Any, owner: str) -> tuple[PluginOption, ...]:
         if spec.name in names:
             raise TypeError(f"{owner}: option '{spec.name}' is declared twice")
         names.add(spec.name)
+        if spec.alias is not None and not (isinstance(spec.alias, str) and spec.alias.isidentifier()):
+            raise TypeError(f"{owner}: option '{spec.name}' has alias {spec.alias!r}; use a name like 'my_option'")
         if spec.default is not None:
             spec.convert(spec.default, owner, "option_specs")
     return tuple(specs)

@@ -85,11 +85,15 @@ def _check_run_config(cfg: Any) -> None:
     store = cfg.store or os.environ.get(ENV_STORE) or ""
     if store and store.strip().lower() not in NO_STORE:
         check_database_url(resolve_store_url(store), field="store")
+    from coadapt_core.coadapt.config import option_aliases
+
+    # an optimizer option `storage` is a database URL (a study kept there); named as its alias
     options = getattr(cfg, "optimizer_options", None) or {}
     storage = options.get("storage") if isinstance(options, dict) else None
-    storage = storage or getattr(cfg, "bo_storage", None)
     if storage:
-        check_database_url(str(storage), field="bo_storage")
+        field = next((a.key for a in option_aliases().values()
+                      if (a.field, a.option.name) == ("optimizer_options", "storage")), "optimizer_options.storage")
+        check_database_url(str(storage), field=field)
     Path(cfg.out).mkdir(parents=True, exist_ok=True)  # an OSError here is one line (cli.main)
 
 
@@ -249,16 +253,39 @@ def _command_options() -> list[tuple[str, Any, Any]]:
         ("video", bool, typer.Option(True, "--video/--no-video", help="End by rendering the best and the nominal design walking side by side: <run folder>/best_vs_nominal.gif (and .mp4 with ffmpeg).")),
         ("optimizer_option", list[str], typer.Option(None, "--optimizer-option", help="KEY=VALUE: an option the optimizer plugin declares (repeatable; `coadapt plugins --json` lists them); wins over the YAML file's optimizer_options.")),
         ("objective_option", list[str], typer.Option(None, "--objective-option", help="KEY=VALUE: an option the objective plugin declares (repeatable); wins over the YAML file's objective_options.")),
-        ("objective_weights", str, typer.Option(None, help="Alias of --objective-option weights=... (composite weights, e.g. tracking=1,power=1,torque=1).")),
-        ("inertia", float, typer.Option(None, help="Alias of --optimizer-option inertia=... (swarm optimizers).")),
-        ("c1", float, typer.Option(None, help="Alias of --optimizer-option c1=... (swarm optimizers).")),
-        ("c2", float, typer.Option(None, help="Alias of --optimizer-option c2=... (swarm optimizers).")),
-        ("bo_sampler", str, typer.Option(None, help="Alias of --optimizer-option sampler=... (BO: tpe or gp).")),
-        ("bo_storage", str, typer.Option(None, help="Alias of --optimizer-option storage=... (BO: optuna storage URL).")),
+        *_alias_options(),
         ("help_all", bool, typer.Option(False, "--help-all", is_eager=True, callback=help_all,
                                         help="Show every option (training, task, randomization, ...) and exit.")),
         ("check", bool, typer.Option(False, "--check", hidden=True, help="Check the options (config, plugins, store, --out) and exit without running.")),
     ]
+
+
+def _alias_options() -> list[tuple[str, Any, Any]]:
+    """`--<alias>` for every plugin option an installed plugin declares an alias for
+    (`PluginOption.alias`: the keys of earlier versions), as (name, type, typer.Option)."""
+    from coadapt_core.coadapt.config import option_aliases
+    from coadapt_core.settings import leaves
+
+    taken = {leaf.param for leaf in leaves(_config_class())} | _COMMAND_NAMES
+    out = []
+    for key, alias in option_aliases().items():
+        if key in taken:
+            continue
+        spec, kind = alias.option, alias.field.removesuffix("_options")
+        text = f"Alias of --{kind}-option {spec.name}=... ({', '.join(alias.plugins)}: {spec.help})."
+        out.append((key, {"float": float, "int": int}.get(spec.type, str), typer.Option(None, help=text)))
+    return out
+
+
+#: the parameters of `coadapt run` that are not config settings nor aliases
+_COMMAND_NAMES = frozenset({"config", "resume", "as_json", "video", "optimizer_option", "objective_option",
+                            "help_all", "check"})
+
+
+def _config_class() -> type:
+    from coadapt_core.coadapt.config import CoadaptConfig
+
+    return CoadaptConfig
 
 
 def config_options() -> list[tuple[str, Any, Any, Any]]:
@@ -270,6 +297,7 @@ def config_options() -> list[tuple[str, Any, Any, Any]]:
 
 def register(app: typer.Typer) -> None:
     settings = config_options()
+    aliases = [name for name, _, _ in _alias_options()]
 
     def run_command(**values: Any) -> None:
         """Co-adapt design and policy: universal policy + pseudo-critics, optimizer with hybrid
@@ -281,8 +309,8 @@ def register(app: typer.Typer) -> None:
         as_json, video, check = values["as_json"], values["video"], values["check"]
         optimizer_option, objective_option = values["optimizer_option"], values["objective_option"]
         overrides = {leaf.key: values[name] for name, _, _, leaf in settings}
-        for legacy in ("objective_weights", "inertia", "c1", "c2", "bo_sampler", "bo_storage"):
-            overrides[legacy] = values[legacy]
+        for name in aliases:  # keys of earlier versions, declared by the plugins
+            overrides[name] = values[name]
         try:
             if resume:
                 from coadapt_core.validation import is_run_id, run_folder

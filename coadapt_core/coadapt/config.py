@@ -8,7 +8,7 @@ from __future__ import annotations
 import functools
 import typing
 from collections.abc import Mapping
-from dataclasses import fields
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any, Literal
 
@@ -19,6 +19,7 @@ from coadapt_core.errors import UserError
 from coadapt_core.fitness import COST_RULES
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.methods import DEFAULT_METHOD, METHOD_NAMES, method_help, optimizer_for
+from coadapt_core.options import PluginOption
 from coadapt_core.physics.randomization import RANDOMIZATION_PRESETS, RandomizationConfig
 from coadapt_core.physics.terrain import TERRAINS
 from coadapt_core.plugins import default_plugin
@@ -67,12 +68,10 @@ PRESETS: dict[str, dict[str, Any]] = {
         train_steps=200_000, retrain_steps=100_000, eval_agents=32, eval_steps=250, surrogate_samples=4096,
         bo_designs=20, specialized_train_steps=100_000, specialized_init="universal",
     ),
-    # section 4.1.3: N = 3, K = 100, J = 5, 50 agents, w = 0.5, inertia 0.9, c1 = c2 = 2
+    # section 4.1.3 (N = 3, K = 100, J = 5, 50 agents, w = 0.5): the declared defaults below are
+    # the paper's, and so are the optimizer plugin's declared options
     "paper": dict(
-        outer_iterations=3, population=100, optimizer_iterations=5, agents_per_design=50,
         evaluation_probability=0.5,
-        train_steps=24_000_000, retrain_steps=24_000_000, eval_steps=800, bo_designs=20,
-        specialized_train_steps=10_000_000,
     ),
 }
 
@@ -236,15 +235,46 @@ def _merge(tree: dict[str, Any], new: Mapping[str, Any]) -> None:
             tree[str(key)] = dict(value) if isinstance(value, Mapping) else value
 #: config keys that are plugin-option mappings, merged key by key (CLI over YAML over preset)
 OPTION_FIELDS = ("optimizer_options", "objective_options")
-#: keys of earlier versions, still accepted: (mapping they now go to, option name there)
-LEGACY_KEYS: dict[str, tuple[str, str]] = {
-    "inertia": ("optimizer_options", "inertia"),
-    "c1": ("optimizer_options", "c1"),
-    "c2": ("optimizer_options", "c2"),
-    "bo_sampler": ("optimizer_options", "sampler"),
-    "bo_storage": ("optimizer_options", "storage"),
-    "objective_weights": ("objective_options", "weights"),
-}
+#: the plugin kind whose declared options each of those mappings holds
+OPTION_KINDS = {"objective_options": "objective", "optimizer_options": "optimizer"}
+
+
+@dataclass(frozen=True)
+class OptionAlias:
+    """A top-level key (and `coadapt run` option) that sets one plugin option, as the plugin
+    declares it (`PluginOption.alias`): the keys of earlier versions."""
+
+    key: str
+    field: str  # optimizer_options | objective_options
+    option: PluginOption
+    plugins: tuple[str, ...]  # the installed plugins declaring it
+
+
+def option_aliases() -> dict[str, OptionAlias]:
+    """Every alias the installed optimizer and objective plugins declare for their options,
+    by key (none when the registry cannot be built; a key that is a config setting, or that
+    two plugins declare for different options, is left out)."""
+    from coadapt_core.plugins import get_registry
+
+    try:
+        registry = get_registry()
+    except Exception:  # the commands report why the registry cannot be built
+        return {}
+    out: dict[str, OptionAlias] = {}
+    clashes: set[str] = set()
+    for field_name, kind in OPTION_KINDS.items():
+        for name in registry.names(kind):
+            for spec in getattr(registry.get(kind, name), "option_specs", ()):
+                if not spec.alias or spec.alias in FIELD_NAMES:
+                    continue
+                known = out.get(spec.alias)
+                if known is None:
+                    out[spec.alias] = OptionAlias(spec.alias, field_name, spec, (name,))
+                elif (known.field, known.option.name) == (field_name, spec.name):
+                    out[spec.alias] = OptionAlias(spec.alias, field_name, known.option, (*known.plugins, name))
+                else:
+                    clashes.add(spec.alias)
+    return {k: v for k, v in out.items() if k not in clashes}
 
 
 def check_device(device: Any, field: str = "device") -> str:
@@ -353,11 +383,12 @@ def make_config(
     if preset not in PRESETS:
         raise UserError(f"preset '{preset}' is not one of {', '.join(PRESETS)}", field="preset")
     values: dict[str, Any] = {**PRESETS[preset], "preset": preset}
+    aliases = option_aliases()
     for source, label in ((yaml_values, "config file"), (overrides, "option")):
         for key, value in source.items():
-            if key in LEGACY_KEYS:  # an earlier version's key: one option of a plugin now
-                target, option = LEGACY_KEYS[key]
-                values[target] = {**values.get(target, {}), option: value}
+            if key in aliases:  # an earlier version's key: one option of a plugin now
+                alias = aliases[key]
+                values[alias.field] = {**values.get(alias.field, {}), alias.option.name: value}
                 continue
             section, dot, rest = key.partition(".")
             if section not in FIELD_NAMES or (dot and section not in SECTIONS):
@@ -448,12 +479,11 @@ def _typed_options(config: CoadaptConfig) -> CoadaptConfig:
 def config_from_dict(data: dict[str, Any]) -> CoadaptConfig:
     """Rebuild a recorded config (e.g. from a run folder's config.yaml)."""
     known = {k: v for k, v in data.items() if k in FIELD_NAMES and v is not None}
-    # a config.yaml of an earlier version recorded every legacy key; their old defaults are the
-    # plugins' defaults now, so only values that differed are carried over
-    old_defaults = {"inertia": 0.9, "c1": 2.0, "c2": 2.0, "bo_sampler": "tpe", "bo_storage": "", "objective_weights": ""}
-    for key, (target, option) in LEGACY_KEYS.items():
-        if key in data and data[key] is not None and data[key] != old_defaults[key]:
-            known[target] = {option: data[key], **known.get(target, {})}
+    # a config.yaml of an earlier version recorded every alias key; their old defaults are the
+    # plugins' declared defaults now (empty text: unset), so only values that differed are carried over
+    for key, alias in option_aliases().items():
+        if data.get(key) not in (None, "", alias.option.default):
+            known[alias.field] = {alias.option.name: data[key], **known.get(alias.field, {})}
     return CoadaptConfig(**known).validate()
 
 

@@ -49,6 +49,7 @@ class TrackingObjective(Objective):
     name: ClassVar[str] = "tracking"
     display_name: ClassVar[str] = "Command tracking"
     unit: ClassVar[str] = "(m/s)^2"  # and (rad/s)^2 for the yaw term
+    summary_key: ClassVar[str] = "tracking_error"  # `coadapt eval` reports it always
     description: ClassVar[str] = "P_cmd = e_v^2 + e_w^2, velocity command tracking error (eq. 6)"
 
     def step_cost(self, step: StepBatch) -> torch.Tensor:
@@ -70,6 +71,7 @@ class PowerObjective(Objective):
     name: ClassVar[str] = "power"
     display_name: ClassVar[str] = "Power consumption"
     unit: ClassVar[str] = "W"
+    summary_key: ClassVar[str] = "power_cost"  # `coadapt eval` reports it always
     description: ClassVar[str] = "P_p = w_t sum |tau| |dtheta|, mechanical power with tracking penalty (eq. 7)"
 
     def step_cost(self, step: StepBatch) -> torch.Tensor:
@@ -84,6 +86,7 @@ class TorqueObjective(Objective):
     default_rank: ClassVar[int] = 10  # the default --objective
     display_name: ClassVar[str] = "Joint torque"
     unit: ClassVar[str] = "(Nm)^2"
+    summary_key: ClassVar[str] = "torque_cost"  # `coadapt eval` reports it always
     description: ClassVar[str] = "P_tau = w_t sum tau^2, squared joint torque with tracking penalty (eq. 8)"
 
     def step_cost(self, step: StepBatch) -> torch.Tensor:
@@ -107,7 +110,7 @@ class CompositeObjective(Objective):
     option_specs: ClassVar[tuple[PluginOption, ...]] = (
         PluginOption(
             "weights", "str", "", "component weights, e.g. 'tracking=1,power=0.5,torque=1' (missing ones "
-            "weigh 0; empty: all 1)",
+            "weigh 0; empty: all 1)", alias="objective_weights",
         ),
     )
 
