@@ -10,9 +10,9 @@ import typing
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import field_validator
+from pydantic import AfterValidator, field_validator
 
 from coadapt_core.design_space import parse_range_pairs
 from coadapt_core.errors import UserError
@@ -35,6 +35,18 @@ from coadapt_core.settings import (
     to_plain,
 )
 from coadapt_core.task.config import TaskConfig
+
+def check_device(device: Any, field: str = "device") -> str:
+    """A torch device name coadapt accepts: cpu, cuda or cuda:N (one line otherwise)."""
+    text = str(device)
+    index = text[5:] if text.startswith("cuda:") else "0"
+    if text not in ("cpu", "cuda") and not (text.startswith("cuda:") and index.isdigit()):
+        raise UserError(f"{field} '{device}' is not one of: cpu, cuda, cuda:N", field=field)
+    return text
+
+
+#: a torch device name (checked by `check_device`)
+Device = Annotated[str, AfterValidator(check_device)]
 
 #: --evaluation-policy choices: the paper's fixed probability w, or the ensemble's agreement
 EVALUATION_POLICIES: tuple[str, ...] = ("fixed", "uncertainty")
@@ -145,7 +157,7 @@ class CoadaptConfig:
         "scratch", "bo-specialized: scratch (the paper's) or universal (fine-tune the universal policy per design).")
     # -- infrastructure ----------------------------------------------------------------------
     checkpoint: str = setting("", "Universal policy to start from (empty: the one the robot ships, if any; none: from scratch).")
-    device: str = setting("cpu", "Torch device of the learner.", accepted="one of cpu, cuda, cuda:N")
+    device: Device = setting("cpu", "Torch device of the learner.", accepted="one of cpu, cuda, cuda:N")
     logger: Literal["tensorboard", "wandb", "none"] = setting(
         "tensorboard", "Experiment tracking: tensorboard (event files in <run folder>/tb), wandb (if installed) or none.")
     out: str = setting("runs", "Parent folder of run folders.")
@@ -177,11 +189,6 @@ class CoadaptConfig:
         if isinstance(value, Mapping):
             return {str(k).replace("-", "_"): v for k, v in value.items()}
         return value
-
-    @field_validator("device")
-    @classmethod
-    def _device(cls, value: str) -> str:
-        return check_device(value)
 
     @field_validator("design_ranges")
     @classmethod
@@ -275,15 +282,6 @@ def option_aliases() -> dict[str, OptionAlias]:
                 else:
                     clashes.add(spec.alias)
     return {k: v for k, v in out.items() if k not in clashes}
-
-
-def check_device(device: Any, field: str = "device") -> str:
-    """A torch device name coadapt accepts: cpu, cuda or cuda:N (one line otherwise)."""
-    text = str(device)
-    index = text[5:] if text.startswith("cuda:") else "0"
-    if text not in ("cpu", "cuda") and not (text.startswith("cuda:") and index.isdigit()):
-        raise UserError(f"{field} '{device}' is not one of: cpu, cuda, cuda:N", field=field)
-    return text
 
 
 def load_yaml(path: str | Path) -> dict[str, Any]:

@@ -47,6 +47,7 @@ class TrackingObjective(Objective):
     """P_cmd = e_v^2 + e_w^2 (eq. 6)."""
 
     name: ClassVar[str] = "tracking"
+    default_rank: ClassVar[int] = 1  # one of the default objectives (of a grid, of training)
     display_name: ClassVar[str] = "Command tracking"
     unit: ClassVar[str] = "(m/s)^2"  # and (rad/s)^2 for the yaw term
     summary_key: ClassVar[str] = "tracking_error"  # `coadapt eval` reports it always
@@ -69,6 +70,7 @@ class PowerObjective(Objective):
     """P_p = w_t sum_i |tau_i| |dtheta_i| (eq. 7)."""
 
     name: ClassVar[str] = "power"
+    default_rank: ClassVar[int] = 2  # one of the default objectives (of a grid, of training)
     display_name: ClassVar[str] = "Power consumption"
     unit: ClassVar[str] = "W"
     summary_key: ClassVar[str] = "power_cost"  # `coadapt eval` reports it always
@@ -83,7 +85,7 @@ class TorqueObjective(Objective):
     """P_tau = w_t sum_i tau_i^2 (eq. 8)."""
 
     name: ClassVar[str] = "torque"
-    default_rank: ClassVar[int] = 10  # the default --objective
+    default_rank: ClassVar[int] = 10  # the default --objective, last of the default objectives
     display_name: ClassVar[str] = "Joint torque"
     unit: ClassVar[str] = "(Nm)^2"
     summary_key: ClassVar[str] = "torque_cost"  # `coadapt eval` reports it always
