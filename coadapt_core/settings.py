@@ -136,7 +136,9 @@ def shared(source: type, name: str | None = None, *, default: Any = dataclasses.
 
 def _take_shared(cls: type) -> None:
     """Replace the `shared(...)` fields of class `cls` with their declarations."""
-    annotations = dict(cls.__dict__.get("__annotations__", {}))
+    import inspect
+
+    annotations = dict(inspect.get_annotations(cls))
     for name, value in list(vars(cls).items()):
         if not isinstance(value, _Shared):
             continue

@@ -8,7 +8,14 @@ from typing import Any
 
 import typer
 
-from coadapt_core.cli.common import command_options, command_settings, ctrl_c_once, interrupted, invocation, with_options
+from coadapt_core.cli.common import (
+    command_options,
+    command_settings,
+    ctrl_c_once,
+    interrupted,
+    invocation,
+    with_options,
+)
 from coadapt_core.coadapt.config import CoadaptConfig
 from coadapt_core.methods import METHOD_NAMES
 from coadapt_core.physics.terrain import TERRAINS

@@ -36,6 +36,7 @@ from coadapt_core.settings import (
 )
 from coadapt_core.task.config import TaskConfig
 
+
 def check_device(device: Any, field: str = "device") -> str:
     """A torch device name coadapt accepts: cpu, cuda or cuda:N (one line otherwise)."""
     text = str(device)

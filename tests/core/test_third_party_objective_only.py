@@ -15,7 +15,7 @@ from tests.conftest import EXAMPLE_PLUGIN
 
 sys.path.insert(0, str(EXAMPLE_PLUGIN))
 
-import coadapt_example  # noqa: E402
+import coadapt_example
 
 NEEDS_27B = pytest.mark.xfail(strict=True, reason="needs 27b: coadapt train still defaults to the built-in objectives")
 
