@@ -40,11 +40,12 @@ def _run_command():
 
 
 def _documented(command: str) -> dict[str, tuple[str, str]]:
-    """{option: (meaning, default)} of the command's rows in docs/settings.md (`coadapt run`:
-    the rows before the first other command's section)."""
+    """{option: (meaning, default)} of the command's rows in docs/settings.md: those under a
+    heading naming `coadapt <command>` (`coadapt run`: the rows before the first other
+    command's heading)."""
     sections, current = {"run": []}, "run"
     for line in DOC.read_text().splitlines():
-        found = re.match(r"## `coadapt (\w+)`", line)
+        found = re.match(r"#+ .*`coadapt (\w+)`", line)
         if found:
             current = found.group(1)
             sections[current] = []
