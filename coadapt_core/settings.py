@@ -4,8 +4,10 @@ A settings class is a pydantic dataclass made with `@settings`; each field is de
 `setting(default, help, **constraints)`. From that one definition coadapt derives
 
 - the YAML keys of a config file (nested sections are nested mappings),
-- the command-line options of `coadapt run` (`leaves` walks the tree; a nested key
-  `task.commands.yaw_range` becomes `--task-commands-yaw-range`),
+- the command-line options of `coadapt run` and of the other commands with a settings
+  class (`leaves` walks the tree; a nested key `task.commands.yaw_range` becomes
+  `--task-commands-yaw-range`); a setting two commands share is declared in one of them
+  and taken as it is by the other (`shared`),
 - the checks: a bad value is a one-line `UserError` naming the key and what is accepted
   (`user_error` turns pydantic's report into that line),
 - the table of settings in docs/settings.md (`coadapt_core.coadapt.config.settings_markdown`).
