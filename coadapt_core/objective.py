@@ -74,6 +74,10 @@ class Objective(ABC):
     short_label: ClassVar[str] = ""
     #: the unit of the per-step cost (`coadapt run` prints it with every cost; "" when none)
     unit: ClassVar[str] = ""
+    #: the key of its mean cost per step in `coadapt eval`'s result (its standard error:
+    #: `<key>_se`) for an objective eval always reports; "" (the default): reported when
+    #: asked for (`coadapt eval --objective`, under `costs`)
+    summary_key: ClassVar[str] = ""
     #: always "minimize" for costs; kept explicit for reports
     direction: ClassVar[str] = "minimize"
     description: ClassVar[str] = ""

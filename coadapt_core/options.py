@@ -51,7 +51,9 @@ class PluginOption:
     `minimum` / `maximum` (inclusive bounds, numbers only) are checked; a default of None
     means "not set" (the plugin decides, e.g. an in-memory study when no storage is given).
     `from_run` (a key of `RUN_FACTS`): an optimizer option the co-adaptation loop fills with
-    that fact of the run when the run leaves it unset."""
+    that fact of the run when the run leaves it unset. `alias` (optional) is a top-level config
+    key and `coadapt run` option (`--<alias>`, underscores as dashes) that sets this option:
+    kept for the keys of earlier versions."""
 
     name: str
     type: str
@@ -61,6 +63,7 @@ class PluginOption:
     minimum: float | None = None
     maximum: float | None = None
     from_run: str | None = None
+    alias: str | None = None
 
     def __post_init__(self) -> None:
         if self.type not in OPTION_TYPES:
@@ -119,11 +122,12 @@ class PluginOption:
         return kind
 
     def to_dict(self) -> dict[str, Any]:
-        return {
+        out = {
             "name": self.name, "type": self.type, "default": self.default, "help": self.help,
             "choices": None if self.choices is None else list(self.choices),
             "minimum": self.minimum, "maximum": self.maximum,
         }
+        return out | ({"alias": self.alias} if self.alias else {})
 
 
 def resolve_options(
@@ -181,6 +185,8 @@ def check_specs(specs: Any, owner: str) -> tuple[PluginOption, ...]:
         if spec.name in names:
             raise TypeError(f"{owner}: option '{spec.name}' is declared twice")
         names.add(spec.name)
+        if spec.alias is not None and not (isinstance(spec.alias, str) and spec.alias.isidentifier()):
+            raise TypeError(f"{owner}: option '{spec.name}' has alias {spec.alias!r}; use a name like 'my_option'")
         if spec.default is not None:
             spec.convert(spec.default, owner, "option_specs")
     return tuple(specs)

@@ -113,6 +113,16 @@ class Registry:
             raise UnknownPluginError(kind, "(default)", [], [b.line() for b in self.broken])
         return min(infos, key=lambda i: (-int(getattr(i.cls, "default_rank", 0)), i.name)).name
 
+    def defaults(self, kind: str) -> list[str]:
+        """The names a command takes for `kind` when it takes several and none is given (the
+        objectives of a grid): every registered class with a positive `default_rank`, lowest
+        rank first, so the default of the kind (`default`) comes last; ties by name. A kind
+        where none declares a rank gives its default alone."""
+        ranked = [i for i in self.entries[kind].values() if int(getattr(i.cls, "default_rank", 0)) > 0]
+        if not ranked:
+            return [self.default(kind)]
+        return [i.name for i in sorted(ranked, key=lambda i: (int(getattr(i.cls, "default_rank", 0)), i.name))]
+
     def create(self, kind: str, name: str, *args: Any, **kwargs: Any) -> Any:
         return self.get(kind, name)(*args, **kwargs)
 

@@ -4,8 +4,10 @@ A settings class is a pydantic dataclass made with `@settings`; each field is de
 `setting(default, help, **constraints)`. From that one definition coadapt derives
 
 - the YAML keys of a config file (nested sections are nested mappings),
-- the command-line options of `coadapt run` (`leaves` walks the tree; a nested key
-  `task.commands.yaw_range` becomes `--task-commands-yaw-range`),
+- the command-line options of `coadapt run` and of the other commands with a settings
+  class (`leaves` walks the tree; a nested key `task.commands.yaw_range` becomes
+  `--task-commands-yaw-range`); a setting two commands share is declared in one of them
+  and taken as it is by the other (`shared`),
 - the checks: a bad value is a one-line `UserError` naming the key and what is accepted
   (`user_error` turns pydantic's report into that line),
 - the table of settings in docs/settings.md (`coadapt_core.coadapt.config.settings_markdown`).
@@ -119,13 +121,51 @@ def setting(
     return Field(default, **kwargs)
 
 
+@dataclasses.dataclass(frozen=True)
+class _Shared:
+    source: type
+    name: str | None
+    default: Any
+
+
+def shared(source: type, name: str | None = None, *, default: Any = dataclasses.MISSING) -> Any:
+    """A setting declared once, in settings class `source`, that another command's settings
+    class takes as it is: type, help, constraints and (unless `default` is given) default.
+    `name` is the field's name in `source` when it differs. The annotation written beside
+    it is ignored (`Any` reads best): `terrain: Any = shared(CoadaptConfig)`."""
+    return _Shared(source, name, default)
+
+
+def _take_shared(cls: type) -> None:
+    """Replace the `shared(...)` fields of class `cls` with their declarations."""
+    import inspect
+
+    annotations = dict(inspect.get_annotations(cls))
+    for name, value in list(vars(cls).items()):
+        if not isinstance(value, _Shared):
+            continue
+        info = value.source.__pydantic_fields__[value.name or name]
+        annotations[name] = Annotated[(info.annotation, *info.metadata)] if info.metadata else info.annotation
+        extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
+        kwargs: dict[str, Any] = dict(description=info.description, json_schema_extra={**extra, "shared": value.source})
+        if value.default is not dataclasses.MISSING:
+            setattr(cls, name, Field(value.default, **kwargs))
+        elif info.default_factory is not None:
+            setattr(cls, name, Field(default_factory=info.default_factory, **kwargs))
+        else:
+            setattr(cls, name, Field(info.default, **kwargs))
+    cls.__annotations__ = annotations
+
+
 def settings(cls: type | None = None, *, prefix: str = "") -> Any:
     """Class decorator: `cls` as a pydantic dataclass whose construction turns a bad value
     into a one-line `UserError` (an error a `__post_init__` raises is passed on as is).
     `prefix` names the section in messages when the class is built on its own
-    (`@settings(prefix="train")`: "train.epochs must be ...")."""
+    (`@settings(prefix="train")`: "train.epochs must be ..."). Fields given as `shared(...)`
+    take another class's declaration."""
     if cls is None:
         return lambda c: settings(c, prefix=prefix)
+    _take_shared(cls)
     cls = _pydantic_dataclass(cls, config=SETTINGS_CONFIG)
     init = cls.__init__
 
@@ -417,6 +457,7 @@ __all__ = [
     "sections",
     "setting",
     "settings",
+    "shared",
     "to_plain",
     "user_error",
 ]

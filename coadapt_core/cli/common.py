@@ -157,6 +157,19 @@ def config_default(name: str) -> str | None:
     if found is None:
         return None
     leaf, values = found
+    if leaf.extra.get("plugin") or leaf.extra.get("unset"):
+        return leaf_default(leaf)
+    if all(v in ("", None) for v in values.values()):
+        return None  # the help text says what an empty value means
+    if len(set(map(repr, values.values()))) == 1:
+        return show_default(next(iter(values.values())))
+    return ", ".join(f"{show_default(v)} ({p})" for p, v in values.items())
+
+
+def leaf_default(leaf: Any) -> str | None:
+    """A setting's default as help and docs/settings.md show it: for a plugin, the rule and
+    the plugin it picks now (`default_rank`); for an override, what unset means; a default
+    its help writes "(default: ...)"; else the declared value (None: nothing to show)."""
     if leaf.extra.get("plugin"):  # declared by the plugins themselves (`default_rank`)
         rule = f"the installed {leaf.extra['plugin']} of highest default_rank"
         try:
@@ -165,11 +178,34 @@ def config_default(name: str) -> str | None:
             return rule
     if leaf.extra.get("unset"):
         return f"{leaf.extra['unset']}, else {show_default(leaf.extra['base_default'])}"
-    if all(v in ("", None) for v in values.values()):
-        return None  # the help text says what an empty value means
-    if len(set(map(repr, values.values()))) == 1:
-        return show_default(next(iter(values.values())))
-    return ", ".join(f"{show_default(v)} ({p})" for p, v in values.items())
+    found = _HAND_DEFAULT.search(leaf.help)
+    if found:
+        return (found.group(1) or found.group(2) or "").strip()
+    try:
+        value = leaf.default
+    except Exception:  # a default from the registry, which cannot be built: the command says why
+        return None
+    return None if value in ("", None) or value == {} else show_default(value)
+
+
+def command_options(cls: type, *, aliases: dict[str, tuple[str, ...]] | None = None) -> list[tuple[str, Any, Any, Any]]:
+    """`settings_options` for a command whose settings come from the command line alone
+    (no preset, no YAML file): each option's help ends with its default (`leaf_default`)."""
+    out = settings_options(cls, aliases=aliases)
+    for _, _, option, leaf in out:
+        default = leaf_default(leaf)
+        if default and not _HAND_DEFAULT.search(option.help or ""):
+            option.help = f"{option.help} [default: {default}]"
+    return out
+
+
+def command_settings(cls: type, values: dict[str, Any], options: list[tuple[str, Any, Any, Any]]) -> Any:
+    """The settings object of a command from its option values (`command_options`): the
+    options given over the declared defaults, checked; a bad value is one line, exit 2."""
+    try:
+        return cls(**given_settings(values, options))
+    except UserError as exc:
+        fail(str(exc))
 
 
 def show_default(value: object) -> str:

@@ -4,11 +4,46 @@ from __future__ import annotations
 
 import json
 import shlex
+from typing import Any
 
 import typer
 
-from coadapt_core.cli.common import ctrl_c_once, default_help, interrupted, invocation, plugin_name
+from coadapt_core.cli.common import (
+    command_options,
+    command_settings,
+    ctrl_c_once,
+    interrupted,
+    invocation,
+    with_options,
+)
+from coadapt_core.coadapt.config import CoadaptConfig
 from coadapt_core.methods import METHOD_NAMES
+from coadapt_core.physics.terrain import TERRAINS
+from coadapt_core.plugins import default_plugin, get_registry
+from coadapt_core.settings import Float, Int, setting, settings, shared
+
+
+@settings
+class GridSettings:
+    """Every setting of `coadapt grid`: each field is an option (`--run-arg` aside); the
+    settings it shares with `coadapt run` are `CoadaptConfig`'s own declarations."""
+
+    methods: str = setting(",".join(METHOD_NAMES), "Comma list of methods.")
+    objectives: str = setting(default_factory=lambda: ",".join(get_registry().defaults("objective")),
+                              help="Comma list of objectives (one cell each).")
+    terrains: str = setting(",".join(TERRAINS), "Comma list of terrains.")
+    seeds: str = setting("0,1,2", "Comma list of integer seeds.")
+    preset: str = setting("quick", "`coadapt run` preset for every cell.")
+    sim: Any = shared(CoadaptConfig)
+    robots: str = setting(default_factory=lambda: default_plugin("robot"), plugin="robot",
+                          help="Comma list of robots (one cell each; the cell key names it).")
+    optimizer: str | None = setting(None, "Optimizer for every cell (default: each method's own).")
+    executor: str = setting("local", "local (process pool on this machine) or ray.")
+    address: str | None = setting(None, "Ray cluster address (default: start a local Ray instance).")
+    workers: Int | None = setting(None, "Cells at once (default: the number of cores).")
+    store: str | None = setting(None, "Results store: a path or SQLAlchemy URL (default: $COADAPT_STORE or ./coadapt.db).")
+    out: str = setting("runs", "Folder for run folders and cell logs.")
+    timeout: Float | None = setting(None, "Seconds before a cell is killed (default: none).")
 
 
 def _check_cells(app: typer.Typer, spec, out: str, store_url: str) -> None:
@@ -35,114 +70,122 @@ def _check_cells(app: typer.Typer, spec, out: str, store_url: str) -> None:
             fail(f"grid cell {cell.key}: {message}; nothing was started")
 
 
+def _command_options() -> list[tuple[str, Any, Any]]:
+    """`coadapt grid` options that are not settings: (name, type, typer.Option)."""
+    return [
+        ("dry_run", bool, typer.Option(False, "--dry-run", help="Print the plan (skip / resume / new per cell) and run nothing.")),
+        ("as_json", bool, typer.Option(False, "--json", help="Print a JSON summary as the last line.")),
+        ("run_arg", list[str], typer.Option(None, "--run-arg", help="Extra argument passed to every `coadapt run` (repeatable), e.g. --run-arg=--device=cuda.")),
+    ]
+
+
+def _spec(s: GridSettings, run_arg: list[str] | None) -> Any:
+    from coadapt_core.experiments.grid import GridSpec, parse_list
+
+    return GridSpec(
+        methods=parse_list(s.methods, "methods"),
+        objectives=parse_list(s.objectives, "objectives"),
+        terrains=parse_list(s.terrains, "terrains"),
+        seeds=parse_list(s.seeds, "seeds", integers=True),
+        preset=s.preset,
+        sim=s.sim,
+        optimizer=s.optimizer,
+        extra_args=list(run_arg or []),
+        robots=parse_list(s.robots, "robots"),
+    )
+
+
+def _print_plan(results: Any, spec: Any, out: str) -> None:
+    """--dry-run: each cell skipped (finished), resumed or new, and the counts."""
+    from coadapt_core.experiments.grid import plan_grid
+
+    tasks, skipped = plan_grid(results, spec, out_dir=out)
+    for cell in skipped:
+        print(f"skip    {cell.key}")
+    for task in tasks:
+        print(f"{'resume' if task.resume else 'new':7} {task.cell.key}" + (f" (run {task.resume})" if task.resume else ""))
+    print(f"grid {spec.grid_id}: {len(skipped)} finished, {len(tasks)} to run")
+
+
+def _short(key: str) -> str:
+    """A cell key as the progress line shows it: robot/method/objective/terrain/s<seed>."""
+    fields = dict(part.split("=", 1) for part in key.split("|"))
+    robot = f"{fields['robot']}/" if "robot" in fields else ""
+    return f"{robot}{fields['method']}/{fields['objective']}/{fields['terrain']}/s{fields['seed']}"
+
+
+def _run(s: GridSettings, spec: Any, results: Any, command_line: str) -> Any:
+    """Run the grid's cells with a progress line (failed cells said as they fail); Ctrl-C
+    says how many finished and how to continue."""
+    from rich.console import Console
+
+    from coadapt_core.cli.progress import ProgressLine
+    from coadapt_core.experiments.grid import default_workers, run_grid
+
+    console = Console(stderr=True)
+    counts = {"finished": 0, "failed": 0, "skipped": 0}
+    started: list[str] = []  # cells handed to the executor, in the order it starts them
+    done: set[str] = set()
+    width = s.workers or default_workers()
+    with ProgressLine("grid", None, unit=" cells") as line:
+
+        def on_event(kind, cell, outcome):
+            if kind == "started":
+                started.append(cell.key)
+                line.total = len(started)  # shown from the first finished cell on
+                return
+            counts[kind] += 1
+            if kind == "skipped":
+                return
+            done.add(cell.key)
+            running = [k for k in started if k not in done][:width]
+            line.update(len(done), f"failed {counts['failed']}, skipped {counts['skipped']}; running "
+                        + (", ".join(_short(k) for k in running) or "-"))
+            if kind == "failed":
+                console.print(f"[red]failed[/red] {cell.key}: {outcome.error}")
+
+        try:
+            with ctrl_c_once():
+                return run_grid(spec, results, executor=s.executor, workers=s.workers, address=s.address,
+                                out_dir=s.out, timeout=s.timeout, on_event=on_event)
+        except KeyboardInterrupt as exc:
+            line.close()
+            stopped = getattr(exc, "report", None)
+            done_cells = len(stopped.finished) + len(stopped.skipped) if stopped is not None else 0
+            results.close()
+            interrupted(f"grid {spec.grid_id} stopped ({done_cells} cells finished; the running cells keep their "
+                        "last state and resume, the rest start)", command_line)
+
+
 def register(app: typer.Typer) -> None:
-    @app.command("grid")
-    def grid_command(
-        methods: str = typer.Option(",".join(METHOD_NAMES), help="Comma list of methods."),
-        objectives: str = typer.Option("tracking,power,torque", help="Comma list of objectives (one cell each)."),
-        terrains: str = typer.Option("flat,slope,random", help="Comma list of terrains."),
-        seeds: str = typer.Option("0,1,2", help="Comma list of integer seeds."),
-        preset: str = typer.Option("quick", help="`coadapt run` preset for every cell."),
-        sim: str = typer.Option(None, help=default_help("simulator", "Simulator for every cell.")),
-        robots: str = typer.Option(None, "--robots", "--robot", help=default_help("robot", "Comma list of robots (one cell each; the cell key names it).")),
-        optimizer: str = typer.Option(None, help="Optimizer for every cell (default: each method's own)."),
-        executor: str = typer.Option("local", help="local (process pool on this machine) or ray."),
-        address: str = typer.Option(None, help="Ray cluster address (default: start a local Ray instance)."),
-        workers: int = typer.Option(None, help="Cells at once (default: the number of cores)."),
-        store: str = typer.Option(None, "--store", help="Results store: a path or SQLAlchemy URL (default $COADAPT_STORE or ./coadapt.db)."),
-        out: str = typer.Option("runs", "--out", help="Folder for run folders and cell logs."),
-        timeout: float = typer.Option(None, help="Seconds before a cell is killed (default: none)."),
-        dry_run: bool = typer.Option(False, "--dry-run", help="Print the plan (skip / resume / new per cell) and run nothing."),
-        as_json: bool = typer.Option(False, "--json", help="Print a JSON summary as the last line."),
-        run_arg: list[str] = typer.Option(None, "--run-arg", help="Extra argument passed to every `coadapt run` (repeatable), e.g. --run-arg=--device=cuda."),
-    ) -> None:
+    options = command_options(GridSettings, aliases={"robots": ("--robot",)})
+
+    def grid_command(**values: Any) -> None:
         """Run an ablation grid locally or on a Ray cluster, skipping cells the store holds
         as finished and resuming cells a killed grid left unfinished."""
         from rich.console import Console
 
-        from coadapt_core.experiments.grid import (
-            GridSpec,
-            check_grid_options,
-            parse_list,
-            plan_grid,
-            run_grid,
-        )
+        from coadapt_core.experiments.grid import check_grid_options
         from coadapt_core.results.store import ResultsStore
 
         command_line = shlex.join(["coadapt", *invocation()])  # before the cells' checks run `coadapt run`
-        spec = GridSpec(
-            methods=parse_list(methods, "methods"),
-            objectives=parse_list(objectives, "objectives"),
-            terrains=parse_list(terrains, "terrains"),
-            seeds=parse_list(seeds, "seeds", integers=True),
-            preset=preset,
-            sim=plugin_name("simulator", sim),
-            optimizer=optimizer,
-            extra_args=list(run_arg or []),
-            robots=parse_list(robots, "robots") if robots else [plugin_name("robot", None)],
-        )
-        check_grid_options(executor=executor, workers=workers, timeout=timeout, address=address)
-        results = ResultsStore(store)
-        _check_cells(app, spec, out, results.url)  # every cell's arguments, before any cell starts
-        console = Console(stderr=True)
-        if dry_run:
-            tasks, skipped = plan_grid(results, spec, out_dir=out)
-            for cell in skipped:
-                print(f"skip    {cell.key}")
-            for task in tasks:
-                print(f"{'resume' if task.resume else 'new':7} {task.cell.key}" + (f" (run {task.resume})" if task.resume else ""))
-            print(f"grid {spec.grid_id}: {len(skipped)} finished, {len(tasks)} to run")
+        s = command_settings(GridSettings, values, options)
+        spec = _spec(s, values["run_arg"])
+        check_grid_options(executor=s.executor, workers=s.workers, timeout=s.timeout, address=s.address)
+        results = ResultsStore(s.store)
+        _check_cells(app, spec, s.out, results.url)  # every cell's arguments, before any cell starts
+        if values["dry_run"]:
+            _print_plan(results, spec, s.out)
             return
-        counts = {"finished": 0, "failed": 0, "skipped": 0}
-        started: list[str] = []  # cells handed to the executor, in the order it starts them
-        done: set[str] = set()
-        from coadapt_core.cli.progress import ProgressLine
-        from coadapt_core.experiments.grid import default_workers
-
-        width = workers or default_workers()
-
-        def short(key: str) -> str:
-            fields = dict(part.split("=", 1) for part in key.split("|"))
-            robot = f"{fields['robot']}/" if "robot" in fields else ""
-            return f"{robot}{fields['method']}/{fields['objective']}/{fields['terrain']}/s{fields['seed']}"
-
-        with ProgressLine("grid", None, unit=" cells") as line:
-
-            def on_event(kind, cell, outcome):
-                if kind == "started":
-                    started.append(cell.key)
-                    line.total = len(started)  # shown from the first finished cell on
-                    return
-                counts[kind] += 1
-                if kind == "skipped":
-                    return
-                done.add(cell.key)
-                running = [k for k in started if k not in done][:width]
-                line.update(len(done), f"failed {counts['failed']}, skipped {counts['skipped']}; running "
-                            + (", ".join(short(k) for k in running) or "-"))
-                if kind == "failed":
-                    console.print(f"[red]failed[/red] {cell.key}: {outcome.error}")
-
-            try:
-                with ctrl_c_once():
-                    report = run_grid(
-                        spec, results, executor=executor, workers=workers, address=address, out_dir=out,
-                        timeout=timeout, on_event=on_event,
-                    )
-            except KeyboardInterrupt as exc:
-                line.close()
-                stopped = getattr(exc, "report", None)
-                done_cells = len(stopped.finished) + len(stopped.skipped) if stopped is not None else 0
-                results.close()
-                interrupted(f"grid {spec.grid_id} stopped ({done_cells} cells finished; the running cells keep their "
-                            "last state and resume, the rest start)",
-                            command_line)
+        report = _run(s, spec, results, command_line)
         results.close()
-        console.print(
+        Console(stderr=True).print(
             f"grid {report.grid_id}: {len(report.finished)} finished, {len(report.skipped)} skipped "
             f"(already finished), {len(report.resumed)} resumed, {len(report.failed)} failed"
         )
-        if as_json:
+        if values["as_json"]:
             print(json.dumps(report.to_dict()))
         if report.failed:
             raise typer.Exit(1)
+
+    app.command("grid")(with_options(grid_command, options, _command_options()))

@@ -6,19 +6,49 @@ import json
 import shlex
 import sys
 from pathlib import Path
+from typing import Any
 
 import typer
 
 from coadapt_core.cli.common import (
-    choice_help,
+    command_options,
+    command_settings,
     ctrl_c_once,
-    default_help,
     fail,
     interrupted,
     invocation,
-    plugin_name,
     resolve,
+    with_options,
 )
+from coadapt_core.coadapt.config import CoadaptConfig
+from coadapt_core.plugins import default_plugin
+from coadapt_core.settings import Int, setting, settings, shared
+
+
+@settings
+class LandscapeSettings:
+    """Every setting of `coadapt landscape`: each field is an option (`--cost-cap`); the
+    settings it shares with `coadapt run` are `CoadaptConfig`'s own declarations."""
+
+    objective: str = setting(default_factory=lambda: default_plugin("objective"), plugin="objective",
+                             help="Objective (comma list for several).")
+    grid: Int = setting(11, "Points per axis (grid x grid designs).", ge=2, le=101)
+    terrain: Any = shared(CoadaptConfig)
+    sim: Any = shared(CoadaptConfig)
+    robot: Any = shared(CoadaptConfig)
+    checkpoint: str = setting("", "Universal policy checkpoint (default: the robot's shipped policy for the terrain).")
+    agents: Int | None = setting(None, "Paired scenarios (agents) per design (default: the quick preset's evaluation "
+                                 "size).", ge=1)
+    steps: Int | None = setting(None, "Policy steps per agent, T_eval (default: the quick preset's).", ge=1)
+    seed: Any = shared(CoadaptConfig)
+    cost_rule: Any = shared(CoadaptConfig)
+    cost_cap: Any = shared(CoadaptConfig)
+    device: Any = shared(CoadaptConfig)
+    store: str = setting("", "Results store: a path or SQLAlchemy URL (default: $COADAPT_STORE or ./coadapt.db).")
+
+    @property
+    def objectives(self) -> list[str]:
+        return [o.strip() for o in self.objective.split(",") if o.strip()]
 
 
 def landscape_line(summary: dict, agents: int, steps: int, unit: str = "") -> str:
@@ -66,118 +96,119 @@ def with_resume(argv: list[str], run_id: str) -> list[str]:
     return [*out, "--resume", run_id]
 
 
+def _command_options() -> list[tuple[str, Any, Any]]:
+    """`coadapt landscape` options that are not settings: (name, type, typer.Option)."""
+    return [
+        ("resume", str, typer.Option(None, "--resume", help="Continue an interrupted landscape run (its id).")),
+        ("as_json", bool, typer.Option(False, "--json", help="Print the summary as JSON on the last line.")),
+    ]
+
+
+def _checkpoint(s: LandscapeSettings, robot_cls: type) -> Path:
+    """The policy the landscape evaluates: --checkpoint (made for this robot), else the one
+    the robot ships for the terrain; one line and exit 2 otherwise."""
+    if not s.checkpoint:
+        shipped = robot_cls().shipped_policy(s.terrain, False)
+        if shipped is None:
+            fail(f"no --checkpoint given and robot '{s.robot}' ships no policy for terrain '{s.terrain}'; "
+                 f"train one with `coadapt train --robot {s.robot} --terrain {s.terrain}` or pass a run's checkpoint")
+        return Path(shipped)
+    checkpoint = Path(s.checkpoint)
+    if not checkpoint.exists():
+        fail(f"--checkpoint {checkpoint} does not exist")
+    from coadapt_core.learning import read_checkpoint
+
+    trained_for = read_checkpoint(checkpoint).get("robot")  # weights_only=True; one line if not a checkpoint
+    if trained_for != s.robot:
+        fail(f"--checkpoint {checkpoint} was trained for robot '{trained_for}', not '{s.robot}'")
+    return checkpoint
+
+
+def _evaluation_size(s: LandscapeSettings) -> tuple[int, int]:
+    """(agents, steps): the settings', else the quick preset's evaluation size."""
+    from coadapt_core.coadapt.config import PRESETS
+
+    quick = PRESETS["quick"]
+    agents = s.agents if s.agents is not None else (quick.get("eval_agents") or quick["agents_per_design"])
+    return agents, s.steps if s.steps is not None else quick["eval_steps"]
+
+
+def _prepare(s: LandscapeSettings, resume: str | None) -> dict[str, Any]:
+    """Everything the landscape runs with, checked (one line and exit 2 otherwise): backend,
+    objectives, design space, recorder, recorded config and evaluation size."""
+    from coadapt_core.errors import BackendUnavailable
+    from coadapt_core.learning.factory import make_backend, resolve_plugins
+    from coadapt_core.results.recorders import SqliteRecorder
+
+    for name in s.objectives:
+        resolve("objective", name)
+    resolve("simulator", s.sim)
+    robot_cls = resolve("robot", s.robot)
+    agents, steps = _evaluation_size(s)
+    checkpoint = _checkpoint(s, robot_cls)
+    robot_obj = robot_cls()
+    space = robot_obj.design_space()
+    try:
+        robot_obj, sim_cls, objectives = resolve_plugins(robot_obj, s.sim, s.objectives)
+        backend = make_backend(robot_obj, sim_cls, objectives, terrain=s.terrain, design_space=space,
+                               checkpoint=str(checkpoint), agents_per_design=agents, device=s.device, seed=s.seed)
+    except BackendUnavailable as exc:
+        fail(f"cannot evaluate designs: {exc}")
+    recorder = SqliteRecorder(s.store or None)
+    config = {"objective": ",".join(s.objectives), "terrain": s.terrain, "sim": s.sim, "robot": s.robot,
+              "checkpoint": str(checkpoint), "device": s.device, "design_space": space.to_dict()}
+    if resume:
+        if not recorder.store.has_run(resume):
+            fail(f"--resume: run '{resume}' is not in store {recorder.url}")
+        config["run_id"] = resume
+    return dict(backend=backend, objectives=objectives, recorder=recorder, config=config, low=space.lower[:2],
+                high=space.upper[:2], nominal=robot_obj.nominal_design(), agents=agents, steps=steps)
+
+
+def _run(s: LandscapeSettings, job: dict[str, Any]) -> dict[str, Any]:
+    """Run the landscape with a progress line; Ctrl-C says how to resume it."""
+    from coadapt_core.cli.progress import ProgressLine
+    from coadapt_core.experiments.landscape import run_landscape
+    from coadapt_core.fitness import CostRule
+
+    started: list[str] = []
+    argv = invocation()
+    agents, steps, recorder = job["agents"], job["steps"], job["recorder"]
+    with ctrl_c_once(), ProgressLine("landscape", s.grid, unit=" rows") as line:
+
+        def on_row(row: int, total: int) -> None:
+            line.update(row + 1, f"{s.grid} designs a row, {agents} agents x {steps} steps each", total=total)
+
+        def on_start(run_id: str) -> None:
+            started.append(run_id)
+            print(f"landscape {run_id}: store {recorder.url}", file=sys.stderr, flush=True)
+
+        try:
+            return run_landscape(
+                job["backend"], job["objectives"], recorder, config=job["config"], grid=s.grid, low=job["low"],
+                high=job["high"], nominal=job["nominal"], agents=agents, steps=steps, seed=s.seed, on_row=on_row,
+                rule=CostRule(s.cost_rule, s.cost_cap), on_start=on_start,
+            )
+        except KeyboardInterrupt:
+            line.close()
+            if not started:
+                interrupted("the landscape had not started; nothing to resume", None)
+            interrupted(f"landscape {started[0]} stopped; its finished rows are stored and the store marks it "
+                        "interrupted", shlex.join(["coadapt", *with_resume(argv, started[0])]))
+
+
 def register(app: typer.Typer) -> None:
-    @app.command("landscape")
-    def landscape_command(
-        objective: str = typer.Option("torque", help=choice_help("objective", "Objective (comma list for several).")),
-        grid: int = typer.Option(11, help="Points per axis (grid x grid designs)."),
-        terrain: str = typer.Option("flat", help="Terrain: flat, slope or random."),
-        sim: str = typer.Option(None, help=default_help("simulator", "Simulator backend.")),
-        robot: str = typer.Option(None, help=default_help("robot", "Robot.")),
-        checkpoint: Path = typer.Option(None, help="Universal policy checkpoint (default: the robot's shipped policy for the terrain)."),
-        agents: int = typer.Option(None, help="Paired scenarios (agents) per design (default: the quick preset's evaluation size)."),
-        steps: int = typer.Option(None, help="Policy steps per agent, T_eval (default: the quick preset's)."),
-        seed: int = typer.Option(0, help="Random seed."),
-        cost_rule: str = typer.Option("capped", "--cost-rule", help="How scenarios make a cost: capped, mean (eq. 4) or trimmed (docs/settings.md)."),
-        cost_cap: float = typer.Option(3.0, "--cost-cap", help="capped rule: cap and fall cost in units of the nominal design's median scenario."),
-        device: str = typer.Option("cpu", help="Torch device for the policy."),
-        resume: str = typer.Option(None, "--resume", help="Continue an interrupted landscape run (its id)."),
-        store: str = typer.Option(None, "--store", help="Results store: a path or SQLAlchemy URL (default $COADAPT_STORE or ./coadapt.db)."),
-        as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON on the last line."),
-    ) -> None:
+    options = command_options(LandscapeSettings)
+
+    def landscape_command(**values: Any) -> None:
         """Evaluate the real cost (Algorithm 2) of a grid over the robot's first two design
         variables (Kuafu: thigh and shank scale) with the universal policy; reports draw it as
         a heat-map and mark each method's optimum."""
-        from coadapt_core.errors import BackendUnavailable
-        from coadapt_core.experiments.landscape import run_landscape
-        from coadapt_core.learning.factory import make_backend, resolve_plugins
-        from coadapt_core.physics.terrain import TERRAINS
-        from coadapt_core.results.recorders import SqliteRecorder
-
-        sim, robot = plugin_name("simulator", sim), plugin_name("robot", robot)
-        names = [o.strip() for o in objective.split(",") if o.strip()]
-        for name in names:
-            resolve("objective", name)
-        resolve("simulator", sim)
-        robot_cls = resolve("robot", robot)
-        if terrain not in TERRAINS:
-            fail(f"--terrain '{terrain}' is not one of {', '.join(TERRAINS)}")
-        from coadapt_core.fitness import COST_RULES, CostRule
-
-        if cost_rule not in COST_RULES:
-            fail(f"--cost-rule '{cost_rule}' is not one of {', '.join(COST_RULES)}")
-        if not cost_cap > 1:
-            fail(f"--cost-cap must be > 1, got {cost_cap}")
-        if grid < 2 or grid > 101:
-            fail(f"--grid must be between 2 and 101 points per axis, got {grid}")
-        from coadapt_core.coadapt.config import PRESETS
-
-        quick = PRESETS["quick"]
-        if agents is None:
-            agents = quick.get("eval_agents") or quick["agents_per_design"]
-        if steps is None:
-            steps = quick["eval_steps"]
-        if agents < 1 or steps < 1:
-            fail("--agents and --steps must be >= 1")
-        from coadapt_core.coadapt.config import check_device
-
-        check_device(device, field="--device")
-        if checkpoint is None:
-            shipped = robot_cls().shipped_policy(terrain, False)
-            if shipped is None:
-                fail(f"no --checkpoint given and robot '{robot}' ships no policy for terrain '{terrain}'; "
-                     f"train one with `coadapt train --robot {robot} --terrain {terrain}` or pass a run's checkpoint")
-            checkpoint = shipped
-        elif not checkpoint.exists():
-            fail(f"--checkpoint {checkpoint} does not exist")
-        else:
-            from coadapt_core.learning import read_checkpoint
-
-            trained_for = read_checkpoint(checkpoint).get("robot")  # weights_only=True; one line if not a checkpoint
-            if trained_for != robot:
-                fail(f"--checkpoint {checkpoint} was trained for robot '{trained_for}', not '{robot}'")
-        robot_obj = robot_cls()
-        space = robot_obj.design_space()
-        try:
-            robot_obj, sim_cls, objectives = resolve_plugins(robot_obj, sim, names)
-            backend = make_backend(robot_obj, sim_cls, objectives, terrain=terrain, design_space=space,
-                                   checkpoint=str(checkpoint), agents_per_design=agents, device=device, seed=seed)
-        except BackendUnavailable as exc:
-            fail(f"cannot evaluate designs: {exc}")
-        low, high = space.lower[:2], space.upper[:2]
-        recorder = SqliteRecorder(store)
-        config = {"objective": ",".join(names), "terrain": terrain, "sim": sim, "robot": robot, "checkpoint": str(checkpoint),
-                  "device": device, "design_space": space.to_dict()}
-        if resume:
-            if not recorder.store.has_run(resume):
-                fail(f"--resume: run '{resume}' is not in store {recorder.url}")
-            config["run_id"] = resume
-
-        from coadapt_core.cli.progress import ProgressLine
-
-        started: list[str] = []
-        argv = invocation()
-        with ctrl_c_once(), ProgressLine("landscape", grid, unit=" rows") as line:
-
-            def on_row(row: int, total: int) -> None:
-                line.update(row + 1, f"{grid} designs a row, {agents} agents x {steps} steps each", total=total)
-
-            def on_start(run_id: str) -> None:
-                started.append(run_id)
-                print(f"landscape {run_id}: store {recorder.url}", file=sys.stderr, flush=True)
-
-            try:
-                summary = run_landscape(
-                    backend, objectives, recorder, config=config, grid=grid, low=low, high=high,
-                    nominal=robot_obj.nominal_design(), agents=agents, steps=steps, seed=seed, on_row=on_row,
-                    rule=CostRule(cost_rule, cost_cap), on_start=on_start,
-                )
-            except KeyboardInterrupt:
-                line.close()
-                if not started:
-                    interrupted("the landscape had not started; nothing to resume", None)
-                interrupted(f"landscape {started[0]} stopped; its finished rows are stored and the store marks it "
-                            "interrupted", shlex.join(["coadapt", *with_resume(argv, started[0])]))
-        print(landscape_line(summary, agents, steps, getattr(objectives[0], "unit", "")))
-        if as_json:
+        s = command_settings(LandscapeSettings, values, options)
+        job = _prepare(s, values["resume"])
+        summary = _run(s, job)
+        print(landscape_line(summary, job["agents"], job["steps"], getattr(job["objectives"][0], "unit", "")))
+        if values["as_json"]:
             print(json.dumps(summary))
+
+    app.command("landscape")(with_options(landscape_command, options, _command_options()))

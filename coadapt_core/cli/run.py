@@ -85,11 +85,15 @@ def _check_run_config(cfg: Any) -> None:
     store = cfg.store or os.environ.get(ENV_STORE) or ""
     if store and store.strip().lower() not in NO_STORE:
         check_database_url(resolve_store_url(store), field="store")
+    from coadapt_core.coadapt.config import option_aliases
+
+    # an optimizer option `storage` is a database URL (a study kept there); named as its alias
     options = getattr(cfg, "optimizer_options", None) or {}
     storage = options.get("storage") if isinstance(options, dict) else None
-    storage = storage or getattr(cfg, "bo_storage", None)
     if storage:
-        check_database_url(str(storage), field="bo_storage")
+        field = next((a.key for a in option_aliases().values()
+                      if (a.field, a.option.name) == ("optimizer_options", "storage")), "optimizer_options.storage")
+        check_database_url(str(storage), field=field)
     Path(cfg.out).mkdir(parents=True, exist_ok=True)  # an OSError here is one line (cli.main)
 
 
@@ -154,13 +158,11 @@ def resume_command(run_id: str, run_dir: Path, *, video: bool = True, as_json: b
     return shlex.join(parts)
 
 
-def _print_summary(summary: dict[str, Any], space_names: list[str] | None, discrete: list[bool] | None = None) -> None:
-    from rich.console import Console
-    from rich.table import Table
-
-    console = Console()
-    names = space_names or [f"x{i}" for i in range(len(summary["best_design"]))]
+def _summary_table(summary: dict[str, Any], names: list[str], discrete: list[bool]) -> Any:
+    """The best and the nominal design with their costs, plain means and fall rates (each
+    +- its standard error), as a rich table."""
     from rich import box
+    from rich.table import Table
 
     # light borders and headers over two lines: 4 design variables and a cost fit 80 columns
     table = Table(title=f"coadapt run {summary['run_id']}", box=box.SIMPLE_HEAD, pad_edge=False, collapse_padding=True)
@@ -175,7 +177,6 @@ def _print_summary(summary: dict[str, Any], space_names: list[str] | None, discr
     for objective in plain:
         table.add_column(f"{objective} plain\nmean +- SE")
     table.add_column("fall rate\n+- SE", min_width=4)
-    discrete = discrete or [False] * len(names)
     best_se, nominal_se = summary.get("best_costs_se") or {}, summary.get("nominal_costs_se") or {}
     plain_se = summary.get("best_plain_means_se") or {}
     nominal_plain, nominal_plain_se = summary.get("nominal_plain_means") or {}, summary.get("nominal_plain_means_se") or {}
@@ -187,26 +188,13 @@ def _print_summary(summary: dict[str, Any], space_names: list[str] | None, discr
                   *[_with_se(summary["nominal_costs"][k], nominal_se.get(k)) for k in summary["best_costs"]],
                   *[_with_se(nominal_plain[k], nominal_plain_se.get(k)) for k in plain],
                   _rate(summary.get("nominal_fall_rate"), summary.get("nominal_fall_rate_se")))
-    console.print(table)
-    blocks, scenarios = summary.get("final_blocks"), summary.get("final_scenarios")
-    if summary.get("cost_rule"):
-        from coadapt_core.fitness import CostRule
+    return table
 
-        rule = CostRule.from_config(summary | {"cost_cap": summary.get("cost_cap")})
-        console.print(f"cost: {rule.describe()}; plain mean: the paper's eq. 4 over the same scenarios")
-    if summary.get("best_is_nominal"):
-        console.print("no candidate beat the nominal design without falling more often than it: the nominal design stands")
-    steps = f" of {summary['eval_steps']} steps" if summary.get("eval_steps") else ""
-    size = f"{scenarios} paired scenarios{steps} per design ({blocks} {'block' if blocks == 1 else 'blocks'}; " \
-        if scenarios else f"paired scenarios{steps} ("
-    console.print(f"costs: per step over the final check's {size}`coadapt run` protocol, not comparable with "
-                  "other commands or sizes); SE = standard error over scenarios")
-    if "starting_policy" in summary:
-        console.print(f"starting policy: {summary['starting_policy'] or 'none (trained from scratch in this run)'}")
-    if summary.get("reliable") is False:
-        console.print(f"[bold red]UNRELIABLE[/]: {summary.get('reliability')}")
-    elif summary.get("reliability"):  # passed, not judged or not measured: said as well
-        console.print(f"walking gate: {summary.get('reliability')}")
+
+def _improvements(summary: dict[str, Any]) -> str:
+    """The improvement over the nominal design, per objective (+- its paired SE; the first
+    said not significant when it is not), the plain means', the fall-rate difference."""
+    scenarios = summary.get("final_scenarios")
     improvement_se = summary.get("improvements_se") or {}
     first = next(iter(summary["improvements"]), None)
     parts = []
@@ -227,8 +215,36 @@ def _print_summary(summary: dict[str, Any], space_names: list[str] | None, discr
         improvements += f"; falls {100 * d:+.1f}{'' if se is None else f' +- {100 * se:.1f}'} points against nominal"
     if scenarios and scenarios < FEW_SCENARIOS:
         improvements += f" (from {scenarios} paired scenarios only: a check that the run is wired, not a result)"
+    return improvements
+
+
+def _print_summary(summary: dict[str, Any], space_names: list[str] | None, discrete: list[bool] | None = None) -> None:
+    from rich.console import Console
+
+    console = Console()
+    names = space_names or [f"x{i}" for i in range(len(summary["best_design"]))]
+    console.print(_summary_table(summary, names, discrete or [False] * len(names)))
+    blocks, scenarios = summary.get("final_blocks"), summary.get("final_scenarios")
+    if summary.get("cost_rule"):
+        from coadapt_core.fitness import CostRule
+
+        rule = CostRule.from_config(summary | {"cost_cap": summary.get("cost_cap")})
+        console.print(f"cost: {rule.describe()}; plain mean: the paper's eq. 4 over the same scenarios")
+    if summary.get("best_is_nominal"):
+        console.print("no candidate beat the nominal design without falling more often than it: the nominal design stands")
+    steps = f" of {summary['eval_steps']} steps" if summary.get("eval_steps") else ""
+    size = f"{scenarios} paired scenarios{steps} per design ({blocks} {'block' if blocks == 1 else 'blocks'}; " \
+        if scenarios else f"paired scenarios{steps} ("
+    console.print(f"costs: per step over the final check's {size}`coadapt run` protocol, not comparable with "
+                  "other commands or sizes); SE = standard error over scenarios")
+    if "starting_policy" in summary:
+        console.print(f"starting policy: {summary['starting_policy'] or 'none (trained from scratch in this run)'}")
+    if summary.get("reliable") is False:
+        console.print(f"[bold red]UNRELIABLE[/]: {summary.get('reliability')}")
+    elif summary.get("reliability"):  # passed, not judged or not measured: said as well
+        console.print(f"walking gate: {summary.get('reliability')}")
     console.print(
-        f"improvement over nominal: {improvements}; interactions {summary['interactions']:,} "
+        f"improvement over nominal: {_improvements(summary)}; interactions {summary['interactions']:,} "
         f"(training {summary['train_interactions']:,}, evaluation {summary['eval_interactions']:,}, "
         f"final check {summary['final_interactions']:,}); {summary['real_evaluations']} real and "
         f"{summary['surrogate_evaluations']} surrogate rounds; {_fmt_duration(summary['seconds'])} wall clock"
@@ -249,16 +265,39 @@ def _command_options() -> list[tuple[str, Any, Any]]:
         ("video", bool, typer.Option(True, "--video/--no-video", help="End by rendering the best and the nominal design walking side by side: <run folder>/best_vs_nominal.gif (and .mp4 with ffmpeg).")),
         ("optimizer_option", list[str], typer.Option(None, "--optimizer-option", help="KEY=VALUE: an option the optimizer plugin declares (repeatable; `coadapt plugins --json` lists them); wins over the YAML file's optimizer_options.")),
         ("objective_option", list[str], typer.Option(None, "--objective-option", help="KEY=VALUE: an option the objective plugin declares (repeatable); wins over the YAML file's objective_options.")),
-        ("objective_weights", str, typer.Option(None, help="Alias of --objective-option weights=... (composite weights, e.g. tracking=1,power=1,torque=1).")),
-        ("inertia", float, typer.Option(None, help="Alias of --optimizer-option inertia=... (swarm optimizers).")),
-        ("c1", float, typer.Option(None, help="Alias of --optimizer-option c1=... (swarm optimizers).")),
-        ("c2", float, typer.Option(None, help="Alias of --optimizer-option c2=... (swarm optimizers).")),
-        ("bo_sampler", str, typer.Option(None, help="Alias of --optimizer-option sampler=... (BO: tpe or gp).")),
-        ("bo_storage", str, typer.Option(None, help="Alias of --optimizer-option storage=... (BO: optuna storage URL).")),
+        *_alias_options(),
         ("help_all", bool, typer.Option(False, "--help-all", is_eager=True, callback=help_all,
                                         help="Show every option (training, task, randomization, ...) and exit.")),
         ("check", bool, typer.Option(False, "--check", hidden=True, help="Check the options (config, plugins, store, --out) and exit without running.")),
     ]
+
+
+def _alias_options() -> list[tuple[str, Any, Any]]:
+    """`--<alias>` for every plugin option an installed plugin declares an alias for
+    (`PluginOption.alias`: the keys of earlier versions), as (name, type, typer.Option)."""
+    from coadapt_core.coadapt.config import option_aliases
+    from coadapt_core.settings import leaves
+
+    taken = {leaf.param for leaf in leaves(_config_class())} | _COMMAND_NAMES
+    out = []
+    for key, alias in option_aliases().items():
+        if key in taken:
+            continue
+        spec, kind = alias.option, alias.field.removesuffix("_options")
+        text = f"Alias of --{kind}-option {spec.name}=... ({', '.join(alias.plugins)}: {spec.help})."
+        out.append((key, {"float": float, "int": int}.get(spec.type, str), typer.Option(None, help=text)))
+    return out
+
+
+#: the parameters of `coadapt run` that are not config settings nor aliases
+_COMMAND_NAMES = frozenset({"config", "resume", "as_json", "video", "optimizer_option", "objective_option",
+                            "help_all", "check"})
+
+
+def _config_class() -> type:
+    from coadapt_core.coadapt.config import CoadaptConfig
+
+    return CoadaptConfig
 
 
 def config_options() -> list[tuple[str, Any, Any, Any]]:
@@ -268,105 +307,126 @@ def config_options() -> list[tuple[str, Any, Any, Any]]:
     return settings_options(CoadaptConfig, aliases=OPTION_ALIASES)
 
 
+def _resume_folder(resume: str, out: str | None) -> Path:
+    """The folder of the run --resume names: a run id is looked up inside --out first (the
+    grid resumes by id); otherwise --resume is the run folder itself."""
+    from coadapt_core.validation import is_run_id, run_folder
+
+    run_dir = run_folder(out or "runs", resume, field="resume") if is_run_id(resume) else Path(resume)
+    if not run_dir.is_dir() and is_run_id(resume) and Path(resume).is_dir():
+        run_dir = Path(resume)
+    if not run_dir.is_dir():
+        fail(f"--resume: no run '{resume}' under {out or 'runs'}/ (and no such folder)")
+    return run_dir
+
+
+def _new_config(values: dict[str, Any], overrides: dict[str, Any]) -> Any:
+    """The config of a new run (preset, YAML file, options), its plugins resolved; None
+    after `--check` (`coadapt grid` checks every cell's arguments before it starts any)."""
+    from coadapt_core.coadapt.config import make_config
+    from coadapt_core.options import parse_assignments
+
+    if values["optimizer_option"]:
+        overrides["optimizer_options"] = parse_assignments(values["optimizer_option"], "optimizer_options")
+    if values["objective_option"]:
+        overrides["objective_options"] = parse_assignments(values["objective_option"], "objective_options")
+    cfg = make_config(values["preset"], values["config"], overrides)
+    if cfg.checkpoint.strip() and Path(cfg.checkpoint.strip()).is_dir():
+        from coadapt_core.io import checkpoint_path
+
+        # a `coadapt train --out` folder: its newest checkpoint, recorded as that file
+        cfg.checkpoint = str(checkpoint_path(cfg.checkpoint.strip(), field="--checkpoint"))
+    resolve("optimizer", cfg.optimizer)
+    check_logger(cfg.logger)  # wandb asked for but not installed: one line, exit 2
+    resolve("simulator", cfg.sim)
+    resolve("robot", cfg.robot)
+    for name in cfg.objectives:
+        resolve("objective", name)
+    if values["check"]:
+        _check_run_config(cfg)
+        return None
+    if cfg.checkpoint.strip().lower() == "none":
+        from coadapt_core.coadapt.reliability import WALKING_GATE
+
+        print(f"note: no starting policy (--checkpoint none): robot '{cfg.robot}' is trained from "
+              f"scratch in this run; its result is marked unreliable unless the real rounds pass "
+              f"the walking gate ({WALKING_GATE.describe()})", file=sys.stderr)
+    return cfg
+
+
+def _run_loop(cfg: Any, kwargs: dict[str, Any], values: dict[str, Any]) -> Any:
+    """Run (or resume) the loop with the progress line and, at its end, the video; Ctrl-C
+    says where the run stopped and the exact command that continues it."""
+    from coadapt_core.coadapt.run import run_coadaptation
+
+    resume, out, video, as_json = values["resume"], values["out"], values["video"], values["as_json"]
+    started: dict[str, Any] = {}
+
+    def on_start(run_id: str, run_dir: Path) -> None:
+        started.update(run_id=run_id, run_dir=run_dir)
+        view.announce = f"run {run_id}: {run_dir}"
+
+    def finishing(result: Any) -> None:
+        view.close()
+        # a finished run resumed again keeps the video it has
+        if video and not (resume and (result.run_dir / "best_vs_nominal.gif").is_file()):
+            _render_video(result.run_dir, result.summary, progress=not as_json)
+
+    with ctrl_c_once(), _ProgressView(enabled=not as_json) as view:
+        try:
+            return run_coadaptation(cfg, progress=view, on_start=on_start, finishing=finishing, **kwargs)
+        except KeyboardInterrupt:
+            view.close()
+            if not started and resume:  # stopped while loading it: it is where it was
+                import shlex
+
+                interrupted(f"run {resume} was not continued", shlex.join(
+                    ["coadapt", "run", "--resume", resume, *(["--out", out] if out and out != "runs" else [])]))
+            if not started:
+                interrupted("the run had not started; nothing to resume", None)
+            interrupted(f"run {started['run_id']} stopped; its folder {started['run_dir']} keeps the last state",
+                        resume_command(started["run_id"], started["run_dir"], video=video, as_json=as_json))
+
+
+def _report(result: Any, as_json: bool) -> None:
+    """The run's JSON line, or its table and folder."""
+    summary = result.summary
+    if as_json:
+        print(json.dumps(result.json_line()))
+        return
+    names, discrete = None, None
+    try:
+        from coadapt_core.design_space import DesignSpace
+
+        space = DesignSpace.from_dict(summary["final_space"])
+        names = space.names
+        discrete = [not hasattr(v, "low") for v in space.variables]
+    except Exception:
+        names = None
+    _print_summary(summary, names, discrete)
+    print(f"run folder: {result.run_dir}")
+
+
 def register(app: typer.Typer) -> None:
     settings = config_options()
+    aliases = [name for name, _, _ in _alias_options()]
 
     def run_command(**values: Any) -> None:
         """Co-adapt design and policy: universal policy + pseudo-critics, optimizer with hybrid
         real/surrogate fitness, range narrowing (paper Algorithm 4)."""
-        from coadapt_core.coadapt.config import make_config
-        from coadapt_core.coadapt.run import run_coadaptation
-
-        config, resume, out, preset = values["config"], values["resume"], values["out"], values["preset"]
-        as_json, video, check = values["as_json"], values["video"], values["check"]
-        optimizer_option, objective_option = values["optimizer_option"], values["objective_option"]
         overrides = {leaf.key: values[name] for name, _, _, leaf in settings}
-        for legacy in ("objective_weights", "inertia", "c1", "c2", "bo_sampler", "bo_storage"):
-            overrides[legacy] = values[legacy]
+        for name in aliases:  # keys of earlier versions, declared by the plugins
+            overrides[name] = values[name]
         try:
-            if resume:
-                from coadapt_core.validation import is_run_id, run_folder
-
-                # a run id is looked up inside --out first (the grid resumes by id); otherwise
-                # --resume is the run folder itself
-                run_dir = run_folder(out or "runs", resume, field="resume") if is_run_id(resume) else Path(resume)
-                if not run_dir.is_dir() and is_run_id(resume) and Path(resume).is_dir():
-                    run_dir = Path(resume)
-                if not run_dir.is_dir():
-                    fail(f"--resume: no run '{resume}' under {out or 'runs'}/ (and no such folder)")
-                kwargs: dict[str, Any] = {"resume": run_dir}
-                cfg = None
+            if values["resume"]:
+                cfg, kwargs = None, {"resume": _resume_folder(values["resume"], values["out"])}
             else:
-                from coadapt_core.options import parse_assignments
-
-                if optimizer_option:
-                    overrides["optimizer_options"] = parse_assignments(optimizer_option, "optimizer_options")
-                if objective_option:
-                    overrides["objective_options"] = parse_assignments(objective_option, "objective_options")
-                cfg = make_config(preset, config, overrides)
-                if cfg.checkpoint.strip() and Path(cfg.checkpoint.strip()).is_dir():
-                    from coadapt_core.io import checkpoint_path
-
-                    # a `coadapt train --out` folder: its newest checkpoint, recorded as that file
-                    cfg.checkpoint = str(checkpoint_path(cfg.checkpoint.strip(), field="--checkpoint"))
-                resolve("optimizer", cfg.optimizer)
-                check_logger(cfg.logger)  # wandb asked for but not installed: one line, exit 2
-                resolve("simulator", cfg.sim)
-                resolve("robot", cfg.robot)
-                for name in cfg.objectives:
-                    resolve("objective", name)
-                if check:  # `coadapt grid` checks every cell's arguments before it starts any
-                    _check_run_config(cfg)
+                cfg, kwargs = _new_config(values, overrides), {}
+                if cfg is None:  # --check
                     return
-                if cfg.checkpoint.strip().lower() == "none":
-                    from coadapt_core.coadapt.reliability import WALKING_GATE
-
-                    print(f"note: no starting policy (--checkpoint none): robot '{cfg.robot}' is trained from "
-                          f"scratch in this run; its result is marked unreliable unless the real rounds pass "
-                          f"the walking gate ({WALKING_GATE.describe()})", file=sys.stderr)
-                kwargs = {}
-            started: dict[str, Any] = {}
-
-            def on_start(run_id: str, run_dir: Path) -> None:
-                started.update(run_id=run_id, run_dir=run_dir)
-                view.announce = f"run {run_id}: {run_dir}"
-
-            def finishing(result: Any) -> None:
-                view.close()
-                # a finished run resumed again keeps the video it has
-                if video and not (resume and (result.run_dir / "best_vs_nominal.gif").is_file()):
-                    _render_video(result.run_dir, result.summary, progress=not as_json)
-
-            with ctrl_c_once(), _ProgressView(enabled=not as_json) as view:
-                try:
-                    result = run_coadaptation(cfg, progress=view, on_start=on_start, finishing=finishing, **kwargs)
-                except KeyboardInterrupt:
-                    view.close()
-                    if not started and resume:  # stopped while loading it: it is where it was
-                        import shlex
-
-                        interrupted(f"run {resume} was not continued", shlex.join(
-                            ["coadapt", "run", "--resume", resume, *(["--out", out] if out and out != "runs" else [])]))
-                    if not started:
-                        interrupted("the run had not started; nothing to resume", None)
-                    interrupted(f"run {started['run_id']} stopped; its folder {started['run_dir']} keeps the last state",
-                                resume_command(started["run_id"], started["run_dir"], video=video, as_json=as_json))
+            result = _run_loop(cfg, kwargs, values)
         except UserError as exc:
             fail(str(exc))
-        summary = result.summary
-        if as_json:
-            print(json.dumps(result.json_line()))
-        else:
-            names, discrete = None, None
-            try:
-                from coadapt_core.design_space import DesignSpace
-
-                space = DesignSpace.from_dict(summary["final_space"])
-                names = space.names
-                discrete = [not hasattr(v, "low") for v in space.variables]
-            except Exception:
-                names = None
-            _print_summary(summary, names, discrete)
-            print(f"run folder: {result.run_dir}")
+        _report(result, values["as_json"])
 
     app.command("run")(with_options(run_command, settings, _command_options()))

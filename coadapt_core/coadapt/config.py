@@ -8,17 +8,18 @@ from __future__ import annotations
 import functools
 import typing
 from collections.abc import Mapping
-from dataclasses import fields
+from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import field_validator
+from pydantic import AfterValidator, field_validator
 
 from coadapt_core.design_space import parse_range_pairs
 from coadapt_core.errors import UserError
 from coadapt_core.fitness import COST_RULES
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.methods import DEFAULT_METHOD, METHOD_NAMES, method_help, optimizer_for
+from coadapt_core.options import PluginOption
 from coadapt_core.physics.randomization import RANDOMIZATION_PRESETS, RandomizationConfig
 from coadapt_core.physics.terrain import TERRAINS
 from coadapt_core.plugins import default_plugin
@@ -34,6 +35,19 @@ from coadapt_core.settings import (
     to_plain,
 )
 from coadapt_core.task.config import TaskConfig
+
+
+def check_device(device: Any, field: str = "device") -> str:
+    """A torch device name coadapt accepts: cpu, cuda or cuda:N (one line otherwise)."""
+    text = str(device)
+    index = text[5:] if text.startswith("cuda:") else "0"
+    if text not in ("cpu", "cuda") and not (text.startswith("cuda:") and index.isdigit()):
+        raise UserError(f"{field} '{device}' is not one of: cpu, cuda, cuda:N", field=field)
+    return text
+
+
+#: a torch device name (checked by `check_device`)
+Device = Annotated[str, AfterValidator(check_device)]
 
 #: --evaluation-policy choices: the paper's fixed probability w, or the ensemble's agreement
 EVALUATION_POLICIES: tuple[str, ...] = ("fixed", "uncertainty")
@@ -67,12 +81,10 @@ PRESETS: dict[str, dict[str, Any]] = {
         train_steps=200_000, retrain_steps=100_000, eval_agents=32, eval_steps=250, surrogate_samples=4096,
         bo_designs=20, specialized_train_steps=100_000, specialized_init="universal",
     ),
-    # section 4.1.3: N = 3, K = 100, J = 5, 50 agents, w = 0.5, inertia 0.9, c1 = c2 = 2
+    # section 4.1.3 (N = 3, K = 100, J = 5, 50 agents, w = 0.5): the declared defaults below are
+    # the paper's, and so are the optimizer plugin's declared options
     "paper": dict(
-        outer_iterations=3, population=100, optimizer_iterations=5, agents_per_design=50,
         surrogate_probability=0.5,
-        train_steps=24_000_000, retrain_steps=24_000_000, eval_steps=800, bo_designs=20,
-        specialized_train_steps=10_000_000,
     ),
 }
 
@@ -147,7 +159,7 @@ class CoadaptConfig:
         "scratch", "bo-specialized: scratch (the paper's) or universal (fine-tune the universal policy per design).")
     # -- infrastructure ----------------------------------------------------------------------
     checkpoint: str = setting("", "Universal policy to start from (empty: the one the robot ships, if any; none: from scratch).")
-    device: str = setting("cpu", "Torch device of the learner.", accepted="one of cpu, cuda, cuda:N")
+    device: Device = setting("cpu", "Torch device of the learner.", accepted="one of cpu, cuda, cuda:N")
     logger: Literal["tensorboard", "wandb", "none"] = setting(
         "tensorboard", "Experiment tracking: tensorboard (event files in <run folder>/tb), wandb (if installed) or none.")
     out: str = setting("runs", "Parent folder of run folders.")
@@ -179,11 +191,6 @@ class CoadaptConfig:
         if isinstance(value, Mapping):
             return {str(k).replace("-", "_"): v for k, v in value.items()}
         return value
-
-    @field_validator("device")
-    @classmethod
-    def _device(cls, value: str) -> str:
-        return check_device(value)
 
     @field_validator("design_ranges")
     @classmethod
@@ -237,28 +244,50 @@ def _merge(tree: dict[str, Any], new: Mapping[str, Any]) -> None:
             tree[str(key)] = dict(value) if isinstance(value, Mapping) else value
 #: config keys that are plugin-option mappings, merged key by key (CLI over YAML over preset)
 OPTION_FIELDS = ("optimizer_options", "objective_options")
-#: keys of earlier versions, still accepted: (mapping they now go to, option name there)
-LEGACY_KEYS: dict[str, tuple[str, str]] = {
-    "inertia": ("optimizer_options", "inertia"),
-    "c1": ("optimizer_options", "c1"),
-    "c2": ("optimizer_options", "c2"),
-    "bo_sampler": ("optimizer_options", "sampler"),
-    "bo_storage": ("optimizer_options", "storage"),
-    "objective_weights": ("objective_options", "weights"),
-}
+#: the plugin kind whose declared options each of those mappings holds
+OPTION_KINDS = {"objective_options": "objective", "optimizer_options": "optimizer"}
 #: settings of earlier versions under another name: old YAML key -> the setting's key now
 #: (the old command-line option is kept as an alias, `OPTION_ALIASES`)
 RENAMED_KEYS: dict[str, str] = {"evaluation_probability": "surrogate_probability"}
 OPTION_ALIASES: dict[str, tuple[str, ...]] = {new: ("--" + old.replace("_", "-"),) for old, new in RENAMED_KEYS.items()}
 
 
-def check_device(device: Any, field: str = "device") -> str:
-    """A torch device name coadapt accepts: cpu, cuda or cuda:N (one line otherwise)."""
-    text = str(device)
-    index = text[5:] if text.startswith("cuda:") else "0"
-    if text not in ("cpu", "cuda") and not (text.startswith("cuda:") and index.isdigit()):
-        raise UserError(f"{field} '{device}' is not one of: cpu, cuda, cuda:N", field=field)
-    return text
+@dataclass(frozen=True)
+class OptionAlias:
+    """A top-level key (and `coadapt run` option) that sets one plugin option, as the plugin
+    declares it (`PluginOption.alias`): the keys of earlier versions."""
+
+    key: str
+    field: str  # optimizer_options | objective_options
+    option: PluginOption
+    plugins: tuple[str, ...]  # the installed plugins declaring it
+
+
+def option_aliases() -> dict[str, OptionAlias]:
+    """Every alias the installed optimizer and objective plugins declare for their options,
+    by key (none when the registry cannot be built; a key that is a config setting, or that
+    two plugins declare for different options, is left out)."""
+    from coadapt_core.plugins import get_registry
+
+    try:
+        registry = get_registry()
+    except Exception:  # the commands report why the registry cannot be built
+        return {}
+    out: dict[str, OptionAlias] = {}
+    clashes: set[str] = set()
+    for field_name, kind in OPTION_KINDS.items():
+        for name in registry.names(kind):
+            for spec in getattr(registry.get(kind, name), "option_specs", ()):
+                if not spec.alias or spec.alias in FIELD_NAMES:
+                    continue
+                known = out.get(spec.alias)
+                if known is None:
+                    out[spec.alias] = OptionAlias(spec.alias, field_name, spec, (name,))
+                elif (known.field, known.option.name) == (field_name, spec.name):
+                    out[spec.alias] = OptionAlias(spec.alias, field_name, known.option, (*known.plugins, name))
+                else:
+                    clashes.add(spec.alias)
+    return {k: v for k, v in out.items() if k not in clashes}
 
 
 def load_yaml(path: str | Path) -> dict[str, Any]:
@@ -358,12 +387,13 @@ def make_config(
     if preset not in PRESETS:
         raise UserError(f"preset '{preset}' is not one of {', '.join(PRESETS)}", field="preset")
     values: dict[str, Any] = {**PRESETS[preset], "preset": preset}
+    aliases = option_aliases()
     for source, label in ((yaml_values, "config file"), (overrides, "option")):
         for key, value in source.items():
             key = RENAMED_KEYS.get(key, key)
-            if key in LEGACY_KEYS:  # an earlier version's key: one option of a plugin now
-                target, option = LEGACY_KEYS[key]
-                values[target] = {**values.get(target, {}), option: value}
+            if key in aliases:  # an earlier version's key: one option of a plugin now
+                alias = aliases[key]
+                values[alias.field] = {**values.get(alias.field, {}), alias.option.name: value}
                 continue
             section, dot, rest = key.partition(".")
             if section not in FIELD_NAMES or (dot and section not in SECTIONS):
@@ -455,12 +485,11 @@ def config_from_dict(data: dict[str, Any]) -> CoadaptConfig:
     """Rebuild a recorded config (e.g. from a run folder's config.yaml)."""
     renamed = {RENAMED_KEYS[k]: v for k, v in data.items() if k in RENAMED_KEYS and RENAMED_KEYS[k] not in data}
     known = {k: v for k, v in {**data, **renamed}.items() if k in FIELD_NAMES and v is not None}
-    # a config.yaml of an earlier version recorded every legacy key; their old defaults are the
-    # plugins' defaults now, so only values that differed are carried over
-    old_defaults = {"inertia": 0.9, "c1": 2.0, "c2": 2.0, "bo_sampler": "tpe", "bo_storage": "", "objective_weights": ""}
-    for key, (target, option) in LEGACY_KEYS.items():
-        if key in data and data[key] is not None and data[key] != old_defaults[key]:
-            known[target] = {option: data[key], **known.get(target, {})}
+    # a config.yaml of an earlier version recorded every alias key; their old defaults are the
+    # plugins' declared defaults now (empty text: unset), so only values that differed are carried over
+    for key, alias in option_aliases().items():
+        if data.get(key) not in (None, "", alias.option.default):
+            known[alias.field] = {alias.option.name: data[key], **known.get(alias.field, {})}
     return CoadaptConfig(**known).validate()
 
 

@@ -1,22 +1,34 @@
-"""docs/settings.md, generated from the settings tree of `coadapt run` (`CoadaptConfig`) and
-the settings classes of `coadapt train` and `coadapt eval` (`COMMAND_SETTINGS`).
+"""docs/settings.md, generated from the settings trees of the commands: `coadapt run`'s
+(`CoadaptConfig`), then every other command's (`COMMANDS`: landscape, grid; `COMMAND_SETTINGS`:
+train, eval).
 
     python -m coadapt_core.coadapt.settings_doc > docs/settings.md
 
 tests/core/test_settings.py regenerates the page and compares it with the committed one, and
-compares its options with those of `coadapt run --help-all`."""
+compares each command's options with those of its `--help` (`coadapt run --help-all`)."""
 
 from __future__ import annotations
 
+import importlib
 import re
 from typing import Any
 
-HEADER = """# Settings of `coadapt run`
+#: command -> "module:settings class" of every command whose options come from a settings
+#: tree, `coadapt run` first
+COMMANDS: dict[str, str] = {
+    "run": "coadapt_core.coadapt.config:CoadaptConfig",
+    "landscape": "coadapt_core.cli.landscape:LandscapeSettings",
+    "grid": "coadapt_core.cli.grid:GridSettings",
+}
+
+HEADER = """# Settings of `coadapt run` and the other commands
 
 Generated from the one definition of every setting (`CoadaptConfig` in
-`coadapt_core/coadapt/config.py`) by `python -m coadapt_core.coadapt.settings_doc >
-docs/settings.md`; a test regenerates this page and compares it with `coadapt run --help-all`.
-Each setting is a YAML key of a `--config` file and of a run folder's `config.yaml` (a
+`coadapt_core/coadapt/config.py`; each other command's settings class, named in its section)
+by `python -m coadapt_core.coadapt.settings_doc > docs/settings.md`; a test regenerates this
+page and compares it with each command's `--help` (`coadapt run --help-all`). A setting two
+commands share is declared once (`coadapt_core.settings.shared`) and reads the same in both.
+Each setting of `coadapt run` is a YAML key of a `--config` file and of a run folder's `config.yaml` (a
 dotted key is a nested mapping: `task.commands.yaw_range` is `task: {commands: {yaw_range:
 [-1, 1]}}`) and a command-line option. Precedence: option > YAML key > preset > default.
 A bad value stops the command with one line naming the key and what it accepts (exit 2).
@@ -34,8 +46,31 @@ def _default(leaf: Any) -> str:
     return (config_default(leaf.param) or empty).replace("|", "\\|")
 
 
+def settings_class(command: str) -> type:
+    """The settings class of `command` (`COMMANDS`)."""
+    module, _, name = COMMANDS[command].partition(":")
+    return getattr(importlib.import_module(module), name)
+
+
+def _command_table(command: str) -> list[str]:
+    """The section of a command without presets or YAML: one row per option."""
+    from coadapt_core.cli.common import _HAND_DEFAULT, leaf_default
+    from coadapt_core.settings import leaves
+
+    cls = settings_class(command)
+    doc = " ".join((cls.__doc__ or "").split())
+    out = [f"\n## `coadapt {command}`\n", f"`{cls.__module__}.{cls.__name__}`. {doc}\n",
+           "| key | option | default | accepts | meaning |", "|---|---|---|---|---|"]
+    for leaf in leaves(cls):
+        meaning = _HAND_DEFAULT.sub("", leaf.help).strip().replace("|", "\\|")
+        default = (leaf_default(leaf) or "''").replace("|", "\\|")
+        out.append(f"| `{leaf.key}` | `{leaf.option}` | {default} | {leaf.accepted()} | {meaning} |")
+    return out
+
+
 def settings_markdown() -> str:
-    """The page: one table per section of the tree (the run's own settings first)."""
+    """The page: one table per section of the run's tree (its own settings first), then one
+    per other command."""
     from coadapt_core.coadapt.config import CoadaptConfig
     from coadapt_core.settings import leaves, sections
 
@@ -57,6 +92,9 @@ def settings_markdown() -> str:
             option = f"`{leaf.option}`" if leaf.extra.get("cli", True) else "(YAML only)"
             meaning = leaf.help.replace("|", "\\|")
             out.append(f"| `{leaf.key}` | {option} | {_default(leaf)} | {leaf.accepted()} | {meaning} |")
+    for command in COMMANDS:
+        if command != "run":
+            out += _command_table(command)
     return "\n".join(out) + "\n" + command_markdown()
 
 

@@ -20,6 +20,16 @@ def _mean_se(values: Any) -> float:
     return float(v.std(ddof=1) / np.sqrt(len(v))) if len(v) > 1 else 0.0
 
 
+def reported_objectives(requested: Sequence[str] = ()) -> tuple[list[str], list[str]]:
+    """(the installed objectives `coadapt eval` always reports: those that declare a
+    `summary_key`, in the registry's order; the names it evaluates: those, then `requested`)."""
+    from coadapt_core.plugins import get_registry
+
+    registry = get_registry()
+    always = [n for n in registry.names("objective") if getattr(registry.get("objective", n), "summary_key", "")]
+    return always, always + [n for n in dict.fromkeys(requested) if n not in always]
+
+
 def evaluate_checkpoint(
     checkpoint: Path | str,
     robot_obj: Any,
@@ -38,10 +48,11 @@ def evaluate_checkpoint(
     objectives: Sequence[str] = (),
 ) -> dict[str, Any]:
     """Survival, mean forward speed and costs of a policy on one design under a fixed
-    command (the policy mean; falls auto-reset but count against survival). `objectives`
-    names further installed objectives (a plugin's included, built with their default
-    options): `costs` and `costs_se` hold each one's mean cost per step and its standard
-    error over the agents."""
+    command (the policy mean; falls auto-reset but count against survival). Every installed
+    objective that declares a `summary_key` is reported under that key (and `<key>_se`);
+    `objectives` names further installed objectives (a plugin's included, built with their
+    default options): `costs` and `costs_se` hold each one's mean cost per step and its
+    standard error over the agents."""
     import numpy as np
     import torch
 
@@ -57,68 +68,91 @@ def evaluate_checkpoint(
     if state["robot"] != robot_obj.name:
         raise UserError(f"checkpoint '{checkpoint}' was trained for robot '{state['robot']}', not '{robot_obj.name}'", field="checkpoint")
     registry = get_registry()
-    metric_names = ["tracking", "power", "torque"]
-    metric_names += [n for n in dict.fromkeys(objectives) if n not in metric_names]
+    always, metric_names = reported_objectives(objectives)
     requested = list(dict.fromkeys(objectives))
-    objectives = [registry.get("objective", n)() for n in metric_names]
+    objective_objs = [registry.get("objective", n)() for n in metric_names]
     config = TrainConfig.from_dict(state["train_config"])
     config.device = device
     task = TaskConfig.from_dict(state["task_config"])
     task.commands.resample_seconds = 0.0
     task.episode_seconds = seconds + 1.0
-    trainer = Trainer(robot_obj, sim_cls, objectives, terrain=terrain, train_config=config, task_config=task, device=device, seed=seed)
+    trainer = Trainer(robot_obj, sim_cls, objective_objs, terrain=terrain, train_config=config, task_config=task,
+                      device=device, seed=seed)
     trainer.load(checkpoint, optimizers=False)
     randomization = RandomizationConfig() if randomize else RandomizationConfig.off()
     designs = np.tile(np.asarray(design, dtype=float), (agents, 1))
     sim = sim_cls(robot_obj, designs, terrain=terrain, randomization=randomization, seed=seed)
-    env = LocomotionEnv(sim, robot_obj, task, objectives, seed=seed, device=device)
+    env = LocomotionEnv(sim, robot_obj, task, objective_objs, seed=seed, device=device)
     trainer.ensure_ppo(env)
     # the scenario set of `seed` (as `coadapt run/landscape --seed`), under the given command
     apply_scenarios(env, agents, 1, scenario_seed(seed), commands=torch.tensor(command, dtype=torch.float32).expand(agents, 3))
     steps = max(1, int(round(seconds / env.dt)))
-    frames: list[dict] = []
-
-    def capture(e: LocomotionEnv) -> None:
-        s = e.state
-        frames.append({
-            "pos": s.base_pos[0].tolist(), "quat": s.base_quat[0].tolist(), "q": s.joint_pos[0].tolist(),
-        })
-
-    done = [0]
-    divergences = [0]  # agent-steps whose physics blew up (the simulator reset those agents)
-
-    def on_step(e: LocomotionEnv) -> None:
-        diverged = getattr(e.state, "diverged", None)
-        if diverged is not None:
-            divergences[0] += int(torch.as_tensor(diverged).sum())
-        if record:
-            capture(e)
-        done[0] += 1
-        if progress is not None:
-            progress(done[0], f"{agents} agents on one design, {seconds:g} s simulated", total=steps)
-
-    result = rollout(trainer.ppo, env, 1, steps, seed=seed, on_step=on_step)
+    watch = _Watch(record=record, progress=progress, total=steps,
+                   detail=f"{agents} agents on one design, {seconds:g} s simulated")
+    result = rollout(trainer.ppo, env, 1, steps, seed=seed, on_step=watch)
     sim.close()
+    keys = {n: registry.get("objective", n).summary_key for n in always}
+    out = _summary(result, robot_obj.name, design, command, keys, metric_names, requested,
+                   divergences=watch.divergences, dt=env.dt)
+    if record:
+        out["_trajectory"] = {"frames": watch.frames, "dt": env.dt, "terrain": terrain}
+    return out
+
+
+class _Watch:
+    """The rollout's `on_step`: counts diverged agent-steps (the simulator reset those
+    agents), records agent 0's base pose and joint angles when asked, reports progress."""
+
+    def __init__(self, *, record: bool, progress: Any, total: int, detail: str):
+        self.record, self.progress, self.total, self.detail = record, progress, total, detail
+        self.frames: list[dict] = []
+        self.done = 0
+        self.divergences = 0
+
+    def __call__(self, env: Any) -> None:
+        import torch
+
+        diverged = getattr(env.state, "diverged", None)
+        if diverged is not None:
+            self.divergences += int(torch.as_tensor(diverged).sum())
+        if self.record:
+            s = env.state
+            self.frames.append({"pos": s.base_pos[0].tolist(), "quat": s.base_quat[0].tolist(), "q": s.joint_pos[0].tolist()})
+        self.done += 1
+        if self.progress is not None:
+            self.progress(self.done, self.detail, total=self.total)
+
+
+def _summary(
+    result: Any, robot: str, design: Any, command: list[float], keys: dict[str, str], metric_names: list[str],
+    requested: list[str], *, divergences: int, dt: float,
+) -> dict[str, Any]:
+    """The result of `evaluate_checkpoint` from the rollout's: `keys` maps each objective
+    always reported to its summary key; `requested` ones go under `costs` / `costs_se`."""
+    import numpy as np
+
+    def cost(name: str) -> float:
+        return float(result.metrics[0, metric_names.index(name)])
+
+    def cost_se(name: str) -> float:
+        return _mean_se(result.per_agent[0, :, metric_names.index(name)])
+
     out: dict[str, Any] = {
-        "robot": robot_obj.name,
+        "robot": robot,
         "design": [float(x) for x in np.asarray(design, dtype=float)],
         "survival": float(result.survival[0]),
         "vx_mean": float(result.vx[0]),
-        "tracking_error": float(result.metrics[0, 0]),
-        "torque_cost": float(result.metrics[0, 2]),
-        "power_cost": float(result.metrics[0, 1]),
+        **{key: cost(name) for name, key in keys.items()},
         "vx_command": float(command[0]),
         # the yaw rate the robots turned at (mean over agents of each one's mean before its
         # first fall) against the commanded one
         "yaw_rate_mean": float(result.yaw_rate[0]),
         "yaw_rate_command": float(command[2]),
         "foot_alternation": None if not math.isfinite(float(result.alternation[0])) else float(result.alternation[0]),
-        # standard errors over the agents (paired scenarios) of the speeds and the three costs
+        # standard errors over the agents (paired scenarios) of the speeds and the costs
         "vx_mean_se": _mean_se(result.per_agent_velocity[0, :, 0]),
         "yaw_rate_mean_se": _mean_se(result.per_agent_velocity[0, :, 2]),
-        "tracking_error_se": _mean_se(result.per_agent[0, :, 0]),
-        "power_cost_se": _mean_se(result.per_agent[0, :, 1]),
-        "torque_cost_se": _mean_se(result.per_agent[0, :, 2]),
+        **{f"{key}_se": cost_se(name) for name, key in keys.items()},
         "fall_rate": float(1.0 - result.survival[0]),
         "fall_rate_se": _mean_se(1.0 - (np.asarray(result.falls[0]) > 0)) if result.falls is not None else None,
         # one design alone, so no nominal reference for the capped rule: the costs above are
@@ -126,15 +160,13 @@ def evaluate_checkpoint(
         # final check give the capped cost beside it
         "cost_rule": "mean",
         "steps": int(result.steps),
-        "divergences": int(divergences[0]),
-        "dt": float(env.dt),
+        "divergences": int(divergences),
+        "dt": float(dt),
     }
     if requested:  # each asked-for objective: mean cost per step and its SE over the agents
-        out["costs"] = {n: float(result.metrics[0, metric_names.index(n)]) for n in requested}
-        out["costs_se"] = {n: _mean_se(result.per_agent[0, :, metric_names.index(n)]) for n in requested}
-    if record:
-        out["_trajectory"] = {"frames": frames, "dt": env.dt, "terrain": terrain}
+        out["costs"] = {n: cost(n) for n in requested}
+        out["costs_se"] = {n: cost_se(n) for n in requested}
     return out
 
 
-__all__ = ["evaluate_checkpoint"]
+__all__ = ["evaluate_checkpoint", "reported_objectives"]

@@ -275,8 +275,8 @@ def test_report_cli_writes_files(filled_store, tmp_path):
 
 
 @pytest.mark.parametrize(("args", "message"), [
-    (["--grid", "1"], "error: --grid must be between 2 and 101 points per axis, got 1"),
-    (["--terrain", "ice"], "error: --terrain 'ice' is not one of flat, slope, random"),
+    (["--grid", "1"], "error: grid must be an integer in [2, 101], got 1"),
+    (["--terrain", "ice"], "error: terrain 'ice' is not one of flat, slope, random"),
     (["--checkpoint", "/nonexistent/policy.pt"], "error: --checkpoint /nonexistent/policy.pt does not exist"),
     (["--objective", "speed"], "error: unknown objective 'speed'"),
 ])

@@ -16,7 +16,7 @@ from coadapt_core.coadapt.config import (
     learner_settings,
     make_config,
 )
-from coadapt_core.coadapt.settings_doc import settings_markdown
+from coadapt_core.coadapt.settings_doc import COMMANDS, settings_class, settings_markdown
 from coadapt_core.errors import UserError
 from coadapt_core.settings import leaves
 
@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parents[2]
 DOC = ROOT / "docs" / "settings.md"
 
 
-def _run_command():
+def _command(name: str = "run"):
     from typer.main import get_command
 
     from coadapt_core.cli import app
@@ -32,7 +32,31 @@ def _run_command():
 
     command = get_command(app)
     style_help(command)
-    return command.commands["run"]
+    return command.commands[name]
+
+
+def _run_command():
+    return _command("run")
+
+
+def _documented(command: str) -> dict[str, tuple[str, str]]:
+    """{option: (meaning, default)} of the command's rows in docs/settings.md: those under a
+    heading naming `coadapt <command>` (`coadapt run`: the rows before the first other
+    command's heading)."""
+    sections, current = {"run": []}, "run"
+    for line in DOC.read_text().splitlines():
+        found = re.match(r"#+ .*`coadapt (\w+)`", line)
+        if found:
+            current = found.group(1)
+            sections[current] = []
+        elif line.startswith("| `"):
+            sections[current].append(line)
+    out = {}
+    for row in sections.get(command, []):
+        _, option, default, _, meaning = [c.strip() for c in re.split(r"(?<!\\)\|", row)[1:-1]]
+        if option.startswith("`--"):
+            out[option.strip("`")] = (meaning.replace("\\|", "|"), default.replace("\\|", "|"))
+    return out
 
 
 def test_docs_table_is_generated_from_the_tree():
@@ -44,13 +68,7 @@ def test_docs_table_is_generated_from_the_tree():
 def test_docs_table_and_run_help_list_the_same_options_helps_and_defaults():
     run = _run_command()
     helps = {opt: " ".join((p.help or "").split()) for p in run.params if not p.hidden for opt in p.opts}
-    run_part = DOC.read_text().split("\n# Settings of `coadapt train`")[0]  # train's and eval's follow
-    rows = [line for line in run_part.splitlines() if line.startswith("| `")]
-    documented = {}
-    for row in rows:
-        _, option, default, _, meaning = [c.strip() for c in re.split(r"(?<!\\)\|", row)[1:-1]]
-        if option.startswith("`--"):
-            documented[option.strip("`")] = (meaning.replace("\\|", "|"), default.replace("\\|", "|"))
+    documented = _documented("run")
     config_options = {o for o in helps if o.lstrip("-").replace("-", "_") in
                       {leaf.param for leaf in leaves(CoadaptConfig)}}
     assert set(documented) == config_options
@@ -59,6 +77,71 @@ def test_docs_table_and_run_help_list_the_same_options_helps_and_defaults():
         assert meaning in helps[option], option  # the declared help, word for word
         if default != "''":
             assert f"[default: {default}]" in helps[option], option
+
+
+OTHER_COMMANDS = [c for c in COMMANDS if c != "run"]
+
+
+def test_every_command_with_settings_is_documented():
+    """Every command whose options come from a settings tree has its section; the commands
+    that still declare options by hand are only those not yet in `COMMANDS`."""
+    assert {"run", "landscape", "grid"} <= set(COMMANDS)
+    text = DOC.read_text()
+    for command in OTHER_COMMANDS:
+        assert f"## `coadapt {command}`" in text, command
+
+
+@pytest.mark.parametrize("command", OTHER_COMMANDS)
+def test_docs_table_and_each_commands_help_list_the_same_options_helps_and_defaults(command):
+    """Each command's options are its settings' (names, help word for word, the default
+    shown), and each setting is an option; docs/settings.md says the same."""
+    cli = _command(command)
+    cls = settings_class(command)
+    helps = {opt: " ".join((p.help or "").split()) for p in cli.params if not p.hidden for opt in p.opts}
+    documented = _documented(command)
+    setting_options = {leaf.option for leaf in leaves(cls)}
+    assert set(documented) == setting_options
+    assert setting_options <= set(helps), setting_options - set(helps)
+    for option, (meaning, default) in documented.items():
+        assert meaning in helps[option], (command, option)
+        if default != "''":
+            assert helps[option].endswith(f"[default: {default}]"), (command, option, helps[option])
+
+
+def test_a_shared_setting_is_one_declaration():
+    """A setting two commands share reads the same in both: type, help, constraints, default
+    (`terrain` was typed by hand in three commands)."""
+    from coadapt_core.settings import Leaf
+
+    run = {leaf.key: leaf for leaf in leaves(CoadaptConfig)}
+    shared = 0
+    for command in OTHER_COMMANDS:
+        for leaf in leaves(settings_class(command)):
+            source = leaf.extra.get("shared")
+            if source is None:
+                continue
+            shared += 1
+            assert source is CoadaptConfig
+            mine: Leaf = run[leaf.key]
+            assert (leaf.help, leaf.kind, leaf.accepted(), leaf.default) == (mine.help, mine.kind, mine.accepted(), mine.default)
+    assert shared >= 8  # terrain, sim, robot, seed, cost rule and cap, device; the grid's sim
+    terrain_helps = {leaf.help for c in COMMANDS for leaf in leaves(settings_class(c)) if leaf.key == "terrain"}
+    assert terrain_helps == {run["terrain"].help}
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["landscape", "--grid", "1"], "error: grid must be an integer in [2, 101], got 1"),
+    (["landscape", "--terrain", "moon"], "error: terrain 'moon' is not one of flat, slope, random"),
+    (["landscape", "--cost-cap", "1"], "error: cost_cap must be a finite number > 1, got 1"),
+    (["landscape", "--agents", "0"], "error: agents must be an integer >= 1, got 0"),
+    (["grid", "--timeout", "nan"], "error: timeout must be a finite number"),
+])
+def test_a_bad_value_of_another_command_is_one_line_naming_the_setting(argv, message, capsys):
+    from coadapt_core.cli import main
+
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(message) and "\n" not in err, err
 
 
 def test_every_setting_is_an_option_or_a_yaml_key():

@@ -47,9 +47,11 @@ class TrackingObjective(Objective):
     """P_cmd = e_v^2 + e_w^2 (eq. 6)."""
 
     name: ClassVar[str] = "tracking"
+    default_rank: ClassVar[int] = 1  # one of the default objectives (of a grid, of training)
     display_name: ClassVar[str] = "Command tracking"
     short_label: ClassVar[str] = "Cmd"  # Table 6's column
     unit: ClassVar[str] = "(m/s)^2"  # and (rad/s)^2 for the yaw term
+    summary_key: ClassVar[str] = "tracking_error"  # `coadapt eval` reports it always
     description: ClassVar[str] = "P_cmd = e_v^2 + e_w^2, velocity command tracking error (eq. 6)"
 
     def step_cost(self, step: StepBatch) -> torch.Tensor:
@@ -69,9 +71,11 @@ class PowerObjective(Objective):
     """P_p = w_t sum_i |tau_i| |dtheta_i| (eq. 7)."""
 
     name: ClassVar[str] = "power"
+    default_rank: ClassVar[int] = 2  # one of the default objectives (of a grid, of training)
     display_name: ClassVar[str] = "Power consumption"
     short_label: ClassVar[str] = "P"  # Table 6's column
     unit: ClassVar[str] = "W"
+    summary_key: ClassVar[str] = "power_cost"  # `coadapt eval` reports it always
     description: ClassVar[str] = "P_p = w_t sum |tau| |dtheta|, mechanical power with tracking penalty (eq. 7)"
 
     def step_cost(self, step: StepBatch) -> torch.Tensor:
@@ -83,10 +87,11 @@ class TorqueObjective(Objective):
     """P_tau = w_t sum_i tau_i^2 (eq. 8)."""
 
     name: ClassVar[str] = "torque"
-    default_rank: ClassVar[int] = 10  # the default --objective
+    default_rank: ClassVar[int] = 10  # the default --objective, last of the default objectives
     display_name: ClassVar[str] = "Joint torque"
     short_label: ClassVar[str] = "τ"  # Table 6's column
     unit: ClassVar[str] = "(Nm)^2"
+    summary_key: ClassVar[str] = "torque_cost"  # `coadapt eval` reports it always
     description: ClassVar[str] = "P_tau = w_t sum tau^2, squared joint torque with tracking penalty (eq. 8)"
 
     def step_cost(self, step: StepBatch) -> torch.Tensor:
@@ -110,7 +115,7 @@ class CompositeObjective(Objective):
     option_specs: ClassVar[tuple[PluginOption, ...]] = (
         PluginOption(
             "weights", "str", "", "component weights, e.g. 'tracking=1,power=0.5,torque=1' (missing ones "
-            "weigh 0; empty: all 1)",
+            "weigh 0; empty: all 1)", alias="objective_weights",
         ),
     )
 

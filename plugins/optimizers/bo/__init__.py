@@ -37,10 +37,11 @@ class BOOptimizer(Optimizer):
     supports_mixed: ClassVar[bool] = True
     sequential: ClassVar[bool] = True
     option_specs: ClassVar[tuple] = (
-        PluginOption("sampler", "str", "tpe", "optuna sampler: tpe or gp", choices=SAMPLERS),
+        PluginOption("sampler", "str", "tpe", "optuna sampler: tpe or gp", choices=SAMPLERS,
+                     alias="bo_sampler"),
         PluginOption("n_startup_trials", "int", 8, "random trials before the model is used", minimum=1),
         PluginOption("storage", "str", None, "optuna storage URL for the study (default: in memory)",
-                     from_run="store_url"),
+                     alias="bo_storage", from_run="store_url"),
         PluginOption("study_name", "str", None, "name of the optuna study (default: coadapt-bo-<seed>)",
                      from_run="run_name"),
     )
