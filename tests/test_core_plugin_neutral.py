@@ -41,16 +41,11 @@ CORE_WORDS = {"weights", "storage"}
 
 #: module -> (the findings it still has, why, the part of issue 27 that removes them)
 KNOWN_DEBT: dict[str, str] = {
-    "coadapt_core/analysis/report.py": "OBJECTIVE_LABELS names the built-in objectives (part 27d)",
-    "coadapt_core/experiments/grid.py": "passes --bo-storage by name (part 27d)",
-    "coadapt_core/cli/train.py": "DEFAULT_OBJECTIVES 'tracking,power,torque' (part 27b)",
-    "coadapt_core/coadapt/loop.py": "optimizer_options fills optuna's study_name/storage by name (part 27a)",
-    "coadapt_core/coadapt/setup.py": "a throwaway optimizer is skipped for option study_name by name (part 27a)",
-    "coadapt_core/viz/video.py": "imports mujoco and sets MUJOCO_GL (part 27d: formats through the simulator plugin)",
-    "coadapt_core/testing/robots.py": "imports mujoco (part 27d: formats through the simulator plugin)",
-    "coadapt_core/handoff/check.py": "imports mujoco (part 27d: handoff)",
-    "coadapt_core/handoff/folder.py": "imports mujoco (part 27d: handoff)",
-    "coadapt_core/handoff/sheet.py": "imports mujoco (part 27d: handoff)",
+    "coadapt_core/testing/robots.py": "the robot conformance suite compiles MJCF with mujoco (next: a check the "
+                                      "simulator plugin declares)",
+    "coadapt_core/handoff/check.py": "the handoff's check.py runs the model in mujoco",
+    "coadapt_core/handoff/spec.py": "foot_facts reads the default pose's foot positions with mujoco",
+    "coadapt_core/handoff/sheet.py": "the design sheet measures the model with mujoco",
 }
 
 #: (module, word) -> why it is the core's own word, not a built-in's

@@ -206,7 +206,7 @@ def parse_list(text: str, name: str, *, integers: bool = False) -> list[Any]:
 # -- planning ------------------------------------------------------------------------------
 #: config keys that say where or how a run is stored or executed, not what it computes
 CONFIG_HASH_IGNORES = frozenset({"out", "store", "run_id", "run_dir", "device", "design_space", "grid_id", "grid_cell",
-                                 "bo_storage", "logger"})
+                                 "logger"})
 
 
 def config_hash(config: dict[str, Any]) -> str:

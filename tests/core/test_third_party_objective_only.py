@@ -17,7 +17,6 @@ sys.path.insert(0, str(EXAMPLE_PLUGIN))
 
 import coadapt_example
 
-NEEDS_27B = pytest.mark.xfail(strict=True, reason="needs 27b: coadapt train still defaults to the built-in objectives")
 
 
 @pytest.fixture
@@ -69,7 +68,6 @@ def test_landscape(objective_only, tmp_path, capsys):
     assert summary["best_cost"] > 0 and summary["nominal_cost"] > 0
 
 
-@NEEDS_27B
 def test_train(objective_only, tmp_path, capsys):
     from coadapt_core.cli import main
     from coadapt_core.learning import read_checkpoint
