@@ -15,7 +15,7 @@ from coadapt_core.errors import UserError
 from coadapt_core.methods import METHODS
 from coadapt_core.results.export import space_of_run
 from coadapt_core.results.rows import Evaluation, best_of
-from coadapt_core.results.schema import LANDSCAPE_METHOD, TRANSFER_KIND
+from coadapt_core.results.schema import COMMON_KIND, LANDSCAPE_METHOD, TRANSFER_KIND
 from coadapt_core.results.store import ResultsStore
 from coadapt_core.terrains import TERRAINS
 
@@ -65,6 +65,9 @@ class RunFacts:
     real: list[Evaluation] = field(default_factory=list)
     sim2sim: float | None = None
     sim2sim_note: str = ""
+    # the common yardstick (coadapt_core.experiments.yardstick): improvements under the rule and
+    # the plain mean with their SE, fall rates; None when the run has no such rows
+    common: dict[str, float] | None = None
     design_names: list[str] = field(default_factory=list)  # the run's design space, in order
     design_units: list[str] = field(default_factory=list)
     design_discrete: list[bool] = field(default_factory=list)
@@ -199,3 +202,21 @@ def transfer_improvement(store: ResultsStore, facts: RunFacts, simulator: str | 
 
 
 # -- tables ------------------------------------------------------------------------------------
+
+
+# -- the common yardstick (rows written by coadapt_core.experiments.yardstick) ----------------------
+def yardstick_improvement(store: ResultsStore, run_id: str, objective: str) -> dict[str, float] | None:
+    """The stored common-yardstick figures of one objective (improvement under the rule and
+    under the plain mean, with SE; fall rates), or None when the run has no such rows."""
+    rows = sorted(store.evaluations(run_id, kind=COMMON_KIND), key=lambda e: e.idx)
+    if len(rows) < 2 or objective not in rows[0].costs:
+        return None
+    best, nominal = rows[0].costs, rows[1].costs
+    keys = ("improvement", "improvement_se", "improvement_plain", "improvement_plain_se")
+    if any(f"{objective}/{k}" not in best for k in keys):
+        return None
+    out = {k: float(best[f"{objective}/{k}"]) for k in keys}
+    out.update(fall_rate=float(best.get("falls", np.nan)), nominal_fall_rate=float(nominal.get("falls", np.nan)),
+               fall_rate_difference=float(best.get("falls/difference", np.nan)),
+               fall_rate_difference_se=float(best.get("falls/difference_se", np.nan)))
+    return out

@@ -20,6 +20,7 @@ from coadapt_core.analysis.facts import (
     run_facts,
     select_runs,
     transfer_improvement,
+    yardstick_improvement,
 )
 from coadapt_core.analysis.report_figures import (
     figure_convergence,
@@ -33,6 +34,7 @@ from coadapt_core.analysis.surrogate_figure import figure_surrogate_quality
 from coadapt_core.analysis.tables import (
     POOLING_NOTE,
     cell,
+    common_cell,
     design_cell,
     design_columns,
     design_header,
@@ -81,6 +83,7 @@ def _table6_html(t6: Sequence[dict[str, Any]]) -> str:
                "nominal_cost": cell(r, "nominal_cost", spec=".5g"), "improvement": cell(r, "improvement", pct=True) + unreliable_mark(r),
                "improvement_plain": cell(r, "improvement_plain", pct=True),
                "falls": cell(r, "best_fall_rate", pct=True) + " / " + cell(r, "nominal_fall_rate", pct=True),
+               "common": common_cell(r),
                "sim2sim": cell(r, "sim2sim_improvement", pct=True), "sim2sim_note": r["sim2sim_note"]}
         row.update({f"d:{n}": design_cell(r, n, d) if f"{n}_n" in r else "" for n, _, d in design})
         rows.append(row)
@@ -90,6 +93,7 @@ def _table6_html(t6: Sequence[dict[str, Any]]) -> str:
                        + [(f"d:{n}", design_header(n, u)) for n, u, _ in design]
                        + [("best_cost", "best cost"), ("nominal_cost", "nominal cost"), ("improvement", "improvement"),
                           ("improvement_plain", "improvement (plain mean)"), ("falls", "fall rate best / nominal"),
+                          ("common", "common scenarios: improvement / plain mean / fall-rate difference"),
                           ("sim2sim", "sim-to-sim improvement"), ("sim2sim_note", "sim-to-sim note"),
                           ("policy", "starting policy")])
 
@@ -139,10 +143,12 @@ def _report_html(store: ResultsStore, title: str, n_runs: int, t6: Sequence[dict
 
 def _add_transfer(store: ResultsStore, facts: Sequence[RunFacts], sim2sim: bool, simulator: str | None,
                   notes: dict[str, str] | None) -> None:
-    """Each run's sim-to-sim improvement and note (landscapes have none)."""
+    """Each run's sim-to-sim improvement and note, and its common-yardstick figures, as far as
+    the store holds their rows (landscapes have none)."""
     for f in facts:
         if f.method == LANDSCAPE_METHOD:
             continue
+        f.common = yardstick_improvement(store, f.run["id"], f.objective)
         if sim2sim:
             f.sim2sim, f.sim2sim_note = transfer_improvement(store, f, simulator, (notes or {}).get(f.run["id"], ""))
         else:

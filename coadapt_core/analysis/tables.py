@@ -122,6 +122,10 @@ def table6_rows(facts: Sequence[RunFacts]) -> list[dict[str, Any]]:
                   [as_float(f.summary.get("nominal_fall_rate_se")) for f in group])
         row["cost_rule"] = " ".join(sorted({str(f.summary.get("cost_rule") or "trimmed") for f in group}))
         _add_stat(row, "sim2sim_improvement", [f.sim2sim for f in group])
+        for name, key in (("common_improvement", "improvement"), ("common_improvement_plain", "improvement_plain"),
+                          ("common_fall_rate_difference", "fall_rate_difference")):
+            _add_stat(row, name, [(f.common or {}).get(key) for f in group],
+                      [(f.common or {}).get(f"{key}_se") for f in group])
         row["sim2sim_note"] = "; ".join(sorted({f.sim2sim_note for f in group if f.sim2sim_note}))
         row["design_variables"] = " ".join(names)
         row["design_units"] = "|".join(group[0].design_units)
@@ -231,11 +235,20 @@ def unreliable_mark(row: dict[str, Any]) -> str:
     return f" UNRELIABLE ({k} of {row['runs']} runs: the policy does not walk)" if k else ""
 
 
+def common_cell(r: dict[str, Any]) -> str:
+    """The common-yardstick figures of a Table 6 row, or 'n/a' when no run has them."""
+    if not r.get("common_improvement_n"):
+        return "n/a"
+    return " / ".join(cell(r, name, pct=True) for name in
+                      ("common_improvement", "common_improvement_plain", "common_fall_rate_difference"))
+
+
 def table6_markdown(rows: Sequence[dict[str, Any]]) -> str:
     design = design_columns(rows)
     head = (["Robot", "Simulator", "Preset", "Objective", "Method", "Optimizer", "Terrain", "Runs"]
             + [design_header(n, u) for n, u, _ in design]
             + ["Best cost", "Nominal cost", "Improvement", "Improvement (plain mean)", "Fall rate best / nominal",
+               "Common scenarios: improvement / plain mean / fall-rate difference",
                "Sim-to-sim improvement", "Sim-to-sim note", "Starting policy"])
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     labels = objective_labels()
@@ -247,13 +260,16 @@ def table6_markdown(rows: Sequence[dict[str, Any]]) -> str:
         cells += [cell(r, "best_cost", spec=".5g"), cell(r, "nominal_cost", spec=".5g"),
                   cell(r, "improvement", pct=True) + unreliable_mark(r), cell(r, "improvement_plain", pct=True),
                   cell(r, "best_fall_rate", pct=True) + " / " + cell(r, "nominal_fall_rate", pct=True),
-                  cell(r, "sim2sim_improvement", pct=True), r["sim2sim_note"] or "", r.get("policy") or "?"]
+                  common_cell(r), cell(r, "sim2sim_improvement", pct=True), r["sim2sim_note"] or "", r.get("policy") or "?"]
         lines.append("| " + " | ".join(cells) + " |")
     lines += ["", POOLING_NOTE + " Each number: mean ± sample standard deviation over the runs (seeds) of the row, "
               "and how many runs had it (n); one run shows its own standard error (SE) when it recorded one. "
               "Improvement: lower cost than the nominal design, in percent of the nominal cost, under the run's cost "
               "rule (column `cost_rule` of table6.csv; docs/coadaptation.md) and under the paper's plain mean over "
-              "the same scenarios; fall rate: share of the final check's scenarios in which the robot fell. Starting "
+              "the same scenarios; fall rate: share of the final check's scenarios in which the robot fell. Common "
+              "scenarios: the run's best and nominal designs re-evaluated with the run's own policy on one scenario "
+              "set shared by every run of the terrain and preset (the methods' common yardstick; fall-rate "
+              "difference in points, paired). Starting "
               "policy: the policy file each run started from and the start of its SHA-256."]
     return "\n".join(lines) + "\n"
 

@@ -120,3 +120,5 @@ def register(app: typer.Typer) -> None:
                                  transfer_notes=notes, progress=progress)
         for name, path in files.items():
             print(f"{name}: {path}")
+        for run_id, why in sorted((common_notes or {}).items()):
+            print(f"common scenarios, run {run_id}: {why}")

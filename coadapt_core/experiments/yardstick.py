@@ -155,20 +155,3 @@ def yardstick_runs(
     if progress is not None:
         progress(len(runs), len(runs), "common scenarios done")
     return notes
-
-
-def yardstick_improvement(store: ResultsStore, run_id: str, objective: str) -> dict[str, float] | None:
-    """The stored common-yardstick figures of one objective (improvement under the rule and
-    under the plain mean, with SE; fall rates), or None when the run has no such rows."""
-    rows = yardstick_rows(store, run_id)
-    if len(rows) < 2 or objective not in rows[0].costs:
-        return None
-    best, nominal = rows[0].costs, rows[1].costs
-    keys = ("improvement", "improvement_se", "improvement_plain", "improvement_plain_se")
-    if any(f"{objective}/{k}" not in best for k in keys):
-        return None
-    out = {k: float(best[f"{objective}/{k}"]) for k in keys}
-    out.update(fall_rate=float(best.get("falls", np.nan)), nominal_fall_rate=float(nominal.get("falls", np.nan)),
-               fall_rate_difference=float(best.get("falls/difference", np.nan)),
-               fall_rate_difference_se=float(best.get("falls/difference_se", np.nan)))
-    return out

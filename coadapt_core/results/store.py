@@ -69,12 +69,12 @@ from coadapt_core.results.storage import (
 )
 
 __all__ = [
+    "COMMON_KIND",
+    "COMMON_OUTER",
     "DEFAULT_STORE_FILE",
     "ENV_GRID_CELL",
     "ENV_GRID_ID",
     "ENV_STORE",
-    "COMMON_KIND",
-    "COMMON_OUTER",
     "EVALUATION_KINDS",
     "LANDSCAPE_METHOD",
     "NO_STORE",

@@ -18,7 +18,6 @@ sys.path.insert(0, str(EXAMPLE_PLUGIN))
 import coadapt_example
 
 
-
 @pytest.fixture
 def objective_only(monkeypatch):
     """The process-wide registry with the built-ins' robot, simulators and optimizers, and

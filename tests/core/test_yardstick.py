@@ -8,7 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from coadapt_core.experiments.yardstick import COMMON_SEED, yardstick_improvement, yardstick_rows, yardstick_runs
+from coadapt_core.analysis.facts import yardstick_improvement
+from coadapt_core.experiments.yardstick import COMMON_SEED, yardstick_rows, yardstick_runs
 from coadapt_core.fitness import CostRule, RealFitness, compare_designs, scenario_seed
 from coadapt_core.plugins import get_registry
 from coadapt_core.results import SqliteRecorder
