@@ -20,19 +20,20 @@ def sizes(root: Path = ROOT) -> tuple[dict[str, int], dict[str, int]]:
         rel = path.relative_to(root).as_posix()
         text = path.read_text()
         modules[rel] = text.count("\n")
-
-        def visit(node: ast.AST, prefix: str) -> None:
-            for child in ast.iter_child_nodes(node):
-                if isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
-                    name = f"{prefix}{child.name}"
-                    if not isinstance(child, ast.ClassDef):
-                        functions[f"{rel}:{name}"] = child.end_lineno - child.lineno + 1
-                    visit(child, f"{name}.")
-                else:
-                    visit(child, prefix)
-
-        visit(ast.parse(text), "")
+        _visit(ast.parse(text), rel, "", functions)
     return modules, functions
+
+
+def _visit(node: ast.AST, rel: str, prefix: str, functions: dict[str, int]) -> None:
+    """Every function under `node` as 'rel:Outer.inner' -> its lines (classes name the path)."""
+    for child in ast.iter_child_nodes(node):
+        if isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+            name = f"{prefix}{child.name}"
+            if not isinstance(child, ast.ClassDef):
+                functions[f"{rel}:{name}"] = child.end_lineno - child.lineno + 1
+            _visit(child, rel, f"{name}.", functions)
+        else:
+            _visit(child, rel, prefix, functions)
 
 
 def exceptions() -> dict[str, str]:
