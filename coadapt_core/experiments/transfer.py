@@ -310,16 +310,25 @@ def transfer_runs(
 ) -> dict[str, str]:
     """`transfer_run` for each run's best design (`best_of`); returns run id -> why it has
     no rows (only runs without them). `progress(done, total, what)` hears of each run."""
+    return each_best_design(store, runs, "sim-to-sim", progress, lambda run, best: transfer_run(
+        store, run, best, simulator=simulator, agents=agents, steps=steps, factory=factory))
+
+
+def each_best_design(store: ResultsStore, runs: Sequence[dict[str, Any]], what: str,
+                     progress: Callable[[int, int, str], None] | None,
+                     evaluate: Callable[[dict[str, Any], Any], str]) -> dict[str, str]:
+    """`evaluate(run, best design)` for each run (`best_of` its real rows), telling `progress`;
+    returns run id -> the note of each run left without rows."""
     notes = {}
     for i, run in enumerate(runs):
         if progress is not None:
-            progress(i, len(runs), f"sim-to-sim {run['id']}")
+            progress(i, len(runs), f"{what} {run['id']}")
         best, _ = best_of(run, store.evaluations(run["id"], kind="real"))
-        note = transfer_run(store, run, best, simulator=simulator, agents=agents, steps=steps, factory=factory)
+        note = evaluate(run, best)
         if note:
             notes[run["id"]] = note
     if progress is not None:
-        progress(len(runs), len(runs), "sim-to-sim done")
+        progress(len(runs), len(runs), f"{what} done")
     return notes
 
 

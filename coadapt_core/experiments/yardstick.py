@@ -30,7 +30,7 @@ import numpy as np
 from coadapt_core.errors import BackendUnavailable, UserError
 from coadapt_core.fitness import CostRule, compare_designs, scenario_seed
 from coadapt_core.results.recorders import batch_rows
-from coadapt_core.results.store import COMMON_KIND, COMMON_OUTER, ResultsStore, best_of
+from coadapt_core.results.store import COMMON_KIND, COMMON_OUTER, ResultsStore
 
 #: the common scenario set: blocks of scenario_seed(COMMON_SEED, b) (benchmarks/common_scenarios.py draws the same)
 COMMON_SEED = 1000
@@ -144,14 +144,7 @@ def yardstick_runs(
 ) -> dict[str, str]:
     """`yardstick_run` for each run's best design (blocks of each run's own evaluation size
     unless `agents`/`steps` are given); returns run id -> why it has no rows."""
-    notes = {}
-    for i, run in enumerate(runs):
-        if progress is not None:
-            progress(i, len(runs), f"common scenarios {run['id']}")
-        best, _ = best_of(run, store.evaluations(run["id"], kind="real"))
-        note = yardstick_run(store, run, best, blocks=blocks, agents=agents, steps=steps, factory=factory)
-        if note:
-            notes[run["id"]] = note
-    if progress is not None:
-        progress(len(runs), len(runs), "common scenarios done")
-    return notes
+    from coadapt_core.experiments.transfer import each_best_design
+
+    return each_best_design(store, runs, "common scenarios", progress, lambda run, best: yardstick_run(
+        store, run, best, blocks=blocks, agents=agents, steps=steps, factory=factory))
