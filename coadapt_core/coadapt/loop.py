@@ -64,6 +64,11 @@ def _split(total: float, n: int) -> list[float]:
     return [total / n] * n
 
 
+def seed_at(seed: int, *parts: int) -> int:
+    """The seed at position `parts` of a run with seed `seed` (`CoadaptationLoop.seed_for`)."""
+    return int(np.random.SeedSequence([seed, *parts]).generate_state(1)[0] % (2**31 - 1))
+
+
 class CoadaptationLoop:
     """Runs Algorithm 4 as a small state machine over `LoopState` (see module docstring)."""
 
@@ -210,7 +215,7 @@ class CoadaptationLoop:
 
     def seed_for(self, *parts: int) -> int:
         """A seed fixed by position in the run, so a resumed run draws what it would have."""
-        return int(np.random.SeedSequence([self.config.seed, *parts]).generate_state(1)[0] % (2**31 - 1))
+        return seed_at(self.config.seed, *parts)
 
     def scenario_seed(self, block: int = 0) -> int:
         """The seed of the run's scenario set (common random numbers, docs/coadaptation.md):
@@ -429,7 +434,7 @@ class CoadaptationLoop:
 
     def final_phase(self) -> None:
         """Re-evaluate for real the best designs (best real, best of any kind; the Pareto front
-        for several objectives) and the nominal design, with the final policy."""
+        for several objectives) and the nominal design, with the final policy (or each its own)."""
         s, c = self.state, self.config
         self.emit("final evaluation")
         candidates = final_candidates(s, s.optimizer, len(self.objectives), c.population)
@@ -447,9 +452,8 @@ class CoadaptationLoop:
         self.emit("done")
 
     def _save_own_policies(self, best_design: np.ndarray) -> dict[str, str]:
-        """Without a shared policy, the best and nominal designs' own policies go to the run's
-        checkpoints/ folder under `OWN_POLICY_FILES` (the yardstick and sim-to-sim look them
-        up by these names); training they take counts as training."""
+        """Without a shared policy, the best and nominal designs' own policies go to the run
+        folder as `OWN_POLICY_FILES` (the yardstick and sim-to-sim look them up by name)."""
         backend = self.get_backend()
         if not isinstance(backend, OwnPolicies):
             return {}

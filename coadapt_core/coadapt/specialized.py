@@ -102,19 +102,9 @@ class SpecializedPolicyBackend:
             policy, trained = self.policy(design)
             trainings += trained
             fits.append(policy.real_fitness(design[None, :], objectives, agents=agents, steps=steps, seed=seed))
-        extra: dict[str, Any] = {}
-        for name in _PER_DESIGN:
-            values = [getattr(f, name) for f in fits]
-            if all(v is not None for v in values):
-                extra[name] = np.concatenate([np.asarray(v) for v in values])
-        return RealFitness(
-            costs=np.concatenate([np.asarray(f.costs, dtype=float).reshape(1, -1) for f in fits]),
-            buffer=None,  # no shared policy, so no states for a surrogate
-            interactions=sum(int(f.interactions) for f in fits),
-            seconds=sum(float(f.seconds) for f in fits),
-            training=trainings,
-            **extra,
-        )
+        fit = stack_fits(fits)
+        fit.training = trainings
+        return fit
 
     def surrogate_fitness(
         self, designs: np.ndarray, objectives: Sequence[Objective], buffer: Any, *, samples: int, seed: int = 0
@@ -146,3 +136,20 @@ def _close(policy: Any) -> None:
     close = getattr(policy, "close", None)
     if callable(close):
         close()
+
+
+def stack_fits(fits: Sequence[RealFitness]) -> RealFitness:
+    """One RealFitness with the designs of `fits` (each its own policy's) as rows; the
+    optional per-design arrays (`_PER_DESIGN`) kept when every fit has them."""
+    extra: dict[str, Any] = {}
+    for name in _PER_DESIGN:
+        values = [getattr(f, name) for f in fits]
+        if all(v is not None for v in values):
+            extra[name] = np.concatenate([np.asarray(v) for v in values])
+    return RealFitness(
+        costs=np.concatenate([np.asarray(f.costs, dtype=float).reshape(1, -1) for f in fits]),
+        buffer=None,  # no shared policy, so no states for a surrogate
+        interactions=sum(int(f.interactions) for f in fits),
+        seconds=sum(float(f.seconds) for f in fits),
+        **extra,
+    )
