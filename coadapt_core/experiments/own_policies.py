@@ -143,14 +143,25 @@ def policy_files(run: dict[str, Any], designs: dict[str, np.ndarray]) -> Iterato
         yield out
 
 
+def run_nominal(robot: Any, run: dict[str, Any], dim: int) -> np.ndarray:
+    """The nominal design the run compared against: its summary's, else the robot's of the
+    design space with the run's dimension."""
+    recorded = (run.get("summary") or {}).get("nominal_design")
+    if isinstance(recorded, list) and len(recorded) == dim:
+        return np.asarray(recorded, dtype=float)
+    for mixed in (False, True):
+        nominal = np.asarray(robot.nominal_design(mixed=mixed), dtype=float)
+        if nominal.shape[0] == dim:
+            return nominal
+    raise BackendUnavailable(f"robot '{robot.name}' has no design space of {dim} variables")
+
+
 def nominal_of(run: dict[str, Any], dim: int) -> np.ndarray:
     """The run's nominal design (its summary's, else its robot's of dimension `dim`)."""
-    from coadapt_core.experiments.transfer import _nominal
     from coadapt_core.plugins import get_registry
 
     cfg = run.get("config") or {}
-    robot = get_registry().create("robot", str(run.get("robot") or cfg.get("robot")))
-    return _nominal(robot, run, dim)
+    return run_nominal(get_registry().create("robot", str(run.get("robot") or cfg.get("robot"))), run, dim)
 
 
 def each_own_policy(

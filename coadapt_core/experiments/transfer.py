@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from coadapt_core.errors import BackendUnavailable, CoadaptError, UserError
+from coadapt_core.experiments.own_policies import run_nominal as _nominal
 from coadapt_core.fitness import CoadaptationBackend, CostRule, scenario_seed
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.physics.simulator import Simulator
@@ -228,19 +229,6 @@ def run_checkpoint_in_store(store: ResultsStore, run: dict[str, Any]) -> tuple[P
 def transfer_rows(store: ResultsStore, run_id: str, simulator: str) -> list:
     """The run's transfer rows on `simulator` (idx 0 best design, 1 nominal)."""
     return [e for e in store.evaluations(run_id, kind=TRANSFER_KIND) if e.simulator == simulator]
-
-
-def _nominal(robot: Robot, run: dict[str, Any], dim: int) -> np.ndarray:
-    """The nominal design the run compared against: its summary's, else the robot's of the
-    design space with the run's dimension."""
-    recorded = (run.get("summary") or {}).get("nominal_design")
-    if isinstance(recorded, list) and len(recorded) == dim:
-        return np.asarray(recorded, dtype=float)
-    for mixed in (False, True):
-        nominal = np.asarray(robot.nominal_design(mixed=mixed), dtype=float)
-        if nominal.shape[0] == dim:
-            return nominal
-    raise BackendUnavailable(f"robot '{robot.name}' has no design space of {dim} variables")
 
 
 def _transfer_backend(run: dict[str, Any], dim: int, simulator: str, agents: int, checkpoint: str,

@@ -73,7 +73,6 @@ def figures(comparison: dict[str, Any], *, best: bool) -> dict[str, float]:
 
 def _backend(run: dict[str, Any], dim: int, agents: int, checkpoint: str, factory: Callable | None):
     """(backend, objectives, nominal design) for the run's robot, simulator and terrain."""
-    from coadapt_core.experiments.transfer import _nominal
     from coadapt_core.learning.factory import make_backend, resolve_plugins
 
     cfg = run.get("config") or {}
@@ -81,7 +80,7 @@ def _backend(run: dict[str, Any], dim: int, agents: int, checkpoint: str, factor
     if not robot_name or not simulator:
         raise BackendUnavailable("the run recorded no robot or simulator")
     robot, sim_cls, objectives = resolve_plugins(str(robot_name), str(simulator), list(run["objectives"]))
-    nominal = _nominal(robot, run, dim)
+    nominal = run_nominal(robot, run, dim)
     space = next((s for s in (robot.design_space(False), robot.design_space(True)) if s.dim == dim), None)
     backend = (factory or make_backend)(
         robot, sim_cls, objectives, terrain=run.get("terrain") or "flat", design_space=space,
