@@ -32,6 +32,7 @@ from coadapt_core.experiments.own_policies import (
     each_own_policy,
     nominal_of,
     policy_files,
+    run_nominal,
     shares_policy,
 )
 from coadapt_core.fitness import CostRule, compare_designs, scenario_seed
