@@ -74,7 +74,7 @@ def retrain_policies(
     except (UserError, TypeError, ValueError) as exc:
         raise BackendUnavailable(f"the run's recorded config cannot be rebuilt ({' '.join(str(exc).split())})") from None
     if policy_factory is None:
-        policy_factory = _run_learner(config, run)
+        policy_factory = run_learner(config, run)
     # the loop builds its backend with seed_for(0) (CoadaptationLoop.get_backend)
     backend = SpecializedPolicyBackend(policy_factory, train_steps=config.specialized_train_steps,
                                        seed=seed_at(config.seed, 0), keep=1)
@@ -89,7 +89,7 @@ def retrain_policies(
     return out
 
 
-def _run_learner(config: Any, run: dict[str, Any]) -> Callable[[int], CoadaptationBackend]:
+def run_learner(config: Any, run: dict[str, Any]) -> Callable[[int], CoadaptationBackend]:
     """The per-design policy factory of the run (`setup.universal_policy_factory`), after
     checking that the starting policy it resolves to is the file the run recorded."""
     from coadapt_core.coadapt.setup import (

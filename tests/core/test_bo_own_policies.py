@@ -7,7 +7,10 @@ same rows by training them again with the run's seeds."""
 
 from __future__ import annotations
 
+import importlib.util
+import json
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,6 +23,7 @@ from coadapt_core.learning.checkpoints import read_checkpoint
 from coadapt_core.results import SqliteRecorder
 
 pytestmark = pytest.mark.slow
+ROOT = Path(__file__).resolve().parents[2]
 
 TINY = {"method": "bo-specialized", "sim": "mujoco", "objective": "torque", "seed": 2, "outer_iterations": 1,
         "bo_designs": 2, "specialized_train_steps": 16, "population": 2, "agents_per_design": 2, "eval_agents": 4,
@@ -27,7 +31,7 @@ TINY = {"method": "bo-specialized", "sim": "mujoco", "objective": "torque", "see
         "checkpoint": "none", "train": {"steps_per_env": 4, "hidden": [16, 16], "epochs": 1, "minibatches": 1}}
 
 
-def test_a_bo_run_checks_finally_keeps_its_policies_and_old_runs_get_them_again(tmp_path):
+def test_a_bo_run_checks_finally_keeps_its_policies_and_old_runs_get_them_again(tmp_path, capsys):
     out, db = tmp_path / "runs", tmp_path / "bo.db"
     config = make_config("smoke", overrides={**TINY, "out": str(out), "store": str(db)})
     result = run_coadaptation(config)
@@ -67,3 +71,14 @@ def test_a_bo_run_checks_finally_keeps_its_policies_and_old_runs_get_them_again(
     # trained again with the run's seeds: the same policies, so the same figures to the bit
     assert [(r.design, r.costs) for r in yardstick_rows(other, run["id"])] == saved
     assert not (old / "checkpoints").exists()  # nothing written into the run's folder
+
+    # benchmarks/bo_retrain_check.py on the older folder: the recorded costs, to the bit
+    spec = importlib.util.spec_from_file_location("bo_retrain_check", ROOT / "benchmarks" / "bo_retrain_check.py")
+    check = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(check)
+    assert check.main([str(old), "--json"]) == 0
+    lines = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [(x["design"], x["equal"]) for x in lines] == [("best", True), ("nominal", True)]
+    assert lines[1]["compared"] == "reference level" and lines[1]["recorded"] == s["cost_reference"][0]
+    assert check.main([str(tmp_path)]) == 2 and "not a finished run folder" in capsys.readouterr().err
+
