@@ -30,6 +30,12 @@ from typing import Any
 import numpy as np
 
 from coadapt_core.errors import BackendUnavailable, CoadaptError, UserError
+from coadapt_core.experiments.own_policies import (
+    each_own_policy,
+    nominal_of,
+    policy_files,
+    shares_policy,
+)
 from coadapt_core.experiments.own_policies import run_nominal as _nominal
 from coadapt_core.fitness import CoadaptationBackend, CostRule, scenario_seed
 from coadapt_core.physics.randomization import RandomizationConfig
@@ -255,8 +261,6 @@ def _own_policy_transfer(run: dict[str, Any], best: np.ndarray, simulator: str, 
                          factory: BackendFactory | None) -> tuple[Any, list, np.ndarray]:
     """A run without a shared policy: its best and nominal designs each with its own policy
     (saved by the run, else trained again as it did, in the run's own simulator) on `simulator`."""
-    from coadapt_core.experiments.own_policies import each_own_policy, nominal_of, policy_files
-
     designs = {"best": best, "nominal": nominal_of(run, best.shape[0])}
     made: dict[str, Any] = {}
 
@@ -289,8 +293,6 @@ def transfer_run(
         return ""
     if run.get("simulator") == simulator:
         return f"n/a: the run itself used {simulator}"
-    from coadapt_core.experiments.own_policies import shares_policy
-
     shared = shares_policy(run)
     checkpoint, why = run_checkpoint_in_store(store, run) if shared else (None, "")
     if shared and checkpoint is None:
