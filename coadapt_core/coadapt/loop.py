@@ -23,10 +23,11 @@ from typing import Any
 import numpy as np
 
 from coadapt_core.coadapt.config import CoadaptConfig
-from coadapt_core.coadapt.final_check import batch_errors, final_check, no_uncertainty
+from coadapt_core.coadapt.final_check import batch_errors, final_check
 from coadapt_core.coadapt.hybrid import HybridPolicy
 from coadapt_core.coadapt.reliability import walking
 from coadapt_core.coadapt.setup import note_first_round
+from coadapt_core.coadapt.specialized import OWN_POLICY_FILES, OwnPolicies
 from coadapt_core.coadapt.state import STATE_FILE, LoopState, save_state
 from coadapt_core.coadapt.summary import (
     JSON_PLAIN_AND_FALLS,
@@ -61,6 +62,11 @@ def _split(total: float, n: int) -> list[float]:
         base, rest = divmod(total, n)
         return [base + (1 if i < rest else 0) for i in range(n)]
     return [total / n] * n
+
+
+def seed_at(seed: int, *parts: int) -> int:
+    """The seed at position `parts` of a run with seed `seed` (`CoadaptationLoop.seed_for`)."""
+    return int(np.random.SeedSequence([seed, *parts]).generate_state(1)[0] % (2**31 - 1))
 
 
 class CoadaptationLoop:
@@ -209,7 +215,7 @@ class CoadaptationLoop:
 
     def seed_for(self, *parts: int) -> int:
         """A seed fixed by position in the run, so a resumed run draws what it would have."""
-        return int(np.random.SeedSequence([self.config.seed, *parts]).generate_state(1)[0] % (2**31 - 1))
+        return seed_at(self.config.seed, *parts)
 
     def scenario_seed(self, block: int = 0) -> int:
         """The seed of the run's scenario set (common random numbers, docs/coadaptation.md):
@@ -428,12 +434,14 @@ class CoadaptationLoop:
 
     def final_phase(self) -> None:
         """Re-evaluate for real the best designs (best real, best of any kind; the Pareto front
-        for several objectives) and the nominal design, with the final policy."""
+        for several objectives) and the nominal design, with the final policy (or each its own)."""
         s, c = self.state, self.config
         self.emit("final evaluation")
         candidates = final_candidates(s, s.optimizer, len(self.objectives), c.population)
         designs = np.stack([*candidates, self.nominal])  # [C + 1, dim]
-        outcome = self._final_own_policies() if not self.shared else self._final_check(designs)
+        outcome = self._final_check(designs)  # with a policy per design: each candidate's own
+        if not self.shared:
+            outcome.uncertainty["own_policies"] = self._save_own_policies(outcome.best_design)
         s.summary = run_summary(s, c, self.objectives, outcome, optimizer=self.optimizer_cls.name, nominal=self.nominal,
                                 seconds=self.elapsed(), surrogate_quality=self.hybrid.quality_summary(),
                                 shared=self.shared)
@@ -443,26 +451,31 @@ class CoadaptationLoop:
         # e.g. the CLI's video) is done too: an interrupt there leaves the run resumable
         self.emit("done")
 
-    def _final_own_policies(self) -> FinalOutcome:
-        """Without a shared policy every real cost came with the design's own policy: the best
-        one stands, and the nominal design is evaluated with a policy of its own."""
-        s, c = self.state, self.config
-        fit = self.get_backend().real_fitness(self.nominal[None, :], self.objectives, agents=c.evaluation_agents,
-                                              steps=c.eval_steps, seed=self.scenario_seed())
+    def _save_own_policies(self, best_design: np.ndarray) -> dict[str, str]:
+        """Without a shared policy, the best and nominal designs' own policies go to the run
+        folder as `OWN_POLICY_FILES` (the yardstick and sim-to-sim look them up by name)."""
+        backend = self.get_backend()
+        if not isinstance(backend, OwnPolicies):
+            return {}
+        (self.run_dir / "checkpoints").mkdir(exist_ok=True)
+        for role, design in (("best", best_design), ("nominal", self.nominal)):
+            self.count_training(backend.save_policy(np.asarray(design, dtype=float), str(self.run_dir / OWN_POLICY_FILES[role])))
+        return dict(OWN_POLICY_FILES)
+
+    def _final_fitness(self, designs: np.ndarray, block: int) -> RealFitness:
+        """One scenario block of the final check; policies a backend trains first count as training."""
+        c = self.config
+        fit = self.get_backend().real_fitness(designs, self.objectives, agents=c.evaluation_agents, steps=c.eval_steps,
+                                              seed=self.scenario_seed(block))
         self.count_training(fit.training)
-        s.counters["final_interactions"] += int(fit.interactions)
-        s.counters["final_seconds"] += float(fit.seconds)
-        return FinalOutcome(best_design=np.asarray(s.best_real[0]), best_costs=np.array([s.best_real[1]]),
-                            nominal_costs=self.rule_costs(fit).reshape(-1), uncertainty=no_uncertainty(self.names))
+        return fit
 
     def _final_check(self, designs: np.ndarray) -> FinalOutcome:
         """Paired blocks of fresh scenarios for the candidates and the nominal design (last)
         until the improvement is >= 4 standard errors (final_check.py)."""
         s, c = self.state, self.config
         check = final_check(
-            lambda d, block: self.get_backend().real_fitness(
-                d, self.objectives, agents=c.evaluation_agents, steps=c.eval_steps, seed=self.scenario_seed(block)),
-            designs, self.objectives, max_blocks=c.final_max_blocks, min_blocks=min(c.final_min_blocks, c.final_max_blocks),
+            self._final_fitness, designs, self.objectives, max_blocks=c.final_max_blocks, min_blocks=min(c.final_min_blocks, c.final_max_blocks),
             rule=self.cost_rule, fall_tolerance=c.fall_tolerance if len(self.objectives) == 1 else None,
             on_block=lambda b: self.emit(f"final check, scenario block {b}"),
         )

@@ -30,6 +30,13 @@ from typing import Any
 import numpy as np
 
 from coadapt_core.errors import BackendUnavailable, CoadaptError, UserError
+from coadapt_core.experiments.own_policies import (
+    each_own_policy,
+    nominal_of,
+    policy_files,
+    shares_policy,
+)
+from coadapt_core.experiments.own_policies import run_nominal as _nominal
 from coadapt_core.fitness import CoadaptationBackend, CostRule, scenario_seed
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.physics.simulator import Simulator
@@ -230,17 +237,41 @@ def transfer_rows(store: ResultsStore, run_id: str, simulator: str) -> list:
     return [e for e in store.evaluations(run_id, kind=TRANSFER_KIND) if e.simulator == simulator]
 
 
-def _nominal(robot: Robot, run: dict[str, Any], dim: int) -> np.ndarray:
-    """The nominal design the run compared against: its summary's, else the robot's of the
-    design space with the run's dimension."""
-    recorded = (run.get("summary") or {}).get("nominal_design")
-    if isinstance(recorded, list) and len(recorded) == dim:
-        return np.asarray(recorded, dtype=float)
-    for mixed in (False, True):
-        nominal = np.asarray(robot.nominal_design(mixed=mixed), dtype=float)
-        if nominal.shape[0] == dim:
-            return nominal
-    raise BackendUnavailable(f"robot '{robot.name}' has no design space of {dim} variables")
+def _transfer_backend(run: dict[str, Any], dim: int, simulator: str, agents: int, checkpoint: str,
+                      factory: BackendFactory | None) -> tuple[CoadaptationBackend, list, np.ndarray]:
+    """(backend on `simulator` with the policy in `checkpoint`, objectives, nominal design)."""
+    from coadapt_core.learning.factory import make_backend, resolve_plugins
+
+    cfg = run.get("config") or {}
+    robot_name = run.get("robot") or cfg.get("robot")
+    if not robot_name:
+        raise BackendUnavailable("the run recorded no robot")
+    robot, sim_cls, objectives = resolve_plugins(str(robot_name), simulator, list(run["objectives"]))
+    nominal = _nominal(robot, run, dim)
+    space = next((s for s in (robot.design_space(False), robot.design_space(True)) if s.dim == dim), None)
+    backend = (factory or make_backend)(
+        robot, sim_cls, objectives, terrain=run.get("terrain") or "flat", design_space=space,
+        agents_per_design=agents, device=str(cfg.get("device", "cpu")), seed=int(run.get("seed") or 0),
+        checkpoint=checkpoint,
+    )
+    return backend, objectives, nominal
+
+
+def _own_policy_transfer(run: dict[str, Any], best: np.ndarray, simulator: str, agents: int, steps: int, seed: int,
+                         factory: BackendFactory | None) -> tuple[Any, list, np.ndarray]:
+    """A run without a shared policy: its best and nominal designs each with its own policy
+    (saved by the run, else trained again as it did, in the run's own simulator) on `simulator`."""
+    designs = {"best": best, "nominal": nominal_of(run, best.shape[0])}
+    made: dict[str, Any] = {}
+
+    def make(path):
+        backend, made["objectives"], _ = _transfer_backend(run, best.shape[0], simulator, agents, str(path), factory)
+        return backend
+
+    with policy_files(run, designs) as files:
+        [fit] = each_own_policy(make, files, designs, lambda backend, d: [
+            backend.real_fitness(d, made["objectives"], agents=agents, steps=steps, seed=seed)])
+    return fit, made["objectives"], designs["nominal"]
 
 
 def transfer_run(
@@ -262,28 +293,19 @@ def transfer_run(
         return ""
     if run.get("simulator") == simulator:
         return f"n/a: the run itself used {simulator}"
-    checkpoint, why = run_checkpoint_in_store(store, run)
-    if checkpoint is None:
+    shared = shares_policy(run)
+    checkpoint, why = run_checkpoint_in_store(store, run) if shared else (None, "")
+    if shared and checkpoint is None:
         return why
     cfg = run.get("config") or {}
     best = np.asarray(best_design, dtype=float)
+    seed = scenario_seed(int(run.get("seed") or 0))  # the run's own scenario set (docs/coadaptation.md)
     try:
-        from coadapt_core.learning.factory import make_backend, resolve_plugins
-
-        robot_name = run.get("robot") or cfg.get("robot")
-        if not robot_name:
-            return "n/a: the run recorded no robot"
-        robot, sim_cls, objectives = resolve_plugins(str(robot_name), simulator, list(run["objectives"]))
-        nominal = _nominal(robot, run, best.shape[0])
-        space = next((s for s in (robot.design_space(False), robot.design_space(True)) if s.dim == best.shape[0]), None)
-        backend = (factory or make_backend)(
-            robot, sim_cls, objectives, terrain=run.get("terrain") or "flat", design_space=space,
-            agents_per_design=agents, device=str(cfg.get("device", "cpu")), seed=int(run.get("seed") or 0),
-            checkpoint=str(checkpoint),
-        )
-        # the run's own scenario set (paired with the run's real rounds, docs/coadaptation.md)
-        fit = backend.real_fitness(np.stack([best, nominal]), objectives, agents=agents, steps=steps,
-                                   seed=scenario_seed(int(run.get("seed") or 0)))
+        if shared:
+            backend, objectives, nominal = _transfer_backend(run, best.shape[0], simulator, agents, str(checkpoint), factory)
+            fit = backend.real_fitness(np.stack([best, nominal]), objectives, agents=agents, steps=steps, seed=seed)
+        else:
+            fit, objectives, nominal = _own_policy_transfer(run, best, simulator, agents, steps, seed, factory)
     except BackendUnavailable as exc:
         return f"n/a: {exc}"
     except UserError as exc:  # e.g. a checkpoint that is not one (refused unread): this run only

@@ -28,6 +28,13 @@ from typing import Any
 import numpy as np
 
 from coadapt_core.errors import BackendUnavailable, UserError
+from coadapt_core.experiments.own_policies import (
+    each_own_policy,
+    nominal_of,
+    policy_files,
+    run_nominal,
+    shares_policy,
+)
 from coadapt_core.fitness import CostRule, compare_designs, scenario_seed
 from coadapt_core.results.recorders import batch_rows
 from coadapt_core.results.store import COMMON_KIND, COMMON_OUTER, ResultsStore
@@ -67,7 +74,6 @@ def figures(comparison: dict[str, Any], *, best: bool) -> dict[str, float]:
 
 def _backend(run: dict[str, Any], dim: int, agents: int, checkpoint: str, factory: Callable | None):
     """(backend, objectives, nominal design) for the run's robot, simulator and terrain."""
-    from coadapt_core.experiments.transfer import _nominal
     from coadapt_core.learning.factory import make_backend, resolve_plugins
 
     cfg = run.get("config") or {}
@@ -75,7 +81,7 @@ def _backend(run: dict[str, Any], dim: int, agents: int, checkpoint: str, factor
     if not robot_name or not simulator:
         raise BackendUnavailable("the run recorded no robot or simulator")
     robot, sim_cls, objectives = resolve_plugins(str(robot_name), str(simulator), list(run["objectives"]))
-    nominal = _nominal(robot, run, dim)
+    nominal = run_nominal(robot, run, dim)
     space = next((s for s in (robot.design_space(False), robot.design_space(True)) if s.dim == dim), None)
     backend = (factory or make_backend)(
         robot, sim_cls, objectives, terrain=run.get("terrain") or "flat", design_space=space,
@@ -83,6 +89,23 @@ def _backend(run: dict[str, Any], dim: int, agents: int, checkpoint: str, factor
         checkpoint=checkpoint,
     )
     return backend, objectives, nominal
+
+
+def _own_policy_blocks(run: dict[str, Any], best: np.ndarray, agents: int, factory: Callable | None,
+                       blocks_of: Callable) -> tuple[list, list, np.ndarray]:
+    """A run without a shared policy: its best and nominal designs each with its own policy
+    (saved by the run, else trained again as it did: `own_policies`), the common blocks
+    stacked as if one policy had evaluated both."""
+    designs = {"best": best, "nominal": nominal_of(run, best.shape[0])}
+    made: dict[str, Any] = {}
+
+    def make(path):
+        backend, made["objectives"], _ = _backend(run, best.shape[0], agents, str(path), factory)
+        return backend
+
+    with policy_files(run, designs) as files:
+        fits = each_own_policy(make, files, designs, lambda backend, d: blocks_of(backend, d, made["objectives"]))
+    return fits, made["objectives"], designs["nominal"]
 
 
 def yardstick_run(
@@ -103,20 +126,27 @@ def yardstick_run(
         return "n/a: the run has no best design"
     if len(yardstick_rows(store, run["id"])) >= 2:
         return ""
-    checkpoint, why = run_checkpoint_in_store(store, run)
-    if checkpoint is None:
+    shared = shares_policy(run)
+    checkpoint, why = run_checkpoint_in_store(store, run) if shared else (None, "")
+    if shared and checkpoint is None:
         return why
     best = np.asarray(best_design, dtype=float)
     own_agents, own_steps = block_size(run)
     agents, steps = agents or own_agents, steps or own_steps
-    try:
-        backend, objectives, nominal = _backend(run, best.shape[0], agents, str(checkpoint), factory)
-        designs = np.stack([best, nominal])
-        fits = [backend.real_fitness(designs, objectives, agents=agents, steps=steps, seed=scenario_seed(COMMON_SEED, b))
+
+    def blocks_of(backend, designs, objectives):
+        return [backend.real_fitness(designs, objectives, agents=agents, steps=steps, seed=scenario_seed(COMMON_SEED, b))
                 for b in range(blocks)]
-        close = getattr(backend, "close", None)
-        if callable(close):
-            close()
+
+    try:
+        if shared:
+            backend, objectives, nominal = _backend(run, best.shape[0], agents, str(checkpoint), factory)
+            fits = blocks_of(backend, np.stack([best, nominal]), objectives)
+            close = getattr(backend, "close", None)
+            if callable(close):
+                close()
+        else:
+            fits, objectives, nominal = _own_policy_blocks(run, best, agents, factory, blocks_of)
     except (BackendUnavailable, UserError) as exc:
         return f"n/a: {' '.join(str(exc).split())}"
     if any(f.per_scenario is None for f in fits):

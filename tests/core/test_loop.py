@@ -144,11 +144,17 @@ def test_bo_specialized_trains_a_policy_per_design(tmp_path):
             trained.append(np.array(designs))
             return super().train(designs, steps, seed=seed)
 
-    summary = run(tmp_path, method="bo-specialized", bo_designs=12, specialized_train_steps=300, backend=Recording).summary
-    assert len(trained) == 13  # 12 proposals + the nominal design
+    result = run(tmp_path, method="bo-specialized", bo_designs=12, specialized_train_steps=300, backend=Recording)
+    summary = result.summary
+    # 12 proposals, then in the final check the nominal design and those of its 3 candidates
+    # (the best real designs) whose policies were no longer among the 4 kept
     assert all(d.shape == (1, 2) for d in trained)
-    np.testing.assert_allclose(trained[-1][0], NOMINAL)
-    assert summary["train_interactions"] == 13 * 300
+    evaluated = [e["design"] for e in read_evaluations(result.run_dir)]
+    assert [d[0].tolist() for d in trained[:12]] == evaluated
+    final = [d[0].tolist() for d in trained[12:]]
+    assert final[-1] == NOMINAL.tolist() and 2 <= len(final) <= 4 and len({tuple(d) for d in final}) == len(final)
+    assert all(d in evaluated for d in final[:-1])
+    assert summary["train_interactions"] == len(trained) * 300
     assert summary["real_evaluations"] == 12 and summary["surrogate_evaluations"] == 0
     assert summary["optimizer"] == "bo"
 

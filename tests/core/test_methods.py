@@ -5,6 +5,7 @@ unchanged by becoming a backend, and its optimizer chosen by a declared capabili
 from __future__ import annotations
 
 import ast
+import json
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +13,7 @@ import pytest
 from coadapt_plugins.objectives.locomotion import TorqueObjective
 
 from coadapt_core.coadapt import make_config, read_evaluations, run_coadaptation
-from coadapt_core.coadapt.specialized import SpecializedPolicyBackend
+from coadapt_core.coadapt.specialized import OWN_POLICY_FILES, SpecializedPolicyBackend
 from coadapt_core.errors import UserError
 from coadapt_core.methods import (
     BACKEND_KINDS,
@@ -56,20 +57,31 @@ def bo_run(tmp_path, backend=AnalyticBackend, optimizer_cls=None, **overrides):
 
 
 def test_bo_specialized_as_a_backend_gives_what_the_loop_branch_gave(tmp_path):
+    """The optimisation is the branch's, design for design and cost for cost; the final stage
+    is now the shared methods' paired final check (each design with its own policy, kept or
+    trained again with the same seeds), and the best and nominal designs' policies are saved."""
     result = bo_run(tmp_path)
     s = result.summary
-    for key in ("interactions", "train_interactions", "eval_interactions", "final_interactions", "real_evaluations",
-                "surrogate_evaluations", "designs_evaluated"):
+    for key in ("eval_interactions", "real_evaluations", "surrogate_evaluations", "designs_evaluated"):
         assert s[key] == BEFORE[key], key
     np.testing.assert_allclose(s["best_design"], BEFORE["best_design"], rtol=0, atol=1e-12)
-    for key in ("best_cost", "nominal_cost", "improvement"):
-        assert s[key] == pytest.approx(BEFORE[key], abs=1e-12), key
     np.testing.assert_allclose([b["best_cost"] for b in s["batches"]], BEFORE["batch_costs"], rtol=0, atol=1e-12)
     np.testing.assert_allclose([e["design"] for e in read_evaluations(result.run_dir)], BEFORE["designs"], atol=1e-12)
     assert s["optimizer"] == "bo" and s["pareto_front"] is None and s["surrogate_quality"]["rounds"] == []
-    # 7 proposals + the nominal design, each with its own policy; nothing shared was checkpointed
-    assert s["train_interactions"] == 8 * 300
-    assert not (result.run_dir / "checkpoints").exists()
+    # the final check: the 3 best real designs (costs 1.01, 1.37, 1.58) and the nominal design,
+    # one block (the fake gives no per-scenario costs), 8 agents x 20 steps each
+    assert s["final_interactions"] == 4 * 8 * 20 and s["final_blocks"] == 1
+    # 7 proposals + the nominal design during the run; in the final check the policies of the
+    # designs evaluated 1st and 2nd and of the nominal design had left the 4 kept, so 3 more
+    assert s["train_interactions"] == 8 * 300 + 3 * 300
+    assert s["interactions"] == s["train_interactions"] + s["eval_interactions"] + s["final_interactions"]
+    # fresh scenarios (block 1): other noise than the rounds' block 0, the same order
+    assert s["best_cost"] != BEFORE["best_cost"] and abs(s["best_cost"] - BEFORE["best_cost"]) < 0.05
+    assert s["improvement"] == pytest.approx(1 - s["best_cost"] / s["nominal_cost"], abs=1e-12)
+    assert s["own_policies"] == OWN_POLICY_FILES
+    saved = {role: json.loads((result.run_dir / name).read_text()) for role, name in OWN_POLICY_FILES.items()}
+    assert saved["best"]["trained_low"] == s["best_design"] and saved["nominal"]["trained_low"] == [1.0, 1.0]
+    assert sorted(p.name for p in (result.run_dir / "checkpoints").iterdir()) == ["policy-best.pt", "policy-nominal.pt"]
 
 
 def test_each_design_gets_its_own_policy_seeded_by_the_design():
@@ -80,17 +92,42 @@ def test_each_design_gets_its_own_policy_seeded_by_the_design():
             calls.append((self.seed, seed, np.array(designs)))
             return super().train(designs, steps, seed=seed)
 
-    backend = SpecializedPolicyBackend(Recording, train_steps=50, seed=3)
+    backend = SpecializedPolicyBackend(Recording, train_steps=50, seed=3, keep=2)
     designs = np.array([[0.7, 0.9], [1.2, 0.6], [0.7, 0.9]])
     fit = backend.real_fitness(designs, [TorqueObjective()], agents=4, steps=10, seed=1)
     assert fit.costs.shape == (3, 1) and fit.buffer is None
     assert fit.interactions == 3 * 4 * 10  # rollouts only; training comes apart
-    assert [t.steps for t in fit.training] == [50, 50, 50]
-    assert [c[2].tolist() for c in calls] == [[d.tolist()] for d in designs]  # each trained on its design alone
-    assert calls[0][:2] == calls[2][:2] != calls[1][:2]  # the same design, the same policy
+    assert [t.steps for t in fit.training] == [50, 50]  # the third is the first design again: its policy is kept
+    assert [c[2].tolist() for c in calls] == [[d.tolist()] for d in designs[:2]]  # each trained on its design alone
+    assert fit.costs[0, 0] == fit.costs[2, 0]
+    # a third design pushes out the least recently used (the second), which comes back
+    # trained again with the same seeds, so the same policy, and pushes out the first
+    backend.real_fitness(np.array([[1.4, 1.4], [1.2, 0.6]]), [TorqueObjective()], agents=4, steps=10, seed=1)
+    assert len(calls) == 4 and calls[3][:2] == calls[1][:2] != calls[0][:2]
+    assert backend.policy(designs[1])[1] == [] and len(calls) == 4  # kept
+    assert [t.steps for t in backend.policy(designs[0])[1]] == [50] and calls[4][:2] == calls[0][:2]
     other = SpecializedPolicyBackend(Recording, train_steps=50, seed=4).policy_seeds(designs[0])
     assert other != calls[0][:2]  # another run, other policies
-    assert fit.costs[0, 0] == fit.costs[2, 0]
+
+
+def test_per_scenario_falls_are_stacked_over_designs():
+    """The capped rule sets a fallen scenario to the cap: the per-design policies' falls must
+    reach the loop like the universal policy's."""
+    from coadapt_core.fitness import RealFitness
+
+    class Falling(AnalyticBackend):
+        def real_fitness(self, designs, objectives, *, agents, steps, seed=0):
+            fit = super().real_fitness(designs, objectives, agents=agents, steps=steps, seed=seed)
+            per = np.repeat(fit.costs[:, None, :], agents, axis=1)
+            falls = np.zeros((1, agents), dtype=bool)
+            falls[0, : int(designs[0, 0] * 2)] = True
+            return RealFitness(costs=fit.costs, buffer=None, interactions=fit.interactions, seconds=fit.seconds,
+                               per_scenario=per, scenario_falls=falls, fall_rate=falls.mean(axis=1))
+
+    fit = SpecializedPolicyBackend(Falling, train_steps=5).real_fitness(
+        np.array([[0.6, 1.0], [1.4, 1.0]]), [TorqueObjective()], agents=4, steps=3)
+    assert fit.scenario_falls.tolist() == [[True, False, False, False], [True, True, False, False]]
+    assert fit.per_scenario.shape == (2, 4, 1) and fit.fall_rate.tolist() == [0.25, 0.5]
 
 
 def test_no_core_module_spells_a_method_name():
@@ -159,6 +196,10 @@ class Registry:
         return self.classes[name]
 
 
+def bo_dir(tmp_path):
+    return next(p for p in tmp_path.iterdir() if p.is_dir())
+
+
 def test_the_baseline_takes_its_optimizer_by_the_declared_capability(monkeypatch):
     import coadapt_core.plugins as plugins
 
@@ -182,8 +223,12 @@ def test_a_third_party_sequential_optimizer_runs_the_baseline(tmp_path):
     s = bo_run(tmp_path, optimizer_cls=SequentialRandom, bo_designs=12).summary
     assert s["optimizer"] == "seq-random"
     assert s["real_evaluations"] == 12 and s["designs_evaluated"] == 12
-    assert s["train_interactions"] == 13 * 300  # 12 policies + the nominal's
+    # 12 policies + the nominal's, then those of the final check's 3 candidates and the
+    # nominal design that were no longer kept (at most 4)
+    assert s["train_interactions"] % 300 == 0 and 13 * 300 <= s["train_interactions"] <= 17 * 300
     best = np.array(s["best_design"])
-    costs = [b["best_cost"] for b in s["batches"]]
-    assert s["best_cost"] == min(costs)
+    costs = sorted(b["best_cost"] for b in s["batches"])
+    evaluated = [e["design"] for e in read_evaluations(bo_dir(tmp_path))]
+    assert any(np.array_equal(best, d) for d in evaluated)
+    assert costs[0] - 0.05 < s["best_cost"] < costs[2] + 0.05  # re-evaluated on fresh scenarios
     assert np.linalg.norm(best - optimum_of("torque")) < np.linalg.norm(NOMINAL - optimum_of("torque"))

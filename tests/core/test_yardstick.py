@@ -92,3 +92,48 @@ def test_a_block_is_the_size_of_the_runs_real_evaluation():
 
     assert block_size({"config": {"eval_agents": 32, "eval_steps": 250, "agents_per_design": 16}}) == (32, 250)
     assert block_size({"config": {"eval_agents": 0, "eval_steps": 20, "agents_per_design": 2}}) == (2, 20)
+
+
+def test_a_run_without_a_shared_policy_evaluates_each_design_with_its_own(tmp_path):
+    """A BO run: the best design with the best design's saved policy, the nominal design with
+    the nominal's, looked up by name in the run folder; the same for the sim-to-sim check."""
+    from coadapt_core.coadapt.specialized import OWN_POLICY_FILES
+    from coadapt_core.experiments.transfer import transfer_runs
+
+    rec = SqliteRecorder(tmp_path / "r.db")
+    run_id = record_run(rec, "bo-specialized", 0, checkpoint=tmp_path / "policy-best.pt", optimizer="bo")
+    run = rec.store.get_run(run_id)
+    (tmp_path / run["config"]["run_id"] / OWN_POLICY_FILES["nominal"]).write_text("weights")
+    asked = []
+
+    def factory(robot, simulator, objectives, *, checkpoint, **kwargs):
+        role = checkpoint.rsplit("policy-", 1)[1].removesuffix(".pt")
+        inner = ScenarioBackend()
+
+        class Own:
+            def real_fitness(self, designs, objectives, **kw):
+                asked.append((simulator.name, role, np.asarray(designs).tolist()))
+                fit = inner.real_fitness(designs, objectives, **kw)
+                fit.per_scenario = fit.per_scenario * (0.8 if role == "best" else 1.0)
+                fit.scenario_falls[:] = False
+                return fit
+        return Own()
+
+    assert yardstick_runs(rec.store, [run], blocks=2, agents=8, steps=5, factory=factory) == {}
+    best = run["summary"]["best_design"]
+    assert asked == [("mujoco", "best", [best])] * 2 + [("mujoco", "nominal", [[1.0, 1.0]])] * 2
+    got = yardstick_improvement(rec.store, run_id, "torque")
+    assert got["improvement"] == pytest.approx(0.2)  # the best policy's 0.8 on the same scenarios
+    asked.clear()
+    assert transfer_runs(rec.store, [run], simulator="pybullet", factory=factory) == {}
+    assert asked == [("pybullet", "best", [best]), ("pybullet", "nominal", [[1.0, 1.0]])]
+
+
+def test_an_old_bo_run_whose_starting_policy_changed_says_why(tmp_path):
+    rec = SqliteRecorder(tmp_path / "r.db")
+    run_id = record_run(rec, "bo-specialized", 0, checkpoint=tmp_path / "other.pt", optimizer="bo")
+    run = rec.store.get_run(run_id)
+    run["config"].update(specialized_init="universal", checkpoint="", policy={"source": "shipped", "sha256": "0" * 64})
+    notes = yardstick_runs(rec.store, [run], factory=lambda *a, **k: pytest.fail("no backend"))
+    assert notes == {run_id: "n/a: the starting policy flat.pt is not the one the run started from (SHA-256 differs); "
+                             "its policies cannot be trained again"}

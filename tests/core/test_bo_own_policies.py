@@ -1,0 +1,84 @@
+"""The BO baseline's own policies on real MuJoCo (`coadapt_core.coadapt.specialized`,
+`coadapt_core.experiments.own_policies`): a tiny `bo-specialized` run ends with the paired
+final check (standard errors, plain mean, fall rates) and leaves its best and nominal
+designs' policies in its folder; the common yardstick evaluates each design with its own
+policy; and a run folder without them (as runs made before they were kept) gets the very
+same rows by training them again with the run's seeds."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from coadapt_core.coadapt import make_config, run_coadaptation
+from coadapt_core.coadapt.specialized import OWN_POLICY_FILES
+from coadapt_core.experiments.own_policies import saved_policies, shares_policy
+from coadapt_core.experiments.yardstick import yardstick_rows, yardstick_runs
+from coadapt_core.learning.checkpoints import read_checkpoint
+from coadapt_core.results import SqliteRecorder
+
+pytestmark = pytest.mark.slow
+ROOT = Path(__file__).resolve().parents[2]
+
+TINY = {"method": "bo-specialized", "sim": "mujoco", "objective": "torque", "seed": 2, "outer_iterations": 1,
+        "bo_designs": 2, "specialized_train_steps": 16, "population": 2, "agents_per_design": 2, "eval_agents": 4,
+        "eval_steps": 8, "final_max_blocks": 2, "final_min_blocks": 2, "final_candidates": 1, "logger": "none",
+        "checkpoint": "none", "train": {"steps_per_env": 4, "hidden": [16, 16], "epochs": 1, "minibatches": 1}}
+
+
+def test_a_bo_run_checks_finally_keeps_its_policies_and_old_runs_get_them_again(tmp_path, capsys):
+    out, db = tmp_path / "runs", tmp_path / "bo.db"
+    config = make_config("smoke", overrides={**TINY, "out": str(out), "store": str(db)})
+    result = run_coadaptation(config)
+    s = result.summary
+    # the paired final check of the shared methods: 2 blocks x 4 scenarios, candidate and nominal
+    assert s["final_blocks"] == 2 and s["final_scenarios"] == 8
+    assert s["final_interactions"] == 2 * 2 * 4 * 8
+    for key in ("best_cost_se", "nominal_cost_se", "best_plain_mean", "nominal_plain_mean", "best_fall_rate",
+                "nominal_fall_rate", "fall_rate_difference"):
+        assert s[key] is not None and np.isfinite(s[key]), key
+    assert s["nominal_cost_se"] > 0 and 0.0 <= s["best_fall_rate"] <= 1.0
+    assert not s["best_is_nominal"]  # seed 2: a design other than the nominal one, so two policies
+    assert set(s["final_walking"]) == {"best", "nominal"}
+    # the best and nominal designs' policies, readable with weights_only=True
+    for role, name in OWN_POLICY_FILES.items():
+        state = read_checkpoint(result.run_dir / name)
+        assert state["robot"] == "kuafu", role
+    store = SqliteRecorder(db).store
+    run = store.get_run(result.run_id)
+    assert not shares_policy(run) and saved_policies(run) is not None
+    assert yardstick_runs(store, [run], blocks=2, agents=4, steps=8) == {}
+    saved = [(r.design, r.costs) for r in yardstick_rows(store, run["id"])]
+    assert saved[0][0] == s["best_design"] and saved[1][0] == s["nominal_design"]
+    assert saved[0][1]["torque/se"] > 0 and "falls/difference" in saved[0][1]
+    assert saved[0][1]["torque"] != saved[1][1]["torque"]
+
+    # the same run as an older one left it: no policies in its folder, a store of its own
+    old = tmp_path / "old" / run["id"]
+    shutil.copytree(result.run_dir, old)
+    shutil.rmtree(old / "checkpoints")
+    other = SqliteRecorder(tmp_path / "old.db").store
+    other.create_run(run["config"], run_id=run["id"], run_dir=str(old))
+    other.finish_run(run["id"], s)
+    old_run = other.get_run(run["id"])
+    assert saved_policies(old_run) is None
+    assert yardstick_runs(other, [old_run], blocks=2, agents=4, steps=8) == {}
+    # trained again with the run's seeds: the same policies, so the same figures to the bit
+    assert [(r.design, r.costs) for r in yardstick_rows(other, run["id"])] == saved
+    assert not (old / "checkpoints").exists()  # nothing written into the run's folder
+
+    # benchmarks/bo_retrain_check.py on the older folder: the recorded costs, to the bit
+    spec = importlib.util.spec_from_file_location("bo_retrain_check", ROOT / "benchmarks" / "bo_retrain_check.py")
+    check = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(check)
+    assert check.main([str(old), "--json"]) == 0
+    lines = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [(x["design"], x["equal"]) for x in lines] == [("best", True), ("nominal", True)]
+    assert lines[1]["compared"] == "reference level" and lines[1]["recorded"] == s["cost_reference"][0]
+    assert check.main([str(tmp_path)]) == 2 and "not a finished run folder" in capsys.readouterr().err
+
