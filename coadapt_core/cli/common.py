@@ -1,15 +1,16 @@
-"""Helpers shared by the CLI commands: registry-backed choices and one-line user errors."""
+"""Helpers shared by the CLI commands: plugins by name, one-line user errors, one help style
+(the options themselves: `coadapt_core.cli.options`)."""
 
 from __future__ import annotations
 
 import contextlib
-import re
 import sys
 from collections.abc import Iterator
 from typing import Any, NoReturn
 
 import typer
 
+from coadapt_core.cli.options import _HAND_DEFAULT, leaf_default, show_default
 from coadapt_core.errors import CoadaptError, PluginError, UnknownPluginError, UserError
 from coadapt_core.plugins import get_registry
 
@@ -107,14 +108,6 @@ def not_available(command: str, arrives_with: str) -> NoReturn:
     raise typer.Exit(EXIT_NOT_AVAILABLE)
 
 
-def choices(kind: str) -> list[str]:
-    """Registered names for a plugin kind (empty when the registry cannot be built)."""
-    try:
-        return get_registry().names(kind)
-    except Exception:
-        return []
-
-
 def plugin_name(kind: str, given: str | None) -> str:
     """`given`, or the installed plugin of `kind` with the highest `default_rank` (one-line
     error when none is installed)."""
@@ -126,21 +119,12 @@ def plugin_name(kind: str, given: str | None) -> str:
         fail(str(exc))
 
 
-def choice_help(kind: str, text: str) -> str:
-    names = choices(kind)
-    return f"{text} One of: {', '.join(names)}." if names else text
-
-
 def resolve(kind: str, name: str) -> type:
     """The plugin class for `name`, or a one-line error listing what is available."""
     try:
         return get_registry().get(kind, name)
     except UnknownPluginError as exc:
         fail(str(exc))
-
-
-#: "(default X)" / "(default: X)" written into a help text by hand
-_HAND_DEFAULT = re.compile(r"\s*(?:\(default:?\s+((?:[^()]|\([^()]*\))*)\)|\[default:\s*([^\]]*)\])")
 
 
 def config_default(name: str) -> str | None:
@@ -153,27 +137,12 @@ def config_default(name: str) -> str | None:
         return None
     leaf, values = found
     if leaf.extra.get("plugin") or leaf.extra.get("unset"):
-        from coadapt_core.cli.options import leaf_default
-
         return leaf_default(leaf)
     if all(v in ("", None) for v in values.values()):
         return None  # the help text says what an empty value means
     if len(set(map(repr, values.values()))) == 1:
         return show_default(next(iter(values.values())))
     return ", ".join(f"{show_default(v)} ({p})" for p, v in values.items())
-
-
-def show_default(value: object) -> str:
-    """A default as help shows it: on/off, 1_000_000, lists comma-separated."""
-    if isinstance(value, bool):
-        return "on" if value else "off"
-    if isinstance(value, int) and abs(value) >= 10_000:
-        return f"{value:_}"
-    if isinstance(value, list | tuple):
-        return (":" if len(value) == 2 and all(isinstance(v, float) for v in value) else ",").join(map(str, value))
-    if isinstance(value, dict):
-        return ",".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in value.items())
-    return str(value)
 
 
 def style_help(command: Any, *, config_options: bool = False) -> None:

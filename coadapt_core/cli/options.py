@@ -18,6 +18,7 @@ every value checked: a bad one is one line naming the setting and what it accept
 from __future__ import annotations
 
 import inspect
+import re
 import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -26,13 +27,43 @@ from typing import Any
 
 import typer
 
-from coadapt_core.cli.common import _HAND_DEFAULT, choice_help, fail, show_default
-from coadapt_core.errors import UserError
 from coadapt_core.settings import Leaf, leaves
 
 #: command path ("run", "robot show", "" for `coadapt` itself) -> the option groups (one per
 #: settings class) of its options, in the order --help lists them
 DECLARED: dict[str, tuple[OptionGroup, ...]] = {}
+
+#: "(default X)" / "(default: X)" written into a help text by hand
+_HAND_DEFAULT = re.compile(r"\s*(?:\(default:?\s+((?:[^()]|\([^()]*\))*)\)|\[default:\s*([^\]]*)\])")
+
+
+def choices(kind: str) -> list[str]:
+    """Registered names for a plugin kind (empty when the registry cannot be built)."""
+    from coadapt_core.plugins import get_registry
+
+    try:
+        return get_registry().names(kind)
+    except Exception:
+        return []
+
+
+def choice_help(kind: str, text: str) -> str:
+    names = choices(kind)
+    return f"{text} One of: {', '.join(names)}." if names else text
+
+
+def show_default(value: object) -> str:
+    """A default as help shows it: on/off, 1_000_000, lists comma-separated."""
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    if isinstance(value, int) and abs(value) >= 10_000:
+        return f"{value:_}"
+    if isinstance(value, list | tuple):
+        return (":" if len(value) == 2 and all(isinstance(v, float) for v in value) else ",").join(map(str, value))
+    if isinstance(value, dict):
+        return ",".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in value.items())
+    return str(value)
+
 
 #: the command-line type of each kind of setting (text is parsed by the setting's type)
 _CLI_TYPES = {"bool": bool, "int": int, "float": float}
@@ -173,11 +204,9 @@ def given_settings(values: Mapping[str, Any], options: list[CommandOption]) -> d
 
 def settings_from(cls: type, values: Mapping[str, Any], options: list[CommandOption]) -> Any:
     """The settings object of `cls` from the options' values: those given over the declared
-    defaults, checked; a bad value is one line naming the setting, exit 2."""
-    try:
-        return cls(**given_settings(values, options))
-    except UserError as exc:
-        fail(str(exc))
+    defaults, checked; a bad value is a `UserError` naming the setting (one line, exit 2:
+    `coadapt_core.cli.common.run_app`)."""
+    return cls(**given_settings(values, options))
 
 
 def filled(values: Mapping[str, Any], group: OptionGroup) -> dict[str, Any]:

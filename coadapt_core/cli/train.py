@@ -20,8 +20,8 @@ from typing import Any
 
 import typer
 
-from coadapt_core.cli.common import choices, fail, plugin_name, resolve
-from coadapt_core.cli.options import OptionGroup, filled, given_settings, options_of
+from coadapt_core.cli.common import fail, plugin_name, resolve
+from coadapt_core.cli.options import OptionGroup, choices, filled, given_settings, options_of
 from coadapt_core.cli.options import register as register_command
 from coadapt_core.cli.progress import ProgressLine
 from coadapt_core.errors import UserError

@@ -49,7 +49,7 @@ def _names(option: Any) -> str:
 
 
 def _meaning(leaf: Any) -> str:
-    from coadapt_core.cli.common import _HAND_DEFAULT
+    from coadapt_core.cli.options import _HAND_DEFAULT
 
     return _cell(_HAND_DEFAULT.sub("", leaf.help).strip())
 

@@ -117,8 +117,7 @@ def test_each_commands_help_is_its_declarations(command):
     names (aliases included), the declared help word for word, a shown default equal to the
     declared one; and every declared setting is a parameter. docs/settings.md lists the same
     options with the same meaning and default."""
-    from coadapt_core.cli.common import _HAND_DEFAULT
-    from coadapt_core.cli.options import leaf_default
+    from coadapt_core.cli.options import _HAND_DEFAULT, leaf_default
 
     cli = _command(command)
     params = {p.name: p for p in cli.params if p.name != "help"}
