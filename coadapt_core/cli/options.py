@@ -1,18 +1,19 @@
 """Every command's options from settings classes: one declaration per setting.
 
 A command declares what it takes as settings classes (`coadapt_core.settings`: `@settings`
-and `setting(...)`, or `shared(...)` for a setting another command declares). `register`
-makes each field an option (or, with `argument=`, a positional argument) of the command,
-its type, names, help and shown default read from the declaration, and records the classes
-in `DECLARED`, from which docs/settings.md is generated (`coadapt_core.coadapt.settings_doc`)
-and against which the settings test compares every command's --help. No command writes a
-`typer.Option` by hand.
+and `setting(...)`, or `shared(...)` for a setting another command declares). `options_of`
+makes each field an option (or, with `argument=`, a positional argument): its type, names,
+help and shown default read from the declaration. `register` makes the command of those
+options and records them in `DECLARED`, from which docs/settings.md is generated
+(`coadapt_core.coadapt.settings_doc`) and against which the settings test compares every
+command's --help. No command writes a `typer.Option` by hand (a test checks the sources).
 
 What a command receives: each option's value as given on the command line, None when left
-out; `settings_from` turns them into the settings object (the declared defaults filled in,
-every value checked: a bad one is one line naming the setting and what it accepts, exit 2).
-`coadapt run` reads its config settings as overrides instead (preset < YAML < option,
-`coadapt_core.coadapt.config.make_config`), so those options show the preset's default.
+out; `settings_from` turns them into the settings object and `filled` into a plain mapping
+(the declared defaults filled in, every value checked: a bad one is a `UserError`, one line
+naming the setting and what it accepts, exit 2). `coadapt run` reads its config settings as
+overrides instead (preset < YAML < option, `coadapt_core.coadapt.config.make_config`), so
+those options show the preset's default.
 """
 
 from __future__ import annotations
