@@ -108,17 +108,30 @@ def setting(
     accepted: str | None = None,
     plugin: str | None = None,
     cli: bool = True,
+    names: tuple[str, ...] = (),
+    aliases: tuple[str, ...] = (),
+    argument: str | None = None,
+    hidden: bool = False,
+    callback: Any = None,
     **constraints: Any,
 ) -> Any:
-    """One setting: its default, one line of help and its constraints (`ge`, `gt`, `le`,
-    `lt`). `accepted` replaces the generated "what is accepted" text; `plugin` names the
-    plugin kind whose installed names the help lists; `cli=False` keeps it off the command
-    line (YAML only)."""
-    extra = {"accepted": accepted, "plugin": plugin, "cli": cli}
+    """One setting: its default (none given: required), one line of help and its
+    constraints (`ge`, `gt`, `le`, `lt`). `accepted` replaces the generated "what is
+    accepted" text; `plugin` names the plugin kind whose installed names the help lists (a
+    plugin setting whose default is None means the installed one of highest
+    default_rank); `cli=False` keeps it off the command line (YAML only).
+
+    Its command-line form (`coadapt_core.cli.options`): the option is `--key` (`--key/--no-key`
+    for a switch) unless `names` gives its names (`("-o", "--out")`, a switch without
+    `--no-`); `aliases` adds older names; `argument` (a metavar) makes it a positional
+    argument; `hidden` keeps it out of --help; `callback` runs as soon as the option is read
+    (`--version`, `--help-all`)."""
+    extra = {"accepted": accepted, "plugin": plugin, "cli": cli, "names": tuple(names), "aliases": tuple(aliases),
+             "argument": argument, "hidden": hidden, "callback": callback}
     kwargs: dict[str, Any] = dict(description=help, json_schema_extra=extra, **constraints)
     if default_factory is not None:
         return Field(default_factory=default_factory, **kwargs)
-    return Field(default, **kwargs)
+    return Field(... if default is dataclasses.MISSING else default, **kwargs)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -267,10 +280,15 @@ class Leaf:
         return dict(self.info.json_schema_extra or {}) if isinstance(self.info.json_schema_extra, dict) else {}
 
     @property
+    def required(self) -> bool:
+        """Declared without a default: the command cannot run without it."""
+        return self.info.is_required()
+
+    @property
     def default(self) -> Any:
         if self.info.default_factory is not None:
             return self.info.default_factory()
-        return None if self.info.default is dataclasses.MISSING else self.info.default
+        return None if self.info.default is dataclasses.MISSING or self.required else self.info.default
 
     def bounds(self) -> dict[str, float]:
         out: dict[str, float] = {}
@@ -361,9 +379,9 @@ def partial(
     for field_name, (annotation, field) in (extra or {}).items():
         specs.append((field_name, annotation, field))
     made = dataclasses.make_dataclass(name, specs)
-    made.__doc__ = doc or cls.__doc__
     made.__module__ = cls.__module__
     made = settings(made)
+    made.__doc__ = doc or cls.__doc__
     made.__base_settings__ = cls
     return made
 

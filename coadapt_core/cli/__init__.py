@@ -5,6 +5,7 @@ registry, so a third-party plugin shows up in `--help` and in error messages."""
 from __future__ import annotations
 
 import sys
+from typing import Any
 
 import typer
 
@@ -22,6 +23,8 @@ from coadapt_core.cli import (
     train,
 )
 from coadapt_core.cli.common import run_app
+from coadapt_core.cli.options import DECLARED, bind, options_of
+from coadapt_core.settings import setting, settings
 
 app = typer.Typer(
     name="coadapt",
@@ -38,11 +41,20 @@ def _version(value: bool) -> None:
         raise typer.Exit(0)
 
 
-@app.callback()
-def _root(
-    version: bool = typer.Option(False, "--version", callback=_version, is_eager=True, help="Print the version."),
-) -> None:
+@settings
+class RootOptions:
+    """The options of `coadapt` itself, before a command."""
+
+    version: bool = setting(False, "Print the version.", names=("--version",), callback=_version)
+
+
+def _root(**values: Any) -> None:
     """Co-adapt a robot's design and its locomotion policy."""
+
+
+_ROOT = options_of(RootOptions)
+app.callback()(bind(_root, _ROOT))
+DECLARED[""] = (_ROOT,)
 
 
 run.register(app)

@@ -1,15 +1,16 @@
-"""Helpers shared by the CLI commands: registry-backed choices and one-line user errors."""
+"""Helpers shared by the CLI commands: plugins by name, one-line user errors, one help style
+(the options themselves: `coadapt_core.cli.options`)."""
 
 from __future__ import annotations
 
 import contextlib
-import re
 import sys
 from collections.abc import Iterator
 from typing import Any, NoReturn
 
 import typer
 
+from coadapt_core.cli.options import _HAND_DEFAULT, leaf_default, show_default
 from coadapt_core.errors import CoadaptError, PluginError, UnknownPluginError, UserError
 from coadapt_core.plugins import get_registry
 
@@ -107,14 +108,6 @@ def not_available(command: str, arrives_with: str) -> NoReturn:
     raise typer.Exit(EXIT_NOT_AVAILABLE)
 
 
-def choices(kind: str) -> list[str]:
-    """Registered names for a plugin kind (empty when the registry cannot be built)."""
-    try:
-        return get_registry().names(kind)
-    except Exception:
-        return []
-
-
 def plugin_name(kind: str, given: str | None) -> str:
     """`given`, or the installed plugin of `kind` with the highest `default_rank` (one-line
     error when none is installed)."""
@@ -126,26 +119,12 @@ def plugin_name(kind: str, given: str | None) -> str:
         fail(str(exc))
 
 
-def default_help(kind: str, text: str) -> str:
-    """`choice_help` for an option whose default is the plugins' declared one."""
-    return choice_help(kind, f"{text} (default: the installed {kind} of highest default_rank)")
-
-
-def choice_help(kind: str, text: str) -> str:
-    names = choices(kind)
-    return f"{text} One of: {', '.join(names)}." if names else text
-
-
 def resolve(kind: str, name: str) -> type:
     """The plugin class for `name`, or a one-line error listing what is available."""
     try:
         return get_registry().get(kind, name)
     except UnknownPluginError as exc:
         fail(str(exc))
-
-
-#: "(default X)" / "(default: X)" written into a help text by hand
-_HAND_DEFAULT = re.compile(r"\s*(?:\(default:?\s+((?:[^()]|\([^()]*\))*)\)|\[default:\s*([^\]]*)\])")
 
 
 def config_default(name: str) -> str | None:
@@ -164,154 +143,6 @@ def config_default(name: str) -> str | None:
     if len(set(map(repr, values.values()))) == 1:
         return show_default(next(iter(values.values())))
     return ", ".join(f"{show_default(v)} ({p})" for p, v in values.items())
-
-
-def leaf_default(leaf: Any) -> str | None:
-    """A setting's default as help and docs/settings.md show it: for a plugin, the rule and
-    the plugin it picks now (`default_rank`); for an override, what unset means; a default
-    its help writes "(default: ...)"; else the declared value (None: nothing to show)."""
-    if leaf.extra.get("plugin"):  # declared by the plugins themselves (`default_rank`)
-        rule = f"the installed {leaf.extra['plugin']} of highest default_rank"
-        try:
-            return f"{leaf.default}, {rule}"
-        except Exception:  # the registry cannot be built: the command reports why
-            return rule
-    if leaf.extra.get("unset"):
-        return f"{leaf.extra['unset']}, else {show_default(leaf.extra['base_default'])}"
-    found = _HAND_DEFAULT.search(leaf.help)
-    if found:
-        return (found.group(1) or found.group(2) or "").strip()
-    try:
-        value = leaf.default
-    except Exception:  # a default from the registry, which cannot be built: the command says why
-        return None
-    return None if value in ("", None) or value == {} else show_default(value)
-
-
-def command_options(cls: type, *, aliases: dict[str, tuple[str, ...]] | None = None) -> list[tuple[str, Any, Any, Any]]:
-    """`settings_options` for a command whose settings come from the command line alone
-    (no preset, no YAML file): each option's help ends with its default (`leaf_default`)."""
-    out = settings_options(cls, aliases=aliases)
-    for _, _, option, leaf in out:
-        default = leaf_default(leaf)
-        if default and not _HAND_DEFAULT.search(option.help or ""):
-            option.help = f"{option.help} [default: {default}]"
-    return out
-
-
-def command_settings(cls: type, values: dict[str, Any], options: list[tuple[str, Any, Any, Any]]) -> Any:
-    """The settings object of a command from its option values (`command_options`): the
-    options given over the declared defaults, checked; a bad value is one line, exit 2."""
-    try:
-        return cls(**given_settings(values, options))
-    except UserError as exc:
-        fail(str(exc))
-
-
-def show_default(value: object) -> str:
-    """A default as help shows it: on/off, 1_000_000, lists comma-separated."""
-    if isinstance(value, bool):
-        return "on" if value else "off"
-    if isinstance(value, int) and abs(value) >= 10_000:
-        return f"{value:_}"
-    if isinstance(value, list | tuple):
-        return (":" if len(value) == 2 and all(isinstance(v, float) for v in value) else ",").join(map(str, value))
-    if isinstance(value, dict):
-        return ",".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in value.items())
-    return str(value)
-
-
-#: the command-line type of each kind of setting (text is parsed by the setting's type)
-_CLI_TYPES = {"bool": bool, "int": int, "float": float}
-
-
-def option_help(leaf: Any) -> str:
-    """The help of a setting's option: its declared help, what it accepts when that is a
-    choice or a structured value, the installed plugins when it names one, and, for an
-    override of settings that come from elsewhere, what unset means."""
-    text = leaf.help
-    if leaf.extra.get("plugin"):
-        return choice_help(leaf.extra["plugin"], text)
-    if leaf.kind == "choice":
-        text = f"{text} One of: {', '.join(map(str, leaf.choices))}."
-    elif leaf.kind in ("range", "ints", "weights"):
-        text = f"{text} ({leaf.accepted()})"
-    if leaf.extra.get("unset"):
-        text = f"{text} [default: {leaf.extra['unset']}, else {show_default(leaf.extra['base_default'])}]"
-    return text
-
-
-def settings_options(cls: type, *, aliases: dict[str, tuple[str, ...]] | None = None) -> list[tuple[str, Any, Any, Any]]:
-    """(parameter name, type, typer.Option, leaf) for every command-line setting of the
-    settings tree `cls` (`coadapt_core.settings`); `aliases` adds option names per key."""
-    from coadapt_core.settings import leaves
-
-    out = []
-    for leaf in leaves(cls):
-        if not leaf.extra.get("cli", True):
-            continue
-        kind = _CLI_TYPES.get(leaf.kind, str)
-        names = [f"{leaf.option}/--no-{leaf.option[2:]}"] if kind is bool else [leaf.option]
-        names += list((aliases or {}).get(leaf.key, ()))
-        out.append((leaf.param, kind, typer.Option(None, *names, help=option_help(leaf)), leaf))
-    return out
-
-
-def declared_options(cls: type) -> list[tuple[str, Any, Any]]:
-    """(parameter name, type, typer.Option) for every setting of the settings class `cls`
-    of a command whose options take their declared defaults (`coadapt train`'s and `coadapt
-    eval`'s own): the setting's type (bool, int, float, a path, a repeatable list, else
-    text), its default, its option (`--key`, `--key/--no-key` for a switch, or the names the
-    setting's `names` extra gives) and its help (a setting naming a `plugin` kind lists the
-    installed ones; with the `ranked` extra, unset means the one of highest default_rank)."""
-    import typing
-    from pathlib import Path
-
-    from coadapt_core.settings import leaves
-
-    out = []
-    for leaf in leaves(cls):
-        kind = leaf.annotation
-        if kind not in (bool, int, float, Path) and typing.get_origin(kind) is not list:
-            kind = str
-        names = list(leaf.extra.get("names") or ())
-        if not names:
-            names = [f"{leaf.option}/--no-{leaf.option[2:]}"] if kind is bool else [leaf.option]
-        text, plugin = leaf.help, leaf.extra.get("plugin")
-        if plugin:
-            text = default_help(plugin, text) if leaf.extra.get("ranked") else choice_help(plugin, text)
-        out.append((leaf.param, kind, typer.Option(leaf.default, *names, help=text)))
-    return out
-
-
-def given_settings(values: dict[str, Any], options: list[tuple[str, Any, Any, Any]]) -> dict[str, Any]:
-    """The settings given on the command line, as a nested mapping of their keys."""
-    out: dict[str, Any] = {}
-    for name, _, _, leaf in options:
-        if values.get(name) is not None:
-            tree = out
-            for part in leaf.path[:-1]:
-                tree = tree.setdefault(part, {})
-            tree[leaf.path[-1]] = values[name]
-    return out
-
-
-def with_options(
-    func: Any, settings: list[tuple[str, Any, Any, Any]], others: list[tuple[str, Any, Any]], *, others_first: bool = False
-) -> Any:
-    """`func(**values)` with a signature typer reads: the generated `settings` options and
-    the hand-written `others` (name, type, typer.Option), these after (or before) them."""
-    import inspect
-
-    generated = [(n, k, o) for n, k, o, _ in settings]
-    ordered = list(others) + generated if others_first else generated + list(others)
-    params = [
-        inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=kind)
-        for name, kind, option in ordered
-    ]
-    func.__signature__ = inspect.Signature(params)
-    func.__annotations__ = {p.name: p.annotation for p in params}
-    return func
 
 
 def style_help(command: Any, *, config_options: bool = False) -> None:

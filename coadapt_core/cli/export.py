@@ -3,23 +3,38 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import typer
 
+from coadapt_core.cli.options import filled, options_of
+from coadapt_core.cli.options import register as register_command
+from coadapt_core.settings import setting, settings
+
+
+@settings
+class ExportCommand:
+    """`coadapt export`'s settings; `store` is declared here once and shared by the other
+    commands that read a results store."""
+
+    out: Path = setting(help="Folder to write the tables into.", names=("-o", "--out"))
+    format: str = setting("csv", "csv, or parquet (needs coadapt[parquet]).")
+    run: list[str] | None = setting(None, "Export only this run (repeatable).", names=("--run",))
+    store: str | None = setting(None, "Results store: a path or SQLAlchemy URL (default: $COADAPT_STORE or ./coadapt.db).")
+
 
 def register(app: typer.Typer) -> None:
-    @app.command("export")
-    def export_command(
-        out: Path = typer.Option(..., "-o", "--out", help="Folder to write the tables into."),
-        fmt: str = typer.Option("csv", "--format", help="csv, or parquet (needs coadapt[parquet])."),
-        run: list[str] = typer.Option(None, "--run", help="Export only this run (repeatable)."),
-        store: str = typer.Option(None, "--store", help="Results store: a path or SQLAlchemy URL (default $COADAPT_STORE or ./coadapt.db)."),
-    ) -> None:
+    options = options_of(ExportCommand)
+
+    def export_command(**values: Any) -> None:
         """Write runs, evaluations, training phases and checkpoints, one file per table."""
         from coadapt_core.results.export import export_tables
         from coadapt_core.results.store import ResultsStore
 
-        with ResultsStore(store) as results:
-            written = export_tables(results, out, fmt=fmt, run_ids=run or None)
+        o = filled(values, options)
+        with ResultsStore(o["store"]) as results:
+            written = export_tables(results, o["out"], fmt=o["format"], run_ids=o["run"] or None)
         for table, path in written.items():
             print(f"{table}: {path}")
+
+    register_command(app, "export", export_command, options)

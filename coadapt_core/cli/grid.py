@@ -8,14 +8,10 @@ from typing import Any
 
 import typer
 
-from coadapt_core.cli.common import (
-    command_options,
-    command_settings,
-    ctrl_c_once,
-    interrupted,
-    invocation,
-    with_options,
-)
+from coadapt_core.cli.common import ctrl_c_once, interrupted, invocation
+from coadapt_core.cli.export import ExportCommand
+from coadapt_core.cli.options import options_of, settings_from
+from coadapt_core.cli.options import register as register_command
 from coadapt_core.coadapt.config import CoadaptConfig
 from coadapt_core.methods import METHOD_NAMES
 from coadapt_core.physics.terrain import TERRAINS
@@ -35,15 +31,19 @@ class GridSettings:
     seeds: str = setting("0,1,2", "Comma list of integer seeds.")
     preset: str = setting("quick", "`coadapt run` preset for every cell.")
     sim: Any = shared(CoadaptConfig)
-    robots: str = setting(default_factory=lambda: default_plugin("robot"), plugin="robot",
+    robots: str = setting(default_factory=lambda: default_plugin("robot"), plugin="robot", aliases=("--robot",),
                           help="Comma list of robots (one cell each; the cell key names it).")
     optimizer: str | None = setting(None, "Optimizer for every cell (default: each method's own).")
     executor: str = setting("local", "local (process pool on this machine) or ray.")
     address: str | None = setting(None, "Ray cluster address (default: start a local Ray instance).")
     workers: Int | None = setting(None, "Cells at once (default: the number of cores).")
-    store: str | None = setting(None, "Results store: a path or SQLAlchemy URL (default: $COADAPT_STORE or ./coadapt.db).")
+    store: Any = shared(ExportCommand)
     out: str = setting("runs", "Folder for run folders and cell logs.")
     timeout: Float | None = setting(None, "Seconds before a cell is killed (default: none).")
+    dry_run: bool = setting(False, "Print the plan (skip / resume / new per cell) and run nothing.", names=("--dry-run",))
+    as_json: bool = setting(False, "Print a JSON summary as the last line.", names=("--json",))
+    run_arg: list[str] | None = setting(None, "Extra argument passed to every `coadapt run` (repeatable), e.g. "
+                                        "--run-arg=--device=cuda.", names=("--run-arg",))
 
 
 def _check_cells(app: typer.Typer, spec, out: str, store_url: str) -> None:
@@ -68,15 +68,6 @@ def _check_cells(app: typer.Typer, spec, out: str, store_url: str) -> None:
         if checked[key] is not None:
             message = checked[key].removeprefix("error: ").removeprefix("error (coadapt run): ")
             fail(f"grid cell {cell.key}: {message}; nothing was started")
-
-
-def _command_options() -> list[tuple[str, Any, Any]]:
-    """`coadapt grid` options that are not settings: (name, type, typer.Option)."""
-    return [
-        ("dry_run", bool, typer.Option(False, "--dry-run", help="Print the plan (skip / resume / new per cell) and run nothing.")),
-        ("as_json", bool, typer.Option(False, "--json", help="Print a JSON summary as the last line.")),
-        ("run_arg", list[str], typer.Option(None, "--run-arg", help="Extra argument passed to every `coadapt run` (repeatable), e.g. --run-arg=--device=cuda.")),
-    ]
 
 
 def _spec(s: GridSettings, run_arg: list[str] | None) -> Any:
@@ -158,7 +149,7 @@ def _run(s: GridSettings, spec: Any, results: Any, command_line: str) -> Any:
 
 
 def register(app: typer.Typer) -> None:
-    options = command_options(GridSettings, aliases={"robots": ("--robot",)})
+    options = options_of(GridSettings)
 
     def grid_command(**values: Any) -> None:
         """Run an ablation grid locally or on a Ray cluster, skipping cells the store holds
@@ -169,12 +160,12 @@ def register(app: typer.Typer) -> None:
         from coadapt_core.results.store import ResultsStore
 
         command_line = shlex.join(["coadapt", *invocation()])  # before the cells' checks run `coadapt run`
-        s = command_settings(GridSettings, values, options)
-        spec = _spec(s, values["run_arg"])
+        s = settings_from(GridSettings, values, options)
+        spec = _spec(s, s.run_arg)
         check_grid_options(executor=s.executor, workers=s.workers, timeout=s.timeout, address=s.address)
         results = ResultsStore(s.store)
         _check_cells(app, spec, s.out, results.url)  # every cell's arguments, before any cell starts
-        if values["dry_run"]:
+        if s.dry_run:
             _print_plan(results, spec, s.out)
             return
         report = _run(s, spec, results, command_line)
@@ -183,9 +174,9 @@ def register(app: typer.Typer) -> None:
             f"grid {report.grid_id}: {len(report.finished)} finished, {len(report.skipped)} skipped "
             f"(already finished), {len(report.resumed)} resumed, {len(report.failed)} failed"
         )
-        if values["as_json"]:
+        if s.as_json:
             print(json.dumps(report.to_dict()))
         if report.failed:
             raise typer.Exit(1)
 
-    app.command("grid")(with_options(grid_command, options, _command_options()))
+    register_command(app, "grid", grid_command, options)

@@ -5,35 +5,45 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 import typer
 
 from coadapt_core.cli.common import fail
+from coadapt_core.cli.options import filled, options_of
+from coadapt_core.cli.options import register as register_command
+from coadapt_core.settings import Float, Int, setting, settings
 
-DESIGN_HELP = ("Design values, comma-separated in the order of the run's design space (default: the run's best "
-               "design).")
+
+@settings
+class HandoffCommand:
+    """`coadapt handoff`'s settings."""
+
+    run: str = setting(help="Run folder, or a run id under --runs-dir.", argument="run")
+    out: Path | None = setting(None, "Folder to write (default: ./handoff-<run id>).", names=("-o", "--out"))
+    design: str | None = setting(None, "Design values, comma-separated in the order of the run's design space (default: "
+                                 "the run's best design).")
+    sim: list[str] | None = setting(None, "Simulator to evaluate the design and the nominal one on; repeatable (default: "
+                                    "the run's and every other installed one).", names=("--sim",))
+    agents: Int = setting(16, "Paired scenarios per design and simulator.")
+    seconds: Float = setting(4.0, "Simulated seconds per scenario.")
+    check: bool = setting(True, "Walk the folder's check.py once written (10 s at 0.5 m/s).")
+    video: bool = setting(True, "Render a GIF when the run has none of this design.")
+    force: bool = setting(False, "Replace an earlier handoff folder at --out.", names=("--force",))
+    runs_dir: Path = setting(Path("runs"), "Where run ids are looked up.")
+    as_json: bool = setting(False, "Print what was written as JSON on the last line.", names=("--json",))
 
 
 def register(app: typer.Typer) -> None:
-    @app.command("handoff")
-    def handoff_command(
-        run: str = typer.Argument(..., help="Run folder, or a run id under --runs-dir."),
-        out: Path = typer.Option(None, "-o", "--out", help="Folder to write (default: ./handoff-<run id>)."),
-        design: str = typer.Option(None, "--design", help=DESIGN_HELP),
-        sim: list[str] = typer.Option(None, "--sim", help="Simulator to evaluate the design and the nominal one on; "
-                                      "repeatable (default: the run's and every other installed one)."),
-        agents: int = typer.Option(16, "--agents", help="Paired scenarios per design and simulator."),
-        seconds: float = typer.Option(4.0, "--seconds", help="Simulated seconds per scenario."),
-        check: bool = typer.Option(True, "--check/--no-check", help="Walk the folder's check.py once written (10 s at 0.5 m/s)."),
-        video: bool = typer.Option(True, "--video/--no-video", help="Render a GIF when the run has none of this design."),
-        force: bool = typer.Option(False, "--force", help="Replace an earlier handoff folder at --out."),
-        runs_dir: Path = typer.Option(Path("runs"), "--runs-dir", help="Where run ids are looked up."),
-        as_json: bool = typer.Option(False, "--json", help="Print what was written as JSON on the last line."),
-    ) -> None:
+    declared = options_of(HandoffCommand)
+
+    def handoff_command(**values: Any) -> None:
         """Write the design's URDF and MJCF, its controller as ONNX (checked against torch),
         policy.json, the design sheet (design.md, design.json), the GIF, a README and check.py."""
         from coadapt_core.handoff.policy import DEPLOY_EXTRA, missing_deploy_modules
 
+        o = filled(values, declared)
+        run, out, design, sim, agents, seconds = o["run"], o["out"], o["design"], o["sim"], o["agents"], o["seconds"]
         missing = missing_deploy_modules()
         if missing:
             fail(f"coadapt handoff needs {', '.join(missing)}: pip install '{DEPLOY_EXTRA}' (or pip install -e '.[deploy]')")
@@ -43,7 +53,7 @@ def register(app: typer.Typer) -> None:
             fail(f"--seconds must be > 0, got {seconds}")
         from coadapt_core.handoff.folder import HandoffOptions, find_run, make_handoff, read_run
 
-        run_dir = find_run(run, runs_dir)
+        run_dir = find_run(run, o["runs_dir"])
         values = None
         if design is not None:
             from coadapt_core.cli.robot import parse_design
@@ -65,9 +75,11 @@ def register(app: typer.Typer) -> None:
         for name in sim or registry.names("simulator"):  # a library's import-time banner is not a result
             _quiet_imports(tuple(getattr(registry.get("simulator", name), "quiet_imports", ())))
         target = out if out is not None else Path(f"handoff-{run_dir.name}")
-        options = HandoffOptions(design=values, simulators=sim or None, agents=agents, seconds=seconds, check=check,
-                                 video=video, force=force)
+        options = HandoffOptions(design=values, simulators=sim or None, agents=agents, seconds=seconds, check=o["check"],
+                                 video=o["video"], force=o["force"])
         result = make_handoff(run_dir, target, options, progress=lambda line: print(line, file=sys.stderr))
         print(f"wrote {result['out']} ({len(result['files'])} files) in {result['seconds']:.1f} s", file=sys.stderr)
-        if as_json:
+        if o["as_json"]:
             print(json.dumps(result))
+
+    register_command(app, "handoff", handoff_command, declared)

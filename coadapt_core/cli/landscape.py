@@ -10,16 +10,10 @@ from typing import Any
 
 import typer
 
-from coadapt_core.cli.common import (
-    command_options,
-    command_settings,
-    ctrl_c_once,
-    fail,
-    interrupted,
-    invocation,
-    resolve,
-    with_options,
-)
+from coadapt_core.cli.common import ctrl_c_once, fail, interrupted, invocation, resolve
+from coadapt_core.cli.export import ExportCommand
+from coadapt_core.cli.options import options_of, settings_from
+from coadapt_core.cli.options import register as register_command
 from coadapt_core.coadapt.config import CoadaptConfig
 from coadapt_core.plugins import default_plugin
 from coadapt_core.settings import Int, setting, settings, shared
@@ -44,7 +38,9 @@ class LandscapeSettings:
     cost_rule: Any = shared(CoadaptConfig)
     cost_cap: Any = shared(CoadaptConfig)
     device: Any = shared(CoadaptConfig)
-    store: str = setting("", "Results store: a path or SQLAlchemy URL (default: $COADAPT_STORE or ./coadapt.db).")
+    store: Any = shared(ExportCommand)
+    resume: str | None = setting(None, "Continue an interrupted landscape run (its id).")
+    as_json: bool = setting(False, "Print the summary as JSON on the last line.", names=("--json",))
 
     @property
     def objectives(self) -> list[str]:
@@ -94,14 +90,6 @@ def with_resume(argv: list[str], run_id: str) -> list[str]:
             continue
         out.append(arg)
     return [*out, "--resume", run_id]
-
-
-def _command_options() -> list[tuple[str, Any, Any]]:
-    """`coadapt landscape` options that are not settings: (name, type, typer.Option)."""
-    return [
-        ("resume", str, typer.Option(None, "--resume", help="Continue an interrupted landscape run (its id).")),
-        ("as_json", bool, typer.Option(False, "--json", help="Print the summary as JSON on the last line.")),
-    ]
 
 
 def _checkpoint(s: LandscapeSettings, robot_cls: type) -> Path:
@@ -198,17 +186,17 @@ def _run(s: LandscapeSettings, job: dict[str, Any]) -> dict[str, Any]:
 
 
 def register(app: typer.Typer) -> None:
-    options = command_options(LandscapeSettings)
+    options = options_of(LandscapeSettings)
 
     def landscape_command(**values: Any) -> None:
         """Evaluate the real cost (Algorithm 2) of a grid over the robot's first two design
         variables (Kuafu: thigh and shank scale) with the universal policy; reports draw it as
         a heat-map and mark each method's optimum."""
-        s = command_settings(LandscapeSettings, values, options)
-        job = _prepare(s, values["resume"])
+        s = settings_from(LandscapeSettings, values, options)
+        job = _prepare(s, s.resume)
         summary = _run(s, job)
         print(landscape_line(summary, job["agents"], job["steps"], getattr(job["objectives"][0], "unit", "")))
-        if values["as_json"]:
+        if s.as_json:
             print(json.dumps(summary))
 
-    app.command("landscape")(with_options(landscape_command, options, _command_options()))
+    register_command(app, "landscape", landscape_command, options)

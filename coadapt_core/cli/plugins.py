@@ -4,24 +4,34 @@ from __future__ import annotations
 
 import json
 import sys
+from typing import Any
 
 import typer
 from rich.console import Console
 from rich.table import Table
 
+from coadapt_core.cli.options import options_of
+from coadapt_core.cli.options import register as register_command
 from coadapt_core.plugin_api import PLUGIN_API_VERSION, undeclared_note
 from coadapt_core.plugins import BUILTIN_DISTRIBUTION, KINDS, get_registry
+from coadapt_core.settings import setting, settings
+
+
+@settings
+class PluginsCommand:
+    """`coadapt plugins`'s settings."""
+
+    as_json: bool = setting(False, "Print JSON instead of a table.", names=("--json",))
 
 
 def register(app: typer.Typer) -> None:
-    @app.command("plugins")
-    def plugins_command(
-        as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
-    ) -> None:
+    options = options_of(PluginsCommand)
+
+    def plugins_command(**values: Any) -> None:
         """List the robots, simulators, optimizers and objectives that are installed, with
         the plugin API version each was written for (this coadapt's is shown in the title)."""
         registry = get_registry()
-        if as_json:
+        if values["as_json"]:
             out = {
                 "plugin_api": PLUGIN_API_VERSION,
                 "plugins": {kind: [info.to_dict() for info in sorted(registry.entries[kind].values(), key=lambda i: i.name)] for kind in KINDS},
@@ -41,3 +51,5 @@ def register(app: typer.Typer) -> None:
             print(undeclared_note(distribution), file=sys.stderr)
         for broken in registry.broken:
             print(broken.line(), file=sys.stderr)
+
+    register_command(app, "plugins", plugins_command, options)

@@ -3,8 +3,33 @@
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
 
 import typer
+
+from coadapt_core.cli.export import ExportCommand
+from coadapt_core.cli.options import filled, options_of
+from coadapt_core.cli.options import register as register_command
+from coadapt_core.settings import Int, setting, settings, shared
+
+
+@settings
+class ReportCommand:
+    """`coadapt report`'s settings."""
+
+    selection: str | None = setting(None, "A run id or grid id (default: every finished run).", argument="[RUN_OR_GRID]")
+    out: Path = setting(Path("report"), "Folder for the tables, figures and report.html.", names=("-o", "--out"))
+    store: Any = shared(ExportCommand)
+    sim_to_sim: bool = setting(True, "Evaluate each best design's policy on a second simulator (Table 6's last column).")
+    transfer_sim: str | None = setting(None, "Simulator for the sim-to-sim column (default: the installed simulator of "
+                                       "highest default_rank after the default one).")
+    transfer_agents: Int = setting(8, "Agents per design in the sim-to-sim evaluation.")
+    transfer_steps: Int = setting(400, "Policy steps per agent in the sim-to-sim evaluation.")
+    common: bool = setting(True, "Re-evaluate each run's best and nominal design with the run's own policy on one common "
+                           "scenario set per terrain (the methods' common yardstick).",
+                           names=("--common-scenarios/--no-common-scenarios",))
+    common_blocks: Int = setting(8, "Blocks of 32 scenarios x 250 steps in the common scenario set.")
 
 
 def _quiet_imports(modules: tuple[str, ...]) -> None:
@@ -40,7 +65,8 @@ def _quiet_imports(modules: tuple[str, ...]) -> None:
 def _transfer_simulator(transfer_sim: str | None) -> str:
     """The sim-to-sim column's simulator: the one given, else the installed simulator of highest
     default_rank after the default one; its import lines silenced once."""
-    from coadapt_core.cli.common import choices, fail
+    from coadapt_core.cli.common import fail
+    from coadapt_core.cli.options import choices
     from coadapt_core.errors import UserError
     from coadapt_core.plugins import get_registry
 
@@ -80,45 +106,39 @@ def _evaluate(results, selection, *, sim_to_sim: bool, transfer_sim, transfer_ag
 
 
 def register(app: typer.Typer) -> None:
-    @app.command("report")
-    def report_command(
-        selection: str = typer.Argument(None, metavar="[RUN_OR_GRID]", help="A run id or grid id (default: every finished run)."),
-        out: Path = typer.Option(Path("report"), "-o", "--out", help="Folder for the tables, figures and report.html."),
-        store: str = typer.Option(None, "--store", help="Results store: a path or SQLAlchemy URL (default $COADAPT_STORE or ./coadapt.db)."),
-        sim_to_sim: bool = typer.Option(True, "--sim-to-sim/--no-sim-to-sim", help="Evaluate each best design's policy on a second simulator (Table 6's last column)."),
-        transfer_sim: str = typer.Option(None, help="Simulator for the sim-to-sim column (default: the installed simulator of highest default_rank after the default one)."),
-        transfer_agents: int = typer.Option(8, help="Agents per design in the sim-to-sim evaluation."),
-        transfer_steps: int = typer.Option(400, help="Policy steps per agent in the sim-to-sim evaluation."),
-        common: bool = typer.Option(True, "--common-scenarios/--no-common-scenarios", help="Re-evaluate each run's best and nominal design with the run's own policy on one common scenario set per terrain (the methods' common yardstick)."),
-        common_blocks: int = typer.Option(8, help="Blocks of 32 scenarios x 250 steps in the common scenario set."),
-    ) -> None:
+    options = options_of(ReportCommand)
+
+    def report_command(**values: Any) -> None:
         """Write tables (Markdown, CSV) and figures (PNG, HTML) from a run or grid."""
         from coadapt_core.analysis.report import write_report
         from coadapt_core.cli.common import fail
         from coadapt_core.results.store import ResultsStore, resolve_store_url
 
-        if transfer_agents < 1 or transfer_steps < 1 or common_blocks < 1:
+        o = SimpleNamespace(**filled(values, options))
+        if o.transfer_agents < 1 or o.transfer_steps < 1 or o.common_blocks < 1:
             fail("--transfer-agents, --transfer-steps and --common-blocks must be >= 1")
-        url = resolve_store_url(store)
+        url = resolve_store_url(o.store)
         if url.startswith("sqlite:///") and not Path(url.removeprefix("sqlite:///")).is_file():
             # reading a store that is not there must not leave an empty one behind
             fail(f"no results store at {url.removeprefix('sqlite:///')}: run `coadapt run` or `coadapt grid` first, "
                  "or pass --store (or $COADAPT_STORE)")
-        if sim_to_sim:
-            transfer_sim = _transfer_simulator(transfer_sim)
+        if o.sim_to_sim:
+            o.transfer_sim = _transfer_simulator(o.transfer_sim)
         from coadapt_core.cli.progress import ProgressLine
 
-        with ResultsStore(store) as results, ProgressLine("report", None) as line:
+        with ResultsStore(o.store) as results, ProgressLine("report", None) as line:
 
             def progress(done: int, total: int, what: str) -> None:
                 line.update(done, what, total=total)
 
             notes, common_notes = _evaluate(
-                results, selection, sim_to_sim=sim_to_sim, transfer_sim=transfer_sim, transfer_agents=transfer_agents,
-                transfer_steps=transfer_steps, common=common, common_blocks=common_blocks, progress=progress)
-            files = write_report(results, selection, out, sim2sim=sim_to_sim, transfer_simulator=transfer_sim,
+                results, o.selection, sim_to_sim=o.sim_to_sim, transfer_sim=o.transfer_sim, transfer_agents=o.transfer_agents,
+                transfer_steps=o.transfer_steps, common=o.common, common_blocks=o.common_blocks, progress=progress)
+            files = write_report(results, o.selection, o.out, sim2sim=o.sim_to_sim, transfer_simulator=o.transfer_sim,
                                  transfer_notes=notes, progress=progress)
         for name, path in files.items():
             print(f"{name}: {path}")
         for run_id, why in sorted((common_notes or {}).items()):
             print(f"common scenarios, run {run_id}: {why}")
+
+    register_command(app, "report", report_command, options)

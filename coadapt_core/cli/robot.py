@@ -15,13 +15,56 @@ import numpy as np
 import typer
 
 from coadapt_core.cli.common import fail, resolve
+from coadapt_core.cli.options import filled, options_of, register
 from coadapt_core.errors import DesignError, UserError
 from coadapt_core.io import jsonable
 from coadapt_core.robot import joint_table
+from coadapt_core.settings import Int, setting, settings, shared
 
 app = typer.Typer(help="Inspect, export, validate and render robot designs.", no_args_is_help=True)
 
-DESIGN_HELP = "Design values, comma-separated in the order of the robot's design space (e.g. 1.2,0.8 or 1.2,0.8,2,3 for kuafu). Default: the nominal design."
+DESIGN_HELP = ("Design values, comma-separated in the order of the robot's design space (e.g. 1.2,0.8 or 1.2,0.8,2,3 "
+               "for kuafu). Default: the nominal design.")
+
+
+@settings
+class RobotShow:
+    """`coadapt robot show`'s settings; `robot` and `design` are shared by the other `robot` commands."""
+
+    robot: str = setting(help="Registered robot name (see `coadapt plugins`).", argument="robot")
+    design: str | None = setting(None, DESIGN_HELP)
+    as_json: bool = setting(False, "Print JSON instead of tables.", names=("--json",))
+    no_validate: bool = setting(False, "Skip the validation checks.", names=("--no-validate",))
+
+
+@settings
+class RobotExport:
+    """`coadapt robot export`'s settings."""
+
+    robot: Any = shared(RobotShow)
+    design: Any = shared(RobotShow)
+    format: str = setting("mjcf", "Model format: mjcf or urdf.")
+    output: Path | None = setting(None, "File to write (default: standard output).", names=("-o", "--output"))
+
+
+@settings
+class RobotValidate:
+    """`coadapt robot validate`'s settings."""
+
+    robot: Any = shared(RobotShow)
+    design: Any = shared(RobotShow)
+    as_json: bool = setting(False, "Print the report as JSON.", names=("--json",))
+
+
+@settings
+class RobotRender:
+    """`coadapt robot render`'s settings."""
+
+    robot: Any = shared(RobotShow)
+    design: Any = shared(RobotShow)
+    output: Path = setting(Path("design.png"), "PNG file to write.", names=("-o", "--output"))
+    width: Int = setting(640, "Image width in pixels.")
+    height: Int = setting(800, "Image height in pixels.")
 #: exit code of `validate` for a design that fails a check
 EXIT_INFEASIBLE = 1
 
@@ -132,14 +175,13 @@ def _print_findings(console: Any, report: dict) -> None:
     console.print(table)
 
 
-@app.command("show")
-def show_command(
-    robot: str = typer.Argument(..., help="Registered robot name (see `coadapt plugins`)."),
-    design: str | None = typer.Option(None, "--design", help=DESIGN_HELP),
-    as_json: bool = typer.Option(False, "--json", help="Print JSON instead of tables."),
-    no_validate: bool = typer.Option(False, "--no-validate", help="Skip the validation checks."),
-) -> None:
+_SHOW = options_of(RobotShow)
+
+
+def show_command(**values: Any) -> None:
     """Lengths, masses, motor limits, PD gains and validation findings for one design."""
+    o = filled(values, _SHOW)
+    robot, design, as_json, no_validate = o["robot"], o["design"], o["as_json"], o["no_validate"]
     instance = load_robot(robot)
     values = parse_design(instance, design)
     data = describe(instance, values, validate=not no_validate)
@@ -149,14 +191,14 @@ def show_command(
         _print_description(data)
 
 
-@app.command("export")
-def export_command(
-    robot: str = typer.Argument(..., help="Registered robot name."),
-    design: str | None = typer.Option(None, "--design", help=DESIGN_HELP),
-    fmt: str = typer.Option("mjcf", "--format", help="Model format: mjcf or urdf."),
-    output: Path | None = typer.Option(None, "-o", "--output", help="File to write (default: standard output)."),
-) -> None:
+register(app, "show", show_command, _SHOW, path="robot show")
+_EXPORT = options_of(RobotExport)
+
+
+def export_command(**values: Any) -> None:
     """Write the design's model as MJCF (MuJoCo) or URDF (Pinocchio, PyBullet)."""
+    o = filled(values, _EXPORT)
+    robot, design, fmt, output = o["robot"], o["design"], o["format"], o["output"]
     if fmt not in ("mjcf", "urdf"):
         fail(f"--format '{fmt}' is not supported; use mjcf or urdf")
     instance = load_robot(robot)
@@ -172,13 +214,14 @@ def export_command(
     print(f"wrote {fmt} of {robot} ({','.join(f'{x:g}' for x in model.design)}) to {output}", file=sys.stderr)
 
 
-@app.command("validate")
-def validate_command(
-    robot: str = typer.Argument(..., help="Registered robot name."),
-    design: str | None = typer.Option(None, "--design", help=DESIGN_HELP),
-    as_json: bool = typer.Option(False, "--json", help="Print the report as JSON."),
-) -> None:
+register(app, "export", export_command, _EXPORT, path="robot export")
+_VALIDATE = options_of(RobotValidate)
+
+
+def validate_command(**values: Any) -> None:
     """Check a design: kinematics, mass, statics, MuJoCo/Pinocchio agreement (exit 1 if infeasible)."""
+    o = filled(values, _VALIDATE)
+    robot, design, as_json = o["robot"], o["design"], o["as_json"]
     instance = load_robot(robot)
     report = instance.validate(parse_design(instance, design))
     if as_json:
@@ -191,16 +234,15 @@ def validate_command(
         raise typer.Exit(EXIT_INFEASIBLE)
 
 
+register(app, "validate", validate_command, _VALIDATE, path="robot validate")
 # -- render ----------------------------------------------------------------------------------
-@app.command("render")
-def render_command(
-    robot: str = typer.Argument(..., help="Registered robot name."),
-    design: str | None = typer.Option(None, "--design", help=DESIGN_HELP),
-    output: Path = typer.Option(Path("design.png"), "-o", "--output", help="PNG file to write."),
-    width: int = typer.Option(640, help="Image width in pixels."),
-    height: int = typer.Option(800, help="Image height in pixels."),
-) -> None:
+_RENDER = options_of(RobotRender)
+
+
+def render_command(**values: Any) -> None:
     """Offscreen MuJoCo picture of the design at its default pose, on a floor (PNG)."""
+    o = filled(values, _RENDER)
+    robot, design, output, width, height = o["robot"], o["design"], o["output"], o["width"], o["height"]
     # MUJOCO_GL is used when set; else EGL, then OSMesa
     if not (16 <= width <= 4096 and 16 <= height <= 4096):
         fail(f"--width and --height must lie in [16, 4096], got {width} x {height}")
@@ -240,3 +282,6 @@ def render_command(
         "library, e.g. apt-get install -y libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 (EGL) or libosmesa6 (OSMesa)",
         code=1,
     )
+
+
+register(app, "render", render_command, _RENDER, path="robot render")

@@ -15,18 +15,36 @@ from typing import Any
 
 import typer
 
-from coadapt_core.cli.common import (
-    ctrl_c_once,
-    fail,
-    help_all,
-    interrupted,
-    resolve,
-    settings_options,
-    with_options,
-)
+from coadapt_core.cli.common import ctrl_c_once, fail, help_all, interrupted, resolve
+from coadapt_core.cli.options import OptionGroup, filled, options_of
+from coadapt_core.cli.options import register as register_command
 from coadapt_core.cli.progress import ProgressLine
 from coadapt_core.errors import UserError
+from coadapt_core.settings import Float, Int, setting, settings
 from coadapt_core.tracking import check_logger
+
+
+@settings
+class RunCommand:
+    """`coadapt run`'s own options, which are not config settings (no YAML key): where the
+    config and the run come from, and what is printed and rendered at the end."""
+
+    config: Path | None = setting(None, "YAML file of config keys (CLI options win over it); a run folder's config.yaml "
+                                  "repeats that run's config.")
+    resume: str | None = setting(None, "Resume the run with this id (a folder under --out) or this run folder.")
+    as_json: bool = setting(False, "Last stdout line: a JSON summary.", names=("--json",))
+    video: bool = setting(True, "End by rendering the best and the nominal design walking side by side: <run "
+                          "folder>/best_vs_nominal.gif (and .mp4 with ffmpeg).")
+    optimizer_option: list[str] | None = setting(
+        None, "KEY=VALUE: an option the optimizer plugin declares (repeatable; `coadapt plugins --json` lists them); "
+        "wins over the YAML file's optimizer_options.", names=("--optimizer-option",))
+    objective_option: list[str] | None = setting(
+        None, "KEY=VALUE: an option the objective plugin declares (repeatable); wins over the YAML file's "
+        "objective_options.", names=("--objective-option",))
+    help_all: bool = setting(False, "Show every option (training, task, randomization, ...) and exit.",
+                             names=("--help-all",), callback=help_all)
+    check: bool = setting(False, "Check the options (config, plugins, store, --out) and exit without running.",
+                          names=("--check",), hidden=True)
 
 
 def _fmt_duration(seconds: float | None) -> str:
@@ -256,55 +274,36 @@ def _print_summary(summary: dict[str, Any], space_names: list[str] | None, discr
             console.print("  " + ", ".join(f"{x:.3f}" for x in design) + "  ->  " + ", ".join(f"{k} {v:.4g}" for k, v in costs.items()))
 
 
-#: `coadapt run` options that are not config fields: (name, type, typer.Option)
-def _command_options() -> list[tuple[str, Any, Any]]:
-    return [
-        ("config", Path, typer.Option(None, "--config", help="YAML file of config keys (CLI options win over it); a run folder's config.yaml repeats that run's config.")),
-        ("resume", str, typer.Option(None, help="Resume the run with this id (a folder under --out) or this run folder.")),
-        ("as_json", bool, typer.Option(False, "--json", help="Last stdout line: a JSON summary.")),
-        ("video", bool, typer.Option(True, "--video/--no-video", help="End by rendering the best and the nominal design walking side by side: <run folder>/best_vs_nominal.gif (and .mp4 with ffmpeg).")),
-        ("optimizer_option", list[str], typer.Option(None, "--optimizer-option", help="KEY=VALUE: an option the optimizer plugin declares (repeatable; `coadapt plugins --json` lists them); wins over the YAML file's optimizer_options.")),
-        ("objective_option", list[str], typer.Option(None, "--objective-option", help="KEY=VALUE: an option the objective plugin declares (repeatable); wins over the YAML file's objective_options.")),
-        *_alias_options(),
-        ("help_all", bool, typer.Option(False, "--help-all", is_eager=True, callback=help_all,
-                                        help="Show every option (training, task, randomization, ...) and exit.")),
-        ("check", bool, typer.Option(False, "--check", hidden=True, help="Check the options (config, plugins, store, --out) and exit without running.")),
-    ]
+def alias_settings_class() -> type:
+    """The keys of earlier versions that the installed plugins declare for their options
+    (`PluginOption.alias`), as a settings class: `--<alias>` sets that plugin option."""
+    import dataclasses
 
-
-def _alias_options() -> list[tuple[str, Any, Any]]:
-    """`--<alias>` for every plugin option an installed plugin declares an alias for
-    (`PluginOption.alias`: the keys of earlier versions), as (name, type, typer.Option)."""
-    from coadapt_core.coadapt.config import option_aliases
+    from coadapt_core.coadapt.config import CoadaptConfig, option_aliases
     from coadapt_core.settings import leaves
 
-    taken = {leaf.param for leaf in leaves(_config_class())} | _COMMAND_NAMES
-    out = []
+    taken = {leaf.param for leaf in leaves(CoadaptConfig)} | set(RunCommand.__pydantic_fields__)
+    specs = []
     for key, alias in option_aliases().items():
         if key in taken:
             continue
         spec, kind = alias.option, alias.field.removesuffix("_options")
         text = f"Alias of --{kind}-option {spec.name}=... ({', '.join(alias.plugins)}: {spec.help})."
-        out.append((key, {"float": float, "int": int}.get(spec.type, str), typer.Option(None, help=text)))
-    return out
+        specs.append((key, {"float": Float, "int": Int}.get(spec.type, str) | None, setting(None, text)))
+    made = dataclasses.make_dataclass("PluginOptionAliases", specs)
+    made.__module__ = __name__
+    made = settings(made)
+    made.__doc__ = ("Built by `alias_settings_class()` from the installed plugins' declarations (`PluginOption.alias`): "
+                    "older top-level names of plugin options; `--<alias> X` is `--optimizer-option NAME=X` (or "
+                    "`--objective-option`).")
+    return made
 
 
-#: the parameters of `coadapt run` that are not config settings nor aliases
-_COMMAND_NAMES = frozenset({"config", "resume", "as_json", "video", "optimizer_option", "objective_option",
-                            "help_all", "check"})
-
-
-def _config_class() -> type:
-    from coadapt_core.coadapt.config import CoadaptConfig
-
-    return CoadaptConfig
-
-
-def config_options() -> list[tuple[str, Any, Any, Any]]:
-    """(parameter name, type, typer.Option, leaf) for every config setting on the command line."""
+def config_options() -> OptionGroup:
+    """The options of every config setting on the command line (their defaults: the preset's)."""
     from coadapt_core.coadapt.config import OPTION_ALIASES, CoadaptConfig
 
-    return settings_options(CoadaptConfig, aliases=OPTION_ALIASES)
+    return options_of(CoadaptConfig, aliases=OPTION_ALIASES, show_defaults=False)
 
 
 def _resume_folder(resume: str, out: str | None) -> Path:
@@ -408,15 +407,16 @@ def _report(result: Any, as_json: bool) -> None:
 
 
 def register(app: typer.Typer) -> None:
-    settings = config_options()
-    aliases = [name for name, _, _ in _alias_options()]
+    settings, own = config_options(), options_of(RunCommand)
+    aliases = options_of(alias_settings_class(), show_defaults=False)
 
     def run_command(**values: Any) -> None:
         """Co-adapt design and policy: universal policy + pseudo-critics, optimizer with hybrid
         real/surrogate fitness, range narrowing (paper Algorithm 4)."""
-        overrides = {leaf.key: values[name] for name, _, _, leaf in settings}
-        for name in aliases:  # keys of earlier versions, declared by the plugins
-            overrides[name] = values[name]
+        values = filled(values, own)
+        overrides = {option.leaf.key: values[option.param] for option in settings}
+        for option in aliases:  # keys of earlier versions, declared by the plugins
+            overrides[option.param] = values[option.param]
         try:
             if values["resume"]:
                 cfg, kwargs = None, {"resume": _resume_folder(values["resume"], values["out"])}
@@ -429,4 +429,4 @@ def register(app: typer.Typer) -> None:
             fail(str(exc))
         _report(result, values["as_json"])
 
-    app.command("run")(with_options(run_command, settings, _command_options()))
+    register_command(app, "run", run_command, settings, own, aliases)

@@ -20,28 +20,13 @@ from typing import Any
 
 import typer
 
-from coadapt_core.cli.common import (
-    choices,
-    declared_options,
-    fail,
-    given_settings,
-    plugin_name,
-    resolve,
-    settings_options,
-    with_options,
-)
+from coadapt_core.cli.common import fail, plugin_name, resolve
+from coadapt_core.cli.options import OptionGroup, choices, filled, given_settings, options_of
+from coadapt_core.cli.options import register as register_command
 from coadapt_core.cli.progress import ProgressLine
 from coadapt_core.errors import UserError
 from coadapt_core.settings import Float, Int, overrides, setting, settings
 from coadapt_core.tracking import check_logger, make_logger
-
-
-def _option(field: Any, *names: str, ranked: bool = False) -> Any:
-    """A setting's command-line form, when not the generated one: its option `names` (e.g. a
-    switch without --no-x), and `ranked`: unset, it names the installed plugin of highest
-    default_rank (`coadapt_core.cli.common.declared_options` reads both)."""
-    field.json_schema_extra.update(names=names, ranked=ranked)
-    return field
 
 
 @settings
@@ -50,8 +35,8 @@ class TrainCommand:
     `train_settings_class`'s); one declaration each gives the option, its help and its row
     in docs/settings.md."""
 
-    robot: str | None = _option(setting(None, "Robot.", plugin="robot"), ranked=True)
-    sim: str | None = _option(setting(None, "Simulator backend.", plugin="simulator"), ranked=True)
+    robot: str | None = setting(None, "Robot.", plugin="robot")
+    sim: str | None = setting(None, "Simulator backend.", plugin="simulator")
     terrain: str = setting("flat", "Terrain: flat, slope or random.")
     designs: str | None = setting(None, "Design range, one low:high per continuous variable, e.g. 0.5:1.5,0.5:1.5 "
                                   "(default: the full space; on --resume: the checkpoint's).")
@@ -67,13 +52,11 @@ class TrainCommand:
                                      "weights for the new ones.")
     out: Path = setting(Path("runs/train"), "Output directory (checkpoints, logs, progress.jsonl).")
     mixed: bool = setting(False, "Also sample the discrete design variables (motor types).")
-    reset_pseudo_critics: bool = _option(setting(False, "With --resume or --init-from: restart the pseudo-critics from "
-                                                 "scratch (after an objective's definition changed)."),
-                                         "--reset-pseudo-critics")
-    pseudo_critics_only: bool = _option(setting(False, "With --resume or --init-from: train only the pseudo-critics; the "
-                                                "policy, critic and observation normalisers stay exactly as loaded (refit "
-                                                "a finished policy's surrogate, or give it a new objective)."),
-                                        "--pseudo-critics-only")
+    reset_pseudo_critics: bool = setting(False, "With --resume or --init-from: restart the pseudo-critics from scratch "
+                                         "(after an objective's definition changed).", names=("--reset-pseudo-critics",))
+    pseudo_critics_only: bool = setting(False, "With --resume or --init-from: train only the pseudo-critics; the policy, "
+                                        "critic and observation normalisers stay exactly as loaded (refit a finished "
+                                        "policy's surrogate, or give it a new objective).", names=("--pseudo-critics-only",))
     quiet: bool = setting(False, "No progress bar; one JSON line per iteration on stdout.")
     logger: str = setting("tensorboard", "Experiment tracking: tensorboard (event files in OUT/logs), wandb (if "
                           "installed) or none.")
@@ -89,7 +72,7 @@ class EvalCommand:
     robot: str | None = setting(None, "Robot (default: the one the checkpoint was trained for; without --checkpoint, "
                                 "the only installed robot).", plugin="robot")
     design: str | None = setting(None, "Design, comma-separated (default: the nominal design).")
-    sim: str | None = _option(setting(None, "Simulator backend.", plugin="simulator"), ranked=True)
+    sim: str | None = setting(None, "Simulator backend.", plugin="simulator")
     terrain: str = setting("flat", "Terrain: flat, slope or random.")
     command: str = setting("0.5,0,0", "Velocity command vx,vy,yaw_rate (m/s, m/s, rad/s).")
     agents: Int = setting(50, "Agents (environments) on the design.")
@@ -97,11 +80,11 @@ class EvalCommand:
     device: str = setting("cpu", "Policy device: cpu or cuda.")
     seed: Int = setting(0, "Random seed.")
     randomize: bool = setting(True, "Domain randomization (Table 2) as in training.")
-    as_json: bool = _option(setting(False, "Print JSON."), "--json")
+    as_json: bool = setting(False, "Print JSON.", names=("--json",))
     video: Path | None = setting(None, "Render agent 0 offscreen into a .gif (or .mp4 with ffmpeg).")
-    objective: list[str] | None = _option(setting(None, "Also evaluate this installed objective (repeatable, or a comma "
-                                                  "list): its cost per step and standard error over the agents, in "
-                                                  "`costs` / `costs_se` with --json.", plugin="objective"), "--objective")
+    objective: list[str] | None = setting(None, "Also evaluate this installed objective (repeatable, or a comma list): its "
+                                          "cost per step and standard error over the agents, in `costs` / `costs_se` with "
+                                          "--json.", plugin="objective", names=("--objective",))
 
 
 def default_objectives() -> list[str]:
@@ -167,20 +150,25 @@ def train_settings_class() -> type:
         from coadapt_core.settings import partial, setting
 
         fields = CoadaptConfig.__pydantic_fields__
+        doc = ("Built by `train_settings_class()`: the trainer's settings (`TrainConfig`) and the run's `task` and "
+               "`randomization` sections, each an override of the checkpoint's (--resume / --init-from), else of the "
+               "default.")
         _TRAIN_SETTINGS = partial(TrainConfig, "TrainCommandSettings", unset=UNSET, exclude=("device", "seed", "extra"),
-                                  extra={
+                                  doc=doc, extra={
             "task": (TaskSection, setting(default_factory=TaskSection, help=fields["task"].description)),
             "randomization": (RandomizationSection, setting(default_factory=RandomizationSection,
                                                             help=fields["randomization"].description)),
         })
+        _TRAIN_SETTINGS.__module__ = __name__
     return _TRAIN_SETTINGS
 
 
 _TRAIN_SETTINGS: type | None = None
 
 
-def train_options() -> list[tuple[str, Any, Any, Any]]:
-    return settings_options(train_settings_class(), aliases=TRAIN_ALIASES)
+def train_options() -> OptionGroup:
+    """The options of `coadapt train`'s settings tree (`train_settings_class`), older names kept."""
+    return options_of(train_settings_class(), aliases=TRAIN_ALIASES)
 
 
 def _checkpoint_sources(values: dict[str, Any]) -> tuple[Path | None, Path | None]:
@@ -419,12 +407,13 @@ def _eval_video(robot_obj: Any, design_values: Any, trajectory: Any, video: Path
 
 
 def register(app: typer.Typer) -> None:
-    settings = train_options()
+    settings, own = train_options(), options_of(TrainCommand)
 
     def train_command(**values: Any) -> None:
         """Train the universal policy pi(a|o, xi) with its critic and pseudo-critics (PPO)."""
         from coadapt_core.learning import read_checkpoint
 
+        values = filled(values, own)
         robot = plugin_name("robot", values["robot"])
         steps = values["steps"]
         if steps < 0 or (steps == 0 and values["resume"] is None and values["init_from"] is None):
@@ -446,11 +435,12 @@ def register(app: typer.Typer) -> None:
         trainer = _build_trainer(values, plugins, given, state)
         _train(values, _start_runner(values, trainer, source, given.get("learning_rate")), robot)
 
-    app.command("train")(with_options(train_command, settings, declared_options(TrainCommand), others_first=True))
+    register_command(app, "train", train_command, own, settings)
+    evaluation = options_of(EvalCommand)
 
     def eval_command(**values: Any) -> None:
         """Roll out a policy on one design and report survival, speed and costs."""
-        o = SimpleNamespace(**values)
+        o = SimpleNamespace(**filled(values, evaluation))
         velocity = _eval_checks(o.agents, o.seconds, o.video, o.device, o.objective, o.command)
         checkpoint = _eval_checkpoint_path(o.checkpoint)
         robot = o.robot if o.robot is not None else _eval_robot(checkpoint)
@@ -478,4 +468,4 @@ def register(app: typer.Typer) -> None:
         if o.video is not None:
             _eval_video(robot_obj, design, trajectory, o.video)
 
-    app.command("eval")(with_options(eval_command, [], declared_options(EvalCommand)))
+    register_command(app, "eval", eval_command, evaluation)

@@ -1,6 +1,6 @@
-"""docs/settings.md, generated from the settings trees of the commands: `coadapt run`'s
-(`CoadaptConfig`), then every other command's (`COMMANDS`: landscape, grid; `COMMAND_SETTINGS`:
-train, eval).
+"""docs/settings.md, generated from the settings classes every command's options come from
+(`coadapt_core.cli.options.DECLARED`): `coadapt run`'s config tree (`CoadaptConfig`, also its
+YAML keys) first, then each command's own settings, command by command.
 
     python -m coadapt_core.coadapt.settings_doc > docs/settings.md
 
@@ -9,136 +9,120 @@ compares each command's options with those of its `--help` (`coadapt run --help-
 
 from __future__ import annotations
 
-import importlib
-import re
 from typing import Any
 
-#: command -> "module:settings class" of every command whose options come from a settings
-#: tree, `coadapt run` first
-COMMANDS: dict[str, str] = {
-    "run": "coadapt_core.coadapt.config:CoadaptConfig",
-    "landscape": "coadapt_core.cli.landscape:LandscapeSettings",
-    "grid": "coadapt_core.cli.grid:GridSettings",
-}
+HEADER = """# Settings of every command
 
-HEADER = """# Settings of `coadapt run` and the other commands
+Generated from the one declaration of every setting: `coadapt run`'s config tree
+(`CoadaptConfig` in `coadapt_core/coadapt/config.py`) and each command's settings classes,
+named in its section, by `python -m coadapt_core.coadapt.settings_doc > docs/settings.md`.
+Every option of every command comes from these declarations (`coadapt_core.cli.options`);
+a test regenerates this page and compares each command's `--help` (`coadapt run --help-all`)
+with it. A setting two commands share is declared once (`coadapt_core.settings.shared`)
+and reads the same in both.
 
-Generated from the one definition of every setting (`CoadaptConfig` in
-`coadapt_core/coadapt/config.py`; each other command's settings class, named in its section)
-by `python -m coadapt_core.coadapt.settings_doc > docs/settings.md`; a test regenerates this
-page and compares it with each command's `--help` (`coadapt run --help-all`). A setting two
-commands share is declared once (`coadapt_core.settings.shared`) and reads the same in both.
-Each setting of `coadapt run` is a YAML key of a `--config` file and of a run folder's `config.yaml` (a
-dotted key is a nested mapping: `task.commands.yaw_range` is `task: {commands: {yaw_range:
-[-1, 1]}}`) and a command-line option. Precedence: option > YAML key > preset > default.
-A bad value stops the command with one line naming the key and what it accepts (exit 2).
+Each setting of `coadapt run`'s config is a YAML key of a `--config` file and of a run
+folder's `config.yaml` (a dotted key is a nested mapping: `task.commands.yaw_range` is
+`task: {commands: {yaw_range: [-1, 1]}}`) and a command-line option. Precedence: option >
+YAML key > preset > default. No other command reads YAML. A bad value stops the command
+with one line naming the key and what it accepts (exit 2).
 
 Values on the command line: a range is `low:high`, integers `512,256,128`, weights
 `name=value,name=value`; booleans `--x/--no-x` (YAML: true/false, yes/no, on/off).
-The settings of `coadapt train` and `coadapt eval` follow the run's, at the end of the page.
 """
 
+#: the column heads of a table of settings: with YAML keys (the run's config) or options only
+_WITH_KEYS = ["| key | option | default | accepts | meaning |", "|---|---|---|---|---|"]
+_OPTIONS_ONLY = ["| option | default | accepts | meaning |", "|---|---|---|---|"]
 
-def _default(leaf: Any) -> str:
+
+def _cell(text: str) -> str:
+    return text.replace("|", "\\|")
+
+
+def _names(option: Any) -> str:
+    """The option's names as its row shows them, a switch without its `--no-` form (a
+    positional argument: its metavar)."""
+    if not option.names:
+        return f"`{option.leaf.extra['argument']}` (argument)"
+    return " ".join(f"`{name.split('/')[0]}`" for name in option.names)
+
+
+def _meaning(leaf: Any) -> str:
+    from coadapt_core.cli.options import _HAND_DEFAULT
+
+    return _cell(_HAND_DEFAULT.sub("", leaf.help).strip())
+
+
+def _config_rows(group: Any) -> list[list[str]]:
+    """`coadapt run`'s config settings by section (the run's own first): heading and rows; a
+    setting kept off the command line says "(YAML only)"."""
     from coadapt_core.cli.common import config_default
-
-    empty = "{}" if leaf.kind == "mapping" else "''"
-    return (config_default(leaf.param) or empty).replace("|", "\\|")
-
-
-def settings_class(command: str) -> type:
-    """The settings class of `command` (`COMMANDS`)."""
-    module, _, name = COMMANDS[command].partition(":")
-    return getattr(importlib.import_module(module), name)
-
-
-def _command_table(command: str) -> list[str]:
-    """The section of a command without presets or YAML: one row per option."""
-    from coadapt_core.cli.common import _HAND_DEFAULT, leaf_default
-    from coadapt_core.settings import leaves
-
-    cls = settings_class(command)
-    doc = " ".join((cls.__doc__ or "").split())
-    out = [f"\n## `coadapt {command}`\n", f"`{cls.__module__}.{cls.__name__}`. {doc}\n",
-           "| key | option | default | accepts | meaning |", "|---|---|---|---|---|"]
-    for leaf in leaves(cls):
-        meaning = _HAND_DEFAULT.sub("", leaf.help).strip().replace("|", "\\|")
-        default = (leaf_default(leaf) or "''").replace("|", "\\|")
-        out.append(f"| `{leaf.key}` | `{leaf.option}` | {default} | {leaf.accepted()} | {meaning} |")
-    return out
-
-
-def settings_markdown() -> str:
-    """The page: one table per section of the run's tree (its own settings first), then one
-    per other command."""
     from coadapt_core.coadapt.config import CoadaptConfig
     from coadapt_core.settings import leaves, sections
 
-    nested = sections(CoadaptConfig)
-    groups: dict[str, list[Any]] = {"run": []}
+    nested, options = sections(CoadaptConfig), {option.leaf.key: option for option in group}
+    groups: dict[str, list[str]] = {"run": []}
     for leaf in leaves(CoadaptConfig):
-        group = leaf.path[0] if leaf.path[0] in nested else "run"
-        groups.setdefault(group, []).append(leaf)
-    out = [HEADER]
-    for group, items in groups.items():
-        if group != "run":
-            doc = (CoadaptConfig.__pydantic_fields__[group].description or "").strip()
-            out.append(f"\n## `{group}`\n\n{doc}\n")
-        else:
-            out.append("\n## The run\n")
-        out.append("| key | option | default | accepts | meaning |")
-        out.append("|---|---|---|---|---|")
-        for leaf in items:
-            option = f"`{leaf.option}`" if leaf.extra.get("cli", True) else "(YAML only)"
-            meaning = leaf.help.replace("|", "\\|")
-            out.append(f"| `{leaf.key}` | {option} | {_default(leaf)} | {leaf.accepted()} | {meaning} |")
-    for command in COMMANDS:
-        if command != "run":
-            out += _command_table(command)
-    return "\n".join(out) + "\n" + command_markdown()
-
-
-#: the commands whose own settings follow the run's on the page: (command, module, settings
-#: class, what else the command takes)
-COMMAND_SETTINGS = (
-    ("train", "coadapt_core.cli.train", "TrainCommand",
-     "Also every setting of the `train`, `task` and `randomization` sections above, as the same options, each an "
-     "override of the checkpoint's (--resume / --init-from), else of the default."),
-    ("eval", "coadapt_core.cli.train", "EvalCommand", ""),
-)
-
-
-def _command_default(leaf: Any) -> str:
-    """A command setting's default as its --help shows it: the rule for a plugin left unset,
-    the "(default: ...)" its help writes, else the declared value."""
-    from coadapt_core.cli.common import show_default
-
-    found = re.search(r"\(default: ((?:[^()]|\([^()]*\))*)\)", leaf.help)
-    if found:
-        return found.group(1)
-    if leaf.extra.get("ranked"):
-        return f"the installed {leaf.extra['plugin']} of highest default_rank"
-    return "''" if leaf.default in (None, "") else show_default(leaf.default)
-
-
-def command_markdown() -> str:
-    """One section per command of `COMMAND_SETTINGS`: a table of its own settings (options only)."""
-    from importlib import import_module
-
-    from coadapt_core.settings import leaves
-
+        section = leaf.path[0] if leaf.path[0] in nested else "run"
+        empty = "{}" if leaf.kind == "mapping" else "''"
+        default = _cell(config_default(leaf.param) or empty)
+        names = _names(options[leaf.key]) if leaf.key in options else "(YAML only)"
+        groups.setdefault(section, []).append(
+            f"| `{leaf.key}` | {names} | {default} | {leaf.accepted()} | {_cell(leaf.help)} |")
     out = []
-    for command, module, name, note in COMMAND_SETTINGS:
-        cls = getattr(import_module(module), name)
-        out.append(f"\n# Settings of `coadapt {command}`\n\nDeclared once in `{name}` ({module.replace('.', '/')}.py): "
-                   f"each is an option of `coadapt {command}` (no YAML file). {note}".rstrip() + "\n")
-        out.append("| option | default | meaning |")
-        out.append("|---|---|---|")
-        for leaf in leaves(cls):
-            names = " ".join(f"`{n.split('/')[0]}`" for n in leaf.extra.get("names") or ()) or f"`{leaf.option}`"
-            meaning = re.sub(r"\s*\(default: ((?:[^()]|\([^()]*\))*)\)", "", leaf.help).replace("|", "\\|")
-            out.append(f"| {names} | {_command_default(leaf)} | {meaning} |")
-    return "\n".join(out) + "\n"
+    for section, rows in groups.items():
+        doc = (CoadaptConfig.__pydantic_fields__[section].description or "").strip() if section != "run" else ""
+        out.append(["\n## The run\n" if section == "run" else f"\n## `{section}`\n\n{doc}\n", *_WITH_KEYS, *rows])
+    return out
+
+
+def _group_table(group: Any) -> list[str]:
+    """One settings class of a command: its name, its docstring and one row per option."""
+    from coadapt_core.cli.options import leaf_default
+
+    cls = group.root
+    doc = " ".join((cls.__doc__ or "").split())
+    out = [f"`{cls.__module__}.{cls.__name__}`. {doc}\n", *_OPTIONS_ONLY]
+    for option in group:
+        leaf = option.leaf
+        default = "required" if leaf.required else _cell(leaf_default(leaf) or "''")
+        hidden = " (hidden from --help)" if leaf.extra.get("hidden") else ""
+        out.append(f"| {_names(option)} | {default} | {leaf.accepted()} | {_meaning(leaf)}{hidden} |")
+    return out
+
+
+def command_order() -> list[str]:
+    """Every command path with declared options: `run` first, then as `coadapt --help` lists
+    them, `coadapt` itself last."""
+    from coadapt_core.cli.options import DECLARED
+
+    first, last = ["run"], [""]
+    return first + [p for p in DECLARED if p not in first + last] + [p for p in last if p in DECLARED]
+
+
+def settings_markdown() -> str:
+    """The page: `coadapt run`'s config tree, one table per section, then every command's
+    own settings."""
+    import coadapt_core.cli  # noqa: F401  (registering the commands fills DECLARED)
+    from coadapt_core.cli.options import DECLARED
+    from coadapt_core.coadapt.config import CoadaptConfig
+
+    out = [HEADER]
+    for group in DECLARED["run"]:
+        if group.root is CoadaptConfig:
+            for table in _config_rows(group):
+                out += table
+    for path in command_order():
+        groups = [g for g in DECLARED[path] if g.root is not CoadaptConfig]
+        if not groups:
+            continue
+        title = f"`coadapt {path}`" if path else "`coadapt` itself"
+        extra = " that are not config settings (no YAML key)" if path == "run" else ""
+        out.append(f"\n# Options of {title}{extra}\n")
+        for group in groups:
+            out += [*_group_table(group), ""]
+    return "\n".join(out).rstrip("\n") + "\n"
 
 
 if __name__ == "__main__":

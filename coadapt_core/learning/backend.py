@@ -113,6 +113,8 @@ class UniversalPolicyBackend:
             seed=seed,
         )
         self.objectives = list(objectives)
+        # the robot's full spaces (continuous, mixed), asked once: a batch's normalisation bounds and checks
+        self.full_spaces = (robot.design_space(False), robot.design_space(True))
         self.stochastic_evaluation = True
         # common random numbers across designs (docs/coadaptation.md, evaluation protocol)
         self.paired_evaluation = True
@@ -161,8 +163,7 @@ class UniversalPolicyBackend:
         models swapped in place), with the learner built for it and episodes that outlast
         `steps` policy steps."""
         tr = self.trainer
-        space = tr.robot.design_space_for(designs[0])
-        per_env = np.repeat(space.validate_batch(designs), agents, axis=0)
+        per_env = np.repeat(self.full_space(designs).validate_batch(designs), agents, axis=0)
         if self.eval_env is not None and self.eval_env.num_envs == len(per_env):
             self.eval_env.set_designs(np.arange(len(per_env)), per_env)
         else:
@@ -330,8 +331,15 @@ class UniversalPolicyBackend:
         with self._learner_threads():
             return self.fitted.predict(states, self.trainer_normalize(designs)).cpu().numpy()
 
+    def full_space(self, designs: np.ndarray) -> DesignSpace:
+        """The robot's full space (continuous, or mixed when the arity says so) of a batch;
+        as `Robot.design_space_for`, without asking the robot again."""
+        plain, mixed = self.full_spaces
+        arity = np.atleast_2d(np.asarray(designs, dtype=float)).shape[1]
+        return mixed if arity == mixed.dim and mixed.dim != plain.dim else plain
+
     def trainer_normalize(self, designs: np.ndarray) -> torch.Tensor:
-        space = self.trainer.robot.design_space_for(designs[0])
+        space = self.full_space(designs)
         low = torch.as_tensor(space.lower, dtype=torch.float32)
         high = torch.as_tensor(space.upper, dtype=torch.float32)
         xi = torch.as_tensor(designs, dtype=torch.float32)

@@ -10,13 +10,14 @@ from pathlib import Path
 import pytest
 import yaml
 
+from coadapt_core.cli.options import DECLARED
 from coadapt_core.coadapt.config import (
     CoadaptConfig,
     config_from_dict,
     learner_settings,
     make_config,
 )
-from coadapt_core.coadapt.settings_doc import COMMANDS, settings_class, settings_markdown
+from coadapt_core.coadapt.settings_doc import settings_markdown
 from coadapt_core.errors import UserError
 from coadapt_core.settings import leaves
 
@@ -24,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[2]
 DOC = ROOT / "docs" / "settings.md"
 
 
-def _command(name: str = "run"):
+def _app_command():
     from typer.main import get_command
 
     from coadapt_core.cli import app
@@ -32,30 +33,49 @@ def _command(name: str = "run"):
 
     command = get_command(app)
     style_help(command)
-    return command.commands[name]
+    return command
+
+
+def _command(name: str = "run"):
+    """The click command of `coadapt <name>` ("robot show": a subcommand; "": `coadapt` itself)."""
+    command = _app_command()
+    for part in name.split():
+        command = command.commands[part]
+    return command
 
 
 def _run_command():
     return _command("run")
 
 
-def _documented(command: str) -> dict[str, tuple[str, str]]:
-    """{option: (meaning, default)} of the command's rows in docs/settings.md: those under a
-    heading naming `coadapt <command>` (`coadapt run`: the rows before the first other
-    command's heading)."""
+def _paths(command=None, path=()):
+    """Every command path of the app (`coadapt` itself as "")."""
+    command = command if command is not None else _app_command()
+    subs = getattr(command, "commands", None)
+    if not subs or not path:
+        yield " ".join(path)
+    for name, sub in (subs or {}).items():
+        yield from _paths(sub, (*path, name))
+
+
+def documented(command: str) -> dict[str, tuple[str, str]]:
+    """{first option name: (meaning, default)} of the command's rows in docs/settings.md:
+    those under headings naming `coadapt <command>` (`coadapt run`: its config tables too,
+    the rows before the first "# Options of" heading)."""
     sections, current = {"run": []}, "run"
     for line in DOC.read_text().splitlines():
-        found = re.match(r"#+ .*`coadapt (\w+)`", line)
+        found = re.match(r"# Options of `coadapt ?([\w ]*)`", line)
         if found:
             current = found.group(1)
-            sections[current] = []
+            sections.setdefault(current, [])
         elif line.startswith("| `"):
             sections[current].append(line)
     out = {}
     for row in sections.get(command, []):
-        _, option, default, _, meaning = [c.strip() for c in re.split(r"(?<!\\)\|", row)[1:-1]]
-        if option.startswith("`--"):
-            out[option.strip("`")] = (meaning.replace("\\|", "|"), default.replace("\\|", "|"))
+        cells = [c.strip() for c in re.split(r"(?<!\\)\|", row)[1:-1]]
+        option, default, meaning = (cells[1], cells[2], cells[4]) if len(cells) == 5 else (cells[0], cells[1], cells[3])
+        if option.startswith("`"):
+            out[option.split("`")[1]] = (meaning.replace("\\|", "|"), default.replace("\\|", "|"))
     return out
 
 
@@ -68,44 +88,67 @@ def test_docs_table_is_generated_from_the_tree():
 def test_docs_table_and_run_help_list_the_same_options_helps_and_defaults():
     run = _run_command()
     helps = {opt: " ".join((p.help or "").split()) for p in run.params if not p.hidden for opt in p.opts}
-    documented = _documented("run")
+    documented_config = {o: v for o, v in documented("run").items()
+                         if o.lstrip("-").replace("-", "_") in {leaf.param for leaf in leaves(CoadaptConfig)}}
     config_options = {o for o in helps if o.lstrip("-").replace("-", "_") in
                       {leaf.param for leaf in leaves(CoadaptConfig)}}
-    assert set(documented) == config_options
-    assert len(documented) > 100  # the run's own settings and every train / task / randomization one
-    for option, (meaning, default) in documented.items():
+    assert set(documented_config) == config_options
+    assert len(documented_config) > 100  # the run's own settings and every train / task / randomization one
+    for option, (meaning, default) in documented_config.items():
         assert meaning in helps[option], option  # the declared help, word for word
         if default != "''":
             assert f"[default: {default}]" in helps[option], option
 
 
-OTHER_COMMANDS = [c for c in COMMANDS if c != "run"]
+COMMANDS = list(_paths())
 
 
-def test_every_command_with_settings_is_documented():
-    """Every command whose options come from a settings tree has its section; the commands
-    that still declare options by hand are only those not yet in `COMMANDS`."""
-    assert {"run", "landscape", "grid"} <= set(COMMANDS)
-    text = DOC.read_text()
-    for command in OTHER_COMMANDS:
-        assert f"## `coadapt {command}`" in text, command
+def test_every_command_is_declared():
+    """Every command of the app, `coadapt` itself included, takes its options from settings
+    classes recorded by `coadapt_core.cli.options.register`."""
+    assert {"", "run", "train", "eval", "landscape", "grid", "report", "export", "import", "plugins", "handoff",
+            "robot show", "robot export", "robot validate", "robot render"} <= set(COMMANDS)
+    assert set(COMMANDS) == set(DECLARED)
 
 
-@pytest.mark.parametrize("command", OTHER_COMMANDS)
-def test_docs_table_and_each_commands_help_list_the_same_options_helps_and_defaults(command):
-    """Each command's options are its settings' (names, help word for word, the default
-    shown), and each setting is an option; docs/settings.md says the same."""
+@pytest.mark.parametrize("command", COMMANDS, ids=[c or "coadapt" for c in COMMANDS])
+def test_each_commands_help_is_its_declarations(command):
+    """Each parameter of the command (typer's --help aside) is one declared setting: the same
+    names (aliases included), the declared help word for word, a shown default equal to the
+    declared one; and every declared setting is a parameter. docs/settings.md lists the same
+    options with the same meaning and default."""
+    from coadapt_core.cli.options import _HAND_DEFAULT, leaf_default
+
     cli = _command(command)
-    cls = settings_class(command)
-    helps = {opt: " ".join((p.help or "").split()) for p in cli.params if not p.hidden for opt in p.opts}
-    documented = _documented(command)
-    setting_options = {leaf.option for leaf in leaves(cls)}
-    assert set(documented) == setting_options
-    assert setting_options <= set(helps), setting_options - set(helps)
-    for option, (meaning, default) in documented.items():
-        assert meaning in helps[option], (command, option)
-        if default != "''":
-            assert helps[option].endswith(f"[default: {default}]"), (command, option, helps[option])
+    params = {p.name: p for p in cli.params if p.name != "help"}
+    options = {o.param: o for group in DECLARED[command] for o in group}
+    config = {o.param for group in DECLARED[command] if group.root is CoadaptConfig for o in group}
+    assert set(params) == set(options), set(params) ^ set(options)
+    docs = documented(command)
+    for name, option in options.items():
+        param, leaf = params[name], option.leaf
+        given = [n for names in option.names for n in names.split("/")]
+        assert [*param.opts, *param.secondary_opts] == given or (not given and param.param_type_name == "argument")
+        text = " ".join((param.help or "").split())
+        meaning = re.sub(r"\s*\(default:?\s+((?:[^()]|\([^()]*\))*)\)", "", leaf.help).strip()
+        assert meaning.rstrip(".") in text, (command, name)
+        if name in config:
+            continue  # its table and --help-all: test_docs_table_and_run_help_list_the_same_options_helps_and_defaults
+        default = leaf_default(leaf)
+        row = docs[option.names[0].split("/")[0] if option.names else leaf.extra["argument"]]
+        hidden = " (hidden from --help)" if leaf.extra.get("hidden") else ""
+        assert row == (_HAND_DEFAULT.sub("", leaf.help).strip() + hidden, "required" if leaf.required else default or "''")
+        if default and not leaf.extra.get("hidden") and not (leaf.kind == "bool" and leaf.default is False) and not leaf.required:
+            assert text.endswith(f"[default: {default}]"), (command, name, text)
+
+
+def test_no_command_declares_an_option_by_hand():
+    """No module of the command line writes a typer option or argument itself: they are all
+    made from declarations (`coadapt_core/cli/options.py`)."""
+    cli = ROOT / "coadapt_core" / "cli"
+    hand = [f"{path.name}:{n}" for path in sorted(cli.glob("*.py")) if path.name != "options.py"
+            for n, line in enumerate(path.read_text().splitlines(), 1) if re.search(r"typer\.(Option|Argument)\(", line)]
+    assert hand == []
 
 
 def test_a_shared_setting_is_one_declaration():
@@ -113,19 +156,21 @@ def test_a_shared_setting_is_one_declaration():
     (`terrain` was typed by hand in three commands)."""
     from coadapt_core.settings import Leaf
 
-    run = {leaf.key: leaf for leaf in leaves(CoadaptConfig)}
     shared = 0
-    for command in OTHER_COMMANDS:
-        for leaf in leaves(settings_class(command)):
-            source = leaf.extra.get("shared")
-            if source is None:
-                continue
-            shared += 1
-            assert source is CoadaptConfig
-            mine: Leaf = run[leaf.key]
-            assert (leaf.help, leaf.kind, leaf.accepted(), leaf.default) == (mine.help, mine.kind, mine.accepted(), mine.default)
-    assert shared >= 8  # terrain, sim, robot, seed, cost rule and cap, device; the grid's sim
-    terrain_helps = {leaf.help for c in COMMANDS for leaf in leaves(settings_class(c)) if leaf.key == "terrain"}
+    for command in COMMANDS:
+        for group in DECLARED[command]:
+            for option in group:
+                leaf = option.leaf
+                source = leaf.extra.get("shared")
+                if source is None:
+                    continue
+                shared += 1
+                mine: Leaf = {x.key: x for x in leaves(source)}[leaf.key]
+                assert (leaf.help, leaf.kind, leaf.accepted(), leaf.default) == (mine.help, mine.kind, mine.accepted(),
+                                                                                 mine.default)
+    assert shared >= 8 + 4 + 6  # run's into landscape and grid; the store; robot and design in the robot commands
+    run = {leaf.key: leaf for leaf in leaves(CoadaptConfig)}
+    terrain_helps = {o.leaf.help for c in ("landscape", "run") for g in DECLARED[c] for o in g if o.leaf.key == "terrain"}
     assert terrain_helps == {run["terrain"].help}
 
 
@@ -135,6 +180,10 @@ def test_a_shared_setting_is_one_declaration():
     (["landscape", "--cost-cap", "1"], "error: cost_cap must be a finite number > 1, got 1"),
     (["landscape", "--agents", "0"], "error: agents must be an integer >= 1, got 0"),
     (["grid", "--timeout", "nan"], "error: timeout must be a finite number"),
+    (["robot", "render", "kuafu", "--width", "abc"], "error (coadapt robot render): Invalid value for '--width'"),
+    (["export"], "error (coadapt export): Missing option '-o' / '--out'."),
+    (["handoff"], "error (coadapt handoff): Missing argument 'run'."),
+    (["report", "--transfer-agents", "0"], "error: --transfer-agents, --transfer-steps and --common-blocks must be >= 1"),
 ])
 def test_a_bad_value_of_another_command_is_one_line_naming_the_setting(argv, message, capsys):
     from coadapt_core.cli import main

@@ -47,7 +47,7 @@ def test_the_old_yaml_key_and_override_still_set_it(tmp_path):
 def test_the_old_command_line_option_is_an_alias():
     from coadapt_core.cli.run import config_options
 
-    option = next(o for name, _, o, _ in config_options() if name == "surrogate_probability")
+    option = next(o.option for o in config_options() if o.param == "surrogate_probability")
     assert {"--surrogate-probability", "--evaluation-probability"} <= set(option.param_decls)
 
 

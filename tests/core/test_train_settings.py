@@ -4,48 +4,25 @@ row in docs/settings.md; train's default objectives come from the installed plug
 
 from __future__ import annotations
 
-import re
-from pathlib import Path
-
 import pytest
 
 from coadapt_core.cli import train as train_cli
+from coadapt_core.cli.options import option_names
 from coadapt_core.plugins import PluginInfo, Registry
 from coadapt_core.settings import leaves
-
-DOC = Path(__file__).resolve().parents[2] / "docs" / "settings.md"
-
-
-def _command(name: str):
-    from typer.main import get_command
-
-    from coadapt_core.cli import app
-    from coadapt_core.cli.common import style_help
-
-    command = get_command(app)
-    style_help(command)
-    return command.commands[name]
-
-
-def _documented(name: str) -> dict[str, tuple[str, str]]:
-    """option -> (default, meaning) of the docs table of `coadapt <name>`."""
-    section = DOC.read_text().split(f"\n# Settings of `coadapt {name}`\n")[1].split("\n# Settings of")[0]
-    out = {}
-    for row in section.splitlines():
-        if row.startswith("| `--"):
-            option, default, meaning = [c.strip() for c in re.split(r"(?<!\\)\|", row)[1:-1]]
-            out[option.strip("`")] = (default, meaning.replace("\\|", "|"))
-    return out
+from tests.core.test_settings import _command
+from tests.core.test_settings import documented as documented_rows
 
 
 @pytest.mark.parametrize(("name", "cls"), [("train", train_cli.TrainCommand), ("eval", train_cli.EvalCommand)])
 def test_docs_and_help_show_each_declared_option_its_help_and_default(name, cls):
     command = _command(name)
     helps = {opt: " ".join((p.help or "").split()) for p in command.params for opt in p.opts}
-    documented = _documented(name)
-    declared = {(leaf.extra.get("names") or (leaf.option,))[0].split("/")[0] for leaf in leaves(cls)}
+    documented = {option: row for option, row in documented_rows(name).items()
+                  if option.lstrip("-").replace("-", "_") in {leaf.param for leaf in leaves(cls)} | {"json"}}
+    declared = {option_names(leaf)[0].split("/")[0] for leaf in leaves(cls)}
     assert set(documented) == declared and declared <= set(helps)
-    for option, (default, meaning) in documented.items():
+    for option, (meaning, default) in documented.items():
         assert helps[option].startswith(meaning.rstrip(".")), option  # the declared help, word for word
         if default not in ("''", "off"):  # --help shows no default for a switch that is off
             assert helps[option].endswith(f"[default: {default}]"), option

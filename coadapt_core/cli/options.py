@@ -1,0 +1,223 @@
+"""Every command's options from settings classes: one declaration per setting.
+
+A command declares what it takes as settings classes (`coadapt_core.settings`: `@settings`
+and `setting(...)`, or `shared(...)` for a setting another command declares). `options_of`
+makes each field an option (or, with `argument=`, a positional argument): its type, names,
+help and shown default read from the declaration. `register` makes the command of those
+options and records them in `DECLARED`, from which docs/settings.md is generated
+(`coadapt_core.coadapt.settings_doc`) and against which the settings test compares every
+command's --help. No command writes a `typer.Option` by hand (a test checks the sources).
+
+What a command receives: each option's value as given on the command line, None when left
+out; `settings_from` turns them into the settings object and `filled` into a plain mapping
+(the declared defaults filled in, every value checked: a bad one is a `UserError`, one line
+naming the setting and what it accepts, exit 2). `coadapt run` reads its config settings as
+overrides instead (preset < YAML < option, `coadapt_core.coadapt.config.make_config`), so
+those options show the preset's default.
+"""
+
+from __future__ import annotations
+
+import inspect
+import re
+import typing
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import typer
+
+from coadapt_core.settings import Leaf, leaves
+
+#: command path ("run", "robot show", "" for `coadapt` itself) -> the option groups (one per
+#: settings class) of its options, in the order --help lists them
+DECLARED: dict[str, tuple[OptionGroup, ...]] = {}
+
+#: "(default X)" / "(default: X)" written into a help text by hand
+_HAND_DEFAULT = re.compile(r"\s*(?:\(default:?\s+((?:[^()]|\([^()]*\))*)\)|\[default:\s*([^\]]*)\])")
+
+
+def choices(kind: str) -> list[str]:
+    """Registered names for a plugin kind (empty when the registry cannot be built)."""
+    from coadapt_core.plugins import get_registry
+
+    try:
+        return get_registry().names(kind)
+    except Exception:
+        return []
+
+
+def choice_help(kind: str, text: str) -> str:
+    names = choices(kind)
+    return f"{text} One of: {', '.join(names)}." if names else text
+
+
+def show_default(value: object) -> str:
+    """A default as help shows it: on/off, 1_000_000, lists comma-separated."""
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    if isinstance(value, int) and abs(value) >= 10_000:
+        return f"{value:_}"
+    if isinstance(value, list | tuple):
+        return (":" if len(value) == 2 and all(isinstance(v, float) for v in value) else ",").join(map(str, value))
+    if isinstance(value, dict):
+        return ",".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in value.items())
+    return str(value)
+
+
+#: the command-line type of each kind of setting (text is parsed by the setting's type)
+_CLI_TYPES = {"bool": bool, "int": int, "float": float}
+
+
+@dataclass(frozen=True)
+class CommandOption:
+    """One setting as a command-line parameter: its Python name, type, typer parameter and
+    the setting it comes from."""
+
+    param: str
+    kind: Any
+    option: Any
+    leaf: Leaf
+    names: tuple[str, ...]  # as declared, aliases included; () for a positional argument
+
+
+def option_names(leaf: Leaf, aliases: tuple[str, ...] = ()) -> tuple[str, ...]:
+    """The option's names as declared: `names`, else `--key` (`--key/--no-key` for a
+    switch), then the declared `aliases` and `aliases`; () for a positional argument."""
+    if leaf.extra.get("argument"):
+        return ()
+    names = tuple(leaf.extra.get("names") or ())
+    if not names:
+        names = (f"{leaf.option}/--no-{leaf.option[2:]}",) if leaf.kind == "bool" else (leaf.option,)
+    return (*names, *tuple(leaf.extra.get("aliases") or ()), *aliases)
+
+
+def leaf_default(leaf: Leaf) -> str | None:
+    """A setting's default as help and docs/settings.md show it: a default its help writes
+    "(default: ...)"; for a plugin, the rule and the plugin it picks now (`default_rank`);
+    for an override, what unset means; else the declared value (None: nothing to show)."""
+    found = _HAND_DEFAULT.search(leaf.help)
+    if found:
+        return (found.group(1) or found.group(2) or "").strip()
+    if leaf.extra.get("plugin"):  # declared by the plugins themselves (`default_rank`)
+        rule = f"the installed {leaf.extra['plugin']} of highest default_rank"
+        try:
+            value = leaf.default
+        except Exception:  # the registry cannot be built: the command reports why
+            return rule
+        if value is None:  # unset: the ranked one; a list left unset names none
+            return None if typing.get_origin(leaf.annotation) is list else rule
+        return f"{value}, {rule}"
+    if leaf.extra.get("unset"):
+        return f"{leaf.extra['unset']}, else {show_default(leaf.extra['base_default'])}"
+    try:
+        value = leaf.default
+    except Exception:  # a default from the registry, which cannot be built: the command says why
+        return None
+    return None if value in ("", None) or value == {} else show_default(value)
+
+
+def option_help(leaf: Leaf, *, show: bool = True) -> str:
+    """The help of a setting's option: its declared help, what it accepts when that is a
+    choice or a structured value, the installed plugins when it names one, and (`show`) its
+    default as `[default: X]` (a switch that is off shows none)."""
+    text = leaf.help
+    if leaf.extra.get("plugin"):
+        text = choice_help(leaf.extra["plugin"], text)
+    elif leaf.kind == "choice":
+        text = f"{text} One of: {', '.join(map(str, leaf.choices or ()))}."
+    elif leaf.kind in ("range", "ints", "weights"):
+        text = f"{text} ({leaf.accepted()})"
+    if leaf.extra.get("unset"):
+        return f"{text} [default: {leaf.extra['unset']}, else {show_default(leaf.extra['base_default'])}]"
+    if show and not _HAND_DEFAULT.search(text) and not (leaf.kind == "bool" and leaf.default is False):
+        default = leaf_default(leaf)
+        text = f"{text} [default: {default}]" if default else text
+    return text
+
+
+def _kind(leaf: Leaf) -> Any:
+    """The type typer parses the option's text as (the setting's own checks come after)."""
+    if leaf.annotation is Path:
+        return Path
+    if typing.get_origin(leaf.annotation) is list:
+        return list[str]
+    return _CLI_TYPES.get(leaf.kind, str)
+
+
+class OptionGroup(list):
+    """The `CommandOption`s of one settings class (`root`)."""
+
+    def __init__(self, root: type, options: list[CommandOption]):
+        super().__init__(options)
+        self.root = root
+
+
+def options_of(cls: type, *, aliases: Mapping[str, tuple[str, ...]] | None = None,
+               show_defaults: bool = True) -> OptionGroup:
+    """One `CommandOption` per command-line setting of the settings tree `cls` (nested
+    sections expanded: `--task-commands-yaw-range`). `aliases` adds option names by key;
+    `show_defaults=False` leaves the shown default to the caller (`coadapt run`: per preset)."""
+    out = []
+    for leaf in leaves(cls):
+        if not leaf.extra.get("cli", True):
+            continue
+        default = ... if leaf.required else None
+        text = option_help(leaf, show=show_defaults)
+        metavar, names = leaf.extra.get("argument"), option_names(leaf, tuple((aliases or {}).get(leaf.key, ())))
+        if metavar:
+            parameter = typer.Argument(default, metavar=metavar, help=text, show_default=False)
+        else:
+            parameter = typer.Option(default, *names, help=text, hidden=bool(leaf.extra.get("hidden")),
+                                     callback=leaf.extra.get("callback"), is_eager=leaf.extra.get("callback") is not None)
+        out.append(CommandOption(leaf.param, _kind(leaf), parameter, leaf, names))
+    return OptionGroup(cls, out)
+
+
+def bind(func: Callable[..., Any], *groups: list[CommandOption]) -> Callable[..., Any]:
+    """`func(**values)` with a signature typer reads: the options of `groups`, in order."""
+    params = [inspect.Parameter(o.param, inspect.Parameter.KEYWORD_ONLY, default=o.option, annotation=o.kind)
+              for group in groups for o in group]
+    func.__signature__ = inspect.Signature(params)
+    func.__annotations__ = {p.name: p.annotation for p in params}
+    return func
+
+
+def register(app: typer.Typer, name: str, func: Callable[..., Any], *groups: OptionGroup, path: str | None = None) -> None:
+    """`func` as command `name` of `app`, its options those of `groups` (`options_of`),
+    recorded in `DECLARED` under `path`, its full name ("robot show"; default `name`)."""
+    app.command(name)(bind(func, *groups))
+    DECLARED[name if path is None else path] = groups
+
+
+def given_settings(values: Mapping[str, Any], options: list[CommandOption]) -> dict[str, Any]:
+    """The settings given on the command line (not None), as a nested mapping of their keys."""
+    out: dict[str, Any] = {}
+    for option in options:
+        if values.get(option.param) is not None:
+            tree = out
+            for part in option.leaf.path[:-1]:
+                tree = tree.setdefault(part, {})
+            tree[option.leaf.path[-1]] = values[option.param]
+    return out
+
+
+def settings_from(cls: type, values: Mapping[str, Any], options: list[CommandOption]) -> Any:
+    """The settings object of `cls` from the options' values: those given over the declared
+    defaults, checked; a bad value is a `UserError` naming the setting (one line, exit 2:
+    `coadapt_core.cli.common.run_app`)."""
+    return cls(**given_settings(values, options))
+
+
+def filled(values: Mapping[str, Any], group: OptionGroup) -> dict[str, Any]:
+    """`values` with the options of `group` replaced by its settings object's fields (the
+    declared defaults of those left out; every value checked, `settings_from`)."""
+    import dataclasses
+
+    checked = settings_from(group.root, values, group)
+    return {**values, **{f.name: getattr(checked, f.name) for f in dataclasses.fields(checked)}}
+
+
+__all__ = ["DECLARED", "CommandOption", "OptionGroup", "bind", "filled", "given_settings", "leaf_default", "option_help",
+           "option_names", "options_of", "register", "settings_from"]
