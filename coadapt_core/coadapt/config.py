@@ -122,6 +122,9 @@ class CoadaptConfig:
     eval_agents: Int = setting(0, "Paired scenarios (agents) per design in a real evaluation (0: agents_per_design).", ge=0)
     surrogate_samples: Int = setting(4096, "States drawn from the evaluation buffer by the surrogate (Algorithm 3).", ge=1)
     measure_surrogate_error: bool = setting(True, "Run the surrogate on real batches too, to record its error (no interactions).")
+    surrogate_error_fits: bool = setting(False, "Fit the pseudo-critics before every real round too, so each one's "
+                                         "surrogate error is measured (a fit per round); off: a real round is judged "
+                                         "only where a fit already covers it.")
     # -- the surrogate (docs/coadaptation.md, "The surrogate") --------------------------------
     fit_surrogate: bool = setting(True, "Fit the pseudo-critics to each real round's measured designs before a surrogate "
                                   "round (off: the paper's pseudo-critics as trained).")

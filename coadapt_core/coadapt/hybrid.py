@@ -74,6 +74,7 @@ class HybridPolicy:
         self._fitted_for: tuple[int, int, int] | None = None  # (outer, labels, buffer) the backend's fit is for
         self._pending: tuple[int, np.ndarray] | None = None  # (inner, ensemble's costs) of a trusted round
         self.last_uncertainty: float | None = None  # the ensemble's spread ratio of this round
+        self._judging = True  # whether this real round's surrogate error is measured (before_real_round)
 
     def forget_fit(self) -> None:
         """A new backend or a new policy: the ensemble must be fitted again."""
@@ -176,18 +177,41 @@ class HybridPolicy:
     def before_real_round(self) -> tuple[bool, bool, Any]:
         """(eligible, fitted, states) before a real round's rollouts: whether a surrogate
         round would have been allowed here (a real round of this policy came before), the
-        ensemble fitted for it, and the buffer it would have used."""
-        s = self.state
+        ensemble fitted for it, and the buffer it would have used.
+
+        Whether the round is judged at all (`judge_real_round`) is decided here too: the
+        surrogate's error costs no fit of its own unless `surrogate_error_fits` asks for one.
+        Without it a real round is judged when the surrogate a surrogate round here would use
+        needs no new fit: the paper's estimator (`fit_surrogate` off), or a fit that already
+        covers this round's labels and buffer (the previous round of this policy was a
+        surrogate round, or the uncertainty policy fitted for this round's decision). That
+        is read from the run's state, so a resumed run judges the rounds the first one would."""
+        s, c = self.state, self.config
         eligible = s.buffer is not None and s.buffer_outer == s.outer
-        fitted = eligible and self.config.measure_surrogate_error and self.ensure_fitted()
+        self._judging = c.measure_surrogate_error
+        if c.fit_surrogate and self.ensemble() is not None and not c.surrogate_error_fits:
+            self._judging = self._judging and eligible and self._fit_covers_round()
+        fitted = eligible and self._judging and self.ensure_fitted()
         return eligible, fitted, s.buffer
 
+    def _fit_covers_round(self) -> bool:
+        """The ensemble's fit for this round is made already, or would be made for free (no
+        real round since this policy's last surrogate round)."""
+        s = self.state
+        if self._fitted_for == (s.outer, len(s.labels), s.buffer_serial):
+            return True
+        last = s.batches[-1] if s.batches else None
+        return bool(s.labels) and last is not None and last["outer"] == s.outer and last["kind"] != "real"
+
     def judge_real_round(self, designs: np.ndarray, costs: np.ndarray, states: Any, *, eligible: bool, fitted: bool,
-                         seed: int) -> np.ndarray:
+                         seed: int) -> np.ndarray | None:
         """The surrogate's errors [P, M] on a real round: its prediction, made before this
         round's costs are known (the first round of a policy: the paper's estimator on its
-        own buffer, marked not eligible), recorded with its quality figures."""
+        own buffer, marked not eligible), recorded with its quality figures. None when
+        `before_real_round` decided not to judge the round."""
         s, c = self.state, self.config
+        if not self._judging:
+            return None
         t0 = time.perf_counter()
         ensemble = self.ensemble() if fitted else None
         members = None

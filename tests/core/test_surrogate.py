@@ -142,7 +142,7 @@ def test_fixed_policy_is_the_papers_draw_and_fits_before_surrogate_rounds(tmp_pa
 
 
 def test_surrogate_quality_in_summary_json(tmp_path):
-    result = run(tmp_path, agreeing(None), surrogate_probability=0.0)
+    result = run(tmp_path, agreeing(None), surrogate_probability=0.0, surrogate_error_fits=True)
     summary = json.loads((result.run_dir / "summary.json").read_text())
     summary = summary.get("summary", summary)
     q = summary["surrogate_quality"]
@@ -160,6 +160,30 @@ def test_surrogate_quality_in_summary_json(tmp_path):
     # the fake's fitted surrogate is its bowl plus a shrunk tilt; the real costs add noise
     # that matters once the swarm has gathered near the optimum
     assert q["pooled"]["spearman"] > 0.5 and abs(q["pooled"]["bias"]) < 0.1
+
+
+def test_real_rounds_are_judged_only_by_a_fit_that_covers_them(tmp_path):
+    """Without `surrogate_error_fits` no fit is made only to measure the surrogate's error:
+    a run without surrogate rounds fits nothing, and a real round is judged (by the fit the
+    surrogate round before it made, no new fit) only right after a surrogate round."""
+    made = []
+
+    def factory(seed):
+        made.append(agreeing(None)(seed))
+        return made[-1]
+
+    none = run(tmp_path / "n", factory, surrogate_probability=0.0).summary
+    assert sum(getattr(b, "fits", 0) for b in made) == 0 and none["surrogate_quality"]["rounds"] == []
+    assert none["surrogate_seconds"] == 0.0
+    made.clear()
+    result = run(tmp_path / "h", factory, surrogate_probability=0.5, seed=3)
+    kinds = [(b["outer"], b["inner"], b["kind"]) for b in result.summary["batches"]]
+    after = [(o, i) for (o, i, k), (o0, _, k0) in zip(kinds[1:], kinds[:-1], strict=True)
+             if k == "real" and k0 == "surrogate" and o == o0]
+    judged = [(r["outer"], r["inner"]) for r in result.summary["surrogate_quality"]["rounds"]]
+    assert after and judged == after and all(r["estimator"] == "fitted" for r in result.summary["surrogate_quality"]["rounds"])
+    surrogate_rounds = sum(k == "surrogate" for *_, k in kinds)
+    assert 0 < sum(getattr(b, "fits", 0) for b in made) <= surrogate_rounds  # at most one fit per surrogate round
 
 
 def test_bad_evaluation_policy_is_one_line_error(tmp_path):

@@ -28,7 +28,9 @@ def scalars(folder):
 
 
 def test_run_writes_rounds_phases_and_surrogate_error_to_tensorboard(tmp_path, fake_learner):
-    assert main(["run", "--preset", "smoke", "--out", str(tmp_path), "--store", "none", "--json"]) == 0
+    # every real round judged (a fit before each), so the surrogate's error is logged
+    assert main(["run", "--preset", "smoke", "--out", str(tmp_path), "--store", "none", "--json",
+                 "--surrogate-error-fits"]) == 0
     (run_dir,) = [p for p in tmp_path.iterdir() if p.is_dir()]
     found = scalars(run_dir / "tb")
     # smoke: 2 outer x 2 rounds; one training phase per outer iteration
