@@ -156,6 +156,28 @@ def run_nominal(robot: Any, run: dict[str, Any], dim: int) -> np.ndarray:
     raise BackendUnavailable(f"robot '{robot.name}' has no design space of {dim} variables")
 
 
+def run_backend(run: dict[str, Any], dim: int, simulator: str | None, agents: int, checkpoint: str,
+                factory: Callable[..., CoadaptationBackend] | None = None) -> tuple[CoadaptationBackend, list, np.ndarray]:
+    """(backend on `simulator` for the run's robot, terrain and design space of dimension `dim`
+    with the policy in `checkpoint`, the run's objectives, its nominal design); the yardstick
+    passes the run's own simulator, the sim-to-sim check a second one."""
+    from coadapt_core.learning.factory import make_backend, resolve_plugins
+
+    cfg = run.get("config") or {}
+    robot_name = run.get("robot") or cfg.get("robot")
+    if not robot_name or not simulator:
+        raise BackendUnavailable("the run recorded no robot or simulator")
+    robot, sim_cls, objectives = resolve_plugins(str(robot_name), str(simulator), list(run["objectives"]))
+    nominal = run_nominal(robot, run, dim)
+    space = next((s for s in (robot.design_space(False), robot.design_space(True)) if s.dim == dim), None)
+    backend = (factory or make_backend)(
+        robot, sim_cls, objectives, terrain=run.get("terrain") or "flat", design_space=space,
+        agents_per_design=agents, device=str(cfg.get("device", "cpu")), seed=int(run.get("seed") or 0),
+        checkpoint=checkpoint,
+    )
+    return backend, objectives, nominal
+
+
 def nominal_of(run: dict[str, Any], dim: int) -> np.ndarray:
     """The run's nominal design (its summary's, else its robot's of dimension `dim`)."""
     from coadapt_core.plugins import get_registry

@@ -34,9 +34,9 @@ from coadapt_core.experiments.own_policies import (
     each_own_policy,
     nominal_of,
     policy_files,
+    run_backend,
     shares_policy,
 )
-from coadapt_core.experiments.own_policies import run_nominal as _nominal
 from coadapt_core.fitness import CoadaptationBackend, CostRule, scenario_seed
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.physics.simulator import Simulator
@@ -240,21 +240,7 @@ def transfer_rows(store: ResultsStore, run_id: str, simulator: str) -> list:
 def _transfer_backend(run: dict[str, Any], dim: int, simulator: str, agents: int, checkpoint: str,
                       factory: BackendFactory | None) -> tuple[CoadaptationBackend, list, np.ndarray]:
     """(backend on `simulator` with the policy in `checkpoint`, objectives, nominal design)."""
-    from coadapt_core.learning.factory import make_backend, resolve_plugins
-
-    cfg = run.get("config") or {}
-    robot_name = run.get("robot") or cfg.get("robot")
-    if not robot_name:
-        raise BackendUnavailable("the run recorded no robot")
-    robot, sim_cls, objectives = resolve_plugins(str(robot_name), simulator, list(run["objectives"]))
-    nominal = _nominal(robot, run, dim)
-    space = next((s for s in (robot.design_space(False), robot.design_space(True)) if s.dim == dim), None)
-    backend = (factory or make_backend)(
-        robot, sim_cls, objectives, terrain=run.get("terrain") or "flat", design_space=space,
-        agents_per_design=agents, device=str(cfg.get("device", "cpu")), seed=int(run.get("seed") or 0),
-        checkpoint=checkpoint,
-    )
-    return backend, objectives, nominal
+    return run_backend(run, dim, simulator, agents, checkpoint, factory)
 
 
 def _own_policy_transfer(run: dict[str, Any], best: np.ndarray, simulator: str, agents: int, steps: int, seed: int,

@@ -32,7 +32,7 @@ from coadapt_core.experiments.own_policies import (
     each_own_policy,
     nominal_of,
     policy_files,
-    run_nominal,
+    run_backend,
     shares_policy,
 )
 from coadapt_core.fitness import CostRule, compare_designs, scenario_seed
@@ -74,21 +74,8 @@ def figures(comparison: dict[str, Any], *, best: bool) -> dict[str, float]:
 
 def _backend(run: dict[str, Any], dim: int, agents: int, checkpoint: str, factory: Callable | None):
     """(backend, objectives, nominal design) for the run's robot, simulator and terrain."""
-    from coadapt_core.learning.factory import make_backend, resolve_plugins
-
-    cfg = run.get("config") or {}
-    robot_name, simulator = run.get("robot") or cfg.get("robot"), run.get("simulator") or cfg.get("sim")
-    if not robot_name or not simulator:
-        raise BackendUnavailable("the run recorded no robot or simulator")
-    robot, sim_cls, objectives = resolve_plugins(str(robot_name), str(simulator), list(run["objectives"]))
-    nominal = run_nominal(robot, run, dim)
-    space = next((s for s in (robot.design_space(False), robot.design_space(True)) if s.dim == dim), None)
-    backend = (factory or make_backend)(
-        robot, sim_cls, objectives, terrain=run.get("terrain") or "flat", design_space=space,
-        agents_per_design=agents, device=str(cfg.get("device", "cpu")), seed=int(run.get("seed") or 0),
-        checkpoint=checkpoint,
-    )
-    return backend, objectives, nominal
+    return run_backend(run, dim, run.get("simulator") or (run.get("config") or {}).get("sim"), agents, checkpoint,
+                       factory)
 
 
 def _own_policy_blocks(run: dict[str, Any], best: np.ndarray, agents: int, factory: Callable | None,
