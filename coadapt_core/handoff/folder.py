@@ -97,6 +97,7 @@ def _resolve(run_dir: Path, config: dict[str, Any], summary: dict[str, Any], opt
     another, checked against the policy's design input and the design space). A run without
     a shared policy hands off its best design's own policy and judges the nominal design by
     the nominal design's own; it has no policy for any other design."""
+    from coadapt_core.experiments.own_policies import shares_policy
     from coadapt_core.learning.trainer import read_checkpoint
     from coadapt_core.plugins import get_registry
     from coadapt_core.viz.video import run_policies
@@ -107,7 +108,9 @@ def _resolve(run_dir: Path, config: dict[str, Any], summary: dict[str, Any], opt
     sim_cls = registry.get("simulator", sim_name)
     policies, why = run_policies(run_dir, config)
     if policies is None:
-        raise UserError(f"run {run_dir.name}: {why}; there is no controller to hand off", field="run")
+        again = ("" if shares_policy({"config": config})
+                 else "; coadapt report trains them again for its yardstick, the handoff does not")
+        raise UserError(f"run {run_dir.name}: {why}; there is no controller to hand off{again}", field="run")
     own = policies["best"] != policies["nominal"]
     state = read_checkpoint(policies["best"])
     if state.get("robot") != robot.name:

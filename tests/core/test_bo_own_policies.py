@@ -175,5 +175,5 @@ def test_a_handoff_of_a_bo_run_hands_off_the_best_designs_own_policy(bo_run, tmp
     assert len(err) == 1 and "--design" in err[0] and "none for another design" in err[0]
     assert main(["handoff", str(_older(result, tmp_path)), "-o", str(tmp_path / "y")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "runs made since keep them" in err[0]
+    assert len(err) == 1 and "runs made since keep them" in err[0] and "the handoff does not" in err[0]
     assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
