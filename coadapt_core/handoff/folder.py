@@ -82,7 +82,9 @@ class _Run:
     sim_cls: type
     terrain: str
     seed: int
-    checkpoint: Path
+    checkpoint: Path  # the policy handed off, the one that judges the design
+    nominal_checkpoint: Path  # the one that judges the nominal design (the same for a shared policy)
+    own_policies: bool  # a run without a shared policy: each design judged by its own
     state: dict[str, Any]
     design: np.ndarray
     nominal: np.ndarray
@@ -92,25 +94,34 @@ class _Run:
 
 def _resolve(run_dir: Path, config: dict[str, Any], summary: dict[str, Any], options: HandoffOptions) -> _Run:
     """The run's plugins, final policy and the design (the best one unless --design gives
-    another, checked against the policy's design input and the design space)."""
+    another, checked against the policy's design input and the design space). A run without
+    a shared policy hands off its best design's own policy and judges the nominal design by
+    the nominal design's own; it has no policy for any other design."""
+    from coadapt_core.experiments.own_policies import shares_policy
     from coadapt_core.learning.trainer import read_checkpoint
     from coadapt_core.plugins import get_registry
-    from coadapt_core.viz.video import run_checkpoint
+    from coadapt_core.viz.video import run_policies
 
     registry = get_registry()
     robot = registry.create("robot", config.get("robot") or registry.default("robot"))
     sim_name = str(config.get("sim") or registry.default("simulator"))
     sim_cls = registry.get("simulator", sim_name)
-    checkpoint = run_checkpoint(run_dir, config)
-    if checkpoint is None:
-        raise UserError(f"run {run_dir.name} kept no universal policy checkpoint (a method without a shared policy "
-                        "keeps none); there is no controller to hand off", field="run")
-    state = read_checkpoint(checkpoint)
+    policies, why = run_policies(run_dir, config)
+    if policies is None:
+        again = ("" if shares_policy({"config": config})
+                 else "; coadapt report trains them again for its yardstick, the handoff does not")
+        raise UserError(f"run {run_dir.name}: {why}; there is no controller to hand off{again}", field="run")
+    own = policies["best"] != policies["nominal"]
+    state = read_checkpoint(policies["best"])
     if state.get("robot") != robot.name:
         raise UserError(f"the run's checkpoint was trained for robot '{state.get('robot')}', not '{robot.name}'",
                         field="run")
     best = np.asarray(summary["best_design"], dtype=float)
     design = best if options.design is None else np.asarray(options.design, dtype=float)
+    if own and (design.shape != best.shape or not np.allclose(design, best)):
+        raise UserError(f"--design: run {run_dir.name} shares no policy between designs and kept a policy of its own "
+                        "only for its best and nominal designs, none for another design; leave out --design to hand "
+                        "off the best one", field="design")
     nominal = summary.get("nominal_design")
     if not isinstance(nominal, list) or len(nominal) != len(design):
         nominal = robot.nominal_design(robot.design_space_for(design).is_mixed)
@@ -122,8 +133,21 @@ def _resolve(run_dir: Path, config: dict[str, Any], summary: dict[str, Any], opt
     design = space.validate(design)
     return _Run(run_dir=run_dir, config=config, summary=summary, registry=registry, robot=robot, sim_name=sim_name,
                 sim_cls=sim_cls, terrain=str(config.get("terrain") or "flat"), seed=int(config.get("seed") or 0),
-                checkpoint=checkpoint, state=state, design=design, nominal=np.asarray(nominal, dtype=float),
-                space=space, is_best=bool(np.allclose(design, best)))
+                checkpoint=policies["best"], nominal_checkpoint=policies["nominal"], own_policies=own, state=state,
+                design=design, nominal=np.asarray(nominal, dtype=float), space=space,
+                is_best=bool(np.allclose(design, best)))
+
+
+def _judges(run: _Run) -> dict[str, Any]:
+    """Which policy judged which design (design.json, policy.json, design.md)."""
+    def name(path: Path) -> str:
+        return str(path.relative_to(run.run_dir)) if run.run_dir in path.parents else path.name
+
+    note = ("the run shares no policy between designs: the design is judged, and handed off, with its own policy, "
+            "the nominal design with the nominal design's own" if run.own_policies else
+            "one universal policy (the run's final) judges both designs and is the one handed off")
+    return {"shared": not run.own_policies, "design": name(run.checkpoint), "nominal": name(run.nominal_checkpoint),
+            "note": note}
 
 
 def _controller(run: _Run, partial: Path, say: Callable[[str], None]) -> tuple[dict[str, Any], dict[str, Any], Path]:
@@ -171,7 +195,8 @@ def _evaluations(run: _Run, options: HandoffOptions, objectives: list[str], cont
     steps = max(1, int(round(options.seconds / control_dt)))
     for name in simulators:
         say(f"evaluating the design and the nominal one on {name} ({options.agents} paired scenarios x {steps} steps)")
-        evaluations.append(evaluate_on(name, robot=run.robot, checkpoint=run.checkpoint, objectives=objectives,
+        evaluations.append(evaluate_on(name, robot=run.robot, checkpoint=run.checkpoint,
+                                       nominal_checkpoint=run.nominal_checkpoint, objectives=objectives,
                                        design=run.design, nominal=run.nominal, terrain=run.terrain, seed=run.seed,
                                        agents=options.agents, steps=steps))
         ev = evaluations[-1]
@@ -193,6 +218,7 @@ def _sheet_data(run: _Run, model: Any, spec: dict[str, Any], **measured: Any) ->
         "design": [float(x) for x in run.design],
         "nominal_design": [float(x) for x in run.nominal],
         "is_run_best": run.is_best,
+        "policies": _judges(run),
         "terrain": run.terrain,
         "parameters": sheet.design_parameters(run.space, run.design),
         "body": body,
@@ -246,15 +272,18 @@ def _write_folder(run: _Run, options: HandoffOptions, partial: Path, say: Callab
     spec = policy_spec(robot=run.robot, model=model, design=run.design, space=run.space, state=run.state,
                        rollout=walked, terrain=run.terrain, verification=verification, foot=foot_facts(model),
                        files=files)
+    spec["policies"] = _judges(run)
     (partial / "policy.json").write_text(json.dumps(jsonable(spec), indent=2) + "\n")
     shutil.copy(CHECK_SCRIPT, partial / "check.py")
     objectives = list((run.summary.get("best_costs") or {}).keys()) or [str(run.config.get("objective") or "")]
     evaluations = _evaluations(run, options, objectives, walked["control_dt"], say)
+    policies = {"best": run.checkpoint, "nominal": run.nominal_checkpoint}
     gif_note = copy_or_render_video(run.run_dir, partial, run.config, run.summary, run.design, run.nominal,
-                                    run.checkpoint, run.is_best, options.video, VIDEO_NAME)
+                                    policies, run.is_best, options.video, VIDEO_NAME)
     say(f"picture: {gif_note}")
     origin = provenance(run.run_dir, run.config, run.summary, robot=run.robot, objectives=objectives, seed=run.seed,
-                        simulator=run.sim_name, checkpoint=run.checkpoint, state=run.state)
+                        simulator=run.sim_name, checkpoint=run.checkpoint, state=run.state,
+                        nominal_checkpoint=run.nominal_checkpoint if run.own_policies else None)
     sheet_data = _sheet_data(run, model, spec, evaluations=evaluations, onnx=verification, picture=gif_note,
                              provenance=origin)
     if options.check:

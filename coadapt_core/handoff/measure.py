@@ -91,9 +91,12 @@ def rollout(robot: Any, sim_cls: type, design: np.ndarray, state: dict[str, Any]
 
 # -- evaluation ------------------------------------------------------------------------------------
 def evaluate_on(simulator: str, *, robot: Any, checkpoint: Path, objectives: list[str], design: np.ndarray,
-                nominal: np.ndarray, terrain: str, seed: int, agents: int, steps: int) -> dict[str, Any]:
+                nominal: np.ndarray, terrain: str, seed: int, agents: int, steps: int,
+                nominal_checkpoint: Path | None = None) -> dict[str, Any]:
     """Costs, standard errors, fall rates and paired improvements of the design against the
-    nominal one on `simulator`: the run's policy, the run's final-check scenario block 1."""
+    nominal one on `simulator`, the run's final-check scenario block 1: both under the run's
+    policy `checkpoint`, or, given a different `nominal_checkpoint` (a run without a shared
+    policy), each under its own on the same scenarios."""
     from coadapt_core.fitness import improvement_se, scenario_seed
     from coadapt_core.learning.factory import make_backend, resolve_plugins
 
@@ -104,15 +107,27 @@ def evaluate_on(simulator: str, *, robot: Any, checkpoint: Path, objectives: lis
         if terrain not in getattr(sim_cls, "terrains", (terrain,)):
             raise BackendUnavailable(f"{simulator} offers no terrain '{terrain}'")
         space = robot.design_space_for(design)
-        backend = make_backend(robot, sim_cls, made, terrain=terrain, design_space=space, agents_per_design=agents,
-                               seed=seed, checkpoint=str(checkpoint))
-        try:
-            fit = backend.real_fitness(np.stack([design, nominal]), made, agents=agents, steps=steps,
-                                       seed=scenario_seed(seed, 1))
-        finally:
-            close = getattr(backend, "close", None)
-            if callable(close):
-                close()
+
+        def make(policy: Path) -> Any:
+            return make_backend(robot, sim_cls, made, terrain=terrain, design_space=space, agents_per_design=agents,
+                                seed=seed, checkpoint=str(policy))
+
+        def evaluate(backend: Any, designs: np.ndarray) -> list[Any]:
+            return [backend.real_fitness(designs, made, agents=agents, steps=steps, seed=scenario_seed(seed, 1))]
+
+        files = {"best": checkpoint, "nominal": nominal_checkpoint or checkpoint}
+        if files["nominal"] != files["best"]:
+            from coadapt_core.experiments.own_policies import each_own_policy
+
+            fit = each_own_policy(make, files, {"best": design, "nominal": nominal}, evaluate)[0]
+        else:
+            backend = make(checkpoint)
+            try:
+                fit = evaluate(backend, np.stack([design, nominal]))[0]
+            finally:
+                close = getattr(backend, "close", None)
+                if callable(close):
+                    close()
     except (BackendUnavailable, UserError, ImportError) as exc:
         out["error"] = " ".join(str(exc).split())
         return out
@@ -177,10 +192,11 @@ def run_check(folder: Path, seconds: float, vx: float) -> dict[str, Any]:
 
 
 def copy_or_render_video(run_dir: Path, folder: Path, config: dict[str, Any], summary: dict[str, Any],
-                          design: np.ndarray, nominal: np.ndarray, checkpoint: Path, is_best: bool, render: bool,
-                          name: str) -> str:
+                          design: np.ndarray, nominal: np.ndarray, policies: dict[str, Path], is_best: bool,
+                          render: bool, name: str) -> str:
     """The run's best-vs-nominal GIF (and MP4) when it shows this design; else a fresh one
-    when `render`; a line saying which."""
+    when `render`, each design under its policy in `policies` ("best": the design's,
+    "nominal"); a line saying which."""
     if is_best and (run_dir / f"{name}.gif").is_file():
         for suffix in (".gif", ".mp4"):
             if (run_dir / f"{name}{suffix}").is_file():
@@ -195,7 +211,7 @@ def copy_or_render_video(run_dir: Path, folder: Path, config: dict[str, Any], su
     stream = io.StringIO()
     written = render_run_video(folder, {"best_design": [float(x) for x in design],
                                         "nominal_design": [float(x) for x in nominal]},
-                               {**config, "checkpoint": str(checkpoint)}, stream=stream)
+                               config, stream=stream, policies=policies)
     if written:
         return f"{name}.gif rendered by coadapt handoff"
     return "none (" + " ".join(stream.getvalue().split())[:200] + ")"

@@ -88,14 +88,21 @@ def _recorded_commit(run_dir: Path, run_id: str) -> dict[str, Any]:
 
 
 def provenance(run_dir: Path, config: dict[str, Any], summary: dict[str, Any], *, robot: Any, objectives: list[str],
-               seed: int, simulator: str, checkpoint: Path, state: dict[str, Any]) -> dict[str, Any]:
+               seed: int, simulator: str, checkpoint: Path, state: dict[str, Any],
+               nominal_checkpoint: Path | None = None) -> dict[str, Any]:
     """Where the design and its controller come from: the run, its starting and final
-    policies with their SHA-256, and the code versions of the run and of the handoff."""
+    policies with their SHA-256 (and the nominal design's own policy, for a run without a
+    shared one), and the code versions of the run and of the handoff."""
     from coadapt_core.results.storage import code_commit
 
     run_id = str(summary.get("run_id") or run_dir.name)
     recorded_at_run = _recorded_commit(run_dir, run_id)
     start = _starting_policy(robot, config)
+    def name(path: Path) -> str:
+        return str(path.relative_to(run_dir)) if run_dir in path.parents else path.name
+
+    nominal = {} if nominal_checkpoint is None else {"nominal_policy": name(nominal_checkpoint),
+                                                     "nominal_policy_sha256": sha256(nominal_checkpoint)}
     return {
         "run_id": run_id,
         "method": summary.get("method") or config.get("method"),
@@ -106,9 +113,10 @@ def provenance(run_dir: Path, config: dict[str, Any], summary: dict[str, Any], *
         "preset": config.get("preset"),
         "starting_policy": start["policy"],
         "starting_policy_sha256": start["sha256"],
-        "final_policy": str(checkpoint.relative_to(run_dir)) if run_dir in checkpoint.parents else checkpoint.name,
+        "final_policy": name(checkpoint),
         "final_policy_sha256": sha256(checkpoint),
         "final_policy_steps": int(state.get("total_steps") or 0),
+        **nominal,
         "run_code_version": recorded_at_run.get("code_version"),
         "run_git_commit": recorded_at_run.get("git_commit"),
         "handoff_coadapt_version": __version__,

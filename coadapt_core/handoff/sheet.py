@@ -177,6 +177,9 @@ def render_markdown(sheet: dict[str, Any]) -> str:
     lines.append(f"Nominal design ({nominal_text}). Costs are means per policy step (lower is better) with standard "
                  "errors over paired scenarios: each scenario (command, randomization draw, spawn, gait phase, "
                  "observation noise) is the same for both designs, so the improvement's error is paired.")
+    judges = d.get("policies")
+    if judges:
+        lines.append(f"Policies: {judges['note']} (this design: `{judges['design']}`; nominal: `{judges['nominal']}`).")
     lines.append("")
     for ev in d["evaluations"]:
         lines += _evaluation_lines(ev)

@@ -61,15 +61,38 @@ def run_checkpoint(run_dir: Path, config: dict[str, Any]) -> Path | None:
     return None
 
 
+def run_policies(run_dir: Path, config: dict[str, Any]) -> tuple[dict[str, Path] | None, str]:
+    """The policy each panel is drawn with, role ("best", "nominal") -> file, and a line
+    naming them: the run's final universal policy for both (`run_checkpoint`), or, for a
+    run without a shared policy (e.g. the BO baseline), each design's own policy saved in
+    the run folder (`OWN_POLICY_FILES`, looked up by name inside it). (None, why) when the
+    run kept none."""
+    from coadapt_core.coadapt.specialized import OWN_POLICY_FILES
+    from coadapt_core.experiments.own_policies import shares_policy
+
+    if not shares_policy({"config": config}):
+        own = {role: run_dir / name for role, name in OWN_POLICY_FILES.items()}
+        if all(p.is_file() for p in own.values()):
+            return own, "each design under its own policy"
+        return None, ("the run shares no policy between designs and kept none of its best and nominal designs' own "
+                      "(runs made since keep them in checkpoints/policy-best.pt and policy-nominal.pt)")
+    checkpoint = run_checkpoint(run_dir, config)
+    if checkpoint is None:
+        return None, "the run kept no universal policy checkpoint"
+    return {"best": checkpoint, "nominal": checkpoint}, "both under the run's final policy"
+
+
 def render_run_video(
     run_dir: str | os.PathLike, summary: dict[str, Any], config: dict[str, Any], *, seconds: float = 4.0,
     width: int = 320, height: int = 320, stream: Any = None, progress: Any = None,
+    policies: dict[str, Path] | None = None,
 ) -> list[Path]:
     """Roll out the best and the nominal design (one agent each, no randomization, command
-    0.5 m/s forward) and write `<run_dir>/best_vs_nominal.gif` (and `.mp4` when ffmpeg
-    exists), each through a temporary file and a rename: an interrupt leaves the old file or
-    none, never a partial one. Returns the files written; prints one line saying what
-    happened. `progress(fraction, text)` is told each rollout and every drawn frame."""
+    0.5 m/s forward), each under its policy (`policies`, default `run_policies`), and write
+    `<run_dir>/best_vs_nominal.gif` (and `.mp4` when ffmpeg exists), each through a
+    temporary file and a rename: an interrupt leaves the old file or none, never a partial
+    one. Returns the files written; prints one line saying what happened. `progress(fraction,
+    text)` is told each rollout and every drawn frame."""
     stream = stream or sys.stderr
 
     def tell(fraction: float, text: str) -> None:
@@ -84,9 +107,11 @@ def render_run_video(
         registry = get_registry()
         # a run config without robot or simulator (older runs) means the defaults in force
         robot = registry.get("robot", config.get("robot") or registry.default("robot"))()
-        checkpoint = run_checkpoint(run_dir, config)
-        if checkpoint is None:  # e.g. bo-specialized keeps no policy; a stand-in would mislead
-            print("video: not rendered (the run kept no universal policy checkpoint)", file=stream)
+        why = "the policies given"
+        if policies is None:
+            policies, why = run_policies(run_dir, config)
+        if policies is None:  # a stand-in policy would mislead
+            print(f"video: not rendered ({why})", file=stream)
             return []
         sim_name = config.get("sim") or registry.default("simulator")
         sim_cls = registry.get("simulator", sim_name)
@@ -97,7 +122,7 @@ def render_run_video(
         for k, (label, design) in enumerate((("best", summary["best_design"]), ("nominal", summary["nominal_design"]))):
             tell(0.2 * k, f"rolling out the {label} design ({seconds:g} s)")
             result = evaluate_checkpoint(
-                checkpoint, robot, sim_cls, design, terrain=config.get("terrain", "flat"), command=[0.5, 0.0, 0.0],
+                policies[label], robot, sim_cls, design, terrain=config.get("terrain", "flat"), command=[0.5, 0.0, 0.0],
                 agents=1, seconds=seconds, seed=int(config.get("seed") or 0), randomize=False, record=True,
             )
             trajectory = result["_trajectory"]
@@ -123,7 +148,8 @@ def render_run_video(
     tell(1.0, "written" if backend is not None else "not rendered")
     if backend is not None:
         written = [p for p in outputs if p.is_file()]
-        print(f"video: {', '.join(str(p) for p in written)} (best left, nominal right; {backend})", file=stream)
+        print(f"video: {', '.join(str(p) for p in written)} (best left, nominal right, {why}; {backend})",
+              file=stream)
         return written
     print("video: not rendered, no offscreen GL here (" + "; ".join(errors) + ")", file=stream)
     return []
@@ -204,5 +230,5 @@ def write_rollout_video(robot: Any, design: Any, trajectory: dict, output: Path,
 
 __all__ = [
     "VIDEO_NAME", "model_format", "offscreen", "partial_name", "render_run_video", "renderer_for", "rollout_panel",
-    "run_checkpoint", "write_rollout_video",
+    "run_checkpoint", "run_policies", "write_rollout_video",
 ]

@@ -31,10 +31,17 @@ TINY = {"method": "bo-specialized", "sim": "mujoco", "objective": "torque", "see
         "checkpoint": "none", "train": {"steps_per_env": 4, "hidden": [16, 16], "epochs": 1, "minibatches": 1}}
 
 
-def test_a_bo_run_checks_finally_keeps_its_policies_and_old_runs_get_them_again(tmp_path, capsys):
-    out, db = tmp_path / "runs", tmp_path / "bo.db"
-    config = make_config("smoke", overrides={**TINY, "out": str(out), "store": str(db)})
-    result = run_coadaptation(config)
+@pytest.fixture(scope="module")
+def bo_run(tmp_path_factory):
+    """The tiny BO run (its result and its results store), shared by this module's tests."""
+    root = tmp_path_factory.mktemp("bo_own_policies")
+    db = root / "bo.db"
+    config = make_config("smoke", overrides={**TINY, "out": str(root / "runs"), "store": str(db)})
+    return run_coadaptation(config), db
+
+
+def test_a_bo_run_checks_finally_keeps_its_policies_and_old_runs_get_them_again(bo_run, tmp_path, capsys):
+    result, db = bo_run
     s = result.summary
     # the paired final check of the shared methods: 2 blocks x 4 scenarios, candidate and nominal
     assert s["final_blocks"] == 2 and s["final_scenarios"] == 8
@@ -82,3 +89,91 @@ def test_a_bo_run_checks_finally_keeps_its_policies_and_old_runs_get_them_again(
     assert lines[1]["compared"] == "reference level" and lines[1]["recorded"] == s["cost_reference"][0]
     assert check.main([str(tmp_path)]) == 2 and "not a finished run folder" in capsys.readouterr().err
 
+
+
+def _older(result, tmp_path):
+    """The run's folder as a run made before the policies were kept left it."""
+    old = tmp_path / "old" / result.run_dir.name
+    shutil.copytree(result.run_dir, old)
+    shutil.rmtree(old / "checkpoints")
+    return old
+
+
+def test_the_video_draws_each_design_under_its_own_policy(bo_run, tmp_path, monkeypatch):
+    import io
+
+    import yaml
+
+    import coadapt_core.experiments.evaluate as evaluate
+    from coadapt_core.viz import video
+
+    result, _ = bo_run
+    config = yaml.safe_load((result.run_dir / "config.yaml").read_text())
+    real, used = evaluate.evaluate_checkpoint, []
+
+    def spy(checkpoint, robot, sim_cls, design, **kw):
+        used.append((Path(checkpoint), list(design)))
+        return real(checkpoint, robot, sim_cls, design, **kw)
+
+    monkeypatch.setattr(evaluate, "evaluate_checkpoint", spy)
+    drawn = []
+    monkeypatch.setattr(video, "offscreen", lambda function, payload, **kw: (drawn.append(payload), (None, ["-"]))[1])
+    stream = io.StringIO()
+    assert video.render_run_video(result.run_dir, result.summary, config, seconds=0.1, stream=stream) == []
+    assert used == [(result.run_dir / OWN_POLICY_FILES["best"], result.summary["best_design"]),
+                    (result.run_dir / OWN_POLICY_FILES["nominal"], result.summary["nominal_design"])]
+    assert [p["label"].split()[0] for p in drawn[0]["panels"]] == ["best", "nominal"]
+    # a run made before the policies were kept: one line, no stand-in policy
+    used.clear()
+    stream = io.StringIO()
+    assert video.render_run_video(_older(result, tmp_path), result.summary, config, stream=stream) == []
+    assert used == [] and "runs made since keep them" in stream.getvalue()
+
+
+def test_a_handoff_of_a_bo_run_hands_off_the_best_designs_own_policy(bo_run, tmp_path, monkeypatch, capsys):
+    import coadapt_core.learning.factory as factory
+    from coadapt_core.cli import main
+    from coadapt_core.handoff.policy import missing_deploy_modules
+    from coadapt_core.handoff.run_info import sha256
+
+    if missing_deploy_modules():
+        pytest.skip("needs the deploy extra (coadapt[deploy])")
+    result, _ = bo_run
+    run_dir, s = result.run_dir, result.summary
+    real, used = factory.make_backend, []
+
+    def spy(*args, checkpoint=None, **kw):
+        used.append(Path(checkpoint))
+        return real(*args, checkpoint=checkpoint, **kw)
+
+    monkeypatch.setattr(factory, "make_backend", spy)
+    out = tmp_path / "handoff"
+    args = ["handoff", str(run_dir), "-o", str(out), "--sim", "mujoco", "--agents", "2", "--seconds", "0.1",
+            "--no-check", "--no-video", "--json"]
+    assert main(args) == 0
+    done = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert done["design"] == s["best_design"] and done["is_run_best"]
+    # the paired evaluation on MuJoCo: the best design under its policy, the nominal under its own
+    assert used == [run_dir / OWN_POLICY_FILES["best"], run_dir / OWN_POLICY_FILES["nominal"]]
+    fresh = done["evaluations"][-1]
+    assert fresh["simulator"] == "mujoco" and fresh["error"] is None
+    assert fresh["objectives"]["torque"]["design"] != fresh["objectives"]["torque"]["nominal"]
+    assert fresh["objectives"]["torque"]["improvement_se"] > 0
+    assert done["max_abs_action_difference"] <= done["tolerance"]
+    sheet = json.loads((out / "design.json").read_text())
+    judges = {"shared": False, "design": OWN_POLICY_FILES["best"], "nominal": OWN_POLICY_FILES["nominal"]}
+    assert {k: sheet["policies"][k] for k in judges} == judges
+    assert {k: json.loads((out / "policy.json").read_text())["policies"][k] for k in judges} == judges
+    assert sheet["provenance"]["final_policy_sha256"] == sha256(run_dir / OWN_POLICY_FILES["best"])
+    assert sheet["provenance"]["nominal_policy_sha256"] == sha256(run_dir / OWN_POLICY_FILES["nominal"])
+    assert "nominal design's own" in (out / "design.md").read_text()
+
+    # another design: no policy of its own was kept for it; an older run: none at all
+    elsewhere = ",".join(str(x) for x in s["nominal_design"])
+    assert main(["handoff", str(run_dir), "-o", str(tmp_path / "x"), "--design", elsewhere]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--design" in err[0] and "none for another design" in err[0]
+    assert main(["handoff", str(_older(result, tmp_path)), "-o", str(tmp_path / "y")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "runs made since keep them" in err[0] and "the handoff does not" in err[0]
+    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
