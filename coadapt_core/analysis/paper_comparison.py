@@ -19,8 +19,10 @@ Verdicts (docs/reproduction.md restates them):
   improvement; a pair the paper ties is not counted; a reversed pair is *clear* when our two
   means differ by more than 2 combined SE.
 - Table 7: each method's interactions and wall clock as a ratio to the paper's method in the
-  same table (the paper's hardware and scale differ from ours; ratios compare); the verdict
-  says whether it costs more or less than the paper's method, as in the paper.
+  same table (the paper's hardware and scale differ from ours; ratios compare), paired per
+  cell: each run against the paper's method's run of the same objective, terrain and seed,
+  mean ± SE over the pairs; the verdict says whether it costs more or less than the paper's
+  method, as in the paper, or is within 2 SE of equal.
 """
 
 from __future__ import annotations
@@ -33,14 +35,13 @@ from pathlib import Path
 from typing import Any
 
 from coadapt_core.analysis.paper import PaperTables, paper_tables
+from coadapt_core.analysis.paper_cost import Z, table7_comparison
 from coadapt_core.methods import METHODS
 
 #: a design scale within this of 1.0 is "at nominal" (the paper prints two decimals: 0.98-1.02)
 NOMINAL_BAND = 0.025
 #: half the paper's last printed digit of a percentage (5.8 %: 5.75-5.85 %)
 PAPER_ROUNDING = 0.0005
-#: a difference is beyond noise when larger than this many standard errors
-Z = 2.0
 
 #: the common yardstick (coadapt_core.experiments.yardstick): every run's best design and its
 #: nominal design with the run's own policy on one common scenario set, under the run's rule
@@ -55,9 +56,10 @@ T6_COLUMNS = ("objective", "method", "optimizer", "terrain", "runs", "seeds",
               "sim2sim_improvement", "sim2sim_improvement_se", "paper_sim2sim_improvement", "sim2sim_verdict")
 ORDER_COLUMNS = ("objective", "terrain", "measure", "methods", "paper_order", "our_order", "pairs", "reversed",
                  "clear_reversals", "verdict")
-T7_COLUMNS = ("method", "optimizer", "runs", "interactions_training", "interactions_evaluation", "seconds_training",
-              "seconds_evaluation", "interactions_ratio", "paper_interactions_ratio", "interactions_verdict",
-              "evaluation_ratio", "paper_evaluation_ratio", "time_ratio", "paper_time_ratio", "time_verdict",
+T7_COLUMNS = ("method", "optimizer", "runs", "pairs", "interactions_training", "interactions_evaluation",
+              "seconds_training", "seconds_evaluation", "interactions_ratio", "interactions_ratio_se",
+              "paper_interactions_ratio", "interactions_verdict", "evaluation_ratio", "evaluation_ratio_se",
+              "paper_evaluation_ratio", "time_ratio", "time_ratio_se", "paper_time_ratio", "time_verdict",
               "paper_interactions_training", "paper_interactions_evaluation", "paper_hours_training",
               "paper_hours_evaluation")
 T9_COLUMNS = ("objective", "method", "optimizer", "terrain", "runs", "seeds",
@@ -231,56 +233,6 @@ MEASURES = {"improvement": "run's cost", "improvement_plain": "plain mean",
             "common_improvement": "common scenarios", "common_improvement_plain": "common scenarios, plain mean"}
 
 
-# -- Table 7 ------------------------------------------------------------------------------------
-def table7_comparison(t7: Sequence[dict[str, Any]], paper: PaperTables | None = None) -> list[dict[str, Any]]:
-    """Each table7 row of a paper method: our interactions and wall clock as a ratio to the
-    paper's method's (its first row), beside the paper's ratios, and whether it costs more or
-    less than the paper's method as in the paper."""
-    paper = paper or paper_tables()
-    rows = [r for r in t7 if r["method"] in paper.table7]
-    ref = next((r for r in rows if r["method"] == paper.reference_method), None)
-    pref = paper.table7[paper.reference_method]
-
-    def total(r: dict[str, Any], a: str, b: str) -> float | None:
-        if r.get(a) is None or r.get(b) is None:
-            return None
-        return float(r[a]) + float(r[b])
-
-    def ratio(x: float | None, y: float | None) -> float | None:
-        return None if x is None or not y else x / y
-
-    out = []
-    for r in rows:
-        p = paper.table7[r["method"]]
-        row: dict[str, Any] = {k: r.get(k) for k in ("method", "optimizer", "runs", "interactions_training",
-                                                     "interactions_evaluation", "seconds_training", "seconds_evaluation")}
-        for k in ("interactions_training", "interactions_evaluation", "hours_training", "hours_evaluation"):
-            row[f"paper_{k}"] = p[k]
-        ours_i = total(r, "interactions_training", "interactions_evaluation")
-        ours_t = total(r, "seconds_training", "seconds_evaluation")
-        ref_i = None if ref is None else total(ref, "interactions_training", "interactions_evaluation")
-        ref_t = None if ref is None else total(ref, "seconds_training", "seconds_evaluation")
-        row["interactions_ratio"] = ratio(ours_i, ref_i)
-        row["paper_interactions_ratio"] = p["interactions_total"] / pref["interactions_total"]
-        row["evaluation_ratio"] = ratio(r.get("interactions_evaluation"), None if ref is None else ref.get("interactions_evaluation"))
-        row["paper_evaluation_ratio"] = p["interactions_evaluation"] / pref["interactions_evaluation"]
-        row["time_ratio"] = ratio(ours_t, ref_t)
-        row["paper_time_ratio"] = p["hours_total"] / pref["hours_total"]
-        same = r["method"] == paper.reference_method
-        row["interactions_verdict"] = "reference" if same else _ratio_verdict(row["interactions_ratio"], row["paper_interactions_ratio"])
-        row["time_verdict"] = "reference" if same else _ratio_verdict(row["time_ratio"], row["paper_time_ratio"])
-        out.append(row)
-    return out
-
-
-def _ratio_verdict(ours: float | None, paper: float) -> str:
-    if ours is None:
-        return "n/a (no run of the paper's method)"
-    side = "costlier" if paper > 1 else "cheaper" if paper < 1 else "equal"
-    mine = "costlier" if ours > 1 else "cheaper" if ours < 1 else "equal"
-    return f"{side} as in the paper" if side == mine else f"{mine}, the paper's is {side}"
-
-
 # -- Table 9 ------------------------------------------------------------------------------------
 def table9_comparison(t6: Sequence[dict[str, Any]], paper: PaperTables | None = None) -> list[dict[str, Any]]:
     """One row per table6 row of the paper robot's mixed space that Table 9 has a cell for."""
@@ -332,8 +284,8 @@ def _common(r: dict[str, Any]) -> str:
             f"{_pct(r['common_fall_rate_difference'], r['common_fall_rate_difference_se'])}")
 
 
-def _ratio(v: float | None) -> str:
-    return "n/a" if v is None else f"{v:.2f}"
+def _ratio(v: float | None, se: float | None = None) -> str:
+    return "n/a" if v is None else f"{v:.2f}" if se is None else f"{v:.2f} ± {se:.2f}"
 
 
 def _display(rows6: Sequence[dict[str, Any]], order: Sequence[dict[str, Any]], rows7: Sequence[dict[str, Any]],
@@ -362,12 +314,14 @@ def _display(rows6: Sequence[dict[str, Any]], order: Sequence[dict[str, Any]], r
                 " > ".join(methods.get(m, m) for m in r["paper_order"].split(" > ") if m),
                 " > ".join(methods.get(m, m) for m in r["our_order"].split(" > ") if m), r["verdict"]] for r in order]
     sections.append(("Method order by improvement, per objective and terrain", head_o, cells_o))
-    head7 = ["Method", "Optimizer", "Runs", "Interactions / paper's method: ours, paper", "Verdict",
+    head7 = ["Method", "Optimizer", "Runs", "Pairs", "Interactions / paper's method: ours, paper", "Verdict",
              "Evaluation interactions / paper's method: ours, paper", "Wall clock / paper's method: ours, paper", "Verdict"]
-    cells7 = [[methods.get(r["method"], r["method"]), str(r["optimizer"]), str(r["runs"]),
-               f"{_ratio(r['interactions_ratio'])}, {_ratio(r['paper_interactions_ratio'])}", r["interactions_verdict"],
-               f"{_ratio(r['evaluation_ratio'])}, {_ratio(r['paper_evaluation_ratio'])}",
-               f"{_ratio(r['time_ratio'])}, {_ratio(r['paper_time_ratio'])}", r["time_verdict"]] for r in rows7]
+    cells7 = [[methods.get(r["method"], r["method"]), str(r["optimizer"]), str(r["runs"]), str(r.get("pairs", "n/a")),
+               f"{_ratio(r['interactions_ratio'], r.get('interactions_ratio_se'))}, {_ratio(r['paper_interactions_ratio'])}",
+               r["interactions_verdict"],
+               f"{_ratio(r['evaluation_ratio'], r.get('evaluation_ratio_se'))}, {_ratio(r['paper_evaluation_ratio'])}",
+               f"{_ratio(r['time_ratio'], r.get('time_ratio_se'))}, {_ratio(r['paper_time_ratio'])}", r["time_verdict"]]
+              for r in rows7]
     sections.append(("Table 7 beside the paper's (ratios to the paper's method in the same table)", head7, cells7))
     head9 = ["Objective", "Terrain", "Optimizer", "Runs", "Thigh ours / paper", "Hip motor ours / paper", "Shank ours / paper",
              "Knee motor ours / paper", "Direction", "Improvement ours / paper", "Verdict", "Plain-mean improvement ours",
@@ -402,7 +356,9 @@ def _explanation(paper: PaperTables, rows6: Sequence[dict[str, Any]], rows9: Seq
             "in points, paired). Sim-to-sim: "
             "the paper trains in Isaac Gym and transfers to PyBullet; we train in another simulator and transfer to a "
             "second one (the sim-to-sim column of Table 6). Table 7: the paper's hours are on its hardware at its scale; "
-            f"ratios to the paper's method compare. Paper cells with no run here: {miss6} of {len(paper.table6)} "
+            "ratios to the paper's method compare: each run's against the paper's method's run of the same cell "
+            "(objective, terrain, seed), mean ± SE over the pairs; a verdict of costlier or cheaper needs the ratio "
+            f"{Z:g} SE away from 1 (wall clocks carry the machine's load). Paper cells with no run here: {miss6} of {len(paper.table6)} "
             f"(Table 6), {miss9} of {len(paper.table9)} (Table 9): not yet run.")
 
 
@@ -446,14 +402,16 @@ def _write_csv(path: Path, columns: Sequence[str], rows: Sequence[dict[str, Any]
 
 
 def write_paper_comparison(t6: Sequence[dict[str, Any]], t7: Sequence[dict[str, Any]], out: Path, *,
-                           objective_labels: dict[str, str] | None = None) -> tuple[dict[str, Path], str]:
+                           objective_labels: dict[str, str] | None = None,
+                           facts: Sequence[Any] | None = None) -> tuple[dict[str, Path], str]:
     """Write the comparison files into `out` from the report's Table 6 rows and its Table 7
     rows over the runs of continuous design spaces (the paper's Table 7 covers its Table 6
-    runs); returns the files by name and the report.html section."""
+    runs; `facts`, those runs, pair Table 7's ratios per cell); returns the files by name and
+    the report.html section."""
     paper = paper_tables()
     rows6 = table6_comparison(t6, paper)
     order = order_comparison(rows6, paper)
-    rows7 = table7_comparison(t7, paper)
+    rows7 = table7_comparison(t7, paper, facts)
     rows9 = table9_comparison(t6, paper)
     files = {}
     for name, columns, rows in (("paper_table6.csv", T6_COLUMNS, rows6), ("paper_order.csv", ORDER_COLUMNS, order),

@@ -205,8 +205,9 @@ def write_report(
     # the paper's figures beside ours (coadapt_core/analysis/paper_comparison.py)
     from coadapt_core.analysis.paper_comparison import write_paper_comparison
 
-    paper_files, paper_html = write_paper_comparison(
-        t6, table7_rows([f for f in facts if not any(f.design_discrete)]), out, objective_labels=objective_labels())
+    continuous = [f for f in facts if not any(f.design_discrete)]
+    paper_files, paper_html = write_paper_comparison(t6, table7_rows(continuous), out,
+                                                     objective_labels=objective_labels(), facts=continuous)
     files.update(paper_files)
     figures = _draw_figures(store, facts, out, progress)
     for path, _ in figures:

@@ -154,3 +154,39 @@ def test_runs_of_another_robot_have_no_paper_cell(tmp_path):
     md = files["paper_comparison.md"].read_text()
     assert "No run of this report has a cell in this table of the paper." in md
     assert "45 of 45 (Table 6)" in md
+
+
+def test_table7_ratios_are_paired_per_cell_with_their_standard_error(tmp_path):
+    """Each run against the paper's method's run of the same objective, terrain and seed: a
+    run without a partner is left out, a ratio that straddles 1 within 2 SE is no verdict."""
+    rec = SqliteRecorder(tmp_path / "p.db")
+    # ours: 1000 training + 400 evaluation interactions, 1 s + 4 x 0.5 s at every seed
+    for s in range(3):
+        _record(rec, "ours", s, [0.5, 0.55], 0.4, steps=1000, evals=4)
+    # no-surrogate: evaluation 8, 10, 12 designs x 100 (ratios 1800/1400, 2000/1400, 2200/1400; time
+    # 5/3, 6/3, 7/3); seed 5 has no ours to pair with and must not count
+    for s, evals in ((0, 8), (1, 10), (2, 12), (5, 40)):
+        _record(rec, "no-surrogate", s, [1.2, 0.6], 0.3, steps=1000, evals=evals)
+    # no-real on another terrain: no cell shared with ours
+    _record(rec, "no-real", 0, [1.0, 1.0], 0.0, terrain="slope")
+    # BO: training 1400 at seed 0, 1000 at seed 1 and 1800 at seed 2, no evaluation rows:
+    # interaction ratios 1.0, 0.714, 1.286 -> mean 1.0 (within 2 SE of equal)
+    for s, steps in ((0, 1400), (1, 1000), (2, 1800)):
+        _record(rec, "bo-specialized", s, [0.5, 0.5], 0.3, optimizer="bo", steps=steps, evals=0)
+    files = write_report(rec.store, None, tmp_path / "rep", sim2sim=False)
+    t7 = {r["method"]: r for r in read_csv(files["paper_table7.csv"])}
+    nos = t7["no-surrogate"]
+    ratios = np.array([1800, 2000, 2200]) / 1400
+    assert int(nos["pairs"]) == 3 and int(nos["runs"]) == 4
+    assert float(nos["interactions_ratio"]) == pytest.approx(ratios.mean())
+    assert float(nos["interactions_ratio_se"]) == pytest.approx(ratios.std(ddof=1) / math.sqrt(3))
+    assert float(nos["evaluation_ratio"]) == pytest.approx(2.5)  # 800/400, 1000/400, 1200/400
+    assert float(nos["time_ratio"]) == pytest.approx(2.0) and float(nos["time_ratio_se"]) == pytest.approx(1 / 3 / math.sqrt(3))
+    assert nos["interactions_verdict"] == "costlier as in the paper"
+    assert t7["no-real"]["pairs"] == "0" and t7["no-real"]["interactions_verdict"].startswith("n/a")
+    bo = t7["bo-specialized"]
+    assert float(bo["interactions_ratio"]) == pytest.approx(1.0)
+    assert bo["interactions_verdict"] == "within 2 SE of equal, the paper's is costlier"
+    assert t7["ours"]["interactions_verdict"] == "reference" and float(t7["ours"]["interactions_ratio"]) == 1.0
+    md = files["paper_comparison.md"].read_text()
+    assert f"| Ours w/o Surrogate | pso | 4 | 3 | {ratios.mean():.2f} ± {ratios.std(ddof=1) / math.sqrt(3):.2f}, 1.29 |" in md
