@@ -36,6 +36,7 @@ from typing import Any
 
 from coadapt_core.analysis.paper import PaperTables, paper_tables
 from coadapt_core.analysis.paper_cost import Z, table7_comparison
+from coadapt_core.analysis.paper_figure import figure_beside_paper
 from coadapt_core.methods import METHODS
 
 #: a design scale within this of 1.0 is "at nominal" (the paper prints two decimals: 0.98-1.02)
@@ -363,9 +364,11 @@ def _explanation(paper: PaperTables, rows6: Sequence[dict[str, Any]], rows9: Seq
 
 
 def comparison_markdown(rows6, order, rows7, rows9, paper: PaperTables | None = None,
-                        objectives: dict[str, str] | None = None) -> str:
+                        objectives: dict[str, str] | None = None, figure: tuple[Path, str] | None = None) -> str:
     paper = paper or paper_tables()
     lines = ["# Beside the paper", ""]
+    if figure is not None:
+        lines += [f"![{figure[1]}]({figure[0].name})", ""]
     for title, head, cells in _display(rows6, order, rows7, rows9, objectives or {}):
         lines += [f"## {title}", ""]
         if not cells:
@@ -418,6 +421,14 @@ def write_paper_comparison(t6: Sequence[dict[str, Any]], t7: Sequence[dict[str, 
                                 ("paper_table7.csv", T7_COLUMNS, rows7), ("paper_table9.csv", T9_COLUMNS, rows9)):
         _write_csv(out / name, columns, rows)
         files[name] = out / name
-    (out / "paper_comparison.md").write_text(comparison_markdown(rows6, order, rows7, rows9, paper, objective_labels))
+    figure = next(iter(figure_beside_paper(rows6, out, objective_labels)), None)
+    if figure is not None:
+        files[figure[0].name] = figure[0]
+    (out / "paper_comparison.md").write_text(comparison_markdown(rows6, order, rows7, rows9, paper, objective_labels,
+                                                                 figure))
     files["paper_comparison.md"] = out / "paper_comparison.md"
-    return files, comparison_html(rows6, order, rows7, rows9, paper, objective_labels)
+    section = comparison_html(rows6, order, rows7, rows9, paper, objective_labels)
+    if figure is not None:
+        section += (f"\n<figure><img src='{html.escape(figure[0].name)}' alt='{html.escape(figure[0].stem)}'>"
+                    f"<figcaption>{html.escape(figure[1])}</figcaption></figure>")
+    return files, section

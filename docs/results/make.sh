@@ -2,6 +2,7 @@
 # Rebuild docs/results/ from a results store that holds the grid's runs and the report's rows.
 #
 #   docs/results/make.sh STORE [RUN_ID ...]
+#   docs/results/make.sh --render          (render report/ again from the committed export)
 #
 # STORE: a store on which `coadapt report` has already computed the common-scenario and
 # sim-to-sim rows (they need the run folders and take minutes per run). RUN_IDs: the runs to
@@ -10,6 +11,18 @@
 # the former into an empty store, exactly as tests/test_results_reproduce.py does.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
+render() {  # report/ from an import of export/ into an empty store
+  local work
+  work="$(mktemp -d)"
+  coadapt import "$here/export" --store "$work/results.db"
+  # run folders may exist on this machine; the report is rendered where they do not matter:
+  # only its tables (Markdown, CSV) and figures (PNG) are kept, not report.html or videos
+  coadapt report --store "$work/results.db" -o "$work/report"
+  rm -rf "$here/report" && mkdir -p "$here/report"
+  cp "$work"/report/*.md "$work"/report/*.csv "$work"/report/*.png "$here/report/"
+  rm -rf "$work"
+}
+if [ "${1:-}" = "--render" ]; then render; exit 0; fi
 store="$1"; shift
 runs=()
 for r in "$@"; do runs+=(--run "$r"); done
@@ -24,13 +37,6 @@ for run in store.table_rows("runs", None):
 PY
 )
 fi
-work="$(mktemp -d)"
-trap 'rm -rf "$work"' EXIT
-rm -rf "$here/export" "$here/report"
+rm -rf "$here/export"
 coadapt export --store "$store" -o "$here/export" "${runs[@]}"
-coadapt import "$here/export" --store "$work/results.db"
-# run folders may exist on this machine; the report is rendered where they do not matter:
-# only its tables (Markdown, CSV) and figures (PNG) are kept, not report.html or videos
-coadapt report --store "$work/results.db" -o "$work/report"
-mkdir -p "$here/report"
-cp "$work"/report/*.md "$work"/report/*.csv "$work"/report/*.png "$here/report/"
+render

@@ -190,3 +190,22 @@ def test_table7_ratios_are_paired_per_cell_with_their_standard_error(tmp_path):
     assert t7["ours"]["interactions_verdict"] == "reference" and float(t7["ours"]["interactions_ratio"]) == 1.0
     md = files["paper_comparison.md"].read_text()
     assert f"| Ours w/o Surrogate | pso | 4 | 3 | {ratios.mean():.2f} ± {ratios.std(ddof=1) / math.sqrt(3):.2f}, 1.29 |" in md
+
+
+def test_the_figure_beside_the_paper_draws_each_cell_with_its_error_bar(compared):
+    from coadapt_core.analysis.paper_figure import bars_of
+
+    _, files = compared
+    assert files["paper_table6.png"].stat().st_size > 1000
+    assert "![Table 6 beside the paper's" in files["paper_comparison.md"].read_text()
+    rows = {r["method"]: r for r in read_csv(files["paper_table6.csv"])}
+    typed = [{k: (float(v) if k in ("improvement", "improvement_se", "paper_improvement") and v else v or None)
+              for k, v in r.items()} for r in rows.values()]
+    (flat,) = bars_of(typed).values()
+    ours = next(b for b in flat if b["method"] == "ours")
+    # no common-scenario rows in this store: the runs' own improvement, marked as such
+    assert ours["common"] is False and ours["value"] == pytest.approx(45.0) and ours["paper"] == pytest.approx(45.9)
+    assert ours["se"] == pytest.approx(100 * 0.05 / math.sqrt(3))
+    with_common = dict(typed[0], common_improvement=0.2, common_improvement_se=0.01)
+    (bar,) = next(iter(bars_of([with_common]).values()))
+    assert bar["common"] is True and bar["value"] == pytest.approx(20.0) and bar["se"] == pytest.approx(1.0)
