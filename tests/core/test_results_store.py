@@ -111,6 +111,11 @@ def _crashing_run(db: str, crash_after: int, queue) -> None:
     rec = SqliteRecorder(db)
     run_id = rec.start_run(CONFIG)
     queue.put(run_id)
+    # put() hands the id to a feeder thread; os._exit below kills that thread with the process,
+    # so on a loaded machine the id could be lost unsent (crash_after=1 exits a few ms later):
+    # wait until it is in the pipe
+    queue.close()
+    queue.join_thread()
     n = 0
     for outer in range(2):
         rec.record_training(run_id, outer=outer, result=TrainingResult(steps=1000, seconds=1.0, mean_reward=0.5))
