@@ -405,8 +405,8 @@ def _write_csv(path: Path, columns: Sequence[str], rows: Sequence[dict[str, Any]
 
 
 def write_paper_comparison(t6: Sequence[dict[str, Any]], t7: Sequence[dict[str, Any]], out: Path, *,
-                           objective_labels: dict[str, str] | None = None,
-                           facts: Sequence[Any] | None = None) -> tuple[dict[str, Path], str]:
+                           facts: Sequence[Any], objective_labels: dict[str, str] | None = None,
+                           ) -> tuple[dict[str, Path], str]:
     """Write the comparison files into `out` from the report's Table 6 rows and its Table 7
     rows over the runs of continuous design spaces (the paper's Table 7 covers its Table 6
     runs; `facts`, those runs, pair Table 7's ratios per cell); returns the files by name and
@@ -414,7 +414,7 @@ def write_paper_comparison(t6: Sequence[dict[str, Any]], t7: Sequence[dict[str, 
     paper = paper_tables()
     rows6 = table6_comparison(t6, paper)
     order = order_comparison(rows6, paper)
-    rows7 = table7_comparison(t7, paper, facts)
+    rows7 = table7_comparison(t7, facts, paper)
     rows9 = table9_comparison(t6, paper)
     files = {}
     for name, columns, rows in (("paper_table6.csv", T6_COLUMNS, rows6), ("paper_order.csv", ORDER_COLUMNS, order),

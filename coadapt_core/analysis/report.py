@@ -206,8 +206,8 @@ def write_report(
     from coadapt_core.analysis.paper_comparison import write_paper_comparison
 
     continuous = [f for f in facts if not any(f.design_discrete)]
-    paper_files, paper_html = write_paper_comparison(t6, table7_rows(continuous), out,
-                                                     objective_labels=objective_labels(), facts=continuous)
+    paper_files, paper_html = write_paper_comparison(t6, table7_rows(continuous), out, facts=continuous,
+                                                     objective_labels=objective_labels())
     files.update(paper_files)
     figures = _draw_figures(store, facts, out, progress)
     for path, _ in figures:
