@@ -51,8 +51,8 @@ SPAWN_STREAM_KEY = 0x5A
 class SimState:
     """Batched state after a step or reset. N = num_envs, J = actuated joints, L = legs.
 
-    Quaternions are (w, x, y, z). Velocities of the base are in the world frame; the task
-    rotates them into the base frame. Every tensor is finite: an environment whose physics
+    Quaternions are (w, x, y, z). Velocities of the base are in the world frame;
+    `base_frame()` expresses them (and gravity) in the base frame. Every tensor is finite: an environment whose physics
     diverged has been reset and is flagged in `diverged`.
     """
 
@@ -71,6 +71,25 @@ class SimState:
 
     def to(self, device: str | torch.device) -> SimState:
         return SimState(**{f.name: getattr(self, f.name).to(device) for f in fields(self)})
+
+    def base_frame(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(linear velocity, angular velocity, gravity's direction), each [N, 3] float32 in
+        the base frame: what the robot's IMU reads."""
+        quat = self.base_quat.float()
+        gravity = torch.zeros_like(self.base_lin_vel, dtype=torch.float32)
+        gravity[:, 2] = -1.0
+        return tuple(quat_rotate_inverse(quat, v) for v in (self.base_lin_vel.float(), self.base_ang_vel.float(), gravity))
+
+
+def quat_rotate_inverse(quat: torch.Tensor, vec: torch.Tensor) -> torch.Tensor:
+    """World vectors vec [N, 3] expressed in the base frame of unit quaternions quat [N, 4]
+    (w, x, y, z): R^T v = v (2w^2 - 1) - 2 w (q x v) + 2 q (q . v)."""
+    w = quat[:, 0:1]
+    xyz = quat[:, 1:4]
+    a = vec * (2.0 * w * w - 1.0)
+    b = torch.cross(xyz, vec, dim=-1) * (2.0 * w)
+    c = xyz * (2.0 * (xyz * vec).sum(dim=-1, keepdim=True))
+    return a - b + c
 
 
 def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -21,7 +21,6 @@ from coadapt_core.task.commands import CommandSampler
 from coadapt_core.task.config import TaskConfig
 from coadapt_core.task.gait import expected_stance, leg_phases, raibert_foot_targets
 from coadapt_core.task.rewards import RewardInputs, combine, compute_terms
-from coadapt_core.task.rotations import quat_rotate_inverse
 
 if TYPE_CHECKING:
     from coadapt_core.scenarios.sets import PairedStreams
@@ -243,14 +242,6 @@ class LocomotionEnv:
         return obs, critic, self.design_obs
 
     # -- observations -----------------------------------------------------------------------
-    def _base_frame(self, state: SimState) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        quat = state.base_quat.float()
-        lin = quat_rotate_inverse(quat, state.base_lin_vel.float())
-        ang = quat_rotate_inverse(quat, state.base_ang_vel.float())
-        gravity = torch.zeros_like(lin)
-        gravity[:, 2] = -1.0
-        return lin, ang, quat_rotate_inverse(quat, gravity)
-
     def _noise(self, shape: tuple[int, ...], scale: float) -> torch.Tensor:
         gen = self._paired_gen if self.scenarios is not None else self.generator
         if self.cfg.noise.kind == "gaussian":
@@ -259,7 +250,7 @@ class LocomotionEnv:
 
     def _observe(self, state: SimState) -> tuple[torch.Tensor, torch.Tensor]:
         """(noisy policy obs [N, num_obs], critic state [N, num_critic_obs])."""
-        lin, ang, gravity = self._base_frame(state)
+        lin, ang, gravity = state.base_frame()
         joint_pos = state.joint_pos.float() - self.default_joint_pos
         joint_vel = state.joint_vel.float()
         angle = 2.0 * math.pi * self.phase
@@ -338,7 +329,7 @@ class LocomotionEnv:
         advance = moving if cfg.gait.freeze_on_zero_command else torch.ones_like(moving)
         self.phase = torch.remainder(self.phase + self.dt * cfg.gait.frequency * advance, 1.0)
 
-        lin, ang, gravity = self._base_frame(state)
+        lin, ang, gravity = state.base_frame()
         joint_pos = state.joint_pos.float()
         joint_vel = state.joint_vel.float()
         torque = state.joint_torque.float()
