@@ -250,15 +250,13 @@ def table9_comparison(t6: Sequence[dict[str, Any]], paper: PaperTables | None = 
             row[f"paper_{col}"] = p[col]
         row["direction"] = direction_verdict({c: row[c] for c in ("thigh", "shank")}, {c: p[c] for c in ("thigh", "shank")})
         for col in ("hip_motor", "knee_motor"):
-            var = paper.design_variables[col]
-            mean, std = r.get(var), r.get(f"{var}_std")
-            row[col], row[f"paper_{col}"] = mean, int(p[col])
-            if mean is None:
-                row[f"{col}_verdict"] = "n/a"
-            elif abs(mean - p[col]) < 1e-9 and not std:
-                row[f"{col}_verdict"] = "same"  # every seed chose the paper's motor
-            else:
-                row[f"{col}_verdict"] = "differs"
+            # a motor type is a choice: each seed's, and how many chose the paper's (a mean of
+            # types 1 and 3 would read as type 2)
+            chosen = [c for c in str(r.get(f"{paper.design_variables[col]}_choices") or "").split() if c != "n/a"]
+            row[col], row[f"paper_{col}"] = " ".join(chosen) or None, int(p[col])
+            same = sum(int(c) == int(p[col]) for c in chosen)
+            row[f"{col}_verdict"] = ("n/a" if not chosen else "same" if same == len(chosen)
+                                     else "differs" if not same else f"same in {same} of {len(chosen)} seeds")
         _improvements(row, r, p["improvement"], sim2sim=False)
         out.append(row)
     return out
@@ -324,14 +322,14 @@ def _display(rows6: Sequence[dict[str, Any]], order: Sequence[dict[str, Any]], r
                f"{_ratio(r['time_ratio'], r.get('time_ratio_se'))}, {_ratio(r['paper_time_ratio'])}", r["time_verdict"]]
               for r in rows7]
     sections.append(("Table 7 beside the paper's (ratios to the paper's method in the same table)", head7, cells7))
-    head9 = ["Objective", "Terrain", "Optimizer", "Runs", "Thigh ours / paper", "Hip motor ours / paper", "Shank ours / paper",
-             "Knee motor ours / paper", "Direction", "Improvement ours / paper", "Verdict", "Plain-mean improvement ours",
+    head9 = ["Objective", "Terrain", "Optimizer", "Runs", "Thigh ours / paper", "Hip motor per seed, ours / paper", "Shank ours / paper",
+             "Knee motor per seed, ours / paper", "Direction", "Improvement ours / paper", "Verdict", "Plain-mean improvement ours",
              "Verdict", "Common scenarios: improvement, plain mean, fall-rate difference", "Verdict (plain mean)"]
     cells9 = [[objectives.get(r["objective"], r["objective"]), r["terrain"], r["optimizer"], str(r["runs"]),
                f"{_num(r['thigh'], r['thigh_se'])} / {r['paper_thigh']:.2f}",
-               f"{_num(r['hip_motor'], spec='.2g')} / {r['paper_hip_motor']} ({r['hip_motor_verdict']})",
+               f"{r['hip_motor'] or 'n/a'} / {r['paper_hip_motor']} ({r['hip_motor_verdict']})",
                f"{_num(r['shank'], r['shank_se'])} / {r['paper_shank']:.2f}",
-               f"{_num(r['knee_motor'], spec='.2g')} / {r['paper_knee_motor']} ({r['knee_motor_verdict']})", r["direction"],
+               f"{r['knee_motor'] or 'n/a'} / {r['paper_knee_motor']} ({r['knee_motor_verdict']})", r["direction"],
                f"{_pct(r['improvement'], r['improvement_se'])} / {_pct(r['paper_improvement'])}", r["improvement_verdict"],
                _pct(r["improvement_plain"], r["improvement_plain_se"]), r["improvement_plain_verdict"],
                _common(r), r["common_improvement_plain_verdict"]] for r in rows9]
