@@ -60,7 +60,7 @@ ORDER_COLUMNS = ("objective", "terrain", "measure", "methods", "paper_order", "o
 T7_COLUMNS = ("method", "optimizer", "runs", "pairs", "interactions_training", "interactions_evaluation",
               "seconds_training", "seconds_evaluation", "interactions_ratio", "interactions_ratio_se",
               "paper_interactions_ratio", "interactions_verdict", "evaluation_ratio", "evaluation_ratio_se",
-              "paper_evaluation_ratio", "time_ratio", "time_ratio_se", "paper_time_ratio", "time_verdict",
+              "paper_evaluation_ratio", "time_pairs", "time_ratio", "time_ratio_se", "paper_time_ratio", "time_verdict",
               "paper_interactions_training", "paper_interactions_evaluation", "paper_hours_training",
               "paper_hours_evaluation")
 T9_COLUMNS = ("objective", "method", "optimizer", "terrain", "runs", "seeds",
@@ -314,11 +314,13 @@ def _display(rows6: Sequence[dict[str, Any]], order: Sequence[dict[str, Any]], r
                 " > ".join(methods.get(m, m) for m in r["our_order"].split(" > ") if m), r["verdict"]] for r in order]
     sections.append(("Method order by improvement, per objective and terrain", head_o, cells_o))
     head7 = ["Method", "Optimizer", "Runs", "Pairs", "Interactions / paper's method: ours, paper", "Verdict",
-             "Evaluation interactions / paper's method: ours, paper", "Wall clock / paper's method: ours, paper", "Verdict"]
+             "Evaluation interactions / paper's method: ours, paper", "Wall-clock pairs (same code)",
+             "Wall clock / paper's method: ours, paper", "Verdict"]
     cells7 = [[methods.get(r["method"], r["method"]), str(r["optimizer"]), str(r["runs"]), str(r.get("pairs", "n/a")),
                f"{_ratio(r['interactions_ratio'], r.get('interactions_ratio_se'))}, {_ratio(r['paper_interactions_ratio'])}",
                r["interactions_verdict"],
                f"{_ratio(r['evaluation_ratio'], r.get('evaluation_ratio_se'))}, {_ratio(r['paper_evaluation_ratio'])}",
+               str(r.get("time_pairs", "n/a")),
                f"{_ratio(r['time_ratio'], r.get('time_ratio_se'))}, {_ratio(r['paper_time_ratio'])}", r["time_verdict"]]
               for r in rows7]
     sections.append(("Table 7 beside the paper's (ratios to the paper's method in the same table)", head7, cells7))
@@ -357,7 +359,8 @@ def _explanation(paper: PaperTables, rows6: Sequence[dict[str, Any]], rows9: Seq
             "second one (the sim-to-sim column of Table 6). Table 7: the paper's hours are on its hardware at its scale; "
             "ratios to the paper's method compare: each run's against the paper's method's run of the same cell "
             "(objective, terrain, seed), mean ± SE over the pairs; a verdict of costlier or cheaper needs the ratio "
-            f"{Z:g} SE away from 1 (wall clocks carry the machine's load). Paper cells with no run here: {miss6} of {len(paper.table6)} "
+            f"{Z:g} SE away from 1; wall clocks pair only runs made by the same code (the same clean git commit: "
+            f"a speed-up changes them) and carry the machine's load. Paper cells with no run here: {miss6} of {len(paper.table6)} "
             f"(Table 6), {miss9} of {len(paper.table9)} (Table 9): not yet run.")
 
 

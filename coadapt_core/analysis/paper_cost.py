@@ -20,32 +20,44 @@ def _cell_key(f: Any) -> tuple:
     return (f.setting, f.objective, f.terrain, f.run.get("seed"))
 
 
+def _code(f: Any) -> str | None:
+    """The commit a run's code came from, None when unknown or modified ("+dirty"): wall
+    clocks compare only between runs of the same code, which a speed-up changes."""
+    commit = str(f.run.get("git_commit") or "")
+    return commit if commit and not commit.endswith("+dirty") else None
+
+
 def paired_cost_ratios(facts: Sequence[Any], reference: str) -> dict[tuple[tuple[str, str, str], str, str], dict[str, Any]]:
     """Per (setting, method, optimizer): each run's interactions, evaluation interactions and
     wall clock (training + evaluation) as a ratio to the reference method's run of the same
     cell (setting, objective, terrain, seed; several reference runs of a cell are averaged),
-    then mean ± SE over the pairs. Pairing cancels what the cells differ in (terrain,
-    objective, seed); the SE shows what is left, the machine's load included."""
-    def totals(f: Any) -> tuple[float, float, float]:
-        return (float(f.train_interactions + f.eval_interactions), float(f.eval_interactions),
-                float(f.train_seconds + f.eval_seconds))
+    then mean ± SE over the pairs. The wall clock pairs only runs made by the same code (the
+    same clean git commit; `time_pairs` counts them). Pairing cancels what the cells differ
+    in (terrain, objective, seed); the SE shows what is left, the machine's load included."""
+    def totals(f: Any) -> tuple[float, float]:
+        return float(f.train_interactions + f.eval_interactions), float(f.eval_interactions)
 
-    by_cell: dict[tuple, list[tuple[float, float, float]]] = {}
+    by_cell: dict[tuple, list[tuple[float, float]]] = {}
+    by_code: dict[tuple, list[float]] = {}
     for f in facts:
         if f.method == reference:
             by_cell.setdefault(_cell_key(f), []).append(totals(f))
-    ref = {k: tuple(sum(v[i] for v in vs) / len(vs) for i in range(3)) for k, vs in by_cell.items()}
+            if _code(f):
+                by_code.setdefault((_cell_key(f), _code(f)), []).append(float(f.train_seconds + f.eval_seconds))
+    ref = {k: tuple(sum(v[i] for v in vs) / len(vs) for i in range(2)) for k, vs in by_cell.items()}
+    ref_time = {k: sum(vs) / len(vs) for k, vs in by_code.items()}
     ratios: dict[tuple[tuple[str, str, str], str, str], list[list[float | None]]] = {}
     for f in facts:
         r = ref.get(_cell_key(f))
         if r is None:
             continue
-        mine = totals(f)
-        ratios.setdefault((f.setting, f.method, f.optimizer), []).append(
-            [m / b if b else None for m, b in zip(mine, r, strict=True)])
+        row: list[float | None] = [m / b if b else None for m, b in zip(totals(f), r, strict=True)]
+        t = ref_time.get((_cell_key(f), _code(f))) if _code(f) else None
+        row.append(float(f.train_seconds + f.eval_seconds) / t if t else None)
+        ratios.setdefault((f.setting, f.method, f.optimizer), []).append(row)
     out = {}
     for key, rows in ratios.items():
-        stats: dict[str, Any] = {"pairs": len(rows)}
+        stats: dict[str, Any] = {"pairs": len(rows), "time_pairs": sum(row[2] is not None for row in rows)}
         for i, name in enumerate(("interactions_ratio", "evaluation_ratio", "time_ratio")):
             mean, std, n = _stat([row[i] for row in rows])
             stats[name], stats[f"{name}_se"] = mean, None if std is None else std / math.sqrt(n)
@@ -71,17 +83,19 @@ def table7_comparison(t7: Sequence[dict[str, Any]], facts: Sequence[Any],
             row[f"paper_{k}"] = p[k]
         same = r["method"] == paper.reference_method
         setting = (str(r.get("robot")), str(r.get("simulator")), str(r.get("preset")))
-        stats = ({"pairs": r["runs"], "interactions_ratio": 1.0, "evaluation_ratio": 1.0, "time_ratio": 1.0}
-                 if same else paired.get((setting, r["method"], r["optimizer"]), {"pairs": 0}))
+        stats = ({"pairs": r["runs"], "time_pairs": r["runs"], "interactions_ratio": 1.0, "evaluation_ratio": 1.0,
+                  "time_ratio": 1.0} if same else paired.get((setting, r["method"], r["optimizer"]), {"pairs": 0}))
         for k in ("interactions_ratio", "evaluation_ratio", "time_ratio"):
             row[k], row[f"{k}_se"] = stats.get(k), stats.get(f"{k}_se")
-        row["pairs"] = stats["pairs"]
+        row["pairs"], row["time_pairs"] = stats["pairs"], stats.get("time_pairs", 0)
         row["paper_interactions_ratio"] = p["interactions_total"] / pref["interactions_total"]
         row["paper_evaluation_ratio"] = p["interactions_evaluation"] / pref["interactions_evaluation"]
         row["paper_time_ratio"] = p["hours_total"] / pref["hours_total"]
         for name in ("interactions", "time"):
             row[f"{name}_verdict"] = "reference" if same else _ratio_verdict(
                 row[f"{name}_ratio"], row[f"paper_{name}_ratio"], row[f"{name}_ratio_se"])
+        if not same and row["pairs"] and not row["time_pairs"]:
+            row["time_verdict"] = "n/a (no pair made by the same code)"
         out.append(row)
     return out
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import csv
 import math
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 import pytest
@@ -71,11 +72,14 @@ def test_method_order_counts_reversed_pairs_and_skips_the_papers_ties():
 
 
 def _record(rec: SqliteRecorder, method: str, seed: int, best: list[float], improvement: float, *, objective="torque",
-            terrain="flat", optimizer="pso", plain: float | None = None, steps: int = 1000, evals: int = 4) -> str:
-    """A finished run of the paper robot with a chosen best design and improvement."""
+            terrain="flat", optimizer="pso", plain: float | None = None, steps: int = 1000, evals: int = 4,
+            commit: str | None = "c0ffee") -> str:
+    """A finished run of the paper robot with a chosen best design and improvement, made by the
+    code of git commit `commit` (the wall clock pairs runs of one commit only)."""
     config = {"method": method, "objective": objective, "terrain": terrain, "seed": seed, "preset": "smoke",
               "sim": "mujoco", "robot": "kuafu", "optimizer": optimizer}
-    run_id = rec.start_run(config)
+    with mock.patch("coadapt_core.results.store.code_commit", return_value=commit):
+        run_id = rec.start_run(config)
     rec.record_training(run_id, outer=0, result=TrainingResult(steps=steps, seconds=1.0, mean_reward=0.0))
     designs = np.array([best] * evals)
     rec.record_evaluations(run_id, outer=0, inner=0, designs=designs, kind="real", interactions=100, seconds=0.5,
@@ -193,6 +197,29 @@ def test_table7_ratios_are_paired_per_cell_with_their_standard_error(tmp_path):
     assert t7["ours"]["interactions_verdict"] == "reference" and float(t7["ours"]["interactions_ratio"]) == 1.0
     md = files["paper_comparison.md"].read_text()
     assert f"| Ours w/o Surrogate | pso | 4 | 3 | {ratios.mean():.2f} ± {ratios.std(ddof=1) / math.sqrt(3):.2f}, 1.29 |" in md
+
+
+def test_table7_wall_clock_pairs_only_runs_of_the_same_code(tmp_path):
+    """Interactions pair every run with ours' of its cell; the wall clock only runs made by the
+    same clean commit: another commit's ours, or a modified tree, is no partner for it."""
+    rec = SqliteRecorder(tmp_path / "w.db")
+    for s in range(3):  # ours: 1 s + 4 x 0.5 s; seed 2 by other code
+        _record(rec, "ours", s, [0.5, 0.55], 0.4, evals=4, commit="c0ffee" if s < 2 else "0ld")
+    for s, evals, commit in ((0, 8, "c0ffee"), (1, 10, "c0ffee"), (2, 12, "c0ffee")):  # time 5/3, 6/3 (7/3 unpaired)
+        _record(rec, "no-surrogate", s, [1.2, 0.6], 0.3, evals=evals, commit=commit)
+    for s, commit in ((0, "c0ffee+dirty"), (1, None)):  # unknown code: interactions only
+        _record(rec, "no-retrain", s, [1.0, 1.0], 0.1, evals=4, commit=commit)
+    files = write_report(rec.store, None, tmp_path / "rep", sim2sim=False)
+    t7 = {r["method"]: r for r in read_csv(files["paper_table7.csv"])}
+    nos, ret = t7["no-surrogate"], t7["no-retrain"]
+    assert (nos["pairs"], nos["time_pairs"]) == ("3", "2")
+    assert float(nos["interactions_ratio"]) == pytest.approx(np.mean([1800, 2000, 2200]) / 1400)
+    assert float(nos["time_ratio"]) == pytest.approx(5.5 / 3) and float(nos["time_ratio_se"]) == pytest.approx(1 / 6)
+    assert (ret["pairs"], ret["time_pairs"], ret["time_ratio"]) == ("2", "0", "")
+    assert float(ret["interactions_ratio"]) == pytest.approx(1.0)
+    assert ret["time_verdict"] == "n/a (no pair made by the same code)"
+    md = files["paper_comparison.md"].read_text()
+    assert "| Ours w/o Surrogate | pso | 3 | 3 |" in md and "same clean git commit" in md
 
 
 def test_the_figure_beside_the_paper_draws_each_cell_with_its_error_bar(compared):
