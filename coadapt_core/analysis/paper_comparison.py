@@ -61,6 +61,7 @@ T7_COLUMNS = ("method", "optimizer", "runs", "pairs", "interactions_training", "
               "seconds_training", "seconds_evaluation", "interactions_ratio", "interactions_ratio_se",
               "paper_interactions_ratio", "interactions_verdict", "evaluation_ratio", "evaluation_ratio_se",
               "paper_evaluation_ratio", "time_pairs", "time_ratio", "time_ratio_se", "paper_time_ratio", "time_verdict",
+              "speed_time_ratio", "speed_time_ratio_se", "speed_time_verdict",
               "paper_interactions_training", "paper_interactions_evaluation", "paper_hours_training",
               "paper_hours_evaluation")
 T9_COLUMNS = ("objective", "method", "optimizer", "terrain", "runs", "seeds",
@@ -315,13 +316,16 @@ def _display(rows6: Sequence[dict[str, Any]], order: Sequence[dict[str, Any]], r
     sections.append(("Method order by improvement, per objective and terrain", head_o, cells_o))
     head7 = ["Method", "Optimizer", "Runs", "Pairs", "Interactions / paper's method: ours, paper", "Verdict",
              "Evaluation interactions / paper's method: ours, paper", "Wall-clock pairs (same code)",
-             "Wall clock / paper's method: ours, paper", "Verdict"]
+             "Wall clock / paper's method: ours, paper", "Verdict", "Wall clock at equal machine speed: ours, paper",
+             "Verdict"]
     cells7 = [[methods.get(r["method"], r["method"]), str(r["optimizer"]), str(r["runs"]), str(r.get("pairs", "n/a")),
                f"{_ratio(r['interactions_ratio'], r.get('interactions_ratio_se'))}, {_ratio(r['paper_interactions_ratio'])}",
                r["interactions_verdict"],
                f"{_ratio(r['evaluation_ratio'], r.get('evaluation_ratio_se'))}, {_ratio(r['paper_evaluation_ratio'])}",
                str(r.get("time_pairs", "n/a")),
-               f"{_ratio(r['time_ratio'], r.get('time_ratio_se'))}, {_ratio(r['paper_time_ratio'])}", r["time_verdict"]]
+               f"{_ratio(r['time_ratio'], r.get('time_ratio_se'))}, {_ratio(r['paper_time_ratio'])}", r["time_verdict"],
+               f"{_ratio(r['speed_time_ratio'], r.get('speed_time_ratio_se'))}, {_ratio(r['paper_time_ratio'])}",
+               r["speed_time_verdict"]]
               for r in rows7]
     sections.append(("Table 7 beside the paper's (ratios to the paper's method in the same table)", head7, cells7))
     head9 = ["Objective", "Terrain", "Optimizer", "Runs", "Thigh ours / paper", "Hip motor per seed, ours / paper", "Shank ours / paper",
@@ -360,7 +364,9 @@ def _explanation(paper: PaperTables, rows6: Sequence[dict[str, Any]], rows9: Seq
             "ratios to the paper's method compare: each run's against the paper's method's run of the same cell "
             "(objective, terrain, seed), mean ± SE over the pairs; a verdict of costlier or cheaper needs the ratio "
             f"{Z:g} SE away from 1; wall clocks pair only runs made by the same code (the same clean git commit: "
-            f"a speed-up changes them) and carry the machine's load. Paper cells with no run here: {miss6} of {len(paper.table6)} "
+            f"a speed-up changes them) and carry the machine's load; at equal machine speed, each wall clock is divided by the "
+            f"run's own seconds per training interaction, the machine's speed while it ran, measured on work every "
+            f"training method does alike. Paper cells with no run here: {miss6} of {len(paper.table6)} "
             f"(Table 6), {miss9} of {len(paper.table9)} (Table 9): not yet run.")
 
 

@@ -32,33 +32,43 @@ def paired_cost_ratios(facts: Sequence[Any], reference: str) -> dict[tuple[tuple
     wall clock (training + evaluation) as a ratio to the reference method's run of the same
     cell (setting, objective, terrain, seed; several reference runs of a cell are averaged),
     then mean ± SE over the pairs. The wall clock pairs only runs made by the same code (the
-    same clean git commit; `time_pairs` counts them). Pairing cancels what the cells differ
+    same clean git commit; `time_pairs` counts them); `speed_time_ratio` sets it at equal
+    machine speed: each wall clock divided by the run's own seconds per training interaction
+    (work every training method does alike), so a run made while the machine was busier is
+    not charged for it (None for a run that does not train). Pairing cancels what the cells differ
     in (terrain, objective, seed); the SE shows what is left, the machine's load included."""
     def totals(f: Any) -> tuple[float, float]:
         return float(f.train_interactions + f.eval_interactions), float(f.eval_interactions)
 
+    def times(f: Any) -> tuple[float, float | None]:
+        """(wall seconds, the same at equal machine speed: wall seconds over the run's own
+        seconds per training interaction, None for a run that did not train)."""
+        wall = float(f.train_seconds + f.eval_seconds)
+        speed = f.train_seconds / f.train_interactions if f.train_interactions and f.train_seconds else None
+        return wall, (wall / speed if speed else None)
+
     by_cell: dict[tuple, list[tuple[float, float]]] = {}
-    by_code: dict[tuple, list[float]] = {}
+    by_code: dict[tuple, list[tuple[float, float | None]]] = {}
     for f in facts:
         if f.method == reference:
             by_cell.setdefault(_cell_key(f), []).append(totals(f))
             if _code(f):
-                by_code.setdefault((_cell_key(f), _code(f)), []).append(float(f.train_seconds + f.eval_seconds))
+                by_code.setdefault((_cell_key(f), _code(f)), []).append(times(f))
     ref = {k: tuple(sum(v[i] for v in vs) / len(vs) for i in range(2)) for k, vs in by_cell.items()}
-    ref_time = {k: sum(vs) / len(vs) for k, vs in by_code.items()}
+    ref_time = {k: tuple(_stat([v[i] for v in vs])[0] for i in range(2)) for k, vs in by_code.items()}
     ratios: dict[tuple[tuple[str, str, str], str, str], list[list[float | None]]] = {}
     for f in facts:
         r = ref.get(_cell_key(f))
         if r is None:
             continue
         row: list[float | None] = [m / b if b else None for m, b in zip(totals(f), r, strict=True)]
-        t = ref_time.get((_cell_key(f), _code(f))) if _code(f) else None
-        row.append(float(f.train_seconds + f.eval_seconds) / t if t else None)
+        t = ref_time.get((_cell_key(f), _code(f)), (None, None)) if _code(f) else (None, None)
+        row += [m / b if m is not None and b else None for m, b in zip(times(f), t, strict=True)]
         ratios.setdefault((f.setting, f.method, f.optimizer), []).append(row)
     out = {}
     for key, rows in ratios.items():
         stats: dict[str, Any] = {"pairs": len(rows), "time_pairs": sum(row[2] is not None for row in rows)}
-        for i, name in enumerate(("interactions_ratio", "evaluation_ratio", "time_ratio")):
+        for i, name in enumerate(("interactions_ratio", "evaluation_ratio", "time_ratio", "speed_time_ratio")):
             mean, std, n = _stat([row[i] for row in rows])
             stats[name], stats[f"{name}_se"] = mean, None if std is None else std / math.sqrt(n)
         out[key] = stats
@@ -84,18 +94,22 @@ def table7_comparison(t7: Sequence[dict[str, Any]], facts: Sequence[Any],
         same = r["method"] == paper.reference_method
         setting = (str(r.get("robot")), str(r.get("simulator")), str(r.get("preset")))
         stats = ({"pairs": r["runs"], "time_pairs": r["runs"], "interactions_ratio": 1.0, "evaluation_ratio": 1.0,
-                  "time_ratio": 1.0} if same else paired.get((setting, r["method"], r["optimizer"]), {"pairs": 0}))
-        for k in ("interactions_ratio", "evaluation_ratio", "time_ratio"):
+                  "time_ratio": 1.0, "speed_time_ratio": 1.0}
+                 if same else paired.get((setting, r["method"], r["optimizer"]), {"pairs": 0}))
+        for k in ("interactions_ratio", "evaluation_ratio", "time_ratio", "speed_time_ratio"):
             row[k], row[f"{k}_se"] = stats.get(k), stats.get(f"{k}_se")
         row["pairs"], row["time_pairs"] = stats["pairs"], stats.get("time_pairs", 0)
         row["paper_interactions_ratio"] = p["interactions_total"] / pref["interactions_total"]
         row["paper_evaluation_ratio"] = p["interactions_evaluation"] / pref["interactions_evaluation"]
         row["paper_time_ratio"] = p["hours_total"] / pref["hours_total"]
-        for name in ("interactions", "time"):
+        row["paper_speed_time_ratio"] = row["paper_time_ratio"]
+        for name in ("interactions", "time", "speed_time"):
             row[f"{name}_verdict"] = "reference" if same else _ratio_verdict(
                 row[f"{name}_ratio"], row[f"paper_{name}_ratio"], row[f"{name}_ratio_se"])
         if not same and row["pairs"] and not row["time_pairs"]:
-            row["time_verdict"] = "n/a (no pair made by the same code)"
+            row["time_verdict"] = row["speed_time_verdict"] = "n/a (no pair made by the same code)"
+        elif not same and row["time_pairs"] and row["speed_time_ratio"] is None:
+            row["speed_time_verdict"] = "n/a (no training to measure the machine's speed by)"
         out.append(row)
     return out
 

@@ -73,16 +73,17 @@ def test_method_order_counts_reversed_pairs_and_skips_the_papers_ties():
 
 def _record(rec: SqliteRecorder, method: str, seed: int, best: list[float], improvement: float, *, objective="torque",
             terrain="flat", optimizer="pso", plain: float | None = None, steps: int = 1000, evals: int = 4,
-            commit: str | None = "c0ffee") -> str:
+            commit: str | None = "c0ffee", slow: float = 1.0) -> str:
     """A finished run of the paper robot with a chosen best design and improvement, made by the
-    code of git commit `commit` (the wall clock pairs runs of one commit only)."""
+    code of git commit `commit` (the wall clock pairs runs of one commit only), on a machine
+    `slow` times slower than the reference (every second is `slow` seconds)."""
     config = {"method": method, "objective": objective, "terrain": terrain, "seed": seed, "preset": "smoke",
               "sim": "mujoco", "robot": "kuafu", "optimizer": optimizer}
     with mock.patch("coadapt_core.results.store.code_commit", return_value=commit):
         run_id = rec.start_run(config)
-    rec.record_training(run_id, outer=0, result=TrainingResult(steps=steps, seconds=1.0, mean_reward=0.0))
+    rec.record_training(run_id, outer=0, result=TrainingResult(steps=steps, seconds=1.0 * slow, mean_reward=0.0))
     designs = np.array([best] * evals)
-    rec.record_evaluations(run_id, outer=0, inner=0, designs=designs, kind="real", interactions=100, seconds=0.5,
+    rec.record_evaluations(run_id, outer=0, inner=0, designs=designs, kind="real", interactions=100, seconds=0.5 * slow,
                            costs=[{objective: 1.0}] * evals)
     summary = {"best_design": best, "best_cost": 1.0, "nominal_cost": 2.0, "improvement": improvement}
     if plain is not None:
@@ -220,6 +221,30 @@ def test_table7_wall_clock_pairs_only_runs_of_the_same_code(tmp_path):
     assert ret["time_verdict"] == "n/a (no pair made by the same code)"
     md = files["paper_comparison.md"].read_text()
     assert "| Ours w/o Surrogate | pso | 3 | 3 |" in md and "same clean git commit" in md
+
+
+def test_table7_wall_clock_at_equal_machine_speed(tmp_path):
+    """A run made while the machine was twice as slow takes twice the wall clock; divided by
+    its own seconds per training interaction it costs what it would have cost at full speed."""
+    rec = SqliteRecorder(tmp_path / "s.db")
+    for s in range(2):  # ours: 1000 training interactions in 1 s + 4 x 0.5 s
+        _record(rec, "ours", s, [0.5, 0.55], 0.4, steps=1000, evals=4)
+    for s, slow in ((0, 2.0), (1, 3.0)):  # the same work on a machine 2 and 3 times slower
+        _record(rec, "no-surrogate", s, [1.2, 0.6], 0.3, steps=1000, evals=4, slow=slow)
+    for s in range(2):  # BO's training: 2000 interactions at full speed, no evaluation rows
+        _record(rec, "bo-specialized", s, [0.5, 0.5], 0.3, optimizer="bo", steps=2000, evals=0)
+    _record(rec, "no-retrain", 0, [1.0, 1.0], 0.1, steps=0, evals=4)  # no training: no speed to measure
+    files = write_report(rec.store, None, tmp_path / "rep", sim2sim=False)
+    t7 = {r["method"]: r for r in read_csv(files["paper_table7.csv"])}
+    nos, bo, ret = t7["no-surrogate"], t7["bo-specialized"], t7["no-retrain"]
+    assert float(nos["time_ratio"]) == pytest.approx(2.5)  # 6/3 and 9/3
+    assert float(nos["speed_time_ratio"]) == pytest.approx(1.0) and float(nos["speed_time_ratio_se"]) == pytest.approx(0.0)
+    assert nos["speed_time_verdict"] == "within 2 SE of equal, the paper's is costlier"
+    # BO: 1 s per 2000 interactions is twice ours' speed per interaction: 1 s of wall at 2000 / s
+    # against 3 s at 1000 / s: 2000 against 3000 interaction-equivalents
+    assert float(bo["time_ratio"]) == pytest.approx(1 / 3) and float(bo["speed_time_ratio"]) == pytest.approx(2 / 3)
+    assert ret["speed_time_ratio"] == "" and ret["speed_time_verdict"].startswith("n/a (no training")
+    assert "| Ours w/o Surrogate | pso | 2 | 2 |" in files["paper_comparison.md"].read_text()
 
 
 def test_the_figure_beside_the_paper_draws_each_cell_with_its_error_bar(compared):
