@@ -95,5 +95,8 @@ def test_smoke_run_cost_splits_the_wall_clock(capsys, tmp_path):
     assert all(p["seconds"] >= 0 for p in phases.values())
     assert phases["real evaluation"]["interactions"] > 0 and phases["train"]["interactions"] > 0
     assert 0 < report["evaluation_vs_physics_ceiling"] < 2 and 0 < report["training_vs_physics_ceiling"] < 2
-    assert report["surrogate_share"] == pytest.approx(phases["surrogate"]["seconds"] / report["wall_seconds"], abs=0.01)
+    # the share is computed before rounding; the printed seconds are rounded to 0.1 s, which on a
+    # quick smoke run (a few seconds) moves their ratio by up to 0.05 * (1 + share) / wall
+    wall = report["wall_seconds"]
+    assert report["surrogate_share"] == pytest.approx(phases["surrogate"]["seconds"] / wall, abs=0.001 + 0.1 / wall)
     assert np.isfinite(report["improvement"])
