@@ -109,7 +109,8 @@ def table6_rows(facts: Sequence[RunFacts]) -> list[dict[str, Any]]:
         for i, name in enumerate(names):
             values = [f.best_design[i] if f.best_design and len(f.best_design) > i else None for f in group]
             _add_stat(row, name, values)
-            if i < len(group[0].design_discrete) and group[0].design_discrete[i]:  # a choice (a motor type): what each seed chose, not only its mean
+            # a choice (a motor type): what each seed chose, not only its mean
+            if i < len(group[0].design_discrete) and group[0].design_discrete[i]:
                 row[f"{name}_choices"] = " ".join("n/a" if v is None else str(round(float(v))) for v in values)
         _add_stat(row, "best_cost", [f.best_cost for f in group], [as_float(f.summary.get("best_cost_se")) for f in group])
         _add_stat(row, "nominal_cost", [f.nominal_cost for f in group],

@@ -52,8 +52,8 @@ class SimState:
     """Batched state after a step or reset. N = num_envs, J = actuated joints, L = legs.
 
     Quaternions are (w, x, y, z). Velocities of the base are in the world frame;
-    `base_frame()` expresses them (and gravity) in the base frame. Every tensor is finite: an environment whose physics
-    diverged has been reset and is flagged in `diverged`.
+    `base_frame()` expresses them (and gravity) in the base frame. Every tensor is finite:
+    an environment whose physics diverged has been reset and is flagged in `diverged`.
     """
 
     base_pos: torch.Tensor  # [N, 3] world
@@ -78,10 +78,10 @@ class SimState:
         quat = self.base_quat.float()
         gravity = torch.zeros_like(self.base_lin_vel, dtype=torch.float32)
         gravity[:, 2] = -1.0
-        return tuple(quat_rotate_inverse(quat, v) for v in (self.base_lin_vel.float(), self.base_ang_vel.float(), gravity))
+        return tuple(_quat_rotate_inverse(quat, v) for v in (self.base_lin_vel.float(), self.base_ang_vel.float(), gravity))
 
 
-def quat_rotate_inverse(quat: torch.Tensor, vec: torch.Tensor) -> torch.Tensor:
+def _quat_rotate_inverse(quat: torch.Tensor, vec: torch.Tensor) -> torch.Tensor:
     """World vectors vec [N, 3] expressed in the base frame of unit quaternions quat [N, 4]
     (w, x, y, z): R^T v = v (2w^2 - 1) - 2 w (q x v) + 2 q (q . v)."""
     w = quat[:, 0:1]
