@@ -36,7 +36,7 @@ from __future__ import annotations
 import re
 
 #: the version of the plugin interfaces (semantic: major.minor.patch)
-PLUGIN_API_VERSION = "2.0.0"
+PLUGIN_API_VERSION = "2.1.0"
 #: where a plugin author reads what changed and how to adapt
 MIGRATION_DOC = "docs/plugins.md#migration"
 #: the module attribute of a plugin's hook module declaring the version its classes target
@@ -125,6 +125,11 @@ def _flat(signature: dict[str, dict[str, str]]) -> dict[str, str]:
     return {f"{where}::{name}": text for where, members in signature.items() for name, text in members.items()}
 
 
+def _suite_test(key: str, text: str) -> bool:
+    """Whether a flat signature entry is a conformance suite's test method."""
+    return key.startswith("coadapt_core.testing.") and text.startswith("test(")
+
+
 def signature_changes(old: dict[str, dict[str, str]], new: dict[str, dict[str, str]]) -> dict[str, list[str]]:
     """{'removed': [...], 'changed': [...], 'added': [...]} between two signatures."""
     a, b = _flat(old), _flat(new)
@@ -138,11 +143,16 @@ def signature_changes(old: dict[str, dict[str, str]], new: dict[str, dict[str, s
 def required_bump(old: dict[str, dict[str, str]], new: dict[str, dict[str, str]]) -> str | None:
     """'major' when a plugin written against `old` may break under `new` (something removed
     or changed, an abstract method or a required record field added), 'minor' when things
-    were only added, None when nothing changed."""
+    were only added, None when nothing changed. A conformance suite's test is a check run on
+    a plugin, not an interface the plugin calls or implements: removing or renaming one
+    breaks no plugin (minor), adding one is minor (the plugin's suite has a check more)."""
     diff = signature_changes(old, new)
-    flat = _flat(new)
+    flat_old, flat = _flat(old), _flat(new)
     breaking_additions = [k for k in diff["added"] if flat[k].startswith("abstract ") or flat[k].endswith("(required)")]
-    if diff["removed"] or diff["changed"] or breaking_additions:
+    removed = [k for k in diff["removed"] if not _suite_test(k, flat_old[k])]
+    if diff["removed"] and not removed:
+        return "minor"  # a check dropped or renamed (and maybe things added): nothing a plugin relies on
+    if removed or diff["changed"] or breaking_additions:
         return "major"
     return "minor" if diff["added"] else None
 

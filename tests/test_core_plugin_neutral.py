@@ -40,13 +40,7 @@ FALLBACK = {"kuafu", "mujoco", "pybullet", "pso", "mixed-pso", "bo", "nsga2", "t
 CORE_WORDS = {"weights", "storage"}
 
 #: module -> (the findings it still has, why, the part of issue 27 that removes them)
-KNOWN_DEBT: dict[str, str] = {
-    "coadapt_core/testing/robots.py": "the robot conformance suite compiles MJCF with mujoco (next: a check the "
-                                      "simulator plugin declares)",
-    "coadapt_core/handoff/check.py": "the handoff's check.py runs the model in mujoco",
-    "coadapt_core/handoff/spec.py": "foot_facts reads the default pose's foot positions with mujoco",
-    "coadapt_core/handoff/sheet.py": "the design sheet measures the model with mujoco",
-}
+KNOWN_DEBT: dict[str, str] = {}
 
 #: (module, word) -> why it is the core's own word, not a built-in's
 EXEMPT: dict[tuple[str, str], str] = {

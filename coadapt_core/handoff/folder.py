@@ -46,7 +46,6 @@ from coadapt_core.handoff.run_info import find_run, provenance, read_run, sha256
 from coadapt_core.handoff.spec import FORMAT, foot_facts, policy_spec
 from coadapt_core.io import jsonable
 
-CHECK_SCRIPT = Path(__file__).with_name("check.py")
 #: rows of (observation, torch action) kept in reference.npz for check.py
 REFERENCE_ROWS = 256
 #: the check's forward command, m/s (clipped to the trained range)
@@ -206,10 +205,10 @@ def _evaluations(run: _Run, options: HandoffOptions, objectives: list[str], cont
     return evaluations
 
 
-def _sheet_data(run: _Run, model: Any, spec: dict[str, Any], **measured: Any) -> dict[str, Any]:
-    """design.json: the design, its body, joints, validation, and what was measured
-    (`evaluations`, `onnx`, `picture`, `provenance`)."""
-    body = sheet.link_facts(model)
+def _sheet_data(run: _Run, model: Any, spec: dict[str, Any], tools: Any, **measured: Any) -> dict[str, Any]:
+    """design.json: the design, its body (from the simulator's model `tools`), joints,
+    validation, and what was measured (`evaluations`, `onnx`, `picture`, `provenance`)."""
+    body = tools.link_facts(model)
     body["standing_base_height"] = float(model.standing_base_height)
     return {
         "format": FORMAT,
@@ -232,16 +231,18 @@ def _sheet_data(run: _Run, model: Any, spec: dict[str, Any], **measured: Any) ->
     }
 
 
-def _listing(files: dict[str, str], model_files: Any, partial: Path, video_name: str) -> list[tuple[str, str]]:
+def _listing(files: dict[str, str], model_files: Any, partial: Path, video_name: str,
+             check_by: str | None) -> list[tuple[str, str]]:
     """The README's table of the folder's files."""
     return [
-        (files["mjcf"], "the design's MJCF (MuJoCo), from the robot plugin"),
-        (files["urdf"], "the design's URDF (Pinocchio, PyBullet, ROS)"),
+        (files["mjcf"], "the design's MJCF, from the robot plugin"),
+        (files["urdf"], "the design's URDF (Pinocchio, ROS and the engines that read it)"),
         *([("assets/", "files the models reference")] if model_files.assets else []),
         ("policy.onnx", "the controller: observation in, actions and joint targets out"),
         ("policy.json", "observation and action layouts, PD gains, rates, gait clock, commands, terrain"),
         ("design.md", "the design sheet (design.json: the same as data)"),
-        ("check.py", "walks the model with the ONNX controller in MuJoCo (no coadapt needed)"),
+        *([("check.py", f"walks the model with the ONNX controller in {check_by} (no coadapt needed)")]
+          if check_by else []),
         ("reference.npz", "recorded observations and the torch policy's actions on them"),
         *([(f"{video_name}.gif", "the design (left) and the nominal one (right) walking")]
           if (partial / f"{video_name}.gif").is_file() else []),
@@ -265,16 +266,21 @@ def _write_folder(run: _Run, options: HandoffOptions, partial: Path, say: Callab
     """Every file of the handoff folder into `partial`; returns design.json's data."""
     from coadapt_core.viz.video import VIDEO_NAME
 
+    from coadapt_core.physics.model_tools import tool_simulators, tools_for
+
     model, model_files = _model_files(run, partial, say)
+    tools = tools_for(run.registry, model, prefer=run.sim_name)
+    check_by = tool_simulators(run.registry, model.formats, run.sim_name)[0] if tools.HANDOFF_CHECK else None
     walked, verification, onnx_path = _controller(run, partial, say)
     files = {"mjcf": model_files.mjcf.name, "urdf": model_files.urdf.name, "onnx": onnx_path.name,
              "reference": "reference.npz"}
     spec = policy_spec(robot=run.robot, model=model, design=run.design, space=run.space, state=run.state,
-                       rollout=walked, terrain=run.terrain, verification=verification, foot=foot_facts(model),
+                       rollout=walked, terrain=run.terrain, verification=verification, foot=foot_facts(model, tools),
                        files=files)
     spec["policies"] = _judges(run)
     (partial / "policy.json").write_text(json.dumps(jsonable(spec), indent=2) + "\n")
-    shutil.copy(CHECK_SCRIPT, partial / "check.py")
+    if check_by:
+        shutil.copy(tools.HANDOFF_CHECK, partial / "check.py")
     objectives = list((run.summary.get("best_costs") or {}).keys()) or [str(run.config.get("objective") or "")]
     evaluations = _evaluations(run, options, objectives, walked["control_dt"], say)
     policies = {"best": run.checkpoint, "nominal": run.nominal_checkpoint}
@@ -284,9 +290,9 @@ def _write_folder(run: _Run, options: HandoffOptions, partial: Path, say: Callab
     origin = provenance(run.run_dir, run.config, run.summary, robot=run.robot, objectives=objectives, seed=run.seed,
                         simulator=run.sim_name, checkpoint=run.checkpoint, state=run.state,
                         nominal_checkpoint=run.nominal_checkpoint if run.own_policies else None)
-    sheet_data = _sheet_data(run, model, spec, evaluations=evaluations, onnx=verification, picture=gif_note,
+    sheet_data = _sheet_data(run, model, spec, tools, evaluations=evaluations, onnx=verification, picture=gif_note,
                              provenance=origin)
-    if options.check:
+    if options.check and check_by:
         vx = min(CHECK_VX, spec["commands"]["trained"]["vx"][1])
         sheet_data["controller_check"] = check = run_check(partial, options.check_seconds, vx)
         say("check.py: " + (check["error"] if "error" in check else
@@ -294,8 +300,9 @@ def _write_folder(run: _Run, options: HandoffOptions, partial: Path, say: Callab
             f"{vx:g} m/s for {check['seconds']:g} s"))
     (partial / "design.json").write_text(json.dumps(jsonable(sheet_data), indent=2) + "\n")
     (partial / "design.md").write_text(sheet.render_markdown(jsonable(sheet_data)))
-    listing = _listing(files, model_files, partial, VIDEO_NAME)
-    (partial / "README.md").write_text(readme_text(spec, jsonable(sheet_data), listing))
+    listing = _listing(files, model_files, partial, VIDEO_NAME, check_by)
+    usage = tools.handoff_usage(spec["rates"], files["mjcf"]) if check_by else ""
+    (partial / "README.md").write_text(readme_text(spec, jsonable(sheet_data), listing, usage))
     return sheet_data
 
 

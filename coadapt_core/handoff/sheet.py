@@ -4,9 +4,10 @@ validation) and what it was measured to do (objective costs with standard errors
 rates against the nominal design on paired scenarios, per simulator), as `design.json` and
 the one-page `design.md`.
 
-Link facts are read from the design's own MJCF (compiled, nothing simulated), so they hold
-for any robot plugin: each body's offset from its parent (for a serial leg, the length of
-the segment above it), mass, centre of mass and principal moments of inertia.
+Link facts come from the run's simulator's model tools (`coadapt_core.physics.model_tools`:
+the design's model compiled, nothing simulated), so they hold for any robot plugin: each
+body's offset from its parent (for a serial leg, the length of the segment above it), mass,
+centre of mass and principal moments of inertia.
 """
 
 from __future__ import annotations
@@ -18,50 +19,6 @@ import numpy as np
 
 from coadapt_core.io import jsonable
 from coadapt_core.robot import joint_table
-
-
-def link_facts(model: Any) -> dict[str, Any]:
-    """Bodies, total mass and height of a `RobotModel` at its default pose, read from its MJCF."""
-    import mujoco
-
-    mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
-    data = mujoco.MjData(mj)
-    base = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, model.base_body)
-    if base >= 0 and mj.body_jntnum[base] > 0 and mj.jnt_type[mj.body_jntadr[base]] == mujoco.mjtJoint.mjJNT_FREE:
-        adr = mj.jnt_qposadr[mj.body_jntadr[base]]
-        data.qpos[adr : adr + 7] = [0.0, 0.0, model.standing_base_height, 1.0, 0.0, 0.0, 0.0]
-    for name, q in zip(model.joint_names, model.default_joint_pos, strict=True):
-        data.qpos[mj.jnt_qposadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, name)]] = q
-    mujoco.mj_kinematics(mj, data)
-    links = []
-    for b in range(1, mj.nbody):
-        parent = int(mj.body_parentid[b])
-        joints = [mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_JOINT, j)
-                  for j in range(mj.body_jntadr[b], mj.body_jntadr[b] + mj.body_jntnum[b])]
-        links.append({
-            "name": mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_BODY, b) or f"body{b}",
-            "parent": (mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_BODY, parent) or "world") if parent else "world",
-            "joints": [j for j in joints if j],
-            "offset_from_parent": float(np.linalg.norm(mj.body_pos[b])) if parent else None,
-            "mass": float(mj.body_mass[b]),
-            "com": [float(x) for x in mj.body_ipos[b]],
-            "principal_inertia": [float(x) for x in mj.body_inertia[b]],
-        })
-    # height: the geoms' bounding boxes at the default pose, the base at its standing height
-    low, high = math.inf, -math.inf
-    for g in range(mj.ngeom):
-        if mj.geom_bodyid[g] == 0:
-            continue
-        centre, half = mj.geom_aabb[g, :3], mj.geom_aabb[g, 3:]
-        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half + centre
-        z = data.geom_xpos[g, 2] + corners @ data.geom_xmat[g].reshape(3, 3)[2]
-        low, high = min(low, float(z.min())), max(high, float(z.max()))
-    return {
-        "links": links,
-        "total_mass": float(mj.body_subtreemass[0]),
-        "height": high - low if math.isfinite(high) else None,
-        "lowest_point": low if math.isfinite(low) else None,
-    }
 
 
 def design_parameters(space: Any, design: np.ndarray) -> list[dict[str, Any]]:

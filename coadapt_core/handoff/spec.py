@@ -187,19 +187,11 @@ def policy_spec(*, robot: Any, model: Any, design: np.ndarray, space: Any, state
     }
 
 
-def foot_facts(model: Any) -> dict[str, Any]:
-    """Each foot body's origin relative to the base (x, y) at the default pose, and a sole's
-    reach around it (the spawn rule of `coadapt_core.physics.simulator.spawn_base_height`)."""
-    import mujoco
-
-    mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
-    data = mujoco.MjData(mj)
-    for name, q in zip(model.joint_names, model.default_joint_pos, strict=True):
-        data.qpos[mj.jnt_qposadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, name)]] = q
-    mujoco.mj_kinematics(mj, data)
-    base = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, model.base_body)
-    feet = [mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, f) for f in model.foot_bodies]
-    xy = data.xpos[feet, :2] - data.xpos[base, :2]
+def foot_facts(model: Any, tools: Any) -> dict[str, Any]:
+    """Each foot body's origin relative to the base (x, y) at the default pose, read with the
+    simulator's model `tools`, and a sole's reach around it (the spawn rule of
+    `coadapt_core.physics.simulator.spawn_base_height`)."""
+    xy = np.asarray(tools.foot_positions(model, model.default_joint_pos), dtype=float)[:, :2]
     pts = np.asarray(model.foot_contact_points, dtype=float).reshape(-1, 3)
     radius = float(np.max(np.linalg.norm(pts[:, :2], axis=1))) if len(pts) else 0.15
     return {"foot_xy": xy.tolist(), "foot_radius": radius}

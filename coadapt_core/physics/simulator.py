@@ -148,6 +148,10 @@ class Simulator(ABC):
     #: the module (dotted path) of the backend's offscreen renderer, "" for none: pictures and
     #: videos (`coadapt_core.viz.video`) are drawn by it (docs/plugins.md section 7)
     renderer: ClassVar[str] = ""
+    #: the module (dotted path) of the backend's model tools, "" for none: facts of a robot
+    #: model outside a batched simulation (links, feet at a pose, actuated joints) and the
+    #: handoff folder's standalone check (`coadapt_core.physics.model_tools`)
+    model_tools: ClassVar[str] = ""
     #: dtype of the backend's actuation and of `env_params` (the state stays float32)
     dtype: ClassVar[torch.dtype] = torch.float64
 

@@ -1,9 +1,12 @@
 """Conformance suite for `Robot` plugins. Supply a fixture `robot` (an instance).
 
 Besides shapes and consistency it checks the contracts the loop and the task rely on: the
-MJCF contract (one actuator per actuated joint; the model stands on flat ground in MuJoCo
-under its own PD gains), validation findings that are plain JSON, legs declared in the
-order of `foot_bodies` and of the IK, and the gait phase offsets.
+model contract (one actuator per actuated joint; the model stands on flat ground under its
+own PD gains in every installed simulator that reads one of its formats), validation
+findings that are plain JSON, legs declared in the order of `foot_bodies` and of the IK, and
+the gait phase offsets. Model facts (names, mass, actuators, feet at a pose) are read with a
+simulator's model tools (`coadapt_core.physics.model_tools`), so the suite serves robots of
+any format that an installed simulator reads.
 """
 
 from __future__ import annotations
@@ -18,23 +21,33 @@ from coadapt_core.errors import DesignError
 from coadapt_core.robot import Leg, Robot, RobotModel, ValidationReport
 
 
-def _floor_model(mjcf: str):
-    """The robot's MJCF on a flat floor plane (conaffinity 1, as the simulators' terrains)."""
-    import mujoco
+def _tools(model: RobotModel):
+    """The model tools of an installed simulator that reads one of the model's formats (the
+    default simulator's first); skipped, with the reason, where none is installed."""
+    from coadapt_core.errors import UserError
+    from coadapt_core.physics.model_tools import tools_for
+    from coadapt_core.plugins import get_registry
 
-    spec = mujoco.MjSpec.from_string(mjcf)
-    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[5, 5, 0.1], contype=0, conaffinity=1)
-    return spec.compile()
+    try:
+        return tools_for(get_registry(), model)
+    except UserError as exc:
+        pytest.skip(str(exc))
 
 
-def _qpos_addresses(mj, names: list[str]) -> np.ndarray:
-    import mujoco
+def _reading_simulators(model: RobotModel) -> list[type]:
+    """Every installed simulator class that reads one of the model's formats."""
+    from coadapt_core.plugins import get_registry
 
-    return np.array([mj.jnt_qposadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, n)] for n in names])
+    registry = get_registry()
+    classes = [registry.get("simulator", n) for n in registry.names("simulator")]
+    found = [c for c in classes if set(getattr(c, "model_formats", ())) & set(model.formats)]
+    if not found:
+        pytest.skip(f"no installed simulator reads the model formats {', '.join(sorted(model.formats))}")
+    return found
 
 
 class RobotConformance:
-    """Every robot: design spaces, models that MuJoCo loads, validation, leg kinematics."""
+    """Every robot: design spaces, models an installed simulator reads, validation, leg kinematics."""
 
     def test_is_robot_with_name(self, robot: Robot) -> None:
         assert isinstance(robot, Robot)
@@ -48,8 +61,6 @@ class RobotConformance:
         assert space.contains(nominal)
 
     def test_build_models_consistent(self, robot: Robot) -> None:
-        import mujoco
-
         for design in robot.design_space().sample(3, rng=0):
             model = robot.build(design)
             assert isinstance(model, RobotModel)
@@ -61,13 +72,14 @@ class RobotConformance:
             assert np.all(model.default_joint_pos >= model.joint_lower)
             assert np.all(model.default_joint_pos <= model.joint_upper)
             assert model.total_mass > 0 and model.standing_base_height > 0
-            mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
+            facts = _tools(model).link_facts(model)
+            bodies = {link["name"] for link in facts["links"]}
+            joints = {name for link in facts["links"] for name in link["joints"]}
             for name in model.joint_names:
-                assert mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, name) >= 0, name
+                assert name in joints, name
             for name in [*model.foot_bodies, model.base_body]:
-                assert mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, name) >= 0, name
-            assert "<robot" in model.text("urdf")
-            assert float(mj.body_subtreemass[0]) == pytest.approx(model.total_mass, rel=1e-6)
+                assert name in bodies, name
+            assert facts["total_mass"] == pytest.approx(model.total_mass, rel=1e-6)
 
     def test_out_of_space_design_rejected(self, robot: Robot) -> None:
         space = robot.design_space()
@@ -100,16 +112,12 @@ class RobotConformance:
             np.testing.assert_allclose(q[i].numpy(), model.default_joint_pos, atol=1e-3)
 
     def test_one_actuator_per_joint(self, robot: Robot) -> None:
-        """The MJCF contract: exactly one joint actuator per actuated joint (the simulators
+        """The model contract: exactly one joint actuator per actuated joint (the simulators
         drive joint j through it), and no actuator on anything else."""
-        import mujoco
-
         model = robot.build(robot.nominal_design())
-        mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
-        driven = []
-        for a in range(mj.nu):
-            assert mj.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT, f"actuator {a} does not drive a joint"
-            driven.append(mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_JOINT, int(mj.actuator_trnid[a, 0])))
+        driven = _tools(model).actuated_joints(model)
+        for a, name in enumerate(driven):
+            assert name is not None, f"actuator {a} does not drive a joint"
         for name in model.joint_names:
             assert driven.count(name) == 1, f"joint '{name}' has {driven.count(name)} actuators (needs exactly 1)"
         assert sorted(driven) == sorted(model.joint_names), f"actuators on {driven}, joints {model.joint_names}"
@@ -142,27 +150,18 @@ class RobotConformance:
         assert robot.default_foot_positions(nominal).shape == (1, len(legs), 3)
 
     def test_ik_leg_order_matches_foot_bodies(self, robot: Robot) -> None:
-        """Moving IK leg l's foot target moves foot body l (and no other foot) in MuJoCo, by
+        """Moving IK leg l's foot target moves foot body l (and no other foot) in the model, by
         about the requested distance: the IK and `foot_bodies` list the legs alike."""
-        import mujoco
         import torch
 
         design = robot.nominal_design()
         model = robot.build(design)
-        mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
-        data = mujoco.MjData(mj)
-        addr = _qpos_addresses(mj, model.joint_names)
-        feet_ids = [mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, f) for f in model.foot_bodies]
-        base_id = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, model.base_body)
+        tools = _tools(model)
         designs = torch.as_tensor(design, dtype=torch.float64)[None]
         default_feet = robot.default_foot_positions(designs)
 
         def feet_in_base(q: np.ndarray) -> np.ndarray:
-            data.qpos[:] = mj.qpos0
-            data.qpos[addr] = q
-            mujoco.mj_kinematics(mj, data)
-            rot = data.xmat[base_id].reshape(3, 3)
-            return np.stack([rot.T @ (data.xpos[i] - data.xpos[base_id]) for i in feet_ids])
+            return np.asarray(tools.foot_positions(model, q), dtype=float)
 
         rest = feet_in_base(robot.leg_inverse_kinematics(designs, default_feet)[0].numpy())
         step = 0.02
@@ -175,32 +174,28 @@ class RobotConformance:
             assert abs(moved[leg, 0] - step) < 0.5 * step, (
                 f"IK leg {leg} moved foot body '{model.foot_bodies[leg]}' by {moved[leg]} for a {step} m step in x")
 
-    def test_stands_in_mujoco(self, robot: Robot) -> None:
-        """Dropped at its standing height onto a flat floor and held at the default pose by
-        its own PD gains (torques clipped to its limits), the nominal design stays up for
-        1 s: the base keeps > 70 % of its standing height and stays within 30 deg of upright."""
-        import mujoco
+    def test_stands_in_each_simulator(self, robot: Robot) -> None:
+        """Spawned at its standing height on flat ground (nominal physics, no randomization)
+        and held at the default pose by its own PD gains (the simulator's actuation: torque
+        limits, torque-speed envelope), the nominal design stays up for 1 s in every installed
+        simulator that reads one of its formats: the base keeps > 70 % of its standing
+        height and stays within 30 deg of upright."""
+        from coadapt_core.physics.randomization import RandomizationConfig
 
-        model = robot.build(robot.nominal_design())
-        mj = _floor_model(model.text("mjcf"))
-        data = mujoco.MjData(mj)
-        addr = _qpos_addresses(mj, model.joint_names)
-        vaddr = np.array([mj.jnt_dofadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, n)] for n in model.joint_names])
-        act = {mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_JOINT, int(mj.actuator_trnid[a, 0])): a for a in range(mj.nu)}
-        order = np.array([act[n] for n in model.joint_names])
-        gear = mj.actuator_gear[order, 0]
-        data.qpos[:] = mj.qpos0
-        data.qpos[2] = model.standing_base_height + 0.005
-        data.qpos[3:7] = [1, 0, 0, 0]
-        data.qpos[addr] = model.default_joint_pos
-        dt = mj.opt.timestep
-        for _ in range(int(round(1.0 / dt))):
-            q, qd = data.qpos[addr], data.qvel[vaddr]
-            tau = np.clip(model.kp * (model.default_joint_pos - q) - model.kd * qd, -model.torque_limit, model.torque_limit)
-            data.ctrl[order] = tau / gear
-            mujoco.mj_step(mj, data)
-        height = float(data.qpos[2])
-        w = float(data.qpos[3])
-        tilt = math.degrees(2 * math.acos(min(1.0, abs(w))))
-        assert height > 0.7 * model.standing_base_height, f"base fell to {height:.3f} m of {model.standing_base_height:.3f}"
-        assert tilt < 30, f"base tilted {tilt:.0f} deg"
+        design = robot.nominal_design()
+        model = robot.build(design)
+        for sim_cls in _reading_simulators(model):
+            if "flat" not in sim_cls.terrains:
+                continue
+            with sim_cls(robot, design[None], terrain="flat", randomization=RandomizationConfig.off(), seed=0) as sim:
+                sim.reset()
+                targets = sim.default_joint_pos.clone()
+                for _ in range(int(round(1.0 / sim.control_dt))):
+                    state = sim.step(targets)
+                height = float(state.base_pos[0, 2] - state.terrain_height[0])
+                w = float(state.base_quat[0, 0])
+            tilt = math.degrees(2 * math.acos(min(1.0, abs(w))))
+            where = f"in {sim_cls.name}"
+            assert height > 0.7 * model.standing_base_height, (
+                f"base fell to {height:.3f} m of {model.standing_base_height:.3f} {where}")
+            assert tilt < 30, f"base tilted {tilt:.0f} deg {where}"

@@ -73,6 +73,14 @@ def test_bump_rules_catch_a_change_the_version_does_not_account_for():
     required["coadapt_core.objective.StepBatch (fields)"]["power"] = "field: torch.Tensor (required)"
     assert required_bump(old, required) == "major"
     assert required_bump(old, copy.deepcopy(old)) is None
+    renamed = copy.deepcopy(old)  # a suite's check renamed: it runs on the plugin under its new name
+    suite = renamed["coadapt_core.testing.RobotConformance"]
+    suite["test_renamed_check"] = suite.pop("test_one_actuator_per_joint")
+    assert required_bump(old, renamed) == "minor"
+    assert bump_problem("2.0.0", old, "2.1.0", renamed) is None
+    fixture = copy.deepcopy(old)  # a suite's fixture is what a plugin's tests supply or use: removing it breaks them
+    del fixture["coadapt_core.testing.SimulatorConformance"]["make"]
+    assert required_bump(old, fixture) == "major"
 
 
 def test_record_refuses_an_unbumped_change(tmp_path, monkeypatch):
@@ -84,12 +92,13 @@ def test_record_refuses_an_unbumped_change(tmp_path, monkeypatch):
     path.write_text(json.dumps(data))
     with pytest.raises(ValueError, match="PLUGIN_API_VERSION"):
         api_signature.record(path)
-    monkeypatch.setattr(plugin_api, "PLUGIN_API_VERSION", "2.1.0")  # 'gone' removed: minor is not enough
+    major, minor, _ = (int(x) for x in plugin_api.PLUGIN_API_VERSION.split("."))
+    monkeypatch.setattr(plugin_api, "PLUGIN_API_VERSION", f"{major}.{minor + 1}.0")  # 'gone' removed: minor is not enough
     with pytest.raises(ValueError, match="major"):
         api_signature.record(path)
-    monkeypatch.setattr(plugin_api, "PLUGIN_API_VERSION", "3.0.0")
+    monkeypatch.setattr(plugin_api, "PLUGIN_API_VERSION", f"{major + 1}.0.0")
     assert api_signature.record(path) == "recorded"
-    assert [e["version"] for e in json.loads(path.read_text())["history"]] == ["2.0.0", "3.0.0"]
+    assert [e["version"] for e in json.loads(path.read_text())["history"]] == [f"{major}.{minor}.0", f"{major + 1}.0.0"]
 
 
 @pytest.mark.parametrize("declared", [None, "2", "2.0", "2.0.0", 2])

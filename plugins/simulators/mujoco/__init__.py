@@ -6,7 +6,7 @@ from __future__ import annotations
 from coadapt_core import hookimpl
 
 #: the coadapt plugin API version this plugin is written for (docs/plugins.md#migration)
-COADAPT_PLUGIN_API = "2.0"
+COADAPT_PLUGIN_API = "2.1"
 
 
 @hookimpl

@@ -87,6 +87,7 @@ class MujocoSimulator(Simulator):
     description = "MuJoCo 4 on a C thread pool (mujoco.batch), one model per design, CPU"
     model_formats = ("mjcf",)  # the robot model it compiles
     renderer = "coadapt_plugins.simulators.mujoco.render"  # pictures and videos, offscreen
+    model_tools = "coadapt_plugins.simulators.mujoco.model_tools"  # link facts, feet, handoff check
 
     def __init__(self, robot: Robot, designs: np.ndarray, **options: Any):
         """The `Simulator` options (terrain, randomization, physics_dt, decimation, seed,
