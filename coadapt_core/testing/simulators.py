@@ -12,7 +12,7 @@ import pytest
 from coadapt_core.errors import UserError
 from coadapt_core.physics.actuation import pd_torque
 from coadapt_core.physics.randomization import RandomizationConfig, sample_env_params
-from coadapt_core.physics.simulator import SPAWN_MARGIN, SPAWN_STREAM_KEY, SimState, Simulator
+from coadapt_core.physics.simulator import SPAWN_MARGIN, SPAWN_STREAM_KEY, SimState, Simulator, quat_rotate
 from coadapt_core.robot import Robot
 
 
@@ -252,3 +252,40 @@ class SimulatorConformance:
                     state = sim.step(sim.default_joint_pos)
                 finals.append(state.joint_pos.clone())
         assert torch.allclose(finals[0], finals[1])
+
+    def test_model_tools_keep_their_contract(self, simulator_cls, robot) -> None:
+        """A backend declaring `model_tools` (coadapt_core.physics.model_tools): the module
+        imports, and on the robot's nominal model its link facts name every joint, foot and
+        the base and weigh what the model says, its foot positions at the default pose are the
+        simulator's own (base frame, the base welded at its spawn point), its
+        actuators drive each joint once, and its handoff script, when it has one, exists."""
+        import importlib
+        from pathlib import Path
+
+        if not simulator_cls.model_tools:
+            pytest.skip(f"{simulator_cls.name} declares no model tools")
+        tools = importlib.import_module(simulator_cls.model_tools)
+        model = robot.build(robot.nominal_design())
+        if not set(simulator_cls.model_formats) & set(model.formats):
+            pytest.skip(f"{simulator_cls.name} reads none of the robot's model formats")
+        facts = tools.link_facts(model)
+        names = {link["name"] for link in facts["links"]}
+        assert {model.base_body, *model.foot_bodies} <= names
+        assert set(model.joint_names) <= {j for link in facts["links"] for j in link["joints"]}
+        assert facts["total_mass"] == pytest.approx(model.total_mass, rel=1e-6)
+        feet = np.asarray(tools.foot_positions(model, model.default_joint_pos), dtype=float)
+        assert feet.shape == (len(model.foot_bodies), 3) and np.all(np.isfinite(feet))
+        with self.make(simulator_cls, robot, n=1, fixed_base=True) as sim:  # the nominal design, default pose
+            state = sim.reset()
+            q = state.base_quat[0].double().cpu().numpy()
+            inverse = np.array([q[0], -q[1], -q[2], -q[3]])
+            rel = (state.foot_pos[0] - state.base_pos[0]).double().cpu().numpy()  # [F, 3] world frame
+            own = quat_rotate(np.tile(inverse, (len(rel), 1)), rel)
+        np.testing.assert_allclose(feet, own, atol=2e-3, err_msg="model tools' feet vs the simulator's, base frame")
+        driven = tools.actuated_joints(model)
+        assert sorted(d for d in driven if d is not None) == sorted(model.joint_names)
+        check = getattr(tools, "HANDOFF_CHECK", None)
+        assert check is None or Path(check).is_file(), check
+        if check is not None:
+            assert tools.handoff_usage({"physics_dt": 0.005, "control_dt": 0.02, "decimation": 4, "control_hz": 50},
+                                       "robot.xml").strip()
