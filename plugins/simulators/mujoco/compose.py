@@ -169,8 +169,8 @@ def compile_design(
 
 
 class ModelCache:
-    """Compiled designs keyed by (design, terrain, seed, fixed_base, physics_dt), least
-    recently used evicted beyond `capacity`."""
+    """Compiled designs keyed by (robot class and name, design, terrain, fixed_base,
+    physics_dt), least recently used evicted beyond `capacity`."""
 
     def __init__(self, capacity: int = 256):
         self.capacity = capacity
@@ -181,7 +181,9 @@ class ModelCache:
     def get(
         self, robot: Robot, design: np.ndarray, terrain: Terrain, *, physics_dt: float, fixed_base: bool
     ) -> CompiledDesign:
-        key = (robot.name, tuple(np.round(np.asarray(design, dtype=float), 12)), terrain, fixed_base, physics_dt)
+        # the robot's class as well as its name: a subclass (a test's planted fault, a
+        # variant) named like its parent builds other models and must not read the parent's
+        key = (type(robot), robot.name, tuple(np.round(np.asarray(design, dtype=float), 12)), terrain, fixed_base, physics_dt)
         item = self._items.get(key)
         if item is not None:
             self.hits += 1

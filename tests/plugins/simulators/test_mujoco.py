@@ -475,3 +475,23 @@ def test_close_joins_the_batch_threads(kuafu) -> None:
     assert threads() >= before + 2  # the caller's thread plus two workers
     sim.close()
     assert threads() == before
+
+
+def test_a_robot_subclass_named_like_its_parent_gets_its_own_compiled_models():
+    """The compiled-model cache is keyed by the robot's class too: a variant named like its
+    parent (here with 2 % of its PD gains, a planted fault a conformance suite must see)
+    is compiled from its own build, before and after the parent's."""
+    import dataclasses
+
+    class Weak(Kuafu):
+        def build(self, design):
+            model = super().build(design)
+            return dataclasses.replace(model, kp=model.kp * 0.02, kd=model.kd * 0.02)
+
+    design = Kuafu().nominal_design()[None]
+    kp = {}
+    for robot in (Kuafu(), Weak(), Kuafu()):
+        with MujocoSimulator(robot, design, randomization=RandomizationConfig.off()) as sim:
+            kp.setdefault(type(robot).__name__, []).append(float(sim._compile(design[0]).robot_model.kp[0]))
+    assert kp["Weak"][0] == pytest.approx(0.02 * kp["Kuafu"][0])
+    assert kp["Kuafu"][0] == kp["Kuafu"][1]
