@@ -264,9 +264,8 @@ def _model_files(run: _Run, partial: Path, say: Callable[[str], None]) -> tuple[
 
 def _write_folder(run: _Run, options: HandoffOptions, partial: Path, say: Callable[[str], None]) -> dict[str, Any]:
     """Every file of the handoff folder into `partial`; returns design.json's data."""
-    from coadapt_core.viz.video import VIDEO_NAME
-
     from coadapt_core.physics.model_tools import tool_simulators, tools_for
+    from coadapt_core.viz.video import VIDEO_NAME
 
     model, model_files = _model_files(run, partial, say)
     tools = tools_for(run.registry, model, prefer=run.sim_name)

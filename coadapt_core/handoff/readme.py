@@ -7,7 +7,6 @@ from typing import Any
 
 from coadapt_core import __version__
 
-
 CHECK_SECTION = """## Check it
 
     python check.py             # 10 s at 0.5 m/s on the model: survival, speed, ONNX vs torch

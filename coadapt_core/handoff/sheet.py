@@ -161,4 +161,4 @@ def render_markdown(sheet: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-__all__ = ["design_parameters", "joint_table", "jsonable", "link_facts", "render_markdown"]
+__all__ = ["design_parameters", "joint_table", "jsonable", "render_markdown"]
