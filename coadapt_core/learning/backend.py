@@ -124,6 +124,9 @@ class UniversalPolicyBackend:
         self.fitted_columns: list[int] | None = None
         self.use_fitted = True  # False: surrogate_fitness is the paper's estimator even when fitted
         self.surrogate_members_count = MEMBERS
+        #: further `fit_ensemble` arguments (steps, batch, lr): the fit's defaults when empty
+        #: (benchmarks/surrogate_fit_cost.py varies them)
+        self.surrogate_fit_options: dict[str, Any] = {}
         if checkpoint:
             self.load(checkpoint)
 
@@ -314,6 +317,7 @@ class UniversalPolicyBackend:
             self.fitted = fit_ensemble(
                 self.ppo.pseudo_critic, columns, scale, norm.mean[:m], states, self.trainer_normalize(designs[ok]),
                 torch.as_tensor(costs[ok], dtype=torch.float32), members=self.surrogate_members_count, seed=seed,
+                **self.surrogate_fit_options,
             )
         self.fitted_columns = columns
 
