@@ -264,12 +264,12 @@ def _model_files(run: _Run, partial: Path, say: Callable[[str], None]) -> tuple[
 
 def _write_folder(run: _Run, options: HandoffOptions, partial: Path, say: Callable[[str], None]) -> dict[str, Any]:
     """Every file of the handoff folder into `partial`; returns design.json's data."""
-    from coadapt_core.physics.model_tools import tool_simulators, tools_for
+    from coadapt_core.physics.model_tools import tools_for
     from coadapt_core.viz.video import VIDEO_NAME
 
     model, model_files = _model_files(run, partial, say)
-    tools = tools_for(run.registry, model, prefer=run.sim_name)
-    check_by = tool_simulators(run.registry, model.formats, run.sim_name)[0] if tools.HANDOFF_CHECK else None
+    tools_sim, tools = tools_for(run.registry, model, prefer=run.sim_name)
+    check_by = tools_sim if tools.HANDOFF_CHECK else None  # the simulator check.py walks the model in
     walked, verification, onnx_path = _controller(run, partial, say)
     files = {"mjcf": model_files.mjcf.name, "urdf": model_files.urdf.name, "onnx": onnx_path.name,
              "reference": "reference.npz"}

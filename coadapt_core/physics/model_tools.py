@@ -18,7 +18,7 @@ robot's model in one of the simulator's `model_formats` and offers:
         the handoff README's section on loading the model and running the controller
 
 The core picks the run's simulator's tools, else those of the first installed simulator that
-declares tools and reads one of the model's formats (`tools_for`); a robot plugin's
+declares tools and reads one of the model's formats (`tools_for`, which names that simulator); a robot plugin's
 conformance suite does the same, so a third-party simulator that reads a new format brings
 its own tools and needs no change here.
 """
@@ -43,13 +43,13 @@ def tool_simulators(registry: Any, formats: Any, prefer: str | None = None) -> l
             and wanted & set(getattr(registry.get("simulator", n), "model_formats", ()))]
 
 
-def tools_for(registry: Any, model: Any, prefer: str | None = None) -> ModuleType:
-    """The model tools module for `model` (a `RobotModel`): `prefer`'s (a simulator name) when
-    it declares some and reads one of the model's formats, else the first other installed
-    simulator's that does; a one-line `UserError` when none does."""
+def tools_for(registry: Any, model: Any, prefer: str | None = None) -> tuple[str, ModuleType]:
+    """(simulator name, model tools module) for `model` (a `RobotModel`): `prefer`'s (a
+    simulator name) when it declares tools and reads one of the model's formats, else the
+    first other installed simulator's that does; a one-line `UserError` when none does."""
     names = tool_simulators(registry, getattr(model, "formats", {}) or {}, prefer)
     if not names:
         given = ", ".join(sorted(getattr(model, "formats", {}) or {})) or "none"
         raise UserError(f"no installed simulator plugin declares model tools (Simulator.model_tools) for the "
                         f"model formats {given}", field="simulator")
-    return importlib.import_module(str(registry.get("simulator", names[0]).model_tools))
+    return names[0], importlib.import_module(str(registry.get("simulator", names[0]).model_tools))

@@ -7,7 +7,6 @@ same rows by training them again with the run's seeds."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import shutil
 from pathlib import Path
@@ -21,6 +20,7 @@ from coadapt_core.experiments.own_policies import saved_policies, shares_policy
 from coadapt_core.experiments.yardstick import yardstick_rows, yardstick_runs
 from coadapt_core.learning.checkpoints import read_checkpoint
 from coadapt_core.results import SqliteRecorder
+from tests.benchmarks import load_benchmark
 
 pytestmark = pytest.mark.slow
 ROOT = Path(__file__).resolve().parents[2]
@@ -80,9 +80,7 @@ def test_a_bo_run_checks_finally_keeps_its_policies_and_old_runs_get_them_again(
     assert not (old / "checkpoints").exists()  # nothing written into the run's folder
 
     # benchmarks/bo_retrain_check.py on the older folder: the recorded costs, to the bit
-    spec = importlib.util.spec_from_file_location("bo_retrain_check", ROOT / "benchmarks" / "bo_retrain_check.py")
-    check = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(check)
+    check = load_benchmark("bo_retrain_check")
     assert check.main([str(old), "--json"]) == 0
     lines = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     assert [(x["design"], x["equal"]) for x in lines] == [("best", True), ("nominal", True)]

@@ -3,22 +3,17 @@ back, found by file name inside its own checkpoints/ folder, never by a recorded
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
 import pytest
 
 from coadapt_core.errors import UserError
+from tests.benchmarks import load_benchmark
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def load_benchmark():
-    spec = importlib.util.spec_from_file_location("common_scenarios", ROOT / "benchmarks" / "common_scenarios.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def run_folder(tmp_path: Path, rows: list[dict], files: list[str]) -> Path:
@@ -34,7 +29,7 @@ def test_the_last_outer_iteration_policy_is_chosen_by_name(tmp_path):
     rows = [{"outer": 0, "path": "/elsewhere/backend-outer0.pt"}, {"outer": 2, "path": "/moved/backend-outer2.pt"},
             {"outer": 1, "path": "/elsewhere/backend-outer1.pt"}]
     folder = run_folder(tmp_path, rows, ["backend-outer0.pt", "backend-outer1.pt", "backend-outer2.pt"])
-    assert load_benchmark()._run_policy(folder) == (folder / "checkpoints" / "backend-outer2.pt").resolve()
+    assert load_benchmark("common_scenarios")._run_policy(folder) == (folder / "checkpoints" / "backend-outer2.pt").resolve()
 
 
 @pytest.mark.parametrize("rows, files", [
@@ -46,9 +41,9 @@ def test_the_last_outer_iteration_policy_is_chosen_by_name(tmp_path):
 def test_a_run_without_its_policy_is_a_one_line_error(tmp_path, rows, files):
     folder = run_folder(tmp_path, rows, files)
     with pytest.raises(UserError):
-        load_benchmark()._run_policy(folder)
+        load_benchmark("common_scenarios")._run_policy(folder)
 
 
 def test_policy_run_refuses_hand_given_designs(capsys):
-    assert load_benchmark().main(["--design", "0.5,0.6", "--policy", "run"]) == 2
+    assert load_benchmark("common_scenarios").main(["--design", "0.5,0.6", "--policy", "run"]) == 2
     assert "--policy run" in capsys.readouterr().err

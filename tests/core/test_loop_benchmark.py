@@ -3,25 +3,21 @@ interaction accounting reproduced at the paper preset."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
 import pytest
 
+from tests.benchmarks import load_benchmark
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def load_benchmark():
-    spec = importlib.util.spec_from_file_location("coadapt_cost", ROOT / "benchmarks" / "coadapt_cost.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.mark.slow
 def test_paper_preset_on_fake_reproduces_table7_interaction_counts(tmp_path, capsys):
-    bench = load_benchmark()
+    bench = load_benchmark("coadapt_cost")
     assert bench.main(["--fake", "--preset", "paper", "--out", str(tmp_path), "--methods", "ours,no-surrogate,no-real"]) == 0
     out = capsys.readouterr().out
     assert "| ours |" in out and "ours / no-surrogate" in out
@@ -36,12 +32,12 @@ def test_paper_preset_on_fake_reproduces_table7_interaction_counts(tmp_path, cap
 
 
 def test_unknown_method_is_exit_2(capsys):
-    assert load_benchmark().main(["--fake", "--methods", "ours,magic"]) == 2
+    assert load_benchmark("coadapt_cost").main(["--fake", "--methods", "ours,magic"]) == 2
     assert "magic" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("method", ["no-retrain", "bo-specialized"])
 def test_smoke_preset_each_method_runs(tmp_path, capsys, method):
-    assert load_benchmark().main(["--fake", "--out", str(tmp_path), "--methods", method]) == 0
+    assert load_benchmark("coadapt_cost").main(["--fake", "--out", str(tmp_path), "--methods", method]) == 0
     payload = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert payload["rows"][0]["method"] == method and payload["rows"][0]["best_cost"] > 0

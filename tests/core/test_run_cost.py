@@ -3,23 +3,18 @@ second of surrogate work once (a fit made for a surrogate round used to count tw
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from coadapt_core.coadapt import make_config, run_coadaptation
+from tests.benchmarks import load_benchmark
 from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def load_benchmark():
-    spec = importlib.util.spec_from_file_location("run_cost", ROOT / "benchmarks" / "run_cost.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def test_phases_take_surrogate_rounds_out_of_real_evaluation():
@@ -27,7 +22,7 @@ def test_phases_take_surrogate_rounds_out_of_real_evaluation():
                "surrogate_seconds": 12.0, "final_seconds": 5.0, "final_interactions": 400}
     evaluations = [{"kind": "real", "seconds": 10.0}, {"kind": "surrogate", "seconds": 3.0},
                    {"kind": "surrogate", "seconds": 4.0}]
-    parts = load_benchmark().phases(summary, evaluations, wall=100.0)
+    parts = load_benchmark("run_cost").phases(summary, evaluations, wall=100.0)
     assert parts["real evaluation"] == (43.0, 8000)
     assert parts["surrogate"] == (12.0, 0)
     assert parts["other"] == (pytest.approx(100.0 - 30.0 - 43.0 - 12.0 - 5.0), 0)
@@ -88,7 +83,7 @@ def test_smoke_run_cost_splits_the_wall_clock(capsys, tmp_path):
     rate is set against a ceiling measured in the same process."""
     import json
 
-    assert load_benchmark().main(["--size", "smoke", "--json", "--out", str(tmp_path)]) == 0
+    assert load_benchmark("run_cost").main(["--size", "smoke", "--json", "--out", str(tmp_path)]) == 0
     report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     phases = report["phases"]
     assert sum(p["seconds"] for p in phases.values()) == pytest.approx(report["wall_seconds"], abs=0.3)

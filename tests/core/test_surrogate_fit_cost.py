@@ -4,24 +4,20 @@ with exit 2."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
 import pytest
 
+from tests.benchmarks import load_benchmark
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def load_benchmark():
-    spec = importlib.util.spec_from_file_location("surrogate_fit_cost", ROOT / "benchmarks" / "surrogate_fit_cost.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def test_variants_parse_and_bad_ones_name_the_item():
-    bench = load_benchmark()
+    bench = load_benchmark("surrogate_fit_cost")
     assert bench.parse_variants("5x128x200, 3X64x100") == [(5, 128, 200), (3, 64, 100)]
     for bad in ("5x128", "5x0x3", "ax1x1"):
         with pytest.raises(ValueError, match=bad.split(",")[0]):
@@ -31,7 +27,7 @@ def test_variants_parse_and_bad_ones_name_the_item():
 @pytest.mark.parametrize("args", [["--variants", "5x0x3"], ["--held-out", "1"], ["--seeds", "a,b"]])
 def test_bad_input_is_one_line_and_exit_2(args, capsys):
     with pytest.raises(SystemExit) as stop:
-        load_benchmark().main(args)
+        load_benchmark("surrogate_fit_cost").main(args)
     assert stop.value.code == 2
     assert len([line for line in capsys.readouterr().err.splitlines() if "error" in line]) == 1
 
@@ -47,7 +43,7 @@ def test_a_tiny_round_times_and_ranks_each_variant(capsys, monkeypatch):
         return real_fit(*args, **kwargs)
 
     monkeypatch.setattr("coadapt_core.learning.backend.fit_ensemble", spy)
-    code = load_benchmark().main(["--variants", "3x16x4,2x8x2", "--objectives", "torque", "--designs", "8",
+    code = load_benchmark("surrogate_fit_cost").main(["--variants", "3x16x4,2x8x2", "--objectives", "torque", "--designs", "8",
                                   "--held-out", "4", "--agents", "2", "--steps", "10", "--seeds", "0,1",
                                   "--samples", "64", "--json"])
     assert code == 0
