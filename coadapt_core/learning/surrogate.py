@@ -59,19 +59,25 @@ class FittedEnsemble:
         """[E, K, M]: each member's mean prediction for each design xi [K, D] (normalised)
         over its share of `states` [S, C] (normalised): member e averages states e, e + E,
         e + 2 E, ..., so the ensemble costs what one pass of the paper's surrogate over S
-        states costs, and the members' spread includes the sampling of states."""
+        states costs, and the members' spread includes the sampling of states.
+
+        The first layer is linear in (s, xi), so its state part is computed once per head
+        and each design only adds its own part: the same sums as the concatenated input's,
+        in another order (equal to float rounding)."""
         m, e = self.scale.shape[0], self.members
         xi = self.frame(xi)
         per = max(1, states.shape[0] // e)
         shares = states[: per * e].reshape(per, e, -1).transpose(0, 1) if states.shape[0] >= e else states.expand(e, -1, -1)
+        c = shares.shape[-1]
+        weight, bias = self.bank.layer(0)  # [E M, H, C + D], [E M, H]
+        state_part = torch.bmm(shares.repeat_interleave(m, dim=0), weight[..., :c].transpose(1, 2))  # [E M, S/E, H]
+        design_part = torch.einsum("kd,ghd->gkh", xi, weight[..., c:]) + bias.unsqueeze(1)  # [E M, K, H]
         out = []
         for k0 in range(0, xi.shape[0], chunk):
-            block = xi[k0 : k0 + chunk]  # [b, D]
-            b = block.shape[0]
-            s = shares.unsqueeze(1).expand(-1, b, -1, -1)  # [E, b, S/E, C]
-            x = block.view(1, b, 1, -1).expand(e, -1, shares.shape[1], -1)  # [E, b, S/E, D]
-            rows = torch.cat([s, x], dim=-1).reshape(e, -1, s.shape[-1] + x.shape[-1])
-            raw = _per_head(self.bank, rows.repeat_interleave(m, dim=0))  # [E M, b S/E]
+            part = design_part[:, k0 : k0 + chunk]  # [E M, b, H]
+            b = part.shape[1]
+            h = state_part.unsqueeze(1) + part.unsqueeze(2)  # [E M, b, S/E, H]
+            raw = _per_head(self.bank, h.reshape(e * m, -1, h.shape[-1]), first=1)  # [E M, b S/E]
             raw = raw.reshape(e, m, b, -1).mean(dim=-1).transpose(1, 2)  # [E, b, M]
             out.append(raw * self.scale + self.offset.unsqueeze(1))
         return torch.cat(out, dim=1)  # [E, K, M]
@@ -166,9 +172,12 @@ def _member_bank(pseudo: CriticBank, idx: torch.Tensor, members: int) -> CriticB
     return bank
 
 
-def _per_head(bank: CriticBank, h: torch.Tensor) -> torch.Tensor:
-    """[H, B] outputs of each head of `bank` on its own rows h [H, B, in]."""
-    for k in range(bank.num_layers):
+def _per_head(bank: CriticBank, h: torch.Tensor, first: int = 0) -> torch.Tensor:
+    """[H, B] outputs of each head of `bank` on its own rows h [H, B, in]; from layer
+    `first` on, h then being layer first - 1's output before its activation."""
+    if first > 0:
+        h = bank.act(h)
+    for k in range(first, bank.num_layers):
         weight, bias = bank.layer(k)
         h = torch.baddbmm(bias.unsqueeze(1), h, weight.transpose(1, 2))
         if k < bank.num_layers - 1:
