@@ -6,13 +6,16 @@ One real round with the robot's shipped policy labels `--designs` random designs
 range (paired scenarios, the plain mean of each objective); the ensemble is fitted to the
 first `--designs - --held-out` of them, one objective at a time, for each fit seed, and
 ranks the rest. Per variant and objective it prints the fit's seconds (mean over seeds) and
-the Spearman correlation of the held-out designs' surrogate and real costs per seed. The
+the Spearman correlation of the held-out designs' surrogate and real costs per seed, and
+their mean relative error (the level, which the fit's level check on `--check-states` buffer
+states sets; the ranking does not depend on it). The
 real costs carry their own scenario noise (a relative standard error of about 7-10 % a
 design at 32 x 250), which bounds every Spearman figure alike: compare variants with each
 other on the same data, not with 1.
 
-    python benchmarks/surrogate_fit_cost.py --json                      # today's fit and four cheaper ones
+    python benchmarks/surrogate_fit_cost.py --json                      # the earlier fit (5x128x200), today's (5x64x100), three between
     python benchmarks/surrogate_fit_cost.py --variants 5x128x200,5x64x100 --seeds 0,1,2,3,4
+    python benchmarks/surrogate_fit_cost.py --variants 5x64x100 --samples 1024 --check-states 1024
 
 A variant is MEMBERSxROWSxSTEPS: ensemble members, rows per member and Adam step, steps.
 """
@@ -53,6 +56,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--steps", type=int, default=250, help="steps per scenario (default 250)")
     parser.add_argument("--seeds", default="0,1,2", help="fit seeds (default 0,1,2)")
     parser.add_argument("--samples", type=int, default=4096, help="buffer states per prediction (default 4096)")
+    parser.add_argument("--check-states", type=int, default=None,
+                        help="buffer states of the fit's level check (default: the fit's own)")
     parser.add_argument("--robot", default=None)
     parser.add_argument("--sim", default=None)
     parser.add_argument("--json", action="store_true", help="one JSON line last")
@@ -61,6 +66,8 @@ def main(argv: list[str] | None = None) -> int:
         variants = parse_variants(args.variants)
     except ValueError as exc:
         parser.error(f"--variants: {exc}")  # one line, exit 2
+    if args.check_states is not None and args.check_states < 1:
+        parser.error("--check-states: needs a whole number >= 1")
     if not 2 <= args.held_out <= args.designs - 2:
         parser.error("--held-out: needs at least 2 held-out and 2 fitted designs")
     try:
@@ -93,9 +100,11 @@ def main(argv: list[str] | None = None) -> int:
     for members, rows, steps in variants:
         backend.surrogate_members_count = members
         backend.surrogate_fit_options = {"batch": rows, "steps": steps}
+        if args.check_states is not None:
+            backend.surrogate_fit_options["check_states"] = args.check_states
         per = {}
         for j, (name, objective) in enumerate(zip(names, objectives, strict=True)):
-            rho, seconds = [], []
+            rho, seconds, error = [], [], []
             for seed in seeds:
                 t = time.perf_counter()
                 backend.fit_surrogate(designs[fit], costs[fit, j : j + 1], [objective], real.buffer, seed=seed)
@@ -103,14 +112,16 @@ def main(argv: list[str] | None = None) -> int:
                 predicted = backend.surrogate_fitness(designs[held], [objective], real.buffer, samples=args.samples,
                                                       seed=seed)[:, 0]
                 rho.append(round(float(spearmanr(predicted, costs[held, j])[0]), 3))
-            per[name] = {"spearman": rho, "fit_seconds": round(float(np.mean(seconds)), 2)}
+                error.append(round(float(np.mean(np.abs(predicted - costs[held, j]) / np.abs(costs[held, j]))), 3))
+            per[name] = {"spearman": rho, "mean_relative_error": error, "fit_seconds": round(float(np.mean(seconds)), 2)}
         key = f"{members}x{rows}x{steps}"
         results[key] = per
-        print(f"{key:>11}  " + "  ".join(f"{n}: {v['fit_seconds']:.1f} s, Spearman {v['spearman']}" for n, v in per.items()),
+        print(f"{key:>11}  " + "  ".join(f"{n}: {v['fit_seconds']:.1f} s, Spearman {v['spearman']}, rel. error {v['mean_relative_error']}" for n, v in per.items()),
               flush=True)
     if args.json:
         print(json.dumps({"robot": robot_name, "designs": args.designs, "held_out": args.held_out, "agents": args.agents,
-                          "steps": args.steps, "seeds": seeds, "real_round_seconds": round(real_seconds, 1),
+                          "steps": args.steps, "seeds": seeds, "samples": args.samples,
+                          "check_states": args.check_states, "real_round_seconds": round(real_seconds, 1),
                           "variants": results}))
     return 0
 

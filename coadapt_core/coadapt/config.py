@@ -75,10 +75,11 @@ PRESETS: dict[str, dict[str, Any]] = {
     # meaningful on a 2-core laptop in <= 30 min, starting from the shipped universal policy.
     # Real evaluation 32 paired scenarios x 250 steps per design (8,000 interactions, as many as
     # the 16 x 500 before): the smallest size measured to rank a 5 x 5 grid alike under two
-    # scenario seeds (Spearman 0.95-0.97 for tracking, power, torque; benchmarks/fitness_noise.py)
+    # scenario seeds (Spearman 0.95-0.97 for tracking, power, torque; benchmarks/fitness_noise.py).
+    # The surrogate: 1 024 buffer states, ranking as 4 096 did (docs/training.md, issue 25)
     "quick": dict(
         outer_iterations=3, population=16, optimizer_iterations=5, agents_per_design=16,
-        train_steps=200_000, retrain_steps=100_000, eval_agents=32, eval_steps=250, surrogate_samples=4096,
+        train_steps=200_000, retrain_steps=100_000, eval_agents=32, eval_steps=250, surrogate_samples=1024,
         bo_designs=20, specialized_train_steps=100_000, specialized_init="universal",
     ),
     # section 4.1.3 (N = 3, K = 100, J = 5, 50 agents, w = 0.5): the declared defaults below are

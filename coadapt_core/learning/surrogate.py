@@ -28,8 +28,8 @@ from coadapt_core.learning.networks import CriticBank
 
 #: defaults of the fit (measured on flat with the shipped policy; docs/coadaptation.md)
 MEMBERS = 5
-FIT_STEPS = 200
-BATCH = 128
+FIT_STEPS = 100
+BATCH = 64
 #: the members read designs in the frame of the labelled designs' box (False: the full space's)
 LOCAL_FRAME = True
 #: at most this half-width of the box (in the full space's [-1, 1] units) is stretched to 1
@@ -37,7 +37,7 @@ MIN_HALF_WIDTH = 0.05
 #: the loss's unit: the labelled costs' spread, at least this share of their mean
 SPREAD_FLOOR = 0.001
 #: buffer states behind the fit's final level correction (members average 1/E of them each)
-CHECK_STATES = 2560
+CHECK_STATES = 1024
 LEARNING_RATE = 3e-3
 
 
@@ -99,6 +99,7 @@ def fit_ensemble(
     seed: int = 0,
     local: bool = LOCAL_FRAME,
     floor: float = SPREAD_FLOOR,
+    check_states: int = CHECK_STATES,
 ) -> FittedEnsemble:
     """Fit `members` copies of the pseudo-critics `columns` of `pseudo` (whose output in cost
     units is raw * pseudo_scale + pseudo_offset, per column) to labelled designs: xi [N, D]
@@ -152,7 +153,7 @@ def fit_ensemble(
     xi = xi if center is None else xi * half + center  # predict() applies the frame itself
     # a short fit starts from the pseudo-critic's level and stops short of the labels' mean:
     # each member's remaining mean residual over its own labelled designs is removed
-    check = states[torch.randperm(states.shape[0], generator=gen)[: CHECK_STATES].to(device)]
+    check = states[torch.randperm(states.shape[0], generator=gen)[: int(check_states)].to(device)]
     with torch.no_grad():
         residual = fitted.predict(check, xi) - costs.unsqueeze(0)  # [E, N, M]
         own = torch.stack([residual[e, picks[e].to(device)].mean(dim=0) for e in range(members)])  # [E, M]
