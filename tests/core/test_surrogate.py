@@ -98,6 +98,34 @@ def test_fit_ensemble_ranks_unseen_designs_through_xi(one_thread):
     assert torch.equal(bank.weight_0, before)  # the trained pseudo-critics stay as they are
 
 
+def test_prediction_equals_each_members_mlp_averaged_over_its_states(one_thread):
+    """The prediction's factored first layer (state part once, each design's part added)
+    gives what each member's MLP gives on the concatenated (state, design) rows, averaged over
+    that member's share of the states (member e: states e, e + E, ...), for two objectives."""
+    torch.manual_seed(3)
+    bank = CriticBank(6, 2, (16, 8), "elu", outputs=3)
+    states, xi = torch.randn(40, 6), torch.rand(12, 2) * 2 - 1
+    costs = torch.stack([1.0 + xi[:, 0], 2.0 - xi[:, 1]], dim=1)
+    fitted = fit_ensemble(bank, [0, 2], torch.ones(3), torch.zeros(3), states, xi, costs, members=4, steps=3)
+    designs = torch.rand(5, 2) * 2 - 1
+    got = fitted.predict(states, designs, chunk=2)  # [E, K, M]
+    e, m = 4, 2
+    expected = torch.empty(e, len(designs), m)
+    for member in range(e):
+        share = states[member::e][: len(states) // e]
+        for j in range(m):
+            head = member * m + j
+            for k, x in enumerate(fitted.frame(designs)):
+                h = torch.cat([share, x.expand(len(share), -1)], dim=1)
+                for layer in range(fitted.bank.num_layers):
+                    weight, bias = fitted.bank.layer(layer)
+                    h = h @ weight[head].T + bias[head]
+                    if layer < fitted.bank.num_layers - 1:
+                        h = fitted.bank.act(h)
+                expected[member, k, j] = h.mean() * fitted.scale[j] + fitted.offset[member, j]
+    torch.testing.assert_close(got, expected, rtol=1e-5, atol=1e-5)
+
+
 def run(tmp_path, backend, **overrides):
     config = make_config("smoke", overrides={"optimizer": "pso", "objective": "torque", "outer_iterations": 2,
                                             "population": 8, "optimizer_iterations": 5, "store": "none",
