@@ -1,8 +1,18 @@
 """A fixed-seed rollout of each built-in backend repeats the numbers recorded before the
 physics room was restructured (torch actuation and parameters, spawn and random streams in
 the `Simulator` base): the same design, seed, randomization, terrain and targets give the
-same state, parameters and, after `reseed`, the same redraw. Regenerate the file only for a
-deliberate change of the physics, with `python tests/plugins/simulators/test_rollout_fingerprint.py`."""
+same state, parameters and, after `reseed`, the same redraw.
+
+A case may hold more than one recorded variant: MuJoCo's height-field contacts are not the
+same to the bit on every CPU. The random-terrain case has two, each repeated to the bit on
+its machine: an AMD EPYC (AVX-512) and an Intel Xeon (AVX-512 with AMX) differ by up to
+4e-4 m in base position after six steps (their parameters, draws and the step after
+`reseed` agree to the bit; the slope and PyBullet cases are one variant on both). A rollout
+passes when it matches one variant of its case to 1e-6.
+
+    python tests/plugins/simulators/test_rollout_fingerprint.py --add    # this machine's variant, if new
+    python tests/plugins/simulators/test_rollout_fingerprint.py --write  # start again (a deliberate physics change)
+"""
 
 from __future__ import annotations
 
@@ -61,18 +71,46 @@ def rollout(case: str) -> dict[str, list]:
     return out
 
 
+def matches(now: dict[str, list], recorded: dict[str, list]) -> str | None:
+    """None when `now` repeats `recorded` to 1e-6, else the first key that does not."""
+    if set(now) != set(recorded):
+        return f"keys {sorted(set(now) ^ set(recorded))}"
+    for key, values in recorded.items():
+        a, b = np.asarray(now[key]), np.asarray(values)
+        if a.shape != b.shape or not np.allclose(a, b, rtol=1e-6, atol=1e-6):
+            return key
+    return None
+
+
+def variants(case: str) -> list[dict[str, list]]:
+    return json.loads(RECORD.read_text())[case]
+
+
 @pytest.mark.parametrize("case", list(CASES))
 def test_rollout_repeats_the_recorded_numbers(case: str) -> None:
     if CASES[case][0] == "pybullet":
         pytest.importorskip("pybullet")
-    recorded = json.loads(RECORD.read_text())[case]
     now = rollout(case)
-    assert set(now) == set(recorded)
-    for key, values in recorded.items():
-        np.testing.assert_allclose(np.asarray(now[key]), np.asarray(values), rtol=1e-6, atol=1e-6, err_msg=key)
+    misses = [matches(now, recorded) for recorded in variants(case)]
+    assert None in misses, f"{case}: matches none of its {len(misses)} recorded variants (first differing keys: {misses})"
+
+
+def test_a_changed_number_matches_no_variant() -> None:
+    """The check is to 1e-6: one state entry moved by 1e-5 matches no recorded variant."""
+    recorded = variants("mujoco_slope")[0]
+    moved = json.loads(json.dumps(recorded))
+    moved["base_pos"][0][0] += 1e-5
+    assert matches(recorded, recorded) is None
+    assert matches(moved, recorded) == "base_pos"
 
 
 if __name__ == "__main__":
-    if sys.argv[1:] != ["--write"]:
-        sys.exit("usage: python tests/plugins/simulators/test_rollout_fingerprint.py --write")
-    RECORD.write_text(json.dumps({case: rollout(case) for case in CASES}) + "\n")
+    if sys.argv[1:] not in (["--write"], ["--add"]):
+        sys.exit("usage: python tests/plugins/simulators/test_rollout_fingerprint.py --add | --write")
+    record = {} if sys.argv[1] == "--write" else json.loads(RECORD.read_text())
+    for case in CASES:
+        now = rollout(case)
+        known = record.setdefault(case, [])
+        if all(matches(now, recorded) is not None for recorded in known):
+            known.append(now)
+    RECORD.write_text(json.dumps(record) + "\n")
