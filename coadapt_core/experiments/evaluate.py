@@ -89,7 +89,7 @@ def evaluate_checkpoint(
     steps = max(1, int(round(seconds / env.dt)))
     watch = _Watch(record=record, progress=progress, total=steps,
                    detail=f"{agents} agents on one design, {seconds:g} s simulated")
-    result = rollout(trainer.ppo, env, 1, steps, seed=seed, on_step=watch)
+    result = rollout(trainer.ppo.action_distribution, env, 1, steps, seed=seed, on_step=watch)
     sim.close()
     keys = {n: registry.get("objective", n).summary_key for n in always}
     out = _summary(result, robot_obj.name, design, command, keys, metric_names, requested,

@@ -210,7 +210,7 @@ class UniversalPolicyBackend:
         # the stochastic policy, as in training: the pseudo-critics learn the metric under it,
         # so real and surrogate fitness estimate the same quantity (the mean action's torque
         # and power are lower while the policy's std is large)
-        result = rollout(self.ppo, env, k, steps, seed=seed, stochastic=self.stochastic_evaluation)
+        result = rollout(self.ppo.action_distribution, env, k, steps, seed=seed, stochastic=self.stochastic_evaluation)
         per_scenario = result.per_agent[:, :, columns]  # [K, A, M]
         # the walking gate's tracking measure, per design: the RMS over scenarios of the error
         # of each scenario's mean velocity (v_x, v_y, yaw rate) over the RMS command

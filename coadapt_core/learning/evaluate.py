@@ -1,18 +1,23 @@
-"""Roll a trained policy out deterministically (the policy mean) on a batch of environments:
-per-design mean objective metrics (real fitness, Algorithm 2), survival, speed, and the
-evaluation buffer R_eval of critic states the surrogate (Algorithm 3) averages over."""
+"""Roll a policy out on a batch of environments, deterministically (the policy mean) or
+stochastically: per-design mean objective metrics (real fitness, Algorithm 2), survival,
+speed, and the evaluation buffer R_eval of critic states the surrogate (Algorithm 3) averages
+over. The policy is any callable from observations to a Gaussian's (mean, std), such as
+`PPO.action_distribution`: this room needs no learner."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 import torch
 
-from coadapt_core.learning.ppo import PPO
 from coadapt_core.statefile import register_dataclass
 from coadapt_core.task.env import LocomotionEnv
-from coadapt_core.task.gait import half_stance
+
+#: a policy for `rollout`: (raw observations [N, O], normalised designs [N, D]) -> the mean and
+#: standard deviation [N, A] of its Gaussian over actions (`PPO.action_distribution`)
+Policy = Callable[[torch.Tensor, torch.Tensor], tuple[torch.Tensor, torch.Tensor]]
 
 
 @register_dataclass  # saved in run folders as arrays (buffer-<n>.npz), never pickled
@@ -75,7 +80,7 @@ class _Tally:
         self.err_sum += err * alive_f
         self.vel_sum += torch.cat([lin[:, :2], info["base_ang_vel"][:, 2:3]], dim=-1) * alive_f[:, None]
         self.cmd_sum += command * alive_f[:, None]
-        self.alt_sum += half_stance(info["foot_contact"]) * alive_f
+        self.alt_sum += info["half_stance"] * alive_f
         self.alive_steps += alive_f
         self.alive &= ~info["terminated"]
         fell = info["terminated"].float()
@@ -110,7 +115,7 @@ class _Tally:
 
 @torch.no_grad()
 def rollout(
-    ppo: PPO,
+    policy: Policy,
     env: LocomotionEnv,
     num_designs: int,
     steps: int,
@@ -120,9 +125,9 @@ def rollout(
     stochastic: bool = False,
     on_step=None,
 ) -> RolloutResult:
-    """Run `steps` policy steps on `env`, whose environments are `num_designs` consecutive
-    groups of agents (as `Trainer.set_designs` lays them out). Actions are the policy mean,
-    or samples of the Gaussian policy when `stochastic` (seeded by `seed`, as are the
+    """Run `steps` steps of `policy` on `env`, whose environments are `num_designs`
+    consecutive groups of agents (as `Trainer.set_designs` lays them out). Actions are the
+    policy mean, or samples of its Gaussian when `stochastic` (seeded by `seed`, as are the
     observation noise and the buffer sample)."""
     n = env.num_envs
     tally = _Tally(n, env.num_metrics, env.device)
@@ -131,7 +136,6 @@ def rollout(
     env.generator.manual_seed(int(seed))
     action_gen = torch.Generator(device=env.device)
     action_gen.manual_seed(int(seed) + 1)
-    ppo.training = False
     obs, critic, design_obs = env.reset()
     per_step = max(1, -(-buffer_rows // max(steps, 1)))
     kept: list[torch.Tensor] = []
@@ -140,16 +144,15 @@ def rollout(
             kept.append(critic.float().cpu())
         else:
             kept.append(critic[torch.randperm(n, generator=gen)[:per_step].to(env.device)].float().cpu())
+        loc, scale = policy(obs, design_obs)
         if stochastic:
-            loc, scale = ppo.actor_net(ppo.obs_norm(obs), design_obs)
             # paired evaluation: agent i of every design gets the same action noise
             actions = loc + scale * env.paired_draw(tuple(loc.shape), action_gen).to(loc.device)
         else:
-            actions = ppo.act_inference(obs, design_obs)
+            actions = loc
         res = env.step(actions)
         tally.add(res.info)
         if on_step is not None:
             on_step(env)
         obs, critic, design_obs = res.obs, res.critic_obs, res.design_obs
-    ppo.training = True
     return tally.result(num_designs, steps, EvalBuffer(torch.cat(kept)[:buffer_rows]))

@@ -162,10 +162,15 @@ class PPO:
         return action
 
     @torch.no_grad()
+    def action_distribution(self, obs: torch.Tensor, design_obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(mean, std) [N, A] of the Gaussian policy at raw observations `obs`; the
+        normalisers stay as they are. The policy that `learning.evaluate.rollout` takes."""
+        return self.actor_net(self.obs_norm(obs), design_obs)
+
+    @torch.no_grad()
     def act_inference(self, obs: torch.Tensor, design_obs: torch.Tensor) -> torch.Tensor:
         """Deterministic actions [N, A] (the policy mean), for evaluation and deployment."""
-        loc, _ = self.actor_net(self.obs_norm(obs), design_obs)
-        return loc
+        return self.action_distribution(obs, design_obs)[0]
 
     @torch.no_grad()
     def process_env_step(

@@ -34,7 +34,6 @@ from coadapt_core.robot import Robot
 from coadapt_core.scenarios.sets import restart_streams
 from coadapt_core.task.config import TaskConfig
 from coadapt_core.task.env import LocomotionEnv
-from coadapt_core.task.gait import half_stance
 
 
 @dataclass
@@ -273,7 +272,7 @@ class Trainer:
             sums.rewards.append(res.reward.mean())
             lin, command = info["base_lin_vel"], info["command"]
             sums.errors.append((command[:, :2] - lin[:, :2]).norm(dim=-1).mean())
-            sums.alternation.append(half_stance(info["foot_contact"]).mean())
+            sums.alternation.append(info["half_stance"].mean())
             forward = (command[:, 0] > 0.1).float()
             sums.vx_sum += (lin[:, 0] * forward).sum()
             sums.cmd_sum += (command[:, 0] * forward).sum()

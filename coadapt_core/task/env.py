@@ -19,7 +19,7 @@ from coadapt_core.robot import Robot
 from coadapt_core.task import observations as layout
 from coadapt_core.task.commands import CommandSampler
 from coadapt_core.task.config import TaskConfig
-from coadapt_core.task.gait import expected_stance, leg_phases, raibert_foot_targets
+from coadapt_core.task.gait import expected_stance, half_stance, leg_phases, raibert_foot_targets
 from coadapt_core.task.rewards import RewardInputs, combine, compute_terms
 
 if TYPE_CHECKING:
@@ -48,7 +48,9 @@ class LocomotionEnv:
     `info` of `step` holds: `metrics` [N, M] per-step objective costs (order of
     `objectives`); `final_critic_obs` [N, C] critic state before auto-reset (for bootstrapping
     timeouts); `terminated` [N]; `base_lin_vel`, `base_ang_vel` [N, 3] (base frame),
-    `foot_contact` [N, L] and `command` [N, 3] of the step; `reward_terms` {name: mean weighted value, a 0-dim tensor}; and `episode` {name: mean over the
+    `foot_contact` [N, L] and `command` [N, 3] of the step; `half_stance` [N] 1 where exactly
+    half of the feet touch the ground (the foot-alternation metric; NaN for an odd leg
+    count); `reward_terms` {name: mean weighted value, a 0-dim tensor}; and `episode` {name: mean over the
     episodes that just ended} when any ended.
     """
 
@@ -375,6 +377,7 @@ class LocomotionEnv:
             "base_lin_vel": lin,
             "base_ang_vel": ang,
             "foot_contact": contact,
+            "half_stance": half_stance(contact),
             "command": self.command.clone(),
             "reward_terms": {k: v.mean() for k, v in weighted.items()},  # 0-dim tensors, no sync
         }

@@ -405,9 +405,46 @@ def test_rollout_speeds_are_the_mean_of_each_agents_mean(fake_robot, fake_sim_cl
     task = TaskConfig(noise=NoiseConfig(enabled=False), commands=CommandConfig(curriculum=False, vx_range=(0.5, 1.0), yaw_range=(-0.5, 0.5), zero_share=0.0))
     trainer = make_trainer(fake_robot, fake_sim_cls, task=task)
     trainer.set_designs(np.array([[1.0, 1.0], [0.7, 1.2]]))
-    result = rollout(trainer.ppo, trainer.env, 2, 20, seed=3)
+    result = rollout(trainer.ppo.action_distribution, trainer.env, 2, 20, seed=3)
     per_agent = result.per_agent_velocity
     assert per_agent.shape == (2, 16, 3)
     np.testing.assert_allclose(per_agent[:, :, 0].mean(axis=1), result.vx, rtol=1e-5, atol=1e-7)
     np.testing.assert_allclose(per_agent[:, :, 2].mean(axis=1), result.yaw_rate, rtol=1e-5, atol=1e-7)
     assert per_agent[:, :, 0].std(axis=1).min() > 0  # agents differ: the standard error has something to measure
+
+
+def test_rollout_takes_any_policy_callable_and_pairs_its_action_noise(fake_robot, fake_sim_cls) -> None:
+    """A rollout needs only a callable to a Gaussian's (mean, std): deterministic steps take
+    the mean, stochastic ones the mean plus std times noise that agent i of every design shares;
+    the learner's own `action_distribution` gives the policy mean `act_inference` gives."""
+    from coadapt_core.learning.evaluate import rollout
+    from coadapt_core.scenarios import apply_scenarios
+
+    trainer = make_trainer(fake_robot, fake_sim_cls)
+    trainer.set_designs(np.array([[1.0, 1.0], [0.7, 1.2]]))
+    env = trainer.env
+    obs, _, design = env.reset()
+    assert torch.equal(trainer.ppo.action_distribution(obs, design)[0], trainer.ppo.act_inference(obs, design))
+
+    mean = torch.linspace(-0.3, 0.3, env.num_actions)
+    seen: list[torch.Tensor] = []
+
+    def policy(o: torch.Tensor, xi: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        return mean.expand(o.shape[0], -1), torch.full((o.shape[0], env.num_actions), 0.1)
+
+    def record(e) -> None:
+        seen.append(e.action_history[:, 0].clone())
+
+    result = rollout(policy, env, 2, 3, seed=1, on_step=record)
+    assert result.steps == env.num_envs * 3
+    for actions in seen:  # deterministic: the mean itself, every environment
+        torch.testing.assert_close(actions, mean.expand(env.num_envs, -1))
+    seen.clear()
+    agents = env.num_envs // 2
+    apply_scenarios(env, agents, 2, 5)
+    rollout(policy, env, 2, 3, seed=1, stochastic=True, on_step=record)
+    for actions in seen:
+        noise = (actions - mean) / 0.1
+        assert noise.abs().max() > 0.05  # the std is used
+        torch.testing.assert_close(noise[:agents], noise[agents:])  # paired: design 2's agent i = design 1's
+        assert not torch.allclose(noise[0], noise[1])  # agents differ
