@@ -166,7 +166,9 @@ class UniversalPolicyBackend:
         models swapped in place), with the learner built for it and episodes that outlast
         `steps` policy steps."""
         tr = self.trainer
-        per_env = np.repeat(self.full_space(designs).validate_batch(designs), agents, axis=0)
+        # checked once, where designs become worlds (`Simulator._check_designs`), before any
+        # environment changes
+        per_env = np.repeat(designs, agents, axis=0)
         if self.eval_env is not None and self.eval_env.num_envs == len(per_env):
             self.eval_env.set_designs(np.arange(len(per_env)), per_env)
         else:

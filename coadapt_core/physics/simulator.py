@@ -26,12 +26,7 @@ import numpy as np
 import torch
 
 from coadapt_core.errors import DesignError, UserError
-from coadapt_core.physics.randomization import (
-    EnvParams,
-    RandomizationConfig,
-    nominal_env_params,
-    sample_env_params,
-)
+from coadapt_core.physics.randomization import EnvParams, RandomizationConfig
 from coadapt_core.physics.terrain import TERRAINS, Terrain, make_terrain
 
 if TYPE_CHECKING:
@@ -90,6 +85,49 @@ def _quat_rotate_inverse(quat: torch.Tensor, vec: torch.Tensor) -> torch.Tensor:
     b = torch.cross(xyz, vec, dim=-1) * (2.0 * w)
     c = xyz * (2.0 * (xyz * vec).sum(dim=-1, keepdim=True))
     return a - b + c
+
+
+def nominal_env_params(
+    num_envs: int, *, device: str | torch.device = "cpu", dtype: torch.dtype = torch.float64
+) -> EnvParams:
+    return sample_env_params(RandomizationConfig.off(), num_envs, np.random.default_rng(0), device=device, dtype=dtype)
+
+
+def sample_env_params(
+    config: RandomizationConfig,
+    num_envs: int,
+    rng: np.random.Generator,
+    *,
+    device: str | torch.device = "cpu",
+    dtype: torch.dtype = torch.float64,
+) -> EnvParams:
+    """Draw parameters for `num_envs` environments from numpy's `rng` (so one seed gives
+    the same numbers on every backend and device; always consumes the same amount of
+    randomness whether or not randomization is enabled, so seeds stay aligned; the
+    engine-robustness parameters draw only when their range is not a point, after Table
+    2's), returned as tensors on `device` in `dtype`."""
+
+    def draw(name: str, shape: tuple[int, ...]) -> torch.Tensor:
+        lo, hi = getattr(config, name)
+        if name in RandomizationConfig.OPTIONAL and lo == hi:
+            value = np.full(shape, lo, dtype=float)
+        else:
+            value = rng.uniform(lo, hi, size=shape)
+        if not config.enabled:
+            value = np.full(shape, RandomizationConfig.NOMINAL[name], dtype=float)
+        return torch.as_tensor(value, dtype=dtype, device=device)
+
+    return EnvParams(
+        friction=draw("friction", (num_envs,)),
+        restitution=draw("restitution", (num_envs,)),
+        com_shift=draw("com_shift", (num_envs, 3)),
+        pd_factor=draw("pd_factor", (num_envs,)),
+        motor_strength=draw("motor_strength", (num_envs,)),
+        delay=draw("delay", (num_envs,)),
+        contact_timeconst=draw("contact_timeconst", (num_envs,)),
+        joint_damping=draw("joint_damping", (num_envs,)),
+        armature=draw("armature", (num_envs,)),
+    )
 
 
 def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -199,6 +237,7 @@ class Simulator(ABC):
                 f"designs must be a non-empty [num_envs, design_dim] array, got shape {designs.shape}", field="designs"
             )
         self.robot = robot
+        self._check_designs(designs)
         self.fixed_base = bool(fixed_base)
         self.terrain = terrain
         self.randomization = randomization if randomization is not None else RandomizationConfig()
@@ -301,7 +340,8 @@ class Simulator(ABC):
 
     def parse_new_designs(self, env_ids: torch.Tensor | np.ndarray, designs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(ids [n], designs [n, design_dim]) for `set_designs`, checked: one design of the
-        simulator's length per id (`DesignError` otherwise)."""
+        simulator's length per id, each inside the robot's design space (`DesignError`
+        otherwise, before any environment changes)."""
         ids = self.parse_env_ids(env_ids)
         designs = np.asarray(designs, dtype=float)
         designs = designs.reshape(1, -1) if designs.ndim == 1 else designs
@@ -311,7 +351,16 @@ class Simulator(ABC):
                 f"({ids.size} ids), got an array of shape {designs.shape}",
                 field="designs",
             )
-        return ids, designs
+        return ids, self._check_designs(designs)
+
+    def _check_designs(self, designs: np.ndarray) -> np.ndarray:
+        """`designs` [n, design_dim], each inside the robot's design space of its arity
+        (`DesignError` naming the variable and its bounds otherwise): the one check every
+        design passes before it becomes a world, at construction and in `set_designs`
+        (through `parse_new_designs`), whoever asks for it."""
+        rows = np.unique(designs, axis=0)
+        self.robot.design_space_for(rows[0]).validate_batch(rows)
+        return designs
 
     # -- randomness ------------------------------------------------------------------------
     def add_random_stream(self, name: str, entropy: np.random.SeedSequence | None = None) -> np.random.Generator:

@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from coadapt_core.errors import UserError
-from coadapt_core.physics.randomization import sample_env_params
+from coadapt_core.physics.simulator import sample_env_params
 
 if TYPE_CHECKING:
     from coadapt_core.task.env import LocomotionEnv

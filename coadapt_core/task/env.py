@@ -1,13 +1,14 @@
 """`LocomotionEnv`: the locomotion task on any `Simulator`, as one batched vector
-environment (commands, gait clock, observations, rewards, objective metrics, termination and
-auto-reset). Torch tensors throughout, on the device given (the simulator's by default)."""
+environment (commands, gait clock and Raibert reference, observations, rewards, objective
+metrics, termination and auto-reset). Torch tensors throughout, on the device given (the
+simulator's by default). What it derives from the designs lives in `task.designs`, the
+observation layouts and the step's record (`StepResult`) in `task.observations`."""
 
 from __future__ import annotations
 
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -18,41 +19,89 @@ from coadapt_core.physics.simulator import SimState, Simulator
 from coadapt_core.robot import Robot
 from coadapt_core.task import observations as layout
 from coadapt_core.task.commands import CommandSampler
-from coadapt_core.task.config import TaskConfig
-from coadapt_core.task.gait import expected_stance, half_stance, leg_phases, raibert_foot_targets
+from coadapt_core.task.config import GaitConfig, TaskConfig
+from coadapt_core.task.designs import DesignInputs
+from coadapt_core.task.observations import StepResult
 from coadapt_core.task.rewards import RewardInputs, combine, compute_terms
 
 if TYPE_CHECKING:
     from coadapt_core.scenarios.sets import PairedStreams
 
 
-@dataclass
-class StepResult:
-    """What `LocomotionEnv.step` returns (also unpackable as a 7-tuple)."""
+# -- the gait clock and the Raibert reference (paper 3.2.3): Raibert foot placement in x-y, a
+# von Mises swing height in z, joint targets q* by the robot's leg IK. Leg l is in stance for
+# its phase in [0, 0.5), else swings. Under a moving command the stance foot travels back
+# relative to its hip at the commanded speed, from +v T_st / 2 at touchdown to -v T_st / 2 at
+# lift-off, and swings forward again to the touchdown point v T_st / 2 + k (v - v_cmd).
 
-    obs: torch.Tensor  # [N, num_obs] policy observation after auto-reset (noisy)
-    critic_obs: torch.Tensor  # [N, num_critic_obs] critic state after auto-reset
-    design_obs: torch.Tensor  # [N, D] normalised design
-    reward: torch.Tensor  # [N]
-    done: torch.Tensor  # [N] bool, the episode ended (fall or timeout) and was reset
-    timeout: torch.Tensor  # [N] bool, ended by the time limit (bootstrap, not a failure)
-    info: dict = field(default_factory=dict)
 
-    def __iter__(self):
-        return iter((self.obs, self.critic_obs, self.design_obs, self.reward, self.done, self.timeout, self.info))
+def leg_phases(phase: torch.Tensor, num_legs: int, offsets: torch.Tensor | None = None) -> torch.Tensor:
+    """[N, L] per-leg phase in [0, 1) from the clock phase [N]: (phase + offsets[l]) mod 1,
+    the robot's declared offsets (`Robot.legs()`), or l / L when none are given."""
+    if offsets is None:
+        offsets = torch.arange(num_legs, device=phase.device, dtype=phase.dtype) / num_legs
+    offsets = offsets.to(device=phase.device, dtype=phase.dtype)
+    return torch.remainder(phase[:, None] + offsets[None, :], 1.0)
+
+
+def half_stance(contact: torch.Tensor) -> torch.Tensor:
+    """[N] float from foot contacts [N, L]: 1 where exactly half of the feet touch the ground
+    (one of a biped's two; two of a trotting quadruped's four), else 0 — the share of such
+    steps is the "foot alternation" metric. It does not apply to an odd number of legs: NaN."""
+    legs = contact.shape[-1]
+    if legs % 2:
+        return torch.full(contact.shape[:-1], float("nan"), device=contact.device)
+    return (contact.sum(dim=-1) == legs // 2).float()
+
+
+def expected_stance(leg_phase: torch.Tensor) -> torch.Tensor:
+    """[N, L] bool: the clock puts this foot on the ground."""
+    return leg_phase < 0.5
+
+
+def stance_triangle(leg_phase: torch.Tensor) -> torch.Tensor:
+    """[N, L] +1 at touchdown, -1 at lift-off, linear through stance and back through swing."""
+    return torch.where(leg_phase < 0.5, 1.0 - 4.0 * leg_phase, -1.0 + 4.0 * (leg_phase - 0.5))
+
+
+def von_mises_height(leg_phase: torch.Tensor, apex: float, kappa: float) -> torch.Tensor:
+    """[N, L] swing height: a von Mises bump centred on mid-swing (phase 0.75), apex at 1.
+    Normalised so the peak is `apex` and the bump is ~0 (exp(-2 kappa)) at mid-stance."""
+    return apex * torch.exp(kappa * (torch.cos(2.0 * math.pi * (leg_phase - 0.75)) - 1.0))
+
+
+def command_gate(command: torch.Tensor, full_scale: float) -> torch.Tensor:
+    """[N] in [0, 1]: how much of the stepping reference a command asks for (0 when still)."""
+    speed = command[:, :2].norm(dim=-1) + 0.5 * command[:, 2].abs()
+    return torch.clamp(speed / full_scale, 0.0, 1.0)
+
+
+def raibert_foot_targets(
+    default_feet: torch.Tensor,  # [N, L, 3] feet relative to hips at the standing pose, base frame
+    leg_phase: torch.Tensor,  # [N, L]
+    command: torch.Tensor,  # [N, 3]
+    base_lin_vel: torch.Tensor,  # [N, 3] base frame
+    config: GaitConfig,
+) -> torch.Tensor:
+    """[N, L, 3] foot targets relative to each hip, base frame."""
+    t_stance = 0.5 / config.frequency
+    gate = command_gate(command, config.command_full_scale)[:, None]  # [N, 1]
+    swing = (leg_phase >= 0.5).to(default_feet.dtype)  # [N, L]
+    tri = stance_triangle(leg_phase)  # [N, L]
+    cmd_xy = command[:, None, :2]  # [N, 1, 2]
+    feedback = config.raibert_gain * (base_lin_vel[:, None, :2] - cmd_xy)  # [N, 1, 2]
+    offset_xy = tri[..., None] * cmd_xy * (t_stance / 2.0) + (swing * gate)[..., None] * feedback
+    offset_xy = offset_xy.clamp(-config.raibert_max_offset, config.raibert_max_offset)
+    offset_z = gate * von_mises_height(leg_phase, config.swing_height, config.von_mises_kappa)
+    target = default_feet.clone()
+    target[..., :2] += offset_xy
+    target[..., 2] += offset_z
+    return target
 
 
 class LocomotionEnv:
-    """The task, simulator-agnostic.
-
-    `info` of `step` holds: `metrics` [N, M] per-step objective costs (order of
-    `objectives`); `final_critic_obs` [N, C] critic state before auto-reset (for bootstrapping
-    timeouts); `terminated` [N]; `base_lin_vel`, `base_ang_vel` [N, 3] (base frame),
-    `foot_contact` [N, L] and `command` [N, 3] of the step; `half_stance` [N] 1 where exactly
-    half of the feet touch the ground (the foot-alternation metric; NaN for an odd leg
-    count); `reward_terms` {name: mean weighted value, a 0-dim tensor}; and `episode` {name: mean over the
-    episodes that just ended} when any ended.
-    """
+    """The task, simulator-agnostic. `step` returns a `StepResult` (its `info` keys are
+    listed there)."""
 
     def __init__(
         self,
@@ -76,8 +125,7 @@ class LocomotionEnv:
         self.dt = simulator.control_dt
         self.max_episode_length = int(math.ceil(self.cfg.episode_seconds / self.dt))
         space = robot.design_space_for(simulator.designs[0])
-        self.design_low = torch.as_tensor(space.lower, dtype=torch.float32, device=self.device)
-        self.design_high = torch.as_tensor(space.upper, dtype=torch.float32, device=self.device)
+        self.design_inputs = DesignInputs(robot, space.lower, space.upper, self.device)
         self.commands = CommandSampler(self.cfg.commands, self.device, self.generator)
         self.fixed_commands = False
         # paired evaluation: the scenario set's shared streams (`use_scenarios`), or None
@@ -88,7 +136,6 @@ class LocomotionEnv:
         self.resample_steps = int(round(resample / self.dt)) if resample > 0 else 0
 
         state = simulator.reset()
-        self._refresh_params()
         self.num_legs = int(state.foot_pos.shape[1])
         legs = robot.legs()
         if len(legs) != self.num_legs:
@@ -97,13 +144,12 @@ class LocomotionEnv:
             )
         # the gait clock's per-leg offsets (a trotting quadruped moves diagonal pairs together)
         self.leg_offsets = torch.tensor([float(leg.phase_offset) for leg in legs], device=self.device)
-        self._mass_cache: dict[tuple[float, ...], float] = {}
         self.policy_layout = layout.policy_layout(self.num_actions, self.cfg.history)
         self.critic_layout = self.policy_layout + layout.privileged_layout(self.num_legs)
         self.obs_slices = layout.slices(self.policy_layout)
         self.num_obs = layout.size(self.policy_layout)
         self.num_critic_obs = layout.size(self.critic_layout)
-        self.num_design_obs = int(self.design_low.shape[0])
+        self.num_design_obs = space.dim
         self.num_metrics = len(self.objectives)
         # wall seconds spent inside the simulator and in the whole `step` (throughput split)
         self.timing = {"physics": 0.0, "step": 0.0}
@@ -125,8 +171,7 @@ class LocomotionEnv:
         self.episode_speed = z(n)  # sum of base-frame vx
         self.episode_command = z(n)  # sum of commanded vx
         self._refresh_design_buffers()
-        self._start(torch.arange(n, device=self.device), self._to_device(state))
-        self.state = self._to_device(state)
+        self._restart(torch.arange(n, device=self.device), state)
 
     # -- sizes and designs ----------------------------------------------------------------
     @property
@@ -138,40 +183,20 @@ class LocomotionEnv:
 
     def normalize_designs(self, designs: np.ndarray | torch.Tensor) -> torch.Tensor:
         """[n, D] designs mapped to [-1, 1] over the robot's full design-space bounds."""
-        xi = torch.as_tensor(np.asarray(designs, dtype=np.float32), device=self.device)
-        width = self.design_high - self.design_low
-        safe = torch.where(width > 0, width, torch.ones_like(width))
-        return torch.where(width > 0, 2.0 * (xi - self.design_low) / safe - 1.0, torch.zeros_like(xi))
+        return self.design_inputs.normalize(designs)
 
     def _refresh_design_buffers(self) -> None:
-        designs = np.asarray(self.sim.designs, dtype=np.float32)
-        self.designs = torch.as_tensor(designs, device=self.device)  # [N, D]
-        self.design_obs = self.normalize_designs(designs)  # [N, D]
-        self.default_joint_pos = self.sim.default_joint_pos.to(self.device).float()  # [N, J]
-        with torch.no_grad():
-            self.default_feet = self.robot.default_foot_positions(self.designs).to(self.device).float()  # [N, L, 3]
-        masses = []  # [N] kg, for objectives (cost of transport); one build per distinct design
-        if len(self._mass_cache) > 4096:
-            self._mass_cache.clear()
-        for row in np.asarray(self.sim.designs, dtype=float):
-            key = tuple(row.tolist())
-            if key not in self._mass_cache:
-                try:
-                    self._mass_cache[key] = float(self.robot.build(row).total_mass)
-                except NotImplementedError:  # a test robot without models: mass unknown
-                    self._mass_cache[key] = float("nan")
-            masses.append(self._mass_cache[key])
-        self.total_mass = torch.tensor(masses, dtype=torch.float32, device=self.device)
+        d = self.design_inputs
+        d.refresh(self.sim)
+        self.designs, self.design_obs, self.total_mass = d.designs, d.design_obs, d.total_mass
+        self.default_joint_pos, self.default_feet = d.default_joint_pos, d.default_feet
 
     def set_designs(self, env_ids: torch.Tensor | np.ndarray, designs: np.ndarray) -> None:
         """Rebuild the given environments for new designs [len(env_ids), D] (they restart)."""
         ids = torch.as_tensor(np.asarray(env_ids), dtype=torch.long, device=self.device)
         self.sim.set_designs(ids.cpu().numpy(), np.asarray(designs, dtype=float))
         self._refresh_design_buffers()
-        state = self._to_device(self.sim.get_state())
-        self._refresh_params()
-        self._start(ids, state)
-        self.state = state
+        self._restart(ids, self.sim.get_state())
 
     def set_commands(self, commands: torch.Tensor | None) -> None:
         """Hold fixed commands [N, 3] (evaluation), or None to sample them again."""
@@ -183,13 +208,9 @@ class LocomotionEnv:
         self._freeze_clock(torch.arange(self.num_envs, device=self.device))
 
     def use_scenarios(self, scenarios: PairedStreams | None) -> None:
-        """Paired evaluation's hook (`coadapt_core.scenarios`): the environments form
-        consecutive groups of `scenarios.agents`, one group per design, and environment
-        k * agents + i draws what environment i draws: the gait phase `scenarios.phase[i]`
-        at the start of every episode, the same observation noise at every step (a function
-        of `scenarios.seed`, the steps since `reset` and i alone, so it depends neither on
-        the other designs in the batch nor on who fell) and the same `paired_draw`. None
-        returns to independent draws."""
+        """Paired evaluation's hook (`coadapt_core.scenarios`): environment k * agents + i
+        draws what environment i draws (gait phase, observation noise, `paired_draw`), as
+        `PairedStreams` says; None returns to independent draws."""
         self.scenarios = scenarios
 
     def paired_draw(self, shape: tuple[int, ...], generator: torch.Generator, normal: bool = True) -> torch.Tensor:
@@ -219,12 +240,9 @@ class LocomotionEnv:
         self.air_time[ids] = 0.0
         self.last_contact[ids] = state.foot_contact[ids]
         self.standing_height[ids] = (state.base_pos[ids, 2] - state.terrain_height[ids]).float()
-        self.episode_reward[ids] = 0.0
-        self.episode_tracking[ids] = 0.0
-        self.episode_moving_tracking[ids] = 0.0
-        self.episode_moving_steps[ids] = 0.0
-        self.episode_speed[ids] = 0.0
-        self.episode_command[ids] = 0.0
+        for sums in (self.episode_reward, self.episode_tracking, self.episode_moving_tracking,
+                     self.episode_moving_steps, self.episode_speed, self.episode_command):
+            sums[ids] = 0.0
         if self.scenarios is not None:  # paired: agent i always starts at its own phase
             self.phase[ids] = self.scenarios.phase[ids % self.scenarios.phase.numel()]
         else:
@@ -235,13 +253,22 @@ class LocomotionEnv:
 
     def reset(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Reset every environment: (obs, critic_obs, design_obs)."""
-        state = self._to_device(self.sim.reset())
-        self._refresh_params()
         self._tick = 0
-        self._start(torch.arange(self.num_envs, device=self.device), state)
-        self.state = state
+        state = self._restart(torch.arange(self.num_envs, device=self.device), self.sim.reset())
         obs, critic = self._observe(state)
         return obs, critic, self.design_obs
+
+    def _restart(self, ids: torch.Tensor, state: SimState) -> SimState:
+        """Start episodes of environments `ids` from the simulator's `state` (all of it
+        new after a reset or a change of designs); the state on this device, held."""
+        state = self._to_device(state)
+        # the randomized parameters' part of the critic state [N, 8] (friction, restitution, PD
+        # factor, motor strength, delay, CoM shift): read at each reset, not at every step (they
+        # change only when an environment restarts), a gather and a cast on the sim's device
+        self._param_obs = self.sim.env_params.privileged(self.device)
+        self._start(ids, state)
+        self.state = state
+        return state
 
     # -- observations -----------------------------------------------------------------------
     def _noise(self, shape: tuple[int, ...], scale: float) -> torch.Tensor:
@@ -285,19 +312,7 @@ class LocomotionEnv:
         )
         return obs, torch.cat([clean, privileged], dim=-1)
 
-    def _refresh_params(self) -> None:
-        """The randomized parameters' part of the critic state [N, 8] (friction, restitution,
-        PD factor, motor strength, delay, CoM shift), read once per reset of the simulator,
-        not at every step: they change only when an environment restarts. The simulator
-        holds them as tensors on its device, so this is a gather and a cast, never a copy
-        from numpy."""
-        self._param_obs = self.sim.env_params.privileged(self.device)
-
     # -- stepping ---------------------------------------------------------------------------
-    def joint_targets(self, actions: torch.Tensor) -> torch.Tensor:
-        """[N, J] joint position targets: default pose + action_scale * clipped action."""
-        return self.default_joint_pos + self.cfg.action_scale * actions
-
     def raibert_joint_targets(self, command: torch.Tensor, lin_vel: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """(q* [N, J], expected stance [N, L]) of the paper's Raibert reference at this step."""
         phases = leg_phases(self.phase, self.num_legs, self.leg_offsets)
@@ -319,7 +334,7 @@ class LocomotionEnv:
     def _step(self, actions: torch.Tensor) -> StepResult:
         cfg = self.cfg
         actions = actions.to(self.device).float().clamp(-cfg.action_clip, cfg.action_clip)  # [N, J]
-        targets = self.joint_targets(actions)
+        targets = self.default_joint_pos + cfg.action_scale * actions  # [N, J] joint position targets
         sim_device = torch.device(self.sim.device)
         tick = time.perf_counter()
         state = self._to_device(self.sim.step(targets.to(sim_device)))
@@ -472,10 +487,9 @@ class LocomotionEnv:
                 )
             cpu_ids = torch.from_numpy(done_ids)
             tick = time.perf_counter()
-            state = self._to_device(self.sim.reset(cpu_ids.to(sim_device)))
+            fresh = self.sim.reset(cpu_ids.to(sim_device))
             self.timing["physics"] += time.perf_counter() - tick
-            self._refresh_params()
-            self._start(cpu_ids.to(self.device), state)
+            state = self._restart(cpu_ids.to(self.device), fresh)
         if due_ids.size > 0:
             due_ids = torch.from_numpy(due_ids).to(self.device)
             self.command[due_ids] = self.commands.sample(due_ids.numel())

@@ -1,4 +1,4 @@
-"""Observation layouts: the policy observation o (70 values for an 8-joint biped with 5
+"""Observation layouts and the step's record (`StepResult`): the policy observation o (70 values for an 8-joint biped with 5
 actions of history), the design input xi and the critic state s.
 
 Policy observation o, in order (J actuated joints, H = history):
@@ -24,6 +24,10 @@ CoM shift (3).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import torch
 
 
 def policy_layout(num_joints: int, history: int) -> list[tuple[str, int]]:
@@ -64,3 +68,28 @@ def slices(layout: list[tuple[str, int]]) -> dict[str, slice]:
 
 def size(layout: list[tuple[str, int]]) -> int:
     return sum(n for _, n in layout)
+
+
+@dataclass
+class StepResult:
+    """What `LocomotionEnv.step` returns (also unpackable as a 7-tuple).
+
+    `info` holds: `metrics` [N, M] per-step objective costs (order of the env's
+    `objectives`); `final_critic_obs` [N, C] critic state before auto-reset (for
+    bootstrapping timeouts); `terminated` [N]; `base_lin_vel`, `base_ang_vel` [N, 3] (base
+    frame), `foot_contact` [N, L] and `command` [N, 3] of the step; `half_stance` [N] 1 where
+    exactly half of the feet touch the ground (the foot-alternation metric; NaN for an odd
+    leg count); `reward_terms` {name: mean weighted value, a 0-dim tensor}; and `episode`
+    {name: mean over the episodes that just ended} when any ended.
+    """
+
+    obs: torch.Tensor  # [N, num_obs] policy observation after auto-reset (noisy)
+    critic_obs: torch.Tensor  # [N, num_critic_obs] critic state after auto-reset
+    design_obs: torch.Tensor  # [N, D] normalised design
+    reward: torch.Tensor  # [N]
+    done: torch.Tensor  # [N] bool, the episode ended (fall or timeout) and was reset
+    timeout: torch.Tensor  # [N] bool, ended by the time limit (bootstrap, not a failure)
+    info: dict = field(default_factory=dict)
+
+    def __iter__(self):
+        return iter((self.obs, self.critic_obs, self.design_obs, self.reward, self.done, self.timeout, self.info))

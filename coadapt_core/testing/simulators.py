@@ -9,15 +9,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from coadapt_core.errors import UserError
+from coadapt_core.errors import DesignError, UserError
 from coadapt_core.physics.actuation import pd_torque
-from coadapt_core.physics.randomization import RandomizationConfig, sample_env_params
+from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.physics.simulator import (
     SPAWN_MARGIN,
     SPAWN_STREAM_KEY,
     SimState,
     Simulator,
     quat_rotate,
+    sample_env_params,
 )
 from coadapt_core.robot import Robot
 
@@ -127,6 +128,21 @@ class SimulatorConformance:
             np.testing.assert_allclose(sim.designs[1], new[0])
             state = sim.step(sim.default_joint_pos)
             _assert_state(state, sim.num_envs, sim.num_joints)
+
+    def test_designs_outside_the_space_are_refused_before_anything_changes(self, simulator_cls, robot) -> None:
+        space = robot.design_space()
+        bad = space.upper + 0.5
+        with pytest.raises(DesignError) as caught:
+            simulator_cls(robot, np.stack([robot.nominal_design(), bad]))
+        assert caught.value.field == space.names[0]
+        with self.make(simulator_cls, robot) as sim:
+            sim.reset()
+            before = sim.designs.copy()
+            with pytest.raises(DesignError) as caught:
+                sim.set_designs(np.array([0, 1]), np.stack([space.lower, bad]))
+            assert caught.value.field == space.names[0]
+            np.testing.assert_array_equal(sim.designs, before)  # the good row was not applied either
+            _assert_state(sim.step(sim.default_joint_pos), sim.num_envs, sim.num_joints)
 
     def test_torque_never_exceeds_motor_limit(self, simulator_cls, robot) -> None:
         import torch

@@ -431,7 +431,7 @@ def test_device_and_dtype(kuafu) -> None:
 def test_same_seed_draws_the_same_parameters_as_the_core_sampler(kuafu) -> None:
     """Construction consumes no randomness: the first reset's parameters are the first draw
     of default_rng(seed), as on every backend."""
-    from coadapt_core.physics.randomization import sample_env_params
+    from coadapt_core.physics.simulator import sample_env_params
 
     rand = RandomizationConfig()
     with MujocoSimulator(kuafu, _designs(kuafu, 5), randomization=rand, seed=9) as sim:

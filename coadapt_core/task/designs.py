@@ -1,0 +1,61 @@
+"""What the locomotion task derives from each environment's design, once per change of
+designs rather than at every step: the design input xi (each variable mapped linearly from
+the robot's full design-space bounds to [-1, 1]), the default joint pose, the feet at the
+standing pose (the Raibert reference starts from them) and the total mass (for objectives
+such as the cost of transport; one model build per distinct design)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import torch
+
+if TYPE_CHECKING:
+    from coadapt_core.physics.simulator import Simulator
+    from coadapt_core.robot import Robot
+
+#: distinct designs whose mass is kept before the cache starts again
+MASS_CACHE_SIZE = 4096
+
+
+class DesignInputs:
+    """The per-environment design buffers of a `LocomotionEnv`, refreshed from its simulator
+    (`refresh`) whenever designs change: `designs` [N, D], `design_obs` [N, D] (xi),
+    `default_joint_pos` [N, J], `default_feet` [N, L, 3] (relative to the hips, base frame)
+    and `total_mass` [N] kg (NaN for a test robot without models)."""
+
+    def __init__(self, robot: Robot, low: np.ndarray, high: np.ndarray, device: torch.device):
+        self.robot = robot
+        self.device = device
+        self.low = torch.as_tensor(low, dtype=torch.float32, device=device)
+        self.high = torch.as_tensor(high, dtype=torch.float32, device=device)
+        self._mass: dict[tuple[float, ...], float] = {}
+
+    def normalize(self, designs: np.ndarray | torch.Tensor) -> torch.Tensor:
+        """[n, D] designs mapped to [-1, 1] over the robot's full design-space bounds."""
+        xi = torch.as_tensor(np.asarray(designs, dtype=np.float32), device=self.device)
+        width = self.high - self.low
+        safe = torch.where(width > 0, width, torch.ones_like(width))
+        return torch.where(width > 0, 2.0 * (xi - self.low) / safe - 1.0, torch.zeros_like(xi))
+
+    def refresh(self, sim: Simulator) -> None:
+        designs = np.asarray(sim.designs, dtype=np.float32)
+        self.designs = torch.as_tensor(designs, device=self.device)  # [N, D]
+        self.design_obs = self.normalize(designs)  # [N, D]
+        self.default_joint_pos = sim.default_joint_pos.to(self.device).float()  # [N, J]
+        with torch.no_grad():
+            self.default_feet = self.robot.default_foot_positions(self.designs).to(self.device).float()  # [N, L, 3]
+        self.total_mass = torch.tensor([self._mass_of(row) for row in np.asarray(sim.designs, dtype=float)],
+                                       dtype=torch.float32, device=self.device)
+
+    def _mass_of(self, design: np.ndarray) -> float:
+        if len(self._mass) > MASS_CACHE_SIZE:
+            self._mass.clear()
+        key = tuple(design.tolist())
+        if key not in self._mass:
+            try:
+                self._mass[key] = float(self.robot.build(design).total_mass)
+            except NotImplementedError:  # a test robot without models: mass unknown
+                self._mass[key] = float("nan")
+        return self._mass[key]
