@@ -46,12 +46,12 @@ class DesignInputs:
         self.default_joint_pos = sim.default_joint_pos.to(self.device).float()  # [N, J]
         with torch.no_grad():
             self.default_feet = self.robot.default_foot_positions(self.designs).to(self.device).float()  # [N, L, 3]
+        if len(self._mass) > MASS_CACHE_SIZE:
+            self._mass.clear()
         self.total_mass = torch.tensor([self._mass_of(row) for row in np.asarray(sim.designs, dtype=float)],
                                        dtype=torch.float32, device=self.device)
 
     def _mass_of(self, design: np.ndarray) -> float:
-        if len(self._mass) > MASS_CACHE_SIZE:
-            self._mass.clear()
         key = tuple(design.tolist())
         if key not in self._mass:
             try:
