@@ -293,6 +293,21 @@ def _train(values: dict[str, Any], runner: Any, robot: str) -> None:
     final, weights = runner.finish()
     print(f"wrote {final} and {weights} ({weights.stat().st_size / 1e6:.1f} MB) after {trainer.total_steps} steps",
           file=sys.stderr)
+    if iterations > 0 and not values["pseudo_critics_only"]:
+        _verdict(values, trainer, final, quiet)
+
+
+def _verdict(values: dict[str, Any], trainer: Any, checkpoint: Path, quiet: bool) -> None:
+    """`coadapt run`'s walking gate on the policy just written (`training_verdict`): a line
+    on stderr, and with --quiet a last JSON line {"walking_gate": {...}} on stdout."""
+    from coadapt_core.experiments.evaluate import training_verdict
+
+    v = training_verdict(checkpoint, trainer.robot, trainer.simulator_cls, trainer.design_space,
+                         terrain=values["terrain"], device=values["device"], seed=values["seed"])
+    print(f"walking gate at design {v['design']} ({v['agents']} agents x {v['seconds']:g} s, vx command "
+          f"{v['vx_command']:g} m/s, vx {v['vx_mean']:.2f} m/s): {v['walking_gate']}", file=sys.stderr)
+    if quiet:
+        print(json.dumps({"walking_gate": v}), flush=True)
 
 
 def _names(objective: list[str] | None) -> list[str]:
@@ -381,6 +396,7 @@ def _eval_table(result: dict[str, Any], title: str, agents: int, seconds: float)
     table.add_column("metric")
     table.add_column("value", justify="right")
     costs, costs_se = result.pop("costs", {}), result.pop("costs_se", {})
+    walking, gate = result.pop("walking", None), result.pop("walking_gate", None)
     for key, value in result.items():
         table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
     for name, value in costs.items():
@@ -395,6 +411,10 @@ def _eval_table(result: dict[str, Any], title: str, agents: int, seconds: float)
     Console().print(f"costs: mean per step over {agents} agents of {seconds:g} s under this one command "
                     "(`coadapt eval` protocol: not comparable with `coadapt run` or `coadapt landscape`, "
                     "whose scenarios draw their commands)" + (f"; units: {', '.join(units)}" if units else ""))
+    if gate is not None:  # `coadapt run`'s walking gate on this evaluation (coadapt/reliability.py)
+        from rich.markup import escape
+
+        Console().print(f"walking gate: {'[bold red]' if walking is False else ''}{escape(gate)}")
 
 
 def _eval_video(robot_obj: Any, design_values: Any, trajectory: Any, video: Path) -> None:

@@ -119,6 +119,29 @@ def judge_short(batches: list[dict[str, Any]], final: dict[str, dict[str, Any]] 
     return None, f"not judged: {short}; measured: {reason}"
 
 
+def judge_policy(survival: float | None, tracking_ratio: float | None, steps: int,
+                 gate: WalkingGate = WALKING_GATE) -> tuple[bool | None, str]:
+    """The walking gate of `coadapt run` on one evaluation of a policy (`coadapt eval`, the
+    end of `coadapt train`): (walking, reason). True: it passed; False: it falls or misses
+    the command; None: not measured, or `steps` per agent under `MIN_JUDGED_STEPS` and it
+    missed by less than `SHORT_MAX_TRACKING_RATIO` without falling (`judge_short`'s rule)."""
+    measured = {"survival": survival, "tracking_ratio": tracking_ratio}
+    if survival is None and tracking_ratio is None:
+        return None, "not measured"
+    problems = _fails(measured, gate)
+    if not problems:
+        shown = [f"survival {survival:.2f}"] if survival is not None else []
+        shown += [f"tracking error {tracking_ratio:.2f} x command"] if tracking_ratio is not None else []
+        return True, f"walks ({', '.join(shown)}); gate: {gate.describe()}"
+    reason = f"does not walk ({'; '.join(problems)}); gate: {gate.describe()}"
+    if steps >= MIN_JUDGED_STEPS:
+        return False, reason
+    if _fails(measured, WalkingGate(min_survival=gate.min_survival, max_tracking_ratio=SHORT_MAX_TRACKING_RATIO)):
+        return False, f"{reason}; it falls or stands still, which {steps} steps per agent do not explain"
+    return None, (f"not judged: {steps} steps per agent are too short to judge tracking (the gate needs "
+                  f">= {MIN_JUDGED_STEPS}); measured: {reason}")
+
+
 #: a best design may fall this much more often than the nominal one (or 2 paired standard
 #: errors, if more) before the run says its gain was bought with falls
 FALL_MARGIN = 0.01
@@ -142,4 +165,4 @@ def fall_verdict(summary: dict[str, Any], margin: float = FALL_MARGIN) -> dict[s
             "reliability": why if summary.get("reliable") is not False else f"{why}; {previous}"}
 
 
-__all__ = ["FALL_MARGIN", "MIN_JUDGED_STEPS", "SHORT_MAX_TRACKING_RATIO", "WALKING_GATE", "WalkingGate", "assess", "fall_verdict", "judge_short", "walking"]
+__all__ = ["FALL_MARGIN", "MIN_JUDGED_STEPS", "SHORT_MAX_TRACKING_RATIO", "WALKING_GATE", "WalkingGate", "assess", "fall_verdict", "judge_policy", "judge_short", "walking"]

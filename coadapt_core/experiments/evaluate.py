@@ -99,6 +99,26 @@ def evaluate_checkpoint(
     return out
 
 
+#: the walking-gate check at the end of `coadapt train`: agents, simulated seconds (250
+#: policy steps at 0.02 s, past the gate's `MIN_JUDGED_STEPS`) and `coadapt eval`'s command
+VERDICT_AGENTS, VERDICT_SECONDS, VERDICT_COMMAND = 16, 5.0, [0.5, 0.0, 0.0]
+
+
+def training_verdict(checkpoint: Path | str, robot_obj: Any, sim_cls: type, space: Any, *, terrain: str,
+                     device: str = "cpu", seed: int = 0) -> dict[str, Any]:
+    """`coadapt run`'s walking gate on a policy `coadapt train` just wrote: `evaluate_checkpoint`
+    of `VERDICT_AGENTS` x `VERDICT_SECONDS` under `VERDICT_COMMAND` at the robot's nominal
+    design (clipped into the trained range `space`), with randomization as in training."""
+    import numpy as np
+
+    nominal = np.asarray(robot_obj.nominal_design(space.is_mixed), dtype=float)
+    design = np.clip(nominal, space.lower, space.upper)
+    result = evaluate_checkpoint(checkpoint, robot_obj, sim_cls, design, terrain=terrain, command=VERDICT_COMMAND,
+                                 agents=VERDICT_AGENTS, seconds=VERDICT_SECONDS, device=device, seed=seed)
+    keys = ("design", "survival", "vx_mean", "vx_command", "tracking_ratio", "walking", "walking_gate")
+    return {key: result[key] for key in keys} | {"agents": VERDICT_AGENTS, "seconds": VERDICT_SECONDS}
+
+
 class _Watch:
     """The rollout's `on_step`: counts diverged agent-steps (the simulator reset those
     agents), records agent 0's base pose and joint angles when asked, reports progress."""
@@ -121,6 +141,22 @@ class _Watch:
         self.done += 1
         if self.progress is not None:
             self.progress(self.done, self.detail, total=self.total)
+
+
+def _gate(result: Any, command: list[float]) -> dict[str, Any]:
+    """`coadapt run`'s walking gate on this evaluation (coadapt/reliability.py): the share of
+    agents that never fell, the tracking ratio (the RMS over agents of each one's mean
+    velocity error against the command, over the command's size; None under a zero
+    command), the verdict and its reason."""
+    from coadapt_core.coadapt.reliability import judge_policy
+
+    size = sum(float(c) ** 2 for c in command)
+    error = None if result.mean_velocity_error is None else float(result.mean_velocity_error[0])
+    ratio = math.sqrt(error / size) if error is not None and size > 1e-4 else None
+    survival = float(result.survival[0])
+    agents = result.per_agent.shape[1]  # one design: steps per agent = interactions / agents
+    walking, reason = judge_policy(survival, ratio, int(result.steps) // agents)
+    return {"tracking_ratio": ratio, "walking": walking, "walking_gate": reason}
 
 
 def _summary(
@@ -162,6 +198,7 @@ def _summary(
         "steps": int(result.steps),
         "divergences": int(divergences),
         "dt": float(dt),
+        **_gate(result, command),
     }
     if requested:  # each asked-for objective: mean cost per step and its SE over the agents
         out["costs"] = {n: cost(n) for n in requested}
@@ -169,4 +206,4 @@ def _summary(
     return out
 
 
-__all__ = ["evaluate_checkpoint", "reported_objectives"]
+__all__ = ["evaluate_checkpoint", "reported_objectives", "training_verdict"]

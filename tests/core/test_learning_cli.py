@@ -17,7 +17,11 @@ def test_train_writes_a_checkpoint_that_eval_and_resume_read(tmp_path, capsys) -
             "--epochs", "1", "--minibatches", "2", "--out", str(out), "--checkpoint-every", "1", "--quiet"]
     assert main(args) == 0
     lines = [json.loads(line) for line in capsys.readouterr().out.splitlines() if line.startswith("{")]
+    # one line per iteration, then the walking gate on the policy written (2 iterations: it does not walk)
+    gate = lines.pop()["walking_gate"]
     assert [row["iteration"] for row in lines] == [1, 2] and lines[-1]["total_steps"] == 128
+    assert gate["walking"] is False and gate["design"] == [1.0, 1.0] and gate["agents"] == 16
+    assert gate["tracking_ratio"] > 0.5 or gate["survival"] < 0.8
     assert (out / "model_final.pt").is_file() and (out / "checkpoints" / "model_2.pt").is_file()
     assert (out / "policy.pt").stat().st_size < 6e6
     assert len((out / "progress.jsonl").read_text().splitlines()) == 2
@@ -36,7 +40,7 @@ def test_train_writes_a_checkpoint_that_eval_and_resume_read(tmp_path, capsys) -
     resumed = tmp_path / "resumed"
     assert main(["train", "--resume", str(out / "model_final.pt"), "--steps", "64", "--out", str(resumed), "--quiet",
                  "--epochs", "1"]) == 0
-    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines() if line.startswith("{")]
+    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines() if line.startswith("{")][:-1]
     assert rows[0]["iteration"] == 3 and rows[-1]["total_steps"] == 192  # 2 designs x 4 agents from the checkpoint
 
 
