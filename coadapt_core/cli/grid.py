@@ -40,22 +40,25 @@ class GridSettings:
     store: Any = shared(ExportCommand)
     out: str = setting("runs", "Folder for run folders and cell logs.")
     timeout: Float | None = setting(None, "Seconds before a cell is killed (default: none).")
-    dry_run: bool = setting(False, "Print the plan (skip / resume / new per cell) and run nothing.", names=("--dry-run",))
+    dry_run: bool = setting(False, "Print the plan (skip / resume / new / refuse per cell) and run nothing; exit 2 "
+                            "when a cell would be refused.", names=("--dry-run",))
     as_json: bool = setting(False, "Print a JSON summary as the last line.", names=("--json",))
     run_arg: list[str] | None = setting(None, "Extra argument passed to every `coadapt run` (repeatable), e.g. "
                                         "--run-arg=--device=cuda.", names=("--run-arg",))
 
 
-def _check_cells(app: typer.Typer, spec, out: str, store_url: str) -> None:
+def _check_cells(app: typer.Typer, spec, out: str, store_url: str, *, dry_run: bool = False) -> dict[str, str]:
     """Run `coadapt run <cell's arguments> --check` in this process for every cell: a bad
-    objective, terrain, preset, simulator, optimizer or --run-arg is one line naming the cell
-    before anything starts, not a failed cell after others ran."""
+    objective, terrain, preset, simulator, optimizer, --run-arg or a robot without a policy
+    for the cell is one line naming the cell before anything starts, not a failed cell after
+    others ran. With `dry_run`: {cell key: why `coadapt run` refuses it} for the plan."""
     import contextlib
     import io
 
     from coadapt_core.cli.common import fail, run_app
 
     checked: dict[tuple, str | None] = {}
+    refused: dict[str, str] = {}
     for cell in spec.cells():
         argv = [a for a in cell.run_args(out_dir=out, extra=spec.extra_args, store=store_url) if a != "--json"]
         key = tuple(a for a, b in zip(argv, ["", *argv[:-1]], strict=True) if b != "--seed")  # seeds share a verdict
@@ -67,7 +70,10 @@ def _check_cells(app: typer.Typer, spec, out: str, store_url: str) -> None:
             checked[key] = None if code == 0 else (lines[-1] if lines else f"exit code {code}")
         if checked[key] is not None:
             message = checked[key].removeprefix("error: ").removeprefix("error (coadapt run): ")
-            fail(f"grid cell {cell.key}: {message}; nothing was started")
+            if not dry_run:
+                fail(f"grid cell {cell.key}: {message}; nothing was started")
+            refused[cell.key] = message
+    return refused
 
 
 def _spec(s: GridSettings, run_arg: list[str] | None) -> Any:
@@ -86,16 +92,25 @@ def _spec(s: GridSettings, run_arg: list[str] | None) -> Any:
     )
 
 
-def _print_plan(results: Any, spec: Any, out: str) -> None:
-    """--dry-run: each cell skipped (finished), resumed or new, and the counts."""
+def _print_plan(results: Any, spec: Any, out: str, refused: dict[str, str]) -> None:
+    """--dry-run: each cell skipped (finished), resumed, new or refused (`coadapt run` would
+    refuse it, e.g. its robot has no policy: the grid would not start), and the counts;
+    exit 2 when a cell is refused."""
     from coadapt_core.experiments.grid import plan_grid
 
     tasks, skipped = plan_grid(results, spec, out_dir=out)
     for cell in skipped:
         print(f"skip    {cell.key}")
     for task in tasks:
+        if task.cell.key in refused:
+            print(f"refuse  {task.cell.key}: {refused[task.cell.key]}")
+            continue
         print(f"{'resume' if task.resume else 'new':7} {task.cell.key}" + (f" (run {task.resume})" if task.resume else ""))
-    print(f"grid {spec.grid_id}: {len(skipped)} finished, {len(tasks)} to run")
+    runnable = [t for t in tasks if t.cell.key not in refused]
+    print(f"grid {spec.grid_id}: {len(skipped)} finished, {len(runnable)} to run"
+          + (f", {len(tasks) - len(runnable)} refused (the grid would not start)" if len(runnable) < len(tasks) else ""))
+    if len(runnable) < len(tasks):
+        raise typer.Exit(2)
 
 
 def _short(key: str) -> str:
@@ -164,9 +179,9 @@ def register(app: typer.Typer) -> None:
         spec = _spec(s, s.run_arg)
         check_grid_options(executor=s.executor, workers=s.workers, timeout=s.timeout, address=s.address)
         results = ResultsStore(s.store)
-        _check_cells(app, spec, s.out, results.url)  # every cell's arguments, before any cell starts
+        refused = _check_cells(app, spec, s.out, results.url, dry_run=s.dry_run)  # every cell, before any starts
         if s.dry_run:
-            _print_plan(results, spec, s.out)
+            _print_plan(results, spec, s.out, refused)
             return
         report = _run(s, spec, results, command_line)
         results.close()

@@ -43,7 +43,7 @@ class RunCommand:
         "objective_options.", names=("--objective-option",))
     help_all: bool = setting(False, "Show every option (training, task, randomization, ...) and exit.",
                              names=("--help-all",), callback=help_all)
-    check: bool = setting(False, "Check the options (config, plugins, store, --out) and exit without running.",
+    check: bool = setting(False, "Check the options (config, plugins, starting policy, store, --out) and exit without running.",
                           names=("--check",), hidden=True)
 
 
@@ -90,7 +90,7 @@ class _ProgressView:
 
 def _check_run_config(cfg: Any) -> None:
     """What `coadapt run` would only find out later: the store URL and its driver, the BO
-    study's storage URL, and that --out is (or can be made) a folder."""
+    study's storage URL, the starting policy, and that --out is (or can be made) a folder."""
     import os
 
     from coadapt_core.results.store import (
@@ -112,6 +112,9 @@ def _check_run_config(cfg: Any) -> None:
         field = next((a.key for a in option_aliases().values()
                       if (a.field, a.option.name) == ("optimizer_options", "storage")), "optimizer_options.storage")
         check_database_url(str(storage), field=field)
+    from coadapt_core.coadapt.setup import check_starting_policy
+
+    check_starting_policy(cfg)  # a robot without a policy: one line (a grid's cell before the grid starts)
     Path(cfg.out).mkdir(parents=True, exist_ok=True)  # an OSError here is one line (cli.main)
 
 

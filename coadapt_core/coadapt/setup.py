@@ -316,6 +316,16 @@ def no_policy_message(robot: str, terrain: str, mixed: bool, why: str = "ships n
     )
 
 
+def check_starting_policy(config: CoadaptConfig) -> None:
+    """`resolve_checkpoint`'s one-line `UserError` when the run would start from a policy it
+    cannot have (the robot ships none for the terrain and space, a path that is missing or
+    another robot's); nothing for a method whose policies are trained per design from
+    scratch. `coadapt run --check` (and so every cell of `coadapt grid`) asks it before
+    anything starts."""
+    if get_method(config.method).backend_kind.shared_policy or config.specialized_init == "universal":
+        resolve_checkpoint(config)
+
+
 def resolve_checkpoint(config: CoadaptConfig) -> str | None:
     """'' -> the policy the robot ships for the terrain and design space
     (`Robot.shipped_policy`), 'none' -> from scratch, else a path that must exist.
