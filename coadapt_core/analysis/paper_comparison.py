@@ -37,6 +37,7 @@ from typing import Any
 from coadapt_core.analysis.paper import PaperTables, paper_tables
 from coadapt_core.analysis.paper_cost import Z, table7_comparison
 from coadapt_core.analysis.paper_figure import figure_beside_paper
+from coadapt_core.analysis.tables import REDUCTIONS
 from coadapt_core.methods import METHODS
 
 #: a design scale within this of 1.0 is "at nominal" (the paper prints two decimals: 0.98-1.02)
@@ -50,11 +51,16 @@ PAPER_ROUNDING = 0.0005
 COMMON_COLUMNS = ("common_improvement", "common_improvement_se", "common_improvement_verdict",
                   "common_improvement_plain", "common_improvement_plain_se", "common_improvement_plain_verdict",
                   "common_fall_rate_difference", "common_fall_rate_difference_se")
+#: the objective's own measure beside the paper's (1 - c / c0), where the two differ (tracking)
+OWN_COLUMNS = ("measure_differs", "improvement_own", "improvement_own_se", "improvement_plain_own",
+               "improvement_plain_own_se", "common_improvement_own", "common_improvement_own_se",
+               "common_improvement_plain_own", "common_improvement_plain_own_se")
 T6_COLUMNS = ("objective", "method", "optimizer", "terrain", "runs", "seeds",
               "thigh", "thigh_se", "paper_thigh", "shank", "shank_se", "paper_shank", "direction",
               "improvement", "improvement_se", "paper_improvement", "improvement_verdict",
               "improvement_plain", "improvement_plain_se", "improvement_plain_verdict", *COMMON_COLUMNS,
-              "sim2sim_improvement", "sim2sim_improvement_se", "paper_sim2sim_improvement", "sim2sim_verdict")
+              "sim2sim_improvement", "sim2sim_improvement_se", "paper_sim2sim_improvement", "sim2sim_verdict",
+              *OWN_COLUMNS, "sim2sim_improvement_own")
 ORDER_COLUMNS = ("objective", "terrain", "measure", "methods", "paper_order", "our_order", "pairs", "reversed",
                  "clear_reversals", "verdict")
 T7_COLUMNS = ("method", "optimizer", "runs", "pairs", "interactions_training", "interactions_evaluation",
@@ -68,7 +74,8 @@ T9_COLUMNS = ("objective", "method", "optimizer", "terrain", "runs", "seeds",
               "thigh", "thigh_se", "paper_thigh", "shank", "shank_se", "paper_shank", "direction",
               "hip_motor", "paper_hip_motor", "hip_motor_verdict", "knee_motor", "paper_knee_motor", "knee_motor_verdict",
               "improvement", "improvement_se", "paper_improvement", "improvement_verdict",
-              "improvement_plain", "improvement_plain_se", "improvement_plain_verdict", *COMMON_COLUMNS)
+              "improvement_plain", "improvement_plain_se", "improvement_plain_verdict", *COMMON_COLUMNS,
+              *OWN_COLUMNS)
 
 
 # -- numbers ------------------------------------------------------------------------------------
@@ -167,20 +174,33 @@ def table6_comparison(t6: Sequence[dict[str, Any]], paper: PaperTables | None = 
     return out
 
 
+def _like_for_like(row: dict[str, Any], r: dict[str, Any], name: str) -> None:
+    """row[name] (and its SE): the table6 row's improvement `name` in the paper's measure, the
+    cost reduction 1 - c / c0 (`REDUCTIONS`; a row without it: the improvement as it is), and
+    row[name + '_own']: the objective's own measure beside it."""
+    paper_measure = dict((own, red) for red, own in REDUCTIONS).get(name)
+    src = paper_measure if paper_measure and r.get(f"{paper_measure}_n") else name
+    row[name], row[f"{name}_se"] = r.get(src), se_of(r, src)
+    row[f"{name}_own"], row[f"{name}_own_se"] = r.get(name), se_of(r, name)
+
+
 def _improvements(row: dict[str, Any], r: dict[str, Any], paper_imp: float | None, paper_s2s: float | None = None,
                   *, sim2sim: bool = True) -> None:
-    row["improvement"], row["improvement_se"] = r.get("improvement"), se_of(r, "improvement")
+    """Our improvements beside the paper's, each judged in the paper's measure (1 - c / c0),
+    the objective's own measure kept beside (`<name>_own`; they differ for command tracking)."""
+    row["measure_differs"] = bool(r.get("reduction_differs"))
+    _like_for_like(row, r, "improvement")
     row["paper_improvement"] = paper_imp
     row["improvement_verdict"] = value_verdict(row["improvement"], row["improvement_se"], paper_imp)
-    row["improvement_plain"], row["improvement_plain_se"] = r.get("improvement_plain"), se_of(r, "improvement_plain")
+    _like_for_like(row, r, "improvement_plain")
     row["improvement_plain_verdict"] = value_verdict(row["improvement_plain"], row["improvement_plain_se"], paper_imp)
-    for name in ("common_improvement", "common_improvement_plain", "common_fall_rate_difference"):
-        row[name], row[f"{name}_se"] = r.get(name), se_of(r, name)
     for name in ("common_improvement", "common_improvement_plain"):
+        _like_for_like(row, r, name)
         row[f"{name}_verdict"] = value_verdict(row[name], row[f"{name}_se"], paper_imp)
+    row["common_fall_rate_difference"] = r.get("common_fall_rate_difference")
+    row["common_fall_rate_difference_se"] = se_of(r, "common_fall_rate_difference")
     if sim2sim:
-        row["sim2sim_improvement"] = r.get("sim2sim_improvement")
-        row["sim2sim_improvement_se"] = se_of(r, "sim2sim_improvement")
+        _like_for_like(row, r, "sim2sim_improvement")
         row["paper_sim2sim_improvement"] = paper_s2s
         row["sim2sim_verdict"] = value_verdict(row["sim2sim_improvement"], row["sim2sim_improvement_se"], paper_s2s)
 
@@ -284,6 +304,18 @@ def _common(r: dict[str, Any]) -> str:
             f"{_pct(r['common_fall_rate_difference'], r['common_fall_rate_difference_se'])}")
 
 
+#: the own-measure column's header: our improvements as the objective itself reports them
+OWN_HEADER = ("Ours in the objective's own measure, where it differs (tracking: 1 - √(c/c0)): run's cost, plain mean, "
+              "common, common plain mean")
+
+
+def _own(r: dict[str, Any]) -> str:
+    if not r.get("measure_differs"):
+        return "same"
+    return ", ".join(_pct(r.get(f"{n}_own"), r.get(f"{n}_own_se"))
+                     for n in ("improvement", "improvement_plain", "common_improvement", "common_improvement_plain"))
+
+
 def _ratio(v: float | None, se: float | None = None) -> str:
     return "n/a" if v is None else f"{v:.2f}" if se is None else f"{v:.2f} ± {se:.2f}"
 
@@ -295,8 +327,8 @@ def _display(rows6: Sequence[dict[str, Any]], order: Sequence[dict[str, Any]], r
     methods = {m.name: m.label for m in METHODS.values()}
     sections = []
     head6 = ["Objective", "Method", "Optimizer", "Terrain", "Runs", "Thigh ours / paper", "Shank ours / paper", "Direction",
-             "Improvement ours / paper", "Verdict", "Plain-mean improvement ours", "Verdict",
-             "Common scenarios: improvement, plain mean, fall-rate difference", "Verdict (plain mean)",
+             "Improvement (1 - c/c0) ours / paper", "Verdict", "Plain-mean improvement ours", "Verdict",
+             "Common scenarios: improvement, plain mean, fall-rate difference", "Verdict (plain mean)", OWN_HEADER,
              "Sim-to-sim ours / paper", "Verdict"]
     cells6 = [[objectives.get(r["objective"], r["objective"]), methods.get(r["method"], r["method"]), r["optimizer"],
                r["terrain"], str(r["runs"]),
@@ -304,7 +336,7 @@ def _display(rows6: Sequence[dict[str, Any]], order: Sequence[dict[str, Any]], r
                f"{_num(r['shank'], r['shank_se'])} / {r['paper_shank']:.2f}", r["direction"],
                f"{_pct(r['improvement'], r['improvement_se'])} / {_pct(r['paper_improvement'])}", r["improvement_verdict"],
                _pct(r["improvement_plain"], r["improvement_plain_se"]), r["improvement_plain_verdict"],
-               _common(r), r["common_improvement_plain_verdict"],
+               _common(r), r["common_improvement_plain_verdict"], _own(r),
                f"{_pct(r['sim2sim_improvement'], r['sim2sim_improvement_se'])} / {_pct(r['paper_sim2sim_improvement'])}",
                r["sim2sim_verdict"]] for r in rows6]
     sections.append(("Table 6 beside the paper's", head6, cells6))
@@ -329,8 +361,9 @@ def _display(rows6: Sequence[dict[str, Any]], order: Sequence[dict[str, Any]], r
               for r in rows7]
     sections.append(("Table 7 beside the paper's (ratios to the paper's method in the same table)", head7, cells7))
     head9 = ["Objective", "Terrain", "Optimizer", "Runs", "Thigh ours / paper", "Hip motor per seed, ours / paper", "Shank ours / paper",
-             "Knee motor per seed, ours / paper", "Direction", "Improvement ours / paper", "Verdict", "Plain-mean improvement ours",
-             "Verdict", "Common scenarios: improvement, plain mean, fall-rate difference", "Verdict (plain mean)"]
+             "Knee motor per seed, ours / paper", "Direction", "Improvement (1 - c/c0) ours / paper", "Verdict",
+             "Plain-mean improvement ours", "Verdict", "Common scenarios: improvement, plain mean, fall-rate difference",
+             "Verdict (plain mean)", OWN_HEADER]
     cells9 = [[objectives.get(r["objective"], r["objective"]), r["terrain"], r["optimizer"], str(r["runs"]),
                f"{_num(r['thigh'], r['thigh_se'])} / {r['paper_thigh']:.2f}",
                f"{r['hip_motor'] or 'n/a'} / {r['paper_hip_motor']} ({r['hip_motor_verdict']})",
@@ -338,7 +371,7 @@ def _display(rows6: Sequence[dict[str, Any]], order: Sequence[dict[str, Any]], r
                f"{r['knee_motor'] or 'n/a'} / {r['paper_knee_motor']} ({r['knee_motor_verdict']})", r["direction"],
                f"{_pct(r['improvement'], r['improvement_se'])} / {_pct(r['paper_improvement'])}", r["improvement_verdict"],
                _pct(r["improvement_plain"], r["improvement_plain_se"]), r["improvement_plain_verdict"],
-               _common(r), r["common_improvement_plain_verdict"]] for r in rows9]
+               _common(r), r["common_improvement_plain_verdict"], _own(r)] for r in rows9]
     sections.append(("Table 9 beside the paper's (mixed variables)", head9, cells9))
     return sections
 
@@ -355,7 +388,12 @@ def _explanation(paper: PaperTables, rows6: Sequence[dict[str, Any]], rows9: Seq
             f"recorded). Direction: thigh and shank longer or shorter than nominal (a scale within {NOMINAL_BAND} of 1.0 "
             "counts as nominal), as the paper's or not. Improvement verdict: 'within' when the paper's figure lies within "
             f"{Z:g} SE of our mean (plus the paper's rounding), else ours is 'above' or 'below' it; the paper's improvement "
-            "is a plain mean over its evaluation scenarios, so the plain-mean column is the like-for-like one. Common "
+            "is a plain mean over its evaluation scenarios, so the plain-mean column is the like-for-like one. Every "
+            "improvement here, and every verdict, is the paper's measure, the cost reduction 1 - c/c0 of the mean "
+            "cost (tracking: of P_cmd = e_v² + e_w², eq. 6; the paper says it compares tracking by 'the tracking "
+            "error', which we read as P_cmd); where an objective reports its own improvement otherwise "
+            "(tracking: the reduction of the RMS error, 1 - √(c/c0), about half as large: the other reading), each "
+            "run's figure is restated (its SE by the delta method) and its own is shown beside it. Common "
             "scenarios: each run's best design and its nominal design re-evaluated with the run's own policy on one "
             "scenario set shared by every run of a terrain and preset (one yardstick for all methods; fall-rate difference "
             "in points, paired). Sim-to-sim: "

@@ -66,10 +66,10 @@ def figure_beside_paper(rows6: Sequence[dict[str, Any]], out: Path,
         tidy_axes(ax)
         ax.set_xticks(range(len(objs)))
         ax.set_xticklabels([(objectives or {}).get(o, o) for o in objs])
-        ax.set_ylabel("improvement over nominal [%]")
+        ax.set_ylabel("improvement over nominal, 1 - c/c0 [%]")
         ax.set_title(f"{terrain}", fontsize=9)
     axes[0].legend(fontsize=7)
     return save_figure(plt, fig, out / FILE,
-                       "Table 6 beside the paper's: each method's improvement over the nominal design on the common "
-                       "scenario set (mean ± SE over seeds; hatched: a cell without common-scenario rows, its runs' "
+                       "Table 6 beside the paper's: each method's improvement over the nominal design (the cost "
+                       "reduction 1 - c/c0, the paper's measure) on the common scenario set (mean ± SE over seeds; hatched: a cell without common-scenario rows, its runs' "
                        "own final check) and the paper's figure for the same cell (black tick), one panel per terrain.")
