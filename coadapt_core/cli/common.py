@@ -26,6 +26,20 @@ def fail(message: str, code: int = EXIT_USAGE) -> NoReturn:
     raise typer.Exit(code)
 
 
+def wide_console(*renderables: Any, stream: Any = None) -> Any:
+    """A rich console for `renderables` (tables): on a terminal its width, where a table too
+    wide folds its cells; in a pipe or a file at least the widest renderable's natural width
+    (never under 80), so no column is cut or folded and a log keeps every column."""
+    from rich.console import Console
+
+    console = Console(file=stream)
+    if console.is_terminal:
+        return console
+    unbounded = console.options.update_width(10_000)
+    widest = max((console.measure(r, options=unbounded).maximum for r in renderables), default=0)
+    return Console(file=stream, width=max(console.width, widest))
+
+
 def one_line(text: object) -> str:
     """`text` on one line (whitespace runs, newlines included, become one space)."""
     return " ".join(str(text).split())

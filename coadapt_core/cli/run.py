@@ -75,8 +75,9 @@ class _ProgressView:
         outer = f"{min(event['outer'] + 1, event['outer_total'])}/{event['outer_total']}"
         self.line.update(
             event["fraction"],
-            # most telling first: at 80 columns the end of the line is cut
-            f"best {'-' if best is None else f'{best:.4g}'}  outer {outer} round {event['inner']}/"
+            # most telling first: at 80 columns the end of the line is cut; the cost is the
+            # optimizer's in-run estimate (a round's scenarios), not the final check's
+            f"in-run best {'-' if best is None else f'{best:.4g}'}  outer {outer} round {event['inner']}/"
             f"{event['inner_total']}  {event['phase']}  {event['interactions']:,} interactions",
             eta=event.get("eta"),
         )
@@ -185,19 +186,22 @@ def _summary_table(summary: dict[str, Any], names: list[str], discrete: list[boo
     from rich import box
     from rich.table import Table
 
-    # light borders and headers over two lines: 4 design variables and a cost fit 80 columns
-    table = Table(title=f"coadapt run {summary['run_id']}", box=box.SIMPLE_HEAD, pad_edge=False, collapse_padding=True)
-    table.add_column("")
+    # light borders and headers over two lines: 4 design variables and a cost fit 80 columns;
+    # a narrower terminal folds cells onto more lines (never cuts them), a pipe or a file gets
+    # the table's own width (`wide_console`)
+    table = Table(title=f"coadapt run {summary['run_id']}: final check costs", box=box.SIMPLE_HEAD, pad_edge=False,
+                  collapse_padding=True)
+    table.add_column("", overflow="fold")
     for name in names:
-        table.add_column(name, min_width=len(name))
+        table.add_column(name, min_width=len(name), overflow="fold")
     units = summary.get("cost_units") or {}
     for objective in summary["best_costs"]:
         unit = f" [{units[objective]}]" if units.get(objective) else ""
-        table.add_column(f"{objective}{unit}\n+- SE")
+        table.add_column(f"{objective}{unit}\n+- SE", overflow="fold")
     plain = summary.get("best_plain_means") or {}
     for objective in plain:
-        table.add_column(f"{objective} plain\nmean +- SE")
-    table.add_column("fall rate\n+- SE", min_width=4)
+        table.add_column(f"{objective} plain\nmean +- SE", overflow="fold")
+    table.add_column("fall rate\n+- SE", min_width=4, overflow="fold")
     best_se, nominal_se = summary.get("best_costs_se") or {}, summary.get("nominal_costs_se") or {}
     plain_se = summary.get("best_plain_means_se") or {}
     nominal_plain, nominal_plain_se = summary.get("nominal_plain_means") or {}, summary.get("nominal_plain_means_se") or {}
@@ -212,39 +216,61 @@ def _summary_table(summary: dict[str, Any], names: list[str], discrete: list[boo
     return table
 
 
+def better_by(value: float, se: float | None = None) -> str:
+    """An improvement said in one direction: "better by 23.5 +- 6.3 %" or "worse by ..."."""
+    return (f"{'worse' if value < 0 else 'better'} by {100 * abs(value):.1f}"
+            f"{'' if se is None else f' +- {100 * se:.1f}'} %")
+
+
+def falls_more_by(difference: float, se: float | None = None) -> str:
+    """A fall-rate difference (best - nominal) said in one direction: "falls more by 0.8 +-
+    0.4 points", "falls less by ...", "falls no more (0.0 +- 0.0 points)"."""
+    spread = "" if se is None else f" +- {100 * se:.1f}"
+    if difference == 0:
+        return f"falls no more than nominal (0.0{spread} points)"
+    return f"falls {'more' if difference > 0 else 'less'} by {100 * abs(difference):.1f}{spread} points than nominal"
+
+
 def _improvements(summary: dict[str, Any]) -> str:
     """The improvement over the nominal design, per objective (+- its paired SE; the first
-    said not significant when it is not), the plain means', the fall-rate difference."""
-    scenarios = summary.get("final_scenarios")
+    said not significant when it is not), the plain means', the fall-rate difference, each
+    in one direction ("better by", "falls more by")."""
     improvement_se = summary.get("improvements_se") or {}
     first = next(iter(summary["improvements"]), None)
     parts = []
     for k, v in summary["improvements"].items():
-        se = improvement_se.get(k)
-        text = f"{k} {100 * v:+.1f} %" if se is None else f"{k} {100 * v:+.1f} +- {100 * se:.1f} %"
+        text = f"{k} {better_by(v, improvement_se.get(k))}"
         if k == first and summary.get("significant") is False:
-            text = f"{k} not significant ({text.split(' ', 1)[1]}, under 4 paired standard errors)"
+            why = "the nominal design stands" if summary.get("best_is_nominal") else "under 4 paired standard errors"
+            text += f" (not significant: {why})"
         parts.append(text)
     improvements = ", ".join(parts)
     plain_imp, plain_imp_se = summary.get("improvements_plain") or {}, summary.get("improvements_plain_se") or {}
     if plain_imp:
-        improvements += " (plain mean: " + ", ".join(
-            f"{k} {100 * v:+.1f} %" if plain_imp_se.get(k) is None else f"{k} {100 * v:+.1f} +- {100 * plain_imp_se[k]:.1f} %"
-            for k, v in plain_imp.items()) + ")"
+        improvements += " (plain mean: " + ", ".join(f"{k} {better_by(v, plain_imp_se.get(k))}"
+                                                     for k, v in plain_imp.items()) + ")"
     if summary.get("fall_rate_difference") is not None:
-        d, se = summary["fall_rate_difference"], summary.get("fall_rate_difference_se")
-        improvements += f"; falls {100 * d:+.1f}{'' if se is None else f' +- {100 * se:.1f}'} points against nominal"
-    if scenarios and scenarios < FEW_SCENARIOS:
-        improvements += f" (from {scenarios} paired scenarios only: a check that the run is wired, not a result)"
+        improvements += f"; best {falls_more_by(summary['fall_rate_difference'], summary.get('fall_rate_difference_se'))}"
     return improvements
 
 
-def _print_summary(summary: dict[str, Any], space_names: list[str] | None, discrete: list[bool] | None = None) -> None:
-    from rich.console import Console
+def _caveat(summary: dict[str, Any]) -> str:
+    """Why the printed improvement is no result: the smoke preset, or too few scenarios."""
+    scenarios = summary.get("final_scenarios")
+    if summary.get("preset") == "smoke":
+        return "; smoke preset, too short to judge: a check that the run is wired, not a result"
+    if scenarios and scenarios < FEW_SCENARIOS:
+        return f"; from {scenarios} paired scenarios only: a check that the run is wired, not a result"
+    return ""
 
-    console = Console()
+
+def _print_summary(summary: dict[str, Any], space_names: list[str] | None, discrete: list[bool] | None = None) -> None:
+    from coadapt_core.cli.common import wide_console
+
     names = space_names or [f"x{i}" for i in range(len(summary["best_design"]))]
-    console.print(_summary_table(summary, names, discrete or [False] * len(names)))
+    table = _summary_table(summary, names, discrete or [False] * len(names))
+    console = wide_console(table)
+    console.print(table)
     blocks, scenarios = summary.get("final_blocks"), summary.get("final_scenarios")
     if summary.get("cost_rule"):
         from coadapt_core.fitness import CostRule
@@ -260,21 +286,37 @@ def _print_summary(summary: dict[str, Any], space_names: list[str] | None, discr
                   "other commands or sizes); SE = standard error over scenarios")
     if "starting_policy" in summary:
         console.print(f"starting policy: {summary['starting_policy'] or 'none (trained from scratch in this run)'}")
-    if summary.get("reliable") is False:
+    if summary.get("preset") == "smoke":  # 20 steps per scenario: nothing about walking can be said
+        console.print(f"walking gate: too short to judge (smoke preset, {summary.get('eval_steps')} steps per "
+                      "scenario; `--preset quick` is judged)")
+    elif summary.get("reliable") is False:
         console.print(f"[bold red]UNRELIABLE[/]: {summary.get('reliability')}")
     elif summary.get("reliability"):  # passed, not judged or not measured: said as well
         console.print(f"walking gate: {summary.get('reliability')}")
     console.print(
-        f"improvement over nominal: {_improvements(summary)}; interactions {summary['interactions']:,} "
+        f"improvement over nominal (final check{_caveat(summary)}): {_improvements(summary)}; "
+        f"interactions {summary['interactions']:,} "
         f"(training {summary['train_interactions']:,}, evaluation {summary['eval_interactions']:,}, "
         f"final check {summary['final_interactions']:,}); {summary['real_evaluations']} real and "
         f"{summary['surrogate_evaluations']} surrogate rounds; {_fmt_duration(summary['seconds'])} wall clock"
     )
     if summary.get("pareto_front"):
         front = summary["pareto_front"]
-        console.print(f"Pareto front ({len(front['designs'])} designs, real costs):")
+        console.print(f"Pareto front ({len(front['designs'])} designs, final check costs):")
         for design, costs in zip(front["designs"], front["costs"], strict=True):
             console.print("  " + ", ".join(f"{x:.3f}" for x in design) + "  ->  " + ", ".join(f"{k} {v:.4g}" for k, v in costs.items()))
+    _print_warnings(console, summary)
+
+
+def _print_warnings(console: Any, summary: dict[str, Any]) -> None:
+    """The run's warnings (`coadapt.cautions`; a summary written before they were recorded:
+    judged now), one line each."""
+    from rich.markup import escape
+
+    from coadapt_core.coadapt.cautions import run_warnings
+
+    for warning in summary["warnings"] if "warnings" in summary else run_warnings(summary):
+        console.print(f"[bold yellow]warning[/]: {escape(warning)}")
 
 
 def alias_settings_class() -> type:

@@ -191,8 +191,11 @@ def final_check(
         first = objectives[0]
         gain = float(first.improvement(float(costs[best, 0]), float(costs[-1, 0])))
         se = se_map[first.name]
-        significant = bool(np.isfinite(se) and abs(gain) >= SIGNIFICANCE_RATIO * se and se >= 0)
-        if significant and block >= min_blocks:
+        settled = bool(np.isfinite(se) and abs(gain) >= SIGNIFICANCE_RATIO * se and se >= 0)
+        # the nominal design as the best is no improvement: its 0.0 +- 0.0 settles the check
+        # (no more blocks) but is not significant
+        significant = settled and best != nominal and gain != 0
+        if settled and block >= min_blocks:
             break
     assert pooled is not None
     cost_se = None if pooled.per_scenario is None else np.asarray(pooled.cost_se, dtype=float)

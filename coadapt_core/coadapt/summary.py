@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from coadapt_core.coadapt.cautions import run_warnings
 from coadapt_core.coadapt.config import CoadaptConfig
 from coadapt_core.coadapt.reliability import fall_verdict, judge_short
 from coadapt_core.coadapt.state import LoopState
@@ -39,6 +40,7 @@ class CoadaptResult:
         # the walking gate's verdict travels with every improvement (reliability.py)
         line["reliable"] = s.get("reliable")
         line["reliability"] = s.get("reliability")
+        line["warnings"] = s.get("warnings", [])  # what to know before trusting it (cautions.py)
         return line
 
 
@@ -131,6 +133,7 @@ def run_summary(state: LoopState, config: CoadaptConfig, objectives: Sequence[Ob
     summary["final_walking"] = outcome.walking
     summary.update(outcome.uncertainty)
     summary.update(fall_verdict(summary))
+    summary["warnings"] = run_warnings(summary)  # at a bound, plain mean, weak surrogate (cautions.py)
     return summary
 
 
