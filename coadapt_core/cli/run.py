@@ -73,12 +73,16 @@ class _ProgressView:
             self.announce = None
         best = event["best_cost"] if event["best_cost"] is not None else event.get("best_any")
         outer = f"{min(event['outer'] + 1, event['outer_total'])}/{event['outer_total']}"
+        phase, done = event["phase"], event.get("phase_done") or 0
+        if event.get("phase_total"):  # inside a training phase (coadapt_core.phase_progress)
+            phase += (f" {100 * done / event['phase_total']:.0f}% of {event['phase_total']:,}, phase ETA "
+                      f"{_fmt_duration(event.get('phase_eta'))}")
         self.line.update(
             event["fraction"],
             # most telling first: at 80 columns the end of the line is cut; the cost is the
             # optimizer's in-run estimate (a round's scenarios), not the final check's
             f"in-run best {'-' if best is None else f'{best:.4g}'}  outer {outer} round {event['inner']}/"
-            f"{event['inner_total']}  {event['phase']}  {event['interactions']:,} interactions",
+            f"{event['inner_total']}  {phase}  {event['interactions'] + done:,} interactions",
             eta=event.get("eta"),
         )
 

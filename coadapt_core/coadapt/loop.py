@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from coadapt_core import phase_progress
 from coadapt_core.coadapt.config import CoadaptConfig
 from coadapt_core.coadapt.final_check import batch_errors, final_check
 from coadapt_core.coadapt.hybrid import HybridPolicy
@@ -289,7 +290,13 @@ class CoadaptationLoop:
             self.hybrid.forget_fit()
             self.emit("training")
             t0 = time.perf_counter()
-            result = self.get_backend().train(s.train_designs, steps, seed=self.seed_for(1, s.outer))
+            rate = phase_progress.PhaseRate()  # the phase's own count and ETA, from its measured rate
+
+            def heard(done: int, total: int) -> None:
+                self.emit("training", phase_done=done, phase_total=total, phase_eta=rate.eta(done, total))
+
+            with phase_progress.listening(heard):
+                result = self.get_backend().train(s.train_designs, steps, seed=self.seed_for(1, s.outer))
             s.counters["train_wall"] = s.counters.get("train_wall", 0.0) + time.perf_counter() - t0
             s.counters["train_steps_timed"] = s.counters.get("train_steps_timed", 0) + int(steps)
             self.count_training([result])

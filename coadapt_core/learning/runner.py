@@ -28,7 +28,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from coadapt_core import tracking
+from coadapt_core import phase_progress, tracking
 from coadapt_core.errors import UserError
 from coadapt_core.learning.trainer import IterationStats, Trainer
 
@@ -116,8 +116,11 @@ class Runner:
         (progress.jsonl, the cadence's checkpoints) before `callback` sees it. Raises
         `TrainingInterrupted` after a Ctrl-C (with `catch_ctrl_c`), its checkpoint written."""
         progress = (self._folder() / "progress.jsonl").open("a") if self.out is not None else None
+        start = self.trainer.total_steps  # this phase's interactions, told to its listeners (phase_progress)
+        total = max(int(iterations), 0) * int(getattr(self.trainer, "samples_per_iteration", 0) or 0)
 
         def record(stats: IterationStats) -> None:
+            phase_progress.report(self.trainer.total_steps - start, total)
             if progress is not None:
                 progress.write(json.dumps(stats.to_dict()) + "\n")
                 progress.flush()
