@@ -30,7 +30,8 @@ class PluginError(CoadaptError):
 class UnknownPluginError(UserError):
     """A plugin name that no loaded plugin provides."""
 
-    def __init__(self, kind: str, name: str, available: list[str], broken: list[str] | None = None):
+    def __init__(self, kind: str, name: str, available: list[str], broken: list[str] | None = None,
+                 reason: str | None = None):
         import difflib
 
         listing = ", ".join(sorted(available)) or "(none loaded)"
@@ -40,6 +41,8 @@ class UnknownPluginError(UserError):
             message += f"; did you mean '{close[0]}'?"
         if broken:  # the name may belong to a plugin that failed to load: say which and why
             message += "; " + "; ".join(broken)
+        if reason:  # the plugin of that name is known and refused: its reason alone
+            message = reason
         super().__init__(message, field=kind)
         self.broken = list(broken or [])
         self.kind = kind

@@ -10,9 +10,9 @@ something is only added.
 A plugin declares the version it was written for, either for every class its hook module
 registers (a module attribute of the module named by its entry point)::
 
-    COADAPT_PLUGIN_API = "2.0"
+    COADAPT_PLUGIN_API = "2.1"
 
-or per class (`plugin_api = "2.0"`, a class attribute; it wins over the module's). The
+or per class (`plugin_api = "2.1"`, a class attribute; it wins over the module's). The
 registry then
 
 - loads a plugin written for this major version and a minor version up to this one;
@@ -21,8 +21,8 @@ registry then
   command that names it exits 2 with that line;
 - refuses one written for a newer version (upgrade coadapt), or declaring something that is
   not a version;
-- loads a plugin that declares nothing (written before versions were declared) and
-  `coadapt plugins` says so.
+- takes a plugin that declares nothing as written before versions were declared, that is
+  for 1.x, and refuses it the same way (its line says it declared nothing).
 
 `tests/core/plugin_api_signature.json` records the interfaces' signatures at each version
 (`coadapt_core.api_signature`); a test fails when they change without the version changing
@@ -92,11 +92,20 @@ def changes_since(major: int) -> list[str]:
     return [c for m in sorted(BREAKING_CHANGES) if major < m <= current()[0] for c in BREAKING_CHANGES[m]]
 
 
+def _older_major(major: int) -> str:
+    """The clause refusing a plugin written for the older major version `major`."""
+    have_major, have_minor, _ = current()
+    changed = "; ".join(changes_since(major)) or "see the changelog"
+    return (f"was written for coadapt plugin API {major}.x and this coadapt has {PLUGIN_API_VERSION}, which "
+            f"changed: {changed}; adapt it as {MIGRATION_DOC} says, then declare "
+            f"{MODULE_ATTRIBUTE} = \"{have_major}.{have_minor}\"")
+
+
 def api_problem(declared: str | None) -> str | None:
-    """Why a plugin declaring `declared` cannot be loaded, in one clause; None when it can
-    (undeclared included)."""
+    """Why a plugin declaring `declared` cannot be loaded, in one clause; None when it can.
+    A plugin declaring nothing was written before versions were declared: for 1.x."""
     if declared is None:
-        return None
+        return "declares no plugin API version, so it is taken as written for 1.x: it " + _older_major(1)
     try:
         major, minor, _ = parse_version(declared)
     except ValueError:
@@ -104,20 +113,11 @@ def api_problem(declared: str | None) -> str | None:
                 f"for, e.g. {MODULE_ATTRIBUTE} = \"{current()[0]}.{current()[1]}\"")
     have_major, have_minor, _ = current()
     if major < have_major:
-        changed = "; ".join(changes_since(major)) or "see the changelog"
-        return (f"was written for coadapt plugin API {major}.x and this coadapt has {PLUGIN_API_VERSION}, which "
-                f"changed: {changed}; adapt it as {MIGRATION_DOC} says, then declare "
-                f"{MODULE_ATTRIBUTE} = \"{have_major}.{have_minor}\"")
+        return _older_major(major)
     if major > have_major or minor > have_minor:
         return (f"needs coadapt plugin API {major}.{minor}, newer than this coadapt's {PLUGIN_API_VERSION}: "
                 "upgrade coadapt (pip install -U coadapt)")
     return None
-
-
-def undeclared_note(distribution: str) -> str:
-    return (f"note: plugin distribution {distribution} declares no plugin API version (this coadapt's is "
-            f"{PLUGIN_API_VERSION}); check it against {MIGRATION_DOC} and declare "
-            f"{MODULE_ATTRIBUTE} = \"{current()[0]}.{current()[1]}\" in its hook module")
 
 
 # -- comparing recorded signatures (coadapt_core.api_signature records them) ----------------

@@ -77,6 +77,8 @@ class BrokenPlugin:
     entry_point: str
     distribution: str
     error: str
+    #: the (kind, name) of a class refused for the plugin API version it declares (or not)
+    refused: tuple[str, str] | None = None
 
     def line(self) -> str:
         return f"plugin '{self.entry_point}' (distribution {self.distribution}) failed to load: {self.error}"
@@ -100,7 +102,10 @@ class Registry:
         try:
             return self.entries[kind][name].cls
         except KeyError:
-            raise UnknownPluginError(kind, name, self.names(kind), [b.line() for b in self.broken]) from None
+            refused = [b.line() for b in self.broken if b.refused == (kind, name)]
+            # written for another plugin API: that line alone says what to do
+            raise UnknownPluginError(kind, name, self.names(kind), [b.line() for b in self.broken],
+                                     reason=refused[0] if refused else None) from None
 
     def default(self, kind: str, exclude: tuple[str, ...] = ()) -> str:
         """The name a command takes for `kind` when none is given: the registered class with
@@ -205,7 +210,7 @@ def load_registry(extra_plugins: list[tuple[ModuleType | object, str]] | None = 
                 api = declared_api(cls, plugin)  # the plugin API version it was written for
                 problem = api_problem(api)
                 if problem is not None:
-                    registry.broken.append(BrokenPlugin(ep_name, dist, f"{kind} '{name}' {problem}"))
+                    registry.broken.append(BrokenPlugin(ep_name, dist, f"{kind} '{name}' {problem}", (kind, name)))
                     continue
                 try:  # declared options must be well formed before anyone passes values to them
                     check_specs(getattr(cls, "option_specs", ()), f"{kind} '{name}'")

@@ -12,8 +12,8 @@ from rich.table import Table
 
 from coadapt_core.cli.options import options_of
 from coadapt_core.cli.options import register as register_command
-from coadapt_core.plugin_api import PLUGIN_API_VERSION, undeclared_note
-from coadapt_core.plugins import BUILTIN_DISTRIBUTION, KINDS, get_registry
+from coadapt_core.plugin_api import PLUGIN_API_VERSION
+from coadapt_core.plugins import KINDS, get_registry
 from coadapt_core.settings import setting, settings
 
 
@@ -46,9 +46,6 @@ def register(app: typer.Typer) -> None:
                 table.add_row(info.kind, info.name, info.distribution, info.version, info.api or "-",
                               getattr(info.cls, "description", ""))
             Console().print(table)
-        undeclared = sorted({i.distribution for i in registry.all() if i.api is None and i.distribution != BUILTIN_DISTRIBUTION})
-        for distribution in undeclared:
-            print(undeclared_note(distribution), file=sys.stderr)
         for broken in registry.broken:
             print(broken.line(), file=sys.stderr)
 

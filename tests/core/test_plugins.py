@@ -19,6 +19,8 @@ DUPLICATE_SOURCE = '''
 from coadapt_core import hookimpl
 from coadapt_core.objective import Objective
 
+COADAPT_PLUGIN_API = "2.1"
+
 class Impostor(Objective):
     name = "joint-speed"
     display_name = "impostor"
