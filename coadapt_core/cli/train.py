@@ -70,7 +70,7 @@ class EvalCommand:
     checkpoint: Path | None = setting(None, "Checkpoint or weights file (default: the policy shipped for the robot and "
                                       "terrain).")
     robot: str | None = setting(None, "Robot (default: the one the checkpoint was trained for; without --checkpoint, "
-                                "the only installed robot).", plugin="robot")
+                                "the installed robot of highest default_rank).", plugin="robot")
     design: str | None = setting(None, "Design, comma-separated (default: the nominal design).")
     sim: str | None = setting(None, "Simulator backend.", plugin="simulator")
     terrain: str = setting("flat", "Terrain: flat, slope or random.")
@@ -352,7 +352,7 @@ def _eval_checkpoint_path(checkpoint: Path | None) -> Path | None:
 
 
 def _eval_robot(checkpoint: Path | None) -> str:
-    """The robot a checkpoint records; without one, the only robot installed."""
+    """The robot a checkpoint records; without one, the default robot."""
     if checkpoint is not None and checkpoint.is_file():
         from coadapt_core.learning import read_checkpoint
 
@@ -365,9 +365,7 @@ def _eval_robot(checkpoint: Path | None) -> str:
     installed = get_registry().names("robot")
     if checkpoint is not None and len(installed) != 1:
         fail(f"--checkpoint {checkpoint} does not exist")
-    if len(installed) != 1:
-        fail(f"--robot is needed: {len(installed)} robots are installed ({', '.join(installed)})")
-    return installed[0]
+    return plugin_name("robot", None)  # the default robot (highest default_rank), as every command takes
 
 
 def _shipped(robot_obj: Any, robot: str, terrain: str, design_values: Any) -> Path:
