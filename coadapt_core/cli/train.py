@@ -339,16 +339,43 @@ def _eval_checks(agents: int, seconds: float, video: Path | None, device: str, o
     return values
 
 
+#: what `coadapt eval --checkpoint` accepts, said when it gets something else
+EVAL_CHECKPOINTS = ("a checkpoint file (.pt), the --out folder of a `coadapt train`, a `coadapt run` folder or run id "
+                    "under ./runs (its last checkpoint), or no --checkpoint for the robot's shipped policy")
+
+
 def _eval_checkpoint_path(checkpoint: Path | None) -> Path | None:
-    """--checkpoint; a training folder stands for its newest checkpoint."""
+    """--checkpoint: a file; a training folder stands for its newest checkpoint, a run folder
+    or a run id under ./runs for the run's last policy (`run_checkpoint`)."""
     if checkpoint is None:
         return None
     from coadapt_core.io import checkpoint_path
+    from coadapt_core.validation import is_run_id
 
+    text = str(checkpoint)
+    if text.strip().lower() == "none":
+        fail(f"--checkpoint {text}: coadapt eval needs a policy; give {EVAL_CHECKPOINTS}")
+    run_dir = next((p for p in (checkpoint, Path("runs") / text) if (p / "config.yaml").is_file()
+                    and (p == checkpoint or is_run_id(text))), None)
+    if run_dir is not None:  # a `coadapt run` folder: its final universal policy
+        import yaml
+
+        from coadapt_core.viz.video import run_checkpoint
+
+        try:
+            config = yaml.safe_load((run_dir / "config.yaml").read_text()) or {}
+        except (OSError, yaml.YAMLError):
+            config = {}
+        found = run_checkpoint(run_dir, config if isinstance(config, dict) else {})
+        if found is None:
+            fail(f"--checkpoint {text}: run folder {run_dir} holds no policy (no checkpoints/backend-outer*.pt and no "
+                 f"starting policy file); give {EVAL_CHECKPOINTS}")
+        print(f"policy: {found} (the last of run {run_dir.name})", file=sys.stderr)
+        return found
     try:
         return checkpoint_path(checkpoint, field="--checkpoint")
     except UserError as exc:
-        fail(str(exc))
+        fail(f"{exc}; or give {EVAL_CHECKPOINTS.split(', ', 2)[2]}")
 
 
 def _eval_robot(checkpoint: Path | None) -> str:
@@ -390,15 +417,16 @@ def _eval_table(result: dict[str, Any], title: str, agents: int, seconds: float)
 
     from coadapt_core.plugins import get_registry
 
-    table = Table(title=title)
+    table = Table(title=f"coadapt eval: {title}")  # eval's costs: this command's protocol
     table.add_column("metric")
     table.add_column("value", justify="right")
     costs, costs_se = result.pop("costs", {}), result.pop("costs_se", {})
     walking, gate = result.pop("walking", None), result.pop("walking_gate", None)
     for key, value in result.items():
-        table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
+        label = f"{key} (eval)" if key.endswith(("_cost", "_cost_se")) else key  # every cost says its protocol
+        table.add_row(label, f"{value:.4g}" if isinstance(value, float) else str(value))
     for name, value in costs.items():
-        table.add_row(f"{name} cost (per step)", f"{value:.4g} +- {costs_se[name]:.2g} SE")
+        table.add_row(f"{name} cost (eval, per step)", f"{value:.4g} +- {costs_se[name]:.2g} SE")
     Console().print(table)
     units = []  # each `<objective>_cost` in the objective's declared unit
     for key in result:
