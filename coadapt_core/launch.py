@@ -58,19 +58,14 @@ def omp_wait_settings(environ, cores: int, running: int | None) -> dict[str, str
     return {"OMP_WAIT_POLICY": "PASSIVE"}
 
 
-def usable_cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        return os.cpu_count() or 1
-
-
 def apply_omp_wait_policy() -> dict[str, str]:
     """Set the wait policy in os.environ (once torch is imported it is too late: then nothing
     is read or set). Returns the settings it added."""
     if "torch" in sys.modules:
         return {}
-    chosen = omp_wait_settings(os.environ, usable_cores(), running_processes())
+    from coadapt_core.threads import usable_cpus  # no torch: safe before it loads
+
+    chosen = omp_wait_settings(os.environ, usable_cpus(), running_processes())
     os.environ.update(chosen)
     return chosen
 

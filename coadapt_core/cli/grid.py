@@ -36,7 +36,10 @@ class GridSettings:
     optimizer: str | None = setting(None, "Optimizer for every cell (default: each method's own).")
     executor: str = setting("local", "local (process pool on this machine) or ray.")
     address: str | None = setting(None, "Ray cluster address (default: start a local Ray instance).")
-    workers: Int | None = setting(None, "Cells at once (default: the number of cores).")
+    workers: Int | None = setting(None, "Cells at once (default: as many as fit, cells at once x --threads <= "
+                                  "cores; on Ray: the number of cores).")
+    threads: Int | None = setting(None, "CPU threads per cell, physics and torch: each cell's `coadapt run --threads` "
+                                  "(default: locally the cores divided among the cells at once; on Ray 1).", ge=1)
     store: Any = shared(ExportCommand)
     out: str = setting("runs", "Folder for run folders and cell logs.")
     timeout: Float | None = setting(None, "Seconds before a cell is killed (default: none).")
@@ -152,8 +155,8 @@ def _run(s: GridSettings, spec: Any, results: Any, command_line: str) -> Any:
 
         try:
             with ctrl_c_once():
-                return run_grid(spec, results, executor=s.executor, workers=s.workers, address=s.address,
-                                out_dir=s.out, timeout=s.timeout, on_event=on_event)
+                return run_grid(spec, results, executor=s.executor, workers=s.workers, threads=s.threads,
+                                address=s.address, out_dir=s.out, timeout=s.timeout, on_event=on_event)
         except KeyboardInterrupt as exc:
             line.close()
             stopped = getattr(exc, "report", None)

@@ -17,6 +17,7 @@ from coadapt_core.cli.options import register as register_command
 from coadapt_core.coadapt.config import CoadaptConfig
 from coadapt_core.plugins import default_plugin
 from coadapt_core.settings import Int, setting, settings, shared
+from coadapt_core.threads import ThreadSettings, apply_threads
 
 
 @settings
@@ -38,6 +39,7 @@ class LandscapeSettings:
     cost_rule: Any = shared(CoadaptConfig)
     cost_cap: Any = shared(CoadaptConfig)
     device: Any = shared(CoadaptConfig)
+    threads: Any = shared(ThreadSettings)
     store: Any = shared(ExportCommand)
     resume: str | None = setting(None, "Continue an interrupted landscape run (its id).")
     as_json: bool = setting(False, "Print the summary as JSON on the last line.", names=("--json",))
@@ -144,7 +146,7 @@ def _prepare(s: LandscapeSettings, resume: str | None) -> dict[str, Any]:
         fail(f"cannot evaluate designs: {exc}")
     recorder = SqliteRecorder(s.store or None)
     config = {"objective": ",".join(s.objectives), "terrain": s.terrain, "sim": s.sim, "robot": s.robot,
-              "checkpoint": str(checkpoint), "device": s.device, "design_space": space.to_dict()}
+              "checkpoint": str(checkpoint), "device": s.device, "design_space": space.to_dict(), "threads": s.threads}
     if resume:
         if not recorder.store.has_run(resume):
             fail(f"--resume: run '{resume}' is not in store {recorder.url}")
@@ -193,6 +195,7 @@ def register(app: typer.Typer) -> None:
         variables (Kuafu: thigh and shank scale) with the universal policy; reports draw it as
         a heat-map and mark each method's optimum."""
         s = settings_from(LandscapeSettings, values, options)
+        s.threads = apply_threads(s.threads)  # physics and torch alike; recorded with the run
         job = _prepare(s, s.resume)
         summary = _run(s, job)
         print(landscape_line(summary, job["agents"], job["steps"], getattr(job["objectives"][0], "unit", "")))

@@ -20,7 +20,8 @@ from coadapt_core.cli.options import OptionGroup, filled, options_of
 from coadapt_core.cli.options import register as register_command
 from coadapt_core.cli.progress import ProgressLine
 from coadapt_core.errors import UserError
-from coadapt_core.settings import Float, Int, setting, settings
+from coadapt_core.settings import Float, Int, setting, settings, shared
+from coadapt_core.threads import ThreadSettings
 from coadapt_core.tracking import check_logger
 
 
@@ -41,6 +42,7 @@ class RunCommand:
     objective_option: list[str] | None = setting(
         None, "KEY=VALUE: an option the objective plugin declares (repeatable); wins over the YAML file's "
         "objective_options.", names=("--objective-option",))
+    threads: Any = shared(ThreadSettings)
     help_all: bool = setting(False, "Show every option (training, task, randomization, ...) and exit.",
                              names=("--help-all",), callback=help_all)
     check: bool = setting(False, "Check the options (config, plugins, starting policy, store, --out) and exit without running.",
@@ -463,6 +465,9 @@ def register(app: typer.Typer) -> None:
         """Co-adapt design and policy: universal policy + pseudo-critics, optimizer with hybrid
         real/surrogate fitness, range narrowing (paper Algorithm 4)."""
         values = filled(values, own)
+        from coadapt_core.threads import apply_threads
+
+        apply_threads(values["threads"])  # physics and torch alike; recorded in config.yaml
         overrides = {option.leaf.key: values[option.param] for option in settings}
         for option in aliases:  # keys of earlier versions, declared by the plugins
             overrides[option.param] = values[option.param]

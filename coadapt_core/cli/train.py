@@ -25,7 +25,8 @@ from coadapt_core.cli.options import OptionGroup, choices, filled, given_setting
 from coadapt_core.cli.options import register as register_command
 from coadapt_core.cli.progress import ProgressLine
 from coadapt_core.errors import UserError
-from coadapt_core.settings import Float, Int, overrides, setting, settings
+from coadapt_core.settings import Float, Int, overrides, setting, settings, shared
+from coadapt_core.threads import ThreadSettings, apply_threads
 from coadapt_core.tracking import check_logger, make_logger
 
 
@@ -44,7 +45,7 @@ class TrainCommand:
     objectives: str | None = setting(None, "Objectives whose pseudo-critics are trained, comma-separated (default: "
                                      "every installed objective that declares no options).")
     device: str = setting("cpu", "Learner device: cpu or cuda.")
-    threads: Int | None = setting(None, "Physics threads (default: the backend's choice).")
+    threads: Any = shared(ThreadSettings)
     seed: Int = setting(0, "Random seed.")
     resume: Path | None = setting(None, "Checkpoint to resume from (networks, optimizers, normalisers, counters).")
     init_from: Path | None = setting(None, "Start from this policy's weights and normalisers (fresh optimizer state); "
@@ -80,6 +81,7 @@ class EvalCommand:
     device: str = setting("cpu", "Policy device: cpu or cuda.")
     seed: Int = setting(0, "Random seed.")
     randomize: bool = setting(True, "Domain randomization (Table 2) as in training.")
+    threads: Any = shared(ThreadSettings)
     as_json: bool = setting(False, "Print JSON.", names=("--json",))
     video: Path | None = setting(None, "Render agent 0 offscreen into a .gif (or .mp4 with ffmpeg).")
     objective: list[str] | None = setting(None, "Also evaluate this installed objective (repeatable, or a comma list): its "
@@ -254,7 +256,7 @@ def _announce(values: dict[str, Any], robot: str, trainer: Any, iterations: int)
     print(
         f"training {robot} on {sim}/{values['terrain']}: {base.num_designs} designs x {base.agents_per_design} agents = "
         f"{trainer.env.num_envs} envs, {iterations} iterations of {trainer.samples_per_iteration} samples, "
-        f"range {trainer.design_space.describe()}, device {values['device']}, randomization "
+        f"range {trainer.design_space.describe()}, device {values['device']}, {trainer.num_threads} threads, randomization "
         f"{base.extra.get('randomization', 'table2')}, yaw {task.commands.yaw_range[0]:g}:{task.commands.yaw_range[1]:g} rad/s"
         + (", pseudo-critics only (the policy stays as loaded)" if values["pseudo_critics_only"] else ""),
         file=sys.stderr,
@@ -465,6 +467,7 @@ def register(app: typer.Typer) -> None:
         if steps < 0 or (steps == 0 and values["resume"] is None and values["init_from"] is None):
             fail(f"--steps must be >= 1 (or 0 with --resume or --init-from: export without training), got {steps}")
         _check_device(values["device"])
+        apply_threads(values["threads"])  # physics and torch; never the checkpoint's
         try:
             check_logger(values["logger"])
             # the settings given: checked against their declarations (one line naming the option)
@@ -488,6 +491,7 @@ def register(app: typer.Typer) -> None:
         """Roll out a policy on one design and report survival, speed and costs."""
         o = SimpleNamespace(**filled(values, evaluation))
         velocity = _eval_checks(o.agents, o.seconds, o.video, o.device, o.objective, o.command)
+        apply_threads(o.threads)
         checkpoint = _eval_checkpoint_path(o.checkpoint)
         robot = o.robot if o.robot is not None else _eval_robot(checkpoint)
         robot_obj = resolve("robot", robot)()

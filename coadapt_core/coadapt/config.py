@@ -376,7 +376,7 @@ def resolve_learner(
 
 #: keys a run folder's config.yaml records beside the config (where and what it ran on);
 #: a config file may hold them (a run's config.yaml given to --config) and they are ignored
-RECORD_KEYS = ("run_id", "run_dir", "design_space", "grid_id", "grid_cell", "policy")
+RECORD_KEYS = ("run_id", "run_dir", "design_space", "grid_id", "grid_cell", "policy", "threads")
 
 
 def make_config(

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from coadapt_core import threads
 from coadapt_core.coadapt.config import CoadaptConfig, config_from_dict
 from coadapt_core.coadapt.loop import CoadaptationLoop, ProgressFn
 from coadapt_core.coadapt.setup import LoopParts, build_parts
@@ -81,8 +82,12 @@ def run_coadaptation(
     recorder = recorder or make_recorder(run_path, config.store or None)
     if on_start is not None:
         on_start(state.run_id, run_path)
+    # `threads`: the budget this process gives the physics and torch (`coadapt_core.threads`), a
+    # record like run_id, never read back (config.yaml keeps the first session's; each training
+    # phase records the threads it ran on in trainings.jsonl)
     recorder.start_run({**config.to_dict(), "run_id": state.run_id, "run_dir": str(run_path),
-                        "design_space": parts.full_space.to_dict(), "policy": state.policy})
+                        "design_space": parts.full_space.to_dict(), "policy": state.policy,
+                        "threads": threads.budget()})
     return _drive(config, state, parts, run_path, recorder, progress, finishing, resumed=resume is not None)
 
 

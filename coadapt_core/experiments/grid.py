@@ -17,6 +17,7 @@ import os
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
+from coadapt_core.errors import UserError
 from coadapt_core.experiments.grid_exec import (
     ENTRY_CODE,
     EXECUTORS,
@@ -47,6 +48,7 @@ from coadapt_core.experiments.grid_plan import (
     unfinished_run,
 )
 from coadapt_core.results.store import ResultsStore
+from coadapt_core.threads import check_threads, share_cores, usable_cpus
 
 __all__ = [
     "CONFIG_HASH_IGNORES",
@@ -86,6 +88,7 @@ def run_grid(
     *,
     executor: str = "local",
     workers: int | None = None,
+    threads: int | None = None,
     address: str | None = None,
     out_dir: str | None = "runs",
     command: Sequence[str] | None = None,
@@ -94,9 +97,15 @@ def run_grid(
     on_event: Callable[[str, Cell, CellOutcome | None], None] | None = None,
 ) -> GridReport:
     """Run every cell the store does not already hold as finished; returns what happened.
+    `threads`: CPU threads per cell (each cell's `coadapt run --threads`); locally the cells
+    at once x threads per cell fit the CPUs this process may use (`share_cores`).
     `on_event(kind, cell, outcome)` reports "skipped", "started", "finished", "failed"."""
     check_grid_options(executor=executor, workers=workers, timeout=timeout, address=address)
-    workers = workers or default_workers()
+    if threads is not None:
+        check_threads(threads, "threads")
+    if any(arg == "--threads" or arg.startswith("--threads=") for arg in spec.extra_args):
+        raise UserError("--run-arg=--threads: give the threads per cell as `coadapt grid --threads N` (the grid "
+                        "divides the cores among the cells by it)", field="run_arg")
     grid_id = spec.grid_id
     store.save_grid(grid_id, spec.to_dict())
     if log_dir is None and out_dir is not None:
@@ -118,10 +127,13 @@ def run_grid(
             on_event("started", task.cell, None)
     if not tasks:
         return report
-    # threads per cell: share the cores between the cells running at once
-    threads = str(max(1, (os.cpu_count() or 1) // min(workers, len(tasks))))
+    if executor == "local":  # the cores shared by the cells at once: cells x threads <= cores
+        workers, threads = share_cores(usable_cpus(), len(tasks), workers, threads)
+    else:  # a Ray cell reserves its threads on a node of the cluster
+        workers, threads = workers or default_workers(), threads or 1
     for task in tasks:
-        task.env.setdefault("OMP_NUM_THREADS", os.environ.get("OMP_NUM_THREADS", threads))
+        task.argv += ["--threads", str(threads)]  # not in the cell's config hash: any split resumes it
+        task.env.setdefault("OMP_NUM_THREADS", os.environ.get("OMP_NUM_THREADS", str(threads)))
         if min(workers, len(tasks)) > 1 and "GOMP_SPINCOUNT" not in os.environ:
             # cells started together share the cores: their OpenMP workers sleep when idle
             # instead of spinning (coadapt_core.launch.omp_wait_settings)

@@ -156,9 +156,17 @@ class UniversalPolicyBackend:
                 "tracking_error": stats.tracking_error,
                 "vx": stats.vx,
                 "collect_steps_per_s": stats.collect_steps_per_s,
+                **self.threads_used(),
             },
             buffer=buffer,
         )
+
+    def threads_used(self) -> dict[str, int | None]:
+        """The threads this phase ran on, as the engines report them: torch's during the
+        update and the physics backend's pool (its `num_threads_used` where it has one)."""
+        sim = self.trainer.env.sim if self.trainer.env is not None else None
+        physics = getattr(sim, "num_threads_used", getattr(sim, "num_threads", None)) if sim is not None else None
+        return {"torch_threads": self.trainer.update_threads_seen, "physics_threads": physics}
 
     # -- Algorithm 2 ------------------------------------------------------------------------
     def _eval_env(self, designs: np.ndarray, agents: int, steps: int) -> LocomotionEnv:

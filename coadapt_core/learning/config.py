@@ -73,11 +73,11 @@ class TrainConfig:
     # -- bookkeeping ------------------------------------------------------------------------
     checkpoint_every: Int = setting(50, "Iterations between checkpoints (coadapt train).", ge=1)
     device: str = setting("cpu", "Torch device of the learner.", cli=False)
-    # CPU threads of the learner's update (compute_returns + PPO epochs); 0 = every core the
-    # process may use. Collection always runs torch on one thread: the physics backend's
-    # threads own the cores then (torch's spin-waiting OpenMP threads beside them cost a
-    # third of the collection rate on a 2-core machine)
-    torch_threads: Int = setting(0, "CPU threads of the learner's update (0: every core); collection uses one.", ge=0)
+    # earlier versions' learner threads, still in their checkpoints (the six shipped policies
+    # record 1): read and kept, never used. The thread budget decides (`coadapt_core.threads`:
+    # --threads, else the CPUs the process may use), for the update and the physics alike
+    torch_threads: Int = setting(0, "Not used (earlier versions' learner threads; --threads decides now).", ge=0,
+                                 cli=False)
     seed: Int = setting(0, "Random seed.", ge=0, cli=False)
     extra: dict[str, Any] = setting(default_factory=dict, help="Free-form notes kept with a checkpoint.", cli=False)
 

@@ -4,7 +4,6 @@ as one batched environment, rollouts, updates, statistics, checkpoints and resum
 from __future__ import annotations
 
 import math
-import os
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -14,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from coadapt_core import tracking
+from coadapt_core import threads, tracking
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
 from coadapt_core.io import write_atomic
@@ -121,7 +120,10 @@ class Trainer:
             randomization if randomization is not None
             else RandomizationConfig.recorded(self.config.extra)
         )
-        self.num_threads = num_threads
+        #: the thread budget: the physics' threads and the learner's torch threads (given, else
+        #: the process's, `coadapt_core.threads.budget()`: --threads or the CPUs it may use;
+        #: never the checkpoint's, whose recorded `torch_threads` is not read)
+        self.num_threads = threads.check_threads(num_threads, "num_threads") if num_threads is not None else threads.budget()
         self.device = torch.device(self.config.device)
         self.env: LocomotionEnv | None = None
         self.ppo: PPO | None = None
@@ -129,10 +131,11 @@ class Trainer:
         self.total_steps = 0
         self.rng = np.random.default_rng(self.config.seed)
         torch.manual_seed(self.config.seed)
-        #: torch threads while updating (every core unless configured) and while collecting
-        #: (one: the physics backend's threads own the cores then); see `torch_threads`
-        self.learner_threads = int(self.config.torch_threads) or usable_cpus()
+        #: torch threads while updating (the budget) and while collecting (one: the physics
+        #: backend's threads own the cores then)
+        self.learner_threads = self.num_threads
         self.collect_threads = 1
+        self.update_threads_seen: int | None = None  # torch's own count during the last update
         torch.set_num_threads(self.collect_threads)  # outside the update, as while collecting
         self._obs = None
         self._pending_commands: dict | None = None
@@ -239,6 +242,7 @@ class Trainer:
             collect_seconds = time.perf_counter() - start
             self.last_rollout_critic_obs = torch.cat(sums.visited).float().cpu()
             torch.set_num_threads(self.learner_threads)
+            self.update_threads_seen = torch.get_num_threads()  # what torch says it uses (recorded)
             t_update = time.perf_counter()
             ppo.compute_returns()
             losses = ppo.update()
@@ -407,14 +411,6 @@ class Trainer:
         if "design_rng" in state:
             self.rng.bit_generator.state = state["design_rng"]
         return state
-
-
-def usable_cpus() -> int:
-    """CPU cores this process may run on (its affinity mask where the OS has one)."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
 
 
 def _weighted_mean(episodes: list[dict], key: str) -> float:

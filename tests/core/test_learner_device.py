@@ -36,8 +36,10 @@ def test_training_allocates_nothing_on_the_default_device() -> None:
     assert trainer.total_steps == 2 * 4 * 8
 
 
-def test_update_uses_every_core_and_collection_one(fake_robot, fake_sim_cls) -> None:
-    trainer = make_trainer(fake_robot, fake_sim_cls, small_config(torch_threads=2))
+def test_update_uses_the_thread_budget_and_collection_one(fake_robot, fake_sim_cls) -> None:
+    """The update runs on the trainer's thread budget (here 2), never on the `torch_threads`
+    a configuration (a checkpoint's: the shipped policies record 1) carries; collection on one."""
+    trainer = Trainer(fake_robot, fake_sim_cls, [], train_config=small_config(torch_threads=1), num_threads=2)
     trainer.set_designs(np.array([[1.0, 1.0], [0.8, 1.2]]))
     seen = {"update": set(), "step": set()}
     update, step = trainer.ppo.update, trainer.env.step
@@ -46,7 +48,11 @@ def test_update_uses_every_core_and_collection_one(fake_robot, fake_sim_cls) -> 
     trainer.learn(2)
     assert seen == {"update": {2}, "step": {1}}
     assert torch.get_num_threads() == 1  # back to one outside the update
-    assert Trainer(fake_robot, fake_sim_cls, [], train_config=small_config(torch_threads=0)).learner_threads >= 1
+    assert trainer.update_threads_seen == 2 and trainer.env.sim.num_threads == 2  # physics: the same budget
+    from coadapt_core import threads
+
+    default = Trainer(fake_robot, fake_sim_cls, [], train_config=small_config(torch_threads=1))
+    assert default.learner_threads == default.num_threads == threads.budget() >= 1
 
 
 def test_randomized_parameters_are_converted_once_per_reset(fake_robot, fake_sim_factory) -> None:

@@ -224,7 +224,11 @@ def test_a_runs_config_yaml_round_trips(tmp_path, monkeypatch):
                                          "friction": [0.6, 1.1]}
     again = make_config(None, folder / "config.yaml", {})
     assert again == config_from_dict(recorded)
-    assert again.to_dict() == {k: v for k, v in recorded.items() if k not in ("run_id", "run_dir", "design_space", "policy")}
+    records = ("run_id", "run_dir", "design_space", "policy", "threads")  # beside the config, not read back
+    assert again.to_dict() == {k: v for k, v in recorded.items() if k not in records}
+    from coadapt_core.threads import usable_cpus
+
+    assert recorded["threads"] == usable_cpus()  # no --threads: the CPUs the process may use
     assert (again.population, again.narrow_margin, again.preset) == (6, 0.3, "smoke")
 
 

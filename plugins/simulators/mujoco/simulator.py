@@ -11,7 +11,6 @@ this choice (expand vs `set_models` vs `mujoco.rollout`).
 
 from __future__ import annotations
 
-import os
 import time
 from typing import TYPE_CHECKING, Any
 
@@ -26,6 +25,7 @@ from coadapt_plugins.simulators.mujoco.compose import (
     terrain_normal,
 )
 
+from coadapt_core import threads
 from coadapt_core.errors import UserError
 from coadapt_core.physics.actuation import DelayLine, pd_torque
 from coadapt_core.physics.randomization import RandomizationConfig
@@ -72,13 +72,6 @@ def restitution_to_dampratio(restitution: np.ndarray) -> np.ndarray:
     return np.interp(e, RESTITUTION_MEASURED, RESTITUTION_DAMPRATIO)
 
 
-def _default_threads() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
 class MujocoSimulator(Simulator):
     """MuJoCo 4 batched backend (`mujoco.batch`), one compiled model per design."""
 
@@ -100,7 +93,8 @@ class MujocoSimulator(Simulator):
         ref = compiled[0]
         self._ref = ref
         self._j = ref.robot_model.num_joints
-        self._threads = self.num_threads if self.num_threads is not None else _default_threads()
+        # the process's thread budget unless told (--threads; `coadapt_core.threads`)
+        self._threads = self.num_threads if self.num_threads is not None else threads.budget()
         # Environment e lives in batch row _row[e]. mujoco.batch hands each thread one
         # contiguous block of rows, so a fixed shuffle spreads each design's agents (and
         # whatever makes some environments costlier, such as falling) over all threads.
@@ -296,7 +290,8 @@ class MujocoSimulator(Simulator):
 
     @property
     def num_threads_used(self) -> int:
-        return self._threads
+        """The threads of the batch's pool, as MuJoCo reports them."""
+        return int(self._batch.nthread)
 
     def env_model(self, env: int) -> mujoco.MjModel:
         """A copy of environment `env`'s model with its design and randomization."""

@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import contextlib
 import importlib.util
-import os
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from coadapt_core import threads
 from coadapt_core.errors import DesignError, UserError
 from coadapt_core.physics.simulator import SimState, Simulator
 
@@ -63,7 +63,8 @@ class PyBulletSimulator(Simulator):
         """The `Simulator` options (terrain, randomization, physics_dt, decimation, seed,
         device, num_threads, fixed_base), checked by the base class, and
         `processes`: worker processes (0 = in this process; None = in-process up to
-        IN_PROCESS_MAX_ENVS environments, else one per CPU core or `num_threads`).
+        IN_PROCESS_MAX_ENVS environments, else `num_threads`, by default the process's
+        thread budget, `coadapt_core.threads.budget()`).
         `armature`: how MJCF joint armature is carried over: "foot_link" (the feet joints'
         in the foot links' inertia, the rest as "joint_space", the coupling corrected),
         "joint_space" (taken off the motor torque as A ddq, ddq predicted from Bullet's
@@ -88,7 +89,7 @@ class PyBulletSimulator(Simulator):
         }
         n = len(specs)
         if processes is None:
-            processes = 0 if n <= IN_PROCESS_MAX_ENVS else min(self.num_threads or os.cpu_count() or 1, n)
+            processes = 0 if n <= IN_PROCESS_MAX_ENVS else min(self.num_threads or threads.budget(), n)
         if processes < 0:
             raise UserError(f"processes must be >= 0, got {processes}", field="processes")
         self.processes = min(int(processes), n)
