@@ -100,6 +100,10 @@ class GaitConfig:
     raibert_max_offset: Float = setting(0.15, "Clip of the x-y placement offset, m.", ge=0)
     command_full_scale: Float = setting(0.3, "Reference offsets grow linearly up to this |command|, m/s.", gt=0)
     freeze_on_zero_command: bool = setting(True, "Both feet in stance under a zero command.")
+    design_aware: bool = setting(
+        False, "Each design's reference in units of its leg length L (hip height at the standing pose): "
+        "placement clip and swing height x L/L_nominal, clock frequency x sqrt(L_nominal/L) (Froude scaling); "
+        "off: the same reference for every design.")
 
 
 @settings(prefix="task.noise")

@@ -31,6 +31,18 @@ class DesignInputs:
         self.low = torch.as_tensor(low, dtype=torch.float32, device=device)
         self.high = torch.as_tensor(high, dtype=torch.float32, device=device)
         self._mass: dict[tuple[float, ...], float] = {}
+        self._nominal_leg: float | None = None
+
+    @property
+    def nominal_leg_length(self) -> float:
+        """The nominal design's hip height at the standing pose, m (of the space `low` spans)."""
+        if self._nominal_leg is None:
+            mixed = self.robot.design_space(True)
+            nominal = self.robot.nominal_design(mixed.dim == len(self.low) and mixed.dim != self.robot.design_space().dim)
+            with torch.no_grad():
+                design = torch.as_tensor(np.asarray(nominal, dtype=np.float32)[None], device=self.device)
+                self._nominal_leg = float(self.robot.hip_height(design)[0])
+        return self._nominal_leg
 
     def normalize(self, designs: np.ndarray | torch.Tensor) -> torch.Tensor:
         """[n, D] designs mapped to [-1, 1] over the robot's full design-space bounds."""

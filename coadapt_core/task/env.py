@@ -19,84 +19,24 @@ from coadapt_core.physics.simulator import SimState, Simulator
 from coadapt_core.robot import Robot
 from coadapt_core.task import observations as layout
 from coadapt_core.task.commands import CommandSampler
-from coadapt_core.task.config import GaitConfig, TaskConfig
+from coadapt_core.task.config import TaskConfig
 from coadapt_core.task.designs import DesignInputs
+from coadapt_core.task.gait import (  # noqa: F401 - the gait functions' old home re-exports them
+    clock_frequency,
+    command_gate,
+    expected_stance,
+    gait_scales,
+    half_stance,
+    leg_phases,
+    raibert_foot_targets,
+    stance_triangle,
+    von_mises_height,
+)
 from coadapt_core.task.observations import StepResult
 from coadapt_core.task.rewards import RewardInputs, combine, compute_terms
 
 if TYPE_CHECKING:
     from coadapt_core.scenarios.sets import PairedStreams
-
-
-# -- the gait clock and the Raibert reference (paper 3.2.3): Raibert foot placement in x-y, a
-# von Mises swing height in z, joint targets q* by the robot's leg IK. Leg l is in stance for
-# its phase in [0, 0.5), else swings. Under a moving command the stance foot travels back
-# relative to its hip at the commanded speed, from +v T_st / 2 at touchdown to -v T_st / 2 at
-# lift-off, and swings forward again to the touchdown point v T_st / 2 + k (v - v_cmd).
-
-
-def leg_phases(phase: torch.Tensor, num_legs: int, offsets: torch.Tensor | None = None) -> torch.Tensor:
-    """[N, L] per-leg phase in [0, 1) from the clock phase [N]: (phase + offsets[l]) mod 1,
-    the robot's declared offsets (`Robot.legs()`), or l / L when none are given."""
-    if offsets is None:
-        offsets = torch.arange(num_legs, device=phase.device, dtype=phase.dtype) / num_legs
-    offsets = offsets.to(device=phase.device, dtype=phase.dtype)
-    return torch.remainder(phase[:, None] + offsets[None, :], 1.0)
-
-
-def half_stance(contact: torch.Tensor) -> torch.Tensor:
-    """[N] float from foot contacts [N, L]: 1 where exactly half of the feet touch the ground
-    (one of a biped's two; two of a trotting quadruped's four), else 0 — the share of such
-    steps is the "foot alternation" metric. It does not apply to an odd number of legs: NaN."""
-    legs = contact.shape[-1]
-    if legs % 2:
-        return torch.full(contact.shape[:-1], float("nan"), device=contact.device)
-    return (contact.sum(dim=-1) == legs // 2).float()
-
-
-def expected_stance(leg_phase: torch.Tensor) -> torch.Tensor:
-    """[N, L] bool: the clock puts this foot on the ground."""
-    return leg_phase < 0.5
-
-
-def stance_triangle(leg_phase: torch.Tensor) -> torch.Tensor:
-    """[N, L] +1 at touchdown, -1 at lift-off, linear through stance and back through swing."""
-    return torch.where(leg_phase < 0.5, 1.0 - 4.0 * leg_phase, -1.0 + 4.0 * (leg_phase - 0.5))
-
-
-def von_mises_height(leg_phase: torch.Tensor, apex: float, kappa: float) -> torch.Tensor:
-    """[N, L] swing height: a von Mises bump centred on mid-swing (phase 0.75), apex at 1.
-    Normalised so the peak is `apex` and the bump is ~0 (exp(-2 kappa)) at mid-stance."""
-    return apex * torch.exp(kappa * (torch.cos(2.0 * math.pi * (leg_phase - 0.75)) - 1.0))
-
-
-def command_gate(command: torch.Tensor, full_scale: float) -> torch.Tensor:
-    """[N] in [0, 1]: how much of the stepping reference a command asks for (0 when still)."""
-    speed = command[:, :2].norm(dim=-1) + 0.5 * command[:, 2].abs()
-    return torch.clamp(speed / full_scale, 0.0, 1.0)
-
-
-def raibert_foot_targets(
-    default_feet: torch.Tensor,  # [N, L, 3] feet relative to hips at the standing pose, base frame
-    leg_phase: torch.Tensor,  # [N, L]
-    command: torch.Tensor,  # [N, 3]
-    base_lin_vel: torch.Tensor,  # [N, 3] base frame
-    config: GaitConfig,
-) -> torch.Tensor:
-    """[N, L, 3] foot targets relative to each hip, base frame."""
-    t_stance = 0.5 / config.frequency
-    gate = command_gate(command, config.command_full_scale)[:, None]  # [N, 1]
-    swing = (leg_phase >= 0.5).to(default_feet.dtype)  # [N, L]
-    tri = stance_triangle(leg_phase)  # [N, L]
-    cmd_xy = command[:, None, :2]  # [N, 1, 2]
-    feedback = config.raibert_gain * (base_lin_vel[:, None, :2] - cmd_xy)  # [N, 1, 2]
-    offset_xy = tri[..., None] * cmd_xy * (t_stance / 2.0) + (swing * gate)[..., None] * feedback
-    offset_xy = offset_xy.clamp(-config.raibert_max_offset, config.raibert_max_offset)
-    offset_z = gate * von_mises_height(leg_phase, config.swing_height, config.von_mises_kappa)
-    target = default_feet.clone()
-    target[..., :2] += offset_xy
-    target[..., 2] += offset_z
-    return target
 
 
 class LocomotionEnv:
@@ -190,6 +130,10 @@ class LocomotionEnv:
         d.refresh(self.sim)
         self.designs, self.design_obs, self.total_mass = d.designs, d.design_obs, d.total_mass
         self.default_joint_pos, self.default_feet = d.default_joint_pos, d.default_feet
+        # leg length L: the hip height at the standing pose (`Robot.hip_height`), against the nominal design's
+        aware = self.cfg.gait.design_aware
+        legs = -self.default_feet[..., 2].mean(dim=-1)
+        self.gait_scale = gait_scales(self.cfg.gait, legs, d.nominal_leg_length if aware else 1.0)
 
     def set_designs(self, env_ids: torch.Tensor | np.ndarray, designs: np.ndarray) -> None:
         """Rebuild the given environments for new designs [len(env_ids), D] (they restart)."""
@@ -320,7 +264,8 @@ class LocomotionEnv:
         stance = expected_stance(phases)
         if self.cfg.gait.freeze_on_zero_command:
             stance = stance | ~moving[:, None]
-        feet = raibert_foot_targets(self.default_feet, phases, command, lin_vel, self.cfg.gait)
+        scale = self.gait_scale if self.cfg.gait.design_aware else None
+        feet = raibert_foot_targets(self.default_feet, phases, command, lin_vel, self.cfg.gait, scale)
         with torch.no_grad():
             q_star = self.robot.leg_inverse_kinematics(self.designs, feet).to(self.device).float()
         return q_star, stance
@@ -344,7 +289,8 @@ class LocomotionEnv:
 
         moving = self.command.abs().sum(dim=-1) > 0  # [N]
         advance = moving if cfg.gait.freeze_on_zero_command else torch.ones_like(moving)
-        self.phase = torch.remainder(self.phase + self.dt * cfg.gait.frequency * advance, 1.0)
+        frequency = clock_frequency(cfg.gait, self.gait_scale) if cfg.gait.design_aware else cfg.gait.frequency
+        self.phase = torch.remainder(self.phase + self.dt * frequency * advance, 1.0)
 
         lin, ang, gravity = state.base_frame()
         joint_pos = state.joint_pos.float()
