@@ -70,13 +70,15 @@ def _read_limit(quota_file: Path, period_file: Path | None = None) -> float | No
     return value if value > 0 else None
 
 
-def cgroup_cpu_limit(cgroup_root: str | os.PathLike | None = None) -> float | None:
+def cgroup_cpu_limit(cgroup_root: str | os.PathLike | None = None,
+                     proc_cgroup: str | os.PathLike = "/proc/self/cgroup") -> float | None:
     """CPUs the cgroup CPU quota allows this process (cgroup v2 or v1, the tightest limit
     on its cgroup or any above it); None without one. `cgroup_root` (default
-    $COADAPT_CGROUP_ROOT, else /sys/fs/cgroup) is where the cgroup files are mounted."""
+    $COADAPT_CGROUP_ROOT, else /sys/fs/cgroup) is where the cgroup files are mounted,
+    `proc_cgroup` the file naming the process's cgroups."""
     root = Path(cgroup_root or os.environ.get(ENV_CGROUP_ROOT) or CGROUP_ROOT)
     limits = []
-    for controllers, path in _own_cgroups():
+    for controllers, path in _own_cgroups(os.fspath(proc_cgroup)):
         if not controllers:  # v2: one unified tree
             limits += [_read_limit(folder / "cpu.max") for folder in _folders(root, path)]
         elif "cpu" in controllers.split(","):  # v1: the cpu controller's own tree

@@ -35,10 +35,13 @@ def fake_run(argv: list[str]) -> int:
                 "--optimizer-option"):
         p.add_argument(opt)
     p.add_argument("--seed", type=int)
+    p.add_argument("--threads", type=int)  # recorded in the config, as the real run's config.yaml does
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv[1:])  # argv[0] == "run"
+    started = time.time()
     rec = SqliteRecorder(args.store)
     config = {k: v for k, v in vars(args).items() if k not in ("json", "resume", "out", "store", "optimizer_option")}
+    config["omp_num_threads"] = os.environ.get("OMP_NUM_THREADS")
     if args.resume:
         config["run_id"] = args.resume
     run_id = rec.start_run(config)
@@ -72,7 +75,8 @@ def fake_run(argv: list[str]) -> int:
     i = int(np.argmin([e.costs[args.objective] for e in real]))
     best = (real[i].costs[args.objective], real[i].design)
     summary = {"run_id": run_id, "best_design": best[1], "best_cost": best[0], "nominal_cost": float(((1 - opt) ** 2).sum()),
-               "improvement": 0.5, "interactions": 300 * len(real) + 4000, "seconds": 0.1}
+               "improvement": 0.5, "interactions": 300 * len(real) + 4000, "seconds": 0.1,
+               "span": [started, time.time()]}  # when the cell ran (cells at once overlap)
     rec.finish(run_id, summary)
     print("fake run done")
     print(json.dumps(summary))
@@ -226,6 +230,37 @@ def test_ray_executor_runs_a_two_cell_grid(tmp_path):
         assert all(store.count_evaluations(r["id"]) == 12 for r in store.list_runs(grid_id=spec.grid_id))
     finally:
         ray.shutdown()
+
+
+@pytest.mark.slow
+def test_local_grid_of_two_cells_at_once_on_two_cores_gives_each_one_thread(tmp_path, monkeypatch):
+    """On 2 CPUs (the grid's `usable_cpus`, fixed here) 2 cells run at once with `--threads 1`
+    each (cells at once x threads per cell <= cores), not one per core with every core each."""
+    import coadapt_core.experiments.grid as grid_module
+
+    monkeypatch.setattr(grid_module, "usable_cpus", lambda: 2)
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    store = ResultsStore(tmp_path / "g.db")
+    report = run_grid(_spec(), store, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
+    assert len(report.outcomes) == 2 and all(o.returncode == 0 for o in report.outcomes.values())
+    configs = [r["config"] for r in store.list_runs(grid_id=_spec().grid_id)]
+    assert [(c["threads"], c["omp_num_threads"]) for c in configs] == [(1, "1"), (1, "1")]
+    spans = [o.result["span"] for o in report.outcomes.values()]
+    assert max(s[0] for s in spans) < min(s[1] for s in spans)  # the two ran at the same time
+    one = run_grid(_spec(methods=["ours"], seeds=[5]), store, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
+    (row,) = store.list_runs(grid_id=_spec(methods=["ours"], seeds=[5]).grid_id)
+    assert row["config"]["threads"] == 2 and not one.failed  # a cell alone gets both cores
+
+
+def test_a_local_grid_refuses_more_threads_than_cores(tmp_path, monkeypatch):
+    import coadapt_core.experiments.grid as grid_module
+
+    monkeypatch.setattr(grid_module, "usable_cpus", lambda: 2)
+    store = ResultsStore(tmp_path / "g.db")
+    with pytest.raises(UserError, match="--workers 2 x --threads 2 = 4 threads on 2 CPUs"):
+        run_grid(_spec(), store, workers=2, threads=2, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
+    with pytest.raises(UserError, match="--run-arg=--threads"):
+        run_grid(_spec(extra_args=["--threads", "2"]), store, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
 
 
 if __name__ == "__main__":  # the fake `coadapt run` the grid starts in these tests
