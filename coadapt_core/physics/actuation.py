@@ -15,7 +15,15 @@ with the linear envelope of a DC motor behind its gearbox (limits at the joint):
     lower(dq) = -tau_max * clip(1 + dq / dq_max, 0, 1)
 
 so full torque is available at rest and for braking, and no torque can push a joint
-further beyond its no-load speed `dq_max`. A CPU backend whose state lives in numpy arrays
+further beyond its no-load speed `dq_max` (the "soft" limit, the default: a joint driven past
+it by gravity or the other joints may still brake there at full torque).
+
+The "binding" speed limit (`bind_speed`; `task.motor_speed_limit`, issue 41) adds:
+
+    tau = 0   where |dq| > dq_max
+
+no torque at all beyond the no-load speed, either way: the motor cannot follow, and the task
+ends an episode whose joint stays beyond it (`task.overspeed_seconds`). A CPU backend whose state lives in numpy arrays
 passes `torch.from_numpy` views (no copy) and reads the result back the same way.
 """
 
@@ -63,6 +71,12 @@ def pd_torque(
     lower = (tau_max * ratio.add_(1.0).clamp_(0.0, 1.0)).neg_()
     tau = (kp * (q_target - q) - kd * dq).mul_(_per_env(pd_factor) * _per_env(motor_strength))
     return torch.clamp(tau, min=lower, max=upper, out=out)
+
+
+def bind_speed(tau: torch.Tensor, dq: torch.Tensor, dq_max: torch.Tensor) -> torch.Tensor:
+    """The binding speed limit on `pd_torque`'s torques [N, J], in place: zero where
+    |dq| > dq_max (a backend whose `speed_limit` is "binding" applies it after `pd_torque`)."""
+    return tau.masked_fill_(dq.abs() > dq_max, 0.0)
 
 
 class DelayLine:

@@ -192,6 +192,9 @@ class Simulator(ABC):
     model_tools: ClassVar[str] = ""
     #: dtype of the backend's actuation and of `env_params` (the state stays float32)
     dtype: ClassVar[torch.dtype] = torch.float64
+    #: the motor speed limits the backend's actuation honours (`set_speed_limit`): "soft" (the
+    #: torque-speed envelope) always; "binding" when it passes `binding` to `pd_torque`
+    speed_limit_modes: ClassVar[tuple[str, ...]] = ("soft",)
 
     def __init__(
         self,
@@ -257,7 +260,19 @@ class Simulator(ABC):
         self.add_random_stream("spawn", np.random.SeedSequence([self.seed, SPAWN_STREAM_KEY]))
         # construction draws nothing: nominal parameters until the first reset
         self._params: EnvParams = nominal_env_params(len(designs), device=torch_device, dtype=self.dtype)
+        #: the motor speed limit in force (`set_speed_limit`)
+        self.speed_limit = "soft"
         self._scenario: tuple[EnvParams, np.ndarray | None] | None = None
+
+    def set_speed_limit(self, mode: str) -> None:
+        """The motor speed limit of the shared actuation from now on: "soft" (the torque-speed
+        envelope alone) or "binding" (also no torque beyond the no-load speed; see
+        `coadapt_core.physics.actuation`), one of the backend's `speed_limit_modes`. A backend
+        that keeps its actuation elsewhere (worker processes) extends this to reach it."""
+        if mode not in self.speed_limit_modes:
+            raise UserError(f"task.motor_speed_limit: the {self.name} simulator offers "
+                            f"{', '.join(self.speed_limit_modes)}, got '{mode}'", field="motor_speed_limit")
+        self.speed_limit = mode
 
     # -- sizes ---------------------------------------------------------------------------
     @property

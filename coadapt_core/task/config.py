@@ -133,6 +133,13 @@ class TaskConfig:
     episode_seconds: Float = setting(20.0, "Timeout, s (bootstrapped, not a failure).", gt=0)
     min_base_height: Float = setting(0.5, "Fall: base above terrain below this share of standing height.", ge=0)
     max_tilt_cos: Float = setting(0.5, "Fall: projected gravity z above -this (tilt beyond 60 deg).", ge=-1, le=1)
+    motor_speed_limit: Literal["soft", "binding"] = setting(
+        "soft", "soft: the torque-speed envelope alone (a joint past its motor's no-load speed is only driven "
+        "no further); binding: also no torque at all beyond the no-load speed, and a joint beyond it for "
+        "overspeed_seconds ends the episode as a fall (issue 41).")
+    overspeed_seconds: Float = setting(
+        0.1, "binding speed limit: a joint beyond its no-load speed this long without a break ends the episode, s.",
+        gt=0)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

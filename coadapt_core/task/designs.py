@@ -32,6 +32,9 @@ class DesignInputs:
         self.high = torch.as_tensor(high, dtype=torch.float32, device=device)
         self._mass: dict[tuple[float, ...], float] = {}
         self._nominal_leg: float | None = None
+        #: also keep `speed_limit` [N, J], each joint's motor no-load speed, rad/s (the binding limit)
+        self.track_speed_limit = False
+        self._speed: dict[tuple[float, ...], np.ndarray] = {}
 
     @property
     def nominal_leg_length(self) -> float:
@@ -62,6 +65,17 @@ class DesignInputs:
             self._mass.clear()
         self.total_mass = torch.tensor([self._mass_of(row) for row in np.asarray(sim.designs, dtype=float)],
                                        dtype=torch.float32, device=self.device)
+        if self.track_speed_limit:
+            rows = [self._speed_of(row) for row in np.asarray(sim.designs, dtype=float)]
+            self.speed_limit = torch.as_tensor(np.stack(rows), dtype=torch.float32, device=self.device)  # [N, J]
+
+    def _speed_of(self, design: np.ndarray) -> np.ndarray:
+        key = tuple(design.tolist())
+        if key not in self._speed:
+            if len(self._speed) > MASS_CACHE_SIZE:
+                self._speed.clear()
+            self._speed[key] = np.asarray(self.robot.build(design).speed_limit, dtype=float)
+        return self._speed[key]
 
     def _mass_of(self, design: np.ndarray) -> float:
         key = tuple(design.tolist())

@@ -110,6 +110,11 @@ class LocomotionEnv:
         self.episode_moving_steps = z(n)
         self.episode_speed = z(n)  # sum of base-frame vx
         self.episode_command = z(n)  # sum of commanded vx
+        # the binding motor speed limit: the actuation's no torque beyond the no-load speed, and
+        # how long each environment has had a joint beyond it without a break (s)
+        self.sim.set_speed_limit(self.cfg.motor_speed_limit)
+        self.design_inputs.track_speed_limit = self.cfg.motor_speed_limit == "binding"
+        self.overspeed_time = z(n)
         self._refresh_design_buffers()
         self._restart(torch.arange(n, device=self.device), state)
 
@@ -182,6 +187,7 @@ class LocomotionEnv:
         self.action_history[ids] = 0.0
         self.last_joint_vel[ids] = state.joint_vel[ids].float()
         self.air_time[ids] = 0.0
+        self.overspeed_time[ids] = 0.0
         self.last_contact[ids] = state.foot_contact[ids]
         self.standing_height[ids] = (state.base_pos[ids, 2] - state.terrain_height[ids]).float()
         for sums in (self.episode_reward, self.episode_tracking, self.episode_moving_tracking,
@@ -362,6 +368,10 @@ class LocomotionEnv:
         cfg = self.cfg
         height = state.base_pos[:, 2].float() - state.terrain_height.float()
         fell = (height < cfg.min_base_height * self.standing_height) | (gravity[:, 2] > -cfg.max_tilt_cos)
+        if cfg.motor_speed_limit == "binding":  # a joint beyond its no-load speed too long: a fall
+            over = (state.joint_vel.float().abs() > self.design_inputs.speed_limit).any(dim=-1)
+            self.overspeed_time = torch.where(over, self.overspeed_time + self.dt, torch.zeros_like(self.overspeed_time))
+            fell = fell | (self.overspeed_time >= cfg.overspeed_seconds - 1e-6)
         terminated = fell | state.diverged.to(self.device)
         timeout = (self.episode_length >= self.max_episode_length) & ~terminated
         return height, terminated, timeout

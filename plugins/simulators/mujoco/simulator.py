@@ -27,7 +27,7 @@ from coadapt_plugins.simulators.mujoco.compose import (
 
 from coadapt_core import threads
 from coadapt_core.errors import UserError
-from coadapt_core.physics.actuation import DelayLine, pd_torque
+from coadapt_core.physics.actuation import DelayLine, bind_speed, pd_torque
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.physics.simulator import SimState, Simulator, quat_rotate, spawn_base_height
 
@@ -80,6 +80,7 @@ class MujocoSimulator(Simulator):
     description = "MuJoCo 4 on a C thread pool (mujoco.batch), one model per design, CPU"
     model_formats = ("mjcf",)  # the robot model it compiles
     renderer = "coadapt_plugins.simulators.mujoco.render"  # pictures and videos, offscreen
+    speed_limit_modes = ("soft", "binding")  # coadapt_core.physics.actuation, `bind_speed`
     model_tools = "coadapt_plugins.simulators.mujoco.model_tools"  # link facts, feet, handoff check
 
     def __init__(self, robot: Robot, designs: np.ndarray, **options: Any):
@@ -421,6 +422,8 @@ class MujocoSimulator(Simulator):
             pd_torque(
                 self._delay.current(), q, dq, *self._gains, self._pd_factor, self._motor_strength, out=self._tau_t
             )
+            if self.speed_limit == "binding":
+                bind_speed(self._tau_t, dq, self._gains[3])
             tau = self._tau  # the numpy face of _tau_t
             self._ctrl[:, self._act_index] = tau
             self._torque += tau

@@ -20,7 +20,7 @@ import torch
 from coadapt_plugins.simulators.pybullet.spec import EnvSpec
 from coadapt_plugins.simulators.pybullet.urdf import prepare_urdf
 
-from coadapt_core.physics.actuation import DelayLine, pd_torque
+from coadapt_core.physics.actuation import DelayLine, bind_speed, pd_torque
 from coadapt_core.physics.simulator import spawn_base_height
 from coadapt_core.physics.terrain import Terrain
 
@@ -90,6 +90,7 @@ class Engine:
         self.friction = np.ones(self.k)
         self.restitution = np.zeros(self.k)
         self.delay = DelayLine(self.k, j, max_delay_steps)
+        self.binding = False  # the binding motor speed limit (`set_binding`)
         self.last_torque = np.zeros((self.k, j))  # [k, J] mean over the last policy step
         # joint-space armature (see `_armature_torque`): per env the armature [J], the
         # positions of the actuated joints in Bullet's mass matrix, and the last step's
@@ -366,6 +367,10 @@ class Engine:
                 dq[e, j] = s[1]
         return q, dq
 
+    def set_binding(self, binding: bool) -> None:
+        """No torque beyond the no-load speed from now on (`bind_speed` after `pd_torque`)."""
+        self.binding = bool(binding)
+
     def step(self, targets: np.ndarray) -> dict[str, np.ndarray]:
         """`decimation` physics steps holding joint targets [k, J]; returns the state with
         a `diverged` flag [k] (the caller resets those environments)."""
@@ -375,7 +380,10 @@ class Engine:
         for _ in range(self.decimation):
             self.delay.push(torch.from_numpy(targets))
             q, dq = self._joints()
-            tau = pd_torque(self.delay.current(), torch.from_numpy(q), torch.from_numpy(dq), *self._actuation).numpy()  # [k, J]
+            tau_t = pd_torque(self.delay.current(), torch.from_numpy(q), torch.from_numpy(dq), *self._actuation)
+            if self.binding:
+                bind_speed(tau_t, torch.from_numpy(dq), self._actuation[3])
+            tau = tau_t.numpy()  # [k, J]
             applied = tau - self._armature_torque(q, dq, tau)  # [k, J]
             bad = ~np.isfinite(applied).all(axis=1)
             broken |= bad

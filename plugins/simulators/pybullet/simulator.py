@@ -50,6 +50,7 @@ class PyBulletSimulator(Simulator):
     quiet_imports: ClassVar[tuple[str, ...]] = ("pybullet",)  # prints "pybullet build time" on import
     #: it loads the URDF and takes the joints' damping and armature from the MJCF
     model_formats: ClassVar[tuple[str, ...]] = ("urdf", "mjcf")
+    speed_limit_modes: ClassVar[tuple[str, ...]] = ("soft", "binding")
 
     def __init__(
         self,
@@ -196,6 +197,14 @@ class PyBulletSimulator(Simulator):
             self._reset_engines(ids)
         self._diverged[ids] = False
         return self._to_state(self._raw_state())
+
+    def set_speed_limit(self, mode: str) -> None:
+        super().set_speed_limit(mode)
+        binding = mode == "binding"
+        if self._engine is not None:
+            self._engine.set_binding(binding)
+        else:
+            self._pool.call("set_binding", [(binding,)] * len(self._slices))
 
     def step(self, joint_targets: torch.Tensor) -> SimState:
         if hasattr(joint_targets, "detach"):
