@@ -2,10 +2,11 @@
 take, and the layout's version.
 
 SCHEMA_VERSION is recorded in the table `store_info` when a store is created and checked
-each time one is opened (`check_schema`). A store made before the version was recorded has
-this layout and is taken as version 1 (the version is written into it when it is opened
-for writing); a store of a newer version than this coadapt knows is refused with one line.
-Raise SCHEMA_VERSION with any change of the tables, and teach `check_schema` the upgrade.
+each time one is opened (`coadapt_core.results.migrate.open_schema`). A store made before
+the version was recorded has the layout of version 1. An older store is upgraded in place
+when it is opened, after a backup copy, by the alembic scripts in `results/migrations/`; a
+store of a newer version than this coadapt knows is refused with one line. A change of the
+tables raises SCHEMA_VERSION and adds the script of the new version there.
 """
 
 from __future__ import annotations
@@ -15,8 +16,9 @@ import sqlalchemy as sa
 from coadapt_core import __version__
 from coadapt_core.errors import UserError
 
-#: version of the tables below; 1 is the layout every store had before versions were recorded
-SCHEMA_VERSION = 1
+#: version of the tables below; 1 is the layout every store had before versions were recorded,
+#: 2 adds the index on runs.status (migrations/versions/ holds each version's script)
+SCHEMA_VERSION = 2
 #: the key of the version's row in `store_info`
 SCHEMA_VERSION_KEY = "schema_version"
 
@@ -52,7 +54,7 @@ runs = sa.Table(
     sa.Column("config", sa.Text),  # JSON, the run's full configuration
     sa.Column("code_version", sa.String(40)),  # coadapt package version
     sa.Column("git_commit", sa.String(60)),  # commit of the source tree, "+dirty" when modified
-    sa.Column("status", sa.String(20), nullable=False),
+    sa.Column("status", sa.String(20), nullable=False, index=True),
     sa.Column("run_dir", sa.Text),
     sa.Column("created_at", sa.Float, nullable=False),  # unix seconds
     sa.Column("updated_at", sa.Float, nullable=False),
@@ -154,21 +156,13 @@ def recorded_version(conn: sa.Connection) -> int | None:
         return -1  # not a number: nothing this coadapt wrote
 
 
-def check_schema(conn: sa.Connection, url: str, *, write: bool) -> int:
-    """The store's schema version, checked: a version this coadapt does not know (newer, or
-    not a number) is a one-line `UserError`; no version at all is version 1, the layout
-    before versions were recorded, and with `write` the current version is recorded."""
-    version = recorded_version(conn)
-    if version is not None and not 1 <= version <= SCHEMA_VERSION:
+def check_version(version: int, url: str) -> None:
+    """A one-line `UserError` for a version this coadapt does not know (newer, or not a
+    number: -1 from `recorded_version`)."""
+    if not 1 <= version <= SCHEMA_VERSION:
         shown = version if version > 0 else "unreadable"
         raise UserError(
             f"store '{url}' has schema version {shown}; coadapt {__version__} reads versions 1 to "
             f"{SCHEMA_VERSION}: upgrade coadapt or use another store",
             field="store",
         )
-    if version is None:
-        version = 1
-        if write:
-            conn.execute(store_info.insert().values(key=SCHEMA_VERSION_KEY, value=str(SCHEMA_VERSION)))
-            version = SCHEMA_VERSION
-    return version

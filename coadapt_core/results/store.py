@@ -24,6 +24,7 @@ from coadapt_core import __version__
 from coadapt_core.errors import UserError
 from coadapt_core.methods import DEFAULT_METHOD
 from coadapt_core.results.grid_cells import GridCells
+from coadapt_core.results.migrate import open_schema
 from coadapt_core.results.rows import (
     Evaluation,
     best_of,
@@ -45,7 +46,6 @@ from coadapt_core.results.schema import (
     TABLES,
     TRANSFER_KIND,
     TRANSFER_OUTER,
-    check_schema,
     checkpoints,
     evaluations,
     grid_cells,
@@ -109,38 +109,7 @@ class ResultsStore(GridCells):
         self.is_sqlite = self.url.startswith("sqlite")
         check_database_url(self.url, field="store")
         self.engine = make_engine(self.url)
-        if create:
-            self._create_tables()
-        self.schema_version = self._check_schema(write=create)
-
-    def _create_tables(self) -> None:
-        for attempt in range(3):
-            try:
-                metadata.create_all(self.engine)
-                return
-            except sa.exc.OperationalError as exc:
-                # two processes creating a fresh database at once: the loser sees the
-                # winner's tables half made; looking again finds them all
-                if "already exists" in str(exc.orig) and attempt < 2:
-                    time.sleep(0.2)
-                    continue
-                raise UserError(f"store '{self.url}' cannot be opened: {exc.orig}", field="store") from None
-            except sa.exc.SQLAlchemyError as exc:  # not a database, damaged, unreachable server
-                raise StoreError(self.url, exc) from None
-
-    def _check_schema(self, *, write: bool) -> int:
-        """The store's schema version (`schema.check_schema`), recorded when `write`."""
-        for attempt in range(3):
-            try:
-                with self.engine.begin() as conn:
-                    return check_schema(conn, self.url, write=write)
-            except sa.exc.IntegrityError:
-                # another process recorded the version between our look and our write
-                if attempt == 2:
-                    raise
-            except sa.exc.SQLAlchemyError as exc:
-                raise StoreError(self.url, exc) from None
-        raise AssertionError("unreachable")
+        self.schema_version = open_schema(self.engine, self.url, create=create)
 
     def close(self) -> None:
         self.engine.dispose()

@@ -263,7 +263,7 @@ def test_processes_creating_and_writing_one_store_at_once(tmp_path):
     assert all(store.count_evaluations(r["id"]) == 20 for r in runs)
 
 
-# -- schema version ----------------------------------------------------------------------------
+# -- schema version (upgrades from older versions: test_store_migrations.py) ---------------------
 def _recorded_version(db: Path):
     with sqlite3.connect(db) as conn:
         tables = {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
@@ -277,38 +277,15 @@ def test_a_new_store_records_its_schema_version(tmp_path):
     from coadapt_core.results.schema import SCHEMA_VERSION
 
     store = ResultsStore(tmp_path / "new.db")
-    assert store.schema_version == SCHEMA_VERSION == 1
+    assert store.schema_version == SCHEMA_VERSION == 2
     store.close()
-    assert _recorded_version(tmp_path / "new.db") == "1"
-    assert ResultsStore(tmp_path / "new.db").schema_version == 1  # opened again: the same version, one row
+    assert _recorded_version(tmp_path / "new.db") == "2"
+    assert ResultsStore(tmp_path / "new.db").schema_version == 2  # opened again: the same version, one row
     with sqlite3.connect(tmp_path / "new.db") as conn:
         assert conn.execute("SELECT count(*) FROM store_info").fetchone()[0] == 1
 
 
-def test_a_store_of_this_layout_without_a_version_opens_as_version_1(tmp_path):
-    """A store written before versions were recorded (this layout, no store_info table)
-    keeps its rows; opening it read-only writes nothing, opening it to write records 1."""
-    db = tmp_path / "old.db"
-    store = ResultsStore(db)
-    run_id = store.create_run(CONFIG)
-    store.record_evaluations(run_id, [{"outer": 0, "inner": 0, "idx": 0, "kind": "real", "design": [1.0, 1.0],
-                                       "costs": {"torque": 2.5}}])
-    store.close()
-    with sqlite3.connect(db) as conn:  # what a store made before versions looks like
-        conn.execute("DROP TABLE store_info")
-    assert _recorded_version(db) is None
-    reader = ResultsStore(db, create=False)
-    assert reader.schema_version == 1 and reader.get_run(run_id)["objectives"] == ["torque"]
-    reader.close()
-    assert _recorded_version(db) is None  # a read-only open leaves the file as it was
-    writer = ResultsStore(db)
-    assert writer.schema_version == 1
-    assert [e.costs for e in writer.evaluations(run_id)] == [{"torque": 2.5}]
-    writer.close()
-    assert _recorded_version(db) == "1"
-
-
-@pytest.mark.parametrize("version", ["2", "99", "x"])
+@pytest.mark.parametrize("version", ["3", "99", "x"])
 def test_a_store_of_a_newer_schema_is_refused_with_one_line(tmp_path, version):
     db = tmp_path / "future.db"
     ResultsStore(db).close()
@@ -320,7 +297,7 @@ def test_a_store_of_a_newer_schema_is_refused_with_one_line(tmp_path, version):
         message = str(err.value)
         assert "\n" not in message and err.value.field == "store"
         shown = version if version != "x" else "unreadable"
-        assert f"has schema version {shown}; coadapt" in message and "reads versions 1 to 1" in message
+        assert f"has schema version {shown}; coadapt" in message and "reads versions 1 to 2" in message
 
 
 def test_cli_on_a_newer_store_prints_one_line_and_exits_2(tmp_path):
