@@ -68,7 +68,8 @@ def _starting_policy(robot: Any, config: dict[str, Any]) -> dict[str, Any]:
 
 def _recorded_commit(run_dir: Path, run_id: str) -> dict[str, Any]:
     """The run's code version and git commit as its results store recorded them (the
-    default store beside the runs folder, read only); empty when there is none."""
+    default store beside the runs folder, no tables created; an older store is upgraded on
+    open); empty when there is none."""
     store_file = run_dir.parent.parent / "coadapt.db"
     if not store_file.is_file():
         return {}
