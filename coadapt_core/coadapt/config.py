@@ -84,9 +84,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     ),
     # section 4.1.3 (N = 3, K = 100, J = 5, 50 agents, w = 0.5): the declared defaults below are
     # the paper's, and so are the optimizer plugin's declared options
-    "paper": dict(
-        surrogate_probability=0.5,
-    ),
+    "paper": dict(surrogate_probability=0.5),
 }
 
 @settings
@@ -162,6 +160,8 @@ class CoadaptConfig:
     specialized_init: Literal["scratch", "universal"] = setting(
         "scratch", "bo-specialized: scratch (the paper's) or universal (fine-tune the universal policy per design).")
     # -- infrastructure ----------------------------------------------------------------------
+    checkpoint_interactions: Int = setting(3_000_000, "Interactions between checkpoints inside a training "
+                                           "phase, which --resume continues from (0: between phases only).", ge=0)
     checkpoint: str = setting("", "Universal policy to start from (empty: the one the robot ships, if any; none: from scratch).")
     device: Device = setting("cpu", "Torch device of the learner.", accepted="one of cpu, cuda, cuda:N")
     logger: Literal["tensorboard", "wandb", "none"] = setting(

@@ -26,6 +26,7 @@ from coadapt_core import phase_progress
 from coadapt_core.coadapt.config import CoadaptConfig
 from coadapt_core.coadapt.final_check import batch_errors, final_check
 from coadapt_core.coadapt.hybrid import HybridPolicy
+from coadapt_core.coadapt.phase import train_in_chunks
 from coadapt_core.coadapt.reliability import walking
 from coadapt_core.coadapt.setup import note_first_round
 from coadapt_core.coadapt.specialized import OWN_POLICY_FILES, OwnPolicies
@@ -260,11 +261,12 @@ class CoadaptationLoop:
         """Algorithm 4 lines 10-11 and the set-up of this outer iteration's optimizer."""
         s, c = self.state, self.config
         space = DesignSpace.from_dict(s.space)
-        s.spaces.append(space.to_dict())
+        if s.train_progress is None:  # else resumed inside the phase: its designs are drawn (phase.py)
+            s.spaces.append(space.to_dict())
+            s.train_designs = space.sample(c.population, self.rng) if self.shared else None  # [K, dim], line 10
         population = 1 if self.optimizer_cls.sequential else c.population
-        s.train_designs, initial = None, None
+        initial = None
         if self.shared:
-            s.train_designs = space.sample(c.population, self.rng)  # [K, dim], line 10
             initial = s.train_designs[:population] if population == c.population else None
             self.train_shared_policy()
         s.optimizer_init = {
@@ -295,8 +297,7 @@ class CoadaptationLoop:
             def heard(done: int, total: int) -> None:
                 self.emit("training", phase_done=done, phase_total=total, phase_eta=rate.eta(done, total))
 
-            with phase_progress.listening(heard):
-                result = self.get_backend().train(s.train_designs, steps, seed=self.seed_for(1, s.outer))
+            result = train_in_chunks(self, steps, heard)  # a checkpoint every checkpoint_interactions
             s.counters["train_wall"] = s.counters.get("train_wall", 0.0) + time.perf_counter() - t0
             s.counters["train_steps_timed"] = s.counters.get("train_steps_timed", 0) + int(steps)
             self.count_training([result])

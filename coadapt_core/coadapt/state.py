@@ -46,6 +46,9 @@ class LoopState:
     rng_state: dict | None = None  # numpy Generator of sampling and the hybrid switch
     torch_rng_state: Any = None
     backend_checkpoint: str | None = None  # relative to the run folder
+    # a training phase cut into chunks (coadapt/phase.py): {"outer", "done" (interactions),
+    # "chunk" (chunks done), "seconds"} after its last mid-phase checkpoint; None between phases
+    train_progress: dict[str, Any] | None = None
     best_real: tuple[list[float], float] | None = None  # (design, cost) lowest real cost seen
     top_real: list[tuple[list[float], float]] = field(default_factory=list)  # lowest distinct real costs
     best_any: tuple[list[float], float, str] | None = None  # lowest cost of any kind
@@ -195,6 +198,10 @@ def _check_state(state: LoopState) -> None:
         rel = Path(str(state.backend_checkpoint))
         if rel.is_absolute() or ".." in rel.parts:
             raise ValueError("backend checkpoint path leaves the run folder")
+    progress = state.train_progress
+    if progress is not None and not (isinstance(progress, dict) and isinstance(progress.get("done"), int)
+                                     and isinstance(progress.get("chunk"), int) and progress.get("outer") == state.outer):
+        raise ValueError("train_progress is not this outer iteration's chunk count")
     for name in ("best_real", "best_any"):
         if getattr(state, name) is not None:
             setattr(state, name, tuple(getattr(state, name)))
