@@ -22,12 +22,14 @@ from coadapt_core.analysis.facts import (
     transfer_improvement,
     yardstick_improvement,
 )
+from coadapt_core.analysis.pareto_report import figure_pareto_seeds, pareto_markdown, pareto_rows
 from coadapt_core.analysis.report_figures import (
     figure_convergence,
     figure_heatmaps,
     figure_pareto,
     figure_surrogate_error,
     figure_videos,
+    hv_text,
     pareto_points,
 )
 from coadapt_core.analysis.surrogate_figure import figure_surrogate_quality
@@ -165,7 +167,7 @@ def _draw_figures(store: ResultsStore, facts: Sequence[RunFacts], out: Path, pro
              ("convergence", lambda: figure_convergence(store, facts, out)),
              ("surrogate error", lambda: figure_surrogate_error(facts, out)),
              ("surrogate quality", lambda: figure_surrogate_quality(facts, out)),
-             ("Pareto fronts", lambda: figure_pareto(facts, out)),
+             ("Pareto fronts", lambda: figure_pareto(facts, out) + figure_pareto_seeds(facts, out)),
              ("videos", lambda: figure_videos(facts, out)))
     for j, (what, draw) in enumerate(steps):
         if progress is not None:
@@ -212,9 +214,20 @@ def write_report(
     paper_files, paper_html = write_paper_comparison(t6, table7_rows(continuous), out, facts=continuous,
                                                      objective_labels=objective_labels())
     files.update(paper_files)
+    fronts = pareto_rows(facts)  # multi-objective runs: hypervolume +- SE per run and per group of seeds
+    if fronts:
+        write_csv(out / "pareto.csv", fronts)
+        (out / "pareto.md").write_text(pareto_markdown(fronts))
+        files.update({"pareto.csv": out / "pareto.csv", "pareto.md": out / "pareto.md"})
     figures = _draw_figures(store, facts, out, progress)
     for path, _ in figures:
         files[path.name] = path
+    if fronts:  # the hypervolume table beside the paper comparison
+        paper_html += "<h2>Pareto fronts — hypervolume</h2>" + _html_table(
+            [{**r, "hypervolume": hv_text(r["hypervolume"], r["hypervolume_se"]).removeprefix("hypervolume ")}
+             for r in fronts],
+            [(k, k.replace("_", " ")) for k in ("method", "optimizer", "objectives", "terrain", "run", "front_designs",
+                                                "hypervolume")])
     (out / "report.html").write_text(_report_html(store, title, len(runs), t6, t7, paper_html, figures))
     files["report.html"] = out / "report.html"
     return files

@@ -207,6 +207,7 @@ def figure_convergence(store: ResultsStore, facts: Sequence[RunFacts], out: Path
                         linestyle=optimizer_style(opt)[0])
                 ax.plot(x[-1:] / unit, y[-1:], marker=METHOD_MARKERS.get(m, "x"), markersize=7, color=color,
                         markerfacecolor=color if optimizer_style(opt)[1] else "none", linestyle="none")
+                _final_check_bar(ax, f, x[-1], unit, color)
         ax.set_xlabel(f"environment interactions ({unit_name})")
         ax.set_ylabel(f"best real {o} cost so far")
         if spans_decades([y for _, ys in series.values() for y in ys]):
@@ -219,9 +220,23 @@ def figure_convergence(store: ResultsStore, facts: Sequence[RunFacts], out: Path
                       if optimizer_style(opt)[1] else "none", label=method_label(m, opt)) for m, opt in groups]
     fig.legend(handles=handles, loc="lower center", ncol=min(3, len(handles)), fontsize=8, frameon=False)
     fig.tight_layout(rect=(0, 0.06 + 0.03 * math.ceil(len(handles) / 3), 1, 1))
-    return save_figure(plt, fig, out / "convergence.png", "Convergence: best real cost found so far against environment interactions spent "
-                   "(training + real evaluation), one line per run; colour and marker shape = method, "
-                   "line style and marker fill = optimizer; the marker sits at the run's last evaluation.", layout=False)
+    return save_figure(plt, fig, out / "convergence.png", "Convergence: best in-run estimate of the real cost found so far "
+                   "against environment interactions spent (training + real evaluation), one line per run; colour and "
+                   "marker shape = method, line style and marker fill = optimizer; the marker sits at the run's last "
+                   "evaluation. The error bar after it is the final check: the run's returned design re-evaluated on "
+                   "fresh paired scenarios, +- its standard error (the number the run reports; in-run estimates of "
+                   "the best design are biased low by its selection).", layout=False)
+
+
+def _final_check_bar(ax: Any, f: RunFacts, x_end: float, unit: float, color: Any) -> None:
+    """The run's final-check cost of its returned design (+- its SE), after the in-run curve."""
+    cost, se = f.summary.get("best_cost"), f.summary.get("best_cost_se")
+    if not isinstance(cost, int | float) or not math.isfinite(cost):
+        return
+    x = (x_end + float(f.summary.get("final_interactions") or 0)) / unit
+    err = se if isinstance(se, int | float) and math.isfinite(se) else None
+    ax.errorbar([x], [cost], yerr=None if err is None else [err], fmt="s", color=color, markerfacecolor="white",
+                markersize=6, capsize=3, linewidth=1.2)
 
 
 def figure_surrogate_error(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]]:
@@ -272,15 +287,21 @@ def figure_surrogate_error(facts: Sequence[RunFacts], out: Path) -> list[tuple[P
 
 
 def pareto_points(f: RunFacts) -> dict[str, Any]:
-    """What pareto.png draws for a multi-objective run: every real evaluation ("evaluated"
-    [n, 2]), the front ("front" [F, 2], first two objectives) and where it comes from. The
-    front is the run's stored final front (the one `coadapt run` printed) when it has one."""
+    """What pareto.png draws for a multi-objective run: every in-run real evaluation
+    ("evaluated" [n, 2]), the front ("front" [F, 2], first two objectives; "front_se" [F, 2]
+    or None), the index of the design the run returned ("returned"), the front's
+    hypervolume with its SE and where the front comes from. The front is the run's stored
+    final front (the one `coadapt run` printed) when it has one."""
     o1, o2 = f.run["objectives"][:2]
     evaluated = np.array([[e.costs[o1], e.costs[o2]] for e in f.real if o1 in e.costs and o2 in e.costs]).reshape(-1, 2)
     stored = f.summary.get("pareto_front")
+    front_se, hv, hv_se = None, None, None
     if isinstance(stored, dict) and stored.get("costs"):
         front = np.array([[c[o1], c[o2]] for c in stored["costs"]], dtype=float)
         designs = np.array(stored["designs"], dtype=float)
+        if isinstance(stored.get("costs_se"), list) and len(stored["costs_se"]) == len(front):
+            front_se = np.array([[c.get(o1, np.nan), c.get(o2, np.nan)] for c in stored["costs_se"]], dtype=float)
+        hv, hv_se = stored.get("hypervolume"), stored.get("hypervolume_se")
         source = "the run's final front (real re-evaluation)"
     else:
         mask = pareto_mask(evaluated)
@@ -288,8 +309,53 @@ def pareto_points(f: RunFacts) -> dict[str, Any]:
         designs = np.array([e.design for e in f.real if o1 in e.costs and o2 in e.costs])[mask]
         source = "non-dominated real evaluations (the run stored no final front)"
     order = np.lexsort(front.T[::-1]) if len(front) else np.arange(0)
+    returned = None
+    best = f.summary.get("best_costs") or {}
+    if len(front) and o1 in best and o2 in best:
+        hit = np.flatnonzero(np.isclose(front[order], [best[o1], best[o2]]).all(axis=1))
+        returned = int(hit[0]) if len(hit) else None
     return {"objectives": (o1, o2), "evaluated": evaluated, "front": front[order], "designs": designs[order],
-            "source": source}
+            "front_se": None if front_se is None else front_se[order], "returned": returned,
+            "hypervolume": hv, "hypervolume_se": hv_se, "source": source, "nominal": _nominal_point(f, o1, o2)}
+
+
+def _nominal_point(f: RunFacts, o1: str, o2: str) -> tuple[float, float] | None:
+    nominal = f.summary.get("nominal_costs") or {}
+    point = (nominal.get(o1), nominal.get(o2))
+    return point if all(isinstance(v, int | float) and math.isfinite(v) for v in point) else None
+
+
+def hv_text(hv: Any, se: Any) -> str:
+    """'hypervolume 1.23 +- 0.04' (or without the SE when none was measured); '' without one."""
+    if not isinstance(hv, int | float) or not math.isfinite(hv):
+        return ""
+    if isinstance(se, int | float) and math.isfinite(se):
+        return f"hypervolume {hv:.3f} +- {se:.3f}"
+    return f"hypervolume {hv:.3f} (no SE: no per-scenario costs)"
+
+
+def _draw_front(ax: Any, d: dict[str, Any]) -> None:
+    """One run's panel: in-run estimates in grey, the re-evaluated front with its error bars
+    and each design's --pick index, the returned design as a diamond."""
+    o1, _ = d["objectives"]
+    front = d["front"]
+    ax.scatter(d["evaluated"][:, 0], d["evaluated"][:, 1], s=12, color="lightgrey",
+               label="in-run estimates (real rounds, other scenarios)")
+    label = f"front, final check +- SE ({len(front)} designs)"
+    if d["front_se"] is not None:
+        ax.errorbar(front[:, 0], front[:, 1], xerr=d["front_se"][:, 0], yerr=d["front_se"][:, 1], fmt="o-",
+                    color="tab:red", capsize=3, markersize=5, label=label)
+    else:
+        ax.plot(front[:, 0], front[:, 1], "o-", color="tab:red", label=label.replace(" +- SE", ""))
+    for j, (x, y) in enumerate(front):
+        ax.annotate(str(j), (x, y), textcoords="offset points", xytext=(5, 5), fontsize=7, color="tab:red")
+    if d["nominal"] is not None:
+        ax.plot(*d["nominal"], marker="x", markersize=9, color="black", linestyle="none",
+                label="nominal design (final check)")
+    if d["returned"] is not None:
+        x, y = front[d["returned"]]
+        ax.plot(x, y, marker="D", markersize=10, markerfacecolor="none", markeredgecolor="black", linestyle="none",
+                label=f"returned design (front {d['returned']}: lowest {o1} cost)")
 
 
 def figure_pareto(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]]:
@@ -302,12 +368,7 @@ def figure_pareto(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]
     for ax, f in zip(axes, multi, strict=True):
         d = pareto_points(f)
         o1, o2 = d["objectives"]
-        ax.scatter(d["evaluated"][:, 0], d["evaluated"][:, 1], s=12, color="lightgrey", label="real evaluations during the run")
-        ax.plot(d["front"][:, 0], d["front"][:, 1], "o-", color="tab:red", label=f"Pareto front ({len(d['front'])} designs)")
-        best = f.summary.get("best_costs") or {}
-        if o1 in best and o2 in best:
-            ax.plot(best[o1], best[o2], marker="D", markersize=9, markerfacecolor="none", markeredgecolor="black",
-                    linestyle="none", label="Table 6 design (lowest first cost)")
+        _draw_front(ax, d)
         ax.set_xlabel(f"{o1} cost")
         ax.set_ylabel(f"{o2} cost")
         both = np.vstack([d["evaluated"], d["front"]])
@@ -315,13 +376,20 @@ def figure_pareto(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]
             ax.set_xscale("log")
         if spans_decades(both[:, 1]):
             ax.set_yscale("log")
-        ax.set_title(f"{f.run['id']}\n{f.optimizer} on {f.terrain}", fontsize=8)
+        hv = hv_text(d["hypervolume"], d["hypervolume_se"])
+        ax.set_title(f"{f.run['id']}\n{f.optimizer} on {f.terrain}" + (f"; {hv}" if hv else ""), fontsize=8)
         ax.legend(fontsize=7)
         tidy_axes(ax)
         sources.add(d["source"])
-    return save_figure(plt, fig, out / "pareto.png", "Pareto fronts of multi-objective runs: grey, every real evaluation during the run; red, the "
-                   f"front ({'; '.join(sorted(sources))}), the same designs `coadapt run` printed and the store holds; "
-                   "diamond, the design Table 6 reports.")
+    return save_figure(plt, fig, out / "pareto.png", "Pareto fronts of multi-objective runs. Red: the front "
+                   f"({'; '.join(sorted(sources))}), each design with its final-check costs +- standard error and its "
+                   "index for `coadapt handoff RUN --pick N`; the same designs `coadapt run` printed and the store "
+                   "holds. Diamond: the design the run returns (Table 6's, the lowest first cost); cross: the nominal "
+                   "design in the same final check. Grey: the in-run "
+                   "estimates of the real rounds, on fewer and other scenarios than the final check, so noisier and, "
+                   "for the designs the optimizer kept, biased low by that selection: grey points below the front "
+                   "do not beat it. Title: the front's hypervolume +- SE (costs relative to the nominal design's, "
+                   "up to 2 in each; the nominal design alone has 1).")
 
 
 def figure_videos(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]]:

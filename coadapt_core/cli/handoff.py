@@ -23,6 +23,10 @@ class HandoffCommand:
     out: Path | None = setting(None, "Folder to write (default: ./handoff-<run id>).", names=("-o", "--out"))
     design: str | None = setting(None, "Design values, comma-separated in the order of the run's design space (default: "
                                  "the run's best design).")
+    pick: str | None = setting(None, "A design of a multi-objective run's Pareto front instead of the one it returns: "
+                               "its index N (0-based, in the order `coadapt run` printed the front, by the first cost; "
+                               "0 is the returned design), or 'knee' (the design nearest the ideal point, each "
+                               "objective scaled to the front's range).")
     sim: list[str] | None = setting(None, "Simulator to evaluate the design and the nominal one on; repeatable (default: "
                                     "the run's and every other installed one).", names=("--sim",))
     agents: Int = setting(16, "Paired scenarios per design and simulator.")
@@ -32,6 +36,27 @@ class HandoffCommand:
     force: bool = setting(False, "Replace an earlier handoff folder at --out.", names=("--force",))
     runs_dir: Path = setting(Path("runs"), "Where run ids are looked up.")
     as_json: bool = setting(False, "Print what was written as JSON on the last line.", names=("--json",))
+
+
+def _picked(run_dir: Path, pick: str) -> Any:
+    """The design `--pick` names in the run's stored Pareto front (its summary's)."""
+    import numpy as np
+
+    from coadapt_core.handoff.folder import read_run
+    from coadapt_core.pareto import pick_index
+
+    _, summary = read_run(run_dir)
+    front = summary.get("pareto_front")
+    if not isinstance(front, dict) or not front.get("designs") or not front.get("costs"):
+        fail(f"--pick: run {run_dir.name} has no Pareto front (one objective); leave out --pick to hand off its best "
+             "design, or give --design")
+    names = list(front["costs"][0])
+    costs = np.array([[float(c[n]) for n in names] for c in front["costs"]], dtype=float)
+    try:
+        index = pick_index(pick, costs)
+    except ValueError as exc:
+        fail(f"--pick: {exc}")
+    return np.asarray(front["designs"][index], dtype=float)
 
 
 def register(app: typer.Typer) -> None:
@@ -55,7 +80,11 @@ def register(app: typer.Typer) -> None:
 
         run_dir = find_run(run, o["runs_dir"])
         values = None
-        if design is not None:
+        if o["pick"] is not None:
+            if design is not None:
+                fail("--pick and --design both name a design; give one")
+            values = _picked(run_dir, o["pick"])
+        elif design is not None:
             from coadapt_core.cli.robot import parse_design
             from coadapt_core.plugins import get_registry
 

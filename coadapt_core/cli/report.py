@@ -32,6 +32,22 @@ class ReportCommand:
     common_blocks: Int = setting(8, "Blocks of 32 scenarios x 250 steps in the common scenario set.")
 
 
+def _check_out(out: Path) -> None:
+    """--out is a folder the report can write (made if missing): a probe file is written and
+    removed; otherwise one line, exit 2."""
+    import tempfile
+
+    from coadapt_core.cli.common import fail
+
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=out, prefix=".coadapt-probe-"):
+            pass
+    except OSError as exc:
+        fail(f"--out {out}: cannot write the report there ({exc.strerror or type(exc).__name__}); give a folder "
+             "you can write")
+
+
 def _quiet_imports(modules: tuple[str, ...]) -> None:
     """Import `modules` once with the C-level output closed: a line a library prints on
     import (a simulator declares them in `quiet_imports`) would otherwise land in the middle
@@ -122,6 +138,7 @@ def register(app: typer.Typer) -> None:
             # reading a store that is not there must not leave an empty one behind
             fail(f"no results store at {url.removeprefix('sqlite:///')}: run `coadapt run` or `coadapt grid` first, "
                  "or pass --store (or $COADAPT_STORE)")
+        _check_out(o.out)  # before anything is evaluated (the sim-to-sim and common columns take minutes)
         if o.sim_to_sim:
             o.transfer_sim = _transfer_simulator(o.transfer_sim)
         from coadapt_core.cli.progress import ProgressLine

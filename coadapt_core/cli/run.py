@@ -307,10 +307,10 @@ def _print_summary(summary: dict[str, Any], space_names: list[str] | None, discr
         f"{summary['surrogate_evaluations']} surrogate rounds; {_fmt_duration(summary['seconds'])} wall clock"
     )
     if summary.get("pareto_front"):
-        front = summary["pareto_front"]
-        console.print(f"Pareto front ({len(front['designs'])} designs, final check costs):")
-        for design, costs in zip(front["designs"], front["costs"], strict=True):
-            console.print("  " + ", ".join(f"{x:.3f}" for x in design) + "  ->  " + ", ".join(f"{k} {v:.4g}" for k, v in costs.items()))
+        from coadapt_core.cli.front import front_lines
+
+        for line in front_lines(summary["pareto_front"], _with_se):
+            console.print(line, markup=False, highlight=False, soft_wrap=True)
     _print_warnings(console, summary)
 
 

@@ -24,6 +24,7 @@ from coadapt_core.fitness import (
     scenario_se,
 )
 from coadapt_core.objective import Objective
+from coadapt_core.pareto import HV_DEFINITION, front_rows, hypervolume, hypervolume_se
 
 #: the improvement must be at least this many paired standard errors to count as significant
 SIGNIFICANCE_RATIO = 4.0
@@ -94,6 +95,36 @@ class FinalCheck:
                     "fall_rate_difference": comp["fall_rate_difference"],
                     "fall_rate_difference_se": _finite(comp["fall_rate_difference_se"]),
                 })
+        return out
+
+    def front(self, designs: np.ndarray, names: Sequence[str]) -> dict[str, Any]:
+        """The stored Pareto front of several objectives: the non-dominated candidates of this
+        re-evaluation (the optimizer's own front mixes surrogate and noisier in-run costs),
+        sorted by the first cost, each with its costs and their standard errors; the design
+        the run returns (`returned`: index 0, the lowest first cost); the front's hypervolume
+        (`coadapt_core.pareto.HV_DEFINITION`) with its paired bootstrap standard error over
+        the check's scenarios (None without per-scenario costs)."""
+        designs = np.asarray(designs, dtype=float)
+        costs = np.asarray(self.fit.costs, dtype=float).reshape(len(designs), -1)
+        rows = front_rows(designs[:-1], costs[:-1])
+        se = self.cost_se
+        out: dict[str, Any] = {
+            "designs": designs[rows].tolist(),
+            "costs": [dict(zip(names, map(float, costs[r]), strict=True)) for r in rows],
+            "costs_se": None if se is None else [dict(zip(names, map(float, se[r]), strict=True)) for r in rows],
+            "returned": 0,
+            "scenarios": self.scenarios,
+            "hypervolume_definition": HV_DEFINITION,
+        }
+        if self.fit.per_scenario is not None:
+            per = np.asarray(self.fit.per_scenario, dtype=float)
+            falls = self.fit.scenario_falls
+            ref = self.rule.reference(per[-1], None if falls is None else falls[-1]) if self.rule.needs_reference else None
+            values = self.rule.scenario_values(per, falls, ref)
+            # every candidate: one off the front here may be on it in a resample (a dominated one adds nothing)
+            out["hypervolume"], out["hypervolume_se"] = hypervolume_se(values, self.rule.aggregate)
+        else:
+            out["hypervolume"], out["hypervolume_se"] = hypervolume(costs[rows], costs[-1]), None
         return out
 
 

@@ -50,7 +50,7 @@ from coadapt_core.methods import get_method
 from coadapt_core.objective import Objective
 from coadapt_core.optimizer import Optimizer
 from coadapt_core.options import fill_from_run
-from coadapt_core.pareto import pareto_front
+from coadapt_core.pareto import front_rows
 
 #: importers of these names from here (the grid, older scripts) keep working
 __all__ = ["JSON_PLAIN_AND_FALLS", "STATE_FILE", "CoadaptationLoop", "LoopState", "ProgressFn", "save_state"]
@@ -491,18 +491,11 @@ class CoadaptationLoop:
         costs = np.asarray(fit.costs, dtype=float).reshape(len(designs), -1)
         s.counters["final_interactions"] += int(fit.interactions)
         s.counters["final_seconds"] += float(fit.seconds)
-        front = None
-        if len(self.objectives) > 1:
-            # the optimizer's front mixes surrogate and noisy real costs: the stored front
-            # is the non-dominated subset of the final real re-evaluation
-            front_designs, front_costs = pareto_front(designs[:-1], costs[:-1])
-            front = {"designs": front_designs.tolist(),
-                     "costs": [dict(zip(self.names, map(float, r), strict=True)) for r in front_costs]}
-            best_design, best_costs = front_designs[0], front_costs[0]  # lowest first cost
-            i = int(np.flatnonzero(np.all(np.isclose(designs[:-1], best_design), axis=1))[0])
-        else:
-            i = check.best  # the lowest cost among candidates that do not fall more (the nominal design if none)
-            best_design, best_costs = designs[i], costs[i]
+        # several objectives: the front is the non-dominated part of this real re-evaluation and the run returns its
+        # design of lowest first cost; one: the lowest cost among candidates that do not fall more (else the nominal)
+        front = check.front(designs, self.names) if len(self.objectives) > 1 else None
+        i = int(front_rows(designs[:-1], costs[:-1])[0]) if front is not None else check.best
+        best_design, best_costs = designs[i], costs[i]
         return FinalOutcome(best_design=best_design, best_costs=best_costs, nominal_costs=costs[-1],
                             uncertainty=check.uncertainty(self.names), front=front,
                             walking={"best": walking(fit, [i]), "nominal": walking(fit, [len(designs) - 1])})

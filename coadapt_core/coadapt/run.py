@@ -129,6 +129,7 @@ def _drive(config: CoadaptConfig, state: LoopState, parts: LoopParts, run_path: 
         else:
             summary = _continue(config, state, parts, run_path, recorder, progress)
         result = CoadaptResult(state.run_id, run_path, summary)
+        _draw_figures(run_path, summary, config)
         if finishing is not None:
             finishing(result)
     except BaseException as exc:
@@ -141,6 +142,21 @@ def _drive(config: CoadaptConfig, state: LoopState, parts: LoopParts, run_path: 
         raise
     recorder.finish(state.run_id, summary, "finished")
     return result
+
+
+def _draw_figures(run_path: Path, summary: dict[str, Any], config: CoadaptConfig) -> None:
+    """The run's figures in its folder (`analysis.run_figures`: convergence, the Pareto front,
+    the surrogate's error), one line naming them; a figure that cannot be drawn is said in
+    that line and leaves the run's result alone."""
+    try:
+        from coadapt_core.analysis.run_figures import write_run_figures
+
+        written = write_run_figures(run_path, summary, config.to_dict())
+    except Exception as exc:  # matplotlib missing or a record it cannot draw: the result stands
+        print(f"figures: not drawn ({type(exc).__name__}: {exc})", file=sys.stderr)
+        return
+    if written:
+        print(f"figures: {', '.join(p.name for p, _ in written)} in {run_path}", file=sys.stderr)
 
 
 def _continue(config: CoadaptConfig, state: LoopState, parts: LoopParts, run_path: Path, recorder: RunRecorder,

@@ -104,6 +104,9 @@ def build_parts(
     # plugin's defaults stay the plugin's)
     resolved = check_optimizer_options(config, optimizer_cls)
     config.optimizer_options = {k: resolved[k] for k in config.optimizer_options}
+    check_store_options(config, optimizer_cls)
+    if backend_factory is None:
+        check_device(config.device)
     if objectives is None:
         objectives = make_objectives(config)
         given = set(config.objective_options)  # recorded typed, as the objectives converted them
@@ -144,6 +147,8 @@ def build_parts(
     if backend_factory is None:
         backend_factory = universal_policy_factory(config, robot, full_space, objectives)
         pretrained = shared and resolve_checkpoint(config) is not None
+        if pretrained or (not shared and config.specialized_init == "universal"):
+            check_policy_space(resolve_checkpoint(config), full_space, robot, mixed)
         policy = policy_provenance(config, used=shared or config.specialized_init == "universal")
         if pretrained:
             no_critic, note = objectives_without_critic(config, resolve_checkpoint(config), objectives)
@@ -161,6 +166,51 @@ def build_parts(
             notes += [f"warning: {note}"] if note else []
     return LoopParts(full_space, space, nominal, objectives, optimizer_cls, backend_factory, pretrained, policy, notes,
                      no_critic)
+
+
+def check_store_options(config: CoadaptConfig, optimizer_cls: type[Optimizer]) -> None:
+    """A database URL given to an optimizer option the run would otherwise fill with its store
+    (`from_run="store_url"`, e.g. a study kept there), checked now: a bad one is one line
+    before a run folder exists, not an error after the first training phase."""
+    from coadapt_core.results.storage import check_database_url
+
+    for spec in getattr(optimizer_cls, "option_specs", ()):
+        value = config.optimizer_options.get(spec.name)
+        if spec.from_run == "store_url" and value:
+            check_database_url(str(value), field=spec.alias or f"optimizer_options.{spec.name}")
+
+
+def check_device(device: str) -> None:
+    """A CUDA device asked for where there is none: one line now, before a run folder exists."""
+    if str(device).startswith("cuda"):
+        import torch
+
+        if not torch.cuda.is_available():
+            raise UserError(f"device '{device}' requested but no CUDA device is available; use --device cpu",
+                            field="device")
+
+
+def check_policy_space(checkpoint: str | None, space: DesignSpace, robot, mixed: bool) -> None:
+    """The starting policy takes as many design values as the run's design space has: a
+    policy of the mixed space (motor types too) on the continuous one, or the other way round,
+    is one line naming both, before a run folder exists."""
+    from pathlib import Path
+
+    if checkpoint is None or not Path(checkpoint).is_file():  # a missing one is resolve_checkpoint's line
+        return
+    from coadapt_core.learning import read_checkpoint
+
+    state = read_checkpoint(checkpoint)
+    takes = (state.get("dims") or {}).get("num_design")
+    if takes is None or int(takes) == space.dim:
+        return
+    kind = "mixed" if mixed else "continuous"
+    hint = "a policy trained on this space"
+    if robot is not None and robot.design_space(not mixed).dim == int(takes):
+        hint = ("--mixed, or " if not mixed else "no --mixed (a continuous-space optimizer), or ") + hint
+    raise UserError(f"checkpoint '{checkpoint}' takes {takes} design values and the run's {kind} design space has "
+                    f"{space.dim} ({', '.join(space.names)}); give {hint} (`coadapt train --robot {getattr(robot, 'name', 'ROBOT')}"
+                    f"{' --mixed' if mixed else ''}`)", field="checkpoint")
 
 
 def objectives_without_critic(config: CoadaptConfig, checkpoint: str, objectives: Sequence[Objective]

@@ -36,6 +36,8 @@ from coadapt_core.handoff.measure import (
     buffer_observations,
     copy_or_render_video,
     evaluate_on,
+    front_final_check,
+    front_index,
     rollout,
     run_check,
     run_final_check,
@@ -187,19 +189,23 @@ def _evaluations(run: _Run, options: HandoffOptions, objectives: list[str], cont
     """The run's final check (for its best design) and fresh paired evaluations of the
     design against the nominal one on each simulator."""
     evaluations = []
+    index = front_index(run.summary, run.design)
     if run.is_best and run.summary.get("best_costs"):
         evaluations.append(run_final_check(run.summary, run.config, run.sim_name))
+    elif index is not None:  # another design of the run's Pareto front (--pick)
+        evaluations.append(front_final_check(run.summary, run.config, run.sim_name, index))
     simulators = list(options.simulators) if options.simulators else [run.sim_name] + [
         n for n in run.registry.names("simulator") if n != run.sim_name]
     steps = max(1, int(round(options.seconds / control_dt)))
     for name in simulators:
-        say(f"evaluating the design and the nominal one on {name} ({options.agents} paired scenarios x {steps} steps)")
+        say(f"evaluating the design and the nominal one on {name} ({options.agents} paired scenarios x {steps} steps; "
+            "handoff protocol, not comparable with `coadapt run` or `coadapt eval`)")
         evaluations.append(evaluate_on(name, robot=run.robot, checkpoint=run.checkpoint,
                                        nominal_checkpoint=run.nominal_checkpoint, objectives=objectives,
                                        design=run.design, nominal=run.nominal, terrain=run.terrain, seed=run.seed,
                                        agents=options.agents, steps=steps))
         ev = evaluations[-1]
-        say(f"  {name}: " + (ev["error"] if "error" in ev else "; ".join(
+        say(f"  {name}, handoff protocol: " + (ev["error"] if "error" in ev else "; ".join(
             f"{k} {v['design']:.4g} vs nominal {v['nominal']:.4g}" for k, v in ev["objectives"].items())
             + f"; fall rate {ev['design_fall_rate']:.2f} vs {ev['nominal_fall_rate']:.2f}"))
     return evaluations
@@ -217,6 +223,7 @@ def _sheet_data(run: _Run, model: Any, spec: dict[str, Any], tools: Any, **measu
         "design": [float(x) for x in run.design],
         "nominal_design": [float(x) for x in run.nominal],
         "is_run_best": run.is_best,
+        "pareto_front_index": front_index(run.summary, run.design),
         "policies": _judges(run),
         "terrain": run.terrain,
         "parameters": sheet.design_parameters(run.space, run.design),
@@ -339,6 +346,7 @@ def make_handoff(run_dir: Path, out: Path, options: HandoffOptions | None = None
         "robot": run.robot.name,
         "design": [float(x) for x in run.design],
         "is_run_best": run.is_best,
+        "pareto_front_index": sheet_data.get("pareto_front_index"),
         "max_abs_action_difference": sheet_data["onnx"]["max_abs_action_difference"],
         "tolerance": ONNX_TOLERANCE,
         "evaluations": [{k: ev.get(k) for k in ("simulator", "source", "error", "design_fall_rate", "nominal_fall_rate")}

@@ -170,6 +170,34 @@ def run_final_check(summary: dict[str, Any], config: dict[str, Any], simulator: 
             "nominal_fall_rate": summary.get("nominal_fall_rate"), "significant": summary.get("significant")}
 
 
+def front_index(summary: dict[str, Any], design: Any) -> int | None:
+    """The index of `design` in the run's stored Pareto front (`coadapt handoff --pick`),
+    None when the run has no front or the design is not on it."""
+    front = summary.get("pareto_front")
+    if not isinstance(front, dict) or not front.get("designs"):
+        return None
+    x = np.asarray(design, dtype=float)
+    for i, row in enumerate(front["designs"]):
+        if len(row) == len(x) and np.allclose(np.asarray(row, dtype=float), x):
+            return i
+    return None
+
+
+def front_final_check(summary: dict[str, Any], config: dict[str, Any], simulator: str, index: int) -> dict[str, Any]:
+    """The run's own final check of front design `index` (its summary's Pareto front) against
+    the nominal design on the same scenarios; the improvement is left to the fresh paired
+    evaluations (the front stores no paired errors)."""
+    front = summary["pareto_front"]
+    costs, ses = front["costs"][index], (front.get("costs_se") or [{}] * len(front["costs"]))[index]
+    nominal, nominal_se = summary.get("nominal_costs") or {}, summary.get("nominal_costs_se") or {}
+    rows = {name: {"design": value, "nominal": nominal.get(name), "design_se": ses.get(name),
+                   "nominal_se": nominal_se.get(name), "improvement": None, "improvement_se": None}
+            for name, value in costs.items()}
+    return {"simulator": simulator, "source": f"the run's final check (Pareto front design {index})",
+            "scenarios": summary.get("final_scenarios"), "steps": config.get("eval_steps"), "objectives": rows,
+            "design_fall_rate": None, "nominal_fall_rate": summary.get("nominal_fall_rate"), "significant": None}
+
+
 # -- README ------------------------------------------------------------------------------------
 
 def run_check(folder: Path, seconds: float, vx: float) -> dict[str, Any]:

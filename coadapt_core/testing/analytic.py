@@ -64,8 +64,12 @@ class AnalyticBackend:
     surrogate_ensemble = True
 
     def __init__(self, seed: int = 0, *, optima: Mapping[str, Any] | None = None, buffer_from_training: bool = True,
-                 fail_on_real_call: int | None = None):
+                 fail_on_real_call: int | None = None, paired: bool = False):
         self.seed = seed
+        # paired: real fitness gives per-scenario costs [K, A, M] (one scenario per agent, its
+        # offset shared by every design of the call, as a real backend's paired scenarios), so
+        # the loop measures standard errors
+        self.paired = paired
         self.optima = dict(optima or {})
         self.buffer_from_training = buffer_from_training
         self.fail_on_real_call = fail_on_real_call  # raise on this (1-based) real_fitness call
@@ -102,11 +106,18 @@ class AnalyticBackend:
             raise RuntimeError(f"injected failure on real evaluation call {self.real_calls}")
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
         rng = np.random.default_rng(seed)
-        noise = rng.normal(0.0, NOISE_STD / np.sqrt(agents), size=(len(designs), len(objectives)))
-        costs = np.stack([true_cost(designs, o.name, self.optima) for o in objectives], axis=1) + noise  # [K, M]
+        true = np.stack([true_cost(designs, o.name, self.optima) for o in objectives], axis=1)  # [K, M]
         interactions = len(designs) * agents * steps
         buffer = {"kind": "evaluation", "designs": designs.copy()}
-        return RealFitness(costs=costs, buffer=buffer, interactions=interactions, seconds=interactions / RATE)
+        if self.paired:  # each scenario's offset shared by the designs, plus each design's own noise
+            shared = rng.normal(0.0, NOISE_STD, size=(1, agents, len(objectives)))
+            per = true[:, None, :] + shared + rng.normal(0.0, NOISE_STD, size=(len(designs), agents, len(objectives)))
+            return RealFitness(costs=per.mean(axis=1), buffer=buffer, interactions=interactions,
+                               seconds=interactions / RATE, per_scenario=per,
+                               scenario_falls=np.zeros(per.shape[:2], dtype=bool),
+                               fall_rate=np.zeros(len(designs)))
+        noise = rng.normal(0.0, NOISE_STD / np.sqrt(agents), size=(len(designs), len(objectives)))
+        return RealFitness(costs=true + noise, buffer=buffer, interactions=interactions, seconds=interactions / RATE)
 
     def surrogate_fitness(
         self, designs: np.ndarray, objectives: Sequence[Objective], buffer: Any, *, samples: int, seed: int = 0

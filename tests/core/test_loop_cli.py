@@ -103,6 +103,7 @@ def test_run_table_output_and_mixed_pso_uses_motor_types(tmp_path, capsys, fake_
 
 def test_nsga2_front_is_non_dominated_and_printed_stored_plotted_alike(tmp_path, capsys, fake_learner):
     from coadapt_core.analysis.report import pareto_points, run_facts
+    from coadapt_core.cli.run import _with_se
     from coadapt_core.pareto import is_dominated
     from coadapt_core.results import ResultsStore
 
@@ -119,9 +120,13 @@ def test_nsga2_front_is_non_dominated_and_printed_stored_plotted_alike(tmp_path,
     # no design of the front is dominated by another design of the front
     for i, point in enumerate(costs):
         assert not is_dominated(point, np.delete(costs, i, axis=0)), point
-    # printed == stored (the printed text is the stored numbers)
-    expected = ["  ".join([", ".join(f"{x:.3f}" for x in d), "->", ", ".join(f"{k} {v:.4g}" for k, v in c.items())])
-                for d, c in zip(stored["designs"], stored["costs"], strict=True)]
+    # printed == stored (the printed text is the stored numbers: index, design, costs +- SE,
+    # the returned design marked)
+    ses = stored.get("costs_se") or [{}] * len(costs)
+    expected = [f"{j}: " + ", ".join(f"{x:.3f}" for x in d) + " -> "
+                + ", ".join(f"{k} {_with_se(v, s.get(k))}" for k, v in c.items())
+                + (" <- returned" if j == 0 else "")
+                for j, (d, c, s) in enumerate(zip(stored["designs"], stored["costs"], ses, strict=True))]
     assert [" ".join(p.split()) for p in printed] == [" ".join(e.split()) for e in expected]
     # plotted == stored, and Table 6's design (lowest first cost) lies on it
     plotted = pareto_points(run_facts(store, run))
