@@ -36,8 +36,9 @@ def main() -> None:
     parser.add_argument("--pseudo-epochs", type=int, default=None, help="pseudo-critic epochs per update (default: TrainConfig's; 0: as PPO's)")
     parser.add_argument("--iterations", type=int, default=6, help="rollouts (and updates) timed after one warm-up (default 6)")
     parser.add_argument("--device", default="cpu")
-    parser.add_argument("--threads", type=int, default=None, help="physics threads")
-    parser.add_argument("--torch-threads", type=int, default=0, help="torch threads of the update (0: every core)")
+    parser.add_argument("--threads", type=int, default=None,
+                        help="thread budget of the physics and torch's update (default: the CPUs this process may use)")
+    parser.add_argument("--torch-threads", type=int, default=0, help="torch threads of the update only (0: --threads)")
     parser.add_argument("--precision", default=None, choices=["auto", "float32", "bf16"], help="numerics of the PPO loss (default: TrainConfig's)")
     parser.add_argument("--pseudo-precision", default=None, choices=["auto", "float32", "bf16"],
                         help="numerics of the pseudo-critic regression (default: TrainConfig's)")
@@ -59,11 +60,13 @@ def main() -> None:
     objectives = [registry.get("objective", n)() for n in args.objectives.split(",") if n]
     config = TrainConfig(
         num_designs=args.num_designs, agents_per_design=args.agents, steps_per_env=args.steps_per_env,
-        epochs=args.epochs, minibatches=args.minibatches, device=args.device, torch_threads=args.torch_threads,
+        epochs=args.epochs, minibatches=args.minibatches, device=args.device,
         **{k: v for k, v in (("precision", args.precision), ("pseudo_precision", args.pseudo_precision),
                              ("pseudo_epochs", args.pseudo_epochs)) if v is not None},
     )
     trainer = Trainer(robot, sim_cls, objectives, terrain=args.terrain, train_config=config, num_threads=args.threads)
+    if args.torch_threads:  # the update on another count than the physics (a measurement of its own)
+        trainer.learner_threads = args.torch_threads
     runner = Runner(trainer)  # what `coadapt train` and the loop's retraining drive (here: nothing written)
     t0 = time.perf_counter()
     trainer.set_designs(trainer.sample_designs())

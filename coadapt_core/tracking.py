@@ -111,9 +111,25 @@ def check_logger(kind: str) -> str:
     return kind
 
 
+def tensorboard_installed() -> bool:
+    """Whether torch's TensorBoard writer can be used (the `tensorboard` package is there)."""
+    import importlib.util
+
+    return importlib.util.find_spec("tensorboard") is not None
+
+
 def make_logger(kind: str, log_dir: str | Path, *, name: str = "coadapt",
                 config: Mapping[str, Any] | None = None) -> ExperimentLogger:
+    """The logger `kind` writing under `log_dir`. TensorBoard (the default) where its package
+    is not installed (a trimmed environment, the GPU machine's wheels): no logger, said in one
+    line on stderr, and the command runs on; a missing wandb, asked for by name, is an error."""
     kind = check_logger(kind)
+    if kind == "tensorboard" and not tensorboard_installed():
+        import sys
+
+        print("note: tensorboard is not installed: no event files are written (pip install tensorboard; "
+              "--logger none says this is meant)", file=sys.stderr)
+        return ExperimentLogger()
     if kind == "tensorboard":
         return TensorBoardLogger(log_dir)
     if kind == "wandb":
