@@ -45,10 +45,13 @@ HIP_INERTIA = (0.000734064, 0.000468438, 0.000398719)
 THIGH_MOTOR_MASS = 0.60
 THIGH_STRUCTURE_MASS = 1.009 - THIGH_MOTOR_MASS
 MOTOR_RADIUS, MOTOR_LENGTH = 0.046, 0.04
-#: Go1 calf link mass, kg; assumption: all of it a uniform rod along the calf, scaling with
-#: length (the Go1's calf drive is a linkage rod inside it)
+#: Go1 calf link mass, kg, foot included. Assumption: a 0.02 kg solid rubber foot sphere
+#: (fixed) and the rest a uniform rod along the calf, scaling with length (the Go1's calf
+#: drive is a linkage rod inside it). A foot with mass keeps PyBullet from giving a URDF link
+#: without inertial 1 kg
 CALF_MASS = 0.195862
-#: Go1 foot sphere radius, m (the foot body is the sphere's centre; its mass is in the calf)
+FOOT_MASS = 0.02
+#: Go1 foot sphere radius, m (the foot body is the sphere's centre)
 FOOT_RADIUS = 0.023
 #: Go1 home pose: thigh 0.9 rad, knee -1.8 rad, which puts the foot below the hip at
 #: cos(0.9) = 0.6216 of the leg's full length; every design stands at that share
@@ -93,5 +96,5 @@ JOINT_DAMPING = 0.1
 #: Go1-sized Unitree A1, stiffness 20 and damping 0.5, let the nominal design sag 8.1 cm in 1 s
 #: holding its default pose and a long-calf corner 12.8 cm (the simulator conformance suite
 #: allows 10 cm); 50 and 1.2 (legged_gym's damping-to-stiffness ratio) keep the nominal design
-#: and the four corners within 2.3-4.1 cm
+#: and the four corners within 2.0-3.1 cm
 KP, KD = 50.0, 1.2

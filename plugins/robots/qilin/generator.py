@@ -71,8 +71,13 @@ def thigh_part(design: QilinDesign) -> Part:
 
 
 def calf_part(design: QilinDesign) -> Part:
-    mass = C.CALF_MASS * design.calf_scale
+    mass = (C.CALF_MASS - C.FOOT_MASS) * design.calf_scale
     return Part(mass, np.array([0.0, 0.0, -design.calf / 2]), _rod_z(mass, 0.01, design.calf))
+
+
+def foot_part() -> Part:
+    """A solid sphere about its centre, the foot body's origin."""
+    return Part(C.FOOT_MASS, np.zeros(3), np.full(3, 0.4 * C.FOOT_MASS * C.FOOT_RADIUS**2))
 
 
 def hip_part() -> Part:
@@ -84,7 +89,7 @@ def base_part() -> Part:
 
 
 def total_mass(design: QilinDesign) -> float:
-    return C.TRUNK_MASS + len(C.LEGS) * (C.HIP_MASS + thigh_part(design).mass + calf_part(design).mass)
+    return C.TRUNK_MASS + len(C.LEGS) * (C.HIP_MASS + thigh_part(design).mass + calf_part(design).mass + C.FOOT_MASS)
 
 
 def stance_depth(design: QilinDesign) -> float:
@@ -157,7 +162,7 @@ def _mjcf(design: QilinDesign, torque: np.ndarray, height: float) -> str:
     knee = C.JOINT_RANGES["knee"]
     out = [
         '<mujoco model="qilin">',
-        # every body carries its inertial: none is guessed from geoms (the foot has none)
+        # every body carries its inertial: none is guessed from geoms
         '  <compiler angle="radian" autolimits="true" inertiafromgeom="false"/>',
         "  <default>",
         f'    <joint type="hinge" damping="{_f(C.JOINT_DAMPING)}" armature="{_f(C.ARMATURE)}" limited="true"/>',
@@ -187,6 +192,7 @@ def _mjcf(design: QilinDesign, torque: np.ndarray, height: float) -> str:
             f"            {_mj_inertial(calf)}",
             f'            <geom name="{leg}_calf" type="capsule" fromto="0 0 0 0 0 {_f(-design.calf)}" size="0.01"/>',
             f'            <body name="{leg}_foot" pos="{_v(f[3])}">',
+            f"              {_mj_inertial(foot_part())}",
             f'              <geom name="{leg}_foot" type="sphere" size="{_f(C.FOOT_RADIUS)}" rgba="0.2 0.2 0.2 1"/>',
             "            </body>",
             "          </body>",
@@ -198,9 +204,9 @@ def _mjcf(design: QilinDesign, torque: np.ndarray, height: float) -> str:
     return "\n".join([*out, "  </actuator>", "</mujoco>", ""])
 
 
-def _link(name: str, part: Part | None, geometry: str, xyz) -> str:
+def _link(name: str, part: Part, geometry: str, xyz) -> str:
     shape = f'<origin xyz="{_v(xyz)}" rpy="0 0 0"/><geometry>{geometry}</geometry>'
-    return (f'  <link name="{name}">{_urdf_inertial(part) if part else ""}'
+    return (f'  <link name="{name}">{_urdf_inertial(part)}'
             f"<visual>{shape}</visual><collision>{shape}</collision></link>")
 
 
@@ -212,7 +218,7 @@ def _urdf(design: QilinDesign, torque: np.ndarray, speed: np.ndarray) -> str:
         '<robot name="qilin">',
         _link(C.BASE_BODY, base_part(), f'<box size="{_v(C.TRUNK_SIZE)}"/>', np.zeros(3)),
     ]
-    parts = [hip_part(), thigh_part(design), calf_part(design), None]
+    parts = [hip_part(), thigh_part(design), calf_part(design), foot_part()]
     for i, leg in enumerate(C.LEGS):
         frames = _leg_frames(design, leg)
         links = [f"{leg}_hip", f"{leg}_thigh", f"{leg}_calf", f"{leg}_foot"]
@@ -258,7 +264,7 @@ def build_cached(key: tuple[float, ...]) -> RobotModel:
         "thigh_length": design.thigh, "calf_length": design.calf, "hip_motor": design.hip_motor,
         "knee_motor": design.knee_motor,
         "segment_masses": {"base": C.TRUNK_MASS, "hip": C.HIP_MASS, "thigh": thigh_part(design).mass,
-                           "calf": calf_part(design).mass},
+                           "calf": calf_part(design).mass, "foot": C.FOOT_MASS},
         "armature": _readonly(np.full(n, C.ARMATURE)),
         "joint_damping": _readonly(np.full(n, C.JOINT_DAMPING)),
         "units": {"thigh_length": "m", "calf_length": "m", "segment_masses": "kg",
