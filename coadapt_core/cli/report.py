@@ -105,7 +105,7 @@ def _evaluate(results, selection, *, sim_to_sim: bool, transfer_sim, transfer_ag
     """The experiments that write rows the report reads: sim-to-sim transfer and the common
     yardstick (each evaluates only runs without their rows). Returns their notes."""
     from coadapt_core.analysis.report import select_runs
-    from coadapt_core.results.store import LANDSCAPE_METHOD
+    from coadapt_core.results.schema import LANDSCAPE_METHOD
 
     runs = [r for r in select_runs(results, selection)[0] if r["method"] != LANDSCAPE_METHOD]
     transfer_notes = common_notes = None
@@ -128,7 +128,8 @@ def register(app: typer.Typer) -> None:
         """Write tables (Markdown, CSV) and figures (PNG, HTML) from a run or grid."""
         from coadapt_core.analysis.report import write_report
         from coadapt_core.cli.common import fail
-        from coadapt_core.results.store import ResultsStore, resolve_store_url
+        from coadapt_core.results.storage import resolve_store_url
+        from coadapt_core.results.store import ResultsStore
 
         o = SimpleNamespace(**filled(values, options))
         if o.transfer_agents < 1 or o.transfer_steps < 1 or o.common_blocks < 1:

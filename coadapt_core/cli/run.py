@@ -100,7 +100,7 @@ def _check_run_config(cfg: Any) -> None:
     study's storage URL, the starting policy, and that --out is (or can be made) a folder."""
     import os
 
-    from coadapt_core.results.store import (
+    from coadapt_core.results.storage import (
         ENV_STORE,
         NO_STORE,
         check_database_url,

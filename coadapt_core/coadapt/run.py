@@ -34,7 +34,7 @@ from coadapt_core.fitness import CoadaptationBackend, RunRecorder
 from coadapt_core.objective import Objective
 from coadapt_core.optimizer import Optimizer
 from coadapt_core.results.recorders import make_recorder
-from coadapt_core.results.store import new_run_id
+from coadapt_core.results.rows import new_run_id
 
 
 def run_coadaptation(

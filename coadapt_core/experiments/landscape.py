@@ -21,7 +21,7 @@ from coadapt_core.fitness import (
 )
 from coadapt_core.objective import Objective
 from coadapt_core.results.recorders import SqliteRecorder
-from coadapt_core.results.store import LANDSCAPE_METHOD
+from coadapt_core.results.schema import LANDSCAPE_METHOD
 
 
 def landscape_designs(

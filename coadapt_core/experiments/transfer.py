@@ -41,13 +41,9 @@ from coadapt_core.fitness import CoadaptationBackend, CostRule, scenario_seed
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.physics.simulator import Simulator
 from coadapt_core.results.recorders import batch_rows
-from coadapt_core.results.store import (
-    TRANSFER_KIND,
-    TRANSFER_OUTER,
-    ResultsStore,
-    best_of,
-    checkpoint_of,
-)
+from coadapt_core.results.rows import best_of, checkpoint_of
+from coadapt_core.results.schema import TRANSFER_KIND, TRANSFER_OUTER
+from coadapt_core.results.store import ResultsStore
 from coadapt_core.robot import Robot
 
 #: designs the check runs by default: nominal, both extremes, a mixed one

@@ -37,7 +37,8 @@ from coadapt_core.experiments.own_policies import (
 )
 from coadapt_core.fitness import CostRule, compare_designs, scenario_seed
 from coadapt_core.results.recorders import batch_rows
-from coadapt_core.results.store import COMMON_KIND, COMMON_OUTER, ResultsStore
+from coadapt_core.results.schema import COMMON_KIND, COMMON_OUTER
+from coadapt_core.results.store import ResultsStore
 
 #: the common scenario set: blocks of scenario_seed(COMMON_SEED, b) (benchmarks/common_scenarios.py draws the same)
 COMMON_SEED = 1000

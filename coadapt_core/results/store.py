@@ -5,10 +5,10 @@ Writes commit immediately, one transaction per call, so a crash loses nothing th
 recorded. Rows are keyed so that recording the same evaluation twice (a resumed run redoing
 the batch it was interrupted in) replaces the row instead of duplicating it.
 
-The store's parts live beside it: the tables and their version in `schema`, URLs, engine
-and provenance in `storage`, row decoding and the run id scheme in `rows`, the grid's
-bookkeeping in `grid_cells`. Their names are imported here too, so `from
-coadapt_core.results.store import ...` keeps working for each of them.
+The store's parts live beside it: the tables and their version in `schema`, the upgrade of
+an older store in `migrate`, URLs, engine and provenance in `storage`, row decoding and the
+run id scheme in `rows`, the grid's bookkeeping in `grid_cells`; import each name from the
+module that defines it.
 """
 
 from __future__ import annotations
@@ -27,77 +27,28 @@ from coadapt_core.results.grid_cells import GridCells
 from coadapt_core.results.migrate import open_schema
 from coadapt_core.results.rows import (
     Evaluation,
-    best_of,
-    checkpoint_of,
     dumps,
     loads,
     new_run_id,
     objective_list,
     run_dict,
-    run_folder_of,
 )
 from coadapt_core.results.schema import (
-    COMMON_KIND,
-    COMMON_OUTER,
     EVALUATION_KINDS,
-    LANDSCAPE_METHOD,
-    RUN_STATUSES,
-    SCHEMA_VERSION,
-    TABLES,
-    TRANSFER_KIND,
-    TRANSFER_OUTER,
     checkpoints,
     evaluations,
-    grid_cells,
-    grids,
     metadata,
     runs,
     training_phases,
 )
 from coadapt_core.results.storage import (
-    DEFAULT_STORE_FILE,
     ENV_GRID_CELL,
     ENV_GRID_ID,
-    ENV_STORE,
-    NO_STORE,
-    StoreError,
     check_database_url,
     code_commit,
     make_engine,
     resolve_store_url,
-    store_url_for_run,
 )
-
-__all__ = [
-    "COMMON_KIND",
-    "COMMON_OUTER",
-    "DEFAULT_STORE_FILE",
-    "ENV_GRID_CELL",
-    "ENV_GRID_ID",
-    "ENV_STORE",
-    "EVALUATION_KINDS",
-    "LANDSCAPE_METHOD",
-    "NO_STORE",
-    "RUN_STATUSES",
-    "SCHEMA_VERSION",
-    "TABLES",
-    "TRANSFER_KIND",
-    "TRANSFER_OUTER",
-    "Evaluation",
-    "ResultsStore",
-    "StoreError",
-    "best_of",
-    "check_database_url",
-    "checkpoint_of",
-    "code_commit",
-    "grid_cells",
-    "grids",
-    "metadata",
-    "new_run_id",
-    "resolve_store_url",
-    "run_folder_of",
-    "store_url_for_run",
-]
 
 
 class ResultsStore(GridCells):

@@ -167,7 +167,7 @@ def test_state_path_leaving_the_run_folder_is_refused(tiny_run, tmp_path, capsys
 # -- 8: a store row pointing at a planted checkpoint (report's sim-to-sim column) -------------
 def test_store_checkpoint_rows_outside_the_run_folder_are_ignored(tmp_path, capsys):
     from coadapt_core.results import SqliteRecorder
-    from coadapt_core.results.store import checkpoint_of
+    from coadapt_core.results.rows import checkpoint_of
 
     marker = tmp_path / "ran-report"
     evil = plant_checkpoint(tmp_path / "elsewhere" / "evil.pt", marker)
