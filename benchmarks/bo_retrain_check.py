@@ -36,7 +36,8 @@ def main(argv: list[str] | None = None) -> int:
     from coadapt_core.coadapt.specialized import SpecializedPolicyBackend
     from coadapt_core.errors import CoadaptError
     from coadapt_core.experiments.own_policies import run_learner, shares_policy
-    from coadapt_core.fitness import CostRule, scenario_seed
+    from coadapt_core.fitness import CostRule
+    from coadapt_core.scenarios.seeds import scenario_seed
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("run", help="a run folder (config.yaml, summary.json, evaluations.jsonl)")

@@ -38,7 +38,8 @@ def _fail(message: str) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(ROOT))
-    from coadapt_core.fitness import COST_RULES, CostRule, scenario_seed
+    from coadapt_core.fitness import COST_RULES, CostRule
+    from coadapt_core.scenarios.seeds import scenario_seed
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("runs", nargs="*", help="run folders or run ids (each with a summary.json)")

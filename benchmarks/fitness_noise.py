@@ -64,16 +64,10 @@ def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(ROOT))
     from coadapt_core.coadapt.config import PRESETS
     from coadapt_core.experiments.landscape import landscape_designs
-    from coadapt_core.fitness import (
-        COST_RULES,
-        TRIMMED,
-        CostRule,
-        paired_difference,
-        scenario_se,
-        scenario_seed,
-    )
+    from coadapt_core.fitness import COST_RULES, TRIMMED, CostRule, paired_difference, scenario_se
     from coadapt_core.learning import shipped_checkpoint
     from coadapt_core.learning.factory import make_backend, resolve_plugins
+    from coadapt_core.scenarios.seeds import scenario_seed
 
     quick = PRESETS["quick"]
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])

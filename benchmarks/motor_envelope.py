@@ -72,9 +72,10 @@ class EnvelopeProbe:
 def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(ROOT))
     from coadapt_core.errors import CoadaptError
-    from coadapt_core.fitness import CostRule, compare_designs, scenario_seed
+    from coadapt_core.fitness import CostRule, compare_designs
     from coadapt_core.learning import shipped_checkpoint
     from coadapt_core.learning.factory import make_backend, resolve_plugins
+    from coadapt_core.scenarios.seeds import scenario_seed
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--design", default="0.5,0.6", help="thigh,shank scales (default 0.5,0.6)")

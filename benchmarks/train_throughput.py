@@ -49,8 +49,9 @@ def main() -> None:
     from coadapt_core.launch import apply_omp_wait_policy
 
     apply_omp_wait_policy()
-    from coadapt_core.learning import TrainConfig, Trainer
+    from coadapt_core.learning.config import TrainConfig
     from coadapt_core.learning.runner import Runner
+    from coadapt_core.learning.trainer import Trainer
     from coadapt_core.plugins import get_registry
 
     registry = get_registry()

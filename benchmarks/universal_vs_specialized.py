@@ -49,8 +49,10 @@ def train_policy(args, ranges: str, seed: int):
     from coadapt_plugins.robots.kuafu.robot import Kuafu
     from coadapt_plugins.simulators.mujoco.simulator import MujocoSimulator
 
-    from coadapt_core.learning import TrainConfig, Trainer, read_checkpoint
+    from coadapt_core.learning.checkpoints import read_checkpoint
+    from coadapt_core.learning.config import TrainConfig
     from coadapt_core.learning.runner import Runner
+    from coadapt_core.learning.trainer import Trainer
     from coadapt_core.task import TaskConfig
 
     robot = Kuafu()

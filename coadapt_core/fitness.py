@@ -16,7 +16,6 @@ import numpy as np
 
 from coadapt_core.errors import CoadaptError
 from coadapt_core.objective import Objective
-from coadapt_core.scenarios.seeds import scenario_seed  # noqa: F401 - re-exported: the run's scenario seeds
 
 
 @dataclass

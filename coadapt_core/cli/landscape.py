@@ -106,7 +106,7 @@ def _checkpoint(s: LandscapeSettings, robot_cls: type) -> Path:
     checkpoint = Path(s.checkpoint)
     if not checkpoint.exists():
         fail(f"--checkpoint {checkpoint} does not exist")
-    from coadapt_core.learning import read_checkpoint
+    from coadapt_core.learning.checkpoints import read_checkpoint
 
     trained_for = read_checkpoint(checkpoint).get("robot")  # weights_only=True; one line if not a checkpoint
     if trained_for != s.robot:

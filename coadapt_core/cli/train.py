@@ -206,7 +206,8 @@ def _build_trainer(values: dict[str, Any], plugins: tuple[Any, type, list], give
     checkpoint's)."""
     from coadapt_core.coadapt.config import resolve_learner
     from coadapt_core.design_space import DesignSpace
-    from coadapt_core.learning import TrainConfig, Trainer
+    from coadapt_core.learning.config import TrainConfig
+    from coadapt_core.learning.trainer import Trainer
     from coadapt_core.task import TaskConfig
 
     robot_obj, sim_cls, objectives = plugins
@@ -383,7 +384,7 @@ def _eval_checkpoint_path(checkpoint: Path | None) -> Path | None:
 def _eval_robot(checkpoint: Path | None) -> str:
     """The robot a checkpoint records; without one, the default robot."""
     if checkpoint is not None and checkpoint.is_file():
-        from coadapt_core.learning import read_checkpoint
+        from coadapt_core.learning.checkpoints import read_checkpoint
 
         try:
             return str(read_checkpoint(checkpoint)["robot"])
@@ -459,7 +460,7 @@ def register(app: typer.Typer) -> None:
 
     def train_command(**values: Any) -> None:
         """Train the universal policy pi(a|o, xi) with its critic and pseudo-critics (PPO)."""
-        from coadapt_core.learning import read_checkpoint
+        from coadapt_core.learning.checkpoints import read_checkpoint
 
         values = filled(values, own)
         robot = plugin_name("robot", values["robot"])

@@ -44,13 +44,13 @@ from coadapt_core.fitness import (
     RealFitness,
     RunRecorder,
     TrainingResult,
-    scenario_seed,
 )
 from coadapt_core.methods import get_method
 from coadapt_core.objective import Objective
 from coadapt_core.optimizer import Optimizer
 from coadapt_core.options import fill_from_run
 from coadapt_core.pareto import front_rows
+from coadapt_core.scenarios.seeds import scenario_seed
 
 #: importers of these names from here (the grid, older scripts) keep working
 __all__ = ["JSON_PLAIN_AND_FALLS", "STATE_FILE", "CoadaptationLoop", "LoopState", "ProgressFn", "save_state"]

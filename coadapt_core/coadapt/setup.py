@@ -198,7 +198,7 @@ def check_policy_space(checkpoint: str | None, space: DesignSpace, robot, mixed:
 
     if checkpoint is None or not Path(checkpoint).is_file():  # a missing one is resolve_checkpoint's line
         return
-    from coadapt_core.learning import read_checkpoint
+    from coadapt_core.learning.checkpoints import read_checkpoint
 
     state = read_checkpoint(checkpoint)
     takes = (state.get("dims") or {}).get("num_design")
@@ -225,7 +225,7 @@ def objectives_without_critic(config: CoadaptConfig, checkpoint: str, objectives
     with the surrogate only (no real rounds to fit to) is refused."""
     from pathlib import Path
 
-    from coadapt_core.learning import read_checkpoint
+    from coadapt_core.learning.checkpoints import read_checkpoint
 
     method = get_method(config.method)
     if method.surrogate_probability == 0.0:
@@ -390,7 +390,7 @@ def resolve_checkpoint(config: CoadaptConfig) -> str | None:
     if text:
         if not Path(text).is_file():
             raise UserError(f"checkpoint '{text}' does not exist", field="checkpoint")
-        from coadapt_core.learning import read_checkpoint
+        from coadapt_core.learning.checkpoints import read_checkpoint
 
         trained_for = read_checkpoint(text).get("robot")  # weights_only; one line if not a checkpoint
         if trained_for != config.robot:
@@ -406,7 +406,7 @@ def resolve_checkpoint(config: CoadaptConfig) -> str | None:
     if path is None:
         raise UserError(no_policy_message(config.robot, config.terrain, mixed), field="checkpoint")
     # a shipped policy takes the design input it was trained on; check it matches this space
-    from coadapt_core.learning import read_checkpoint
+    from coadapt_core.learning.checkpoints import read_checkpoint
 
     trained_dim = int(read_checkpoint(path)["dims"]["num_design"])
     wanted_dim = robot.design_space(mixed).dim

@@ -56,11 +56,13 @@ def evaluate_checkpoint(
     import numpy as np
     import torch
 
-    from coadapt_core.fitness import scenario_seed
-    from coadapt_core.learning import TrainConfig, Trainer, read_checkpoint
+    from coadapt_core.learning.checkpoints import read_checkpoint
+    from coadapt_core.learning.config import TrainConfig
     from coadapt_core.learning.evaluate import rollout
+    from coadapt_core.learning.trainer import Trainer
     from coadapt_core.physics.randomization import RandomizationConfig
     from coadapt_core.plugins import get_registry
+    from coadapt_core.scenarios.seeds import scenario_seed
     from coadapt_core.scenarios.sets import apply_scenarios
     from coadapt_core.task import LocomotionEnv, TaskConfig
 

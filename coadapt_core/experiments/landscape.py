@@ -12,16 +12,11 @@ from typing import Any
 import numpy as np
 
 from coadapt_core.errors import UserError
-from coadapt_core.fitness import (
-    CoadaptationBackend,
-    CostRule,
-    compare_designs,
-    scenario_se,
-    scenario_seed,
-)
+from coadapt_core.fitness import CoadaptationBackend, CostRule, compare_designs, scenario_se
 from coadapt_core.objective import Objective
 from coadapt_core.results.recorders import SqliteRecorder
 from coadapt_core.results.schema import LANDSCAPE_METHOD
+from coadapt_core.scenarios.seeds import scenario_seed
 
 
 def landscape_designs(

@@ -37,7 +37,7 @@ from coadapt_core.experiments.own_policies import (
     run_backend,
     shares_policy,
 )
-from coadapt_core.fitness import CoadaptationBackend, CostRule, scenario_seed
+from coadapt_core.fitness import CoadaptationBackend, CostRule
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.physics.simulator import Simulator
 from coadapt_core.results.recorders import batch_rows
@@ -45,6 +45,7 @@ from coadapt_core.results.rows import best_of, checkpoint_of
 from coadapt_core.results.schema import TRANSFER_KIND, TRANSFER_OUTER
 from coadapt_core.results.store import ResultsStore
 from coadapt_core.robot import Robot
+from coadapt_core.scenarios.seeds import scenario_seed
 
 #: designs the check runs by default: nominal, both extremes, a mixed one
 DEFAULT_DESIGNS = ((1.0, 1.0), (0.5, 0.5), (1.5, 1.5), (0.7, 1.3))

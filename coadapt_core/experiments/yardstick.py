@@ -35,10 +35,11 @@ from coadapt_core.experiments.own_policies import (
     run_backend,
     shares_policy,
 )
-from coadapt_core.fitness import CostRule, compare_designs, scenario_seed
+from coadapt_core.fitness import CostRule, compare_designs
 from coadapt_core.results.recorders import batch_rows
 from coadapt_core.results.schema import COMMON_KIND, COMMON_OUTER
 from coadapt_core.results.store import ResultsStore
+from coadapt_core.scenarios.seeds import scenario_seed
 
 #: the common scenario set: blocks of scenario_seed(COMMON_SEED, b) (benchmarks/common_scenarios.py draws the same)
 COMMON_SEED = 1000

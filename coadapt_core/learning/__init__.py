@@ -2,32 +2,11 @@
 critic V(s, xi) and the pseudo-critics V_pseudo(s, xi); training across designs,
 checkpoints, evaluation and the `UniversalPolicyBackend` of the co-adaptation loop.
 
-Imports torch and torchrl when its learner is used (the names below are looked up lazily)."""
+Import each name from the module that defines it (`config`, `ppo`, `trainer`, `checkpoints`,
+...): a light submodule (the settings in `coadapt_core.learning.config`, which the CLI reads to
+build its options) does not pay for torchrl and tensordict."""
 
-from importlib import import_module
-from typing import Any
-
-#: what the package exports, imported on first use: importing a light submodule (the
-#: settings in `coadapt_core.learning.config`, which the CLI reads to build its options)
-#: does not pay for torchrl and tensordict
-_EXPORTS = {
-    "TrainConfig": "coadapt_core.learning.config",
-    "PPO": "coadapt_core.learning.ppo",
-    "Dims": "coadapt_core.learning.ppo",
-    "IterationStats": "coadapt_core.learning.trainer",
-    "Trainer": "coadapt_core.learning.trainer",
-    "read_checkpoint": "coadapt_core.learning.checkpoints",
-    "widen_design_input": "coadapt_core.learning.checkpoints",
-}
-
-
-def __getattr__(name: str) -> Any:
-    if name in _EXPORTS:
-        return getattr(import_module(_EXPORTS[name]), name)
-    raise AttributeError(f"module 'coadapt_core.learning' has no attribute '{name}'")
-
-
-__all__ = ["PPO", "Dims", "IterationStats", "TrainConfig", "Trainer", "read_checkpoint", "shipped_checkpoint", "widen_design_input"]
+__all__ = ["shipped_checkpoint"]
 
 
 def shipped_checkpoint(robot, terrain: str, mixed: bool = False):

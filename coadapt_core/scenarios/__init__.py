@@ -12,26 +12,5 @@ policy, its action noise. A scenario depends on its seed and i alone.
 
 The task and the simulator only expose hooks: `LocomotionEnv.set_commands`,
 `LocomotionEnv.use_scenarios` (with `paired_draw` for the action noise),
-`Simulator.fix_scenarios` and `Simulator.reseed`. The names below are looked up lazily:
-the seeds need neither torch nor the physics room."""
-
-from importlib import import_module
-from typing import Any
-
-_EXPORTS = {
-    "scenario_seed": "coadapt_core.scenarios.seeds",
-    "restart_streams": "coadapt_core.scenarios.sets",
-    "PairedStreams": "coadapt_core.scenarios.sets",
-    "apply_scenarios": "coadapt_core.scenarios.sets",
-    "apply_unpaired": "coadapt_core.scenarios.sets",
-    "prepare": "coadapt_core.scenarios.sets",
-}
-
-
-def __getattr__(name: str) -> Any:
-    if name in _EXPORTS:
-        return getattr(import_module(_EXPORTS[name]), name)
-    raise AttributeError(f"module 'coadapt_core.scenarios' has no attribute '{name}'")
-
-
-__all__ = sorted(_EXPORTS)
+`Simulator.fix_scenarios` and `Simulator.reseed`. Import each name from its module: the
+seeds need neither torch nor the physics room."""

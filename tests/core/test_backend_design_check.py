@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from coadapt_core.errors import DesignError
-from coadapt_core.learning import TrainConfig
 from coadapt_core.learning.backend import UniversalPolicyBackend
+from coadapt_core.learning.config import TrainConfig
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.plugins import get_registry
 

@@ -214,7 +214,7 @@ def test_ctrl_c_in_train_writes_a_checkpoint_first(tmp_path):
     assert iteration >= 1 and f"wrote {saved[0]}" in err
     rows = [json.loads(line) for line in (out / "progress.jsonl").read_text().splitlines()]
     assert rows[-1]["iteration"] == iteration  # the checkpoint holds the last finished iteration
-    from coadapt_core.learning import read_checkpoint
+    from coadapt_core.learning.checkpoints import read_checkpoint
 
     assert int(read_checkpoint(saved[0])["iteration"]) == iteration
 

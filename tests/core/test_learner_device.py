@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 import torch
 
-from coadapt_core.learning import TrainConfig, Trainer
+from coadapt_core.learning.config import TrainConfig
+from coadapt_core.learning.trainer import Trainer
 from coadapt_core.plugins import get_registry
 from coadapt_core.task import TaskConfig
 from coadapt_core.task.config import NoiseConfig

@@ -9,8 +9,8 @@ import torch
 
 from coadapt_core.errors import UserError
 from coadapt_core.fitness import CoadaptationBackend
-from coadapt_core.learning import TrainConfig
 from coadapt_core.learning.backend import UniversalPolicyBackend
+from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.evaluate import EvalBuffer
 from coadapt_core.objective import Objective, StepBatch
 from coadapt_core.physics.randomization import RandomizationConfig

@@ -6,7 +6,7 @@ import pytest
 
 from coadapt_core.errors import BackendUnavailable
 from coadapt_core.fitness import CoadaptationBackend
-from coadapt_core.learning import TrainConfig
+from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.factory import make_backend
 from tests.core.test_learning_backend import ShankLength, SquaredTorque
 

@@ -12,7 +12,8 @@ from coadapt_core.plugins import get_registry
 @pytest.mark.slow
 def test_short_mujoco_training_lengthens_episodes_and_raises_the_reward() -> None:
     registry = get_registry()
-    from coadapt_core.learning import TrainConfig, Trainer
+    from coadapt_core.learning.config import TrainConfig
+    from coadapt_core.learning.trainer import Trainer
     from coadapt_core.physics.randomization import RandomizationConfig
     from coadapt_core.task import TaskConfig
     from coadapt_core.task.config import CommandConfig

@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 import torch
 
-from coadapt_core.learning import TrainConfig, Trainer
+from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.ppo import discounted_average_targets
+from coadapt_core.learning.trainer import Trainer
 from coadapt_core.objective import Objective, StepBatch
 from coadapt_core.task import TaskConfig
 from coadapt_core.task.config import CommandConfig, NoiseConfig
@@ -418,7 +419,7 @@ def test_rollout_takes_any_policy_callable_and_pairs_its_action_noise(fake_robot
     the mean, stochastic ones the mean plus std times noise that agent i of every design shares;
     the learner's own `action_distribution` gives the policy mean `act_inference` gives."""
     from coadapt_core.learning.evaluate import rollout
-    from coadapt_core.scenarios import apply_scenarios
+    from coadapt_core.scenarios.sets import apply_scenarios
 
     trainer = make_trainer(fake_robot, fake_sim_cls)
     trainer.set_designs(np.array([[1.0, 1.0], [0.7, 1.2]]))

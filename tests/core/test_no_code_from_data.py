@@ -226,7 +226,7 @@ def test_grid_never_resumes_a_run_id_that_leaves_the_runs_folder(tmp_path):
 def test_shipped_policies_load_as_weights_only():
     """The policies the robot ships are read with weights_only=True (read_checkpoint) and hold
     tensors and plain values only: a trainer built from one acts exactly as the file says."""
-    from coadapt_core.learning import read_checkpoint
+    from coadapt_core.learning.checkpoints import read_checkpoint
 
     folder = Path(__file__).resolve().parents[2] / "plugins" / "robots" / "kuafu" / "policies"
     shipped = sorted(folder.glob("*.pt"))

@@ -11,8 +11,8 @@ from coadapt_plugins.objectives.locomotion import TorqueObjective
 
 from coadapt_core.coadapt import make_config, read_evaluations, run_coadaptation
 from coadapt_core.coadapt.setup import build_parts
-from coadapt_core.learning import TrainConfig
 from coadapt_core.learning.backend import UniversalPolicyBackend
+from coadapt_core.learning.config import TrainConfig
 from coadapt_core.plugins import get_registry
 
 pytestmark = pytest.mark.slow

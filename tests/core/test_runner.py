@@ -13,8 +13,10 @@ import signal
 import pytest
 import torch
 
-from coadapt_core.learning import TrainConfig, Trainer, read_checkpoint
+from coadapt_core.learning.checkpoints import read_checkpoint
+from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.runner import Runner, TrainingInterrupted
+from coadapt_core.learning.trainer import Trainer
 from coadapt_core.objective import Objective, StepBatch
 from coadapt_core.task import TaskConfig
 from coadapt_core.task.config import NoiseConfig

@@ -14,13 +14,8 @@ import pytest
 import torch
 
 from coadapt_core.errors import UserError
-from coadapt_core.scenarios import (
-    PairedStreams,
-    apply_scenarios,
-    prepare,
-    restart_streams,
-    scenario_seed,
-)
+from coadapt_core.scenarios.seeds import scenario_seed
+from coadapt_core.scenarios.sets import PairedStreams, apply_scenarios, prepare, restart_streams
 from coadapt_core.task import LocomotionEnv, TaskConfig
 
 DESIGNS, AGENTS = 3, 4
@@ -38,12 +33,10 @@ def groups(x: torch.Tensor) -> torch.Tensor:
     return x.reshape(DESIGNS, AGENTS, *x.shape[1:])
 
 
-def test_the_seed_is_importable_from_fitness_and_needs_no_torch() -> None:
-    from coadapt_core import fitness
-
-    assert fitness.scenario_seed is scenario_seed
+def test_the_seed_and_the_fitness_protocols_need_no_torch() -> None:
     assert scenario_seed(5, 1) == scenario_seed(5, 1) != scenario_seed(5, 2)
-    probe = "import json, sys, coadapt_core.fitness; print(json.dumps(['torch' in sys.modules, 'coadapt_core.physics' in sys.modules]))"
+    probe = ("import json, sys, coadapt_core.fitness, coadapt_core.scenarios.seeds; "
+             "print(json.dumps(['torch' in sys.modules, 'coadapt_core.physics' in sys.modules]))")
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout
     assert json.loads(out.strip().splitlines()[-1]) == [False, False]
 

@@ -301,7 +301,7 @@ def test_train_takes_the_same_sections_and_a_resume_keeps_them(tmp_path, capsys)
     declarations as the run; what it was given is recorded in the checkpoint, so --resume
     trains on the same task and draws the same randomization ranges."""
     from coadapt_core.cli import main
-    from coadapt_core.learning import read_checkpoint
+    from coadapt_core.learning.checkpoints import read_checkpoint
     from coadapt_core.physics.randomization import RandomizationConfig
 
     out = tmp_path / "run"

@@ -9,7 +9,8 @@ import torch
 
 from coadapt_core.coadapt.config import make_config
 from coadapt_core.coadapt.setup import build_parts, resolve_checkpoint
-from coadapt_core.learning import read_checkpoint, shipped_checkpoint
+from coadapt_core.learning import shipped_checkpoint
+from coadapt_core.learning.checkpoints import read_checkpoint
 
 
 def actor_weight(backend) -> torch.Tensor:

@@ -69,7 +69,7 @@ def test_landscape(objective_only, tmp_path, capsys):
 
 def test_train(objective_only, tmp_path, capsys):
     from coadapt_core.cli import main
-    from coadapt_core.learning import read_checkpoint
+    from coadapt_core.learning.checkpoints import read_checkpoint
 
     code = main(["train", "--steps", "64", "--num-designs", "2", "--agents", "4", "--steps-per-env", "8", "--epochs", "1",
                  "--minibatches", "2", "--out", str(tmp_path / "t"), "--quiet"])

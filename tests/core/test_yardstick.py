@@ -10,9 +10,10 @@ import pytest
 
 from coadapt_core.analysis.facts import yardstick_improvement
 from coadapt_core.experiments.yardstick import COMMON_SEED, yardstick_rows, yardstick_runs
-from coadapt_core.fitness import CostRule, RealFitness, compare_designs, scenario_seed
+from coadapt_core.fitness import CostRule, RealFitness, compare_designs
 from coadapt_core.plugins import get_registry
 from coadapt_core.results import SqliteRecorder
+from coadapt_core.scenarios.seeds import scenario_seed
 from tests.core.test_report import record_run
 
 
