@@ -209,7 +209,7 @@ def figure_convergence(store: ResultsStore, facts: Sequence[RunFacts], out: Path
                         markerfacecolor=color if optimizer_style(opt)[1] else "none", linestyle="none")
                 _final_check_bar(ax, f, x[-1], unit, color)
         ax.set_xlabel(f"environment interactions ({unit_name})")
-        ax.set_ylabel(f"best real {o} cost so far")
+        ax.set_ylabel(f"best in-run {o} cost so far\n(square: final check +- SE)")
         if spans_decades([y for _, ys in series.values() for y in ys]):
             ax.set_yscale("log")
         ax.set_title(f"{o} on {t}", fontsize=10)

@@ -148,3 +148,61 @@ def test_handoff_pick_refuses_in_one_line(nsga2_run, tmp_path, capsys):
         err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
         assert len(err) == 1 and "--pick" in err[0] and says in err[0], err
         assert not (tmp_path / "h").exists()
+
+
+def test_the_report_compares_fronts_across_seeds(tmp_path, capsys, paired_fake):
+    from coadapt_core.analysis.report import write_report
+    from coadapt_core.results import ResultsStore
+
+    db = tmp_path / "s.db"
+    for seed in ("0", "1"):
+        assert main([*NSGA2, "--seed", seed, "--out", str(tmp_path / "runs"), "--store", str(db), "--json"]) == 0
+    with ResultsStore(db) as store:
+        files = write_report(store, None, tmp_path / "rep", sim2sim=False)
+        runs = store.list_runs()
+    assert "pareto_seeds.png" in files and (tmp_path / "rep" / "pareto_seeds.png").is_file()
+    hvs = np.array([r["summary"]["pareto_front"]["hypervolume"] for r in runs])
+    text = (tmp_path / "rep" / "pareto.md").read_text()
+    for r in runs:
+        front = r["summary"]["pareto_front"]
+        assert f"| {r['id']} | {len(front['designs'])} | {front['hypervolume']:.3f} +- {front['hypervolume_se']:.3f} |" in text
+    # the group of both seeds: their mean +- the SE over seeds
+    mean, se = hvs.mean(), hvs.std(ddof=1) / np.sqrt(2)
+    assert f"| 2 seeds |  | {mean:.3f} +- {se:.3f} |" in text
+    assert "hypervolume" in (tmp_path / "rep" / "report.html").read_text()
+
+
+@pytest.mark.slow
+def test_a_real_nsga2_run_leaves_its_plots_and_hands_off_its_second_front_design(tmp_path, capsys):
+    """Real physics (MuJoCo, the shipped policy fine-tuned a few hundred steps): the run's
+    folder holds pareto.png, its summary a hypervolume with SE over a non-dominated front, and
+    `coadapt handoff RUN --pick 1` writes a folder for the front's second design."""
+    from coadapt_core.handoff.policy import missing_deploy_modules
+
+    if missing_deploy_modules():
+        pytest.skip("needs the deploy extra (coadapt[deploy])")
+    args = ["run", "--optimizer", "nsga2", "--objective", "power,torque", "--sim", "mujoco", "--preset", "smoke",
+            "--population", "4", "--agents-per-design", "2", "--eval-steps", "10", "--train-steps", "100",
+            "--retrain-steps", "50", "--store", "none", "--out", str(tmp_path / "runs"), "--no-video", "--json"]
+    assert main(args) == 0
+    (run_dir,) = (tmp_path / "runs").iterdir()
+    assert (run_dir / "pareto.png").is_file()
+    front = json.loads((run_dir / "summary.json").read_text())["pareto_front"]
+    costs = np.array([[c["power"], c["torque"]] for c in front["costs"]])
+    assert len(costs) >= 2  # 2 designs on this seed (1.46 +- 0.16 hypervolume when written)
+    for i, point in enumerate(costs):
+        assert not is_dominated(point, np.delete(costs, i, axis=0))
+    assert np.isfinite(front["hypervolume"]) and front["hypervolume"] > 0
+    assert np.isfinite(front["hypervolume_se"]) and front["hypervolume_se"] >= 0
+    capsys.readouterr()
+    out = tmp_path / "pick1"
+    assert main(["handoff", str(run_dir), "-o", str(out), "--pick", "1", "--agents", "2", "--seconds", "0.5",
+                 "--no-check", "--no-video", "--sim", "mujoco", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert result["design"] == front["designs"][1]
+    assert result["pareto_front_index"] == 1 and result["is_run_best"] is False
+    sheet = json.loads((out / "design.json").read_text())
+    assert sheet["design"] == front["designs"][1] and (out / "robot.xml").is_file() and (out / "policy.onnx").is_file()
+    (own,) = [e for e in sheet["evaluations"] if e["source"] == "the run's final check (Pareto front design 1)"]
+    assert own["objectives"]["power"]["design"] == front["costs"][1]["power"]
+    assert own["objectives"]["torque"]["design_se"] == front["costs_se"][1]["torque"]
