@@ -4,7 +4,6 @@ registry, so a third-party plugin shows up in `--help` and in error messages."""
 
 from __future__ import annotations
 
-import sys
 from typing import Any
 
 import typer
@@ -72,9 +71,3 @@ handoff.register(app)
 def main(argv: list[str] | None = None) -> int:
     """Entry point: runs the app and turns user errors into one line and exit code 2."""
     return run_app(app, argv)
-
-
-def entry() -> None:  # pragma: no cover - console script of older installs
-    """Runs the app without choosing the OpenMP wait policy (torch is already imported
-    here); the console script is `coadapt_core.launch.entry`, which chooses it first."""
-    sys.exit(main())

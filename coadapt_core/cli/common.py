@@ -16,8 +16,6 @@ from coadapt_core.plugins import get_registry
 
 #: exit code for bad input (usage errors, bad config, unknown plugin names)
 EXIT_USAGE = 2
-#: exit code for a command that is not available yet
-EXIT_NOT_AVAILABLE = 3
 
 
 def fail(message: str, code: int = EXIT_USAGE) -> NoReturn:
@@ -110,16 +108,6 @@ def invocation() -> list[str]:
 
 
 _INVOCATION: list[str] = []
-
-
-def not_available(command: str, arrives_with: str) -> NoReturn:
-    """A command whose implementation arrives with a later piece of work: say so, exit 3."""
-    print(
-        f"coadapt {command}: not available yet — it arrives with {arrives_with}. "
-        "Nothing was run.",
-        file=sys.stderr,
-    )
-    raise typer.Exit(EXIT_NOT_AVAILABLE)
 
 
 def plugin_name(kind: str, given: str | None) -> str:

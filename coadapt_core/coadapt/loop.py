@@ -30,9 +30,8 @@ from coadapt_core.coadapt.phase import train_in_chunks
 from coadapt_core.coadapt.reliability import walking
 from coadapt_core.coadapt.setup import note_first_round
 from coadapt_core.coadapt.specialized import OWN_POLICY_FILES, OwnPolicies
-from coadapt_core.coadapt.state import STATE_FILE, LoopState, save_state
+from coadapt_core.coadapt.state import LoopState, save_state
 from coadapt_core.coadapt.summary import (
-    JSON_PLAIN_AND_FALLS,
     FinalOutcome,
     final_candidates,
     run_summary,
@@ -51,9 +50,6 @@ from coadapt_core.optimizer import Optimizer
 from coadapt_core.options import fill_from_run
 from coadapt_core.pareto import front_rows
 from coadapt_core.scenarios.seeds import scenario_seed
-
-#: importers of these names from here (the grid, older scripts) keep working
-__all__ = ["JSON_PLAIN_AND_FALLS", "STATE_FILE", "CoadaptationLoop", "LoopState", "ProgressFn", "save_state"]
 
 ProgressFn = Callable[[dict[str, Any]], None]
 

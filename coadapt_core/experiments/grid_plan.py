@@ -319,7 +319,7 @@ def unfinished_run(store: ResultsStore, cell: Cell, out_dir: str | os.PathLike |
     continue it. The folder is `<out_dir>/<run id>` (or the row's own folder when it is named
     after the run id): a row with a malformed id, or whose folder lies elsewhere, is never
     resumed. A run killed before its first state file (half registered) starts afresh."""
-    from coadapt_core.coadapt.loop import STATE_FILE
+    from coadapt_core.coadapt.state import STATE_FILE
 
     for run in reversed(store.list_runs(cell=cell.key)):
         if run["status"] == "finished":
@@ -341,7 +341,7 @@ def settle_abandoned(store: ResultsStore, spec: GridSpec, out_dir: str | os.Path
     before writing its state): marked failed, and their folders removed when they are inside
     `out_dir` and hold nothing but what the start wrote (config.yaml, an empty tb/). The
     cell then starts afresh. Returns the run ids settled."""
-    from coadapt_core.coadapt.loop import STATE_FILE
+    from coadapt_core.coadapt.state import STATE_FILE
 
     settled = []
     for cell in spec.cells():

@@ -11,7 +11,7 @@ import pytest
 from coadapt_plugins.objectives.locomotion import PowerObjective, TorqueObjective, TrackingObjective
 
 from coadapt_core.coadapt import make_config, read_evaluations, run_coadaptation
-from coadapt_core.coadapt.loop import JSON_PLAIN_AND_FALLS as PLAIN_AND_FALLS
+from coadapt_core.coadapt.summary import JSON_PLAIN_AND_FALLS as PLAIN_AND_FALLS
 from coadapt_core.design_space import DesignSpace
 from tests.fakes.analytic import (
     MIXED_NOMINAL,

@@ -89,7 +89,7 @@ def test_planted_state_json_cannot_name_a_class(tmp_path, capsys):
 def test_planted_buffer_pickle_is_never_read(tmp_path, capsys):
     """The evaluation buffer is an .npz read with allow_pickle=False: an object array member
     (a pickle inside the zip) is refused."""
-    from coadapt_core.coadapt.loop import LoopState, save_state
+    from coadapt_core.coadapt.state import LoopState, save_state
 
     run = tmp_path / "r3"
     run.mkdir()
