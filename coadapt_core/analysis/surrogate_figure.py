@@ -53,6 +53,8 @@ def figure_surrogate_quality(facts: Sequence[Any], out: Path) -> list[tuple[Path
     if not series:
         return []
     plt = pyplot()
+    from matplotlib.ticker import MaxNLocator
+
     keys = sorted(series)
     fig, axes = panel_grid(plt, len(keys))
     for ax, key in zip(axes, keys, strict=True):
@@ -71,6 +73,7 @@ def figure_surrogate_quality(facts: Sequence[Any], out: Path) -> list[tuple[Path
         ax.set_title(f"{key[0]} on {key[1]}\n" + "; ".join(lines[:2]), fontsize=8)
         ax.legend(fontsize=7)
         tidy_axes(ax)
+        ax.xaxis.set_major_locator(MaxNLocator(5, integer=True))  # rounds are whole: no tick at 1.25
     return save_figure(plt, fig, out / "surrogate_quality.png", "Surrogate quality per objective and terrain: Spearman rank correlation between the surrogate's "
                    "prediction (made before the round's real costs were known) and the real cost of the same designs, "
                    "on every real round where a surrogate round was allowed; the title gives each run's pooled "

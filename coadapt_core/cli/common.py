@@ -135,6 +135,11 @@ def config_default(name: str) -> str | None:
     from coadapt_core.coadapt.config import preset_defaults
 
     found = preset_defaults().get(name)
+    if found is None and name == "preset":  # the preset's own default: the one the others come from
+        from coadapt_core.coadapt.config import CoadaptConfig
+        from coadapt_core.settings import leaves
+
+        return next((leaf_default(leaf) for leaf in leaves(CoadaptConfig) if leaf.key == "preset"), None)
     if found is None:
         return None
     leaf, values = found
@@ -249,7 +254,7 @@ def run_app(app: typer.Typer, argv: list[str] | None = None) -> int:
             return EXIT_USAGE
         where = f" ({ctx.command_path})" if ctx is not None else ""
         message = exc.format_message() if hasattr(exc, "format_message") else str(exc)
-        print(f"error{where}: {message}", file=sys.stderr)
+        print(f"error: {one_line(message)}{where}", file=sys.stderr)  # every error starts `error:`
         return int(getattr(exc, "exit_code", EXIT_USAGE) or EXIT_USAGE)
     except (UserError, PluginError) as exc:
         print(f"error: {one_line(exc)}", file=sys.stderr)

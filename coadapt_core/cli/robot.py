@@ -31,7 +31,8 @@ DESIGN_HELP = ("Design values, comma-separated in the order of the robot's desig
 class RobotShow:
     """`coadapt robot show`'s settings; `robot` and `design` are shared by the other `robot` commands."""
 
-    robot: str = setting(help="Registered robot name (see `coadapt plugins`).", argument="robot")
+    robot: str | None = setting(None, "Registered robot name (see `coadapt plugins`; default: the installed robot of "
+                                "highest default_rank, the only one when one is installed).", argument="[ROBOT]")
     design: str | None = setting(None, DESIGN_HELP)
     as_json: bool = setting(False, "Print JSON instead of tables.", names=("--json",))
     no_validate: bool = setting(False, "Skip the validation checks.", names=("--no-validate",))
@@ -69,9 +70,12 @@ class RobotRender:
 EXIT_INFEASIBLE = 1
 
 
-def load_robot(name: str) -> Any:
-    """An instance of the registered robot `name` (one-line error listing the robots)."""
-    return resolve("robot", name)()
+def load_robot(name: str | None) -> Any:
+    """An instance of the registered robot `name`, or of the default robot when None (one-line
+    error listing the robots)."""
+    from coadapt_core.cli.common import plugin_name
+
+    return resolve("robot", plugin_name("robot", name))()
 
 
 def parse_design(robot: Any, text: str | None) -> np.ndarray:
@@ -211,7 +215,7 @@ def export_command(**values: Any) -> None:
         output.write_text(text)
     except OSError as exc:
         fail(f"cannot write -o {output}: {exc.strerror or exc}")
-    print(f"wrote {fmt} of {robot} ({','.join(f'{x:g}' for x in model.design)}) to {output}", file=sys.stderr)
+    print(f"wrote {fmt} of {instance.name} ({','.join(f'{x:g}' for x in model.design)}) to {output}", file=sys.stderr)
 
 
 register(app, "export", export_command, _EXPORT, path="robot export")

@@ -23,6 +23,7 @@ import typer
 from coadapt_core.cli.common import fail, plugin_name, resolve
 from coadapt_core.cli.options import OptionGroup, choices, filled, given_settings, options_of
 from coadapt_core.cli.options import register as register_command
+from coadapt_core.cli.policy_source import eval_checkpoint_path
 from coadapt_core.cli.progress import ProgressLine
 from coadapt_core.errors import UserError
 from coadapt_core.settings import Float, Int, overrides, setting, settings, shared
@@ -342,45 +343,6 @@ def _eval_checks(agents: int, seconds: float, video: Path | None, device: str, o
     return values
 
 
-#: what `coadapt eval --checkpoint` accepts, said when it gets something else
-EVAL_CHECKPOINTS = ("a checkpoint file (.pt), the --out folder of a `coadapt train`, a `coadapt run` folder or run id "
-                    "under ./runs (its last checkpoint), or no --checkpoint for the robot's shipped policy")
-
-
-def _eval_checkpoint_path(checkpoint: Path | None) -> Path | None:
-    """--checkpoint: a file; a training folder stands for its newest checkpoint, a run folder
-    or a run id under ./runs for the run's last policy (`run_checkpoint`)."""
-    if checkpoint is None:
-        return None
-    from coadapt_core.io import checkpoint_path
-    from coadapt_core.validation import is_run_id
-
-    text = str(checkpoint)
-    if text.strip().lower() == "none":
-        fail(f"--checkpoint {text}: coadapt eval needs a policy; give {EVAL_CHECKPOINTS}")
-    run_dir = next((p for p in (checkpoint, Path("runs") / text) if (p / "config.yaml").is_file()
-                    and (p == checkpoint or is_run_id(text))), None)
-    if run_dir is not None:  # a `coadapt run` folder: its final universal policy
-        import yaml
-
-        from coadapt_core.viz.video import run_checkpoint
-
-        try:
-            config = yaml.safe_load((run_dir / "config.yaml").read_text()) or {}
-        except (OSError, yaml.YAMLError):
-            config = {}
-        found = run_checkpoint(run_dir, config if isinstance(config, dict) else {})
-        if found is None:
-            fail(f"--checkpoint {text}: run folder {run_dir} holds no policy (no checkpoints/backend-outer*.pt and no "
-                 f"starting policy file); give {EVAL_CHECKPOINTS}")
-        print(f"policy: {found} (the last of run {run_dir.name})", file=sys.stderr)
-        return found
-    try:
-        return checkpoint_path(checkpoint, field="--checkpoint")
-    except UserError as exc:
-        fail(f"{exc}; or give {EVAL_CHECKPOINTS.split(', ', 2)[2]}")
-
-
 def _eval_robot(checkpoint: Path | None) -> str:
     """The robot a checkpoint records; without one, the default robot."""
     if checkpoint is not None and checkpoint.is_file():
@@ -493,7 +455,7 @@ def register(app: typer.Typer) -> None:
         o = SimpleNamespace(**filled(values, evaluation))
         velocity = _eval_checks(o.agents, o.seconds, o.video, o.device, o.objective, o.command)
         apply_threads(o.threads)
-        checkpoint = _eval_checkpoint_path(o.checkpoint)
+        checkpoint = eval_checkpoint_path(o.checkpoint)
         robot = o.robot if o.robot is not None else _eval_robot(checkpoint)
         robot_obj = resolve("robot", robot)()
         sim = plugin_name("simulator", o.sim)

@@ -126,9 +126,7 @@ def render_run_video(
                 agents=1, seconds=seconds, seed=int(config.get("seed") or 0), randomize=False, record=True,
             )
             trajectory = result["_trajectory"]
-            panels.append(rollout_panel(robot, design, trajectory, f"{label} " + ", ".join(
-                f"{x:.0f}" if float(x).is_integer() else f"{x:.2f}" for x in design) + f"  vx {result['vx_mean']:.2f} m/s",
-                renderer))
+            panels.append(rollout_panel(robot, design, trajectory, panel_label(label, design, result["vx_mean"]), renderer))
         fps = 1.0 / (2 * trajectory["dt"])
     except Exception as exc:  # the run's result stands; the picture is a bonus
         print(f"video: not rendered ({type(exc).__name__}: {' '.join(str(exc).split())[:160]})", file=stream)
@@ -205,6 +203,13 @@ def partial_name(output: str | os.PathLike) -> str:
     """Where `output` is written before its rename (same folder, same extension)."""
     path = Path(output)
     return str(path.with_name(f".{path.stem}.partial{path.suffix}"))
+
+
+def panel_label(role: str, design: Any, vx: float) -> str:
+    """A panel's caption: "best: 0.53, 0.69 | vx 0.45 m/s" (a colon and a bar, not bare spaces,
+    which the small bitmap font draws too narrow to see: "best0.53")."""
+    values = ", ".join(f"{x:.0f}" if float(x).is_integer() else f"{x:.2f}" for x in design)
+    return f"{role}: {values} | vx {vx:.2f} m/s"
 
 
 def rollout_panel(robot: Any, design: Any, trajectory: dict, label: str | None = None,

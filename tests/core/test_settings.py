@@ -180,9 +180,10 @@ def test_a_shared_setting_is_one_declaration():
     (["landscape", "--cost-cap", "1"], "error: cost_cap must be a finite number > 1, got 1"),
     (["landscape", "--agents", "0"], "error: agents must be an integer >= 1, got 0"),
     (["grid", "--timeout", "nan"], "error: timeout must be a finite number"),
-    (["robot", "render", "kuafu", "--width", "abc"], "error (coadapt robot render): Invalid value for '--width'"),
-    (["export"], "error (coadapt export): Missing option '-o' / '--out'."),
-    (["handoff"], "error (coadapt handoff): Missing argument 'run'."),
+    # every error starts `error:`, a usage error with its command at the end (issue 43)
+    (["robot", "render", "kuafu", "--width", "abc"], "error: Invalid value for '--width'"),
+    (["export"], "error: Missing option '-o' / '--out'. (coadapt export)"),
+    (["handoff"], "error: Missing argument 'run'. (coadapt handoff)"),
     (["report", "--transfer-agents", "0"], "error: --transfer-agents, --transfer-steps and --common-blocks must be >= 1"),
 ])
 def test_a_bad_value_of_another_command_is_one_line_naming_the_setting(argv, message, capsys):

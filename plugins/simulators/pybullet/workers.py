@@ -29,9 +29,27 @@ import numpy as np
 START_TIMEOUT = 120.0
 
 
+def _quiet_import(name: str) -> None:
+    """Import `name` with this process's stderr closed (a worker's stdout is closed already);
+    an error after the import is still printed."""
+    import importlib
+
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "w") as devnull:
+            os.dup2(devnull.fileno(), 2)
+            with contextlib.suppress(ImportError):  # the engine's own import says what is missing
+                importlib.import_module(name)
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
 def _serve(conn: Connection) -> None:
     """Worker side: build the engine from the first message, then answer method calls."""
     specs, options = conn.recv()
+    _quiet_import("pybullet")  # its "pybullet build time" banner, once per worker, would cut into progress lines
     from coadapt_plugins.simulators.pybullet.engine import Engine
 
     try:
