@@ -17,10 +17,11 @@ stepping and reading state (docs/plugins.md, "Simulators").
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, fields
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 import torch
@@ -159,6 +160,28 @@ def spawn_base_height(
     return z + FIXED_BASE_LIFT if fixed_base else z
 
 
+class NominalGains:
+    """A robot whose every design gets the nominal design's PD gains (kp, kd; the nominal
+    design of the space the design's arity names), everything else its own: the "nominal"
+    gain law of `Simulator.set_gain_law`, for any robot."""
+
+    def __init__(self, robot: Robot):
+        self._robot = robot
+        self._gains: dict[bool, tuple[np.ndarray, np.ndarray]] = {}
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._robot, name)
+
+    def build(self, design: np.ndarray):
+        model = self._robot.build(design)
+        mixed = len(np.atleast_1d(design)) != self._robot.design_space(False).dim
+        if mixed not in self._gains:
+            nominal = self._robot.build(self._robot.nominal_design(mixed))
+            self._gains[mixed] = (np.array(nominal.kp, dtype=float), np.array(nominal.kd, dtype=float))
+        kp, kd = self._gains[mixed]
+        return dataclasses.replace(model, kp=kp.copy(), kd=kd.copy())
+
+
 class Simulator(ABC):
     """A batched physics backend. Construct, `reset()`, then `step(targets)` repeatedly.
 
@@ -195,6 +218,10 @@ class Simulator(ABC):
     #: the motor speed limits the backend's actuation honours (`set_speed_limit`): "soft" (the
     #: torque-speed envelope) always; "binding" when it passes `binding` to `pd_torque`
     speed_limit_modes: ClassVar[tuple[str, ...]] = ("soft",)
+    #: the PD gain laws it honours (`set_gain_law`): "robot" (each design's own gains, as the
+    #: robot builds them) always; "nominal" (the nominal design's gains for every design) when
+    #: it builds its models through `self.robot.build` and rebuilds them in `set_designs`
+    gain_laws: ClassVar[tuple[str, ...]] = ("robot",)
 
     def __init__(
         self,
@@ -262,6 +289,9 @@ class Simulator(ABC):
         self._params: EnvParams = nominal_env_params(len(designs), device=torch_device, dtype=self.dtype)
         #: the motor speed limit in force (`set_speed_limit`)
         self.speed_limit = "soft"
+        #: the PD gain law in force (`set_gain_law`) and the robot as given
+        self.gain_law = "robot"
+        self._own_robot = robot
         self._scenario: tuple[EnvParams, np.ndarray | None] | None = None
 
     def set_speed_limit(self, mode: str) -> None:
@@ -273,6 +303,19 @@ class Simulator(ABC):
             raise UserError(f"task.motor_speed_limit: the {self.name} simulator offers "
                             f"{', '.join(self.speed_limit_modes)}, got '{mode}'", field="motor_speed_limit")
         self.speed_limit = mode
+
+    def set_gain_law(self, law: str) -> None:
+        """The PD gains of every design from now on: "robot" (each design's own) or "nominal"
+        (the nominal design's, `NominalGains`), one of the backend's `gain_laws`; every
+        environment is rebuilt (and restarts) when the law changes."""
+        if law not in self.gain_laws:
+            raise UserError(f"task.gain_law: the {self.name} simulator offers {', '.join(self.gain_laws)}, "
+                            f"got '{law}'", field="gain_law")
+        if law == self.gain_law:
+            return
+        self.gain_law = law
+        self.robot = NominalGains(self._own_robot) if law == "nominal" else self._own_robot
+        self.set_designs(np.arange(self.num_envs), self.designs)
 
     # -- sizes ---------------------------------------------------------------------------
     @property

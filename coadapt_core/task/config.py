@@ -137,6 +137,9 @@ class TaskConfig:
         "soft", "soft: the torque-speed envelope alone (a joint past its motor's no-load speed is only driven "
         "no further); binding: also no torque at all beyond the no-load speed, and a joint beyond it for "
         "overspeed_seconds ends the episode as a fall (issue 41).")
+    gain_law: Literal["robot", "nominal"] = setting(
+        "robot", "PD gains: robot: each design's own, as the robot builds them (Kuafu: stiffness grows with the "
+        "load inertia); nominal: the nominal design's gains for every design (issue 41).")
     overspeed_seconds: Float = setting(
         0.1, "binding speed limit: a joint beyond its no-load speed this long without a break ends the episode, s.",
         gt=0)

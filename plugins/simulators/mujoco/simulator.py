@@ -81,6 +81,7 @@ class MujocoSimulator(Simulator):
     model_formats = ("mjcf",)  # the robot model it compiles
     renderer = "coadapt_plugins.simulators.mujoco.render"  # pictures and videos, offscreen
     speed_limit_modes = ("soft", "binding")  # coadapt_core.physics.actuation, `bind_speed`
+    gain_laws = ("robot", "nominal")  # models compiled through self.robot (a NominalGains is its own cache key)
     model_tools = "coadapt_plugins.simulators.mujoco.model_tools"  # link facts, feet, handoff check
 
     def __init__(self, robot: Robot, designs: np.ndarray, **options: Any):

@@ -51,6 +51,7 @@ class PyBulletSimulator(Simulator):
     #: it loads the URDF and takes the joints' damping and armature from the MJCF
     model_formats: ClassVar[tuple[str, ...]] = ("urdf", "mjcf")
     speed_limit_modes: ClassVar[tuple[str, ...]] = ("soft", "binding")
+    gain_laws: ClassVar[tuple[str, ...]] = ("robot", "nominal")
 
     def __init__(
         self,
@@ -197,6 +198,11 @@ class PyBulletSimulator(Simulator):
             self._reset_engines(ids)
         self._diverged[ids] = False
         return self._to_state(self._raw_state())
+
+    def set_gain_law(self, law: str) -> None:
+        if law != self.gain_law:
+            self._spec_cache.clear()  # the specs carry the gains
+        super().set_gain_law(law)
 
     def set_speed_limit(self, mode: str) -> None:
         super().set_speed_limit(mode)

@@ -127,3 +127,39 @@ def test_task_ends_an_episode_beyond_no_load_speed_for_overspeed_seconds_when_bi
                 assert env.design_inputs.speed_limit[0].tolist() == pytest.approx(dq_max.tolist())
                 env._termination(state, gravity)  # a step back under the limit: the count starts again
                 assert env.overspeed_time[0].item() == 0.0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sim_name", ["mujoco", "pybullet"])
+def test_nominal_gain_law_gives_every_design_the_nominal_designs_pd_gains(sim_name):
+    """`task.gain_law: nominal` (Simulator.set_gain_law): the torque a joint receives is the
+    shared PD law with the nominal design's kp and kd, whatever the design; "robot" keeps each
+    design's own (Kuafu: knee kp 458 / 800 / 1 253 at thigh 0.5 / 1.0 / 1.5)."""
+    from coadapt_plugins.robots.kuafu.robot import Kuafu
+
+    if sim_name == "pybullet":
+        pytest.importorskip("pybullet")
+        from coadapt_plugins.simulators.pybullet.simulator import PyBulletSimulator as Sim
+        extra = {"processes": 0}
+    else:
+        from coadapt_plugins.simulators.mujoco.simulator import MujocoSimulator as Sim
+        extra = {}
+    robot = Kuafu()
+    designs = np.array([[0.5, 1.0], [1.5, 1.0]])
+    own = [robot.build(d) for d in designs]
+    nominal = robot.build(robot.nominal_design())
+    assert [m.kp[2] for m in own] == pytest.approx([457.9, 1252.9], abs=0.5) and nominal.kp[2] == pytest.approx(800.0)
+    for law in ("robot", "nominal"):
+        with Sim(robot, designs, decimation=1, fixed_base=True, randomization=RandomizationConfig.off(), **extra) as sim:
+            sim.set_gain_law(law)
+            assert sim.gain_law == law
+            state = sim.reset()
+            targets = sim.default_joint_pos.double().cpu() + 0.05
+            after = sim.step(targets.to(sim.default_joint_pos))
+            models = own if law == "robot" else [nominal, nominal]
+            gains = [torch.tensor(np.stack([getattr(m, k) for m in models]), dtype=torch.float64)
+                     for k in ("kp", "kd", "torque_limit", "speed_limit")]
+            expected = pd_torque(targets, state.joint_pos.double().cpu(), state.joint_vel.double().cpu(), *gains)
+            torch.testing.assert_close(after.joint_torque.double().cpu(), expected, rtol=1e-4, atol=2e-2)
+            # the knee of the short-thigh design: 0.05 rad x its kp
+            assert after.joint_torque[0, 2].item() == pytest.approx(0.05 * models[0].kp[2], rel=0.02)
