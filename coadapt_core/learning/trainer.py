@@ -30,7 +30,6 @@ from coadapt_core.learning.ppo import PPO, Dims
 from coadapt_core.objective import Objective
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.robot import Robot
-from coadapt_core.scenarios.sets import restart_streams
 from coadapt_core.task.config import TaskConfig
 from coadapt_core.task.env import LocomotionEnv
 
@@ -205,7 +204,7 @@ class Trainer:
         an uninterrupted one."""
         if self.env is None:
             return
-        restart_streams(self.env, int(seed))
+        self.env.restart_streams(int(seed))
         self._obs = None
 
     def close(self) -> None:

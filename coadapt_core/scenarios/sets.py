@@ -1,54 +1,24 @@
-"""Scenario sets (`coadapt_core.scenarios`): restarting an environment's random streams
-from a seed (`restart_streams`, which training's exact resume uses too), drawing the
-scenarios of one seed and applying them to an environment. Agent i of every design gets
-scenario i: its command (stratified over the command box), its Table 2 draw and spawn point
-(held by the simulator through `Simulator.fix_scenarios`), its initial gait phase and its
-observation- and action-noise streams (`PairedStreams`, held by the task through
-`LocomotionEnv.use_scenarios`). `prepare` readies an evaluation environment for a batch of
-designs, paired (the protocol) or unpaired (the protocol before it)."""
+"""Scenario sets (`coadapt_core.scenarios`): drawing the scenarios of one seed and applying
+them to an environment through the env's own methods (`LocomotionEnv.restart_streams`,
+`draw_commands`, `draw_randomization`, `fix_scenarios`, `set_commands`, `use_scenarios`).
+Agent i of every design gets scenario i: its command (stratified over the command box), its
+Table 2 draw and spawn point (held by the simulator), its initial gait phase and its
+observation- and action-noise streams (`coadapt_core.task.streams.PairedStreams`, held by
+the task). `prepare` readies an evaluation environment for a batch of designs, paired (the
+protocol) or unpaired (the protocol before it)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 
 from coadapt_core.errors import UserError
-from coadapt_core.physics.simulator import sample_env_params
+from coadapt_core.task.streams import PairedStreams
 
 if TYPE_CHECKING:
     from coadapt_core.task.env import LocomotionEnv
-
-
-def restart_streams(env: LocomotionEnv, seed: int, *, task: bool = True) -> None:
-    """Restart the random streams of `env` from `seed`: the simulator's named streams
-    (`Simulator.reseed`: randomization draws and spawn points) and, with `task`, the task's
-    torch generator (gait phases, observation noise and, while commands are drawn, the
-    command draw). Exact resume rests on it (docs/coadaptation.md)."""
-    if task:
-        env.generator.manual_seed(int(seed))
-    env.sim.reseed(int(seed))
-
-
-@dataclass(frozen=True)
-class PairedStreams:
-    """The task's random numbers of one scenario set, shared by every design: environment
-    k * agents + i draws what environment i draws (`LocomotionEnv.use_scenarios`): its gait
-    phase `phase[i]` at every episode start, its observation noise from a generator keyed
-    by `seed` and the steps since the last full reset alone (the same noise however often a
-    step is observed, whoever fell), and its action noise (`LocomotionEnv.paired_draw`)."""
-
-    agents: int
-    seed: int
-    phase: torch.Tensor  # [agents] initial gait phases in [0, 1)
-
-    @classmethod
-    def draw(cls, agents: int, seed: int, device: torch.device) -> PairedStreams:
-        gen = torch.Generator(device=device)
-        gen.manual_seed(int(seed))
-        return cls(int(agents), int(seed), torch.rand(int(agents), generator=gen, device=device))
 
 
 def apply_scenarios(
@@ -63,7 +33,7 @@ def apply_scenarios(
     """Give the `designs` consecutive groups of `agents` environments of `env` the scenario
     set of `seed`: agent i of each group gets scenario i, that is its command (`commands`
     [agents, 3] when given, else stratified over the command box of `command_state`, the
-    curriculum's), its randomization draw (Table 2) and spawn point, its initial gait phase
+    curriculum's, or the env's own when None), its randomization draw (Table 2) and spawn point, its initial gait phase
     and its observation- and action-noise streams (`PairedStreams`). A scenario depends on
     `seed` and i alone, not on the designs or on the other agents. Returns the commands
     [agents, 3]."""
@@ -73,19 +43,15 @@ def apply_scenarios(
             f"paired scenarios: {env.num_envs} environments do not split into groups of {agents} agents",
             field="agents",
         )
-    if command_state is not None:
-        env.commands.load_state_dict(command_state)
     if commands is None:
-        gen = torch.Generator()
-        gen.manual_seed(int(seed))
-        commands = env.commands.stratified(agents, gen)  # [A, 3]
+        commands = env.draw_commands(agents, seed, command_state=command_state, paired=True)  # [A, 3]
     commands = torch.as_tensor(commands, dtype=torch.float32, device=env.device).reshape(agents, 3)
     env.set_commands(commands.repeat(designs, 1))
     rng = np.random.default_rng([int(seed), 0xC0])  # the randomization draw of each scenario
-    params = sample_env_params(env.sim.randomization, agents, rng)
+    params = env.draw_randomization(agents, rng)
     spawn = rng.random((agents, 2))
     streams = PairedStreams.draw(agents, int(seed), env.device)
-    env.sim.fix_scenarios(params.repeat(designs), np.tile(spawn, (designs, 1)))
+    env.fix_scenarios(params.repeat(designs), np.tile(spawn, (designs, 1)))
     env.use_scenarios(streams)
     return commands
 
@@ -95,13 +61,9 @@ def apply_unpaired(env: LocomotionEnv, agents: int, designs: int, seed: int, *, 
     (benchmarks/fitness_noise.py --protocol unpaired): commands drawn independently per
     agent from the box (shared by the designs of one call), every randomization draw and
     noise stream independent per environment."""
-    if command_state is not None:
-        env.commands.load_state_dict(command_state)
-    gen = torch.Generator(device=env.device)
-    gen.manual_seed(int(seed))
-    env.commands.generator = gen
-    env.set_commands(env.commands.sample(agents).repeat(designs, 1))
-    env.sim.fix_scenarios(None)
+    commands = env.draw_commands(agents, seed, command_state=command_state, paired=False)
+    env.set_commands(commands.repeat(designs, 1))
+    env.fix_scenarios(None)
     env.use_scenarios(None)
 
 
@@ -114,7 +76,7 @@ def prepare(
     applied, paired (`apply_scenarios`) or not (`apply_unpaired`), under the command
     curriculum `command_state`. What follows is a function of the policy, the curriculum,
     the designs and `seed` alone, whatever earlier calls drew."""
-    restart_streams(env, seed, task=False)
+    env.restart_streams(seed, task=False)
     if paired:
         apply_scenarios(env, agents, designs, seed, command_state=command_state)
     else:

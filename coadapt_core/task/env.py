@@ -9,13 +9,13 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 
 from coadapt_core.objective import Objective, StepBatch
-from coadapt_core.physics.simulator import SimState, Simulator
+from coadapt_core.physics.randomization import EnvParams
+from coadapt_core.physics.simulator import SimState, Simulator, sample_env_params
 from coadapt_core.robot import Robot
 from coadapt_core.task import observations as layout
 from coadapt_core.task.commands import CommandSampler
@@ -34,9 +34,7 @@ from coadapt_core.task.gait import (  # noqa: F401 - the gait functions' old hom
 )
 from coadapt_core.task.observations import StepResult
 from coadapt_core.task.rewards import RewardInputs, combine, compute_terms
-
-if TYPE_CHECKING:
-    from coadapt_core.scenarios.sets import PairedStreams
+from coadapt_core.task.streams import PairedStreams
 
 
 class LocomotionEnv:
@@ -162,6 +160,37 @@ class LocomotionEnv:
         draws what environment i draws (gait phase, observation noise, `paired_draw`), as
         `PairedStreams` says; None returns to independent draws."""
         self.scenarios = scenarios
+
+    # -- what the scenarios room asks of the env (coadapt_core.scenarios.sets) --------------
+    def restart_streams(self, seed: int, *, task: bool = True) -> None:
+        """Restart the random streams from `seed`: the simulator's (`Simulator.reseed`:
+        randomization draws, spawn points) and, with `task`, the task's generator (gait
+        phases, observation noise, commands while drawn). Exact resume rests on it."""
+        if task:
+            self.generator.manual_seed(int(seed))
+        self.sim.reseed(int(seed))
+
+    def draw_commands(self, agents: int, seed: int, *, command_state: dict | None, paired: bool) -> torch.Tensor:
+        """[agents, 3] commands of the scenario set of `seed` under the curriculum
+        `command_state` (None: the sampler's own): stratified over the command box (paired),
+        or drawn independently by a generator seeded `seed` that the sampler keeps."""
+        if command_state is not None:
+            self.commands.load_state_dict(command_state)
+        gen = torch.Generator() if paired else torch.Generator(device=self.device)
+        gen.manual_seed(int(seed))
+        if paired:
+            return self.commands.stratified(agents, gen)
+        self.commands.generator = gen
+        return self.commands.sample(agents)
+
+    def draw_randomization(self, agents: int, rng: np.random.Generator) -> EnvParams:
+        """`agents` draws of the simulator's Table 2 randomization from `rng`."""
+        return sample_env_params(self.sim.randomization, agents, rng)
+
+    def fix_scenarios(self, params: EnvParams | None, spawn: np.ndarray | None = None) -> None:
+        """Hold every environment's randomization draw and spawn point
+        (`Simulator.fix_scenarios`); None draws them afresh at each reset again."""
+        self.sim.fix_scenarios(params, spawn)
 
     def paired_draw(self, shape: tuple[int, ...], generator: torch.Generator, normal: bool = True) -> torch.Tensor:
         """[num_envs, *shape[1:]] random numbers, standard normal or uniform in [0, 1): one

@@ -15,8 +15,9 @@ import torch
 
 from coadapt_core.errors import UserError
 from coadapt_core.scenarios.seeds import scenario_seed
-from coadapt_core.scenarios.sets import PairedStreams, apply_scenarios, prepare, restart_streams
+from coadapt_core.scenarios.sets import apply_scenarios, prepare
 from coadapt_core.task import LocomotionEnv, TaskConfig
+from coadapt_core.task.streams import PairedStreams
 
 DESIGNS, AGENTS = 3, 4
 
@@ -88,7 +89,7 @@ def test_unpaired_draws_per_environment_and_bad_groups_are_refused(env) -> None:
 def test_restart_streams_repeats_the_draws_of_an_unpaired_reset(env) -> None:
     phases = []
     for _ in range(2):
-        restart_streams(env, 7)
+        env.restart_streams(7)
         env.use_scenarios(None)
         env.reset()
         phases.append((env.phase.clone(), torch.as_tensor(env.sim.env_params.friction).clone()))
