@@ -200,7 +200,10 @@ def check_policy_space(checkpoint: str | None, space: DesignSpace, robot, mixed:
         return
     from coadapt_core.learning.checkpoints import read_checkpoint
 
-    state = read_checkpoint(checkpoint)
+    try:
+        state = read_checkpoint(checkpoint)
+    except UserError:  # not a policy file: the learner's own line says so when it loads it
+        return
     takes = (state.get("dims") or {}).get("num_design")
     if takes is None or int(takes) == space.dim:
         return
