@@ -206,3 +206,20 @@ def test_a_real_nsga2_run_leaves_its_plots_and_hands_off_its_second_front_design
     (own,) = [e for e in sheet["evaluations"] if e["source"] == "the run's final check (Pareto front design 1)"]
     assert own["objectives"]["power"]["design"] == front["costs"][1]["power"]
     assert own["objectives"]["torque"]["design_se"] == front["costs_se"][1]["torque"]
+
+
+def test_a_figure_that_cannot_be_drawn_is_one_line_and_the_result_stands(tmp_path, capsys, monkeypatch, paired_fake):
+    import coadapt_core.analysis.run_figures as run_figures
+
+    def broken(*args, **kwargs):
+        raise ValueError("no backend")
+
+    monkeypatch.setattr(run_figures, "write_run_figures", broken)
+    assert main(["run", "--preset", "smoke", "--population", "4", "--optimizer-iterations", "2", "--out",
+                 str(tmp_path / "runs"), "--store", "none", "--no-video", "--json"]) == 0
+    captured = capsys.readouterr()
+    assert [line for line in captured.err.splitlines() if line.startswith("figures:")] == [
+        "figures: not drawn (ValueError: no backend)"]
+    (run_dir,) = (tmp_path / "runs").iterdir()
+    assert json.loads((run_dir / "summary.json").read_text())["status"] == "finished"
+    assert json.loads(captured.out.strip().splitlines()[-1])["run_id"] == run_dir.name
