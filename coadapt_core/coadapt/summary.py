@@ -41,6 +41,9 @@ class CoadaptResult:
         line["reliable"] = s.get("reliable")
         line["reliability"] = s.get("reliability")
         line["warnings"] = s.get("warnings", [])  # what to know before trusting it (cautions.py)
+        front = s.get("pareto_front")
+        if isinstance(front, dict):  # several objectives: the front's hypervolume and its SE (pareto.py)
+            line["hypervolume"], line["hypervolume_se"] = front.get("hypervolume"), front.get("hypervolume_se")
         return line
 
 
