@@ -35,7 +35,11 @@ class GridSettings:
                           help="Comma list of robots (one cell each; the cell key names it).")
     optimizer: str | None = setting(None, "Optimizer for every cell (default: each method's own).")
     executor: str = setting("local", "local (process pool on this machine) or ray.")
-    address: str | None = setting(None, "Ray cluster address (default: start a local Ray instance).")
+    address: str | None = setting(None, "Ray cluster address, e.g. 10.0.0.5:6379 (default: $RAY_ADDRESS, else a "
+                                  "local Ray instance).")
+    state_every: Float = setting(300.0, "Ray: seconds between a running cell's last state sent back to the driver, "
+                                 "from which it resumes if its node is lost (0: never; it then starts over).",
+                                 names=("--state-every",), ge=0)
     workers: Int | None = setting(None, "Cells at once (default: as many as fit, cells at once x --threads <= "
                                   "cores; on Ray: the number of cores).")
     threads: Int | None = setting(None, "CPU threads per cell, physics and torch: each cell's `coadapt run --threads` "
@@ -139,6 +143,9 @@ def _run(s: GridSettings, spec: Any, results: Any, command_line: str) -> Any:
     with ProgressLine("grid", None, unit=" cells") as line:
 
         def on_event(kind, cell, outcome):
+            if kind == "rerun":  # a Ray cell lost with its node
+                console.print(f"[yellow]ran again[/yellow] {cell.key}: {outcome.error}", soft_wrap=True)
+                return
             if kind == "started":
                 started.append(cell.key)
                 line.total = len(started)  # shown from the first finished cell on
@@ -156,7 +163,8 @@ def _run(s: GridSettings, spec: Any, results: Any, command_line: str) -> Any:
         try:
             with ctrl_c_once():
                 return run_grid(spec, results, executor=s.executor, workers=s.workers, threads=s.threads,
-                                address=s.address, out_dir=s.out, timeout=s.timeout, on_event=on_event)
+                                address=s.address, out_dir=s.out, timeout=s.timeout, on_event=on_event,
+                                state_every=s.state_every)
         except KeyboardInterrupt as exc:
             line.close()
             stopped = getattr(exc, "report", None)
@@ -191,6 +199,8 @@ def register(app: typer.Typer) -> None:
         Console(stderr=True).print(
             f"grid {report.grid_id}: {len(report.finished)} finished, {len(report.skipped)} skipped "
             f"(already finished), {len(report.resumed)} resumed, {len(report.failed)} failed"
+            + (f", {len(report.ran_again)} ran again ({', '.join(sorted(set(report.ran_again)))})"
+               if report.ran_again else "")
         )
         if s.as_json:
             print(json.dumps(report.to_dict()))

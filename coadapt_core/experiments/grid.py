@@ -28,7 +28,6 @@ from coadapt_core.experiments.grid_exec import (
     default_workers,
     execute_cell,
     local_executor,
-    ray_executor,
     stop_cells,
 )
 from coadapt_core.experiments.grid_plan import (
@@ -47,6 +46,7 @@ from coadapt_core.experiments.grid_plan import (
     settle_abandoned,
     unfinished_run,
 )
+from coadapt_core.experiments.grid_ray import RAN_AGAIN, ray_executor
 from coadapt_core.results.store import ResultsStore
 from coadapt_core.threads import check_threads, share_cores, usable_cpus
 
@@ -95,11 +95,15 @@ def run_grid(
     timeout: float | None = None,
     log_dir: str | os.PathLike | None = None,
     on_event: Callable[[str, Cell, CellOutcome | None], None] | None = None,
+    state_every: float = 300.0,
 ) -> GridReport:
     """Run every cell the store does not already hold as finished; returns what happened.
     `threads`: CPU threads per cell (each cell's `coadapt run --threads`); locally the cells
     at once x threads per cell fit the CPUs this process may use (`share_cores`).
-    `on_event(kind, cell, outcome)` reports "skipped", "started", "finished", "failed"."""
+    `on_event(kind, cell, outcome)` reports "skipped", "started", "finished", "failed" and
+    "rerun" (a Ray cell lost with its node started again). A Ray cell runs in a scratch folder
+    of its node and sends back its rows and run folder (`grid_ray`); a running one sends its
+    last state every `state_every` seconds, so a rerun resumes from it."""
     check_grid_options(executor=executor, workers=workers, timeout=timeout, address=address)
     if threads is not None:
         check_threads(threads, "threads")
@@ -141,25 +145,31 @@ def run_grid(
     if executor == "local":
         stream = local_executor(tasks, workers)
     else:
-        stream = ray_executor(tasks, workers, address)
+        stream = ray_executor(tasks, workers, address, store=store, out_dir=out_dir, extra=spec.extra_args,
+                              state_every=state_every)
     try:
         _collect(store, grid_id, stream, report, on_event)
     except BaseException as exc:  # Ctrl-C: the running cells were told (`stop_cells`)
         if hasattr(stream, "close"):
             stream.close()
-        for task in tasks:
-            if task.cell.key in report.outcomes:
-                continue
-            started = store.list_runs(cell=task.cell.key)
-            run = started[-1] if started else None
-            if run is not None and run["status"] == "running" and run.get("grid_id") == grid_id:
-                store.set_status(run["id"], "interrupted")  # killed before it could say so
-            store.set_cell(grid_id, task.cell.key, status="interrupted", run_id=run["id"] if run else None,
-                           error="the grid was interrupted")
+        _mark_interrupted(store, grid_id, tasks, report)
         if isinstance(exc, KeyboardInterrupt):
             raise GridInterrupted(report) from None
         raise
     return report
+
+
+def _mark_interrupted(store: ResultsStore, grid_id: str, tasks: Sequence[CellTask], report: GridReport) -> None:
+    """The cells without an outcome when the grid stopped: interrupted, and their runs too."""
+    for task in tasks:
+        if task.cell.key in report.outcomes:
+            continue
+        started = store.list_runs(cell=task.cell.key)
+        run = started[-1] if started else None
+        if run is not None and run["status"] == "running" and run.get("grid_id") == grid_id:
+            store.set_status(run["id"], "interrupted")  # killed before it could say so
+        store.set_cell(grid_id, task.cell.key, status="interrupted", run_id=run["id"] if run else None,
+                       error="the grid was interrupted")
 
 
 class GridInterrupted(KeyboardInterrupt):
@@ -175,11 +185,23 @@ def _collect(store: ResultsStore, grid_id: str, stream: Iterator[tuple[CellTask,
              on_event: Callable[[str, Cell, CellOutcome | None], None] | None) -> None:
     for task, outcome in stream:
         key = task.cell.key
+        if outcome.returncode == RAN_AGAIN:  # lost with its node: started again, not over
+            report.ran_again.append(key)
+            store.set_cell(grid_id, key, status="running", attempt=True, error=outcome.error)
+            if on_event:
+                on_event("rerun", task.cell, outcome)
+            continue
         report.outcomes[key] = outcome
         run_id = (outcome.result or {}).get("run_id")
         if run_id is None:
             started = store.list_runs(cell=key)
             run_id = started[-1]["id"] if started else None
+        if outcome.returncode == 0 and not (run_id and store.has_run(run_id)
+                                            and store.get_run(run_id)["status"] == "finished"):
+            # finished only once its rows are in this store (a Ray cell's are written here)
+            outcome = CellOutcome(key, 1, outcome.seconds, outcome.result,
+                                  f"the cell's run {run_id} is not in the store {store.url} as finished")
+            report.outcomes[key] = outcome
         if outcome.returncode == 0:
             store.set_cell(grid_id, key, status="finished", run_id=run_id)
             report.finished.append(key)

@@ -1,6 +1,6 @@
 """Running a grid's cells: each cell one `coadapt run ... --json` process, on a local pool
-or as Ray tasks, with Ctrl-C passed on to the running cells; and the checks of the executor
-options made before anything starts."""
+(the Ray executor is `grid_ray`), with Ctrl-C passed on to the running cells; and the checks
+of the executor options made before anything starts."""
 
 from __future__ import annotations
 
@@ -16,7 +16,6 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
-from typing import Any
 
 from coadapt_core.errors import UserError
 from coadapt_core.experiments.grid_plan import CellOutcome, CellTask
@@ -55,15 +54,16 @@ def stop_cells(grace: float = 60.0) -> None:
             proc.kill()
 
 
-def execute_cell(task: CellTask) -> CellOutcome:
-    """Run one cell's process to the end (module level, so Ray can ship it to a worker)."""
+def execute_cell(task: CellTask, cwd: str | os.PathLike | None = None) -> CellOutcome:
+    """Run one cell's process to the end, in the folder `cwd` (default: this process's)."""
     prefix = task.command if task.command is not None else [sys.executable, "-c", ENTRY_CODE]
     env = {**os.environ, **task.env}
     start = time.perf_counter()
     if _STOPPING.is_set():
         return CellOutcome(task.cell.key, NOT_STARTED, 0.0, None, "not started: the grid was interrupted")
     try:
-        proc = subprocess.Popen([*prefix, *task.argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+        proc = subprocess.Popen([*prefix, *task.argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                                cwd=cwd)
     except OSError as exc:
         proc = None
         returncode, stdout, stderr = 127, "", f"cannot start {prefix[0]}: {exc}"
@@ -174,57 +174,6 @@ def check_ray_address(address: str, connect_timeout: float = 10.0) -> None:
                         "host and port, or use --executor local", field="address") from None
     finally:
         pool.shutdown(wait=False)
-
-
-def ray_executor(
-    tasks: Sequence[CellTask], workers: int, address: str | None = None
-) -> Iterator[tuple[CellTask, CellOutcome]]:
-    """One Ray task (1 CPU) per cell: on a cluster at `address`, else a local Ray instance
-    with `workers` CPUs. Cells on other nodes need a store they can reach (PostgreSQL, or
-    SQLite on a shared filesystem)."""
-    try:
-        import ray
-    except ImportError:
-        raise UserError(
-            "--executor ray needs Ray: pip install 'coadapt[ray]' (or use --executor local)", field="executor"
-        ) from None
-    started_here = False
-    if not ray.is_initialized():
-        kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
-        if address:
-            kwargs["address"] = address
-        else:
-            kwargs["num_cpus"] = max(1, workers)
-        try:
-            ray.init(**kwargs)
-        except Exception as exc:  # a bad address or an unreachable cluster
-            raise UserError(f"cannot connect to Ray at '{address or 'local'}': {exc}", field="address") from None
-        started_here = True
-    try:
-        remote = ray.remote(num_cpus=1, max_retries=0)(execute_cell)
-        pending = {remote.remote(t): t for t in tasks}
-        try:
-            yield from _ray_results(ray, pending)
-        except BaseException:  # Ctrl-C: each cell's task passes it on to its process
-            for ref in pending:
-                with contextlib.suppress(Exception):
-                    ray.cancel(ref, force=False)
-            raise
-    finally:
-        if started_here:
-            ray.shutdown()
-
-
-def _ray_results(ray: Any, pending: dict[Any, CellTask]) -> Iterator[tuple[CellTask, CellOutcome]]:
-    while pending:
-        done, _ = ray.wait(list(pending), num_returns=1)
-        ref = done[0]
-        task = pending.pop(ref)
-        try:
-            outcome = ray.get(ref)
-        except Exception as exc:  # the worker died (node lost, OOM kill)
-            outcome = CellOutcome(task.cell.key, 1, 0.0, None, f"ray task failed: {exc}")
-        yield task, outcome
 
 
 Executor = Callable[[Sequence[CellTask], int], Iterator[tuple[CellTask, CellOutcome]]]

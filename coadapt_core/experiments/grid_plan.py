@@ -178,6 +178,7 @@ class GridReport:
     finished: list[str] = field(default_factory=list)
     failed: list[str] = field(default_factory=list)
     resumed: list[str] = field(default_factory=list)
+    ran_again: list[str] = field(default_factory=list)  # lost with their node and started again (once per loss)
     outcomes: dict[str, CellOutcome] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
@@ -187,6 +188,7 @@ class GridReport:
             "finished": self.finished,
             "failed": self.failed,
             "resumed": self.resumed,
+            "ran_again": self.ran_again,
             "errors": {k: o.error for k, o in self.outcomes.items() if o.returncode != 0},
         }
 

@@ -20,9 +20,9 @@ import csv
 import json
 import math
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any
 
 import sqlalchemy as sa
@@ -302,9 +302,35 @@ def _chunks(rows: list[dict[str, Any]], size: int = 500) -> Iterator[list[dict[s
         yield rows[i:i + size]
 
 
-def import_tables(store: ResultsStore, path: str | Path, *, fmt: str | None = None) -> ImportResult:
+def _relocate(runs: dict[str, dict[str, Any]], checkpoints: dict[tuple, dict[str, Any]],
+              relocate: Mapping[str, Path]) -> None:
+    """Point the named runs at the folders the importer chose (`{run id: folder}`): `run_dir`
+    becomes the folder, and a checkpoint path inside the old `run_dir` the same file inside
+    the new one. The old values are only compared as text, never opened; a checkpoint path
+    that was not inside the old folder stays the text it was (no path will resolve it)."""
+    for run_id, folder in relocate.items():
+        run = runs.get(run_id)
+        if run is None:
+            continue
+        old = PurePosixPath(str(run.get("run_dir") or "/nonexistent"))
+        run["run_dir"] = str(folder)
+        for row in checkpoints.values():
+            if row["run_id"] != run_id or not isinstance(row.get("path"), str):
+                continue
+            try:
+                rel = PurePosixPath(row["path"]).relative_to(old)
+            except ValueError:
+                continue
+            if rel.parts and ".." not in rel.parts:
+                row["path"] = str(Path(folder, *rel.parts))
+
+
+def import_tables(store: ResultsStore, path: str | Path, *, fmt: str | None = None,
+                  relocate: Mapping[str, Path] | None = None) -> ImportResult:
     """Read the export at `path` (its folder or a file in it), check every row, and merge it
-    into `store` in one transaction (see the module's merge rule)."""
+    into `store` in one transaction (see the module's merge rule). `relocate` ({run id:
+    folder}) records those runs' folders where the caller put them (`_relocate`): a grid's
+    Ray cell hands back rows that name a scratch folder on another machine."""
     files, fmt = export_files(path, fmt)
     columns, raw = read_table(files["runs"], fmt)
     runs = _run_rows(columns, raw)
@@ -313,6 +339,8 @@ def import_tables(store: ResultsStore, path: str | Path, *, fmt: str | None = No
         if name != "runs":
             columns, raw = read_table(files[name], fmt)
             children[name] = _child_rows(name, columns, raw, set(runs))
+    if relocate:
+        _relocate(runs, children["checkpoints"], relocate)
     result = ImportResult(source=Path(path), fmt=fmt, rows={t: 0 for t in EXPORT_TABLES})
     try:
         _merge(store, runs, children, result)
