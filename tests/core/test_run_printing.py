@@ -195,7 +195,7 @@ def test_every_printed_cost_of_a_run_carries_its_protocol(piped_run):
     assert "final check costs" in out.splitlines()[0] + out.splitlines()[1]
     assert "costs: per step over the final check's" in flat
     assert re.search(r"improvement over nominal \(final check[;)]", flat)
-    assert re.search(r"Pareto front \(\d+ designs?, final check costs\)", flat)
+    assert re.search(r"Pareto front \(\d+ designs?, final check costs", flat)
     # every number with a unit of cost on stdout lies in one of those labelled places
     assert "real costs" not in flat and " +" not in flat.replace(" +- ", " ")
 
