@@ -105,8 +105,6 @@ def build_parts(
     resolved = check_optimizer_options(config, optimizer_cls)
     config.optimizer_options = {k: resolved[k] for k in config.optimizer_options}
     check_store_options(config, optimizer_cls)
-    if backend_factory is None:
-        check_device(config.device)
     if objectives is None:
         objectives = make_objectives(config)
         given = set(config.objective_options)  # recorded typed, as the objectives converted them
@@ -145,6 +143,7 @@ def build_parts(
     notes: list[str] = []
     no_critic: list[str] = []
     if backend_factory is None:
+        check_device(config.device)  # the learner's; before a run folder exists
         backend_factory = universal_policy_factory(config, robot, full_space, objectives)
         pretrained = shared and resolve_checkpoint(config) is not None
         if pretrained or (not shared and config.specialized_init == "universal"):
