@@ -73,7 +73,11 @@ def figure_surrogate_quality(facts: Sequence[Any], out: Path) -> list[tuple[Path
         ax.set_title(f"{key[0]} on {key[1]}\n" + "; ".join(lines[:2]), fontsize=8)
         ax.legend(fontsize=7)
         tidy_axes(ax)
-        ax.xaxis.set_major_locator(MaxNLocator(5, integer=True))  # rounds are whole: no tick at 1.25
+        rounds = max((len(e["spearman"]) for e in series[key]), default=0)
+        ax.set_xlim(0.5, max(rounds, 1) + 0.5)  # rounds are whole: ticks 1, 2, ... (not 1.25, nor -0.05)
+        ax.xaxis.set_major_locator(MaxNLocator(5, integer=True, min_n_ticks=1))
+        if rounds == 0:
+            ax.text(0.5, 0.5, "no real round judged", transform=ax.transAxes, ha="center", fontsize=8, color="grey")
     return save_figure(plt, fig, out / "surrogate_quality.png", "Surrogate quality per objective and terrain: Spearman rank correlation between the surrogate's "
                    "prediction (made before the round's real costs were known) and the real cost of the same designs, "
                    "on every real round where a surrogate round was allowed; the title gives each run's pooled "

@@ -59,13 +59,17 @@ def test_surrogate_quality_ticks_are_whole_rounds(tmp_path, monkeypatch):
     kept = {}
 
     def keep(plt, fig, path, caption):
-        kept["ticks"] = [t for ax in fig.axes for t in ax.get_xticks() if 1 <= t <= 2]
+        kept["ticks"] = [t for ax in fig.axes for t in ax.get_xticks() if ax.get_xlim()[0] <= t <= ax.get_xlim()[1]]
         plt.close(fig)
         return [(path, caption)]
 
     monkeypatch.setattr(figure, "save_figure", keep)
     figure.figure_surrogate_quality([SimpleNamespace(run=run, terrain="flat", method="ours")], tmp_path)
     assert kept["ticks"] == [1.0, 2.0]
+    # a run with no judged round: ticks still on whole rounds (were -0.05 ... 0.05)
+    run["summary"]["surrogate_quality"]["rounds"] = []
+    figure.figure_surrogate_quality([SimpleNamespace(run=run, terrain="flat", method="ours")], tmp_path)
+    assert kept["ticks"] == [1.0]
 
 
 @pytest.mark.slow
