@@ -341,7 +341,7 @@ def _draw_front(ax: Any, d: dict[str, Any]) -> None:
     front = d["front"]
     ax.scatter(d["evaluated"][:, 0], d["evaluated"][:, 1], s=12, color="lightgrey",
                label="in-run estimates (real rounds, other scenarios)")
-    label = f"front, final check +- SE ({len(front)} designs)"
+    label = f"front, final check +- SE ({len(front)} design{'' if len(front) == 1 else 's'})"
     if d["front_se"] is not None:
         ax.errorbar(front[:, 0], front[:, 1], xerr=d["front_se"][:, 0], yerr=d["front_se"][:, 1], fmt="o-",
                     color="tab:red", capsize=3, markersize=5, label=label)

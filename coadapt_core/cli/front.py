@@ -12,7 +12,8 @@ def front_lines(front: dict[str, Any], with_se: Callable[[float, float | None], 
     and the front's hypervolume +- SE; `with_se(value, se)` writes a cost and its SE."""
     ses = front.get("costs_se") or [{}] * len(front["costs"])
     returned = front.get("returned", 0)
-    lines = [f"Pareto front ({len(front['designs'])} designs, final check costs +- SE; the run returns the one of "
+    n = len(front["designs"])
+    lines = [f"Pareto front ({n} design{'' if n == 1 else 's'}, final check costs +- SE; the run returns the one of "
              "lowest first cost; N: `coadapt handoff RUN --pick N` hands off another):"]
     for j, (design, costs, se) in enumerate(zip(front["designs"], front["costs"], ses, strict=True)):
         lines.append(f"  {j}: " + ", ".join(f"{x:.3f}" for x in design) + "  ->  "
