@@ -118,7 +118,8 @@ def pick_index(pick: str | int, costs: np.ndarray) -> int:
     except ValueError:
         raise ValueError(f"'{pick}' is neither a front index (0 to {n - 1}) nor 'knee'") from None
     if not 0 <= index < n:
-        raise ValueError(f"{index} is not a front index: the front holds {n} designs (0 to {n - 1})")
+        raise ValueError(f"{index} is not a front index: the front holds {n} design{'' if n == 1 else 's'} "
+                         f"(0 to {n - 1})")
     return index
 
 
