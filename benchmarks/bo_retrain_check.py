@@ -34,9 +34,9 @@ def main(argv: list[str] | None = None) -> int:
     from coadapt_core.coadapt.loop import seed_at
     from coadapt_core.coadapt.setup import make_objectives
     from coadapt_core.coadapt.specialized import SpecializedPolicyBackend
+    from coadapt_core.costs import CostRule
     from coadapt_core.errors import CoadaptError
     from coadapt_core.experiments.own_policies import run_learner, shares_policy
-    from coadapt_core.fitness import CostRule
     from coadapt_core.scenarios.seeds import scenario_seed
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])

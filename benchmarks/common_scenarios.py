@@ -38,7 +38,7 @@ def _fail(message: str) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(ROOT))
-    from coadapt_core.fitness import COST_RULES, CostRule
+    from coadapt_core.costs import COST_RULES, CostRule
     from coadapt_core.scenarios.seeds import scenario_seed
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -157,7 +157,7 @@ def _run_policy(folder: Path) -> Path:
 
 def _rows(fits, designs, labelled, objectives, rule, terrain: str, policy: str):
     """One row per design of a group (its nominal design last), paired against that nominal."""
-    from coadapt_core.fitness import compare_designs
+    from coadapt_core.costs import compare_designs
 
     per = np.concatenate([f.per_scenario for f in fits], axis=1)  # [D, A, M]
     falls = np.concatenate([f.scenario_falls for f in fits], axis=1)  # [D, A]

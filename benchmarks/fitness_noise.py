@@ -3,7 +3,7 @@ with the shipped flat policy under two scenario seeds and prints, per objective:
 
 - the Spearman rank correlation of the grid's costs between the two seeds (does the ranking
   an optimizer sees repeat?), for the cost rule a run uses (`--cost-rule`, default the
-  capped mean of `coadapt_core.fitness.CostRule`, its reference level the grid's nominal
+  capped mean of `coadapt_core.costs.CostRule`, its reference level the grid's nominal
   design), for the plain mean over scenarios (eq. 4) and for the trimmed mean (the rule before),
 - the median relative standard error of a design's cost over its scenarios,
 - the median ratio of the paired to the unpaired standard error of a design's difference to
@@ -63,8 +63,8 @@ def evaluate_grid(backend, objectives, designs: np.ndarray, *, agents: int, step
 def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(ROOT))
     from coadapt_core.coadapt.config import PRESETS
+    from coadapt_core.costs import COST_RULES, TRIMMED, CostRule, paired_difference, scenario_se
     from coadapt_core.experiments.landscape import landscape_designs
-    from coadapt_core.fitness import COST_RULES, TRIMMED, CostRule, paired_difference, scenario_se
     from coadapt_core.learning import shipped_checkpoint
     from coadapt_core.learning.factory import make_backend, resolve_plugins
     from coadapt_core.scenarios.seeds import scenario_seed

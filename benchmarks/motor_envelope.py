@@ -71,8 +71,8 @@ class EnvelopeProbe:
 
 def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(ROOT))
+    from coadapt_core.costs import CostRule, compare_designs
     from coadapt_core.errors import CoadaptError
-    from coadapt_core.fitness import CostRule, compare_designs
     from coadapt_core.learning import shipped_checkpoint
     from coadapt_core.learning.factory import make_backend, resolve_plugins
     from coadapt_core.scenarios.seeds import scenario_seed

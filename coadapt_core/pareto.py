@@ -90,7 +90,7 @@ def hypervolume_se(values: np.ndarray, aggregate: Callable[[np.ndarray], np.ndar
     resampled together for every design (paired: the same scenarios for the candidates and
     the nominal design, as the final check's other standard errors), the front and the
     nominal cost recomputed in each resample; 0 with one scenario."""
-    from coadapt_core.fitness import _resamples
+    from coadapt_core.costs import _resamples
 
     x = np.asarray(values, dtype=float)
     costs = aggregate(x)

@@ -158,8 +158,8 @@ def _prepare(s: LandscapeSettings, resume: str | None) -> dict[str, Any]:
 def _run(s: LandscapeSettings, job: dict[str, Any]) -> dict[str, Any]:
     """Run the landscape with a progress line; Ctrl-C says how to resume it."""
     from coadapt_core.cli.progress import ProgressLine
+    from coadapt_core.costs import CostRule
     from coadapt_core.experiments.landscape import run_landscape
-    from coadapt_core.fitness import CostRule
 
     started: list[str] = []
     argv = invocation()

@@ -279,7 +279,7 @@ def _print_summary(summary: dict[str, Any], space_names: list[str] | None, discr
     console.print(table)
     blocks, scenarios = summary.get("final_blocks"), summary.get("final_scenarios")
     if summary.get("cost_rule"):
-        from coadapt_core.fitness import CostRule
+        from coadapt_core.costs import CostRule
 
         rule = CostRule.from_config(summary | {"cost_cap": summary.get("cost_cap")})
         console.print(f"cost: {rule.describe()}; plain mean: the paper's eq. 4 over the same scenarios")

@@ -14,9 +14,9 @@ from typing import Annotated, Any, Literal
 
 from pydantic import AfterValidator, field_validator
 
+from coadapt_core.costs import COST_RULES
 from coadapt_core.design_space import parse_range_pairs
 from coadapt_core.errors import UserError
-from coadapt_core.fitness import COST_RULES
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.methods import DEFAULT_METHOD, METHOD_NAMES, method_help, optimizer_for
 from coadapt_core.options import PluginOption

@@ -15,14 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from coadapt_core.fitness import (
-    CostRule,
-    RealFitness,
-    compare_designs,
-    fall_statistics,
-    falls_more,
-    scenario_se,
-)
+from coadapt_core.costs import CostRule, compare_designs, fall_statistics, falls_more, scenario_se
+from coadapt_core.fitness import RealFitness
 from coadapt_core.objective import Objective
 from coadapt_core.pareto import HV_DEFINITION, front_rows, hypervolume, hypervolume_se
 
@@ -40,7 +34,7 @@ class FinalCheck:
     improvement_se: dict[str, float | None]
     significant: bool | None  # None: the backend gives no per-scenario costs
     rule: CostRule = field(default_factory=CostRule)
-    # best against nominal on the pooled scenarios (fitness.compare_designs); None without per-scenario costs
+    # best against nominal on the pooled scenarios (costs.compare_designs); None without per-scenario costs
     comparison: dict[str, Any] | None = None
     # per candidate: its paired fall-rate difference to the nominal design and whether it may be the best
     fall_check: list[dict[str, Any]] = field(default_factory=list)

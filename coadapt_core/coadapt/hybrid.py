@@ -73,7 +73,6 @@ class HybridPolicy:
         self.uncertainty = config.evaluation_policy == "uncertainty" and forced is None
         self._fitted_for: tuple[int, int, int] | None = None  # (outer, labels, buffer) the backend's fit is for
         self._pending: tuple[int, np.ndarray] | None = None  # (inner, ensemble's costs) of a trusted round
-        self.last_uncertainty: float | None = None  # the ensemble's spread ratio of this round
         self._judging = True  # whether this real round's surrogate error is measured (before_real_round)
 
     def forget_fit(self) -> None:
@@ -91,7 +90,7 @@ class HybridPolicy:
         return 1.0 - self.surrogate_probability
 
     # -- which kind of round ---------------------------------------------------------------
-    def choose_kind(self, designs: np.ndarray | None = None) -> str:
+    def choose_kind(self, designs: np.ndarray | None = None) -> tuple[str, float | None]:
         """Hybrid evaluation (Algorithm 4 line 14): surrogate with probability
         `surrogate_probability` (the paper's w), else real. The draw is made every round so
         the random stream does not depend on the buffer; the surrogate needs an evaluation
@@ -102,38 +101,38 @@ class HybridPolicy:
         ensemble predicts the round's designs, and the round is a surrogate round when its
         members agree — their spread over the designs' spread (`spread_ratio`) at most
         `uncertainty_threshold` — else real. No fit (no real round of this policy yet, or a
-        backend without an ensemble): real."""
+        backend without an ensemble): real. Returns the kind and the spread ratio the
+        uncertainty policy judged (None when it judged none)."""
         s = self.state
         draw = self.rng.random()
-        self.last_uncertainty = None
         if s.buffer is None or s.buffer_outer != s.outer:
-            return "real"
+            return "real", None
         if s.no_critic and not self.ensure_fitted():
             # an objective without a pseudo-critic in the starting policy: the fit to this
             # policy's real rounds stands in for it, or the round is real (setup.objectives_without_critic)
-            return "real"
+            return "real", None
         if self.uncertainty and designs is not None:
             return self._agreed_kind(designs)
-        return "surrogate" if draw < self.surrogate_probability else "real"
+        return ("surrogate" if draw < self.surrogate_probability else "real"), None
 
-    def _agreed_kind(self, designs: np.ndarray) -> str:
+    def _agreed_kind(self, designs: np.ndarray) -> tuple[str, float | None]:
         """The uncertainty policy: a surrogate round when the fitted members agree."""
         s, c = self.state, self.config
         ensemble = self.ensemble()
         if ensemble is None or not self.ensure_fitted():
-            return "real"
+            return "real", None
         t0 = time.perf_counter()
         members = ensemble.surrogate_members(designs, self.objectives, s.buffer, samples=c.surrogate_samples,
                                              seed=self.seed_for(3, s.outer, s.inner))
         s.counters["surrogate_seconds"] += time.perf_counter() - t0
         if members is None:
-            return "real"
+            return "real", None
         members = np.asarray(members, dtype=float).reshape(-1, len(designs), len(self.objectives))
-        self.last_uncertainty = spread_ratio(members)
-        if self.last_uncertainty <= c.uncertainty_threshold:
+        spread = spread_ratio(members)
+        if spread <= c.uncertainty_threshold:
             self._pending = (s.inner, members.mean(axis=0))
-            return "surrogate"
-        return "real"
+            return "surrogate", spread
+        return "real", spread
 
     def ensure_fitted(self) -> bool:
         """Fit the backend's ensemble to this policy's real rounds (`LoopState.labels`)

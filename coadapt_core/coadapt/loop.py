@@ -30,20 +30,15 @@ from coadapt_core.coadapt.phase import train_in_chunks
 from coadapt_core.coadapt.reliability import walking
 from coadapt_core.coadapt.setup import note_first_round
 from coadapt_core.coadapt.specialized import OWN_POLICY_FILES, OwnPolicies
-from coadapt_core.coadapt.state import LoopState, save_state
+from coadapt_core.coadapt.state import LoopState, RoundRecord, save_state
 from coadapt_core.coadapt.summary import (
     FinalOutcome,
     final_candidates,
     run_summary,
 )
+from coadapt_core.costs import CostRule
 from coadapt_core.design_space import DesignSpace
-from coadapt_core.fitness import (
-    CoadaptationBackend,
-    CostRule,
-    RealFitness,
-    RunRecorder,
-    TrainingResult,
-)
+from coadapt_core.fitness import CoadaptationBackend, RealFitness, RunRecorder, TrainingResult
 from coadapt_core.methods import get_method
 from coadapt_core.objective import Objective
 from coadapt_core.optimizer import Optimizer
@@ -107,9 +102,6 @@ class CoadaptationLoop:
             self.rng.bit_generator.state = state.rng_state
         self.started = time.perf_counter()
         self.backend: CoadaptationBackend | None = None
-        self._last_survival: float | None = None  # mean survival of the last real batch
-        self._last_tracking: float | None = None  # mean tracking ratio of the last real batch
-        self._last_errors: dict[str, Any] = {}  # error bars and fall rate of the last real batch
         # which kind each round is, and the surrogate's side of it (hybrid.py)
         self.hybrid = HybridPolicy(config, self.method, self.objectives, state, self.rng, self.get_backend, self.seed_for)
         if state.optimizer is None and state.optimizer_init is not None:  # resumed: rebuild from data
@@ -359,12 +351,11 @@ class CoadaptationLoop:
         initial = (s.optimizer_init or {}).get("initial_designs")
         if s.inner == 0 and initial is not None:  # the swarm starts from the training designs (line 10)
             note_first_round(self.state.notes, self.optimizer_cls, np.asarray(initial, dtype=float), designs)
-        kind = self.hybrid.choose_kind(designs)
+        kind, uncertainty = self.hybrid.choose_kind(designs)
         self.emit(f"{kind} evaluation")
-        costs, interactions, seconds, errors = self.evaluate(designs, kind)
-        target = costs[:, 0] if len(self.objectives) == 1 else costs
-        opt.tell(designs, target)
-        self.record_batch(designs, costs, kind, interactions, seconds, errors)
+        record = self.evaluate(designs, kind, uncertainty=uncertainty)
+        opt.tell(designs, record.costs[:, 0] if len(self.objectives) == 1 else record.costs)
+        self.record_batch(designs, record)
         s.inner += 1
         # wall clock per kind of round, for the ETA (`eta_seconds`); saved with the state
         s.counters[f"{kind}_round_wall"] = s.counters.get(f"{kind}_round_wall", 0.0) + time.perf_counter() - t0
@@ -372,13 +363,14 @@ class CoadaptationLoop:
         self.checkpoint()
         self.emit("evaluated", kind=kind)
 
-    def evaluate(self, designs: np.ndarray, kind: str) -> tuple[np.ndarray, int, float, np.ndarray | None]:
-        """costs [P, M], interactions, seconds, surrogate errors [P, M] (real rounds only)."""
+    def evaluate(self, designs: np.ndarray, kind: str, *, uncertainty: float | None = None) -> RoundRecord:
+        """The round's record: costs [P, M], what it spent, surrogate errors [P, M] and, for a
+        real round, survival, tracking and error bars; `uncertainty` as the hybrid policy judged it."""
         s, c = self.state, self.config
         seed = self.seed_for(3, s.outer, s.inner)
         if kind != "real":
             costs, seconds = self.hybrid.surrogate_round(designs, seed)
-            return costs, 0, seconds, None
+            return RoundRecord(kind, costs, 0, seconds, uncertainty=uncertainty)
         # every real round on the run's one scenario set (paired designs); a surrogate round
         # would have been allowed here (a real round of this policy came before): its
         # prediction, made before this round's costs are known, is what the quality figures judge
@@ -397,15 +389,17 @@ class CoadaptationLoop:
         s.counters["eval_interactions"] += int(fit.interactions)
         s.counters["eval_seconds"] += float(fit.seconds)
         s.counters["real_evaluations"] += 1
-        if fit.survival is not None:
-            self._last_survival = float(np.mean(fit.survival))
-        self._last_tracking = walking(fit)["tracking_ratio"]
-        self._last_errors = batch_errors(fit, self.cost_rule, self.reference_level(fit))
-        return costs, int(fit.interactions), float(fit.seconds), errors
+        return RoundRecord(
+            kind, costs, int(fit.interactions), float(fit.seconds), errors,
+            survival=None if fit.survival is None else float(np.mean(fit.survival)),
+            tracking_ratio=walking(fit)["tracking_ratio"],
+            error_bars=batch_errors(fit, self.cost_rule, self.reference_level(fit)), uncertainty=uncertainty)
 
-    def record_batch(self, designs, costs, kind, interactions, seconds, errors) -> None:
+    def record_batch(self, designs: np.ndarray, record: RoundRecord) -> None:
         s = self.state
         n = len(designs)
+        kind, costs, errors = record.kind, record.costs, record.surrogate_errors
+        interactions, seconds = record.interactions, record.seconds
         s.counters["designs_evaluated"] += n
         s.note_costs(designs, costs[:, 0], kind, self.config.final_candidates)
         cost_dicts = [dict(zip(self.names, map(float, row), strict=True)) for row in costs]
@@ -413,13 +407,7 @@ class CoadaptationLoop:
         shares, secs = _split(int(interactions), n), _split(float(seconds), n)
         self.recorder.record_evaluations(s.run_id, outer=s.outer, inner=s.inner, designs=designs.tolist(), costs=cost_dicts,
                                          kind=kind, interactions=shares, seconds=secs, surrogate_errors=error_dicts)
-        s.add_batch(kind, costs, int(interactions), float(seconds), errors, {
-            "survival": self._last_survival, "tracking_ratio": self._last_tracking,
-            **self._last_errors,  # real rounds: best design's cost SE, median relative SE, fall rate
-            "uncertainty": self.hybrid.last_uncertainty})
-        self.hybrid.last_uncertainty = None
-        self._last_survival = self._last_tracking = None
-        self._last_errors = {}
+        s.add_batch(record)
 
     def end_outer(self) -> None:
         """Algorithm 4 line 22: the next range, around the final particles."""

@@ -150,7 +150,7 @@ FALL_MARGIN = 0.01
 def fall_verdict(summary: dict[str, Any], margin: float = FALL_MARGIN) -> dict[str, Any]:
     """`falls_more` (None: not measured) and, when the best design falls significantly more
     often than the nominal one, `reliable: false` with the figures in `reliability`."""
-    from coadapt_core.fitness import falls_more
+    from coadapt_core.costs import falls_more
 
     d, se = summary.get("fall_rate_difference"), summary.get("fall_rate_difference_se")
     if d is None:

@@ -26,6 +26,29 @@ STATE_FORMAT = "coadapt-loop-state-1"
 
 
 @dataclass
+class RoundRecord:
+    """One optimizer round's evaluation as `CoadaptationLoop.evaluate` returns it and the loop
+    records it (`LoopState.add_batch`, the recorder's rows): costs [P, M] under the run's cost
+    rule, what it spent, the surrogate's errors [P, M] (a real round whose prediction was
+    judged) and what a real round measured; `uncertainty` is the ensemble's spread ratio when
+    it chose the round's kind (the uncertainty policy), else None."""
+
+    kind: str
+    costs: np.ndarray
+    interactions: int
+    seconds: float
+    surrogate_errors: np.ndarray | None = None
+    survival: float | None = None  # mean survival of a real batch
+    tracking_ratio: float | None = None  # mean tracking ratio of a real batch
+    error_bars: dict[str, Any] = field(default_factory=dict)  # best design's cost SE, median relative SE, fall rate
+    uncertainty: float | None = None
+
+    def measured(self) -> dict[str, Any]:
+        return {"survival": self.survival, "tracking_ratio": self.tracking_ratio, **self.error_bars,
+                "uncertainty": self.uncertainty}
+
+
+@dataclass
 class LoopState:
     """Everything needed to continue a run; written atomically to `<run_dir>/state.json`."""
 
@@ -87,11 +110,12 @@ class LoopState:
             if kind == "real":
                 self.keep_top(design, float(cost), keep)
 
-    def add_batch(self, kind: str, costs: np.ndarray, interactions: int, seconds: float, errors: np.ndarray | None,
-                  measured: dict[str, Any]) -> None:
-        """One entry of `batches` (summary.json): the batch's costs [P, M] summarised, the
-        surrogate's mean absolute error [P, M] on a real round, and what the round `measured`
+    def add_batch(self, record: RoundRecord) -> None:
+        """One entry of `batches` (summary.json): the round's costs [P, M] summarised, the
+        surrogate's mean absolute error [P, M] on a real round, and what the round measured
         (survival, tracking, error bars, the ensemble's spread)."""
+        kind, costs, errors = record.kind, record.costs, record.surrogate_errors
+        interactions, seconds = int(record.interactions), float(record.seconds)
         finite = np.isfinite(costs[:, 0])
         error_finite = None if errors is None else np.isfinite(errors[:, 0])
         self.batches.append({
@@ -102,7 +126,7 @@ class LoopState:
             # a diverged pseudo-critic gives NaN/inf: counted, and told to the optimizer as worst
             "nonfinite_costs": int((~finite).sum()),
             "surrogate_abs_error": float(np.abs(errors[error_finite, 0]).mean()) if errors is not None and error_finite.any() else None,
-            **measured,
+            **record.measured(),
         })
 
     def keep_top(self, design: np.ndarray, cost: float, keep: int) -> None:

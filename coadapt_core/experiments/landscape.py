@@ -11,8 +11,9 @@ from typing import Any
 
 import numpy as np
 
+from coadapt_core.costs import CostRule, compare_designs, scenario_se
 from coadapt_core.errors import UserError
-from coadapt_core.fitness import CoadaptationBackend, CostRule, compare_designs, scenario_se
+from coadapt_core.fitness import CoadaptationBackend
 from coadapt_core.objective import Objective
 from coadapt_core.results.recorders import SqliteRecorder
 from coadapt_core.results.schema import LANDSCAPE_METHOD

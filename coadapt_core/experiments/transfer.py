@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from coadapt_core.costs import CostRule
 from coadapt_core.errors import BackendUnavailable, CoadaptError, UserError
 from coadapt_core.experiments.own_policies import (
     each_own_policy,
@@ -37,7 +38,7 @@ from coadapt_core.experiments.own_policies import (
     run_backend,
     shares_policy,
 )
-from coadapt_core.fitness import CoadaptationBackend, CostRule
+from coadapt_core.fitness import CoadaptationBackend
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.physics.simulator import Simulator
 from coadapt_core.results.recorders import batch_rows

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from coadapt_core.costs import CostRule, compare_designs
 from coadapt_core.errors import BackendUnavailable, UserError
 from coadapt_core.experiments.own_policies import (
     each_own_policy,
@@ -35,7 +36,6 @@ from coadapt_core.experiments.own_policies import (
     run_backend,
     shares_policy,
 )
-from coadapt_core.fitness import CostRule, compare_designs
 from coadapt_core.results.recorders import batch_rows
 from coadapt_core.results.schema import COMMON_KIND, COMMON_OUTER
 from coadapt_core.results.store import ResultsStore

@@ -97,7 +97,7 @@ def evaluate_on(simulator: str, *, robot: Any, checkpoint: Path, objectives: lis
     nominal one on `simulator`, the run's final-check scenario block 1: both under the run's
     policy `checkpoint`, or, given a different `nominal_checkpoint` (a run without a shared
     policy), each under its own on the same scenarios."""
-    from coadapt_core.fitness import improvement_se
+    from coadapt_core.costs import improvement_se
     from coadapt_core.learning.factory import make_backend, resolve_plugins
     from coadapt_core.scenarios.seeds import scenario_seed
 

@@ -13,9 +13,10 @@ from typing import Any
 import numpy as np
 import torch
 
+from coadapt_core.costs import plain_mean, scenario_se
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
-from coadapt_core.fitness import RealFitness, TrainingResult, plain_mean, scenario_se
+from coadapt_core.fitness import RealFitness, TrainingResult
 from coadapt_core.learning.checkpoints import read_checkpoint
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.evaluate import EvalBuffer, rollout
@@ -61,7 +62,7 @@ class UniversalPolicyBackend:
     returns each design's cost [K, M]: the plain mean over scenarios of each agent's mean
     per-step metric (eq. 4), with standard errors, per-scenario costs [K, A, M] and which
     scenarios fell [K, A], from which callers compute their cost rule
-    (`coadapt_core.fitness.CostRule`) (set `stochastic_evaluation = False` for the policy
+    (`coadapt_core.costs.CostRule`) (set `stochastic_evaluation = False` for the policy
     mean); `surrogate_fitness` averages the pseudo-critics over `samples`
     buffer states with each candidate's xi substituted.
 
@@ -230,7 +231,7 @@ class UniversalPolicyBackend:
         ratio = np.where(command_ms > 1e-4, np.sqrt(error_ms / np.maximum(command_ms, 1e-4)), np.nan)
         return RealFitness(
             # the paper's plain mean (Algorithm 2, eq. 4); the caller applies its cost rule
-            # (fitness.CostRule) to `per_scenario` and `scenario_falls`
+            # (costs.CostRule) to `per_scenario` and `scenario_falls`
             costs=plain_mean(per_scenario),
             buffer=result.buffer,
             interactions=result.steps,

@@ -9,10 +9,9 @@ import pytest
 
 from coadapt_core.coadapt.final_check import batch_errors, final_check
 from coadapt_core.coadapt.reliability import fall_verdict
-from coadapt_core.fitness import (
+from coadapt_core.costs import (
     TRIMMED,
     CostRule,
-    RealFitness,
     compare_designs,
     fall_statistics,
     falls_more,
@@ -20,6 +19,7 @@ from coadapt_core.fitness import (
     plain_mean,
     robust_cost,
 )
+from coadapt_core.fitness import RealFitness
 from coadapt_core.objective import Objective
 
 

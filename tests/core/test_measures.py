@@ -13,7 +13,7 @@ import pytest
 from coadapt_plugins.objectives.locomotion import PowerObjective, TrackingObjective
 
 from coadapt_core.analysis.measures import as_cost_reduction, cost_ratio, differs
-from coadapt_core.fitness import improvement_se, plain_mean
+from coadapt_core.costs import improvement_se, plain_mean
 
 RESULTS = Path(__file__).resolve().parents[2] / "docs" / "results"
 

@@ -10,14 +10,14 @@ import pytest
 import torch
 
 from coadapt_core.coadapt.final_check import batch_errors, final_check
-from coadapt_core.fitness import (
+from coadapt_core.costs import (
     TRIM_SHARE,
-    RealFitness,
     improvement_se,
     paired_difference,
     robust_cost,
     scenario_se,
 )
+from coadapt_core.fitness import RealFitness
 from coadapt_core.objective import Objective
 from coadapt_core.task.commands import CommandSampler
 from coadapt_core.task.config import CommandConfig

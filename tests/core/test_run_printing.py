@@ -23,7 +23,7 @@ from coadapt_core.coadapt.cautions import (
     weak_surrogate,
 )
 from coadapt_core.coadapt.final_check import final_check
-from coadapt_core.fitness import CostRule
+from coadapt_core.costs import CostRule
 from tests.core.test_cost_rule import Cost, _with_falls
 
 SPACE = {"variables": [{"name": "thigh_scale", "type": "continuous", "low": 0.5, "high": 1.5},

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from coadapt_core.analysis.facts import yardstick_improvement
+from coadapt_core.costs import CostRule, compare_designs
 from coadapt_core.experiments.yardstick import COMMON_SEED, yardstick_rows, yardstick_runs
-from coadapt_core.fitness import CostRule, RealFitness, compare_designs
+from coadapt_core.fitness import RealFitness
 from coadapt_core.plugins import get_registry
 from coadapt_core.results import SqliteRecorder
 from coadapt_core.scenarios.seeds import scenario_seed
