@@ -10,6 +10,6 @@ policy, its action noise. A scenario depends on its seed and i alone.
 
 The room works on an environment through its own methods (`LocomotionEnv.restart_streams`,
 `draw_commands`, `draw_randomization`, `fix_scenarios`, `set_commands`, `use_scenarios`),
-and the task imports nothing from here: the streams a set shares are the task's
-(`coadapt_core.task.streams.PairedStreams`). Import each name from its module: the seeds
+and the task imports nothing from here (it reads a set's `PairedStreams` as its own
+`SharedStreams` protocol). Import each name from its module: the seeds
 need neither torch nor the physics room."""

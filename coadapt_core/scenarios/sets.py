@@ -3,22 +3,41 @@ them to an environment through the env's own methods (`LocomotionEnv.restart_str
 `draw_commands`, `draw_randomization`, `fix_scenarios`, `set_commands`, `use_scenarios`).
 Agent i of every design gets scenario i: its command (stratified over the command box), its
 Table 2 draw and spawn point (held by the simulator), its initial gait phase and its
-observation- and action-noise streams (`coadapt_core.task.streams.PairedStreams`, held by
-the task). `prepare` readies an evaluation environment for a batch of designs, paired (the
-protocol) or unpaired (the protocol before it)."""
+observation- and action-noise streams (`PairedStreams`, which the task holds as its
+`SharedStreams`). `prepare` readies an evaluation environment for a batch of designs,
+paired (the protocol) or unpaired (the protocol before it)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 
 from coadapt_core.errors import UserError
-from coadapt_core.task.streams import PairedStreams
 
 if TYPE_CHECKING:
     from coadapt_core.task.env import LocomotionEnv
+
+
+@dataclass(frozen=True)
+class PairedStreams:
+    """The task's random numbers of one scenario set, shared by every design: environment
+    k * agents + i draws what environment i draws (`LocomotionEnv.use_scenarios`): its gait
+    phase `phase[i]` at every episode start, its observation noise from a generator keyed
+    by `seed` and the steps since the last full reset alone (the same noise however often a
+    step is observed, whoever fell), and its action noise (`LocomotionEnv.paired_draw`)."""
+
+    agents: int
+    seed: int
+    phase: torch.Tensor  # [agents] initial gait phases in [0, 1)
+
+    @classmethod
+    def draw(cls, agents: int, seed: int, device: torch.device) -> PairedStreams:
+        gen = torch.Generator(device=device)
+        gen.manual_seed(int(seed))
+        return cls(int(agents), int(seed), torch.rand(int(agents), generator=gen, device=device))
 
 
 def apply_scenarios(

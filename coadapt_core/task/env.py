@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
+from typing import Protocol
 
 import numpy as np
 import torch
@@ -34,7 +35,15 @@ from coadapt_core.task.gait import (  # noqa: F401 - the gait functions' old hom
 )
 from coadapt_core.task.observations import StepResult
 from coadapt_core.task.rewards import RewardInputs, combine, compute_terms
-from coadapt_core.task.streams import PairedStreams
+
+
+class SharedStreams(Protocol):
+    """What `use_scenarios` reads of a scenario set's shared random numbers (the scenarios
+    room's `PairedStreams`): groups of `agents`, their gait phases [agents], the noise seed."""
+
+    agents: int
+    seed: int
+    phase: torch.Tensor
 
 
 class LocomotionEnv:
@@ -67,7 +76,7 @@ class LocomotionEnv:
         self.commands = CommandSampler(self.cfg.commands, self.device, self.generator)
         self.fixed_commands = False
         # paired evaluation: the scenario set's shared streams (`use_scenarios`), or None
-        self.scenarios: PairedStreams | None = None
+        self.scenarios: SharedStreams | None = None
         self._paired_gen = torch.Generator(device=self.device)
         self._tick = 0  # policy steps since the last full `reset` (keys the paired noise)
         resample = self.cfg.commands.resample_seconds
@@ -155,7 +164,7 @@ class LocomotionEnv:
         self.command[:] = torch.as_tensor(commands, dtype=torch.float32, device=self.device).expand(self.num_envs, 3)
         self._freeze_clock(torch.arange(self.num_envs, device=self.device))
 
-    def use_scenarios(self, scenarios: PairedStreams | None) -> None:
+    def use_scenarios(self, scenarios: SharedStreams | None) -> None:
         """Paired evaluation's hook (`coadapt_core.scenarios`): environment k * agents + i
         draws what environment i draws (gait phase, observation noise, `paired_draw`), as
         `PairedStreams` says; None returns to independent draws."""

@@ -15,9 +15,8 @@ import torch
 
 from coadapt_core.errors import UserError
 from coadapt_core.scenarios.seeds import scenario_seed
-from coadapt_core.scenarios.sets import apply_scenarios, prepare
+from coadapt_core.scenarios.sets import PairedStreams, apply_scenarios, prepare
 from coadapt_core.task import LocomotionEnv, TaskConfig
-from coadapt_core.task.streams import PairedStreams
 
 DESIGNS, AGENTS = 3, 4
 
