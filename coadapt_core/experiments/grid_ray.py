@@ -132,8 +132,26 @@ class _Driver:
         self.attempt[task.cell.key] = attempt
         return how
 
+    def too_big(self, task: CellTask) -> str | None:
+        """Why no node of the cluster as it is can ever run this cell (Ray would wait for one
+        for ever), or None."""
+        nodes = [n.get("Resources", {}) for n in self.ray.nodes() if n.get("Alive")]
+        cpus = max((r.get("CPU", 0) for r in nodes), default=0)
+        gpus = max((r.get("GPU", 0) for r in nodes), default=0)
+        threads, gpu = cell_threads(task.argv), cell_gpus(task.argv)
+        if threads > cpus:
+            return (f"the cell reserves {threads} CPUs (--threads) and the largest node of the cluster has "
+                    f"{cpus:g}; give --threads <= {cpus:g} or add bigger nodes")
+        if gpu > gpus:
+            return "the cell runs on a GPU (--device cuda) and no node of the cluster has one"
+        return None
+
     def run(self, tasks: Sequence[CellTask]) -> Iterator[tuple[CellTask, CellOutcome]]:
         for task in tasks:
+            reason = self.too_big(task)
+            if reason is not None:
+                yield task, CellOutcome(task.cell.key, 1, 0.0, None, reason)
+                continue
             self.submit(task, 1)
         try:
             while self.pending:

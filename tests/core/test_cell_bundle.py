@@ -126,3 +126,12 @@ def test_a_node_with_other_plugins_refuses_the_cell_in_one_line():
     outcome = result["outcome"]
     assert outcome.returncode == REFUSED and "\n" not in outcome.error
     assert outcome.error.startswith("node ") and "refused the cell: plugins differ" in outcome.error
+
+
+def test_a_cells_reservation_is_its_threads_and_a_gpu_for_cuda():
+    from coadapt_core.experiments.grid_ray import cell_gpus, cell_threads
+
+    assert cell_threads(["run", "--seed", "0", "--threads", "4", "--json"]) == 4
+    assert cell_threads(["run", "--threads=3"]) == 3 and cell_threads(["run", "--seed", "2"]) == 1
+    assert cell_gpus(["run", "--device", "cuda"]) == 1 and cell_gpus(["run", "--device=cuda:1"]) == 1
+    assert cell_gpus(["run", "--device", "cpu"]) == 0 and cell_gpus(["run"]) == 0

@@ -81,7 +81,7 @@ class Cluster:
         self.head = subprocess.Popen(
             self.in_net([RAY, "start", "--head", "--block", "--node-ip-address", "127.0.0.1", "--port", str(self.port),
                          "--num-cpus", "0", "--include-dashboard", "false", "--disable-usage-stats",
-                         "--temp-dir", self.temp, "--object-store-memory", MB100]),
+                         "--temp-dir", self.temp, "--object-store-memory", MB100, "--include-log-monitor", "false"]),
             env=env, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         self.workers: dict[int, subprocess.Popen] = {}  # the node's first process (PID namespace) -> unshare
 
@@ -92,7 +92,8 @@ class Cluster:
         """A worker node of 1 CPU with an empty /tmp (it cannot read the driver's files) and its
         own PID namespace; returns its first process's id."""
         start = (f"mount -t tmpfs tmpfs /tmp && exec {RAY} start --address {self.address} --block "
-                 f"--node-ip-address 127.0.0.1 --num-cpus 1 --disable-usage-stats --object-store-memory {MB100}")
+                 f"--node-ip-address 127.0.0.1 --num-cpus 1 --disable-usage-stats --object-store-memory {MB100} "
+                 "--include-log-monitor false")
         proc = subprocess.Popen(self.in_net(["unshare", "--mount", "--pid", "--fork", "--mount-proc", "sh", "-c", start]),
                                 env=self.env, start_new_session=True, stdout=subprocess.DEVNULL,
                                 stderr=subprocess.DEVNULL)
@@ -232,7 +233,7 @@ def test_grid_on_a_cluster_without_a_shared_disk(cluster, tmp_path, capsys):
 
 
 def test_a_cell_lost_with_its_node_runs_again_from_its_last_state(cluster, tmp_path):
-    longer = [f"--run-arg={a}" for a in ("--outer-iterations", "2", "--optimizer-iterations", "3")]
+    longer = ["--run-arg=--outer-iterations", "--run-arg=2"]  # the state sent back after outer 0 holds evaluations
     grid = subprocess.Popen(_grid_command(tmp_path, cluster, "--methods", "ours", "--seeds", "0,1", "--json",
                                           "--state-every", "1", *longer, address=False),
                             env={**cluster.env, "RAY_ADDRESS": cluster.address}, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
@@ -284,3 +285,12 @@ def _remove_a_busy_node(cluster: Cluster, root: Path, grid: subprocess.Popen) ->
                         cluster.add_worker()  # a fresh node joins, as an autoscaler would bring one
                         return run["cell"], {"id": run["id"], "evaluations": held}
     raise AssertionError("no running cell sent back a state before the grid ended")
+
+
+def test_a_cell_no_node_can_hold_fails_in_one_line(cluster, tmp_path):
+    done = subprocess.run(_grid_command(tmp_path, cluster, "--methods", "ours", "--seeds", "0", "--threads", "2"),
+                          env=cluster.env, capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert done.returncode == 1
+    assert ("the cell reserves 2 CPUs (--threads) and the largest node of the cluster has 1; give --threads <= 1"
+            in " ".join(done.stderr.split()))
+    assert not ResultsStore(tmp_path / "g.db").list_runs()  # nothing ran
