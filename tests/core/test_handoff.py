@@ -165,6 +165,18 @@ def kuafu_handoff(tmp_path_factory):
 
 
 @pytest.mark.slow
+def test_handoff_costs_say_their_protocol_and_no_library_banner(kuafu_handoff):
+    """Issue 43: each printed cost line of the handoff says `handoff protocol`, and PyBullet's
+    import banner ("pybullet build time") is not printed."""
+    stderr = kuafu_handoff[3]
+    costs = [line for line in stderr.splitlines() if " vs nominal " in line]
+    assert costs and all(", handoff protocol: " in line for line in costs), costs
+    said = [line for line in stderr.splitlines() if line.startswith("evaluating the design and the nominal one")]
+    assert said and all("handoff protocol, not comparable with `coadapt run` or `coadapt eval`" in x for x in said)
+    assert "pybullet build time" not in stderr
+
+
+@pytest.mark.slow
 def test_kuafu_handoff_folder_holds_models_controller_and_sheet(kuafu_handoff):
     import mujoco
     import torch
