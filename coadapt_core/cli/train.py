@@ -23,7 +23,7 @@ import typer
 from coadapt_core.cli.common import fail, plugin_name, resolve
 from coadapt_core.cli.options import OptionGroup, choices, filled, given_settings, options_of
 from coadapt_core.cli.options import register as register_command
-from coadapt_core.cli.policy_source import eval_checkpoint_path
+from coadapt_core.cli.policy_source import EVAL_CHECKPOINTS, eval_checkpoint_path
 from coadapt_core.cli.progress import ProgressLine
 from coadapt_core.errors import UserError
 from coadapt_core.settings import Float, Int, overrides, setting, settings, shared
@@ -69,8 +69,9 @@ class EvalCommand:
     """`coadapt eval`'s settings; one declaration each gives the option, its help and its row
     in docs/settings.md."""
 
-    checkpoint: Path | None = setting(None, "Checkpoint or weights file (default: the policy shipped for the robot and "
-                                      "terrain).")
+    checkpoint: Path | None = setting(None, "Checkpoint or weights file, a `coadapt train` folder, or a `coadapt run` "
+                                      "folder or run id under ./runs (its last policy) (default: the policy shipped for "
+                                      "the robot and terrain).")
     robot: str | None = setting(None, "Robot (default: the one the checkpoint was trained for; without --checkpoint, "
                                 "the installed robot of highest default_rank).", plugin="robot")
     design: str | None = setting(None, "Design, comma-separated (default: the nominal design).")
@@ -356,7 +357,7 @@ def _eval_robot(checkpoint: Path | None) -> str:
 
     installed = get_registry().names("robot")
     if checkpoint is not None and len(installed) != 1:
-        fail(f"--checkpoint {checkpoint} does not exist")
+        fail(f"--checkpoint {checkpoint} does not exist; give {EVAL_CHECKPOINTS}")
     return plugin_name("robot", None)  # the default robot (highest default_rank), as every command takes
 
 
