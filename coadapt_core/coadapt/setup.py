@@ -371,11 +371,17 @@ def no_policy_message(robot: str, terrain: str, mixed: bool, why: str = "ships n
 def check_starting_policy(config: CoadaptConfig) -> None:
     """`resolve_checkpoint`'s one-line `UserError` when the run would start from a policy it
     cannot have (the robot ships none for the terrain and space, a path that is missing or
-    another robot's); nothing for a method whose policies are trained per design from
-    scratch. `coadapt run --check` (and so every cell of `coadapt grid`) asks it before
-    anything starts."""
+    another robot's, a policy of the other design space); nothing for a method whose policies
+    are trained per design from scratch. `coadapt run --check` (and so every cell of `coadapt
+    grid`) asks it before anything starts."""
     if get_method(config.method).backend_kind.shared_policy or config.specialized_init == "universal":
-        resolve_checkpoint(config)
+        checkpoint = resolve_checkpoint(config)
+        if checkpoint is not None:
+            from coadapt_core.plugins import get_registry
+
+            robot = get_registry().create("robot", config.robot)
+            mixed = uses_mixed_space(config)
+            check_policy_space(checkpoint, robot.design_space(mixed), robot, mixed)
 
 
 def resolve_checkpoint(config: CoadaptConfig) -> str | None:

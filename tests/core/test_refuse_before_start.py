@@ -67,3 +67,21 @@ def test_report_to_a_read_only_folder_refuses_before_evaluating(tmp_path, capsys
     # the same report to a folder it can write evaluates (the check is not a refusal of everything)
     assert main(["report", "--store", str(db), "--no-sim-to-sim", "-o", str(tmp_path / "rep")]) == 0
     assert evaluated == [1]
+
+
+def test_run_check_and_so_a_grid_refuse_a_policy_of_the_other_design_space(tmp_path, capsys, monkeypatch):
+    monkeypatch.delenv("COADAPT_STORE", raising=False)
+    mixed = _mixed_policy()
+    assert main(["run", "--check", "--preset", "smoke", "--checkpoint", mixed, "--out", str(tmp_path / "runs")]) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert len(err) == 1 and "takes 4 design values" in err[0] and "--mixed" in err[0], err
+    assert main(["run", "--check", "--preset", "smoke", "--mixed", "--checkpoint", mixed, "--out",
+                 str(tmp_path / "runs")]) == 0  # the same policy on the mixed space is fine
+    capsys.readouterr()
+    grid = ["grid", "--methods", "ours", "--objectives", "torque", "--terrains", "flat", "--seeds", "0", "--preset",
+            "smoke", "--store", str(tmp_path / "g.db"), "--out", str(tmp_path / "g"), f"--run-arg=--checkpoint={mixed}"]
+    assert main(grid) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert len(err) == 1 and "takes 4 design values" in err[0], err
+    out = tmp_path / "g"
+    assert not (out.is_dir() and any(p.name != "grid-logs" for p in out.iterdir()))
