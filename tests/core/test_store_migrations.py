@@ -168,10 +168,11 @@ def test_coadapt_export_on_a_version_1_store_prints_one_line_and_exports_every_r
     proc = subprocess.run([sys.executable, "-m", "coadapt_core", "export", "--store", str(db),
                            "-o", str(tmp_path / "out")], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
-    upgraded = [line for line in proc.stderr.splitlines() if "upgraded from schema version 1 to 2" in line]
-    assert len(upgraded) == 1 and "the store as it was is copied to" in upgraded[0]
-    lines = (tmp_path / "out" / "evaluations.csv").read_text().strip().splitlines()
-    assert len(lines) == 1 + 52
+    lines = proc.stderr.strip().splitlines()  # the one line, nothing else (alembic logs nothing)
+    assert len(lines) == 1 and "upgraded from schema version 1 to 2" in lines[0], proc.stderr
+    assert "the store as it was is copied to" in lines[0]
+    rows = (tmp_path / "out" / "evaluations.csv").read_text().strip().splitlines()
+    assert len(rows) == 1 + 52
 
 
 def test_the_migration_scripts_ship_in_the_package():
