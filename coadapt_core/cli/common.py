@@ -25,13 +25,16 @@ def fail(message: str, code: int = EXIT_USAGE) -> NoReturn:
 
 
 def wide_console(*renderables: Any, stream: Any = None) -> Any:
-    """A rich console for `renderables` (tables): on a terminal its width, where a table too
-    wide folds its cells; in a pipe or a file at least the widest renderable's natural width
-    (never under 80), so no column is cut or folded and a log keeps every column."""
+    """A rich console for `renderables` (tables): on a terminal its width (or $COLUMNS when
+    set), where a table too wide folds its cells; in a pipe or a file without $COLUMNS at
+    least the widest renderable's natural width (never under 80), so no column is cut or
+    folded and a log keeps every column."""
+    import os
+
     from rich.console import Console
 
     console = Console(file=stream)
-    if console.is_terminal:
+    if console.is_terminal or os.environ.get("COLUMNS", "").strip().isdigit():
         return console
     unbounded = console.options.update_width(10_000)
     widest = max((console.measure(r, options=unbounded).maximum for r in renderables), default=0)

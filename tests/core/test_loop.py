@@ -207,7 +207,7 @@ def test_run_folder_holds_config_evaluations_and_summary(tmp_path):
     line = result.json_line()
     assert set(line) == {"run_id", "best_design", "best_cost", "best_cost_se", "nominal_cost", "nominal_cost_se", "improvement",
                          "improvement_se", "significant", "best_fall_rate", "nominal_fall_rate", *PLAIN_AND_FALLS, "interactions", "seconds",
-                         "reliable", "reliability"}
+                         "reliable", "reliability", "warnings"}
     assert line["interactions"] == result.summary["train_interactions"] + result.summary["eval_interactions"] + result.summary["final_interactions"]
 
 
