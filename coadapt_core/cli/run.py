@@ -319,8 +319,10 @@ def _print_warnings(console: Any, summary: dict[str, Any]) -> None:
     judged now), one line each."""
     from rich.markup import escape
 
-    from coadapt_core.coadapt.cautions import run_warnings
+    from coadapt_core.coadapt.cautions import run_warnings, surrogate_note, weak_surrogate
 
+    if surrogate_note(summary) and not weak_surrogate(summary):  # a weak one is said below, with its rounds
+        console.print(surrogate_note(summary))
     for warning in summary["warnings"] if "warnings" in summary else run_warnings(summary):
         console.print(f"[bold yellow]warning[/]: {escape(warning)}")
 

@@ -75,6 +75,19 @@ def plain_mean_not_significant(summary: dict[str, Any], ratio: float | None = No
             "cheaper gait")
 
 
+def surrogate_note(summary: dict[str, Any]) -> str | None:
+    """The surrogate's pooled Spearman and the real rounds it covers, as one line (printed
+    whether or not it is weak; None when no round was judged)."""
+    pooled = (summary.get("surrogate_quality") or {}).get("pooled") or {}
+    rho, rounds, real = pooled.get("spearman"), pooled.get("rounds"), summary.get("real_evaluations")
+    if not _finite(rho):
+        return None
+    covers = f"{rounds} judged real round{'s' if rounds != 1 else ''}" + (f" of {real}" if _finite(real) else "")
+    partial = (" (only rounds a fit already covers are judged; --surrogate-error-fits judges every one)"
+               if _finite(real) and _finite(rounds) and rounds < real else "")
+    return f"surrogate (in-run rounds): pooled Spearman {rho:.2f} over {covers}{partial}"
+
+
 def weak_surrogate(summary: dict[str, Any], threshold: float = WEAK_SPEARMAN) -> str | None:
     """The warning for a surrogate whose pooled Spearman is below `threshold`, or None."""
     quality = summary.get("surrogate_quality") or {}
@@ -101,4 +114,4 @@ def run_warnings(summary: dict[str, Any]) -> list[str]:
 
 
 __all__ = ["BOUND_SHARE", "WEAK_SPEARMAN", "at_bound", "plain_mean_not_significant", "run_warnings",
-           "weak_surrogate"]
+           "surrogate_note", "weak_surrogate"]

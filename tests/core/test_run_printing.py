@@ -107,6 +107,17 @@ def test_a_weak_surrogate_is_said_with_the_rounds_it_covers():
     assert weak_surrogate(planted(surrogate_quality={"pooled": {"spearman": None, "rounds": 0}})) is None
 
 
+def test_the_surrogate_s_pooled_figure_is_printed_with_the_rounds_it_covers(capsys):
+    out = " ".join(printed(capsys, planted()).split())
+    assert ("surrogate (in-run rounds): pooled Spearman 0.80 over 4 judged real rounds of 6 (only rounds a fit "
+            "already covers are judged; --surrogate-error-fits judges every one)") in out
+    weak = planted(surrogate_quality={"pooled": {"spearman": 0.3, "rounds": 6}, "rounds": []})
+    out = " ".join(printed(capsys, weak).split())
+    assert "surrogate (in-run rounds)" not in out  # said once, as the warning
+    assert "warning: surrogate: pooled Spearman 0.30 over 6 judged real rounds of 6 is below 0.5" in out
+    assert "not comparable with runs judged" not in out
+
+
 def test_a_nominal_best_is_not_significant():
     """Every candidate falls more: the nominal design stands, 0.0 +- 0.0 % and not significant
     (it was `significant: true`); a real gain still is."""
