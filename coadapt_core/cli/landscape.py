@@ -53,6 +53,7 @@ def landscape_line(summary: dict, agents: int, steps: int, unit: str = "") -> st
     """One line: the grid optimum and the nominal design, costs (in `unit`, the first
     objective's) with standard errors, improvement with its paired standard error, fall rates,
     and the protocol the costs belong to."""
+    from coadapt_core.cli.run import better_by  # improvements in one direction (issue 43)
 
     def se(key: str, scale: float = 1.0) -> str:
         value = summary.get(key)
@@ -69,12 +70,12 @@ def landscape_line(summary: dict, agents: int, steps: int, unit: str = "") -> st
         "`coadapt run`'s final check): grid optimum "
         f"{summary['best_design'][:2]} cost {summary['best_cost']:.4g}{se('best_cost_se')}{unit} (fall rate {rate('best_fall_rate')}); "
         f"nominal cost {summary['nominal_cost']:.4g}{se('nominal_cost_se')}{unit} (fall rate {rate('nominal_fall_rate')}); "
-        f"improvement {100 * summary['improvement']:+.1f}{se('improvement_se', 100.0)} %"
+        f"improvement: {better_by(summary['improvement'], summary.get('improvement_se'))}"
     )
     if summary.get("improvement_plain") is not None:
         line += (f"; plain mean (eq. 4) {summary['best_plain_mean']:.4g}{se('best_plain_mean_se')} vs "
-                 f"{summary['nominal_plain_mean']:.4g}{se('nominal_plain_mean_se')}, improvement "
-                 f"{100 * summary['improvement_plain']:+.1f}{se('improvement_plain_se', 100.0)} %")
+                 f"{summary['nominal_plain_mean']:.4g}{se('nominal_plain_mean_se')}, improvement: "
+                 f"{better_by(summary['improvement_plain'], summary.get('improvement_plain_se'))}")
     return line
 
 

@@ -144,6 +144,17 @@ def test_improvements_and_fall_differences_read_in_one_direction(capsys):
     assert "+10.0" not in out and "+0.8" not in out
 
 
+def test_the_landscape_line_reads_in_the_same_direction():
+    from coadapt_core.cli.landscape import landscape_line
+
+    line = landscape_line({"run_id": "l1", "best_design": [0.6, 1.2], "best_cost": 100.0, "best_cost_se": 3.0,
+                           "nominal_cost": 120.0, "nominal_cost_se": 4.0, "improvement": 0.1667,
+                           "improvement_se": 0.02, "improvement_plain": -0.01, "improvement_plain_se": 0.05,
+                           "best_plain_mean": 101.0, "nominal_plain_mean": 100.0}, 8, 100, "W")
+    assert "improvement: better by 16.7 +- 2.0 %" in line and "improvement: worse by 1.0 +- 5.0 %" in line
+    assert "the landscape's protocol" in line
+
+
 def test_a_smoke_run_says_only_that_it_is_too_short_to_judge(capsys):
     reason = "not judged: 20 steps per scenario are too short; measured: the policy does not walk (...)"
     out = " ".join(printed(capsys, planted(preset="smoke", eval_steps=20, reliable=None, reliability=reason)).split())
