@@ -38,7 +38,6 @@ def fake_run(argv: list[str]) -> int:
     p.add_argument("--threads", type=int)  # recorded in the config, as the real run's config.yaml does
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv[1:])  # argv[0] == "run"
-    started = time.time()
     rec = SqliteRecorder(args.store)
     config = {k: v for k, v in vars(args).items() if k not in ("json", "resume", "out", "store", "optimizer_option")}
     config["omp_num_threads"] = os.environ.get("OMP_NUM_THREADS")
@@ -75,8 +74,7 @@ def fake_run(argv: list[str]) -> int:
     i = int(np.argmin([e.costs[args.objective] for e in real]))
     best = (real[i].costs[args.objective], real[i].design)
     summary = {"run_id": run_id, "best_design": best[1], "best_cost": best[0], "nominal_cost": float(((1 - opt) ** 2).sum()),
-               "improvement": 0.5, "interactions": 300 * len(real) + 4000, "seconds": 0.1,
-               "span": [started, time.time()]}  # when the cell ran (cells at once overlap)
+               "improvement": 0.5, "interactions": 300 * len(real) + 4000, "seconds": 0.1}
     rec.finish(run_id, summary)
     print("fake run done")
     print(json.dumps(summary))
@@ -240,16 +238,18 @@ def test_local_grid_of_two_cells_at_once_on_two_cores_gives_each_one_thread(tmp_
 
     monkeypatch.setattr(grid_module, "usable_cpus", lambda: 2)
     monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    pools = []  # the cells at once the grid gave its process pool
+    pool = grid_module.local_executor
+    monkeypatch.setattr(grid_module, "local_executor", lambda tasks, workers: (pools.append(workers), pool(tasks, workers))[1])
     store = ResultsStore(tmp_path / "g.db")
     report = run_grid(_spec(), store, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
     assert len(report.outcomes) == 2 and all(o.returncode == 0 for o in report.outcomes.values())
     configs = [r["config"] for r in store.list_runs(grid_id=_spec().grid_id)]
     assert [(c["threads"], c["omp_num_threads"]) for c in configs] == [(1, "1"), (1, "1")]
-    spans = [o.result["span"] for o in report.outcomes.values()]
-    assert max(s[0] for s in spans) < min(s[1] for s in spans)  # the two ran at the same time
+    assert pools == [2]  # the two at once
     one = run_grid(_spec(methods=["ours"], seeds=[5]), store, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
     (row,) = store.list_runs(grid_id=_spec(methods=["ours"], seeds=[5]).grid_id)
-    assert row["config"]["threads"] == 2 and not one.failed  # a cell alone gets both cores
+    assert row["config"]["threads"] == 2 and not one.failed and pools == [2, 1]  # a cell alone gets both cores
 
 
 def test_a_local_grid_refuses_more_threads_than_cores(tmp_path, monkeypatch):
