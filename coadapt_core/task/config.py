@@ -103,8 +103,8 @@ class GaitConfig:
     design_aware: bool = setting(
         False, "Each design's reference in units of its leg length L (hip height at the standing pose): "
         "placement clip and swing height x L/L_nominal, clock frequency x sqrt(L_nominal/L) (Froude scaling); "
-        "off: the same reference for every design. Measured with the shipped flat.pt, not retrained: power "
-        "improvement at thigh 1.4 (shank 1.15) -11.3 +- 2.0 % (off: -13.9 +- 2.6 %); docs/reproduction.md.")
+        "off: the same reference for every design. Measured (flat.pt fine-tuned 1 M with it, one seed): power's "
+        "optimum stays at thigh 0.5, 10.8 +- 2.5 % below nominal (off: 9.3 +- 3.0 %); docs/reproduction.md.")
 
 
 @settings(prefix="task.noise")
@@ -142,9 +142,9 @@ class TaskConfig:
         "scenarios; docs/reproduction.md.")
     gain_law: Literal["robot", "nominal"] = setting(
         "robot", "PD gains: robot: each design's own, as the robot builds them (Kuafu: stiffness grows with the "
-        "load inertia); nominal: the nominal design's gains for every design (issue 41). Measured with the "
-        "shipped flat.pt, not retrained: power improvement at thigh 0.6 / 1.4 (shank 1.15) -12.9 +- 2.5 / "
-        "+0.4 +- 1.9 % (robot: +9.5 +- 1.9 / -13.9 +- 2.6 %); docs/reproduction.md.")
+        "load inertia); nominal: the nominal design's gains for every design (issue 41). Measured (flat.pt "
+        "fine-tuned 1 M with it, one seed): power's optimum moves from (0.5, 1.0), 9.3 +- 3.0 % below nominal, "
+        "to (1.25, 0.75), 3.1 +- 1.3 % below; docs/reproduction.md.")
     overspeed_seconds: Float = setting(
         0.1, "binding speed limit: a joint beyond its no-load speed this long without a break ends the episode, s.",
         gt=0)
