@@ -19,7 +19,7 @@ import torch
 import yaml
 from coadapt_plugins.objectives.locomotion import TorqueObjective
 
-from coadapt_core.coadapt import make_config, run_coadaptation
+from coadapt_core.coadapt import make_config, read_evaluations, run_coadaptation
 from coadapt_core.coadapt.loop import seed_at
 from coadapt_core.coadapt.phase import PARTIAL_CHECKPOINT
 from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend
@@ -153,6 +153,8 @@ def test_a_real_run_killed_inside_its_training_phase_resumes_where_it_was(tmp_pa
     assert summaries[0]["interactions"] == summaries[1]["interactions"]
     assert summaries[0]["train_interactions"] == summaries[1]["train_interactions"] == 960
     assert summaries[0]["best_design"] == summaries[1]["best_design"]
+    records = [[(r["design"], r["costs"]) for r in read_evaluations(f)] for f in (folder, full)]
+    assert records[0] == records[1] and len(records[0]) == 2  # both designs of the real round, cost to the bit
     a, b = _weights(folder), _weights(full)
     assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)  # the same policy, bit for bit
     assert yaml.safe_load((folder / "config.yaml").read_text())["checkpoint_interactions"] == 96
