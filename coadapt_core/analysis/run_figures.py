@@ -10,6 +10,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from coadapt_core.methods import DEFAULT_METHOD
 from coadapt_core.results.recorders import read_evaluations, read_jsonl
 from coadapt_core.results.rows import Evaluation, objective_list
 
@@ -46,7 +47,7 @@ class FolderRecords:
 def run_row(run_dir: str | Path, config: dict[str, Any], summary: dict[str, Any]) -> dict[str, Any]:
     """The run as a store row would hold it (`ResultsStore.get_run`), from its config and summary."""
     run_dir = Path(run_dir)
-    return {"id": run_dir.name, "method": str(config.get("method") or summary.get("method") or "ours"),
+    return {"id": run_dir.name, "method": str(config.get("method") or summary.get("method") or DEFAULT_METHOD),
             "objectives": objective_list(config) or objective_list(summary), "terrain": config.get("terrain"),
             "optimizer": summary.get("optimizer") or config.get("optimizer"), "robot": config.get("robot"),
             "simulator": config.get("sim"), "preset": config.get("preset"), "seed": config.get("seed"),

@@ -120,7 +120,7 @@ def test_the_video_draws_each_design_under_its_own_policy(bo_run, tmp_path, monk
     assert video.render_run_video(result.run_dir, result.summary, config, seconds=0.1, stream=stream) == []
     assert used == [(result.run_dir / OWN_POLICY_FILES["best"], result.summary["best_design"]),
                     (result.run_dir / OWN_POLICY_FILES["nominal"], result.summary["nominal_design"])]
-    assert [p["label"].split()[0] for p in drawn[0]["panels"]] == ["best", "nominal"]
+    assert [p["label"].split()[0] for p in drawn[0]["panels"]] == ["best:", "nominal:"]
     # a run made before the policies were kept: one line, no stand-in policy
     used.clear()
     stream = io.StringIO()
