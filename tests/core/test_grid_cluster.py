@@ -84,6 +84,7 @@ class Cluster:
                          "--temp-dir", self.temp, "--object-store-memory", MB100, "--include-log-monitor", "false"]),
             env=env, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         self.workers: dict[int, subprocess.Popen] = {}  # the node's first process (PID namespace) -> unshare
+        self.keep: str | None = None  # where a node's mount namespace holds the code while /tmp is emptied
 
     def in_net(self, argv: list[str]) -> list[str]:
         return ["nsenter", f"--net=/proc/{self.holder.pid}/ns/net", *argv]
@@ -91,7 +92,7 @@ class Cluster:
     def add_worker(self) -> int:
         """A worker node of 1 CPU with an empty /tmp (it cannot read the driver's files) and its
         own PID namespace; returns its first process's id."""
-        start = (f"mount -t tmpfs tmpfs /tmp && exec {RAY} start --address {self.address} --block "
+        start = (f"{self.keep_code()}exec {RAY} start --address {self.address} --block "
                  f"--node-ip-address 127.0.0.1 --num-cpus 1 --disable-usage-stats --object-store-memory {MB100} "
                  "--include-log-monitor false")
         proc = subprocess.Popen(self.in_net(["unshare", "--mount", "--pid", "--fork", "--mount-proc", "sh", "-c", start]),
@@ -104,6 +105,19 @@ class Cluster:
         (first,) = _children(proc.pid)
         self.workers[first] = proc
         return first
+
+    def keep_code(self) -> str:
+        """The shell lines that empty the node's /tmp but bind the code back where it lies under
+        /tmp (a checkout or virtualenv there, as in a CI clone): a worker node runs the driver's
+        code, as on a real cluster, and reads none of its data (the test's folders, store, --out)."""
+        code = [p for p in {str(ROOT), os.path.realpath(sys.prefix)} if Path(p).is_relative_to("/tmp")]
+        code = sorted(p for p in code if not any(p != q and Path(p).is_relative_to(q) for q in code))
+        if code and self.keep is None:
+            self.keep = tempfile.mkdtemp(prefix="coadapt-keep-", dir="/dev/shm")
+        lines = [f"mkdir -p {self.keep}/{i} && mount --bind {p} {self.keep}/{i}" for i, p in enumerate(code)]
+        lines.append("mount -t tmpfs tmpfs /tmp")
+        lines += [f"mkdir -p {p} && mount --bind {self.keep}/{i} {p}" for i, p in enumerate(code)]
+        return "".join(f"{line} && " for line in lines)
 
     def remove_worker(self, first: int) -> None:
         """The node and every process on it end at once (its PID namespace's first process)."""
@@ -151,6 +165,12 @@ class Cluster:
         self.holder.kill()
         self.holder.wait(timeout=30)
         shutil.rmtree(self.temp, ignore_errors=True)
+        if self.keep:  # empty here: the binds were made in the nodes' own mount namespaces
+            for folder in sorted(Path(self.keep).glob("*")):
+                with contextlib.suppress(OSError):
+                    folder.rmdir()
+            with contextlib.suppress(OSError):
+                os.rmdir(self.keep)
 
 
 @pytest.fixture(scope="module")
