@@ -47,20 +47,33 @@ def main(argv: list[str] | None = None) -> int:
     try:
         cfg = yaml.safe_load((folder / "config.yaml").read_text())
         summary = json.loads((folder / "summary.json").read_text())
-        evals = [json.loads(line) for line in (folder / "evaluations.jsonl").read_text().splitlines() if line.strip()]
+        evals = [
+            json.loads(line)
+            for line in (folder / "evaluations.jsonl").read_text().splitlines()
+            if line.strip()
+        ]
     except (OSError, ValueError, yaml.YAMLError) as exc:
-        print(f"error: run: '{folder}' is not a finished run folder ({type(exc).__name__})", file=sys.stderr)
+        print(
+            f"error: run: '{folder}' is not a finished run folder ({type(exc).__name__})",
+            file=sys.stderr,
+        )
         return 2
     run = {"id": folder.name, "config": cfg, "summary": summary, "method": cfg.get("method")}
     if shares_policy(run):
-        print(f"error: run: '{folder}' shares one policy between designs; only runs without one are checked",
-              file=sys.stderr)
+        print(
+            f"error: run: '{folder}' shares one policy between designs; only runs without one are checked",
+            file=sys.stderr,
+        )
         return 2
     try:
         config = config_from_dict(cfg)
         objectives = make_objectives(config)
-        backend = SpecializedPolicyBackend(run_learner(config, run), train_steps=config.specialized_train_steps,
-                                           seed=seed_at(config.seed, 0), keep=1)
+        backend = SpecializedPolicyBackend(
+            run_learner(config, run),
+            train_steps=config.specialized_train_steps,
+            seed=seed_at(config.seed, 0),
+            keep=1,
+        )
     except CoadaptError as exc:
         print(f"error: run: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
@@ -68,22 +81,49 @@ def main(argv: list[str] | None = None) -> int:
     ref = np.asarray(summary["cost_reference"], dtype=float) if rule.needs_reference else None
     # runs since the BO backend kept its policies (summary key own_policies) scored falls too
     with_falls = "own_policies" in summary
-    best_cost = next((e["costs"][first] for e in evals if e["kind"] == "real" and e["design"] == summary["best_design"]), None)
+    best_cost = next(
+        (
+            e["costs"][first]
+            for e in evals
+            if e["kind"] == "real" and e["design"] == summary["best_design"]
+        ),
+        None,
+    )
     for role, design in (("best", summary["best_design"]), ("nominal", summary["nominal_design"])):
-        fit = backend.real_fitness(np.asarray([design], dtype=float), objectives, agents=config.evaluation_agents,
-                                   steps=config.eval_steps, seed=scenario_seed(config.seed))
+        fit = backend.real_fitness(
+            np.asarray([design], dtype=float),
+            objectives,
+            agents=config.evaluation_agents,
+            steps=config.eval_steps,
+            seed=scenario_seed(config.seed),
+        )
         falls = fit.scenario_falls if with_falls else None
-        if role == "nominal" and ref is not None:  # the nominal design's scenarios set the reference level
+        if (
+            role == "nominal" and ref is not None
+        ):  # the nominal design's scenarios set the reference level
             what, recorded = "reference level", float(ref[0])
-            again = float(rule.reference(fit.per_scenario[0], None if falls is None else falls[0])[0])
+            again = float(
+                rule.reference(fit.per_scenario[0], None if falls is None else falls[0])[0]
+            )
         else:  # the cost its one real evaluation recorded (a nominal design without a reference: its final cost)
             what, recorded = "cost", best_cost if role == "best" else summary.get("nominal_cost")
             again = float(rule.cost(fit.per_scenario, falls, ref)[0, 0])
-        out = {"run": folder.name, "design": role, "value": design, "compared": what, "recorded": recorded,
-               "trained_again": again, "equal": recorded == again,
-               "difference": None if recorded is None else again - recorded, "fall_rate": float(np.mean(fit.scenario_falls))}
-        print(json.dumps(out) if args.json else
-              f"{role} {design}: {what} recorded {recorded!r}, trained again {again!r} ({'equal' if out['equal'] else 'differs'})")
+        out = {
+            "run": folder.name,
+            "design": role,
+            "value": design,
+            "compared": what,
+            "recorded": recorded,
+            "trained_again": again,
+            "equal": recorded == again,
+            "difference": None if recorded is None else again - recorded,
+            "fall_rate": float(np.mean(fit.scenario_falls)),
+        }
+        print(
+            json.dumps(out)
+            if args.json
+            else f"{role} {design}: {what} recorded {recorded!r}, trained again {again!r} ({'equal' if out['equal'] else 'differs'})"
+        )
     backend.close()
     return 0
 

@@ -46,7 +46,12 @@ PAPER = {
 
 #: --fake: the minimum (thigh, shank) of each objective's analytic bowl (the tests' fake,
 #: tests/fakes/analytic.py, places them alike)
-FAKE_OPTIMA = {"torque": (0.6, 0.6), "power": (1.1, 0.8), "tracking": (1.3, 1.1), "composite": (0.9, 1.2)}
+FAKE_OPTIMA = {
+    "torque": (0.6, 0.6),
+    "power": (1.1, 0.8),
+    "tracking": (1.3, 1.1),
+    "composite": (0.9, 1.2),
+}
 
 
 def split_method(label: str) -> tuple[str, str | None]:
@@ -59,8 +64,16 @@ def run_method(label: str, args: argparse.Namespace, out: Path) -> dict:
     from coadapt_core.coadapt import make_config, run_coadaptation
 
     method, policy = split_method(label)
-    overrides = {"method": method, "seed": args.seed, "objective": args.objective, "optimizer": args.optimizer,
-                 "out": str(out), "sim": args.sim, "terrain": args.terrain, "logger": "none"}
+    overrides = {
+        "method": method,
+        "seed": args.seed,
+        "objective": args.objective,
+        "optimizer": args.optimizer,
+        "out": str(out),
+        "sim": args.sim,
+        "terrain": args.terrain,
+        "logger": "none",
+    }
     if policy is not None:
         overrides["evaluation_policy"] = policy
     if args.train_steps is not None:
@@ -72,10 +85,15 @@ def run_method(label: str, args: argparse.Namespace, out: Path) -> dict:
     if args.fake:
         from coadapt_core.testing.analytic import NOMINAL, SPACE, AnalyticBackend
 
-        kwargs = dict(backend_factory=lambda seed: AnalyticBackend(seed, optima=FAKE_OPTIMA), design_space=SPACE,
-                      nominal_design=NOMINAL)
+        kwargs = dict(
+            backend_factory=lambda seed: AnalyticBackend(seed, optima=FAKE_OPTIMA),
+            design_space=SPACE,
+            nominal_design=NOMINAL,
+        )
     t0 = time.perf_counter()
-    result = run_coadaptation(config, run_dir=out / f"{label.replace(':', '-')}-s{args.seed}", **kwargs)
+    result = run_coadaptation(
+        config, run_dir=out / f"{label.replace(':', '-')}-s{args.seed}", **kwargs
+    )
     s = result.summary
     return {
         "method": label,
@@ -122,12 +140,17 @@ def ground_truth(args: argparse.Namespace, out: Path) -> dict:
     from coadapt_core.experiments.landscape import run_landscape
     from coadapt_core.results.recorders import SqliteRecorder
 
-    config = make_config(args.preset, None, {"objective": args.objective, "sim": args.sim, "terrain": args.terrain})
+    config = make_config(
+        args.preset, None, {"objective": args.objective, "sim": args.sim, "terrain": args.terrain}
+    )
     if args.fake:
         from coadapt_core.plugins import get_registry
         from coadapt_core.testing.analytic import SPACE, AnalyticBackend
 
-        backend, objectives = AnalyticBackend(0, optima=FAKE_OPTIMA), [get_registry().get("objective", args.objective)()]
+        backend, objectives = (
+            AnalyticBackend(0, optima=FAKE_OPTIMA),
+            [get_registry().get("objective", args.objective)()],
+        )
         low, high, nominal = SPACE.lower, SPACE.upper, (1.0, 1.0)
     else:
         from coadapt_core.learning import shipped_checkpoint
@@ -138,13 +161,30 @@ def ground_truth(args: argparse.Namespace, out: Path) -> dict:
         space = robot.design_space()
         checkpoint = config.checkpoint or str(shipped_checkpoint(config.robot, config.terrain))
         _, sim_cls, objectives = resolve_plugins(robot, config.sim, [args.objective])
-        backend = make_backend(robot, sim_cls, objectives, terrain=config.terrain, checkpoint=checkpoint,
-                               agents_per_design=config.agents_per_design, device=config.device)
+        backend = make_backend(
+            robot,
+            sim_cls,
+            objectives,
+            terrain=config.terrain,
+            checkpoint=checkpoint,
+            agents_per_design=config.agents_per_design,
+            device=config.device,
+        )
         low, high, nominal = space.lower[:2], space.upper[:2], robot.nominal_design()[:2]
     recorder = SqliteRecorder(out / "landscape.db")
-    summary = run_landscape(backend, objectives, recorder, config={"benchmark": "coadapt_cost"}, grid=args.grid,
-                            low=low, high=high, nominal=nominal, agents=config.evaluation_agents,
-                            steps=config.eval_steps, seed=args.seeds[0])
+    summary = run_landscape(
+        backend,
+        objectives,
+        recorder,
+        config={"benchmark": "coadapt_cost"},
+        grid=args.grid,
+        low=low,
+        high=high,
+        nominal=nominal,
+        agents=config.evaluation_agents,
+        steps=config.eval_steps,
+        seed=args.seeds[0],
+    )
     rows = recorder.store.evaluations(summary["run_id"], kind="real")
     a = np.linspace(low[0], high[0], args.grid)
     b = np.linspace(low[1], high[1], args.grid)
@@ -152,7 +192,13 @@ def ground_truth(args: argparse.Namespace, out: Path) -> dict:
     for e in rows:
         i, j = int(np.argmin(np.abs(a - e.design[0]))), int(np.argmin(np.abs(b - e.design[1])))
         costs[i, j] = e.costs[args.objective]
-    return {"a": a, "b": b, "costs": costs, "interactions": summary["interactions"], "best_design": summary["best_design"]}
+    return {
+        "a": a,
+        "b": b,
+        "costs": costs,
+        "interactions": summary["interactions"],
+        "best_design": summary["best_design"],
+    }
 
 
 def true_cost(truth: dict, design) -> float:
@@ -164,8 +210,12 @@ def true_cost(truth: dict, design) -> float:
     j = int(np.clip(np.searchsorted(b, y) - 1, 0, len(b) - 2))
     tx = (x - a[i]) / (a[i + 1] - a[i])
     ty = (y - b[j]) / (b[j + 1] - b[j])
-    return float((1 - tx) * (1 - ty) * c[i, j] + tx * (1 - ty) * c[i + 1, j] + (1 - tx) * ty * c[i, j + 1]
-                 + tx * ty * c[i + 1, j + 1])
+    return float(
+        (1 - tx) * (1 - ty) * c[i, j]
+        + tx * (1 - ty) * c[i + 1, j]
+        + (1 - tx) * ty * c[i, j + 1]
+        + tx * ty * c[i + 1, j + 1]
+    )
 
 
 def mean_std(values) -> str:
@@ -177,28 +227,51 @@ def truth_table(rows: list[dict], methods: list[str]) -> tuple[str, dict]:
     """Table 7-style: per method, mean ± std over seeds of evaluation interactions, real
     rounds, final true cost and gap to the grid optimum; ratios against no-surrogate (paired
     by seed)."""
-    lines = ["| Method | Evaluation interactions | Real / surrogate rounds | Final true cost | Gap to grid optimum | "
-             "Eval. interactions / no-surrogate | True cost vs no-surrogate | Seeds |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| Method | Evaluation interactions | Real / surrogate rounds | Final true cost | Gap to grid optimum | "
+        "Eval. interactions / no-surrogate | True cost vs no-surrogate | Seeds |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     base = {r["seed"]: r for r in rows if r["method"] == "no-surrogate"}
     stats = {}
     for m in methods:
         rs = [r for r in rows if r["method"] == m]
         if not rs:
             continue
-        ratio = [r["eval_interactions"] / max(1, base[r["seed"]]["eval_interactions"]) for r in rs if r["seed"] in base]
-        delta = [(r["true_cost"] - base[r["seed"]]["true_cost"]) / abs(base[r["seed"]]["true_cost"]) for r in rs if r["seed"] in base]
+        ratio = [
+            r["eval_interactions"] / max(1, base[r["seed"]]["eval_interactions"])
+            for r in rs
+            if r["seed"] in base
+        ]
+        delta = [
+            (r["true_cost"] - base[r["seed"]]["true_cost"]) / abs(base[r["seed"]]["true_cost"])
+            for r in rs
+            if r["seed"] in base
+        ]
         # the acceptance reading: mean true cost against no-surrogate's mean
-        mean_delta = (np.mean([r["true_cost"] for r in rs]) / np.mean([b["true_cost"] for b in base.values()]) - 1.0) if base else float("nan")
-        stats[m] = {"eval_interactions_ratio": float(np.mean(ratio)) if ratio else None,
-                    "true_cost_vs_no_surrogate": float(mean_delta), "paired_delta": delta,
-                    "gap": [r["gap"] for r in rs], "seeds": [r["seed"] for r in rs]}
+        mean_delta = (
+            (
+                np.mean([r["true_cost"] for r in rs])
+                / np.mean([b["true_cost"] for b in base.values()])
+                - 1.0
+            )
+            if base
+            else float("nan")
+        )
+        stats[m] = {
+            "eval_interactions_ratio": float(np.mean(ratio)) if ratio else None,
+            "true_cost_vs_no_surrogate": float(mean_delta),
+            "paired_delta": delta,
+            "gap": [r["gap"] for r in rs],
+            "seeds": [r["seed"] for r in rs],
+        }
         lines.append(
             f"| {m} | {mean_std([r['eval_interactions'] for r in rs])} "
             f"| {mean_std([r['real_rounds'] for r in rs])} / {mean_std([r['surrogate_rounds'] for r in rs])} "
             f"| {mean_std([r['true_cost'] for r in rs])} | {mean_std([100 * r['gap'] for r in rs])} % "
             f"| {mean_std(ratio) if ratio else '-'} | {100 * mean_delta:+.2f} % (paired {mean_std([100 * d for d in delta]) if delta else '-'} %) "
-            f"| {len(rs)} |")
+            f"| {len(rs)} |"
+        )
     return "\n".join(lines), stats
 
 
@@ -211,13 +284,27 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sim", default="mujoco")
     parser.add_argument("--terrain", default="flat")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--seeds", default=None, help="comma list of seeds: runs each method per seed and judges "
-                        "its final design against a paired-scenario landscape (ground truth)")
-    parser.add_argument("--grid", type=int, default=9, help="landscape points per axis (with --seeds; default 9)")
-    parser.add_argument("--train-steps", type=int, default=None,
-                        help="training and retraining interactions (default: the preset's; 0 keeps the starting policy)")
-    parser.add_argument("--fake", action="store_true", help="the analytic backend of the tests (seconds)")
-    parser.add_argument("--out", default=None, help="folder for the run folders (default: a temporary one)")
+    parser.add_argument(
+        "--seeds",
+        default=None,
+        help="comma list of seeds: runs each method per seed and judges "
+        "its final design against a paired-scenario landscape (ground truth)",
+    )
+    parser.add_argument(
+        "--grid", type=int, default=9, help="landscape points per axis (with --seeds; default 9)"
+    )
+    parser.add_argument(
+        "--train-steps",
+        type=int,
+        default=None,
+        help="training and retraining interactions (default: the preset's; 0 keeps the starting policy)",
+    )
+    parser.add_argument(
+        "--fake", action="store_true", help="the analytic backend of the tests (seconds)"
+    )
+    parser.add_argument(
+        "--out", default=None, help="folder for the run folders (default: a temporary one)"
+    )
     parser.add_argument("--json", default=None, help="also write the rows to this JSON file")
     args = parser.parse_args(argv)
 
@@ -225,15 +312,25 @@ def main(argv: list[str] | None = None) -> int:
     from coadapt_core.methods import METHOD_NAMES as METHODS
 
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-    unknown = [m for m in methods if split_method(m)[0] not in METHODS or split_method(m)[1] not in (None, "fixed", "uncertainty")]
+    unknown = [
+        m
+        for m in methods
+        if split_method(m)[0] not in METHODS
+        or split_method(m)[1] not in (None, "fixed", "uncertainty")
+    ]
     if unknown:
-        print(f"error: unknown method(s) {', '.join(unknown)}; accepted: {', '.join(METHODS)}, "
-              "optionally :fixed or :uncertainty (evaluation policy)", file=sys.stderr)
+        print(
+            f"error: unknown method(s) {', '.join(unknown)}; accepted: {', '.join(METHODS)}, "
+            "optionally :fixed or :uncertainty (evaluation policy)",
+            file=sys.stderr,
+        )
         return 2
     try:
         args.seeds = [int(x) for x in args.seeds.split(",")] if args.seeds else None
     except ValueError:
-        print(f"error: --seeds must be a comma list of integers, got '{args.seeds}'", file=sys.stderr)
+        print(
+            f"error: --seeds must be a comma list of integers, got '{args.seeds}'", file=sys.stderr
+        )
         return 2
     if args.grid < 2:
         print(f"error: --grid must be >= 2, got {args.grid}", file=sys.stderr)
@@ -250,23 +347,36 @@ def main(argv: list[str] | None = None) -> int:
     except UserError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    print(f"\nCo-adaptation cost, preset {args.preset}, objective {args.objective}, "
-          f"{'analytic backend' if args.fake else args.sim}, seed {args.seed}\n")
+    print(
+        f"\nCo-adaptation cost, preset {args.preset}, objective {args.objective}, "
+        f"{'analytic backend' if args.fake else args.sim}, seed {args.seed}\n"
+    )
     print(table(rows))
     by = {r["method"]: r for r in rows}
     ratios = {}
     if "ours" in by and "no-surrogate" in by:
         o, n = by["ours"], by["no-surrogate"]
         ratios = {
-            "interactions": (o["train_interactions"] + o["eval_interactions"]) / max(1, n["train_interactions"] + n["eval_interactions"]),
+            "interactions": (o["train_interactions"] + o["eval_interactions"])
+            / max(1, n["train_interactions"] + n["eval_interactions"]),
             "eval_interactions": o["eval_interactions"] / max(1, n["eval_interactions"]),
-            "wall_seconds": (o["train_seconds"] + o["eval_seconds"]) / max(1e-9, n["train_seconds"] + n["eval_seconds"]),
+            "wall_seconds": (o["train_seconds"] + o["eval_seconds"])
+            / max(1e-9, n["train_seconds"] + n["eval_seconds"]),
         }
-        print(f"\nours / no-surrogate: interactions {ratios['interactions']:.2f} (paper 102/132 = 0.77), "
-              f"evaluation interactions {ratios['eval_interactions']:.2f} (paper 30/60 = 0.50), "
-              f"wall clock {ratios['wall_seconds']:.2f} (paper 1.07/1.73 = 0.62)")
-    payload = {"preset": args.preset, "fake": args.fake, "objective": args.objective, "seed": args.seed,
-               "rows": rows, "ratios_ours_over_no_surrogate": ratios, "run_folders": str(out)}
+        print(
+            f"\nours / no-surrogate: interactions {ratios['interactions']:.2f} (paper 102/132 = 0.77), "
+            f"evaluation interactions {ratios['eval_interactions']:.2f} (paper 30/60 = 0.50), "
+            f"wall clock {ratios['wall_seconds']:.2f} (paper 1.07/1.73 = 0.62)"
+        )
+    payload = {
+        "preset": args.preset,
+        "fake": args.fake,
+        "objective": args.objective,
+        "seed": args.seed,
+        "rows": rows,
+        "ratios_ours_over_no_surrogate": ratios,
+        "run_folders": str(out),
+    }
     if args.json:
         Path(args.json).write_text(json.dumps(payload, indent=2))
     print(json.dumps(payload))
@@ -294,13 +404,25 @@ def judged(args: argparse.Namespace, methods: list[str], out: Path) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     text, stats = truth_table(rows, methods)
-    print(f"\nEvaluation cost and answer quality, preset {args.preset}, objective {args.objective}, "
-          f"{'analytic backend' if args.fake else args.sim}, seeds {','.join(map(str, args.seeds))}; ground truth: "
-          f"{args.grid} x {args.grid} paired-scenario landscape, optimum {best:.4g} at {truth['best_design']}\n")
+    print(
+        f"\nEvaluation cost and answer quality, preset {args.preset}, objective {args.objective}, "
+        f"{'analytic backend' if args.fake else args.sim}, seeds {','.join(map(str, args.seeds))}; ground truth: "
+        f"{args.grid} x {args.grid} paired-scenario landscape, optimum {best:.4g} at {truth['best_design']}\n"
+    )
     print(text)
-    payload = {"preset": args.preset, "fake": args.fake, "objective": args.objective, "seeds": args.seeds,
-               "grid": args.grid, "grid_optimum": best, "grid_best_design": truth["best_design"],
-               "landscape_interactions": truth["interactions"], "rows": rows, "stats": stats, "run_folders": str(out)}
+    payload = {
+        "preset": args.preset,
+        "fake": args.fake,
+        "objective": args.objective,
+        "seeds": args.seeds,
+        "grid": args.grid,
+        "grid_optimum": best,
+        "grid_best_design": truth["best_design"],
+        "landscape_interactions": truth["interactions"],
+        "rows": rows,
+        "stats": stats,
+        "run_folders": str(out),
+    }
     if args.json:
         Path(args.json).write_text(json.dumps(payload, indent=2))
     print(json.dumps(payload))

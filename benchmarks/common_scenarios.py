@@ -43,21 +43,54 @@ def main(argv: list[str] | None = None) -> int:
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("runs", nargs="*", help="run folders or run ids (each with a summary.json)")
-    p.add_argument("--design", action="append", default=[], help="a design as comma-separated values (repeatable)")
+    p.add_argument(
+        "--design",
+        action="append",
+        default=[],
+        help="a design as comma-separated values (repeatable)",
+    )
     p.add_argument("--runs-dir", default="runs", help="where run ids are looked up (default: runs)")
-    p.add_argument("--blocks", type=int, default=2, help="blocks of 32 paired scenarios (default 2)")
+    p.add_argument(
+        "--blocks", type=int, default=2, help="blocks of 32 paired scenarios (default 2)"
+    )
     p.add_argument("--agents", type=int, default=32, help="scenarios per block (default 32)")
     p.add_argument("--steps", type=int, default=250, help="policy steps per scenario (default 250)")
-    p.add_argument("--robot", default=None, help="robot (default: the runs' robot, else the default robot)")
+    p.add_argument(
+        "--robot", default=None, help="robot (default: the runs' robot, else the default robot)"
+    )
     p.add_argument("--sim", default=None, help="simulator (default: the default simulator)")
-    p.add_argument("--terrain", default=None, help="terrain (default: the runs' terrain, else flat)")
-    p.add_argument("--objectives", default=None, help="comma list (default: every objective the runs optimised)")
-    p.add_argument("--checkpoint", default=None, help="policy (default: the robot's shipped policy for the terrain)")
-    p.add_argument("--policy", choices=("shipped", "run"), default="shipped",
-                   help="shipped: one policy for every design (--checkpoint, else the shipped one); "
-                        "run: each run's own final policy, with nominal evaluated under each")
-    p.add_argument("--cost-rule", choices=COST_RULES, default="capped", help="how scenarios make a cost (default: capped)")
-    p.add_argument("--cost-cap", type=float, default=3.0, help="the capped rule's cap (nominal median scenarios)")
+    p.add_argument(
+        "--terrain", default=None, help="terrain (default: the runs' terrain, else flat)"
+    )
+    p.add_argument(
+        "--objectives",
+        default=None,
+        help="comma list (default: every objective the runs optimised)",
+    )
+    p.add_argument(
+        "--checkpoint",
+        default=None,
+        help="policy (default: the robot's shipped policy for the terrain)",
+    )
+    p.add_argument(
+        "--policy",
+        choices=("shipped", "run"),
+        default="shipped",
+        help="shipped: one policy for every design (--checkpoint, else the shipped one); "
+        "run: each run's own final policy, with nominal evaluated under each",
+    )
+    p.add_argument(
+        "--cost-rule",
+        choices=COST_RULES,
+        default="capped",
+        help="how scenarios make a cost (default: capped)",
+    )
+    p.add_argument(
+        "--cost-cap",
+        type=float,
+        default=3.0,
+        help="the capped rule's cap (nominal median scenarios)",
+    )
     p.add_argument("--json", action="store_true", help="one JSON line per design")
     args = p.parse_args(argv)
     if args.blocks < 1 or args.agents < 2 or args.steps < 1:
@@ -89,7 +122,9 @@ def main(argv: list[str] | None = None) -> int:
     from coadapt_core.plugins import default_plugin, get_registry
 
     config: dict = {}
-    folders = [s["folder"] for s in summaries if "folder" in s and (s["folder"] / "config.yaml").is_file()]
+    folders = [
+        s["folder"] for s in summaries if "folder" in s and (s["folder"] / "config.yaml").is_file()
+    ]
     if folders:
         import yaml
 
@@ -100,35 +135,69 @@ def main(argv: list[str] | None = None) -> int:
         robot = get_registry().create("robot", robot_name)
         dims = {len(s["best_design"]) for s in summaries}
         if len(dims) != 1:
-            return _fail(f"designs of different lengths {sorted(dims)}: compare one design space at a time")
+            return _fail(
+                f"designs of different lengths {sorted(dims)}: compare one design space at a time"
+            )
         dim = dims.pop()
         mixed = dim != robot.design_space(False).dim
         space = robot.design_space(mixed)
         if space.dim != dim:
-            return _fail(f"designs have {dim} values; robot '{robot_name}' has {robot.design_space(False).dim} "
-                         f"(continuous) or {robot.design_space(True).dim} (mixed)")
+            return _fail(
+                f"designs have {dim} values; robot '{robot_name}' has {robot.design_space(False).dim} "
+                f"(continuous) or {robot.design_space(True).dim} (mixed)"
+            )
         nominal = np.asarray(robot.nominal_design(mixed), dtype=float)
         checkpoint = args.checkpoint or shipped_checkpoint(robot, terrain, mixed)
         if checkpoint is None:
-            return _fail(f"robot '{robot_name}' ships no policy for terrain '{terrain}'; pass --checkpoint")
+            return _fail(
+                f"robot '{robot_name}' ships no policy for terrain '{terrain}'; pass --checkpoint"
+            )
         # default: every objective any of the runs optimised (each design is scored on all of them)
-        names = ([o.strip() for o in args.objectives.split(",") if o.strip()] if args.objectives
-                 else list(dict.fromkeys(k for s in summaries for k in (s.get("best_costs") or {})))
-                 or ["tracking", "power", "torque"])
-        robot, sim_cls, objectives = resolve_plugins(robot, args.sim or default_plugin("simulator"), names)
+        names = (
+            [o.strip() for o in args.objectives.split(",") if o.strip()]
+            if args.objectives
+            else list(dict.fromkeys(k for s in summaries for k in (s.get("best_costs") or {})))
+            or ["tracking", "power", "torque"]
+        )
+        robot, sim_cls, objectives = resolve_plugins(
+            robot, args.sim or default_plugin("simulator"), names
+        )
         if args.policy == "run":
             if any("folder" not in s for s in summaries):
-                return _fail("--policy run judges runs with their own policies: give run folders or ids, not --design")
-            groups = [([s], _run_policy(s["folder"]), f"nominal (policy of {s['label']})") for s in summaries]
+                return _fail(
+                    "--policy run judges runs with their own policies: give run folders or ids, not --design"
+                )
+            groups = [
+                ([s], _run_policy(s["folder"]), f"nominal (policy of {s['label']})")
+                for s in summaries
+            ]
         else:
             groups = [(summaries, Path(str(checkpoint)), "nominal")]
         rule = CostRule(args.cost_rule, args.cost_cap)
         for members, policy, nominal_label in groups:
-            backend = make_backend(robot, sim_cls, objectives, terrain=terrain, design_space=space, mixed=mixed,
-                                   checkpoint=str(policy), agents_per_design=args.agents)
-            designs = np.array([s["best_design"] for s in members] + [nominal.tolist()], dtype=float)
-            fits = [backend.real_fitness(designs, objectives, agents=args.agents, steps=args.steps,
-                                         seed=scenario_seed(1000, b)) for b in range(args.blocks)]
+            backend = make_backend(
+                robot,
+                sim_cls,
+                objectives,
+                terrain=terrain,
+                design_space=space,
+                mixed=mixed,
+                checkpoint=str(policy),
+                agents_per_design=args.agents,
+            )
+            designs = np.array(
+                [s["best_design"] for s in members] + [nominal.tolist()], dtype=float
+            )
+            fits = [
+                backend.real_fitness(
+                    designs,
+                    objectives,
+                    agents=args.agents,
+                    steps=args.steps,
+                    seed=scenario_seed(1000, b),
+                )
+                for b in range(args.blocks)
+            ]
             backend.close()
             labelled = [*members, {"label": nominal_label, "best_design": nominal.tolist()}]
             for row in _rows(fits, designs, labelled, objectives, rule, terrain, policy.name):
@@ -144,12 +213,31 @@ def _run_policy(folder: Path) -> Path:
     from coadapt_core.errors import UserError
     from coadapt_core.validation import inside
 
-    rows = [json.loads(line) for line in (folder / "checkpoints.jsonl").read_text().splitlines() if line.strip()] \
-        if (folder / "checkpoints.jsonl").is_file() else []
-    rows = [r for r in rows if isinstance(r, dict) and isinstance(r.get("outer"), int) and isinstance(r.get("path"), str)]
+    rows = (
+        [
+            json.loads(line)
+            for line in (folder / "checkpoints.jsonl").read_text().splitlines()
+            if line.strip()
+        ]
+        if (folder / "checkpoints.jsonl").is_file()
+        else []
+    )
+    rows = [
+        r
+        for r in rows
+        if isinstance(r, dict)
+        and isinstance(r.get("outer"), int)
+        and isinstance(r.get("path"), str)
+    ]
     if not rows:
-        raise UserError(f"run folder {folder} records no checkpoint (checkpoints.jsonl)", field="policy")
-    path = inside(folder / "checkpoints", Path(max(rows, key=lambda r: r["outer"])["path"]).name, field="policy")
+        raise UserError(
+            f"run folder {folder} records no checkpoint (checkpoints.jsonl)", field="policy"
+        )
+    path = inside(
+        folder / "checkpoints",
+        Path(max(rows, key=lambda r: r["outer"])["path"]).name,
+        field="policy",
+    )
     if not path.is_file():
         raise UserError(f"run folder {folder} lacks its checkpoint {path.name}", field="policy")
     return path
@@ -164,12 +252,29 @@ def _rows(fits, designs, labelled, objectives, rule, terrain: str, policy: str):
     nominal_row = len(designs) - 1
     for i, s in enumerate(labelled):
         comp = compare_designs(rule, objectives, per, falls, i, nominal_row)
-        row = {"label": s["label"], "run_seed": s.get("seed"), "design": [round(float(x), 3) for x in designs[i]],
-               "scenarios": int(per.shape[1]), "cost_rule": rule.rule, "terrain": terrain, "policy": policy}
+        row = {
+            "label": s["label"],
+            "run_seed": s.get("seed"),
+            "design": [round(float(x), 3) for x in designs[i]],
+            "scenarios": int(per.shape[1]),
+            "cost_rule": rule.rule,
+            "terrain": terrain,
+            "policy": policy,
+        }
         for name, v in comp["objectives"].items():
             entry = {k: v[k] for k in ("cost", "cost_se", "plain_mean", "plain_mean_se")}
             if i != nominal_row:
-                entry.update({k: v[k] for k in ("improvement", "improvement_se", "improvement_plain", "improvement_plain_se")})
+                entry.update(
+                    {
+                        k: v[k]
+                        for k in (
+                            "improvement",
+                            "improvement_se",
+                            "improvement_plain",
+                            "improvement_plain_se",
+                        )
+                    }
+                )
             row[name] = entry
         row["fall_rate"], row["fall_rate_se"] = comp["fall_rate"], comp["fall_rate_se"]
         if i != nominal_row:
@@ -184,13 +289,22 @@ def _print_row(row: dict, *, as_json: bool) -> None:
     if as_json:
         print(json.dumps(row), flush=True)
         return
-    parts = [f"{n} {e['cost']:.4g} +- {e['cost_se']:.2g} (plain {e['plain_mean']:.4g} +- {e['plain_mean_se']:.2g})"
-             + (f" improvement {100 * e['improvement']:+.1f} +- {100 * e['improvement_se']:.1f} % "
-                f"(plain {100 * e['improvement_plain']:+.1f} +- {100 * e['improvement_plain_se']:.1f} %)"
-                if "improvement" in e else "")
-             for n, e in ((n, row[n]) for n in names)]
-    print(f"{row['label']} {row['design']}: " + "; ".join(parts)
-          + f"; fall rate {100 * row['fall_rate']:.1f} +- {100 * row['fall_rate_se']:.1f} %", flush=True)
+    parts = [
+        f"{n} {e['cost']:.4g} +- {e['cost_se']:.2g} (plain {e['plain_mean']:.4g} +- {e['plain_mean_se']:.2g})"
+        + (
+            f" improvement {100 * e['improvement']:+.1f} +- {100 * e['improvement_se']:.1f} % "
+            f"(plain {100 * e['improvement_plain']:+.1f} +- {100 * e['improvement_plain_se']:.1f} %)"
+            if "improvement" in e
+            else ""
+        )
+        for n, e in ((n, row[n]) for n in names)
+    ]
+    print(
+        f"{row['label']} {row['design']}: "
+        + "; ".join(parts)
+        + f"; fall rate {100 * row['fall_rate']:.1f} +- {100 * row['fall_rate_se']:.1f} %",
+        flush=True,
+    )
 
 
 if __name__ == "__main__":

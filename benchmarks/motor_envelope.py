@@ -38,13 +38,21 @@ class EnvelopeProbe:
         self.speed_ratio: list[np.ndarray] = []
 
     def __enter__(self):
-        def probe(q_target, q, dq, kp, kd, tau_max, dq_max, pd_factor=1.0, motor_strength=1.0, out=None):
+        def probe(
+            q_target, q, dq, kp, kd, tau_max, dq_max, pd_factor=1.0, motor_strength=1.0, out=None
+        ):
             def col(x):
                 return x[:, None] if hasattr(x, "dim") and x.dim() == 1 else x
 
-            commanded = ((kp * (q_target - q) - kd * dq) * col(pd_factor) * col(motor_strength)).numpy().copy()
+            commanded = (
+                ((kp * (q_target - q) - kd * dq) * col(pd_factor) * col(motor_strength))
+                .numpy()
+                .copy()
+            )
             ratio = (dq / dq_max).abs().numpy().copy()
-            tau = self.original(q_target, q, dq, kp, kd, tau_max, dq_max, pd_factor, motor_strength, out=out)
+            tau = self.original(
+                q_target, q, dq, kp, kd, tau_max, dq_max, pd_factor, motor_strength, out=out
+            )
             applied = tau.numpy()
             self.commanded.append(commanded)
             self.applied.append(applied.copy())
@@ -64,9 +72,13 @@ class EnvelopeProbe:
         com = np.abs(np.stack(self.commanded)[:, rows][:, :, joints])
         app = np.abs(np.stack(self.applied)[:, rows][:, :, joints])
         ratio = np.stack(self.speed_ratio)[:, rows][:, :, joints]
-        return {"clipped_share": float(clipped.mean()), "commanded_abs_torque": float(com.mean()),
-                "applied_abs_torque": float(app.mean()), "speed_over_no_load_p99": float(np.percentile(ratio, 99)),
-                "speed_over_no_load_max": float(ratio.max())}
+        return {
+            "clipped_share": float(clipped.mean()),
+            "commanded_abs_torque": float(com.mean()),
+            "applied_abs_torque": float(app.mean()),
+            "speed_over_no_load_p99": float(np.percentile(ratio, 99)),
+            "speed_over_no_load_max": float(ratio.max()),
+        }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -82,7 +94,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--robot", default="kuafu")
     p.add_argument("--sim", default="mujoco")
     p.add_argument("--terrain", default="flat")
-    p.add_argument("--blocks", type=int, default=1, help="blocks of 32 x 250 paired scenarios (default 1)")
+    p.add_argument(
+        "--blocks", type=int, default=1, help="blocks of 32 x 250 paired scenarios (default 1)"
+    )
     p.add_argument("--json", action="store_true", help="one JSON line per motor combination")
     args = p.parse_args(argv)
     try:
@@ -92,17 +106,32 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: --design must be two numbers t,s, got '{args.design}'", file=sys.stderr)
         return 2
     try:
-        robot, sim_cls, objectives = resolve_plugins(args.robot, args.sim, ["tracking", "power", "torque"])
+        robot, sim_cls, objectives = resolve_plugins(
+            args.robot, args.sim, ["tracking", "power", "torque"]
+        )
         space = robot.design_space(True)
         nominal = np.asarray(robot.nominal_design(True), dtype=float)
-        types = [sorted({int(round(v)) for v in np.linspace(space.lower[i], space.upper[i], 8)})
-                 for i in range(2, space.dim)]
+        types = [
+            sorted({int(round(v)) for v in np.linspace(space.lower[i], space.upper[i], 8)})
+            for i in range(2, space.dim)
+        ]
         checkpoint = shipped_checkpoint(robot, args.terrain, True)
         if checkpoint is None:
-            print(f"error: robot '{args.robot}' ships no mixed policy for terrain '{args.terrain}'", file=sys.stderr)
+            print(
+                f"error: robot '{args.robot}' ships no mixed policy for terrain '{args.terrain}'",
+                file=sys.stderr,
+            )
             return 2
-        backend = make_backend(robot, sim_cls, objectives, terrain=args.terrain, design_space=space, mixed=True,
-                               checkpoint=str(checkpoint), agents_per_design=32)
+        backend = make_backend(
+            robot,
+            sim_cls,
+            objectives,
+            terrain=args.terrain,
+            design_space=space,
+            mixed=True,
+            checkpoint=str(checkpoint),
+            agents_per_design=32,
+        )
     except CoadaptError as exc:
         print(f"error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
@@ -116,14 +145,22 @@ def main(argv: list[str] | None = None) -> int:
     per, falls, ratios, probes = [], [], [], []
     for b in range(max(1, args.blocks)):
         with EnvelopeProbe(module) as probe:
-            fit = backend.real_fitness(designs, objectives, agents=agents, steps=250, seed=scenario_seed(1000, b))
+            fit = backend.real_fitness(
+                designs, objectives, agents=agents, steps=250, seed=scenario_seed(1000, b)
+            )
             # the backend may step its environments in another order (rows): env of each row
             order = getattr(backend.eval_env.sim, "_env_of_row_t", None)
             env_of_row = np.arange(len(designs) * agents) if order is None else np.asarray(order)
             design_of_row = env_of_row // agents
-            probes.append({i: {"hip": probe.summary(np.flatnonzero(design_of_row == i), hips),
-                               "knee": probe.summary(np.flatnonzero(design_of_row == i), knees)}
-                           for i in range(len(designs))})
+            probes.append(
+                {
+                    i: {
+                        "hip": probe.summary(np.flatnonzero(design_of_row == i), hips),
+                        "knee": probe.summary(np.flatnonzero(design_of_row == i), knees),
+                    }
+                    for i in range(len(designs))
+                }
+            )
         per.append(fit.per_scenario)
         falls.append(fit.scenario_falls)
         ratios.append(fit.tracking_ratio)
@@ -133,23 +170,32 @@ def main(argv: list[str] | None = None) -> int:
     for i, design in enumerate(designs):
         comp = compare_designs(rule, objectives, per, falls, i, len(designs) - 1)
         t = comp["objectives"]["torque"]
-        row = {"design": design.tolist(), "torque_cost": t["cost"], "torque_cost_se": t["cost_se"],
-               "torque_plain_mean": t["plain_mean"], "torque_plain_mean_se": t["plain_mean_se"],
-               "tracking_plain_mean": comp["objectives"]["tracking"]["plain_mean"],
-               "fall_rate": comp["fall_rate"], "fall_rate_se": comp["fall_rate_se"],
-               "tracking_ratio": float(tracking_ratio[i]), "scenarios": int(per.shape[1])}
+        row = {
+            "design": design.tolist(),
+            "torque_cost": t["cost"],
+            "torque_cost_se": t["cost_se"],
+            "torque_plain_mean": t["plain_mean"],
+            "torque_plain_mean_se": t["plain_mean_se"],
+            "tracking_plain_mean": comp["objectives"]["tracking"]["plain_mean"],
+            "fall_rate": comp["fall_rate"],
+            "fall_rate_se": comp["fall_rate_se"],
+            "tracking_ratio": float(tracking_ratio[i]),
+            "scenarios": int(per.shape[1]),
+        }
         for part in ("hip", "knee"):
             keys = probes[0][i][part].keys()
             row[part] = {k: float(np.mean([pr[i][part][k] for pr in probes])) for k in keys}
         if args.json:
             print(json.dumps(row))
         else:
-            print(f"{design.tolist()}: torque {row['torque_cost']:.0f} +- {row['torque_cost_se']:.0f} (plain "
-                  f"{row['torque_plain_mean']:.0f}), falls {100 * row['fall_rate']:.1f} %, tracking ratio "
-                  f"{row['tracking_ratio']:.2f}; clipped hip {100 * row['hip']['clipped_share']:.1f} % knee "
-                  f"{100 * row['knee']['clipped_share']:.1f} %; |tau| asked/applied knee "
-                  f"{row['knee']['commanded_abs_torque']:.1f}/{row['knee']['applied_abs_torque']:.1f} N m; knee speed p99 "
-                  f"{row['knee']['speed_over_no_load_p99']:.2f} x no-load")
+            print(
+                f"{design.tolist()}: torque {row['torque_cost']:.0f} +- {row['torque_cost_se']:.0f} (plain "
+                f"{row['torque_plain_mean']:.0f}), falls {100 * row['fall_rate']:.1f} %, tracking ratio "
+                f"{row['tracking_ratio']:.2f}; clipped hip {100 * row['hip']['clipped_share']:.1f} % knee "
+                f"{100 * row['knee']['clipped_share']:.1f} %; |tau| asked/applied knee "
+                f"{row['knee']['commanded_abs_torque']:.1f}/{row['knee']['applied_abs_torque']:.1f} N m; knee speed p99 "
+                f"{row['knee']['speed_over_no_load_p99']:.2f} x no-load"
+            )
     backend.close()
     return 0
 

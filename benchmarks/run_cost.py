@@ -40,8 +40,16 @@ SIZES: dict[str, tuple[str, dict]] = {
 }
 
 
-def physics_ceiling(sim_cls, robot, designs: np.ndarray, agents: int, *, terrain: str, randomization,
-                    steps: int = 40) -> float:
+def physics_ceiling(
+    sim_cls,
+    robot,
+    designs: np.ndarray,
+    agents: int,
+    *,
+    terrain: str,
+    randomization,
+    steps: int = 40,
+) -> float:
     """Environment steps/s of `sim_cls` holding the default pose: `designs` x `agents`
     environments, no task and no policy (one warm-up step)."""
     per_env = np.repeat(designs, agents, axis=0)
@@ -61,10 +69,15 @@ def phases(summary: dict, evaluations: list[dict], wall: float) -> dict:
     """{phase: (seconds, interactions)} from a run's summary and evaluation records. The loop
     counts a surrogate round's seconds both as evaluation and as surrogate time: real
     evaluation is the evaluation seconds less the surrogate rounds'."""
-    surrogate_rounds = sum(float(e.get("seconds", 0.0)) for e in evaluations if e.get("kind") == "surrogate")
+    surrogate_rounds = sum(
+        float(e.get("seconds", 0.0)) for e in evaluations if e.get("kind") == "surrogate"
+    )
     out = {
         "train": (float(summary["train_seconds"]), int(summary["train_interactions"])),
-        "real evaluation": (float(summary["eval_seconds"]) - surrogate_rounds, int(summary["eval_interactions"])),
+        "real evaluation": (
+            float(summary["eval_seconds"]) - surrogate_rounds,
+            int(summary["eval_interactions"]),
+        ),
         "surrogate": (float(summary["surrogate_seconds"]), 0),
         "final check": (float(summary["final_seconds"]), int(summary["final_interactions"])),
     }
@@ -74,12 +87,16 @@ def phases(summary: dict, evaluations: list[dict], wall: float) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--size", choices=sorted(SIZES), default="quick", help="named run size (default quick)")
+    parser.add_argument(
+        "--size", choices=sorted(SIZES), default="quick", help="named run size (default quick)"
+    )
     parser.add_argument("--objective", default="torque")
     parser.add_argument("--optimizer", default="pso")
     parser.add_argument("--sim", default="mujoco")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--out", default=None, help="parent folder of the run folder (default: a temporary one)")
+    parser.add_argument(
+        "--out", default=None, help="parent folder of the run folder (default: a temporary one)"
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON line last")
     args = parser.parse_args(argv)
 
@@ -94,21 +111,36 @@ def main(argv: list[str] | None = None) -> int:
     from coadapt_core.plugins import get_registry
 
     out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="run-cost-"))
-    overrides = {"objective": args.objective, "optimizer": args.optimizer, "sim": args.sim, "seed": args.seed,
-                 "out": str(out), "logger": "none", "store": "none", **SIZES[args.size][1]}
+    overrides = {
+        "objective": args.objective,
+        "optimizer": args.optimizer,
+        "sim": args.sim,
+        "seed": args.seed,
+        "out": str(out),
+        "logger": "none",
+        "store": "none",
+        **SIZES[args.size][1],
+    }
     config = make_config(SIZES[args.size][0], None, overrides)
     registry = get_registry()
     robot = registry.get("robot", config.robot)()
     sim_cls = registry.get("simulator", config.sim)
     checkpoint = config.checkpoint or shipped_checkpoint(robot, config.terrain)
-    randomization = (RandomizationConfig.recorded(read_checkpoint(checkpoint)["train_config"].get("extra") or {})
-                     if checkpoint else RandomizationConfig())
+    randomization = (
+        RandomizationConfig.recorded(read_checkpoint(checkpoint)["train_config"].get("extra") or {})
+        if checkpoint
+        else RandomizationConfig()
+    )
     designs = robot.design_space().sample(config.population, np.random.default_rng(0))
     batches = {"evaluation": config.evaluation_agents, "training": int(config.agents_per_design)}
 
     def ceilings() -> dict[str, float]:
-        return {k: physics_ceiling(sim_cls, robot, designs, a, terrain=config.terrain, randomization=randomization)
-                for k, a in batches.items()}
+        return {
+            k: physics_ceiling(
+                sim_cls, robot, designs, a, terrain=config.terrain, randomization=randomization
+            )
+            for k, a in batches.items()
+        }
 
     before = ceilings()
     t0 = time.perf_counter()
@@ -119,7 +151,11 @@ def main(argv: list[str] | None = None) -> int:
 
     run_dir = Path(result.run_dir)
     summary = json.loads((run_dir / "summary.json").read_text())
-    evaluations = [json.loads(line) for line in (run_dir / "evaluations.jsonl").read_text().splitlines() if line.strip()]
+    evaluations = [
+        json.loads(line)
+        for line in (run_dir / "evaluations.jsonl").read_text().splitlines()
+        if line.strip()
+    ]
     parts = phases(summary, evaluations, wall)
 
     def rate(name: str) -> float | None:
@@ -128,30 +164,53 @@ def main(argv: list[str] | None = None) -> int:
 
     evaluation_rate, training_rate = rate("real evaluation"), rate("train")
     report = {
-        "size": args.size, "objective": args.objective, "optimizer": args.optimizer, "seed": args.seed,
+        "size": args.size,
+        "objective": args.objective,
+        "optimizer": args.optimizer,
+        "seed": args.seed,
         "load_average": os.getloadavg(),
         "wall_seconds": round(wall, 1),
-        "phases": {name: {"seconds": round(s, 1), "share": round(s / wall, 3), "interactions": n,
-                          "interactions_per_s": None if rate(name) is None else round(rate(name))}
-                   for name, (s, n) in parts.items()},
+        "phases": {
+            name: {
+                "seconds": round(s, 1),
+                "share": round(s / wall, 3),
+                "interactions": n,
+                "interactions_per_s": None if rate(name) is None else round(rate(name)),
+            }
+            for name, (s, n) in parts.items()
+        },
         "physics_ceiling_env_steps_per_s": {k: round(v) for k, v in ceiling.items()},
         "physics_ceiling_before_after": {k: [round(before[k]), round(after[k])] for k in batches},
-        "evaluation_vs_physics_ceiling": None if evaluation_rate is None else round(evaluation_rate / ceiling["evaluation"], 3),
-        "training_vs_physics_ceiling": None if training_rate is None else round(training_rate / ceiling["training"], 3),
+        "evaluation_vs_physics_ceiling": None
+        if evaluation_rate is None
+        else round(evaluation_rate / ceiling["evaluation"], 3),
+        "training_vs_physics_ceiling": None
+        if training_rate is None
+        else round(training_rate / ceiling["training"], 3),
         "surrogate_share": round(parts["surrogate"][0] / wall, 3),
-        "real_rounds": summary.get("real_evaluations"), "surrogate_rounds": summary.get("surrogate_evaluations"),
-        "best_design": summary.get("best_design"), "improvement": result.summary.get("improvement"),
+        "real_rounds": summary.get("real_evaluations"),
+        "surrogate_rounds": summary.get("surrogate_evaluations"),
+        "best_design": summary.get("best_design"),
+        "improvement": result.summary.get("improvement"),
         "improvement_se": result.summary.get("improvement_se"),
         "run_dir": str(run_dir),
     }
     print("| phase | seconds | share | interactions | interactions/s | vs physics ceiling |")
     print("|---|---|---|---|---|---|")
     for name, row in report["phases"].items():
-        vs = {"real evaluation": report["evaluation_vs_physics_ceiling"], "train": report["training_vs_physics_ceiling"]}.get(name)
-        print(f"| {name} | {row['seconds']} | {row['share']:.1%} | {row['interactions']:,} | "
-              f"{row['interactions_per_s'] or '-'} | {vs if vs is not None else '-'} |")
-    print(f"wall clock {report['wall_seconds']} s; physics ceiling {report['physics_ceiling_env_steps_per_s']} env steps/s; "
-          f"surrogate share {report['surrogate_share']}", file=sys.stderr)
+        vs = {
+            "real evaluation": report["evaluation_vs_physics_ceiling"],
+            "train": report["training_vs_physics_ceiling"],
+        }.get(name)
+        print(
+            f"| {name} | {row['seconds']} | {row['share']:.1%} | {row['interactions']:,} | "
+            f"{row['interactions_per_s'] or '-'} | {vs if vs is not None else '-'} |"
+        )
+    print(
+        f"wall clock {report['wall_seconds']} s; physics ceiling {report['physics_ceiling_env_steps_per_s']} env steps/s; "
+        f"surrogate share {report['surrogate_share']}",
+        file=sys.stderr,
+    )
     if args.json:
         print(json.dumps(report))
     return 0

@@ -64,7 +64,14 @@ def _env_states(sim, spec: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def measure_mujoco(
-    robot, designs: int, agents: int, seconds: float, threads: int | None, terrain: str, chunk: int, seed: int
+    robot,
+    designs: int,
+    agents: int,
+    seconds: float,
+    threads: int | None,
+    terrain: str,
+    chunk: int,
+    seed: int,
 ) -> dict:
     import torch
     from coadapt_plugins.simulators.mujoco.simulator import MujocoSimulator
@@ -80,8 +87,14 @@ def measure_mujoco(
 
     rss0 = _rss_mb()
     t = time.perf_counter()
-    sim = MujocoSimulator(robot, env_designs, terrain=terrain, randomization=RandomizationConfig(), seed=seed,
-                          num_threads=threads)
+    sim = MujocoSimulator(
+        robot,
+        env_designs,
+        terrain=terrain,
+        randomization=RandomizationConfig(),
+        seed=seed,
+        num_threads=threads,
+    )
     build_s = time.perf_counter() - t
     sim.reset()
     default = sim.default_joint_pos
@@ -118,7 +131,10 @@ def measure_mujoco(
         ceiling_s += time.perf_counter() - t
         if os.environ.get("SIM_THROUGHPUT_DEBUG"):
             gap = np.abs(replay[:, -1, 1 : 1 + sim._ref.model.nq] - sim._qpos).max()
-            print(f"chunk: backend {backend_s:.2f} s ceiling {ceiling_s:.2f} s replay gap {gap:.2e}", file=sys.stderr)
+            print(
+                f"chunk: backend {backend_s:.2f} s ceiling {ceiling_s:.2f} s replay gap {gap:.2e}",
+                file=sys.stderr,
+            )
         steps += chunk
     roller.close()
     policy_steps = steps * n
@@ -157,7 +173,9 @@ def measure_mujoco(
     return result
 
 
-def measure_layouts(robot, designs: int, agents: int, threads: int | None, seed: int, reps: int = 5) -> dict:
+def measure_layouts(
+    robot, designs: int, agents: int, threads: int | None, seed: int, reps: int = 5
+) -> dict:
     """Physics-only speed of the ways to give each environment its own model, from the same
     states with the same controls (4 physics steps per call, as one policy step):
     the backend's expanded fields, `set_models` with one model per design (no per-env
@@ -172,7 +190,9 @@ def measure_layouts(robot, designs: int, agents: int, threads: int | None, seed:
     unique = space.sample(designs, rng=seed)
     env_designs = np.repeat(unique, agents, axis=0)
     n = env_designs.shape[0]
-    sim = MujocoSimulator(robot, env_designs, randomization=RandomizationConfig(), seed=seed, num_threads=threads)
+    sim = MujocoSimulator(
+        robot, env_designs, randomization=RandomizationConfig(), seed=seed, num_threads=threads
+    )
     sim.reset()
     for _ in range(10):
         sim.step(sim.default_joint_pos + 0.02 * torch.randn(sim.default_joint_pos.shape))
@@ -213,7 +233,8 @@ def measure_layouts(robot, designs: int, agents: int, threads: int | None, seed:
     roller.close()
     sim.close()
     return {
-        name: {"physics_steps_per_s": round(n * nstep / float(np.median(v)), 1)} for name, v in times.items()
+        name: {"physics_steps_per_s": round(n * nstep / float(np.median(v)), 1)}
+        for name, v in times.items()
     } | {"envs": n, "threads": nthread, "load_avg_1min": round(os.getloadavg()[0], 2)}
 
 
@@ -248,26 +269,46 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--robot", default="kuafu")
     parser.add_argument("--designs", type=int, default=64)
     parser.add_argument("--agents", type=int, default=16)
-    parser.add_argument("--seconds", type=float, default=20.0, help="wall time of the measured loop (both sides)")
+    parser.add_argument(
+        "--seconds", type=float, default=20.0, help="wall time of the measured loop (both sides)"
+    )
     parser.add_argument("--threads", type=int, default=None, help="default: all cores")
     parser.add_argument("--terrain", default="flat")
-    parser.add_argument("--chunk", type=int, default=2, help="policy steps per alternating chunk (small: both sides see the same machine load)")
+    parser.add_argument(
+        "--chunk",
+        type=int,
+        default=2,
+        help="policy steps per alternating chunk (small: both sides see the same machine load)",
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--pybullet-envs", type=int, default=16)
     parser.add_argument("--no-pybullet", action="store_true")
-    parser.add_argument("--layouts", action="store_true", help="also compare per-environment model layouts")
+    parser.add_argument(
+        "--layouts", action="store_true", help="also compare per-environment model layouts"
+    )
     args = parser.parse_args(argv)
     for name in ("designs", "agents", "chunk"):
         if getattr(args, name) < 1:
             parser.error(f"--{name} must be >= 1")
     robot = _robot(args.robot)
     result = measure_mujoco(
-        robot, args.designs, args.agents, args.seconds * 0.5, args.threads, args.terrain, args.chunk, args.seed
+        robot,
+        args.designs,
+        args.agents,
+        args.seconds * 0.5,
+        args.threads,
+        args.terrain,
+        args.chunk,
+        args.seed,
     )
     if args.layouts:
-        result["layouts"] = measure_layouts(robot, args.designs, args.agents, args.threads, args.seed)
+        result["layouts"] = measure_layouts(
+            robot, args.designs, args.agents, args.threads, args.seed
+        )
     if not args.no_pybullet:
-        result["pybullet"] = measure_pybullet(robot, args.pybullet_envs, min(10.0, args.seconds / 2), args.seed)
+        result["pybullet"] = measure_pybullet(
+            robot, args.pybullet_envs, min(10.0, args.seconds / 2), args.seed
+        )
     print(json.dumps(result))
     b = result["breakdown"]
     print(

@@ -48,16 +48,32 @@ def parse_variants(text: str) -> list[tuple[int, int, int]]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--variants", default=DEFAULT_VARIANTS, help=f"MEMBERSxROWSxSTEPS, comma-separated (default {DEFAULT_VARIANTS})")
+    parser.add_argument(
+        "--variants",
+        default=DEFAULT_VARIANTS,
+        help=f"MEMBERSxROWSxSTEPS, comma-separated (default {DEFAULT_VARIANTS})",
+    )
     parser.add_argument("--objectives", default="torque,power,tracking")
-    parser.add_argument("--designs", type=int, default=48, help="designs of the real round (default 48)")
-    parser.add_argument("--held-out", type=int, default=16, help="of them, judged and not fitted (default 16)")
-    parser.add_argument("--agents", type=int, default=32, help="paired scenarios per design (default 32)")
+    parser.add_argument(
+        "--designs", type=int, default=48, help="designs of the real round (default 48)"
+    )
+    parser.add_argument(
+        "--held-out", type=int, default=16, help="of them, judged and not fitted (default 16)"
+    )
+    parser.add_argument(
+        "--agents", type=int, default=32, help="paired scenarios per design (default 32)"
+    )
     parser.add_argument("--steps", type=int, default=250, help="steps per scenario (default 250)")
     parser.add_argument("--seeds", default="0,1,2", help="fit seeds (default 0,1,2)")
-    parser.add_argument("--samples", type=int, default=4096, help="buffer states per prediction (default 4096)")
-    parser.add_argument("--check-states", type=int, default=None,
-                        help="buffer states of the fit's level check (default: the fit's own)")
+    parser.add_argument(
+        "--samples", type=int, default=4096, help="buffer states per prediction (default 4096)"
+    )
+    parser.add_argument(
+        "--check-states",
+        type=int,
+        default=None,
+        help="buffer states of the fit's level check (default: the fit's own)",
+    )
     parser.add_argument("--robot", default=None)
     parser.add_argument("--sim", default=None)
     parser.add_argument("--json", action="store_true", help="one JSON line last")
@@ -88,7 +104,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--robot: '{robot_name}' ships no flat-ground policy")
     names = [o.strip() for o in args.objectives.split(",") if o.strip()]
     objectives = [registry.get("objective", o)() for o in names]
-    backend = make_backend(robot, args.sim or registry.default("simulator"), objectives, checkpoint=str(policy))
+    backend = make_backend(
+        robot, args.sim or registry.default("simulator"), objectives, checkpoint=str(policy)
+    )
     space = robot.design_space()
     designs = space.sample(args.designs, rng=7)
     t0 = time.perf_counter()
@@ -107,22 +125,52 @@ def main(argv: list[str] | None = None) -> int:
             rho, seconds, error = [], [], []
             for seed in seeds:
                 t = time.perf_counter()
-                backend.fit_surrogate(designs[fit], costs[fit, j : j + 1], [objective], real.buffer, seed=seed)
+                backend.fit_surrogate(
+                    designs[fit], costs[fit, j : j + 1], [objective], real.buffer, seed=seed
+                )
                 seconds.append(time.perf_counter() - t)
-                predicted = backend.surrogate_fitness(designs[held], [objective], real.buffer, samples=args.samples,
-                                                      seed=seed)[:, 0]
+                predicted = backend.surrogate_fitness(
+                    designs[held], [objective], real.buffer, samples=args.samples, seed=seed
+                )[:, 0]
                 rho.append(round(float(spearmanr(predicted, costs[held, j])[0]), 3))
-                error.append(round(float(np.mean(np.abs(predicted - costs[held, j]) / np.abs(costs[held, j]))), 3))
-            per[name] = {"spearman": rho, "mean_relative_error": error, "fit_seconds": round(float(np.mean(seconds)), 2)}
+                error.append(
+                    round(
+                        float(np.mean(np.abs(predicted - costs[held, j]) / np.abs(costs[held, j]))),
+                        3,
+                    )
+                )
+            per[name] = {
+                "spearman": rho,
+                "mean_relative_error": error,
+                "fit_seconds": round(float(np.mean(seconds)), 2),
+            }
         key = f"{members}x{rows}x{steps}"
         results[key] = per
-        print(f"{key:>11}  " + "  ".join(f"{n}: {v['fit_seconds']:.1f} s, Spearman {v['spearman']}, rel. error {v['mean_relative_error']}" for n, v in per.items()),
-              flush=True)
+        print(
+            f"{key:>11}  "
+            + "  ".join(
+                f"{n}: {v['fit_seconds']:.1f} s, Spearman {v['spearman']}, rel. error {v['mean_relative_error']}"
+                for n, v in per.items()
+            ),
+            flush=True,
+        )
     if args.json:
-        print(json.dumps({"robot": robot_name, "designs": args.designs, "held_out": args.held_out, "agents": args.agents,
-                          "steps": args.steps, "seeds": seeds, "samples": args.samples,
-                          "check_states": args.check_states, "real_round_seconds": round(real_seconds, 1),
-                          "variants": results}))
+        print(
+            json.dumps(
+                {
+                    "robot": robot_name,
+                    "designs": args.designs,
+                    "held_out": args.held_out,
+                    "agents": args.agents,
+                    "steps": args.steps,
+                    "seeds": seeds,
+                    "samples": args.samples,
+                    "check_states": args.check_states,
+                    "real_round_seconds": round(real_seconds, 1),
+                    "variants": results,
+                }
+            )
+        )
     return 0
 
 

@@ -50,24 +50,44 @@ def one_run(config, out: Path, learner_threads: int | None) -> dict:
     result = run_coadaptation(config, backend_factory=backend, run_dir=out)
     wall = time.perf_counter() - t0
     summary = result.summary
-    phases = [json.loads(line)["extra"] for line in (out / "trainings.jsonl").read_text().splitlines() if line.strip()]
+    phases = [
+        json.loads(line)["extra"]
+        for line in (out / "trainings.jsonl").read_text().splitlines()
+        if line.strip()
+    ]
     return {
-        "wall_seconds": round(wall, 1), "train_seconds": round(summary["train_seconds"], 1),
+        "wall_seconds": round(wall, 1),
+        "train_seconds": round(summary["train_seconds"], 1),
         "surrogate_seconds": round(summary["surrogate_seconds"], 1),
-        "threads_recorded": [{k: p.get(k) for k in ("torch_threads", "physics_threads")} for p in phases],
-        "best_design": summary["best_design"], "improvement": summary["improvement"],
-        "improvement_se": summary.get("improvement_se"), "interactions": summary["interactions"],
+        "threads_recorded": [
+            {k: p.get(k) for k in ("torch_threads", "physics_threads")} for p in phases
+        ],
+        "best_design": summary["best_design"],
+        "improvement": summary["improvement"],
+        "improvement_se": summary.get("improvement_se"),
+        "interactions": summary["interactions"],
         "load_average_1min_before_after": [round(load, 2), round(os.getloadavg()[0], 2)],
     }
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--size", choices=sorted(SIZES), default="quick", help="named run size (default quick)")
+    parser.add_argument(
+        "--size", choices=sorted(SIZES), default="quick", help="named run size (default quick)"
+    )
     parser.add_argument("--objective", default="torque")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--threads", type=int, default=None, help="the budget (default: the CPUs this process may use)")
-    parser.add_argument("--out", default=None, help="parent folder of the two run folders (default: a temporary one)")
+    parser.add_argument(
+        "--threads",
+        type=int,
+        default=None,
+        help="the budget (default: the CPUs this process may use)",
+    )
+    parser.add_argument(
+        "--out",
+        default=None,
+        help="parent folder of the two run folders (default: a temporary one)",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON line last")
     args = parser.parse_args(argv)
 
@@ -79,8 +99,14 @@ def main(argv: list[str] | None = None) -> int:
 
     budget = apply_threads(args.threads)
     out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="thread-cost-"))
-    overrides = {"objective": args.objective, "seed": args.seed, "out": str(out), "logger": "none", "store": "none",
-                 **SIZES[args.size][1]}
+    overrides = {
+        "objective": args.objective,
+        "seed": args.seed,
+        "out": str(out),
+        "logger": "none",
+        "store": "none",
+        **SIZES[args.size][1],
+    }
     # a smoke run first, not reported: imports, compiled models and caches are paid before the
     # timed pair, so the first of the two timed runs carries no start-up cost the second lacks
     one_run(make_config("smoke", None, {**overrides, "seed": args.seed + 1}), out / "warm-up", None)
@@ -88,12 +114,22 @@ def main(argv: list[str] | None = None) -> int:
     for label, learner in (("one_learner_thread", 1), ("default", None)):
         config = make_config(SIZES[args.size][0], None, overrides)
         runs[label] = one_run(config, out / f"{args.size}-{label}", learner)
-        print(f"{label}: {runs[label]['wall_seconds']} s, best {runs[label]['best_design']}, improvement "
-              f"{runs[label]['improvement']:.3f} +- {runs[label]['improvement_se'] or 0:.3f}", file=sys.stderr)
-    report = {"size": args.size, "objective": args.objective, "seed": args.seed, "budget": budget,
-              "cpus": os.cpu_count(), **runs,
-              "wall_ratio_one_thread_over_default": round(runs["one_learner_thread"]["wall_seconds"]
-                                                           / runs["default"]["wall_seconds"], 3)}
+        print(
+            f"{label}: {runs[label]['wall_seconds']} s, best {runs[label]['best_design']}, improvement "
+            f"{runs[label]['improvement']:.3f} +- {runs[label]['improvement_se'] or 0:.3f}",
+            file=sys.stderr,
+        )
+    report = {
+        "size": args.size,
+        "objective": args.objective,
+        "seed": args.seed,
+        "budget": budget,
+        "cpus": os.cpu_count(),
+        **runs,
+        "wall_ratio_one_thread_over_default": round(
+            runs["one_learner_thread"]["wall_seconds"] / runs["default"]["wall_seconds"], 3
+        ),
+    }
     if args.json:
         print(json.dumps(report))
     return 0

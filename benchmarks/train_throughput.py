@@ -33,16 +33,48 @@ def main() -> None:
     parser.add_argument("--steps-per-env", type=int, default=24)
     parser.add_argument("--epochs", type=int, default=5)
     parser.add_argument("--minibatches", type=int, default=4)
-    parser.add_argument("--pseudo-epochs", type=int, default=None, help="pseudo-critic epochs per update (default: TrainConfig's; 0: as PPO's)")
-    parser.add_argument("--iterations", type=int, default=6, help="rollouts (and updates) timed after one warm-up (default 6)")
+    parser.add_argument(
+        "--pseudo-epochs",
+        type=int,
+        default=None,
+        help="pseudo-critic epochs per update (default: TrainConfig's; 0: as PPO's)",
+    )
+    parser.add_argument(
+        "--iterations",
+        type=int,
+        default=6,
+        help="rollouts (and updates) timed after one warm-up (default 6)",
+    )
     parser.add_argument("--device", default="cpu")
-    parser.add_argument("--threads", type=int, default=None,
-                        help="thread budget of the physics and torch's update (default: the CPUs this process may use)")
-    parser.add_argument("--torch-threads", type=int, default=0, help="torch threads of the update only (0: --threads)")
-    parser.add_argument("--precision", default=None, choices=["auto", "float32", "bf16"], help="numerics of the PPO loss (default: TrainConfig's)")
-    parser.add_argument("--pseudo-precision", default=None, choices=["auto", "float32", "bf16"],
-                        help="numerics of the pseudo-critic regression (default: TrainConfig's)")
-    parser.add_argument("--objectives", default="tracking,power,torque", help="pseudo-critics to train ('' for none)")
+    parser.add_argument(
+        "--threads",
+        type=int,
+        default=None,
+        help="thread budget of the physics and torch's update (default: the CPUs this process may use)",
+    )
+    parser.add_argument(
+        "--torch-threads",
+        type=int,
+        default=0,
+        help="torch threads of the update only (0: --threads)",
+    )
+    parser.add_argument(
+        "--precision",
+        default=None,
+        choices=["auto", "float32", "bf16"],
+        help="numerics of the PPO loss (default: TrainConfig's)",
+    )
+    parser.add_argument(
+        "--pseudo-precision",
+        default=None,
+        choices=["auto", "float32", "bf16"],
+        help="numerics of the pseudo-critic regression (default: TrainConfig's)",
+    )
+    parser.add_argument(
+        "--objectives",
+        default="tracking,power,torque",
+        help="pseudo-critics to train ('' for none)",
+    )
     args = parser.parse_args()
 
     # the `coadapt` command's OpenMP wait policy, chosen before torch is imported (coadapt_core/launch.py)
@@ -56,19 +88,42 @@ def main() -> None:
 
     registry = get_registry()
     import torch
+
     robot = registry.get("robot", args.robot)()
     sim_cls = registry.get("simulator", args.sim)
     objectives = [registry.get("objective", n)() for n in args.objectives.split(",") if n]
     config = TrainConfig(
-        num_designs=args.num_designs, agents_per_design=args.agents, steps_per_env=args.steps_per_env,
-        epochs=args.epochs, minibatches=args.minibatches, device=args.device,
-        **{k: v for k, v in (("precision", args.precision), ("pseudo_precision", args.pseudo_precision),
-                             ("pseudo_epochs", args.pseudo_epochs)) if v is not None},
+        num_designs=args.num_designs,
+        agents_per_design=args.agents,
+        steps_per_env=args.steps_per_env,
+        epochs=args.epochs,
+        minibatches=args.minibatches,
+        device=args.device,
+        **{
+            k: v
+            for k, v in (
+                ("precision", args.precision),
+                ("pseudo_precision", args.pseudo_precision),
+                ("pseudo_epochs", args.pseudo_epochs),
+            )
+            if v is not None
+        },
     )
-    trainer = Trainer(robot, sim_cls, objectives, terrain=args.terrain, train_config=config, num_threads=args.threads)
-    if args.torch_threads:  # the update on another count than the physics (a measurement of its own)
+    trainer = Trainer(
+        robot,
+        sim_cls,
+        objectives,
+        terrain=args.terrain,
+        train_config=config,
+        num_threads=args.threads,
+    )
+    if (
+        args.torch_threads
+    ):  # the update on another count than the physics (a measurement of its own)
         trainer.learner_threads = args.torch_threads
-    runner = Runner(trainer)  # what `coadapt train` and the loop's retraining drive (here: nothing written)
+    runner = Runner(
+        trainer
+    )  # what `coadapt train` and the loop's retraining drive (here: nothing written)
     t0 = time.perf_counter()
     trainer.set_designs(trainer.sample_designs())
     build_seconds = time.perf_counter() - t0
@@ -112,14 +167,30 @@ def main() -> None:
     collect_s = samples / collect
     update_s = samples * args.epochs / update_sample_epochs
     result = {
-        "machine": {"cpus": os.cpu_count(), "platform": platform.platform(), "load_average": os.getloadavg(),
-                    "torch_threads_update": trainer.learner_threads, "torch_threads_collect": trainer.collect_threads,
-                    "omp_wait": {k: os.environ.get(k) for k in ("OMP_WAIT_POLICY", "GOMP_SPINCOUNT")},
-                    "device": args.device, "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None},
-        "setup": {"robot": args.robot, "sim": args.sim, "num_envs": n, "pseudo_critics": len(objectives), "num_designs": args.num_designs,
-                  "steps_per_env": args.steps_per_env, "epochs": args.epochs, "minibatches": args.minibatches,
-                  "precision": trainer.ppo.precision, "pseudo_precision": trainer.ppo.pseudo_precision,
-                  "physics_threads": getattr(sim, "num_threads_used", None), "build_seconds": round(build_seconds, 2)},
+        "machine": {
+            "cpus": os.cpu_count(),
+            "platform": platform.platform(),
+            "load_average": os.getloadavg(),
+            "torch_threads_update": trainer.learner_threads,
+            "torch_threads_collect": trainer.collect_threads,
+            "omp_wait": {k: os.environ.get(k) for k in ("OMP_WAIT_POLICY", "GOMP_SPINCOUNT")},
+            "device": args.device,
+            "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
+        },
+        "setup": {
+            "robot": args.robot,
+            "sim": args.sim,
+            "num_envs": n,
+            "pseudo_critics": len(objectives),
+            "num_designs": args.num_designs,
+            "steps_per_env": args.steps_per_env,
+            "epochs": args.epochs,
+            "minibatches": args.minibatches,
+            "precision": trainer.ppo.precision,
+            "pseudo_precision": trainer.ppo.pseudo_precision,
+            "physics_threads": getattr(sim, "num_threads_used", None),
+            "build_seconds": round(build_seconds, 2),
+        },
         "physics_ceiling_env_steps_per_s": round(physics_ceiling),
         "physics_ceiling_before_after": [round(c) for c in ceilings],
         "collection_env_steps_per_s": round(collect),
@@ -127,9 +198,15 @@ def main() -> None:
         "update_samples_per_s": round(samples / update_s),
         "update_sample_epochs_per_s": round(update_sample_epochs),
         "end_to_end_env_steps_per_s": round(samples / (collect_s + update_s)),
-        "end_to_end_vs_physics_ceiling": round(samples / (collect_s + update_s) / physics_ceiling, 3),
+        "end_to_end_vs_physics_ceiling": round(
+            samples / (collect_s + update_s) / physics_ceiling, 3
+        ),
         "pseudo_critic_share": round(pseudo_share, 3),
-        "time_share": {"physics": round(physics, 3), "task": round(task, 3), "learner": round(learner, 3)},
+        "time_share": {
+            "physics": round(physics, 3),
+            "task": round(task, 3),
+            "learner": round(learner, 3),
+        },
     }
     runner.close()
     print(json.dumps(result, indent=2))

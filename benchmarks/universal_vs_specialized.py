@@ -38,10 +38,18 @@ import time
 import numpy as np
 
 TABLES = {
-    (0.5, 0.5): [("specialized", "0.5:0.5,0.5:0.5"), ("[0.5, 1.5]^2", "0.5:1.5,0.5:1.5"),
-                 ("[0.5, 1.0]^2", "0.5:1.0,0.5:1.0"), ("[0.5, 0.75]^2", "0.5:0.75,0.5:0.75")],
-    (1.5, 1.5): [("specialized", "1.5:1.5,1.5:1.5"), ("[0.5, 1.5]^2", "0.5:1.5,0.5:1.5"),
-                 ("[1.0, 1.5]^2", "1.0:1.5,1.0:1.5"), ("[1.25, 1.5]^2", "1.25:1.5,1.25:1.5")],
+    (0.5, 0.5): [
+        ("specialized", "0.5:0.5,0.5:0.5"),
+        ("[0.5, 1.5]^2", "0.5:1.5,0.5:1.5"),
+        ("[0.5, 1.0]^2", "0.5:1.0,0.5:1.0"),
+        ("[0.5, 0.75]^2", "0.5:0.75,0.5:0.75"),
+    ],
+    (1.5, 1.5): [
+        ("specialized", "1.5:1.5,1.5:1.5"),
+        ("[0.5, 1.5]^2", "0.5:1.5,0.5:1.5"),
+        ("[1.0, 1.5]^2", "1.0:1.5,1.0:1.5"),
+        ("[1.25, 1.5]^2", "1.25:1.5,1.25:1.5"),
+    ],
 }
 
 
@@ -60,11 +68,22 @@ def train_policy(args, ranges: str, seed: int):
     state = read_checkpoint(args.init_from) if args.init_from else None
     config = TrainConfig.from_dict(state["train_config"]) if state else TrainConfig()
     config.num_designs, config.agents_per_design = args.designs, args.agents
-    config.steps_per_env, config.epochs, config.minibatches = args.steps_per_env, args.epochs, args.minibatches
+    config.steps_per_env, config.epochs, config.minibatches = (
+        args.steps_per_env,
+        args.epochs,
+        args.minibatches,
+    )
     config.device, config.seed, config.torch_threads = args.device, seed, 0
     task = TaskConfig.from_dict(state["task_config"]) if state else TaskConfig()
-    trainer = Trainer(robot, MujocoSimulator, [], terrain=args.terrain, design_space=space, train_config=config,
-                      task_config=task)
+    trainer = Trainer(
+        robot,
+        MujocoSimulator,
+        [],
+        terrain=args.terrain,
+        design_space=space,
+        train_config=config,
+        task_config=task,
+    )
     runner = Runner(trainer)  # what `coadapt train` drives (here: nothing written)
     if args.init_from:
         runner.init_from(args.init_from)
@@ -96,7 +115,9 @@ def reward_at(trainer, design: tuple[float, float], args, seed: int) -> float:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("--steps", type=int, default=20_000, help="environment interactions per policy")
     p.add_argument("--seeds", type=int, default=2)
     p.add_argument("--designs", type=int, default=4, help="K designs per universal policy")
@@ -108,13 +129,27 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--terrain", default="flat")
     p.add_argument("--eval-agents", type=int, default=16)
     p.add_argument("--seconds", type=float, default=10.0)
-    p.add_argument("--command", type=lambda s: [float(v) for v in s.split(",")], default=[0.5, 0.0, 0.0])
+    p.add_argument(
+        "--command", type=lambda s: [float(v) for v in s.split(",")], default=[0.5, 0.0, 0.0]
+    )
     p.add_argument("--device", default="cpu")
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
-    for name in ("steps", "seeds", "designs", "agents", "steps_per_env", "epochs", "minibatches", "eval_agents"):
+    for name in (
+        "steps",
+        "seeds",
+        "designs",
+        "agents",
+        "steps_per_env",
+        "epochs",
+        "minibatches",
+        "eval_agents",
+    ):
         if getattr(args, name) < 1:
-            print(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}", file=sys.stderr)
+            print(
+                f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}",
+                file=sys.stderr,
+            )
             return 2
     if len(args.command) != 3:
         print("--command must be vx,vy,yaw_rate", file=sys.stderr)
@@ -128,23 +163,41 @@ def main(argv: list[str] | None = None) -> int:
                 trainer = train_policy(args, ranges, seed)
                 rewards.append(reward_at(trainer, design, args, seed))
                 trainer.close()
-            rows.append({"design": list(design), "policy": label, "range": ranges,
-                         "rewards": rewards, "mean": float(np.mean(rewards)),
-                         "std": float(np.std(rewards, ddof=1)) if len(rewards) > 1 else 0.0})
-            print(f"{design} {label}: {rows[-1]['mean']:.3f} +- {rows[-1]['std']:.3f} ({len(rewards)} seeds)",
-                  file=sys.stderr, flush=True)
+            rows.append(
+                {
+                    "design": list(design),
+                    "policy": label,
+                    "range": ranges,
+                    "rewards": rewards,
+                    "mean": float(np.mean(rewards)),
+                    "std": float(np.std(rewards, ddof=1)) if len(rewards) > 1 else 0.0,
+                }
+            )
+            print(
+                f"{design} {label}: {rows[-1]['mean']:.3f} +- {rows[-1]['std']:.3f} ({len(rewards)} seeds)",
+                file=sys.stderr,
+                flush=True,
+            )
     print(f"| design | policy | reward (mean +- std, {args.seeds} seeds) | / specialized (+- SE) |")
     print("|---|---|---|---|")
     for row in rows:
-        spec = next(r for r in rows if r["design"] == row["design"] and r["policy"] == "specialized")
+        spec = next(
+            r for r in rows if r["design"] == row["design"] and r["policy"] == "specialized"
+        )
         # seed s of every row is evaluated on the same scenarios: the ratio is taken per seed
         ratios = np.array(row["rewards"]) / np.array(spec["rewards"])
         row["ratio"] = float(ratios.mean())
-        row["ratio_se"] = float(ratios.std(ddof=1) / np.sqrt(len(ratios))) if len(ratios) > 1 else float("nan")
-        print(f"| ({row['design'][0]}, {row['design'][1]}) | {row['policy']} | {row['mean']:.2f} +- {row['std']:.2f} "
-              f"| {row['ratio']:.3f} +- {row['ratio_se']:.3f} |")
+        row["ratio_se"] = (
+            float(ratios.std(ddof=1) / np.sqrt(len(ratios))) if len(ratios) > 1 else float("nan")
+        )
+        print(
+            f"| ({row['design'][0]}, {row['design'][1]}) | {row['policy']} | {row['mean']:.2f} +- {row['std']:.2f} "
+            f"| {row['ratio']:.3f} +- {row['ratio_se']:.3f} |"
+        )
     seconds = time.perf_counter() - t0
-    print(f"{len(rows) * args.seeds} policies x {args.steps} steps, {seconds:.0f} s", file=sys.stderr)
+    print(
+        f"{len(rows) * args.seeds} policies x {args.steps} steps, {seconds:.0f} s", file=sys.stderr
+    )
     if args.json:
         print(json.dumps({"rows": rows, "seconds": seconds, "args": vars(args)}))
     return 0

@@ -33,7 +33,12 @@ def _members(cls: type) -> dict[str, str]:
     for name, value in cls.__dict__.items():
         if name.startswith("__") and name != "__init__":
             continue
-        if name.startswith("_") and name != "__init__" and name not in abstract and name not in OVERRIDABLE:
+        if (
+            name.startswith("_")
+            and name != "__init__"
+            and name not in abstract
+            and name not in OVERRIDABLE
+        ):
             continue  # the base class's own helpers
         if isinstance(value, staticmethod | classmethod):
             value = value.__func__
@@ -46,7 +51,11 @@ def _members(cls: type) -> dict[str, str]:
             tag = "abstract " if name in abstract else ""
             out[name] = f"{tag}{kind}{inspect.signature(value)}"
         elif not callable(value):
-            text = repr(value) if isinstance(value, int | float | str | bool | tuple | type(None)) else type(value).__name__
+            text = (
+                repr(value)
+                if isinstance(value, int | float | str | bool | tuple | type(None))
+                else type(value).__name__
+            )
             out[name] = f"attribute: {annotations.get(name, '')} = {text}"
     for name, annotation in annotations.items():
         out.setdefault(name, f"attribute: {annotation}")
@@ -69,27 +78,54 @@ def interface_signature() -> dict[str, dict[str, str]]:
     from coadapt_core.physics import actuation, randomization, simulator
 
     sig: dict[str, dict[str, str]] = {}
-    for cls in (robot.Robot, simulator.Simulator, optimizer.Optimizer, objective.Objective,
-                design_space.DesignSpace, actuation.DelayLine, randomization.RandomizationConfig):
+    for cls in (
+        robot.Robot,
+        simulator.Simulator,
+        optimizer.Optimizer,
+        objective.Objective,
+        design_space.DesignSpace,
+        actuation.DelayLine,
+        randomization.RandomizationConfig,
+    ):
         sig[f"{cls.__module__}.{cls.__qualname__}"] = _members(cls)
-    for cls in (objective.StepBatch, robot.RobotModel, robot.Leg, robot.Finding, robot.ValidationReport,
-                simulator.SimState, options.PluginOption, randomization.EnvParams, design_space.Continuous,
-                design_space.Discrete):
+    for cls in (
+        objective.StepBatch,
+        robot.RobotModel,
+        robot.Leg,
+        robot.Finding,
+        robot.ValidationReport,
+        simulator.SimState,
+        options.PluginOption,
+        randomization.EnvParams,
+        design_space.Continuous,
+        design_space.Discrete,
+    ):
         sig[f"{cls.__module__}.{cls.__qualname__} (fields)"] = _fields(cls)
     sig["coadapt_core.hookspecs"] = {
-        name: f"hook{inspect.signature(fn)}" for name, fn in vars(hookspecs).items() if name.startswith("coadapt_register_")
+        name: f"hook{inspect.signature(fn)}"
+        for name, fn in vars(hookspecs).items()
+        if name.startswith("coadapt_register_")
     }
     sig["functions"] = {
         f"{fn.__module__}.{fn.__name__}": f"function{inspect.signature(fn)}"
-        for fn in (actuation.pd_torque, simulator.spawn_base_height, simulator.quat_rotate, options.resolve_options)
+        for fn in (
+            actuation.pd_torque,
+            simulator.spawn_base_height,
+            simulator.quat_rotate,
+            options.resolve_options,
+        )
     }
     sig["constants"] = {"coadapt_core.optimizer.SEED_LIMIT": repr(optimizer.SEED_LIMIT)}
     for name in testing.__all__:  # the conformance suites: a plugin's tests inherit them
         suite = getattr(testing, name)
         sig[f"coadapt_core.testing.{name}"] = {
-            attr: f"test{inspect.signature(fn)}" if attr.startswith("test_") else f"fixture{inspect.signature(fn)}"
-            for klass in reversed(suite.__mro__) if klass is not object
-            for attr, fn in vars(klass).items() if inspect.isfunction(fn) and not attr.startswith("_")
+            attr: f"test{inspect.signature(fn)}"
+            if attr.startswith("test_")
+            else f"fixture{inspect.signature(fn)}"
+            for klass in reversed(suite.__mro__)
+            if klass is not object
+            for attr, fn in vars(klass).items()
+            if inspect.isfunction(fn) and not attr.startswith("_")
         }
     return {k: dict(sorted(v.items())) for k, v in sorted(sig.items())}
 
@@ -109,10 +145,13 @@ def record(path: str | Path, *, amend: bool = False) -> str:
         if not amend:
             raise ValueError(
                 f"the interfaces changed but PLUGIN_API_VERSION is still {version}: raise it "
-                "(or pass --amend while this version is unreleased)")
+                "(or pass --amend while this version is unreleased)"
+            )
         entries.pop()
     if entries:
-        problem = plugin_api.bump_problem(entries[-1]["version"], entries[-1]["signature"], entry["version"], entry["signature"])
+        problem = plugin_api.bump_problem(
+            entries[-1]["version"], entries[-1]["signature"], entry["version"], entry["signature"]
+        )
         if problem:
             raise ValueError(problem)
     entries.append(entry)

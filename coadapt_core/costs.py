@@ -70,8 +70,16 @@ class CostRule:
         if getattr(fit, "per_scenario", None) is None:
             return np.asarray(fit.costs, dtype=float)
         per = np.asarray(fit.per_scenario, dtype=float)
-        falls = None if getattr(fit, "scenario_falls", None) is None else np.asarray(fit.scenario_falls, dtype=bool)
-        ref = self.reference(per[nominal], None if falls is None else falls[nominal]) if self.needs_reference else None
+        falls = (
+            None
+            if getattr(fit, "scenario_falls", None) is None
+            else np.asarray(fit.scenario_falls, dtype=bool)
+        )
+        ref = (
+            self.reference(per[nominal], None if falls is None else falls[nominal])
+            if self.needs_reference
+            else None
+        )
         return self.cost(per, falls, ref)
 
     @property
@@ -95,15 +103,21 @@ class CostRule:
                 x = x[keep]
         return np.median(x, axis=0)
 
-    def scenario_values(self, per_scenario: np.ndarray, falls: np.ndarray | None = None,
-                        reference: np.ndarray | None = None) -> np.ndarray:
+    def scenario_values(
+        self,
+        per_scenario: np.ndarray,
+        falls: np.ndarray | None = None,
+        reference: np.ndarray | None = None,
+    ) -> np.ndarray:
         """[K, A, M] what each scenario contributes under the rule (the capped costs for
         `capped`, the raw costs otherwise)."""
         x = np.asarray(per_scenario, dtype=float)
         if self.rule != "capped":
             return x
         if reference is None:
-            raise ValueError("the capped cost rule needs a reference level (the nominal design's costs)")
+            raise ValueError(
+                "the capped cost rule needs a reference level (the nominal design's costs)"
+            )
         cap = self.cap * np.abs(np.asarray(reference, dtype=float)).reshape(1, 1, -1)  # [1, 1, M]
         out = np.minimum(x, cap)
         if falls is not None:
@@ -114,8 +128,12 @@ class CostRule:
         """[K, M] a design's cost from its scenario values [K, A, M]."""
         return robust_cost(values) if self.rule == "trimmed" else plain_mean(values)
 
-    def cost(self, per_scenario: np.ndarray, falls: np.ndarray | None = None,
-             reference: np.ndarray | None = None) -> np.ndarray:
+    def cost(
+        self,
+        per_scenario: np.ndarray,
+        falls: np.ndarray | None = None,
+        reference: np.ndarray | None = None,
+    ) -> np.ndarray:
         """[K, M] each design's cost under the rule."""
         return self.aggregate(self.scenario_values(per_scenario, falls, reference))
 
@@ -130,7 +148,9 @@ def _resamples(a: int, seed: int = 0) -> np.ndarray:
     return np.random.default_rng(seed).integers(0, a, size=(BOOTSTRAP, a))
 
 
-def scenario_se(per_scenario: np.ndarray, aggregate: Callable[[np.ndarray], np.ndarray] = robust_cost) -> np.ndarray:
+def scenario_se(
+    per_scenario: np.ndarray, aggregate: Callable[[np.ndarray], np.ndarray] = robust_cost
+) -> np.ndarray:
     """[K, M] standard error of `aggregate(per_scenario)` over scenarios (bootstrap over the A
     scenarios; 0 with a single scenario: no spread to measure). `per_scenario` holds the
     rule's scenario values (`CostRule.scenario_values`), `aggregate` the rule's aggregate."""
@@ -142,8 +162,12 @@ def scenario_se(per_scenario: np.ndarray, aggregate: Callable[[np.ndarray], np.n
     return boot.std(axis=0, ddof=1)
 
 
-def paired_difference(per_scenario: np.ndarray, i: int, j: int,
-                      aggregate: Callable[[np.ndarray], np.ndarray] = robust_cost) -> tuple[np.ndarray, np.ndarray]:
+def paired_difference(
+    per_scenario: np.ndarray,
+    i: int,
+    j: int,
+    aggregate: Callable[[np.ndarray], np.ndarray] = robust_cost,
+) -> tuple[np.ndarray, np.ndarray]:
     """(difference [M], paired standard error [M]) of cost(design i) - cost(design j): the
     bootstrap resamples the same scenarios for both, so what they share (command,
     randomization, noise) cancels."""
@@ -156,8 +180,12 @@ def paired_difference(per_scenario: np.ndarray, i: int, j: int,
     return diff, (boot[:, 0] - boot[:, 1]).std(axis=0, ddof=1)
 
 
-def improvement_se(objective: Any, best: np.ndarray, nominal: np.ndarray,
-                   aggregate: Callable[[np.ndarray], np.ndarray] = robust_cost) -> float:
+def improvement_se(
+    objective: Any,
+    best: np.ndarray,
+    nominal: np.ndarray,
+    aggregate: Callable[[np.ndarray], np.ndarray] = robust_cost,
+) -> float:
     """Paired standard error of `objective.improvement(cost(best), cost(nominal))` from the
     scenario values of the two designs [A] (bootstrap with the same scenarios drawn for
     both; a plugin's own `improvement` is honoured)."""
@@ -179,8 +207,14 @@ def fall_statistics(falls: np.ndarray | None, i: int, j: int) -> dict[str, float
     and the paired difference (i - j) with its standard error (the scenarios are shared, so
     the difference's error is that of the per-scenario differences)."""
     if falls is None:
-        return {"fall_rate": None, "fall_rate_se": None, "reference_fall_rate": None,
-                "reference_fall_rate_se": None, "fall_rate_difference": None, "fall_rate_difference_se": None}
+        return {
+            "fall_rate": None,
+            "fall_rate_se": None,
+            "reference_fall_rate": None,
+            "reference_fall_rate_se": None,
+            "fall_rate_difference": None,
+            "fall_rate_difference_se": None,
+        }
     f = np.asarray(falls, dtype=float)
     a = f.shape[1]
 
@@ -188,9 +222,14 @@ def fall_statistics(falls: np.ndarray | None, i: int, j: int) -> dict[str, float
         return float(x.std(ddof=1) / np.sqrt(len(x))) if len(x) > 1 else float("nan")
 
     d = f[i] - f[j]
-    return {"fall_rate": float(f[i].mean()), "fall_rate_se": se(f[i]), "reference_fall_rate": float(f[j].mean()),
-            "reference_fall_rate_se": se(f[j]), "fall_rate_difference": float(d.mean()),
-            "fall_rate_difference_se": se(d) if a > 1 else float("nan")}
+    return {
+        "fall_rate": float(f[i].mean()),
+        "fall_rate_se": se(f[i]),
+        "reference_fall_rate": float(f[j].mean()),
+        "reference_fall_rate_se": se(f[j]),
+        "fall_rate_difference": float(d.mean()),
+        "fall_rate_difference_se": se(d) if a > 1 else float("nan"),
+    }
 
 
 def falls_more(difference: float | None, se: float | None, tolerance: float) -> bool:
@@ -202,14 +241,24 @@ def falls_more(difference: float | None, se: float | None, tolerance: float) -> 
     return bool(difference > bound)
 
 
-def compare_designs(rule: CostRule, objectives: Sequence[Any], per_scenario: np.ndarray, falls: np.ndarray | None,
-                    i: int, nominal: int) -> dict[str, Any]:
+def compare_designs(
+    rule: CostRule,
+    objectives: Sequence[Any],
+    per_scenario: np.ndarray,
+    falls: np.ndarray | None,
+    i: int,
+    nominal: int,
+) -> dict[str, Any]:
     """Design i against the nominal design on their common scenarios, per objective: the
     rule's cost and the plain mean (eq. 4), each with its standard error, the improvements
     under both with their paired standard errors, and the fall rates with the paired
     difference. The reference level comes from the nominal row."""
     per = np.asarray(per_scenario, dtype=float)
-    ref = rule.reference(per[nominal], None if falls is None else np.asarray(falls)[nominal]) if rule.needs_reference else None
+    ref = (
+        rule.reference(per[nominal], None if falls is None else np.asarray(falls)[nominal])
+        if rule.needs_reference
+        else None
+    )
     values = rule.scenario_values(per, falls, ref)
     cost, cost_se = rule.aggregate(values), scenario_se(values, rule.aggregate)
     mean, mean_se = plain_mean(per), scenario_se(per, plain_mean)
@@ -218,12 +267,20 @@ def compare_designs(rule: CostRule, objectives: Sequence[Any], per_scenario: np.
         imp = float(o.improvement(float(cost[i, j]), float(cost[nominal, j])))
         imp_plain = float(o.improvement(float(mean[i, j]), float(mean[nominal, j])))
         out["objectives"][o.name] = {
-            "cost": float(cost[i, j]), "cost_se": float(cost_se[i, j]),
-            "plain_mean": float(mean[i, j]), "plain_mean_se": float(mean_se[i, j]),
-            "nominal_cost": float(cost[nominal, j]), "nominal_cost_se": float(cost_se[nominal, j]),
-            "nominal_plain_mean": float(mean[nominal, j]), "nominal_plain_mean_se": float(mean_se[nominal, j]),
-            "improvement": imp, "improvement_se": improvement_se(o, values[i, :, j], values[nominal, :, j], rule.aggregate),
-            "improvement_plain": imp_plain, "improvement_plain_se": improvement_se(o, per[i, :, j], per[nominal, :, j], plain_mean),
+            "cost": float(cost[i, j]),
+            "cost_se": float(cost_se[i, j]),
+            "plain_mean": float(mean[i, j]),
+            "plain_mean_se": float(mean_se[i, j]),
+            "nominal_cost": float(cost[nominal, j]),
+            "nominal_cost_se": float(cost_se[nominal, j]),
+            "nominal_plain_mean": float(mean[nominal, j]),
+            "nominal_plain_mean_se": float(mean_se[nominal, j]),
+            "improvement": imp,
+            "improvement_se": improvement_se(
+                o, values[i, :, j], values[nominal, :, j], rule.aggregate
+            ),
+            "improvement_plain": imp_plain,
+            "improvement_plain_se": improvement_se(o, per[i, :, j], per[nominal, :, j], plain_mean),
         }
     out.update(fall_statistics(falls, i, nominal))
     return out

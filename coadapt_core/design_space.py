@@ -34,12 +34,15 @@ def parse_range_pairs(text: str, *, field: str = "design_ranges") -> list[tuple[
             lo_s, hi_s = part.split(":")
             lo, hi = float(lo_s), float(hi_s)
         except ValueError:
-            raise UserError(f"design range '{part}' must look like low:high, e.g. 0.5:1.5", field=field) from None
+            raise UserError(
+                f"design range '{part}' must look like low:high, e.g. 0.5:1.5", field=field
+            ) from None
         if not (math.isfinite(lo) and math.isfinite(hi)):
             raise UserError(f"design range '{part}' must have finite bounds", field=field)
         if lo > hi:
             raise UserError(
-                f"design range '{part}' has inverted bounds; the lower bound must not exceed the upper", field=field
+                f"design range '{part}' has inverted bounds; the lower bound must not exceed the upper",
+                field=field,
             )
         out.append((lo, hi))
     return out
@@ -81,9 +84,7 @@ class Discrete:
 
     def __post_init__(self) -> None:
         if len(self.choices) == 0:
-            raise UserError(
-                f"design variable '{self.name}': empty set of choices", field=self.name
-            )
+            raise UserError(f"design variable '{self.name}': empty set of choices", field=self.name)
         object.__setattr__(self, "choices", tuple(sorted({float(c) for c in self.choices})))
 
     def describe(self) -> str:
@@ -125,12 +126,16 @@ class DesignSpace:
     @property
     def lower(self) -> np.ndarray:
         """[dim] smallest value of each variable (smallest choice for discrete ones)."""
-        return np.array([v.low if isinstance(v, Continuous) else v.choices[0] for v in self.variables])
+        return np.array(
+            [v.low if isinstance(v, Continuous) else v.choices[0] for v in self.variables]
+        )
 
     @property
     def upper(self) -> np.ndarray:
         """[dim] largest value of each variable (largest choice for discrete ones)."""
-        return np.array([v.high if isinstance(v, Continuous) else v.choices[-1] for v in self.variables])
+        return np.array(
+            [v.high if isinstance(v, Continuous) else v.choices[-1] for v in self.variables]
+        )
 
     def describe(self) -> str:
         return ", ".join(f"{v.name} in {v.describe()}" for v in self.variables)
@@ -149,9 +154,19 @@ class DesignSpace:
         out = []
         for v in self.variables:
             if isinstance(v, Continuous):
-                out.append({"name": v.name, "type": "continuous", "low": v.low, "high": v.high, "unit": v.unit})
+                out.append(
+                    {
+                        "name": v.name,
+                        "type": "continuous",
+                        "low": v.low,
+                        "high": v.high,
+                        "unit": v.unit,
+                    }
+                )
             else:
-                out.append({"name": v.name, "type": "discrete", "choices": list(v.choices), "unit": v.unit})
+                out.append(
+                    {"name": v.name, "type": "discrete", "choices": list(v.choices), "unit": v.unit}
+                )
         return {"variables": out}
 
     @classmethod
@@ -159,15 +174,23 @@ class DesignSpace:
         variables: list[Variable] = []
         for item in data["variables"]:
             if item["type"] == "continuous":
-                variables.append(Continuous(item["name"], float(item["low"]), float(item["high"]), item.get("unit", "")))
+                variables.append(
+                    Continuous(
+                        item["name"], float(item["low"]), float(item["high"]), item.get("unit", "")
+                    )
+                )
             else:
-                variables.append(Discrete(item["name"], tuple(item["choices"]), item.get("unit", "")))
+                variables.append(
+                    Discrete(item["name"], tuple(item["choices"]), item.get("unit", ""))
+                )
         return cls(variables)
 
     # -- membership ----------------------------------------------------------------------
     def validate(self, design: Iterable[float] | np.ndarray, *, tol: float = 1e-9) -> np.ndarray:
         """Return `design` as a float vector [dim], or raise `DesignError` naming the variable."""
-        values = np.asarray(list(design) if not isinstance(design, np.ndarray) else design, dtype=float)
+        values = np.asarray(
+            list(design) if not isinstance(design, np.ndarray) else design, dtype=float
+        )
         if values.ndim != 1 or values.shape[0] != self.dim:
             raise DesignError(
                 f"design needs {self.dim} values ({', '.join(self.names)}), got {values.size}",
@@ -175,7 +198,9 @@ class DesignSpace:
             )
         for value, var in zip(values, self.variables, strict=True):
             if not math.isfinite(value):
-                raise DesignError(f"design variable '{var.name}' is not a finite number", field=var.name)
+                raise DesignError(
+                    f"design variable '{var.name}' is not a finite number", field=var.name
+                )
             if isinstance(var, Continuous):
                 if value < var.low - tol or value > var.high + tol:
                     raise DesignError(
@@ -202,7 +227,9 @@ class DesignSpace:
 
     def parse(self, text: str) -> np.ndarray:
         """Parse '1.2,0.8[,2,3]' into a validated design."""
-        what = f"design '{text}' must be {self.dim} comma-separated numbers ({', '.join(self.names)})"
+        what = (
+            f"design '{text}' must be {self.dim} comma-separated numbers ({', '.join(self.names)})"
+        )
         return self.validate(parse_numbers(text, what=what))
 
     def format(self, design: Iterable[float]) -> str:
@@ -290,7 +317,9 @@ class DesignSpace:
             column = points[:, j]
             if isinstance(var, Continuous):
                 ref = reference.variables[j]
-                ref_width = (ref.high - ref.low) if isinstance(ref, Continuous) else var.high - var.low
+                ref_width = (
+                    (ref.high - ref.low) if isinstance(ref, Continuous) else var.high - var.low
+                )
                 lo, hi = float(column.min()), float(column.max())
                 span = hi - lo
                 lo, hi = lo - margin * span, hi + margin * span
@@ -303,7 +332,9 @@ class DesignSpace:
                         lo, hi = var.low, var.low + min_width
                     if hi > var.high:
                         lo, hi = var.high - min_width, var.high
-                variables.append(Continuous(var.name, max(lo, var.low), min(hi, var.high), var.unit))
+                variables.append(
+                    Continuous(var.name, max(lo, var.low), min(hi, var.high), var.unit)
+                )
             else:
                 used = [c for c in var.choices if np.any(np.abs(column - c) < 1e-9)]
                 variables.append(Discrete(var.name, tuple(used or var.choices), var.unit))
@@ -318,7 +349,8 @@ class DesignSpace:
                 lo, hi = bounds[var.name]
                 if lo > hi:
                     raise UserError(
-                        f"design variable '{var.name}': inverted bounds [{lo:g}, {hi:g}]", field=var.name
+                        f"design variable '{var.name}': inverted bounds [{lo:g}, {hi:g}]",
+                        field=var.name,
                     )
                 if lo < var.low - 1e-9 or hi > var.high + 1e-9:
                     raise UserError(

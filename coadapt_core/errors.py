@@ -30,8 +30,14 @@ class PluginError(CoadaptError):
 class UnknownPluginError(UserError):
     """A plugin name that no loaded plugin provides."""
 
-    def __init__(self, kind: str, name: str, available: list[str], broken: list[str] | None = None,
-                 reason: str | None = None):
+    def __init__(
+        self,
+        kind: str,
+        name: str,
+        available: list[str],
+        broken: list[str] | None = None,
+        reason: str | None = None,
+    ):
         import difflib
 
         listing = ", ".join(sorted(available)) or "(none loaded)"

@@ -47,7 +47,9 @@ class RealFitness:
     per_scenario: np.ndarray | None = None  # [K, A, M] each scenario's mean per-step cost
     cost_se: np.ndarray | None = None  # [K, M] standard error of `costs` over scenarios
     fall_rate: np.ndarray | None = None  # [K] share of scenarios (agents) that fell at least once
-    scenario_falls: np.ndarray | None = None  # [K, A] bool: scenario a of design k fell at least once
+    scenario_falls: np.ndarray | None = (
+        None  # [K, A] bool: scenario a of design k fell at least once
+    )
     # the walking gate (coadapt_core.coadapt.reliability): RMS velocity tracking error over the
     # RMS commanded velocity, per design (0 = perfect, 1 = no better than standing still)
     tracking_ratio: np.ndarray | None = None  # [K]
@@ -71,12 +73,24 @@ class CoadaptationBackend(Protocol):
         """Train (or fine-tune) the universal policy, critic and pseudo-critics on `designs`."""
 
     def real_fitness(
-        self, designs: np.ndarray, objectives: Sequence[Objective], *, agents: int, steps: int, seed: int = 0
+        self,
+        designs: np.ndarray,
+        objectives: Sequence[Objective],
+        *,
+        agents: int,
+        steps: int,
+        seed: int = 0,
     ) -> RealFitness:
         """Roll out `agents` copies of each design for `steps` policy steps."""
 
     def surrogate_fitness(
-        self, designs: np.ndarray, objectives: Sequence[Objective], buffer: Any, *, samples: int, seed: int = 0
+        self,
+        designs: np.ndarray,
+        objectives: Sequence[Objective],
+        buffer: Any,
+        *,
+        samples: int,
+        seed: int = 0,
     ) -> np.ndarray:
         """[K, M] mean pseudo-critic prediction over `samples` states drawn from `buffer`
         with each candidate's design substituted. No environment interaction."""
@@ -102,14 +116,26 @@ class SurrogateEnsemble(Protocol):
     surrogate_ensemble: bool
 
     def fit_surrogate(
-        self, designs: np.ndarray, costs: np.ndarray, objectives: Sequence[Objective], buffer: Any, *, seed: int = 0
+        self,
+        designs: np.ndarray,
+        costs: np.ndarray,
+        objectives: Sequence[Objective],
+        buffer: Any,
+        *,
+        seed: int = 0,
     ) -> None:
         """Fit the ensemble to labelled designs [N, D] and their real costs [N, M] on the
         states of `buffer`; until `train` changes the policy, `surrogate_fitness` is the
         members' mean."""
 
     def surrogate_members(
-        self, designs: np.ndarray, objectives: Sequence[Objective], buffer: Any, *, samples: int, seed: int = 0
+        self,
+        designs: np.ndarray,
+        objectives: Sequence[Objective],
+        buffer: Any,
+        *,
+        samples: int,
+        seed: int = 0,
     ) -> np.ndarray | None:
         """[E, K, M] each member's prediction (mean over `samples` states of `buffer`), or
         None when nothing is fitted (before `fit_surrogate`, after `train`)."""
@@ -125,10 +151,14 @@ def surrogate_ensemble(backend: object) -> SurrogateEnsemble | None:
     what is missing."""
     if getattr(backend, "surrogate_ensemble", False) is not True:
         return None
-    missing = [name for name in SURROGATE_ENSEMBLE_METHODS if not callable(getattr(backend, name, None))]
+    missing = [
+        name for name in SURROGATE_ENSEMBLE_METHODS if not callable(getattr(backend, name, None))
+    ]
     if missing:
-        raise CoadaptError(f"backend {type(backend).__name__} declares surrogate_ensemble but has no "
-                           f"{', '.join(missing)} (coadapt_core.fitness.SurrogateEnsemble)")
+        raise CoadaptError(
+            f"backend {type(backend).__name__} declares surrogate_ensemble but has no "
+            f"{', '.join(missing)} (coadapt_core.fitness.SurrogateEnsemble)"
+        )
     return backend  # type: ignore[return-value]
 
 

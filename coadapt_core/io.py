@@ -45,9 +45,15 @@ def jsonable(value: Any, *, nan: Any = None) -> Any:
 def disk_error(path: Path, exc: OSError) -> UserError:
     """One line for an OS error writing `path`."""
     if exc.errno in (errno.ENOSPC, errno.EDQUOT):
-        return UserError(f"disk full writing '{path}'; nothing partial was left, free space and run the command again", field="out")
+        return UserError(
+            f"disk full writing '{path}'; nothing partial was left, free space and run the command again",
+            field="out",
+        )
     if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
-        return UserError(f"cannot write '{path}' ({os.strerror(exc.errno)}); pick a writable --out folder", field="out")
+        return UserError(
+            f"cannot write '{path}' ({os.strerror(exc.errno)}); pick a writable --out folder",
+            field="out",
+        )
     return UserError(f"cannot write '{path}' ({exc.strerror or type(exc).__name__})", field="out")
 
 
@@ -85,7 +91,11 @@ def latest_checkpoint(folder: str | os.PathLike) -> Path | None:
     last `checkpoints/model_<iteration>.pt`, whichever was written last (an interrupted or
     stopped training has no model_final.pt). None when the folder holds neither."""
     folder = Path(folder)
-    found = [p for p in (folder / "model_final.pt", *(folder / "checkpoints").glob("model_*.pt")) if p.is_file()]
+    found = [
+        p
+        for p in (folder / "model_final.pt", *(folder / "checkpoints").glob("model_*.pt"))
+        if p.is_file()
+    ]
 
     def order(path: Path) -> tuple[float, int]:
         digits = "".join(ch for ch in path.stem if ch.isdigit())
@@ -102,9 +112,19 @@ def checkpoint_path(given: str | os.PathLike, *, field: str) -> Path:
         return path
     found = latest_checkpoint(path)
     if found is None:
-        raise UserError(f"{field} {path} is a folder without model_final.pt or checkpoints/model_*.pt; give a "
-                        "checkpoint file or the --out folder of a `coadapt train`", field=field.lstrip("-"))
+        raise UserError(
+            f"{field} {path} is a folder without model_final.pt or checkpoints/model_*.pt; give a "
+            "checkpoint file or the --out folder of a `coadapt train`",
+            field=field.lstrip("-"),
+        )
     return found
 
 
-__all__ = ["checkpoint_path", "disk_error", "jsonable", "latest_checkpoint", "write_atomic", "write_json_atomic"]
+__all__ = [
+    "checkpoint_path",
+    "disk_error",
+    "jsonable",
+    "latest_checkpoint",
+    "write_atomic",
+    "write_json_atomic",
+]

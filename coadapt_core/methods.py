@@ -33,7 +33,11 @@ BACKEND_KINDS: dict[str, BackendKind] = {
     kind.name: kind
     for kind in (
         BackendKind("universal", True, "the universal policy pi(a | o, xi) and its pseudo-critics"),
-        BackendKind("specialized", False, "a policy trained on each evaluated design alone (coadapt_core.coadapt.specialized)"),
+        BackendKind(
+            "specialized",
+            False,
+            "a policy trained on each evaluated design alone (coadapt_core.coadapt.specialized)",
+        ),
     )
 }
 
@@ -49,7 +53,9 @@ class Method:
     color: str  # matplotlib colour in the figures
     retrain: bool = True  # retrain the shared policy every outer iteration on the new range
     narrow: bool = True  # narrow the range around the final particles
-    surrogate_probability: float | None = None  # None: the config's `surrogate_probability` (w); else forced
+    surrogate_probability: float | None = (
+        None  # None: the config's `surrogate_probability` (w); else forced
+    )
     # take R_eval from the training rollouts when the backend offers it (no-real only: the
     # other methods fill it with the first, real, round of each outer iteration, as in the
     # paper where R_eval comes from Algorithm 2)
@@ -70,19 +76,53 @@ class Method:
 METHODS: dict[str, Method] = {
     m.name: m
     for m in (
-        Method("ours", "Ours", "universal policy, hybrid real/surrogate fitness, narrowing (the paper's method)",
-               marker="o", color="tab:red"),
-        Method("no-surrogate", "Ours w/o Surrogate", "as ours, every optimizer round evaluated for real",
-               marker="s", color="tab:blue", surrogate_probability=0.0),
-        Method("no-real", "Ours w/o Real", "as ours, every optimizer round scored by the surrogate",
-               marker="^", color="tab:green", surrogate_probability=1.0, buffer_from_training=True),
-        Method("no-retrain", "Ours w/o Retraining",
-               "one universal policy over the full range, trained once; N x J real rounds in one search",
-               marker="D", color="tab:purple", retrain=False, narrow=False, surrogate_probability=0.0),
-        Method("bo-specialized", "BO",
-               "baseline: a sequential optimizer proposing bo_designs designs, each with a policy trained for it alone",
-               marker="P", color="tab:orange", retrain=False, narrow=False, surrogate_probability=0.0,
-               backend="specialized", rounds_setting="bo_designs", optimizer_needs="sequential"),
+        Method(
+            "ours",
+            "Ours",
+            "universal policy, hybrid real/surrogate fitness, narrowing (the paper's method)",
+            marker="o",
+            color="tab:red",
+        ),
+        Method(
+            "no-surrogate",
+            "Ours w/o Surrogate",
+            "as ours, every optimizer round evaluated for real",
+            marker="s",
+            color="tab:blue",
+            surrogate_probability=0.0,
+        ),
+        Method(
+            "no-real",
+            "Ours w/o Real",
+            "as ours, every optimizer round scored by the surrogate",
+            marker="^",
+            color="tab:green",
+            surrogate_probability=1.0,
+            buffer_from_training=True,
+        ),
+        Method(
+            "no-retrain",
+            "Ours w/o Retraining",
+            "one universal policy over the full range, trained once; N x J real rounds in one search",
+            marker="D",
+            color="tab:purple",
+            retrain=False,
+            narrow=False,
+            surrogate_probability=0.0,
+        ),
+        Method(
+            "bo-specialized",
+            "BO",
+            "baseline: a sequential optimizer proposing bo_designs designs, each with a policy trained for it alone",
+            marker="P",
+            color="tab:orange",
+            retrain=False,
+            narrow=False,
+            surrogate_probability=0.0,
+            backend="specialized",
+            rounds_setting="bo_designs",
+            optimizer_needs="sequential",
+        ),
     )
 }
 #: `--method` choices, in the tables' order
@@ -91,7 +131,9 @@ DEFAULT_METHOD: str = METHOD_NAMES[0]
 
 for _m in METHODS.values():  # a typo in the table fails at import, not in a run
     assert _m.backend in BACKEND_KINDS, _m
-    assert _m.optimizer_needs is None or isinstance(getattr(Optimizer, _m.optimizer_needs, None), bool), _m
+    assert _m.optimizer_needs is None or isinstance(
+        getattr(Optimizer, _m.optimizer_needs, None), bool
+    ), _m
 
 
 def get_method(name: str) -> Method:
@@ -124,9 +166,19 @@ def optimizer_for(method: str, optimizer: str) -> str:
         return able[0]
     raise UserError(
         f"method '{method}' needs an optimizer that declares {need}; '{optimizer}' does not "
-        f"(installed that do: {', '.join(able) or 'none'})", field="optimizer",
+        f"(installed that do: {', '.join(able) or 'none'})",
+        field="optimizer",
     )
 
 
-__all__ = ["BACKEND_KINDS", "DEFAULT_METHOD", "METHODS", "METHOD_NAMES", "BackendKind", "Method", "get_method",
-           "method_help", "optimizer_for"]
+__all__ = [
+    "BACKEND_KINDS",
+    "DEFAULT_METHOD",
+    "METHODS",
+    "METHOD_NAMES",
+    "BackendKind",
+    "Method",
+    "get_method",
+    "method_help",
+    "optimizer_for",
+]

@@ -44,9 +44,12 @@ class StepBatch:
 
     def rows(self, index: Any) -> StepBatch:
         """The same step restricted to some environments (`index` into the first axis)."""
-        return StepBatch(**{
-            f.name: getattr(self, f.name) if f.name == "dt" else getattr(self, f.name)[index] for f in fields(self)
-        })
+        return StepBatch(
+            **{
+                f.name: getattr(self, f.name) if f.name == "dt" else getattr(self, f.name)[index]
+                for f in fields(self)
+            }
+        )
 
     @property
     def linear_tracking_error(self) -> torch.Tensor:
@@ -88,7 +91,10 @@ class Objective(ABC):
         """Options declared in `option_specs`, checked, with defaults filled in; an
         undeclared one is a user error. A subclass with its own constructor calls this."""
         self.options = resolve_options(
-            type(self).option_specs, options, owner=f"objective '{self.name}'", field="objective_options"
+            type(self).option_specs,
+            options,
+            owner=f"objective '{self.name}'",
+            field="objective_options",
         )
 
     @abstractmethod

@@ -40,7 +40,11 @@ def _optimizers_where(flag: str) -> str:
         from coadapt_core.plugins import get_registry
 
         registry = get_registry()
-        names = [n for n in registry.names("optimizer") if getattr(registry.get("optimizer", n), flag, False)]
+        names = [
+            n
+            for n in registry.names("optimizer")
+            if getattr(registry.get("optimizer", n), flag, False)
+        ]
     except Exception:
         names = []
     return ", ".join(names) or "none installed"
@@ -104,8 +108,14 @@ class Optimizer(ABC):
         initial_designs: np.ndarray | None = None,
         **options: Any,
     ):
-        if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or not (0 <= int(seed) < SEED_LIMIT):
-            raise UserError(f"optimizer seed must be an integer in [0, 2**63), got {seed!r}", field="seed")
+        if (
+            isinstance(seed, bool)
+            or not isinstance(seed, int | np.integer)
+            or not (0 <= int(seed) < SEED_LIMIT)
+        ):
+            raise UserError(
+                f"optimizer seed must be an integer in [0, 2**63), got {seed!r}", field="seed"
+            )
         if population < 1:
             raise UserError(f"population must be >= 1, got {population}", field="population")
         if budget < 1:
@@ -133,7 +143,10 @@ class Optimizer(ABC):
         self.seed = int(seed)
         self.num_objectives = int(num_objectives)
         self.options = resolve_options(
-            type(self).option_specs, options, owner=f"optimizer '{self.name}'", field="optimizer_options"
+            type(self).option_specs,
+            options,
+            owner=f"optimizer '{self.name}'",
+            field="optimizer_options",
         )
         self.initial_designs = self._check_initial(initial_designs)
         self.iteration = 0  # completed ask/tell rounds
@@ -179,11 +192,15 @@ class Optimizer(ABC):
     def _checked(self, raw: np.ndarray) -> np.ndarray:
         designs = np.atleast_2d(np.asarray(raw, dtype=float))
         if designs.shape[1] != self.space.dim:
-            raise RuntimeError(f"optimizer '{self.name}' proposed designs of width {designs.shape[1]}, expected {self.space.dim}")
+            raise RuntimeError(
+                f"optimizer '{self.name}' proposed designs of width {designs.shape[1]}, expected {self.space.dim}"
+            )
         self._report_out_of_bounds(designs)
         # discrete values snap to their exact choices; continuous ones are clipped to bounds
-        designs = self.space.decode(self.space.encode(designs)) if self.space.is_mixed else np.clip(
-            designs, self.space.lower, self.space.upper
+        designs = (
+            self.space.decode(self.space.encode(designs))
+            if self.space.is_mixed
+            else np.clip(designs, self.space.lower, self.space.upper)
         )
         return designs
 
@@ -206,7 +223,8 @@ class Optimizer(ABC):
             f"optimizer '{self.name}' proposed {int(outside.sum())} of {len(designs)} designs outside the design "
             f"space's bounds (e.g. {np.round(first, 4).tolist()} against {np.round(lower, 4).tolist()} to "
             f"{np.round(upper, 4).tolist()}); they were clipped to the bounds (docs/plugins.md, section 4)",
-            OutOfBoundsProposal, stacklevel=3,
+            OutOfBoundsProposal,
+            stacklevel=3,
         )
 
     @abstractmethod
@@ -217,7 +235,11 @@ class Optimizer(ABC):
         """Report costs [n] (or [n, M]) of the designs last asked for."""
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
         costs = np.asarray(costs, dtype=float)
-        expected = (designs.shape[0],) if self.num_objectives == 1 else (designs.shape[0], self.num_objectives)
+        expected = (
+            (designs.shape[0],)
+            if self.num_objectives == 1
+            else (designs.shape[0], self.num_objectives)
+        )
         if costs.shape != expected:
             raise ValueError(f"tell expects costs of shape {expected}, got {costs.shape}")
         self._tell(designs, costs)
@@ -274,12 +296,17 @@ class Optimizer(ABC):
         constructor arguments). Raises `UserError` if the state does not fit."""
         if not isinstance(state, dict) or state.get("optimizer") != self.name:
             found = state.get("optimizer") if isinstance(state, dict) else type(state).__name__
-            raise UserError(f"optimizer state is for '{found}', not '{self.name}'", field="optimizer")
+            raise UserError(
+                f"optimizer state is for '{found}', not '{self.name}'", field="optimizer"
+            )
         if self.iteration != 0 or self._history:
             raise RuntimeError("load_state_dict needs a freshly constructed optimizer")
         try:
             rounds = [
-                (np.atleast_2d(np.asarray(r["designs"], dtype=float)), np.asarray(r["costs"], dtype=float))
+                (
+                    np.atleast_2d(np.asarray(r["designs"], dtype=float)),
+                    np.asarray(r["costs"], dtype=float),
+                )
                 for r in state["rounds"]
             ]
             self._restore(state, rounds)
@@ -288,11 +315,16 @@ class Optimizer(ABC):
             self._best_design = None if best is None else np.asarray(best, dtype=float)
             self._best_cost = float(state["best_cost"])
             last = state["last_asked"]
-            self._last_asked = None if last is None else np.atleast_2d(np.asarray(last, dtype=float))
+            self._last_asked = (
+                None if last is None else np.atleast_2d(np.asarray(last, dtype=float))
+            )
         except (KeyError, TypeError, ValueError) as exc:
             if isinstance(exc, UserError):
                 raise
-            raise UserError(f"optimizer state for '{self.name}' is damaged ({type(exc).__name__}: {exc})", field="optimizer") from None
+            raise UserError(
+                f"optimizer state for '{self.name}' is damaged ({type(exc).__name__}: {exc})",
+                field="optimizer",
+            ) from None
         self._history = rounds
 
     def _restore(self, state: dict[str, Any], rounds: list[tuple[np.ndarray, np.ndarray]]) -> None:

@@ -67,9 +67,13 @@ class PluginOption:
 
     def __post_init__(self) -> None:
         if self.type not in OPTION_TYPES:
-            raise TypeError(f"option '{self.name}' has type {self.type!r}; use one of {', '.join(OPTION_TYPES)}")
+            raise TypeError(
+                f"option '{self.name}' has type {self.type!r}; use one of {', '.join(OPTION_TYPES)}"
+            )
         if self.from_run is not None and self.from_run not in RUN_FACTS:
-            raise TypeError(f"option '{self.name}' is filled from_run={self.from_run!r}; use one of {', '.join(RUN_FACTS)}")
+            raise TypeError(
+                f"option '{self.name}' is filled from_run={self.from_run!r}; use one of {', '.join(RUN_FACTS)}"
+            )
 
     def convert(self, value: Any, owner: str, field: str) -> Any:
         """`value` (a YAML value or command-line text) as the declared type, checked."""
@@ -112,7 +116,12 @@ class PluginOption:
     def accepted(self) -> str:
         if self.choices is not None:
             return "one of " + ", ".join(str(c) for c in self.choices)
-        kind = {"int": "an integer", "float": "a finite number", "str": "text", "bool": "true or false"}[self.type]
+        kind = {
+            "int": "an integer",
+            "float": "a finite number",
+            "str": "text",
+            "bool": "true or false",
+        }[self.type]
         if self.minimum is not None and self.maximum is not None:
             return f"{kind} in [{self.minimum:g}, {self.maximum:g}]"
         if self.minimum is not None:
@@ -123,9 +132,13 @@ class PluginOption:
 
     def to_dict(self) -> dict[str, Any]:
         out = {
-            "name": self.name, "type": self.type, "default": self.default, "help": self.help,
+            "name": self.name,
+            "type": self.type,
+            "default": self.default,
+            "help": self.help,
             "choices": None if self.choices is None else list(self.choices),
-            "minimum": self.minimum, "maximum": self.maximum,
+            "minimum": self.minimum,
+            "maximum": self.maximum,
         }
         return out | ({"alias": self.alias} if self.alias else {})
 
@@ -149,7 +162,9 @@ def resolve_options(
     return out
 
 
-def fill_from_run(specs: Sequence[PluginOption], given: Mapping[str, Any], facts: Mapping[str, Any]) -> dict[str, Any]:
+def fill_from_run(
+    specs: Sequence[PluginOption], given: Mapping[str, Any], facts: Mapping[str, Any]
+) -> dict[str, Any]:
     """`given` with each option declared `from_run` that is unset (absent, None or empty)
     set to that fact of the run (`facts`, keys of `RUN_FACTS`); a fact the run does not have
     (None) leaves the option unset."""
@@ -168,7 +183,9 @@ def parse_assignments(items: Sequence[str] | None, field: str) -> dict[str, str]
     for item in items or []:
         key, sep, value = str(item).partition("=")
         if not sep or not key.strip():
-            raise UserError(f"--{field.replace('_', '-')[:-1]} '{item}' must look like KEY=VALUE", field=field)
+            raise UserError(
+                f"--{field.replace('_', '-')[:-1]} '{item}' must look like KEY=VALUE", field=field
+            )
         out[key.strip().replace("-", "_")] = value.strip()
     return out
 
@@ -177,7 +194,9 @@ def check_specs(specs: Any, owner: str) -> tuple[PluginOption, ...]:
     """The declared specs as a tuple, or a TypeError naming what is wrong (registry and
     conformance suites use it)."""
     if not isinstance(specs, tuple | list):
-        raise TypeError(f"{owner}: option_specs must be a tuple of PluginOption, got {type(specs).__name__}")
+        raise TypeError(
+            f"{owner}: option_specs must be a tuple of PluginOption, got {type(specs).__name__}"
+        )
     names = set()
     for spec in specs:
         if not isinstance(spec, PluginOption):
@@ -185,8 +204,12 @@ def check_specs(specs: Any, owner: str) -> tuple[PluginOption, ...]:
         if spec.name in names:
             raise TypeError(f"{owner}: option '{spec.name}' is declared twice")
         names.add(spec.name)
-        if spec.alias is not None and not (isinstance(spec.alias, str) and spec.alias.isidentifier()):
-            raise TypeError(f"{owner}: option '{spec.name}' has alias {spec.alias!r}; use a name like 'my_option'")
+        if spec.alias is not None and not (
+            isinstance(spec.alias, str) and spec.alias.isidentifier()
+        ):
+            raise TypeError(
+                f"{owner}: option '{spec.name}' has alias {spec.alias!r}; use a name like 'my_option'"
+            )
         if spec.default is not None:
             spec.convert(spec.default, owner, "option_specs")
     return tuple(specs)

@@ -43,7 +43,9 @@ def front_rows(designs: np.ndarray, costs: np.ndarray, *, decimals: int = 12) ->
     return keep[np.lexsort(costs[keep].T[::-1])]
 
 
-def pareto_front(designs: np.ndarray, costs: np.ndarray, *, decimals: int = 12) -> tuple[np.ndarray, np.ndarray]:
+def pareto_front(
+    designs: np.ndarray, costs: np.ndarray, *, decimals: int = 12
+) -> tuple[np.ndarray, np.ndarray]:
     """(designs [F, dim], costs [F, M]) of the non-dominated rows, one row per distinct
     design (first occurrence), sorted by the first cost."""
     designs = np.asarray(designs, dtype=float)
@@ -57,8 +59,10 @@ def pareto_front(designs: np.ndarray, costs: np.ndarray, *, decimals: int = 12) 
 #: The nominal design alone has hypervolume 1; a front that beats it somewhere has more.
 HV_REFERENCE = 2.0
 #: how the summary and the report describe the hypervolume, in one clause
-HV_DEFINITION = ("hypervolume of the front in costs relative to the nominal design's (1 + (cost - nominal) / "
-                 "|nominal| per objective), up to 2 in each: the nominal design alone has 1")
+HV_DEFINITION = (
+    "hypervolume of the front in costs relative to the nominal design's (1 + (cost - nominal) / "
+    "|nominal| per objective), up to 2 in each: the nominal design alone has 1"
+)
 
 
 def relative_costs(costs: np.ndarray, nominal: np.ndarray) -> np.ndarray:
@@ -83,7 +87,9 @@ def hypervolume(costs: np.ndarray, nominal: np.ndarray) -> float:
     return float(HV(ref_point=np.full(z.shape[1], HV_REFERENCE))(z))
 
 
-def hypervolume_se(values: np.ndarray, aggregate: Callable[[np.ndarray], np.ndarray]) -> tuple[float, float]:
+def hypervolume_se(
+    values: np.ndarray, aggregate: Callable[[np.ndarray], np.ndarray]
+) -> tuple[float, float]:
     """(hypervolume, standard error) of the candidates' front from their scenario values
     [C + 1, A, M] (the nominal design last; a cost rule's `scenario_values`) and the rule's
     `aggregate` ([K, A, M] -> [K, M]). The error is the bootstrap's over the A scenarios,
@@ -97,7 +103,10 @@ def hypervolume_se(values: np.ndarray, aggregate: Callable[[np.ndarray], np.ndar
     value = hypervolume(costs[:-1], costs[-1])
     if x.shape[1] < 2:
         return value, 0.0
-    boot = [hypervolume(c[:-1], c[-1]) for c in (aggregate(x[:, idx, :]) for idx in _resamples(x.shape[1]))]
+    boot = [
+        hypervolume(c[:-1], c[-1])
+        for c in (aggregate(x[:, idx, :]) for idx in _resamples(x.shape[1]))
+    ]
     return value, float(np.std(boot, ddof=1))
 
 
@@ -118,8 +127,10 @@ def pick_index(pick: str | int, costs: np.ndarray) -> int:
     except ValueError:
         raise ValueError(f"'{pick}' is neither a front index (0 to {n - 1}) nor 'knee'") from None
     if not 0 <= index < n:
-        raise ValueError(f"{index} is not a front index: the front holds {n} design{'' if n == 1 else 's'} "
-                         f"(0 to {n - 1})")
+        raise ValueError(
+            f"{index} is not a front index: the front holds {n} design{'' if n == 1 else 's'} "
+            f"(0 to {n - 1})"
+        )
     return index
 
 
@@ -129,5 +140,15 @@ def is_dominated(point: np.ndarray, others: np.ndarray) -> bool:
     return bool((np.all(others <= point, axis=1) & np.any(others < point, axis=1)).any())
 
 
-__all__ = ["HV_DEFINITION", "HV_REFERENCE", "front_rows", "hypervolume", "hypervolume_se", "is_dominated", "pareto_front",
-           "pareto_mask", "pick_index", "relative_costs"]
+__all__ = [
+    "HV_DEFINITION",
+    "HV_REFERENCE",
+    "front_rows",
+    "hypervolume",
+    "hypervolume_se",
+    "is_dominated",
+    "pareto_front",
+    "pareto_mask",
+    "pick_index",
+    "relative_costs",
+]

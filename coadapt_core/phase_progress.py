@@ -20,7 +20,9 @@ from dataclasses import dataclass
 #: what a listener gets: (interactions done in this phase, interactions the phase will take)
 Listener = Callable[[int, int], None]
 
-_LISTENERS: contextvars.ContextVar[tuple[Listener, ...]] = contextvars.ContextVar("phase_listeners", default=())
+_LISTENERS: contextvars.ContextVar[tuple[Listener, ...]] = contextvars.ContextVar(
+    "phase_listeners", default=()
+)
 
 
 @contextlib.contextmanager

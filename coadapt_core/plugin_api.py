@@ -89,40 +89,58 @@ def declared_api(cls: type, module: object | None = None) -> str | None:
 
 def changes_since(major: int) -> list[str]:
     """The breaking changes of every major version after `major`, up to this one."""
-    return [c for m in sorted(BREAKING_CHANGES) if major < m <= current()[0] for c in BREAKING_CHANGES[m]]
+    return [
+        c
+        for m in sorted(BREAKING_CHANGES)
+        if major < m <= current()[0]
+        for c in BREAKING_CHANGES[m]
+    ]
 
 
 def _older_major(major: int) -> str:
     """The clause refusing a plugin written for the older major version `major`."""
     have_major, have_minor, _ = current()
     changed = "; ".join(changes_since(major)) or "see the changelog"
-    return (f"was written for coadapt plugin API {major}.x and this coadapt has {PLUGIN_API_VERSION}, which "
-            f"changed: {changed}; adapt it as {MIGRATION_DOC} says, then declare "
-            f"{MODULE_ATTRIBUTE} = \"{have_major}.{have_minor}\"")
+    return (
+        f"was written for coadapt plugin API {major}.x and this coadapt has {PLUGIN_API_VERSION}, which "
+        f"changed: {changed}; adapt it as {MIGRATION_DOC} says, then declare "
+        f'{MODULE_ATTRIBUTE} = "{have_major}.{have_minor}"'
+    )
 
 
 def api_problem(declared: str | None) -> str | None:
     """Why a plugin declaring `declared` cannot be loaded, in one clause; None when it can.
     A plugin declaring nothing was written before versions were declared: for 1.x."""
     if declared is None:
-        return "declares no plugin API version, so it is taken as written for 1.x: it " + _older_major(1)
+        return (
+            "declares no plugin API version, so it is taken as written for 1.x: it "
+            + _older_major(1)
+        )
     try:
         major, minor, _ = parse_version(declared)
     except ValueError:
-        return (f"declares plugin API {declared!r}, which is not a version; declare the version it was written "
-                f"for, e.g. {MODULE_ATTRIBUTE} = \"{current()[0]}.{current()[1]}\"")
+        return (
+            f"declares plugin API {declared!r}, which is not a version; declare the version it was written "
+            f'for, e.g. {MODULE_ATTRIBUTE} = "{current()[0]}.{current()[1]}"'
+        )
     have_major, have_minor, _ = current()
     if major < have_major:
         return _older_major(major)
     if major > have_major or minor > have_minor:
-        return (f"needs coadapt plugin API {major}.{minor}, newer than this coadapt's {PLUGIN_API_VERSION}: "
-                "upgrade coadapt (pip install -U coadapt)")
+        return (
+            f"needs coadapt plugin API {major}.{minor}, newer than this coadapt's {PLUGIN_API_VERSION}: "
+            "upgrade coadapt (pip install -U coadapt)"
+        )
     return None
 
 
 # -- comparing recorded signatures (coadapt_core.api_signature records them) ----------------
 def _flat(signature: dict[str, dict[str, str]]) -> dict[str, str]:
-    return {f"{where}::{name}": text for where, members in signature.items() for name, text in members.items()}
+    return {
+        f"{where}::{name}": text
+        for where, members in signature.items()
+        for name, text in members.items()
+    }
 
 
 def _suite_test(key: str, text: str) -> bool:
@@ -130,7 +148,9 @@ def _suite_test(key: str, text: str) -> bool:
     return key.startswith("coadapt_core.testing.") and text.startswith("test(")
 
 
-def signature_changes(old: dict[str, dict[str, str]], new: dict[str, dict[str, str]]) -> dict[str, list[str]]:
+def signature_changes(
+    old: dict[str, dict[str, str]], new: dict[str, dict[str, str]]
+) -> dict[str, list[str]]:
     """{'removed': [...], 'changed': [...], 'added': [...]} between two signatures."""
     a, b = _flat(old), _flat(new)
     return {
@@ -148,7 +168,11 @@ def required_bump(old: dict[str, dict[str, str]], new: dict[str, dict[str, str]]
     breaks no plugin (minor), adding one is minor (the plugin's suite has a check more)."""
     diff = signature_changes(old, new)
     flat_old, flat = _flat(old), _flat(new)
-    breaking_additions = [k for k in diff["added"] if flat[k].startswith("abstract ") or flat[k].endswith("(required)")]
+    breaking_additions = [
+        k
+        for k in diff["added"]
+        if flat[k].startswith("abstract ") or flat[k].endswith("(required)")
+    ]
     removed = [k for k in diff["removed"] if not _suite_test(k, flat_old[k])]
     if diff["removed"] and not removed:
         return "minor"  # a check dropped or renamed (and maybe things added): nothing a plugin relies on
@@ -184,8 +208,13 @@ def bump_problem(old_version: str, old_sig: dict, new_version: str, new_sig: dic
         return f"version {new_version} is below {old_version}"
     if _RANK[have] < _RANK[need]:
         diff = signature_changes(old_sig, new_sig)
-        shown = "; ".join(f"{kind}: {', '.join(keys[:5])}{' ...' if len(keys) > 5 else ''}"
-                          for kind, keys in diff.items() if keys)
-        return (f"the plugin interfaces changed ({shown}) and need a {need} version bump over {old_version}; "
-                f"the version is {new_version}")
+        shown = "; ".join(
+            f"{kind}: {', '.join(keys[:5])}{' ...' if len(keys) > 5 else ''}"
+            for kind, keys in diff.items()
+            if keys
+        )
+        return (
+            f"the plugin interfaces changed ({shown}) and need a {need} version bump over {old_version}; "
+            f"the version is {new_version}"
+        )
     return None

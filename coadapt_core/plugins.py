@@ -88,7 +88,9 @@ class BrokenPlugin:
 class Registry:
     """`{kind: {name: PluginInfo}}` plus the plugins that failed to load."""
 
-    entries: dict[str, dict[str, PluginInfo]] = field(default_factory=lambda: {k: {} for k in KINDS})
+    entries: dict[str, dict[str, PluginInfo]] = field(
+        default_factory=lambda: {k: {} for k in KINDS}
+    )
     broken: list[BrokenPlugin] = field(default_factory=list)
     manager: pluggy.PluginManager | None = None
 
@@ -104,8 +106,13 @@ class Registry:
         except KeyError:
             refused = [b.line() for b in self.broken if b.refused == (kind, name)]
             # written for another plugin API: that line alone says what to do
-            raise UnknownPluginError(kind, name, self.names(kind), [b.line() for b in self.broken],
-                                     reason=refused[0] if refused else None) from None
+            raise UnknownPluginError(
+                kind,
+                name,
+                self.names(kind),
+                [b.line() for b in self.broken],
+                reason=refused[0] if refused else None,
+            ) from None
 
     def default(self, kind: str, exclude: tuple[str, ...] = ()) -> str:
         """The name a command takes for `kind` when none is given: the registered class with
@@ -123,16 +130,25 @@ class Registry:
         objectives of a grid): every registered class with a positive `default_rank`, lowest
         rank first, so the default of the kind (`default`) comes last; ties by name. A kind
         where none declares a rank gives its default alone."""
-        ranked = [i for i in self.entries[kind].values() if int(getattr(i.cls, "default_rank", 0)) > 0]
+        ranked = [
+            i for i in self.entries[kind].values() if int(getattr(i.cls, "default_rank", 0)) > 0
+        ]
         if not ranked:
             return [self.default(kind)]
-        return [i.name for i in sorted(ranked, key=lambda i: (int(getattr(i.cls, "default_rank", 0)), i.name))]
+        return [
+            i.name
+            for i in sorted(ranked, key=lambda i: (int(getattr(i.cls, "default_rank", 0)), i.name))
+        ]
 
     def create(self, kind: str, name: str, *args: Any, **kwargs: Any) -> Any:
         return self.get(kind, name)(*args, **kwargs)
 
     def all(self) -> list[PluginInfo]:
-        return [info for kind in KINDS for info in sorted(self.entries[kind].values(), key=lambda i: i.name)]
+        return [
+            info
+            for kind in KINDS
+            for info in sorted(self.entries[kind].values(), key=lambda i: i.name)
+        ]
 
 
 def _allowed(ep: metadata.EntryPoint, distribution: str) -> bool:
@@ -194,23 +210,33 @@ def load_registry(extra_plugins: list[tuple[ModuleType | object, str]] | None = 
             try:
                 classes = impl() or []
             except Exception as exc:
-                registry.broken.append(BrokenPlugin(ep_name, dist, f"{hook_name} raised {type(exc).__name__}: {exc}"))
+                registry.broken.append(
+                    BrokenPlugin(ep_name, dist, f"{hook_name} raised {type(exc).__name__}: {exc}")
+                )
                 continue
             base = _base_class(kind)
             for cls in classes:
                 if not (isinstance(cls, type) and issubclass(cls, base)):
                     registry.broken.append(
-                        BrokenPlugin(ep_name, dist, f"{hook_name} returned {cls!r}, not a {base.__name__} subclass")
+                        BrokenPlugin(
+                            ep_name,
+                            dist,
+                            f"{hook_name} returned {cls!r}, not a {base.__name__} subclass",
+                        )
                     )
                     continue
                 name = getattr(cls, "name", None)
                 if not isinstance(name, str) or not name:
-                    registry.broken.append(BrokenPlugin(ep_name, dist, f"{cls.__qualname__} has no `name`"))
+                    registry.broken.append(
+                        BrokenPlugin(ep_name, dist, f"{cls.__qualname__} has no `name`")
+                    )
                     continue
                 api = declared_api(cls, plugin)  # the plugin API version it was written for
                 problem = api_problem(api)
                 if problem is not None:
-                    registry.broken.append(BrokenPlugin(ep_name, dist, f"{kind} '{name}' {problem}", (kind, name)))
+                    registry.broken.append(
+                        BrokenPlugin(ep_name, dist, f"{kind} '{name}' {problem}", (kind, name))
+                    )
                     continue
                 try:  # declared options must be well formed before anyone passes values to them
                     check_specs(getattr(cls, "option_specs", ()), f"{kind} '{name}'")
@@ -224,7 +250,9 @@ def load_registry(extra_plugins: list[tuple[ModuleType | object, str]] | None = 
                         f"distribution {existing.distribution} and by {cls.__qualname__} from "
                         f"distribution {dist}; uninstall one or restrict {ENV_LOAD_PLUGINS}"
                     )
-                registry.entries[kind][name] = PluginInfo(kind, name, cls, dist, version, ep_name, api)
+                registry.entries[kind][name] = PluginInfo(
+                    kind, name, cls, dist, version, ep_name, api
+                )
     pm.check_pending()
     return registry
 

@@ -57,7 +57,9 @@ class RobotModel:
     joint_upper: np.ndarray  # [num_joints]
     standing_base_height: float  # base origin height above flat ground at the default pose
     total_mass: float
-    foot_contact_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # [k, 3] in the foot frame
+    foot_contact_points: np.ndarray = field(
+        default_factory=lambda: np.zeros((0, 3))
+    )  # [k, 3] in the foot frame
     # lengths, segment masses, motor types, ...; an optional "units" entry maps keys to units
     # ({"thigh_length": "m"}), which `coadapt robot show` prints next to the values
     info: dict[str, Any] = field(default_factory=dict)
@@ -74,8 +76,11 @@ class RobotModel:
             from coadapt_core.errors import UserError
 
             given = ", ".join(sorted(self.formats)) or "none"
-            raise UserError(f"the robot model has no '{fmt}' description (it writes: {given}); "
-                            "a simulator that reads it needs a robot plugin that writes it", field="robot")
+            raise UserError(
+                f"the robot model has no '{fmt}' description (it writes: {given}); "
+                "a simulator that reads it needs a robot plugin that writes it",
+                field="robot",
+            )
         return value
 
 
@@ -126,8 +131,13 @@ class ValidationReport:
             "design": [float(x) for x in self.design],
             "feasible": bool(self.feasible),
             "findings": [
-                {"check": str(f.check), "ok": bool(f.ok), "message": str(f.message), "value": num(f.value),
-                 "limit": num(f.limit)}
+                {
+                    "check": str(f.check),
+                    "ok": bool(f.ok),
+                    "message": str(f.message),
+                    "value": num(f.value),
+                    "limit": num(f.limit),
+                }
                 for f in self.findings
             ],
         }
@@ -219,14 +229,17 @@ class Robot(ABC):
 def joint_table(model: RobotModel) -> list[dict[str, Any]]:
     """A model's actuated joints in policy order, as plain data: default angle, limits, PD
     gains, motor torque and speed limits (`coadapt robot show`, the handoff's design sheet)."""
-    return [{
-        "name": name,
-        "default": float(model.default_joint_pos[k]),
-        "lower": float(model.joint_lower[k]),
-        "upper": float(model.joint_upper[k]),
-        "kp": float(model.kp[k]),
-        "kd": float(model.kd[k]),
-        "torque_limit": float(model.torque_limit[k]),
-        "speed_limit": float(model.speed_limit[k]),
-        "speed_limit_rpm": float(model.speed_limit[k] * 60.0 / (2.0 * np.pi)),
-    } for k, name in enumerate(model.joint_names)]
+    return [
+        {
+            "name": name,
+            "default": float(model.default_joint_pos[k]),
+            "lower": float(model.joint_lower[k]),
+            "upper": float(model.joint_upper[k]),
+            "kp": float(model.kp[k]),
+            "kd": float(model.kd[k]),
+            "torque_limit": float(model.torque_limit[k]),
+            "speed_limit": float(model.speed_limit[k]),
+            "speed_limit_rpm": float(model.speed_limit[k] * 60.0 / (2.0 * np.pi)),
+        }
+        for k, name in enumerate(model.joint_names)
+    ]

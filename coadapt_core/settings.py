@@ -126,8 +126,16 @@ def setting(
     `--no-`); `aliases` adds older names; `argument` (a metavar) makes it a positional
     argument; `hidden` keeps it out of --help; `callback` runs as soon as the option is read
     (`--version`, `--help-all`)."""
-    extra = {"accepted": accepted, "plugin": plugin, "cli": cli, "names": tuple(names), "aliases": tuple(aliases),
-             "argument": argument, "hidden": hidden, "callback": callback}
+    extra = {
+        "accepted": accepted,
+        "plugin": plugin,
+        "cli": cli,
+        "names": tuple(names),
+        "aliases": tuple(aliases),
+        "argument": argument,
+        "hidden": hidden,
+        "callback": callback,
+    }
     kwargs: dict[str, Any] = dict(description=help, json_schema_extra=extra, **constraints)
     if default_factory is not None:
         return Field(default_factory=default_factory, **kwargs)
@@ -158,9 +166,13 @@ def _take_shared(cls: type) -> None:
         if not isinstance(value, _Shared):
             continue
         info = value.source.__pydantic_fields__[value.name or name]
-        annotations[name] = Annotated[(info.annotation, *info.metadata)] if info.metadata else info.annotation
+        annotations[name] = (
+            Annotated[(info.annotation, *info.metadata)] if info.metadata else info.annotation
+        )
         extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
-        kwargs: dict[str, Any] = dict(description=info.description, json_schema_extra={**extra, "shared": value.source})
+        kwargs: dict[str, Any] = dict(
+            description=info.description, json_schema_extra={**extra, "shared": value.source}
+        )
         if value.default is not dataclasses.MISSING:
             setattr(cls, name, Field(value.default, **kwargs))
         elif info.default_factory is not None:
@@ -277,7 +289,11 @@ class Leaf:
 
     @property
     def extra(self) -> dict[str, Any]:
-        return dict(self.info.json_schema_extra or {}) if isinstance(self.info.json_schema_extra, dict) else {}
+        return (
+            dict(self.info.json_schema_extra or {})
+            if isinstance(self.info.json_schema_extra, dict)
+            else {}
+        )
 
     @property
     def required(self) -> bool:
@@ -288,7 +304,9 @@ class Leaf:
     def default(self) -> Any:
         if self.info.default_factory is not None:
             return self.info.default_factory()
-        return None if self.info.default is dataclasses.MISSING or self.required else self.info.default
+        return (
+            None if self.info.default is dataclasses.MISSING or self.required else self.info.default
+        )
 
     def bounds(self) -> dict[str, float]:
         out: dict[str, float] = {}
@@ -307,9 +325,14 @@ class Leaf:
         if kind == "choice":
             return "one of " + ", ".join(str(c) for c in self.choices or ())
         words = {
-            "bool": "true or false", "int": "an integer", "float": "a finite number", "str": "text",
-            "range": "a range low:high", "ints": "comma-separated integers",
-            "weights": "name=number pairs, comma-separated", "mapping": "a mapping of names to values",
+            "bool": "true or false",
+            "int": "an integer",
+            "float": "a finite number",
+            "str": "text",
+            "range": "a range low:high",
+            "ints": "comma-separated integers",
+            "weights": "name=number pairs, comma-separated",
+            "mapping": "a mapping of names to values",
         }[kind]
         b = self.bounds()
         low = ("ge", b["ge"]) if "ge" in b else ("gt", b["gt"]) if "gt" in b else None
@@ -343,7 +366,11 @@ def leaves(cls: type, prefix: tuple[str, ...] = ()) -> list[Leaf]:
 
 def sections(cls: type) -> list[str]:
     """Names of the nested settings sections of `cls`."""
-    return [n for n, i in cls.__pydantic_fields__.items() if is_settings(_strip_optional(i.annotation)[0])]
+    return [
+        n
+        for n, i in cls.__pydantic_fields__.items()
+        if is_settings(_strip_optional(i.annotation)[0])
+    ]
 
 
 def to_plain(value: Any) -> Any:
@@ -354,7 +381,12 @@ def to_plain(value: Any) -> Any:
 
 # -- partial trees: overrides of a configuration that comes from elsewhere ------------------
 def partial(
-    cls: type, name: str, *, unset: str, doc: str = "", extra: dict[str, tuple[Any, Any]] | None = None,
+    cls: type,
+    name: str,
+    *,
+    unset: str,
+    doc: str = "",
+    extra: dict[str, tuple[Any, Any]] | None = None,
     exclude: tuple[str, ...] = (),
 ) -> type:
     """A settings class with the fields of `cls`, each unset (None) by default: the
@@ -369,12 +401,17 @@ def partial(
         base = {**(info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {})}
         if is_settings(inner):
             sub = partial(inner, f"{name}_{field_name}", unset=unset, doc=info.description or "")
-            specs.append((field_name, sub, setting(default_factory=sub, help=info.description or "")))
+            specs.append(
+                (field_name, sub, setting(default_factory=sub, help=info.description or ""))
+            )
             continue
         default = info.default_factory() if info.default_factory is not None else info.default
         annotation = Annotated[(inner, *info.metadata)] if info.metadata else inner
-        field = Field(None, description=info.description,
-                      json_schema_extra={**base, "unset": unset, "base_default": default})
+        field = Field(
+            None,
+            description=info.description,
+            json_schema_extra={**base, "unset": unset, "base_default": default},
+        )
         specs.append((field_name, annotation | None, field))
     for field_name, (annotation, field) in (extra or {}).items():
         specs.append((field_name, annotation, field))
@@ -417,7 +454,9 @@ def _find_leaf(cls: type, loc: tuple[Any, ...]) -> Leaf | None:
     names = tuple(str(p) for p in loc if not isinstance(p, int))
     best = None
     for leaf in leaves(cls):
-        if names[: len(leaf.path)] == leaf.path and (best is None or len(leaf.path) > len(best.path)):
+        if names[: len(leaf.path)] == leaf.path and (
+            best is None or len(leaf.path) > len(best.path)
+        ):
             best = leaf
     return best
 
@@ -453,7 +492,9 @@ def user_error(exc: ValidationError, cls: type, prefix: str = "") -> UserError:
     if leaf is None:
         return UserError(f"{key or cls.__name__}: {err.get('msg')}", field=key or None)
     if leaf.kind == "choice":
-        return UserError(f"{key} '{value}' is not one of {', '.join(map(str, leaf.choices or ()))}", field=key)
+        return UserError(
+            f"{key} '{value}' is not one of {', '.join(map(str, leaf.choices or ()))}", field=key
+        )
     detail = ""
     if err.get("type") == "value_error":
         detail = " (" + str(err.get("msg", "")).removeprefix("Value error, ") + ")"

@@ -86,7 +86,9 @@ def encode(obj: Any, arrays: dict[str, np.ndarray] | None = None) -> Any:
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
         key = f"{type(obj).__module__}:{type(obj).__qualname__}"
         if key not in _DATACLASSES:
-            raise TypeError(f"dataclass {key} is not registered for state files (statefile.register_dataclass)")
+            raise TypeError(
+                f"dataclass {key} is not registered for state files (statefile.register_dataclass)"
+            )
         fields = {f.name: encode(getattr(obj, f.name), arrays) for f in dataclasses.fields(obj)}
         return {"__dataclass__": key, "fields": fields}
     raise TypeError(f"cannot store a value of type {type(obj).__name__} in a state file")
@@ -128,7 +130,11 @@ def decode(tree: Any, arrays: Any = None) -> Any:
     if "__dataclass__" in tree:
         key = str(tree["__dataclass__"])
         module = key.partition(":")[0]
-        if key not in _DATACLASSES and module.startswith("coadapt_core.") and module.replace(".", "").replace("_", "").isalnum():
+        if (
+            key not in _DATACLASSES
+            and module.startswith("coadapt_core.")
+            and module.replace(".", "").replace("_", "").isalnum()
+        ):
             import importlib
 
             importlib.import_module(module)  # a core module registers its classes on import
@@ -175,7 +181,9 @@ def write_npz(path: str | os.PathLike, obj: Any) -> Path:
     arrays: dict[str, np.ndarray] = {}
     tree = encode(obj, arrays)
     buf = io.BytesIO()
-    np.savez(buf, __tree__=np.frombuffer(json.dumps(tree).encode("utf-8"), dtype=np.uint8), **arrays)
+    np.savez(
+        buf, __tree__=np.frombuffer(json.dumps(tree).encode("utf-8"), dtype=np.uint8), **arrays
+    )
     return write_atomic(path, buf.getvalue())
 
 
@@ -185,9 +193,14 @@ def read_json(path: str | os.PathLike, *, what: str = "state file", recover: str
         with open(path, "rb") as f:
             return decode(json.loads(f.read().decode("utf-8")))
     except OSError as exc:
-        raise StateFileError(f"{what} '{path}' cannot be read ({exc.strerror or type(exc).__name__}){recover}", field="resume") from None
+        raise StateFileError(
+            f"{what} '{path}' cannot be read ({exc.strerror or type(exc).__name__}){recover}",
+            field="resume",
+        ) from None
     except (ValueError, TypeError, KeyError, UnicodeDecodeError) as exc:
-        raise StateFileError(f"{what} '{path}' is damaged ({_short(exc)}){recover}", field="resume") from None
+        raise StateFileError(
+            f"{what} '{path}' is damaged ({_short(exc)}){recover}", field="resume"
+        ) from None
 
 
 def read_npz(path: str | os.PathLike, *, what: str = "state file", recover: str = "") -> Any:
@@ -198,9 +211,14 @@ def read_npz(path: str | os.PathLike, *, what: str = "state file", recover: str 
         tree = json.loads(arrays.pop("__tree__").tobytes().decode("utf-8"))
         return decode(tree, arrays)
     except OSError as exc:
-        raise StateFileError(f"{what} '{path}' cannot be read ({exc.strerror or type(exc).__name__}){recover}", field="resume") from None
+        raise StateFileError(
+            f"{what} '{path}' cannot be read ({exc.strerror or type(exc).__name__}){recover}",
+            field="resume",
+        ) from None
     except Exception as exc:  # zip, npy and JSON parsers raise many kinds; all mean damaged
-        raise StateFileError(f"{what} '{path}' is damaged ({_short(exc)}){recover}", field="resume") from None
+        raise StateFileError(
+            f"{what} '{path}' is damaged ({_short(exc)}){recover}", field="resume"
+        ) from None
 
 
 def _short(exc: BaseException) -> str:

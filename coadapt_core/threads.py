@@ -29,8 +29,11 @@ class ThreadSettings:
     """`--threads`, declared once and taken as it is by run, train, eval, landscape and grid."""
 
     threads: Int | None = setting(
-        None, "CPU threads of the physics and of torch (default: the CPUs this process may use, its affinity "
-        "mask and cgroup CPU quota; never the checkpoint's).", ge=1)
+        None,
+        "CPU threads of the physics and of torch (default: the CPUs this process may use, its affinity "
+        "mask and cgroup CPU quota; never the checkpoint's).",
+        ge=1,
+    )
 
 
 def _own_cgroups(proc_file: str = "/proc/self/cgroup") -> list[tuple[str, str]]:
@@ -70,8 +73,10 @@ def _read_limit(quota_file: Path, period_file: Path | None = None) -> float | No
     return value if value > 0 else None
 
 
-def cgroup_cpu_limit(cgroup_root: str | os.PathLike | None = None,
-                     proc_cgroup: str | os.PathLike = "/proc/self/cgroup") -> float | None:
+def cgroup_cpu_limit(
+    cgroup_root: str | os.PathLike | None = None,
+    proc_cgroup: str | os.PathLike = "/proc/self/cgroup",
+) -> float | None:
     """CPUs the cgroup CPU quota allows this process (cgroup v2 or v1, the tightest limit
     on its cgroup or any above it); None without one. `cgroup_root` (default
     $COADAPT_CGROUP_ROOT, else /sys/fs/cgroup) is where the cgroup files are mounted,
@@ -83,8 +88,10 @@ def cgroup_cpu_limit(cgroup_root: str | os.PathLike | None = None,
             limits += [_read_limit(folder / "cpu.max") for folder in _folders(root, path)]
         elif "cpu" in controllers.split(","):  # v1: the cpu controller's own tree
             for base in (root / controllers, root / "cpu", root / "cpu,cpuacct"):
-                limits += [_read_limit(folder / "cpu.cfs_quota_us", folder / "cpu.cfs_period_us")
-                           for folder in _folders(base, path)]
+                limits += [
+                    _read_limit(folder / "cpu.cfs_quota_us", folder / "cpu.cfs_period_us")
+                    for folder in _folders(base, path)
+                ]
     found = [limit for limit in limits if limit is not None]
     return min(found) if found else None
 
@@ -126,7 +133,9 @@ def apply_threads(n: int | None = None) -> int:
     return n
 
 
-def share_cores(cores: int, cells: int, workers: int | None = None, threads: int | None = None) -> tuple[int, int]:
+def share_cores(
+    cores: int, cells: int, workers: int | None = None, threads: int | None = None
+) -> tuple[int, int]:
     """(cells at once, threads per cell) for a local grid of `cells` cells on `cores` CPUs,
     so that cells at once x threads per cell <= cores: left out, the cells at once are as many
     as fit (one per core, at most one per cell) and the threads per cell the cores divided
@@ -138,12 +147,21 @@ def share_cores(cores: int, cells: int, workers: int | None = None, threads: int
     if threads is None:
         threads = max(1, cores // at_once)
     if threads > cores:
-        raise UserError(f"--threads {threads} per cell is more than the {cores} CPUs this process may use",
-                        field="threads")
+        raise UserError(
+            f"--threads {threads} per cell is more than the {cores} CPUs this process may use",
+            field="threads",
+        )
     if at_once * threads > cores:
-        fits = f"--threads {max(1, cores // at_once)}" if at_once <= cores else f"--workers {cores} --threads 1"
-        raise UserError(f"--workers {at_once} x --threads {threads} = {at_once * threads} threads on {cores} CPUs "
-                        f"(cells at once x threads per cell must be <= the CPUs); e.g. {fits}", field="threads")
+        fits = (
+            f"--threads {max(1, cores // at_once)}"
+            if at_once <= cores
+            else f"--workers {cores} --threads 1"
+        )
+        raise UserError(
+            f"--workers {at_once} x --threads {threads} = {at_once * threads} threads on {cores} CPUs "
+            f"(cells at once x threads per cell must be <= the CPUs); e.g. {fits}",
+            field="threads",
+        )
     return workers, threads
 
 
@@ -153,5 +171,14 @@ def budget() -> int:
     return _budget if _budget is not None else usable_cpus()
 
 
-__all__ = ["ENV_CGROUP_ROOT", "ThreadSettings", "affinity_cpus", "apply_threads", "budget", "cgroup_cpu_limit",
-           "check_threads", "share_cores", "usable_cpus"]
+__all__ = [
+    "ENV_CGROUP_ROOT",
+    "ThreadSettings",
+    "affinity_cpus",
+    "apply_threads",
+    "budget",
+    "cgroup_cpu_limit",
+    "check_threads",
+    "share_cores",
+    "usable_cpus",
+]

@@ -60,7 +60,8 @@ class TensorBoardLogger(ExperimentLogger):
         except ImportError:  # tensorboard is a dependency; a trimmed environment may lack it
             raise UserError(
                 "--logger tensorboard needs the tensorboard package: pip install tensorboard "
-                "(or --logger none)", field="logger",
+                "(or --logger none)",
+                field="logger",
             ) from None
         self.log_dir = Path(log_dir)
         self.writer = SummaryWriter(log_dir=str(self.log_dir))
@@ -88,8 +89,13 @@ class WandbLogger(ExperimentLogger):
         import wandb
 
         Path(log_dir).mkdir(parents=True, exist_ok=True)
-        self.run = wandb.init(project=os.environ.get("WANDB_PROJECT", "coadapt"), name=name, dir=str(log_dir),
-                              config=dict(config or {}), reinit=True)
+        self.run = wandb.init(
+            project=os.environ.get("WANDB_PROJECT", "coadapt"),
+            name=name,
+            dir=str(log_dir),
+            config=dict(config or {}),
+            reinit=True,
+        )
 
     def _write(self, tag: str, value: float, step: int) -> None:
         self.run.log({tag: value, "step": step})
@@ -106,8 +112,11 @@ def check_logger(kind: str) -> str:
         import importlib.util
 
         if importlib.util.find_spec("wandb") is None:
-            raise UserError("--logger wandb needs wandb, which is not installed: pip install wandb "
-                            "(or --logger tensorboard)", field="logger")
+            raise UserError(
+                "--logger wandb needs wandb, which is not installed: pip install wandb "
+                "(or --logger tensorboard)",
+                field="logger",
+            )
     return kind
 
 
@@ -118,8 +127,13 @@ def tensorboard_installed() -> bool:
     return importlib.util.find_spec("tensorboard") is not None
 
 
-def make_logger(kind: str, log_dir: str | Path, *, name: str = "coadapt",
-                config: Mapping[str, Any] | None = None) -> ExperimentLogger:
+def make_logger(
+    kind: str,
+    log_dir: str | Path,
+    *,
+    name: str = "coadapt",
+    config: Mapping[str, Any] | None = None,
+) -> ExperimentLogger:
     """The logger `kind` writing under `log_dir`. TensorBoard (the default) where its package
     is not installed (a trimmed environment, the GPU machine's wheels): no logger, said in one
     line on stderr, and the command runs on; a missing wandb, asked for by name, is an error."""
@@ -127,8 +141,11 @@ def make_logger(kind: str, log_dir: str | Path, *, name: str = "coadapt",
     if kind == "tensorboard" and not tensorboard_installed():
         import sys
 
-        print("note: tensorboard is not installed: no event files are written (pip install tensorboard; "
-              "--logger none says this is meant)", file=sys.stderr)
+        print(
+            "note: tensorboard is not installed: no event files are written (pip install tensorboard; "
+            "--logger none says this is meant)",
+            file=sys.stderr,
+        )
         return ExperimentLogger()
     if kind == "tensorboard":
         return TensorBoardLogger(log_dir)
@@ -169,10 +186,20 @@ def on_training_iteration(stats: Any, samples: int) -> None:
     values = stats.to_dict() if hasattr(stats, "to_dict") else dict(stats)
     for logger in _active:
         logger.train_step += int(samples)
-        logger.log_scalars("train", {k: v for k, v in values.items() if k not in ("iteration",)}, logger.train_step)
+        logger.log_scalars(
+            "train", {k: v for k, v in values.items() if k not in ("iteration",)}, logger.train_step
+        )
 
 
-__all__ = ["LOGGERS", "ExperimentLogger", "active", "check_logger", "log_values", "make_logger", "on_training_iteration"]
+__all__ = [
+    "LOGGERS",
+    "ExperimentLogger",
+    "active",
+    "check_logger",
+    "log_values",
+    "make_logger",
+    "on_training_iteration",
+]
 
 
 # -- the co-adaptation loop -----------------------------------------------------------------
@@ -194,15 +221,26 @@ class TrackingRecorder:
     def record_training(self, run_id: str, *, outer: int, result: Any) -> None:
         self.inner.record_training(run_id, outer=outer, result=result)
         self.phases += 1
-        self.logger.log_scalars("phase", {"outer": outer, "steps": result.steps, "seconds": result.seconds,
-                                          "mean_reward": result.mean_reward, **dict(result.extra or {})}, self.phases)
+        self.logger.log_scalars(
+            "phase",
+            {
+                "outer": outer,
+                "steps": result.steps,
+                "seconds": result.seconds,
+                "mean_reward": result.mean_reward,
+                **dict(result.extra or {}),
+            },
+            self.phases,
+        )
         self.logger.flush()
 
     def record_evaluations(self, run_id: str, **batch: Any) -> None:
         self.inner.record_evaluations(run_id, **batch)
         self._log_round(batch["costs"], batch["kind"], batch.get("surrogate_errors"))
 
-    def _log_round(self, costs: list[dict[str, float]], kind: str, errors: list[dict[str, float]] | None) -> None:
+    def _log_round(
+        self, costs: list[dict[str, float]], kind: str, errors: list[dict[str, float]] | None
+    ) -> None:
         self.rounds += 1
         values: dict[str, float] = {"surrogate_round": float(kind == "surrogate")}
         for name in costs[0] if costs else ():
@@ -218,11 +256,18 @@ class TrackingRecorder:
         if errors:
             quality: dict[str, float] = {}
             for name in errors[0]:
-                pairs = [(e[name], c[name]) for e, c in zip(errors, costs, strict=False)
-                         if math.isfinite(e.get(name, math.nan)) and math.isfinite(c.get(name, math.nan)) and c[name] != 0]
+                pairs = [
+                    (e[name], c[name])
+                    for e, c in zip(errors, costs, strict=False)
+                    if math.isfinite(e.get(name, math.nan))
+                    and math.isfinite(c.get(name, math.nan))
+                    and c[name] != 0
+                ]
                 if pairs:
                     quality[f"abs_error_{name}"] = sum(abs(e) for e, _ in pairs) / len(pairs)
-                    quality[f"rel_error_{name}"] = sum(abs(e) / abs(c) for e, c in pairs) / len(pairs)
+                    quality[f"rel_error_{name}"] = sum(abs(e) / abs(c) for e, c in pairs) / len(
+                        pairs
+                    )
             self.logger.log_scalars("surrogate", quality, self.rounds)
         self.logger.flush()
 
@@ -232,8 +277,11 @@ class TrackingRecorder:
 
     def log_final(self, summary: dict[str, Any]) -> None:
         """The run's final figures (`final/*`), without recording the run as finished."""
-        final = {k: summary[k] for k in ("best_cost", "nominal_cost", "improvement", "interactions", "seconds")
-                 if isinstance(summary.get(k), int | float)}
+        final = {
+            k: summary[k]
+            for k in ("best_cost", "nominal_cost", "improvement", "interactions", "seconds")
+            if isinstance(summary.get(k), int | float)
+        }
         if final:
             self.logger.log_scalars("final", final, 0)
         self.logger.flush()

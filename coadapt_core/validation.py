@@ -27,7 +27,8 @@ def check_run_id(value: object, *, field: str = "run_id") -> str:
     """`value` if it is a well-formed run id, else a one-line `UserError`."""
     if not is_run_id(value):
         raise UserError(
-            f"{field} {value!r} is not a run id (letters, digits and . _ + = - only, no '..' or '/')", field=field
+            f"{field} {value!r} is not a run id (letters, digits and . _ + = - only, no '..' or '/')",
+            field=field,
         )
     return str(value)
 
@@ -47,15 +48,22 @@ def run_folder(out: str | os.PathLike, run_id: object, *, field: str = "run_id")
     return inside(out, check_run_id(run_id, field=field), field=field)
 
 
-def finite_number(value: float, *, field: str, minimum: float | None = None, allow_equal: bool = True) -> float:
+def finite_number(
+    value: float, *, field: str, minimum: float | None = None, allow_equal: bool = True
+) -> float:
     """`value` as a finite float (>= or > `minimum`), else a one-line `UserError`."""
     try:
         number = float(value)
     except (TypeError, ValueError):
-        raise UserError(f"--{field.replace('_', '-')} must be a number, got {value!r}", field=field) from None
+        raise UserError(
+            f"--{field.replace('_', '-')} must be a number, got {value!r}", field=field
+        ) from None
     if not math.isfinite(number) or (
         minimum is not None and (number < minimum or (number == minimum and not allow_equal))
     ):
         bound = "" if minimum is None else f" {'>=' if allow_equal else '>'} {minimum:g}"
-        raise UserError(f"--{field.replace('_', '-')} must be a finite number{bound}, got {value!r}", field=field)
+        raise UserError(
+            f"--{field.replace('_', '-')} must be a finite number{bound}, got {value!r}",
+            field=field,
+        )
     return number

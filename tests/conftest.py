@@ -19,16 +19,28 @@ def example_plugin_site(tmp_path_factory) -> Path:
     tests can put it on PYTHONPATH for a subprocess, exactly as an installed plugin."""
     site = tmp_path_factory.mktemp("example_site")
     subprocess.run(
-        [sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation",
-         "--disable-pip-version-check", "--target", str(site), str(EXAMPLE_PLUGIN)],
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "install",
+            "-q",
+            "--no-deps",
+            "--no-build-isolation",
+            "--disable-pip-version-check",
+            "--target",
+            str(site),
+            str(EXAMPLE_PLUGIN),
+        ],
         check=True,
         capture_output=True,
     )
     return site
 
 
-def run_cli(*args: str, pythonpath: list[Path] | None = None, env: dict | None = None,
-            timeout: float = 120) -> subprocess.CompletedProcess:
+def run_cli(
+    *args: str, pythonpath: list[Path] | None = None, env: dict | None = None, timeout: float = 120
+) -> subprocess.CompletedProcess:
     """Run `coadapt ARGS` in a fresh interpreter (fresh entry-point discovery)."""
     full_env = dict(os.environ)
     full_env.pop("COADAPT_LOAD_PLUGINS", None)
@@ -36,12 +48,22 @@ def run_cli(*args: str, pythonpath: list[Path] | None = None, env: dict | None =
         full_env["PYTHONPATH"] = os.pathsep.join(str(p) for p in pythonpath)
     full_env.update(env or {})
     return subprocess.run(
-        [sys.executable, "-c", "import sys; from coadapt_core.cli import main; sys.exit(main(sys.argv[1:]))", *args],
-        capture_output=True, text=True, env=full_env, timeout=timeout,
+        [
+            sys.executable,
+            "-c",
+            "import sys; from coadapt_core.cli import main; sys.exit(main(sys.argv[1:]))",
+            *args,
+        ],
+        capture_output=True,
+        text=True,
+        env=full_env,
+        timeout=timeout,
     )
 
 
-def make_dist(site: Path, name: str, entry_points: str, modules: dict[str, str] | None = None) -> Path:
+def make_dist(
+    site: Path, name: str, entry_points: str, modules: dict[str, str] | None = None
+) -> Path:
     """Create a minimal installed distribution (dist-info + modules) in `site`."""
     site.mkdir(parents=True, exist_ok=True)
     info = site / f"{name.replace('-', '_')}-1.0.dist-info"

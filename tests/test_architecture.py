@@ -40,7 +40,9 @@ def import_edges(path: Path, name: str, modules: set[str]) -> list[tuple[str, bo
 
     def visit(node: ast.AST, in_function: bool) -> None:
         for child in ast.iter_child_nodes(node):
-            inner = in_function or isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda)
+            inner = in_function or isinstance(
+                child, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda
+            )
             if isinstance(child, ast.If) and "TYPE_CHECKING" in ast.unparse(child.test):
                 continue
             if isinstance(child, ast.Import):
@@ -65,10 +67,14 @@ def import_graph(root: Path = ROOT, package: str = CORE) -> dict[str, list[tuple
     return {name: import_edges(path, name, modules) for name, path in files.items()}
 
 
-def cycles(graph: dict[str, list[tuple[str, bool]]], *, function_level: bool) -> list[frozenset[str]]:
+def cycles(
+    graph: dict[str, list[tuple[str, bool]]], *, function_level: bool
+) -> list[frozenset[str]]:
     """Strongly connected components of more than one module (Tarjan), over module-level
     edges only, or over all edges (`function_level`)."""
-    adjacency = {m: [t for t, inner in edges if function_level or not inner] for m, edges in graph.items()}
+    adjacency = {
+        m: [t for t, inner in edges if function_level or not inner] for m, edges in graph.items()
+    }
     index: dict[str, int] = {}
     low: dict[str, int] = {}
     stack: list[str] = []
@@ -104,7 +110,11 @@ def cycles(graph: dict[str, list[tuple[str, bool]]], *, function_level: bool) ->
 
 def imports_of(graph: dict[str, list[tuple[str, bool]]], room: str) -> dict[str, set[str]]:
     """Module of the room -> the core modules it imports (at any level)."""
-    return {m: {t for t, _ in edges} for m, edges in graph.items() if m == room or m.startswith(room + ".")}
+    return {
+        m: {t for t, _ in edges}
+        for m, edges in graph.items()
+        if m == room or m.startswith(room + ".")
+    }
 
 
 def reachable(graph: dict[str, list[tuple[str, bool]]], start: str) -> set[str]:
@@ -114,7 +124,9 @@ def reachable(graph: dict[str, list[tuple[str, bool]]], start: str) -> set[str]:
     while todo:
         module = todo.pop()
         parents = [".".join(module.split(".")[:i]) for i in range(1, module.count(".") + 1)]
-        for target in [t for t, inner in graph[module] if not inner] + [p for p in parents if p in graph]:
+        for target in [t for t, inner in graph[module] if not inner] + [
+            p for p in parents if p in graph
+        ]:
             if target not in seen:
                 seen.add(target)
                 todo.append(target)
@@ -143,27 +155,64 @@ def test_no_import_cycle_through_function_level_imports_but_the_known_ones():
 def test_results_room_imports_neither_learning_physics_nor_experiments():
     """The store, recorders and export work without the learner or a simulator: no import
     of them at any level, and none reached through module-level imports."""
-    forbidden = (f"{CORE}.learning", f"{CORE}.physics", f"{CORE}.experiments", f"{CORE}.analysis", f"{CORE}.task",
-                 f"{CORE}.viz", f"{CORE}.cli")
-    direct = {m: sorted(t for t in targets if _in(t, forbidden)) for m, targets in imports_of(GRAPH, f"{CORE}.results").items()}
+    forbidden = (
+        f"{CORE}.learning",
+        f"{CORE}.physics",
+        f"{CORE}.experiments",
+        f"{CORE}.analysis",
+        f"{CORE}.task",
+        f"{CORE}.viz",
+        f"{CORE}.cli",
+    )
+    direct = {
+        m: sorted(t for t in targets if _in(t, forbidden))
+        for m, targets in imports_of(GRAPH, f"{CORE}.results").items()
+    }
     assert len(direct) >= 4  # the room exists and was read
     assert {m: t for m, t in direct.items() if t} == {}
-    assert {m: sorted(t for t in reachable(GRAPH, m) if _in(t, forbidden)) for m in direct} == {m: [] for m in direct}
+    assert {m: sorted(t for t in reachable(GRAPH, m) if _in(t, forbidden)) for m in direct} == {
+        m: [] for m in direct
+    }
 
 
 def test_analysis_room_reads_only():
     """Reports run no simulation and write no row: no import of the learner, physics, the
     task, the experiments or the CLI, and no call of a store method that writes."""
-    forbidden = (f"{CORE}.learning", f"{CORE}.physics", f"{CORE}.task", f"{CORE}.experiments", f"{CORE}.cli")
+    forbidden = (
+        f"{CORE}.learning",
+        f"{CORE}.physics",
+        f"{CORE}.task",
+        f"{CORE}.experiments",
+        f"{CORE}.cli",
+    )
     modules = imports_of(GRAPH, f"{CORE}.analysis")
     assert len(modules) >= 3
-    assert {m: sorted(t for t in ts if _in(t, forbidden)) for m, ts in modules.items() if any(_in(t, forbidden) for t in ts)} == {}
-    writes = {"record_evaluations", "record_evaluation", "record_training", "record_checkpoint", "create_run",
-              "finish_run", "set_status", "save_grid", "set_cell", "real_fitness", "surrogate_fitness"}
+    assert {
+        m: sorted(t for t in ts if _in(t, forbidden))
+        for m, ts in modules.items()
+        if any(_in(t, forbidden) for t in ts)
+    } == {}
+    writes = {
+        "record_evaluations",
+        "record_evaluation",
+        "record_training",
+        "record_checkpoint",
+        "create_run",
+        "finish_run",
+        "set_status",
+        "save_grid",
+        "set_cell",
+        "real_fitness",
+        "surrogate_fitness",
+    }
     calls = []
     for path in (ROOT / CORE / "analysis").rglob("*.py"):
         for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr in writes:
+            if (
+                isinstance(node, ast.Call)
+                and isinstance(node.func, ast.Attribute)
+                and node.func.attr in writes
+            ):
                 calls.append(f"{path.name}:{node.lineno} .{node.func.attr}()")
     assert calls == []
 
@@ -183,5 +232,11 @@ def test_the_checks_find_a_planted_cycle_and_a_forbidden_import(tmp_path):
     (pkg / "learning" / "trainer.py").write_text("")
     graph = import_graph(tmp_path, "pkg")
     assert cycles(graph, function_level=False) == [frozenset({"pkg.c", "pkg.d"})]
-    assert set(cycles(graph, function_level=True)) == {frozenset({"pkg.a", "pkg.b"}), frozenset({"pkg.c", "pkg.d"})}
-    assert imports_of(graph, "pkg.results") == {"pkg.results": set(), "pkg.results.store": {"pkg.learning.trainer"}}
+    assert set(cycles(graph, function_level=True)) == {
+        frozenset({"pkg.a", "pkg.b"}),
+        frozenset({"pkg.c", "pkg.d"}),
+    }
+    assert imports_of(graph, "pkg.results") == {
+        "pkg.results": set(),
+        "pkg.results.store": {"pkg.learning.trainer"},
+    }

@@ -18,8 +18,15 @@ def imported_modules(source: str) -> list[str]:
             out += [alias.name for alias in node.names]
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
             out.append(node.module)
-        elif isinstance(node, ast.Call) and getattr(node.func, "attr", getattr(node.func, "id", "")) == "import_module":
-            out += [a.value for a in node.args[:1] if isinstance(a, ast.Constant) and isinstance(a.value, str)]
+        elif (
+            isinstance(node, ast.Call)
+            and getattr(node.func, "attr", getattr(node.func, "id", "")) == "import_module"
+        ):
+            out += [
+                a.value
+                for a in node.args[:1]
+                if isinstance(a, ast.Constant) and isinstance(a.value, str)
+            ]
     return out
 
 
@@ -32,7 +39,9 @@ def test_no_benchmark_imports_the_tests():
     for path in sorted((ROOT / "benchmarks").rglob("*.py")):
         if bad := imports_tests(path.read_text()):
             found[path.relative_to(ROOT).as_posix()] = bad
-    for path in sorted((ROOT / "benchmarks").rglob("*.sh")):  # python -m tests... or -c "import tests..."
+    for path in sorted(
+        (ROOT / "benchmarks").rglob("*.sh")
+    ):  # python -m tests... or -c "import tests..."
         text = path.read_text()
         if "-m tests." in text or "import tests" in text or "from tests" in text:
             found[path.relative_to(ROOT).as_posix()] = ["tests"]
@@ -40,7 +49,9 @@ def test_no_benchmark_imports_the_tests():
 
 
 def test_the_check_finds_an_import_of_the_tests():
-    source = ("import json\nfrom coadapt_core.testing.analytic import SPACE\n\ndef f():\n"
-              "    from tests.fakes.analytic import AnalyticBackend\n    import tests\n"
-              "    importlib.import_module('tests.fakes')\n")
+    source = (
+        "import json\nfrom coadapt_core.testing.analytic import SPACE\n\ndef f():\n"
+        "    from tests.fakes.analytic import AnalyticBackend\n    import tests\n"
+        "    importlib.import_module('tests.fakes')\n"
+    )
     assert imports_tests(source) == ["tests.fakes.analytic", "tests", "tests.fakes"]

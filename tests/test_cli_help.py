@@ -25,7 +25,17 @@ COMMANDS = list(_commands(typer.main.get_command(app)))
 
 def test_every_command_is_covered():
     names = {" ".join(p) for p, _ in COMMANDS}
-    assert {"run", "train", "eval", "grid", "report", "landscape", "export", "plugins", "robot show"} <= names
+    assert {
+        "run",
+        "train",
+        "eval",
+        "grid",
+        "report",
+        "landscape",
+        "export",
+        "plugins",
+        "robot show",
+    } <= names
 
 
 @pytest.mark.parametrize("path", [p for p, _ in COMMANDS], ids=[" ".join(p) for p, _ in COMMANDS])
@@ -40,7 +50,9 @@ def test_help_at_80_columns_shows_every_option_whole(path, monkeypatch, capsys):
         if getattr(param, "param_type_name", "") != "option" or param.hidden:
             continue
         for name in [*param.opts, *param.secondary_opts]:
-            assert re.search(rf"(^|[\s,/]){re.escape(name)}([\s,/=]|$)", text, re.M), f"{name} cut or missing"
+            assert re.search(rf"(^|[\s,/]){re.escape(name)}([\s,/=]|$)", text, re.M), (
+                f"{name} cut or missing"
+            )
     assert "…" not in text
     assert max(len(line) for line in text.splitlines()) <= 80
     assert not re.search(r"\(default[: ]", text), "a default written as '(default X)'"

@@ -35,7 +35,19 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 #: the built-ins, should the registry not say (it always does where coadapt is installed)
-FALLBACK = {"kuafu", "mujoco", "pybullet", "pso", "mixed-pso", "bo", "nsga2", "tracking", "power", "torque", "composite"}
+FALLBACK = {
+    "kuafu",
+    "mujoco",
+    "pybullet",
+    "pso",
+    "mixed-pso",
+    "bo",
+    "nsga2",
+    "tracking",
+    "power",
+    "torque",
+    "composite",
+}
 #: option names of built-ins that are ordinary words of the core as well
 CORE_WORDS = {"weights", "storage"}
 
@@ -44,11 +56,20 @@ KNOWN_DEBT: dict[str, str] = {}
 
 #: (module, word) -> why it is the core's own word, not a built-in's
 EXEMPT: dict[tuple[str, str], str] = {
-    ("coadapt_core/methods.py", "bo"): "the bo-specialized method (the paper's Table 7 baseline, labelled 'BO') and its "
-                                      "setting bo_designs: a method of the core; it asks for a sequential optimizer, "
-                                      "not for the bo plugin",
-    ("coadapt_core/coadapt/config.py", "bo"): "bo_designs, the bo-specialized method's setting (see methods.py)",
-    ("coadapt_core/task/commands.py", "tracking"): "the curriculum's velocity-tracking sum, a word of the task",
+    (
+        "coadapt_core/methods.py",
+        "bo",
+    ): "the bo-specialized method (the paper's Table 7 baseline, labelled 'BO') and its "
+    "setting bo_designs: a method of the core; it asks for a sequential optimizer, "
+    "not for the bo plugin",
+    (
+        "coadapt_core/coadapt/config.py",
+        "bo",
+    ): "bo_designs, the bo-specialized method's setting (see methods.py)",
+    (
+        "coadapt_core/task/commands.py",
+        "tracking",
+    ): "the curriculum's velocity-tracking sum, a word of the task",
 }
 
 
@@ -67,8 +88,10 @@ def builtin_words() -> tuple[set[str], set[str], set[str]]:
                 options.add(spec.name)
                 options.update(str(c) for c in spec.choices or ())
     if not proper | objectives:
-        proper, objectives = {n for n in FALLBACK if n not in {"tracking", "power", "torque", "composite"}}, \
-            {"tracking", "power", "torque", "composite"}
+        proper, objectives = (
+            {n for n in FALLBACK if n not in {"tracking", "power", "torque", "composite"}},
+            {"tracking", "power", "torque", "composite"},
+        )
     return proper, objectives, options - CORE_WORDS
 
 
@@ -80,7 +103,10 @@ def docstring_ids(tree: ast.AST) -> set[int]:
     out = set()
     for node in ast.walk(tree):
         body = getattr(node, "body", None)
-        if isinstance(node, ast.Module | ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef) and body:
+        if (
+            isinstance(node, ast.Module | ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef)
+            and body
+        ):
             first = body[0]
             if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant):
                 out.add(id(first.value))
@@ -90,8 +116,13 @@ def docstring_ids(tree: ast.AST) -> set[int]:
 def string_constants(tree: ast.AST) -> list[ast.Constant]:
     """The string constants of a parsed module that are not docstrings."""
     docstrings = docstring_ids(tree)
-    return [node for node in ast.walk(tree)
-            if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docstrings]
+    return [
+        node
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Constant)
+        and isinstance(node.value, str)
+        and id(node) not in docstrings
+    ]
 
 
 def value_words(text: str) -> set[str]:
@@ -125,7 +156,9 @@ def findings(path: Path, rel: str = "") -> list[str]:
             if any(m.startswith("coadapt_plugins") for m in modules):
                 out.append(f"{node.lineno}: imports coadapt_plugins")
             elif any(m.split(".")[0] in PROPER for m in modules):
-                out.append(f"{node.lineno}: imports {', '.join(m for m in modules if m.split('.')[0] in PROPER)}")
+                out.append(
+                    f"{node.lineno}: imports {', '.join(m for m in modules if m.split('.')[0] in PROPER)}"
+                )
             continue
         name = _identifier(node)
         words = identifier_words(name) if name else set()
@@ -143,7 +176,9 @@ def findings(path: Path, rel: str = "") -> list[str]:
 
 
 def core_modules() -> list[tuple[str, Path]]:
-    return [(p.relative_to(ROOT).as_posix(), p) for p in sorted((ROOT / "coadapt_core").rglob("*.py"))]
+    return [
+        (p.relative_to(ROOT).as_posix(), p) for p in sorted((ROOT / "coadapt_core").rglob("*.py"))
+    ]
 
 
 def test_the_builtins_are_read_from_the_registry():
@@ -164,14 +199,18 @@ def test_known_debt_is_still_debt():
     """A module cleaned up leaves the list (so the list only ever shrinks)."""
     for rel in KNOWN_DEBT:
         path = ROOT / rel
-        assert path.exists() and findings(path, rel), f"{rel} is clean now: remove it from KNOWN_DEBT"
+        assert path.exists() and findings(path, rel), (
+            f"{rel} is clean now: remove it from KNOWN_DEBT"
+        )
 
 
 def test_every_exemption_is_still_needed():
     for rel, word in EXEMPT:
         path = ROOT / rel
         assert path.exists(), rel
-        in_values = any(word in value_words(n.value) for n in string_constants(ast.parse(path.read_text())))
+        in_values = any(
+            word in value_words(n.value) for n in string_constants(ast.parse(path.read_text()))
+        )
         in_names = any(word in identifier_words(n) for n in _identifiers(path))
         assert in_values or in_names, f"{rel}: '{word}' is no longer used: remove it from EXEMPT"
 

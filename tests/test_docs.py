@@ -13,7 +13,11 @@ from coadapt_core import hookspecs
 from coadapt_core.plugins import KINDS, load_registry
 
 ROOT = Path(__file__).resolve().parents[1]
-HOOKS = sorted(name for name, obj in inspect.getmembers(hookspecs, inspect.isfunction) if name.startswith("coadapt_"))
+HOOKS = sorted(
+    name
+    for name, obj in inspect.getmembers(hookspecs, inspect.isfunction)
+    if name.startswith("coadapt_")
+)
 
 
 def test_hookspecs_are_the_four_kinds():

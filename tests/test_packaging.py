@@ -14,15 +14,35 @@ ROOT = Path(__file__).resolve().parents[1]
 @pytest.mark.slow
 def test_wheel_carries_data_and_entry_points(tmp_path):
     subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", str(ROOT), "-w", str(tmp_path)],
-        check=True, capture_output=True, cwd=tmp_path,
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            "-q",
+            "--no-deps",
+            "--no-build-isolation",
+            str(ROOT),
+            "-w",
+            str(tmp_path),
+        ],
+        check=True,
+        capture_output=True,
+        cwd=tmp_path,
     )
     wheel = zipfile.ZipFile(next(tmp_path.glob("coadapt-*.whl")))
     names = set(wheel.namelist())
     assert "coadapt_plugins/robots/kuafu/policies/flat.pt" in names
     assert "coadapt_plugins/robots/kuafu/mass_model.json" in names
-    assert "coadapt_core/analysis/paper_du2025.json" in names  # the paper's tables, for `coadapt report`
+    assert (
+        "coadapt_core/analysis/paper_du2025.json" in names
+    )  # the paper's tables, for `coadapt report`
     entry_points = next(n for n in names if n.endswith("entry_points.txt"))
     text = wheel.read(entry_points).decode()
-    for name in ("coadapt.robots.kuafu", "coadapt.simulators.mujoco", "coadapt.optimizers.pso", "coadapt.objectives.locomotion"):
+    for name in (
+        "coadapt.robots.kuafu",
+        "coadapt.simulators.mujoco",
+        "coadapt.optimizers.pso",
+        "coadapt.objectives.locomotion",
+    ):
         assert name in text

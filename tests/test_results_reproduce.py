@@ -47,10 +47,14 @@ def test_import_then_report_reproduces_the_committed_report(tmp_path):
     assert {"table6.md", "table7.md", "paper_comparison.md", "paper_table6.csv"} <= set(tables)
     for name in tables:
         if name.endswith(".md"):
-            assert (out / name).read_text() == (REPORT / name).read_text(), f"{name} differs from the committed one"
+            assert (out / name).read_text() == (REPORT / name).read_text(), (
+                f"{name} differs from the committed one"
+            )
         else:  # numbers to 1e-9: a last-bit change of a mean from another numpy is not a different report
             mine, theirs = _csv(out / name), _csv(REPORT / name)
-            assert len(mine) == len(theirs) and all(len(a) == len(b) for a, b in zip(mine, theirs, strict=True)), name
+            assert len(mine) == len(theirs) and all(
+                len(a) == len(b) for a, b in zip(mine, theirs, strict=True)
+            ), name
             for a, b in zip(mine, theirs, strict=True):
                 for x, y in zip(a, b, strict=True):
                     assert x == y or _close(x, y), f"{name}: {x!r} against the committed {y!r}"
@@ -60,7 +64,11 @@ def test_import_then_report_reproduces_the_committed_report(tmp_path):
 def test_the_export_holds_the_full_flat_column_with_its_yardsticks():
     runs = [r for r in rows("runs") if r["status"] == "finished"]
     assert len(runs) == len(rows("runs")), "only finished runs are published"
-    flat = Counter((r["method"], r["objectives"], r["seed"]) for r in runs if r["terrain"] == "flat" and r["optimizer"] in ("pso", "bo"))
+    flat = Counter(
+        (r["method"], r["objectives"], r["seed"])
+        for r in runs
+        if r["terrain"] == "flat" and r["optimizer"] in ("pso", "bo")
+    )
     for method in ("ours", "no-surrogate", "no-real", "no-retrain", "bo-specialized"):
         for objective in ("tracking", "power", "torque"):
             for seed in ("0", "1", "2"):

@@ -81,10 +81,25 @@ def test_same_seed_same_parameters_and_spawn_on_both_backends(terrain):
     designs = np.array([[1.0, 1.0], [0.6, 1.4]])
     seen = []
     for name in ("mujoco", "pybullet"):
-        with registry.create("simulator", name, robot, designs, terrain=terrain, randomization=RandomizationConfig(), seed=9) as sim:
+        with registry.create(
+            "simulator",
+            name,
+            robot,
+            designs,
+            terrain=terrain,
+            randomization=RandomizationConfig(),
+            seed=9,
+        ) as sim:
             first = sim.env_params
             state = sim.reset()
-            seen.append((first, sim.env_params, state.base_pos.double().numpy(), state.joint_pos.double().numpy()))
+            seen.append(
+                (
+                    first,
+                    sim.env_params,
+                    state.base_pos.double().numpy(),
+                    state.joint_pos.double().numpy(),
+                )
+            )
     (a_first, a_params, a_pos, a_q), (b_first, b_params, b_pos, b_q) = seen
     for key in ("friction", "restitution", "com_shift", "pd_factor", "motor_strength", "delay"):
         np.testing.assert_array_equal(getattr(a_first, key), getattr(b_first, key))
@@ -94,11 +109,14 @@ def test_same_seed_same_parameters_and_spawn_on_both_backends(terrain):
     np.testing.assert_allclose(b_q, a_q, atol=1e-6)
 
 
-@pytest.mark.parametrize(("argv", "message"), [
-    (["nope", "mujoco", "pybullet"], "error: unknown robot 'nope'"),
-    (["kuafu", "mujoco", "nosim"], "error: unknown simulator 'nosim'"),
-    (["kuafu"], "usage: python -m coadapt_core.experiments.transfer"),
-])
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["nope", "mujoco", "pybullet"], "error: unknown robot 'nope'"),
+        (["kuafu", "mujoco", "nosim"], "error: unknown simulator 'nosim'"),
+        (["kuafu"], "usage: python -m coadapt_core.experiments.transfer"),
+    ],
+)
 def test_the_check_script_says_bad_arguments_in_one_line(capsys, argv, message):
     from coadapt_core.experiments.transfer import main
 

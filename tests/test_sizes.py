@@ -41,7 +41,10 @@ def exceptions() -> dict[str, str]:
     text = (ROOT / "docs" / "architecture.md").read_text()
     match = re.search(r"^## Size exceptions\n(.*?)(?=^## |\Z)", text, flags=re.M | re.S)
     assert match, 'docs/architecture.md has no "## Size exceptions" section'
-    return {m.group(1): m.group(2).strip() for m in re.finditer(r"^- `([^`]+)`: (.+)$", match.group(1), flags=re.M)}
+    return {
+        m.group(1): m.group(2).strip()
+        for m in re.finditer(r"^- `([^`]+)`: (.+)$", match.group(1), flags=re.M)
+    }
 
 
 def test_no_function_or_module_is_longer_than_the_limit():
@@ -59,7 +62,9 @@ def test_every_exception_is_still_needed_and_says_why():
         size = functions.get(name) if ":" in name else modules.get(name)
         assert size is not None, f"size exception {name} names nothing in coadapt_core"
         limit = MAX_FUNCTION if ":" in name else MAX_MODULE
-        assert size > limit, f"size exception {name} is {size} lines, within {limit}: take it off the list"
+        assert size > limit, (
+            f"size exception {name} is {size} lines, within {limit}: take it off the list"
+        )
         assert len(why) > 20, f"size exception {name} needs its reason"
 
 
@@ -67,7 +72,9 @@ def test_the_measure_finds_a_planted_long_function_and_module(tmp_path):
     core = tmp_path / "coadapt_core" / "room"
     core.mkdir(parents=True)
     body = "            x = 1\n" * 90
-    (core / "long.py").write_text("class A:\n    def outer(self):\n        def inner():\n" + body + "        return inner\n")
+    (core / "long.py").write_text(
+        "class A:\n    def outer(self):\n        def inner():\n" + body + "        return inner\n"
+    )
     (core / "big.py").write_text("y = 0\n" * 501)
     modules, functions = sizes(tmp_path)
     assert functions["coadapt_core/room/long.py:A.outer"] == 93 > MAX_FUNCTION

@@ -13,14 +13,47 @@ import pytest
 from coadapt_core.cli import main
 
 GUIDE = Path(__file__).resolve().parents[1] / "docs" / "user-guide.md"
-TINY_RUN = ["--preset", "smoke", "--population", "3", "--agents-per-design", "2", "--eval-steps", "10",
-            "--train-steps", "64", "--retrain-steps", "32", "--outer-iterations", "1", "--optimizer-iterations", "2",
-            "--bo-designs", "2", "--specialized-train-steps", "32", "--no-video"]
+TINY_RUN = [
+    "--preset",
+    "smoke",
+    "--population",
+    "3",
+    "--agents-per-design",
+    "2",
+    "--eval-steps",
+    "10",
+    "--train-steps",
+    "64",
+    "--retrain-steps",
+    "32",
+    "--outer-iterations",
+    "1",
+    "--optimizer-iterations",
+    "2",
+    "--bo-designs",
+    "2",
+    "--specialized-train-steps",
+    "32",
+    "--no-video",
+]
 #: options appended per command (click: the last occurrence of an option wins)
 SMOKE = {
     "run": TINY_RUN,
-    "train": ["--steps", "64", "--num-designs", "2", "--agents", "2", "--steps-per-env", "8", "--epochs", "1",
-              "--minibatches", "1", "--quiet"],
+    "train": [
+        "--steps",
+        "64",
+        "--num-designs",
+        "2",
+        "--agents",
+        "2",
+        "--steps-per-env",
+        "8",
+        "--epochs",
+        "1",
+        "--minibatches",
+        "1",
+        "--quiet",
+    ],
     "eval": ["--agents", "2", "--seconds", "0.2"],
     "grid": ["--workers", "2", *(f"--run-arg={a}" for a in TINY_RUN)],
     "landscape": ["--grid", "2", "--agents", "1", "--steps", "5"],
@@ -48,7 +81,17 @@ COMMANDS = documented_commands()
 
 def test_the_guide_documents_every_command():
     firsts = {argv[0] for argv, _ in COMMANDS}
-    assert {"plugins", "robot", "run", "train", "eval", "grid", "landscape", "report", "export"} <= firsts
+    assert {
+        "plugins",
+        "robot",
+        "run",
+        "train",
+        "eval",
+        "grid",
+        "landscape",
+        "report",
+        "export",
+    } <= firsts
 
 
 @pytest.mark.slow
@@ -61,6 +104,10 @@ def test_every_documented_command_runs_in_smoke_form(tmp_path, monkeypatch, caps
         code = main(args)
         captured = capsys.readouterr()
         if code != expected:
-            failures.append(f"coadapt {shlex.join(args)} -> exit {code}: {captured.err.strip().splitlines()[-1:]}")
+            failures.append(
+                f"coadapt {shlex.join(args)} -> exit {code}: {captured.err.strip().splitlines()[-1:]}"
+            )
     assert not failures, "\n".join(failures)
-    assert (tmp_path / "report" / "report.html").is_file() and (tmp_path / "export" / "runs.csv").is_file()
+    assert (tmp_path / "report" / "report.html").is_file() and (
+        tmp_path / "export" / "runs.csv"
+    ).is_file()

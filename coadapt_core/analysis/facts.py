@@ -42,8 +42,10 @@ def objective_labels() -> dict[str, str]:
     from coadapt_core.plugins import get_registry
 
     registry = get_registry()
-    labels = {name: str(getattr(registry.get("objective", name), "short_label", "") or "")
-              for name in registry.entries["objective"]}
+    labels = {
+        name: str(getattr(registry.get("objective", name), "short_label", "") or "")
+        for name in registry.entries["objective"]
+    }
     return {name: label for name, label in labels.items() if label}
 
 
@@ -100,8 +102,11 @@ class RunFacts:
     @property
     def setting(self) -> tuple[str, str, str]:
         """(robot, simulator, preset): runs that differ in any of them are never one row."""
-        return (str(self.run.get("robot") or "?"), str(self.run.get("simulator") or "?"),
-                str(self.run.get("preset") or "?"))
+        return (
+            str(self.run.get("robot") or "?"),
+            str(self.run.get("simulator") or "?"),
+            str(self.run.get("preset") or "?"),
+        )
 
     @property
     def policy(self) -> str:
@@ -150,7 +155,11 @@ def run_facts(store: ResultsStore, run: dict[str, Any]) -> RunFacts:
     training = store.training(run["id"])
     dim = len(best_design) if best_design is not None else (len(real[0].design) if real else None)
     space = space_of_run(run, dim)
-    variables = space["variables"] if space else [{"name": f"x{i}", "type": "continuous"} for i in range(dim or 0)]
+    variables = (
+        space["variables"]
+        if space
+        else [{"name": f"x{i}", "type": "continuous"} for i in range(dim or 0)]
+    )
     return RunFacts(
         run=run,
         best_design=None if best_design is None else [float(x) for x in np.ravel(best_design)],
@@ -179,18 +188,26 @@ def as_float(value: Any) -> float | None:
 
 
 # -- sim-to-sim (Table 6's last column) ---------------------------------------------------------
-def transfer_improvement(store: ResultsStore, facts: RunFacts, simulator: str | None = None,
-                         note: str = "") -> tuple[float | None, str]:
+def transfer_improvement(
+    store: ResultsStore, facts: RunFacts, simulator: str | None = None, note: str = ""
+) -> tuple[float | None, str]:
     """(improvement of the best design over the nominal one, note) from the run's transfer
     rows (kind "sim2sim", idx 0 best, 1 nominal, written by `coadapt_core.experiments.transfer`)
     on `simulator` (None: any). Without rows: (None, `note`, or that there are none). Reads
     only: the report never runs a simulation."""
     run = facts.run
-    rows = [e for e in store.evaluations(run["id"], kind=TRANSFER_KIND) if simulator in (None, e.simulator)]
+    rows = [
+        e
+        for e in store.evaluations(run["id"], kind=TRANSFER_KIND)
+        if simulator in (None, e.simulator)
+    ]
     by_idx = {e.idx: e for e in rows}
     first = run["objectives"][0] if run["objectives"] else None
     if first is None or 0 not in by_idx or 1 not in by_idx or first not in by_idx[0].costs:
-        return None, note or "n/a: no sim-to-sim rows (`coadapt report --sim-to-sim` evaluates them)"
+        return (
+            None,
+            note or "n/a: no sim-to-sim rows (`coadapt report --sim-to-sim` evaluates them)",
+        )
     best_cost, nominal_cost = by_idx[0].costs[first], by_idx[1].costs[first]
     try:
         from coadapt_core.plugins import get_registry
@@ -205,7 +222,9 @@ def transfer_improvement(store: ResultsStore, facts: RunFacts, simulator: str | 
 
 
 # -- the common yardstick (rows written by coadapt_core.experiments.yardstick) ----------------------
-def yardstick_improvement(store: ResultsStore, run_id: str, objective: str) -> dict[str, float] | None:
+def yardstick_improvement(
+    store: ResultsStore, run_id: str, objective: str
+) -> dict[str, float] | None:
     """The stored common-yardstick figures of one objective (improvement under the rule and
     under the plain mean, with SE; fall rates), or None when the run has no such rows."""
     rows = sorted(store.evaluations(run_id, kind=COMMON_KIND), key=lambda e: e.idx)
@@ -216,7 +235,10 @@ def yardstick_improvement(store: ResultsStore, run_id: str, objective: str) -> d
     if any(f"{objective}/{k}" not in best for k in keys):
         return None
     out = {k: float(best[f"{objective}/{k}"]) for k in keys}
-    out.update(fall_rate=float(best.get("falls", np.nan)), nominal_fall_rate=float(nominal.get("falls", np.nan)),
-               fall_rate_difference=float(best.get("falls/difference", np.nan)),
-               fall_rate_difference_se=float(best.get("falls/difference_se", np.nan)))
+    out.update(
+        fall_rate=float(best.get("falls", np.nan)),
+        nominal_fall_rate=float(nominal.get("falls", np.nan)),
+        fall_rate_difference=float(best.get("falls/difference", np.nan)),
+        fall_rate_difference_se=float(best.get("falls/difference_se", np.nan)),
+    )
     return out

@@ -52,7 +52,9 @@ def tidy_axes(ax: Any) -> None:
             axis.set_major_locator(MaxNLocator(5))
 
 
-def save_figure(plt: Any, fig: Any, path: Path, caption: str, *, layout: bool = True) -> list[tuple[Path, str]]:
+def save_figure(
+    plt: Any, fig: Any, path: Path, caption: str, *, layout: bool = True
+) -> list[tuple[Path, str]]:
     """Write `fig` as a PNG at DPI (laid out tight unless `layout` is False: the caller did)
     and close it; returns the report's entry for it, [(path, caption)]."""
     if layout:
@@ -62,4 +64,14 @@ def save_figure(plt: Any, fig: Any, path: Path, caption: str, *, layout: bool = 
     return [(path, caption)]
 
 
-__all__ = ["DPI", "MAX_COLS", "PANEL_H", "PANEL_W", "panel_grid", "pyplot", "save_figure", "spans_decades", "tidy_axes"]
+__all__ = [
+    "DPI",
+    "MAX_COLS",
+    "PANEL_H",
+    "PANEL_W",
+    "panel_grid",
+    "pyplot",
+    "save_figure",
+    "spans_decades",
+    "tidy_axes",
+]

@@ -70,8 +70,9 @@ def _default_improvement():
     return Objective.improvement
 
 
-def as_cost_reduction(objective: Any | None, improvement: float | None,
-                      se: float | None = None) -> tuple[float | None, float | None]:
+def as_cost_reduction(
+    objective: Any | None, improvement: float | None, se: float | None = None
+) -> tuple[float | None, float | None]:
     """(1 - c / c0, its standard error) for an improvement reported by `objective` with
     standard error `se` (either None or not finite: None)."""
     if improvement is None or not math.isfinite(improvement):
@@ -80,7 +81,9 @@ def as_cost_reduction(objective: Any | None, improvement: float | None,
     if se is None or not math.isfinite(se):
         return value, None
     h = _STEP * max(1.0, abs(improvement))
-    slope = (cost_ratio(objective, improvement - h) - cost_ratio(objective, improvement + h)) / (2 * h)
+    slope = (cost_ratio(objective, improvement - h) - cost_ratio(objective, improvement + h)) / (
+        2 * h
+    )
     return value, abs(slope) * se
 
 

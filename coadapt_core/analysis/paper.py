@@ -53,17 +53,42 @@ def _fraction(row: dict[str, Any], name: str) -> float:
 def paper_tables() -> PaperTables:
     """The shipped data, parsed once."""
     data = json.loads(resources.files(__package__).joinpath(DATA_FILE).read_text(encoding="utf-8"))
-    t6 = {(r["objective"], r["method"], r["terrain"]): {
-        "thigh": float(r["thigh"]), "shank": float(r["shank"]), "improvement": _fraction(r, "improvement"),
-        "sim2sim_improvement": _fraction(r, "sim2sim_improvement")} for r in data["table6"]["rows"]}
-    t7 = {r["method"]: {
-        "interactions_training": 1e6 * float(r["interactions_training_million"]),
-        "interactions_evaluation": 1e6 * float(r["interactions_evaluation_million"]),
-        "interactions_total": 1e6 * float(r["interactions_total_million"]),
-        "hours_training": float(r["hours_training"]), "hours_evaluation": float(r["hours_evaluation"]),
-        "hours_total": float(r["hours_total"])} for r in data["table7"]["rows"]}
-    t9 = {(r["objective"], r["method"], r["terrain"]): {
-        "thigh": float(r["thigh"]), "hip_motor": float(r["hip_motor"]), "shank": float(r["shank"]),
-        "knee_motor": float(r["knee_motor"]), "improvement": _fraction(r, "improvement")} for r in data["table9"]["rows"]}
-    return PaperTables(citation=data["citation"], notes=tuple(data["notes"]), design_variables=dict(data["design_variables"]),
-                       reference_method=data["table7"]["rows"][0]["method"], table6=t6, table7=t7, table9=t9)
+    t6 = {
+        (r["objective"], r["method"], r["terrain"]): {
+            "thigh": float(r["thigh"]),
+            "shank": float(r["shank"]),
+            "improvement": _fraction(r, "improvement"),
+            "sim2sim_improvement": _fraction(r, "sim2sim_improvement"),
+        }
+        for r in data["table6"]["rows"]
+    }
+    t7 = {
+        r["method"]: {
+            "interactions_training": 1e6 * float(r["interactions_training_million"]),
+            "interactions_evaluation": 1e6 * float(r["interactions_evaluation_million"]),
+            "interactions_total": 1e6 * float(r["interactions_total_million"]),
+            "hours_training": float(r["hours_training"]),
+            "hours_evaluation": float(r["hours_evaluation"]),
+            "hours_total": float(r["hours_total"]),
+        }
+        for r in data["table7"]["rows"]
+    }
+    t9 = {
+        (r["objective"], r["method"], r["terrain"]): {
+            "thigh": float(r["thigh"]),
+            "hip_motor": float(r["hip_motor"]),
+            "shank": float(r["shank"]),
+            "knee_motor": float(r["knee_motor"]),
+            "improvement": _fraction(r, "improvement"),
+        }
+        for r in data["table9"]["rows"]
+    }
+    return PaperTables(
+        citation=data["citation"],
+        notes=tuple(data["notes"]),
+        design_variables=dict(data["design_variables"]),
+        reference_method=data["table7"]["rows"][0]["method"],
+        table6=t6,
+        table7=t7,
+        table9=t9,
+    )

@@ -27,7 +27,9 @@ def _code(f: Any) -> str | None:
     return commit if commit and not commit.endswith("+dirty") else None
 
 
-def paired_cost_ratios(facts: Sequence[Any], reference: str) -> dict[tuple[tuple[str, str, str], str, str], dict[str, Any]]:
+def paired_cost_ratios(
+    facts: Sequence[Any], reference: str
+) -> dict[tuple[tuple[str, str, str], str, str], dict[str, Any]]:
     """Per (setting, method, optimizer): each run's interactions, evaluation interactions and
     wall clock (training + evaluation) as a ratio to the reference method's run of the same
     cell (setting, objective, terrain, seed; several reference runs of a cell are averaged),
@@ -37,6 +39,7 @@ def paired_cost_ratios(facts: Sequence[Any], reference: str) -> dict[tuple[tuple
     (work every training method does alike), so a run made while the machine was busier is
     not charged for it (None for a run that does not train). Pairing cancels what the cells differ
     in (terrain, objective, seed); the SE shows what is left, the machine's load included."""
+
     def totals(f: Any) -> tuple[float, float]:
         return float(f.train_interactions + f.eval_interactions), float(f.eval_interactions)
 
@@ -44,7 +47,11 @@ def paired_cost_ratios(facts: Sequence[Any], reference: str) -> dict[tuple[tuple
         """(wall seconds, the same at equal machine speed: wall seconds over the run's own
         seconds per training interaction, None for a run that did not train)."""
         wall = float(f.train_seconds + f.eval_seconds)
-        speed = f.train_seconds / f.train_interactions if f.train_interactions and f.train_seconds else None
+        speed = (
+            f.train_seconds / f.train_interactions
+            if f.train_interactions and f.train_seconds
+            else None
+        )
         return wall, (wall / speed if speed else None)
 
     by_cell: dict[tuple, list[tuple[float, float]]] = {}
@@ -55,7 +62,9 @@ def paired_cost_ratios(facts: Sequence[Any], reference: str) -> dict[tuple[tuple
             if _code(f):
                 by_code.setdefault((_cell_key(f), _code(f)), []).append(times(f))
     ref = {k: tuple(sum(v[i] for v in vs) / len(vs) for i in range(2)) for k, vs in by_cell.items()}
-    ref_time = {k: tuple(_stat([v[i] for v in vs])[0] for i in range(2)) for k, vs in by_code.items()}
+    ref_time = {
+        k: tuple(_stat([v[i] for v in vs])[0] for i in range(2)) for k, vs in by_code.items()
+    }
     ratios: dict[tuple[tuple[str, str, str], str, str], list[list[float | None]]] = {}
     for f in facts:
         r = ref.get(_cell_key(f))
@@ -67,16 +76,22 @@ def paired_cost_ratios(facts: Sequence[Any], reference: str) -> dict[tuple[tuple
         ratios.setdefault((f.setting, f.method, f.optimizer), []).append(row)
     out = {}
     for key, rows in ratios.items():
-        stats: dict[str, Any] = {"pairs": len(rows), "time_pairs": sum(row[2] is not None for row in rows)}
-        for i, name in enumerate(("interactions_ratio", "evaluation_ratio", "time_ratio", "speed_time_ratio")):
+        stats: dict[str, Any] = {
+            "pairs": len(rows),
+            "time_pairs": sum(row[2] is not None for row in rows),
+        }
+        for i, name in enumerate(
+            ("interactions_ratio", "evaluation_ratio", "time_ratio", "speed_time_ratio")
+        ):
             mean, std, n = _stat([row[i] for row in rows])
             stats[name], stats[f"{name}_se"] = mean, None if std is None else std / math.sqrt(n)
         out[key] = stats
     return out
 
 
-def table7_comparison(t7: Sequence[dict[str, Any]], facts: Sequence[Any],
-                      paper: PaperTables | None = None) -> list[dict[str, Any]]:
+def table7_comparison(
+    t7: Sequence[dict[str, Any]], facts: Sequence[Any], paper: PaperTables | None = None
+) -> list[dict[str, Any]]:
     """Each table7 row of a paper method: our interactions and wall clock as a ratio to the
     paper's method's, paired per cell over the runs' `facts` (`paired_cost_ratios`: mean ± SE
     over the pairs), beside the paper's ratios, and whether it costs more or less than the
@@ -87,25 +102,56 @@ def table7_comparison(t7: Sequence[dict[str, Any]], facts: Sequence[Any],
     out = []
     for r in (r for r in t7 if r["method"] in paper.table7):
         p = paper.table7[r["method"]]
-        row: dict[str, Any] = {k: r.get(k) for k in ("method", "optimizer", "runs", "interactions_training",
-                                                     "interactions_evaluation", "seconds_training", "seconds_evaluation")}
-        for k in ("interactions_training", "interactions_evaluation", "hours_training", "hours_evaluation"):
+        row: dict[str, Any] = {
+            k: r.get(k)
+            for k in (
+                "method",
+                "optimizer",
+                "runs",
+                "interactions_training",
+                "interactions_evaluation",
+                "seconds_training",
+                "seconds_evaluation",
+            )
+        }
+        for k in (
+            "interactions_training",
+            "interactions_evaluation",
+            "hours_training",
+            "hours_evaluation",
+        ):
             row[f"paper_{k}"] = p[k]
         same = r["method"] == paper.reference_method
         setting = (str(r.get("robot")), str(r.get("simulator")), str(r.get("preset")))
-        stats = ({"pairs": r["runs"], "time_pairs": r["runs"], "interactions_ratio": 1.0, "evaluation_ratio": 1.0,
-                  "time_ratio": 1.0, "speed_time_ratio": 1.0}
-                 if same else paired.get((setting, r["method"], r["optimizer"]), {"pairs": 0}))
+        stats = (
+            {
+                "pairs": r["runs"],
+                "time_pairs": r["runs"],
+                "interactions_ratio": 1.0,
+                "evaluation_ratio": 1.0,
+                "time_ratio": 1.0,
+                "speed_time_ratio": 1.0,
+            }
+            if same
+            else paired.get((setting, r["method"], r["optimizer"]), {"pairs": 0})
+        )
         for k in ("interactions_ratio", "evaluation_ratio", "time_ratio", "speed_time_ratio"):
             row[k], row[f"{k}_se"] = stats.get(k), stats.get(f"{k}_se")
         row["pairs"], row["time_pairs"] = stats["pairs"], stats.get("time_pairs", 0)
         row["paper_interactions_ratio"] = p["interactions_total"] / pref["interactions_total"]
-        row["paper_evaluation_ratio"] = p["interactions_evaluation"] / pref["interactions_evaluation"]
+        row["paper_evaluation_ratio"] = (
+            p["interactions_evaluation"] / pref["interactions_evaluation"]
+        )
         row["paper_time_ratio"] = p["hours_total"] / pref["hours_total"]
         row["paper_speed_time_ratio"] = row["paper_time_ratio"]
         for name in ("interactions", "time", "speed_time"):
-            row[f"{name}_verdict"] = "reference" if same else _ratio_verdict(
-                row[f"{name}_ratio"], row[f"paper_{name}_ratio"], row[f"{name}_ratio_se"])
+            row[f"{name}_verdict"] = (
+                "reference"
+                if same
+                else _ratio_verdict(
+                    row[f"{name}_ratio"], row[f"paper_{name}_ratio"], row[f"{name}_ratio_se"]
+                )
+            )
         if not same and row["pairs"] and not row["time_pairs"]:
             row["time_verdict"] = row["speed_time_verdict"] = "n/a (no pair made by the same code)"
         elif not same and row["time_pairs"] and row["speed_time_ratio"] is None:

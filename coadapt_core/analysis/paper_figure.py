@@ -29,15 +29,23 @@ def bars_of(rows6: Sequence[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
             continue
         se = r.get("common_improvement_se") if common else r.get("improvement_se")
         paper = r.get("paper_improvement")
-        out.setdefault(r["terrain"], []).append({
-            "objective": r["objective"], "method": r["method"], "value": 100 * value,
-            "se": None if se is None else 100 * se, "common": common,
-            "paper": None if paper is None else 100 * paper, "runs": r.get("runs")})
+        out.setdefault(r["terrain"], []).append(
+            {
+                "objective": r["objective"],
+                "method": r["method"],
+                "value": 100 * value,
+                "se": None if se is None else 100 * se,
+                "common": common,
+                "paper": None if paper is None else 100 * paper,
+                "runs": r.get("runs"),
+            }
+        )
     return out
 
 
-def figure_beside_paper(rows6: Sequence[dict[str, Any]], out: Path,
-                        objectives: dict[str, str] | None = None) -> list[tuple[Path, str]]:
+def figure_beside_paper(
+    rows6: Sequence[dict[str, Any]], out: Path, objectives: dict[str, str] | None = None
+) -> list[tuple[Path, str]]:
     bars = bars_of(rows6)
     if not bars:
         return []
@@ -54,13 +62,26 @@ def figure_beside_paper(rows6: Sequence[dict[str, Any]], out: Path,
             x = objs.index(b["objective"]) - 0.4 + width * (methods.index(b["method"]) + 0.5)
             label = None if b["method"] in seen else METHOD_LABELS.get(b["method"], b["method"])
             seen.add(b["method"])
-            ax.bar(x, b["value"], width * 0.9, color=METHOD_COLORS.get(b["method"], "grey"), label=label,
-                   hatch=None if b["common"] else "//", edgecolor="black", linewidth=0.5)
+            ax.bar(
+                x,
+                b["value"],
+                width * 0.9,
+                color=METHOD_COLORS.get(b["method"], "grey"),
+                label=label,
+                hatch=None if b["common"] else "//",
+                edgecolor="black",
+                linewidth=0.5,
+            )
             if b["se"] is not None:
                 ax.errorbar(x, b["value"], yerr=b["se"], color="black", capsize=2, linewidth=0.8)
             if b["paper"] is not None:
-                ax.plot([x - width * 0.45, x + width * 0.45], [b["paper"]] * 2, color="black", linewidth=2.0,
-                        label=None if "paper" in seen else "paper")
+                ax.plot(
+                    [x - width * 0.45, x + width * 0.45],
+                    [b["paper"]] * 2,
+                    color="black",
+                    linewidth=2.0,
+                    label=None if "paper" in seen else "paper",
+                )
                 seen.add("paper")
         ax.axhline(0.0, color="grey", linewidth=0.8)
         tidy_axes(ax)
@@ -69,7 +90,11 @@ def figure_beside_paper(rows6: Sequence[dict[str, Any]], out: Path,
         ax.set_ylabel("improvement over nominal, 1 - c/c0 [%]")
         ax.set_title(f"{terrain}", fontsize=9)
     axes[0].legend(fontsize=7)
-    return save_figure(plt, fig, out / FILE,
-                       "Table 6 beside the paper's: each method's improvement over the nominal design (the cost "
-                       "reduction 1 - c/c0, the paper's measure) on the common scenario set (mean ± SE over seeds; hatched: a cell without common-scenario rows, its runs' "
-                       "own final check) and the paper's figure for the same cell (black tick), one panel per terrain.")
+    return save_figure(
+        plt,
+        fig,
+        out / FILE,
+        "Table 6 beside the paper's: each method's improvement over the nominal design (the cost "
+        "reduction 1 - c/c0, the paper's measure) on the common scenario set (mean ± SE over seeds; hatched: a cell without common-scenario rows, its runs' "
+        "own final check) and the paper's figure for the same cell (black tick), one panel per terrain.",
+    )

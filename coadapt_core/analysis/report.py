@@ -80,47 +80,110 @@ def _table6_html(t6: Sequence[dict[str, Any]]) -> str:
     design = design_columns(t6)
     rows = []
     for r in t6:
-        row = {"robot": r["robot"], "simulator": r["simulator"], "preset": r["preset"], "policy": r.get("policy") or "?",
-               "objective": r["objective"], "method": METHOD_LABELS.get(r["method"], r["method"]), "optimizer": r["optimizer"],
-               "terrain": r["terrain"], "runs": r["runs"], "best_cost": cell(r, "best_cost", spec=".5g"),
-               "nominal_cost": cell(r, "nominal_cost", spec=".5g"), "improvement": cell(r, "improvement", pct=True) + unreliable_mark(r),
-               "improvement_plain": cell(r, "improvement_plain", pct=True),
-               "falls": cell(r, "best_fall_rate", pct=True) + " / " + cell(r, "nominal_fall_rate", pct=True),
-               "common": common_cell(r), "reduction": reduction_cell(r),
-               "sim2sim": cell(r, "sim2sim_improvement", pct=True), "sim2sim_note": r["sim2sim_note"]}
+        row = {
+            "robot": r["robot"],
+            "simulator": r["simulator"],
+            "preset": r["preset"],
+            "policy": r.get("policy") or "?",
+            "objective": r["objective"],
+            "method": METHOD_LABELS.get(r["method"], r["method"]),
+            "optimizer": r["optimizer"],
+            "terrain": r["terrain"],
+            "runs": r["runs"],
+            "best_cost": cell(r, "best_cost", spec=".5g"),
+            "nominal_cost": cell(r, "nominal_cost", spec=".5g"),
+            "improvement": cell(r, "improvement", pct=True) + unreliable_mark(r),
+            "improvement_plain": cell(r, "improvement_plain", pct=True),
+            "falls": cell(r, "best_fall_rate", pct=True)
+            + " / "
+            + cell(r, "nominal_fall_rate", pct=True),
+            "common": common_cell(r),
+            "reduction": reduction_cell(r),
+            "sim2sim": cell(r, "sim2sim_improvement", pct=True),
+            "sim2sim_note": r["sim2sim_note"],
+        }
         row.update({f"d:{n}": design_cell(r, n, d) if f"{n}_n" in r else "" for n, _, d in design})
         rows.append(row)
-    return _html_table(rows, [("robot", "robot"), ("simulator", "simulator"), ("preset", "preset"),
-                              ("objective", "objective"), ("method", "method"), ("optimizer", "optimizer"),
-                              ("terrain", "terrain"), ("runs", "runs")]
-                       + [(f"d:{n}", design_header(n, u)) for n, u, _ in design]
-                       + [("best_cost", "best cost"), ("nominal_cost", "nominal cost"), ("improvement", "improvement"),
-                          ("improvement_plain", "improvement (plain mean)"), ("falls", "fall rate best / nominal"),
-                          ("common", "common scenarios: improvement / plain mean / fall-rate difference"),
-                          ("reduction", "paper's measure 1 - c/c0 where it differs: run's cost / plain mean / "
-                                        "common / common plain mean"),
-                          ("sim2sim", "sim-to-sim improvement"), ("sim2sim_note", "sim-to-sim note"),
-                          ("policy", "starting policy")])
+    return _html_table(
+        rows,
+        [
+            ("robot", "robot"),
+            ("simulator", "simulator"),
+            ("preset", "preset"),
+            ("objective", "objective"),
+            ("method", "method"),
+            ("optimizer", "optimizer"),
+            ("terrain", "terrain"),
+            ("runs", "runs"),
+        ]
+        + [(f"d:{n}", design_header(n, u)) for n, u, _ in design]
+        + [
+            ("best_cost", "best cost"),
+            ("nominal_cost", "nominal cost"),
+            ("improvement", "improvement"),
+            ("improvement_plain", "improvement (plain mean)"),
+            ("falls", "fall rate best / nominal"),
+            ("common", "common scenarios: improvement / plain mean / fall-rate difference"),
+            (
+                "reduction",
+                "paper's measure 1 - c/c0 where it differs: run's cost / plain mean / "
+                "common / common plain mean",
+            ),
+            ("sim2sim", "sim-to-sim improvement"),
+            ("sim2sim_note", "sim-to-sim note"),
+            ("policy", "starting policy"),
+        ],
+    )
 
 
 def _table7_html(t7: Sequence[dict[str, Any]]) -> str:
     """Table 7 as an HTML table, interactions and wall clock in the units the Markdown uses."""
     iu, iname, tu, tname = table7_units(t7)
-    rows = [{"robot": r["robot"], "simulator": r["simulator"], "preset": r["preset"],
-             "method": METHOD_LABELS.get(r["method"], r["method"]), "optimizer": r["optimizer"], "runs": r["runs"],
-             "inter_t": cell(r, "interactions_training", scale=iu), "inter_e": cell(r, "interactions_evaluation", scale=iu),
-             "time_t": cell(r, "seconds_training", scale=tu), "time_e": cell(r, "seconds_evaluation", scale=tu),
-             "designs_real": cell(r, "designs_real", spec=".0f"), "designs_surrogate": cell(r, "designs_surrogate", spec=".0f")}
-            for r in t7]
-    return _html_table(rows, [("robot", "robot"), ("simulator", "simulator"), ("preset", "preset"),
-                              ("method", "method"), ("optimizer", "optimizer"), ("runs", "runs"),
-                              ("inter_t", f"interactions training ({iname})"), ("inter_e", f"interactions evaluation ({iname})"),
-                              ("time_t", f"wall clock training ({tname})"), ("time_e", f"wall clock evaluation ({tname})"),
-                              ("designs_real", "designs real"), ("designs_surrogate", "designs surrogate")])
+    rows = [
+        {
+            "robot": r["robot"],
+            "simulator": r["simulator"],
+            "preset": r["preset"],
+            "method": METHOD_LABELS.get(r["method"], r["method"]),
+            "optimizer": r["optimizer"],
+            "runs": r["runs"],
+            "inter_t": cell(r, "interactions_training", scale=iu),
+            "inter_e": cell(r, "interactions_evaluation", scale=iu),
+            "time_t": cell(r, "seconds_training", scale=tu),
+            "time_e": cell(r, "seconds_evaluation", scale=tu),
+            "designs_real": cell(r, "designs_real", spec=".0f"),
+            "designs_surrogate": cell(r, "designs_surrogate", spec=".0f"),
+        }
+        for r in t7
+    ]
+    return _html_table(
+        rows,
+        [
+            ("robot", "robot"),
+            ("simulator", "simulator"),
+            ("preset", "preset"),
+            ("method", "method"),
+            ("optimizer", "optimizer"),
+            ("runs", "runs"),
+            ("inter_t", f"interactions training ({iname})"),
+            ("inter_e", f"interactions evaluation ({iname})"),
+            ("time_t", f"wall clock training ({tname})"),
+            ("time_e", f"wall clock evaluation ({tname})"),
+            ("designs_real", "designs real"),
+            ("designs_surrogate", "designs surrogate"),
+        ],
+    )
 
 
-def _report_html(store: ResultsStore, title: str, n_runs: int, t6: Sequence[dict[str, Any]],
-                 t7: Sequence[dict[str, Any]], paper_html: str, figures: Sequence[tuple[Path, str]]) -> str:
+def _report_html(
+    store: ResultsStore,
+    title: str,
+    n_runs: int,
+    t6: Sequence[dict[str, Any]],
+    t7: Sequence[dict[str, Any]],
+    paper_html: str,
+    figures: Sequence[tuple[Path, str]],
+) -> str:
     """report.html: the two tables, the paper comparison and every figure with its caption."""
     parts = [
         "<!doctype html><html><head><meta charset='utf-8'><title>coadapt report</title>",
@@ -138,16 +201,23 @@ def _report_html(store: ResultsStore, title: str, n_runs: int, t6: Sequence[dict
         "<h2>Figures</h2>",
     ]
     for path, caption in figures:
-        parts.append(f"<figure><img src='{html.escape(path.name)}' alt='{html.escape(path.stem)}'>"
-                     f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+        parts.append(
+            f"<figure><img src='{html.escape(path.name)}' alt='{html.escape(path.stem)}'>"
+            f"<figcaption>{html.escape(caption)}</figcaption></figure>"
+        )
     if not figures:
         parts.append("<p>No figures: the selected runs recorded no real evaluations.</p>")
     parts.append("</body></html>")
     return "\n".join(parts)
 
 
-def _add_transfer(store: ResultsStore, facts: Sequence[RunFacts], sim2sim: bool, simulator: str | None,
-                  notes: dict[str, str] | None) -> None:
+def _add_transfer(
+    store: ResultsStore,
+    facts: Sequence[RunFacts],
+    sim2sim: bool,
+    simulator: str | None,
+    notes: dict[str, str] | None,
+) -> None:
     """Each run's sim-to-sim improvement and note, and its common-yardstick figures, as far as
     the store holds their rows (landscapes have none)."""
     for f in facts:
@@ -155,20 +225,26 @@ def _add_transfer(store: ResultsStore, facts: Sequence[RunFacts], sim2sim: bool,
             continue
         f.common = yardstick_improvement(store, f.run["id"], f.objective)
         if sim2sim:
-            f.sim2sim, f.sim2sim_note = transfer_improvement(store, f, simulator, (notes or {}).get(f.run["id"], ""))
+            f.sim2sim, f.sim2sim_note = transfer_improvement(
+                store, f, simulator, (notes or {}).get(f.run["id"], "")
+            )
         else:
             f.sim2sim, f.sim2sim_note = None, "n/a: not requested (--no-sim-to-sim)"
 
 
-def _draw_figures(store: ResultsStore, facts: Sequence[RunFacts], out: Path, progress: Any) -> list[tuple[Path, str]]:
+def _draw_figures(
+    store: ResultsStore, facts: Sequence[RunFacts], out: Path, progress: Any
+) -> list[tuple[Path, str]]:
     """Every figure of the report, in order, telling `progress` of each."""
     figures: list[tuple[Path, str]] = []
-    steps = (("heat-maps", lambda: figure_heatmaps(store, facts, out)),
-             ("convergence", lambda: figure_convergence(store, facts, out)),
-             ("surrogate error", lambda: figure_surrogate_error(facts, out)),
-             ("surrogate quality", lambda: figure_surrogate_quality(facts, out)),
-             ("Pareto fronts", lambda: figure_pareto(facts, out) + figure_pareto_seeds(facts, out)),
-             ("videos", lambda: figure_videos(facts, out)))
+    steps = (
+        ("heat-maps", lambda: figure_heatmaps(store, facts, out)),
+        ("convergence", lambda: figure_convergence(store, facts, out)),
+        ("surrogate error", lambda: figure_surrogate_error(facts, out)),
+        ("surrogate quality", lambda: figure_surrogate_quality(facts, out)),
+        ("Pareto fronts", lambda: figure_pareto(facts, out) + figure_pareto_seeds(facts, out)),
+        ("videos", lambda: figure_videos(facts, out)),
+    )
     for j, (what, draw) in enumerate(steps):
         if progress is not None:
             progress(1 + j, REPORT_STEPS, what)
@@ -202,7 +278,10 @@ def write_report(
     _add_transfer(store, facts, sim2sim, transfer_simulator, transfer_notes)
     t6, t7 = table6_rows(facts), table7_rows(facts)
     files: dict[str, Path] = {}
-    for name, rows, md in (("table6", t6, table6_markdown(t6)), ("table7", t7, table7_markdown(t7))):
+    for name, rows, md in (
+        ("table6", t6, table6_markdown(t6)),
+        ("table7", t7, table7_markdown(t7)),
+    ):
         write_csv(out / f"{name}.csv", rows)
         (out / f"{name}.md").write_text(md)
         files[f"{name}.csv"] = out / f"{name}.csv"
@@ -211,10 +290,13 @@ def write_report(
     from coadapt_core.analysis.paper_comparison import write_paper_comparison
 
     continuous = [f for f in facts if not any(f.design_discrete)]
-    paper_files, paper_html = write_paper_comparison(t6, table7_rows(continuous), out, facts=continuous,
-                                                     objective_labels=objective_labels())
+    paper_files, paper_html = write_paper_comparison(
+        t6, table7_rows(continuous), out, facts=continuous, objective_labels=objective_labels()
+    )
     files.update(paper_files)
-    fronts = pareto_rows(facts)  # multi-objective runs: hypervolume +- SE per run and per group of seeds
+    fronts = pareto_rows(
+        facts
+    )  # multi-objective runs: hypervolume +- SE per run and per group of seeds
     if fronts:
         write_csv(out / "pareto.csv", fronts)
         (out / "pareto.md").write_text(pareto_markdown(fronts))
@@ -224,10 +306,30 @@ def write_report(
         files[path.name] = path
     if fronts:  # the hypervolume table beside the paper comparison
         paper_html += "<h2>Pareto fronts — hypervolume</h2>" + _html_table(
-            [{**r, "hypervolume": hv_text(r["hypervolume"], r["hypervolume_se"]).removeprefix("hypervolume ")}
-             for r in fronts],
-            [(k, k.replace("_", " ")) for k in ("method", "optimizer", "objectives", "terrain", "run", "front_designs",
-                                                "hypervolume")])
-    (out / "report.html").write_text(_report_html(store, title, len(runs), t6, t7, paper_html, figures))
+            [
+                {
+                    **r,
+                    "hypervolume": hv_text(r["hypervolume"], r["hypervolume_se"]).removeprefix(
+                        "hypervolume "
+                    ),
+                }
+                for r in fronts
+            ],
+            [
+                (k, k.replace("_", " "))
+                for k in (
+                    "method",
+                    "optimizer",
+                    "objectives",
+                    "terrain",
+                    "run",
+                    "front_designs",
+                    "hypervolume",
+                )
+            ],
+        )
+    (out / "report.html").write_text(
+        _report_html(store, title, len(runs), t6, t7, paper_html, figures)
+    )
     files["report.html"] = out / "report.html"
     return files

@@ -23,39 +23,73 @@ class FolderRecords:
     def __init__(self, run_dir: str | Path):
         self.run_dir = Path(run_dir)
 
-    def evaluations(self, run_id: str | None = None, *, kind: str | None = None) -> list[Evaluation]:
+    def evaluations(
+        self, run_id: str | None = None, *, kind: str | None = None
+    ) -> list[Evaluation]:
         out = []
         for r in read_evaluations(self.run_dir):
             if kind is not None and r.get("kind") != kind:
                 continue
-            costs = {str(k): (math.nan if v is None else float(v)) for k, v in (r.get("costs") or {}).items()}
+            costs = {
+                str(k): (math.nan if v is None else float(v))
+                for k, v in (r.get("costs") or {}).items()
+            }
             errors = r.get("surrogate_error")
-            out.append(Evaluation(
-                run_id=str(r.get("run_id") or self.run_dir.name), outer=int(r["outer"]), inner=int(r["inner"]),
-                idx=int(r["idx"]), kind=str(r["kind"]), design=[float(x) for x in r.get("design") or []], costs=costs,
-                surrogate_error=None if errors is None else {str(k): (math.nan if v is None else float(v))
-                                                            for k, v in errors.items()},
-                interactions=int(r.get("interactions") or 0), seconds=float(r.get("seconds") or 0.0),
-                simulator=None, created_at=float(r.get("time") or 0.0)))
+            out.append(
+                Evaluation(
+                    run_id=str(r.get("run_id") or self.run_dir.name),
+                    outer=int(r["outer"]),
+                    inner=int(r["inner"]),
+                    idx=int(r["idx"]),
+                    kind=str(r["kind"]),
+                    design=[float(x) for x in r.get("design") or []],
+                    costs=costs,
+                    surrogate_error=None
+                    if errors is None
+                    else {str(k): (math.nan if v is None else float(v)) for k, v in errors.items()},
+                    interactions=int(r.get("interactions") or 0),
+                    seconds=float(r.get("seconds") or 0.0),
+                    simulator=None,
+                    created_at=float(r.get("time") or 0.0),
+                )
+            )
         return out
 
     def training(self, run_id: str | None = None) -> list[dict[str, Any]]:
-        return [{"outer": int(t["outer"]), "steps": int(t.get("steps") or 0), "seconds": float(t.get("seconds") or 0.0),
-                 "created_at": float(t.get("time") or 0.0)} for t in read_jsonl(self.run_dir / "trainings.jsonl")]
+        return [
+            {
+                "outer": int(t["outer"]),
+                "steps": int(t.get("steps") or 0),
+                "seconds": float(t.get("seconds") or 0.0),
+                "created_at": float(t.get("time") or 0.0),
+            }
+            for t in read_jsonl(self.run_dir / "trainings.jsonl")
+        ]
 
 
 def run_row(run_dir: str | Path, config: dict[str, Any], summary: dict[str, Any]) -> dict[str, Any]:
     """The run as a store row would hold it (`ResultsStore.get_run`), from its config and summary."""
     run_dir = Path(run_dir)
-    return {"id": run_dir.name, "method": str(config.get("method") or summary.get("method") or DEFAULT_METHOD),
-            "objectives": objective_list(config) or objective_list(summary), "terrain": config.get("terrain"),
-            "optimizer": summary.get("optimizer") or config.get("optimizer"), "robot": config.get("robot"),
-            "simulator": config.get("sim"), "preset": config.get("preset"), "seed": config.get("seed"),
-            "config": dict(config), "summary": dict(summary), "status": "finished", "run_dir": str(run_dir)}
+    return {
+        "id": run_dir.name,
+        "method": str(config.get("method") or summary.get("method") or DEFAULT_METHOD),
+        "objectives": objective_list(config) or objective_list(summary),
+        "terrain": config.get("terrain"),
+        "optimizer": summary.get("optimizer") or config.get("optimizer"),
+        "robot": config.get("robot"),
+        "simulator": config.get("sim"),
+        "preset": config.get("preset"),
+        "seed": config.get("seed"),
+        "config": dict(config),
+        "summary": dict(summary),
+        "status": "finished",
+        "run_dir": str(run_dir),
+    }
 
 
-def write_run_figures(run_dir: str | Path, summary: dict[str, Any], config: dict[str, Any] | None = None
-                      ) -> list[tuple[Path, str]]:
+def write_run_figures(
+    run_dir: str | Path, summary: dict[str, Any], config: dict[str, Any] | None = None
+) -> list[tuple[Path, str]]:
     """Draw the run's figures into its folder; returns [(PNG path, caption)]. The run's config
     is its config.yaml (`config` where the folder has none)."""
     from coadapt_core.analysis.facts import run_facts

@@ -24,12 +24,16 @@ def quality_series(facts: Sequence[Any]) -> dict[tuple[str, str], list[dict[str,
         for name, pooled in (q.get("by_objective") or {}).items():
             rounds = [r for r in q.get("rounds") or [] if r.get("eligible")]
             values = [(r.get("objectives") or {}).get(name, {}).get("spearman") for r in rounds]
-            series[(name, f.terrain)].append({
-                "label": f"{f.method} s{f.run.get('seed', '?')}",
-                "run": f.run,
-                "spearman": [float(v) if isinstance(v, int | float) else math.nan for v in values],
-                "pooled": pooled or {},
-            })
+            series[(name, f.terrain)].append(
+                {
+                    "label": f"{f.method} s{f.run.get('seed', '?')}",
+                    "run": f.run,
+                    "spearman": [
+                        float(v) if isinstance(v, int | float) else math.nan for v in values
+                    ],
+                    "pooled": pooled or {},
+                }
+            )
     for entries in series.values():
         _distinct_labels(entries)
     return series
@@ -64,7 +68,9 @@ def figure_surrogate_quality(facts: Sequence[Any], out: Path) -> list[tuple[Path
             ax.plot(range(1, len(y) + 1), y, marker="o", linewidth=1.2, label=entry["label"])
             p = entry["pooled"]
             if isinstance(p.get("spearman"), int | float):
-                lines.append(f"{entry['label']}: pooled {p['spearman']:.2f}, bias {100 * (p.get('bias') or 0):+.1f} %")
+                lines.append(
+                    f"{entry['label']}: pooled {p['spearman']:.2f}, bias {100 * (p.get('bias') or 0):+.1f} %"
+                )
         ax.axhline(0.0, color="grey", linewidth=0.8)
         ax.axhline(0.7, color="grey", linewidth=0.8, linestyle=":")
         ax.set_ylim(-1.05, 1.05)
@@ -74,11 +80,26 @@ def figure_surrogate_quality(facts: Sequence[Any], out: Path) -> list[tuple[Path
         ax.legend(fontsize=7)
         tidy_axes(ax)
         rounds = max((len(e["spearman"]) for e in series[key]), default=0)
-        ax.set_xlim(0.5, max(rounds, 1) + 0.5)  # rounds are whole: ticks 1, 2, ... (not 1.25, nor -0.05)
+        ax.set_xlim(
+            0.5, max(rounds, 1) + 0.5
+        )  # rounds are whole: ticks 1, 2, ... (not 1.25, nor -0.05)
         ax.xaxis.set_major_locator(MaxNLocator(5, integer=True, min_n_ticks=1))
         if rounds == 0:
-            ax.text(0.5, 0.5, "no real round judged", transform=ax.transAxes, ha="center", fontsize=8, color="grey")
-    return save_figure(plt, fig, out / "surrogate_quality.png", "Surrogate quality per objective and terrain: Spearman rank correlation between the surrogate's "
-                   "prediction (made before the round's real costs were known) and the real cost of the same designs, "
-                   "on every real round where a surrogate round was allowed; the title gives each run's pooled "
-                   "Spearman and bias ((surrogate − real) / |real|). Dotted: 0.7.")
+            ax.text(
+                0.5,
+                0.5,
+                "no real round judged",
+                transform=ax.transAxes,
+                ha="center",
+                fontsize=8,
+                color="grey",
+            )
+    return save_figure(
+        plt,
+        fig,
+        out / "surrogate_quality.png",
+        "Surrogate quality per objective and terrain: Spearman rank correlation between the surrogate's "
+        "prediction (made before the round's real costs were known) and the real cost of the same designs, "
+        "on every real round where a surrogate round was allowed; the title gives each run's pooled "
+        "Spearman and bias ((surrogate − real) / |real|). Dotted: 0.7.",
+    )

@@ -142,7 +142,9 @@ def config_default(name: str) -> str | None:
         from coadapt_core.coadapt.config import CoadaptConfig
         from coadapt_core.settings import leaves
 
-        return next((leaf_default(leaf) for leaf in leaves(CoadaptConfig) if leaf.key == "preset"), None)
+        return next(
+            (leaf_default(leaf) for leaf in leaves(CoadaptConfig) if leaf.key == "preset"), None
+        )
     if found is None:
         return None
     leaf, values = found
@@ -167,7 +169,7 @@ def style_help(command: Any, *, config_options: bool = False) -> None:
         if kind == "argument" and getattr(param, "help", None):
             found = _HAND_DEFAULT.search(param.help)
             if found:  # arguments: the same style, the text they were given
-                rest = (param.help[: found.start()] + param.help[found.end():]).strip()
+                rest = (param.help[: found.start()] + param.help[found.end() :]).strip()
                 param.help = f"{rest} [default: {(found.group(1) or found.group(2) or '').strip()}]"
             continue
         if kind != "option" or param.hidden:
@@ -177,10 +179,14 @@ def style_help(command: Any, *, config_options: bool = False) -> None:
         default = None
         if found:
             default = (found.group(1) or found.group(2) or "").strip()
-            text = (text[: found.start()] + text[found.end():]).strip()
+            text = (text[: found.start()] + text[found.end() :]).strip()
         elif config_options and param.default is None and param.name:
             default = config_default(param.name)
-        elif param.default is not None and not (param.is_flag and param.default is False) and param.name != "help":
+        elif (
+            param.default is not None
+            and not (param.is_flag and param.default is False)
+            and param.name != "help"
+        ):
             value = param.default
             if param.is_flag and param.secondary_opts:
                 default = "on" if value else "off"
@@ -200,9 +206,30 @@ def style_help(command: Any, *, config_options: bool = False) -> None:
 
 #: what `coadapt run --help` shows, in this order; `--help-all` shows every option
 RUN_COMMON_OPTIONS = (
-    "config", "resume", "preset", "objective", "optimizer", "terrain", "method", "seed", "robot", "sim", "mixed",
-    "checkpoint", "out", "store", "as_json", "video", "device", "logger", "population", "outer_iterations",
-    "optimizer_iterations", "train_steps", "eval_steps", "design_ranges",
+    "config",
+    "resume",
+    "preset",
+    "objective",
+    "optimizer",
+    "terrain",
+    "method",
+    "seed",
+    "robot",
+    "sim",
+    "mixed",
+    "checkpoint",
+    "out",
+    "store",
+    "as_json",
+    "video",
+    "device",
+    "logger",
+    "population",
+    "outer_iterations",
+    "optimizer_iterations",
+    "train_steps",
+    "eval_steps",
+    "design_ranges",
 )
 
 
@@ -215,15 +242,22 @@ def short_help(command: Any, common: tuple[str, ...]) -> None:
         if ctx.meta.get("coadapt_help_all"):
             return original(ctx, formatter)
         by_name = {p.name: p for p in command.get_params(ctx)}
-        shown = [by_name[n] for n in common if n in by_name] + [by_name[n] for n in ("help_all", "help") if n in by_name]
+        shown = [by_name[n] for n in common if n in by_name] + [
+            by_name[n] for n in ("help_all", "help") if n in by_name
+        ]
         records = [r for r in (p.get_help_record(ctx) for p in shown) if r]
         with formatter.section("Common options"):
             formatter.write_dl(records)
-        hidden = sum(1 for p in by_name.values() if getattr(p, "param_type_name", "") == "option" and not p.hidden
-                     and p not in shown)
+        hidden = sum(
+            1
+            for p in by_name.values()
+            if getattr(p, "param_type_name", "") == "option" and not p.hidden and p not in shown
+        )
         formatter.write_paragraph()
-        formatter.write_text(f"{hidden} more options (training, task, randomization, surrogate, final check, "
-                             "optimizer aliases): `coadapt run --help-all`, or docs/settings.md.")
+        formatter.write_text(
+            f"{hidden} more options (training, task, randomization, surrogate, final check, "
+            "optimizer aliases): `coadapt run --help-all`, or docs/settings.md."
+        )
 
     command.format_options = format_options
 
@@ -265,7 +299,9 @@ def run_app(app: typer.Typer, argv: list[str] | None = None) -> int:
     except CoadaptError as exc:
         print(f"error: {one_line(exc)}", file=sys.stderr)
         return 1
-    except OSError as exc:  # the file system said no: full disk, read-only folder, a file for a folder
+    except (
+        OSError
+    ) as exc:  # the file system said no: full disk, read-only folder, a file for a folder
         print(f"error: {os_error_line(exc)}", file=sys.stderr)
         return EXIT_USAGE
     except Exception as exc:
@@ -273,7 +309,10 @@ def run_app(app: typer.Typer, argv: list[str] | None = None) -> int:
             raise
         # the results store failed under a command (damaged, emptied, locked, unreachable)
         detail = one_line(getattr(exc, "orig", None) or exc)[:200]
-        print(f"error: the results store failed ({detail}); check --store / $COADAPT_STORE, or move a damaged "
-              "store aside and resume the runs (`coadapt run --resume`) to record them again", file=sys.stderr)
+        print(
+            f"error: the results store failed ({detail}); check --store / $COADAPT_STORE, or move a damaged "
+            "store aside and resume the runs (`coadapt run --resume`) to record them again",
+            file=sys.stderr,
+        )
         return EXIT_USAGE
     return result if isinstance(result, int) else 0

@@ -20,7 +20,9 @@ class ExportCommand:
     out: Path = setting(help="Folder to write the tables into.", names=("-o", "--out"))
     format: str = setting("csv", "csv, or parquet (needs coadapt[parquet]).")
     run: list[str] | None = setting(None, "Export only this run (repeatable).", names=("--run",))
-    store: str | None = setting(None, "Results store: a path or SQLAlchemy URL (default: $COADAPT_STORE or ./coadapt.db).")
+    store: str | None = setting(
+        None, "Results store: a path or SQLAlchemy URL (default: $COADAPT_STORE or ./coadapt.db)."
+    )
 
 
 def register(app: typer.Typer) -> None:

@@ -25,36 +25,65 @@ class GridSettings:
     settings it shares with `coadapt run` are `CoadaptConfig`'s own declarations."""
 
     methods: str = setting(",".join(METHOD_NAMES), "Comma list of methods.")
-    objectives: str = setting(default_factory=lambda: ",".join(get_registry().defaults("objective")),
-                              help="Comma list of objectives (one cell each).")
+    objectives: str = setting(
+        default_factory=lambda: ",".join(get_registry().defaults("objective")),
+        help="Comma list of objectives (one cell each).",
+    )
     terrains: str = setting(",".join(TERRAINS), "Comma list of terrains.")
     seeds: str = setting("0,1,2", "Comma list of integer seeds.")
     preset: str = setting("quick", "`coadapt run` preset for every cell.")
     sim: Any = shared(CoadaptConfig)
-    robots: str = setting(default_factory=lambda: default_plugin("robot"), plugin="robot", aliases=("--robot",),
-                          help="Comma list of robots (one cell each; the cell key names it).")
+    robots: str = setting(
+        default_factory=lambda: default_plugin("robot"),
+        plugin="robot",
+        aliases=("--robot",),
+        help="Comma list of robots (one cell each; the cell key names it).",
+    )
     optimizer: str | None = setting(None, "Optimizer for every cell (default: each method's own).")
     executor: str = setting("local", "local (process pool on this machine) or ray.")
-    address: str | None = setting(None, "Ray cluster address, e.g. 10.0.0.5:6379 (default: $RAY_ADDRESS, else a "
-                                  "local Ray instance).")
-    state_every: Float = setting(300.0, "Ray: seconds between a running cell's last state sent back to the driver, "
-                                 "from which it resumes if its node is lost (0: never; it then starts over).",
-                                 names=("--state-every",), ge=0)
-    workers: Int | None = setting(None, "Cells at once (default: as many as fit, cells at once x --threads <= "
-                                  "cores; on Ray: the number of cores).")
-    threads: Int | None = setting(None, "CPU threads per cell, physics and torch: each cell's `coadapt run --threads` "
-                                  "(default: locally the cores divided among the cells at once; on Ray 1).", ge=1)
+    address: str | None = setting(
+        None,
+        "Ray cluster address, e.g. 10.0.0.5:6379 (default: $RAY_ADDRESS, else a "
+        "local Ray instance).",
+    )
+    state_every: Float = setting(
+        300.0,
+        "Ray: seconds between a running cell's last state sent back to the driver, "
+        "from which it resumes if its node is lost (0: never; it then starts over).",
+        names=("--state-every",),
+        ge=0,
+    )
+    workers: Int | None = setting(
+        None,
+        "Cells at once (default: as many as fit, cells at once x --threads <= "
+        "cores; on Ray: the number of cores).",
+    )
+    threads: Int | None = setting(
+        None,
+        "CPU threads per cell, physics and torch: each cell's `coadapt run --threads` "
+        "(default: locally the cores divided among the cells at once; on Ray 1).",
+        ge=1,
+    )
     store: Any = shared(ExportCommand)
     out: str = setting("runs", "Folder for run folders and cell logs.")
     timeout: Float | None = setting(None, "Seconds before a cell is killed (default: none).")
-    dry_run: bool = setting(False, "Print the plan (skip / resume / new / refuse per cell) and run nothing; exit 2 "
-                            "when a cell would be refused.", names=("--dry-run",))
+    dry_run: bool = setting(
+        False,
+        "Print the plan (skip / resume / new / refuse per cell) and run nothing; exit 2 "
+        "when a cell would be refused.",
+        names=("--dry-run",),
+    )
     as_json: bool = setting(False, "Print a JSON summary as the last line.", names=("--json",))
-    run_arg: list[str] | None = setting(None, "Extra argument passed to every `coadapt run` (repeatable), e.g. "
-                                        "--run-arg=--device=cuda.", names=("--run-arg",))
+    run_arg: list[str] | None = setting(
+        None,
+        "Extra argument passed to every `coadapt run` (repeatable), e.g. --run-arg=--device=cuda.",
+        names=("--run-arg",),
+    )
 
 
-def _check_cells(app: typer.Typer, spec, out: str, store_url: str, *, dry_run: bool = False) -> dict[str, str]:
+def _check_cells(
+    app: typer.Typer, spec, out: str, store_url: str, *, dry_run: bool = False
+) -> dict[str, str]:
     """Run `coadapt run <cell's arguments> --check` in this process for every cell: a bad
     objective, terrain, preset, simulator, optimizer, --run-arg or a robot without a policy
     for the cell is one line naming the cell before anything starts, not a failed cell after
@@ -67,8 +96,14 @@ def _check_cells(app: typer.Typer, spec, out: str, store_url: str, *, dry_run: b
     checked: dict[tuple, str | None] = {}
     refused: dict[str, str] = {}
     for cell in spec.cells():
-        argv = [a for a in cell.run_args(out_dir=out, extra=spec.extra_args, store=store_url) if a != "--json"]
-        key = tuple(a for a, b in zip(argv, ["", *argv[:-1]], strict=True) if b != "--seed")  # seeds share a verdict
+        argv = [
+            a
+            for a in cell.run_args(out_dir=out, extra=spec.extra_args, store=store_url)
+            if a != "--json"
+        ]
+        key = tuple(
+            a for a, b in zip(argv, ["", *argv[:-1]], strict=True) if b != "--seed"
+        )  # seeds share a verdict
         if key not in checked:
             err = io.StringIO()
             with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
@@ -112,10 +147,19 @@ def _print_plan(results: Any, spec: Any, out: str, refused: dict[str, str]) -> N
         if task.cell.key in refused:
             print(f"refuse  {task.cell.key}: {refused[task.cell.key]}")
             continue
-        print(f"{'resume' if task.resume else 'new':7} {task.cell.key}" + (f" (run {task.resume})" if task.resume else ""))
+        print(
+            f"{'resume' if task.resume else 'new':7} {task.cell.key}"
+            + (f" (run {task.resume})" if task.resume else "")
+        )
     runnable = [t for t in tasks if t.cell.key not in refused]
-    print(f"grid {spec.grid_id}: {len(skipped)} finished, {len(runnable)} to run"
-          + (f", {len(tasks) - len(runnable)} refused (the grid would not start)" if len(runnable) < len(tasks) else ""))
+    print(
+        f"grid {spec.grid_id}: {len(skipped)} finished, {len(runnable)} to run"
+        + (
+            f", {len(tasks) - len(runnable)} refused (the grid would not start)"
+            if len(runnable) < len(tasks)
+            else ""
+        )
+    )
     if len(runnable) < len(tasks):
         raise typer.Exit(2)
 
@@ -144,7 +188,9 @@ def _run(s: GridSettings, spec: Any, results: Any, command_line: str) -> Any:
 
         def on_event(kind, cell, outcome):
             if kind == "rerun":  # a Ray cell lost with its node
-                console.print(f"[yellow]ran again[/yellow] {cell.key}: {outcome.error}", soft_wrap=True)
+                console.print(
+                    f"[yellow]ran again[/yellow] {cell.key}: {outcome.error}", soft_wrap=True
+                )
                 return
             if kind == "started":
                 started.append(cell.key)
@@ -155,23 +201,38 @@ def _run(s: GridSettings, spec: Any, results: Any, command_line: str) -> Any:
                 return
             done.add(cell.key)
             running = [k for k in started if k not in done][:width]
-            line.update(len(done), f"failed {counts['failed']}, skipped {counts['skipped']}; running "
-                        + (", ".join(_short(k) for k in running) or "-"))
+            line.update(
+                len(done),
+                f"failed {counts['failed']}, skipped {counts['skipped']}; running "
+                + (", ".join(_short(k) for k in running) or "-"),
+            )
             if kind == "failed":
                 console.print(f"[red]failed[/red] {cell.key}: {outcome.error}")
 
         try:
             with ctrl_c_once():
-                return run_grid(spec, results, executor=s.executor, workers=s.workers, threads=s.threads,
-                                address=s.address, out_dir=s.out, timeout=s.timeout, on_event=on_event,
-                                state_every=s.state_every)
+                return run_grid(
+                    spec,
+                    results,
+                    executor=s.executor,
+                    workers=s.workers,
+                    threads=s.threads,
+                    address=s.address,
+                    out_dir=s.out,
+                    timeout=s.timeout,
+                    on_event=on_event,
+                    state_every=s.state_every,
+                )
         except KeyboardInterrupt as exc:
             line.close()
             stopped = getattr(exc, "report", None)
             done_cells = len(stopped.finished) + len(stopped.skipped) if stopped is not None else 0
             results.close()
-            interrupted(f"grid {spec.grid_id} stopped ({done_cells} cells finished; the running cells keep their "
-                        "last state and resume, the rest start)", command_line)
+            interrupted(
+                f"grid {spec.grid_id} stopped ({done_cells} cells finished; the running cells keep their "
+                "last state and resume, the rest start)",
+                command_line,
+            )
 
 
 def register(app: typer.Typer) -> None:
@@ -185,12 +246,18 @@ def register(app: typer.Typer) -> None:
         from coadapt_core.experiments.grid import check_grid_options
         from coadapt_core.results.store import ResultsStore
 
-        command_line = shlex.join(["coadapt", *invocation()])  # before the cells' checks run `coadapt run`
+        command_line = shlex.join(
+            ["coadapt", *invocation()]
+        )  # before the cells' checks run `coadapt run`
         s = settings_from(GridSettings, values, options)
         spec = _spec(s, s.run_arg)
-        check_grid_options(executor=s.executor, workers=s.workers, timeout=s.timeout, address=s.address)
+        check_grid_options(
+            executor=s.executor, workers=s.workers, timeout=s.timeout, address=s.address
+        )
         results = ResultsStore(s.store)
-        refused = _check_cells(app, spec, s.out, results.url, dry_run=s.dry_run)  # every cell, before any starts
+        refused = _check_cells(
+            app, spec, s.out, results.url, dry_run=s.dry_run
+        )  # every cell, before any starts
         if s.dry_run:
             _print_plan(results, spec, s.out, refused)
             return
@@ -199,8 +266,11 @@ def register(app: typer.Typer) -> None:
         Console(stderr=True).print(
             f"grid {report.grid_id}: {len(report.finished)} finished, {len(report.skipped)} skipped "
             f"(already finished), {len(report.resumed)} resumed, {len(report.failed)} failed"
-            + (f", {len(report.ran_again)} ran again ({', '.join(sorted(set(report.ran_again)))})"
-               if report.ran_again else "")
+            + (
+                f", {len(report.ran_again)} ran again ({', '.join(sorted(set(report.ran_again)))})"
+                if report.ran_again
+                else ""
+            )
         )
         if s.as_json:
             print(json.dumps(report.to_dict()))

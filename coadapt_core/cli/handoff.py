@@ -20,22 +20,36 @@ class HandoffCommand:
     """`coadapt handoff`'s settings."""
 
     run: str = setting(help="Run folder, or a run id under --runs-dir.", argument="run")
-    out: Path | None = setting(None, "Folder to write (default: ./handoff-<run id>).", names=("-o", "--out"))
-    design: str | None = setting(None, "Design values, comma-separated in the order of the run's design space (default: "
-                                 "the run's best design).")
-    pick: str | None = setting(None, "A design of a multi-objective run's Pareto front instead of the one it returns: "
-                               "its index N (0-based, in the order `coadapt run` printed the front, by the first cost; "
-                               "0 is the returned design), or 'knee' (the design nearest the ideal point, each "
-                               "objective scaled to the front's range).")
-    sim: list[str] | None = setting(None, "Simulator to evaluate the design and the nominal one on; repeatable (default: "
-                                    "the run's and every other installed one).", names=("--sim",))
+    out: Path | None = setting(
+        None, "Folder to write (default: ./handoff-<run id>).", names=("-o", "--out")
+    )
+    design: str | None = setting(
+        None,
+        "Design values, comma-separated in the order of the run's design space (default: "
+        "the run's best design).",
+    )
+    pick: str | None = setting(
+        None,
+        "A design of a multi-objective run's Pareto front instead of the one it returns: "
+        "its index N (0-based, in the order `coadapt run` printed the front, by the first cost; "
+        "0 is the returned design), or 'knee' (the design nearest the ideal point, each "
+        "objective scaled to the front's range).",
+    )
+    sim: list[str] | None = setting(
+        None,
+        "Simulator to evaluate the design and the nominal one on; repeatable (default: "
+        "the run's and every other installed one).",
+        names=("--sim",),
+    )
     agents: Int = setting(16, "Paired scenarios per design and simulator.")
     seconds: Float = setting(4.0, "Simulated seconds per scenario.")
     check: bool = setting(True, "Walk the folder's check.py once written (10 s at 0.5 m/s).")
     video: bool = setting(True, "Render a GIF when the run has none of this design.")
     force: bool = setting(False, "Replace an earlier handoff folder at --out.", names=("--force",))
     runs_dir: Path = setting(Path("runs"), "Where run ids are looked up.")
-    as_json: bool = setting(False, "Print what was written as JSON on the last line.", names=("--json",))
+    as_json: bool = setting(
+        False, "Print what was written as JSON on the last line.", names=("--json",)
+    )
 
 
 def _picked(run_dir: Path, pick: str) -> Any:
@@ -48,8 +62,10 @@ def _picked(run_dir: Path, pick: str) -> Any:
     _, summary = read_run(run_dir)
     front = summary.get("pareto_front")
     if not isinstance(front, dict) or not front.get("designs") or not front.get("costs"):
-        fail(f"--pick: run {run_dir.name} has no Pareto front (one objective); leave out --pick to hand off its best "
-             "design, or give --design")
+        fail(
+            f"--pick: run {run_dir.name} has no Pareto front (one objective); leave out --pick to hand off its best "
+            "design, or give --design"
+        )
     names = list(front["costs"][0])
     costs = np.array([[float(c[n]) for n in names] for c in front["costs"]], dtype=float)
     try:
@@ -68,10 +84,19 @@ def register(app: typer.Typer) -> None:
         from coadapt_core.handoff.policy import DEPLOY_EXTRA, missing_deploy_modules
 
         o = filled(values, declared)
-        run, out, design, sim, agents, seconds = o["run"], o["out"], o["design"], o["sim"], o["agents"], o["seconds"]
+        run, out, design, sim, agents, seconds = (
+            o["run"],
+            o["out"],
+            o["design"],
+            o["sim"],
+            o["agents"],
+            o["seconds"],
+        )
         missing = missing_deploy_modules()
         if missing:
-            fail(f"coadapt handoff needs {', '.join(missing)}: pip install '{DEPLOY_EXTRA}' (or pip install -e '.[deploy]')")
+            fail(
+                f"coadapt handoff needs {', '.join(missing)}: pip install '{DEPLOY_EXTRA}' (or pip install -e '.[deploy]')"
+            )
         if agents < 1:
             fail(f"--agents must be >= 1, got {agents}")
         if not seconds > 0:
@@ -101,13 +126,27 @@ def register(app: typer.Typer) -> None:
         from coadapt_core.plugins import get_registry
 
         registry = get_registry()
-        for name in sim or registry.names("simulator"):  # a library's import-time banner is not a result
+        for name in sim or registry.names(
+            "simulator"
+        ):  # a library's import-time banner is not a result
             _quiet_imports(tuple(getattr(registry.get("simulator", name), "quiet_imports", ())))
         target = out if out is not None else Path(f"handoff-{run_dir.name}")
-        options = HandoffOptions(design=values, simulators=sim or None, agents=agents, seconds=seconds, check=o["check"],
-                                 video=o["video"], force=o["force"])
-        result = make_handoff(run_dir, target, options, progress=lambda line: print(line, file=sys.stderr))
-        print(f"wrote {result['out']} ({len(result['files'])} files) in {result['seconds']:.1f} s", file=sys.stderr)
+        options = HandoffOptions(
+            design=values,
+            simulators=sim or None,
+            agents=agents,
+            seconds=seconds,
+            check=o["check"],
+            video=o["video"],
+            force=o["force"],
+        )
+        result = make_handoff(
+            run_dir, target, options, progress=lambda line: print(line, file=sys.stderr)
+        )
+        print(
+            f"wrote {result['out']} ({len(result['files'])} files) in {result['seconds']:.1f} s",
+            file=sys.stderr,
+        )
         if o["as_json"]:
             print(json.dumps(result))
 

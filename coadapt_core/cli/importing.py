@@ -19,7 +19,9 @@ from coadapt_core.settings import setting, settings, shared
 class ImportCommand:
     """`coadapt import`'s settings."""
 
-    source: Path = setting(help="The folder `coadapt export -o` wrote, or a file in it.", argument="EXPORT")
+    source: Path = setting(
+        help="The folder `coadapt export -o` wrote, or a file in it.", argument="EXPORT"
+    )
     format: str | None = setting(None, "csv or parquet (default: what the folder holds).")
     store: Any = shared(ExportCommand)
     as_json: bool = setting(False, "Print what was imported as one JSON line.", names=("--json",))
@@ -35,7 +37,9 @@ def register(app: typer.Typer) -> None:
 
         o = filled(values, options)
         source, fmt = o["source"], o["format"]
-        export_files(source, fmt)  # a bad path or format is one line before the store is opened or made
+        export_files(
+            source, fmt
+        )  # a bad path or format is one line before the store is opened or made
         with ResultsStore(o["store"]) as results:
             done = import_tables(results, source, fmt=fmt)
             url = results.url
@@ -43,7 +47,9 @@ def register(app: typer.Typer) -> None:
             print(json.dumps({**done.to_dict(), "store": url}))
             return
         rows = ", ".join(f"{n} {t}" for t, n in done.rows.items())
-        print(f"imported {done.source} ({done.fmt}) into {url}: {len(done.added)} runs added, "
-              f"{len(done.replaced)} replaced, {len(done.skipped)} already there; rows written: {rows}")
+        print(
+            f"imported {done.source} ({done.fmt}) into {url}: {len(done.added)} runs added, "
+            f"{len(done.replaced)} replaced, {len(done.skipped)} already there; rows written: {rows}"
+        )
 
     register_command(app, "import", import_command, options)

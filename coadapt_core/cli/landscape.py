@@ -25,16 +25,26 @@ class LandscapeSettings:
     """Every setting of `coadapt landscape`: each field is an option (`--cost-cap`); the
     settings it shares with `coadapt run` are `CoadaptConfig`'s own declarations."""
 
-    objective: str = setting(default_factory=lambda: default_plugin("objective"), plugin="objective",
-                             help="Objective (comma list for several).")
+    objective: str = setting(
+        default_factory=lambda: default_plugin("objective"),
+        plugin="objective",
+        help="Objective (comma list for several).",
+    )
     grid: Int = setting(11, "Points per axis (grid x grid designs).", ge=2, le=101)
     terrain: Any = shared(CoadaptConfig)
     sim: Any = shared(CoadaptConfig)
     robot: Any = shared(CoadaptConfig)
-    checkpoint: str = setting("", "Universal policy checkpoint (default: the robot's shipped policy for the terrain).")
-    agents: Int | None = setting(None, "Paired scenarios (agents) per design (default: the quick preset's evaluation "
-                                 "size).", ge=1)
-    steps: Int | None = setting(None, "Policy steps per agent, T_eval (default: the quick preset's).", ge=1)
+    checkpoint: str = setting(
+        "", "Universal policy checkpoint (default: the robot's shipped policy for the terrain)."
+    )
+    agents: Int | None = setting(
+        None,
+        "Paired scenarios (agents) per design (default: the quick preset's evaluation size).",
+        ge=1,
+    )
+    steps: Int | None = setting(
+        None, "Policy steps per agent, T_eval (default: the quick preset's).", ge=1
+    )
     seed: Any = shared(CoadaptConfig)
     cost_rule: Any = shared(CoadaptConfig)
     cost_cap: Any = shared(CoadaptConfig)
@@ -73,9 +83,11 @@ def landscape_line(summary: dict, agents: int, steps: int, unit: str = "") -> st
         f"improvement: {better_by(summary['improvement'], summary.get('improvement_se'))}"
     )
     if summary.get("improvement_plain") is not None:
-        line += (f"; plain mean (eq. 4) {summary['best_plain_mean']:.4g}{se('best_plain_mean_se')} vs "
-                 f"{summary['nominal_plain_mean']:.4g}{se('nominal_plain_mean_se')}, improvement: "
-                 f"{better_by(summary['improvement_plain'], summary.get('improvement_plain_se'))}")
+        line += (
+            f"; plain mean (eq. 4) {summary['best_plain_mean']:.4g}{se('best_plain_mean_se')} vs "
+            f"{summary['nominal_plain_mean']:.4g}{se('nominal_plain_mean_se')}, improvement: "
+            f"{better_by(summary['improvement_plain'], summary.get('improvement_plain_se'))}"
+        )
     return line
 
 
@@ -101,15 +113,19 @@ def _checkpoint(s: LandscapeSettings, robot_cls: type) -> Path:
     if not s.checkpoint:
         shipped = robot_cls().shipped_policy(s.terrain, False)
         if shipped is None:
-            fail(f"no --checkpoint given and robot '{s.robot}' ships no policy for terrain '{s.terrain}'; "
-                 f"train one with `coadapt train --robot {s.robot} --terrain {s.terrain}` or pass a run's checkpoint")
+            fail(
+                f"no --checkpoint given and robot '{s.robot}' ships no policy for terrain '{s.terrain}'; "
+                f"train one with `coadapt train --robot {s.robot} --terrain {s.terrain}` or pass a run's checkpoint"
+            )
         return Path(shipped)
     checkpoint = Path(s.checkpoint)
     if not checkpoint.exists():
         fail(f"--checkpoint {checkpoint} does not exist")
     from coadapt_core.learning.checkpoints import read_checkpoint
 
-    trained_for = read_checkpoint(checkpoint).get("robot")  # weights_only=True; one line if not a checkpoint
+    trained_for = read_checkpoint(checkpoint).get(
+        "robot"
+    )  # weights_only=True; one line if not a checkpoint
     if trained_for != s.robot:
         fail(f"--checkpoint {checkpoint} was trained for robot '{trained_for}', not '{s.robot}'")
     return checkpoint
@@ -120,7 +136,11 @@ def _evaluation_size(s: LandscapeSettings) -> tuple[int, int]:
     from coadapt_core.coadapt.config import PRESETS
 
     quick = PRESETS["quick"]
-    agents = s.agents if s.agents is not None else (quick.get("eval_agents") or quick["agents_per_design"])
+    agents = (
+        s.agents
+        if s.agents is not None
+        else (quick.get("eval_agents") or quick["agents_per_design"])
+    )
     return agents, s.steps if s.steps is not None else quick["eval_steps"]
 
 
@@ -141,19 +161,45 @@ def _prepare(s: LandscapeSettings, resume: str | None) -> dict[str, Any]:
     space = robot_obj.design_space()
     try:
         robot_obj, sim_cls, objectives = resolve_plugins(robot_obj, s.sim, s.objectives)
-        backend = make_backend(robot_obj, sim_cls, objectives, terrain=s.terrain, design_space=space,
-                               checkpoint=str(checkpoint), agents_per_design=agents, device=s.device, seed=s.seed)
+        backend = make_backend(
+            robot_obj,
+            sim_cls,
+            objectives,
+            terrain=s.terrain,
+            design_space=space,
+            checkpoint=str(checkpoint),
+            agents_per_design=agents,
+            device=s.device,
+            seed=s.seed,
+        )
     except BackendUnavailable as exc:
         fail(f"cannot evaluate designs: {exc}")
     recorder = SqliteRecorder(s.store or None)
-    config = {"objective": ",".join(s.objectives), "terrain": s.terrain, "sim": s.sim, "robot": s.robot,
-              "checkpoint": str(checkpoint), "device": s.device, "design_space": space.to_dict(), "threads": s.threads}
+    config = {
+        "objective": ",".join(s.objectives),
+        "terrain": s.terrain,
+        "sim": s.sim,
+        "robot": s.robot,
+        "checkpoint": str(checkpoint),
+        "device": s.device,
+        "design_space": space.to_dict(),
+        "threads": s.threads,
+    }
     if resume:
         if not recorder.store.has_run(resume):
             fail(f"--resume: run '{resume}' is not in store {recorder.url}")
         config["run_id"] = resume
-    return dict(backend=backend, objectives=objectives, recorder=recorder, config=config, low=space.lower[:2],
-                high=space.upper[:2], nominal=robot_obj.nominal_design(), agents=agents, steps=steps)
+    return dict(
+        backend=backend,
+        objectives=objectives,
+        recorder=recorder,
+        config=config,
+        low=space.lower[:2],
+        high=space.upper[:2],
+        nominal=robot_obj.nominal_design(),
+        agents=agents,
+        steps=steps,
+    )
 
 
 def _run(s: LandscapeSettings, job: dict[str, Any]) -> dict[str, Any]:
@@ -168,7 +214,11 @@ def _run(s: LandscapeSettings, job: dict[str, Any]) -> dict[str, Any]:
     with ctrl_c_once(), ProgressLine("landscape", s.grid, unit=" rows") as line:
 
         def on_row(row: int, total: int) -> None:
-            line.update(row + 1, f"{s.grid} designs a row, {agents} agents x {steps} steps each", total=total)
+            line.update(
+                row + 1,
+                f"{s.grid} designs a row, {agents} agents x {steps} steps each",
+                total=total,
+            )
 
         def on_start(run_id: str) -> None:
             started.append(run_id)
@@ -176,16 +226,30 @@ def _run(s: LandscapeSettings, job: dict[str, Any]) -> dict[str, Any]:
 
         try:
             return run_landscape(
-                job["backend"], job["objectives"], recorder, config=job["config"], grid=s.grid, low=job["low"],
-                high=job["high"], nominal=job["nominal"], agents=agents, steps=steps, seed=s.seed, on_row=on_row,
-                rule=CostRule(s.cost_rule, s.cost_cap), on_start=on_start,
+                job["backend"],
+                job["objectives"],
+                recorder,
+                config=job["config"],
+                grid=s.grid,
+                low=job["low"],
+                high=job["high"],
+                nominal=job["nominal"],
+                agents=agents,
+                steps=steps,
+                seed=s.seed,
+                on_row=on_row,
+                rule=CostRule(s.cost_rule, s.cost_cap),
+                on_start=on_start,
             )
         except KeyboardInterrupt:
             line.close()
             if not started:
                 interrupted("the landscape had not started; nothing to resume", None)
-            interrupted(f"landscape {started[0]} stopped; its finished rows are stored and the store marks it "
-                        "interrupted", shlex.join(["coadapt", *with_resume(argv, started[0])]))
+            interrupted(
+                f"landscape {started[0]} stopped; its finished rows are stored and the store marks it "
+                "interrupted",
+                shlex.join(["coadapt", *with_resume(argv, started[0])]),
+            )
 
 
 def register(app: typer.Typer) -> None:
@@ -199,7 +263,11 @@ def register(app: typer.Typer) -> None:
         s.threads = apply_threads(s.threads)  # physics and torch alike; recorded with the run
         job = _prepare(s, s.resume)
         summary = _run(s, job)
-        print(landscape_line(summary, job["agents"], job["steps"], getattr(job["objectives"][0], "unit", "")))
+        print(
+            landscape_line(
+                summary, job["agents"], job["steps"], getattr(job["objectives"][0], "unit", "")
+            )
+        )
         if s.as_json:
             print(json.dumps(summary))
 

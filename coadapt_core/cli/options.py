@@ -35,7 +35,9 @@ from coadapt_core.settings import Leaf, leaves
 DECLARED: dict[str, tuple[OptionGroup, ...]] = {}
 
 #: "(default X)" / "(default: X)" written into a help text by hand
-_HAND_DEFAULT = re.compile(r"\s*(?:\(default:?\s+((?:[^()]|\([^()]*\))*)\)|\[default:\s*([^\]]*)\])")
+_HAND_DEFAULT = re.compile(
+    r"\s*(?:\(default:?\s+((?:[^()]|\([^()]*\))*)\)|\[default:\s*([^\]]*)\])"
+)
 
 
 def choices(kind: str) -> list[str]:
@@ -60,9 +62,13 @@ def show_default(value: object) -> str:
     if isinstance(value, int) and abs(value) >= 10_000:
         return f"{value:_}"
     if isinstance(value, list | tuple):
-        return (":" if len(value) == 2 and all(isinstance(v, float) for v in value) else ",").join(map(str, value))
+        return (":" if len(value) == 2 and all(isinstance(v, float) for v in value) else ",").join(
+            map(str, value)
+        )
     if isinstance(value, dict):
-        return ",".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in value.items())
+        return ",".join(
+            f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in value.items()
+        )
     return str(value)
 
 
@@ -89,7 +95,9 @@ def option_names(leaf: Leaf, aliases: tuple[str, ...] = ()) -> tuple[str, ...]:
         return ()
     names = tuple(leaf.extra.get("names") or ())
     if not names:
-        names = (f"{leaf.option}/--no-{leaf.option[2:]}",) if leaf.kind == "bool" else (leaf.option,)
+        names = (
+            (f"{leaf.option}/--no-{leaf.option[2:]}",) if leaf.kind == "bool" else (leaf.option,)
+        )
     return (*names, *tuple(leaf.extra.get("aliases") or ()), *aliases)
 
 
@@ -131,7 +139,11 @@ def option_help(leaf: Leaf, *, show: bool = True) -> str:
         text = f"{text} ({leaf.accepted()})"
     if leaf.extra.get("unset"):
         return f"{text} [default: {leaf.extra['unset']}, else {show_default(leaf.extra['base_default'])}]"
-    if show and not _HAND_DEFAULT.search(text) and not (leaf.kind == "bool" and leaf.default is False):
+    if (
+        show
+        and not _HAND_DEFAULT.search(text)
+        and not (leaf.kind == "bool" and leaf.default is False)
+    ):
         default = leaf_default(leaf)
         text = f"{text} [default: {default}]" if default else text
     return text
@@ -154,8 +166,9 @@ class OptionGroup(list):
         self.root = root
 
 
-def options_of(cls: type, *, aliases: Mapping[str, tuple[str, ...]] | None = None,
-               show_defaults: bool = True) -> OptionGroup:
+def options_of(
+    cls: type, *, aliases: Mapping[str, tuple[str, ...]] | None = None, show_defaults: bool = True
+) -> OptionGroup:
     """One `CommandOption` per command-line setting of the settings tree `cls` (nested
     sections expanded: `--task-commands-yaw-range`). `aliases` adds option names by key;
     `show_defaults=False` leaves the shown default to the caller (`coadapt run`: per preset)."""
@@ -165,26 +178,46 @@ def options_of(cls: type, *, aliases: Mapping[str, tuple[str, ...]] | None = Non
             continue
         default = ... if leaf.required else None
         text = option_help(leaf, show=show_defaults)
-        metavar, names = leaf.extra.get("argument"), option_names(leaf, tuple((aliases or {}).get(leaf.key, ())))
+        metavar, names = (
+            leaf.extra.get("argument"),
+            option_names(leaf, tuple((aliases or {}).get(leaf.key, ()))),
+        )
         if metavar:
             parameter = typer.Argument(default, metavar=metavar, help=text, show_default=False)
         else:
-            parameter = typer.Option(default, *names, help=text, hidden=bool(leaf.extra.get("hidden")),
-                                     callback=leaf.extra.get("callback"), is_eager=leaf.extra.get("callback") is not None)
+            parameter = typer.Option(
+                default,
+                *names,
+                help=text,
+                hidden=bool(leaf.extra.get("hidden")),
+                callback=leaf.extra.get("callback"),
+                is_eager=leaf.extra.get("callback") is not None,
+            )
         out.append(CommandOption(leaf.param, _kind(leaf), parameter, leaf, names))
     return OptionGroup(cls, out)
 
 
 def bind(func: Callable[..., Any], *groups: list[CommandOption]) -> Callable[..., Any]:
     """`func(**values)` with a signature typer reads: the options of `groups`, in order."""
-    params = [inspect.Parameter(o.param, inspect.Parameter.KEYWORD_ONLY, default=o.option, annotation=o.kind)
-              for group in groups for o in group]
+    params = [
+        inspect.Parameter(
+            o.param, inspect.Parameter.KEYWORD_ONLY, default=o.option, annotation=o.kind
+        )
+        for group in groups
+        for o in group
+    ]
     func.__signature__ = inspect.Signature(params)
     func.__annotations__ = {p.name: p.annotation for p in params}
     return func
 
 
-def register(app: typer.Typer, name: str, func: Callable[..., Any], *groups: OptionGroup, path: str | None = None) -> None:
+def register(
+    app: typer.Typer,
+    name: str,
+    func: Callable[..., Any],
+    *groups: OptionGroup,
+    path: str | None = None,
+) -> None:
     """`func` as command `name` of `app`, its options those of `groups` (`options_of`),
     recorded in `DECLARED` under `path`, its full name ("robot show"; default `name`)."""
     app.command(name)(bind(func, *groups))
@@ -219,5 +252,17 @@ def filled(values: Mapping[str, Any], group: OptionGroup) -> dict[str, Any]:
     return {**values, **{f.name: getattr(checked, f.name) for f in dataclasses.fields(checked)}}
 
 
-__all__ = ["DECLARED", "CommandOption", "OptionGroup", "bind", "filled", "given_settings", "leaf_default", "option_help",
-           "option_names", "options_of", "register", "settings_from"]
+__all__ = [
+    "DECLARED",
+    "CommandOption",
+    "OptionGroup",
+    "bind",
+    "filled",
+    "given_settings",
+    "leaf_default",
+    "option_help",
+    "option_names",
+    "options_of",
+    "register",
+    "settings_from",
+]

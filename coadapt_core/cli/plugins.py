@@ -34,8 +34,17 @@ def register(app: typer.Typer) -> None:
         if values["as_json"]:
             out = {
                 "plugin_api": PLUGIN_API_VERSION,
-                "plugins": {kind: [info.to_dict() for info in sorted(registry.entries[kind].values(), key=lambda i: i.name)] for kind in KINDS},
-                "broken": [{"entry_point": b.entry_point, "distribution": b.distribution, "error": b.error} for b in registry.broken],
+                "plugins": {
+                    kind: [
+                        info.to_dict()
+                        for info in sorted(registry.entries[kind].values(), key=lambda i: i.name)
+                    ]
+                    for kind in KINDS
+                },
+                "broken": [
+                    {"entry_point": b.entry_point, "distribution": b.distribution, "error": b.error}
+                    for b in registry.broken
+                ],
             }
             print(json.dumps(out, indent=2))
         else:
@@ -43,8 +52,14 @@ def register(app: typer.Typer) -> None:
             for column in ("kind", "name", "distribution", "version", "api", "description"):
                 table.add_column(column)
             for info in registry.all():
-                table.add_row(info.kind, info.name, info.distribution, info.version, info.api or "-",
-                              getattr(info.cls, "description", ""))
+                table.add_row(
+                    info.kind,
+                    info.name,
+                    info.distribution,
+                    info.version,
+                    info.api or "-",
+                    getattr(info.cls, "description", ""),
+                )
             Console().print(table)
         for broken in registry.broken:
             print(broken.line(), file=sys.stderr)

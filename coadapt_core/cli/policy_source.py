@@ -12,8 +12,10 @@ from coadapt_core.cli.common import fail
 from coadapt_core.errors import UserError
 
 #: what `coadapt eval --checkpoint` accepts, said when it gets something else
-EVAL_CHECKPOINTS = ("a checkpoint file (.pt), the --out folder of a `coadapt train`, a `coadapt run` folder or run id "
-                    "under ./runs (its last checkpoint), or no --checkpoint for the robot's shipped policy")
+EVAL_CHECKPOINTS = (
+    "a checkpoint file (.pt), the --out folder of a `coadapt train`, a `coadapt run` folder or run id "
+    "under ./runs (its last checkpoint), or no --checkpoint for the robot's shipped policy"
+)
 
 
 def eval_checkpoint_path(checkpoint: Path | None) -> Path | None:
@@ -27,8 +29,14 @@ def eval_checkpoint_path(checkpoint: Path | None) -> Path | None:
     text = str(checkpoint)
     if text.strip().lower() == "none":
         fail(f"--checkpoint {text}: coadapt eval needs a policy; give {EVAL_CHECKPOINTS}")
-    run_dir = next((p for p in (checkpoint, Path("runs") / text) if (p / "config.yaml").is_file()
-                    and (p == checkpoint or is_run_id(text))), None)
+    run_dir = next(
+        (
+            p
+            for p in (checkpoint, Path("runs") / text)
+            if (p / "config.yaml").is_file() and (p == checkpoint or is_run_id(text))
+        ),
+        None,
+    )
     if run_dir is not None:  # a `coadapt run` folder: its final universal policy
         import yaml
 
@@ -40,8 +48,10 @@ def eval_checkpoint_path(checkpoint: Path | None) -> Path | None:
             config = {}
         found = run_checkpoint(run_dir, config if isinstance(config, dict) else {})
         if found is None:
-            fail(f"--checkpoint {text}: run folder {run_dir} holds no policy (no checkpoints/backend-outer*.pt and no "
-                 f"starting policy file); give {EVAL_CHECKPOINTS}")
+            fail(
+                f"--checkpoint {text}: run folder {run_dir} holds no policy (no checkpoints/backend-outer*.pt and no "
+                f"starting policy file); give {EVAL_CHECKPOINTS}"
+            )
         print(f"policy: {found} (the last of run {run_dir.name})", file=sys.stderr)
         return found
     try:

@@ -50,9 +50,19 @@ class ProgressLine:
     With `own_eta` the ETA is only ever the caller's ("?" while it gives None). `clock` is
     for tests (a fake clock); `heartbeat=False` prints only on updates."""
 
-    def __init__(self, label: str, total: float | None, *, stream: TextIO | None = None, every: float | None = None,
-                 enabled: bool = True, unit: str = "", clock: Callable[[], float] = time.perf_counter,
-                 heartbeat: bool = True, own_eta: bool = False):
+    def __init__(
+        self,
+        label: str,
+        total: float | None,
+        *,
+        stream: TextIO | None = None,
+        every: float | None = None,
+        enabled: bool = True,
+        unit: str = "",
+        clock: Callable[[], float] = time.perf_counter,
+        heartbeat: bool = True,
+        own_eta: bool = False,
+    ):
         self.label = label
         self.total = total
         self.stream = stream or sys.stderr
@@ -76,7 +86,9 @@ class ProgressLine:
         self._stop = threading.Event()
         self._beat: threading.Thread | None = None
         if enabled and heartbeat and not self.interactive:
-            self._beat = threading.Thread(target=self._heartbeat_loop, name=f"progress-{label}", daemon=True)
+            self._beat = threading.Thread(
+                target=self._heartbeat_loop, name=f"progress-{label}", daemon=True
+            )
             self._beat.start()
 
     # -- numbers ----------------------------------------------------------------------------
@@ -138,17 +150,27 @@ class ProgressLine:
             TimeElapsedColumn(),
             TextColumn("ETA {task.fields[eta]}"),
             # the free text takes what is left of the line and is cut, never wrapped
-            TextColumn("{task.fields[detail]}", table_column=Column(ratio=1, no_wrap=True, overflow="ellipsis")),
+            TextColumn(
+                "{task.fields[detail]}",
+                table_column=Column(ratio=1, no_wrap=True, overflow="ellipsis"),
+            ),
             console=Console(file=self.stream),
             transient=False,
             expand=True,
         )
         self._rich.__enter__()
-        self._task = self._rich.add_task(self.label, total=self.total or None, label=self.label, counts="",
-                                         eta="?", detail="")
+        self._task = self._rich.add_task(
+            self.label, total=self.total or None, label=self.label, counts="", eta="?", detail=""
+        )
 
-    def update(self, done: float | None = None, detail: str | None = None, *, total: float | None = None,
-               eta: float | None = None) -> None:
+    def update(
+        self,
+        done: float | None = None,
+        detail: str | None = None,
+        *,
+        total: float | None = None,
+        eta: float | None = None,
+    ) -> None:
         if total is not None:
             self.total = total
         if done is not None:
@@ -167,8 +189,14 @@ class ProgressLine:
         if self.interactive:
             if self._rich is None:
                 self._start_rich()
-            self._rich.update(self._task, completed=self.done, total=self.total or None, counts=self.counts(),
-                              eta=fmt_duration(self.eta), detail=self.detail)
+            self._rich.update(
+                self._task,
+                completed=self.done,
+                total=self.total or None,
+                counts=self.counts(),
+                eta=fmt_duration(self.eta),
+                detail=self.detail,
+            )
         elif now - self._last_plain >= self.every:
             self._emit_plain()
 
@@ -204,7 +232,11 @@ class ProgressLine:
         if self._rich is not None:
             self._rich.__exit__(None, None, None)
             self._rich = None
-        elif not self.interactive and self._last_text is not None and self.counts() not in self._last_text:
+        elif (
+            not self.interactive
+            and self._last_text is not None
+            and self.counts() not in self._last_text
+        ):
             self._emit_plain()  # the last state, whatever the period
         self._closed = True
 

@@ -18,18 +18,32 @@ from coadapt_core.settings import Int, setting, settings, shared
 class ReportCommand:
     """`coadapt report`'s settings."""
 
-    selection: str | None = setting(None, "A run id or grid id (default: every finished run).", argument="[RUN_OR_GRID]")
-    out: Path = setting(Path("report"), "Folder for the tables, figures and report.html.", names=("-o", "--out"))
+    selection: str | None = setting(
+        None, "A run id or grid id (default: every finished run).", argument="[RUN_OR_GRID]"
+    )
+    out: Path = setting(
+        Path("report"), "Folder for the tables, figures and report.html.", names=("-o", "--out")
+    )
     store: Any = shared(ExportCommand)
-    sim_to_sim: bool = setting(True, "Evaluate each best design's policy on a second simulator (Table 6's last column).")
-    transfer_sim: str | None = setting(None, "Simulator for the sim-to-sim column (default: the installed simulator of "
-                                       "highest default_rank after the default one).")
+    sim_to_sim: bool = setting(
+        True, "Evaluate each best design's policy on a second simulator (Table 6's last column)."
+    )
+    transfer_sim: str | None = setting(
+        None,
+        "Simulator for the sim-to-sim column (default: the installed simulator of "
+        "highest default_rank after the default one).",
+    )
     transfer_agents: Int = setting(8, "Agents per design in the sim-to-sim evaluation.")
     transfer_steps: Int = setting(400, "Policy steps per agent in the sim-to-sim evaluation.")
-    common: bool = setting(True, "Re-evaluate each run's best and nominal design with the run's own policy on one common "
-                           "scenario set per terrain (the methods' common yardstick).",
-                           names=("--common-scenarios/--no-common-scenarios",))
-    common_blocks: Int = setting(8, "Blocks of 32 scenarios x 250 steps in the common scenario set.")
+    common: bool = setting(
+        True,
+        "Re-evaluate each run's best and nominal design with the run's own policy on one common "
+        "scenario set per terrain (the methods' common yardstick).",
+        names=("--common-scenarios/--no-common-scenarios",),
+    )
+    common_blocks: Int = setting(
+        8, "Blocks of 32 scenarios x 250 steps in the common scenario set."
+    )
 
 
 def _check_out(out: Path) -> None:
@@ -44,8 +58,10 @@ def _check_out(out: Path) -> None:
         with tempfile.NamedTemporaryFile(dir=out, prefix=".coadapt-probe-"):
             pass
     except OSError as exc:
-        fail(f"--out {out}: cannot write the report there ({exc.strerror or type(exc).__name__}); give a folder "
-             "you can write")
+        fail(
+            f"--out {out}: cannot write the report there ({exc.strerror or type(exc).__name__}); give a folder "
+            "you can write"
+        )
 
 
 def _quiet_imports(modules: tuple[str, ...]) -> None:
@@ -91,17 +107,31 @@ def _transfer_simulator(transfer_sim: str | None) -> str:
         try:
             transfer_sim = registry.default("simulator", exclude=(registry.default("simulator"),))
         except UserError:
-            fail("the sim-to-sim column needs a second simulator installed (one more simulator plugin or extra); "
-                 "pass --no-sim-to-sim or --transfer-sim NAME")
+            fail(
+                "the sim-to-sim column needs a second simulator installed (one more simulator plugin or extra); "
+                "pass --no-sim-to-sim or --transfer-sim NAME"
+            )
     simulators = choices("simulator")
     if transfer_sim not in simulators:
-        fail(f"--transfer-sim '{transfer_sim}' is not a simulator; available: {', '.join(simulators)}")
+        fail(
+            f"--transfer-sim '{transfer_sim}' is not a simulator; available: {', '.join(simulators)}"
+        )
     _quiet_imports(tuple(getattr(registry.get("simulator", transfer_sim), "quiet_imports", ())))
     return transfer_sim
 
 
-def _evaluate(results, selection, *, sim_to_sim: bool, transfer_sim, transfer_agents: int, transfer_steps: int,
-              common: bool, common_blocks: int, progress) -> tuple[dict | None, dict | None]:
+def _evaluate(
+    results,
+    selection,
+    *,
+    sim_to_sim: bool,
+    transfer_sim,
+    transfer_agents: int,
+    transfer_steps: int,
+    common: bool,
+    common_blocks: int,
+    progress,
+) -> tuple[dict | None, dict | None]:
     """The experiments that write rows the report reads: sim-to-sim transfer and the common
     yardstick (each evaluates only runs without their rows). Returns their notes."""
     from coadapt_core.analysis.report import select_runs
@@ -112,8 +142,14 @@ def _evaluate(results, selection, *, sim_to_sim: bool, transfer_sim, transfer_ag
     if sim_to_sim:
         from coadapt_core.experiments.transfer import transfer_runs
 
-        transfer_notes = transfer_runs(results, runs, simulator=transfer_sim, agents=transfer_agents,
-                                       steps=transfer_steps, progress=progress)
+        transfer_notes = transfer_runs(
+            results,
+            runs,
+            simulator=transfer_sim,
+            agents=transfer_agents,
+            steps=transfer_steps,
+            progress=progress,
+        )
     if common:
         from coadapt_core.experiments.yardstick import yardstick_runs
 
@@ -137,9 +173,13 @@ def register(app: typer.Typer) -> None:
         url = resolve_store_url(o.store)
         if url.startswith("sqlite:///") and not Path(url.removeprefix("sqlite:///")).is_file():
             # reading a store that is not there must not leave an empty one behind
-            fail(f"no results store at {url.removeprefix('sqlite:///')}: run `coadapt run` or `coadapt grid` first, "
-                 "or pass --store (or $COADAPT_STORE)")
-        _check_out(o.out)  # before anything is evaluated (the sim-to-sim and common columns take minutes)
+            fail(
+                f"no results store at {url.removeprefix('sqlite:///')}: run `coadapt run` or `coadapt grid` first, "
+                "or pass --store (or $COADAPT_STORE)"
+            )
+        _check_out(
+            o.out
+        )  # before anything is evaluated (the sim-to-sim and common columns take minutes)
         if o.sim_to_sim:
             o.transfer_sim = _transfer_simulator(o.transfer_sim)
         from coadapt_core.cli.progress import ProgressLine
@@ -150,10 +190,25 @@ def register(app: typer.Typer) -> None:
                 line.update(done, what, total=total)
 
             notes, common_notes = _evaluate(
-                results, o.selection, sim_to_sim=o.sim_to_sim, transfer_sim=o.transfer_sim, transfer_agents=o.transfer_agents,
-                transfer_steps=o.transfer_steps, common=o.common, common_blocks=o.common_blocks, progress=progress)
-            files = write_report(results, o.selection, o.out, sim2sim=o.sim_to_sim, transfer_simulator=o.transfer_sim,
-                                 transfer_notes=notes, progress=progress)
+                results,
+                o.selection,
+                sim_to_sim=o.sim_to_sim,
+                transfer_sim=o.transfer_sim,
+                transfer_agents=o.transfer_agents,
+                transfer_steps=o.transfer_steps,
+                common=o.common,
+                common_blocks=o.common_blocks,
+                progress=progress,
+            )
+            files = write_report(
+                results,
+                o.selection,
+                o.out,
+                sim2sim=o.sim_to_sim,
+                transfer_simulator=o.transfer_sim,
+                transfer_notes=notes,
+                progress=progress,
+            )
         for name, path in files.items():
             print(f"{name}: {path}")
         for run_id, why in sorted((common_notes or {}).items()):

@@ -23,16 +23,22 @@ from coadapt_core.settings import Int, setting, settings, shared
 
 app = typer.Typer(help="Inspect, export, validate and render robot designs.", no_args_is_help=True)
 
-DESIGN_HELP = ("Design values, comma-separated in the order of the robot's design space (e.g. 1.2,0.8 or 1.2,0.8,2,3 "
-               "for kuafu). Default: the nominal design.")
+DESIGN_HELP = (
+    "Design values, comma-separated in the order of the robot's design space (e.g. 1.2,0.8 or 1.2,0.8,2,3 "
+    "for kuafu). Default: the nominal design."
+)
 
 
 @settings
 class RobotShow:
     """`coadapt robot show`'s settings; `robot` and `design` are shared by the other `robot` commands."""
 
-    robot: str | None = setting(None, "Registered robot name (see `coadapt plugins`; default: the installed robot of "
-                                "highest default_rank, the only one when one is installed).", argument="[ROBOT]")
+    robot: str | None = setting(
+        None,
+        "Registered robot name (see `coadapt plugins`; default: the installed robot of "
+        "highest default_rank, the only one when one is installed).",
+        argument="[ROBOT]",
+    )
     design: str | None = setting(None, DESIGN_HELP)
     as_json: bool = setting(False, "Print JSON instead of tables.", names=("--json",))
     no_validate: bool = setting(False, "Skip the validation checks.", names=("--no-validate",))
@@ -45,7 +51,9 @@ class RobotExport:
     robot: Any = shared(RobotShow)
     design: Any = shared(RobotShow)
     format: str = setting("mjcf", "Model format: mjcf or urdf.")
-    output: Path | None = setting(None, "File to write (default: standard output).", names=("-o", "--output"))
+    output: Path | None = setting(
+        None, "File to write (default: standard output).", names=("-o", "--output")
+    )
 
 
 @settings
@@ -66,6 +74,8 @@ class RobotRender:
     output: Path = setting(Path("design.png"), "PNG file to write.", names=("-o", "--output"))
     width: Int = setting(640, "Image width in pixels.")
     height: Int = setting(800, "Image height in pixels.")
+
+
 #: exit code of `validate` for a design that fails a check
 EXIT_INFEASIBLE = 1
 
@@ -88,11 +98,15 @@ def parse_design(robot: Any, text: str | None) -> np.ndarray:
     plain, mixed = robot.design_space(False), robot.design_space(True)
     spaces = [plain] if plain.dim == mixed.dim else [plain, mixed]
     expected = " or ".join(f"{s.dim} values ({', '.join(s.names)})" for s in spaces)
-    values = parse_numbers(text, what=f"--design '{text}' must be comma-separated numbers: {expected}")
+    values = parse_numbers(
+        text, what=f"--design '{text}' must be comma-separated numbers: {expected}"
+    )
     for space in spaces:
         if len(values) == space.dim:
             return space.validate(values)
-    raise DesignError(f"--design '{text}' has {len(values)} values; {robot.name} takes {expected}", field="design")
+    raise DesignError(
+        f"--design '{text}' has {len(values)} values; {robot.name} takes {expected}", field="design"
+    )
 
 
 def describe(robot: Any, design: np.ndarray, validate: bool = True) -> dict:
@@ -139,13 +153,27 @@ def _print_description(data: dict) -> None:
             summary.add_row(key.replace("_", " "), f"{value:d}{unit}")  # a motor type is an integer
         elif isinstance(value, float):
             summary.add_row(key.replace("_", " "), f"{value:.4g}{unit}")
-        elif key != "units" and isinstance(value, dict) and all(isinstance(v, int | float) for v in value.values()):
+        elif (
+            key != "units"
+            and isinstance(value, dict)
+            and all(isinstance(v, int | float) for v in value.values())
+        ):
             text = ", ".join(f"{k} {v:.3g}" for k, v in value.items())
             summary.add_row(key.replace("_", " ") + (f" ({unit.strip()})" if unit else ""), text)
     console.print(summary)
     joints = Table(title="actuated joints")
     motors = data["info"].get("motor_types")
-    columns = ["joint", *(["motor"] if motors else []), "default", "range", "kp", "kd", "N m", "rad/s", "RPM"]
+    columns = [
+        "joint",
+        *(["motor"] if motors else []),
+        "default",
+        "range",
+        "kp",
+        "kd",
+        "N m",
+        "rad/s",
+        "RPM",
+    ]
     for column in columns:
         joints.add_column(column, justify="left" if column == "joint" else "right", no_wrap=True)
     for k, j in enumerate(data["joints"]):
@@ -215,7 +243,10 @@ def export_command(**values: Any) -> None:
         output.write_text(text)
     except OSError as exc:
         fail(f"cannot write -o {output}: {exc.strerror or exc}")
-    print(f"wrote {fmt} of {instance.name} ({','.join(f'{x:g}' for x in model.design)}) to {output}", file=sys.stderr)
+    print(
+        f"wrote {fmt} of {instance.name} ({','.join(f'{x:g}' for x in model.design)}) to {output}",
+        file=sys.stderr,
+    )
 
 
 register(app, "export", export_command, _EXPORT, path="robot export")
@@ -246,7 +277,13 @@ _RENDER = options_of(RobotRender)
 def render_command(**values: Any) -> None:
     """Offscreen MuJoCo picture of the design at its default pose, on a floor (PNG)."""
     o = filled(values, _RENDER)
-    robot, design, output, width, height = o["robot"], o["design"], o["output"], o["width"], o["height"]
+    robot, design, output, width, height = (
+        o["robot"],
+        o["design"],
+        o["output"],
+        o["width"],
+        o["height"],
+    )
     # MUJOCO_GL is used when set; else EGL, then OSMesa
     if not (16 <= width <= 4096 and 16 <= height <= 4096):
         fail(f"--width and --height must lie in [16, 4096], got {width} x {height}")
@@ -267,8 +304,11 @@ def render_command(**values: Any) -> None:
     try:
         renderer = renderer_for()
     except UserError as exc:  # no simulator can draw here (or its library refused this GL setting)
-        fail(f"offscreen rendering failed ({exc}); install an EGL or OSMesa GL library, e.g. apt-get install -y "
-             "libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 (EGL) or libosmesa6 (OSMesa)", code=1)
+        fail(
+            f"offscreen rendering failed ({exc}); install an EGL or OSMesa GL library, e.g. apt-get install -y "
+            "libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 (EGL) or libosmesa6 (OSMesa)",
+            code=1,
+        )
     payload = {
         "model": model.text(model_format(renderer)),
         "qpos_joints": [float(x) for x in model.default_joint_pos],

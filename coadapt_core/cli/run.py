@@ -30,23 +30,45 @@ class RunCommand:
     """`coadapt run`'s own options, which are not config settings (no YAML key): where the
     config and the run come from, and what is printed and rendered at the end."""
 
-    config: Path | None = setting(None, "YAML file of config keys (CLI options win over it); a run folder's config.yaml "
-                                  "repeats that run's config.")
-    resume: str | None = setting(None, "Resume the run with this id (a folder under --out) or this run folder.")
+    config: Path | None = setting(
+        None,
+        "YAML file of config keys (CLI options win over it); a run folder's config.yaml "
+        "repeats that run's config.",
+    )
+    resume: str | None = setting(
+        None, "Resume the run with this id (a folder under --out) or this run folder."
+    )
     as_json: bool = setting(False, "Last stdout line: a JSON summary.", names=("--json",))
-    video: bool = setting(True, "End by rendering the best and the nominal design walking side by side: <run "
-                          "folder>/best_vs_nominal.gif (and .mp4 with ffmpeg).")
+    video: bool = setting(
+        True,
+        "End by rendering the best and the nominal design walking side by side: <run "
+        "folder>/best_vs_nominal.gif (and .mp4 with ffmpeg).",
+    )
     optimizer_option: list[str] | None = setting(
-        None, "KEY=VALUE: an option the optimizer plugin declares (repeatable; `coadapt plugins --json` lists them); "
-        "wins over the YAML file's optimizer_options.", names=("--optimizer-option",))
+        None,
+        "KEY=VALUE: an option the optimizer plugin declares (repeatable; `coadapt plugins --json` lists them); "
+        "wins over the YAML file's optimizer_options.",
+        names=("--optimizer-option",),
+    )
     objective_option: list[str] | None = setting(
-        None, "KEY=VALUE: an option the objective plugin declares (repeatable); wins over the YAML file's "
-        "objective_options.", names=("--objective-option",))
+        None,
+        "KEY=VALUE: an option the objective plugin declares (repeatable); wins over the YAML file's "
+        "objective_options.",
+        names=("--objective-option",),
+    )
     threads: Any = shared(ThreadSettings)
-    help_all: bool = setting(False, "Show every option (training, task, randomization, ...) and exit.",
-                             names=("--help-all",), callback=help_all)
-    check: bool = setting(False, "Check the options (config, plugins, starting policy, store, --out) and exit without running.",
-                          names=("--check",), hidden=True)
+    help_all: bool = setting(
+        False,
+        "Show every option (training, task, randomization, ...) and exit.",
+        names=("--help-all",),
+        callback=help_all,
+    )
+    check: bool = setting(
+        False,
+        "Check the options (config, plugins, starting policy, store, --out) and exit without running.",
+        names=("--check",),
+        hidden=True,
+    )
 
 
 def _fmt_duration(seconds: float | None) -> str:
@@ -77,8 +99,10 @@ class _ProgressView:
         outer = f"{min(event['outer'] + 1, event['outer_total'])}/{event['outer_total']}"
         phase, done = event["phase"], event.get("phase_done") or 0
         if event.get("phase_total"):  # inside a training phase (coadapt_core.phase_progress)
-            phase += (f" {100 * done / event['phase_total']:.0f}% of {event['phase_total']:,}, phase ETA "
-                      f"{_fmt_duration(event.get('phase_eta'))}")
+            phase += (
+                f" {100 * done / event['phase_total']:.0f}% of {event['phase_total']:,}, phase ETA "
+                f"{_fmt_duration(event.get('phase_eta'))}"
+            )
         self.line.update(
             event["fraction"],
             # most telling first: at 80 columns the end of the line is cut; the cost is the
@@ -116,12 +140,20 @@ def _check_run_config(cfg: Any) -> None:
     options = getattr(cfg, "optimizer_options", None) or {}
     storage = options.get("storage") if isinstance(options, dict) else None
     if storage:
-        field = next((a.key for a in option_aliases().values()
-                      if (a.field, a.option.name) == ("optimizer_options", "storage")), "optimizer_options.storage")
+        field = next(
+            (
+                a.key
+                for a in option_aliases().values()
+                if (a.field, a.option.name) == ("optimizer_options", "storage")
+            ),
+            "optimizer_options.storage",
+        )
         check_database_url(str(storage), field=field)
     from coadapt_core.coadapt.setup import check_starting_policy
 
-    check_starting_policy(cfg)  # a robot without a policy: one line (a grid's cell before the grid starts)
+    check_starting_policy(
+        cfg
+    )  # a robot without a policy: one line (a grid's cell before the grid starts)
     Path(cfg.out).mkdir(parents=True, exist_ok=True)  # an OSError here is one line (cli.main)
 
 
@@ -136,7 +168,7 @@ def _with_se(value: float, se: float | None) -> str:
         return f"{value:.5g}"
     places = 1 - math.floor(math.log10(se))
     if places <= 0:
-        step = 10 ** -places
+        step = 10**-places
         return f"{round(value / step) * step:.0f} +- {round(se / step) * step:.0f}"
     return f"{value:.{places}f} +- {se:.{places}f}"
 
@@ -164,8 +196,15 @@ def _render_video(run_dir: Path, summary: dict[str, Any], *, progress: bool = Tr
         config = {}
     smoke = summary.get("preset") == "smoke"
     with ProgressLine("video", 1.0, enabled=progress) as line:
-        render_run_video(run_dir, summary, config, seconds=1.0 if smoke else 4.0, width=240 if smoke else 320,
-                         height=240 if smoke else 320, progress=lambda done, detail: line.update(done, detail))
+        render_run_video(
+            run_dir,
+            summary,
+            config,
+            seconds=1.0 if smoke else 4.0,
+            width=240 if smoke else 320,
+            height=240 if smoke else 320,
+            progress=lambda done, detail: line.update(done, detail),
+        )
 
 
 def resume_command(run_id: str, run_dir: Path, *, video: bool = True, as_json: bool = False) -> str:
@@ -195,8 +234,12 @@ def _summary_table(summary: dict[str, Any], names: list[str], discrete: list[boo
     # light borders and headers over two lines: 4 design variables and a cost fit 80 columns;
     # a narrower terminal folds cells onto more lines (never cuts them), a pipe or a file gets
     # the table's own width (`wide_console`)
-    table = Table(title=f"coadapt run {summary['run_id']}: final check costs", box=box.SIMPLE_HEAD, pad_edge=False,
-                  collapse_padding=True)
+    table = Table(
+        title=f"coadapt run {summary['run_id']}: final check costs",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+        collapse_padding=True,
+    )
     table.add_column("", overflow="fold")
     for name in names:
         table.add_column(name, min_width=len(name), overflow="fold")
@@ -210,22 +253,33 @@ def _summary_table(summary: dict[str, Any], names: list[str], discrete: list[boo
     table.add_column("fall rate\n+- SE", min_width=4, overflow="fold")
     best_se, nominal_se = summary.get("best_costs_se") or {}, summary.get("nominal_costs_se") or {}
     plain_se = summary.get("best_plain_means_se") or {}
-    nominal_plain, nominal_plain_se = summary.get("nominal_plain_means") or {}, summary.get("nominal_plain_means_se") or {}
-    table.add_row("best", *[_design_value(x, d) for x, d in zip(summary["best_design"], discrete, strict=False)],
-                  *[_with_se(v, best_se.get(k)) for k, v in summary["best_costs"].items()],
-                  *[_with_se(v, plain_se.get(k)) for k, v in plain.items()],
-                  _rate(summary.get("best_fall_rate"), summary.get("best_fall_rate_se")))
-    table.add_row("nominal", *[_design_value(x, d) for x, d in zip(summary["nominal_design"], discrete, strict=False)],
-                  *[_with_se(summary["nominal_costs"][k], nominal_se.get(k)) for k in summary["best_costs"]],
-                  *[_with_se(nominal_plain[k], nominal_plain_se.get(k)) for k in plain],
-                  _rate(summary.get("nominal_fall_rate"), summary.get("nominal_fall_rate_se")))
+    nominal_plain, nominal_plain_se = (
+        summary.get("nominal_plain_means") or {},
+        summary.get("nominal_plain_means_se") or {},
+    )
+    table.add_row(
+        "best",
+        *[_design_value(x, d) for x, d in zip(summary["best_design"], discrete, strict=False)],
+        *[_with_se(v, best_se.get(k)) for k, v in summary["best_costs"].items()],
+        *[_with_se(v, plain_se.get(k)) for k, v in plain.items()],
+        _rate(summary.get("best_fall_rate"), summary.get("best_fall_rate_se")),
+    )
+    table.add_row(
+        "nominal",
+        *[_design_value(x, d) for x, d in zip(summary["nominal_design"], discrete, strict=False)],
+        *[_with_se(summary["nominal_costs"][k], nominal_se.get(k)) for k in summary["best_costs"]],
+        *[_with_se(nominal_plain[k], nominal_plain_se.get(k)) for k in plain],
+        _rate(summary.get("nominal_fall_rate"), summary.get("nominal_fall_rate_se")),
+    )
     return table
 
 
 def better_by(value: float, se: float | None = None) -> str:
     """An improvement said in one direction: "better by 23.5 +- 6.3 %" or "worse by ..."."""
-    return (f"{'worse' if value < 0 else 'better'} by {100 * abs(value):.1f}"
-            f"{'' if se is None else f' +- {100 * se:.1f}'} %")
+    return (
+        f"{'worse' if value < 0 else 'better'} by {100 * abs(value):.1f}"
+        f"{'' if se is None else f' +- {100 * se:.1f}'} %"
+    )
 
 
 def falls_more_by(difference: float, se: float | None = None) -> str:
@@ -247,14 +301,24 @@ def _improvements(summary: dict[str, Any]) -> str:
     for k, v in summary["improvements"].items():
         text = f"{k} {better_by(v, improvement_se.get(k))}"
         if k == first and summary.get("significant") is False:
-            why = "the nominal design stands" if summary.get("best_is_nominal") else "under 4 paired standard errors"
+            why = (
+                "the nominal design stands"
+                if summary.get("best_is_nominal")
+                else "under 4 paired standard errors"
+            )
             text += f" (not significant: {why})"
         parts.append(text)
     improvements = ", ".join(parts)
-    plain_imp, plain_imp_se = summary.get("improvements_plain") or {}, summary.get("improvements_plain_se") or {}
+    plain_imp, plain_imp_se = (
+        summary.get("improvements_plain") or {},
+        summary.get("improvements_plain_se") or {},
+    )
     if plain_imp:
-        improvements += " (plain mean: " + ", ".join(f"{k} {better_by(v, plain_imp_se.get(k))}"
-                                                     for k, v in plain_imp.items()) + ")"
+        improvements += (
+            " (plain mean: "
+            + ", ".join(f"{k} {better_by(v, plain_imp_se.get(k))}" for k, v in plain_imp.items())
+            + ")"
+        )
     if summary.get("fall_rate_difference") is not None:
         improvements += f"; best {falls_more_by(summary['fall_rate_difference'], summary.get('fall_rate_difference_se'))}"
     return improvements
@@ -266,11 +330,15 @@ def _caveat(summary: dict[str, Any]) -> str:
     if summary.get("preset") == "smoke":
         return "; smoke preset, too short to judge: a check that the run is wired, not a result"
     if scenarios and scenarios < FEW_SCENARIOS:
-        return f"; from {scenarios} paired scenarios only: a check that the run is wired, not a result"
+        return (
+            f"; from {scenarios} paired scenarios only: a check that the run is wired, not a result"
+        )
     return ""
 
 
-def _print_summary(summary: dict[str, Any], space_names: list[str] | None, discrete: list[bool] | None = None) -> None:
+def _print_summary(
+    summary: dict[str, Any], space_names: list[str] | None, discrete: list[bool] | None = None
+) -> None:
     from coadapt_core.cli.common import wide_console
 
     names = space_names or [f"x{i}" for i in range(len(summary["best_design"]))]
@@ -282,19 +350,32 @@ def _print_summary(summary: dict[str, Any], space_names: list[str] | None, discr
         from coadapt_core.costs import CostRule
 
         rule = CostRule.from_config(summary | {"cost_cap": summary.get("cost_cap")})
-        console.print(f"cost: {rule.describe()}; plain mean: the paper's eq. 4 over the same scenarios")
+        console.print(
+            f"cost: {rule.describe()}; plain mean: the paper's eq. 4 over the same scenarios"
+        )
     if summary.get("best_is_nominal"):
-        console.print("no candidate beat the nominal design without falling more often than it: the nominal design stands")
+        console.print(
+            "no candidate beat the nominal design without falling more often than it: the nominal design stands"
+        )
     steps = f" of {summary['eval_steps']} steps" if summary.get("eval_steps") else ""
-    size = f"{scenarios} paired scenarios{steps} per design ({blocks} {'block' if blocks == 1 else 'blocks'}; " \
-        if scenarios else f"paired scenarios{steps} ("
-    console.print(f"costs: per step over the final check's {size}`coadapt run` protocol, not comparable with "
-                  "other commands or sizes); SE = standard error over scenarios")
+    size = (
+        f"{scenarios} paired scenarios{steps} per design ({blocks} {'block' if blocks == 1 else 'blocks'}; "
+        if scenarios
+        else f"paired scenarios{steps} ("
+    )
+    console.print(
+        f"costs: per step over the final check's {size}`coadapt run` protocol, not comparable with "
+        "other commands or sizes); SE = standard error over scenarios"
+    )
     if "starting_policy" in summary:
-        console.print(f"starting policy: {summary['starting_policy'] or 'none (trained from scratch in this run)'}")
+        console.print(
+            f"starting policy: {summary['starting_policy'] or 'none (trained from scratch in this run)'}"
+        )
     if summary.get("preset") == "smoke":  # 20 steps per scenario: nothing about walking can be said
-        console.print(f"walking gate: too short to judge (smoke preset, {summary.get('eval_steps')} steps per "
-                      "scenario; `--preset quick` is judged)")
+        console.print(
+            f"walking gate: too short to judge (smoke preset, {summary.get('eval_steps')} steps per "
+            "scenario; `--preset quick` is judged)"
+        )
     elif summary.get("reliable") is False:
         console.print(f"[bold red]UNRELIABLE[/]: {summary.get('reliability')}")
     elif summary.get("reliability"):  # passed, not judged or not measured: said as well
@@ -321,7 +402,9 @@ def _print_warnings(console: Any, summary: dict[str, Any]) -> None:
 
     from coadapt_core.coadapt.cautions import run_warnings, surrogate_note, weak_surrogate
 
-    if surrogate_note(summary) and not weak_surrogate(summary):  # a weak one is said below, with its rounds
+    if surrogate_note(summary) and not weak_surrogate(
+        summary
+    ):  # a weak one is said below, with its rounds
         console.print(surrogate_note(summary))
     for warning in summary["warnings"] if "warnings" in summary else run_warnings(summary):
         console.print(f"[bold yellow]warning[/]: {escape(warning)}")
@@ -341,14 +424,20 @@ def alias_settings_class() -> type:
         if key in taken:
             continue
         spec, kind = alias.option, alias.field.removesuffix("_options")
-        text = f"Alias of --{kind}-option {spec.name}=... ({', '.join(alias.plugins)}: {spec.help})."
-        specs.append((key, {"float": Float, "int": Int}.get(spec.type, str) | None, setting(None, text)))
+        text = (
+            f"Alias of --{kind}-option {spec.name}=... ({', '.join(alias.plugins)}: {spec.help})."
+        )
+        specs.append(
+            (key, {"float": Float, "int": Int}.get(spec.type, str) | None, setting(None, text))
+        )
     made = dataclasses.make_dataclass("PluginOptionAliases", specs)
     made.__module__ = __name__
     made = settings(made)
-    made.__doc__ = ("Built by `alias_settings_class()` from the installed plugins' declarations (`PluginOption.alias`): "
-                    "older top-level names of plugin options; `--<alias> X` is `--optimizer-option NAME=X` (or "
-                    "`--objective-option`).")
+    made.__doc__ = (
+        "Built by `alias_settings_class()` from the installed plugins' declarations (`PluginOption.alias`): "
+        "older top-level names of plugin options; `--<alias> X` is `--optimizer-option NAME=X` (or "
+        "`--objective-option`)."
+    )
     return made
 
 
@@ -364,7 +453,9 @@ def _resume_folder(resume: str, out: str | None) -> Path:
     grid resumes by id); otherwise --resume is the run folder itself."""
     from coadapt_core.validation import is_run_id, run_folder
 
-    run_dir = run_folder(out or "runs", resume, field="resume") if is_run_id(resume) else Path(resume)
+    run_dir = (
+        run_folder(out or "runs", resume, field="resume") if is_run_id(resume) else Path(resume)
+    )
     if not run_dir.is_dir() and is_run_id(resume) and Path(resume).is_dir():
         run_dir = Path(resume)
     if not run_dir.is_dir():
@@ -379,9 +470,13 @@ def _new_config(values: dict[str, Any], overrides: dict[str, Any]) -> Any:
     from coadapt_core.options import parse_assignments
 
     if values["optimizer_option"]:
-        overrides["optimizer_options"] = parse_assignments(values["optimizer_option"], "optimizer_options")
+        overrides["optimizer_options"] = parse_assignments(
+            values["optimizer_option"], "optimizer_options"
+        )
     if values["objective_option"]:
-        overrides["objective_options"] = parse_assignments(values["objective_option"], "objective_options")
+        overrides["objective_options"] = parse_assignments(
+            values["objective_option"], "objective_options"
+        )
     cfg = make_config(values["preset"], values["config"], overrides)
     if cfg.checkpoint.strip() and Path(cfg.checkpoint.strip()).is_dir():
         from coadapt_core.io import checkpoint_path
@@ -400,9 +495,12 @@ def _new_config(values: dict[str, Any], overrides: dict[str, Any]) -> Any:
     if cfg.checkpoint.strip().lower() == "none":
         from coadapt_core.coadapt.reliability import WALKING_GATE
 
-        print(f"note: no starting policy (--checkpoint none): robot '{cfg.robot}' is trained from "
-              f"scratch in this run; its result is marked unreliable unless the real rounds pass "
-              f"the walking gate ({WALKING_GATE.describe()})", file=sys.stderr)
+        print(
+            f"note: no starting policy (--checkpoint none): robot '{cfg.robot}' is trained from "
+            f"scratch in this run; its result is marked unreliable unless the real rounds pass "
+            f"the walking gate ({WALKING_GATE.describe()})",
+            file=sys.stderr,
+        )
     return cfg
 
 
@@ -411,7 +509,12 @@ def _run_loop(cfg: Any, kwargs: dict[str, Any], values: dict[str, Any]) -> Any:
     says where the run stopped and the exact command that continues it."""
     from coadapt_core.coadapt.run import run_coadaptation
 
-    resume, out, video, as_json = values["resume"], values["out"], values["video"], values["as_json"]
+    resume, out, video, as_json = (
+        values["resume"],
+        values["out"],
+        values["video"],
+        values["as_json"],
+    )
     started: dict[str, Any] = {}
 
     def on_start(run_id: str, run_dir: Path) -> None:
@@ -426,18 +529,32 @@ def _run_loop(cfg: Any, kwargs: dict[str, Any], values: dict[str, Any]) -> Any:
 
     with ctrl_c_once(), _ProgressView(enabled=not as_json) as view:
         try:
-            return run_coadaptation(cfg, progress=view, on_start=on_start, finishing=finishing, **kwargs)
+            return run_coadaptation(
+                cfg, progress=view, on_start=on_start, finishing=finishing, **kwargs
+            )
         except KeyboardInterrupt:
             view.close()
             if not started and resume:  # stopped while loading it: it is where it was
                 import shlex
 
-                interrupted(f"run {resume} was not continued", shlex.join(
-                    ["coadapt", "run", "--resume", resume, *(["--out", out] if out and out != "runs" else [])]))
+                interrupted(
+                    f"run {resume} was not continued",
+                    shlex.join(
+                        [
+                            "coadapt",
+                            "run",
+                            "--resume",
+                            resume,
+                            *(["--out", out] if out and out != "runs" else []),
+                        ]
+                    ),
+                )
             if not started:
                 interrupted("the run had not started; nothing to resume", None)
-            interrupted(f"run {started['run_id']} stopped; its folder {started['run_dir']} keeps the last state",
-                        resume_command(started["run_id"], started["run_dir"], video=video, as_json=as_json))
+            interrupted(
+                f"run {started['run_id']} stopped; its folder {started['run_dir']} keeps the last state",
+                resume_command(started["run_id"], started["run_dir"], video=video, as_json=as_json),
+            )
 
 
 def _report(result: Any, as_json: bool) -> None:

@@ -41,7 +41,11 @@ def at_bound(summary: dict[str, Any], share: float = BOUND_SHARE) -> str | None:
     hits = []
     for var, x in zip(space.get("variables") or [], best, strict=False):
         low, high = var.get("low"), var.get("high")
-        if var.get("type", "continuous") != "continuous" or not (_finite(low) and _finite(high)) or high <= low:
+        if (
+            var.get("type", "continuous") != "continuous"
+            or not (_finite(low) and _finite(high))
+            or high <= low
+        ):
             continue
         margin = share * (high - low)
         if x - low <= margin:
@@ -50,8 +54,10 @@ def at_bound(summary: dict[str, Any], share: float = BOUND_SHARE) -> str | None:
             hits.append(f"{var.get('name', '?')} {x:.3f} at its upper bound {high:g}")
     if not hits:
         return None
-    return (f"best design at a bound of the design space ({'; '.join(hits)}; within {100 * share:g} % of the range): "
-            "the optimum may lie beyond it; widen the range (--design-ranges) or read the answer as found at the bound")
+    return (
+        f"best design at a bound of the design space ({'; '.join(hits)}; within {100 * share:g} % of the range): "
+        "the optimum may lie beyond it; widen the range (--design-ranges) or read the answer as found at the bound"
+    )
 
 
 def plain_mean_not_significant(summary: dict[str, Any], ratio: float | None = None) -> str | None:
@@ -62,29 +68,42 @@ def plain_mean_not_significant(summary: dict[str, Any], ratio: float | None = No
         ratio = SIGNIFICANCE_RATIO
     gain, gain_se = summary.get("improvement"), summary.get("improvement_se")
     plain, plain_se = summary.get("improvement_plain"), summary.get("improvement_plain_se")
-    if summary.get("significant") is not True or not (_finite(gain) and _finite(plain) and _finite(plain_se)):
+    if summary.get("significant") is not True or not (
+        _finite(gain) and _finite(plain) and _finite(plain_se)
+    ):
         return None
     if abs(plain) >= ratio * plain_se and plain * gain > 0:
         return None
     objective = next(iter(summary.get("improvements") or {}), "cost")
     rule = summary.get("cost_rule") or "the rule's"
     shown = f"{100 * gain:+.1f}" + (f" +- {100 * gain_se:.1f}" if _finite(gain_se) else "")
-    return (f"{objective}: the improvement ({shown} %, {rule} cost) is significant but its plain mean's "
-            f"({100 * plain:+.1f} +- {100 * plain_se:.1f} %) is not (under {ratio:g} paired standard errors"
-            f"{' or of the other sign' if plain * gain <= 0 else ''}): the gain may be the cost rule's, not a "
-            "cheaper gait")
+    return (
+        f"{objective}: the improvement ({shown} %, {rule} cost) is significant but its plain mean's "
+        f"({100 * plain:+.1f} +- {100 * plain_se:.1f} %) is not (under {ratio:g} paired standard errors"
+        f"{' or of the other sign' if plain * gain <= 0 else ''}): the gain may be the cost rule's, not a "
+        "cheaper gait"
+    )
 
 
 def surrogate_note(summary: dict[str, Any]) -> str | None:
     """The surrogate's pooled Spearman and the real rounds it covers, as one line (printed
     whether or not it is weak; None when no round was judged)."""
     pooled = (summary.get("surrogate_quality") or {}).get("pooled") or {}
-    rho, rounds, real = pooled.get("spearman"), pooled.get("rounds"), summary.get("real_evaluations")
+    rho, rounds, real = (
+        pooled.get("spearman"),
+        pooled.get("rounds"),
+        summary.get("real_evaluations"),
+    )
     if not _finite(rho):
         return None
-    covers = f"{rounds} judged real round{'s' if rounds != 1 else ''}" + (f" of {real}" if _finite(real) else "")
-    partial = (" (only rounds a fit already covers are judged; --surrogate-error-fits judges every one)"
-               if _finite(real) and _finite(rounds) and rounds < real else "")
+    covers = f"{rounds} judged real round{'s' if rounds != 1 else ''}" + (
+        f" of {real}" if _finite(real) else ""
+    )
+    partial = (
+        " (only rounds a fit already covers are judged; --surrogate-error-fits judges every one)"
+        if _finite(real) and _finite(rounds) and rounds < real
+        else ""
+    )
     return f"surrogate (in-run rounds): pooled Spearman {rho:.2f} over {covers}{partial}"
 
 
@@ -96,15 +115,27 @@ def weak_surrogate(summary: dict[str, Any], threshold: float = WEAK_SPEARMAN) ->
     if not _finite(rho) or rho >= threshold:
         return None
     real = summary.get("real_evaluations")
-    covers = f"{rounds} judged real round{'s' if rounds != 1 else ''}" + (f" of {real}" if _finite(real) else "")
+    covers = f"{rounds} judged real round{'s' if rounds != 1 else ''}" + (
+        f" of {real}" if _finite(real) else ""
+    )
     first = next(iter(quality.get("by_objective") or {}), None)
     judged = [r for r in quality.get("rounds") or [] if r.get("eligible")]
-    last = ((judged[-1].get("objectives") or {}).get(first) or {}).get("spearman") if judged and first else None
+    last = (
+        ((judged[-1].get("objectives") or {}).get(first) or {}).get("spearman")
+        if judged and first
+        else None
+    )
     last_text = f", last judged round {last:.2f}" if _finite(last) else ""
-    partial = (" (a round is judged only where a fit already covers it unless --surrogate-error-fits: not comparable "
-               "with runs judged on every round)" if _finite(real) and _finite(rounds) and rounds < real else "")
-    return (f"surrogate: pooled Spearman {rho:.2f} over {covers}{last_text} is below {threshold:g}: its rounds "
-            f"ranked designs weakly{partial}")
+    partial = (
+        " (a round is judged only where a fit already covers it unless --surrogate-error-fits: not comparable "
+        "with runs judged on every round)"
+        if _finite(real) and _finite(rounds) and rounds < real
+        else ""
+    )
+    return (
+        f"surrogate: pooled Spearman {rho:.2f} over {covers}{last_text} is below {threshold:g}: its rounds "
+        f"ranked designs weakly{partial}"
+    )
 
 
 def run_warnings(summary: dict[str, Any]) -> list[str]:
@@ -113,5 +144,12 @@ def run_warnings(summary: dict[str, Any]) -> list[str]:
     return [w for w in found if w]
 
 
-__all__ = ["BOUND_SHARE", "WEAK_SPEARMAN", "at_bound", "plain_mean_not_significant", "run_warnings",
-           "surrogate_note", "weak_surrogate"]
+__all__ = [
+    "BOUND_SHARE",
+    "WEAK_SPEARMAN",
+    "at_bound",
+    "plain_mean_not_significant",
+    "run_warnings",
+    "surrogate_note",
+    "weak_surrogate",
+]

@@ -55,22 +55,44 @@ EVALUATION_POLICIES: tuple[str, ...] = ("fixed", "uncertainty")
 
 UNSET = "the starting policy's"
 #: the run sets these itself (population, agents_per_design, device, seed; its own checkpoints)
-TrainSection = partial(TrainConfig, "TrainSection", unset=UNSET,
-                       exclude=("num_designs", "agents_per_design", "device", "seed", "extra", "checkpoint_every"))
+TrainSection = partial(
+    TrainConfig,
+    "TrainSection",
+    unset=UNSET,
+    exclude=("num_designs", "agents_per_design", "device", "seed", "extra", "checkpoint_every"),
+)
 TaskSection = partial(TaskConfig, "TaskSection", unset=UNSET)
-RandomizationSection = partial(RandomizationConfig, "RandomizationSection", unset=UNSET, extra={
-    "preset": (Literal[RANDOMIZATION_PRESETS] | None, setting(
-        None, "Named ranges the others apply over: table2 (the paper's), engine (table2 plus contact softness, "
-        "joint damping, armature and delay) or off (unset: the starting policy's, table2 when it names none)."))})
+RandomizationSection = partial(
+    RandomizationConfig,
+    "RandomizationSection",
+    unset=UNSET,
+    extra={
+        "preset": (
+            Literal[RANDOMIZATION_PRESETS] | None,
+            setting(
+                None,
+                "Named ranges the others apply over: table2 (the paper's), engine (table2 plus contact softness, "
+                "joint damping, armature and delay) or off (unset: the starting policy's, table2 when it names none).",
+            ),
+        )
+    },
+)
 
 
 #: presets: only the fields that differ from the dataclass defaults (which are the paper's)
 PRESETS: dict[str, dict[str, Any]] = {
     # seconds on a laptop: for tests and for checking that everything is wired
     "smoke": dict(
-        outer_iterations=2, population=4, optimizer_iterations=2, agents_per_design=2,
-        train_steps=400, retrain_steps=200, eval_steps=20, surrogate_samples=64,
-        bo_designs=2, specialized_train_steps=200,
+        outer_iterations=2,
+        population=4,
+        optimizer_iterations=2,
+        agents_per_design=2,
+        train_steps=400,
+        retrain_steps=200,
+        eval_steps=20,
+        surrogate_samples=64,
+        bo_designs=2,
+        specialized_train_steps=200,
     ),
     # meaningful on a 2-core laptop in <= 30 min, starting from the shipped universal policy.
     # Real evaluation 32 paired scenarios x 250 steps per design (8,000 interactions, as many as
@@ -78,14 +100,24 @@ PRESETS: dict[str, dict[str, Any]] = {
     # scenario seeds (Spearman 0.95-0.97 for tracking, power, torque; benchmarks/fitness_noise.py).
     # The surrogate: 1 024 buffer states, ranking as 4 096 did (docs/training.md, issue 25)
     "quick": dict(
-        outer_iterations=3, population=16, optimizer_iterations=5, agents_per_design=16,
-        train_steps=200_000, retrain_steps=100_000, eval_agents=32, eval_steps=250, surrogate_samples=1024,
-        bo_designs=20, specialized_train_steps=100_000, specialized_init="universal",
+        outer_iterations=3,
+        population=16,
+        optimizer_iterations=5,
+        agents_per_design=16,
+        train_steps=200_000,
+        retrain_steps=100_000,
+        eval_agents=32,
+        eval_steps=250,
+        surrogate_samples=1024,
+        bo_designs=20,
+        specialized_train_steps=100_000,
+        specialized_init="universal",
     ),
     # section 4.1.3 (N = 3, K = 100, J = 5, 50 agents, w = 0.5): the declared defaults below are
     # the paper's, and so are the optimizer plugin's declared options
     "paper": dict(surrogate_probability=0.5),
 }
+
 
 @settings
 class CoadaptConfig:
@@ -94,93 +126,194 @@ class CoadaptConfig:
     once (`coadapt_core.settings`), and docs/settings.md is generated from them."""
 
     # -- what to co-adapt ------------------------------------------------------------------
-    robot: str = setting(default_factory=lambda: default_plugin("robot"), help="Robot.", plugin="robot")
-    sim: str = setting(default_factory=lambda: default_plugin("simulator"), help="Simulator backend.", plugin="simulator")
+    robot: str = setting(
+        default_factory=lambda: default_plugin("robot"), help="Robot.", plugin="robot"
+    )
+    sim: str = setting(
+        default_factory=lambda: default_plugin("simulator"),
+        help="Simulator backend.",
+        plugin="simulator",
+    )
     optimizer: str = setting(
-        default_factory=lambda: default_plugin("optimizer"), plugin="optimizer",
-        help="Design optimizer; one that declares implies_mixed searches the mixed design space.")
+        default_factory=lambda: default_plugin("optimizer"),
+        plugin="optimizer",
+        help="Design optimizer; one that declares implies_mixed searches the mixed design space.",
+    )
     objective: str = setting(
-        default_factory=lambda: default_plugin("objective"), plugin="objective",
-        help="Objective to minimise, or a comma list of 2-3 for a multi-objective optimizer.")
+        default_factory=lambda: default_plugin("objective"),
+        plugin="objective",
+        help="Objective to minimise, or a comma list of 2-3 for a multi-objective optimizer.",
+    )
     terrain: Literal[TERRAINS] = setting("flat", "Terrain.")
     method: Literal[METHOD_NAMES] = setting(DEFAULT_METHOD, method_help())
-    mixed: bool = setting(False, "Add the robot's discrete variables (motor types); implied by an optimizer that declares implies_mixed.")
-    design_ranges: str = setting("", "Initial range low:high per continuous variable, e.g. 0.5:1.5,0.5:1.0 (empty: the full range).")
+    mixed: bool = setting(
+        False,
+        "Add the robot's discrete variables (motor types); implied by an optimizer that declares implies_mixed.",
+    )
+    design_ranges: str = setting(
+        "",
+        "Initial range low:high per continuous variable, e.g. 0.5:1.5,0.5:1.0 (empty: the full range).",
+    )
     seed: Int = setting(0, "Random seed.", ge=0)
     # -- Algorithm 4 -------------------------------------------------------------------------
     outer_iterations: Int = setting(3, "N: outer iterations (train, optimise, narrow).", ge=1)
     population: Int = setting(100, "K: designs per training phase = swarm size.", ge=1)
     optimizer_iterations: Int = setting(5, "J: optimizer rounds per outer iteration.", ge=1)
-    surrogate_probability: Float = setting(0.5, "w: probability of a surrogate (not real) round (earlier name: "
-                                          "evaluation_probability).", ge=0, le=1,
-                                          accepted="a probability in [0, 1]")
+    surrogate_probability: Float = setting(
+        0.5,
+        "w: probability of a surrogate (not real) round (earlier name: evaluation_probability).",
+        ge=0,
+        le=1,
+        accepted="a probability in [0, 1]",
+    )
     agents_per_design: Int = setting(50, "Agents per design in training and real evaluation.", ge=1)
     train_steps: Int = setting(24_000_000, "Interactions of the first training phase.", ge=0)
     retrain_steps: Int = setting(24_000_000, "Interactions of each later retraining phase.", ge=0)
-    eval_steps: Int = setting(800, "T_eval: policy steps per agent in a real evaluation (Algorithm 2).", ge=1)
-    eval_agents: Int = setting(0, "Paired scenarios (agents) per design in a real evaluation (0: agents_per_design).", ge=0)
-    surrogate_samples: Int = setting(4096, "States drawn from the evaluation buffer by the surrogate (Algorithm 3).", ge=1)
-    measure_surrogate_error: bool = setting(True, "Run the surrogate on real batches too, to record its error (no interactions).")
-    surrogate_error_fits: bool = setting(False, "Fit the pseudo-critics before every real round too, so each one's "
-                                         "surrogate error is measured (a fit per round); off: a real round is judged "
-                                         "only where a fit already covers it.")
+    eval_steps: Int = setting(
+        800, "T_eval: policy steps per agent in a real evaluation (Algorithm 2).", ge=1
+    )
+    eval_agents: Int = setting(
+        0, "Paired scenarios (agents) per design in a real evaluation (0: agents_per_design).", ge=0
+    )
+    surrogate_samples: Int = setting(
+        4096, "States drawn from the evaluation buffer by the surrogate (Algorithm 3).", ge=1
+    )
+    measure_surrogate_error: bool = setting(
+        True, "Run the surrogate on real batches too, to record its error (no interactions)."
+    )
+    surrogate_error_fits: bool = setting(
+        False,
+        "Fit the pseudo-critics before every real round too, so each one's "
+        "surrogate error is measured (a fit per round); off: a real round is judged "
+        "only where a fit already covers it.",
+    )
     # -- the surrogate (docs/coadaptation.md, "The surrogate") --------------------------------
-    fit_surrogate: bool = setting(True, "Fit the pseudo-critics to each real round's measured designs before a surrogate "
-                                  "round (off: the paper's pseudo-critics as trained).")
+    fit_surrogate: bool = setting(
+        True,
+        "Fit the pseudo-critics to each real round's measured designs before a surrogate "
+        "round (off: the paper's pseudo-critics as trained).",
+    )
     evaluation_policy: Literal[EVALUATION_POLICIES] = setting(
-        "fixed", "fixed: a surrogate round with probability surrogate_probability (w, the paper's); uncertainty: a surrogate round when the "
-        "fitted ensemble agrees (spread ratio <= uncertainty_threshold).")
-    uncertainty_threshold: Float = setting(0.5, "uncertainty policy: trust the surrogate when the members' spread over "
-                                           "the designs' spread is at most this.", ge=0)
-    final_candidates: Int = setting(3, "Lowest-real-cost designs re-evaluated in the final check.", ge=1)
-    final_max_blocks: Int = setting(8, "Final check: at most this many blocks of agents_per_design paired scenarios.", ge=1)
-    final_min_blocks: Int = setting(4, "Final check: at least this many blocks (the fall-rate comparison needs scenarios).", ge=1)
+        "fixed",
+        "fixed: a surrogate round with probability surrogate_probability (w, the paper's); uncertainty: a surrogate round when the "
+        "fitted ensemble agrees (spread ratio <= uncertainty_threshold).",
+    )
+    uncertainty_threshold: Float = setting(
+        0.5,
+        "uncertainty policy: trust the surrogate when the members' spread over "
+        "the designs' spread is at most this.",
+        ge=0,
+    )
+    final_candidates: Int = setting(
+        3, "Lowest-real-cost designs re-evaluated in the final check.", ge=1
+    )
+    final_max_blocks: Int = setting(
+        8, "Final check: at most this many blocks of agents_per_design paired scenarios.", ge=1
+    )
+    final_min_blocks: Int = setting(
+        4,
+        "Final check: at least this many blocks (the fall-rate comparison needs scenarios).",
+        ge=1,
+    )
     # -- the cost of a design over its scenarios (docs/coadaptation.md, "How a fall enters the fitness") --
     cost_rule: Literal[COST_RULES] = setting(
-        "capped", "capped: each scenario costs at most cost_cap x the nominal design's median scenario and a fall costs "
+        "capped",
+        "capped: each scenario costs at most cost_cap x the nominal design's median scenario and a fall costs "
         "that cap (every design on the same scenarios, the same rule); mean: the paper's plain mean (eq. 4); trimmed: "
-        "each design's costliest quarter of scenarios left out (the rule before, falls unpriced).")
-    cost_cap: Float = setting(3.0, "capped rule: a scenario's cost cap, and a fall's cost, in units of the nominal "
-                              "design's median scenario cost.", gt=1)
-    fall_tolerance: Float = setting(0.01, "Final check: a candidate whose fall rate exceeds the nominal design's by more "
-                                    "than max(this, 2 paired standard errors) cannot be the best (1: no fall gate).",
-                                    ge=0, le=1)
+        "each design's costliest quarter of scenarios left out (the rule before, falls unpriced).",
+    )
+    cost_cap: Float = setting(
+        3.0,
+        "capped rule: a scenario's cost cap, and a fall's cost, in units of the nominal "
+        "design's median scenario cost.",
+        gt=1,
+    )
+    fall_tolerance: Float = setting(
+        0.01,
+        "Final check: a candidate whose fall rate exceeds the nominal design's by more "
+        "than max(this, 2 paired standard errors) cannot be the best (1: no fall gate).",
+        ge=0,
+        le=1,
+    )
     # -- plugin options: declared by the optimizer / objective plugin (`option_specs`) ------
     optimizer_options: dict[str, Any] = setting(
-        default_factory=dict, help="Options the optimizer plugin declares (`coadapt plugins --json`), e.g. {inertia: 0.9}.",
-        cli=False)
+        default_factory=dict,
+        help="Options the optimizer plugin declares (`coadapt plugins --json`), e.g. {inertia: 0.9}.",
+        cli=False,
+    )
     objective_options: dict[str, Any] = setting(
-        default_factory=dict, help="Options the objective plugin declares, e.g. {weights: 'torque=1'}.", cli=False)
+        default_factory=dict,
+        help="Options the objective plugin declares, e.g. {weights: 'torque=1'}.",
+        cli=False,
+    )
     # -- narrowing (Algorithm 4 line 22) -----------------------------------------------------
-    narrow_margin: Float = setting(0.25, "Narrowing: widen the final particles' span by this fraction on each side.", ge=0)
-    narrow_min_width: Float = setting(0.1, "Narrowing: minimum width as a fraction of the full range.", gt=0, le=1)
+    narrow_margin: Float = setting(
+        0.25, "Narrowing: widen the final particles' span by this fraction on each side.", ge=0
+    )
+    narrow_min_width: Float = setting(
+        0.1, "Narrowing: minimum width as a fraction of the full range.", gt=0, le=1
+    )
     # -- BO with specialised policies (Table 7 baseline) -------------------------------------
-    bo_designs: Int = setting(20, "bo-specialized: designs BO proposes, each with its own specialised policy.", ge=1)
-    specialized_train_steps: Int = setting(10_000_000, "bo-specialized: interactions per specialised policy.", ge=0)
+    bo_designs: Int = setting(
+        20, "bo-specialized: designs BO proposes, each with its own specialised policy.", ge=1
+    )
+    specialized_train_steps: Int = setting(
+        10_000_000, "bo-specialized: interactions per specialised policy.", ge=0
+    )
     specialized_init: Literal["scratch", "universal"] = setting(
-        "scratch", "bo-specialized: scratch (the paper's) or universal (fine-tune the universal policy per design).")
+        "scratch",
+        "bo-specialized: scratch (the paper's) or universal (fine-tune the universal policy per design).",
+    )
     # -- infrastructure ----------------------------------------------------------------------
-    checkpoint_interactions: Int = setting(3_000_000, "Interactions between checkpoints inside a training "
-                                           "phase, which --resume continues from (0: between phases only).", ge=0)
-    checkpoint: str = setting("", "Universal policy to start from (empty: the one the robot ships, if any; none: from scratch).")
-    device: Device = setting("cpu", "Torch device of the learner.", accepted="one of cpu, cuda, cuda:N")
+    checkpoint_interactions: Int = setting(
+        3_000_000,
+        "Interactions between checkpoints inside a training "
+        "phase, which --resume continues from (0: between phases only).",
+        ge=0,
+    )
+    checkpoint: str = setting(
+        "",
+        "Universal policy to start from (empty: the one the robot ships, if any; none: from scratch).",
+    )
+    device: Device = setting(
+        "cpu", "Torch device of the learner.", accepted="one of cpu, cuda, cuda:N"
+    )
     logger: Literal["tensorboard", "wandb", "none"] = setting(
-        "tensorboard", "Experiment tracking: tensorboard (event files in <run folder>/tb), wandb (if installed) or none.")
+        "tensorboard",
+        "Experiment tracking: tensorboard (event files in <run folder>/tb), wandb (if installed) or none.",
+    )
     out: str = setting("runs", "Parent folder of run folders.")
-    store: str = setting("", "Results store URL or path (empty: $COADAPT_STORE, else coadapt.db beside out; none: JSON files only).")
-    preset: Literal[tuple(PRESETS)] = setting("quick", "Preset the other defaults come from (recorded).")
+    store: str = setting(
+        "",
+        "Results store URL or path (empty: $COADAPT_STORE, else coadapt.db beside out; none: JSON files only).",
+    )
+    preset: Literal[tuple(PRESETS)] = setting(
+        "quick", "Preset the other defaults come from (recorded)."
+    )
     # -- the learner: overrides of the starting policy's settings ----------------------------
-    train: TrainSection = setting(default_factory=TrainSection, help=(
-        "PPO and training settings of the universal policy (`coadapt_core.learning.config.TrainConfig`). "
-        "Unset keys keep the starting policy's (its checkpoint records them), else the defaults shown. The batch "
-        "size, device and seed are the run's own population, agents_per_design, device and seed."))
-    task: TaskSection = setting(default_factory=TaskSection, help=(
-        "The locomotion task: commands, rewards, gait reference, observation noise, termination "
-        "(`coadapt_core.task.config.TaskConfig`). Unset keys keep the starting policy's; weights given replace "
-        "those terms' weights only."))
-    randomization: RandomizationSection = setting(default_factory=RandomizationSection, help=(
-        "Domain randomization (paper Table 2; `coadapt_core.physics.randomization.RandomizationConfig`): a "
-        "preset, then single ranges over it. Unset: the starting policy's preset (table2 when it names none)."))
+    train: TrainSection = setting(
+        default_factory=TrainSection,
+        help=(
+            "PPO and training settings of the universal policy (`coadapt_core.learning.config.TrainConfig`). "
+            "Unset keys keep the starting policy's (its checkpoint records them), else the defaults shown. The batch "
+            "size, device and seed are the run's own population, agents_per_design, device and seed."
+        ),
+    )
+    task: TaskSection = setting(
+        default_factory=TaskSection,
+        help=(
+            "The locomotion task: commands, rewards, gait reference, observation noise, termination "
+            "(`coadapt_core.task.config.TaskConfig`). Unset keys keep the starting policy's; weights given replace "
+            "those terms' weights only."
+        ),
+    )
+    randomization: RandomizationSection = setting(
+        default_factory=RandomizationSection,
+        help=(
+            "Domain randomization (paper Table 2; `coadapt_core.physics.randomization.RandomizationConfig`): a "
+            "preset, then single ranges over it. Unset: the starting policy's preset (table2 when it names none)."
+        ),
+    )
 
     @field_validator("objective", mode="before")
     @classmethod
@@ -229,9 +362,13 @@ class CoadaptConfig:
         if len(set(self.objectives)) != len(self.objectives):
             raise UserError(f"objective list '{self.objective}' repeats a name", field="objective")
         if self.evaluation_policy == "uncertainty" and not self.fit_surrogate:
-            raise UserError("evaluation_policy 'uncertainty' needs fit_surrogate (the fitted ensemble decides)",
-                            field="evaluation_policy")
-        _learner_settings(self, None)  # the sections' keys applied over the defaults: checked together
+            raise UserError(
+                "evaluation_policy 'uncertainty' needs fit_surrogate (the fitted ensemble decides)",
+                field="evaluation_policy",
+            )
+        _learner_settings(
+            self, None
+        )  # the sections' keys applied over the defaults: checked together
         return self
 
 
@@ -246,6 +383,8 @@ def _merge(tree: dict[str, Any], new: Mapping[str, Any]) -> None:
             _merge(tree[key], value)
         else:
             tree[str(key)] = dict(value) if isinstance(value, Mapping) else value
+
+
 #: config keys that are plugin-option mappings, merged key by key (CLI over YAML over preset)
 OPTION_FIELDS = ("optimizer_options", "objective_options")
 #: the plugin kind whose declared options each of those mappings holds
@@ -253,7 +392,9 @@ OPTION_KINDS = {"objective_options": "objective", "optimizer_options": "optimize
 #: settings of earlier versions under another name: old YAML key -> the setting's key now
 #: (the old command-line option is kept as an alias, `OPTION_ALIASES`)
 RENAMED_KEYS: dict[str, str] = {"evaluation_probability": "surrogate_probability"}
-OPTION_ALIASES: dict[str, tuple[str, ...]] = {new: ("--" + old.replace("_", "-"),) for old, new in RENAMED_KEYS.items()}
+OPTION_ALIASES: dict[str, tuple[str, ...]] = {
+    new: ("--" + old.replace("_", "-"),) for old, new in RENAMED_KEYS.items()
+}
 
 
 @dataclass(frozen=True)
@@ -288,7 +429,9 @@ def option_aliases() -> dict[str, OptionAlias]:
                 if known is None:
                     out[spec.alias] = OptionAlias(spec.alias, field_name, spec, (name,))
                 elif (known.field, known.option.name) == (field_name, spec.name):
-                    out[spec.alias] = OptionAlias(spec.alias, field_name, known.option, (*known.plugins, name))
+                    out[spec.alias] = OptionAlias(
+                        spec.alias, field_name, known.option, (*known.plugins, name)
+                    )
                 else:
                     clashes.add(spec.alias)
     return {k: v for k, v in out.items() if k not in clashes}
@@ -305,9 +448,13 @@ def load_yaml(path: str | Path) -> dict[str, Any]:
     except UnicodeDecodeError:
         raise UserError(f"config file '{path}' is not a text (YAML) file", field="config") from None
     except OSError as exc:
-        raise UserError(f"config file '{path}' cannot be read ({exc.strerror})", field="config") from None
+        raise UserError(
+            f"config file '{path}' cannot be read ({exc.strerror})", field="config"
+        ) from None
     except yaml.YAMLError as exc:
-        raise UserError(f"config file '{path}' is not valid YAML: {str(exc).splitlines()[0]}", field="config") from None
+        raise UserError(
+            f"config file '{path}' is not valid YAML: {str(exc).splitlines()[0]}", field="config"
+        ) from None
     if not isinstance(data, dict):
         raise UserError(f"config file '{path}' must hold a mapping of config keys", field="config")
     return {str(k).replace("-", "_"): v for k, v in data.items()}
@@ -322,7 +469,11 @@ def preset_defaults() -> dict[str, tuple[Any, dict[str, Any]]]:
     out = {}
     for leaf in leaves(CoadaptConfig):
         if leaf.key != "preset":  # a plugin's default is looked up when shown (`default_rank`)
-            values = {} if leaf.extra.get("plugin") else {p: PRESETS[p].get(leaf.key, leaf.default) for p in PRESETS}
+            values = (
+                {}
+                if leaf.extra.get("plugin")
+                else {p: PRESETS[p].get(leaf.key, leaf.default) for p in PRESETS}
+            )
             out[leaf.param] = (leaf, values)
     return out
 
@@ -343,11 +494,16 @@ def learner_settings(config: CoadaptConfig, checkpoint: str | None) -> dict[str,
 
 
 def _learner_settings(config: CoadaptConfig, saved: Mapping[str, Any] | None) -> dict[str, Any]:
-    return resolve_learner(saved, overrides(config.train), overrides(config.task), overrides(config.randomization))
+    return resolve_learner(
+        saved, overrides(config.train), overrides(config.task), overrides(config.randomization)
+    )
 
 
 def resolve_learner(
-    saved: Mapping[str, Any] | None, train: dict[str, Any], task: dict[str, Any], randomization: dict[str, Any]
+    saved: Mapping[str, Any] | None,
+    train: dict[str, Any],
+    task: dict[str, Any],
+    randomization: dict[str, Any],
 ) -> dict[str, Any]:
     """`train_config`, `task_config` and `randomization` for the learner: a checkpoint's
     (`saved`, None: the defaults) with the given nested overrides applied; only the parts
@@ -364,13 +520,18 @@ def resolve_learner(
         if preset:
             extra.update(randomization=preset, randomization_ranges={})
         if randomization:
-            extra["randomization_ranges"] = {**extra.get("randomization_ranges", {}), **randomization}
+            extra["randomization_ranges"] = {
+                **extra.get("randomization_ranges", {}),
+                **randomization,
+            }
         config.extra = extra
         out["train_config"] = config
         if preset or randomization:
             out["randomization"] = RandomizationConfig.recorded(extra)
     if task:
-        out["task_config"] = apply_overrides(TaskConfig.from_dict(saved["task_config"]) if saved else TaskConfig(), task)
+        out["task_config"] = apply_overrides(
+            TaskConfig.from_dict(saved["task_config"]) if saved else TaskConfig(), task
+        )
     return out
 
 
@@ -380,7 +541,9 @@ RECORD_KEYS = ("run_id", "run_dir", "design_space", "grid_id", "grid_cell", "pol
 
 
 def make_config(
-    preset: str | None = None, yaml_file: str | Path | None = None, overrides: dict[str, Any] | None = None
+    preset: str | None = None,
+    yaml_file: str | Path | None = None,
+    overrides: dict[str, Any] | None = None,
 ) -> CoadaptConfig:
     """Preset, then YAML keys, then overrides (CLI options that were given), validated."""
     yaml_values = load_yaml(yaml_file) if yaml_file else {}
@@ -405,17 +568,23 @@ def make_config(
 
                 close = difflib.get_close_matches(section, FIELD_NAMES, n=1, cutoff=0.75)
                 if close:
-                    raise UserError(f"unknown {label} key '{key}'; did you mean '{close[0]}'? (every key: "
-                                    "docs/settings.md)", field=key)
+                    raise UserError(
+                        f"unknown {label} key '{key}'; did you mean '{close[0]}'? (every key: "
+                        "docs/settings.md)",
+                        field=key,
+                    )
                 raise UserError(
-                    f"unknown {label} key '{key}'; accepted keys: {', '.join(FIELD_NAMES)}", field=key
+                    f"unknown {label} key '{key}'; accepted keys: {', '.join(FIELD_NAMES)}",
+                    field=key,
                 )
             if value is None:
                 raise UserError(f"config key '{key}' has no value", field=key)
             if dot or section in SECTIONS:  # a nested key: merged into its section
                 tree = values.setdefault(section, {})
                 if not isinstance(value, Mapping) and not dot:
-                    raise UserError(f"{key} must be a mapping of its settings, got {value!r}", field=key)
+                    raise UserError(
+                        f"{key} must be a mapping of its settings, got {value!r}", field=key
+                    )
                 path = rest.split(".") if dot else []
                 for name in path[:-1]:
                     tree = tree.setdefault(name, {})
@@ -426,8 +595,14 @@ def make_config(
                 continue
             if key in OPTION_FIELDS:  # merged key by key: a CLI option keeps the YAML file's others
                 if not isinstance(value, Mapping):
-                    raise UserError(f"{key} must be a mapping of option names to values, got {value!r}", field=key)
-                value = {**values.get(key, {}), **{str(k).replace("-", "_"): v for k, v in value.items()}}
+                    raise UserError(
+                        f"{key} must be a mapping of option names to values, got {value!r}",
+                        field=key,
+                    )
+                value = {
+                    **values.get(key, {}),
+                    **{str(k).replace("-", "_"): v for k, v in value.items()},
+                }
             values[key] = value
     values["preset"] = preset
     _fold_names(values)
@@ -442,7 +617,12 @@ _FOLDED = ("robot", "sim", "optimizer", "objective", "terrain", "method", "evalu
 def _fold_names(values: dict[str, Any]) -> None:
     from coadapt_core.plugins import get_registry
 
-    kinds = {"robot": "robot", "sim": "simulator", "optimizer": "optimizer", "objective": "objective"}
+    kinds = {
+        "robot": "robot",
+        "sim": "simulator",
+        "optimizer": "optimizer",
+        "objective": "objective",
+    }
     for key in _FOLDED:
         value = values.get(key)
         if isinstance(value, list | tuple):
@@ -457,7 +637,9 @@ def _fold_names(values: dict[str, Any]) -> None:
         else:
             known = set(typing.get_args(CoadaptConfig.__pydantic_fields__[key].annotation))
         names = [n.strip() for n in value.split(",")]
-        values[key] = ",".join(n.lower() if n not in known and n.lower() in known else n for n in names)
+        values[key] = ",".join(
+            n.lower() if n not in known and n.lower() in known else n for n in names
+        )
 
 
 def _typed_options(config: CoadaptConfig) -> CoadaptConfig:
@@ -473,11 +655,17 @@ def _typed_options(config: CoadaptConfig) -> CoadaptConfig:
         objectives = [registry.get("objective", n) for n in config.objectives]
     except Exception:
         return config
-    sources = [("optimizer_options", [optimizer], "optimizer"), ("objective_options", objectives, "objective")]
+    sources = [
+        ("optimizer_options", [optimizer], "optimizer"),
+        ("objective_options", objectives, "objective"),
+    ]
     for field_name, classes, kind in sources:
         given = dict(getattr(config, field_name))
         for key, value in given.items():
-            owner = next((c for c in classes if any(s.name == key for s in getattr(c, "option_specs", ()))), None)
+            owner = next(
+                (c for c in classes if any(s.name == key for s in getattr(c, "option_specs", ()))),
+                None,
+            )
             if owner is not None:
                 spec = next(s for s in owner.option_specs if s.name == key)
                 given[key] = spec.convert(value, f"{kind} '{owner.name}'", field_name)
@@ -487,7 +675,11 @@ def _typed_options(config: CoadaptConfig) -> CoadaptConfig:
 
 def config_from_dict(data: dict[str, Any]) -> CoadaptConfig:
     """Rebuild a recorded config (e.g. from a run folder's config.yaml)."""
-    renamed = {RENAMED_KEYS[k]: v for k, v in data.items() if k in RENAMED_KEYS and RENAMED_KEYS[k] not in data}
+    renamed = {
+        RENAMED_KEYS[k]: v
+        for k, v in data.items()
+        if k in RENAMED_KEYS and RENAMED_KEYS[k] not in data
+    }
     known = {k: v for k, v in {**data, **renamed}.items() if k in FIELD_NAMES and v is not None}
     # a config.yaml of an earlier version recorded every alias key; their old defaults are the
     # plugins' declared defaults now (empty text: unset), so only values that differed are carried over

@@ -70,25 +70,35 @@ class FinalCheck:
         if comp is not None:
             objs = comp["objectives"]
             first = objs[names[0]]
-            out.update({
-                "best_plain_mean": first["plain_mean"], "best_plain_mean_se": first["plain_mean_se"],
-                "nominal_plain_mean": first["nominal_plain_mean"], "nominal_plain_mean_se": first["nominal_plain_mean_se"],
-                "improvement_plain": first["improvement_plain"], "improvement_plain_se": _finite(first["improvement_plain_se"]),
-                "best_plain_means": {n: objs[n]["plain_mean"] for n in names},
-                "best_plain_means_se": {n: objs[n]["plain_mean_se"] for n in names},
-                "nominal_plain_means": {n: objs[n]["nominal_plain_mean"] for n in names},
-                "nominal_plain_means_se": {n: objs[n]["nominal_plain_mean_se"] for n in names},
-                "improvements_plain": {n: objs[n]["improvement_plain"] for n in names},
-                "improvements_plain_se": {n: _finite(objs[n]["improvement_plain_se"]) for n in names},
-            })
+            out.update(
+                {
+                    "best_plain_mean": first["plain_mean"],
+                    "best_plain_mean_se": first["plain_mean_se"],
+                    "nominal_plain_mean": first["nominal_plain_mean"],
+                    "nominal_plain_mean_se": first["nominal_plain_mean_se"],
+                    "improvement_plain": first["improvement_plain"],
+                    "improvement_plain_se": _finite(first["improvement_plain_se"]),
+                    "best_plain_means": {n: objs[n]["plain_mean"] for n in names},
+                    "best_plain_means_se": {n: objs[n]["plain_mean_se"] for n in names},
+                    "nominal_plain_means": {n: objs[n]["nominal_plain_mean"] for n in names},
+                    "nominal_plain_means_se": {n: objs[n]["nominal_plain_mean_se"] for n in names},
+                    "improvements_plain": {n: objs[n]["improvement_plain"] for n in names},
+                    "improvements_plain_se": {
+                        n: _finite(objs[n]["improvement_plain_se"]) for n in names
+                    },
+                }
+            )
             if comp.get("fall_rate") is not None:
-                out.update({
-                    "best_fall_rate": comp["fall_rate"], "best_fall_rate_se": _finite(comp["fall_rate_se"]),
-                    "nominal_fall_rate": comp["reference_fall_rate"],
-                    "nominal_fall_rate_se": _finite(comp["reference_fall_rate_se"]),
-                    "fall_rate_difference": comp["fall_rate_difference"],
-                    "fall_rate_difference_se": _finite(comp["fall_rate_difference_se"]),
-                })
+                out.update(
+                    {
+                        "best_fall_rate": comp["fall_rate"],
+                        "best_fall_rate_se": _finite(comp["fall_rate_se"]),
+                        "nominal_fall_rate": comp["reference_fall_rate"],
+                        "nominal_fall_rate_se": _finite(comp["reference_fall_rate_se"]),
+                        "fall_rate_difference": comp["fall_rate_difference"],
+                        "fall_rate_difference_se": _finite(comp["fall_rate_difference_se"]),
+                    }
+                )
         return out
 
     def front(self, designs: np.ndarray, names: Sequence[str]) -> dict[str, Any]:
@@ -105,7 +115,9 @@ class FinalCheck:
         out: dict[str, Any] = {
             "designs": designs[rows].tolist(),
             "costs": [dict(zip(names, map(float, costs[r]), strict=True)) for r in rows],
-            "costs_se": None if se is None else [dict(zip(names, map(float, se[r]), strict=True)) for r in rows],
+            "costs_se": None
+            if se is None
+            else [dict(zip(names, map(float, se[r]), strict=True)) for r in rows],
             "returned": 0,
             "scenarios": self.scenarios,
             "hypervolume_definition": HV_DEFINITION,
@@ -113,7 +125,11 @@ class FinalCheck:
         if self.fit.per_scenario is not None:
             per = np.asarray(self.fit.per_scenario, dtype=float)
             falls = self.fit.scenario_falls
-            ref = self.rule.reference(per[-1], None if falls is None else falls[-1]) if self.rule.needs_reference else None
+            ref = (
+                self.rule.reference(per[-1], None if falls is None else falls[-1])
+                if self.rule.needs_reference
+                else None
+            )
             values = self.rule.scenario_values(per, falls, ref)
             # every candidate: one off the front here may be on it in a resample (a dominated one adds nothing)
             out["hypervolume"], out["hypervolume_se"] = hypervolume_se(values, self.rule.aggregate)
@@ -134,10 +150,17 @@ def _pool(fits: list[RealFitness], rule: CostRule | None = None) -> RealFitness:
     out = copy.copy(fits[-1])
     if all(f.per_scenario is not None for f in fits):
         per = np.concatenate([np.asarray(f.per_scenario, dtype=float) for f in fits], axis=1)
-        falls = (np.concatenate([np.asarray(f.scenario_falls, dtype=bool) for f in fits], axis=1)
-                 if all(f.scenario_falls is not None for f in fits) else None)
+        falls = (
+            np.concatenate([np.asarray(f.scenario_falls, dtype=bool) for f in fits], axis=1)
+            if all(f.scenario_falls is not None for f in fits)
+            else None
+        )
         out.per_scenario, out.scenario_falls = per, falls
-        ref = rule.reference(per[-1], None if falls is None else falls[-1]) if rule.needs_reference else None
+        ref = (
+            rule.reference(per[-1], None if falls is None else falls[-1])
+            if rule.needs_reference
+            else None
+        )
         values = rule.scenario_values(per, falls, ref)
         out.costs = rule.aggregate(values)
         out.cost_se = scenario_se(values, rule.aggregate)
@@ -149,20 +172,37 @@ def _pool(fits: list[RealFitness], rule: CostRule | None = None) -> RealFitness:
     for name, value in vars(fits[-1]).items():  # survival, fall rate and any other [K] figure
         if name in ("costs", "per_scenario", "cost_se", "buffer", "scenario_falls"):
             continue
-        if isinstance(value, np.ndarray) and value.shape == (k,) and all(getattr(f, name) is not None for f in fits):
-            setattr(out, name, np.mean([np.asarray(getattr(f, name), dtype=float) for f in fits], axis=0))
+        if (
+            isinstance(value, np.ndarray)
+            and value.shape == (k,)
+            and all(getattr(f, name) is not None for f in fits)
+        ):
+            setattr(
+                out,
+                name,
+                np.mean([np.asarray(getattr(f, name), dtype=float) for f in fits], axis=0),
+            )
     return out
 
 
-def _fall_check(falls: np.ndarray | None, candidates: int, tolerance: float) -> list[dict[str, Any]]:
+def _fall_check(
+    falls: np.ndarray | None, candidates: int, tolerance: float
+) -> list[dict[str, Any]]:
     """Per candidate row: its paired fall-rate difference to the nominal design (the last row)
     and whether it stays within max(tolerance, 2 standard errors)."""
     out = []
     for i in range(candidates):
         st = fall_statistics(falls, i, -1) if falls is not None else fall_statistics(None, 0, 0)
         d, se = st["fall_rate_difference"], st["fall_rate_difference_se"]
-        out.append({"row": i, "fall_rate": st["fall_rate"], "fall_rate_difference": d,
-                    "fall_rate_difference_se": _finite(se), "eligible": not falls_more(d, se, tolerance)})
+        out.append(
+            {
+                "row": i,
+                "fall_rate": st["fall_rate"],
+                "fall_rate_difference": d,
+                "fall_rate_difference_se": _finite(se),
+                "eligible": not falls_more(d, se, tolerance),
+            }
+        )
     return out
 
 
@@ -203,7 +243,11 @@ def final_check(
         if choose_best is not None:
             best = choose_best(costs)
         else:
-            gate = _fall_check(pooled.scenario_falls, nominal, fall_tolerance) if fall_tolerance is not None else []
+            gate = (
+                _fall_check(pooled.scenario_falls, nominal, fall_tolerance)
+                if fall_tolerance is not None
+                else []
+            )
             allowed = [i for i in range(nominal) if not gate or gate[i]["eligible"]]
             best = min(allowed, key=lambda i: costs[i, 0]) if allowed else nominal
             if fall_tolerance is not None and costs[best, 0] >= costs[nominal, 0]:
@@ -224,28 +268,56 @@ def final_check(
             break
     assert pooled is not None
     cost_se = None if pooled.per_scenario is None else np.asarray(pooled.cost_se, dtype=float)
-    scenarios = int(np.asarray(pooled.per_scenario).shape[1]) if pooled.per_scenario is not None else 0
+    scenarios = (
+        int(np.asarray(pooled.per_scenario).shape[1]) if pooled.per_scenario is not None else 0
+    )
     comparison = None
     if pooled.per_scenario is not None:
-        comparison = compare_designs(rule, objectives, np.asarray(pooled.per_scenario, dtype=float),
-                                     pooled.scenario_falls, best, nominal)
+        comparison = compare_designs(
+            rule,
+            objectives,
+            np.asarray(pooled.per_scenario, dtype=float),
+            pooled.scenario_falls,
+            best,
+            nominal,
+        )
     se_out = {k: (None if v is None or not np.isfinite(v) else float(v)) for k, v in se_map.items()}
-    return FinalCheck(fit=pooled, best=best, blocks=len(fits), scenarios=scenarios, cost_se=cost_se,
-                      improvement_se=se_out, significant=significant, rule=rule, comparison=comparison,
-                      fall_check=gate)
+    return FinalCheck(
+        fit=pooled,
+        best=best,
+        blocks=len(fits),
+        scenarios=scenarios,
+        cost_se=cost_se,
+        improvement_se=se_out,
+        significant=significant,
+        rule=rule,
+        comparison=comparison,
+        fall_check=gate,
+    )
 
 
 def no_uncertainty(names: Sequence[str]) -> dict[str, Any]:
     """The summary fields of `FinalCheck.uncertainty` when no final check measured them (the
     BO baseline, whose designs each have their own policy)."""
     empty = {n: None for n in names}
-    return {"best_cost_se": None, "best_costs_se": dict(empty), "nominal_cost_se": None,
-            "nominal_costs_se": dict(empty), "improvement_se": None, "improvements_se": dict(empty),
-            "significant": None, "best_fall_rate": None, "nominal_fall_rate": None, "final_scenarios": 0,
-            "final_blocks": 0}
+    return {
+        "best_cost_se": None,
+        "best_costs_se": dict(empty),
+        "nominal_cost_se": None,
+        "nominal_costs_se": dict(empty),
+        "improvement_se": None,
+        "improvements_se": dict(empty),
+        "significant": None,
+        "best_fall_rate": None,
+        "nominal_fall_rate": None,
+        "final_scenarios": 0,
+        "final_blocks": 0,
+    }
 
 
-def batch_errors(fit: RealFitness, rule: CostRule | None = None, reference: np.ndarray | None = None) -> dict[str, Any]:
+def batch_errors(
+    fit: RealFitness, rule: CostRule | None = None, reference: np.ndarray | None = None
+) -> dict[str, Any]:
     """What a real optimisation round records beside its costs (the run summary's `batches`):
     for its best design (first objective, under `rule` with its reference level) the cost's
     standard error, the plain mean (eq. 4) with its standard error and the fall rate with its
@@ -275,8 +347,13 @@ def batch_errors(fit: RealFitness, rule: CostRule | None = None, reference: np.n
     if per is not None:
         column = per[best, :, 0]
         out["best_plain_mean"] = float(column.mean())
-        out["best_plain_mean_se"] = float(column.std(ddof=1) / np.sqrt(len(column))) if len(column) > 1 else None
+        out["best_plain_mean_se"] = (
+            float(column.std(ddof=1) / np.sqrt(len(column))) if len(column) > 1 else None
+        )
         if fit.scenario_falls is not None:
             st = fall_statistics(np.asarray(fit.scenario_falls, dtype=float), best, best)
-            out["best_fall_rate"], out["best_fall_rate_se"] = st["fall_rate"], _finite(st["fall_rate_se"])
+            out["best_fall_rate"], out["best_fall_rate_se"] = (
+                st["fall_rate"],
+                _finite(st["fall_rate_se"]),
+            )
     return out

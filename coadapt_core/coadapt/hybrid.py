@@ -59,8 +59,16 @@ class HybridPolicy:
     draws from the loop's generator, so a resumed run decides as the first one would have;
     `backend()` is the loop's (built on first use), `seed_for(*parts)` its positional seeds."""
 
-    def __init__(self, config: CoadaptConfig, method: Method, objectives: Sequence[Objective], state: LoopState,
-                 rng: np.random.Generator, backend: Callable[[], CoadaptationBackend], seed_for: Callable[..., int]):
+    def __init__(
+        self,
+        config: CoadaptConfig,
+        method: Method,
+        objectives: Sequence[Objective],
+        state: LoopState,
+        rng: np.random.Generator,
+        backend: Callable[[], CoadaptationBackend],
+        seed_for: Callable[..., int],
+    ):
         self.config = config
         self.state = state
         self.rng = rng
@@ -71,9 +79,15 @@ class HybridPolicy:
         forced = method.surrogate_probability  # a method of the comparison may force it
         self.surrogate_probability = config.surrogate_probability if forced is None else forced
         self.uncertainty = config.evaluation_policy == "uncertainty" and forced is None
-        self._fitted_for: tuple[int, int, int] | None = None  # (outer, labels, buffer) the backend's fit is for
-        self._pending: tuple[int, np.ndarray] | None = None  # (inner, ensemble's costs) of a trusted round
-        self._judging = True  # whether this real round's surrogate error is measured (before_real_round)
+        self._fitted_for: tuple[int, int, int] | None = (
+            None  # (outer, labels, buffer) the backend's fit is for
+        )
+        self._pending: tuple[int, np.ndarray] | None = (
+            None  # (inner, ensemble's costs) of a trusted round
+        )
+        self._judging = (
+            True  # whether this real round's surrogate error is measured (before_real_round)
+        )
 
     def forget_fit(self) -> None:
         """A new backend or a new policy: the ensemble must be fitted again."""
@@ -122,8 +136,13 @@ class HybridPolicy:
         if ensemble is None or not self.ensure_fitted():
             return "real", None
         t0 = time.perf_counter()
-        members = ensemble.surrogate_members(designs, self.objectives, s.buffer, samples=c.surrogate_samples,
-                                             seed=self.seed_for(3, s.outer, s.inner))
+        members = ensemble.surrogate_members(
+            designs,
+            self.objectives,
+            s.buffer,
+            samples=c.surrogate_samples,
+            seed=self.seed_for(3, s.outer, s.inner),
+        )
         s.counters["surrogate_seconds"] += time.perf_counter() - t0
         if members is None:
             return "real", None
@@ -140,14 +159,28 @@ class HybridPolicy:
         labels, the buffer and the seed). False when there is nothing to fit or no ensemble."""
         s, c = self.state, self.config
         ensemble = self.ensemble()
-        if not c.fit_surrogate or ensemble is None or not s.labels or s.buffer is None or s.buffer_outer != s.outer:
+        if (
+            not c.fit_surrogate
+            or ensemble is None
+            or not s.labels
+            or s.buffer is None
+            or s.buffer_outer != s.outer
+        ):
             return False
         key = (s.outer, len(s.labels), s.buffer_serial)
         if self._fitted_for != key:
             t0 = time.perf_counter()
-            designs = np.concatenate([np.asarray(item["designs"], dtype=float) for item in s.labels])
+            designs = np.concatenate(
+                [np.asarray(item["designs"], dtype=float) for item in s.labels]
+            )
             costs = np.concatenate([np.asarray(item["costs"], dtype=float) for item in s.labels])
-            ensemble.fit_surrogate(designs, costs, self.objectives, s.buffer, seed=self.seed_for(6, s.outer, len(s.labels)))
+            ensemble.fit_surrogate(
+                designs,
+                costs,
+                self.objectives,
+                s.buffer,
+                seed=self.seed_for(6, s.outer, len(s.labels)),
+            )
             s.counters["surrogate_seconds"] += time.perf_counter() - t0
             self._fitted_for = key
         return True
@@ -160,12 +193,15 @@ class HybridPolicy:
         t0 = time.perf_counter()
         # the round's seconds include a fit it needs: counted once (ensure_fitted counts it too)
         counted = s.counters["surrogate_seconds"]
-        if self._pending is not None and self._pending[0] == s.inner:  # the ensemble's, just computed
+        if (
+            self._pending is not None and self._pending[0] == s.inner
+        ):  # the ensemble's, just computed
             predicted = self._pending[1]
         else:
             self.ensure_fitted()
-            predicted = self.backend().surrogate_fitness(designs, self.objectives, s.buffer,
-                                                         samples=c.surrogate_samples, seed=seed)
+            predicted = self.backend().surrogate_fitness(
+                designs, self.objectives, s.buffer, samples=c.surrogate_samples, seed=seed
+            )
         self._pending = None
         seconds = time.perf_counter() - t0
         s.counters["surrogate_seconds"] = counted + seconds
@@ -200,10 +236,23 @@ class HybridPolicy:
         if self._fitted_for == (s.outer, len(s.labels), s.buffer_serial):
             return True
         last = s.batches[-1] if s.batches else None
-        return bool(s.labels) and last is not None and last["outer"] == s.outer and last["kind"] != "real"
+        return (
+            bool(s.labels)
+            and last is not None
+            and last["outer"] == s.outer
+            and last["kind"] != "real"
+        )
 
-    def judge_real_round(self, designs: np.ndarray, costs: np.ndarray, states: Any, *, eligible: bool, fitted: bool,
-                         seed: int) -> np.ndarray | None:
+    def judge_real_round(
+        self,
+        designs: np.ndarray,
+        costs: np.ndarray,
+        states: Any,
+        *,
+        eligible: bool,
+        fitted: bool,
+        seed: int,
+    ) -> np.ndarray | None:
         """The surrogate's errors [P, M] on a real round: its prediction, made before this
         round's costs are known (the first round of a policy: the paper's estimator on its
         own buffer, marked not eligible), recorded with its quality figures. None when
@@ -215,38 +264,66 @@ class HybridPolicy:
         ensemble = self.ensemble() if fitted else None
         members = None
         if ensemble is not None:  # the members too: their spread ratio is recorded
-            members = ensemble.surrogate_members(designs, self.objectives, states, samples=c.surrogate_samples, seed=seed)
+            members = ensemble.surrogate_members(
+                designs, self.objectives, states, samples=c.surrogate_samples, seed=seed
+            )
         if members is not None:
             members = np.asarray(members, dtype=float).reshape(-1, *costs.shape)
             predicted = members.mean(axis=0)
         else:
-            predicted = self.backend().surrogate_fitness(designs, self.objectives, states, samples=c.surrogate_samples,
-                                                         seed=seed)
+            predicted = self.backend().surrogate_fitness(
+                designs, self.objectives, states, samples=c.surrogate_samples, seed=seed
+            )
         s.counters["surrogate_seconds"] += time.perf_counter() - t0
         predicted = np.asarray(predicted, dtype=float).reshape(costs.shape)
-        self.record_quality(predicted, costs, eligible=eligible, fitted=fitted,
-                            spread=None if members is None else spread_ratio(members))
+        self.record_quality(
+            predicted,
+            costs,
+            eligible=eligible,
+            fitted=fitted,
+            spread=None if members is None else spread_ratio(members),
+        )
         return predicted - costs
 
     # -- quality records -------------------------------------------------------------------
-    def record_quality(self, predicted: np.ndarray, costs: np.ndarray, *, eligible: bool, fitted: bool,
-                       spread: float | None = None) -> None:
+    def record_quality(
+        self,
+        predicted: np.ndarray,
+        costs: np.ndarray,
+        *,
+        eligible: bool,
+        fitted: bool,
+        spread: float | None = None,
+    ) -> None:
         """One entry of `surrogate_quality.rounds`: the round's (surrogate, real) pairs per
         objective and their figures (coadapt_core/surrogate_quality.py), and the fitted
         ensemble's spread ratio on the round (what the uncertainty policy would have seen)."""
         s = self.state
-        entry: dict[str, Any] = {"outer": s.outer, "inner": s.inner, "eligible": bool(eligible),
-                                 "estimator": "fitted" if fitted else "paper", "spread_ratio": spread, "objectives": {}}
+        entry: dict[str, Any] = {
+            "outer": s.outer,
+            "inner": s.inner,
+            "eligible": bool(eligible),
+            "estimator": "fitted" if fitted else "paper",
+            "spread_ratio": spread,
+            "objectives": {},
+        }
         for j, name in enumerate(self.names):
             pairs = {"surrogate": predicted[:, j].tolist(), "real": costs[:, j].tolist()}
             entry["objectives"][name] = {**quality_of(pairs["surrogate"], pairs["real"]), **pairs}
         s.quality_rounds.append(sq.clean(entry))
         from coadapt_core import tracking
 
-        tracking.log_values("surrogate_quality", {
-            f"{name}_{m}": q[m] for name, q in entry["objectives"].items() for m in sq.METRICS
-            if isinstance(q.get(m), float) and np.isfinite(q[m])
-        } | {"eligible": float(eligible)}, len(s.quality_rounds))
+        tracking.log_values(
+            "surrogate_quality",
+            {
+                f"{name}_{m}": q[m]
+                for name, q in entry["objectives"].items()
+                for m in sq.METRICS
+                if isinstance(q.get(m), float) and np.isfinite(q[m])
+            }
+            | {"eligible": float(eligible)},
+            len(s.quality_rounds),
+        )
 
     def quality_summary(self) -> dict[str, Any]:
         """summary.json's `surrogate_quality`: pooled over the eligible rounds (those where a
@@ -256,18 +333,30 @@ class HybridPolicy:
         used = [r for r in rounds if r["eligible"]]
         by_objective = {}
         for name in self.names:
-            pairs = [{"surrogate": _floats(r["objectives"][name]["surrogate"]), "real": _floats(r["objectives"][name]["real"])}
-                     for r in used if name in r["objectives"]]
+            pairs = [
+                {
+                    "surrogate": _floats(r["objectives"][name]["surrogate"]),
+                    "real": _floats(r["objectives"][name]["real"]),
+                }
+                for r in used
+                if name in r["objectives"]
+            ]
             by_objective[name] = sq.clean(sq.pooled(pairs))
-        brief = [{k: v for k, v in r.items() if k != "objectives"}
-                 | {"objectives": {n: {m: q.get(m) for m in (*sq.METRICS, "n")} for n, q in r["objectives"].items()}}
-                 for r in rounds]
+        brief = [
+            {k: v for k, v in r.items() if k != "objectives"}
+            | {
+                "objectives": {
+                    n: {m: q.get(m) for m in (*sq.METRICS, "n")} for n, q in r["objectives"].items()
+                }
+            }
+            for r in rounds
+        ]
         return {
             "pooled": by_objective[self.names[0]] if self.names else {},
             "by_objective": by_objective,
             "rounds": brief,
             "estimator": "fitted" if self.config.fit_surrogate else "paper",
             "definition": "over eligible real rounds (a real round of the same policy came before); relative error "
-                          "(surrogate - real) / |real|; top_k_regret: (best real cost among the surrogate's "
-                          f"{sq.TOP_K} cheapest - best real cost) / |best real cost|, mean over rounds",
+            "(surrogate - real) / |real|; top_k_regret: (best real cost among the surrogate's "
+            f"{sq.TOP_K} cheapest - best real cost) / |best real cost|, mean over rounds",
         }

@@ -103,8 +103,12 @@ class CoadaptationLoop:
         self.started = time.perf_counter()
         self.backend: CoadaptationBackend | None = None
         # which kind each round is, and the surrogate's side of it (hybrid.py)
-        self.hybrid = HybridPolicy(config, self.method, self.objectives, state, self.rng, self.get_backend, self.seed_for)
-        if state.optimizer is None and state.optimizer_init is not None:  # resumed: rebuild from data
+        self.hybrid = HybridPolicy(
+            config, self.method, self.objectives, state, self.rng, self.get_backend, self.seed_for
+        )
+        if (
+            state.optimizer is None and state.optimizer_init is not None
+        ):  # resumed: rebuild from data
             state.optimizer = self.make_optimizer(state.optimizer_init)
             if state.optimizer_state is not None:
                 state.optimizer.load_state_dict(state.optimizer_state)
@@ -113,21 +117,29 @@ class CoadaptationLoop:
     def make_optimizer(self, init: dict[str, Any]) -> Optimizer:
         """The optimizer from its constructor arguments as data (`LoopState.optimizer_init`)."""
         return self.optimizer_cls(
-            DesignSpace.from_dict(init["space"]), population=init["population"], budget=init["budget"],
-            seed=init["seed"], num_objectives=init["num_objectives"], initial_designs=init["initial_designs"],
+            DesignSpace.from_dict(init["space"]),
+            population=init["population"],
+            budget=init["budget"],
+            seed=init["seed"],
+            num_objectives=init["num_objectives"],
+            initial_designs=init["initial_designs"],
             **init["options"],
         )
 
     # -- bookkeeping -----------------------------------------------------------------------
     @property
     def outer_count(self) -> int:
-        return 1 if not (self.method.retrain or self.method.narrow) else self.config.outer_iterations
+        return (
+            1 if not (self.method.retrain or self.method.narrow) else self.config.outer_iterations
+        )
 
     @property
     def rounds_per_outer(self) -> int:
         if self.method.rounds_setting is not None:
             return int(getattr(self.config, self.method.rounds_setting))
-        if self.outer_count == 1 and self.config.outer_iterations > 1:  # no-retrain: N*J in one swarm
+        if (
+            self.outer_count == 1 and self.config.outer_iterations > 1
+        ):  # no-retrain: N*J in one swarm
             return self.config.outer_iterations * self.config.optimizer_iterations
         return self.config.optimizer_iterations
 
@@ -154,15 +166,29 @@ class CoadaptationLoop:
         c = s.counters
         eta, elapsed = self.eta_seconds(), self.elapsed()
         # the share of the time, once the ETA is known; else the share of the steps
-        fraction = elapsed / (elapsed + eta) if eta is not None and elapsed + eta > 0 else min(done / total, 1.0)
-        self.progress({
-            "phase": phase, "outer": s.outer, "outer_total": self.outer_count, "inner": s.inner,
-            "inner_total": self.rounds_per_outer, "fraction": fraction,
-            "best_cost": None if s.best_real is None else s.best_real[1],
-            "best_any": None if s.best_any is None else s.best_any[1],
-            "interactions": int(c["train_interactions"] + c["eval_interactions"] + c["final_interactions"]),
-            "elapsed": elapsed, "eta": eta, **extra,
-        })
+        fraction = (
+            elapsed / (elapsed + eta)
+            if eta is not None and elapsed + eta > 0
+            else min(done / total, 1.0)
+        )
+        self.progress(
+            {
+                "phase": phase,
+                "outer": s.outer,
+                "outer_total": self.outer_count,
+                "inner": s.inner,
+                "inner_total": self.rounds_per_outer,
+                "fraction": fraction,
+                "best_cost": None if s.best_real is None else s.best_real[1],
+                "best_any": None if s.best_any is None else s.best_any[1],
+                "interactions": int(
+                    c["train_interactions"] + c["eval_interactions"] + c["final_interactions"]
+                ),
+                "elapsed": elapsed,
+                "eta": eta,
+                **extra,
+            }
+        )
 
     def eta_seconds(self) -> float | None:
         """Seconds left, from the wall clock this run has measured (the counters are part of
@@ -182,7 +208,11 @@ class CoadaptationLoop:
             return None
         per_real = real_wall / real_rounds
         surrogate_rounds = cnt.get("surrogate_rounds_timed", 0)
-        per_surrogate = cnt.get("surrogate_round_wall", 0.0) / surrogate_rounds if surrogate_rounds else 0.5 * per_real
+        per_surrogate = (
+            cnt.get("surrogate_round_wall", 0.0) / surrogate_rounds
+            if surrogate_rounds
+            else 0.5 * per_real
+        )
         # training phases still to come (this outer iteration's if it has not trained yet)
         steps_left = 0
         if self.shared and not (self.pretrained and not self.method.retrain):
@@ -195,7 +225,9 @@ class CoadaptationLoop:
             return None
         seconds = steps_left * (train_wall / train_steps if train_steps else 0.0)
         if s.phase in ("train", "optimize"):
-            rounds_left = self.rounds_per_outer * (self.outer_count - s.outer) - (s.inner if s.phase == "optimize" else 0)
+            rounds_left = self.rounds_per_outer * (self.outer_count - s.outer) - (
+                s.inner if s.phase == "optimize" else 0
+            )
             real_share = self.hybrid.real_share(real_rounds, surrogate_rounds)
             seconds += rounds_left * (real_share * per_real + (1 - real_share) * per_surrogate)
         real = [b for b in s.batches if b.get("kind") == "real"]
@@ -228,9 +260,13 @@ class CoadaptationLoop:
         a study kept under `<run id>-outer<k>` in the run's results store, where a study
         browser reads it and no two runs of a grid share a name."""
         url = getattr(self.recorder, "url", None)
-        facts = {"run_name": f"{self.state.run_id}-outer{self.state.outer}",
-                 "store_url": url if isinstance(url, str) and "://" in url else None}
-        return fill_from_run(getattr(self.optimizer_cls, "option_specs", ()), self.config.optimizer_options, facts)
+        facts = {
+            "run_name": f"{self.state.run_id}-outer{self.state.outer}",
+            "store_url": url if isinstance(url, str) and "://" in url else None,
+        }
+        return fill_from_run(
+            getattr(self.optimizer_cls, "option_specs", ()), self.config.optimizer_options, facts
+        )
 
     # -- the phases ------------------------------------------------------------------------
     def run(self) -> dict[str, Any]:
@@ -249,18 +285,26 @@ class CoadaptationLoop:
         """Algorithm 4 lines 10-11 and the set-up of this outer iteration's optimizer."""
         s, c = self.state, self.config
         space = DesignSpace.from_dict(s.space)
-        if s.train_progress is None:  # else resumed inside the phase: its designs are drawn (phase.py)
+        if (
+            s.train_progress is None
+        ):  # else resumed inside the phase: its designs are drawn (phase.py)
             s.spaces.append(space.to_dict())
-            s.train_designs = space.sample(c.population, self.rng) if self.shared else None  # [K, dim], line 10
+            s.train_designs = (
+                space.sample(c.population, self.rng) if self.shared else None
+            )  # [K, dim], line 10
         population = 1 if self.optimizer_cls.sequential else c.population
         initial = None
         if self.shared:
             initial = s.train_designs[:population] if population == c.population else None
             self.train_shared_policy()
         s.optimizer_init = {
-            "space": space.to_dict(), "population": population, "budget": self.rounds_per_outer,
-            "seed": self.seed_for(2, s.outer), "num_objectives": len(self.objectives),
-            "initial_designs": initial, "options": self.optimizer_options(),
+            "space": space.to_dict(),
+            "population": population,
+            "budget": self.rounds_per_outer,
+            "seed": self.seed_for(2, s.outer),
+            "num_objectives": len(self.objectives),
+            "initial_designs": initial,
+            "options": self.optimizer_options(),
         }
         s.optimizer = self.make_optimizer(s.optimizer_init)
         s.phase, s.inner = "optimize", 0
@@ -280,12 +324,18 @@ class CoadaptationLoop:
             self.hybrid.forget_fit()
             self.emit("training")
             t0 = time.perf_counter()
-            rate = phase_progress.PhaseRate()  # the phase's own count and ETA, from its measured rate
+            rate = (
+                phase_progress.PhaseRate()
+            )  # the phase's own count and ETA, from its measured rate
 
             def heard(done: int, total: int) -> None:
-                self.emit("training", phase_done=done, phase_total=total, phase_eta=rate.eta(done, total))
+                self.emit(
+                    "training", phase_done=done, phase_total=total, phase_eta=rate.eta(done, total)
+                )
 
-            result = train_in_chunks(self, steps, heard)  # a checkpoint every checkpoint_interactions
+            result = train_in_chunks(
+                self, steps, heard
+            )  # a checkpoint every checkpoint_interactions
             s.counters["train_wall"] = s.counters.get("train_wall", 0.0) + time.perf_counter() - t0
             s.counters["train_steps_timed"] = s.counters.get("train_steps_timed", 0) + int(steps)
             self.count_training([result])
@@ -319,8 +369,13 @@ class CoadaptationLoop:
         key = s.outer if self.shared else 0
         if s.reference is not None and s.reference_outer == key:
             return np.asarray(s.reference, dtype=float)
-        nominal = self.get_backend().real_fitness(self.nominal[None, :], self.objectives, agents=c.evaluation_agents,
-                                                  steps=c.eval_steps, seed=self.scenario_seed())
+        nominal = self.get_backend().real_fitness(
+            self.nominal[None, :],
+            self.objectives,
+            agents=c.evaluation_agents,
+            steps=c.eval_steps,
+            seed=self.scenario_seed(),
+        )
         self.count_training(nominal.training)
         s.counters["eval_interactions"] += int(nominal.interactions)
         s.counters["eval_seconds"] += float(nominal.seconds)
@@ -349,8 +404,12 @@ class CoadaptationLoop:
         t0 = time.perf_counter()
         designs = opt.ask()  # [P, dim]
         initial = (s.optimizer_init or {}).get("initial_designs")
-        if s.inner == 0 and initial is not None:  # the swarm starts from the training designs (line 10)
-            note_first_round(self.state.notes, self.optimizer_cls, np.asarray(initial, dtype=float), designs)
+        if (
+            s.inner == 0 and initial is not None
+        ):  # the swarm starts from the training designs (line 10)
+            note_first_round(
+                self.state.notes, self.optimizer_cls, np.asarray(initial, dtype=float), designs
+            )
         kind, uncertainty = self.hybrid.choose_kind(designs)
         self.emit(f"{kind} evaluation")
         record = self.evaluate(designs, kind, uncertainty=uncertainty)
@@ -358,12 +417,16 @@ class CoadaptationLoop:
         self.record_batch(designs, record)
         s.inner += 1
         # wall clock per kind of round, for the ETA (`eta_seconds`); saved with the state
-        s.counters[f"{kind}_round_wall"] = s.counters.get(f"{kind}_round_wall", 0.0) + time.perf_counter() - t0
+        s.counters[f"{kind}_round_wall"] = (
+            s.counters.get(f"{kind}_round_wall", 0.0) + time.perf_counter() - t0
+        )
         s.counters[f"{kind}_rounds_timed"] = s.counters.get(f"{kind}_rounds_timed", 0) + 1
         self.checkpoint()
         self.emit("evaluated", kind=kind)
 
-    def evaluate(self, designs: np.ndarray, kind: str, *, uncertainty: float | None = None) -> RoundRecord:
+    def evaluate(
+        self, designs: np.ndarray, kind: str, *, uncertainty: float | None = None
+    ) -> RoundRecord:
         """The round's record: costs [P, M], what it spent, surrogate errors [P, M] and, for a
         real round, survival, tracking and error bars; `uncertainty` as the hybrid policy judged it."""
         s, c = self.state, self.config
@@ -375,25 +438,42 @@ class CoadaptationLoop:
         # would have been allowed here (a real round of this policy came before): its
         # prediction, made before this round's costs are known, is what the quality figures judge
         eligible, fitted, previous = self.hybrid.before_real_round()
-        fit = self.get_backend().real_fitness(designs, self.objectives, agents=c.evaluation_agents, steps=c.eval_steps,
-                                              seed=self.scenario_seed())
+        fit = self.get_backend().real_fitness(
+            designs,
+            self.objectives,
+            agents=c.evaluation_agents,
+            steps=c.eval_steps,
+            seed=self.scenario_seed(),
+        )
         self.count_training(fit.training)
         s.buffer, s.buffer_outer = fit.buffer, s.outer  # line 15: R_eval from this rollout
         s.buffer_serial += 1
         costs = self.rule_costs(fit).reshape(len(designs), -1)
         errors = None
         if c.measure_surrogate_error and self.shared:  # no shared policy, no surrogate
-            errors = self.hybrid.judge_real_round(designs, costs, previous if eligible else fit.buffer,
-                                                  eligible=eligible, fitted=fitted, seed=seed)
+            errors = self.hybrid.judge_real_round(
+                designs,
+                costs,
+                previous if eligible else fit.buffer,
+                eligible=eligible,
+                fitted=fitted,
+                seed=seed,
+            )
         s.labels.append({"designs": designs.tolist(), "costs": costs.tolist()})
         s.counters["eval_interactions"] += int(fit.interactions)
         s.counters["eval_seconds"] += float(fit.seconds)
         s.counters["real_evaluations"] += 1
         return RoundRecord(
-            kind, costs, int(fit.interactions), float(fit.seconds), errors,
+            kind,
+            costs,
+            int(fit.interactions),
+            float(fit.seconds),
+            errors,
             survival=None if fit.survival is None else float(np.mean(fit.survival)),
             tracking_ratio=walking(fit)["tracking_ratio"],
-            error_bars=batch_errors(fit, self.cost_rule, self.reference_level(fit)), uncertainty=uncertainty)
+            error_bars=batch_errors(fit, self.cost_rule, self.reference_level(fit)),
+            uncertainty=uncertainty,
+        )
 
     def record_batch(self, designs: np.ndarray, record: RoundRecord) -> None:
         s = self.state
@@ -403,10 +483,23 @@ class CoadaptationLoop:
         s.counters["designs_evaluated"] += n
         s.note_costs(designs, costs[:, 0], kind, self.config.final_candidates)
         cost_dicts = [dict(zip(self.names, map(float, row), strict=True)) for row in costs]
-        error_dicts = None if errors is None else [dict(zip(self.names, map(float, row), strict=True)) for row in errors]
+        error_dicts = (
+            None
+            if errors is None
+            else [dict(zip(self.names, map(float, row), strict=True)) for row in errors]
+        )
         shares, secs = _split(int(interactions), n), _split(float(seconds), n)
-        self.recorder.record_evaluations(s.run_id, outer=s.outer, inner=s.inner, designs=designs.tolist(), costs=cost_dicts,
-                                         kind=kind, interactions=shares, seconds=secs, surrogate_errors=error_dicts)
+        self.recorder.record_evaluations(
+            s.run_id,
+            outer=s.outer,
+            inner=s.inner,
+            designs=designs.tolist(),
+            costs=cost_dicts,
+            kind=kind,
+            interactions=shares,
+            seconds=secs,
+            surrogate_errors=error_dicts,
+        )
         s.add_batch(record)
 
     def end_outer(self) -> None:
@@ -415,7 +508,9 @@ class CoadaptationLoop:
         space = DesignSpace.from_dict(s.space)
         if self.method.narrow:
             narrowed = space.narrow(
-                s.optimizer.final_population(), margin=c.narrow_margin, min_width_fraction=c.narrow_min_width,
+                s.optimizer.final_population(),
+                margin=c.narrow_margin,
+                min_width_fraction=c.narrow_min_width,
                 reference=self.full_space,
             )
             s.space = narrowed.to_dict()
@@ -434,9 +529,17 @@ class CoadaptationLoop:
         outcome = self._final_check(designs)  # with a policy per design: each candidate's own
         if not self.shared:
             outcome.uncertainty["own_policies"] = self._save_own_policies(outcome.best_design)
-        s.summary = run_summary(s, c, self.objectives, outcome, optimizer=self.optimizer_cls.name, nominal=self.nominal,
-                                seconds=self.elapsed(), surrogate_quality=self.hybrid.quality_summary(),
-                                shared=self.shared)
+        s.summary = run_summary(
+            s,
+            c,
+            self.objectives,
+            outcome,
+            optimizer=self.optimizer_cls.name,
+            nominal=self.nominal,
+            seconds=self.elapsed(),
+            surrogate_quality=self.hybrid.quality_summary(),
+            shared=self.shared,
+        )
         s.phase = "done"
         self.checkpoint()
         # the store says "finished" once the caller's last step (`run_coadaptation(finishing=)`,
@@ -451,14 +554,23 @@ class CoadaptationLoop:
             return {}
         (self.run_dir / "checkpoints").mkdir(exist_ok=True)
         for role, design in (("best", best_design), ("nominal", self.nominal)):
-            self.count_training(backend.save_policy(np.asarray(design, dtype=float), str(self.run_dir / OWN_POLICY_FILES[role])))
+            self.count_training(
+                backend.save_policy(
+                    np.asarray(design, dtype=float), str(self.run_dir / OWN_POLICY_FILES[role])
+                )
+            )
         return dict(OWN_POLICY_FILES)
 
     def _final_fitness(self, designs: np.ndarray, block: int) -> RealFitness:
         """One scenario block of the final check; policies a backend trains first count as training."""
         c = self.config
-        fit = self.get_backend().real_fitness(designs, self.objectives, agents=c.evaluation_agents, steps=c.eval_steps,
-                                              seed=self.scenario_seed(block))
+        fit = self.get_backend().real_fitness(
+            designs,
+            self.objectives,
+            agents=c.evaluation_agents,
+            steps=c.eval_steps,
+            seed=self.scenario_seed(block),
+        )
         self.count_training(fit.training)
         return fit
 
@@ -467,8 +579,13 @@ class CoadaptationLoop:
         until the improvement is >= 4 standard errors (final_check.py)."""
         s, c = self.state, self.config
         check = final_check(
-            self._final_fitness, designs, self.objectives, max_blocks=c.final_max_blocks, min_blocks=min(c.final_min_blocks, c.final_max_blocks),
-            rule=self.cost_rule, fall_tolerance=c.fall_tolerance if len(self.objectives) == 1 else None,
+            self._final_fitness,
+            designs,
+            self.objectives,
+            max_blocks=c.final_max_blocks,
+            min_blocks=min(c.final_min_blocks, c.final_max_blocks),
+            rule=self.cost_rule,
+            fall_tolerance=c.fall_tolerance if len(self.objectives) == 1 else None,
             on_block=lambda b: self.emit(f"final check, scenario block {b}"),
         )
         fit = check.fit
@@ -480,6 +597,11 @@ class CoadaptationLoop:
         front = check.front(designs, self.names) if len(self.objectives) > 1 else None
         i = int(front_rows(designs[:-1], costs[:-1])[0]) if front is not None else check.best
         best_design, best_costs = designs[i], costs[i]
-        return FinalOutcome(best_design=best_design, best_costs=best_costs, nominal_costs=costs[-1],
-                            uncertainty=check.uncertainty(self.names), front=front,
-                            walking={"best": walking(fit, [i]), "nominal": walking(fit, [len(designs) - 1])})
+        return FinalOutcome(
+            best_design=best_design,
+            best_costs=best_costs,
+            nominal_costs=costs[-1],
+            uncertainty=check.uncertainty(self.names),
+            front=front,
+            walking={"best": walking(fit, [i]), "nominal": walking(fit, [len(designs) - 1])},
+        )

@@ -33,7 +33,9 @@ def chunk_seed(loop: CoadaptationLoop, chunk: int) -> int:
     return loop.seed_for(1, outer) if chunk == 0 else loop.seed_for(1, outer, chunk)
 
 
-def train_in_chunks(loop: CoadaptationLoop, steps: int, heard: Callable[[int, int], None]) -> TrainingResult:
+def train_in_chunks(
+    loop: CoadaptationLoop, steps: int, heard: Callable[[int, int], None]
+) -> TrainingResult:
     """Train the shared policy for `steps` interactions on the state's `train_designs`, in
     chunks of `checkpoint_interactions` (0: one chunk), writing the policy and the state
     (`train_progress`) after every chunk but the last; a state that holds `train_progress`
@@ -43,27 +45,43 @@ def train_in_chunks(loop: CoadaptationLoop, steps: int, heard: Callable[[int, in
     adds `chunks` and `resumed_at`, the interactions done before this process)."""
     s = loop.state
     every = int(getattr(loop.config, "checkpoint_interactions", 0) or 0)
-    progress: dict[str, Any] = dict(s.train_progress or {"outer": s.outer, "done": 0, "chunk": 0, "seconds": 0.0})
+    progress: dict[str, Any] = dict(
+        s.train_progress or {"outer": s.outer, "done": 0, "chunk": 0, "seconds": 0.0}
+    )
     result: TrainingResult | None = None
     resumed_at = progress["done"]  # interactions this phase had done before this process
     while progress["done"] < steps:
         left = steps - progress["done"]
         offset = progress["done"]
-        with phase_progress.listening(lambda done, total, offset=offset: heard(offset + done, steps)):
-            result = loop.get_backend().train(s.train_designs, min(every, left) if every else left,
-                                              seed=chunk_seed(loop, progress["chunk"]))
-        progress.update(done=progress["done"] + int(result.steps), chunk=progress["chunk"] + 1,
-                        seconds=progress["seconds"] + float(result.seconds))
+        with phase_progress.listening(
+            lambda done, total, offset=offset: heard(offset + done, steps)
+        ):
+            result = loop.get_backend().train(
+                s.train_designs,
+                min(every, left) if every else left,
+                seed=chunk_seed(loop, progress["chunk"]),
+            )
+        progress.update(
+            done=progress["done"] + int(result.steps),
+            chunk=progress["chunk"] + 1,
+            seconds=progress["seconds"] + float(result.seconds),
+        )
         if result.steps <= 0:  # a backend that trained nothing: no more chunks to wait for
             break
         if progress["done"] < steps:
             save_mid_phase(loop, progress)
     s.train_progress = None
     if result is None:  # resumed with nothing left (cannot happen: the last chunk writes no state)
-        return TrainingResult(steps=progress["done"], seconds=progress["seconds"], mean_reward=float("nan"))
-    return TrainingResult(steps=progress["done"], seconds=progress["seconds"], mean_reward=result.mean_reward,
-                          extra={**result.extra, "chunks": progress["chunk"], "resumed_at": resumed_at},
-                          buffer=result.buffer)
+        return TrainingResult(
+            steps=progress["done"], seconds=progress["seconds"], mean_reward=float("nan")
+        )
+    return TrainingResult(
+        steps=progress["done"],
+        seconds=progress["seconds"],
+        mean_reward=result.mean_reward,
+        extra={**result.extra, "chunks": progress["chunk"], "resumed_at": resumed_at},
+        buffer=result.buffer,
+    )
 
 
 def save_mid_phase(loop: CoadaptationLoop, progress: dict[str, Any]) -> None:

@@ -57,7 +57,10 @@ def walking(fit: Any, rows: list[int] | None = None) -> dict[str, float | None]:
         arr = arr[np.isfinite(arr)]
         return float(arr.mean()) if arr.size else None
 
-    return {"survival": mean(getattr(fit, "survival", None)), "tracking_ratio": mean(getattr(fit, "tracking_ratio", None))}
+    return {
+        "survival": mean(getattr(fit, "survival", None)),
+        "tracking_ratio": mean(getattr(fit, "tracking_ratio", None)),
+    }
 
 
 def _fails(measured: dict[str, Any], gate: WalkingGate) -> list[str]:
@@ -71,7 +74,9 @@ def _fails(measured: dict[str, Any], gate: WalkingGate) -> list[str]:
 
 
 def assess(
-    batches: list[dict[str, Any]], final: dict[str, dict[str, Any]] | None, gate: WalkingGate = WALKING_GATE
+    batches: list[dict[str, Any]],
+    final: dict[str, dict[str, Any]] | None,
+    gate: WalkingGate = WALKING_GATE,
 ) -> tuple[bool | None, str]:
     """(reliable, reason) from the real batches' records and the final check's per-design
     measurements ({'best': {...}, 'nominal': {...}})."""
@@ -80,12 +85,17 @@ def assess(
     for key in ("survival", "tracking_ratio"):
         values = [b.get(key) for b in real if b.get(key) is not None and math.isfinite(b.get(key))]
         rounds[key] = float(np.mean(values)) if values else None
-    measured = [("real rounds", rounds), *((f"final check, {k} design", v) for k, v in (final or {}).items())]
+    measured = [
+        ("real rounds", rounds),
+        *((f"final check, {k} design", v) for k, v in (final or {}).items()),
+    ]
     if all(m.get("survival") is None and m.get("tracking_ratio") is None for _, m in measured):
         return None, "not measured (the backend reports neither survival nor tracking)"
     problems = [f"{where}: {'; '.join(f)}" for where, m in measured if (f := _fails(m, gate))]
     if problems:
-        return False, "the policy does not walk (" + " | ".join(problems) + f"); gate: {gate.describe()}"
+        return False, "the policy does not walk (" + " | ".join(
+            problems
+        ) + f"); gate: {gate.describe()}"
     return True, f"passed the walking gate ({gate.describe()})"
 
 
@@ -100,8 +110,14 @@ MIN_JUDGED_STEPS = 50
 SHORT_MAX_TRACKING_RATIO = 0.95
 
 
-def judge_short(batches: list[dict[str, Any]], final: dict[str, dict[str, Any]] | None, eval_steps: int, *,
-                from_scratch: bool, gate: WalkingGate = WALKING_GATE) -> tuple[bool | None, str]:
+def judge_short(
+    batches: list[dict[str, Any]],
+    final: dict[str, dict[str, Any]] | None,
+    eval_steps: int,
+    *,
+    from_scratch: bool,
+    gate: WalkingGate = WALKING_GATE,
+) -> tuple[bool | None, str]:
     """`assess`, for an evaluation of `eval_steps` steps per scenario: under
     `MIN_JUDGED_STEPS` a policy that came trained and fails only on tracking by less than
     `SHORT_MAX_TRACKING_RATIO` is "not judged" (None); one that falls, stands still, or was
@@ -115,12 +131,19 @@ def judge_short(batches: list[dict[str, Any]], final: dict[str, dict[str, Any]] 
         return False, f"trained from scratch in this run, and {short}; measured: {reason}"
     loose = WalkingGate(min_survival=gate.min_survival, max_tracking_ratio=SHORT_MAX_TRACKING_RATIO)
     if assess(batches, final, loose)[0] is False:
-        return False, f"{reason}; it falls or stands still, which {eval_steps} steps per scenario do not explain"
+        return (
+            False,
+            f"{reason}; it falls or stands still, which {eval_steps} steps per scenario do not explain",
+        )
     return None, f"not judged: {short}; measured: {reason}"
 
 
-def judge_policy(survival: float | None, tracking_ratio: float | None, steps: int,
-                 gate: WalkingGate = WALKING_GATE) -> tuple[bool | None, str]:
+def judge_policy(
+    survival: float | None,
+    tracking_ratio: float | None,
+    steps: int,
+    gate: WalkingGate = WALKING_GATE,
+) -> tuple[bool | None, str]:
     """The walking gate of `coadapt run` on one evaluation of a policy (`coadapt eval`, the
     end of `coadapt train`): (walking, reason). True: it passed; False: it falls or misses
     the command; None: not measured, or `steps` per agent under `MIN_JUDGED_STEPS` and it
@@ -131,15 +154,25 @@ def judge_policy(survival: float | None, tracking_ratio: float | None, steps: in
     problems = _fails(measured, gate)
     if not problems:
         shown = [f"survival {survival:.2f}"] if survival is not None else []
-        shown += [f"tracking error {tracking_ratio:.2f} x command"] if tracking_ratio is not None else []
+        shown += (
+            [f"tracking error {tracking_ratio:.2f} x command"] if tracking_ratio is not None else []
+        )
         return True, f"walks ({', '.join(shown)}); gate: {gate.describe()}"
     reason = f"does not walk ({'; '.join(problems)}); gate: {gate.describe()}"
     if steps >= MIN_JUDGED_STEPS:
         return False, reason
-    if _fails(measured, WalkingGate(min_survival=gate.min_survival, max_tracking_ratio=SHORT_MAX_TRACKING_RATIO)):
-        return False, f"{reason}; it falls or stands still, which {steps} steps per agent do not explain"
-    return None, (f"not judged: {steps} steps per agent are too short to judge tracking (the gate needs "
-                  f">= {MIN_JUDGED_STEPS}); measured: {reason}")
+    if _fails(
+        measured,
+        WalkingGate(min_survival=gate.min_survival, max_tracking_ratio=SHORT_MAX_TRACKING_RATIO),
+    ):
+        return (
+            False,
+            f"{reason}; it falls or stands still, which {steps} steps per agent do not explain",
+        )
+    return None, (
+        f"not judged: {steps} steps per agent are too short to judge tracking (the gate needs "
+        f">= {MIN_JUDGED_STEPS}); measured: {reason}"
+    )
 
 
 #: a best design may fall this much more often than the nominal one (or 2 paired standard
@@ -157,12 +190,28 @@ def fall_verdict(summary: dict[str, Any], margin: float = FALL_MARGIN) -> dict[s
         return {"falls_more": None}
     if not falls_more(d, se, margin):
         return {"falls_more": False}
-    why = (f"the best design falls more often than the nominal design ({100 * summary.get('best_fall_rate', 0):.1f} % "
-           f"against {100 * summary.get('nominal_fall_rate', 0):.1f} % of scenarios, difference "
-           f"{100 * d:.1f} +- {100 * (se or 0):.1f} points > max({100 * margin:g}, 2 SE))")
+    why = (
+        f"the best design falls more often than the nominal design ({100 * summary.get('best_fall_rate', 0):.1f} % "
+        f"against {100 * summary.get('nominal_fall_rate', 0):.1f} % of scenarios, difference "
+        f"{100 * d:.1f} +- {100 * (se or 0):.1f} points > max({100 * margin:g}, 2 SE))"
+    )
     previous = summary.get("reliability") or ""
-    return {"falls_more": True, "reliable": False,
-            "reliability": why if summary.get("reliable") is not False else f"{why}; {previous}"}
+    return {
+        "falls_more": True,
+        "reliable": False,
+        "reliability": why if summary.get("reliable") is not False else f"{why}; {previous}",
+    }
 
 
-__all__ = ["FALL_MARGIN", "MIN_JUDGED_STEPS", "SHORT_MAX_TRACKING_RATIO", "WALKING_GATE", "WalkingGate", "assess", "fall_verdict", "judge_policy", "judge_short", "walking"]
+__all__ = [
+    "FALL_MARGIN",
+    "MIN_JUDGED_STEPS",
+    "SHORT_MAX_TRACKING_RATIO",
+    "WALKING_GATE",
+    "WalkingGate",
+    "assess",
+    "fall_verdict",
+    "judge_policy",
+    "judge_short",
+    "walking",
+]

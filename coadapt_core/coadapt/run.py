@@ -64,8 +64,13 @@ def run_coadaptation(
     (the CLI renders its video there). An interrupt anywhere (Ctrl-C included) marks the run
     "interrupted" and propagates; `resume=run_dir` continues from the last state written.
     """
-    given = dict(design_space=design_space, nominal_design=nominal_design, objectives=objectives,
-                 optimizer_cls=optimizer_cls, backend_factory=backend_factory)
+    given = dict(
+        design_space=design_space,
+        nominal_design=nominal_design,
+        objectives=objectives,
+        optimizer_cls=optimizer_cls,
+        backend_factory=backend_factory,
+    )
     if resume is not None:
         run_path = Path(resume).absolute()
         state = load_state(run_path)
@@ -75,7 +80,9 @@ def run_coadaptation(
         check_same_policy(state, parts.policy)
     else:
         if config is None:
-            raise UserError("run_coadaptation needs a config or a run folder to resume", field="config")
+            raise UserError(
+                "run_coadaptation needs a config or a run folder to resume", field="config"
+            )
         config.validate()
         parts = build_parts(config, **given)
         run_path, state, recorder = _new_run(config, parts, run_dir, recorder)
@@ -85,25 +92,51 @@ def run_coadaptation(
     # `threads`: the budget this process gives the physics and torch (`coadapt_core.threads`), a
     # record like run_id, never read back (config.yaml keeps the first session's; each training
     # phase records the threads it ran on in trainings.jsonl)
-    recorder.start_run({**config.to_dict(), "run_id": state.run_id, "run_dir": str(run_path),
-                        "design_space": parts.full_space.to_dict(), "policy": state.policy,
-                        "threads": threads.budget()})
-    return _drive(config, state, parts, run_path, recorder, progress, finishing, resumed=resume is not None)
+    recorder.start_run(
+        {
+            **config.to_dict(),
+            "run_id": state.run_id,
+            "run_dir": str(run_path),
+            "design_space": parts.full_space.to_dict(),
+            "policy": state.policy,
+            "threads": threads.budget(),
+        }
+    )
+    return _drive(
+        config, state, parts, run_path, recorder, progress, finishing, resumed=resume is not None
+    )
 
 
-def _new_run(config: CoadaptConfig, parts: LoopParts, run_dir: str | os.PathLike | None,
-             recorder: RunRecorder | None) -> tuple[Path, LoopState, RunRecorder]:
+def _new_run(
+    config: CoadaptConfig,
+    parts: LoopParts,
+    run_dir: str | os.PathLike | None,
+    recorder: RunRecorder | None,
+) -> tuple[Path, LoopState, RunRecorder]:
     """A new run's folder, its first state (written before the store hears of the run) and
     its recorder."""
-    run_id = (new_run_id(config.method, config.objective.split(","), config.seed, config.optimizer)
-              if run_dir is None else Path(run_dir).name)
+    run_id = (
+        new_run_id(config.method, config.objective.split(","), config.seed, config.optimizer)
+        if run_dir is None
+        else Path(run_dir).name
+    )
     run_path = (Path(run_dir) if run_dir is not None else Path(config.out) / run_id).absolute()
     if (run_path / STATE_FILE).exists():
-        raise UserError(f"run folder '{run_path}' already holds a run; resume it or pick another", field="out")
+        raise UserError(
+            f"run folder '{run_path}' already holds a run; resume it or pick another", field="out"
+        )
     run_path.mkdir(parents=True, exist_ok=True)
-    recorder = recorder or make_recorder(run_path, config.store or None)  # a bad store: one line, nothing written
-    state = LoopState(run_id=run_id, config=config.to_dict(), space=parts.space.to_dict(), policy=parts.policy,
-                      notes=list(parts.notes), no_critic=list(parts.no_critic))
+    recorder = recorder or make_recorder(
+        run_path, config.store or None
+    )  # a bad store: one line, nothing written
+    state = LoopState(
+        run_id=run_id,
+        config=config.to_dict(),
+        space=parts.space.to_dict(),
+        policy=parts.policy,
+        notes=list(parts.notes),
+        no_critic=list(parts.no_critic),
+    )
     for note in parts.notes:
         print(note, file=sys.stderr)
     # the state first, then the store's row: a run the store knows can always be resumed
@@ -112,9 +145,17 @@ def _new_run(config: CoadaptConfig, parts: LoopParts, run_dir: str | os.PathLike
     return run_path, state, recorder
 
 
-def _drive(config: CoadaptConfig, state: LoopState, parts: LoopParts, run_path: Path, recorder: RunRecorder,
-           progress: ProgressFn | None, finishing: Callable[[CoadaptResult], None] | None, *,
-           resumed: bool) -> CoadaptResult:
+def _drive(
+    config: CoadaptConfig,
+    state: LoopState,
+    parts: LoopParts,
+    run_path: Path,
+    recorder: RunRecorder,
+    progress: ProgressFn | None,
+    finishing: Callable[[CoadaptResult], None] | None,
+    *,
+    resumed: bool,
+) -> CoadaptResult:
     """The loop from `state` to the store's "finished" (or "interrupted", re-raising)."""
     try:
         if resumed:
@@ -136,9 +177,17 @@ def _drive(config: CoadaptConfig, state: LoopState, parts: LoopParts, run_path: 
         # the last state stays in the run folder; `resume=run_dir` continues from it. A failure
         # to record that (a folder gone read-only) must not hide what stopped the run.
         with contextlib.suppress(Exception):
-            recorder.finish(state.run_id, {"run_id": state.run_id, "error": f"{type(exc).__name__}: {exc}",
-                                           "outer": state.outer, "inner": state.inner, "phase": state.phase},
-                            "interrupted")
+            recorder.finish(
+                state.run_id,
+                {
+                    "run_id": state.run_id,
+                    "error": f"{type(exc).__name__}: {exc}",
+                    "outer": state.outer,
+                    "inner": state.inner,
+                    "phase": state.phase,
+                },
+                "interrupted",
+            )
         raise
     recorder.finish(state.run_id, summary, "finished")
     return result
@@ -159,19 +208,37 @@ def _draw_figures(run_path: Path, summary: dict[str, Any], config: CoadaptConfig
         print(f"figures: {', '.join(p.name for p, _ in written)} in {run_path}", file=sys.stderr)
 
 
-def _continue(config: CoadaptConfig, state: LoopState, parts: LoopParts, run_path: Path, recorder: RunRecorder,
-              progress: ProgressFn | None) -> dict[str, Any]:
+def _continue(
+    config: CoadaptConfig,
+    state: LoopState,
+    parts: LoopParts,
+    run_path: Path,
+    recorder: RunRecorder,
+    progress: ProgressFn | None,
+) -> dict[str, Any]:
     """Run the loop from `state` to its summary, with the run's TensorBoard/wandb logger."""
     from coadapt_core import tracking
 
     # TensorBoard (default) / wandb: training curves, best cost per round, surrogate error
-    logger = tracking.make_logger(getattr(config, "logger", "tensorboard"), run_path / "tb", name=state.run_id,
-                                  config=config.to_dict())
+    logger = tracking.make_logger(
+        getattr(config, "logger", "tensorboard"),
+        run_path / "tb",
+        name=state.run_id,
+        config=config.to_dict(),
+    )
     recorder = tracking.TrackingRecorder(recorder, logger)
     loop = CoadaptationLoop(
-        config, backend_factory=parts.backend_factory, design_space=parts.full_space, nominal_design=parts.nominal,
-        objectives=parts.objectives, optimizer_cls=parts.optimizer_cls, run_dir=run_path, recorder=recorder,
-        state=state, progress=progress, pretrained=parts.pretrained,
+        config,
+        backend_factory=parts.backend_factory,
+        design_space=parts.full_space,
+        nominal_design=parts.nominal,
+        objectives=parts.objectives,
+        optimizer_cls=parts.optimizer_cls,
+        run_dir=run_path,
+        recorder=recorder,
+        state=state,
+        progress=progress,
+        pretrained=parts.pretrained,
     )
     try:
         with tracking.active(logger):

@@ -69,11 +69,22 @@ def _config_rows(group: Any) -> list[list[str]]:
         default = _cell(config_default(leaf.param) or empty)
         names = _names(options[leaf.key]) if leaf.key in options else "(YAML only)"
         groups.setdefault(section, []).append(
-            f"| `{leaf.key}` | {names} | {default} | {leaf.accepted()} | {_cell(leaf.help)} |")
+            f"| `{leaf.key}` | {names} | {default} | {leaf.accepted()} | {_cell(leaf.help)} |"
+        )
     out = []
     for section, rows in groups.items():
-        doc = (CoadaptConfig.__pydantic_fields__[section].description or "").strip() if section != "run" else ""
-        out.append(["\n## The run\n" if section == "run" else f"\n## `{section}`\n\n{doc}\n", *_WITH_KEYS, *rows])
+        doc = (
+            (CoadaptConfig.__pydantic_fields__[section].description or "").strip()
+            if section != "run"
+            else ""
+        )
+        out.append(
+            [
+                "\n## The run\n" if section == "run" else f"\n## `{section}`\n\n{doc}\n",
+                *_WITH_KEYS,
+                *rows,
+            ]
+        )
     return out
 
 
@@ -88,7 +99,9 @@ def _group_table(group: Any) -> list[str]:
         leaf = option.leaf
         default = "required" if leaf.required else _cell(leaf_default(leaf) or "''")
         hidden = " (hidden from --help)" if leaf.extra.get("hidden") else ""
-        out.append(f"| {_names(option)} | {default} | {leaf.accepted()} | {_meaning(leaf)}{hidden} |")
+        out.append(
+            f"| {_names(option)} | {default} | {leaf.accepted()} | {_meaning(leaf)}{hidden} |"
+        )
     return out
 
 
@@ -98,7 +111,9 @@ def command_order() -> list[str]:
     from coadapt_core.cli.options import DECLARED
 
     first, last = ["run"], [""]
-    return first + [p for p in DECLARED if p not in first + last] + [p for p in last if p in DECLARED]
+    return (
+        first + [p for p in DECLARED if p not in first + last] + [p for p in last if p in DECLARED]
+    )
 
 
 def settings_markdown() -> str:

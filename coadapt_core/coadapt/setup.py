@@ -80,8 +80,10 @@ def check_optimizer_options(config: CoadaptConfig, optimizer_cls: type[Optimizer
     from coadapt_core.options import resolve_options
 
     return resolve_options(
-        getattr(optimizer_cls, "option_specs", ()), config.optimizer_options,
-        owner=f"optimizer '{optimizer_cls.name}'", field="optimizer_options",
+        getattr(optimizer_cls, "option_specs", ()),
+        config.optimizer_options,
+        owner=f"optimizer '{optimizer_cls.name}'",
+        field="optimizer_options",
     )
 
 
@@ -98,7 +100,9 @@ def build_parts(
 
     registry = get_registry()
     shared = get_method(config.method).backend_kind.shared_policy
-    if optimizer_cls is None:  # the config's, as validation chose it for the method (`methods.optimizer_for`)
+    if (
+        optimizer_cls is None
+    ):  # the config's, as validation chose it for the method (`methods.optimizer_for`)
         optimizer_cls = registry.get("optimizer", config.optimizer)
     # checked now, before any training; recorded typed (only the options given: the
     # plugin's defaults stay the plugin's)
@@ -108,16 +112,24 @@ def build_parts(
     if objectives is None:
         objectives = make_objectives(config)
         given = set(config.objective_options)  # recorded typed, as the objectives converted them
-        config.objective_options = {k: v for o in objectives for k, v in getattr(o, "options", {}).items() if k in given}
+        config.objective_options = {
+            k: v for o in objectives for k, v in getattr(o, "options", {}).items() if k in given
+        }
     objectives = list(objectives)
     mixed = uses_mixed_space(config)
     robot = None
     if design_space is None or nominal_design is None or backend_factory is None:
         robot = registry.create("robot", config.robot)
     full_space = design_space if design_space is not None else robot.design_space(mixed)
-    nominal = np.asarray(nominal_design if nominal_design is not None else robot.nominal_design(mixed), dtype=float)
+    nominal = np.asarray(
+        nominal_design if nominal_design is not None else robot.nominal_design(mixed), dtype=float
+    )
     full_space.validate(nominal)
-    space = full_space.parse_ranges(config.design_ranges) if config.design_ranges.strip() else full_space
+    space = (
+        full_space.parse_ranges(config.design_ranges)
+        if config.design_ranges.strip()
+        else full_space
+    )
 
     # refuse combinations up front, before any training is paid for
     if len(objectives) > 1 and not optimizer_cls.multi_objective:
@@ -150,7 +162,9 @@ def build_parts(
             check_policy_space(resolve_checkpoint(config), full_space, robot, mixed)
         policy = policy_provenance(config, used=shared or config.specialized_init == "universal")
         if pretrained:
-            no_critic, note = objectives_without_critic(config, resolve_checkpoint(config), objectives)
+            no_critic, note = objectives_without_critic(
+                config, resolve_checkpoint(config), objectives
+            )
             notes += [note] if note else []
     if not shared:  # the factory builds each design's policy
         backend_factory = specialized_factory(config, backend_factory)
@@ -161,10 +175,22 @@ def build_parts(
     if shared and not keeps_study:
         population = 1 if optimizer_cls.sequential else config.population
         if population == config.population:
-            note = initial_designs_note(optimizer_cls, space, population, len(objectives), config.optimizer_options)
+            note = initial_designs_note(
+                optimizer_cls, space, population, len(objectives), config.optimizer_options
+            )
             notes += [f"warning: {note}"] if note else []
-    return LoopParts(full_space, space, nominal, objectives, optimizer_cls, backend_factory, pretrained, policy, notes,
-                     no_critic)
+    return LoopParts(
+        full_space,
+        space,
+        nominal,
+        objectives,
+        optimizer_cls,
+        backend_factory,
+        pretrained,
+        policy,
+        notes,
+        no_critic,
+    )
 
 
 def check_store_options(config: CoadaptConfig, optimizer_cls: type[Optimizer]) -> None:
@@ -185,8 +211,10 @@ def check_device(device: str) -> None:
         import torch
 
         if not torch.cuda.is_available():
-            raise UserError(f"device '{device}' requested but no CUDA device is available; use --device cpu",
-                            field="device")
+            raise UserError(
+                f"device '{device}' requested but no CUDA device is available; use --device cpu",
+                field="device",
+            )
 
 
 def check_policy_space(checkpoint: str | None, space: DesignSpace, robot, mixed: bool) -> None:
@@ -195,7 +223,9 @@ def check_policy_space(checkpoint: str | None, space: DesignSpace, robot, mixed:
     is one line naming both, before a run folder exists."""
     from pathlib import Path
 
-    if checkpoint is None or not Path(checkpoint).is_file():  # a missing one is resolve_checkpoint's line
+    if (
+        checkpoint is None or not Path(checkpoint).is_file()
+    ):  # a missing one is resolve_checkpoint's line
         return
     from coadapt_core.learning.checkpoints import read_checkpoint
 
@@ -209,14 +239,20 @@ def check_policy_space(checkpoint: str | None, space: DesignSpace, robot, mixed:
     kind = "mixed" if mixed else "continuous"
     hint = "a policy trained on this space"
     if robot is not None and robot.design_space(not mixed).dim == int(takes):
-        hint = ("--mixed, or " if not mixed else "no --mixed (a continuous-space optimizer), or ") + hint
-    raise UserError(f"checkpoint '{checkpoint}' takes {takes} design values and the run's {kind} design space has "
-                    f"{space.dim} ({', '.join(space.names)}); give {hint} (`coadapt train --robot {getattr(robot, 'name', 'ROBOT')}"
-                    f"{' --mixed' if mixed else ''}`)", field="checkpoint")
+        hint = (
+            "--mixed, or " if not mixed else "no --mixed (a continuous-space optimizer), or "
+        ) + hint
+    raise UserError(
+        f"checkpoint '{checkpoint}' takes {takes} design values and the run's {kind} design space has "
+        f"{space.dim} ({', '.join(space.names)}); give {hint} (`coadapt train --robot {getattr(robot, 'name', 'ROBOT')}"
+        f"{' --mixed' if mixed else ''}`)",
+        field="checkpoint",
+    )
 
 
-def objectives_without_critic(config: CoadaptConfig, checkpoint: str, objectives: Sequence[Objective]
-                              ) -> tuple[list[str], str | None]:
+def objectives_without_critic(
+    config: CoadaptConfig, checkpoint: str, objectives: Sequence[Objective]
+) -> tuple[list[str], str | None]:
     """(names, note): the run's objectives the starting policy carries no pseudo-critic for
     (its checkpoint's `objectives`), and the line the run starts with about them.
 
@@ -238,25 +274,35 @@ def objectives_without_critic(config: CoadaptConfig, checkpoint: str, objectives
     missing = [o.name for o in objectives if o.name not in saved]
     if not missing:
         return [], None
-    what = (f"objective{'s' if len(missing) > 1 else ''} {', '.join(repr(m) for m in missing)} "
-            f"{'have' if len(missing) > 1 else 'has'} no pseudo-critic in the starting policy {Path(checkpoint).name} "
-            f"(it has {', '.join(saved) or 'none'})")
+    what = (
+        f"objective{'s' if len(missing) > 1 else ''} {', '.join(repr(m) for m in missing)} "
+        f"{'have' if len(missing) > 1 else 'has'} no pseudo-critic in the starting policy {Path(checkpoint).name} "
+        f"(it has {', '.join(saved) or 'none'})"
+    )
     if method.surrogate_probability == 1.0:
         raise UserError(
             f"{what}, and method '{config.method}' evaluates with the surrogate only; train a policy with one "
             f"(`coadapt train --robot {config.robot} --terrain {config.terrain} --objectives "
             f"{','.join([*saved, *missing])}`) and pass --checkpoint PATH, or use a method with real rounds",
-            field="objective")
+            field="objective",
+        )
     if config.fit_surrogate:
-        then = ("a surrogate round of this run waits until the pseudo-critics are fitted to a real round of the "
-                "current policy (fit_surrogate); until then rounds are real")
+        then = (
+            "a surrogate round of this run waits until the pseudo-critics are fitted to a real round of the "
+            "current policy (fit_surrogate); until then rounds are real"
+        )
     else:
         then = "every round of this run is real (no surrogate rounds: fit_surrogate is off)"
     return missing, f"note: {what}: {then} (docs/plugins.md, section 5)"
 
 
-def initial_designs_note(optimizer_cls: type[Optimizer], space: DesignSpace, population: int, num_objectives: int,
-                         options: dict) -> str | None:
+def initial_designs_note(
+    optimizer_cls: type[Optimizer],
+    space: DesignSpace,
+    population: int,
+    num_objectives: int,
+    options: dict,
+) -> str | None:
     """A warning when the optimizer's first `ask` does not return the `initial_designs` it was
     built with (a plugin written before they were a constructor argument ignores them: the
     run would still finish, its first round not the designs the policy was trained on). One
@@ -266,14 +312,23 @@ def initial_designs_note(optimizer_cls: type[Optimizer], space: DesignSpace, pop
     when the run builds it)."""
     initial = space.sample(population, np.random.default_rng(0))
     try:
-        first = optimizer_cls(space, population=population, budget=2, seed=1, num_objectives=num_objectives,
-                              initial_designs=initial, **options).ask()
+        first = optimizer_cls(
+            space,
+            population=population,
+            budget=2,
+            seed=1,
+            num_objectives=num_objectives,
+            initial_designs=initial,
+            **options,
+        ).ask()
     except Exception:
         return None
     return first_round_note(optimizer_cls.name, initial, first)
 
 
-def note_first_round(notes: list[str], optimizer_cls: type[Optimizer], initial: np.ndarray, designs: np.ndarray) -> None:
+def note_first_round(
+    notes: list[str], optimizer_cls: type[Optimizer], initial: np.ndarray, designs: np.ndarray
+) -> None:
     """Say (once per run: stderr and `notes`, the summary's) when the optimizer's first round
     `designs` is not the `initial` designs it was built with (`initial_designs_note` probes
     for it before training where it can)."""
@@ -291,9 +346,11 @@ def first_round_note(name: str, initial: np.ndarray, first: np.ndarray) -> str |
     initial = np.atleast_2d(np.asarray(initial, dtype=float))
     if first.shape == initial.shape and np.allclose(first, initial, atol=1e-9):
         return None
-    return (f"optimizer '{name}' ignores `initial_designs`: its first round is not the {len(initial)} designs the "
-            "policy is trained on (Algorithm 4 line 10), so this run does not follow the paper; the plugin needs "
-            "updating (docs/plugins.md#migration; OptimizerConformance checks it)")
+    return (
+        f"optimizer '{name}' ignores `initial_designs`: its first round is not the {len(initial)} designs the "
+        "policy is trained on (Algorithm 4 line 10), so this run does not follow the paper; the plugin needs "
+        "updating (docs/plugins.md#migration; OptimizerConformance checks it)"
+    )
 
 
 def policy_provenance(config: CoadaptConfig, *, used: bool = True) -> dict:
@@ -311,7 +368,12 @@ def policy_provenance(config: CoadaptConfig, *, used: bool = True) -> dict:
     except OSError:  # resolve_checkpoint found it; gone since: nothing to vouch for
         digest = None
     source = "path" if config.checkpoint.strip() else "shipped"
-    out = {"source": source, "file": Path(path).name, "path": str(Path(path).resolve()), "sha256": digest}
+    out = {
+        "source": source,
+        "file": Path(path).name,
+        "path": str(Path(path).resolve()),
+        "sha256": digest,
+    }
     if source == "shipped":
         out["robot"] = config.robot
     return out
@@ -328,19 +390,35 @@ def universal_policy_factory(
     try:
         from coadapt_core.learning.factory import make_backend
     except ImportError as exc:
-        raise CoadaptError(f"the universal-policy learner (coadapt_core.learning) is not available: {exc}") from None
+        raise CoadaptError(
+            f"the universal-policy learner (coadapt_core.learning) is not available: {exc}"
+        ) from None
     # a policy of one design (a method without a shared policy: the BO baseline) is trained
     # from scratch (the paper's), or fine-tuned from the universal policy (`specialized_init:
     # universal`), with the universal training's batch (K x agents environments) on that design
     per_design = not get_method(config.method).backend_kind.shared_policy
-    checkpoint = resolve_checkpoint(config) if not per_design or config.specialized_init == "universal" else None
-    agents = config.population * config.agents_per_design if per_design else config.agents_per_design
+    checkpoint = (
+        resolve_checkpoint(config)
+        if not per_design or config.specialized_init == "universal"
+        else None
+    )
+    agents = (
+        config.population * config.agents_per_design if per_design else config.agents_per_design
+    )
     learner = learner_settings(config, checkpoint)  # the run's train / task / randomization keys
 
     def factory(seed: int) -> CoadaptationBackend:
         return make_backend(
-            robot, simulator_cls, list(objectives), terrain=config.terrain, design_space=full_space,
-            agents_per_design=agents, device=config.device, seed=seed, checkpoint=checkpoint, **learner,
+            robot,
+            simulator_cls,
+            list(objectives),
+            terrain=config.terrain,
+            design_space=full_space,
+            agents_per_design=agents,
+            device=config.device,
+            seed=seed,
+            checkpoint=checkpoint,
+            **learner,
         )
 
     return factory
@@ -353,7 +431,9 @@ def specialized_factory(
     each design's policy (`policy_factory`) for `specialized_train_steps` interactions."""
 
     def factory(seed: int) -> CoadaptationBackend:
-        return SpecializedPolicyBackend(policy_factory, train_steps=config.specialized_train_steps, seed=seed)
+        return SpecializedPolicyBackend(
+            policy_factory, train_steps=config.specialized_train_steps, seed=seed
+        )
 
     return factory
 
@@ -374,7 +454,10 @@ def check_starting_policy(config: CoadaptConfig) -> None:
     another robot's, a policy of the other design space); nothing for a method whose policies
     are trained per design from scratch. `coadapt run --check` (and so every cell of `coadapt
     grid`) asks it before anything starts."""
-    if get_method(config.method).backend_kind.shared_policy or config.specialized_init == "universal":
+    if (
+        get_method(config.method).backend_kind.shared_policy
+        or config.specialized_init == "universal"
+    ):
         checkpoint = resolve_checkpoint(config)
         if checkpoint is not None:
             from coadapt_core.plugins import get_registry
@@ -400,11 +483,15 @@ def resolve_checkpoint(config: CoadaptConfig) -> str | None:
             raise UserError(f"checkpoint '{text}' does not exist", field="checkpoint")
         from coadapt_core.learning.checkpoints import read_checkpoint
 
-        trained_for = read_checkpoint(text).get("robot")  # weights_only; one line if not a checkpoint
+        trained_for = read_checkpoint(text).get(
+            "robot"
+        )  # weights_only; one line if not a checkpoint
         if trained_for != config.robot:
             raise UserError(
                 f"checkpoint '{text}' was trained for robot '{trained_for}', not '{config.robot}'; "
-                "give a policy of this robot or --checkpoint none", field="checkpoint")
+                "give a policy of this robot or --checkpoint none",
+                field="checkpoint",
+            )
         return text
     from coadapt_core.plugins import get_registry
 
@@ -420,5 +507,7 @@ def resolve_checkpoint(config: CoadaptConfig) -> str | None:
     wanted_dim = robot.design_space(mixed).dim
     if trained_dim != wanted_dim:
         why = f"ships a policy ({Path(path).name}) taking {trained_dim} design values, not {wanted_dim},"
-        raise UserError(no_policy_message(config.robot, config.terrain, mixed, why), field="checkpoint")
+        raise UserError(
+            no_policy_message(config.robot, config.terrain, mixed, why), field="checkpoint"
+        )
     return str(path)

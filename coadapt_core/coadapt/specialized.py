@@ -28,11 +28,21 @@ from coadapt_core.objective import Objective
 
 #: the optional per-design arrays of `RealFitness` that are stacked over designs when every
 #: policy's evaluation measured them
-_PER_DESIGN = ("survival", "per_scenario", "cost_se", "fall_rate", "scenario_falls", "tracking_ratio")
+_PER_DESIGN = (
+    "survival",
+    "per_scenario",
+    "cost_se",
+    "fall_rate",
+    "scenario_falls",
+    "tracking_ratio",
+)
 
 #: where a run without a shared policy leaves its best and nominal designs' policies, relative
 #: to its run folder; readers look them up by these names, never by a path from a store
-OWN_POLICY_FILES = {"best": "checkpoints/policy-best.pt", "nominal": "checkpoints/policy-nominal.pt"}
+OWN_POLICY_FILES = {
+    "best": "checkpoints/policy-best.pt",
+    "nominal": "checkpoints/policy-nominal.pt",
+}
 
 
 @runtime_checkable
@@ -56,8 +66,14 @@ class SpecializedPolicyBackend:
     gets the same policy. The last `keep` policies stay in memory; an older one is trained
     again, with the same seeds, when its design comes back."""
 
-    def __init__(self, policy_factory: Callable[[int], CoadaptationBackend], *, train_steps: int, seed: int = 0,
-                 keep: int = 4):
+    def __init__(
+        self,
+        policy_factory: Callable[[int], CoadaptationBackend],
+        *,
+        train_steps: int,
+        seed: int = 0,
+        keep: int = 4,
+    ):
         self.policy_factory = policy_factory
         self.train_steps = int(train_steps)
         self.seed = int(seed)
@@ -92,7 +108,13 @@ class SpecializedPolicyBackend:
         return TrainingResult(steps=0, seconds=0.0, mean_reward=float("nan"))
 
     def real_fitness(
-        self, designs: np.ndarray, objectives: Sequence[Objective], *, agents: int, steps: int, seed: int = 0
+        self,
+        designs: np.ndarray,
+        objectives: Sequence[Objective],
+        *,
+        agents: int,
+        steps: int,
+        seed: int = 0,
     ) -> RealFitness:
         """Each design's policy (trained now unless kept) rolled out on the scenario set of
         `seed`; the training phases come back in `RealFitness.training`."""
@@ -101,15 +123,27 @@ class SpecializedPolicyBackend:
         for design in designs:
             policy, trained = self.policy(design)
             trainings += trained
-            fits.append(policy.real_fitness(design[None, :], objectives, agents=agents, steps=steps, seed=seed))
+            fits.append(
+                policy.real_fitness(
+                    design[None, :], objectives, agents=agents, steps=steps, seed=seed
+                )
+            )
         fit = stack_fits(fits)
         fit.training = trainings
         return fit
 
     def surrogate_fitness(
-        self, designs: np.ndarray, objectives: Sequence[Objective], buffer: Any, *, samples: int, seed: int = 0
+        self,
+        designs: np.ndarray,
+        objectives: Sequence[Objective],
+        buffer: Any,
+        *,
+        samples: int,
+        seed: int = 0,
     ) -> np.ndarray:
-        raise CoadaptError("specialised policies have no surrogate: every design is evaluated for real")
+        raise CoadaptError(
+            "specialised policies have no surrogate: every design is evaluated for real"
+        )
 
     def save_policy(self, design: np.ndarray, path: str) -> list[TrainingResult]:
         """Write `design`'s policy with its own `save` (trained first unless kept); returns
@@ -121,7 +155,9 @@ class SpecializedPolicyBackend:
     def save(self, path: str) -> None:
         """Nothing is shared between designs; what identifies the backend is written."""
         with open(path, "w", encoding="utf-8") as f:
-            json.dump({"backend": "specialized", "train_steps": self.train_steps, "seed": self.seed}, f)
+            json.dump(
+                {"backend": "specialized", "train_steps": self.train_steps, "seed": self.seed}, f
+            )
 
     def load(self, path: str) -> None:
         """Nothing to restore (see `save`)."""

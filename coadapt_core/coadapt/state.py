@@ -40,12 +40,18 @@ class RoundRecord:
     surrogate_errors: np.ndarray | None = None
     survival: float | None = None  # mean survival of a real batch
     tracking_ratio: float | None = None  # mean tracking ratio of a real batch
-    error_bars: dict[str, Any] = field(default_factory=dict)  # best design's cost SE, median relative SE, fall rate
+    error_bars: dict[str, Any] = field(
+        default_factory=dict
+    )  # best design's cost SE, median relative SE, fall rate
     uncertainty: float | None = None
 
     def measured(self) -> dict[str, Any]:
-        return {"survival": self.survival, "tracking_ratio": self.tracking_ratio, **self.error_bars,
-                "uncertainty": self.uncertainty}
+        return {
+            "survival": self.survival,
+            "tracking_ratio": self.tracking_ratio,
+            **self.error_bars,
+            "uncertainty": self.uncertainty,
+        }
 
 
 @dataclass
@@ -73,13 +79,24 @@ class LoopState:
     # "chunk" (chunks done), "seconds"} after its last mid-phase checkpoint; None between phases
     train_progress: dict[str, Any] | None = None
     best_real: tuple[list[float], float] | None = None  # (design, cost) lowest real cost seen
-    top_real: list[tuple[list[float], float]] = field(default_factory=list)  # lowest distinct real costs
+    top_real: list[tuple[list[float], float]] = field(
+        default_factory=list
+    )  # lowest distinct real costs
     best_any: tuple[list[float], float, str] | None = None  # lowest cost of any kind
-    counters: dict[str, float] = field(default_factory=lambda: {
-        "train_interactions": 0, "eval_interactions": 0, "final_interactions": 0,
-        "train_seconds": 0.0, "eval_seconds": 0.0, "surrogate_seconds": 0.0, "final_seconds": 0.0,
-        "real_evaluations": 0, "surrogate_evaluations": 0, "designs_evaluated": 0,
-    })
+    counters: dict[str, float] = field(
+        default_factory=lambda: {
+            "train_interactions": 0,
+            "eval_interactions": 0,
+            "final_interactions": 0,
+            "train_seconds": 0.0,
+            "eval_seconds": 0.0,
+            "surrogate_seconds": 0.0,
+            "final_seconds": 0.0,
+            "real_evaluations": 0,
+            "surrogate_evaluations": 0,
+            "designs_evaluated": 0,
+        }
+    )
     batches: list[dict[str, Any]] = field(default_factory=list)  # one summary per evaluation batch
     # real rounds of the current policy, the labels the pseudo-critics are fitted to:
     # {"designs": [[...]], "costs": [[...]]} (issue 16, docs/coadaptation.md "The surrogate")
@@ -93,9 +110,15 @@ class LoopState:
     reference_outer: int = -1
     elapsed: float = 0.0  # wall-clock seconds spent before the current process
     summary: dict[str, Any] | None = None
-    policy: dict[str, Any] | None = None  # the starting policy's provenance (setup.policy_provenance)
-    notes: list[str] = field(default_factory=list)  # warnings printed at the start, kept in the summary
-    no_critic: list[str] = field(default_factory=list)  # objectives without a pseudo-critic in the starting policy
+    policy: dict[str, Any] | None = (
+        None  # the starting policy's provenance (setup.policy_provenance)
+    )
+    notes: list[str] = field(
+        default_factory=list
+    )  # warnings printed at the start, kept in the summary
+    no_critic: list[str] = field(
+        default_factory=list
+    )  # objectives without a pseudo-critic in the starting policy
 
     def note_costs(self, designs: np.ndarray, costs: np.ndarray, kind: str, keep: int) -> None:
         """The lowest cost of any kind and the lowest real costs seen, from a batch's designs
@@ -118,16 +141,24 @@ class LoopState:
         interactions, seconds = int(record.interactions), float(record.seconds)
         finite = np.isfinite(costs[:, 0])
         error_finite = None if errors is None else np.isfinite(errors[:, 0])
-        self.batches.append({
-            "outer": self.outer, "inner": self.inner, "kind": kind, "designs": len(costs), "interactions": interactions,
-            "seconds": seconds,
-            "best_cost": float(costs[finite, 0].min()) if finite.any() else None,
-            "mean_cost": float(costs[finite, 0].mean()) if finite.any() else None,
-            # a diverged pseudo-critic gives NaN/inf: counted, and told to the optimizer as worst
-            "nonfinite_costs": int((~finite).sum()),
-            "surrogate_abs_error": float(np.abs(errors[error_finite, 0]).mean()) if errors is not None and error_finite.any() else None,
-            **record.measured(),
-        })
+        self.batches.append(
+            {
+                "outer": self.outer,
+                "inner": self.inner,
+                "kind": kind,
+                "designs": len(costs),
+                "interactions": interactions,
+                "seconds": seconds,
+                "best_cost": float(costs[finite, 0].min()) if finite.any() else None,
+                "mean_cost": float(costs[finite, 0].mean()) if finite.any() else None,
+                # a diverged pseudo-critic gives NaN/inf: counted, and told to the optimizer as worst
+                "nonfinite_costs": int((~finite).sum()),
+                "surrogate_abs_error": float(np.abs(errors[error_finite, 0]).mean())
+                if errors is not None and error_finite.any()
+                else None,
+                **record.measured(),
+            }
+        )
 
     def keep_top(self, design: np.ndarray, cost: float, keep: int) -> None:
         """The `keep` (`final_candidates`) lowest real costs over distinct designs (a noisy
@@ -169,7 +200,9 @@ def save_state(run_dir: Path, state: LoopState) -> None:
     for f in fields(LoopState):
         if f.name not in _NOT_SAVED:
             data[f.name] = getattr(state, f.name)
-    data["optimizer_state"] = state.optimizer.state_dict() if state.optimizer is not None else state.optimizer_state
+    data["optimizer_state"] = (
+        state.optimizer.state_dict() if state.optimizer is not None else state.optimizer_state
+    )
     write_json(run_dir / STATE_FILE, data)
     if stale is not None and stale.exists():  # only once the new state points past it
         stale.unlink()
@@ -183,21 +216,38 @@ def load_state(run_dir: Path) -> LoopState:
         if (run_dir / LEGACY_STATE_FILE).is_file():
             raise UserError(
                 f"cannot resume: '{run_dir}' holds a {LEGACY_STATE_FILE} from an older coadapt; pickled state is "
-                "never read (it can run code): start the run again", field="resume")
-        raise UserError(f"cannot resume: '{run_dir}' has no {STATE_FILE} (not a run folder, or it never started)", field="resume")
+                "never read (it can run code): start the run again",
+                field="resume",
+            )
+        raise UserError(
+            f"cannot resume: '{run_dir}' has no {STATE_FILE} (not a run folder, or it never started)",
+            field="resume",
+        )
     data = read_json(path, what="run state", recover=_RECOVER)
     names = {f.name for f in fields(LoopState)}
-    if not isinstance(data, dict) or data.get("format") != STATE_FORMAT or not {"run_id", "config"} <= set(data):
-        raise StateFileError(f"run state '{path}' is not a coadapt run state{_RECOVER}", field="resume")
+    if (
+        not isinstance(data, dict)
+        or data.get("format") != STATE_FORMAT
+        or not {"run_id", "config"} <= set(data)
+    ):
+        raise StateFileError(
+            f"run state '{path}' is not a coadapt run state{_RECOVER}", field="resume"
+        )
     try:
-        state = LoopState(**{k: v for k, v in data.items() if k in names and k not in ("optimizer", "buffer")})
+        state = LoopState(
+            **{k: v for k, v in data.items() if k in names and k not in ("optimizer", "buffer")}
+        )
         _check_state(state)
     except (TypeError, ValueError) as exc:
-        raise StateFileError(f"run state '{path}' is damaged ({type(exc).__name__}: {exc}){_RECOVER}", field="resume") from None
+        raise StateFileError(
+            f"run state '{path}' is damaged ({type(exc).__name__}: {exc}){_RECOVER}", field="resume"
+        ) from None
     if state.buffer_saved_serial >= 0:
         buffer_path = run_dir / f"{BUFFER_FILE_STEM}-{state.buffer_saved_serial}.npz"
         if not buffer_path.is_file():
-            raise StateFileError(f"evaluation buffer '{buffer_path}' is missing{_RECOVER}", field="resume")
+            raise StateFileError(
+                f"evaluation buffer '{buffer_path}' is missing{_RECOVER}", field="resume"
+            )
         from coadapt_core.plugins import get_registry
 
         get_registry()  # plugins register their buffer types (statefile.register_dataclass)
@@ -223,8 +273,12 @@ def _check_state(state: LoopState) -> None:
         if rel.is_absolute() or ".." in rel.parts:
             raise ValueError("backend checkpoint path leaves the run folder")
     progress = state.train_progress
-    if progress is not None and not (isinstance(progress, dict) and isinstance(progress.get("done"), int)
-                                     and isinstance(progress.get("chunk"), int) and progress.get("outer") == state.outer):
+    if progress is not None and not (
+        isinstance(progress, dict)
+        and isinstance(progress.get("done"), int)
+        and isinstance(progress.get("chunk"), int)
+        and progress.get("outer") == state.outer
+    ):
         raise ValueError("train_progress is not this outer iteration's chunk count")
     for name in ("best_real", "best_any"):
         if getattr(state, name) is not None:
@@ -248,7 +302,9 @@ def check_same_policy(state: LoopState, policy: dict[str, Any] | None) -> None:
         raise UserError(
             f"cannot resume run {state.run_id}: its starting policy {state.policy.get('path')} changed since the run "
             f"started (SHA-256 {recorded[:12]}... then, {now[:12] + '...' if now else 'no file'} now); restore that "
-            "file, or start a new run", field="resume")
+            "file, or start a new run",
+            field="resume",
+        )
 
 
 def check_writable(run_path: Path, state: LoopState) -> None:
@@ -260,7 +316,8 @@ def check_writable(run_path: Path, state: LoopState) -> None:
             pass
         probe.unlink()
     except OSError as exc:
-        raise UserError(f"cannot resume: run folder '{run_path}' cannot be written ({exc.strerror or type(exc).__name__}); "
-                        "make it writable, or copy it to a folder you can write and resume the copy",
-                        field="resume") from None
-
+        raise UserError(
+            f"cannot resume: run folder '{run_path}' cannot be written ({exc.strerror or type(exc).__name__}); "
+            "make it writable, or copy it to a folder you can write and resume the copy",
+            field="resume",
+        ) from None

@@ -21,9 +21,20 @@ from coadapt_core.optimizer import Optimizer
 #: the `--json` line's fields beside the rule's cost: the rule, the paper's plain mean (eq. 4)
 #: with its standard error and improvement, fall rates with standard errors and their paired
 #: difference, and whether the best design falls significantly more often than nominal
-JSON_PLAIN_AND_FALLS = ("cost_rule", "best_plain_mean", "best_plain_mean_se", "nominal_plain_mean",
-                        "nominal_plain_mean_se", "improvement_plain", "improvement_plain_se", "best_fall_rate_se",
-                        "nominal_fall_rate_se", "fall_rate_difference", "fall_rate_difference_se", "falls_more")
+JSON_PLAIN_AND_FALLS = (
+    "cost_rule",
+    "best_plain_mean",
+    "best_plain_mean_se",
+    "nominal_plain_mean",
+    "nominal_plain_mean_se",
+    "improvement_plain",
+    "improvement_plain_se",
+    "best_fall_rate_se",
+    "nominal_fall_rate_se",
+    "fall_rate_difference",
+    "fall_rate_difference_se",
+    "falls_more",
+)
 
 
 @dataclass
@@ -34,16 +45,37 @@ class CoadaptResult:
 
     def json_line(self) -> dict[str, Any]:
         s = self.summary
-        line = {k: s.get(k) for k in ("run_id", "best_design", "best_cost", "best_cost_se", "nominal_cost", "nominal_cost_se",
-                                 "improvement", "improvement_se", "significant", "best_fall_rate", "nominal_fall_rate",
-                                 *JSON_PLAIN_AND_FALLS, "interactions", "seconds")}
+        line = {
+            k: s.get(k)
+            for k in (
+                "run_id",
+                "best_design",
+                "best_cost",
+                "best_cost_se",
+                "nominal_cost",
+                "nominal_cost_se",
+                "improvement",
+                "improvement_se",
+                "significant",
+                "best_fall_rate",
+                "nominal_fall_rate",
+                *JSON_PLAIN_AND_FALLS,
+                "interactions",
+                "seconds",
+            )
+        }
         # the walking gate's verdict travels with every improvement (reliability.py)
         line["reliable"] = s.get("reliable")
         line["reliability"] = s.get("reliability")
         line["warnings"] = s.get("warnings", [])  # what to know before trusting it (cautions.py)
         front = s.get("pareto_front")
-        if isinstance(front, dict):  # several objectives: the front's hypervolume and its SE (pareto.py)
-            line["hypervolume"], line["hypervolume_se"] = front.get("hypervolume"), front.get("hypervolume_se")
+        if isinstance(
+            front, dict
+        ):  # several objectives: the front's hypervolume and its SE (pareto.py)
+            line["hypervolume"], line["hypervolume_se"] = (
+                front.get("hypervolume"),
+                front.get("hypervolume_se"),
+            )
         return line
 
 
@@ -61,7 +93,9 @@ class FinalOutcome:
     walking: dict[str, dict[str, Any]] = field(default_factory=dict)
 
 
-def final_candidates(state: LoopState, optimizer: Optimizer | None, objectives: int, population: int) -> list[np.ndarray]:
+def final_candidates(
+    state: LoopState, optimizer: Optimizer | None, objectives: int, population: int
+) -> list[np.ndarray]:
     """The designs the final check re-evaluates beside the nominal one: the lowest real costs
     and the lowest cost of any kind for one objective; for several, the optimizer's Pareto
     front (at most `population` designs, evenly along it, both ends included)."""
@@ -77,24 +111,45 @@ def final_candidates(state: LoopState, optimizer: Optimizer | None, objectives: 
     return candidates
 
 
-def run_summary(state: LoopState, config: CoadaptConfig, objectives: Sequence[Objective], outcome: FinalOutcome, *,
-                optimizer: str, nominal: np.ndarray, seconds: float, surrogate_quality: dict[str, Any],
-                shared: bool) -> dict[str, Any]:
+def run_summary(
+    state: LoopState,
+    config: CoadaptConfig,
+    objectives: Sequence[Objective],
+    outcome: FinalOutcome,
+    *,
+    optimizer: str,
+    nominal: np.ndarray,
+    seconds: float,
+    surrogate_quality: dict[str, Any],
+    shared: bool,
+) -> dict[str, Any]:
     """summary.json: the run's settings, its best and nominal designs with their costs and
     improvements, its interactions and seconds by phase, every batch, the surrogate's quality,
     the walking gate's verdict and the fall comparison."""
     s, c, names = state, config, [o.name for o in objectives]
     best_costs, nominal_costs = outcome.best_costs, outcome.nominal_costs
     improvements = {
-        o.name: float(o.improvement(float(best_costs[j]) if j < len(best_costs) else float("nan"), float(nominal_costs[j])))
-        for j, o in enumerate(objectives) if j < len(best_costs)
+        o.name: float(
+            o.improvement(
+                float(best_costs[j]) if j < len(best_costs) else float("nan"),
+                float(nominal_costs[j]),
+            )
+        )
+        for j, o in enumerate(objectives)
+        if j < len(best_costs)
     }
     cnt = s.counters
-    interactions = int(cnt["train_interactions"] + cnt["eval_interactions"] + cnt["final_interactions"])
+    interactions = int(
+        cnt["train_interactions"] + cnt["eval_interactions"] + cnt["final_interactions"]
+    )
     summary = {
         "run_id": s.run_id,
-        "method": c.method, "optimizer": optimizer, "objective": c.objective, "terrain": c.terrain,
-        "seed": c.seed, "preset": c.preset,
+        "method": c.method,
+        "optimizer": optimizer,
+        "objective": c.objective,
+        "terrain": c.terrain,
+        "seed": c.seed,
+        "preset": c.preset,
         "best_design": [float(x) for x in outcome.best_design],
         "best_cost": float(best_costs[0]),
         "best_costs": dict(zip(names, map(float, best_costs), strict=False)),
@@ -108,16 +163,21 @@ def run_summary(state: LoopState, config: CoadaptConfig, objectives: Sequence[Ob
         "eval_interactions": int(cnt["eval_interactions"]),
         "final_interactions": int(cnt["final_interactions"]),
         "seconds": seconds,
-        "train_seconds": cnt["train_seconds"], "eval_seconds": cnt["eval_seconds"],
-        "surrogate_seconds": cnt["surrogate_seconds"], "final_seconds": cnt["final_seconds"],
-        "real_evaluations": int(cnt["real_evaluations"]), "surrogate_evaluations": int(cnt["surrogate_evaluations"]),
+        "train_seconds": cnt["train_seconds"],
+        "eval_seconds": cnt["eval_seconds"],
+        "surrogate_seconds": cnt["surrogate_seconds"],
+        "final_seconds": cnt["final_seconds"],
+        "real_evaluations": int(cnt["real_evaluations"]),
+        "surrogate_evaluations": int(cnt["surrogate_evaluations"]),
         "designs_evaluated": int(cnt["designs_evaluated"]),
         "spaces": s.spaces,
         "final_space": s.space,
         "batches": s.batches,
         "pareto_front": outcome.front,
         "evaluation_policy": c.evaluation_policy,
-        "cost_rule": c.cost_rule, "cost_cap": c.cost_cap, "cost_reference": s.reference,
+        "cost_rule": c.cost_rule,
+        "cost_cap": c.cost_cap,
+        "cost_reference": s.reference,
         "surrogate_quality": surrogate_quality,
         # what a printed cost is: per-step mean of the final check's paired scenarios of
         # eval_steps steps each (costs of other commands or sizes are not comparable)
@@ -128,15 +188,23 @@ def run_summary(state: LoopState, config: CoadaptConfig, objectives: Sequence[Ob
     summary["notes"] = list(s.notes)
     # a policy trained from scratch in this run (no starting policy, or the BO baseline's
     # per-design policies from scratch) is vouched for by nothing but this gate
-    scratch = (str(c.checkpoint).strip().lower() == "none" if shared
-               else getattr(c, "specialized_init", "scratch") != "universal")
-    summary["reliable"], summary["reliability"] = judge_short(s.batches, outcome.walking, c.eval_steps,
-                                                              from_scratch=scratch)
-    summary["starting_policy"] = None if str(c.checkpoint).strip().lower() == "none" else starting_policy(c)
+    scratch = (
+        str(c.checkpoint).strip().lower() == "none"
+        if shared
+        else getattr(c, "specialized_init", "scratch") != "universal"
+    )
+    summary["reliable"], summary["reliability"] = judge_short(
+        s.batches, outcome.walking, c.eval_steps, from_scratch=scratch
+    )
+    summary["starting_policy"] = (
+        None if str(c.checkpoint).strip().lower() == "none" else starting_policy(c)
+    )
     summary["final_walking"] = outcome.walking
     summary.update(outcome.uncertainty)
     summary.update(fall_verdict(summary))
-    summary["warnings"] = run_warnings(summary)  # at a bound, plain mean, weak surrogate (cautions.py)
+    summary["warnings"] = run_warnings(
+        summary
+    )  # at a bound, plain mean, weak surrogate (cautions.py)
     return summary
 
 

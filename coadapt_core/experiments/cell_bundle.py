@@ -45,8 +45,9 @@ class BundleError(UserError):
     """A bundle that breaks a rule (a path leaving the folder, a link, a cap, a foreign run)."""
 
 
-def pack_folder(run_dir: str | os.PathLike, *, keep_buffer: bool = False,
-                limits: Limits = LIMITS) -> dict[str, bytes]:
+def pack_folder(
+    run_dir: str | os.PathLike, *, keep_buffer: bool = False, limits: Limits = LIMITS
+) -> dict[str, bytes]:
     """{relative POSIX path: bytes} of every regular file under `run_dir` (links and other
     non-files are left out; the evaluation buffer too unless `keep_buffer`)."""
     root = Path(run_dir)
@@ -67,7 +68,10 @@ def pack_folder(run_dir: str | os.PathLike, *, keep_buffer: bool = False,
 
 def _check_size(rel: str, size: int, total: int, count: int, limits: Limits) -> None:
     if size > limits.file_bytes:
-        raise BundleError(f"bundle file '{rel}' is {size} bytes, over the cap of {limits.file_bytes}", field="bundle")
+        raise BundleError(
+            f"bundle file '{rel}' is {size} bytes, over the cap of {limits.file_bytes}",
+            field="bundle",
+        )
     if total > limits.total_bytes:
         raise BundleError(f"bundle is over {limits.total_bytes} bytes in all", field="bundle")
     if count > limits.files:
@@ -78,12 +82,16 @@ def safe_relpath(name: Any) -> PurePosixPath:
     """A bundle's file name as a relative path that stays inside its folder: text, not empty,
     not absolute, no `..`, `.` or empty part, no backslash or NUL."""
     if not isinstance(name, str) or not name or "\\" in name or "\0" in name:
-        raise BundleError(f"bundle file name {str(name)[:80]!r} is not a relative path", field="bundle")
+        raise BundleError(
+            f"bundle file name {str(name)[:80]!r} is not a relative path", field="bundle"
+        )
     rel = PurePosixPath(name)
     if rel.is_absolute() or name.startswith("/"):
         raise BundleError(f"bundle file name '{name[:80]}' is absolute", field="bundle")
     if any(part in ("..", ".", "") for part in name.split("/")):
-        raise BundleError(f"bundle file name '{name[:80]}' has a '..', '.' or empty part", field="bundle")
+        raise BundleError(
+            f"bundle file name '{name[:80]}' has a '..', '.' or empty part", field="bundle"
+        )
     return rel
 
 
@@ -104,7 +112,9 @@ def write_folder(files: Any, dest: str | os.PathLike, *, limits: Limits = LIMITS
         checked.append((rel, bytes(data)))
     dest = Path(dest)
     if dest.is_symlink():
-        raise BundleError(f"'{dest}' is a link; a run folder is not written through one", field="bundle")
+        raise BundleError(
+            f"'{dest}' is a link; a run folder is not written through one", field="bundle"
+        )
     dest.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".incoming-{dest.name}-", dir=dest.parent))
     try:
@@ -129,28 +139,41 @@ def export_rows(store: ResultsStore, run_ids: list[str]) -> dict[str, str]:
         return {name: Path(path).read_text(encoding="utf-8") for name, path in written.items()}
 
 
-def import_rows(store: ResultsStore, tables: Any, *, run_id: str, folder: Path, cell: str | None = None,
-                limits: Limits = LIMITS) -> Any:
+def import_rows(
+    store: ResultsStore,
+    tables: Any,
+    *,
+    run_id: str,
+    folder: Path,
+    cell: str | None = None,
+    limits: Limits = LIMITS,
+) -> Any:
     """Merge a bundle's rows into `store` by `coadapt import`'s rule, with the run's folder
     recorded as `folder`. The rows must hold exactly the run `run_id` (and, with `cell`,
     that grid cell's run); anything else is refused before anything is written."""
     from coadapt_core.results.importer import export_files, import_tables, read_table
 
     if not isinstance(tables, dict) or set(tables) != set(EXPORT_TABLES):
-        raise BundleError(f"bundle rows are not the tables {', '.join(EXPORT_TABLES)}", field="bundle")
+        raise BundleError(
+            f"bundle rows are not the tables {', '.join(EXPORT_TABLES)}", field="bundle"
+        )
     if not is_run_id(run_id):
         raise BundleError(f"bundle run id {str(run_id)[:80]!r} is not a run id", field="bundle")
     with tempfile.TemporaryDirectory(prefix="coadapt-rows-") as tmp:
         for name, text in tables.items():
             if not isinstance(text, str) or len(text) > limits.table_bytes:
-                raise BundleError(f"bundle table {name} is not CSV text within {limits.table_bytes} bytes",
-                                  field="bundle")
+                raise BundleError(
+                    f"bundle table {name} is not CSV text within {limits.table_bytes} bytes",
+                    field="bundle",
+                )
             Path(tmp, f"{name}.csv").write_text(text, encoding="utf-8")
         files, _ = export_files(tmp, "csv")
         _, runs = read_table(files["runs"], "csv")
         ids = {str(r.get("id")) for r in runs}
         if ids != {run_id}:
-            raise BundleError(f"bundle rows hold runs {sorted(ids)[:3]}, not just {run_id}", field="bundle")
+            raise BundleError(
+                f"bundle rows hold runs {sorted(ids)[:3]}, not just {run_id}", field="bundle"
+            )
         if cell is not None and str(runs[0].get("cell")) != cell:
             raise BundleError(f"bundle run {run_id} is not a run of cell {cell}", field="bundle")
         return import_tables(store, tmp, fmt="csv", relocate={run_id: folder.resolve()})

@@ -26,7 +26,11 @@ def reported_objectives(requested: Sequence[str] = ()) -> tuple[list[str], list[
     from coadapt_core.plugins import get_registry
 
     registry = get_registry()
-    always = [n for n in registry.names("objective") if getattr(registry.get("objective", n), "summary_key", "")]
+    always = [
+        n
+        for n in registry.names("objective")
+        if getattr(registry.get("objective", n), "summary_key", "")
+    ]
     return always, always + [n for n in dict.fromkeys(requested) if n not in always]
 
 
@@ -68,7 +72,10 @@ def evaluate_checkpoint(
 
     state = read_checkpoint(checkpoint)
     if state["robot"] != robot_obj.name:
-        raise UserError(f"checkpoint '{checkpoint}' was trained for robot '{state['robot']}', not '{robot_obj.name}'", field="checkpoint")
+        raise UserError(
+            f"checkpoint '{checkpoint}' was trained for robot '{state['robot']}', not '{robot_obj.name}'",
+            field="checkpoint",
+        )
     registry = get_registry()
     always, metric_names = reported_objectives(objectives)
     requested = list(dict.fromkeys(objectives))
@@ -78,8 +85,16 @@ def evaluate_checkpoint(
     task = TaskConfig.from_dict(state["task_config"])
     task.commands.resample_seconds = 0.0
     task.episode_seconds = seconds + 1.0
-    trainer = Trainer(robot_obj, sim_cls, objective_objs, terrain=terrain, train_config=config, task_config=task,
-                      device=device, seed=seed)
+    trainer = Trainer(
+        robot_obj,
+        sim_cls,
+        objective_objs,
+        terrain=terrain,
+        train_config=config,
+        task_config=task,
+        device=device,
+        seed=seed,
+    )
     trainer.load(checkpoint, optimizers=False)
     randomization = RandomizationConfig() if randomize else RandomizationConfig.off()
     designs = np.tile(np.asarray(design, dtype=float), (agents, 1))
@@ -87,15 +102,34 @@ def evaluate_checkpoint(
     env = LocomotionEnv(sim, robot_obj, task, objective_objs, seed=seed, device=device)
     trainer.ensure_ppo(env)
     # the scenario set of `seed` (as `coadapt run/landscape --seed`), under the given command
-    apply_scenarios(env, agents, 1, scenario_seed(seed), commands=torch.tensor(command, dtype=torch.float32).expand(agents, 3))
+    apply_scenarios(
+        env,
+        agents,
+        1,
+        scenario_seed(seed),
+        commands=torch.tensor(command, dtype=torch.float32).expand(agents, 3),
+    )
     steps = max(1, int(round(seconds / env.dt)))
-    watch = _Watch(record=record, progress=progress, total=steps,
-                   detail=f"{agents} agents on one design, {seconds:g} s simulated")
+    watch = _Watch(
+        record=record,
+        progress=progress,
+        total=steps,
+        detail=f"{agents} agents on one design, {seconds:g} s simulated",
+    )
     result = rollout(trainer.ppo.action_distribution, env, 1, steps, seed=seed, on_step=watch)
     sim.close()
     keys = {n: registry.get("objective", n).summary_key for n in always}
-    out = _summary(result, robot_obj.name, design, command, keys, metric_names, requested,
-                   divergences=watch.divergences, dt=env.dt)
+    out = _summary(
+        result,
+        robot_obj.name,
+        design,
+        command,
+        keys,
+        metric_names,
+        requested,
+        divergences=watch.divergences,
+        dt=env.dt,
+    )
     if record:
         out["_trajectory"] = {"frames": watch.frames, "dt": env.dt, "terrain": terrain}
     return out
@@ -106,8 +140,16 @@ def evaluate_checkpoint(
 VERDICT_AGENTS, VERDICT_SECONDS, VERDICT_COMMAND = 16, 5.0, [0.5, 0.0, 0.0]
 
 
-def training_verdict(checkpoint: Path | str, robot_obj: Any, sim_cls: type, space: Any, *, terrain: str,
-                     device: str = "cpu", seed: int = 0) -> dict[str, Any]:
+def training_verdict(
+    checkpoint: Path | str,
+    robot_obj: Any,
+    sim_cls: type,
+    space: Any,
+    *,
+    terrain: str,
+    device: str = "cpu",
+    seed: int = 0,
+) -> dict[str, Any]:
     """`coadapt run`'s walking gate on a policy `coadapt train` just wrote: `evaluate_checkpoint`
     of `VERDICT_AGENTS` x `VERDICT_SECONDS` under `VERDICT_COMMAND` at the robot's nominal
     design (clipped into the trained range `space`), with randomization as in training."""
@@ -115,10 +157,31 @@ def training_verdict(checkpoint: Path | str, robot_obj: Any, sim_cls: type, spac
 
     nominal = np.asarray(robot_obj.nominal_design(space.is_mixed), dtype=float)
     design = np.clip(nominal, space.lower, space.upper)
-    result = evaluate_checkpoint(checkpoint, robot_obj, sim_cls, design, terrain=terrain, command=VERDICT_COMMAND,
-                                 agents=VERDICT_AGENTS, seconds=VERDICT_SECONDS, device=device, seed=seed)
-    keys = ("design", "survival", "vx_mean", "vx_command", "tracking_ratio", "walking", "walking_gate")
-    return {key: result[key] for key in keys} | {"agents": VERDICT_AGENTS, "seconds": VERDICT_SECONDS}
+    result = evaluate_checkpoint(
+        checkpoint,
+        robot_obj,
+        sim_cls,
+        design,
+        terrain=terrain,
+        command=VERDICT_COMMAND,
+        agents=VERDICT_AGENTS,
+        seconds=VERDICT_SECONDS,
+        device=device,
+        seed=seed,
+    )
+    keys = (
+        "design",
+        "survival",
+        "vx_mean",
+        "vx_command",
+        "tracking_ratio",
+        "walking",
+        "walking_gate",
+    )
+    return {key: result[key] for key in keys} | {
+        "agents": VERDICT_AGENTS,
+        "seconds": VERDICT_SECONDS,
+    }
 
 
 class _Watch:
@@ -139,7 +202,13 @@ class _Watch:
             self.divergences += int(torch.as_tensor(diverged).sum())
         if self.record:
             s = env.state
-            self.frames.append({"pos": s.base_pos[0].tolist(), "quat": s.base_quat[0].tolist(), "q": s.joint_pos[0].tolist()})
+            self.frames.append(
+                {
+                    "pos": s.base_pos[0].tolist(),
+                    "quat": s.base_quat[0].tolist(),
+                    "q": s.joint_pos[0].tolist(),
+                }
+            )
         self.done += 1
         if self.progress is not None:
             self.progress(self.done, self.detail, total=self.total)
@@ -162,8 +231,16 @@ def _gate(result: Any, command: list[float]) -> dict[str, Any]:
 
 
 def _summary(
-    result: Any, robot: str, design: Any, command: list[float], keys: dict[str, str], metric_names: list[str],
-    requested: list[str], *, divergences: int, dt: float,
+    result: Any,
+    robot: str,
+    design: Any,
+    command: list[float],
+    keys: dict[str, str],
+    metric_names: list[str],
+    requested: list[str],
+    *,
+    divergences: int,
+    dt: float,
 ) -> dict[str, Any]:
     """The result of `evaluate_checkpoint` from the rollout's: `keys` maps each objective
     always reported to its summary key; `requested` ones go under `costs` / `costs_se`."""
@@ -186,13 +263,17 @@ def _summary(
         # first fall) against the commanded one
         "yaw_rate_mean": float(result.yaw_rate[0]),
         "yaw_rate_command": float(command[2]),
-        "foot_alternation": None if not math.isfinite(float(result.alternation[0])) else float(result.alternation[0]),
+        "foot_alternation": None
+        if not math.isfinite(float(result.alternation[0]))
+        else float(result.alternation[0]),
         # standard errors over the agents (paired scenarios) of the speeds and the costs
         "vx_mean_se": _mean_se(result.per_agent_velocity[0, :, 0]),
         "yaw_rate_mean_se": _mean_se(result.per_agent_velocity[0, :, 2]),
         **{f"{key}_se": cost_se(name) for name, key in keys.items()},
         "fall_rate": float(1.0 - result.survival[0]),
-        "fall_rate_se": _mean_se(1.0 - (np.asarray(result.falls[0]) > 0)) if result.falls is not None else None,
+        "fall_rate_se": _mean_se(1.0 - (np.asarray(result.falls[0]) > 0))
+        if result.falls is not None
+        else None,
         # one design alone, so no nominal reference for the capped rule: the costs above are
         # the paper's plain mean (eq. 4) over the agents; `coadapt landscape` and the run's
         # final check give the capped cost beside it

@@ -81,7 +81,6 @@ __all__ = [
 ]
 
 
-
 def run_grid(
     spec: GridSpec,
     store: ResultsStore,
@@ -108,14 +107,19 @@ def run_grid(
     if threads is not None:
         check_threads(threads, "threads")
     if any(arg == "--threads" or arg.startswith("--threads=") for arg in spec.extra_args):
-        raise UserError("--run-arg=--threads: give the threads per cell as `coadapt grid --threads N` (the grid "
-                        "divides the cores among the cells by it)", field="run_arg")
+        raise UserError(
+            "--run-arg=--threads: give the threads per cell as `coadapt grid --threads N` (the grid "
+            "divides the cores among the cells by it)",
+            field="run_arg",
+        )
     grid_id = spec.grid_id
     store.save_grid(grid_id, spec.to_dict())
     if log_dir is None and out_dir is not None:
         log_dir = Path(out_dir) / "grid-logs" / grid_id
     settle_abandoned(store, spec, out_dir)
-    tasks, skipped = plan_grid(store, spec, out_dir=out_dir, command=command, timeout=timeout, log_dir=log_dir)
+    tasks, skipped = plan_grid(
+        store, spec, out_dir=out_dir, command=command, timeout=timeout, log_dir=log_dir
+    )
     report = GridReport(grid_id)
     for cell in skipped:
         run = finished_run(store, cell, spec)
@@ -136,7 +140,10 @@ def run_grid(
     else:  # a Ray cell reserves its threads on a node of the cluster
         workers, threads = workers or default_workers(), threads or 1
     for task in tasks:
-        task.argv += ["--threads", str(threads)]  # not in the cell's config hash: any split resumes it
+        task.argv += [
+            "--threads",
+            str(threads),
+        ]  # not in the cell's config hash: any split resumes it
         task.env.setdefault("OMP_NUM_THREADS", os.environ.get("OMP_NUM_THREADS", str(threads)))
         if min(workers, len(tasks)) > 1 and "GOMP_SPINCOUNT" not in os.environ:
             # cells started together share the cores: their OpenMP workers sleep when idle
@@ -145,8 +152,15 @@ def run_grid(
     if executor == "local":
         stream = local_executor(tasks, workers)
     else:
-        stream = ray_executor(tasks, workers, address, store=store, out_dir=out_dir, extra=spec.extra_args,
-                              state_every=state_every)
+        stream = ray_executor(
+            tasks,
+            workers,
+            address,
+            store=store,
+            out_dir=out_dir,
+            extra=spec.extra_args,
+            state_every=state_every,
+        )
     try:
         _collect(store, grid_id, stream, report, on_event)
     except BaseException as exc:  # Ctrl-C: the running cells were told (`stop_cells`)
@@ -159,7 +173,9 @@ def run_grid(
     return report
 
 
-def _mark_interrupted(store: ResultsStore, grid_id: str, tasks: Sequence[CellTask], report: GridReport) -> None:
+def _mark_interrupted(
+    store: ResultsStore, grid_id: str, tasks: Sequence[CellTask], report: GridReport
+) -> None:
     """The cells without an outcome when the grid stopped: interrupted, and their runs too."""
     for task in tasks:
         if task.cell.key in report.outcomes:
@@ -168,8 +184,13 @@ def _mark_interrupted(store: ResultsStore, grid_id: str, tasks: Sequence[CellTas
         run = started[-1] if started else None
         if run is not None and run["status"] == "running" and run.get("grid_id") == grid_id:
             store.set_status(run["id"], "interrupted")  # killed before it could say so
-        store.set_cell(grid_id, task.cell.key, status="interrupted", run_id=run["id"] if run else None,
-                       error="the grid was interrupted")
+        store.set_cell(
+            grid_id,
+            task.cell.key,
+            status="interrupted",
+            run_id=run["id"] if run else None,
+            error="the grid was interrupted",
+        )
 
 
 class GridInterrupted(KeyboardInterrupt):
@@ -181,8 +202,13 @@ class GridInterrupted(KeyboardInterrupt):
         self.report = report
 
 
-def _collect(store: ResultsStore, grid_id: str, stream: Iterator[tuple[CellTask, CellOutcome]], report: GridReport,
-             on_event: Callable[[str, Cell, CellOutcome | None], None] | None) -> None:
+def _collect(
+    store: ResultsStore,
+    grid_id: str,
+    stream: Iterator[tuple[CellTask, CellOutcome]],
+    report: GridReport,
+    on_event: Callable[[str, Cell, CellOutcome | None], None] | None,
+) -> None:
     for task, outcome in stream:
         key = task.cell.key
         if outcome.returncode == RAN_AGAIN:  # lost with its node: started again, not over
@@ -196,11 +222,17 @@ def _collect(store: ResultsStore, grid_id: str, stream: Iterator[tuple[CellTask,
         if run_id is None:
             started = store.list_runs(cell=key)
             run_id = started[-1]["id"] if started else None
-        if outcome.returncode == 0 and not (run_id and store.has_run(run_id)
-                                            and store.get_run(run_id)["status"] == "finished"):
+        if outcome.returncode == 0 and not (
+            run_id and store.has_run(run_id) and store.get_run(run_id)["status"] == "finished"
+        ):
             # finished only once its rows are in this store (a Ray cell's are written here)
-            outcome = CellOutcome(key, 1, outcome.seconds, outcome.result,
-                                  f"the cell's run {run_id} is not in the store {store.url} as finished")
+            outcome = CellOutcome(
+                key,
+                1,
+                outcome.seconds,
+                outcome.result,
+                f"the cell's run {run_id} is not in the store {store.url} as finished",
+            )
             report.outcomes[key] = outcome
         if outcome.returncode == 0:
             store.set_cell(grid_id, key, status="finished", run_id=run_id)

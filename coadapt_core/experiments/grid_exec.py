@@ -60,10 +60,18 @@ def execute_cell(task: CellTask, cwd: str | os.PathLike | None = None) -> CellOu
     env = {**os.environ, **task.env}
     start = time.perf_counter()
     if _STOPPING.is_set():
-        return CellOutcome(task.cell.key, NOT_STARTED, 0.0, None, "not started: the grid was interrupted")
+        return CellOutcome(
+            task.cell.key, NOT_STARTED, 0.0, None, "not started: the grid was interrupted"
+        )
     try:
-        proc = subprocess.Popen([*prefix, *task.argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-                                cwd=cwd)
+        proc = subprocess.Popen(
+            [*prefix, *task.argv],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env,
+            cwd=cwd,
+        )
     except OSError as exc:
         proc = None
         returncode, stdout, stderr = 127, "", f"cannot start {prefix[0]}: {exc}"
@@ -96,7 +104,11 @@ def execute_cell(task: CellTask, cwd: str | os.PathLike | None = None) -> CellOu
         path.parent.mkdir(parents=True, exist_ok=True)
         with path.open("a") as fh:
             # a command that runs as it stands (this interpreter starts coadapt as a module)
-            shown = [*task.command, *task.argv] if task.command is not None else [sys.executable, "-m", "coadapt_core", *task.argv]
+            shown = (
+                [*task.command, *task.argv]
+                if task.command is not None
+                else [sys.executable, "-m", "coadapt_core", *task.argv]
+            )
             fh.write(f"$ {shlex.join(shown)}\n{stdout}\n--- stderr ---\n{stderr}\n")
     result = None
     for line in reversed(stdout.strip().splitlines()):
@@ -115,7 +127,9 @@ def execute_cell(task: CellTask, cwd: str | os.PathLike | None = None) -> CellOu
 
 
 # -- executors -----------------------------------------------------------------------------
-def local_executor(tasks: Sequence[CellTask], workers: int) -> Iterator[tuple[CellTask, CellOutcome]]:
+def local_executor(
+    tasks: Sequence[CellTask], workers: int
+) -> Iterator[tuple[CellTask, CellOutcome]]:
     """A pool of `workers` cell processes on this machine (threads only wait on them). An
     interrupt (Ctrl-C) is passed on to the running cells (`stop_cells`) before it propagates."""
     _STOPPING.clear()
@@ -132,16 +146,25 @@ def local_executor(tasks: Sequence[CellTask], workers: int) -> Iterator[tuple[Ce
 
 
 def check_grid_options(
-    *, executor: str, workers: int | None, timeout: float | None, address: str | None, connect_timeout: float = 5.0
+    *,
+    executor: str,
+    workers: int | None,
+    timeout: float | None,
+    address: str | None,
+    connect_timeout: float = 5.0,
 ) -> None:
     """One-line `UserError` for a bad executor, worker count, cell timeout, or a Ray address
     that does not answer within `connect_timeout` seconds (checked before anything starts)."""
     if executor not in EXECUTORS:
-        raise UserError(f"--executor '{executor}' is not one of {', '.join(EXECUTORS)}", field="executor")
+        raise UserError(
+            f"--executor '{executor}' is not one of {', '.join(EXECUTORS)}", field="executor"
+        )
     if workers is not None and workers < 1:
         raise UserError(f"--workers must be >= 1, got {workers}", field="workers")
     if timeout is not None and not (math.isfinite(timeout) and timeout > 0):
-        raise UserError(f"--timeout must be a number of seconds > 0, got {timeout}", field="timeout")
+        raise UserError(
+            f"--timeout must be a number of seconds > 0, got {timeout}", field="timeout"
+        )
     if executor == "ray" and address and address not in ("auto", "local"):
         check_ray_address(address, connect_timeout)
 
@@ -154,7 +177,10 @@ def check_ray_address(address: str, connect_timeout: float = 10.0) -> None:
     target = address.split("://", 1)[1] if "://" in address else address
     host, _, port = target.rpartition(":")
     if not host or not port.isdigit():
-        raise UserError(f"--address '{address}' is not host:port (e.g. 10.0.0.5:6379 or ray://head:10001)", field="address")
+        raise UserError(
+            f"--address '{address}' is not host:port (e.g. 10.0.0.5:6379 or ray://head:10001)",
+            field="address",
+        )
     from concurrent.futures import ThreadPoolExecutor
     from concurrent.futures import TimeoutError as Timeout
 
@@ -166,12 +192,18 @@ def check_ray_address(address: str, connect_timeout: float = 10.0) -> None:
     try:
         pool.submit(connect).result(timeout=connect_timeout + 1)
     except Timeout:
-        raise UserError(f"cannot reach a Ray cluster at --address '{address}' (no answer in {connect_timeout:g} s); "
-                        "check the head node's host and port, or use --executor local", field="address") from None
+        raise UserError(
+            f"cannot reach a Ray cluster at --address '{address}' (no answer in {connect_timeout:g} s); "
+            "check the head node's host and port, or use --executor local",
+            field="address",
+        ) from None
     except OSError as exc:
         reason = exc.strerror or type(exc).__name__
-        raise UserError(f"cannot reach a Ray cluster at --address '{address}' ({reason}); check the head node's "
-                        "host and port, or use --executor local", field="address") from None
+        raise UserError(
+            f"cannot reach a Ray cluster at --address '{address}' ({reason}); check the head node's "
+            "host and port, or use --executor local",
+            field="address",
+        ) from None
     finally:
         pool.shutdown(wait=False)
 

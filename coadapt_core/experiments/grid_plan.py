@@ -31,8 +31,12 @@ class Cell:
     seed: int
     preset: str
     sim: str
-    optimizer: str | None = None  # None: the method's default (`coadapt_core.methods.optimizer_for`)
-    robot: str | None = None  # None: `coadapt run`'s default robot (a cell made by a GridSpec always names it)
+    optimizer: str | None = (
+        None  # None: the method's default (`coadapt_core.methods.optimizer_for`)
+    )
+    robot: str | None = (
+        None  # None: `coadapt run`'s default robot (a cell made by a GridSpec always names it)
+    )
 
     @property
     def key(self) -> str:
@@ -56,7 +60,12 @@ class Cell:
         return self.key.replace("|", "_").replace("=", "-").replace(",", "+")
 
     def run_args(
-        self, *, out_dir: str | None = None, resume: str | None = None, extra: Sequence[str] = (), store: str | None = None
+        self,
+        *,
+        out_dir: str | None = None,
+        resume: str | None = None,
+        extra: Sequence[str] = (),
+        store: str | None = None,
     ) -> list[str]:
         """The `coadapt run` arguments of this cell. With `store`, the run records into it,
         and an optimizer that keeps a study (it declares the option
@@ -123,7 +132,10 @@ class GridSpec:
                 raise UserError(f"grid --{name} lists a value twice: {values}", field=name)
         unknown = [m for m in self.methods if m not in METHOD_NAMES]
         if unknown:
-            raise UserError(f"unknown method '{unknown[0]}'; methods are {', '.join(METHOD_NAMES)}", field="methods")
+            raise UserError(
+                f"unknown method '{unknown[0]}'; methods are {', '.join(METHOD_NAMES)}",
+                field="methods",
+            )
 
     def cells(self) -> list[Cell]:
         return [
@@ -178,7 +190,9 @@ class GridReport:
     finished: list[str] = field(default_factory=list)
     failed: list[str] = field(default_factory=list)
     resumed: list[str] = field(default_factory=list)
-    ran_again: list[str] = field(default_factory=list)  # lost with their node and started again (once per loss)
+    ran_again: list[str] = field(
+        default_factory=list
+    )  # lost with their node and started again (once per loss)
     outcomes: dict[str, CellOutcome] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
@@ -201,14 +215,27 @@ def parse_list(text: str, name: str, *, integers: bool = False) -> list[Any]:
         try:
             return [int(p) for p in parts]
         except ValueError:
-            raise UserError(f"--{name} must be comma-separated integers, e.g. 0,1,2; got '{text}'", field=name) from None
+            raise UserError(
+                f"--{name} must be comma-separated integers, e.g. 0,1,2; got '{text}'", field=name
+            ) from None
     return parts
 
 
 # -- planning ------------------------------------------------------------------------------
 #: config keys that say where or how a run is stored or executed, not what it computes
-CONFIG_HASH_IGNORES = frozenset({"out", "store", "run_id", "run_dir", "device", "design_space", "grid_id", "grid_cell",
-                                 "logger"})
+CONFIG_HASH_IGNORES = frozenset(
+    {
+        "out",
+        "store",
+        "run_id",
+        "run_dir",
+        "device",
+        "design_space",
+        "grid_id",
+        "grid_cell",
+        "logger",
+    }
+)
 
 
 def config_hash(config: dict[str, Any]) -> str:
@@ -262,7 +289,13 @@ def cell_config_hash(cell: Cell, extra: Sequence[str] = ()) -> str | None:
     overrides = _extra_overrides(extra)
     if overrides is None:
         return None
-    overrides.update(method=cell.method, objective=cell.objective, terrain=cell.terrain, seed=cell.seed, sim=cell.sim)
+    overrides.update(
+        method=cell.method,
+        objective=cell.objective,
+        terrain=cell.terrain,
+        seed=cell.seed,
+        sim=cell.sim,
+    )
     if cell.robot:
         overrides["robot"] = cell.robot
     if cell.optimizer:
@@ -286,7 +319,9 @@ def run_config_hash(run: dict[str, Any]) -> str | None:
         return None
 
 
-def finished_run(store: ResultsStore, cell: Cell, spec: GridSpec | None = None) -> dict[str, Any] | None:
+def finished_run(
+    store: ResultsStore, cell: Cell, spec: GridSpec | None = None
+) -> dict[str, Any] | None:
     """A finished run that answers this cell: launched for it by this very grid (same grid
     id: the same command line), or any other run whose whole resolved config matches the
     cell's (`config_hash`: method, objective, terrain, seed, preset values, --run-arg options).
@@ -304,8 +339,14 @@ def finished_run(store: ResultsStore, cell: Cell, spec: GridSpec | None = None) 
         if isinstance(other_spec, dict) and list(other_spec.get("extra_args") or []) == extra:
             return run  # another grid ran this cell with the same command line
     candidates = by_cell + store.list_runs(
-        method=cell.method, objectives=cell.objective, terrain=cell.terrain, seed=cell.seed, preset=cell.preset,
-        simulator=cell.sim, status="finished", **({"robot": cell.robot} if cell.robot else {}),
+        method=cell.method,
+        objectives=cell.objective,
+        terrain=cell.terrain,
+        seed=cell.seed,
+        preset=cell.preset,
+        simulator=cell.sim,
+        status="finished",
+        **({"robot": cell.robot} if cell.robot else {}),
     )
     if expected is None:
         return None
@@ -315,7 +356,9 @@ def finished_run(store: ResultsStore, cell: Cell, spec: GridSpec | None = None) 
     return None
 
 
-def unfinished_run(store: ResultsStore, cell: Cell, out_dir: str | os.PathLike | None = None) -> dict[str, Any] | None:
+def unfinished_run(
+    store: ResultsStore, cell: Cell, out_dir: str | os.PathLike | None = None
+) -> dict[str, Any] | None:
     """The latest run a grid started for this cell that did not finish (killed, crashed)
     and whose run folder holds a state to continue from, so `coadapt run --resume` can
     continue it. The folder is `<out_dir>/<run id>` (or the row's own folder when it is named
@@ -337,7 +380,9 @@ def unfinished_run(store: ResultsStore, cell: Cell, out_dir: str | os.PathLike |
     return None
 
 
-def settle_abandoned(store: ResultsStore, spec: GridSpec, out_dir: str | os.PathLike | None) -> list[str]:
+def settle_abandoned(
+    store: ResultsStore, spec: GridSpec, out_dir: str | os.PathLike | None
+) -> list[str]:
     """Runs of this grid's cells that a killed grid left "running" without a state file to
     resume from (killed before their first one, by an older coadapt that registered a run
     before writing its state): marked failed, and their folders removed when they are inside
@@ -351,8 +396,14 @@ def settle_abandoned(store: ResultsStore, spec: GridSpec, out_dir: str | os.Path
             folder = run_folder_of(run)
             if folder is None or (folder / STATE_FILE).is_file():
                 continue
-            store.finish_run(run["id"], {"run_id": run["id"], "error": "killed before its first state file; the "
-                                         "grid starts the cell again"}, "failed")
+            store.finish_run(
+                run["id"],
+                {
+                    "run_id": run["id"],
+                    "error": "killed before its first state file; the grid starts the cell again",
+                },
+                "failed",
+            )
             settled.append(run["id"])
             if out_dir is None or folder.parent != Path(out_dir).resolve() or not folder.is_dir():
                 continue
@@ -382,13 +433,17 @@ def plan_grid(
             skipped.append(cell)
             continue
         previous = unfinished_run(store, cell, out_dir)
-        resume = previous["id"] if previous is not None else None  # a checked run id, inside out_dir
+        resume = (
+            previous["id"] if previous is not None else None
+        )  # a checked run id, inside out_dir
         env = {ENV_STORE: store.url, ENV_GRID_ID: grid_id, ENV_GRID_CELL: cell.key}
         log_path = None if log_dir is None else str(Path(log_dir) / f"{cell.slug}.log")
         tasks.append(
             CellTask(
                 cell=cell,
-                argv=cell.run_args(out_dir=out_dir, resume=resume, extra=spec.extra_args, store=store.url),
+                argv=cell.run_args(
+                    out_dir=out_dir, resume=resume, extra=spec.extra_args, store=store.url
+                ),
                 env=env,
                 command=list(command) if command is not None else None,
                 log_path=log_path,
@@ -397,4 +452,3 @@ def plan_grid(
             )
         )
     return tasks, skipped
-

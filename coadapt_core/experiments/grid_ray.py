@@ -43,8 +43,11 @@ def cell_threads(argv: Sequence[str]) -> int:
 def cell_gpus(argv: Sequence[str]) -> int:
     """1 when the cell's run arguments put it on a GPU (`--device cuda...`), else 0."""
     for i, token in enumerate(argv):
-        value = argv[i + 1] if token == "--device" and i + 1 < len(argv) else (
-            token.partition("=")[2] if token.startswith("--device=") else "")
+        value = (
+            argv[i + 1]
+            if token == "--device" and i + 1 < len(argv)
+            else (token.partition("=")[2] if token.startswith("--device=") else "")
+        )
         if value.startswith("cuda"):
             return 1
     return 0
@@ -69,13 +72,21 @@ def _connect(ray: Any, workers: int, address: str | None) -> bool:
         ray.init(**kwargs)
     except Exception as exc:  # a bad address, a refused token, an unreachable cluster
         detail = " ".join(str(exc).split())[:300]
-        raise UserError(f"cannot connect to Ray at '{address or 'local'}': {detail}", field="address") from None
+        raise UserError(
+            f"cannot connect to Ray at '{address or 'local'}': {detail}", field="address"
+        ) from None
     return True
 
 
 def ray_executor(
-    tasks: Sequence[CellTask], workers: int, address: str | None = None, *, store: ResultsStore,
-    out_dir: str | os.PathLike | None = "runs", extra: Sequence[str] = (), state_every: float = 300.0,
+    tasks: Sequence[CellTask],
+    workers: int,
+    address: str | None = None,
+    *,
+    store: ResultsStore,
+    out_dir: str | os.PathLike | None = "runs",
+    extra: Sequence[str] = (),
+    state_every: float = 300.0,
 ) -> Iterator[tuple[CellTask, CellOutcome]]:
     """One Ray task per cell (see the module); yields each cell's outcome once its rows and
     folder are in `store` and `out_dir`, and a `RAN_AGAIN` outcome for a lost cell that was
@@ -84,7 +95,8 @@ def ray_executor(
         import ray
     except ImportError:
         raise UserError(
-            "--executor ray needs Ray: pip install 'coadapt[ray]' (or use --executor local)", field="executor"
+            "--executor ray needs Ray: pip install 'coadapt[ray]' (or use --executor local)",
+            field="executor",
         ) from None
     started_here = _connect(ray, workers, address)
     try:
@@ -98,17 +110,28 @@ class _Driver:
     """Submits the cells, takes running cells' states from the mailbox, writes what comes
     back, and starts lost cells again."""
 
-    def __init__(self, ray: Any, store: ResultsStore, out: Path, extra: list[str], state_every: float):
+    def __init__(
+        self, ray: Any, store: ResultsStore, out: Path, extra: list[str], state_every: float
+    ):
         from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
 
         from coadapt_core.experiments.ray_cell import Mailbox, node_fingerprint, run_cell
 
-        self.ray, self.store, self.out, self.extra, self.state_every = ray, store, out, extra, state_every
+        self.ray, self.store, self.out, self.extra, self.state_every = (
+            ray,
+            store,
+            out,
+            extra,
+            state_every,
+        )
         self.fingerprint = node_fingerprint()
         here = ray.get_runtime_context().get_node_id()
         # on the driver's node: the states it holds outlive any worker node
-        self.mailbox = ray.remote(num_cpus=0)(Mailbox).options(
-            scheduling_strategy=NodeAffinitySchedulingStrategy(here, soft=False)).remote()
+        self.mailbox = (
+            ray.remote(num_cpus=0)(Mailbox)
+            .options(scheduling_strategy=NodeAffinitySchedulingStrategy(here, soft=False))
+            .remote()
+        )
         self.remote = ray.remote(max_retries=0)(run_cell)
         self.pending: dict[Any, tuple[CellTask, int]] = {}
         self.attempt: dict[str, int] = {}
@@ -119,15 +142,28 @@ class _Driver:
         from coadapt_core.experiments.grid_plan import _keeps_study, unfinished_run
         from coadapt_core.experiments.ray_cell import RayCell
 
-        argv = task.argv  # the cell's `coadapt run` arguments, --run-arg options and --threads included
-        job = RayCell(task=task, extra=self.extra, fingerprint=self.fingerprint, attempt=attempt,
-                      state_every=self.state_every, threads=cell_threads(argv))
+        argv = (
+            task.argv
+        )  # the cell's `coadapt run` arguments, --run-arg options and --threads included
+        job = RayCell(
+            task=task,
+            extra=self.extra,
+            fingerprint=self.fingerprint,
+            attempt=attempt,
+            state_every=self.state_every,
+            threads=cell_threads(argv),
+        )
         previous = unfinished_run(self.store, task.cell, self.out)
         how = "from the start"
         if previous is not None and not _keeps_study(task.cell.method, task.cell.optimizer):
-            job.resume, job.resume_files = previous["id"], pack_folder(previous["run_dir"], keep_buffer=True)
+            job.resume, job.resume_files = (
+                previous["id"],
+                pack_folder(previous["run_dir"], keep_buffer=True),
+            )
             how = f"resuming run {previous['id']} from its last state sent back"
-        ref = self.remote.options(num_cpus=job.threads, num_gpus=cell_gpus(argv)).remote(job, self.mailbox)
+        ref = self.remote.options(num_cpus=job.threads, num_gpus=cell_gpus(argv)).remote(
+            job, self.mailbox
+        )
         self.pending[ref] = (task, attempt)
         self.attempt[task.cell.key] = attempt
         return how
@@ -140,8 +176,10 @@ class _Driver:
         gpus = max((r.get("GPU", 0) for r in nodes), default=0)
         threads, gpu = cell_threads(task.argv), cell_gpus(task.argv)
         if threads > cpus:
-            return (f"the cell reserves {threads} CPUs (--threads) and the largest node of the cluster has "
-                    f"{cpus:g}; give --threads <= {cpus:g} or add bigger nodes")
+            return (
+                f"the cell reserves {threads} CPUs (--threads) and the largest node of the cluster has "
+                f"{cpus:g}; give --threads <= {cpus:g} or add bigger nodes"
+            )
         if gpu > gpus:
             return "the cell runs on a GPU (--device cuda) and no node of the cluster has one"
         return None
@@ -179,11 +217,24 @@ class _Driver:
         except Exception as exc:  # the node or worker died, the result was lost with it
             reason = type(exc).__name__
             if attempt > MAX_RERUNS:
-                yield task, CellOutcome(key, 1, 0.0, None, f"lost {attempt} times ({reason}); not run again")
+                yield (
+                    task,
+                    CellOutcome(
+                        key, 1, 0.0, None, f"lost {attempt} times ({reason}); not run again"
+                    ),
+                )
                 return
             how = self.submit(task, attempt + 1)
-            yield task, CellOutcome(key, RAN_AGAIN, 0.0, None,
-                                    f"lost with its node or worker ({reason}); attempt {attempt + 1} starts {how}")
+            yield (
+                task,
+                CellOutcome(
+                    key,
+                    RAN_AGAIN,
+                    0.0,
+                    None,
+                    f"lost with its node or worker ({reason}); attempt {attempt + 1} starts {how}",
+                ),
+            )
             return
         yield task, self.absorb(task, attempt, result)
 
@@ -199,8 +250,13 @@ class _Driver:
         try:
             self._write(task.cell.key, run_id, result["rows"], result.get("files") or {})
         except (BundleError, UserError) as exc:
-            return CellOutcome(outcome.cell_key, 1, outcome.seconds, outcome.result,
-                               f"what the cell sent back was refused: {exc}")
+            return CellOutcome(
+                outcome.cell_key,
+                1,
+                outcome.seconds,
+                outcome.result,
+                f"what the cell sent back was refused: {exc}",
+            )
         return outcome
 
     def take_states(self) -> None:
@@ -214,7 +270,9 @@ class _Driver:
         for key, attempt, run_id, rows, files in items:
             if self.attempt.get(key) != attempt:
                 continue
-            with contextlib.suppress(BundleError, UserError):  # a bad state is not written; the cell goes on
+            with contextlib.suppress(
+                BundleError, UserError
+            ):  # a bad state is not written; the cell goes on
                 self._write(key, run_id, rows, files)
 
     def _write(self, key: str, run_id: Any, rows: Any, files: Any) -> None:
@@ -242,4 +300,6 @@ class _Driver:
             if result.get("scratch") is None:  # refused before it ran
                 fh.write(f"{where}: {result['outcome'].error}\n")
             else:
-                fh.write(f"{where}, scratch {result['scratch']} (removed)\n{result.get('log') or ''}\n")
+                fh.write(
+                    f"{where}, scratch {result['scratch']} (removed)\n{result.get('log') or ''}\n"
+                )

@@ -70,25 +70,62 @@ def run_landscape(
     rule = rule or CostRule()
     designs = landscape_designs(grid, low, high, nominal)
     names = [o.name for o in objectives]
-    cfg = {**config, "method": LANDSCAPE_METHOD, "objectives": names, "grid": grid, "agents": agents,
-           "steps": steps, "seed": seed, "low": list(low), "high": list(high), "cost_rule": rule.rule,
-           "cost_cap": rule.cap}
+    cfg = {
+        **config,
+        "method": LANDSCAPE_METHOD,
+        "objectives": names,
+        "grid": grid,
+        "agents": agents,
+        "steps": steps,
+        "seed": seed,
+        "low": list(low),
+        "high": list(high),
+        "cost_rule": rule.rule,
+        "cost_cap": rule.cap,
+    }
     run_id = recorder.start_run(cfg)
     if on_start is not None:
         on_start(run_id)
     try:
-        summary = _evaluate_grid(backend, objectives, recorder, run_id, designs, names, grid, agents, steps, seed,
-                                 nominal, on_row, rule)
+        summary = _evaluate_grid(
+            backend,
+            objectives,
+            recorder,
+            run_id,
+            designs,
+            names,
+            grid,
+            agents,
+            steps,
+            seed,
+            nominal,
+            on_row,
+            rule,
+        )
     except BaseException as exc:
-        recorder.finish(run_id, {"run_id": run_id, "error": f"{type(exc).__name__}: {exc}"}, "interrupted")
+        recorder.finish(
+            run_id, {"run_id": run_id, "error": f"{type(exc).__name__}: {exc}"}, "interrupted"
+        )
         raise
     recorder.finish(run_id, summary)
     return summary
 
 
-def _evaluate_grid(backend: CoadaptationBackend, objectives: Sequence[Objective], recorder: SqliteRecorder, run_id: str,
-                   designs: np.ndarray, names: list[str], grid: int, agents: int, steps: int, seed: int,
-                   nominal: Sequence[float], on_row: Any, rule: CostRule) -> dict[str, Any]:
+def _evaluate_grid(
+    backend: CoadaptationBackend,
+    objectives: Sequence[Objective],
+    recorder: SqliteRecorder,
+    run_id: str,
+    designs: np.ndarray,
+    names: list[str],
+    grid: int,
+    agents: int,
+    steps: int,
+    seed: int,
+    nominal: Sequence[float],
+    on_row: Any,
+    rule: CostRule,
+) -> dict[str, Any]:
     """The rows not yet stored, evaluated and recorded one by one; the run's summary."""
     store = recorder.store
     done_rows = {e.inner for e in store.evaluations(run_id, kind="real")}
@@ -102,7 +139,9 @@ def _evaluate_grid(backend: CoadaptationBackend, objectives: Sequence[Objective]
             continue
         batch = designs[row * grid : (row + 1) * grid]  # [grid, dim]
         # one scenario set for the whole grid: the one a run with this seed evaluates on
-        fit = backend.real_fitness(batch, objectives, agents=agents, steps=steps, seed=scenario_seed(seed))
+        fit = backend.real_fitness(
+            batch, objectives, agents=agents, steps=steps, seed=scenario_seed(seed)
+        )
         if getattr(fit, "per_scenario", None) is not None:
             for design, per in zip(batch, np.asarray(fit.per_scenario, dtype=float), strict=True):
                 per_scenario[tuple(np.round(design, 9))] = per
@@ -110,16 +149,31 @@ def _evaluate_grid(backend: CoadaptationBackend, objectives: Sequence[Objective]
             for design, rate in zip(batch, np.asarray(fit.fall_rate, dtype=float), strict=True):
                 fall_rate[tuple(np.round(design, 9))] = float(rate)
         if getattr(fit, "scenario_falls", None) is not None:
-            for design, falls in zip(batch, np.asarray(fit.scenario_falls, dtype=bool), strict=True):
+            for design, falls in zip(
+                batch, np.asarray(fit.scenario_falls, dtype=bool), strict=True
+            ):
                 scenario_falls[tuple(np.round(design, 9))] = falls
-        if getattr(fit, "per_scenario", None) is not None and rule.needs_reference and reference is None:
+        if (
+            getattr(fit, "per_scenario", None) is not None
+            and rule.needs_reference
+            and reference is None
+        ):
             # the nominal design on the grid's scenario set: the rule's reference level
-            ref_fit = backend.real_fitness(np.asarray(nominal, dtype=float)[None, :], objectives, agents=agents,
-                                           steps=steps, seed=scenario_seed(seed))
+            ref_fit = backend.real_fitness(
+                np.asarray(nominal, dtype=float)[None, :],
+                objectives,
+                agents=agents,
+                steps=steps,
+                seed=scenario_seed(seed),
+            )
             extra_interactions = int(ref_fit.interactions)
             falls = getattr(ref_fit, "scenario_falls", None)
-            reference = rule.reference(np.asarray(ref_fit.per_scenario)[0], None if falls is None else np.asarray(falls)[0])
-        if getattr(fit, "per_scenario", None) is not None and (reference is not None or not rule.needs_reference):
+            reference = rule.reference(
+                np.asarray(ref_fit.per_scenario)[0], None if falls is None else np.asarray(falls)[0]
+            )
+        if getattr(fit, "per_scenario", None) is not None and (
+            reference is not None or not rule.needs_reference
+        ):
             costs = rule.cost(fit.per_scenario, getattr(fit, "scenario_falls", None), reference)
         else:
             costs = np.asarray(fit.costs, dtype=float)
@@ -154,50 +208,88 @@ def _evaluate_grid(backend: CoadaptationBackend, objectives: Sequence[Objective]
         "grid": grid,
         "agents": agents,
         "steps": steps,
-        **_uncertainty(rule, objectives, best.design, nominal_row.design, per_scenario, scenario_falls, fall_rate),
+        **_uncertainty(
+            rule,
+            objectives,
+            best.design,
+            nominal_row.design,
+            per_scenario,
+            scenario_falls,
+            fall_rate,
+        ),
     }
     return summary
 
 
-def _uncertainty(rule: CostRule, objectives: Sequence[Objective], best: Sequence[float], nominal: Sequence[float],
-                 per_scenario: dict[tuple[float, ...], np.ndarray], scenario_falls: dict[tuple[float, ...], np.ndarray],
-                 fall_rate: dict[tuple[float, ...], float]) -> dict[str, Any]:
+def _uncertainty(
+    rule: CostRule,
+    objectives: Sequence[Objective],
+    best: Sequence[float],
+    nominal: Sequence[float],
+    per_scenario: dict[tuple[float, ...], np.ndarray],
+    scenario_falls: dict[tuple[float, ...], np.ndarray],
+    fall_rate: dict[tuple[float, ...], float],
+) -> dict[str, Any]:
     """Standard errors (first objective) of the optimum's and the nominal cost, the paired
     standard error of the improvement, the plain mean (eq. 4) with its standard error and
     the improvement under it, fall rates with standard errors, and the grid's median relative
     error (all from the rows evaluated in this process)."""
     key_b, key_n = tuple(np.round(best, 9)), tuple(np.round(nominal, 9))
-    out: dict[str, Any] = {"best_cost_se": None, "nominal_cost_se": None, "improvement_se": None,
-                           "best_fall_rate": fall_rate.get(key_b), "nominal_fall_rate": fall_rate.get(key_n),
-                           "median_relative_se": None}
+    out: dict[str, Any] = {
+        "best_cost_se": None,
+        "nominal_cost_se": None,
+        "improvement_se": None,
+        "best_fall_rate": fall_rate.get(key_b),
+        "nominal_fall_rate": fall_rate.get(key_n),
+        "median_relative_se": None,
+    }
     if key_b in per_scenario and key_n in per_scenario:
         pair = np.stack([per_scenario[key_b], per_scenario[key_n]])  # [2, A, M]
-        falls = (np.stack([scenario_falls[key_b], scenario_falls[key_n]])
-                 if key_b in scenario_falls and key_n in scenario_falls else None)
+        falls = (
+            np.stack([scenario_falls[key_b], scenario_falls[key_n]])
+            if key_b in scenario_falls and key_n in scenario_falls
+            else None
+        )
         comp = compare_designs(rule, objectives, pair, falls, 0, 1)
         first = comp["objectives"][objectives[0].name]
-        finite = (lambda v: float(v) if v is not None and np.isfinite(v) else None)  # noqa: E731
-        out.update({
-            "best_cost_se": first["cost_se"], "nominal_cost_se": first["nominal_cost_se"],
-            "improvement_se": finite(first["improvement_se"]),
-            "best_plain_mean": first["plain_mean"], "best_plain_mean_se": first["plain_mean_se"],
-            "nominal_plain_mean": first["nominal_plain_mean"], "nominal_plain_mean_se": first["nominal_plain_mean_se"],
-            "improvement_plain": first["improvement_plain"], "improvement_plain_se": finite(first["improvement_plain_se"]),
-        })
+        finite = lambda v: float(v) if v is not None and np.isfinite(v) else None  # noqa: E731
+        out.update(
+            {
+                "best_cost_se": first["cost_se"],
+                "nominal_cost_se": first["nominal_cost_se"],
+                "improvement_se": finite(first["improvement_se"]),
+                "best_plain_mean": first["plain_mean"],
+                "best_plain_mean_se": first["plain_mean_se"],
+                "nominal_plain_mean": first["nominal_plain_mean"],
+                "nominal_plain_mean_se": first["nominal_plain_mean_se"],
+                "improvement_plain": first["improvement_plain"],
+                "improvement_plain_se": finite(first["improvement_plain_se"]),
+            }
+        )
         if comp.get("fall_rate") is not None:
-            out.update({"best_fall_rate_se": finite(comp["fall_rate_se"]),
-                        "nominal_fall_rate_se": finite(comp["reference_fall_rate_se"]),
-                        "fall_rate_difference": comp["fall_rate_difference"],
-                        "fall_rate_difference_se": finite(comp["fall_rate_difference_se"])})
+            out.update(
+                {
+                    "best_fall_rate_se": finite(comp["fall_rate_se"]),
+                    "nominal_fall_rate_se": finite(comp["reference_fall_rate_se"]),
+                    "fall_rate_difference": comp["fall_rate_difference"],
+                    "fall_rate_difference_se": finite(comp["fall_rate_difference_se"]),
+                }
+            )
     if per_scenario:
         per = np.stack(list(per_scenario.values()))  # [D, A, M]
         keys = list(per_scenario)
-        falls = np.stack([scenario_falls[k] for k in keys]) if all(k in scenario_falls for k in keys) else None
+        falls = (
+            np.stack([scenario_falls[k] for k in keys])
+            if all(k in scenario_falls for k in keys)
+            else None
+        )
         ref = None
         if rule.needs_reference and key_n in per_scenario:
             ref = rule.reference(per_scenario[key_n], scenario_falls.get(key_n))
         if ref is not None or not rule.needs_reference:
             values = rule.scenario_values(per, falls, ref)
             rel = scenario_se(values, rule.aggregate)[:, 0] / np.abs(rule.aggregate(values)[:, 0])
-            out["median_relative_se"] = float(np.median(rel[np.isfinite(rel)])) if np.isfinite(rel).any() else None
+            out["median_relative_se"] = (
+                float(np.median(rel[np.isfinite(rel)])) if np.isfinite(rel).any() else None
+            )
     return out

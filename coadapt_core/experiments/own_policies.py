@@ -72,12 +72,18 @@ def retrain_policies(
     try:
         config = config_from_dict(dict(run.get("config") or {}))
     except (UserError, TypeError, ValueError) as exc:
-        raise BackendUnavailable(f"the run's recorded config cannot be rebuilt ({' '.join(str(exc).split())})") from None
+        raise BackendUnavailable(
+            f"the run's recorded config cannot be rebuilt ({' '.join(str(exc).split())})"
+        ) from None
     if policy_factory is None:
         policy_factory = run_learner(config, run)
     # the loop builds its backend with seed_for(0) (CoadaptationLoop.get_backend)
-    backend = SpecializedPolicyBackend(policy_factory, train_steps=config.specialized_train_steps,
-                                       seed=seed_at(config.seed, 0), keep=1)
+    backend = SpecializedPolicyBackend(
+        policy_factory,
+        train_steps=config.specialized_train_steps,
+        seed=seed_at(config.seed, 0),
+        keep=1,
+    )
     folder.mkdir(parents=True, exist_ok=True)
     out = {}
     try:
@@ -100,17 +106,25 @@ def run_learner(config: Any, run: dict[str, Any]) -> Callable[[int], Coadaptatio
     )
     from coadapt_core.plugins import get_registry
 
-    recorded = (run.get("config") or {}).get("policy") or (run.get("summary") or {}).get("policy") or {}
+    recorded = (
+        (run.get("config") or {}).get("policy") or (run.get("summary") or {}).get("policy") or {}
+    )
     if config.specialized_init == "universal":
         if config.checkpoint.strip():
-            raise BackendUnavailable("the run's policies started from a file it was given (--checkpoint), "
-                                     "not one the robot ships; they cannot be trained again here")
+            raise BackendUnavailable(
+                "the run's policies started from a file it was given (--checkpoint), "
+                "not one the robot ships; they cannot be trained again here"
+            )
         now = policy_provenance(config)
         if recorded.get("sha256") and now.get("sha256") != recorded.get("sha256"):
-            raise BackendUnavailable(f"the starting policy {now.get('file')} is not the one the run started from "
-                                     "(SHA-256 differs); its policies cannot be trained again")
+            raise BackendUnavailable(
+                f"the starting policy {now.get('file')} is not the one the run started from "
+                "(SHA-256 differs); its policies cannot be trained again"
+            )
     robot = get_registry().create("robot", config.robot)
-    return universal_policy_factory(config, robot, robot.design_space(uses_mixed_space(config)), make_objectives(config))
+    return universal_policy_factory(
+        config, robot, robot.design_space(uses_mixed_space(config)), make_objectives(config)
+    )
 
 
 #: policies trained again in this process, (run id, role, design) -> file bytes, so the
@@ -156,8 +170,14 @@ def run_nominal(robot: Any, run: dict[str, Any], dim: int) -> np.ndarray:
     raise BackendUnavailable(f"robot '{robot.name}' has no design space of {dim} variables")
 
 
-def run_backend(run: dict[str, Any], dim: int, simulator: str | None, agents: int, checkpoint: str,
-                factory: Callable[..., CoadaptationBackend] | None = None) -> tuple[CoadaptationBackend, list, np.ndarray]:
+def run_backend(
+    run: dict[str, Any],
+    dim: int,
+    simulator: str | None,
+    agents: int,
+    checkpoint: str,
+    factory: Callable[..., CoadaptationBackend] | None = None,
+) -> tuple[CoadaptationBackend, list, np.ndarray]:
     """(backend on `simulator` for the run's robot, terrain and design space of dimension `dim`
     with the policy in `checkpoint`, the run's objectives, its nominal design); the yardstick
     passes the run's own simulator, the sim-to-sim check a second one."""
@@ -167,12 +187,22 @@ def run_backend(run: dict[str, Any], dim: int, simulator: str | None, agents: in
     robot_name = run.get("robot") or cfg.get("robot")
     if not robot_name or not simulator:
         raise BackendUnavailable("the run recorded no robot or simulator")
-    robot, sim_cls, objectives = resolve_plugins(str(robot_name), str(simulator), list(run["objectives"]))
+    robot, sim_cls, objectives = resolve_plugins(
+        str(robot_name), str(simulator), list(run["objectives"])
+    )
     nominal = run_nominal(robot, run, dim)
-    space = next((s for s in (robot.design_space(False), robot.design_space(True)) if s.dim == dim), None)
+    space = next(
+        (s for s in (robot.design_space(False), robot.design_space(True)) if s.dim == dim), None
+    )
     backend = (factory or make_backend)(
-        robot, sim_cls, objectives, terrain=run.get("terrain") or "flat", design_space=space,
-        agents_per_design=agents, device=str(cfg.get("device", "cpu")), seed=int(run.get("seed") or 0),
+        robot,
+        sim_cls,
+        objectives,
+        terrain=run.get("terrain") or "flat",
+        design_space=space,
+        agents_per_design=agents,
+        device=str(cfg.get("device", "cpu")),
+        seed=int(run.get("seed") or 0),
         checkpoint=checkpoint,
     )
     return backend, objectives, nominal
@@ -183,7 +213,9 @@ def nominal_of(run: dict[str, Any], dim: int) -> np.ndarray:
     from coadapt_core.plugins import get_registry
 
     cfg = run.get("config") or {}
-    return run_nominal(get_registry().create("robot", str(run.get("robot") or cfg.get("robot"))), run, dim)
+    return run_nominal(
+        get_registry().create("robot", str(run.get("robot") or cfg.get("robot"))), run, dim
+    )
 
 
 def each_own_policy(

@@ -63,7 +63,9 @@ def node_fingerprint() -> dict[str, Any]:
         version = metadata.version("coadapt")
     except metadata.PackageNotFoundError:
         version = "unknown"
-    plugins = sorted(f"{p.kind}:{p.name}={p.distribution} {p.version}" for p in get_registry().all())
+    plugins = sorted(
+        f"{p.kind}:{p.name}={p.distribution} {p.version}" for p in get_registry().all()
+    )
     return {"coadapt": version, "plugins": plugins}
 
 
@@ -75,7 +77,8 @@ def fingerprint_difference(driver: dict[str, Any], node: dict[str, Any]) -> str 
     if mine != theirs:
         extra, missing = sorted(mine - theirs), sorted(theirs - mine)
         parts = ([f"only here: {', '.join(extra[:3])}"] if extra else []) + (
-            [f"only on the driver: {', '.join(missing[:3])}"] if missing else [])
+            [f"only on the driver: {', '.join(missing[:3])}"] if missing else []
+        )
         return "plugins differ (" + "; ".join(parts) + ")"
     return None
 
@@ -90,12 +93,19 @@ def run_cell(job: RayCell, mailbox: Any = None) -> dict[str, Any]:
     differs = fingerprint_difference(job.fingerprint, node_fingerprint())
     key = job.task.cell.key
     if differs:
-        error = (f"node {host} refused the cell: {differs}; install the driver's coadapt and plugins on every "
-                 "node (docs/cluster.md)")
+        error = (
+            f"node {host} refused the cell: {differs}; install the driver's coadapt and plugins on every "
+            "node (docs/cluster.md)"
+        )
         return {"outcome": CellOutcome(key, REFUSED, 0.0, None, error), "node": node, "host": host}
     scratch = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX))
     try:
-        return {**_run_in(scratch, job, mailbox), "node": node, "host": host, "scratch": str(scratch)}
+        return {
+            **_run_in(scratch, job, mailbox),
+            "node": node,
+            "host": host,
+            "scratch": str(scratch),
+        }
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
 
@@ -131,7 +141,9 @@ def _run_in(scratch: Path, job: RayCell, mailbox: Any) -> dict[str, Any]:
     stop = threading.Event()
     sender = None
     if mailbox is not None and job.state_every > 0:
-        sender = threading.Thread(target=_send_states, args=(scratch, job, mailbox, stop), daemon=True)
+        sender = threading.Thread(
+            target=_send_states, args=(scratch, job, mailbox, stop), daemon=True
+        )
         sender.start()
     try:
         outcome = execute_cell(task, cwd=scratch)  # the run's relative store and runs folder
@@ -164,7 +176,9 @@ def _run_id(runs: Path, outcome: CellOutcome) -> str | None:
     from coadapt_core.validation import is_run_id
 
     named = (outcome.result or {}).get("run_id")
-    folders = [p.name for p in runs.iterdir() if p.is_dir() and not p.is_symlink() and is_run_id(p.name)]
+    folders = [
+        p.name for p in runs.iterdir() if p.is_dir() and not p.is_symlink() and is_run_id(p.name)
+    ]
     if isinstance(named, str) and named in folders:
         return named
     return folders[0] if len(folders) == 1 else None
@@ -176,7 +190,11 @@ def snapshot(scratch: Path) -> tuple[str, dict[str, str], dict[str, bytes]] | No
     from coadapt_core.results.store import ResultsStore
 
     runs = scratch / SCRATCH_RUNS
-    found = [p for p in runs.iterdir() if p.is_dir() and (p / STATE_NAME).is_file()] if runs.is_dir() else []
+    found = (
+        [p for p in runs.iterdir() if p.is_dir() and (p / STATE_NAME).is_file()]
+        if runs.is_dir()
+        else []
+    )
     if len(found) != 1:
         return None
     folder = found[0]
@@ -216,7 +234,9 @@ class Mailbox:
     def __init__(self) -> None:
         self.items: list[tuple[str, int, str, dict[str, str], dict[str, bytes]]] = []
 
-    def put(self, key: str, attempt: int, run_id: str, rows: dict[str, str], files: dict[str, bytes]) -> None:
+    def put(
+        self, key: str, attempt: int, run_id: str, rows: dict[str, str], files: dict[str, bytes]
+    ) -> None:
         self.items = [i for i in self.items if i[0] != key]  # only the latest state of a cell
         self.items.append((key, attempt, run_id, rows, files))
 

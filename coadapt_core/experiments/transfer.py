@@ -102,10 +102,17 @@ def swing_targets(default_joint_pos: np.ndarray, steps: int, control_dt: float) 
     return default_joint_pos[None] + wave[:, None, :]
 
 
-def _make(sim_cls: type[Simulator], robot: Robot, designs: np.ndarray, *, fixed_base: bool, **kwargs) -> Simulator:
+def _make(
+    sim_cls: type[Simulator], robot: Robot, designs: np.ndarray, *, fixed_base: bool, **kwargs
+) -> Simulator:
     return sim_cls(
-        robot, designs, terrain="flat", randomization=RandomizationConfig.off(), seed=0,
-        fixed_base=fixed_base, **kwargs,
+        robot,
+        designs,
+        terrain="flat",
+        randomization=RandomizationConfig.off(),
+        seed=0,
+        fixed_base=fixed_base,
+        **kwargs,
     )
 
 
@@ -151,14 +158,18 @@ def compare_backends(
 ) -> list[DesignFigures]:
     """Swing and standing figures per design (`DEFAULT_DESIGNS` when None), `other`
     measured against `reference`. Each backend simulates all designs as one batch."""
-    designs = np.atleast_2d(np.asarray(DEFAULT_DESIGNS if designs is None else designs, dtype=float))
+    designs = np.atleast_2d(
+        np.asarray(DEFAULT_DESIGNS if designs is None else designs, dtype=float)
+    )
     ref_cls, other_cls = _resolve(reference), _resolve(other)
     steps = round(duration / (physics_dt * decimation))
     runs: dict[str, dict[str, dict[str, np.ndarray]]] = {"swing": {}, "standing": {}}
     for label, cls, extra in (("reference", ref_cls, {}), ("other", other_cls, other_kwargs or {})):
         common = {"physics_dt": physics_dt, "decimation": decimation, **extra}
         with _make(cls, robot, designs, fixed_base=True, **common) as sim:
-            targets = swing_targets(sim.default_joint_pos.double().cpu().numpy(), steps, sim.control_dt)
+            targets = swing_targets(
+                sim.default_joint_pos.double().cpu().numpy(), steps, sim.control_dt
+            )
             runs["swing"][label] = _roll(sim, targets, steps)
         with _make(cls, robot, designs, fixed_base=False, **common) as sim:
             runs["standing"][label] = _roll(sim, None, steps)
@@ -173,10 +184,14 @@ def compare_backends(
             fig.swing[key] = ErrorFigure.of(sw_other[key][start:, i], sw_ref[key][start:, i])
         motion = sw_ref["joint_pos"][:, i] - sw_ref["joint_pos"][0, i]
         fig.swing_amplitude = float(np.sqrt(np.mean(motion**2)))
-        fig.standing["base_height"] = ErrorFigure.of(st_other["base_pos"][:, i, 2], st_ref["base_pos"][:, i, 2])
+        fig.standing["base_height"] = ErrorFigure.of(
+            st_other["base_pos"][:, i, 2], st_ref["base_pos"][:, i, 2]
+        )
         angle = _orientation_error(st_other["base_quat"][:, i], st_ref["base_quat"][:, i])
         fig.standing["orientation"] = ErrorFigure.of(angle, np.zeros_like(angle))
-        fig.standing["joint_pos"] = ErrorFigure.of(st_other["joint_pos"][:, i], st_ref["joint_pos"][:, i])
+        fig.standing["joint_pos"] = ErrorFigure.of(
+            st_other["joint_pos"][:, i], st_ref["joint_pos"][:, i]
+        )
         for label, run in (("reference", st_ref), ("other", st_other)):
             fig.height_drop[label] = float(run["base_pos"][0, i, 2] - run["base_pos"][-1, i, 2])
         figures.append(fig)
@@ -191,7 +206,13 @@ def markdown_tables(figures: list[DesignFigures]) -> str:
         lines.append("")
         lines.append("| test | quantity | RMS error | max error |")
         lines.append("|---|---|---|---|")
-        units = {"joint_pos": "rad", "joint_vel": "rad/s", "joint_torque": "N m", "base_height": "m", "orientation": "rad"}
+        units = {
+            "joint_pos": "rad",
+            "joint_vel": "rad/s",
+            "joint_torque": "N m",
+            "base_height": "m",
+            "orientation": "rad",
+        }
         for test, table in (("swing", fig.swing), ("standing", fig.standing)):
             for key, err in table.items():
                 lines.append(f"| {test} | {key} ({units[key]}) | {err.rms:.4f} | {err.max:.4f} |")
@@ -215,7 +236,9 @@ def run_checkpoint_in_store(store: ResultsStore, run: dict[str, Any]) -> tuple[P
     relative to the folder a run was started from (older rows) are looked up inside the run
     folder by their last two parts."""
     checkpoints = store.checkpoints(run["id"])
-    recorded = (run.get("summary") or {}).get("checkpoint") or (checkpoints[-1]["path"] if checkpoints else None)
+    recorded = (run.get("summary") or {}).get("checkpoint") or (
+        checkpoints[-1]["path"] if checkpoints else None
+    )
     if recorded is None:
         return None, "n/a: the run recorded no policy checkpoint"
     found = checkpoint_of(run, recorded)
@@ -235,26 +258,47 @@ def transfer_rows(store: ResultsStore, run_id: str, simulator: str) -> list:
     return [e for e in store.evaluations(run_id, kind=TRANSFER_KIND) if e.simulator == simulator]
 
 
-def _transfer_backend(run: dict[str, Any], dim: int, simulator: str, agents: int, checkpoint: str,
-                      factory: BackendFactory | None) -> tuple[CoadaptationBackend, list, np.ndarray]:
+def _transfer_backend(
+    run: dict[str, Any],
+    dim: int,
+    simulator: str,
+    agents: int,
+    checkpoint: str,
+    factory: BackendFactory | None,
+) -> tuple[CoadaptationBackend, list, np.ndarray]:
     """(backend on `simulator` with the policy in `checkpoint`, objectives, nominal design)."""
     return run_backend(run, dim, simulator, agents, checkpoint, factory)
 
 
-def _own_policy_transfer(run: dict[str, Any], best: np.ndarray, simulator: str, agents: int, steps: int, seed: int,
-                         factory: BackendFactory | None) -> tuple[Any, list, np.ndarray]:
+def _own_policy_transfer(
+    run: dict[str, Any],
+    best: np.ndarray,
+    simulator: str,
+    agents: int,
+    steps: int,
+    seed: int,
+    factory: BackendFactory | None,
+) -> tuple[Any, list, np.ndarray]:
     """A run without a shared policy: its best and nominal designs each with its own policy
     (saved by the run, else trained again as it did, in the run's own simulator) on `simulator`."""
     designs = {"best": best, "nominal": nominal_of(run, best.shape[0])}
     made: dict[str, Any] = {}
 
     def make(path):
-        backend, made["objectives"], _ = _transfer_backend(run, best.shape[0], simulator, agents, str(path), factory)
+        backend, made["objectives"], _ = _transfer_backend(
+            run, best.shape[0], simulator, agents, str(path), factory
+        )
         return backend
 
     with policy_files(run, designs) as files:
-        [fit] = each_own_policy(make, files, designs, lambda backend, d: [
-            backend.real_fitness(d, made["objectives"], agents=agents, steps=steps, seed=seed)])
+        [fit] = each_own_policy(
+            make,
+            files,
+            designs,
+            lambda backend, d: [
+                backend.real_fitness(d, made["objectives"], agents=agents, steps=steps, seed=seed)
+            ],
+        )
     return fit, made["objectives"], designs["nominal"]
 
 
@@ -283,13 +327,21 @@ def transfer_run(
         return why
     cfg = run.get("config") or {}
     best = np.asarray(best_design, dtype=float)
-    seed = scenario_seed(int(run.get("seed") or 0))  # the run's own scenario set (docs/coadaptation.md)
+    seed = scenario_seed(
+        int(run.get("seed") or 0)
+    )  # the run's own scenario set (docs/coadaptation.md)
     try:
         if shared:
-            backend, objectives, nominal = _transfer_backend(run, best.shape[0], simulator, agents, str(checkpoint), factory)
-            fit = backend.real_fitness(np.stack([best, nominal]), objectives, agents=agents, steps=steps, seed=seed)
+            backend, objectives, nominal = _transfer_backend(
+                run, best.shape[0], simulator, agents, str(checkpoint), factory
+            )
+            fit = backend.real_fitness(
+                np.stack([best, nominal]), objectives, agents=agents, steps=steps, seed=seed
+            )
         else:
-            fit, objectives, nominal = _own_policy_transfer(run, best, simulator, agents, steps, seed, factory)
+            fit, objectives, nominal = _own_policy_transfer(
+                run, best, simulator, agents, steps, seed, factory
+            )
     except BackendUnavailable as exc:
         return f"n/a: {exc}"
     except UserError as exc:  # e.g. a checkpoint that is not one (refused unread): this run only
@@ -297,10 +349,19 @@ def transfer_run(
     # the run's own cost rule, the nominal design (row 1) giving its reference level
     costs = CostRule.from_config(cfg).costs_of(fit, nominal=1).reshape(2, -1)  # [2, M]
     names = [o.name for o in objectives]
-    store.record_evaluations(run["id"], batch_rows(
-        outer=TRANSFER_OUTER, inner=0, kind=TRANSFER_KIND, designs=[best.tolist(), nominal.tolist()],
-        costs=[dict(zip(names, row.tolist(), strict=True)) for row in costs], interactions=fit.interactions // 2,
-        seconds=fit.seconds / 2, simulator=simulator))
+    store.record_evaluations(
+        run["id"],
+        batch_rows(
+            outer=TRANSFER_OUTER,
+            inner=0,
+            kind=TRANSFER_KIND,
+            designs=[best.tolist(), nominal.tolist()],
+            costs=[dict(zip(names, row.tolist(), strict=True)) for row in costs],
+            interactions=fit.interactions // 2,
+            seconds=fit.seconds / 2,
+            simulator=simulator,
+        ),
+    )
     return ""
 
 
@@ -316,13 +377,24 @@ def transfer_runs(
 ) -> dict[str, str]:
     """`transfer_run` for each run's best design (`best_of`); returns run id -> why it has
     no rows (only runs without them). `progress(done, total, what)` hears of each run."""
-    return each_best_design(store, runs, "sim-to-sim", progress, lambda run, best: transfer_run(
-        store, run, best, simulator=simulator, agents=agents, steps=steps, factory=factory))
+    return each_best_design(
+        store,
+        runs,
+        "sim-to-sim",
+        progress,
+        lambda run, best: transfer_run(
+            store, run, best, simulator=simulator, agents=agents, steps=steps, factory=factory
+        ),
+    )
 
 
-def each_best_design(store: ResultsStore, runs: Sequence[dict[str, Any]], what: str,
-                     progress: Callable[[int, int, str], None] | None,
-                     evaluate: Callable[[dict[str, Any], Any], str]) -> dict[str, str]:
+def each_best_design(
+    store: ResultsStore,
+    runs: Sequence[dict[str, Any]],
+    what: str,
+    progress: Callable[[int, int, str], None] | None,
+    evaluate: Callable[[dict[str, Any], Any], str],
+) -> dict[str, str]:
     """`evaluate(run, best design)` for each run (`best_of` its real rows), telling `progress`;
     returns run id -> the note of each run left without rows."""
     notes = {}
@@ -345,8 +417,10 @@ def main(argv: list[str] | None = None) -> int:
 
     args = list(sys.argv[1:] if argv is None else argv)
     if len(args) != 3:
-        print("usage: python -m coadapt_core.experiments.transfer ROBOT REFERENCE_SIMULATOR OTHER_SIMULATOR",
-              file=sys.stderr)
+        print(
+            "usage: python -m coadapt_core.experiments.transfer ROBOT REFERENCE_SIMULATOR OTHER_SIMULATOR",
+            file=sys.stderr,
+        )
         return 2
     try:
         robot = get_registry().create("robot", args[0])

@@ -63,9 +63,18 @@ def figures(comparison: dict[str, Any], *, best: bool) -> dict[str, float]:
     out: dict[str, float] = {}
     for name, v in comparison["objectives"].items():
         out[name] = v["cost"]
-        out[f"{name}/se"], out[f"{name}/plain"], out[f"{name}/plain_se"] = v["cost_se"], v["plain_mean"], v["plain_mean_se"]
+        out[f"{name}/se"], out[f"{name}/plain"], out[f"{name}/plain_se"] = (
+            v["cost_se"],
+            v["plain_mean"],
+            v["plain_mean_se"],
+        )
         if best:
-            for key in ("improvement", "improvement_se", "improvement_plain", "improvement_plain_se"):
+            for key in (
+                "improvement",
+                "improvement_se",
+                "improvement_plain",
+                "improvement_plain_se",
+            ):
                 out[f"{name}/{key}"] = v[key]
     out["falls"], out["falls/se"] = comparison["fall_rate"], comparison["fall_rate_se"]
     if best:
@@ -76,12 +85,23 @@ def figures(comparison: dict[str, Any], *, best: bool) -> dict[str, float]:
 
 def _backend(run: dict[str, Any], dim: int, agents: int, checkpoint: str, factory: Callable | None):
     """(backend, objectives, nominal design) for the run's robot, simulator and terrain."""
-    return run_backend(run, dim, run.get("simulator") or (run.get("config") or {}).get("sim"), agents, checkpoint,
-                       factory)
+    return run_backend(
+        run,
+        dim,
+        run.get("simulator") or (run.get("config") or {}).get("sim"),
+        agents,
+        checkpoint,
+        factory,
+    )
 
 
-def _own_policy_blocks(run: dict[str, Any], best: np.ndarray, agents: int, factory: Callable | None,
-                       blocks_of: Callable) -> tuple[list, list, np.ndarray]:
+def _own_policy_blocks(
+    run: dict[str, Any],
+    best: np.ndarray,
+    agents: int,
+    factory: Callable | None,
+    blocks_of: Callable,
+) -> tuple[list, list, np.ndarray]:
     """A run without a shared policy: its best and nominal designs each with its own policy
     (saved by the run, else trained again as it did: `own_policies`), the common blocks
     stacked as if one policy had evaluated both."""
@@ -93,7 +113,9 @@ def _own_policy_blocks(run: dict[str, Any], best: np.ndarray, agents: int, facto
         return backend
 
     with policy_files(run, designs) as files:
-        fits = each_own_policy(make, files, designs, lambda backend, d: blocks_of(backend, d, made["objectives"]))
+        fits = each_own_policy(
+            make, files, designs, lambda backend, d: blocks_of(backend, d, made["objectives"])
+        )
     return fits, made["objectives"], designs["nominal"]
 
 
@@ -124,12 +146,18 @@ def yardstick_run(
     agents, steps = agents or own_agents, steps or own_steps
 
     def blocks_of(backend, designs, objectives):
-        return [backend.real_fitness(designs, objectives, agents=agents, steps=steps, seed=scenario_seed(COMMON_SEED, b))
-                for b in range(blocks)]
+        return [
+            backend.real_fitness(
+                designs, objectives, agents=agents, steps=steps, seed=scenario_seed(COMMON_SEED, b)
+            )
+            for b in range(blocks)
+        ]
 
     try:
         if shared:
-            backend, objectives, nominal = _backend(run, best.shape[0], agents, str(checkpoint), factory)
+            backend, objectives, nominal = _backend(
+                run, best.shape[0], agents, str(checkpoint), factory
+            )
             fits = blocks_of(backend, np.stack([best, nominal]), objectives)
             close = getattr(backend, "close", None)
             if callable(close):
@@ -141,13 +169,28 @@ def yardstick_run(
     if any(f.per_scenario is None for f in fits):
         return "n/a: the backend reports no per-scenario costs"
     per = np.concatenate([f.per_scenario for f in fits], axis=1)
-    falls = None if any(f.scenario_falls is None for f in fits) else np.concatenate([f.scenario_falls for f in fits], axis=1)
+    falls = (
+        None
+        if any(f.scenario_falls is None for f in fits)
+        else np.concatenate([f.scenario_falls for f in fits], axis=1)
+    )
     rule = CostRule.from_config(run.get("config") or {})
-    rows = [figures(compare_designs(rule, objectives, per, falls, i, 1), best=i == 0) for i in (0, 1)]
-    store.record_evaluations(run["id"], batch_rows(
-        outer=COMMON_OUTER, inner=0, kind=COMMON_KIND, designs=[best.tolist(), nominal.tolist()], costs=rows,
-        interactions=sum(f.interactions for f in fits) // 2, seconds=sum(f.seconds for f in fits) / 2,
-        simulator=str(run.get("simulator") or "")))
+    rows = [
+        figures(compare_designs(rule, objectives, per, falls, i, 1), best=i == 0) for i in (0, 1)
+    ]
+    store.record_evaluations(
+        run["id"],
+        batch_rows(
+            outer=COMMON_OUTER,
+            inner=0,
+            kind=COMMON_KIND,
+            designs=[best.tolist(), nominal.tolist()],
+            costs=rows,
+            interactions=sum(f.interactions for f in fits) // 2,
+            seconds=sum(f.seconds for f in fits) / 2,
+            simulator=str(run.get("simulator") or ""),
+        ),
+    )
     return ""
 
 
@@ -165,5 +208,12 @@ def yardstick_runs(
     unless `agents`/`steps` are given); returns run id -> why it has no rows."""
     from coadapt_core.experiments.transfer import each_best_design
 
-    return each_best_design(store, runs, "common scenarios", progress, lambda run, best: yardstick_run(
-        store, run, best, blocks=blocks, agents=agents, steps=steps, factory=factory))
+    return each_best_design(
+        store,
+        runs,
+        "common scenarios",
+        progress,
+        lambda run, best: yardstick_run(
+            store, run, best, blocks=blocks, agents=agents, steps=steps, factory=factory
+        ),
+    )

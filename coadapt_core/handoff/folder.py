@@ -57,7 +57,9 @@ CHECK_VX = 0.5
 @dataclass
 class HandoffOptions:
     design: np.ndarray | None = None  # None: the run's best design
-    simulators: Sequence[str] | None = None  # None: the run's simulator and every other installed one
+    simulators: Sequence[str] | None = (
+        None  # None: the run's simulator and every other installed one
+    )
     agents: int = 16  # paired scenarios per design and simulator
     seconds: float = 4.0  # simulated seconds per scenario
     check: bool = True  # walk the folder's check.py once it is written
@@ -84,7 +86,9 @@ class _Run:
     terrain: str
     seed: int
     checkpoint: Path  # the policy handed off, the one that judges the design
-    nominal_checkpoint: Path  # the one that judges the nominal design (the same for a shared policy)
+    nominal_checkpoint: (
+        Path  # the one that judges the nominal design (the same for a shared policy)
+    )
     own_policies: bool  # a run without a shared policy: each design judged by its own
     state: dict[str, Any]
     design: np.ndarray
@@ -93,7 +97,9 @@ class _Run:
     is_best: bool
 
 
-def _resolve(run_dir: Path, config: dict[str, Any], summary: dict[str, Any], options: HandoffOptions) -> _Run:
+def _resolve(
+    run_dir: Path, config: dict[str, Any], summary: dict[str, Any], options: HandoffOptions
+) -> _Run:
     """The run's plugins, final policy and the design (the best one unless --design gives
     another, checked against the policy's design input and the design space). A run without
     a shared policy hands off its best design's own policy and judges the nominal design by
@@ -109,49 +115,86 @@ def _resolve(run_dir: Path, config: dict[str, Any], summary: dict[str, Any], opt
     sim_cls = registry.get("simulator", sim_name)
     policies, why = run_policies(run_dir, config)
     if policies is None:
-        again = ("" if shares_policy({"config": config})
-                 else "; coadapt report trains them again for its yardstick, the handoff does not")
-        raise UserError(f"run {run_dir.name}: {why}; there is no controller to hand off{again}", field="run")
+        again = (
+            ""
+            if shares_policy({"config": config})
+            else "; coadapt report trains them again for its yardstick, the handoff does not"
+        )
+        raise UserError(
+            f"run {run_dir.name}: {why}; there is no controller to hand off{again}", field="run"
+        )
     own = policies["best"] != policies["nominal"]
     state = read_checkpoint(policies["best"])
     if state.get("robot") != robot.name:
-        raise UserError(f"the run's checkpoint was trained for robot '{state.get('robot')}', not '{robot.name}'",
-                        field="run")
+        raise UserError(
+            f"the run's checkpoint was trained for robot '{state.get('robot')}', not '{robot.name}'",
+            field="run",
+        )
     best = np.asarray(summary["best_design"], dtype=float)
     design = best if options.design is None else np.asarray(options.design, dtype=float)
     if own and (design.shape != best.shape or not np.allclose(design, best)):
-        raise UserError(f"--design: run {run_dir.name} shares no policy between designs and kept a policy of its own "
-                        "only for its best and nominal designs, none for another design; leave out --design to hand "
-                        "off the best one", field="design")
+        raise UserError(
+            f"--design: run {run_dir.name} shares no policy between designs and kept a policy of its own "
+            "only for its best and nominal designs, none for another design; leave out --design to hand "
+            "off the best one",
+            field="design",
+        )
     nominal = summary.get("nominal_design")
     if not isinstance(nominal, list) or len(nominal) != len(design):
         nominal = robot.nominal_design(robot.design_space_for(design).is_mixed)
     num_design = int(state["dims"]["num_design"])
     if len(design) != num_design:
-        raise UserError(f"--design has {len(design)} values; the run's policy takes {num_design} "
-                        f"({', '.join(robot.design_space_for(best).names)})", field="design")
+        raise UserError(
+            f"--design has {len(design)} values; the run's policy takes {num_design} "
+            f"({', '.join(robot.design_space_for(best).names)})",
+            field="design",
+        )
     space = robot.design_space_for(design)
     design = space.validate(design)
-    return _Run(run_dir=run_dir, config=config, summary=summary, registry=registry, robot=robot, sim_name=sim_name,
-                sim_cls=sim_cls, terrain=str(config.get("terrain") or "flat"), seed=int(config.get("seed") or 0),
-                checkpoint=policies["best"], nominal_checkpoint=policies["nominal"], own_policies=own, state=state,
-                design=design, nominal=np.asarray(nominal, dtype=float), space=space,
-                is_best=bool(np.allclose(design, best)))
+    return _Run(
+        run_dir=run_dir,
+        config=config,
+        summary=summary,
+        registry=registry,
+        robot=robot,
+        sim_name=sim_name,
+        sim_cls=sim_cls,
+        terrain=str(config.get("terrain") or "flat"),
+        seed=int(config.get("seed") or 0),
+        checkpoint=policies["best"],
+        nominal_checkpoint=policies["nominal"],
+        own_policies=own,
+        state=state,
+        design=design,
+        nominal=np.asarray(nominal, dtype=float),
+        space=space,
+        is_best=bool(np.allclose(design, best)),
+    )
 
 
 def _judges(run: _Run) -> dict[str, Any]:
     """Which policy judged which design (design.json, policy.json, design.md)."""
+
     def name(path: Path) -> str:
         return str(path.relative_to(run.run_dir)) if run.run_dir in path.parents else path.name
 
-    note = ("the run shares no policy between designs: the design is judged, and handed off, with its own policy, "
-            "the nominal design with the nominal design's own" if run.own_policies else
-            "one universal policy (the run's final) judges both designs and is the one handed off")
-    return {"shared": not run.own_policies, "design": name(run.checkpoint), "nominal": name(run.nominal_checkpoint),
-            "note": note}
+    note = (
+        "the run shares no policy between designs: the design is judged, and handed off, with its own policy, "
+        "the nominal design with the nominal design's own"
+        if run.own_policies
+        else "one universal policy (the run's final) judges both designs and is the one handed off"
+    )
+    return {
+        "shared": not run.own_policies,
+        "design": name(run.checkpoint),
+        "nominal": name(run.nominal_checkpoint),
+        "note": note,
+    }
 
 
-def _controller(run: _Run, partial: Path, say: Callable[[str], None]) -> tuple[dict[str, Any], dict[str, Any], Path]:
+def _controller(
+    run: _Run, partial: Path, say: Callable[[str], None]
+) -> tuple[dict[str, Any], dict[str, Any], Path]:
     """The policy specialised to the design, exported to ONNX and checked against torch on
     recorded observations (refused beyond the tolerance), with reference.npz for check.py:
     (rollout, verification, ONNX path)."""
@@ -163,29 +206,52 @@ def _controller(run: _Run, partial: Path, say: Callable[[str], None]) -> tuple[d
     recorded = np.concatenate([buffer_observations(run.run_dir, num_obs), walked["obs"]])
     metadata = {
         "description": f"coadapt universal policy specialised to {run.robot.name} design "
-                       + ", ".join(f"{n}={x:g}" for n, x in zip(run.space.names, run.design, strict=True)),
-        "robot": run.robot.name, "design": json.dumps([float(x) for x in run.design]),
-        "run_id": str(run.summary.get("run_id")), "coadapt_version": __version__, "observation_layout": "see policy.json",
+        + ", ".join(f"{n}={x:g}" for n, x in zip(run.space.names, run.design, strict=True)),
+        "robot": run.robot.name,
+        "design": json.dumps([float(x) for x in run.design]),
+        "run_id": str(run.summary.get("run_id")),
+        "coadapt_version": __version__,
+        "observation_layout": "see policy.json",
     }
     onnx_path = export_onnx(walked["policy"], partial / "policy.onnx", metadata)
-    verification = verify_onnx(onnx_path, run.state, recorded, walked["design_obs"], walked["default_joint_pos"],
-                               task.action_scale, task.action_clip)
-    say(f"ONNX vs torch on {verification['observations']} recorded observations: max |action difference| "
-        f"{verification['max_abs_action_difference']:.2e} (tolerance {ONNX_TOLERANCE:g})")
+    verification = verify_onnx(
+        onnx_path,
+        run.state,
+        recorded,
+        walked["design_obs"],
+        walked["default_joint_pos"],
+        task.action_scale,
+        task.action_clip,
+    )
+    say(
+        f"ONNX vs torch on {verification['observations']} recorded observations: max |action difference| "
+        f"{verification['max_abs_action_difference']:.2e} (tolerance {ONNX_TOLERANCE:g})"
+    )
     if not verification["max_abs_action_difference"] <= ONNX_TOLERANCE:
         raise HandoffRefused(
             f"the ONNX controller differs from the torch policy by {verification['max_abs_action_difference']:.2e} "
-            f"> {ONNX_TOLERANCE:g} on the recorded observations; not handed off")
-    pick = np.random.default_rng(0).choice(len(recorded), min(REFERENCE_ROWS, len(recorded)), replace=False)
+            f"> {ONNX_TOLERANCE:g} on the recorded observations; not handed off"
+        )
+    pick = np.random.default_rng(0).choice(
+        len(recorded), min(REFERENCE_ROWS, len(recorded)), replace=False
+    )
     reference_obs = recorded[np.sort(pick)]
-    reference_actions = np.clip(torch_actions(run.state, reference_obs, walked["design_obs"]),
-                                -task.action_clip, task.action_clip).astype(np.float32)
+    reference_actions = np.clip(
+        torch_actions(run.state, reference_obs, walked["design_obs"]),
+        -task.action_clip,
+        task.action_clip,
+    ).astype(np.float32)
     np.savez(partial / "reference.npz", obs=reference_obs, actions=reference_actions)
     return walked, verification, onnx_path
 
 
-def _evaluations(run: _Run, options: HandoffOptions, objectives: list[str], control_dt: float,
-                 say: Callable[[str], None]) -> list[dict[str, Any]]:
+def _evaluations(
+    run: _Run,
+    options: HandoffOptions,
+    objectives: list[str],
+    control_dt: float,
+    say: Callable[[str], None],
+) -> list[dict[str, Any]]:
     """The run's final check (for its best design) and fresh paired evaluations of the
     design against the nominal one on each simulator."""
     evaluations = []
@@ -194,24 +260,51 @@ def _evaluations(run: _Run, options: HandoffOptions, objectives: list[str], cont
         evaluations.append(run_final_check(run.summary, run.config, run.sim_name))
     elif index is not None:  # another design of the run's Pareto front (--pick)
         evaluations.append(front_final_check(run.summary, run.config, run.sim_name, index))
-    simulators = list(options.simulators) if options.simulators else [run.sim_name] + [
-        n for n in run.registry.names("simulator") if n != run.sim_name]
+    simulators = (
+        list(options.simulators)
+        if options.simulators
+        else [run.sim_name] + [n for n in run.registry.names("simulator") if n != run.sim_name]
+    )
     steps = max(1, int(round(options.seconds / control_dt)))
     for name in simulators:
-        say(f"evaluating the design and the nominal one on {name} ({options.agents} paired scenarios x {steps} steps; "
-            "handoff protocol, not comparable with `coadapt run` or `coadapt eval`)")
-        evaluations.append(evaluate_on(name, robot=run.robot, checkpoint=run.checkpoint,
-                                       nominal_checkpoint=run.nominal_checkpoint, objectives=objectives,
-                                       design=run.design, nominal=run.nominal, terrain=run.terrain, seed=run.seed,
-                                       agents=options.agents, steps=steps))
+        say(
+            f"evaluating the design and the nominal one on {name} ({options.agents} paired scenarios x {steps} steps; "
+            "handoff protocol, not comparable with `coadapt run` or `coadapt eval`)"
+        )
+        evaluations.append(
+            evaluate_on(
+                name,
+                robot=run.robot,
+                checkpoint=run.checkpoint,
+                nominal_checkpoint=run.nominal_checkpoint,
+                objectives=objectives,
+                design=run.design,
+                nominal=run.nominal,
+                terrain=run.terrain,
+                seed=run.seed,
+                agents=options.agents,
+                steps=steps,
+            )
+        )
         ev = evaluations[-1]
-        say(f"  {name}, handoff protocol: " + (ev["error"] if "error" in ev else "; ".join(
-            f"{k} {v['design']:.4g} vs nominal {v['nominal']:.4g}" for k, v in ev["objectives"].items())
-            + f"; fall rate {ev['design_fall_rate']:.2f} vs {ev['nominal_fall_rate']:.2f}"))
+        say(
+            f"  {name}, handoff protocol: "
+            + (
+                ev["error"]
+                if "error" in ev
+                else "; ".join(
+                    f"{k} {v['design']:.4g} vs nominal {v['nominal']:.4g}"
+                    for k, v in ev["objectives"].items()
+                )
+                + f"; fall rate {ev['design_fall_rate']:.2f} vs {ev['nominal_fall_rate']:.2f}"
+            )
+        )
     return evaluations
 
 
-def _sheet_data(run: _Run, model: Any, spec: dict[str, Any], tools: Any, **measured: Any) -> dict[str, Any]:
+def _sheet_data(
+    run: _Run, model: Any, spec: dict[str, Any], tools: Any, **measured: Any
+) -> dict[str, Any]:
     """design.json: the design, its body (from the simulator's model `tools`), joints,
     validation, and what was measured (`evaluations`, `onnx`, `picture`, `provenance`)."""
     body = tools.link_facts(model)
@@ -238,21 +331,36 @@ def _sheet_data(run: _Run, model: Any, spec: dict[str, Any], tools: Any, **measu
     }
 
 
-def _listing(files: dict[str, str], model_files: Any, partial: Path, video_name: str,
-             check_by: str | None) -> list[tuple[str, str]]:
+def _listing(
+    files: dict[str, str], model_files: Any, partial: Path, video_name: str, check_by: str | None
+) -> list[tuple[str, str]]:
     """The README's table of the folder's files."""
     return [
         (files["mjcf"], "the design's MJCF, from the robot plugin"),
         (files["urdf"], "the design's URDF (Pinocchio, ROS and the engines that read it)"),
         *([("assets/", "files the models reference")] if model_files.assets else []),
         ("policy.onnx", "the controller: observation in, actions and joint targets out"),
-        ("policy.json", "observation and action layouts, PD gains, rates, gait clock, commands, terrain"),
+        (
+            "policy.json",
+            "observation and action layouts, PD gains, rates, gait clock, commands, terrain",
+        ),
         ("design.md", "the design sheet (design.json: the same as data)"),
-        *([("check.py", f"walks the model with the ONNX controller in {check_by} (no coadapt needed)")]
-          if check_by else []),
+        *(
+            [
+                (
+                    "check.py",
+                    f"walks the model with the ONNX controller in {check_by} (no coadapt needed)",
+                )
+            ]
+            if check_by
+            else []
+        ),
         ("reference.npz", "recorded observations and the torch policy's actions on them"),
-        *([(f"{video_name}.gif", "the design (left) and the nominal one (right) walking")]
-          if (partial / f"{video_name}.gif").is_file() else []),
+        *(
+            [(f"{video_name}.gif", "the design (left) and the nominal one (right) walking")]
+            if (partial / f"{video_name}.gif").is_file()
+            else []
+        ),
     ]
 
 
@@ -261,49 +369,110 @@ def _model_files(run: _Run, partial: Path, say: Callable[[str], None]) -> tuple[
     try:
         model = run.robot.build(run.design)
     except NotImplementedError:
-        raise UserError(f"robot '{run.robot.name}' supplies no model files (its build gives no MJCF and URDF); "
-                        "there is nothing to hand off", field="robot") from None
+        raise UserError(
+            f"robot '{run.robot.name}' supplies no model files (its build gives no MJCF and URDF); "
+            "there is nothing to hand off",
+            field="robot",
+        ) from None
     model_files = write_model_files(run.robot, model, partial)
-    say(f"model: {model_files.mjcf.name}, {model_files.urdf.name}"
-        + (f" and {len(model_files.assets)} asset files" if model_files.assets else " (no asset files referenced)"))
+    say(
+        f"model: {model_files.mjcf.name}, {model_files.urdf.name}"
+        + (
+            f" and {len(model_files.assets)} asset files"
+            if model_files.assets
+            else " (no asset files referenced)"
+        )
+    )
     return model, model_files
 
 
-def _write_folder(run: _Run, options: HandoffOptions, partial: Path, say: Callable[[str], None]) -> dict[str, Any]:
+def _write_folder(
+    run: _Run, options: HandoffOptions, partial: Path, say: Callable[[str], None]
+) -> dict[str, Any]:
     """Every file of the handoff folder into `partial`; returns design.json's data."""
     from coadapt_core.physics.model_tools import tools_for
     from coadapt_core.viz.video import VIDEO_NAME
 
     model, model_files = _model_files(run, partial, say)
     tools_sim, tools = tools_for(run.registry, model, prefer=run.sim_name)
-    check_by = tools_sim if tools.HANDOFF_CHECK else None  # the simulator check.py walks the model in
+    check_by = (
+        tools_sim if tools.HANDOFF_CHECK else None
+    )  # the simulator check.py walks the model in
     walked, verification, onnx_path = _controller(run, partial, say)
-    files = {"mjcf": model_files.mjcf.name, "urdf": model_files.urdf.name, "onnx": onnx_path.name,
-             "reference": "reference.npz"}
-    spec = policy_spec(robot=run.robot, model=model, design=run.design, space=run.space, state=run.state,
-                       rollout=walked, terrain=run.terrain, verification=verification, foot=foot_facts(model, tools),
-                       files=files)
+    files = {
+        "mjcf": model_files.mjcf.name,
+        "urdf": model_files.urdf.name,
+        "onnx": onnx_path.name,
+        "reference": "reference.npz",
+    }
+    spec = policy_spec(
+        robot=run.robot,
+        model=model,
+        design=run.design,
+        space=run.space,
+        state=run.state,
+        rollout=walked,
+        terrain=run.terrain,
+        verification=verification,
+        foot=foot_facts(model, tools),
+        files=files,
+    )
     spec["policies"] = _judges(run)
     (partial / "policy.json").write_text(json.dumps(jsonable(spec), indent=2) + "\n")
     if check_by:
         shutil.copy(tools.HANDOFF_CHECK, partial / "check.py")
-    objectives = list((run.summary.get("best_costs") or {}).keys()) or [str(run.config.get("objective") or "")]
+    objectives = list((run.summary.get("best_costs") or {}).keys()) or [
+        str(run.config.get("objective") or "")
+    ]
     evaluations = _evaluations(run, options, objectives, walked["control_dt"], say)
     policies = {"best": run.checkpoint, "nominal": run.nominal_checkpoint}
-    gif_note = copy_or_render_video(run.run_dir, partial, run.config, run.summary, run.design, run.nominal,
-                                    policies, run.is_best, options.video, VIDEO_NAME)
+    gif_note = copy_or_render_video(
+        run.run_dir,
+        partial,
+        run.config,
+        run.summary,
+        run.design,
+        run.nominal,
+        policies,
+        run.is_best,
+        options.video,
+        VIDEO_NAME,
+    )
     say(f"picture: {gif_note}")
-    origin = provenance(run.run_dir, run.config, run.summary, robot=run.robot, objectives=objectives, seed=run.seed,
-                        simulator=run.sim_name, checkpoint=run.checkpoint, state=run.state,
-                        nominal_checkpoint=run.nominal_checkpoint if run.own_policies else None)
-    sheet_data = _sheet_data(run, model, spec, tools, evaluations=evaluations, onnx=verification, picture=gif_note,
-                             provenance=origin)
+    origin = provenance(
+        run.run_dir,
+        run.config,
+        run.summary,
+        robot=run.robot,
+        objectives=objectives,
+        seed=run.seed,
+        simulator=run.sim_name,
+        checkpoint=run.checkpoint,
+        state=run.state,
+        nominal_checkpoint=run.nominal_checkpoint if run.own_policies else None,
+    )
+    sheet_data = _sheet_data(
+        run,
+        model,
+        spec,
+        tools,
+        evaluations=evaluations,
+        onnx=verification,
+        picture=gif_note,
+        provenance=origin,
+    )
     if options.check and check_by:
         vx = min(CHECK_VX, spec["commands"]["trained"]["vx"][1])
         sheet_data["controller_check"] = check = run_check(partial, options.check_seconds, vx)
-        say("check.py: " + (check["error"] if "error" in check else
-            f"survival {check['survival']:.2f}, mean forward speed {check['vx_mean']:.3f} m/s under "
-            f"{vx:g} m/s for {check['seconds']:g} s"))
+        say(
+            "check.py: "
+            + (
+                check["error"]
+                if "error" in check
+                else f"survival {check['survival']:.2f}, mean forward speed {check['vx_mean']:.3f} m/s under "
+                f"{vx:g} m/s for {check['seconds']:g} s"
+            )
+        )
     (partial / "design.json").write_text(json.dumps(jsonable(sheet_data), indent=2) + "\n")
     (partial / "design.md").write_text(sheet.render_markdown(jsonable(sheet_data)))
     listing = _listing(files, model_files, partial, VIDEO_NAME, check_by)
@@ -313,8 +482,12 @@ def _write_folder(run: _Run, options: HandoffOptions, partial: Path, say: Callab
 
 
 # -- the folder --------------------------------------------------------------------------------
-def make_handoff(run_dir: Path, out: Path, options: HandoffOptions | None = None,
-                 progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+def make_handoff(
+    run_dir: Path,
+    out: Path,
+    options: HandoffOptions | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> dict[str, Any]:
     """Write the handoff folder `out` for the run in `run_dir`; returns what was written and
     measured (the `--json` line)."""
     from coadapt_core.handoff.policy import ONNX_TOLERANCE
@@ -349,8 +522,14 @@ def make_handoff(run_dir: Path, out: Path, options: HandoffOptions | None = None
         "pareto_front_index": sheet_data.get("pareto_front_index"),
         "max_abs_action_difference": sheet_data["onnx"]["max_abs_action_difference"],
         "tolerance": ONNX_TOLERANCE,
-        "evaluations": [{k: ev.get(k) for k in ("simulator", "source", "error", "design_fall_rate", "nominal_fall_rate")}
-                        | {"objectives": ev.get("objectives")} for ev in evaluations],
+        "evaluations": [
+            {
+                k: ev.get(k)
+                for k in ("simulator", "source", "error", "design_fall_rate", "nominal_fall_rate")
+            }
+            | {"objectives": ev.get("objectives")}
+            for ev in evaluations
+        ],
         "controller_check": sheet_data.get("controller_check"),
         "files": sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file()),
         "seconds": time.perf_counter() - started,
@@ -365,16 +544,28 @@ def _check_target(out: Path, run_dir: Path, force: bool) -> None:
     if not out.exists() or (out.is_dir() and not any(out.iterdir())):
         return
     if not force:
-        raise UserError(f"-o {out} exists; give another folder, or --force to replace an earlier handoff folder",
-                        field="out")
+        raise UserError(
+            f"-o {out} exists; give another folder, or --force to replace an earlier handoff folder",
+            field="out",
+        )
     try:
         earlier = json.loads((out / "policy.json").read_text()).get("format") == FORMAT
     except (OSError, ValueError, AttributeError):
         earlier = False
     if not earlier:
-        raise UserError(f"-o {out} exists and is not a handoff folder (no policy.json of {FORMAT}); --force replaces "
-                        "only those", field="out")
+        raise UserError(
+            f"-o {out} exists and is not a handoff folder (no policy.json of {FORMAT}); --force replaces "
+            "only those",
+            field="out",
+        )
 
 
-
-__all__ = ["FORMAT", "HandoffOptions", "HandoffRefused", "find_run", "make_handoff", "read_run", "sha256"]
+__all__ = [
+    "FORMAT",
+    "HandoffOptions",
+    "HandoffRefused",
+    "find_run",
+    "make_handoff",
+    "read_run",
+    "sha256",
+]

@@ -27,7 +27,10 @@ def buffer_observations(run_dir: Path, num_obs: int) -> np.ndarray:
     """[n, num_obs] policy observations (noise-free) from the run's newest evaluation buffer."""
     from coadapt_core.statefile import read_npz
 
-    found = sorted(run_dir.glob("buffer-*.npz"), key=lambda p: int("".join(c for c in p.stem if c.isdigit()) or 0))
+    found = sorted(
+        run_dir.glob("buffer-*.npz"),
+        key=lambda p: int("".join(c for c in p.stem if c.isdigit()) or 0),
+    )
     if not found:
         return np.zeros((0, num_obs), dtype=np.float32)
     try:
@@ -43,8 +46,14 @@ def buffer_observations(run_dir: Path, num_obs: int) -> np.ndarray:
     return rows
 
 
-def rollout(robot: Any, sim_cls: type, design: np.ndarray, state: dict[str, Any], terrain: str, seed: int,
-             ) -> dict[str, Any]:
+def rollout(
+    robot: Any,
+    sim_cls: type,
+    design: np.ndarray,
+    state: dict[str, Any],
+    terrain: str,
+    seed: int,
+) -> dict[str, Any]:
     """The design walking under the specialised policy on the run's simulator with the
     training randomization and observation noise, commands drawn from the trained box:
     the observations it saw [ROLLOUT_AGENTS * ROLLOUT_STEPS, num_obs], its design input,
@@ -57,7 +66,13 @@ def rollout(robot: Any, sim_cls: type, design: np.ndarray, state: dict[str, Any]
 
     task = TaskConfig.from_dict(state["task_config"])
     randomization = RandomizationConfig.recorded(state["train_config"].get("extra") or {})
-    sim = sim_cls(robot, np.tile(design, (ROLLOUT_AGENTS, 1)), terrain=terrain, randomization=randomization, seed=seed)
+    sim = sim_cls(
+        robot,
+        np.tile(design, (ROLLOUT_AGENTS, 1)),
+        terrain=terrain,
+        randomization=randomization,
+        seed=seed,
+    )
     try:
         env = LocomotionEnv(sim, robot, task, [], seed=seed)
         if state.get("commands"):
@@ -89,10 +104,22 @@ def rollout(robot: Any, sim_cls: type, design: np.ndarray, state: dict[str, Any]
 
 # -- policy.json -------------------------------------------------------------------------------
 
+
 # -- evaluation ------------------------------------------------------------------------------------
-def evaluate_on(simulator: str, *, robot: Any, checkpoint: Path, objectives: list[str], design: np.ndarray,
-                nominal: np.ndarray, terrain: str, seed: int, agents: int, steps: int,
-                nominal_checkpoint: Path | None = None) -> dict[str, Any]:
+def evaluate_on(
+    simulator: str,
+    *,
+    robot: Any,
+    checkpoint: Path,
+    objectives: list[str],
+    design: np.ndarray,
+    nominal: np.ndarray,
+    terrain: str,
+    seed: int,
+    agents: int,
+    steps: int,
+    nominal_checkpoint: Path | None = None,
+) -> dict[str, Any]:
     """Costs, standard errors, fall rates and paired improvements of the design against the
     nominal one on `simulator`, the run's final-check scenario block 1: both under the run's
     policy `checkpoint`, or, given a different `nominal_checkpoint` (a run without a shared
@@ -101,8 +128,13 @@ def evaluate_on(simulator: str, *, robot: Any, checkpoint: Path, objectives: lis
     from coadapt_core.learning.factory import make_backend, resolve_plugins
     from coadapt_core.scenarios.seeds import scenario_seed
 
-    out: dict[str, Any] = {"simulator": simulator, "source": f"evaluated by coadapt handoff ({agents} paired scenarios)",
-                           "scenarios": agents, "steps": steps, "scenario_seed": scenario_seed(seed, 1)}
+    out: dict[str, Any] = {
+        "simulator": simulator,
+        "source": f"evaluated by coadapt handoff ({agents} paired scenarios)",
+        "scenarios": agents,
+        "steps": steps,
+        "scenario_seed": scenario_seed(seed, 1),
+    }
     try:
         robot, sim_cls, made = resolve_plugins(robot, simulator, objectives)
         if terrain not in getattr(sim_cls, "terrains", (terrain,)):
@@ -110,11 +142,23 @@ def evaluate_on(simulator: str, *, robot: Any, checkpoint: Path, objectives: lis
         space = robot.design_space_for(design)
 
         def make(policy: Path) -> Any:
-            return make_backend(robot, sim_cls, made, terrain=terrain, design_space=space, agents_per_design=agents,
-                                seed=seed, checkpoint=str(policy))
+            return make_backend(
+                robot,
+                sim_cls,
+                made,
+                terrain=terrain,
+                design_space=space,
+                agents_per_design=agents,
+                seed=seed,
+                checkpoint=str(policy),
+            )
 
         def evaluate(backend: Any, designs: np.ndarray) -> list[Any]:
-            return [backend.real_fitness(designs, made, agents=agents, steps=steps, seed=scenario_seed(seed, 1))]
+            return [
+                backend.real_fitness(
+                    designs, made, agents=agents, steps=steps, seed=scenario_seed(seed, 1)
+                )
+            ]
 
         files = {"best": checkpoint, "nominal": nominal_checkpoint or checkpoint}
         if files["nominal"] != files["best"]:
@@ -139,36 +183,51 @@ def evaluate_on(simulator: str, *, robot: Any, checkpoint: Path, objectives: lis
     for j, o in enumerate(made):
         paired = None if per is None else improvement_se(o, per[0, :, j], per[1, :, j])
         rows[o.name] = {
-            "design": float(costs[0, j]), "nominal": float(costs[1, j]),
-            "design_se": None if se is None else float(se[0, j]), "nominal_se": None if se is None else float(se[1, j]),
+            "design": float(costs[0, j]),
+            "nominal": float(costs[1, j]),
+            "design_se": None if se is None else float(se[0, j]),
+            "nominal_se": None if se is None else float(se[1, j]),
             "improvement": float(o.improvement(float(costs[0, j]), float(costs[1, j]))),
             "improvement_se": None if paired is None or not np.isfinite(paired) else float(paired),
         }
     falls = None if fit.fall_rate is None else np.asarray(fit.fall_rate, dtype=float)
-    out.update({
-        "objectives": rows,
-        "design_fall_rate": None if falls is None else float(falls[0]),
-        "nominal_fall_rate": None if falls is None else float(falls[1]),
-        "seconds": float(fit.seconds),
-    })
+    out.update(
+        {
+            "objectives": rows,
+            "design_fall_rate": None if falls is None else float(falls[0]),
+            "nominal_fall_rate": None if falls is None else float(falls[1]),
+            "seconds": float(fit.seconds),
+        }
+    )
     return out
 
 
-def run_final_check(summary: dict[str, Any], config: dict[str, Any], simulator: str) -> dict[str, Any]:
+def run_final_check(
+    summary: dict[str, Any], config: dict[str, Any], simulator: str
+) -> dict[str, Any]:
     """The run's own final check of its best design (its summary), on the run's simulator."""
     names = list((summary.get("best_costs") or {}).keys())
     rows = {}
     for name in names:
         improvements = summary.get("improvements") or {}
         rows[name] = {
-            "design": summary["best_costs"].get(name), "nominal": (summary.get("nominal_costs") or {}).get(name),
+            "design": summary["best_costs"].get(name),
+            "nominal": (summary.get("nominal_costs") or {}).get(name),
             "design_se": (summary.get("best_costs_se") or {}).get(name),
             "nominal_se": (summary.get("nominal_costs_se") or {}).get(name),
-            "improvement": improvements.get(name), "improvement_se": (summary.get("improvements_se") or {}).get(name),
+            "improvement": improvements.get(name),
+            "improvement_se": (summary.get("improvements_se") or {}).get(name),
         }
-    return {"simulator": simulator, "source": "the run's final check", "scenarios": summary.get("final_scenarios"),
-            "steps": config.get("eval_steps"), "objectives": rows, "design_fall_rate": summary.get("best_fall_rate"),
-            "nominal_fall_rate": summary.get("nominal_fall_rate"), "significant": summary.get("significant")}
+    return {
+        "simulator": simulator,
+        "source": "the run's final check",
+        "scenarios": summary.get("final_scenarios"),
+        "steps": config.get("eval_steps"),
+        "objectives": rows,
+        "design_fall_rate": summary.get("best_fall_rate"),
+        "nominal_fall_rate": summary.get("nominal_fall_rate"),
+        "significant": summary.get("significant"),
+    }
 
 
 def front_index(summary: dict[str, Any], design: Any) -> int | None:
@@ -184,30 +243,54 @@ def front_index(summary: dict[str, Any], design: Any) -> int | None:
     return None
 
 
-def front_final_check(summary: dict[str, Any], config: dict[str, Any], simulator: str, index: int) -> dict[str, Any]:
+def front_final_check(
+    summary: dict[str, Any], config: dict[str, Any], simulator: str, index: int
+) -> dict[str, Any]:
     """The run's own final check of front design `index` (its summary's Pareto front) against
     the nominal design on the same scenarios; the improvement is left to the fresh paired
     evaluations (the front stores no paired errors)."""
     front = summary["pareto_front"]
     costs, ses = front["costs"][index], (front.get("costs_se") or [{}] * len(front["costs"]))[index]
     nominal, nominal_se = summary.get("nominal_costs") or {}, summary.get("nominal_costs_se") or {}
-    rows = {name: {"design": value, "nominal": nominal.get(name), "design_se": ses.get(name),
-                   "nominal_se": nominal_se.get(name), "improvement": None, "improvement_se": None}
-            for name, value in costs.items()}
-    return {"simulator": simulator, "source": f"the run's final check (Pareto front design {index})",
-            "scenarios": summary.get("final_scenarios"), "steps": config.get("eval_steps"), "objectives": rows,
-            "design_fall_rate": None, "nominal_fall_rate": summary.get("nominal_fall_rate"), "significant": None}
+    rows = {
+        name: {
+            "design": value,
+            "nominal": nominal.get(name),
+            "design_se": ses.get(name),
+            "nominal_se": nominal_se.get(name),
+            "improvement": None,
+            "improvement_se": None,
+        }
+        for name, value in costs.items()
+    }
+    return {
+        "simulator": simulator,
+        "source": f"the run's final check (Pareto front design {index})",
+        "scenarios": summary.get("final_scenarios"),
+        "steps": config.get("eval_steps"),
+        "objectives": rows,
+        "design_fall_rate": None,
+        "nominal_fall_rate": summary.get("nominal_fall_rate"),
+        "significant": None,
+    }
 
 
 # -- README ------------------------------------------------------------------------------------
+
 
 def run_check(folder: Path, seconds: float, vx: float) -> dict[str, Any]:
     """Run the folder's check.py in a fresh interpreter (its own imports only) and return its
     JSON result, or {"error": ...}."""
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     try:
-        done = subprocess.run([sys.executable, "check.py", "--json", "--seconds", f"{seconds:g}", "--vx", f"{vx:g}"],
-                              cwd=folder, capture_output=True, text=True, timeout=600, env=env)
+        done = subprocess.run(
+            [sys.executable, "check.py", "--json", "--seconds", f"{seconds:g}", "--vx", f"{vx:g}"],
+            cwd=folder,
+            capture_output=True,
+            text=True,
+            timeout=600,
+            env=env,
+        )
     except (OSError, subprocess.SubprocessError) as exc:
         return {"error": f"check.py did not run ({type(exc).__name__})"}
     lines = done.stdout.strip().splitlines()
@@ -220,9 +303,18 @@ def run_check(folder: Path, seconds: float, vx: float) -> dict[str, Any]:
         return {"error": "check.py printed no JSON"}
 
 
-def copy_or_render_video(run_dir: Path, folder: Path, config: dict[str, Any], summary: dict[str, Any],
-                          design: np.ndarray, nominal: np.ndarray, policies: dict[str, Path], is_best: bool,
-                          render: bool, name: str) -> str:
+def copy_or_render_video(
+    run_dir: Path,
+    folder: Path,
+    config: dict[str, Any],
+    summary: dict[str, Any],
+    design: np.ndarray,
+    nominal: np.ndarray,
+    policies: dict[str, Path],
+    is_best: bool,
+    render: bool,
+    name: str,
+) -> str:
     """The run's best-vs-nominal GIF (and MP4) when it shows this design; else a fresh one
     when `render`, each design under its policy in `policies` ("best": the design's,
     "nominal"); a line saying which."""
@@ -238,11 +330,13 @@ def copy_or_render_video(run_dir: Path, folder: Path, config: dict[str, Any], su
     from coadapt_core.viz.video import render_run_video
 
     stream = io.StringIO()
-    written = render_run_video(folder, {"best_design": [float(x) for x in design],
-                                        "nominal_design": [float(x) for x in nominal]},
-                               config, stream=stream, policies=policies)
+    written = render_run_video(
+        folder,
+        {"best_design": [float(x) for x in design], "nominal_design": [float(x) for x in nominal]},
+        config,
+        stream=stream,
+        policies=policies,
+    )
     if written:
         return f"{name}.gif rendered by coadapt handoff"
     return "none (" + " ".join(stream.getvalue().split())[:200] + ")"
-
-

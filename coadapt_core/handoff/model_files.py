@@ -25,7 +25,12 @@ ASSET_DIR = "assets"
 MJCF_NAME = "robot.xml"
 URDF_NAME = "robot.urdf"
 #: MJCF elements whose `file` attribute names a file of the model
-_MJCF_COMPILER_DIRS = {"mesh": "meshdir", "skin": "meshdir", "hfield": "assetdir", "texture": "texturedir"}
+_MJCF_COMPILER_DIRS = {
+    "mesh": "meshdir",
+    "skin": "meshdir",
+    "hfield": "assetdir",
+    "texture": "texturedir",
+}
 
 
 @dataclass
@@ -46,7 +51,7 @@ def robot_folder(robot: Any) -> Path | None:
 def _strip_scheme(ref: str) -> str:
     for scheme in ("package://", "file://"):
         if ref.startswith(scheme):
-            return ref[len(scheme):]
+            return ref[len(scheme) :]
     return ref
 
 
@@ -57,9 +62,11 @@ def _find(ref: str, bases: list[Path], what: str) -> Path:
     for candidate in candidates:
         if candidate.is_file():
             return candidate.resolve()
-    raise UserError(f"the robot's {what} references '{ref}', which is not a file (looked in "
-                    f"{', '.join(str(c.parent) for c in candidates) or 'nowhere'}); the handoff needs every model file",
-                    field="robot")
+    raise UserError(
+        f"the robot's {what} references '{ref}', which is not a file (looked in "
+        f"{', '.join(str(c.parent) for c in candidates) or 'nowhere'}); the handoff needs every model file",
+        field="robot",
+    )
 
 
 class _Copier:
@@ -87,7 +94,11 @@ def _mjcf_with_assets(text: str, bases: list[Path], copier: _Copier) -> str:
         return text
     root = ET.fromstring(text)
     compiler = root.find("compiler")
-    dirs = {} if compiler is None else {k: compiler.get(k) for k in ("meshdir", "texturedir", "assetdir")}
+    dirs = (
+        {}
+        if compiler is None
+        else {k: compiler.get(k) for k in ("meshdir", "texturedir", "assetdir")}
+    )
     changed = False
     for element in root.iter():
         ref = element.get("file")
@@ -125,7 +136,11 @@ def write_model_files(robot: Any, model: Any, folder: Path) -> ModelFiles:
         mjcf = _mjcf_with_assets(model.text("mjcf"), bases, copier)
         urdf = _urdf_with_assets(model.text("urdf"), bases, copier)
     except ET.ParseError as exc:
-        raise UserError(f"robot '{robot.name}' gives a model that is not XML ({exc})", field="robot") from None
+        raise UserError(
+            f"robot '{robot.name}' gives a model that is not XML ({exc})", field="robot"
+        ) from None
     (folder / MJCF_NAME).write_text(mjcf)
     (folder / URDF_NAME).write_text(urdf)
-    return ModelFiles(folder / MJCF_NAME, folder / URDF_NAME, [folder / rel for rel in copier.copied.values()])
+    return ModelFiles(
+        folder / MJCF_NAME, folder / URDF_NAME, [folder / rel for rel in copier.copied.values()]
+    )

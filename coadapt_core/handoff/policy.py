@@ -43,7 +43,11 @@ def missing_deploy_modules() -> list[str]:
     missing = []
     for name in DEPLOY_MODULES:
         try:
-            found = sys.modules[name] is not None if name in sys.modules else importlib.util.find_spec(name) is not None
+            found = (
+                sys.modules[name] is not None
+                if name in sys.modules
+                else importlib.util.find_spec(name) is not None
+            )
         except (ImportError, ValueError):
             found = False
         if not found:
@@ -54,8 +58,14 @@ def missing_deploy_modules() -> list[str]:
 class SpecialisedPolicy(nn.Module):
     """The actor's mean for one design: obs [B, num_obs] -> (actions, joint_targets) [B, J]."""
 
-    def __init__(self, state: dict[str, Any], design_obs: np.ndarray, default_joint_pos: np.ndarray,
-                 action_scale: float, action_clip: float):
+    def __init__(
+        self,
+        state: dict[str, Any],
+        design_obs: np.ndarray,
+        default_joint_pos: np.ndarray,
+        action_scale: float,
+        action_clip: float,
+    ):
         super().__init__()
         from coadapt_core.learning.networks import EmpiricalNormalization, mlp
 
@@ -66,17 +76,31 @@ class SpecialisedPolicy(nn.Module):
         self.num_actions = int(dims["num_actions"])
         num_design = int(dims["num_design"])
         if len(design_obs) != num_design:
-            raise UserError(f"the policy takes {num_design} design values, the design has {len(design_obs)}", field="design")
-        self.body = mlp(self.num_obs + num_design, self.num_actions, tuple(config["hidden"]), config["activation"])
-        self.body.load_state_dict({k[len("body."):]: v for k, v in ppo["actor"].items() if k.startswith("body.")})
+            raise UserError(
+                f"the policy takes {num_design} design values, the design has {len(design_obs)}",
+                field="design",
+            )
+        self.body = mlp(
+            self.num_obs + num_design,
+            self.num_actions,
+            tuple(config["hidden"]),
+            config["activation"],
+        )
+        self.body.load_state_dict(
+            {k[len("body.") :]: v for k, v in ppo["actor"].items() if k.startswith("body.")}
+        )
         norm = EmpiricalNormalization(self.num_obs)
         norm.load_state_dict(ppo["obs_norm"])
         # the normaliser as constants of the graph: (obs - mean) / sqrt(var + eps), clipped
         self.register_buffer("obs_mean", norm.mean.detach().float().clone())
         self.register_buffer("obs_std", torch.sqrt(norm.var.detach().float() + norm.eps))
         self.obs_clip = float(norm.clip)
-        self.register_buffer("design_obs", torch.as_tensor(np.asarray(design_obs, dtype=np.float32)))  # [D]
-        self.register_buffer("default_joint_pos", torch.as_tensor(np.asarray(default_joint_pos, dtype=np.float32)))  # [J]
+        self.register_buffer(
+            "design_obs", torch.as_tensor(np.asarray(design_obs, dtype=np.float32))
+        )  # [D]
+        self.register_buffer(
+            "default_joint_pos", torch.as_tensor(np.asarray(default_joint_pos, dtype=np.float32))
+        )  # [J]
         self.action_scale = float(action_scale)
         self.action_clip = float(action_clip)
         self.eval()
@@ -84,7 +108,9 @@ class SpecialisedPolicy(nn.Module):
     def forward(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         normed = ((obs - self.obs_mean) / self.obs_std).clamp(-self.obs_clip, self.obs_clip)
         xi = self.design_obs.unsqueeze(0).expand(obs.shape[0], -1)  # [B, D]
-        actions = self.body(torch.cat([normed, xi], dim=-1)).clamp(-self.action_clip, self.action_clip)
+        actions = self.body(torch.cat([normed, xi], dim=-1)).clamp(
+            -self.action_clip, self.action_clip
+        )
         return actions, self.default_joint_pos + self.action_scale * actions
 
 
@@ -113,7 +139,10 @@ def torch_actions(state: dict[str, Any], obs: np.ndarray, design_obs: np.ndarray
 def _quiet_exporter():
     """The exporter logs its progress and optional-package notes (torchvision) on stderr and
     stdout; a command prints its own lines only."""
-    loggers = [logging.getLogger(name) for name in ("torch.onnx", "torch.export", "torch._dynamo", "onnxscript")]
+    loggers = [
+        logging.getLogger(name)
+        for name in ("torch.onnx", "torch.export", "torch._dynamo", "onnxscript")
+    ]
     levels = [lg.level for lg in loggers]
     for lg in loggers:
         lg.setLevel(logging.ERROR)
@@ -137,8 +166,15 @@ def export_onnx(policy: SpecialisedPolicy, path: Path, metadata: dict[str, str])
     example = torch.zeros(1, policy.num_obs)
     with _quiet_exporter():
         program = torch.onnx.export(
-            policy, (example,), None, dynamo=True, input_names=[INPUT_NAME], output_names=list(OUTPUT_NAMES),
-            dynamic_shapes={INPUT_NAME: {0: torch.export.Dim("batch")}}, opset_version=OPSET, verbose=False,
+            policy,
+            (example,),
+            None,
+            dynamo=True,
+            input_names=[INPUT_NAME],
+            output_names=list(OUTPUT_NAMES),
+            dynamic_shapes={INPUT_NAME: {0: torch.export.Dim("batch")}},
+            opset_version=OPSET,
+            verbose=False,
         )
     if program is None:  # pragma: no cover - the dynamo exporter always returns its program
         raise RuntimeError("torch.onnx.export returned no program")
@@ -161,12 +197,21 @@ def onnx_actions(path: Path, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     options.intra_op_num_threads = 1
     options.log_severity_level = 3
     session = ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
-    actions, targets = session.run(list(OUTPUT_NAMES), {INPUT_NAME: np.asarray(obs, dtype=np.float32)})
+    actions, targets = session.run(
+        list(OUTPUT_NAMES), {INPUT_NAME: np.asarray(obs, dtype=np.float32)}
+    )
     return np.asarray(actions), np.asarray(targets)
 
 
-def verify_onnx(path: Path, state: dict[str, Any], obs: np.ndarray, design_obs: np.ndarray,
-                default_joint_pos: np.ndarray, action_scale: float, action_clip: float) -> dict[str, float]:
+def verify_onnx(
+    path: Path,
+    state: dict[str, Any],
+    obs: np.ndarray,
+    design_obs: np.ndarray,
+    default_joint_pos: np.ndarray,
+    action_scale: float,
+    action_clip: float,
+) -> dict[str, float]:
     """Max |ONNX - torch| over the recorded observations `obs` [N, num_obs], for the actions
     and the joint targets; the torch side is the learner's own `act_inference`."""
     reference = np.clip(torch_actions(state, obs, design_obs), -action_clip, action_clip)
@@ -178,4 +223,3 @@ def verify_onnx(path: Path, state: dict[str, Any], obs: np.ndarray, design_obs: 
         "observations": int(len(obs)),
         "tolerance": ONNX_TOLERANCE,
     }
-

@@ -20,8 +20,10 @@ def find_run(text: str, runs_dir: Path = Path("runs")) -> Path:
     for candidate in (path, runs_dir / text):
         if candidate.is_dir() and (candidate / "config.yaml").is_file():
             return candidate.resolve()
-    raise UserError(f"run '{text}' is neither a run folder nor a run id under {runs_dir}/ (no config.yaml found)",
-                    field="run")
+    raise UserError(
+        f"run '{text}' is neither a run folder nor a run id under {runs_dir}/ (no config.yaml found)",
+        field="run",
+    )
 
 
 def read_run(run_dir: Path) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -31,17 +33,30 @@ def read_run(run_dir: Path) -> tuple[dict[str, Any], dict[str, Any]]:
     try:
         config = yaml.safe_load((run_dir / "config.yaml").read_text()) or {}
     except (OSError, yaml.YAMLError) as exc:
-        raise UserError(f"run {run_dir.name}: config.yaml cannot be read ({type(exc).__name__})", field="run") from None
+        raise UserError(
+            f"run {run_dir.name}: config.yaml cannot be read ({type(exc).__name__})", field="run"
+        ) from None
     summary_path = run_dir / "summary.json"
     if not summary_path.is_file():
-        raise UserError(f"run {run_dir.name} has no summary.json: it has not finished (resume it with "
-                        f"`coadapt run --resume {run_dir.name}`)", field="run")
+        raise UserError(
+            f"run {run_dir.name} has no summary.json: it has not finished (resume it with "
+            f"`coadapt run --resume {run_dir.name}`)",
+            field="run",
+        )
     try:
         summary = json.loads(summary_path.read_text())
     except (OSError, ValueError) as exc:
-        raise UserError(f"run {run_dir.name}: summary.json cannot be read ({type(exc).__name__})", field="run") from None
-    if not isinstance(config, dict) or not isinstance(summary, dict) or not summary.get("best_design"):
-        raise UserError(f"run {run_dir.name} recorded no best design; nothing to hand off", field="run")
+        raise UserError(
+            f"run {run_dir.name}: summary.json cannot be read ({type(exc).__name__})", field="run"
+        ) from None
+    if (
+        not isinstance(config, dict)
+        or not isinstance(summary, dict)
+        or not summary.get("best_design")
+    ):
+        raise UserError(
+            f"run {run_dir.name} recorded no best design; nothing to hand off", field="run"
+        )
     return config, summary
 
 
@@ -59,7 +74,11 @@ def _starting_policy(robot: Any, config: dict[str, Any]) -> dict[str, Any]:
     given = str(config.get("checkpoint") or "")
     if given.lower() == "none":
         return {"policy": "none (trained from scratch in the run)", "sha256": None}
-    path = Path(given) if given else robot.shipped_policy(config.get("terrain") or "flat", bool(config.get("mixed")))
+    path = (
+        Path(given)
+        if given
+        else robot.shipped_policy(config.get("terrain") or "flat", bool(config.get("mixed")))
+    )
     if path is None:
         return {"policy": "the robot's shipped policy (none found now)", "sha256": None}
     label = f"{path.name} (shipped with robot '{robot.name}')" if not given else str(path)
@@ -86,11 +105,19 @@ def _recorded_commit(run_dir: Path, run_id: str) -> dict[str, Any]:
         return {}
 
 
-
-
-def provenance(run_dir: Path, config: dict[str, Any], summary: dict[str, Any], *, robot: Any, objectives: list[str],
-               seed: int, simulator: str, checkpoint: Path, state: dict[str, Any],
-               nominal_checkpoint: Path | None = None) -> dict[str, Any]:
+def provenance(
+    run_dir: Path,
+    config: dict[str, Any],
+    summary: dict[str, Any],
+    *,
+    robot: Any,
+    objectives: list[str],
+    seed: int,
+    simulator: str,
+    checkpoint: Path,
+    state: dict[str, Any],
+    nominal_checkpoint: Path | None = None,
+) -> dict[str, Any]:
     """Where the design and its controller come from: the run, its starting and final
     policies with their SHA-256 (and the nominal design's own policy, for a run without a
     shared one), and the code versions of the run and of the handoff."""
@@ -99,11 +126,18 @@ def provenance(run_dir: Path, config: dict[str, Any], summary: dict[str, Any], *
     run_id = str(summary.get("run_id") or run_dir.name)
     recorded_at_run = _recorded_commit(run_dir, run_id)
     start = _starting_policy(robot, config)
+
     def name(path: Path) -> str:
         return str(path.relative_to(run_dir)) if run_dir in path.parents else path.name
 
-    nominal = {} if nominal_checkpoint is None else {"nominal_policy": name(nominal_checkpoint),
-                                                     "nominal_policy_sha256": sha256(nominal_checkpoint)}
+    nominal = (
+        {}
+        if nominal_checkpoint is None
+        else {
+            "nominal_policy": name(nominal_checkpoint),
+            "nominal_policy_sha256": sha256(nominal_checkpoint),
+        }
+    )
     return {
         "run_id": run_id,
         "method": summary.get("method") or config.get("method"),

@@ -25,7 +25,11 @@ def design_parameters(space: Any, design: np.ndarray) -> list[dict[str, Any]]:
     """Each design variable: name, value, unit (as the design space declares it), bounds."""
     out = []
     for k, var in enumerate(space.variables):
-        entry = {"name": var.name, "value": float(design[k]), "unit": getattr(var, "unit", "") or ""}
+        entry = {
+            "name": var.name,
+            "value": float(design[k]),
+            "unit": getattr(var, "unit", "") or "",
+        }
         bounds = (float(space.lower[k]), float(space.upper[k]))
         entry["bounds"] = list(bounds)
         choices = getattr(var, "choices", None)
@@ -76,16 +80,27 @@ def _evaluation_lines(ev: dict[str, Any]) -> list[str]:
     lines = [f"### {ev['simulator']}: {ev['source']}", ""]
     if ev.get("error"):
         return [*lines, f"Not evaluated: {ev['error']}", ""]
-    lines.append(f"{ev['scenarios']} paired scenarios x {ev['steps'] if ev.get('steps') else '?'} steps per design."
-                 if ev.get("scenarios") else "")
+    lines.append(
+        f"{ev['scenarios']} paired scenarios x {ev['steps'] if ev.get('steps') else '?'} steps per design."
+        if ev.get("scenarios")
+        else ""
+    )
     lines += ["", "| objective | this design | nominal | improvement |", "|---|---|---|---|"]
     for name, row in ev["objectives"].items():
         gain = row.get("improvement")
-        gain_text = "-" if gain is None else f"{100 * gain:+.1f} %" + (
-            "" if row.get("improvement_se") is None else f" ± {100 * row['improvement_se']:.1f}")
-        lines.append(f"| {name} | {_pm(row['design'], row.get('design_se'))} | "
-                     f"{_pm(row['nominal'], row.get('nominal_se'))} | {gain_text} |")
-    lines.append(f"| fall rate | {_num(ev.get('design_fall_rate'), 3)} | {_num(ev.get('nominal_fall_rate'), 3)} | |")
+        gain_text = (
+            "-"
+            if gain is None
+            else f"{100 * gain:+.1f} %"
+            + ("" if row.get("improvement_se") is None else f" ± {100 * row['improvement_se']:.1f}")
+        )
+        lines.append(
+            f"| {name} | {_pm(row['design'], row.get('design_se'))} | "
+            f"{_pm(row['nominal'], row.get('nominal_se'))} | {gain_text} |"
+        )
+    lines.append(
+        f"| fall rate | {_num(ev.get('design_fall_rate'), 3)} | {_num(ev.get('nominal_fall_rate'), 3)} | |"
+    )
     lines.append("")
     return lines
 
@@ -95,48 +110,86 @@ def render_markdown(sheet: dict[str, Any]) -> str:
     d = sheet
     lines = [f"# {d['robot']} design {d['design_text']}", ""]
     prov = d["provenance"]
-    lines += [f"From run `{prov['run_id']}` ({prov['method']}, {prov['optimizer']}, objective "
-              f"{', '.join(prov['objectives'])}, terrain {d['terrain']}, seed {prov['seed']}); "
-              f"{'the run' + chr(39) + 's best design' if d['is_run_best'] else 'a design chosen with --design'}. "
-              "Units: SI (m, kg, s, rad, N m).", ""]
-    lines += ["## Design parameters", "", "| parameter | value | unit | allowed |", "|---|---|---|---|"]
+    lines += [
+        f"From run `{prov['run_id']}` ({prov['method']}, {prov['optimizer']}, objective "
+        f"{', '.join(prov['objectives'])}, terrain {d['terrain']}, seed {prov['seed']}); "
+        f"{'the run' + chr(39) + 's best design' if d['is_run_best'] else 'a design chosen with --design'}. "
+        "Units: SI (m, kg, s, rad, N m).",
+        "",
+    ]
+    lines += [
+        "## Design parameters",
+        "",
+        "| parameter | value | unit | allowed |",
+        "|---|---|---|---|",
+    ]
     for p in d["parameters"]:
-        allowed = ("one of " + ", ".join(_num(c) for c in p["choices"]) if p.get("choices")
-                   else f"[{_num(p['bounds'][0])}, {_num(p['bounds'][1])}]")
+        allowed = (
+            "one of " + ", ".join(_num(c) for c in p["choices"])
+            if p.get("choices")
+            else f"[{_num(p['bounds'][0])}, {_num(p['bounds'][1])}]"
+        )
         lines.append(f"| {p['name']} | {_num(p['value'])} | {p['unit']} | {allowed} |")
     body = d["body"]
-    lines += ["", "## Body", "", f"Total mass {_num(body['total_mass'])} kg; overall height {_num(body['height'], 3)} m "
-              f"(bounding boxes of the collision and visual geometry at the standing pose); standing base height "
-              f"{_num(body['standing_base_height'], 3)} m.", ""]
+    lines += [
+        "",
+        "## Body",
+        "",
+        f"Total mass {_num(body['total_mass'])} kg; overall height {_num(body['height'], 3)} m "
+        f"(bounding boxes of the collision and visual geometry at the standing pose); standing base height "
+        f"{_num(body['standing_base_height'], 3)} m.",
+        "",
+    ]
     info_rows = _info_rows(d["robot_info"])
     if info_rows:
         lines += ["| robot fact | value | unit |", "|---|---|---|", *info_rows, ""]
-    lines += ["Links (from the MJCF; offset: distance of the link's frame from its parent's, for a serial leg the "
-              "segment length above it; inertia: principal moments about the link's centre of mass):", "",
-              "| link | parent | joints | offset m | mass kg | principal inertia kg m² |", "|---|---|---|---|---|---|"]
+    lines += [
+        "Links (from the MJCF; offset: distance of the link's frame from its parent's, for a serial leg the "
+        "segment length above it; inertia: principal moments about the link's centre of mass):",
+        "",
+        "| link | parent | joints | offset m | mass kg | principal inertia kg m² |",
+        "|---|---|---|---|---|---|",
+    ]
     for link in body["links"]:
         inertia = ", ".join(_num(v, 3) for v in link["principal_inertia"])
-        lines.append(f"| {link['name']} | {link['parent']} | {', '.join(link['joints']) or '-'} | "
-                     f"{_num(link['offset_from_parent'], 3)} | {_num(link['mass'])} | {inertia} |")
-    lines += ["", "## Motors and joints (policy order)", "",
-              "| joint | default rad | range rad | kp N m/rad | kd N m s/rad | peak torque N m | no-load speed rad/s (RPM) |",
-              "|---|---|---|---|---|---|---|"]
+        lines.append(
+            f"| {link['name']} | {link['parent']} | {', '.join(link['joints']) or '-'} | "
+            f"{_num(link['offset_from_parent'], 3)} | {_num(link['mass'])} | {inertia} |"
+        )
+    lines += [
+        "",
+        "## Motors and joints (policy order)",
+        "",
+        "| joint | default rad | range rad | kp N m/rad | kd N m s/rad | peak torque N m | no-load speed rad/s (RPM) |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for j in d["joints"]:
-        lines.append(f"| {j['name']} | {j['default']:+.3f} | [{j['lower']:+.2f}, {j['upper']:+.2f}] | {_num(j['kp'])} | "
-                     f"{_num(j['kd'])} | {_num(j['torque_limit'])} | {_num(j['speed_limit'])} ({j['speed_limit_rpm']:.0f}) |")
+        lines.append(
+            f"| {j['name']} | {j['default']:+.3f} | [{j['lower']:+.2f}, {j['upper']:+.2f}] | {_num(j['kp'])} | "
+            f"{_num(j['kd'])} | {_num(j['torque_limit'])} | {_num(j['speed_limit'])} ({j['speed_limit_rpm']:.0f}) |"
+        )
     val = d["validation"]
-    lines += ["", f"## Validation: {'feasible' if val['feasible'] else 'INFEASIBLE'}", "",
-              "| check | ok | finding |", "|---|---|---|"]
+    lines += [
+        "",
+        f"## Validation: {'feasible' if val['feasible'] else 'INFEASIBLE'}",
+        "",
+        "| check | ok | finding |",
+        "|---|---|---|",
+    ]
     for f in val["findings"]:
         lines.append(f"| {f['check']} | {'yes' if f['ok'] else 'NO'} | {f['message']} |")
     lines += ["", "## Measured against the nominal design", ""]
     nominal_text = ", ".join(_num(x) for x in d["nominal_design"])
-    lines.append(f"Nominal design ({nominal_text}). Costs are means per policy step (lower is better) with standard "
-                 "errors over paired scenarios: each scenario (command, randomization draw, spawn, gait phase, "
-                 "observation noise) is the same for both designs, so the improvement's error is paired.")
+    lines.append(
+        f"Nominal design ({nominal_text}). Costs are means per policy step (lower is better) with standard "
+        "errors over paired scenarios: each scenario (command, randomization draw, spawn, gait phase, "
+        "observation noise) is the same for both designs, so the improvement's error is paired."
+    )
     judges = d.get("policies")
     if judges:
-        lines.append(f"Policies: {judges['note']} (this design: `{judges['design']}`; nominal: `{judges['nominal']}`).")
+        lines.append(
+            f"Policies: {judges['note']} (this design: `{judges['design']}`; nominal: `{judges['nominal']}`)."
+        )
     lines.append("")
     for ev in d["evaluations"]:
         lines += _evaluation_lines(ev)
@@ -146,18 +199,34 @@ def render_markdown(sheet: dict[str, Any]) -> str:
         if check.get("error"):
             lines.append(f"Not run: {check['error']}")
         else:
-            lines.append(f"{check['seconds']:g} s at vx {check['command'][0]:g} m/s on {check['terrain']} ground, "
-                         f"nominal physics: survival {check['survival']:.2f}, mean forward speed {check['vx_mean']:.3f} m/s, "
-                         f"distance {check['distance_x']:.2f} m, lateral drift {check['lateral_drift']:+.2f} m.")
+            lines.append(
+                f"{check['seconds']:g} s at vx {check['command'][0]:g} m/s on {check['terrain']} ground, "
+                f"nominal physics: survival {check['survival']:.2f}, mean forward speed {check['vx_mean']:.3f} m/s, "
+                f"distance {check['distance_x']:.2f} m, lateral drift {check['lateral_drift']:+.2f} m."
+            )
         lines.append("")
     onnx = d["onnx"]
-    lines += ["## Controller", "",
-              f"`policy.onnx`: ONNX max |action difference| from the torch policy {onnx['max_abs_action_difference']:.2e} "
-              f"on {onnx['observations']} recorded observations (tolerance {onnx['tolerance']:g}). Observation, action "
-              "and PD conventions: `policy.json`.", "", "## Provenance", ""]
+    lines += [
+        "## Controller",
+        "",
+        f"`policy.onnx`: ONNX max |action difference| from the torch policy {onnx['max_abs_action_difference']:.2e} "
+        f"on {onnx['observations']} recorded observations (tolerance {onnx['tolerance']:g}). Observation, action "
+        "and PD conventions: `policy.json`.",
+        "",
+        "## Provenance",
+        "",
+    ]
     for key, value in prov.items():
-        text = ", ".join(map(str, value)) if isinstance(value, list) else ("-" if value is None else str(value))
-        lines.append(f"- {key.replace('_', ' ')}: `{text}`" if value is not None else f"- {key.replace('_', ' ')}: -")
+        text = (
+            ", ".join(map(str, value))
+            if isinstance(value, list)
+            else ("-" if value is None else str(value))
+        )
+        lines.append(
+            f"- {key.replace('_', ' ')}: `{text}`"
+            if value is not None
+            else f"- {key.replace('_', ' ')}: -"
+        )
     return "\n".join(lines) + "\n"
 
 

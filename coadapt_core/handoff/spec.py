@@ -16,26 +16,42 @@ FORMAT = "coadapt-handoff-1"
 
 #: units and meaning of each slice of the policy observation (coadapt_core.task.observations)
 OBS_UNITS = {
-    "base_lin_vel": ("m/s", "base linear velocity (x forward, y left, z up) in the base frame", "base_lin_vel"),
+    "base_lin_vel": (
+        "m/s",
+        "base linear velocity (x forward, y left, z up) in the base frame",
+        "base_lin_vel",
+    ),
     "base_ang_vel": ("rad/s", "base angular velocity in the base frame", "base_ang_vel"),
-    "projected_gravity": ("1", "unit gravity vector (0, 0, -1) of the world in the base frame", "projected_gravity"),
+    "projected_gravity": (
+        "1",
+        "unit gravity vector (0, 0, -1) of the world in the base frame",
+        "projected_gravity",
+    ),
     "command": ("m/s, m/s, rad/s", "velocity command: vx, vy (base frame), yaw rate", None),
     "joint_pos": ("rad", "joint positions minus the default pose, action joint order", "joint_pos"),
     "joint_vel": ("rad/s", "joint velocities, action joint order", "joint_vel"),
-    "action_history": ("1", "the last raw actions (the ONNX `actions` output), newest first, each in joint order", None),
+    "action_history": (
+        "1",
+        "the last raw actions (the ONNX `actions` output), newest first, each in joint order",
+        None,
+    ),
     "clock": ("1", "sin and cos of 2 pi x gait phase", None),
 }
-
 
 
 # -- policy.json -------------------------------------------------------------------------------
 def _trained_command_ranges(task: Any, commands_state: dict[str, Any] | None) -> dict[str, Any]:
     cfg = task.commands
-    limit = float(commands_state["limit"]) if commands_state and "limit" in commands_state else (
-        cfg.curriculum_start if cfg.curriculum else math.inf)
+    limit = (
+        float(commands_state["limit"])
+        if commands_state and "limit" in commands_state
+        else (cfg.curriculum_start if cfg.curriculum else math.inf)
+    )
     names = ("vx", "vy", "yaw_rate")
     configured = (cfg.vx_range, cfg.vy_range, cfg.yaw_range)
-    reached = {n: [max(lo, -limit), min(hi, limit)] for n, (lo, hi) in zip(names, configured, strict=True)}
+    reached = {
+        n: [max(lo, -limit), min(hi, limit)] for n, (lo, hi) in zip(names, configured, strict=True)
+    }
     return {
         "configured": {n: list(r) for n, r in zip(names, configured, strict=True)},
         "curriculum_limit": None if math.isinf(limit) else limit,
@@ -43,7 +59,7 @@ def _trained_command_ranges(task: Any, commands_state: dict[str, Any] | None) ->
         "units": {"vx": "m/s", "vy": "m/s", "yaw_rate": "rad/s"},
         "zero_threshold": cfg.zero_threshold,
         "note": "the command box the policy reached in training (configured ranges clipped to +-curriculum_limit); "
-                "a planar command slower than zero_threshold was given as exactly 0",
+        "a planar command slower than zero_threshold was given as exactly 0",
     }
 
 
@@ -57,19 +73,32 @@ def _observation(task: Any, policy: Any, num_joints: int) -> dict[str, Any]:
     for name, size in policy_layout(num_joints, task.history):
         units, meaning, noise_key = OBS_UNITS[name]
         scale = float(getattr(noise, noise_key)) if noise_key else 0.0
-        slices.append({
-            "name": name, "start": start, "stop": start + size, "size": size, "units": units, "meaning": meaning,
-            "scaling": "none: raw values in these units (the ONNX graph normalises)",
-            "training_noise": {"kind": noise.kind, "scale": scale} if (noise.enabled and scale > 0) else None,
-        })
+        slices.append(
+            {
+                "name": name,
+                "start": start,
+                "stop": start + size,
+                "size": size,
+                "units": units,
+                "meaning": meaning,
+                "scaling": "none: raw values in these units (the ONNX graph normalises)",
+                "training_noise": {"kind": noise.kind, "scale": scale}
+                if (noise.enabled and scale > 0)
+                else None,
+            }
+        )
         start += size
     return {
         "size": start,
         "history": task.history,
         "slices": slices,
-        "normalisation": {"inside_graph": True, "rule": "clip((obs - mean) / std, -clip, clip)",
-                          "mean": [float(x) for x in mean], "std": [float(x) for x in std],
-                          "clip": policy.obs_clip},
+        "normalisation": {
+            "inside_graph": True,
+            "rule": "clip((obs - mean) / std, -clip, clip)",
+            "mean": [float(x) for x in mean],
+            "std": [float(x) for x in std],
+            "clip": policy.obs_clip,
+        },
     }
 
 
@@ -77,10 +106,19 @@ def _onnx(size: int, num_joints: int, verification: dict[str, float]) -> dict[st
     return {
         "input": {"name": "obs", "shape": ["batch", size], "dtype": "float32"},
         "outputs": [
-            {"name": "actions", "shape": ["batch", num_joints], "dtype": "float32",
-             "meaning": "raw action, clipped to +-action.clip; feed it back into the action history"},
-            {"name": "joint_targets", "shape": ["batch", num_joints], "dtype": "float32", "units": "rad",
-             "meaning": "default_joint_pos + action.scale x actions: PD position targets"},
+            {
+                "name": "actions",
+                "shape": ["batch", num_joints],
+                "dtype": "float32",
+                "meaning": "raw action, clipped to +-action.clip; feed it back into the action history",
+            },
+            {
+                "name": "joint_targets",
+                "shape": ["batch", num_joints],
+                "dtype": "float32",
+                "units": "rad",
+                "meaning": "default_joint_pos + action.scale x actions: PD position targets",
+            },
         ],
         "tolerance": verification["tolerance"],
         "max_abs_action_difference": verification["max_abs_action_difference"],
@@ -98,10 +136,16 @@ def _joints(model: Any) -> dict[str, Any]:
         "speed_limit": [float(x) for x in model.speed_limit],
         "lower": [float(x) for x in model.joint_lower],
         "upper": [float(x) for x in model.joint_upper],
-        "units": {"kp": "N m/rad", "kd": "N m s/rad", "torque_limit": "N m", "speed_limit": "rad/s", "lower": "rad",
-                  "upper": "rad"},
+        "units": {
+            "kp": "N m/rad",
+            "kd": "N m s/rad",
+            "torque_limit": "N m",
+            "speed_limit": "rad/s",
+            "lower": "rad",
+            "upper": "rad",
+        },
         "pd_law": "tau = kp (target - q) - kd dq at every physics step, then clipped to the motor's torque-speed "
-                  "envelope [-torque_limit clip(1 + dq / speed_limit, 0, 1), torque_limit clip(1 - dq / speed_limit, 0, 1)]",
+        "envelope [-torque_limit clip(1 + dq / speed_limit, 0, 1), torque_limit clip(1 - dq / speed_limit, 0, 1)]",
     }
 
 
@@ -112,8 +156,8 @@ def _gait(task: Any, robot: Any) -> dict[str, Any]:
         "freeze_on_zero_command": task.gait.freeze_on_zero_command,
         "zero_command_phase": 0.25,
         "rule": "phase in [0, 1) advances by control_dt x frequency after every policy step while the command is "
-                "not zero (held at zero_command_phase under a zero command when freeze_on_zero_command); the "
-                "observation's clock is (sin, cos)(2 pi phase); training started each episode at a random phase",
+        "not zero (held at zero_command_phase under a zero command when freeze_on_zero_command); the "
+        "observation's clock is (sin, cos)(2 pi phase); training started each episode at a random phase",
     }
 
 
@@ -133,9 +177,19 @@ def _simulation(model: Any, foot: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def policy_spec(*, robot: Any, model: Any, design: np.ndarray, space: Any, state: dict[str, Any],
-                rollout: dict[str, Any], terrain: str, verification: dict[str, float], foot: dict[str, Any],
-                files: dict[str, str]) -> dict[str, Any]:
+def policy_spec(
+    *,
+    robot: Any,
+    model: Any,
+    design: np.ndarray,
+    space: Any,
+    state: dict[str, Any],
+    rollout: dict[str, Any],
+    terrain: str,
+    verification: dict[str, float],
+    foot: dict[str, Any],
+    files: dict[str, str],
+) -> dict[str, Any]:
     """Everything needed to run `policy.onnx` on the robot: layouts, scaling, noise, PD,
     rates, clock, commands, terrain."""
     from coadapt_core.physics.terrain import SLOPE_DEGREES
@@ -147,10 +201,12 @@ def policy_spec(*, robot: Any, model: Any, design: np.ndarray, space: Any, state
         "format": FORMAT,
         "robot": robot.name,
         "design": dict(zip(space.names, (float(x) for x in design), strict=True)),
-        "design_text": "(" + ", ".join(f"{n} {x:g}" for n, x in zip(space.names, design, strict=True)) + ")",
+        "design_text": "("
+        + ", ".join(f"{n} {x:g}" for n, x in zip(space.names, design, strict=True))
+        + ")",
         "design_input": [float(x) for x in rollout["design_obs"]],
         "design_input_rule": "each design variable mapped linearly from the robot's design-space bounds to [-1, 1]; "
-                             "baked into policy.onnx as a constant",
+        "baked into policy.onnx as a constant",
         "files": files,
         "onnx": _onnx(observation["size"], num_joints, verification),
         "observation": observation,
@@ -172,11 +228,17 @@ def policy_spec(*, robot: Any, model: Any, design: np.ndarray, space: Any, state
         },
         "gait": _gait(task, robot),
         "commands": _trained_command_ranges(task, state.get("commands")),
-        "terrain": {"name": terrain, "slope_degrees": SLOPE_DEGREES,
-                    "note": "the ground trained on; slope_degrees is the slope terrain's rise along +x"},
-        "termination": {"min_base_height": task.min_base_height, "max_tilt_cos": task.max_tilt_cos,
-                        "rule": "a fall: base height above the ground < min_base_height x its standing height, or "
-                                "projected gravity z > -max_tilt_cos"},
+        "terrain": {
+            "name": terrain,
+            "slope_degrees": SLOPE_DEGREES,
+            "note": "the ground trained on; slope_degrees is the slope terrain's rise along +x",
+        },
+        "termination": {
+            "min_base_height": task.min_base_height,
+            "max_tilt_cos": task.max_tilt_cos,
+            "rule": "a fall: base height above the ground < min_base_height x its standing height, or "
+            "projected gravity z > -max_tilt_cos",
+        },
         "simulation": _simulation(model, foot),
         "training": {
             "randomization": jsonable(rollout["randomization"].to_dict()),

@@ -145,7 +145,9 @@ class UniversalPolicyBackend:
         # the environment's streams restart from `seed`, so this phase is a function of the
         # checkpointed state, the designs and the seed (exact resume, docs/coadaptation.md)
         self.trainer.reseed(seed)
-        stats = Runner(self.trainer).learn(int(steps))  # the runner `coadapt train` drives; it writes nothing here
+        stats = Runner(self.trainer).learn(
+            int(steps)
+        )  # the runner `coadapt train` drives; it writes nothing here
         visited = self.trainer.last_rollout_critic_obs
         buffer = EvalBuffer(visited) if visited is not None else None
         return TrainingResult(
@@ -166,7 +168,11 @@ class UniversalPolicyBackend:
         """The threads this phase ran on, as the engines report them: torch's during the
         update and the physics backend's pool (its `num_threads_used` where it has one)."""
         sim = self.trainer.env.sim if self.trainer.env is not None else None
-        physics = getattr(sim, "num_threads_used", getattr(sim, "num_threads", None)) if sim is not None else None
+        physics = (
+            getattr(sim, "num_threads_used", getattr(sim, "num_threads", None))
+            if sim is not None
+            else None
+        )
         return {"torch_threads": self.trainer.update_threads_seen, "physics_threads": physics}
 
     # -- Algorithm 2 ------------------------------------------------------------------------
@@ -187,8 +193,16 @@ class UniversalPolicyBackend:
             task.commands.resample_seconds = 0.0
             # built with the backend's seed, not the call's: the terrain (seeded by the simulator's
             # seed) must not depend on which call happened to build the environment
-            sim = tr.simulator_cls(tr.robot, per_env, terrain=tr.terrain, randomization=tr.randomization, seed=tr.config.seed)
-            self.eval_env = LocomotionEnv(sim, tr.robot, task, tr.objectives, seed=tr.config.seed, device=tr.device)
+            sim = tr.simulator_cls(
+                tr.robot,
+                per_env,
+                terrain=tr.terrain,
+                randomization=tr.randomization,
+                seed=tr.config.seed,
+            )
+            self.eval_env = LocomotionEnv(
+                sim, tr.robot, task, tr.objectives, seed=tr.config.seed, device=tr.device
+            )
         env = self.eval_env
         tr.ensure_ppo(env)
         env.cfg.episode_seconds = steps * env.dt + 1.0
@@ -208,7 +222,13 @@ class UniversalPolicyBackend:
         return index
 
     def real_fitness(
-        self, designs: np.ndarray, objectives: Sequence[Objective], *, agents: int, steps: int, seed: int = 0
+        self,
+        designs: np.ndarray,
+        objectives: Sequence[Objective],
+        *,
+        agents: int,
+        steps: int,
+        seed: int = 0,
     ) -> RealFitness:
         t0 = time.perf_counter()
         columns = self._check_objectives(objectives)
@@ -217,18 +237,36 @@ class UniversalPolicyBackend:
         env = self._eval_env(designs, agents, steps)
         # real fitness is a function of the policy, the curriculum, the designs and `seed`
         # alone: the scenario set of `seed`, paired (common random numbers) or not
-        prepare(env, agents, k, int(seed), paired=self.paired_evaluation, command_state=self.trainer.command_state())
+        prepare(
+            env,
+            agents,
+            k,
+            int(seed),
+            paired=self.paired_evaluation,
+            command_state=self.trainer.command_state(),
+        )
         # the stochastic policy, as in training: the pseudo-critics learn the metric under it,
         # so real and surrogate fitness estimate the same quantity (the mean action's torque
         # and power are lower while the policy's std is large)
-        result = rollout(self.ppo.action_distribution, env, k, steps, seed=seed, stochastic=self.stochastic_evaluation)
+        result = rollout(
+            self.ppo.action_distribution,
+            env,
+            k,
+            steps,
+            seed=seed,
+            stochastic=self.stochastic_evaluation,
+        )
         per_scenario = result.per_agent[:, :, columns]  # [K, A, M]
         # the walking gate's tracking measure, per design: the RMS over scenarios of the error
         # of each scenario's mean velocity (v_x, v_y, yaw rate) over the RMS command
         # (coadapt/reliability.py): 0 goes where commanded, 1 is no better than standing still
-        command_ms = (env.command.detach().float().cpu().reshape(k, agents, 3) ** 2).sum(-1).mean(1).numpy()
+        command_ms = (
+            (env.command.detach().float().cpu().reshape(k, agents, 3) ** 2).sum(-1).mean(1).numpy()
+        )
         error_ms = np.asarray(result.mean_velocity_error, dtype=float)
-        ratio = np.where(command_ms > 1e-4, np.sqrt(error_ms / np.maximum(command_ms, 1e-4)), np.nan)
+        ratio = np.where(
+            command_ms > 1e-4, np.sqrt(error_ms / np.maximum(command_ms, 1e-4)), np.nan
+        )
         return RealFitness(
             # the paper's plain mean (Algorithm 2, eq. 4); the caller applies its cost rule
             # (costs.CostRule) to `per_scenario` and `scenario_falls`
@@ -247,23 +285,38 @@ class UniversalPolicyBackend:
     # -- Algorithm 3 ------------------------------------------------------------------------
     @torch.no_grad()
     def surrogate_fitness(
-        self, designs: np.ndarray, objectives: Sequence[Objective], buffer: Any, *, samples: int, seed: int = 0
+        self,
+        designs: np.ndarray,
+        objectives: Sequence[Objective],
+        buffer: Any,
+        *,
+        samples: int,
+        seed: int = 0,
     ) -> np.ndarray:
         columns = self._check_objectives(objectives)
         if self.ppo is None or self.ppo.pseudo_critic is None:
-            raise UserError("surrogate fitness needs a trained policy with pseudo-critics", field="backend")
+            raise UserError(
+                "surrogate fitness needs a trained policy with pseudo-critics", field="backend"
+            )
         if not isinstance(buffer, EvalBuffer) or len(buffer) == 0:
-            raise UserError("surrogate fitness needs a non-empty evaluation buffer from real_fitness or train", field="buffer")
+            raise UserError(
+                "surrogate fitness needs a non-empty evaluation buffer from real_fitness or train",
+                field="buffer",
+            )
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
         if self.fitted is not None and self.use_fitted and columns == self.fitted_columns:
-            return self.surrogate_members(designs, objectives, buffer, samples=samples, seed=seed).mean(axis=0)
+            return self.surrogate_members(
+                designs, objectives, buffer, samples=samples, seed=seed
+            ).mean(axis=0)
         states = self._states(buffer, samples, seed)  # [S, C]
         xi = self.trainer_normalize(designs)  # [K, D]
         # only the pseudo-critics of `objectives` (each head is its own MLP: the same values, to
         # the bit, as computing every head and keeping these columns; one head alone is computed
         # twice, because a batch of one takes another matrix-product path, 1e-6 apart)
         bank = self.ppo.pseudo_critic
-        idx = torch.as_tensor(columns * 2 if len(columns) == 1 and bank.num_heads > 1 else columns, dtype=torch.long)
+        idx = torch.as_tensor(
+            columns * 2 if len(columns) == 1 and bank.num_heads > 1 else columns, dtype=torch.long
+        )
         layers = [(w[idx], b[idx]) for w, b in (bank.layer(k) for k in range(bank.num_layers))]
         norm, m = self.ppo.pseudo_norm, self.ppo.dims.num_metrics
         scale, offset = torch.sqrt(norm.var[:m] + norm.eps)[idx], norm.mean[:m][idx]
@@ -307,7 +360,13 @@ class UniversalPolicyBackend:
         return self.ppo.critic_norm(buffer.critic_obs[rows].to(self.ppo.device))
 
     def fit_surrogate(
-        self, designs: np.ndarray, costs: np.ndarray, objectives: Sequence[Objective], buffer: Any, *, seed: int = 0
+        self,
+        designs: np.ndarray,
+        costs: np.ndarray,
+        objectives: Sequence[Objective],
+        buffer: Any,
+        *,
+        seed: int = 0,
     ) -> None:
         """Fit an ensemble of copies of the pseudo-critics of `objectives` to labelled designs
         [N, D] with their real costs [N, M] (every real round of the current policy), on the
@@ -326,15 +385,28 @@ class UniversalPolicyBackend:
         states = self._states(buffer, min(len(buffer), 65536), seed)
         with self._learner_threads():
             self.fitted = fit_ensemble(
-                self.ppo.pseudo_critic, columns, scale, norm.mean[:m], states, self.trainer_normalize(designs[ok]),
-                torch.as_tensor(costs[ok], dtype=torch.float32), members=self.surrogate_members_count, seed=seed,
+                self.ppo.pseudo_critic,
+                columns,
+                scale,
+                norm.mean[:m],
+                states,
+                self.trainer_normalize(designs[ok]),
+                torch.as_tensor(costs[ok], dtype=torch.float32),
+                members=self.surrogate_members_count,
+                seed=seed,
                 **self.surrogate_fit_options,
             )
         self.fitted_columns = columns
 
     @torch.no_grad()
     def surrogate_members(
-        self, designs: np.ndarray, objectives: Sequence[Objective], buffer: Any, *, samples: int, seed: int = 0
+        self,
+        designs: np.ndarray,
+        objectives: Sequence[Objective],
+        buffer: Any,
+        *,
+        samples: int,
+        seed: int = 0,
     ) -> np.ndarray | None:
         """[E, K, M] each fitted member's surrogate (mean over `samples` buffer states), or
         None before `fit_surrogate` (or after `train`)."""
@@ -359,7 +431,9 @@ class UniversalPolicyBackend:
         high = torch.as_tensor(space.upper, dtype=torch.float32)
         xi = torch.as_tensor(designs, dtype=torch.float32)
         width = high - low
-        norm = torch.where(width > 0, 2.0 * (xi - low) / torch.where(width > 0, width, 1.0) - 1.0, 0.0)
+        norm = torch.where(
+            width > 0, 2.0 * (xi - low) / torch.where(width > 0, width, 1.0) - 1.0, 0.0
+        )
         return norm.to(self.ppo.device)
 
     # -- checkpoints ------------------------------------------------------------------------

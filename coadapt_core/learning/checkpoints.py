@@ -37,10 +37,18 @@ def read_checkpoint(path: str | Path) -> dict:
     except pickle.UnpicklingError:
         raise UserError(
             f"checkpoint '{path}' holds objects other than tensors and plain values; refused "
-            "(it is not a coadapt checkpoint, or was altered)", field="checkpoint") from None
+            "(it is not a coadapt checkpoint, or was altered)",
+            field="checkpoint",
+        ) from None
     except Exception as exc:
-        raise UserError(f"checkpoint '{path}' cannot be read ({type(exc).__name__}); it is damaged or not a checkpoint", field="checkpoint") from None
-    if not isinstance(state, dict) or state.get("format") not in (CHECKPOINT_FORMAT, WEIGHTS_FORMAT):
+        raise UserError(
+            f"checkpoint '{path}' cannot be read ({type(exc).__name__}); it is damaged or not a checkpoint",
+            field="checkpoint",
+        ) from None
+    if not isinstance(state, dict) or state.get("format") not in (
+        CHECKPOINT_FORMAT,
+        WEIGHTS_FORMAT,
+    ):
         raise UserError(f"'{path}' is not a coadapt policy checkpoint", field="checkpoint")
     return state
 
@@ -55,7 +63,9 @@ def match_objectives(ppo_state: dict, saved_names: list[str], names: list[str], 
     return out
 
 
-def _remap_heads(saved: dict | None, saved_names: list[str], names: list[str], ppo: PPO) -> dict | None:
+def _remap_heads(
+    saved: dict | None, saved_names: list[str], names: list[str], ppo: PPO
+) -> dict | None:
     """The pseudo-critic bank's state with head i taken from the saved head of the same
     objective name (a fresh head where the name is new); the saved state may be of the
     per-head layout."""
@@ -109,7 +119,8 @@ def widen_design_input(state: dict, num_design: int) -> dict:
     old = int(state["dims"]["num_design"])
     if num_design < old:
         raise UserError(
-            f"a policy taking {old} design values cannot be narrowed to {num_design}", field="checkpoint"
+            f"a policy taking {old} design values cannot be narrowed to {num_design}",
+            field="checkpoint",
         )
     out = dict(state)
     out["dims"] = {**state["dims"], "num_design": int(num_design)}
@@ -144,7 +155,8 @@ def open_command_inputs(state: dict, commands: CommandConfig) -> tuple[dict, lis
     offset = slices(policy_layout(1, 1))["command"].start  # the same column in o and s
     obs_var = state["ppo"]["obs_norm"]["var"]
     opened = [
-        j for j, (lo, hi) in enumerate(ranges)
+        j
+        for j, (lo, hi) in enumerate(ranges)
         if hi > lo and float(obs_var[offset + j]) < _CONSTANT_VAR
     ]
     if not opened:

@@ -15,7 +15,7 @@ PRECISIONS = ("auto", "float32", "bf16")
 
 
 def resolve_precision(precision: str, device: str | torch.device) -> str:
-    """"float32" or "bf16" for a configured precision on `device` ("auto": bf16 where the
+    """ "float32" or "bf16" for a configured precision on `device` ("auto": bf16 where the
     device computes bfloat16 natively)."""
     if precision != "auto":
         return precision
@@ -23,22 +23,32 @@ def resolve_precision(precision: str, device: str | torch.device) -> str:
     if device.type == "cuda":
         return "bf16" if torch.cuda.is_available() and torch.cuda.is_bf16_supported() else "float32"
     if device.type == "cpu":
-        return "bf16" if torch.backends.mkldnn.is_available() and torch.ops.mkldnn._is_mkldnn_bf16_supported() else "float32"
+        return (
+            "bf16"
+            if torch.backends.mkldnn.is_available() and torch.ops.mkldnn._is_mkldnn_bf16_supported()
+            else "float32"
+        )
     return "float32"
 
 
 @settings(prefix="train")
 class TrainConfig:
     # -- batch ------------------------------------------------------------------------------
-    num_designs: Int = setting(128, "K designs sampled from the current range per training phase.", ge=1)
+    num_designs: Int = setting(
+        128, "K designs sampled from the current range per training phase.", ge=1
+    )
     agents_per_design: Int = setting(32, "Environments per design; num_envs = K x agents.", ge=1)
     steps_per_env: Int = setting(24, "Rollout length per PPO update.", ge=1)
-    design_resample_every: Int = setting(0, "Iterations between new design draws (0: fixed designs, Algorithm 1).", ge=0)
+    design_resample_every: Int = setting(
+        0, "Iterations between new design draws (0: fixed designs, Algorithm 1).", ge=0
+    )
     # -- PPO --------------------------------------------------------------------------------
     epochs: Int = setting(5, "PPO epochs per update.", ge=1)
     minibatches: Int = setting(4, "Minibatches per epoch.", ge=1)
     learning_rate: Float = setting(1.0e-3, "Initial learning rate.", gt=0, lt=1)
-    schedule: Literal["adaptive", "fixed"] = setting("adaptive", "Learning-rate schedule: adaptive (KL-based, rsl_rl) or fixed.")
+    schedule: Literal["adaptive", "fixed"] = setting(
+        "adaptive", "Learning-rate schedule: adaptive (KL-based, rsl_rl) or fixed."
+    )
     desired_kl: Float = setting(0.01, "KL divergence the adaptive schedule aims at.", gt=0)
     gamma: Float = setting(0.99, "Discount factor.", gt=0, lt=1)
     lam: Float = setting(0.95, "GAE lambda.", ge=0, le=1)
@@ -46,20 +56,28 @@ class TrainConfig:
     entropy_coef: Float = setting(0.005, "Entropy bonus coefficient.", ge=0)
     value_loss_coef: Float = setting(1.0, "Value loss coefficient.", ge=0)
     max_grad_norm: Float = setting(1.0, "Gradient norm clip.", gt=0)
-    init_noise_std: Float = setting(1.0, "Initial std of the Gaussian policy (state-independent, learned).", gt=0)
+    init_noise_std: Float = setting(
+        1.0, "Initial std of the Gaussian policy (state-independent, learned).", gt=0
+    )
     # -- networks (paper section 4: MLP [512, 256, 128] for policy, critic, pseudo-critics) --
-    hidden: Ints = setting((512, 256, 128), "Hidden layer sizes of policy, critic and pseudo-critics.")
+    hidden: Ints = setting(
+        (512, 256, 128), "Hidden layer sizes of policy, critic and pseudo-critics."
+    )
     activation: Literal["elu", "relu", "tanh"] = setting("elu", "Activation of the hidden layers.")
     # -- pseudo-critics (section 3.2.2) ----------------------------------------------------
     pseudo_learning_rate: Float = setting(1.0e-3, "Learning rate of the pseudo-critics.", gt=0)
-    pseudo_lam: Float = setting(0.95, "TD(lambda) of the pseudo-critics' discounted-average metric target.", ge=0, le=1)
+    pseudo_lam: Float = setting(
+        0.95, "TD(lambda) of the pseudo-critics' discounted-average metric target.", ge=0, le=1
+    )
     # epochs of pseudo-critic regression per update (0: as many as PPO's). One epoch: the
     # three [512, 256, 128] pseudo-critics are 1.5x the multiply-adds of actor + critic, so at
     # PPO's 5 epochs they were 0.55 of the update on a CPU (the paper: 3 % of training time);
     # at 1 they are about 0.2 and still see every sample of every rollout once. The surrogate
     # is fitted to each real round's labelled designs from them anyway (learning/surrogate.py).
     # docs/training.md (Throughput) has the measurements
-    pseudo_epochs: Int = setting(1, "Epochs of pseudo-critic regression per update (0: as many as PPO's).", ge=0)
+    pseudo_epochs: Int = setting(
+        1, "Epochs of pseudo-critic regression per update (0: as many as PPO's).", ge=0
+    )
     # numerics of the forward passes of the PPO loss (precision) and of the pseudo-critic
     # regression (pseudo_precision): "float32", "bf16" (autocast to bfloat16; parameters,
     # optimizer states and losses stay float32) or "auto" (bf16 where the device computes it
@@ -68,18 +86,25 @@ class TrainConfig:
     # pseudo-critics the policy's curve is float32's exactly (they never touch the policy) and
     # their loss stays within 0.5 % of float32's on the same data; with a bf16 PPO loss three
     # seeds' rewards stayed within the float32 seeds' spread
-    precision: Literal[PRECISIONS] = setting("auto", "Numerics of the PPO loss's forward passes (auto: bf16 where native).")
-    pseudo_precision: Literal[PRECISIONS] = setting("auto", "Numerics of the pseudo-critic regression.")
+    precision: Literal[PRECISIONS] = setting(
+        "auto", "Numerics of the PPO loss's forward passes (auto: bf16 where native)."
+    )
+    pseudo_precision: Literal[PRECISIONS] = setting(
+        "auto", "Numerics of the pseudo-critic regression."
+    )
     # -- bookkeeping ------------------------------------------------------------------------
     checkpoint_every: Int = setting(50, "Iterations between checkpoints (coadapt train).", ge=1)
     device: str = setting("cpu", "Torch device of the learner.", cli=False)
     # earlier versions' learner threads, still in their checkpoints (the six shipped policies
     # record 1): read and kept, never used. The thread budget decides (`coadapt_core.threads`:
     # --threads, else the CPUs the process may use), for the update and the physics alike
-    torch_threads: Int = setting(0, "Not used (earlier versions' learner threads; --threads decides now).", ge=0,
-                                 cli=False)
+    torch_threads: Int = setting(
+        0, "Not used (earlier versions' learner threads; --threads decides now).", ge=0, cli=False
+    )
     seed: Int = setting(0, "Random seed.", ge=0, cli=False)
-    extra: dict[str, Any] = setting(default_factory=dict, help="Free-form notes kept with a checkpoint.", cli=False)
+    extra: dict[str, Any] = setting(
+        default_factory=dict, help="Free-form notes kept with a checkpoint.", cli=False
+    )
 
     @property
     def num_envs(self) -> int:

@@ -37,7 +37,9 @@ class RolloutResult:
     survival: np.ndarray  # [K] share of agents that never fell
     vx: np.ndarray  # [K] mean base-frame forward speed (steps before an agent's first fall)
     tracking_error: np.ndarray  # [K] mean e_v^2 + e_w^2 (steps before the first fall)
-    alternation: np.ndarray  # [K] share of steps with exactly half of the feet down (NaN: odd leg count)
+    alternation: (
+        np.ndarray
+    )  # [K] share of steps with exactly half of the feet down (NaN: odd leg count)
     buffer: EvalBuffer
     steps: int  # environment interactions
     per_agent: np.ndarray | None = None  # [K, A, M] each agent's mean per-step metric
@@ -47,7 +49,9 @@ class RolloutResult:
     #: agent's means over its steps before its first fall: a gait's oscillation and the
     #: policy's action noise average out, a robot that stands still scores |command|^2
     mean_velocity_error: np.ndarray | None = None
-    yaw_rate: np.ndarray | None = None  # [K] mean base yaw rate, rad/s (steps before an agent's first fall)
+    yaw_rate: np.ndarray | None = (
+        None  # [K] mean base yaw rate, rad/s (steps before an agent's first fall)
+    )
     #: [K, A, 3] each agent's mean (v_x, v_y, yaw rate) before its first fall (the spread
     #: behind `vx` and `yaw_rate`: their standard errors)
     per_agent_velocity: np.ndarray | None = None
@@ -74,11 +78,15 @@ class _Tally:
         environment's first fall, metrics throughout."""
         self.metric_sum += info["metrics"]
         lin, command = info["base_lin_vel"], info["command"]
-        err = ((command[:, :2] - lin[:, :2]) ** 2).sum(-1) + (command[:, 2] - info["base_ang_vel"][:, 2]) ** 2
+        err = ((command[:, :2] - lin[:, :2]) ** 2).sum(-1) + (
+            command[:, 2] - info["base_ang_vel"][:, 2]
+        ) ** 2
         alive_f = self.alive.float()
         self.vx_sum += lin[:, 0] * alive_f
         self.err_sum += err * alive_f
-        self.vel_sum += torch.cat([lin[:, :2], info["base_ang_vel"][:, 2:3]], dim=-1) * alive_f[:, None]
+        self.vel_sum += (
+            torch.cat([lin[:, :2], info["base_ang_vel"][:, 2:3]], dim=-1) * alive_f[:, None]
+        )
         self.cmd_sum += command * alive_f[:, None]
         self.alt_sum += info["half_stance"] * alive_f
         self.alive_steps += alive_f
@@ -107,9 +115,14 @@ class _Tally:
             per_agent=(self.metric_sum / steps).reshape(num_designs, agents, m).cpu().numpy(),
             falls=self.falls.reshape(num_designs, agents).cpu().numpy(),
             fall_metric=per_design(self.fall_metric / steps),
-            mean_velocity_error=per_design(((vel_sum - self.cmd_sum) / safe[:, None]).pow(2).sum(-1)),
+            mean_velocity_error=per_design(
+                ((vel_sum - self.cmd_sum) / safe[:, None]).pow(2).sum(-1)
+            ),
             yaw_rate=per_design(vel_sum[:, 2] / safe),
-            per_agent_velocity=(vel_sum / safe[:, None]).reshape(num_designs, agents, 3).cpu().numpy(),
+            per_agent_velocity=(vel_sum / safe[:, None])
+            .reshape(num_designs, agents, 3)
+            .cpu()
+            .numpy(),
         )
 
 
@@ -143,7 +156,9 @@ def rollout(
         if per_step >= n:
             kept.append(critic.float().cpu())
         else:
-            kept.append(critic[torch.randperm(n, generator=gen)[:per_step].to(env.device)].float().cpu())
+            kept.append(
+                critic[torch.randperm(n, generator=gen)[:per_step].to(env.device)].float().cpu()
+            )
         loc, scale = policy(obs, design_obs)
         if stochastic:
             # paired evaluation: agent i of every design gets the same action noise

@@ -76,11 +76,21 @@ def make_backend(
     space = design_space if design_space is not None else robot.design_space(mixed)
     try:
         return UniversalPolicyBackend(
-            robot, simulator_cls, made, terrain=terrain, design_space=space, agents_per_design=agents_per_design,
-            device=device, seed=seed, checkpoint=checkpoint, **learner,
+            robot,
+            simulator_cls,
+            made,
+            terrain=terrain,
+            design_space=space,
+            agents_per_design=agents_per_design,
+            device=device,
+            seed=seed,
+            checkpoint=checkpoint,
+            **learner,
         )
     except ImportError as exc:  # e.g. the simulator's library is not installed
-        raise BackendUnavailable(f"{getattr(simulator_cls, 'name', simulator_cls)}: {exc}") from None
+        raise BackendUnavailable(
+            f"{getattr(simulator_cls, 'name', simulator_cls)}: {exc}"
+        ) from None
 
 
 __all__ = ["BackendUnavailable", "make_backend", "resolve_plugins"]

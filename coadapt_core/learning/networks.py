@@ -11,7 +11,9 @@ from torch import nn
 _ACTIVATIONS = {"elu": nn.ELU, "relu": nn.ReLU, "tanh": nn.Tanh}
 
 
-def mlp(inputs: int, outputs: int, hidden: tuple[int, ...], activation: str = "elu") -> nn.Sequential:
+def mlp(
+    inputs: int, outputs: int, hidden: tuple[int, ...], activation: str = "elu"
+) -> nn.Sequential:
     layers: list[nn.Module] = []
     size = inputs
     for h in hidden:
@@ -57,10 +59,20 @@ class ActorNet(nn.Module):
     """Mean of pi(a | o, xi) from the normalised observation and design; the std is a learned
     state-independent parameter (log-std), as in rsl_rl."""
 
-    def __init__(self, num_obs: int, num_design: int, num_actions: int, hidden, activation: str, init_std: float):
+    def __init__(
+        self,
+        num_obs: int,
+        num_design: int,
+        num_actions: int,
+        hidden,
+        activation: str,
+        init_std: float,
+    ):
         super().__init__()
         self.body = mlp(num_obs + num_design, num_actions, hidden, activation)
-        self.log_std = nn.Parameter(torch.full((num_actions,), float(torch.log(torch.tensor(init_std)))))
+        self.log_std = nn.Parameter(
+            torch.full((num_actions,), float(torch.log(torch.tensor(init_std))))
+        )
 
     def forward(self, obs: torch.Tensor, design: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         loc = self.body(torch.cat([obs, design], dim=-1))
@@ -71,9 +83,13 @@ class ActorNet(nn.Module):
 class ValueNet(nn.Module):
     """V(s, xi): the critic, one MLP (`heads.0`)."""
 
-    def __init__(self, num_critic_obs: int, num_design: int, hidden, activation: str, outputs: int = 1):
+    def __init__(
+        self, num_critic_obs: int, num_design: int, hidden, activation: str, outputs: int = 1
+    ):
         super().__init__()
-        self.heads = nn.ModuleList(mlp(num_critic_obs + num_design, 1, hidden, activation) for _ in range(outputs))
+        self.heads = nn.ModuleList(
+            mlp(num_critic_obs + num_design, 1, hidden, activation) for _ in range(outputs)
+        )
 
     def forward(self, critic_obs: torch.Tensor, design: torch.Tensor) -> torch.Tensor:
         x = torch.cat([critic_obs, design], dim=-1)
@@ -169,7 +185,9 @@ class CriticBank(nn.Module):
         for j in range(per_head):  # j = 2 k (weight) or 2 k + 1 (bias): the bank's order
             rows = [inner[ids[h * per_head + j]] for h in range(num_heads)]
             new_state[j] = {
-                "step": rows[0]["step"].clone() if torch.is_tensor(rows[0]["step"]) else rows[0]["step"],
+                "step": rows[0]["step"].clone()
+                if torch.is_tensor(rows[0]["step"])
+                else rows[0]["step"],
                 "exp_avg": torch.stack([r["exp_avg"] for r in rows]),
                 "exp_avg_sq": torch.stack([r["exp_avg_sq"] for r in rows]),
             }

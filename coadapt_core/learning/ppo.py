@@ -94,15 +94,24 @@ class PPO:
         self.device = torch.device(device)
         c = config
         self.actor_net = ActorNet(
-            dims.num_obs, dims.num_design, dims.num_actions, c.hidden, c.activation, c.init_noise_std
+            dims.num_obs,
+            dims.num_design,
+            dims.num_actions,
+            c.hidden,
+            c.activation,
+            c.init_noise_std,
         ).to(self.device)
-        self.critic_net = ValueNet(dims.num_critic_obs, dims.num_design, c.hidden, c.activation).to(self.device)
+        self.critic_net = ValueNet(dims.num_critic_obs, dims.num_design, c.hidden, c.activation).to(
+            self.device
+        )
         self.obs_norm = EmpiricalNormalization(dims.num_obs).to(self.device)
         self.critic_norm = EmpiricalNormalization(dims.num_critic_obs).to(self.device)
         self.pseudo_critic, self.pseudo_norm, self.pseudo_optimizer = self._new_pseudo_critics()
 
         self.actor = ProbabilisticActor(
-            TensorDictModule(self.actor_net, in_keys=["obs", "design_obs"], out_keys=["loc", "scale"]),
+            TensorDictModule(
+                self.actor_net, in_keys=["obs", "design_obs"], out_keys=["loc", "scale"]
+            ),
             in_keys=["loc", "scale"],
             distribution_class=IndependentNormal,
             return_log_prob=True,
@@ -138,7 +147,9 @@ class PPO:
 
     # -- acting -----------------------------------------------------------------------------
     @torch.no_grad()
-    def act(self, obs: torch.Tensor, critic_obs: torch.Tensor, design_obs: torch.Tensor) -> torch.Tensor:
+    def act(
+        self, obs: torch.Tensor, critic_obs: torch.Tensor, design_obs: torch.Tensor
+    ) -> torch.Tensor:
         """Sample actions [N, A] for a rollout step and start its transition record."""
         from torchrl.modules import IndependentNormal
 
@@ -153,8 +164,15 @@ class PPO:
         dist = IndependentNormal(loc, scale)  # the actor's distribution_class
         action = dist.rsample()
         td = TensorDict(
-            {"obs": normed, "critic_obs": self.critic_norm(critic_obs), "design_obs": design_obs,
-             "loc": loc, "scale": scale, "action": action, self.loss.tensor_keys.sample_log_prob: dist.log_prob(action)},
+            {
+                "obs": normed,
+                "critic_obs": self.critic_norm(critic_obs),
+                "design_obs": design_obs,
+                "loc": loc,
+                "scale": scale,
+                "action": action,
+                self.loss.tensor_keys.sample_log_prob: dist.log_prob(action),
+            },
             batch_size=[obs.shape[0]],
             device=self.device,
         )
@@ -162,7 +180,9 @@ class PPO:
         return action
 
     @torch.no_grad()
-    def action_distribution(self, obs: torch.Tensor, design_obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def action_distribution(
+        self, obs: torch.Tensor, design_obs: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """(mean, std) [N, A] of the Gaussian policy at raw observations `obs`; the
         normalisers stay as they are. The policy that `learning.evaluate.rollout` takes."""
         return self.actor_net(self.obs_norm(obs), design_obs)
@@ -199,14 +219,21 @@ class PPO:
         # a non-finite or absurd metric (an exploding w_t = exp(e^2) of a flailing robot) must
         # not poison the pseudo-critics' running statistics: NaN -> 0, clamp to +-1e15 so the
         # float32 variance (squares) stays finite
-        td["metrics"] = torch.nan_to_num(metrics.float(), nan=0.0).clamp(-METRIC_LIMIT, METRIC_LIMIT)
+        td["metrics"] = torch.nan_to_num(metrics.float(), nan=0.0).clamp(
+            -METRIC_LIMIT, METRIC_LIMIT
+        )
 
     # -- returns ----------------------------------------------------------------------------
-    def pseudo_values(self, critic_obs_normed: torch.Tensor, design_obs: torch.Tensor) -> torch.Tensor:
+    def pseudo_values(
+        self, critic_obs_normed: torch.Tensor, design_obs: torch.Tensor
+    ) -> torch.Tensor:
         """[*, M] de-normalised pseudo-critic predictions (in units of the per-step metric)."""
         out = self.pseudo_critic(critic_obs_normed, design_obs)
         m = self.dims.num_metrics
-        return out * torch.sqrt(self.pseudo_norm.var[:m] + self.pseudo_norm.eps) + self.pseudo_norm.mean[:m]
+        return (
+            out * torch.sqrt(self.pseudo_norm.var[:m] + self.pseudo_norm.eps)
+            + self.pseudo_norm.mean[:m]
+        )
 
     @torch.no_grad()
     def compute_returns(self) -> TensorDict:
@@ -220,14 +247,20 @@ class PPO:
         if self.pseudo_critic is not None:
             tick = self._clock()
             with self._autocast(self.pseudo_precision):  # the regression's numerics
-                value_next = self.pseudo_values(td["next", "critic_obs"], td["next", "design_obs"]).float()  # [N, T, M]
+                value_next = self.pseudo_values(
+                    td["next", "critic_obs"], td["next", "design_obs"]
+                ).float()  # [N, T, M]
             m = self.dims.num_metrics
             metrics = td["metrics"]
             seen = metrics.reshape(-1, m)
             value_next = torch.clamp(value_next, min=seen.amin(dim=0), max=seen.amax(dim=0))
-            target = discounted_average_targets(metrics, value_next, td["next", "done"], self.config.gamma, self.config.pseudo_lam)
+            target = discounted_average_targets(
+                metrics, value_next, td["next", "done"], self.config.gamma, self.config.pseudo_lam
+            )
             self.pseudo_norm.update(metrics)
-            td["pseudo_target"] = (target - self.pseudo_norm.mean[:m]) / torch.sqrt(self.pseudo_norm.var[:m] + self.pseudo_norm.eps)
+            td["pseudo_target"] = (target - self.pseudo_norm.mean[:m]) / torch.sqrt(
+                self.pseudo_norm.var[:m] + self.pseudo_norm.eps
+            )
             self.timing["pseudo"] += self._clock() - tick
         self.rollout = td
         self.timing["returns"] += self._clock() - begin
@@ -275,7 +308,9 @@ class PPO:
         pseudo_sum = torch.zeros((), device=self.device)
         count = pseudo_count = 0
         params = list(self.loss.parameters())
-        pseudo_params = list(self.pseudo_critic.parameters()) if self.pseudo_critic is not None else []
+        pseudo_params = (
+            list(self.pseudo_critic.parameters()) if self.pseudo_critic is not None else []
+        )
         pseudo_epochs = c.pseudo_epochs or c.epochs
         pseudo_seconds = 0.0
         begin = self._clock()
@@ -318,7 +353,9 @@ class PPO:
                     pseudo_sum += loss_pseudo.detach()
                     pseudo_count += 1
                     pseudo_seconds += self._clock() - tick
-                sums += torch.stack([out[k].detach().float().reshape(()) for k in keys] + [flags[0]])
+                sums += torch.stack(
+                    [out[k].detach().float().reshape(()) for k in keys] + [flags[0]]
+                )
                 count += 1
         self.timing["update"] += self._clock() - begin
         self.timing["pseudo"] += pseudo_seconds
@@ -341,7 +378,9 @@ class PPO:
             "critic_norm": self.critic_norm.state_dict(),
             "pseudo_norm": self.pseudo_norm.state_dict(),
             "optimizer": self.optimizer.state_dict(),
-            "pseudo_optimizer": self.pseudo_optimizer.state_dict() if self.pseudo_optimizer else None,
+            "pseudo_optimizer": self.pseudo_optimizer.state_dict()
+            if self.pseudo_optimizer
+            else None,
             "learning_rate": self.learning_rate,
         }
 
@@ -350,20 +389,30 @@ class PPO:
         self.critic_net.load_state_dict(state["critic"])
         if self.pseudo_critic is not None and state.get("pseudo_critic") is not None:
             # checkpoints of the per-head layout (before the bank was batched) are converted
-            self.pseudo_critic.load_state_dict(CriticBank.convert_state_dict(state["pseudo_critic"]))
+            self.pseudo_critic.load_state_dict(
+                CriticBank.convert_state_dict(state["pseudo_critic"])
+            )
         self.obs_norm.load_state_dict(state["obs_norm"])
         self.critic_norm.load_state_dict(state["critic_norm"])
         self.pseudo_norm.load_state_dict(state["pseudo_norm"])
         # pseudo-critics poisoned by non-finite metrics (checkpoints written before the w_t
         # exponent was capped) predict NaN forever: they restart from scratch instead
-        self.pseudo_reset = self.pseudo_critic is not None and not _all_finite(self.pseudo_critic, self.pseudo_norm)
+        self.pseudo_reset = self.pseudo_critic is not None and not _all_finite(
+            self.pseudo_critic, self.pseudo_norm
+        )
         if self.pseudo_reset:
             self.reset_pseudo_critics()
         if optimizers and "optimizer" in state:
             self.optimizer.load_state_dict(state["optimizer"])
-            if self.pseudo_optimizer is not None and state.get("pseudo_optimizer") is not None and not self.pseudo_reset:
+            if (
+                self.pseudo_optimizer is not None
+                and state.get("pseudo_optimizer") is not None
+                and not self.pseudo_reset
+            ):
                 bank = self.pseudo_critic
-                saved = CriticBank.convert_optimizer_state(state["pseudo_optimizer"], bank.num_heads, bank.num_layers)
+                saved = CriticBank.convert_optimizer_state(
+                    state["pseudo_optimizer"], bank.num_heads, bank.num_layers
+                )
                 if saved is not None:
                     self.pseudo_optimizer.load_state_dict(saved)
         if "learning_rate" in state:
@@ -373,14 +422,22 @@ class PPO:
             for group in self.optimizer.param_groups:
                 group["lr"] = self.learning_rate
 
-    def _new_pseudo_critics(self) -> tuple[CriticBank | None, EmpiricalNormalization, torch.optim.Adam | None]:
+    def _new_pseudo_critics(
+        self,
+    ) -> tuple[CriticBank | None, EmpiricalNormalization, torch.optim.Adam | None]:
         """Fresh pseudo-critics (None when there are no objectives), target normaliser and optimizer."""
         d, c = self.dims, self.config
         norm = EmpiricalNormalization(max(d.num_metrics, 1), eps=1e-8, clip=1e9).to(self.device)
         if d.num_metrics == 0:
             return None, norm, None
-        net = CriticBank(d.num_critic_obs, d.num_design, c.hidden, c.activation, outputs=d.num_metrics).to(self.device)
-        return net, norm, torch.optim.Adam(net.parameters(), lr=c.pseudo_learning_rate, foreach=True)
+        net = CriticBank(
+            d.num_critic_obs, d.num_design, c.hidden, c.activation, outputs=d.num_metrics
+        ).to(self.device)
+        return (
+            net,
+            norm,
+            torch.optim.Adam(net.parameters(), lr=c.pseudo_learning_rate, foreach=True),
+        )
 
     def freeze_policy(self) -> None:
         """Train only the pseudo-critics from now on: refit the surrogate of a finished policy
@@ -395,4 +452,9 @@ class PPO:
 
 
 def _all_finite(*modules: torch.nn.Module) -> bool:
-    return all(bool(torch.isfinite(t).all()) for m in modules for t in m.state_dict().values() if t.is_floating_point())
+    return all(
+        bool(torch.isfinite(t).all())
+        for m in modules
+        for t in m.state_dict().values()
+        if t.is_floating_point()
+    )

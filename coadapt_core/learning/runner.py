@@ -53,8 +53,15 @@ class Runner:
     `learn` to stop at the end of the iteration under way (a checkpoint, then
     `TrainingInterrupted`); a second one stops at once."""
 
-    def __init__(self, trainer: Trainer, out: Path | None = None, *, checkpoint_every: int | None = None,
-                 tracker: Any = None, catch_ctrl_c: bool = False):
+    def __init__(
+        self,
+        trainer: Trainer,
+        out: Path | None = None,
+        *,
+        checkpoint_every: int | None = None,
+        tracker: Any = None,
+        catch_ctrl_c: bool = False,
+    ):
         self.trainer = trainer
         self.out = None if out is None else Path(out)
         if checkpoint_every is None:
@@ -86,7 +93,9 @@ class Runner:
         for group in ppo.optimizer.param_groups:
             group["lr"] = rate
 
-    def restrict(self, *, reset_pseudo_critics: bool = False, pseudo_critics_only: bool = False) -> None:
+    def restrict(
+        self, *, reset_pseudo_critics: bool = False, pseudo_critics_only: bool = False
+    ) -> None:
         """Restart the pseudo-critics from scratch, and/or train only them (the policy, the
         critic and the observation normalisers stay exactly as loaded)."""
         ppo = self.trainer.ppo
@@ -94,8 +103,10 @@ class Runner:
             ppo.reset_pseudo_critics()
         if pseudo_critics_only:
             if ppo.pseudo_critic is None:
-                raise UserError("--pseudo-critics-only: no objectives, so no pseudo-critics to train (see --objectives)",
-                                field="pseudo_critics_only")
+                raise UserError(
+                    "--pseudo-critics-only: no objectives, so no pseudo-critics to train (see --objectives)",
+                    field="pseudo_critics_only",
+                )
             ppo.freeze_policy()
 
     # -- cadence ----------------------------------------------------------------------------
@@ -105,19 +116,29 @@ class Runner:
 
     def checkpoint(self) -> Path:
         """Write `out/checkpoints/model_<iteration>.pt` now."""
-        return self.trainer.save(self._folder() / "checkpoints" / f"model_{self.trainer.iteration}.pt")
+        return self.trainer.save(
+            self._folder() / "checkpoints" / f"model_{self.trainer.iteration}.pt"
+        )
 
-    def learn(self, steps: int, callback: Callable[[IterationStats], None] | None = None) -> IterationStats:
+    def learn(
+        self, steps: int, callback: Callable[[IterationStats], None] | None = None
+    ) -> IterationStats:
         """Train for `steps` interactions: `run(iterations_for(steps))`."""
         return self.run(self.iterations_for(steps), callback)
 
-    def run(self, iterations: int, callback: Callable[[IterationStats], None] | None = None) -> IterationStats | None:
+    def run(
+        self, iterations: int, callback: Callable[[IterationStats], None] | None = None
+    ) -> IterationStats | None:
         """Run `iterations` PPO iterations (0: none, the trainer untouched), recording each
         (progress.jsonl, the cadence's checkpoints) before `callback` sees it. Raises
         `TrainingInterrupted` after a Ctrl-C (with `catch_ctrl_c`), its checkpoint written."""
         progress = (self._folder() / "progress.jsonl").open("a") if self.out is not None else None
-        start = self.trainer.total_steps  # this phase's interactions, told to its listeners (phase_progress)
-        total = max(int(iterations), 0) * int(getattr(self.trainer, "samples_per_iteration", 0) or 0)
+        start = (
+            self.trainer.total_steps
+        )  # this phase's interactions, told to its listeners (phase_progress)
+        total = max(int(iterations), 0) * int(
+            getattr(self.trainer, "samples_per_iteration", 0) or 0
+        )
 
         def record(stats: IterationStats) -> None:
             phase_progress.report(self.trainer.total_steps - start, total)
@@ -135,7 +156,9 @@ class Runner:
             if iterations <= 0:
                 return None
             if self.tracker is not None:
-                self.tracker.train_step = self.trainer.total_steps  # a resumed run continues its curves
+                self.tracker.train_step = (
+                    self.trainer.total_steps
+                )  # a resumed run continues its curves
             with tracking.active(self.tracker), self._ctrl_c():
                 return self.trainer.learn(iterations, record)
         except _Stop:
@@ -165,7 +188,9 @@ class Runner:
 
     def _folder(self) -> Path:
         if self.out is None:
-            raise UserError("this runner writes nothing: give it an output folder (out)", field="out")
+            raise UserError(
+                "this runner writes nothing: give it an output folder (out)", field="out"
+            )
         self.out.mkdir(parents=True, exist_ok=True)
         return self.out
 
@@ -183,8 +208,12 @@ class Runner:
             if self._stop_requested:
                 raise KeyboardInterrupt
             self._stop_requested = True
-            print("\nCtrl-C: stopping after this iteration and writing a checkpoint (Ctrl-C again: stop now, "
-                  "without one)", file=sys.stderr, flush=True)
+            print(
+                "\nCtrl-C: stopping after this iteration and writing a checkpoint (Ctrl-C again: stop now, "
+                "without one)",
+                file=sys.stderr,
+                flush=True,
+            )
 
         signal.signal(signal.SIGINT, handler)
         try:

@@ -48,7 +48,9 @@ class FittedEnsemble:
     scale: torch.Tensor  # [M] member e's output = raw * scale + offset[e] (in cost units)
     offset: torch.Tensor  # [E, M]
     labels: int  # labelled designs it was fitted on
-    center: torch.Tensor | None = None  # [D] the members read (xi - center) / half (local design frame)
+    center: torch.Tensor | None = (
+        None  # [D] the members read (xi - center) / half (local design frame)
+    )
     half: torch.Tensor | None = None  # [D]
 
     def frame(self, xi: torch.Tensor) -> torch.Tensor:
@@ -67,11 +69,19 @@ class FittedEnsemble:
         m, e = self.scale.shape[0], self.members
         xi = self.frame(xi)
         per = max(1, states.shape[0] // e)
-        shares = states[: per * e].reshape(per, e, -1).transpose(0, 1) if states.shape[0] >= e else states.expand(e, -1, -1)
+        shares = (
+            states[: per * e].reshape(per, e, -1).transpose(0, 1)
+            if states.shape[0] >= e
+            else states.expand(e, -1, -1)
+        )
         c = shares.shape[-1]
         weight, bias = self.bank.layer(0)  # [E M, H, C + D], [E M, H]
-        state_part = torch.bmm(shares.repeat_interleave(m, dim=0), weight[..., :c].transpose(1, 2))  # [E M, S/E, H]
-        design_part = torch.einsum("kd,ghd->gkh", xi, weight[..., c:]) + bias.unsqueeze(1)  # [E M, K, H]
+        state_part = torch.bmm(
+            shares.repeat_interleave(m, dim=0), weight[..., :c].transpose(1, 2)
+        )  # [E M, S/E, H]
+        design_part = torch.einsum("kd,ghd->gkh", xi, weight[..., c:]) + bias.unsqueeze(
+            1
+        )  # [E M, K, H]
         out = []
         for k0 in range(0, xi.shape[0], chunk):
             part = design_part[:, k0 : k0 + chunk]  # [E M, b, H]
@@ -117,10 +127,14 @@ def fit_ensemble(
     costs = costs.to(device).float()
     # the loss in units of the labelled costs' spread (at least 5 % of their mean), per
     # objective, so every objective and every cost scale weighs alike
-    spread = torch.maximum(costs.std(dim=0, unbiased=False) if n > 1 else torch.zeros(m, device=device),
-                           floor * costs.abs().mean(dim=0)).clamp(min=1e-9)
+    spread = torch.maximum(
+        costs.std(dim=0, unbiased=False) if n > 1 else torch.zeros(m, device=device),
+        floor * costs.abs().mean(dim=0),
+    ).clamp(min=1e-9)
     center = half = None
-    if local:  # the labelled designs' box as [-1, 1]: a narrowed range is as easy to fit as the full one
+    if (
+        local
+    ):  # the labelled designs' box as [-1, 1]: a narrowed range is as easy to fit as the full one
         lo, hi = xi.min(dim=0).values, xi.max(dim=0).values
         center, half = 0.5 * (lo + hi), (0.5 * (hi - lo)).clamp(min=MIN_HALF_WIDTH)
         xi = (xi - center) / half
@@ -148,15 +162,24 @@ def fit_ensemble(
     bank.eval()
     for p in bank.parameters():
         p.requires_grad_(False)
-    fitted = FittedEnsemble(bank=bank, members=members, scale=scale, offset=offset.expand(members, m).clone(), labels=n,
-                            center=center, half=half)
+    fitted = FittedEnsemble(
+        bank=bank,
+        members=members,
+        scale=scale,
+        offset=offset.expand(members, m).clone(),
+        labels=n,
+        center=center,
+        half=half,
+    )
     xi = xi if center is None else xi * half + center  # predict() applies the frame itself
     # a short fit starts from the pseudo-critic's level and stops short of the labels' mean:
     # each member's remaining mean residual over its own labelled designs is removed
     check = states[torch.randperm(states.shape[0], generator=gen)[: int(check_states)].to(device)]
     with torch.no_grad():
         residual = fitted.predict(check, xi) - costs.unsqueeze(0)  # [E, N, M]
-        own = torch.stack([residual[e, picks[e].to(device)].mean(dim=0) for e in range(members)])  # [E, M]
+        own = torch.stack(
+            [residual[e, picks[e].to(device)].mean(dim=0) for e in range(members)]
+        )  # [E, M]
         fitted.offset -= own
     return fitted
 
@@ -167,7 +190,9 @@ def _member_bank(pseudo: CriticBank, idx: torch.Tensor, members: int) -> CriticB
     with torch.no_grad():
         for k in range(bank.num_layers):
             weight, bias = bank.layer(k)
-            setattr(bank, f"weight_{k}", torch.nn.Parameter(weight[idx].repeat(members, 1, 1).clone()))
+            setattr(
+                bank, f"weight_{k}", torch.nn.Parameter(weight[idx].repeat(members, 1, 1).clone())
+            )
             setattr(bank, f"bias_{k}", torch.nn.Parameter(bias[idx].repeat(members, 1).clone()))
     bank.num_heads = members * idx.numel()
     return bank

@@ -111,18 +111,26 @@ class Trainer:
         if seed is not None:
             self.config.seed = seed
         if self.config.device.startswith("cuda") and not torch.cuda.is_available():
-            raise UserError("device 'cuda' requested but no CUDA device is available; use --device cpu", field="device")
+            raise UserError(
+                "device 'cuda' requested but no CUDA device is available; use --device cpu",
+                field="device",
+            )
         self.task_config = task_config or TaskConfig()
         # None: the preset the training configuration names (TrainConfig.extra["randomization"],
         # "table2" unless set; stored in checkpoints, so a resumed run keeps it)
         self.randomization = (
-            randomization if randomization is not None
+            randomization
+            if randomization is not None
             else RandomizationConfig.recorded(self.config.extra)
         )
         #: the thread budget: the physics' threads and the learner's torch threads (given, else
         #: the process's, `coadapt_core.threads.budget()`: --threads or the CPUs it may use;
         #: never the checkpoint's, whose recorded `torch_threads` is not read)
-        self.num_threads = threads.check_threads(num_threads, "num_threads") if num_threads is not None else threads.budget()
+        self.num_threads = (
+            threads.check_threads(num_threads, "num_threads")
+            if num_threads is not None
+            else threads.budget()
+        )
         self.device = torch.device(self.config.device)
         self.env: LocomotionEnv | None = None
         self.ppo: PPO | None = None
@@ -167,7 +175,14 @@ class Trainer:
                 seed=self.config.seed,
                 num_threads=self.num_threads,
             )
-            self.env = LocomotionEnv(sim, self.robot, self.task_config, self.objectives, seed=self.config.seed, device=self.device)
+            self.env = LocomotionEnv(
+                sim,
+                self.robot,
+                self.task_config,
+                self.objectives,
+                seed=self.config.seed,
+                device=self.device,
+            )
             if commands is not None:  # of the environment replaced, or of a loaded checkpoint
                 self.env.commands.load_state_dict(commands)
         self.designs = designs
@@ -177,7 +192,13 @@ class Trainer:
 
     def ensure_ppo(self, env: LocomotionEnv) -> PPO:
         """Build the learner for `env`'s sizes (or check a loaded one matches them)."""
-        dims = Dims(env.num_obs, env.num_critic_obs, env.num_design_obs, env.num_actions, len(self.objectives))
+        dims = Dims(
+            env.num_obs,
+            env.num_critic_obs,
+            env.num_design_obs,
+            env.num_actions,
+            len(self.objectives),
+        )
         if self.ppo is None:
             self.ppo = PPO(dims, self.config, self.device)
         elif self.ppo.dims != dims:
@@ -220,7 +241,9 @@ class Trainer:
     def iterations_for(self, steps: int) -> int:
         return max(1, math.ceil(steps / self.samples_per_iteration))
 
-    def learn(self, iterations: int, callback: Callable[[IterationStats], None] | None = None) -> IterationStats:
+    def learn(
+        self, iterations: int, callback: Callable[[IterationStats], None] | None = None
+    ) -> IterationStats:
         """Run `iterations` PPO iterations; `callback` sees each one's statistics."""
         if self.env is None:
             self.set_designs(self.sample_designs())
@@ -231,7 +254,11 @@ class Trainer:
         observed = self._obs
         stats = None
         for _ in range(iterations):
-            if cfg.design_resample_every and self.iteration > 0 and self.iteration % cfg.design_resample_every == 0:
+            if (
+                cfg.design_resample_every
+                and self.iteration > 0
+                and self.iteration % cfg.design_resample_every == 0
+            ):
                 self.set_designs(self.sample_designs(len(self.designs)), self.agents)
                 observed = env.reset()
             physics0, step0 = env.timing["physics"], env.timing["step"]
@@ -251,10 +278,14 @@ class Trainer:
             self.total_steps += samples
             physics = env.timing["physics"] - physics0
             task = env.timing["step"] - step0 - physics
-            stats = self._iteration_stats(sums, losses, samples, collect_seconds, update_seconds, physics, task)
+            stats = self._iteration_stats(
+                sums, losses, samples, collect_seconds, update_seconds, physics, task
+            )
             if callback is not None:
                 callback(stats)
-            tracking.on_training_iteration(stats, samples)  # TensorBoard / wandb, when one is active
+            tracking.on_training_iteration(
+                stats, samples
+            )  # TensorBoard / wandb, when one is active
         torch.set_num_threads(self.collect_threads)
         self._obs = observed
         return stats
@@ -269,7 +300,14 @@ class Trainer:
             sums.visited.append(critic_obs)
             actions = ppo.act(obs, critic_obs, design_obs)
             res = env.step(actions)
-            ppo.process_env_step(res.reward, res.done, res.timeout, res.info["final_critic_obs"], res.design_obs, res.info["metrics"])
+            ppo.process_env_step(
+                res.reward,
+                res.done,
+                res.timeout,
+                res.info["final_critic_obs"],
+                res.design_obs,
+                res.info["metrics"],
+            )
             obs, critic_obs, design_obs = res.obs, res.critic_obs, res.design_obs
             info = res.info
             sums.rewards.append(res.reward.mean())
@@ -286,8 +324,16 @@ class Trainer:
                 sums.episodes.append(info["episode"])
         return (obs, critic_obs, design_obs), sums
 
-    def _iteration_stats(self, sums: _RolloutSums, losses: dict, samples: int, collect_seconds: float,
-                         update_seconds: float, physics: float, task: float) -> IterationStats:
+    def _iteration_stats(
+        self,
+        sums: _RolloutSums,
+        losses: dict,
+        samples: int,
+        collect_seconds: float,
+        update_seconds: float,
+        physics: float,
+        task: float,
+    ) -> IterationStats:
         env, cfg, episodes = self.env, self.config, sums.episodes
         total = collect_seconds + update_seconds
         falls = sum(e["fell"] * e["count"] for e in episodes)
@@ -333,7 +379,9 @@ class Trainer:
         """Full checkpoint: configs, design range, networks, normalisers, optimizers, counters,
         command curriculum."""
         if self.ppo is None:
-            raise UserError("nothing to save: the policy has not been built yet", field="checkpoint")
+            raise UserError(
+                "nothing to save: the policy has not been built yet", field="checkpoint"
+            )
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         state = {"format": CHECKPOINT_FORMAT, **self._header(), "ppo": self.ppo.state_dict()}
@@ -363,7 +411,9 @@ class Trainer:
         weights["learning_rate"] = float(full["learning_rate"])
         state = {"format": WEIGHTS_FORMAT, **self._header(), "ppo": weights}
         commands = self.command_state()
-        if commands is not None:  # the command box the policy was trained to (real fitness draws from it)
+        if (
+            commands is not None
+        ):  # the command box the policy was trained to (real fitness draws from it)
             state["commands"] = commands
         write_atomic(path, lambda tmp: torch.save(state, tmp))
         return path
@@ -394,14 +444,22 @@ class Trainer:
         if self.ppo is None:
             self.ppo = PPO(dims, self.config, self.device)
         elif self.ppo.dims != dims:
-            raise UserError(f"checkpoint '{path}' has sizes {dims}, the policy here {self.ppo.dims}", field="checkpoint")
+            raise UserError(
+                f"checkpoint '{path}' has sizes {dims}, the policy here {self.ppo.dims}",
+                field="checkpoint",
+            )
         ppo_state = dict(state["ppo"])
         same = saved_names == names
         if not same:  # pseudo-critics follow objectives by name; unknown ones start fresh
             ppo_state = match_objectives(ppo_state, saved_names, names, self.ppo)
-        self.ppo.load_state_dict(ppo_state, optimizers=same and optimizers and state["format"] == CHECKPOINT_FORMAT)
+        self.ppo.load_state_dict(
+            ppo_state, optimizers=same and optimizers and state["format"] == CHECKPOINT_FORMAT
+        )
         if self.ppo.pseudo_reset:
-            print(f"note: the pseudo-critics in '{path}' hold non-finite values; they restart from scratch", file=sys.stderr)
+            print(
+                f"note: the pseudo-critics in '{path}' hold non-finite values; they restart from scratch",
+                file=sys.stderr,
+            )
         self.iteration = int(state["iteration"])
         self.total_steps = int(state["total_steps"])
         if self.env is not None and "commands" in state:

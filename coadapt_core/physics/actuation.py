@@ -98,7 +98,9 @@ class DelayLine:
         dtype: torch.dtype = torch.float64,
     ):
         self.capacity = int(max_delay_steps) + 1
-        self.buffer = torch.zeros((self.capacity, num_envs, num_joints), dtype=dtype, device=device)  # ring
+        self.buffer = torch.zeros(
+            (self.capacity, num_envs, num_joints), dtype=dtype, device=device
+        )  # ring
         self._rows = self.buffer.view(self.capacity * num_envs, num_joints)  # the ring as rows
         self.head = 0  # slot of the newest entry
         self.delay_steps = torch.zeros(num_envs, dtype=torch.long, device=device)  # [N]
@@ -120,7 +122,9 @@ class DelayLine:
         self._lookup[:, ids] = slots * self.buffer.shape[1] + ids
 
     def reset(self, env_ids, targets: torch.Tensor) -> None:
-        self.buffer[:, self._index(env_ids)] = torch.as_tensor(targets, dtype=self.buffer.dtype, device=self.buffer.device)[None]
+        self.buffer[:, self._index(env_ids)] = torch.as_tensor(
+            targets, dtype=self.buffer.dtype, device=self.buffer.device
+        )[None]
 
     def push(self, targets: torch.Tensor) -> None:
         self.head = (self.head + 1) % self.capacity

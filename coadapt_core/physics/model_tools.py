@@ -36,11 +36,17 @@ def tool_simulators(registry: Any, formats: Any, prefer: str | None = None) -> l
     """Installed simulators (`prefer` first, then the default one, then by name) that declare
     model tools and read one of `formats` (model format names)."""
     names = registry.names("simulator")
-    order = ([prefer] if prefer else []) + ([registry.default("simulator")] if names else []) + names
+    order = (
+        ([prefer] if prefer else []) + ([registry.default("simulator")] if names else []) + names
+    )
     wanted = set(formats)
-    return [n for n in dict.fromkeys(order) if n in names
-            and getattr(registry.get("simulator", n), "model_tools", "")
-            and wanted & set(getattr(registry.get("simulator", n), "model_formats", ()))]
+    return [
+        n
+        for n in dict.fromkeys(order)
+        if n in names
+        and getattr(registry.get("simulator", n), "model_tools", "")
+        and wanted & set(getattr(registry.get("simulator", n), "model_formats", ()))
+    ]
 
 
 def tools_for(registry: Any, model: Any, prefer: str | None = None) -> tuple[str, ModuleType]:
@@ -50,6 +56,9 @@ def tools_for(registry: Any, model: Any, prefer: str | None = None) -> tuple[str
     names = tool_simulators(registry, getattr(model, "formats", {}) or {}, prefer)
     if not names:
         given = ", ".join(sorted(getattr(model, "formats", {}) or {})) or "none"
-        raise UserError(f"no installed simulator plugin declares model tools (Simulator.model_tools) for the "
-                        f"model formats {given}", field="simulator")
+        raise UserError(
+            f"no installed simulator plugin declares model tools (Simulator.model_tools) for the "
+            f"model formats {given}",
+            field="simulator",
+        )
     return names[0], importlib.import_module(str(registry.get("simulator", names[0]).model_tools))

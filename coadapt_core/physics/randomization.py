@@ -31,22 +31,32 @@ class RandomizationConfig:
     """Ranges drawn uniformly per environment at each reset. `enabled=False` (or a range
     with equal ends) turns a parameter off; the nominal value is then used."""
 
-    enabled: bool = setting(True, "Draw the ranges below at each reset (off: every parameter nominal).")
+    enabled: bool = setting(
+        True, "Draw the ranges below at each reset (off: every parameter nominal)."
+    )
     friction: PositiveRange = setting((0.5, 1.25), "Sliding friction coefficient (Table 2).")
     restitution: NonNegativeRange = setting((0.0, 0.4), "Restitution (Table 2).")
-    com_shift: Range = setting((-0.025, 0.025), "Base centre-of-mass offset per axis x, y, z, m (Table 2).")
+    com_shift: Range = setting(
+        (-0.025, 0.025), "Base centre-of-mass offset per axis x, y, z, m (Table 2)."
+    )
     pd_factor: PositiveRange = setting((0.9, 1.1), "Factor on kp and kd (Table 2).")
     motor_strength: PositiveRange = setting((0.9, 1.1), "Factor on the commanded torque (Table 2).")
-    delay: NonNegativeRange = setting((0.0, 0.020), "System delay of the joint targets, s (Table 2).")
+    delay: NonNegativeRange = setting(
+        (0.0, 0.020), "System delay of the joint targets, s (Table 2)."
+    )
     # -- engine robustness (ours, not the paper's Table 2): what differs between MuJoCo and
     # PyBullet. Off by default (each range is its nominal point, and a point range draws
     # nothing, so default configurations keep their random streams); `engine_robust()`
     # turns them on. Applied by the MuJoCo backend; other backends run them at nominal.
     contact_timeconst: PositiveRange = setting(
-        (0.02, 0.02), "Contact softness, s (MuJoCo solref[0]; engine robustness, not Table 2).")
+        (0.02, 0.02), "Contact softness, s (MuJoCo solref[0]; engine robustness, not Table 2)."
+    )
     joint_damping: NonNegativeRange = setting(
-        (0.0, 0.0), "N m s/rad added to every joint's damping (engine robustness).")
-    armature: PositiveRange = setting((1.0, 1.0), "Factor on every joint's armature (engine robustness).")
+        (0.0, 0.0), "N m s/rad added to every joint's damping (engine robustness)."
+    )
+    armature: PositiveRange = setting(
+        (1.0, 1.0), "Factor on every joint's armature (engine robustness)."
+    )
 
     NOMINAL: ClassVar[dict[str, float]] = {
         "friction": 1.0,
@@ -73,7 +83,10 @@ class RandomizationConfig:
         twice as stiff to twice as soft as MuJoCo's default (Bullet's are rigid), up to
         1 N m s/rad of extra joint damping, armature +-25 %, and system delay to 25 ms."""
         return cls(
-            delay=(0.0, 0.025), contact_timeconst=(0.01, 0.04), joint_damping=(0.0, 1.0), armature=(0.75, 1.25)
+            delay=(0.0, 0.025),
+            contact_timeconst=(0.01, 0.04),
+            joint_damping=(0.0, 1.0),
+            armature=(0.75, 1.25),
         )
 
     @classmethod
@@ -83,7 +96,8 @@ class RandomizationConfig:
         presets = {"table2": cls, "engine": cls.engine_robust, "off": cls.off}
         if name not in presets:
             raise UserError(
-                f"randomization preset '{name}' is not one of: {', '.join(presets)}", field="randomization"
+                f"randomization preset '{name}' is not one of: {', '.join(presets)}",
+                field="randomization",
             )
         return presets[name]()
 
@@ -139,18 +153,34 @@ class EnvParams:
         randomized parameters (the engine-robustness ones are not in it: the critic input
         keeps its size)."""
         columns = torch.cat(
-            [torch.stack([self.friction, self.restitution, self.pd_factor, self.motor_strength, self.delay], dim=1),
-             self.com_shift.reshape(-1, 3)],
+            [
+                torch.stack(
+                    [
+                        self.friction,
+                        self.restitution,
+                        self.pd_factor,
+                        self.motor_strength,
+                        self.delay,
+                    ],
+                    dim=1,
+                ),
+                self.com_shift.reshape(-1, 3),
+            ],
             dim=1,
         )
         return columns.to(device=device if device is not None else self.device, dtype=torch.float32)
 
-    def to(self, device: str | torch.device | None = None, dtype: torch.dtype | None = None) -> EnvParams:
+    def to(
+        self, device: str | torch.device | None = None, dtype: torch.dtype | None = None
+    ) -> EnvParams:
         return self._map(lambda v: v.to(device=device, dtype=dtype))
 
     def numpy(self) -> dict[str, np.ndarray]:
         """Every field as a float64 numpy array on the CPU (for engines that take numpy)."""
-        return {f.name: getattr(self, f.name).detach().cpu().numpy().astype(np.float64, copy=False) for f in fields(self)}
+        return {
+            f.name: getattr(self, f.name).detach().cpu().numpy().astype(np.float64, copy=False)
+            for f in fields(self)
+        }
 
     def take(self, env_ids) -> EnvParams:
         """The parameters of environments `env_ids` (tensor, numpy array or list), a copy."""

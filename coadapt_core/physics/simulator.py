@@ -58,7 +58,9 @@ class SimState:
     base_ang_vel: torch.Tensor  # [N, 3] world frame
     joint_pos: torch.Tensor  # [N, J]
     joint_vel: torch.Tensor  # [N, J]
-    joint_torque: torch.Tensor  # [N, J] applied torque, mean over the physics steps of the last policy step
+    joint_torque: (
+        torch.Tensor
+    )  # [N, J] applied torque, mean over the physics steps of the last policy step
     foot_pos: torch.Tensor  # [N, L, 3] world position of each foot body's origin
     foot_contact: torch.Tensor  # [N, L] bool, foot touches the terrain
     foot_contact_force: torch.Tensor  # [N, L] normal contact force, N
@@ -74,7 +76,10 @@ class SimState:
         quat = self.base_quat.float()
         gravity = torch.zeros_like(self.base_lin_vel, dtype=torch.float32)
         gravity[:, 2] = -1.0
-        return tuple(_quat_rotate_inverse(quat, v) for v in (self.base_lin_vel.float(), self.base_ang_vel.float(), gravity))
+        return tuple(
+            _quat_rotate_inverse(quat, v)
+            for v in (self.base_lin_vel.float(), self.base_ang_vel.float(), gravity)
+        )
 
 
 def _quat_rotate_inverse(quat: torch.Tensor, vec: torch.Tensor) -> torch.Tensor:
@@ -91,7 +96,9 @@ def _quat_rotate_inverse(quat: torch.Tensor, vec: torch.Tensor) -> torch.Tensor:
 def nominal_env_params(
     num_envs: int, *, device: str | torch.device = "cpu", dtype: torch.dtype = torch.float64
 ) -> EnvParams:
-    return sample_env_params(RandomizationConfig.off(), num_envs, np.random.default_rng(0), device=device, dtype=dtype)
+    return sample_env_params(
+        RandomizationConfig.off(), num_envs, np.random.default_rng(0), device=device, dtype=dtype
+    )
 
 
 def sample_env_params(
@@ -177,7 +184,10 @@ class NominalGains:
         mixed = len(np.atleast_1d(design)) != self._robot.design_space(False).dim
         if mixed not in self._gains:
             nominal = self._robot.build(self._robot.nominal_design(mixed))
-            self._gains[mixed] = (np.array(nominal.kp, dtype=float), np.array(nominal.kd, dtype=float))
+            self._gains[mixed] = (
+                np.array(nominal.kp, dtype=float),
+                np.array(nominal.kd, dtype=float),
+            )
         kp, kd = self._gains[mixed]
         return dataclasses.replace(model, kp=kp.copy(), kd=kd.copy())
 
@@ -242,29 +252,47 @@ class Simulator(ABC):
         naming the field."""
         if terrain not in self.terrains:
             raise UserError(
-                f"unknown terrain '{terrain}'; {self.name} offers: {', '.join(self.terrains)}", field="terrain"
+                f"unknown terrain '{terrain}'; {self.name} offers: {', '.join(self.terrains)}",
+                field="terrain",
             )
-        if isinstance(decimation, bool) or not (isinstance(decimation, int | np.integer) and decimation >= 1):
-            raise UserError(f"decimation must be a whole number >= 1, got {decimation!r}", field="decimation")
+        if isinstance(decimation, bool) or not (
+            isinstance(decimation, int | np.integer) and decimation >= 1
+        ):
+            raise UserError(
+                f"decimation must be a whole number >= 1, got {decimation!r}", field="decimation"
+            )
         if isinstance(physics_dt, bool) or not (
-            isinstance(physics_dt, int | float | np.number) and math.isfinite(physics_dt) and physics_dt > 0
+            isinstance(physics_dt, int | float | np.number)
+            and math.isfinite(physics_dt)
+            and physics_dt > 0
         ):
-            raise UserError(f"physics_dt must be a positive number of seconds, got {physics_dt!r}", field="physics_dt")
+            raise UserError(
+                f"physics_dt must be a positive number of seconds, got {physics_dt!r}",
+                field="physics_dt",
+            )
         if num_threads is not None and (
-            isinstance(num_threads, bool) or not isinstance(num_threads, int | np.integer) or num_threads < 1
+            isinstance(num_threads, bool)
+            or not isinstance(num_threads, int | np.integer)
+            or num_threads < 1
         ):
-            raise UserError(f"num_threads must be a whole number >= 1, got {num_threads!r}", field="num_threads")
+            raise UserError(
+                f"num_threads must be a whole number >= 1, got {num_threads!r}", field="num_threads"
+            )
         if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
             raise UserError(f"seed must be a whole number >= 0, got {seed!r}", field="seed")
         try:
             torch_device = torch.device(device)
         except (RuntimeError, TypeError) as exc:
-            raise UserError(f"device must be a torch device such as 'cpu' or 'cuda', got {device!r}", field="device") from exc
+            raise UserError(
+                f"device must be a torch device such as 'cpu' or 'cuda', got {device!r}",
+                field="device",
+            ) from exc
         designs = np.asarray(designs, dtype=float)
         designs = designs.reshape(1, -1) if designs.ndim == 1 else designs
         if designs.ndim != 2 or designs.shape[0] < 1:
             raise UserError(
-                f"designs must be a non-empty [num_envs, design_dim] array, got shape {designs.shape}", field="designs"
+                f"designs must be a non-empty [num_envs, design_dim] array, got shape {designs.shape}",
+                field="designs",
             )
         self.robot = robot
         self._check_designs(designs)
@@ -286,7 +314,9 @@ class Simulator(ABC):
         self.add_random_stream("params", np.random.SeedSequence(self.seed))
         self.add_random_stream("spawn", np.random.SeedSequence([self.seed, SPAWN_STREAM_KEY]))
         # construction draws nothing: nominal parameters until the first reset
-        self._params: EnvParams = nominal_env_params(len(designs), device=torch_device, dtype=self.dtype)
+        self._params: EnvParams = nominal_env_params(
+            len(designs), device=torch_device, dtype=self.dtype
+        )
         #: the motor speed limit in force (`set_speed_limit`)
         self.speed_limit = "soft"
         #: the PD gain law in force (`set_gain_law`) and the robot as given
@@ -300,8 +330,11 @@ class Simulator(ABC):
         `coadapt_core.physics.actuation`), one of the backend's `speed_limit_modes`. A backend
         that keeps its actuation elsewhere (worker processes) extends this to reach it."""
         if mode not in self.speed_limit_modes:
-            raise UserError(f"task.motor_speed_limit: the {self.name} simulator offers "
-                            f"{', '.join(self.speed_limit_modes)}, got '{mode}'", field="motor_speed_limit")
+            raise UserError(
+                f"task.motor_speed_limit: the {self.name} simulator offers "
+                f"{', '.join(self.speed_limit_modes)}, got '{mode}'",
+                field="motor_speed_limit",
+            )
         self.speed_limit = mode
 
     def set_gain_law(self, law: str) -> None:
@@ -309,8 +342,11 @@ class Simulator(ABC):
         (the nominal design's, `NominalGains`), one of the backend's `gain_laws`; every
         environment is rebuilt (and restarts) when the law changes."""
         if law not in self.gain_laws:
-            raise UserError(f"task.gain_law: the {self.name} simulator offers {', '.join(self.gain_laws)}, "
-                            f"got '{law}'", field="gain_law")
+            raise UserError(
+                f"task.gain_law: the {self.name} simulator offers {', '.join(self.gain_laws)}, "
+                f"got '{law}'",
+                field="gain_law",
+            )
         if law == self.gain_law:
             return
         self.gain_law = law
@@ -393,10 +429,14 @@ class Simulator(ABC):
             ids = np.flatnonzero(ids)
         ids = ids.astype(int).reshape(-1)
         if ids.size and (ids.min() < 0 or ids.max() >= self.num_envs):
-            raise UserError(f"env_ids must lie in [0, {self.num_envs - 1}], got {ids.tolist()}", field="env_ids")
+            raise UserError(
+                f"env_ids must lie in [0, {self.num_envs - 1}], got {ids.tolist()}", field="env_ids"
+            )
         return ids
 
-    def parse_new_designs(self, env_ids: torch.Tensor | np.ndarray, designs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def parse_new_designs(
+        self, env_ids: torch.Tensor | np.ndarray, designs: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(ids [n], designs [n, design_dim]) for `set_designs`, checked: one design of the
         simulator's length per id, each inside the robot's design space (`DesignError`
         otherwise, before any environment changes)."""
@@ -421,7 +461,9 @@ class Simulator(ABC):
         return designs
 
     # -- randomness ------------------------------------------------------------------------
-    def add_random_stream(self, name: str, entropy: np.random.SeedSequence | None = None) -> np.random.Generator:
+    def add_random_stream(
+        self, name: str, entropy: np.random.SeedSequence | None = None
+    ) -> np.random.Generator:
         """Register a named random stream of this backend and return it. Every draw a
         backend makes must come from a registered stream, so that `reseed` restarts it.
         Default seeding: SeedSequence([seed, k]) for the k-th stream."""
@@ -443,7 +485,9 @@ class Simulator(ABC):
         from SeedSequence([seed, k]), in place. Exact resume of a co-adaptation run relies
         on it."""
         for k, gen in enumerate(self._streams.values()):
-            gen.bit_generator.state = type(gen.bit_generator)(np.random.SeedSequence([int(seed), k])).state
+            gen.bit_generator.state = type(gen.bit_generator)(
+                np.random.SeedSequence([int(seed), k])
+            ).state
 
     # -- per-reset draws (paired evaluation: common random numbers) --------------------------
     def fix_scenarios(self, params: EnvParams | None, spawn: np.ndarray | None = None) -> None:
@@ -469,7 +513,11 @@ class Simulator(ABC):
             params = self._scenario[0].take(ids)
         else:
             params = sample_env_params(
-                self.randomization, len(ids), self._streams["params"], device=self._params.device, dtype=self.dtype
+                self.randomization,
+                len(ids),
+                self._streams["params"],
+                device=self._params.device,
+                dtype=self.dtype,
             )
         self._params.put(ids, params)
         return params

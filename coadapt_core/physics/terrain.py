@@ -87,10 +87,14 @@ class Terrain:
             first = np.floor((lo + half) / self.resolution) * self.resolution - half
             grid = first[..., None] + self.resolution * np.arange(1, lines + 1)  # [..., lines]
             inner = np.clip(grid, lo[..., None], hi[..., None])
-            return np.concatenate([lo[..., None], inner, hi[..., None]], axis=-1)  # [..., lines + 2]
+            return np.concatenate(
+                [lo[..., None], inner, hi[..., None]], axis=-1
+            )  # [..., lines + 2]
 
         xs, ys = candidates(xy[..., 0]), candidates(xy[..., 1])
-        pts = np.stack(np.broadcast_arrays(xs[..., :, None], ys[..., None, :]), axis=-1)  # [..., k, k, 2]
+        pts = np.stack(
+            np.broadcast_arrays(xs[..., :, None], ys[..., None, :]), axis=-1
+        )  # [..., k, k, 2]
         return self.height_at(pts).reshape(*xy.shape[:-1], -1).max(axis=-1)
 
 
@@ -106,5 +110,7 @@ def _grid(name: str, seed: int, samples: int, max_height: float) -> np.ndarray:
 
 def make_terrain(name: str, seed: int = 0) -> Terrain:
     if name not in TERRAINS:
-        raise UserError(f"unknown terrain '{name}'; available: {', '.join(TERRAINS)}", field="terrain")
+        raise UserError(
+            f"unknown terrain '{name}'; available: {', '.join(TERRAINS)}", field="terrain"
+        )
     return Terrain(name=name, seed=seed)

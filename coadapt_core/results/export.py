@@ -90,7 +90,11 @@ def _design_names(store: ResultsStore, run_ids: Sequence[str] | None) -> dict[st
 
 
 def export_tables(
-    store: ResultsStore, out_dir: str | os.PathLike, *, fmt: str = "csv", run_ids: Sequence[str] | None = None
+    store: ResultsStore,
+    out_dir: str | os.PathLike,
+    *,
+    fmt: str = "csv",
+    run_ids: Sequence[str] | None = None,
 ) -> dict[str, Path]:
     """Write runs, evaluations, training_phases and checkpoints to `out_dir`; returns the
     files by table."""

@@ -22,29 +22,62 @@ class GridCells:
         now = time.time()
         with self.engine.begin() as conn:
             if conn.execute(sa.select(grids.c.id).where(grids.c.id == grid_id)).first() is None:
-                conn.execute(grids.insert().values(id=grid_id, spec=dumps(spec), created_at=now, updated_at=now))
+                conn.execute(
+                    grids.insert().values(
+                        id=grid_id, spec=dumps(spec), created_at=now, updated_at=now
+                    )
+                )
             else:
-                conn.execute(grids.update().where(grids.c.id == grid_id).values(spec=dumps(spec), updated_at=now))
+                conn.execute(
+                    grids.update()
+                    .where(grids.c.id == grid_id)
+                    .values(spec=dumps(spec), updated_at=now)
+                )
 
     def get_grid(self, grid_id: str) -> dict[str, Any] | None:
         with self.engine.connect() as conn:
             row = conn.execute(sa.select(grids).where(grids.c.id == grid_id)).mappings().first()
-        return None if row is None else {"id": row["id"], "spec": loads(row["spec"]), "created_at": row["created_at"]}
+        return (
+            None
+            if row is None
+            else {"id": row["id"], "spec": loads(row["spec"]), "created_at": row["created_at"]}
+        )
 
     def list_grids(self) -> list[str]:
         with self.engine.connect() as conn:
             return [r[0] for r in conn.execute(sa.select(grids.c.id).order_by(grids.c.created_at))]
 
-    def set_cell(self, grid_id: str, cell: str, *, status: str, run_id: str | None = None, error: str | None = None, attempt: bool = False) -> None:
+    def set_cell(
+        self,
+        grid_id: str,
+        cell: str,
+        *,
+        status: str,
+        run_id: str | None = None,
+        error: str | None = None,
+        attempt: bool = False,
+    ) -> None:
         now = time.time()
         with self.engine.begin() as conn:
-            row = conn.execute(
-                sa.select(grid_cells).where((grid_cells.c.grid_id == grid_id) & (grid_cells.c.cell == cell))
-            ).mappings().first()
+            row = (
+                conn.execute(
+                    sa.select(grid_cells).where(
+                        (grid_cells.c.grid_id == grid_id) & (grid_cells.c.cell == cell)
+                    )
+                )
+                .mappings()
+                .first()
+            )
             if row is None:
                 conn.execute(
                     grid_cells.insert().values(
-                        grid_id=grid_id, cell=cell, run_id=run_id, status=status, attempts=int(attempt), last_error=error, updated_at=now
+                        grid_id=grid_id,
+                        cell=cell,
+                        run_id=run_id,
+                        status=status,
+                        attempts=int(attempt),
+                        last_error=error,
+                        updated_at=now,
                     )
                 )
             else:
@@ -54,10 +87,14 @@ class GridCells:
                 if attempt:
                     values["attempts"] = row["attempts"] + 1
                 conn.execute(
-                    grid_cells.update().where((grid_cells.c.grid_id == grid_id) & (grid_cells.c.cell == cell)).values(**values)
+                    grid_cells.update()
+                    .where((grid_cells.c.grid_id == grid_id) & (grid_cells.c.cell == cell))
+                    .values(**values)
                 )
 
     def cells(self, grid_id: str) -> dict[str, dict[str, Any]]:
         with self.engine.connect() as conn:
-            rows = conn.execute(sa.select(grid_cells).where(grid_cells.c.grid_id == grid_id)).mappings()
+            rows = conn.execute(
+                sa.select(grid_cells).where(grid_cells.c.grid_id == grid_id)
+            ).mappings()
             return {r["cell"]: dict(r) for r in rows}

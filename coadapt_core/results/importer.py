@@ -59,8 +59,14 @@ class ImportResult:
     rows: dict[str, int] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"source": str(self.source), "format": self.fmt, "added": self.added, "replaced": self.replaced,
-                "skipped": self.skipped, "rows": self.rows}
+        return {
+            "source": str(self.source),
+            "format": self.fmt,
+            "added": self.added,
+            "replaced": self.replaced,
+            "skipped": self.skipped,
+            "rows": self.rows,
+        }
 
 
 class _Missing:
@@ -84,8 +90,11 @@ def export_files(path: str | Path, fmt: str | None = None) -> tuple[dict[str, Pa
     if given.is_file():
         stem, _, suffix = given.name.partition(".")
         if stem not in EXPORT_TABLES or suffix not in FORMATS:
-            raise UserError(f"'{given}' is not a file `coadapt export` writes; give its folder or one of "
-                            f"{', '.join(f'{t}.csv' for t in EXPORT_TABLES)} (or .parquet)", field="file")
+            raise UserError(
+                f"'{given}' is not a file `coadapt export` writes; give its folder or one of "
+                f"{', '.join(f'{t}.csv' for t in EXPORT_TABLES)} (or .parquet)",
+                field="file",
+            )
         if fmt is not None and fmt != suffix:
             raise UserError(f"'{given}' is a .{suffix} file but --format is {fmt}", field="format")
         folder, fmt = given.parent, suffix
@@ -94,20 +103,30 @@ def export_files(path: str | Path, fmt: str | None = None) -> tuple[dict[str, Pa
         if fmt is None:
             found = [f for f in FORMATS if (folder / f"runs.{f}").is_file()]
             if not found:
-                raise UserError(f"folder '{given}' holds no runs.csv or runs.parquet: not an export folder "
-                                "(`coadapt export -o FOLDER` writes one)", field="file")
+                raise UserError(
+                    f"folder '{given}' holds no runs.csv or runs.parquet: not an export folder "
+                    "(`coadapt export -o FOLDER` writes one)",
+                    field="file",
+                )
             if len(found) > 1:
-                raise UserError(f"folder '{given}' holds both runs.csv and runs.parquet; choose one with --format",
-                                field="format")
+                raise UserError(
+                    f"folder '{given}' holds both runs.csv and runs.parquet; choose one with --format",
+                    field="format",
+                )
             fmt = found[0]
     else:
-        raise UserError(f"'{given}' does not exist; give the folder `coadapt export -o` wrote, or a file in it",
-                        field="file")
+        raise UserError(
+            f"'{given}' does not exist; give the folder `coadapt export -o` wrote, or a file in it",
+            field="file",
+        )
     files = {t: folder / f"{t}.{fmt}" for t in EXPORT_TABLES}
     missing = [p.name for p in files.values() if not p.is_file()]
     if missing:
-        raise UserError(f"export folder '{folder}' lacks {', '.join(missing)} (an export holds "
-                        f"{', '.join(f'{t}.{fmt}' for t in EXPORT_TABLES)})", field="file")
+        raise UserError(
+            f"export folder '{folder}' lacks {', '.join(missing)} (an export holds "
+            f"{', '.join(f'{t}.{fmt}' for t in EXPORT_TABLES)})",
+            field="file",
+        )
     return files, fmt
 
 
@@ -121,11 +140,15 @@ def _read_csv(path: Path) -> tuple[list[str], list[dict[str, Any]]]:
             rows = []
             for r in reader:
                 if None in r:  # more cells than the header names
-                    raise UserError(f"{path.name} line {reader.line_num}: more values than the header has columns",
-                                    field="file")
+                    raise UserError(
+                        f"{path.name} line {reader.line_num}: more values than the header has columns",
+                        field="file",
+                    )
                 rows.append({k: MISSING if v in ("", None) else v for k, v in r.items()})
     except UnicodeDecodeError:
-        raise UserError(f"{path.name} is not UTF-8 text: not a CSV file `coadapt export` wrote", field="file") from None
+        raise UserError(
+            f"{path.name} is not UTF-8 text: not a CSV file `coadapt export` wrote", field="file"
+        ) from None
     except csv.Error as exc:
         raise UserError(f"{path.name} is not a readable CSV file: {exc}", field="file") from None
     finally:
@@ -140,13 +163,18 @@ def _read_parquet(path: Path) -> tuple[list[str], list[dict[str, Any]]]:
         import pandas as pd
         import pyarrow  # noqa: F401
     except ImportError:
-        raise UserError("parquet import needs pandas and pyarrow: pip install 'coadapt[parquet]' "
-                        "(or export and import as csv)", field="format") from None
+        raise UserError(
+            "parquet import needs pandas and pyarrow: pip install 'coadapt[parquet]' "
+            "(or export and import as csv)",
+            field="format",
+        ) from None
     try:
         frame = pd.read_parquet(path)
     except Exception as exc:  # not Parquet, damaged: whatever pyarrow says, in one line
         detail = " ".join(str(exc).split())[:160]
-        raise UserError(f"{path.name} is not a readable Parquet file: {detail}", field="file") from None
+        raise UserError(
+            f"{path.name} is not a readable Parquet file: {detail}", field="file"
+        ) from None
     columns = [str(c) for c in frame.columns]
     rows = []
     for record in frame.to_dict(orient="records"):
@@ -183,7 +211,9 @@ def _number(value: Any, kind: type, where: str) -> int | float:
         return float(value)
     except (TypeError, ValueError, OverflowError):
         name = "an integer" if kind is int else "a number"
-        raise UserError(f"{where}: expected {name}, got {str(value)[:40]!r}", field="file") from None
+        raise UserError(
+            f"{where}: expected {name}, got {str(value)[:40]!r}", field="file"
+        ) from None
 
 
 def _column_value(column: sa.Column, value: Any, where: str) -> Any:
@@ -212,7 +242,9 @@ def _json_text(value: Any, kind: type, where: str) -> str | None:
     except (TypeError, ValueError):
         raise UserError(f"{where}: not JSON text", field="file") from None
     if parsed is not None and not isinstance(parsed, kind):
-        raise UserError(f"{where}: expected a JSON {kind.__name__}, got {type(parsed).__name__}", field="file")
+        raise UserError(
+            f"{where}: expected a JSON {kind.__name__}, got {type(parsed).__name__}", field="file"
+        )
     return value
 
 
@@ -233,17 +265,23 @@ def _scalar(value: Any) -> Any:
 def _run_rows(columns: list[str], rows: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
     table = metadata.tables["runs"]
     if "id" not in columns or "status" not in columns:
-        raise UserError("runs file: the header lacks 'id' or 'status' (not a runs table `coadapt export` wrote)",
-                        field="file")
+        raise UserError(
+            "runs file: the header lacks 'id' or 'status' (not a runs table `coadapt export` wrote)",
+            field="file",
+        )
     out: dict[str, dict[str, Any]] = {}
     for line, raw in enumerate(rows, start=2):
         row = {}
         for column in table.columns:
             if column.name in raw:
-                row[column.name] = _column_value(column, raw[column.name], _where("runs", line, column.name))
+                row[column.name] = _column_value(
+                    column, raw[column.name], _where("runs", line, column.name)
+                )
         if not is_run_id(row.get("id")):
-            raise UserError(f"runs row {line}: {row.get('id')!r} is not a run id (letters, digits and . _ + = - only)",
-                            field="file")
+            raise UserError(
+                f"runs row {line}: {row.get('id')!r} is not a run id (letters, digits and . _ + = - only)",
+                field="file",
+            )
         for name, kind in RUN_JSON.items():
             if name in row:
                 row[name] = _json_text(row[name], kind, _where("runs", line, name))
@@ -254,39 +292,66 @@ def _run_rows(columns: list[str], rows: list[dict[str, Any]]) -> dict[str, dict[
     return out
 
 
-def _child_rows(name: str, columns: list[str], rows: list[dict[str, Any]], run_ids: set[str]) -> dict[tuple, dict[str, Any]]:
+def _child_rows(
+    name: str, columns: list[str], rows: list[dict[str, Any]], run_ids: set[str]
+) -> dict[tuple, dict[str, Any]]:
     """Rows of evaluations, training_phases or checkpoints, keyed by their unique key, with
     the flattened JSON columns folded back (design, costs, surrogate_error, extra)."""
     table = metadata.tables[name]
-    plain = [c for c in table.columns if c.name != "id" and c.name not in ("costs", "surrogate_error", "extra")]
+    plain = [
+        c
+        for c in table.columns
+        if c.name != "id" and c.name not in ("costs", "surrogate_error", "extra")
+    ]
     needed = [k for k in ROW_KEYS[name] if k not in columns]
     if needed:
-        raise UserError(f"{name} file: the header lacks {', '.join(needed)} (not a table `coadapt export` wrote)",
-                        field="file")
+        raise UserError(
+            f"{name} file: the header lacks {', '.join(needed)} (not a table `coadapt export` wrote)",
+            field="file",
+        )
     out: dict[tuple, dict[str, Any]] = {}
     for line, raw in enumerate(rows, start=2):
-        row = {c.name: _column_value(c, raw.get(c.name, MISSING), _where(name, line, c.name)) for c in plain}
+        row = {
+            c.name: _column_value(c, raw.get(c.name, MISSING), _where(name, line, c.name))
+            for c in plain
+        }
         if row["run_id"] not in run_ids:
-            raise UserError(f"{name} row {line}: run {row['run_id']!r} is not in the runs file", field="file")
+            raise UserError(
+                f"{name} row {line}: run {row['run_id']!r} is not in the runs file", field="file"
+            )
         if name == "evaluations":
             where = _where(name, line, "design")
             try:
                 design = json.loads(row["design"])
             except ValueError:
                 raise UserError(f"{where}: not JSON text", field="file") from None
-            if not isinstance(design, list) or not all(isinstance(x, int | float) and not isinstance(x, bool) for x in design):
+            if not isinstance(design, list) or not all(
+                isinstance(x, int | float) and not isinstance(x, bool) for x in design
+            ):
                 raise UserError(f"{where}: expected a JSON list of numbers", field="file")
             if row["kind"] not in EVALUATION_KINDS:
-                raise UserError(f"{_where(name, line, 'kind')}: '{row['kind']}' is not one of {', '.join(EVALUATION_KINDS)}",
-                                field="file")
-            costs = {k[len("cost_"):]: _number(v, float, _where(name, line, k))
-                     for k, v in raw.items() if k.startswith("cost_") and v is not MISSING}
-            errors = {k[len("surrogate_error_"):]: _number(v, float, _where(name, line, k))
-                      for k, v in raw.items() if k.startswith("surrogate_error_") and v is not MISSING}
+                raise UserError(
+                    f"{_where(name, line, 'kind')}: '{row['kind']}' is not one of {', '.join(EVALUATION_KINDS)}",
+                    field="file",
+                )
+            costs = {
+                k[len("cost_") :]: _number(v, float, _where(name, line, k))
+                for k, v in raw.items()
+                if k.startswith("cost_") and v is not MISSING
+            }
+            errors = {
+                k[len("surrogate_error_") :]: _number(v, float, _where(name, line, k))
+                for k, v in raw.items()
+                if k.startswith("surrogate_error_") and v is not MISSING
+            }
             row["costs"] = json.dumps(costs, sort_keys=True)
             row["surrogate_error"] = json.dumps(errors, sort_keys=True) if errors else None
         elif name == "training_phases":
-            extra = {k[len("extra_"):]: _scalar(v) for k, v in raw.items() if k.startswith("extra_") and v is not MISSING}
+            extra = {
+                k[len("extra_") :]: _scalar(v)
+                for k, v in raw.items()
+                if k.startswith("extra_") and v is not MISSING
+            }
             row["extra"] = json.dumps(extra, sort_keys=True)
         out[tuple(row[k] for k in ROW_KEYS[name])] = row
     return out
@@ -299,11 +364,14 @@ def _rank(run: dict[str, Any]) -> tuple[bool, float]:
 
 def _chunks(rows: list[dict[str, Any]], size: int = 500) -> Iterator[list[dict[str, Any]]]:
     for i in range(0, len(rows), size):
-        yield rows[i:i + size]
+        yield rows[i : i + size]
 
 
-def _relocate(runs: dict[str, dict[str, Any]], checkpoints: dict[tuple, dict[str, Any]],
-              relocate: Mapping[str, Path]) -> None:
+def _relocate(
+    runs: dict[str, dict[str, Any]],
+    checkpoints: dict[tuple, dict[str, Any]],
+    relocate: Mapping[str, Path],
+) -> None:
     """Point the named runs at the folders the importer chose (`{run id: folder}`): `run_dir`
     becomes the folder, and a checkpoint path inside the old `run_dir` the same file inside
     the new one. The old values are only compared as text, never opened; a checkpoint path
@@ -325,8 +393,13 @@ def _relocate(runs: dict[str, dict[str, Any]], checkpoints: dict[tuple, dict[str
                 row["path"] = str(Path(folder, *rel.parts))
 
 
-def import_tables(store: ResultsStore, path: str | Path, *, fmt: str | None = None,
-                  relocate: Mapping[str, Path] | None = None) -> ImportResult:
+def import_tables(
+    store: ResultsStore,
+    path: str | Path,
+    *,
+    fmt: str | None = None,
+    relocate: Mapping[str, Path] | None = None,
+) -> ImportResult:
     """Read the export at `path` (its folder or a file in it), check every row, and merge it
     into `store` in one transaction (see the module's merge rule). `relocate` ({run id:
     folder}) records those runs' folders where the caller put them (`_relocate`): a grid's
@@ -344,20 +417,27 @@ def import_tables(store: ResultsStore, path: str | Path, *, fmt: str | None = No
     result = ImportResult(source=Path(path), fmt=fmt, rows={t: 0 for t in EXPORT_TABLES})
     try:
         _merge(store, runs, children, result)
-    except sa.exc.SQLAlchemyError as exc:  # a row the database refuses, a store that cannot be written
+    except (
+        sa.exc.SQLAlchemyError
+    ) as exc:  # a row the database refuses, a store that cannot be written
         raise StoreError(store.url, exc) from None
     return result
 
 
-def _merge(store: ResultsStore, runs: dict[str, dict[str, Any]], children: dict[str, dict[tuple, dict[str, Any]]],
-           result: ImportResult) -> None:
+def _merge(
+    store: ResultsStore,
+    runs: dict[str, dict[str, Any]],
+    children: dict[str, dict[tuple, dict[str, Any]]],
+    result: ImportResult,
+) -> None:
     runs_table = metadata.tables["runs"]
     with store.engine.begin() as conn:
         existing = {}
         ids = list(runs)
         for i in range(0, len(ids), 500):
             query = sa.select(runs_table.c.id, runs_table.c.status, runs_table.c.updated_at).where(
-                runs_table.c.id.in_(ids[i:i + 500]))
+                runs_table.c.id.in_(ids[i : i + 500])
+            )
             existing.update({r["id"]: dict(r) for r in conn.execute(query).mappings()})
         take = []
         for run_id, run in runs.items():

@@ -42,15 +42,28 @@ def batch_rows(
     """One row per design of an evaluation batch (idx 0..K-1); a single `interactions` or
     `seconds` number is each design's."""
     k = len(designs)
-    inter = [int(interactions)] * k if isinstance(interactions, int) else [int(x) for x in interactions]
+    inter = (
+        [int(interactions)] * k if isinstance(interactions, int) else [int(x) for x in interactions]
+    )
     secs = [float(seconds)] * k if isinstance(seconds, int | float) else [float(x) for x in seconds]
     errs = list(surrogate_errors) if surrogate_errors is not None else [None] * k
     if not len(costs) == len(inter) == len(secs) == len(errs) == k:
-        raise ValueError(f"an evaluation batch of {k} designs needs {k} costs, interactions, seconds and errors")
+        raise ValueError(
+            f"an evaluation batch of {k} designs needs {k} costs, interactions, seconds and errors"
+        )
     return [
-        {"outer": int(outer), "inner": int(inner), "idx": i, "kind": str(kind), "design": [float(x) for x in designs[i]],
-         "costs": dict(costs[i]), "surrogate_error": errs[i], "interactions": inter[i], "seconds": secs[i],
-         "simulator": simulator}
+        {
+            "outer": int(outer),
+            "inner": int(inner),
+            "idx": i,
+            "kind": str(kind),
+            "design": [float(x) for x in designs[i]],
+            "costs": dict(costs[i]),
+            "surrogate_error": errs[i],
+            "interactions": inter[i],
+            "seconds": secs[i],
+            "simulator": simulator,
+        }
         for i in range(k)
     ]
 
@@ -72,7 +85,9 @@ class JsonRecorder:
         self.run_dir.mkdir(parents=True, exist_ok=True)
         config_path = self.run_dir / "config.yaml"
         if not config_path.exists():  # a resumed run keeps the config it started with
-            write_atomic(config_path, yaml.safe_dump(jsonable(dict(config)), sort_keys=False).encode("utf-8"))
+            write_atomic(
+                config_path, yaml.safe_dump(jsonable(dict(config)), sort_keys=False).encode("utf-8")
+            )
         return self.run_dir.name
 
     def record_evaluations(self, run_id: str, **batch: Any) -> None:
@@ -87,12 +102,21 @@ class JsonRecorder:
     def record_training(self, run_id: str, *, outer: int, result: TrainingResult) -> None:
         self._append(
             "trainings.jsonl",
-            {"run_id": run_id, "outer": outer, "steps": int(result.steps), "seconds": float(result.seconds),
-             "mean_reward": float(result.mean_reward), "extra": dict(result.extra), "time": time.time()},
+            {
+                "run_id": run_id,
+                "outer": outer,
+                "steps": int(result.steps),
+                "seconds": float(result.seconds),
+                "mean_reward": float(result.mean_reward),
+                "extra": dict(result.extra),
+                "time": time.time(),
+            },
         )
 
     def record_checkpoint(self, run_id: str, *, outer: int, path: str) -> None:
-        self._append("checkpoints.jsonl", {"run_id": run_id, "outer": outer, "path": os.fspath(path)})
+        self._append(
+            "checkpoints.jsonl", {"run_id": run_id, "outer": outer, "path": os.fspath(path)}
+        )
 
     def finish(self, run_id: str, summary: dict[str, Any], status: str = "finished") -> None:
         write_json_atomic(self.run_dir / "summary.json", {**summary, "status": status})
@@ -118,7 +142,9 @@ def read_evaluations(run_dir: str | os.PathLike) -> list[dict[str, Any]]:
     latest: dict[tuple, dict[str, Any]] = {}
     for record in read_jsonl(Path(run_dir) / "evaluations.jsonl"):
         latest[(record["outer"], record["inner"], record["kind"], record["idx"])] = record
-    return sorted(latest.values(), key=lambda r: (r["outer"], r["inner"], r["kind"] != "real", r["idx"]))
+    return sorted(
+        latest.values(), key=lambda r: (r["outer"], r["inner"], r["kind"] != "real", r["idx"])
+    )
 
 
 def make_recorder(run_dir: str | os.PathLike, store: str | None = None) -> RunRecorder:
@@ -213,9 +239,13 @@ class SqliteRecorder:
             return math.nan if value is None else float(value)
 
         rows = [
-            {**r, "costs": {k: number(v) for k, v in (r.get("costs") or {}).items()},
-             "surrogate_error": None if r.get("surrogate_error") is None
-             else {k: number(v) for k, v in r["surrogate_error"].items()}}
+            {
+                **r,
+                "costs": {k: number(v) for k, v in (r.get("costs") or {}).items()},
+                "surrogate_error": None
+                if r.get("surrogate_error") is None
+                else {k: number(v) for k, v in r["surrogate_error"].items()},
+            }
             for r in read_evaluations(folder)
             if (int(r["outer"]), int(r["inner"]), str(r["kind"]), int(r["idx"])) not in have
         ]
@@ -227,15 +257,23 @@ class SqliteRecorder:
             outer = int(t["outer"])
             if outer in trained:
                 continue
-            self.store.record_training(run_id, outer=outer, idx=per_outer[outer], steps=int(t["steps"]),
-                                       seconds=float(t["seconds"]), final_reward=t.get("mean_reward"),
-                                       extra=t.get("extra") or {})
+            self.store.record_training(
+                run_id,
+                outer=outer,
+                idx=per_outer[outer],
+                steps=int(t["steps"]),
+                seconds=float(t["seconds"]),
+                final_reward=t.get("mean_reward"),
+                extra=t.get("extra") or {},
+            )
             per_outer[outer] += 1
             refilled_training += 1
         known = {(c["outer"], c["path"]) for c in self.store.checkpoints(run_id)}
         refilled_checkpoints = 0
         for c in read_jsonl(folder / "checkpoints.jsonl"):
-            parts = Path(str(c.get("path", ""))).parts[-2:]  # checkpoints/<file>, wherever the folder was
+            parts = Path(str(c.get("path", ""))).parts[
+                -2:
+            ]  # checkpoints/<file>, wherever the folder was
             try:  # a path read from a file is used only inside the run folder
                 path = str(inside(folder, Path(*parts), field="checkpoint")) if parts else None
             except UserError:
@@ -245,7 +283,11 @@ class SqliteRecorder:
             if (int(c["outer"]), path) not in known:
                 self.store.record_checkpoint(run_id, outer=int(c["outer"]), path=path)
                 refilled_checkpoints += 1
-        return {"evaluations": len(rows), "training_phases": refilled_training, "checkpoints": refilled_checkpoints}
+        return {
+            "evaluations": len(rows),
+            "training_phases": refilled_training,
+            "checkpoints": refilled_checkpoints,
+        }
 
     def finish(self, run_id: str, summary: dict[str, Any], status: str = "finished") -> None:
         self.store.finish_run(run_id, summary, status)

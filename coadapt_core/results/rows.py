@@ -101,7 +101,9 @@ def run_dict(row: Any) -> dict[str, Any]:
     return d
 
 
-def new_run_id(method: str, objectives: Sequence[str], seed: Any = None, optimizer: str | None = None) -> str:
+def new_run_id(
+    method: str, objectives: Sequence[str], seed: Any = None, optimizer: str | None = None
+) -> str:
     """The one run-id scheme, for run folders and store rows alike:
     `<UTC yyyymmdd-hhmmss>-<method>[-<optimizer>]-<objectives joined by +>[-s<seed>]-<6 hex>`
     (time first, so ids sort by start; random last, so two processes never share one)."""

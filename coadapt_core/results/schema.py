@@ -66,7 +66,9 @@ evaluations = sa.Table(
     "evaluations",
     metadata,
     sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
-    sa.Column("run_id", sa.String(80), sa.ForeignKey("runs.id", ondelete="CASCADE"), nullable=False),
+    sa.Column(
+        "run_id", sa.String(80), sa.ForeignKey("runs.id", ondelete="CASCADE"), nullable=False
+    ),
     sa.Column("outer", sa.Integer, nullable=False),  # outer iteration n of Algorithm 4
     sa.Column("inner", sa.Integer, nullable=False),  # optimizer iteration j within it
     sa.Column("idx", sa.Integer, nullable=False),  # position within the (outer, inner, kind) batch
@@ -86,7 +88,9 @@ training_phases = sa.Table(
     "training_phases",
     metadata,
     sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
-    sa.Column("run_id", sa.String(80), sa.ForeignKey("runs.id", ondelete="CASCADE"), nullable=False),
+    sa.Column(
+        "run_id", sa.String(80), sa.ForeignKey("runs.id", ondelete="CASCADE"), nullable=False
+    ),
     sa.Column("outer", sa.Integer, nullable=False),
     sa.Column("idx", sa.Integer, nullable=False),  # several phases per outer iteration (BO)
     sa.Column("steps", sa.BigInteger, nullable=False),  # environment interactions
@@ -101,7 +105,9 @@ checkpoints = sa.Table(
     "checkpoints",
     metadata,
     sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
-    sa.Column("run_id", sa.String(80), sa.ForeignKey("runs.id", ondelete="CASCADE"), nullable=False),
+    sa.Column(
+        "run_id", sa.String(80), sa.ForeignKey("runs.id", ondelete="CASCADE"), nullable=False
+    ),
     sa.Column("outer", sa.Integer, nullable=False),
     sa.Column("path", sa.Text, nullable=False),
     sa.Column("created_at", sa.Float, nullable=False),
@@ -120,10 +126,14 @@ grids = sa.Table(
 grid_cells = sa.Table(
     "grid_cells",
     metadata,
-    sa.Column("grid_id", sa.String(80), sa.ForeignKey("grids.id", ondelete="CASCADE"), primary_key=True),
+    sa.Column(
+        "grid_id", sa.String(80), sa.ForeignKey("grids.id", ondelete="CASCADE"), primary_key=True
+    ),
     sa.Column("cell", sa.String(200), primary_key=True),
     sa.Column("run_id", sa.String(80)),
-    sa.Column("status", sa.String(20), nullable=False),  # pending | running | finished | failed | skipped
+    sa.Column(
+        "status", sa.String(20), nullable=False
+    ),  # pending | running | finished | failed | skipped
     sa.Column("attempts", sa.Integer, nullable=False, default=0),
     sa.Column("last_error", sa.Text),
     sa.Column("updated_at", sa.Float, nullable=False),

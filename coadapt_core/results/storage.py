@@ -49,7 +49,9 @@ def resolve_store_url(store: str | os.PathLike | None = None) -> str:
 NO_STORE = ("none", "off", "no")
 
 
-def store_url_for_run(run_dir: str | os.PathLike, store: str | os.PathLike | None = None) -> str | None:
+def store_url_for_run(
+    run_dir: str | os.PathLike, store: str | os.PathLike | None = None
+) -> str | None:
     """The store a run records into: `store` when given, else `$COADAPT_STORE`, else
     coadapt.db beside the runs folder (the parent of the run folder's parent: ./coadapt.db
     for ./runs/<run id>, the same file `coadapt report` and `coadapt grid` use by default).
@@ -110,21 +112,25 @@ def check_database_url(url: str, *, field: str = "store") -> str:
     except Exception:
         raise UserError(
             f"{field} '{url}' is not a valid database URL; give a file path or a URL such as "
-            "sqlite:///coadapt.db or postgresql://user@host/db", field=field) from None
+            "sqlite:///coadapt.db or postgresql://user@host/db",
+            field=field,
+        ) from None
     try:
         dialect = parsed.get_dialect()
     except Exception:
         raise UserError(
             f"{field} '{url}': unknown database kind '{parsed.drivername}'; accepted: a file path, "
             "sqlite:///file.db, postgresql://user@host/db (with psycopg installed) or another SQLAlchemy URL",
-            field=field) from None
+            field=field,
+        ) from None
     try:
         dialect.import_dbapi() if hasattr(dialect, "import_dbapi") else dialect.dbapi()
     except ImportError as exc:
         raise UserError(
             f"{field} '{url}': the database driver for '{parsed.drivername}' is not installed ({exc.name or exc}); "
             "install it (for PostgreSQL: pip install 'psycopg[binary]') or use an SQLite file",
-            field=field) from None
+            field=field,
+        ) from None
     return url
 
 

@@ -72,14 +72,20 @@ class ResultsStore(GridCells):
         self.close()
 
     # -- runs ---------------------------------------------------------------------------
-    def create_run(self, config: dict[str, Any], *, run_id: str | None = None, run_dir: str | None = None) -> str:
+    def create_run(
+        self, config: dict[str, Any], *, run_id: str | None = None, run_dir: str | None = None
+    ) -> str:
         """Insert a run (status running); an existing id is marked running again (resume)
         and keeps its rows."""
         config = dict(config)
         objectives = objective_list(config)
         method = str(config.get("method", DEFAULT_METHOD))
         seed = config.get("seed")
-        run_id = run_id or config.get("run_id") or new_run_id(method, objectives, seed, config.get("optimizer"))
+        run_id = (
+            run_id
+            or config.get("run_id")
+            or new_run_id(method, objectives, seed, config.get("optimizer"))
+        )
         now = time.time()
         row = {
             "grid_id": config.get("grid_id") or os.environ.get(ENV_GRID_ID),
@@ -110,7 +116,9 @@ class ResultsStore(GridCells):
                 conn.execute(runs.update().where(runs.c.id == run_id).values(**keep))
         return str(run_id)
 
-    def finish_run(self, run_id: str, summary: dict[str, Any] | None, status: str = "finished") -> None:
+    def finish_run(
+        self, run_id: str, summary: dict[str, Any] | None, status: str = "finished"
+    ) -> None:
         now = time.time()
         values: dict[str, Any] = {"status": status, "updated_at": now}
         if summary is not None:
@@ -124,7 +132,11 @@ class ResultsStore(GridCells):
 
     def set_status(self, run_id: str, status: str) -> None:
         with self.engine.begin() as conn:
-            conn.execute(runs.update().where(runs.c.id == run_id).values(status=status, updated_at=time.time()))
+            conn.execute(
+                runs.update()
+                .where(runs.c.id == run_id)
+                .values(status=status, updated_at=time.time())
+            )
 
     def get_run(self, run_id: str) -> dict[str, Any]:
         with self.engine.connect() as conn:
@@ -133,7 +145,9 @@ class ResultsStore(GridCells):
             raise UserError(f"run '{run_id}' is not in store {self.url}", field="run")
         return run_dict(row)
 
-    def list_runs(self, *, grid_id: str | None = None, run_ids: Sequence[str] | None = None, **where: Any) -> list[dict[str, Any]]:
+    def list_runs(
+        self, *, grid_id: str | None = None, run_ids: Sequence[str] | None = None, **where: Any
+    ) -> list[dict[str, Any]]:
         """Runs, oldest first, filtered by grid, ids or equality on columns."""
         query = sa.select(runs).order_by(runs.c.created_at, runs.c.id)
         if grid_id is not None:
@@ -158,7 +172,10 @@ class ResultsStore(GridCells):
         for r in rows:
             kind = str(r["kind"])
             if kind not in EVALUATION_KINDS:
-                raise UserError(f"evaluation kind '{kind}' is not one of {', '.join(EVALUATION_KINDS)}", field="kind")
+                raise UserError(
+                    f"evaluation kind '{kind}' is not one of {', '.join(EVALUATION_KINDS)}",
+                    field="kind",
+                )
             values.append(
                 {
                     "run_id": run_id,
@@ -194,9 +211,19 @@ class ResultsStore(GridCells):
             conn.execute(runs.update().where(runs.c.id == run_id).values(updated_at=now))
         return len(values)
 
-    def evaluations(self, run_id: str | None = None, *, kind: str | None = None, run_ids: Sequence[str] | None = None) -> list[Evaluation]:
+    def evaluations(
+        self,
+        run_id: str | None = None,
+        *,
+        kind: str | None = None,
+        run_ids: Sequence[str] | None = None,
+    ) -> list[Evaluation]:
         query = sa.select(evaluations).order_by(
-            evaluations.c.run_id, evaluations.c.outer, evaluations.c.inner, evaluations.c.kind, evaluations.c.idx
+            evaluations.c.run_id,
+            evaluations.c.outer,
+            evaluations.c.inner,
+            evaluations.c.kind,
+            evaluations.c.idx,
         )
         if run_id is not None:
             query = query.where(evaluations.c.run_id == run_id)
@@ -224,7 +251,11 @@ class ResultsStore(GridCells):
             ]
 
     def count_evaluations(self, run_id: str, kind: str | None = None) -> int:
-        query = sa.select(sa.func.count()).select_from(evaluations).where(evaluations.c.run_id == run_id)
+        query = (
+            sa.select(sa.func.count())
+            .select_from(evaluations)
+            .where(evaluations.c.run_id == run_id)
+        )
         if kind is not None:
             query = query.where(evaluations.c.kind == kind)
         with self.engine.connect() as conn:
@@ -232,13 +263,23 @@ class ResultsStore(GridCells):
 
     # -- training phases and checkpoints ----------------------------------------------------
     def record_training(
-        self, run_id: str, *, outer: int, idx: int, steps: int, seconds: float, final_reward: float | None, extra: dict | None = None
+        self,
+        run_id: str,
+        *,
+        outer: int,
+        idx: int,
+        steps: int,
+        seconds: float,
+        final_reward: float | None,
+        extra: dict | None = None,
     ) -> None:
         now = time.time()
         with self.engine.begin() as conn:
             conn.execute(
                 training_phases.delete().where(
-                    (training_phases.c.run_id == run_id) & (training_phases.c.outer == outer) & (training_phases.c.idx == idx)
+                    (training_phases.c.run_id == run_id)
+                    & (training_phases.c.outer == outer)
+                    & (training_phases.c.idx == idx)
                 )
             )
             conn.execute(
@@ -255,8 +296,12 @@ class ResultsStore(GridCells):
             )
             conn.execute(runs.update().where(runs.c.id == run_id).values(updated_at=now))
 
-    def training(self, run_id: str | None = None, *, run_ids: Sequence[str] | None = None) -> list[dict[str, Any]]:
-        query = sa.select(training_phases).order_by(training_phases.c.run_id, training_phases.c.outer, training_phases.c.idx)
+    def training(
+        self, run_id: str | None = None, *, run_ids: Sequence[str] | None = None
+    ) -> list[dict[str, Any]]:
+        query = sa.select(training_phases).order_by(
+            training_phases.c.run_id, training_phases.c.outer, training_phases.c.idx
+        )
         if run_id is not None:
             query = query.where(training_phases.c.run_id == run_id)
         if run_ids is not None:
@@ -274,13 +319,23 @@ class ResultsStore(GridCells):
         with self.engine.begin() as conn:
             conn.execute(
                 checkpoints.delete().where(
-                    (checkpoints.c.run_id == run_id) & (checkpoints.c.outer == outer) & (checkpoints.c.path == str(path))
+                    (checkpoints.c.run_id == run_id)
+                    & (checkpoints.c.outer == outer)
+                    & (checkpoints.c.path == str(path))
                 )
             )
-            conn.execute(checkpoints.insert().values(run_id=run_id, outer=int(outer), path=str(path), created_at=now))
+            conn.execute(
+                checkpoints.insert().values(
+                    run_id=run_id, outer=int(outer), path=str(path), created_at=now
+                )
+            )
 
     def checkpoints(self, run_id: str) -> list[dict[str, Any]]:
-        query = sa.select(checkpoints).where(checkpoints.c.run_id == run_id).order_by(checkpoints.c.outer, checkpoints.c.id)
+        query = (
+            sa.select(checkpoints)
+            .where(checkpoints.c.run_id == run_id)
+            .order_by(checkpoints.c.outer, checkpoints.c.id)
+        )
         with self.engine.connect() as conn:
             return [dict(r) for r in conn.execute(query).mappings()]
 

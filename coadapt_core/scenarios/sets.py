@@ -63,7 +63,9 @@ def apply_scenarios(
             field="agents",
         )
     if commands is None:
-        commands = env.draw_commands(agents, seed, command_state=command_state, paired=True)  # [A, 3]
+        commands = env.draw_commands(
+            agents, seed, command_state=command_state, paired=True
+        )  # [A, 3]
     commands = torch.as_tensor(commands, dtype=torch.float32, device=env.device).reshape(agents, 3)
     env.set_commands(commands.repeat(designs, 1))
     rng = np.random.default_rng([int(seed), 0xC0])  # the randomization draw of each scenario
@@ -75,7 +77,9 @@ def apply_scenarios(
     return commands
 
 
-def apply_unpaired(env: LocomotionEnv, agents: int, designs: int, seed: int, *, command_state: dict | None = None) -> None:
+def apply_unpaired(
+    env: LocomotionEnv, agents: int, designs: int, seed: int, *, command_state: dict | None = None
+) -> None:
     """The protocol before paired evaluation, kept to measure what pairing buys
     (benchmarks/fitness_noise.py --protocol unpaired): commands drawn independently per
     agent from the box (shared by the designs of one call), every randomization draw and
@@ -87,7 +91,13 @@ def apply_unpaired(env: LocomotionEnv, agents: int, designs: int, seed: int, *, 
 
 
 def prepare(
-    env: LocomotionEnv, agents: int, designs: int, seed: int, *, paired: bool = True, command_state: dict | None = None
+    env: LocomotionEnv,
+    agents: int,
+    designs: int,
+    seed: int,
+    *,
+    paired: bool = True,
+    command_state: dict | None = None,
 ) -> None:
     """Ready `env` (`designs` consecutive groups of `agents` environments) for a real
     evaluation on the scenario set of `seed`: the simulator's streams restart from `seed`

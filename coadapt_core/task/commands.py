@@ -11,14 +11,22 @@ from coadapt_core.task.config import CommandConfig
 class CommandSampler:
     """Draws commands [n, 3] from the current (curriculum-limited) box."""
 
-    def __init__(self, config: CommandConfig, device: str | torch.device, generator: torch.Generator):
+    def __init__(
+        self, config: CommandConfig, device: str | torch.device, generator: torch.Generator
+    ):
         self.config = config
         self.device = torch.device(device)
         self.generator = generator
         # current half-width of the command box (same limit on |vx|, |vy| and |yaw|)
         self.limit = config.curriculum_start if config.curriculum else float("inf")
         # finished episodes gathered for the next curriculum decision
-        self._window = {"episodes": 0, "falls": 0, "tracking": 0.0, "moving_steps": 0.0, "seconds": 0.0}
+        self._window = {
+            "episodes": 0,
+            "falls": 0,
+            "tracking": 0.0,
+            "moving_steps": 0.0,
+            "seconds": 0.0,
+        }
 
     def ranges(self) -> list[tuple[float, float]]:
         """The current (vx, vy, yaw) ranges: the configured ones clipped to +-limit."""
@@ -81,7 +89,13 @@ class CommandSampler:
             return False
         fall_rate = w["falls"] / max(w["seconds"], 1e-9)  # falls per second of episode time
         fraction = w["tracking"] / w["moving_steps"] if w["moving_steps"] > 0 else 0.0
-        self._window = {"episodes": 0, "falls": 0, "tracking": 0.0, "moving_steps": 0.0, "seconds": 0.0}
+        self._window = {
+            "episodes": 0,
+            "falls": 0,
+            "tracking": 0.0,
+            "moving_steps": 0.0,
+            "seconds": 0.0,
+        }
         if fall_rate > self.config.curriculum_max_fall_rate:
             return False
         return self.update_curriculum(fraction)
@@ -91,7 +105,11 @@ class CommandSampler:
         reward); returns True when it widened."""
         if not self.config.curriculum or tracking_fraction < self.config.curriculum_threshold:
             return False
-        widest = max(abs(v) for r in (self.config.vx_range, self.config.vy_range, self.config.yaw_range) for v in r)
+        widest = max(
+            abs(v)
+            for r in (self.config.vx_range, self.config.vy_range, self.config.yaw_range)
+            for v in r
+        )
         if self.limit >= widest:
             return False
         self.limit = min(self.limit + self.config.curriculum_step, widest)

@@ -46,8 +46,12 @@ class CommandConfig:
     # (flat.pt and flat-mixed.pt were trained with (0, 0): they hold the heading)
     yaw_range: Range = setting((-1.0, 1.0), "Yaw-rate commands, rad/s.")
     zero_share: Float = setting(0.05, "Share of commands set exactly to zero.", ge=0, le=1)
-    zero_threshold: Float = setting(0.1, "A planar command slower than this (m/s) becomes zero.", ge=0)
-    resample_seconds: Float = setting(10.0, "Redraw mid-episode every so often, s (0: once per episode).", ge=0)
+    zero_threshold: Float = setting(
+        0.1, "A planar command slower than this (m/s) becomes zero.", ge=0
+    )
+    resample_seconds: Float = setting(
+        10.0, "Redraw mid-episode every so often, s (0: once per episode).", ge=0
+    )
     # curriculum (walking-notes remedy 6): the command box starts at +-curriculum_start
     # (clipped to the ranges above) and widens by curriculum_step whenever, over a window of
     # finished episodes, the mean unweighted linear tracking term on steps with a moving
@@ -55,11 +59,19 @@ class CommandConfig:
     # curriculum_max_fall_rate times per second of episode time. (A share of fallen episodes
     # is no gate: with 20 s episodes a policy falling once a minute loses ~27 % of them, which
     # held the box at +-0.3 m/s for 6 M steps of a run that tracked it well.)
-    curriculum: bool = setting(True, "Widen the command box as tracking improves (off: the full ranges at once).")
-    curriculum_start: Float = setting(0.3, "Curriculum: initial half-width of the command box.", ge=0)
+    curriculum: bool = setting(
+        True, "Widen the command box as tracking improves (off: the full ranges at once)."
+    )
+    curriculum_start: Float = setting(
+        0.3, "Curriculum: initial half-width of the command box.", ge=0
+    )
     curriculum_step: Float = setting(0.1, "Curriculum: widening per promotion.", ge=0)
-    curriculum_threshold: Float = setting(0.8, "Curriculum: mean linear tracking term needed to widen.", ge=0)
-    curriculum_max_fall_rate: Float = setting(0.03, "Curriculum: at most this many falls per second of episode time.", ge=0)
+    curriculum_threshold: Float = setting(
+        0.8, "Curriculum: mean linear tracking term needed to widen.", ge=0
+    )
+    curriculum_max_fall_rate: Float = setting(
+        0.03, "Curriculum: at most this many falls per second of episode time.", ge=0
+    )
     curriculum_window: Int = setting(64, "Curriculum: finished episodes per decision.", ge=1)
 
 
@@ -70,9 +82,12 @@ class RewardConfig:
     weights: Weights = setting(
         default_factory=lambda: {**PAPER_REWARD_WEIGHTS, **EXTRA_REWARD_WEIGHTS},
         help="Weight per reward term (Table 1 plus ours; 0 switches a term off): "
-        + ", ".join([*PAPER_REWARD_WEIGHTS, *EXTRA_REWARD_WEIGHTS]) + ".",
+        + ", ".join([*PAPER_REWARD_WEIGHTS, *EXTRA_REWARD_WEIGHTS])
+        + ".",
     )
-    tracking_sigma: Float = setting(0.25, "Tracking kernel exp(-e^2 / sigma): 0.25 is the paper's exp(-4 e^2).", gt=0)
+    tracking_sigma: Float = setting(
+        0.25, "Tracking kernel exp(-e^2 / sigma): 0.25 is the paper's exp(-4 e^2).", gt=0
+    )
     clip_at_zero: bool = setting(True, "Clip the per-step sum (before termination) at 0 (ours).")
     scale_by_dt: bool = setting(True, "Multiply every weight by the policy period.")
     air_time_offset: Float = setting(0.25, "feet_air_time pays t_air - this at touchdown, s.", ge=0)
@@ -95,16 +110,22 @@ class GaitConfig:
 
     frequency: Float = setting(1.5, "Gait clock, Hz (one full cycle = two steps).", gt=0)
     swing_height: Float = setting(0.08, "Apex of the von Mises swing profile, m.", ge=0)
-    von_mises_kappa: Float = setting(4.0, "Concentration of the swing-height bump around mid-swing.", gt=0)
+    von_mises_kappa: Float = setting(
+        4.0, "Concentration of the swing-height bump around mid-swing.", gt=0
+    )
     raibert_gain: Float = setting(0.05, "k in foot = hip + v T_stance / 2 + k (v - v_cmd), s.")
     raibert_max_offset: Float = setting(0.15, "Clip of the x-y placement offset, m.", ge=0)
-    command_full_scale: Float = setting(0.3, "Reference offsets grow linearly up to this |command|, m/s.", gt=0)
+    command_full_scale: Float = setting(
+        0.3, "Reference offsets grow linearly up to this |command|, m/s.", gt=0
+    )
     freeze_on_zero_command: bool = setting(True, "Both feet in stance under a zero command.")
     design_aware: bool = setting(
-        False, "Each design's reference in units of its leg length L (hip height at the standing pose): "
+        False,
+        "Each design's reference in units of its leg length L (hip height at the standing pose): "
         "placement clip and swing height x L/L_nominal, clock frequency x sqrt(L_nominal/L) (Froude scaling); "
         "off: the same reference for every design. Measured (flat.pt fine-tuned 1 M with it, one seed): power's "
-        "optimum stays at thigh 0.5, 10.8 +- 2.5 % below nominal (off: 9.3 +- 3.0 %); docs/reproduction.md.")
+        "optimum stays at thigh 0.5, 10.8 +- 2.5 % below nominal (off: 9.3 +- 3.0 %); docs/reproduction.md.",
+    )
 
 
 @settings(prefix="task.noise")
@@ -112,7 +133,9 @@ class NoiseConfig:
     """Observation noise, paper Table 3 (uniform in [-s, s] or gaussian with std s)."""
 
     enabled: bool = setting(True, "Add observation noise.")
-    kind: Literal["uniform", "gaussian"] = setting("uniform", "Uniform in [-s, s] or gaussian with std s.")
+    kind: Literal["uniform", "gaussian"] = setting(
+        "uniform", "Uniform in [-s, s] or gaussian with std s."
+    )
     joint_pos: Float = setting(0.01, "Joint positions, rad.", ge=0)
     joint_vel: Float = setting(1.5, "Joint velocities, rad/s.", ge=0)
     base_lin_vel: Float = setting(0.01, "Base linear velocity, m/s.", ge=0)
@@ -124,30 +147,44 @@ class NoiseConfig:
 class TaskConfig:
     """The whole locomotion task."""
 
-    commands: CommandConfig = setting(default_factory=CommandConfig, help="Velocity commands and their curriculum.")
-    rewards: RewardConfig = setting(default_factory=RewardConfig, help="Reward weights (Table 1) and shaping.")
+    commands: CommandConfig = setting(
+        default_factory=CommandConfig, help="Velocity commands and their curriculum."
+    )
+    rewards: RewardConfig = setting(
+        default_factory=RewardConfig, help="Reward weights (Table 1) and shaping."
+    )
     gait: GaitConfig = setting(default_factory=GaitConfig, help="Gait clock and Raibert reference.")
     noise: NoiseConfig = setting(default_factory=NoiseConfig, help="Observation noise (Table 3).")
     action_scale: Float = setting(0.25, "Rad per unit action around the default pose.", gt=0)
     action_clip: Float = setting(10.0, "Raw actions clipped to +-this before scaling.", gt=0)
     history: Int = setting(5, "Past actions in the observation (5 x 8 = 40 of the 70).", ge=0)
     episode_seconds: Float = setting(20.0, "Timeout, s (bootstrapped, not a failure).", gt=0)
-    min_base_height: Float = setting(0.5, "Fall: base above terrain below this share of standing height.", ge=0)
-    max_tilt_cos: Float = setting(0.5, "Fall: projected gravity z above -this (tilt beyond 60 deg).", ge=-1, le=1)
+    min_base_height: Float = setting(
+        0.5, "Fall: base above terrain below this share of standing height.", ge=0
+    )
+    max_tilt_cos: Float = setting(
+        0.5, "Fall: projected gravity z above -this (tilt beyond 60 deg).", ge=-1, le=1
+    )
     motor_speed_limit: Literal["soft", "binding"] = setting(
-        "soft", "soft: the torque-speed envelope alone (a joint past its motor's no-load speed is only driven "
+        "soft",
+        "soft: the torque-speed envelope alone (a joint past its motor's no-load speed is only driven "
         "no further); binding: also no torque at all beyond the no-load speed, and a joint beyond it for "
         "overspeed_seconds ends the episode as a fall (issue 41). Measured: Table 9's torque cell (quick, 3 "
         "seeds) chooses motor 1 in 0 of 6 choices (soft: 4 of 6), its nominal design falling in 29-35 % of "
-        "scenarios; docs/reproduction.md.")
+        "scenarios; docs/reproduction.md.",
+    )
     gain_law: Literal["robot", "nominal"] = setting(
-        "robot", "PD gains: robot: each design's own, as the robot builds them (Kuafu: stiffness grows with the "
+        "robot",
+        "PD gains: robot: each design's own, as the robot builds them (Kuafu: stiffness grows with the "
         "load inertia); nominal: the nominal design's gains for every design (issue 41). Measured (flat.pt "
         "fine-tuned 1 M with it, one seed): power's optimum moves from (0.5, 1.0), 9.3 +- 3.0 % below nominal, "
-        "to (1.25, 0.75), 3.1 +- 1.3 % below; docs/reproduction.md.")
+        "to (1.25, 0.75), 3.1 +- 1.3 % below; docs/reproduction.md.",
+    )
     overspeed_seconds: Float = setting(
-        0.1, "binding speed limit: a joint beyond its no-load speed this long without a break ends the episode, s.",
-        gt=0)
+        0.1,
+        "binding speed limit: a joint beyond its no-load speed this long without a break ends the episode, s.",
+        gt=0,
+    )
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -156,6 +193,10 @@ class TaskConfig:
     def from_dict(cls, data: dict[str, Any] | None) -> TaskConfig:
         """A recorded task config (a checkpoint's); unknown keys are one-line errors."""
         data = dict(data or {})
-        if isinstance(data.get("commands"), dict):  # replaced by curriculum_max_fall_rate (older checkpoints)
-            data["commands"] = {k: v for k, v in data["commands"].items() if k != "curriculum_max_fall_share"}
+        if isinstance(
+            data.get("commands"), dict
+        ):  # replaced by curriculum_max_fall_rate (older checkpoints)
+            data["commands"] = {
+                k: v for k, v in data["commands"].items() if k != "curriculum_max_fall_share"
+            }
         return cls(**data)

@@ -41,9 +41,13 @@ class DesignInputs:
         """The nominal design's hip height at the standing pose, m (of the space `low` spans)."""
         if self._nominal_leg is None:
             mixed = self.robot.design_space(True)
-            nominal = self.robot.nominal_design(mixed.dim == len(self.low) and mixed.dim != self.robot.design_space().dim)
+            nominal = self.robot.nominal_design(
+                mixed.dim == len(self.low) and mixed.dim != self.robot.design_space().dim
+            )
             with torch.no_grad():
-                design = torch.as_tensor(np.asarray(nominal, dtype=np.float32)[None], device=self.device)
+                design = torch.as_tensor(
+                    np.asarray(nominal, dtype=np.float32)[None], device=self.device
+                )
                 self._nominal_leg = float(self.robot.hip_height(design)[0])
         return self._nominal_leg
 
@@ -60,14 +64,21 @@ class DesignInputs:
         self.design_obs = self.normalize(designs)  # [N, D]
         self.default_joint_pos = sim.default_joint_pos.to(self.device).float()  # [N, J]
         with torch.no_grad():
-            self.default_feet = self.robot.default_foot_positions(self.designs).to(self.device).float()  # [N, L, 3]
+            self.default_feet = (
+                self.robot.default_foot_positions(self.designs).to(self.device).float()
+            )  # [N, L, 3]
         if len(self._mass) > MASS_CACHE_SIZE:
             self._mass.clear()
-        self.total_mass = torch.tensor([self._mass_of(row) for row in np.asarray(sim.designs, dtype=float)],
-                                       dtype=torch.float32, device=self.device)
+        self.total_mass = torch.tensor(
+            [self._mass_of(row) for row in np.asarray(sim.designs, dtype=float)],
+            dtype=torch.float32,
+            device=self.device,
+        )
         if self.track_speed_limit:
             rows = [self._speed_of(row) for row in np.asarray(sim.designs, dtype=float)]
-            self.speed_limit = torch.as_tensor(np.stack(rows), dtype=torch.float32, device=self.device)  # [N, J]
+            self.speed_limit = torch.as_tensor(
+                np.stack(rows), dtype=torch.float32, device=self.device
+            )  # [N, J]
 
     def _speed_of(self, design: np.ndarray) -> np.ndarray:
         key = tuple(design.tolist())

@@ -82,7 +82,9 @@ class LocomotionEnv:
         resample = self.cfg.commands.resample_seconds
         self.resample_steps = int(round(resample / self.dt)) if resample > 0 else 0
 
-        simulator.set_gain_law(self.cfg.gain_law)  # "nominal" rebuilds the designs with the nominal gains
+        simulator.set_gain_law(
+            self.cfg.gain_law
+        )  # "nominal" rebuilds the designs with the nominal gains
         state = simulator.reset()
         self.num_legs = int(state.foot_pos.shape[1])
         legs = robot.legs()
@@ -91,7 +93,9 @@ class LocomotionEnv:
                 f"robot '{robot.name}' declares {len(legs)} legs but its model has {self.num_legs} feet"
             )
         # the gait clock's per-leg offsets (a trotting quadruped moves diagonal pairs together)
-        self.leg_offsets = torch.tensor([float(leg.phase_offset) for leg in legs], device=self.device)
+        self.leg_offsets = torch.tensor(
+            [float(leg.phase_offset) for leg in legs], device=self.device
+        )
         self.policy_layout = layout.policy_layout(self.num_actions, self.cfg.history)
         self.critic_layout = self.policy_layout + layout.privileged_layout(self.num_legs)
         self.obs_slices = layout.slices(self.policy_layout)
@@ -161,7 +165,9 @@ class LocomotionEnv:
             self.fixed_commands = False
             return
         self.fixed_commands = True
-        self.command[:] = torch.as_tensor(commands, dtype=torch.float32, device=self.device).expand(self.num_envs, 3)
+        self.command[:] = torch.as_tensor(commands, dtype=torch.float32, device=self.device).expand(
+            self.num_envs, 3
+        )
         self._freeze_clock(torch.arange(self.num_envs, device=self.device))
 
     def use_scenarios(self, scenarios: SharedStreams | None) -> None:
@@ -179,7 +185,9 @@ class LocomotionEnv:
             self.generator.manual_seed(int(seed))
         self.sim.reseed(int(seed))
 
-    def draw_commands(self, agents: int, seed: int, *, command_state: dict | None, paired: bool) -> torch.Tensor:
+    def draw_commands(
+        self, agents: int, seed: int, *, command_state: dict | None, paired: bool
+    ) -> torch.Tensor:
         """[agents, 3] commands of the scenario set of `seed` under the curriculum
         `command_state` (None: the sampler's own): stratified over the command box (paired),
         or drawn independently by a generator seeded `seed` that the sampler keeps."""
@@ -201,7 +209,9 @@ class LocomotionEnv:
         (`Simulator.fix_scenarios`); None draws them afresh at each reset again."""
         self.sim.fix_scenarios(params, spawn)
 
-    def paired_draw(self, shape: tuple[int, ...], generator: torch.Generator, normal: bool = True) -> torch.Tensor:
+    def paired_draw(
+        self, shape: tuple[int, ...], generator: torch.Generator, normal: bool = True
+    ) -> torch.Tensor:
         """[num_envs, *shape[1:]] random numbers, standard normal or uniform in [0, 1): one
         draw per agent of a group repeated for every design when paired, else one per
         environment."""
@@ -229,8 +239,14 @@ class LocomotionEnv:
         self.overspeed_time[ids] = 0.0
         self.last_contact[ids] = state.foot_contact[ids]
         self.standing_height[ids] = (state.base_pos[ids, 2] - state.terrain_height[ids]).float()
-        for sums in (self.episode_reward, self.episode_tracking, self.episode_moving_tracking,
-                     self.episode_moving_steps, self.episode_speed, self.episode_command):
+        for sums in (
+            self.episode_reward,
+            self.episode_tracking,
+            self.episode_moving_tracking,
+            self.episode_moving_steps,
+            self.episode_speed,
+            self.episode_command,
+        ):
             sums[ids] = 0.0
         if self.scenarios is not None:  # paired: agent i always starts at its own phase
             self.phase[ids] = self.scenarios.phase[ids % self.scenarios.phase.numel()]
@@ -274,13 +290,25 @@ class LocomotionEnv:
         angle = 2.0 * math.pi * self.phase
         clock = torch.stack([torch.sin(angle), torch.cos(angle)], dim=-1)
         clean = torch.cat(
-            [lin, ang, gravity, self.command, joint_pos, joint_vel, self.action_history.flatten(1), clock], dim=-1
+            [
+                lin,
+                ang,
+                gravity,
+                self.command,
+                joint_pos,
+                joint_vel,
+                self.action_history.flatten(1),
+                clock,
+            ],
+            dim=-1,
         )
         obs = clean
         noise = self.cfg.noise
         if noise.enabled:
             if self.scenarios is not None:  # the same noise however often this step is observed
-                key = np.random.SeedSequence([self.scenarios.seed, self._tick]).generate_state(2, dtype=np.uint64)
+                key = np.random.SeedSequence([self.scenarios.seed, self._tick]).generate_state(
+                    2, dtype=np.uint64
+                )
                 self._paired_gen.manual_seed(int(key[0] >> np.uint64(1)))
             n, s = self.num_envs, self.obs_slices
             obs = clean.clone()
@@ -302,7 +330,9 @@ class LocomotionEnv:
         return obs, torch.cat([clean, privileged], dim=-1)
 
     # -- stepping ---------------------------------------------------------------------------
-    def raibert_joint_targets(self, command: torch.Tensor, lin_vel: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def raibert_joint_targets(
+        self, command: torch.Tensor, lin_vel: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """(q* [N, J], expected stance [N, L]) of the paper's Raibert reference at this step."""
         phases = leg_phases(self.phase, self.num_legs, self.leg_offsets)
         moving = command.abs().sum(dim=-1) > 0
@@ -310,7 +340,9 @@ class LocomotionEnv:
         if self.cfg.gait.freeze_on_zero_command:
             stance = stance | ~moving[:, None]
         scale = self.gait_scale if self.cfg.gait.design_aware else None
-        feet = raibert_foot_targets(self.default_feet, phases, command, lin_vel, self.cfg.gait, scale)
+        feet = raibert_foot_targets(
+            self.default_feet, phases, command, lin_vel, self.cfg.gait, scale
+        )
         with torch.no_grad():
             q_star = self.robot.leg_inverse_kinematics(self.designs, feet).to(self.device).float()
         return q_star, stance
@@ -324,7 +356,9 @@ class LocomotionEnv:
     def _step(self, actions: torch.Tensor) -> StepResult:
         cfg = self.cfg
         actions = actions.to(self.device).float().clamp(-cfg.action_clip, cfg.action_clip)  # [N, J]
-        targets = self.default_joint_pos + cfg.action_scale * actions  # [N, J] joint position targets
+        targets = (
+            self.default_joint_pos + cfg.action_scale * actions
+        )  # [N, J] joint position targets
         sim_device = torch.device(self.sim.device)
         tick = time.perf_counter()
         state = self._to_device(self.sim.step(targets.to(sim_device)))
@@ -334,7 +368,11 @@ class LocomotionEnv:
 
         moving = self.command.abs().sum(dim=-1) > 0  # [N]
         advance = moving if cfg.gait.freeze_on_zero_command else torch.ones_like(moving)
-        frequency = clock_frequency(cfg.gait, self.gait_scale) if cfg.gait.design_aware else cfg.gait.frequency
+        frequency = (
+            clock_frequency(cfg.gait, self.gait_scale)
+            if cfg.gait.design_aware
+            else cfg.gait.frequency
+        )
         self.phase = torch.remainder(self.phase + self.dt * frequency * advance, 1.0)
 
         lin, ang, gravity = state.base_frame()
@@ -367,12 +405,24 @@ class LocomotionEnv:
         )
         terms = compute_terms(inputs, cfg.rewards)
         reward, weighted = combine(terms, cfg.rewards, self.dt)
-        metrics = self._metrics(StepBatch(
-            command=self.command, base_lin_vel=lin, base_ang_vel=ang, joint_torque=torque, joint_vel=joint_vel,
-            joint_targets=targets, design=self.designs, total_mass=self.total_mass, base_height=height,
-            foot_contact=contact, dt=self.dt,
-        ))
-        self._record_step(actions, joint_vel, contact, terms.get("tracking_lin_vel"), reward, moving, lin)
+        metrics = self._metrics(
+            StepBatch(
+                command=self.command,
+                base_lin_vel=lin,
+                base_ang_vel=ang,
+                joint_torque=torque,
+                joint_vel=joint_vel,
+                joint_targets=targets,
+                design=self.designs,
+                total_mass=self.total_mass,
+                base_height=height,
+                foot_contact=contact,
+                dt=self.dt,
+            )
+        )
+        self._record_step(
+            actions, joint_vel, contact, terms.get("tracking_lin_vel"), reward, moving, lin
+        )
 
         obs, critic = self._observe(state)
         done = terminated | timeout
@@ -402,14 +452,20 @@ class LocomotionEnv:
         self.air_time *= ~contact
         return first_contact, air_time
 
-    def _termination(self, state: SimState, gravity: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    def _termination(
+        self, state: SimState, gravity: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """(base height over the terrain [N], terminated [N]: fell or diverged, timeout [N])."""
         cfg = self.cfg
         height = state.base_pos[:, 2].float() - state.terrain_height.float()
-        fell = (height < cfg.min_base_height * self.standing_height) | (gravity[:, 2] > -cfg.max_tilt_cos)
+        fell = (height < cfg.min_base_height * self.standing_height) | (
+            gravity[:, 2] > -cfg.max_tilt_cos
+        )
         if cfg.motor_speed_limit == "binding":  # a joint beyond its no-load speed too long: a fall
             over = (state.joint_vel.float().abs() > self.design_inputs.speed_limit).any(dim=-1)
-            self.overspeed_time = torch.where(over, self.overspeed_time + self.dt, torch.zeros_like(self.overspeed_time))
+            self.overspeed_time = torch.where(
+                over, self.overspeed_time + self.dt, torch.zeros_like(self.overspeed_time)
+            )
             fell = fell | (self.overspeed_time >= cfg.overspeed_seconds - 1e-6)
         terminated = fell | state.diverged.to(self.device)
         timeout = (self.episode_length >= self.max_episode_length) & ~terminated
@@ -418,7 +474,9 @@ class LocomotionEnv:
     def _metrics(self, step_batch: StepBatch) -> torch.Tensor:
         """[N, M] the objectives' per-step costs."""
         if self.objectives:
-            return torch.stack([o.step_cost(step_batch).float() for o in self.objectives], dim=-1)  # [N, M]
+            return torch.stack(
+                [o.step_cost(step_batch).float() for o in self.objectives], dim=-1
+            )  # [N, M]
         return torch.zeros(self.num_envs, 0, device=self.device)
 
     def _record_step(self, actions, joint_vel, contact, tracking, reward, moving, lin) -> None:
@@ -435,7 +493,9 @@ class LocomotionEnv:
         self.episode_speed += lin[:, 0]
         self.episode_command += self.command[:, 0]
 
-    def _end_episodes(self, done, terminated, info: dict, state: SimState, sim_device) -> tuple[SimState, bool]:
+    def _end_episodes(
+        self, done, terminated, info: dict, state: SimState, sim_device
+    ) -> tuple[SimState, bool]:
         """Restart the environments that ended (their episodes' statistics into
         `info["episode"]`) and give new commands to those due one. One host synchronisation:
         which environments ended, which are due a new command, and the sums of the ended
@@ -466,7 +526,17 @@ class LocomotionEnv:
         due_ids = np.flatnonzero(host[n : 2 * n])
         changed = done_ids.size > 0
         if changed:
-            count, falls, returns, length, tracking, speed, command, moving_tracking, moving_steps = host[2 * n :].tolist()
+            (
+                count,
+                falls,
+                returns,
+                length,
+                tracking,
+                speed,
+                command,
+                moving_tracking,
+                moving_steps,
+            ) = host[2 * n :].tolist()
             info["episode"] = {
                 "reward": returns / count,
                 "length_s": length / count * self.dt,
@@ -478,7 +548,11 @@ class LocomotionEnv:
             }
             if not self.fixed_commands:
                 self.commands.record_episodes(
-                    int(done_ids.size), int(round(falls)), moving_tracking, moving_steps, length * self.dt
+                    int(done_ids.size),
+                    int(round(falls)),
+                    moving_tracking,
+                    moving_steps,
+                    length * self.dt,
                 )
             cpu_ids = torch.from_numpy(done_ids)
             tick = time.perf_counter()

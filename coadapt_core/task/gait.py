@@ -25,7 +25,9 @@ from coadapt_core.task.config import GaitConfig
 # lift-off, and swings forward again to the touchdown point v T_st / 2 + k (v - v_cmd).
 
 
-def leg_phases(phase: torch.Tensor, num_legs: int, offsets: torch.Tensor | None = None) -> torch.Tensor:
+def leg_phases(
+    phase: torch.Tensor, num_legs: int, offsets: torch.Tensor | None = None
+) -> torch.Tensor:
     """[N, L] per-leg phase in [0, 1) from the clock phase [N]: (phase + offsets[l]) mod 1,
     the robot's declared offsets (`Robot.legs()`), or l / L when none are given."""
     if offsets is None:
@@ -83,23 +85,33 @@ def raibert_foot_targets(
     feedback = config.raibert_gain * (base_lin_vel[:, None, :2] - cmd_xy)  # [N, 1, 2]
     if scale is None:  # the same reference for every design (bit for bit as before)
         t_stance = 0.5 / config.frequency
-        offset_xy = tri[..., None] * cmd_xy * (t_stance / 2.0) + (swing * gate)[..., None] * feedback
+        offset_xy = (
+            tri[..., None] * cmd_xy * (t_stance / 2.0) + (swing * gate)[..., None] * feedback
+        )
         offset_xy = offset_xy.clamp(-config.raibert_max_offset, config.raibert_max_offset)
         offset_z = gate * von_mises_height(leg_phase, config.swing_height, config.von_mises_kappa)
     else:
         s = scale.to(default_feet.dtype)[:, None, None]  # [N, 1, 1]
         t_stance = 0.5 / clock_frequency(config, s)  # [N, 1, 1]
-        offset_xy = tri[..., None] * cmd_xy * (t_stance / 2.0) + (swing * gate)[..., None] * feedback
+        offset_xy = (
+            tri[..., None] * cmd_xy * (t_stance / 2.0) + (swing * gate)[..., None] * feedback
+        )
         bound = config.raibert_max_offset * s
         offset_xy = torch.maximum(torch.minimum(offset_xy, bound), -bound)
-        offset_z = gate * s[..., 0] * von_mises_height(leg_phase, config.swing_height, config.von_mises_kappa)
+        offset_z = (
+            gate
+            * s[..., 0]
+            * von_mises_height(leg_phase, config.swing_height, config.von_mises_kappa)
+        )
     target = default_feet.clone()
     target[..., :2] += offset_xy
     target[..., 2] += offset_z
     return target
 
 
-def gait_scales(cfg: GaitConfig, leg_length: torch.Tensor, nominal_leg_length: float) -> torch.Tensor:
+def gait_scales(
+    cfg: GaitConfig, leg_length: torch.Tensor, nominal_leg_length: float
+) -> torch.Tensor:
     """[N] s = L / L_nominal of each environment's leg under the design-aware reference, else
     ones (the same reference for every design)."""
     if not cfg.design_aware:
@@ -110,4 +122,3 @@ def gait_scales(cfg: GaitConfig, leg_length: torch.Tensor, nominal_leg_length: f
 def clock_frequency(cfg: GaitConfig, scale: torch.Tensor) -> torch.Tensor:
     """[N] gait clock frequency, Hz: `cfg.frequency` x s^-1/2 (Froude scaling; s = 1: as set)."""
     return cfg.frequency / torch.sqrt(scale)
-

@@ -92,4 +92,14 @@ class StepResult:
     info: dict = field(default_factory=dict)
 
     def __iter__(self):
-        return iter((self.obs, self.critic_obs, self.design_obs, self.reward, self.done, self.timeout, self.info))
+        return iter(
+            (
+                self.obs,
+                self.critic_obs,
+                self.design_obs,
+                self.reward,
+                self.done,
+                self.timeout,
+                self.info,
+            )
+        )

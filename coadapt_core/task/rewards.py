@@ -115,7 +115,9 @@ def compute_terms(x: RewardInputs, config: RewardConfig) -> dict[str, torch.Tens
     return {name: fn() for name, fn in fns.items() if config.weights.get(name, 0.0) != 0.0}
 
 
-def combine(terms: dict[str, torch.Tensor], config: RewardConfig, dt: float) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+def combine(
+    terms: dict[str, torch.Tensor], config: RewardConfig, dt: float
+) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
     """Total reward [N] and the weighted terms. Every weight is scaled by dt (when
     `scale_by_dt`); the sum of all terms but `termination` is clipped at zero (when
     `clip_at_zero`, walking-notes remedy 5) and the termination penalty added after."""

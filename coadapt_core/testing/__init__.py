@@ -16,4 +16,10 @@ from coadapt_core.testing.optimizers import OptimizerConformance
 from coadapt_core.testing.robots import RobotConformance
 from coadapt_core.testing.simulators import SimulatorConformance
 
-__all__ = ["BackendConformance", "ObjectiveConformance", "OptimizerConformance", "RobotConformance", "SimulatorConformance"]
+__all__ = [
+    "BackendConformance",
+    "ObjectiveConformance",
+    "OptimizerConformance",
+    "RobotConformance",
+    "SimulatorConformance",
+]

@@ -25,7 +25,9 @@ from coadapt_core.fitness import RealFitness, TrainingResult
 from coadapt_core.objective import Objective
 
 SPACE = DesignSpace([Continuous("thigh_scale", 0.5, 1.5), Continuous("shank_scale", 0.5, 1.5)])
-MIXED_SPACE = DesignSpace([*SPACE.variables, Discrete("hip_motor", (1, 2, 3)), Discrete("knee_motor", (1, 2, 3))])
+MIXED_SPACE = DesignSpace(
+    [*SPACE.variables, Discrete("hip_motor", (1, 2, 3)), Discrete("knee_motor", (1, 2, 3))]
+)
 NOMINAL = np.array([1.0, 1.0])
 MIXED_NOMINAL = np.array([1.0, 1.0, 1.0, 1.0])
 
@@ -47,7 +49,9 @@ def optimum_of(name: str, optima: Mapping[str, Any] | None = None) -> np.ndarray
     return DEFAULT_OPTIMUM if found is None else np.asarray(found, dtype=float)
 
 
-def true_cost(designs: np.ndarray, name: str, optima: Mapping[str, Any] | None = None) -> np.ndarray:
+def true_cost(
+    designs: np.ndarray, name: str, optima: Mapping[str, Any] | None = None
+) -> np.ndarray:
     """[K] the noiseless cost of designs [K, 2 or 4]."""
     designs = np.atleast_2d(designs)
     cost = BASE_COST + ((designs[:, :2] - optimum_of(name, optima)) ** 2).sum(axis=1)
@@ -63,8 +67,15 @@ class AnalyticBackend:
     #: implements `coadapt_core.fitness.SurrogateEnsemble` (fit_surrogate, surrogate_members)
     surrogate_ensemble = True
 
-    def __init__(self, seed: int = 0, *, optima: Mapping[str, Any] | None = None, buffer_from_training: bool = True,
-                 fail_on_real_call: int | None = None, paired: bool = False):
+    def __init__(
+        self,
+        seed: int = 0,
+        *,
+        optima: Mapping[str, Any] | None = None,
+        buffer_from_training: bool = True,
+        fail_on_real_call: int | None = None,
+        paired: bool = False,
+    ):
         self.seed = seed
         # paired: real fitness gives per-scenario costs [K, A, M] (one scenario per agent, its
         # offset shared by every design of the call, as a real backend's paired scenarios), so
@@ -95,32 +106,69 @@ class AnalyticBackend:
         self.trained_low, self.trained_high = designs[:, :2].min(axis=0), designs[:, :2].max(axis=0)
         self.trainings += 1
         self.fitted_labels = 0  # a new policy: the fit is stale
-        buffer = {"kind": "training", "designs": designs.copy()} if self.buffer_from_training else None
-        return TrainingResult(steps=int(steps), seconds=steps / RATE, mean_reward=1.0 - self.width_fraction(), buffer=buffer)
+        buffer = (
+            {"kind": "training", "designs": designs.copy()} if self.buffer_from_training else None
+        )
+        return TrainingResult(
+            steps=int(steps),
+            seconds=steps / RATE,
+            mean_reward=1.0 - self.width_fraction(),
+            buffer=buffer,
+        )
 
     def real_fitness(
-        self, designs: np.ndarray, objectives: Sequence[Objective], *, agents: int, steps: int, seed: int = 0
+        self,
+        designs: np.ndarray,
+        objectives: Sequence[Objective],
+        *,
+        agents: int,
+        steps: int,
+        seed: int = 0,
     ) -> RealFitness:
         self.real_calls += 1
         if self.fail_on_real_call is not None and self.real_calls == self.fail_on_real_call:
             raise RuntimeError(f"injected failure on real evaluation call {self.real_calls}")
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
         rng = np.random.default_rng(seed)
-        true = np.stack([true_cost(designs, o.name, self.optima) for o in objectives], axis=1)  # [K, M]
+        true = np.stack(
+            [true_cost(designs, o.name, self.optima) for o in objectives], axis=1
+        )  # [K, M]
         interactions = len(designs) * agents * steps
         buffer = {"kind": "evaluation", "designs": designs.copy()}
-        if self.paired:  # each scenario's offset shared by the designs, plus each design's own noise
+        if (
+            self.paired
+        ):  # each scenario's offset shared by the designs, plus each design's own noise
             shared = rng.normal(0.0, NOISE_STD, size=(1, agents, len(objectives)))
-            per = true[:, None, :] + shared + rng.normal(0.0, NOISE_STD, size=(len(designs), agents, len(objectives)))
-            return RealFitness(costs=per.mean(axis=1), buffer=buffer, interactions=interactions,
-                               seconds=interactions / RATE, per_scenario=per,
-                               scenario_falls=np.zeros(per.shape[:2], dtype=bool),
-                               fall_rate=np.zeros(len(designs)))
+            per = (
+                true[:, None, :]
+                + shared
+                + rng.normal(0.0, NOISE_STD, size=(len(designs), agents, len(objectives)))
+            )
+            return RealFitness(
+                costs=per.mean(axis=1),
+                buffer=buffer,
+                interactions=interactions,
+                seconds=interactions / RATE,
+                per_scenario=per,
+                scenario_falls=np.zeros(per.shape[:2], dtype=bool),
+                fall_rate=np.zeros(len(designs)),
+            )
         noise = rng.normal(0.0, NOISE_STD / np.sqrt(agents), size=(len(designs), len(objectives)))
-        return RealFitness(costs=true + noise, buffer=buffer, interactions=interactions, seconds=interactions / RATE)
+        return RealFitness(
+            costs=true + noise,
+            buffer=buffer,
+            interactions=interactions,
+            seconds=interactions / RATE,
+        )
 
     def surrogate_fitness(
-        self, designs: np.ndarray, objectives: Sequence[Objective], buffer: Any, *, samples: int, seed: int = 0
+        self,
+        designs: np.ndarray,
+        objectives: Sequence[Objective],
+        buffer: Any,
+        *,
+        samples: int,
+        seed: int = 0,
     ) -> np.ndarray:
         if buffer is None:
             raise RuntimeError("surrogate evaluation needs an evaluation buffer")
@@ -130,20 +178,36 @@ class AnalyticBackend:
         if members is not None:
             return members.mean(axis=0)
         bias = self.surrogate_bias(designs)
-        return np.stack([true_cost(designs, o.name, self.optima) + bias for o in objectives], axis=1)  # [K, M]
+        return np.stack(
+            [true_cost(designs, o.name, self.optima) + bias for o in objectives], axis=1
+        )  # [K, M]
 
     # -- pseudo-critics fitted to real rounds (issue 16), for the evaluation policies ------
     #: members of the fitted ensemble; member_spread: their disagreement (cost units per unit
     #: of design offset from the nominal), settable by tests; None: shrinks with the labels
     MEMBERS = 5
 
-    def fit_surrogate(self, designs: np.ndarray, costs: np.ndarray, objectives: Sequence[Objective], buffer: Any,
-                      *, seed: int = 0) -> None:
+    def fit_surrogate(
+        self,
+        designs: np.ndarray,
+        costs: np.ndarray,
+        objectives: Sequence[Objective],
+        buffer: Any,
+        *,
+        seed: int = 0,
+    ) -> None:
         self.fits = getattr(self, "fits", 0) + 1
         self.fitted_labels = len(np.atleast_2d(designs))
 
-    def surrogate_members(self, designs: np.ndarray, objectives: Sequence[Objective], buffer: Any, *, samples: int,
-                          seed: int = 0) -> np.ndarray | None:
+    def surrogate_members(
+        self,
+        designs: np.ndarray,
+        objectives: Sequence[Objective],
+        buffer: Any,
+        *,
+        samples: int,
+        seed: int = 0,
+    ) -> np.ndarray | None:
         """[E, K, M]: the fitted surrogate (the bowl plus the bias, shrunk by the labels) with
         each member tilted its own way by `member_spread`."""
         labels = getattr(self, "fitted_labels", 0)
@@ -154,7 +218,10 @@ class AnalyticBackend:
         if spread is None:
             spread = 0.1 / np.sqrt(labels)
         shrink = 1.0 / (1.0 + labels / 16.0)
-        base = np.stack([true_cost(designs, o.name, self.optima) for o in objectives], axis=1) + shrink * self.surrogate_bias(designs)[:, None]
+        base = (
+            np.stack([true_cost(designs, o.name, self.optima) for o in objectives], axis=1)
+            + shrink * self.surrogate_bias(designs)[:, None]
+        )
         tilts = np.random.default_rng(12345).normal(size=(self.MEMBERS, 2))
         return np.stack([base + spread * ((designs[:, :2] - 1.0) @ t)[:, None] for t in tilts])
 

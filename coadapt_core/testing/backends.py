@@ -15,8 +15,11 @@ from coadapt_core.fitness import CoadaptationBackend, SurrogateEnsemble
 
 
 def _protocol_methods(protocol: type) -> dict[str, inspect.Signature]:
-    return {name: inspect.signature(fn) for name, fn in vars(protocol).items()
-            if inspect.isfunction(fn) and not name.startswith("_")}
+    return {
+        name: inspect.signature(fn)
+        for name, fn in vars(protocol).items()
+        if inspect.isfunction(fn) and not name.startswith("_")
+    }
 
 
 def _signature_problem(backend: Any, name: str, wanted: inspect.Signature) -> str | None:
@@ -57,7 +60,9 @@ def check_backend(backend: Any) -> list[str]:
         for name, signature in _protocol_methods(SurrogateEnsemble).items():
             problem = _signature_problem(backend, name, signature)
             if problem:
-                problems.append(f"SurrogateEnsemble (declared by surrogate_ensemble = True): {problem}")
+                problems.append(
+                    f"SurrogateEnsemble (declared by surrogate_ensemble = True): {problem}"
+                )
     return problems
 
 

@@ -8,7 +8,12 @@ from coadapt_core.objective import Objective, StepBatch
 
 
 def make_step(
-    n: int = 16, joints: int = 8, seed: int = 0, scale: float = 1.0, legs: int = 2, design_dim: int = 2
+    n: int = 16,
+    joints: int = 8,
+    seed: int = 0,
+    scale: float = 1.0,
+    legs: int = 2,
+    design_dim: int = 2,
 ) -> StepBatch:
     """A random step of `n` environments with every field of `StepBatch` filled."""
     import torch
@@ -38,9 +43,17 @@ def standing_step(n: int = 6, joints: int = 8, legs: int = 2, design_dim: int = 
     step = make_step(n=n, joints=joints, legs=legs, design_dim=design_dim, seed=9)
     zero3 = torch.zeros(n, 3)
     return StepBatch(
-        command=zero3, base_lin_vel=zero3.clone(), base_ang_vel=zero3.clone(), joint_torque=step.joint_torque * 0.2,
-        joint_vel=torch.zeros(n, joints), joint_targets=step.joint_targets, design=step.design, total_mass=step.total_mass,
-        base_height=step.base_height, foot_contact=torch.ones(n, legs, dtype=torch.bool), dt=step.dt,
+        command=zero3,
+        base_lin_vel=zero3.clone(),
+        base_ang_vel=zero3.clone(),
+        joint_torque=step.joint_torque * 0.2,
+        joint_vel=torch.zeros(n, joints),
+        joint_targets=step.joint_targets,
+        design=step.design,
+        total_mass=step.total_mass,
+        base_height=step.base_height,
+        foot_contact=torch.ones(n, legs, dtype=torch.bool),
+        dt=step.dt,
     )
 
 
@@ -51,7 +64,8 @@ class ObjectiveConformance:
         """A constructor of its own calls `super().__init__(**options)`: the base class checks
         the options and fills in their defaults (`self.options`)."""
         assert hasattr(objective, "options"), (
-            "Objective.__init__ did not run (no `self.options`): call super().__init__(**options)")
+            "Objective.__init__ did not run (no `self.options`): call super().__init__(**options)"
+        )
         declared = {s.name for s in type(objective).option_specs}
         assert set(objective.options) >= declared
 
@@ -63,12 +77,24 @@ class ObjectiveConformance:
 
         still = standing_step(n=6)
         cost = objective.step_cost(still)
-        assert cost.shape == (6,) and torch.isfinite(cost).all(), f"non-finite cost when standing still: {cost}"
+        assert cost.shape == (6,) and torch.isfinite(cost).all(), (
+            f"non-finite cost when standing still: {cost}"
+        )
         moving = make_step(n=6, seed=3)
-        mixed = StepBatch(**{f: (getattr(still, f) if f == "dt" else torch.cat([getattr(still, f), getattr(moving, f)]))
-                             for f in StepBatch.__dataclass_fields__})
+        mixed = StepBatch(
+            **{
+                f: (
+                    getattr(still, f)
+                    if f == "dt"
+                    else torch.cat([getattr(still, f), getattr(moving, f)])
+                )
+                for f in StepBatch.__dataclass_fields__
+            }
+        )
         cost = objective.step_cost(mixed)
-        assert cost.shape == (12,) and torch.isfinite(cost).all(), f"non-finite cost beside moving robots: {cost}"
+        assert cost.shape == (12,) and torch.isfinite(cost).all(), (
+            f"non-finite cost beside moving robots: {cost}"
+        )
 
     def test_is_objective_with_labels(self, objective: Objective) -> None:
         assert isinstance(objective, Objective)

@@ -51,7 +51,9 @@ class OptimizerConformance:
     def _objectives(self, optimizer_cls: type[Optimizer]) -> int:
         return 2 if optimizer_cls.multi_objective else 1
 
-    def _costs(self, optimizer_cls: type[Optimizer], designs: np.ndarray, optimum: np.ndarray) -> np.ndarray:
+    def _costs(
+        self, optimizer_cls: type[Optimizer], designs: np.ndarray, optimum: np.ndarray
+    ) -> np.ndarray:
         f = sphere(designs, optimum)
         if optimizer_cls.multi_objective:
             return np.stack([f, sphere(designs, optimum + 0.1)], axis=1)
@@ -61,8 +63,17 @@ class OptimizerConformance:
         assert issubclass(optimizer_cls, Optimizer)
         assert isinstance(optimizer_cls.name, str) and optimizer_cls.name
 
-    def test_ask_returns_population_inside_bounds(self, optimizer_cls, optimizer_options, space) -> None:
-        opt = optimizer_cls(space, population=8, budget=3, seed=1, num_objectives=self._objectives(optimizer_cls), **optimizer_options)
+    def test_ask_returns_population_inside_bounds(
+        self, optimizer_cls, optimizer_options, space
+    ) -> None:
+        opt = optimizer_cls(
+            space,
+            population=8,
+            budget=3,
+            seed=1,
+            num_objectives=self._objectives(optimizer_cls),
+            **optimizer_options,
+        )
         expected = 1 if optimizer_cls.sequential else 8
         for _ in range(3):
             designs = opt.ask()
@@ -75,33 +86,61 @@ class OptimizerConformance:
     def test_calls_the_base_initialiser(self, optimizer_cls, optimizer_options, space) -> None:
         """A constructor of its own calls `super().__init__(space, **kwargs)`: the base class
         checks the seed, options and initial designs and keeps the state a resume needs."""
-        opt = optimizer_cls(space, population=4, budget=2, seed=3, num_objectives=self._objectives(optimizer_cls),
-                            **optimizer_options)
-        missing = [a for a in ("space", "seed", "options", "initial_designs", "iteration", "_history") if not hasattr(opt, a)]
-        assert not missing, f"Optimizer.__init__ did not run (no {', '.join(missing)}): call super().__init__(space, **kwargs)"
+        opt = optimizer_cls(
+            space,
+            population=4,
+            budget=2,
+            seed=3,
+            num_objectives=self._objectives(optimizer_cls),
+            **optimizer_options,
+        )
+        missing = [
+            a
+            for a in ("space", "seed", "options", "initial_designs", "iteration", "_history")
+            if not hasattr(opt, a)
+        ]
+        assert not missing, (
+            f"Optimizer.__init__ did not run (no {', '.join(missing)}): call super().__init__(space, **kwargs)"
+        )
         assert opt.space is space and opt.seed == 3 and opt.iteration == 0
 
-    def test_proposals_stay_inside_the_bounds_without_clipping(self, optimizer_cls, optimizer_options, space,
-                                                               mixed_space) -> None:
+    def test_proposals_stay_inside_the_bounds_without_clipping(
+        self, optimizer_cls, optimizer_options, space, mixed_space
+    ) -> None:
         """Proposals lie inside the bounds as made: the base class clips one that does not,
         but warns (`OutOfBoundsProposal`), since the design evaluated is not the one proposed."""
         spaces = [space] + ([mixed_space] if optimizer_cls.supports_mixed else [])
         for sp in spaces:
-            opt = optimizer_cls(sp, population=8, budget=4, seed=4, num_objectives=self._objectives(optimizer_cls),
-                                **optimizer_options)
+            opt = optimizer_cls(
+                sp,
+                population=8,
+                budget=4,
+                seed=4,
+                num_objectives=self._objectives(optimizer_cls),
+                **optimizer_options,
+            )
             optimum = np.array([0.55, 1.45, 1.0][: sp.dim])
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always", OutOfBoundsProposal)
                 while not opt.done:
                     d = opt.ask()
                     opt.tell(d, self._costs(optimizer_cls, d, optimum))
-            clipped = [str(w.message) for w in caught if issubclass(w.category, OutOfBoundsProposal)]
+            clipped = [
+                str(w.message) for w in caught if issubclass(w.category, OutOfBoundsProposal)
+            ]
             assert not clipped, clipped[0]
 
     def test_same_seed_same_proposals(self, optimizer_cls, optimizer_options, space) -> None:
         runs = []
         for _ in range(2):
-            opt = optimizer_cls(space, population=6, budget=3, seed=7, num_objectives=self._objectives(optimizer_cls), **optimizer_options)
+            opt = optimizer_cls(
+                space,
+                population=6,
+                budget=3,
+                seed=7,
+                num_objectives=self._objectives(optimizer_cls),
+                **optimizer_options,
+            )
             seq = []
             for _ in range(3):
                 d = opt.ask()
@@ -116,7 +155,14 @@ class OptimizerConformance:
         """Best cost after the budget is close to 0 (pure random sampling of the same number
         of designs reaches 1e-4 with probability below 10 %)."""
         optimum = np.array([0.62, 1.31])
-        opt = optimizer_cls(space, population=10, budget=convergence_budget, seed=3, num_objectives=self._objectives(optimizer_cls), **optimizer_options)
+        opt = optimizer_cls(
+            space,
+            population=10,
+            budget=convergence_budget,
+            seed=3,
+            num_objectives=self._objectives(optimizer_cls),
+            **optimizer_options,
+        )
         first_best = None
         all_designs, all_costs = [], []
         while not opt.done:
@@ -128,17 +174,28 @@ class OptimizerConformance:
             if first_best is None:
                 first_best = float(np.min(all_costs[-1]))
         best = float(np.min(np.concatenate(all_costs)))
-        assert best < convergence_tolerance, f"best sphere cost {best:.2e} after {convergence_budget} rounds"
+        assert best < convergence_tolerance, (
+            f"best sphere cost {best:.2e} after {convergence_budget} rounds"
+        )
         assert best <= first_best
 
-    def test_initial_designs_are_the_first_proposals(self, optimizer_cls, optimizer_options, space) -> None:
+    def test_initial_designs_are_the_first_proposals(
+        self, optimizer_cls, optimizer_options, space
+    ) -> None:
         """The loop trains the policy on K sampled designs and passes them as
         `initial_designs`: a population optimizer's first `ask` returns them; a sequential
         one's first n asks return the n rows in order."""
         n_obj = self._objectives(optimizer_cls)
         initial = space.sample(3 if optimizer_cls.sequential else 6, rng=np.random.default_rng(11))
-        opt = optimizer_cls(space, population=6, budget=4, seed=2, num_objectives=n_obj,
-                            initial_designs=initial, **optimizer_options)
+        opt = optimizer_cls(
+            space,
+            population=6,
+            budget=4,
+            seed=2,
+            num_objectives=n_obj,
+            initial_designs=initial,
+            **optimizer_options,
+        )
         if optimizer_cls.sequential:
             asked = []
             for _ in range(len(initial)):
@@ -148,7 +205,9 @@ class OptimizerConformance:
             first = np.stack(asked)
         else:
             first = opt.ask()
-        np.testing.assert_allclose(first, initial, atol=1e-9, err_msg="initial_designs were not the first proposals")
+        np.testing.assert_allclose(
+            first, initial, atol=1e-9, err_msg="initial_designs were not the first proposals"
+        )
         if not optimizer_cls.sequential:
             opt.tell(first, self._costs(optimizer_cls, first, np.array([1.0, 1.0])))
         # and the search goes on from there as usual (the loop runs J rounds after them)
@@ -157,19 +216,32 @@ class OptimizerConformance:
             assert np.all(d >= 0.5 - 1e-9) and np.all(d <= 1.5 + 1e-9)
             opt.tell(d, self._costs(optimizer_cls, d, np.array([1.0, 1.0])))
 
-    def test_initial_designs_of_wrong_shape_refused(self, optimizer_cls, optimizer_options, space) -> None:
+    def test_initial_designs_of_wrong_shape_refused(
+        self, optimizer_cls, optimizer_options, space
+    ) -> None:
         with pytest.raises(UserError):
-            optimizer_cls(space, population=6, budget=2, seed=0, num_objectives=self._objectives(optimizer_cls),
-                          initial_designs=np.ones((2, 5)), **optimizer_options)
+            optimizer_cls(
+                space,
+                population=6,
+                budget=2,
+                seed=0,
+                num_objectives=self._objectives(optimizer_cls),
+                initial_designs=np.ones((2, 5)),
+                **optimizer_options,
+            )
 
     @pytest.mark.parametrize("seed", [0, 1, 2**32 - 1, 2**32, 2**62 + 12345, 2**63 - 1])
-    def test_any_seed_below_2_to_63_works(self, optimizer_cls, optimizer_options, space, seed) -> None:
+    def test_any_seed_below_2_to_63_works(
+        self, optimizer_cls, optimizer_options, space, seed
+    ) -> None:
         """The loop derives seeds from the run seed and the iteration: any integer in
         [0, 2**63) must work, and the same seed must give the same proposals."""
         n_obj = self._objectives(optimizer_cls)
         runs = []
         for _ in range(2):
-            opt = optimizer_cls(space, population=4, budget=2, seed=seed, num_objectives=n_obj, **optimizer_options)
+            opt = optimizer_cls(
+                space, population=4, budget=2, seed=seed, num_objectives=n_obj, **optimizer_options
+            )
             seq = []
             for _ in range(2):
                 d = opt.ask()
@@ -192,19 +264,29 @@ class OptimizerConformance:
         b = optimizer_cls(space, population=4, budget=1, seed=3, num_objectives=n_obj, **explicit)
         np.testing.assert_array_equal(a.ask(), b.ask())
         with pytest.raises(UserError):
-            optimizer_cls(space, population=4, budget=1, seed=3, num_objectives=n_obj, no_such_option_xyz=1)
+            optimizer_cls(
+                space, population=4, budget=1, seed=3, num_objectives=n_obj, no_such_option_xyz=1
+            )
 
     def test_rejects_bad_population(self, optimizer_cls, space) -> None:
         with pytest.raises(UserError):
-            optimizer_cls(space, population=0, budget=3, num_objectives=self._objectives(optimizer_cls))
+            optimizer_cls(
+                space, population=0, budget=3, num_objectives=self._objectives(optimizer_cls)
+            )
 
-    def test_mixed_space_handled_or_refused(self, optimizer_cls, optimizer_options, mixed_space) -> None:
+    def test_mixed_space_handled_or_refused(
+        self, optimizer_cls, optimizer_options, mixed_space
+    ) -> None:
         n_obj = self._objectives(optimizer_cls)
         if not optimizer_cls.supports_mixed:
             with pytest.raises(UserError):
-                optimizer_cls(mixed_space, population=4, budget=2, num_objectives=n_obj, **optimizer_options)
+                optimizer_cls(
+                    mixed_space, population=4, budget=2, num_objectives=n_obj, **optimizer_options
+                )
             return
-        opt = optimizer_cls(mixed_space, population=6, budget=4, seed=0, num_objectives=n_obj, **optimizer_options)
+        opt = optimizer_cls(
+            mixed_space, population=6, budget=4, seed=0, num_objectives=n_obj, **optimizer_options
+        )
         optimum = np.array([1.0, 1.0, 3.0])
         for _ in range(4):
             d = opt.ask()
@@ -212,14 +294,18 @@ class OptimizerConformance:
             mixed_space.validate_batch(d)
             opt.tell(d, self._costs(optimizer_cls, d, optimum))
 
-    def test_state_round_trips_through_json_and_continues_identically(self, optimizer_cls, optimizer_options, space) -> None:
+    def test_state_round_trips_through_json_and_continues_identically(
+        self, optimizer_cls, optimizer_options, space
+    ) -> None:
         """`state_dict()` is plain JSON; an optimizer built with the same arguments and given
         that state proposes exactly what the original does, round after round."""
         n_obj = self._objectives(optimizer_cls)
         optimum = np.array([0.9, 0.8])
 
         def make():
-            return optimizer_cls(space, population=6, budget=6, seed=5, num_objectives=n_obj, **optimizer_options)
+            return optimizer_cls(
+                space, population=6, budget=6, seed=5, num_objectives=n_obj, **optimizer_options
+            )
 
         a = make()
         for _ in range(2):
@@ -238,7 +324,16 @@ class OptimizerConformance:
         assert a.best()[1] == b.best()[1]
         assert json.dumps(a.state_dict()) == json.dumps(b.state_dict())
 
-    def test_state_of_another_optimizer_is_refused(self, optimizer_cls, optimizer_options, space) -> None:
-        opt = optimizer_cls(space, population=4, budget=2, seed=0, num_objectives=self._objectives(optimizer_cls), **optimizer_options)
+    def test_state_of_another_optimizer_is_refused(
+        self, optimizer_cls, optimizer_options, space
+    ) -> None:
+        opt = optimizer_cls(
+            space,
+            population=4,
+            budget=2,
+            seed=0,
+            num_objectives=self._objectives(optimizer_cls),
+            **optimizer_options,
+        )
         with pytest.raises(UserError):
             opt.load_state_dict({"optimizer": "not-" + optimizer_cls.name, "rounds": []})

@@ -42,7 +42,9 @@ def _reading_simulators(model: RobotModel) -> list[type]:
     classes = [registry.get("simulator", n) for n in registry.names("simulator")]
     found = [c for c in classes if set(getattr(c, "model_formats", ())) & set(model.formats)]
     if not found:
-        pytest.skip(f"no installed simulator reads the model formats {', '.join(sorted(model.formats))}")
+        pytest.skip(
+            f"no installed simulator reads the model formats {', '.join(sorted(model.formats))}"
+        )
     return found
 
 
@@ -65,14 +67,24 @@ class RobotConformance:
         for model in models:
             assert isinstance(model, RobotModel)
             j = model.num_joints
-            for name in ("default_joint_pos", "kp", "kd", "torque_limit", "speed_limit", "joint_lower", "joint_upper"):
+            for name in (
+                "default_joint_pos",
+                "kp",
+                "kd",
+                "torque_limit",
+                "speed_limit",
+                "joint_lower",
+                "joint_upper",
+            ):
                 assert getattr(model, name).shape == (j,), name
             assert np.all(model.torque_limit > 0) and np.all(model.speed_limit > 0)
             assert np.all(model.joint_lower < model.joint_upper)
             assert np.all(model.default_joint_pos >= model.joint_lower)
             assert np.all(model.default_joint_pos <= model.joint_upper)
             assert model.total_mass > 0 and model.standing_base_height > 0
-        tools = _tools(models[0])  # the model's own facts: skipped (with why) where no simulator reads it
+        tools = _tools(
+            models[0]
+        )  # the model's own facts: skipped (with why) where no simulator reads it
         for model in models:
             facts = tools.link_facts(model)
             bodies = {link["name"] for link in facts["links"]}
@@ -121,8 +133,12 @@ class RobotConformance:
         for a, name in enumerate(driven):
             assert name is not None, f"actuator {a} does not drive a joint"
         for name in model.joint_names:
-            assert driven.count(name) == 1, f"joint '{name}' has {driven.count(name)} actuators (needs exactly 1)"
-        assert sorted(driven) == sorted(model.joint_names), f"actuators on {driven}, joints {model.joint_names}"
+            assert driven.count(name) == 1, (
+                f"joint '{name}' has {driven.count(name)} actuators (needs exactly 1)"
+            )
+        assert sorted(driven) == sorted(model.joint_names), (
+            f"actuators on {driven}, joints {model.joint_names}"
+        )
 
     def test_validation_findings_are_plain_json(self, robot: Robot) -> None:
         """`coadapt robot show --json` and the results store write findings as JSON: `ok`
@@ -130,11 +146,14 @@ class RobotConformance:
         for design in [robot.nominal_design(), *robot.design_space().sample(2, rng=4)]:
             report = robot.validate(design)
             for f in report.findings:
-                assert type(f.ok) is bool, f"finding {f.check}: ok is {type(f.ok).__name__}, not bool"
+                assert type(f.ok) is bool, (
+                    f"finding {f.check}: ok is {type(f.ok).__name__}, not bool"
+                )
                 assert isinstance(f.check, str) and isinstance(f.message, str)
                 for value in (f.value, f.limit):
                     assert value is None or type(value) in (int, float), (
-                        f"finding {f.check}: value/limit of type {type(value).__name__}")
+                        f"finding {f.check}: value/limit of type {type(value).__name__}"
+                    )
             json.dumps(report.to_dict())
             json.dumps([vars(f) for f in report.findings])
 
@@ -174,7 +193,8 @@ class RobotConformance:
             others = np.delete(np.linalg.norm(moved, axis=1), leg)
             assert np.all(others < 1e-6), f"IK leg {leg} moved other feet by {others}"
             assert abs(moved[leg, 0] - step) < 0.5 * step, (
-                f"IK leg {leg} moved foot body '{model.foot_bodies[leg]}' by {moved[leg]} for a {step} m step in x")
+                f"IK leg {leg} moved foot body '{model.foot_bodies[leg]}' by {moved[leg]} for a {step} m step in x"
+            )
 
     def test_stands_in_each_simulator(self, robot: Robot) -> None:
         """Spawned at its standing height on flat ground (nominal physics, no randomization)
@@ -189,7 +209,9 @@ class RobotConformance:
         for sim_cls in _reading_simulators(model):
             if "flat" not in sim_cls.terrains:
                 continue
-            with sim_cls(robot, design[None], terrain="flat", randomization=RandomizationConfig.off(), seed=0) as sim:
+            with sim_cls(
+                robot, design[None], terrain="flat", randomization=RandomizationConfig.off(), seed=0
+            ) as sim:
                 sim.reset()
                 targets = sim.default_joint_pos.clone()
                 for _ in range(int(round(1.0 / sim.control_dt))):
@@ -199,5 +221,6 @@ class RobotConformance:
             tilt = math.degrees(2 * math.acos(min(1.0, abs(w))))
             where = f"in {sim_cls.name}"
             assert height > 0.7 * model.standing_base_height, (
-                f"base fell to {height:.3f} m of {model.standing_base_height:.3f} {where}")
+                f"base fell to {height:.3f} m of {model.standing_base_height:.3f} {where}"
+            )
             assert tilt < 30, f"base tilted {tilt:.0f} deg {where}"

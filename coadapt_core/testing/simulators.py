@@ -54,7 +54,9 @@ def _assert_state(state: SimState, n: int, j: int) -> None:
             assert torch.isfinite(value).all(), name
     assert state.foot_pos.shape[0] == n and state.foot_pos.shape[2] == 3
     assert state.foot_contact.dtype == torch.bool
-    assert torch.allclose(state.base_quat.norm(dim=-1), torch.ones(n, dtype=state.base_quat.dtype), atol=1e-4)
+    assert torch.allclose(
+        state.base_quat.norm(dim=-1), torch.ones(n, dtype=state.base_quat.dtype), atol=1e-4
+    )
 
 
 class SimulatorConformance:
@@ -129,7 +131,9 @@ class SimulatorConformance:
             state = sim.step(sim.default_joint_pos)
             _assert_state(state, sim.num_envs, sim.num_joints)
 
-    def test_designs_outside_the_space_are_refused_before_anything_changes(self, simulator_cls, robot) -> None:
+    def test_designs_outside_the_space_are_refused_before_anything_changes(
+        self, simulator_cls, robot
+    ) -> None:
         space = robot.design_space()
         bad = space.upper + 0.5
         with pytest.raises(DesignError) as caught:
@@ -141,15 +145,21 @@ class SimulatorConformance:
             with pytest.raises(DesignError) as caught:
                 sim.set_designs(np.array([0, 1]), np.stack([space.lower, bad]))
             assert caught.value.field == space.names[0]
-            np.testing.assert_array_equal(sim.designs, before)  # the good row was not applied either
+            np.testing.assert_array_equal(
+                sim.designs, before
+            )  # the good row was not applied either
             _assert_state(sim.step(sim.default_joint_pos), sim.num_envs, sim.num_joints)
 
     def test_torque_never_exceeds_motor_limit(self, simulator_cls, robot) -> None:
         import torch
 
         rand = RandomizationConfig(
-            friction=(1.0, 1.0), restitution=(0.0, 0.0), com_shift=(0.0, 0.0), delay=(0.0, 0.0),
-            pd_factor=(1.1, 1.1), motor_strength=(1.1, 1.1),
+            friction=(1.0, 1.0),
+            restitution=(0.0, 0.0),
+            com_shift=(0.0, 0.0),
+            delay=(0.0, 0.0),
+            pd_factor=(1.1, 1.1),
+            motor_strength=(1.1, 1.1),
         )
         with self.make(simulator_cls, robot, randomization=rand) as sim:
             sim.reset()
@@ -179,7 +189,9 @@ class SimulatorConformance:
         import torch
 
         terrain = "random" if "random" in simulator_cls.terrains else "flat"  # spawn points too
-        with self.make(simulator_cls, robot, randomization=RandomizationConfig(), seed=3, terrain=terrain) as sim:
+        with self.make(
+            simulator_cls, robot, randomization=RandomizationConfig(), seed=3, terrain=terrain
+        ) as sim:
             finals, frictions, spawns = [], [], []
             for _ in range(2):
                 sim.reseed(21)
@@ -193,10 +205,17 @@ class SimulatorConformance:
             assert torch.equal(finals[0], finals[1])
             sim.reseed(22)
             sim.reset()
-            assert not torch.equal(sim.env_params.friction, frictions[0])  # a different seed draws anew
+            assert not torch.equal(
+                sim.env_params.friction, frictions[0]
+            )  # a different seed draws anew
 
     def test_bad_options_are_one_line_user_errors(self, simulator_cls, robot) -> None:
-        for option, value in (("terrain", "mars"), ("decimation", 0), ("physics_dt", -0.005), ("num_threads", 0)):
+        for option, value in (
+            ("terrain", "mars"),
+            ("decimation", 0),
+            ("physics_dt", -0.005),
+            ("num_threads", 0),
+        ):
             with pytest.raises(UserError) as info:
                 self.make(simulator_cls, robot, **{option: value})
             assert info.value.field == option and "\n" not in str(info.value)
@@ -217,7 +236,9 @@ class SimulatorConformance:
                 assert tuple(value.shape) == ((n, 3) if name == "com_shift" else (n,)), name
             assert params.privileged().device == torch.device(sim.device)
 
-    def test_one_seed_draws_the_shared_parameters_and_spawn_points(self, simulator_cls, robot) -> None:
+    def test_one_seed_draws_the_shared_parameters_and_spawn_points(
+        self, simulator_cls, robot
+    ) -> None:
         """Construction draws nothing; the first reset draws Table 2 parameters from the
         "params" stream (default_rng(seed)) and, on the random terrain, spawn points from the
         "spawn" stream: the same numbers on every backend."""
@@ -232,8 +253,12 @@ class SimulatorConformance:
                 assert torch.equal(value.cpu(), getattr(expected, name).to(sim.dtype)), name
             if terrain == "random":
                 half = sim.terrain_model.size / 2 - SPAWN_MARGIN
-                xy = np.random.default_rng([13, SPAWN_STREAM_KEY]).uniform(-half, half, (sim.num_envs, 2))
-                np.testing.assert_allclose(state.base_pos[:, :2].double().cpu().numpy(), xy, atol=1e-5)
+                xy = np.random.default_rng([13, SPAWN_STREAM_KEY]).uniform(
+                    -half, half, (sim.num_envs, 2)
+                )
+                np.testing.assert_allclose(
+                    state.base_pos[:, :2].double().cpu().numpy(), xy, atol=1e-5
+                )
 
     def test_torque_is_the_shared_actuation_law(self, simulator_cls, robot) -> None:
         """With decimation 1 the reported torque is `pd_torque` at the state before the step,
@@ -244,7 +269,9 @@ class SimulatorConformance:
         rand = RandomizationConfig(
             friction=(1.0, 1.0), restitution=(0.0, 0.0), com_shift=(0.0, 0.0), delay=(0.0, 0.0)
         )
-        with self.make(simulator_cls, robot, randomization=rand, decimation=1, fixed_base=True) as sim:
+        with self.make(
+            simulator_cls, robot, randomization=rand, decimation=1, fixed_base=True
+        ) as sim:
             state = sim.reset()
             params = sim.env_params
             models = [robot.build(d) for d in sim.designs]
@@ -258,17 +285,25 @@ class SimulatorConformance:
                 before = state
                 state = sim.step(targets.to(sim.default_joint_pos))
                 expected = pd_torque(
-                    targets, before.joint_pos.double().cpu(), before.joint_vel.double().cpu(), *gains,
-                    params.pd_factor.double().cpu(), params.motor_strength.double().cpu(),
+                    targets,
+                    before.joint_pos.double().cpu(),
+                    before.joint_vel.double().cpu(),
+                    *gains,
+                    params.pd_factor.double().cpu(),
+                    params.motor_strength.double().cpu(),
                 )
-                torch.testing.assert_close(state.joint_torque.double().cpu(), expected, rtol=1e-4, atol=2e-2)
+                torch.testing.assert_close(
+                    state.joint_torque.double().cpu(), expected, rtol=1e-4, atol=2e-2
+                )
 
     def test_same_seed_same_trajectory(self, simulator_cls, robot) -> None:
         import torch
 
         finals = []
         for _ in range(2):
-            with self.make(simulator_cls, robot, randomization=RandomizationConfig(), seed=11) as sim:
+            with self.make(
+                simulator_cls, robot, randomization=RandomizationConfig(), seed=11
+            ) as sim:
                 sim.reset()
                 for _ in range(10):
                     state = sim.step(sim.default_joint_pos)
@@ -297,17 +332,25 @@ class SimulatorConformance:
         assert facts["total_mass"] == pytest.approx(model.total_mass, rel=1e-6)
         feet = np.asarray(tools.foot_positions(model, model.default_joint_pos), dtype=float)
         assert feet.shape == (len(model.foot_bodies), 3) and np.all(np.isfinite(feet))
-        with self.make(simulator_cls, robot, n=1, fixed_base=True) as sim:  # the nominal design, default pose
+        with self.make(
+            simulator_cls, robot, n=1, fixed_base=True
+        ) as sim:  # the nominal design, default pose
             state = sim.reset()
             q = state.base_quat[0].double().cpu().numpy()
             inverse = np.array([q[0], -q[1], -q[2], -q[3]])
-            rel = (state.foot_pos[0] - state.base_pos[0]).double().cpu().numpy()  # [F, 3] world frame
+            rel = (
+                (state.foot_pos[0] - state.base_pos[0]).double().cpu().numpy()
+            )  # [F, 3] world frame
             own = quat_rotate(np.tile(inverse, (len(rel), 1)), rel)
-        np.testing.assert_allclose(feet, own, atol=2e-3, err_msg="model tools' feet vs the simulator's, base frame")
+        np.testing.assert_allclose(
+            feet, own, atol=2e-3, err_msg="model tools' feet vs the simulator's, base frame"
+        )
         driven = tools.actuated_joints(model)
         assert sorted(d for d in driven if d is not None) == sorted(model.joint_names)
         check = getattr(tools, "HANDOFF_CHECK", None)
         assert check is None or Path(check).is_file(), check
         if check is not None:
-            assert tools.handoff_usage({"physics_dt": 0.005, "control_dt": 0.02, "decimation": 4, "control_hz": 50},
-                                       "robot.xml").strip()
+            assert tools.handoff_usage(
+                {"physics_dt": 0.005, "control_dt": 0.02, "decimation": 4, "control_hz": 50},
+                "robot.xml",
+            ).strip()

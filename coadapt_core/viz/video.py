@@ -32,13 +32,22 @@ def renderer_for(simulator: str | None = None) -> str:
 
     registry = get_registry()
     names = registry.names("simulator")
-    order = ([simulator] if simulator else []) + ([registry.default("simulator")] if names else []) + names
+    order = (
+        ([simulator] if simulator else [])
+        + ([registry.default("simulator")] if names else [])
+        + names
+    )
     for name in dict.fromkeys(order):
         if name in names and getattr(registry.get("simulator", name), "renderer", ""):
             return str(registry.get("simulator", name).renderer)
-    broken = "".join(f"; {b.line()}" for b in registry.broken)  # e.g. a GL setting its library refuses
-    raise UserError("no installed simulator plugin declares an offscreen renderer (Simulator.renderer)"
-                    + " ".join(broken.split())[:300], field="simulator")
+    broken = "".join(
+        f"; {b.line()}" for b in registry.broken
+    )  # e.g. a GL setting its library refuses
+    raise UserError(
+        "no installed simulator plugin declares an offscreen renderer (Simulator.renderer)"
+        + " ".join(broken.split())[:300],
+        field="simulator",
+    )
 
 
 def model_format(renderer: str) -> str:
@@ -51,8 +60,10 @@ def model_format(renderer: str) -> str:
 def run_checkpoint(run_dir: Path, config: dict[str, Any]) -> Path | None:
     """The run's final universal policy: its last backend checkpoint, else the policy it
     started from (a path, or the robot's shipped one); None when there is none."""
-    found = sorted((run_dir / "checkpoints").glob("backend-outer*.pt"),
-                   key=lambda p: int("".join(ch for ch in p.stem if ch.isdigit()) or 0))
+    found = sorted(
+        (run_dir / "checkpoints").glob("backend-outer*.pt"),
+        key=lambda p: int("".join(ch for ch in p.stem if ch.isdigit()) or 0),
+    )
     if found:
         return found[-1]
     given = str(config.get("checkpoint") or "")
@@ -74,8 +85,10 @@ def run_policies(run_dir: Path, config: dict[str, Any]) -> tuple[dict[str, Path]
         own = {role: run_dir / name for role, name in OWN_POLICY_FILES.items()}
         if all(p.is_file() for p in own.values()):
             return own, "each design under its own policy"
-        return None, ("the run shares no policy between designs and kept none of its best and nominal designs' own "
-                      "(runs made since keep them in checkpoints/policy-best.pt and policy-nominal.pt)")
+        return None, (
+            "the run shares no policy between designs and kept none of its best and nominal designs' own "
+            "(runs made since keep them in checkpoints/policy-best.pt and policy-nominal.pt)"
+        )
     checkpoint = run_checkpoint(run_dir, config)
     if checkpoint is None:
         return None, "the run kept no universal policy checkpoint"
@@ -83,8 +96,15 @@ def run_policies(run_dir: Path, config: dict[str, Any]) -> tuple[dict[str, Path]
 
 
 def render_run_video(
-    run_dir: str | os.PathLike, summary: dict[str, Any], config: dict[str, Any], *, seconds: float = 4.0,
-    width: int = 320, height: int = 320, stream: Any = None, progress: Any = None,
+    run_dir: str | os.PathLike,
+    summary: dict[str, Any],
+    config: dict[str, Any],
+    *,
+    seconds: float = 4.0,
+    width: int = 320,
+    height: int = 320,
+    stream: Any = None,
+    progress: Any = None,
     policies: dict[str, Path] | None = None,
 ) -> list[Path]:
     """Roll out the best and the nominal design (one agent each, no randomization, command
@@ -119,21 +139,51 @@ def render_run_video(
         from coadapt_core.experiments.evaluate import evaluate_checkpoint
 
         panels = []
-        for k, (label, design) in enumerate((("best", summary["best_design"]), ("nominal", summary["nominal_design"]))):
+        for k, (label, design) in enumerate(
+            (("best", summary["best_design"]), ("nominal", summary["nominal_design"]))
+        ):
             tell(0.2 * k, f"rolling out the {label} design ({seconds:g} s)")
             result = evaluate_checkpoint(
-                policies[label], robot, sim_cls, design, terrain=config.get("terrain", "flat"), command=[0.5, 0.0, 0.0],
-                agents=1, seconds=seconds, seed=int(config.get("seed") or 0), randomize=False, record=True,
+                policies[label],
+                robot,
+                sim_cls,
+                design,
+                terrain=config.get("terrain", "flat"),
+                command=[0.5, 0.0, 0.0],
+                agents=1,
+                seconds=seconds,
+                seed=int(config.get("seed") or 0),
+                randomize=False,
+                record=True,
             )
             trajectory = result["_trajectory"]
-            panels.append(rollout_panel(robot, design, trajectory, panel_label(label, design, result["vx_mean"]), renderer))
+            panels.append(
+                rollout_panel(
+                    robot,
+                    design,
+                    trajectory,
+                    panel_label(label, design, result["vx_mean"]),
+                    renderer,
+                )
+            )
         fps = 1.0 / (2 * trajectory["dt"])
     except Exception as exc:  # the run's result stands; the picture is a bonus
-        print(f"video: not rendered ({type(exc).__name__}: {' '.join(str(exc).split())[:160]})", file=stream)
+        print(
+            f"video: not rendered ({type(exc).__name__}: {' '.join(str(exc).split())[:160]})",
+            file=stream,
+        )
         return []
-    outputs = [run_dir / f"{VIDEO_NAME}.gif"] + ([run_dir / f"{VIDEO_NAME}.mp4"] if want_mp4 else [])
-    payload = {"panels": panels, "outputs": [str(p) for p in outputs], "width": width, "height": height, "fps": fps,
-               "report": True}
+    outputs = [run_dir / f"{VIDEO_NAME}.gif"] + (
+        [run_dir / f"{VIDEO_NAME}.mp4"] if want_mp4 else []
+    )
+    payload = {
+        "panels": panels,
+        "outputs": [str(p) for p in outputs],
+        "width": width,
+        "height": height,
+        "fps": fps,
+        "report": True,
+    }
     tell(0.4, "drawing frames")
     frames = sum(len(p["frames"]) for p in panels)
 
@@ -142,19 +192,29 @@ def render_run_video(
             k = int(line[6:])
             tell(0.4 + 0.55 * k / max(frames, 1), f"drawing frame {k}/{frames}")
 
-    backend, errors = offscreen("render_panels", payload, timeout=900, on_line=on_line, renderer=renderer)
+    backend, errors = offscreen(
+        "render_panels", payload, timeout=900, on_line=on_line, renderer=renderer
+    )
     tell(1.0, "written" if backend is not None else "not rendered")
     if backend is not None:
         written = [p for p in outputs if p.is_file()]
-        print(f"video: {', '.join(str(p) for p in written)} (best left, nominal right, {why}; {backend})",
-              file=stream)
+        print(
+            f"video: {', '.join(str(p) for p in written)} (best left, nominal right, {why}; {backend})",
+            file=stream,
+        )
         return written
     print("video: not rendered, no offscreen GL here (" + "; ".join(errors) + ")", file=stream)
     return []
 
 
-def offscreen(function: str, kwargs: dict[str, Any], *, timeout: float, on_line: Any = None,
-              renderer: str | None = None) -> tuple[str | None, list[str]]:
+def offscreen(
+    function: str,
+    kwargs: dict[str, Any],
+    *,
+    timeout: float,
+    on_line: Any = None,
+    renderer: str | None = None,
+) -> tuple[str | None, list[str]]:
     """Call `<renderer>.<function>(**kwargs)` in a fresh interpreter under each of the
     renderer's `environments()` in turn (`renderer`: a module path, default `renderer_for()`).
     Returns (the label of the environment that worked, e.g. "MUJOCO_GL=egl", or None, and the
@@ -171,8 +231,14 @@ def offscreen(function: str, kwargs: dict[str, Any], *, timeout: float, on_line:
     for backend, variables in importlib.import_module(renderer).environments():
         env = dict(os.environ, **variables)
         with tempfile.TemporaryFile("w+") as err:
-            proc = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                    stderr=err, text=True, env=env)
+            proc = subprocess.Popen(
+                [sys.executable, "-c", code],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                stderr=err,
+                text=True,
+                env=env,
+            )
             timer = threading.Timer(timeout, proc.kill)
             timer.start()
             try:
@@ -212,28 +278,48 @@ def panel_label(role: str, design: Any, vx: float) -> str:
     return f"{role}: {values} | vx {vx:.2f} m/s"
 
 
-def rollout_panel(robot: Any, design: Any, trajectory: dict, label: str | None = None,
-                  renderer: str | None = None) -> dict[str, Any]:
+def rollout_panel(
+    robot: Any, design: Any, trajectory: dict, label: str | None = None, renderer: str | None = None
+) -> dict[str, Any]:
     """What `render_panels` draws of one recorded rollout (`evaluate_checkpoint(record=True)`):
     the design's model in the renderer's format, every other frame (25 fps at a 0.02 s
     policy step), a label."""
     model = robot.build(robot.check_design(design) if hasattr(robot, "check_design") else design)
     text = model.text(model_format(renderer or renderer_for()))
-    return {"model": text, "joint_names": model.joint_names, "frames": trajectory["frames"][::2], "label": label}
+    return {
+        "model": text,
+        "joint_names": model.joint_names,
+        "frames": trajectory["frames"][::2],
+        "label": label,
+    }
 
 
-def write_rollout_video(robot: Any, design: Any, trajectory: dict, output: Path, width: int = 480,
-                        height: int = 360) -> tuple[str | None, list[str]]:
+def write_rollout_video(
+    robot: Any, design: Any, trajectory: dict, output: Path, width: int = 480, height: int = 360
+) -> tuple[str | None, list[str]]:
     """`coadapt eval --video`: one recorded rollout into `output` (.gif, or .mp4 with ffmpeg).
     Returns `offscreen`'s (backend, errors)."""
     renderer = renderer_for()
     panel = rollout_panel(robot, design, trajectory, renderer=renderer)
-    payload = {"panels": [panel], "outputs": [str(output)], "width": width, "height": height,
-               "fps": 1.0 / (2 * trajectory["dt"])}
+    payload = {
+        "panels": [panel],
+        "outputs": [str(output)],
+        "width": width,
+        "height": height,
+        "fps": 1.0 / (2 * trajectory["dt"]),
+    }
     return offscreen("render_panels", payload, timeout=1800, renderer=renderer)
 
 
 __all__ = [
-    "VIDEO_NAME", "model_format", "offscreen", "partial_name", "render_run_video", "renderer_for", "rollout_panel",
-    "run_checkpoint", "run_policies", "write_rollout_video",
+    "VIDEO_NAME",
+    "model_format",
+    "offscreen",
+    "partial_name",
+    "render_run_video",
+    "renderer_for",
+    "rollout_panel",
+    "run_checkpoint",
+    "run_policies",
+    "write_rollout_video",
 ]

@@ -17,13 +17,30 @@ def finite_costs(costs: np.ndarray) -> np.ndarray:
 
 #: the particle-swarm options of pso and mixed-pso (the paper's settings by default)
 SWARM_OPTIONS: tuple[PluginOption, ...] = (
-    PluginOption("inertia", "float", 0.9, "inertia (momentum) w of the particles", minimum=0.0,
-                 alias="inertia"),
-    PluginOption("c1", "float", 2.0, "cognitive impact: pull towards a particle's own best", minimum=0.0,
-                 alias="c1"),
-    PluginOption("c2", "float", 2.0, "social impact: pull towards the swarm's best", minimum=0.0, alias="c2"),
     PluginOption(
-        "max_velocity_rate", "float", 0.2, "largest step per round, as a fraction of the range",
+        "inertia",
+        "float",
+        0.9,
+        "inertia (momentum) w of the particles",
+        minimum=0.0,
+        alias="inertia",
+    ),
+    PluginOption(
+        "c1",
+        "float",
+        2.0,
+        "cognitive impact: pull towards a particle's own best",
+        minimum=0.0,
+        alias="c1",
+    ),
+    PluginOption(
+        "c2", "float", 2.0, "social impact: pull towards the swarm's best", minimum=0.0, alias="c2"
+    ),
+    PluginOption(
+        "max_velocity_rate",
+        "float",
+        0.2,
+        "largest step per round, as a fraction of the range",
         minimum=1e-9,
     ),
 )

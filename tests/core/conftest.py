@@ -23,7 +23,9 @@ class FakeBiped(Robot):
     name = "fake_biped"
 
     def design_space(self, mixed: bool = False) -> DesignSpace:
-        return DesignSpace([Continuous("thigh_scale", 0.5, 1.5), Continuous("shank_scale", 0.5, 1.5)])
+        return DesignSpace(
+            [Continuous("thigh_scale", 0.5, 1.5), Continuous("shank_scale", 0.5, 1.5)]
+        )
 
     def nominal_design(self, mixed: bool = False) -> np.ndarray:
         return np.array([1.0, 1.0])
@@ -60,7 +62,9 @@ class FakeBiped(Robot):
         return torch.stack([roll, pitch, knee, ankle], dim=-1).reshape(-1, 8)
 
     def default_foot_positions(self, designs: torch.Tensor) -> torch.Tensor:
-        q = torch.as_tensor(np.tile(DEFAULT_LEG, 2), dtype=designs.dtype).expand(designs.shape[0], 8)
+        q = torch.as_tensor(np.tile(DEFAULT_LEG, 2), dtype=designs.dtype).expand(
+            designs.shape[0], 8
+        )
         return self.forward_kinematics(designs, q)
 
 
@@ -91,7 +95,11 @@ class FakeSim(Simulator):
 
     def reset(self, env_ids=None) -> SimState:
         n = self.num_envs
-        ids = torch.arange(n) if env_ids is None else torch.as_tensor(np.asarray(env_ids), dtype=torch.long)
+        ids = (
+            torch.arange(n)
+            if env_ids is None
+            else torch.as_tensor(np.asarray(env_ids), dtype=torch.long)
+        )
         if not hasattr(self, "q"):
             self.q = self.q0.clone()
             self.dq = torch.zeros(n, 8)
@@ -154,7 +162,9 @@ def fake_robot() -> FakeBiped:
 
 @pytest.fixture
 def fake_sim_factory(fake_robot):
-    def make(num_envs: int = 8, designs: np.ndarray | None = None, randomize: bool = False, seed: int = 0):
+    def make(
+        num_envs: int = 8, designs: np.ndarray | None = None, randomize: bool = False, seed: int = 0
+    ):
         if designs is None:
             designs = np.tile(fake_robot.nominal_design(), (num_envs, 1))
         config = RandomizationConfig() if randomize else RandomizationConfig.off()

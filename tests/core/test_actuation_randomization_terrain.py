@@ -30,17 +30,40 @@ def test_pd_torque_scaled_then_clipped_to_the_motor_envelope():
     q_target = _t([[0.1, 5.0, -5.0, 1.0], [0.1, 0.1, 0.1, 0.1]])
     q = torch.zeros(2, 4, dtype=torch.float64)
     dq = _t([[0.0, 0.0, 0.0, 5.0], [0.0, 0.0, 0.0, 0.0]])
-    kp, kd = torch.full((2, 4), 100.0, dtype=torch.float64), torch.full((2, 4), 2.0, dtype=torch.float64)
-    tau_max, dq_max = torch.full((2, 4), 120.0, dtype=torch.float64), torch.full((2, 4), 10.0, dtype=torch.float64)
-    tau = pd_torque(q_target, q, dq, kp, kd, tau_max, dq_max, pd_factor=_t([1.1, 1.0]), motor_strength=_t([0.9, 0.5]))
+    kp, kd = (
+        torch.full((2, 4), 100.0, dtype=torch.float64),
+        torch.full((2, 4), 2.0, dtype=torch.float64),
+    )
+    tau_max, dq_max = (
+        torch.full((2, 4), 120.0, dtype=torch.float64),
+        torch.full((2, 4), 10.0, dtype=torch.float64),
+    )
+    tau = pd_torque(
+        q_target,
+        q,
+        dq,
+        kp,
+        kd,
+        tau_max,
+        dq_max,
+        pd_factor=_t([1.1, 1.0]),
+        motor_strength=_t([0.9, 0.5]),
+    )
     expected = [
-        [100 * 0.1 * 0.99, 120.0, -120.0, 60.0],  # in range; clipped up, down; (100 - 10) * 0.99 above 60 at dq 5
+        [
+            100 * 0.1 * 0.99,
+            120.0,
+            -120.0,
+            60.0,
+        ],  # in range; clipped up, down; (100 - 10) * 0.99 above 60 at dq 5
         [5.0, 5.0, 5.0, 5.0],  # env 1: its own factors (1.0 x 0.5)
     ]
     torch.testing.assert_close(tau, _t(expected))
     # written in place when asked, and scalar factors broadcast
     out = torch.empty(2, 4, dtype=torch.float64)
-    result = pd_torque(q_target, q, torch.zeros_like(dq), kp, kd, tau_max, dq_max, 0.5, 1.0, out=out)
+    result = pd_torque(
+        q_target, q, torch.zeros_like(dq), kp, kd, tau_max, dq_max, 0.5, 1.0, out=out
+    )
     assert result.data_ptr() == out.data_ptr()
     torch.testing.assert_close(out[1], torch.full((4,), 5.0, dtype=torch.float64))
 
@@ -102,7 +125,11 @@ def test_randomization_ranges_and_off():
     assert p.delay.min() >= 0.0 and p.delay.max() <= 0.020
     assert p.friction.std() > 0.1
     off = sample_env_params(RandomizationConfig.off(), 10, np.random.default_rng(0))
-    assert bool((off.friction == 1.0).all()) and bool((off.delay == 0.0).all()) and bool((off.pd_factor == 1.0).all())
+    assert (
+        bool((off.friction == 1.0).all())
+        and bool((off.delay == 0.0).all())
+        and bool((off.pd_factor == 1.0).all())
+    )
     # delay in whole physics steps, rounded half to even: 7.5 ms at 5 ms is 2 steps, 12.5 ms 2, 17.5 ms 4
     p.delay[:3] = torch.tensor([0.0075, 0.0125, 0.0175], dtype=torch.float64)
     assert p.delay_steps(0.005)[:3].tolist() == [2, 2, 4]

@@ -65,8 +65,13 @@ class NoTrain:
 def test_our_backends_declare_what_they_implement():
     from coadapt_core.learning.backend import UniversalPolicyBackend
 
-    assert AnalyticBackend.surrogate_ensemble is True and UniversalPolicyBackend.surrogate_ensemble is True
-    assert not getattr(SpecializedPolicyBackend, "surrogate_ensemble", False)  # no shared policy, no surrogate
+    assert (
+        AnalyticBackend.surrogate_ensemble is True
+        and UniversalPolicyBackend.surrogate_ensemble is True
+    )
+    assert not getattr(
+        SpecializedPolicyBackend, "surrogate_ensemble", False
+    )  # no shared policy, no surrogate
     assert surrogate_ensemble(AnalyticBackend(0)) is not None
     assert surrogate_ensemble(SpecializedPolicyBackend(AnalyticBackend, train_steps=1)) is None
 
@@ -76,14 +81,21 @@ def test_a_declared_ensemble_missing_a_method_fails_the_check():
     assert len(problems) == 1 and "surrogate_members is missing" in problems[0], problems
     assert check_backend(AnalyticBackend(0)) == []
     missing = check_backend(NoTrain())
-    assert any("train is missing" in p for p in missing) and any("real_fitness is missing" in p for p in missing)
-    assert check_backend(ExtraOption(0)) == [] and check_backend(ExtraOption) == []  # an instance or the class
-    with pytest.raises(CoadaptError, match="declares surrogate_ensemble but has no surrogate_members"):
+    assert any("train is missing" in p for p in missing) and any(
+        "real_fitness is missing" in p for p in missing
+    )
+    assert (
+        check_backend(ExtraOption(0)) == [] and check_backend(ExtraOption) == []
+    )  # an instance or the class
+    with pytest.raises(
+        CoadaptError, match="declares surrogate_ensemble but has no surrogate_members"
+    ):
         surrogate_ensemble(NoMembers(0))
 
 
 def test_the_suite_fails_on_a_backend_missing_a_declared_surrogate_method(pytester):
-    pytester.makepyfile(test_broken='''
+    pytester.makepyfile(
+        test_broken='''
 import pytest
 from coadapt_core.testing import BackendConformance
 
@@ -115,10 +127,15 @@ class TestPositional(BackendConformance):
     @pytest.fixture
     def backend(self):
         return PositionalSamples()
-''')
+'''
+    )
     result = pytester.runpytest_subprocess("-q", "-p", "no:cacheprovider")
     failed = [line for line in result.outlines if line.startswith("FAILED")]
     assert result.parseoutcomes().get("failed", 0) == 2, result.outlines[-15:]
-    assert all("test_a_declared_surrogate_ensemble_is_implemented" in line for line in failed), failed
+    assert all("test_a_declared_surrogate_ensemble_is_implemented" in line for line in failed), (
+        failed
+    )
     text = "\n".join(result.outlines)
-    assert "surrogate_members is missing" in text and "cannot be called as surrogate_members" in text
+    assert (
+        "surrogate_members is missing" in text and "cannot be called as surrogate_members" in text
+    )

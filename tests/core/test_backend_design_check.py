@@ -19,9 +19,17 @@ def _backend():
     robot = registry.create("robot", "kuafu")
     objectives = [registry.create("objective", "torque")]
     backend = UniversalPolicyBackend(
-        robot, registry.get("simulator", "mujoco"), objectives, terrain="flat", design_space=robot.design_space(),
-        agents_per_design=2, seed=0, randomization=RandomizationConfig.off(),
-        train_config=TrainConfig(agents_per_design=2, steps_per_env=8, epochs=1, minibatches=1, torch_threads=1),
+        robot,
+        registry.get("simulator", "mujoco"),
+        objectives,
+        terrain="flat",
+        design_space=robot.design_space(),
+        agents_per_design=2,
+        seed=0,
+        randomization=RandomizationConfig.off(),
+        train_config=TrainConfig(
+            agents_per_design=2, steps_per_env=8, epochs=1, minibatches=1, torch_threads=1
+        ),
     )
     return robot, objectives, backend
 
@@ -36,7 +44,9 @@ def test_a_design_outside_the_space_is_refused_and_changes_nothing() -> None:
             backend.real_fitness(bad, objectives, agents=2, steps=5, seed=1)
         assert caught.value.field == space.names[1] and "outside its bounds" in str(caught.value)
         first = backend.real_fitness(good, objectives, agents=2, steps=5, seed=1)
-        with pytest.raises(DesignError) as caught:  # the built environment's designs swapped in place
+        with pytest.raises(
+            DesignError
+        ) as caught:  # the built environment's designs swapped in place
             backend.real_fitness(bad, objectives, agents=2, steps=5, seed=1)
         assert caught.value.field == space.names[1]
         np.testing.assert_array_equal(backend.eval_env.sim.designs, np.repeat(good, 2, axis=0))

@@ -18,9 +18,35 @@ import torch
 from coadapt_core.cli import main
 
 RO = "/sys/coadapt-readonly"  # creating anything there fails (EPERM / EROFS), even as root
-SMOKE = ["--preset", "smoke", "--population", "2", "--outer-iterations", "1", "--optimizer-iterations", "1",
-         "--agents-per-design", "1", "--eval-steps", "2", "--train-steps", "10"]
-GRID = ["grid", "--methods", "ours", "--objectives", "torque", "--terrains", "flat", "--seeds", "0", "--preset", "smoke"]
+SMOKE = [
+    "--preset",
+    "smoke",
+    "--population",
+    "2",
+    "--outer-iterations",
+    "1",
+    "--optimizer-iterations",
+    "1",
+    "--agents-per-design",
+    "1",
+    "--eval-steps",
+    "2",
+    "--train-steps",
+    "10",
+]
+GRID = [
+    "grid",
+    "--methods",
+    "ours",
+    "--objectives",
+    "torque",
+    "--terrains",
+    "flat",
+    "--seeds",
+    "0",
+    "--preset",
+    "smoke",
+]
 LAND = ["landscape", "--grid", "2", "--agents", "1", "--steps", "2"]
 
 
@@ -35,12 +61,38 @@ CASES: list[tuple[str, list[str], dict[str, str]]] = [
     ("export --store bad://", ["export", "--store", "bad://x", "--out", "{T}/exp"], {}),
     ("grid --store bad://", [*GRID, "--store", "bad://x", "--out", "{T}/g"], {}),
     ("landscape --store bad://", [*LAND, "--store", "bad://x"], {}),
-    ("run --bo-storage bad://", ["run", *SMOKE, "--method", "bo-specialized", "--bo-storage", "bad://x", "--store", "none",
-                                 "--out", "{T}/o"], {}),
-    ("report --store not-a-database", ["report", "--store", "{T}/notdb.db", "--out", "{T}/rep"], {}),
-    ("export --store not-a-database", ["export", "--store", "{T}/notdb.db", "--out", "{T}/exp"], {}),
+    (
+        "run --bo-storage bad://",
+        [
+            "run",
+            *SMOKE,
+            "--method",
+            "bo-specialized",
+            "--bo-storage",
+            "bad://x",
+            "--store",
+            "none",
+            "--out",
+            "{T}/o",
+        ],
+        {},
+    ),
+    (
+        "report --store not-a-database",
+        ["report", "--store", "{T}/notdb.db", "--out", "{T}/rep"],
+        {},
+    ),
+    (
+        "export --store not-a-database",
+        ["export", "--store", "{T}/notdb.db", "--out", "{T}/exp"],
+        {},
+    ),
     ("grid --store not-a-database", [*GRID, "--store", "{T}/notdb.db", "--out", "{T}/g"], {}),
-    ("report --store postgresql without driver", ["report", "--store", "postgresql://u@127.0.0.1:1/db", "--out", "{T}/rep"], {}),
+    (
+        "report --store postgresql without driver",
+        ["report", "--store", "postgresql://u@127.0.0.1:1/db", "--out", "{T}/rep"],
+        {},
+    ),
     ("run --out names a file", ["run", *SMOKE, "--store", "none", "--out", "{T}/afile"], {}),
     ("run --out read-only", ["run", *SMOKE, "--store", "none", "--out", RO], {}),
     ("train --out names a file", ["train", "--steps", "8", "--out", "{T}/afile"], {}),
@@ -51,17 +103,37 @@ CASES: list[tuple[str, list[str], dict[str, str]]] = [
     ("report --out read-only", ["report", "--store", "{T}/r.db", "--out", RO], {}),
     ("export --out names a file", ["export", "--store", "{T}/r.db", "--out", "{T}/afile"], {}),
     ("export --out read-only", ["export", "--store", "{T}/r.db", "--out", RO], {}),
-    ("run --device tpu", ["run", *SMOKE, "--store", "none", "--device", "tpu", "--out", "{T}/o"], {}),
+    (
+        "run --device tpu",
+        ["run", *SMOKE, "--store", "none", "--device", "tpu", "--out", "{T}/o"],
+        {},
+    ),
     ("landscape --device tpu", [*LAND, "--device", "tpu", "--store", "{T}/l.db"], {}),
-    ("run --config binary", ["run", "--config", "{T}/binary.yaml", "--store", "none", "--out", "{T}/o"], {}),
+    (
+        "run --config binary",
+        ["run", "--config", "{T}/binary.yaml", "--store", "none", "--out", "{T}/o"],
+        {},
+    ),
     ("train --threads 0", ["train", "--steps", "8", "--threads", "0", "--out", "{T}/t"], {}),
     ("run --threads 0", ["run", *SMOKE, "--threads", "0", "--store", "none", "--out", "{T}/o"], {}),
     ("grid --threads 0", grid("{T}", "--threads", "0"), {}),
-    ("train --objectives torque,torque", ["train", "--steps", "8", "--objectives", "torque,torque", "--out", "{T}/t"], {}),
+    (
+        "train --objectives torque,torque",
+        ["train", "--steps", "8", "--objectives", "torque,torque", "--out", "{T}/t"],
+        {},
+    ),
     ("grid --timeout nan", grid("{T}", "--timeout", "nan"), {}),
     ("grid --timeout -1", grid("{T}", "--timeout", "-1"), {}),
-    ("grid unknown objective", [*GRID[:4], "nope", *GRID[5:], "--store", "{T}/g.db", "--out", "{T}/g"], {}),
-    ("grid unknown terrain", [*GRID[:6], "moon", *GRID[7:], "--store", "{T}/g.db", "--out", "{T}/g"], {}),
+    (
+        "grid unknown objective",
+        [*GRID[:4], "nope", *GRID[5:], "--store", "{T}/g.db", "--out", "{T}/g"],
+        {},
+    ),
+    (
+        "grid unknown terrain",
+        [*GRID[:6], "moon", *GRID[7:], "--store", "{T}/g.db", "--out", "{T}/g"],
+        {},
+    ),
     ("grid unknown preset", [*GRID[:-1], "nope", "--store", "{T}/g.db", "--out", "{T}/g"], {}),
     ("grid unknown simulator", grid("{T}", "--sim", "nope"), {}),
     ("grid unknown optimizer", grid("{T}", "--optimizer", "nope"), {}),
@@ -71,14 +143,37 @@ CASES: list[tuple[str, list[str], dict[str, str]]] = [
     ("grid --executor nope", grid("{T}", "--executor", "nope"), {}),
     ("grid --workers 0", grid("{T}", "--workers", "0"), {}),
     ("grid --workers -1", grid("{T}", "--workers", "-1"), {}),
-    ("grid ray address unreachable", grid("{T}", "--executor", "ray", "--address", "127.0.0.1:1"), {}),
-    ("grid ray address unknown host", grid("{T}", "--executor", "ray", "--address", "not-a-host.invalid:1"), {}),
+    (
+        "grid ray address unreachable",
+        grid("{T}", "--executor", "ray", "--address", "127.0.0.1:1"),
+        {},
+    ),
+    (
+        "grid ray address unknown host",
+        grid("{T}", "--executor", "ray", "--address", "not-a-host.invalid:1"),
+        {},
+    ),
     ("robot render -o read-only", ["robot", "render", "kuafu", "-o", "/sys/coadapt-x.png"], {}),
-    ("run --checkpoint of another robot", ["run", *SMOKE, "--checkpoint", "{T}/other-robot.pt", "--store", "none",
-                                           "--out", "{T}/o"], {}),
-    ("landscape --checkpoint of another robot", [*LAND, "--checkpoint", "{T}/other-robot.pt", "--store", "{T}/l.db"], {}),
-    ("report --transfer-sim nope", ["report", "--store", "{T}/r.db", "--out", "{T}/rep", "--transfer-sim", "nope"], {}),
-    ("yaml mixed: maybe", ["run", "--config", "{T}/maybe.yaml", "--store", "none", "--out", "{T}/o"], {}),
+    (
+        "run --checkpoint of another robot",
+        ["run", *SMOKE, "--checkpoint", "{T}/other-robot.pt", "--store", "none", "--out", "{T}/o"],
+        {},
+    ),
+    (
+        "landscape --checkpoint of another robot",
+        [*LAND, "--checkpoint", "{T}/other-robot.pt", "--store", "{T}/l.db"],
+        {},
+    ),
+    (
+        "report --transfer-sim nope",
+        ["report", "--store", "{T}/r.db", "--out", "{T}/rep", "--transfer-sim", "nope"],
+        {},
+    ),
+    (
+        "yaml mixed: maybe",
+        ["run", "--config", "{T}/maybe.yaml", "--store", "none", "--out", "{T}/o"],
+        {},
+    ),
     ("import a file that is no export", ["import", "{T}/afile", "--store", "{T}/i.db"], {}),
     ("import binary export files", ["import", "{T}/binexp/runs.csv", "--store", "{T}/i.db"], {}),
     ("import --store not-a-database", ["import", "{T}/binexp", "--store", "{T}/notdb.db"], {}),
@@ -93,9 +188,21 @@ def folder(tmp_path_factory) -> Path:
     (T / "binary.yaml").write_bytes(bytes(range(256)) * 8)
     (T / "maybe.yaml").write_text("mixed: maybe\n")
     (T / "binexp").mkdir()
-    for table in ("runs", "evaluations", "training_phases", "checkpoints"):  # an "export" of binary files
+    for table in (
+        "runs",
+        "evaluations",
+        "training_phases",
+        "checkpoints",
+    ):  # an "export" of binary files
         (T / "binexp" / f"{table}.csv").write_bytes(bytes(range(256)) * 4)
-    shipped = Path(__file__).resolve().parents[2] / "plugins" / "robots" / "kuafu" / "policies" / "flat.pt"
+    shipped = (
+        Path(__file__).resolve().parents[2]
+        / "plugins"
+        / "robots"
+        / "kuafu"
+        / "policies"
+        / "flat.pt"
+    )
     state = torch.load(shipped, map_location="cpu", weights_only=True)
     state["robot"] = "another-robot"
     torch.save(state, T / "other-robot.pt")
@@ -123,8 +230,10 @@ def test_bad_input_is_one_line_and_exit_2(folder, capsys, monkeypatch, argv, env
         assert not (out.is_dir() and any(p.name != "grid-logs" for p in out.iterdir()))
 
 
-@pytest.mark.parametrize("text, expected", [('"false"', False), ("false", False), ("no", False), ('"true"', True),
-                                            ("yes", True)])
+@pytest.mark.parametrize(
+    "text, expected",
+    [('"false"', False), ("false", False), ("no", False), ('"true"', True), ("yes", True)],
+)
 def test_yaml_booleans_mean_what_they_say(tmp_path, text, expected):
     from coadapt_core.coadapt.config import make_config
 

@@ -25,10 +25,25 @@ from tests.benchmarks import load_benchmark
 pytestmark = pytest.mark.slow
 ROOT = Path(__file__).resolve().parents[2]
 
-TINY = {"method": "bo-specialized", "sim": "mujoco", "objective": "torque", "seed": 2, "outer_iterations": 1,
-        "bo_designs": 2, "specialized_train_steps": 16, "population": 2, "agents_per_design": 2, "eval_agents": 4,
-        "eval_steps": 8, "final_max_blocks": 2, "final_min_blocks": 2, "final_candidates": 1, "logger": "none",
-        "checkpoint": "none", "train": {"steps_per_env": 4, "hidden": [16, 16], "epochs": 1, "minibatches": 1}}
+TINY = {
+    "method": "bo-specialized",
+    "sim": "mujoco",
+    "objective": "torque",
+    "seed": 2,
+    "outer_iterations": 1,
+    "bo_designs": 2,
+    "specialized_train_steps": 16,
+    "population": 2,
+    "agents_per_design": 2,
+    "eval_agents": 4,
+    "eval_steps": 8,
+    "final_max_blocks": 2,
+    "final_min_blocks": 2,
+    "final_candidates": 1,
+    "logger": "none",
+    "checkpoint": "none",
+    "train": {"steps_per_env": 4, "hidden": [16, 16], "epochs": 1, "minibatches": 1},
+}
 
 
 @pytest.fixture(scope="module")
@@ -40,14 +55,23 @@ def bo_run(tmp_path_factory):
     return run_coadaptation(config), db
 
 
-def test_a_bo_run_checks_finally_keeps_its_policies_and_old_runs_get_them_again(bo_run, tmp_path, capsys):
+def test_a_bo_run_checks_finally_keeps_its_policies_and_old_runs_get_them_again(
+    bo_run, tmp_path, capsys
+):
     result, db = bo_run
     s = result.summary
     # the paired final check of the shared methods: 2 blocks x 4 scenarios, candidate and nominal
     assert s["final_blocks"] == 2 and s["final_scenarios"] == 8
     assert s["final_interactions"] == 2 * 2 * 4 * 8
-    for key in ("best_cost_se", "nominal_cost_se", "best_plain_mean", "nominal_plain_mean", "best_fall_rate",
-                "nominal_fall_rate", "fall_rate_difference"):
+    for key in (
+        "best_cost_se",
+        "nominal_cost_se",
+        "best_plain_mean",
+        "nominal_plain_mean",
+        "best_fall_rate",
+        "nominal_fall_rate",
+        "fall_rate_difference",
+    ):
         assert s[key] is not None and np.isfinite(s[key]), key
     assert s["nominal_cost_se"] > 0 and 0.0 <= s["best_fall_rate"] <= 1.0
     assert not s["best_is_nominal"]  # seed 2: a design other than the nominal one, so two policies
@@ -84,9 +108,12 @@ def test_a_bo_run_checks_finally_keeps_its_policies_and_old_runs_get_them_again(
     assert check.main([str(old), "--json"]) == 0
     lines = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     assert [(x["design"], x["equal"]) for x in lines] == [("best", True), ("nominal", True)]
-    assert lines[1]["compared"] == "reference level" and lines[1]["recorded"] == s["cost_reference"][0]
-    assert check.main([str(tmp_path)]) == 2 and "not a finished run folder" in capsys.readouterr().err
-
+    assert (
+        lines[1]["compared"] == "reference level" and lines[1]["recorded"] == s["cost_reference"][0]
+    )
+    assert (
+        check.main([str(tmp_path)]) == 2 and "not a finished run folder" in capsys.readouterr().err
+    )
 
 
 def _older(result, tmp_path):
@@ -115,20 +142,34 @@ def test_the_video_draws_each_design_under_its_own_policy(bo_run, tmp_path, monk
 
     monkeypatch.setattr(evaluate, "evaluate_checkpoint", spy)
     drawn = []
-    monkeypatch.setattr(video, "offscreen", lambda function, payload, **kw: (drawn.append(payload), (None, ["-"]))[1])
+    monkeypatch.setattr(
+        video,
+        "offscreen",
+        lambda function, payload, **kw: (drawn.append(payload), (None, ["-"]))[1],
+    )
     stream = io.StringIO()
-    assert video.render_run_video(result.run_dir, result.summary, config, seconds=0.1, stream=stream) == []
-    assert used == [(result.run_dir / OWN_POLICY_FILES["best"], result.summary["best_design"]),
-                    (result.run_dir / OWN_POLICY_FILES["nominal"], result.summary["nominal_design"])]
+    assert (
+        video.render_run_video(result.run_dir, result.summary, config, seconds=0.1, stream=stream)
+        == []
+    )
+    assert used == [
+        (result.run_dir / OWN_POLICY_FILES["best"], result.summary["best_design"]),
+        (result.run_dir / OWN_POLICY_FILES["nominal"], result.summary["nominal_design"]),
+    ]
     assert [p["label"].split()[0] for p in drawn[0]["panels"]] == ["best:", "nominal:"]
     # a run made before the policies were kept: one line, no stand-in policy
     used.clear()
     stream = io.StringIO()
-    assert video.render_run_video(_older(result, tmp_path), result.summary, config, stream=stream) == []
+    assert (
+        video.render_run_video(_older(result, tmp_path), result.summary, config, stream=stream)
+        == []
+    )
     assert used == [] and "runs made since keep them" in stream.getvalue()
 
 
-def test_a_handoff_of_a_bo_run_hands_off_the_best_designs_own_policy(bo_run, tmp_path, monkeypatch, capsys):
+def test_a_handoff_of_a_bo_run_hands_off_the_best_designs_own_policy(
+    bo_run, tmp_path, monkeypatch, capsys
+):
     import coadapt_core.learning.factory as factory
     from coadapt_core.cli import main
     from coadapt_core.handoff.policy import missing_deploy_modules
@@ -146,8 +187,21 @@ def test_a_handoff_of_a_bo_run_hands_off_the_best_designs_own_policy(bo_run, tmp
 
     monkeypatch.setattr(factory, "make_backend", spy)
     out = tmp_path / "handoff"
-    args = ["handoff", str(run_dir), "-o", str(out), "--sim", "mujoco", "--agents", "2", "--seconds", "0.1",
-            "--no-check", "--no-video", "--json"]
+    args = [
+        "handoff",
+        str(run_dir),
+        "-o",
+        str(out),
+        "--sim",
+        "mujoco",
+        "--agents",
+        "2",
+        "--seconds",
+        "0.1",
+        "--no-check",
+        "--no-video",
+        "--json",
+    ]
     assert main(args) == 0
     done = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert done["design"] == s["best_design"] and done["is_run_best"]
@@ -159,11 +213,19 @@ def test_a_handoff_of_a_bo_run_hands_off_the_best_designs_own_policy(bo_run, tmp
     assert fresh["objectives"]["torque"]["improvement_se"] > 0
     assert done["max_abs_action_difference"] <= done["tolerance"]
     sheet = json.loads((out / "design.json").read_text())
-    judges = {"shared": False, "design": OWN_POLICY_FILES["best"], "nominal": OWN_POLICY_FILES["nominal"]}
+    judges = {
+        "shared": False,
+        "design": OWN_POLICY_FILES["best"],
+        "nominal": OWN_POLICY_FILES["nominal"],
+    }
     assert {k: sheet["policies"][k] for k in judges} == judges
-    assert {k: json.loads((out / "policy.json").read_text())["policies"][k] for k in judges} == judges
+    assert {
+        k: json.loads((out / "policy.json").read_text())["policies"][k] for k in judges
+    } == judges
     assert sheet["provenance"]["final_policy_sha256"] == sha256(run_dir / OWN_POLICY_FILES["best"])
-    assert sheet["provenance"]["nominal_policy_sha256"] == sha256(run_dir / OWN_POLICY_FILES["nominal"])
+    assert sheet["provenance"]["nominal_policy_sha256"] == sha256(
+        run_dir / OWN_POLICY_FILES["nominal"]
+    )
     assert "nominal design's own" in (out / "design.md").read_text()
 
     # another design: no policy of its own was kept for it; an older run: none at all
@@ -173,5 +235,7 @@ def test_a_handoff_of_a_bo_run_hands_off_the_best_designs_own_policy(bo_run, tmp
     assert len(err) == 1 and "--design" in err[0] and "none for another design" in err[0]
     assert main(["handoff", str(_older(result, tmp_path)), "-o", str(tmp_path / "y")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "runs made since keep them" in err[0] and "the handoff does not" in err[0]
+    assert (
+        len(err) == 1 and "runs made since keep them" in err[0] and "the handoff does not" in err[0]
+    )
     assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()

@@ -36,7 +36,9 @@ def _folder(root: Path) -> Path:
     (folder / "summary.json").write_text('{"best_cost": 1.5}')
     (folder / "checkpoints" / "backend-outer0.pt").write_bytes(b"\x00" * 1000)
     (folder / "buffer-3.npz").write_bytes(b"buffer")
-    (folder / "state.json").write_text(json.dumps({"config": {"store": "sqlite:///cell.db", "out": "runs"}}))
+    (folder / "state.json").write_text(
+        json.dumps({"config": {"store": "sqlite:///cell.db", "out": "runs"}})
+    )
     os.symlink("/etc/passwd", folder / "link")
     return folder
 
@@ -53,14 +55,17 @@ def test_a_folder_round_trips_without_its_buffer_and_links(tmp_path):
     assert not (dest / "stale.txt").exists() and not list(dest.parent.glob(".incoming-*"))
 
 
-@pytest.mark.parametrize(("name", "message"), [
-    ("../escape", "'..'"),
-    ("a/../../escape", "'..'"),
-    ("/etc/cron.d/x", "absolute"),
-    ("a//b", "empty part"),
-    ("a\\b", "not a relative path"),
-    ("", "not a relative path"),
-])
+@pytest.mark.parametrize(
+    ("name", "message"),
+    [
+        ("../escape", "'..'"),
+        ("a/../../escape", "'..'"),
+        ("/etc/cron.d/x", "absolute"),
+        ("a//b", "empty part"),
+        ("a\\b", "not a relative path"),
+        ("", "not a relative path"),
+    ],
+)
 def test_a_name_leaving_the_folder_writes_nothing(tmp_path, name, message):
     with pytest.raises(BundleError, match=message):
         write_folder({"ok.txt": b"1", name: b"2"}, tmp_path / "out" / "r-abc123")
@@ -85,9 +90,14 @@ def test_caps_and_a_link_in_place_of_the_folder_are_refused(tmp_path):
 def test_rows_are_merged_with_the_folder_the_driver_chose(tmp_path):
     worker = ResultsStore(tmp_path / "worker.db")
     scratch = tmp_path / "scratch" / "runs" / "r-abc123"
-    worker.create_run({"method": "ours", "objective": "torque", "seed": 0, "grid_cell": "cell-a"}, run_id="r-abc123",
-                      run_dir=str(scratch))
-    worker.record_checkpoint("r-abc123", outer=0, path=str(scratch / "checkpoints" / "backend-outer0.pt"))
+    worker.create_run(
+        {"method": "ours", "objective": "torque", "seed": 0, "grid_cell": "cell-a"},
+        run_id="r-abc123",
+        run_dir=str(scratch),
+    )
+    worker.record_checkpoint(
+        "r-abc123", outer=0, path=str(scratch / "checkpoints" / "backend-outer0.pt")
+    )
     worker.finish_run("r-abc123", {"best_cost": 1.5})
     rows = export_rows(worker, ["r-abc123"])
     driver = ResultsStore(tmp_path / "driver.db")
@@ -96,8 +106,12 @@ def test_rows_are_merged_with_the_folder_the_driver_chose(tmp_path):
     assert result.added == ["r-abc123"] and result.rows["checkpoints"] == 1
     run = driver.get_run("r-abc123")
     assert run["run_dir"] == str(here.resolve()) and run["status"] == "finished"
-    assert [c["path"] for c in driver.checkpoints("r-abc123")] == [str(here.resolve() / "checkpoints/backend-outer0.pt")]
-    assert import_rows(driver, rows, run_id="r-abc123", folder=here).skipped == ["r-abc123"]  # the merge rule
+    assert [c["path"] for c in driver.checkpoints("r-abc123")] == [
+        str(here.resolve() / "checkpoints/backend-outer0.pt")
+    ]
+    assert import_rows(driver, rows, run_id="r-abc123", folder=here).skipped == [
+        "r-abc123"
+    ]  # the merge rule
     with pytest.raises(BundleError, match="not just r-other"):
         import_rows(driver, rows, run_id="r-other", folder=here)
     with pytest.raises(BundleError, match="not a run of cell cell-b"):
@@ -118,7 +132,10 @@ def test_a_node_with_other_plugins_refuses_the_cell_in_one_line():
     mine = node_fingerprint()
     assert mine["plugins"] and fingerprint_difference(mine, dict(mine)) is None
     other = {**mine, "plugins": [*mine["plugins"], "robot:walker=walker-robots 0.3"]}
-    assert fingerprint_difference(other, mine) == "plugins differ (only on the driver: robot:walker=walker-robots 0.3)"
+    assert (
+        fingerprint_difference(other, mine)
+        == "plugins differ (only on the driver: robot:walker=walker-robots 0.3)"
+    )
     assert fingerprint_difference({**mine, "coadapt": "0.0.1"}, mine).startswith("coadapt ")
     cell = Cell("ours", "torque", "flat", 0, "smoke", "mujoco")
     task = CellTask(cell=cell, argv=[], env={}, command=None, log_path=None)
@@ -133,5 +150,7 @@ def test_a_cells_reservation_is_its_threads_and_a_gpu_for_cuda():
 
     assert cell_threads(["run", "--seed", "0", "--threads", "4", "--json"]) == 4
     assert cell_threads(["run", "--threads=3"]) == 3 and cell_threads(["run", "--seed", "2"]) == 1
-    assert cell_gpus(["run", "--device", "cuda"]) == 1 and cell_gpus(["run", "--device=cuda:1"]) == 1
+    assert (
+        cell_gpus(["run", "--device", "cuda"]) == 1 and cell_gpus(["run", "--device=cuda:1"]) == 1
+    )
     assert cell_gpus(["run", "--device", "cpu"]) == 0 and cell_gpus(["run"]) == 0

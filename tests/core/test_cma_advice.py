@@ -45,8 +45,16 @@ def test_seeding_cma_alone_does_not_survive_a_reload():
         def _strategy(self, x0):
             import cma
 
-            return cma.CMAEvolutionStrategy(x0, 0.3, {"popsize": self.population, "bounds": [0.0, 1.0],
-                                                      "verbose": -9, "seed": self.seed32})
+            return cma.CMAEvolutionStrategy(
+                x0,
+                0.3,
+                {
+                    "popsize": self.population,
+                    "bounds": [0.0, 1.0],
+                    "verbose": -9,
+                    "seed": self.seed32,
+                },
+            )
 
     space = DesignSpace([Continuous("a", 0.5, 1.5), Continuous("b", 0.5, 1.5)])
 

@@ -14,8 +14,6 @@ from tests.benchmarks import load_benchmark
 ROOT = Path(__file__).resolve().parents[2]
 
 
-
-
 def run_folder(tmp_path: Path, rows: list[dict], files: list[str]) -> Path:
     folder = tmp_path / "20261201-000000-ours-pso-torque-s0-abcdef"
     (folder / "checkpoints").mkdir(parents=True)
@@ -26,18 +24,32 @@ def run_folder(tmp_path: Path, rows: list[dict], files: list[str]) -> Path:
 
 
 def test_the_last_outer_iteration_policy_is_chosen_by_name(tmp_path):
-    rows = [{"outer": 0, "path": "/elsewhere/backend-outer0.pt"}, {"outer": 2, "path": "/moved/backend-outer2.pt"},
-            {"outer": 1, "path": "/elsewhere/backend-outer1.pt"}]
-    folder = run_folder(tmp_path, rows, ["backend-outer0.pt", "backend-outer1.pt", "backend-outer2.pt"])
-    assert load_benchmark("common_scenarios")._run_policy(folder) == (folder / "checkpoints" / "backend-outer2.pt").resolve()
+    rows = [
+        {"outer": 0, "path": "/elsewhere/backend-outer0.pt"},
+        {"outer": 2, "path": "/moved/backend-outer2.pt"},
+        {"outer": 1, "path": "/elsewhere/backend-outer1.pt"},
+    ]
+    folder = run_folder(
+        tmp_path, rows, ["backend-outer0.pt", "backend-outer1.pt", "backend-outer2.pt"]
+    )
+    assert (
+        load_benchmark("common_scenarios")._run_policy(folder)
+        == (folder / "checkpoints" / "backend-outer2.pt").resolve()
+    )
 
 
-@pytest.mark.parametrize("rows, files", [
-    ([], []),  # no checkpoint recorded
-    ([{"outer": 0, "path": "backend-outer0.pt"}], []),  # recorded, file missing
-    ([{"outer": 0, "path": "../../../etc/passwd"}], []),  # a path is never followed: only its name counts
-    ([{"outer": "0", "path": 3}], []),  # malformed row
-])
+@pytest.mark.parametrize(
+    "rows, files",
+    [
+        ([], []),  # no checkpoint recorded
+        ([{"outer": 0, "path": "backend-outer0.pt"}], []),  # recorded, file missing
+        (
+            [{"outer": 0, "path": "../../../etc/passwd"}],
+            [],
+        ),  # a path is never followed: only its name counts
+        ([{"outer": "0", "path": 3}], []),  # malformed row
+    ],
+)
 def test_a_run_without_its_policy_is_a_one_line_error(tmp_path, rows, files):
     folder = run_folder(tmp_path, rows, files)
     with pytest.raises(UserError):

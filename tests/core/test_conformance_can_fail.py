@@ -66,7 +66,9 @@ def test_suites_fail_on_broken_plugins(pytester):
     pytester.makepyfile(test_broken=BROKEN)
     result = pytester.runpytest_subprocess("-q", "-p", "no:cacheprovider")
     outcomes = result.parseoutcomes()
-    failed = {line.split("::")[-1].split(" ")[0] for line in result.outlines if line.startswith("FAILED")}
+    failed = {
+        line.split("::")[-1].split(" ")[0] for line in result.outlines if line.startswith("FAILED")
+    }
     assert outcomes.get("failed", 0) >= 3, result.outlines[-15:]
     assert "test_same_seed_same_proposals" in failed
     assert "test_finds_sphere_optimum_region" in failed

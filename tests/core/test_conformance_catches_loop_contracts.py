@@ -128,7 +128,10 @@ EXPECTED = {
 def test_each_planted_mistake_fails_its_contract_test(pytester):
     pytester.makepyfile(test_planted=PLANTED)
     result = pytester.runpytest_subprocess(
-        "-q", "-p", "no:cacheprovider", "-k",
+        "-q",
+        "-p",
+        "no:cacheprovider",
+        "-k",
         "initial_designs_are or any_seed or state_round_trips or one_actuator or ik_leg_order or plain_json",
     )
     failed = {line.split(" ")[1] for line in result.outlines if line.startswith("FAILED")}

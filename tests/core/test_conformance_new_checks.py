@@ -107,12 +107,20 @@ class TestNoSuperOptimizer(OptimizerConformance):
 def test_new_checks_fail_exactly_the_broken_plugins(pytester):
     pytester.makepyfile(test_broken=BROKEN)
     result = pytester.runpytest_subprocess("-q", "-p", "no:cacheprovider", "-rf")
-    failed = {line.split(" ")[1].split("::", 1)[1] for line in result.outlines if line.startswith("FAILED")}
+    failed = {
+        line.split(" ")[1].split("::", 1)[1]
+        for line in result.outlines
+        if line.startswith("FAILED")
+    }
     assert "TestCoT::test_standing_still_and_zero_commands_give_finite_costs" in failed
-    assert "TestCoT::test_one_finite_cost_per_env" not in failed  # random steps never stand still: only the new check sees it
+    assert (
+        "TestCoT::test_one_finite_cost_per_env" not in failed
+    )  # random steps never stand still: only the new check sees it
     assert "TestNoSuperObjective::test_calls_the_base_initialiser" in failed
     assert "TestOvershoot::test_proposals_stay_inside_the_bounds_without_clipping" in failed
-    assert "TestOvershoot::test_ask_returns_population_inside_bounds" not in failed  # clipped: it looked fine before
+    assert (
+        "TestOvershoot::test_ask_returns_population_inside_bounds" not in failed
+    )  # clipped: it looked fine before
     assert "TestNoSuperOptimizer::test_calls_the_base_initialiser" in failed
     assert "did not run" in "\n".join(result.outlines)
 
@@ -127,12 +135,23 @@ def test_an_out_of_bounds_proposal_is_clipped_and_warned_about():
         def _tell(self, designs, costs):
             pass
 
-    opt = Wide(DesignSpace([Continuous("a", 0.5, 1.5), Continuous("b", 0.5, 1.5)]), population=2, budget=1)
-    with pytest.warns(OutOfBoundsProposal, match=r"proposed 1 of 2 designs outside the design space's bounds"):
+    opt = Wide(
+        DesignSpace([Continuous("a", 0.5, 1.5), Continuous("b", 0.5, 1.5)]), population=2, budget=1
+    )
+    with pytest.warns(
+        OutOfBoundsProposal, match=r"proposed 1 of 2 designs outside the design space's bounds"
+    ):
         designs = opt.ask()
     assert designs[0, 0] == 0.5 and opt.out_of_bounds == 1
     with warnings.catch_warnings():
-        warnings.simplefilter("error", OutOfBoundsProposal)  # rounding at a bound is no proposal outside it
-        opt2 = type("Edge", (Wide,), {"_ask": lambda self: np.array([[1.5 + 1e-12, 0.5 - 1e-12]] * 2)})(
-            DesignSpace([Continuous("a", 0.5, 1.5), Continuous("b", 0.5, 1.5)]), population=2, budget=1)
+        warnings.simplefilter(
+            "error", OutOfBoundsProposal
+        )  # rounding at a bound is no proposal outside it
+        opt2 = type(
+            "Edge", (Wide,), {"_ask": lambda self: np.array([[1.5 + 1e-12, 0.5 - 1e-12]] * 2)}
+        )(
+            DesignSpace([Continuous("a", 0.5, 1.5), Continuous("b", 0.5, 1.5)]),
+            population=2,
+            budget=1,
+        )
         opt2.ask()

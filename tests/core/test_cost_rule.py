@@ -32,7 +32,9 @@ class Cost(Objective):
 
 
 def test_a_fall_costs_the_cap_whatever_the_scenario_cost():
-    per = np.array([[1.0, 2.0, 3.0, 4.0], [1.0, 2.0, 3.0, 40.0]])[:, :, None]  # [2 designs, 4 scenarios, 1]
+    per = np.array([[1.0, 2.0, 3.0, 4.0], [1.0, 2.0, 3.0, 40.0]])[
+        :, :, None
+    ]  # [2 designs, 4 scenarios, 1]
     falls = np.array([[False, False, False, False], [True, False, False, True]])
     rule = CostRule("capped", cap=3.0)
     ref = rule.reference(per[0], falls[0])
@@ -74,7 +76,9 @@ def test_the_trimmed_rule_drops_each_designs_worst_scenarios_separately_and_miss
     capped = CostRule("capped", 3.0)
     c = capped.cost(per, falls, capped.reference(per[1], falls[1]))
     assert c[0, 0] > c[1, 0]  # capped: its four falls cost more than its 5 % saving
-    assert plain_mean(per)[0, 0] > plain_mean(per)[1, 0]  # the plain mean agrees with the capped rule
+    assert (
+        plain_mean(per)[0, 0] > plain_mean(per)[1, 0]
+    )  # the plain mean agrees with the capped rule
 
 
 def test_the_capped_rule_keeps_the_pairing_and_a_design_costs_the_same_in_any_batch():
@@ -112,7 +116,12 @@ def test_compare_designs_reports_both_costs_with_paired_errors_and_fall_rates():
     per[0, :6, 0] = 20.0
     out = compare_designs(CostRule("capped"), [Cost()], per, falls, 0, 1)
     o = out["objectives"]["cost"]
-    assert o["cost_se"] > 0 and o["plain_mean_se"] > 0 and o["improvement_se"] > 0 and o["improvement_plain_se"] > 0
+    assert (
+        o["cost_se"] > 0
+        and o["plain_mean_se"] > 0
+        and o["improvement_se"] > 0
+        and o["improvement_plain_se"] > 0
+    )
     assert o["plain_mean"] == pytest.approx(per[0, :, 0].mean())
     assert o["improvement_plain"] == pytest.approx(1 - per[0, :, 0].mean() / per[1, :, 0].mean())
     assert out["fall_rate"] == pytest.approx(6 / 128) and out["reference_fall_rate"] == 0.0
@@ -120,13 +129,19 @@ def test_compare_designs_reports_both_costs_with_paired_errors_and_fall_rates():
     d = np.r_[np.ones(6), np.zeros(122)]
     assert out["fall_rate_difference_se"] == pytest.approx(d.std(ddof=1) / np.sqrt(128))
     assert falls_more(out["fall_rate_difference"], out["fall_rate_difference_se"], 0.01)
-    assert not falls_more(0.009, 0.001, 0.01) and not falls_more(0.03, 0.02, 0.01)  # within max(1 pt, 2 SE)
+    assert not falls_more(0.009, 0.001, 0.01) and not falls_more(
+        0.03, 0.02, 0.01
+    )  # within max(1 pt, 2 SE)
 
 
 def test_fall_statistics_of_identical_designs():
     falls = np.array([[True, False, False, True], [True, False, False, True]])
     st = fall_statistics(falls, 0, 1)
-    assert st["fall_rate"] == 0.5 and st["fall_rate_difference"] == 0.0 and st["fall_rate_difference_se"] == 0.0
+    assert (
+        st["fall_rate"] == 0.5
+        and st["fall_rate_difference"] == 0.0
+        and st["fall_rate_difference_se"] == 0.0
+    )
 
 
 def _with_falls(fall_rates: list[float], effects: list[float], agents: int = 64):
@@ -142,8 +157,15 @@ def _with_falls(fall_rates: list[float], effects: list[float], agents: int = 64)
         for i, rate in enumerate([*fall_rates, 0.0]):
             falls[i, : int(round(rate * agents))] = True
         per = np.where(falls, 20.0, per)[:, :, None]
-        return RealFitness(costs=per.mean(axis=1), buffer=None, interactions=len(designs) * agents, seconds=0.0,
-                           per_scenario=per, fall_rate=falls.mean(axis=1), scenario_falls=falls)
+        return RealFitness(
+            costs=per.mean(axis=1),
+            buffer=None,
+            interactions=len(designs) * agents,
+            seconds=0.0,
+            per_scenario=per,
+            fall_rate=falls.mean(axis=1),
+            scenario_falls=falls,
+        )
 
     return real_fitness
 
@@ -152,13 +174,24 @@ def test_final_check_never_picks_a_candidate_that_falls_more_than_nominal():
     designs = np.array([[0.5, 0.5], [0.7, 0.7], [1.0, 1.0]])
     # candidate 0: 40 % cheaper when it walks but falls in 10 % of scenarios; candidate 1: 10 % cheaper, no falls
     fitness = _with_falls([0.10, 0.0], [0.4, 0.1])
-    check = final_check(fitness, designs, [Cost()], max_blocks=4, min_blocks=2, rule=CostRule("capped"),
-                        fall_tolerance=0.01)
+    check = final_check(
+        fitness,
+        designs,
+        [Cost()],
+        max_blocks=4,
+        min_blocks=2,
+        rule=CostRule("capped"),
+        fall_tolerance=0.01,
+    )
     assert check.best == 1 and check.blocks >= 2
     assert check.fall_check[0]["eligible"] is False and check.fall_check[1]["eligible"] is True
     summary = check.uncertainty(["cost"])
     assert summary["best_fall_rate"] == 0.0 and summary["fall_rate_difference"] == 0.0
-    assert summary["improvement_plain"] > 0 and summary["best_plain_mean_se"] > 0 and summary["best_is_nominal"] is False
+    assert (
+        summary["improvement_plain"] > 0
+        and summary["best_plain_mean_se"] > 0
+        and summary["best_is_nominal"] is False
+    )
     # with the gate off (tolerance 1) the trimmed rule of old picks the faller
     old = final_check(fitness, designs, [Cost()], max_blocks=2, rule=TRIMMED)
     assert old.best == 0
@@ -166,25 +199,46 @@ def test_final_check_never_picks_a_candidate_that_falls_more_than_nominal():
 
 def test_final_check_keeps_the_nominal_design_when_every_candidate_falls_more():
     designs = np.array([[0.5, 0.5], [0.7, 0.7], [1.0, 1.0]])
-    check = final_check(_with_falls([0.10, 0.08], [0.4, 0.3]), designs, [Cost()], max_blocks=2, min_blocks=2,
-                        rule=CostRule("capped"), fall_tolerance=0.01)
+    check = final_check(
+        _with_falls([0.10, 0.08], [0.4, 0.3]),
+        designs,
+        [Cost()],
+        max_blocks=2,
+        min_blocks=2,
+        rule=CostRule("capped"),
+        fall_tolerance=0.01,
+    )
     assert check.best == 2
     summary = check.uncertainty(["cost"])
     assert summary["best_is_nominal"] is True and summary["improvement_plain"] == 0.0
 
 
 def test_reliability_says_when_the_best_design_falls_more():
-    summary = {"reliable": True, "reliability": "passed", "best_fall_rate": 0.043, "nominal_fall_rate": 0.004,
-               "fall_rate_difference": 0.039, "fall_rate_difference_se": 0.013}
+    summary = {
+        "reliable": True,
+        "reliability": "passed",
+        "best_fall_rate": 0.043,
+        "nominal_fall_rate": 0.004,
+        "fall_rate_difference": 0.039,
+        "fall_rate_difference_se": 0.013,
+    }
     out = fall_verdict(summary)
     assert out["falls_more"] is True and out["reliable"] is False
-    assert "4.3 %" in out["reliability"] and "0.4 %" in out["reliability"] and "3.9 +- 1.3" in out["reliability"]
-    assert fall_verdict({**summary, "fall_rate_difference": 0.02, "fall_rate_difference_se": 0.012}) == {"falls_more": False}
+    assert (
+        "4.3 %" in out["reliability"]
+        and "0.4 %" in out["reliability"]
+        and "3.9 +- 1.3" in out["reliability"]
+    )
+    assert fall_verdict(
+        {**summary, "fall_rate_difference": 0.02, "fall_rate_difference_se": 0.012}
+    ) == {"falls_more": False}
     assert fall_verdict({}) == {"falls_more": None}
 
 
 def test_a_real_round_records_the_plain_mean_and_fall_rate_of_its_best_design():
-    fit = _with_falls([0.25, 0.0], [0.5, 0.1], agents=16)(np.array([[0.5, 0.5], [0.7, 0.7], [1.0, 1.0]]), 1)
+    fit = _with_falls([0.25, 0.0], [0.5, 0.1], agents=16)(
+        np.array([[0.5, 0.5], [0.7, 0.7], [1.0, 1.0]]), 1
+    )
     rule = CostRule("capped")
     ref = rule.reference(fit.per_scenario[-1], fit.scenario_falls[-1])
     errors = batch_errors(fit, rule, ref)
@@ -220,13 +274,22 @@ class FallingBackend:
         falling = (designs[:, 0] < 0.75) & (designs[:, 1] < 0.75)  # [K]
         base = np.stack([true_cost(designs, o.name) for o in objectives], axis=1)  # [K, M]
         base = np.where(falling[:, None], 0.85 * base, base)
-        per = base[:, None, :] * shared[None, :, None] + rng.normal(0, 0.01, size=(len(designs), agents, len(objectives)))
+        per = base[:, None, :] * shared[None, :, None] + rng.normal(
+            0, 0.01, size=(len(designs), agents, len(objectives))
+        )
         falls = falling[:, None] & (u[None, :] < 0.15)
         per = np.where(falls[:, :, None], 20.0 * per, per)
         buffer = {"kind": "evaluation", "designs": designs.copy()}
-        return RealFitness(costs=per.mean(axis=1), buffer=buffer, interactions=len(designs) * agents * steps,
-                           seconds=0.0, per_scenario=per, scenario_falls=falls, fall_rate=falls.mean(axis=1),
-                           survival=1.0 - falls.mean(axis=1))
+        return RealFitness(
+            costs=per.mean(axis=1),
+            buffer=buffer,
+            interactions=len(designs) * agents * steps,
+            seconds=0.0,
+            per_scenario=per,
+            scenario_falls=falls,
+            fall_rate=falls.mean(axis=1),
+            survival=1.0 - falls.mean(axis=1),
+        )
 
 
 def _falling_run(tmp_path, rule: str, fall_tolerance: float = 0.01):
@@ -241,33 +304,64 @@ def _falling_run(tmp_path, rule: str, fall_tolerance: float = 0.01):
         backends.append(FallingBackend(seed))
         return backends[-1]
 
-    config = make_config("smoke", overrides=dict(population=16, optimizer_iterations=4, outer_iterations=2,
-                                                 agents_per_design=64, eval_steps=10, train_steps=1000,
-                                                 retrain_steps=1000, out=str(tmp_path / f"{rule}-{fall_tolerance}"),
-                                                 cost_rule=rule, fall_tolerance=fall_tolerance,
-                                                 surrogate_probability=0.0))
-    result = run_coadaptation(config, backend_factory=factory, design_space=SPACE, nominal_design=NOMINAL,
-                              objectives=[TorqueObjective()])
+    config = make_config(
+        "smoke",
+        overrides=dict(
+            population=16,
+            optimizer_iterations=4,
+            outer_iterations=2,
+            agents_per_design=64,
+            eval_steps=10,
+            train_steps=1000,
+            retrain_steps=1000,
+            out=str(tmp_path / f"{rule}-{fall_tolerance}"),
+            cost_rule=rule,
+            fall_tolerance=fall_tolerance,
+            surrogate_probability=0.0,
+        ),
+    )
+    result = run_coadaptation(
+        config,
+        backend_factory=factory,
+        design_space=SPACE,
+        nominal_design=NOMINAL,
+        objectives=[TorqueObjective()],
+    )
     return result, backends
 
 
 def test_a_capped_run_does_not_buy_cost_with_falls_where_a_trimmed_one_did(tmp_path):
     import yaml
 
-    trimmed, _ = _falling_run(tmp_path, "trimmed", fall_tolerance=1.0)  # the rule before, no fall gate
+    trimmed, _ = _falling_run(
+        tmp_path, "trimmed", fall_tolerance=1.0
+    )  # the rule before, no fall gate
     capped, backends = _falling_run(tmp_path, "capped")
     in_region = lambda d: d[0] < 0.75 and d[1] < 0.75  # noqa: E731
-    assert in_region(trimmed.summary["best_design"])  # the old rule picks a design that falls in 15 %
+    assert in_region(
+        trimmed.summary["best_design"]
+    )  # the old rule picks a design that falls in 15 %
     assert trimmed.summary["best_fall_rate"] > 0.1 and trimmed.summary["falls_more"] is True
-    assert trimmed.summary["reliable"] is False and "falls more often" in trimmed.summary["reliability"]
+    assert (
+        trimmed.summary["reliable"] is False
+        and "falls more often" in trimmed.summary["reliability"]
+    )
     # the fall gate alone keeps the trimmed rule's best outside the fall region too
     gated, _ = _falling_run(tmp_path, "trimmed")
     assert not in_region(gated.summary["best_design"]) and gated.summary["best_fall_rate"] == 0.0
     s = capped.summary
-    assert not in_region(s["best_design"]) and s["best_fall_rate"] == 0.0 and s["falls_more"] is False
-    assert s["cost_rule"] == "capped" and s["cost_reference"] is not None and len(s["cost_reference"]) == 1
+    assert (
+        not in_region(s["best_design"]) and s["best_fall_rate"] == 0.0 and s["falls_more"] is False
+    )
+    assert (
+        s["cost_rule"] == "capped"
+        and s["cost_reference"] is not None
+        and len(s["cost_reference"]) == 1
+    )
     assert s["improvement_plain"] > 0 and s["improvement"] > 0 and s["improvement_plain_se"] > 0
-    assert s["final_blocks"] >= 4 and s["fall_check"] and all("eligible" in c for c in s["fall_check"])
+    assert (
+        s["final_blocks"] >= 4 and s["fall_check"] and all("eligible" in c for c in s["fall_check"])
+    )
     assert yaml.safe_load((capped.run_dir / "config.yaml").read_text())["cost_rule"] == "capped"
     # the nominal design is evaluated once per policy for the reference level, and counted
     rounds = s["real_evaluations"]

@@ -10,7 +10,9 @@ import torch
 from coadapt_core.learning.networks import CriticBank, ValueNet
 
 
-def _pair(inputs: int = 11, design: int = 2, hidden=(32, 16, 8), heads: int = 3) -> tuple[ValueNet, CriticBank]:
+def _pair(
+    inputs: int = 11, design: int = 2, hidden=(32, 16, 8), heads: int = 3
+) -> tuple[ValueNet, CriticBank]:
     """A per-head ValueNet and a bank built from the same seed (hence the same weights)."""
     torch.manual_seed(7)
     per_head = ValueNet(inputs, design, hidden, "elu", outputs=heads)
@@ -21,8 +23,11 @@ def _pair(inputs: int = 11, design: int = 2, hidden=(32, 16, 8), heads: int = 3)
 
 def _data(n: int = 64, inputs: int = 11, design: int = 2, heads: int = 3):
     gen = torch.Generator().manual_seed(3)
-    return (torch.randn(n, inputs, generator=gen), torch.rand(n, design, generator=gen) * 2 - 1,
-            torch.randn(n, heads, generator=gen))
+    return (
+        torch.randn(n, inputs, generator=gen),
+        torch.rand(n, design, generator=gen) * 2 - 1,
+        torch.randn(n, heads, generator=gen),
+    )
 
 
 def test_bank_is_initialised_as_separate_heads_and_computes_the_same_outputs() -> None:
@@ -38,7 +43,9 @@ def test_bank_is_initialised_as_separate_heads_and_computes_the_same_outputs() -
     assert torch.allclose(out, per_head(x, d), atol=1e-6)
     assert not torch.allclose(out[:, 0], out[:, 1])  # heads are distinct networks
     # leading dims [N, T, *] as in compute_returns
-    assert torch.allclose(bank(x.reshape(8, 8, -1), d.reshape(8, 8, -1)), out.reshape(8, 8, 3), atol=1e-6)
+    assert torch.allclose(
+        bank(x.reshape(8, 8, -1), d.reshape(8, 8, -1)), out.reshape(8, 8, 3), atol=1e-6
+    )
 
 
 def test_bank_gradients_and_clipped_adam_updates_equal_the_per_head_version() -> None:
@@ -60,7 +67,9 @@ def test_bank_gradients_and_clipped_adam_updates_equal_the_per_head_version() ->
                 for h, head in enumerate(per_head.heads):
                     linears = [m for m in head if isinstance(m, torch.nn.Linear)]
                     for k, linear in enumerate(linears):
-                        assert torch.allclose(bank.layer(k)[0].grad[h], linear.weight.grad, atol=1e-6)
+                        assert torch.allclose(
+                            bank.layer(k)[0].grad[h], linear.weight.grad, atol=1e-6
+                        )
                         assert torch.allclose(bank.layer(k)[1].grad[h], linear.bias.grad, atol=1e-6)
             opt.step()
         assert float(norm_a) == pytest.approx(float(norm_b), rel=1e-5)
@@ -81,7 +90,9 @@ def test_per_head_optimizer_state_converts_and_continues_identically() -> None:
         opt_a.step()
     bank.load_state_dict(CriticBank.convert_state_dict(per_head.state_dict()))
     opt_b = torch.optim.Adam(bank.parameters(), lr=1e-2, foreach=True)
-    opt_b.load_state_dict(CriticBank.convert_optimizer_state(opt_a.state_dict(), bank.num_heads, bank.num_layers))
+    opt_b.load_state_dict(
+        CriticBank.convert_optimizer_state(opt_a.state_dict(), bank.num_heads, bank.num_layers)
+    )
     for net, opt in ((per_head, opt_a), (bank, opt_b)):
         opt.zero_grad()
         torch.nn.functional.mse_loss(net(x, d), y).backward()

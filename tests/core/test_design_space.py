@@ -8,7 +8,11 @@ from coadapt_core.errors import DesignError, UserError
 @pytest.fixture
 def mixed():
     return DesignSpace(
-        [Continuous("thigh", 0.5, 1.5), Continuous("shank", 0.5, 1.5), Discrete("hip_motor", (1, 2, 3))]
+        [
+            Continuous("thigh", 0.5, 1.5),
+            Continuous("shank", 0.5, 1.5),
+            Discrete("hip_motor", (1, 2, 3)),
+        ]
     )
 
 

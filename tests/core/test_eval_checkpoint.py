@@ -12,7 +12,9 @@ import pytest
 
 from coadapt_core.cli import main
 
-SHIPPED = Path(__file__).resolve().parents[2] / "plugins" / "robots" / "kuafu" / "policies" / "flat.pt"
+SHIPPED = (
+    Path(__file__).resolve().parents[2] / "plugins" / "robots" / "kuafu" / "policies" / "flat.pt"
+)
 RUN_ID = "20261203-091311-ours-pso-torque-s0-abc123"
 
 
@@ -33,8 +35,15 @@ def run_folder(tmp_path, monkeypatch) -> Path:
 def test_checkpoint_none_says_what_is_accepted(capsys, given):
     assert main(["eval", "--checkpoint", given]) == 2
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and err.startswith(f"error: --checkpoint {given}: coadapt eval needs a policy")
-    for accepted in ("checkpoint file", "`coadapt train`", "`coadapt run` folder or run id", "shipped policy"):
+    assert len(err.splitlines()) == 1 and err.startswith(
+        f"error: --checkpoint {given}: coadapt eval needs a policy"
+    )
+    for accepted in (
+        "checkpoint file",
+        "`coadapt train`",
+        "`coadapt run` folder or run id",
+        "shipped policy",
+    ):
         assert accepted in err
 
 
@@ -52,16 +61,39 @@ def test_a_run_folder_or_id_is_its_last_checkpoint(run_folder, capsys, by):
     given = str(run_folder) if by == "folder" else RUN_ID
     assert main(["eval", "--checkpoint", given, "--agents", "2", "--seconds", "0.2", "--json"]) == 0
     captured = capsys.readouterr()
-    assert f"policy: {Path('runs') / RUN_ID / 'checkpoints' / 'backend-outer2.pt'}" in captured.err \
+    assert (
+        f"policy: {Path('runs') / RUN_ID / 'checkpoints' / 'backend-outer2.pt'}" in captured.err
         or f"policy: {run_folder / 'checkpoints' / 'backend-outer2.pt'}" in captured.err
+    )
     result = json.loads(captured.out.strip().splitlines()[-1])
     assert result["robot"] == "kuafu" and result["steps"] == 2 * 10 and result["torque_cost"] > 0
 
 
 def test_every_cost_eval_prints_says_eval(run_folder, capsys):
-    assert main(["eval", "--checkpoint", RUN_ID, "--agents", "2", "--seconds", "0.2", "--objective", "power"]) == 0
+    assert (
+        main(
+            [
+                "eval",
+                "--checkpoint",
+                RUN_ID,
+                "--agents",
+                "2",
+                "--seconds",
+                "0.2",
+                "--objective",
+                "power",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert out.lstrip().startswith("coadapt eval: kuafu design")
-    rows = [line for line in out.splitlines() if "cost" in line and "│" in line and "cost_rule" not in line]
-    assert len(rows) >= 5 and all("(eval" in row for row in rows), rows  # power/torque cost, SEs, per-step rows
+    rows = [
+        line
+        for line in out.splitlines()
+        if "cost" in line and "│" in line and "cost_rule" not in line
+    ]
+    assert len(rows) >= 5 and all("(eval" in row for row in rows), (
+        rows
+    )  # power/torque cost, SEs, per-step rows
     assert "`coadapt eval` protocol" in " ".join(out.split())

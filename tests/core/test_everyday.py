@@ -18,10 +18,16 @@ def batches(tracking: float, survival: float = 1.0) -> list[dict]:
 
 def test_a_short_evaluation_does_not_judge_a_trained_policy_but_still_fails_one_from_scratch():
     verdict, reason = judge_short(batches(0.54), None, 20, from_scratch=False)
-    assert verdict is None and reason.startswith("not judged: 20 steps per scenario") and "0.54" in reason
+    assert (
+        verdict is None
+        and reason.startswith("not judged: 20 steps per scenario")
+        and "0.54" in reason
+    )
     verdict, reason = judge_short(batches(0.54), None, 20, from_scratch=True)
     assert verdict is False and "trained from scratch" in reason
-    assert judge_short(batches(0.54), None, MIN_JUDGED_STEPS, from_scratch=False)[0] is False  # long enough
+    assert (
+        judge_short(batches(0.54), None, MIN_JUDGED_STEPS, from_scratch=False)[0] is False
+    )  # long enough
     assert judge_short(batches(0.3), None, 20, from_scratch=True)[0] is True  # passed is passed
     # standing still or falling is not explained by a short evaluation
     assert judge_short(batches(1.02), None, 20, from_scratch=False)[0] is False
@@ -30,9 +36,22 @@ def test_a_short_evaluation_does_not_judge_a_trained_policy_but_still_fails_one_
 
 
 @pytest.mark.slow
-def test_smoke_run_with_the_shipped_policy_is_not_called_unreliable_but_one_from_scratch_is(tmp_path, capsys):
-    small = ["--preset", "smoke", "--outer-iterations", "1", "--optimizer-iterations", "1", "--out", str(tmp_path),
-             "--store", "none", "--no-video"]
+def test_smoke_run_with_the_shipped_policy_is_not_called_unreliable_but_one_from_scratch_is(
+    tmp_path, capsys
+):
+    small = [
+        "--preset",
+        "smoke",
+        "--outer-iterations",
+        "1",
+        "--optimizer-iterations",
+        "1",
+        "--out",
+        str(tmp_path),
+        "--store",
+        "none",
+        "--no-video",
+    ]
     assert main(["run", *small]) == 0
     out = capsys.readouterr().out
     assert "UNRELIABLE" not in out
@@ -46,7 +65,9 @@ def test_smoke_run_with_the_shipped_policy_is_not_called_unreliable_but_one_from
     summary = json.loads((tmp_path / line["run_id"] / "summary.json").read_text())
     _print_summary(summary, None)
     out = capsys.readouterr().out
-    assert "UNRELIABLE" not in out and "too short to judge" in out and "starting policy: none" in out
+    assert (
+        "UNRELIABLE" not in out and "too short to judge" in out and "starting policy: none" in out
+    )
 
 
 # -- progress -------------------------------------------------------------------------------
@@ -66,7 +87,9 @@ def test_piped_progress_prints_a_heartbeat_during_a_silent_phase():
 
     clock, stream = FakeClock(), io.StringIO()
     printed = []
-    line = ProgressLine("run", 1.0, stream=stream, every=10.0, clock=clock, heartbeat=False, own_eta=True)
+    line = ProgressLine(
+        "run", 1.0, stream=stream, every=10.0, clock=clock, heartbeat=False, own_eta=True
+    )
     line.update(0.1, "training", eta=120.0)
     printed.append(clock.t)
     for _ in range(240):  # a quarter of a second at a time, as the heartbeat thread wakes
@@ -132,9 +155,15 @@ def test_run_eta_after_the_first_outer_iteration_is_within_half_of_the_truth(tmp
 
     events = []
     config = make_config("quick", overrides={"store": "none", "population": 16, "seed": 2})
-    result = run_coadaptation(config, backend_factory=lambda s: Timed(s), design_space=SPACE, nominal_design=NOMINAL,
-                              objectives=[TorqueObjective()], run_dir=tmp_path / "r",
-                              progress=lambda e: events.append((clock.t, e)))
+    result = run_coadaptation(
+        config,
+        backend_factory=lambda s: Timed(s),
+        design_space=SPACE,
+        nominal_design=NOMINAL,
+        objectives=[TorqueObjective()],
+        run_dir=tmp_path / "r",
+        progress=lambda e: events.append((clock.t, e)),
+    )
     end = clock.t
     t, first = next((t, e) for t, e in events if e["outer"] == 1 and e["phase"] == "training")
     truth = end - t
@@ -156,10 +185,34 @@ def test_piped_run_output_has_no_long_gap_while_a_phase_reports_nothing(tmp_path
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[2]
-    env = {**os.environ, "PYTHONPATH": str(root), "FAKE_DELAY": "2.5", "COADAPT_PROGRESS_EVERY": "1"}
-    proc = subprocess.Popen([sys.executable, "-m", "tests.fakes.fake_learner_cli", "run", "--preset", "smoke",
-                             "--outer-iterations", "1", "--out", "runs", "--store", "none", "--no-video"],
-                            cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    env = {
+        **os.environ,
+        "PYTHONPATH": str(root),
+        "FAKE_DELAY": "2.5",
+        "COADAPT_PROGRESS_EVERY": "1",
+    }
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "tests.fakes.fake_learner_cli",
+            "run",
+            "--preset",
+            "smoke",
+            "--outer-iterations",
+            "1",
+            "--out",
+            "runs",
+            "--store",
+            "none",
+            "--no-video",
+        ],
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     stamps = []
     for line in proc.stderr:
         if line.startswith("run "):
@@ -170,7 +223,9 @@ def test_piped_run_output_has_no_long_gap_while_a_phase_reports_nothing(tmp_path
 
 
 # -- help -----------------------------------------------------------------------------------
-def test_run_help_is_short_with_the_common_options_first_and_help_all_has_every_option(monkeypatch, capsys):
+def test_run_help_is_short_with_the_common_options_first_and_help_all_has_every_option(
+    monkeypatch, capsys
+):
     import re
 
     monkeypatch.setenv("COLUMNS", "80")
@@ -181,11 +236,15 @@ def test_run_help_is_short_with_the_common_options_first_and_help_all_has_every_
     names = [m.group(1) for m in re.finditer(r"^  (--[a-z0-9-]+)", short, re.M)]
     assert names[:4] == ["--config", "--resume", "--preset", "--objective"]
     assert {"--json", "--video", "--out", "--seed", "--optimizer"} <= set(names)
-    assert not any(n.startswith(("--task-", "--randomization-", "--train-steps-per")) for n in names)
+    assert not any(
+        n.startswith(("--task-", "--randomization-", "--train-steps-per")) for n in names
+    )
     assert len(short.splitlines()) < 100 and "coadapt run --help-all" in short
     more = int(re.search(r"(\d+) more options", short).group(1))
     full_names = set(re.findall(r"^  (--[a-z0-9-]+)", full, re.M))
-    assert len(full_names) == len(names) + more and len(full.splitlines()) > 3 * len(short.splitlines())
+    assert len(full_names) == len(names) + more and len(full.splitlines()) > 3 * len(
+        short.splitlines()
+    )
     assert "--task-commands-yaw-range" in full_names and "--randomization-preset" in full_names
 
 
@@ -193,9 +252,21 @@ def test_run_help_is_short_with_the_common_options_first_and_help_all_has_every_
 def test_plugin_and_choice_names_are_case_folded(tmp_path):
     from coadapt_core.coadapt.config import make_config
 
-    config = make_config("smoke", overrides={"objective": "Torque,POWER", "terrain": "Flat", "optimizer": "NSGA2",
-                                             "method": "Ours"})
-    assert (config.objective, config.terrain, config.optimizer, config.method) == ("torque,power", "flat", "nsga2", "ours")
+    config = make_config(
+        "smoke",
+        overrides={
+            "objective": "Torque,POWER",
+            "terrain": "Flat",
+            "optimizer": "NSGA2",
+            "method": "Ours",
+        },
+    )
+    assert (config.objective, config.terrain, config.optimizer, config.method) == (
+        "torque,power",
+        "flat",
+        "nsga2",
+        "ours",
+    )
 
 
 def test_a_misspelt_name_or_yaml_key_gets_a_suggestion(tmp_path, capsys):
@@ -205,7 +276,10 @@ def test_a_misspelt_name_or_yaml_key_gets_a_suggestion(tmp_path, capsys):
     path.write_text("populaton: 3\n")
     assert main(["run", "--config", str(path), "--check"]) == 2
     err = capsys.readouterr().err
-    assert "unknown config file key 'populaton'; did you mean 'population'?" in err and len(err.splitlines()) == 1
+    assert (
+        "unknown config file key 'populaton'; did you mean 'population'?" in err
+        and len(err.splitlines()) == 1
+    )
     path.write_text("zzzz: 3\n")  # nothing close: the accepted keys are listed
     assert main(["run", "--config", str(path), "--check"]) == 2
     assert "accepted keys:" in capsys.readouterr().err
@@ -220,23 +294,55 @@ def test_costs_print_with_their_error_in_one_notation():
     assert _with_se(2.5, None) == "2.5"
 
 
-def test_the_run_table_fits_80_columns_with_motor_types_as_whole_numbers_and_cost_units(tmp_path, capsys, monkeypatch):
+def test_the_run_table_fits_80_columns_with_motor_types_as_whole_numbers_and_cost_units(
+    tmp_path, capsys, monkeypatch
+):
     import coadapt_core.coadapt.setup as loop_setup
     from tests.fakes.analytic import AnalyticBackend
 
-    monkeypatch.setattr(loop_setup, "universal_policy_factory", lambda *a, **k: (lambda seed: AnalyticBackend(seed)))
+    monkeypatch.setattr(
+        loop_setup, "universal_policy_factory", lambda *a, **k: lambda seed: AnalyticBackend(seed)
+    )
     monkeypatch.setenv("COLUMNS", "80")
-    assert main(["run", "--optimizer", "mixed-pso", "--preset", "smoke", "--out", str(tmp_path), "--store", "none",
-                 "--no-video"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "--optimizer",
+                "mixed-pso",
+                "--preset",
+                "smoke",
+                "--out",
+                str(tmp_path),
+                "--store",
+                "none",
+                "--no-video",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     table = out.split("starting policy")[0]
     assert "…" not in table and max(map(len, table.splitlines())) <= 80
-    for header in ("thigh_scale", "shank_scale", "hip_motor", "knee_motor", "(Nm)^2", "fall", "rate"):
+    for header in (
+        "thigh_scale",
+        "shank_scale",
+        "hip_motor",
+        "knee_motor",
+        "(Nm)^2",
+        "fall",
+        "rate",
+    ):
         assert header in table, header
-    nominal = next(line for line in table.splitlines() if line.strip().startswith("nominal")).split()
+    nominal = next(
+        line for line in table.splitlines() if line.strip().startswith("nominal")
+    ).split()
     assert nominal[1:5] == ["1.000", "1.000", "1", "1"]  # scales to 3 decimals, motor types whole
     words = " ".join(out.split())  # rich wraps lines at 80 columns
-    assert "costs: per step over the final check's paired scenarios of 20 steps (`coadapt run` protocol" in words
+    assert (
+        "costs: per step over the final check's paired scenarios of 20 steps (`coadapt run` protocol"
+        in words
+    )
 
 
 def test_report_in_a_folder_without_a_store_says_so_and_creates_none(tmp_path, monkeypatch, capsys):
@@ -273,19 +379,41 @@ def test_run_checkpoint_folder_is_recorded_as_the_file_it_stands_for(tmp_path, m
     import coadapt_core.coadapt.setup as loop_setup
     from tests.fakes.analytic import AnalyticBackend
 
-    monkeypatch.setattr(loop_setup, "universal_policy_factory", lambda *a, **k: (lambda seed: AnalyticBackend(seed)))
+    monkeypatch.setattr(
+        loop_setup, "universal_policy_factory", lambda *a, **k: lambda seed: AnalyticBackend(seed)
+    )
     monkeypatch.setattr(loop_setup, "resolve_checkpoint", lambda config: config.checkpoint)
     # the checkpoint below is a stand-in file, not one the learner could read for its objectives
-    monkeypatch.setattr(loop_setup, "objectives_without_critic", lambda config, checkpoint, objectives: ([], None))
+    monkeypatch.setattr(
+        loop_setup, "objectives_without_critic", lambda config, checkpoint, objectives: ([], None)
+    )
     folder = tmp_path / "train"
     (folder / "checkpoints").mkdir(parents=True)
     (folder / "checkpoints" / "model_7.pt").write_bytes(b"x")
-    assert main(["run", "--preset", "smoke", "--checkpoint", str(folder), "--out", str(tmp_path / "runs"),
-                 "--store", "none", "--no-video", "--json"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "--preset",
+                "smoke",
+                "--checkpoint",
+                str(folder),
+                "--out",
+                str(tmp_path / "runs"),
+                "--store",
+                "none",
+                "--no-video",
+                "--json",
+            ]
+        )
+        == 0
+    )
     run_id = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["run_id"]
     import yaml
 
-    recorded = yaml.safe_load((tmp_path / "runs" / run_id / "config.yaml").read_text())["checkpoint"]
+    recorded = yaml.safe_load((tmp_path / "runs" / run_id / "config.yaml").read_text())[
+        "checkpoint"
+    ]
     assert recorded == str(folder / "checkpoints" / "model_7.pt")
 
 
@@ -296,11 +424,26 @@ def test_surrogate_quality_legend_tells_runs_of_one_method_and_seed_apart():
 
     def fact(run_id, optimizer, preset):
         quality = {"by_objective": {"torque": {"spearman": 0.8}}, "rounds": []}
-        run = {"id": run_id, "seed": 0, "optimizer": optimizer, "preset": preset, "summary": {"surrogate_quality": quality}}
+        run = {
+            "id": run_id,
+            "seed": 0,
+            "optimizer": optimizer,
+            "preset": preset,
+            "summary": {"surrogate_quality": quality},
+        }
         return SimpleNamespace(run=run, method="ours", terrain="flat")
 
-    facts = [fact("r-aaaaaa", "pso", "quick"), fact("r-bbbbbb", "mixed-pso", "quick"), fact("r-cccccc", "pso", "smoke"),
-             fact("r-dddddd", "pso", "smoke"), fact("r-eeeeee", "bo", "quick")]
+    facts = [
+        fact("r-aaaaaa", "pso", "quick"),
+        fact("r-bbbbbb", "mixed-pso", "quick"),
+        fact("r-cccccc", "pso", "smoke"),
+        fact("r-dddddd", "pso", "smoke"),
+        fact("r-eeeeee", "bo", "quick"),
+    ]
     labels = [e["label"] for e in quality_series(facts)[("torque", "flat")]]
     assert len(set(labels)) == 5, labels
-    assert labels[1] == "ours s0 mixed-pso" and labels[4] == "ours s0 bo" and labels[2] == "ours s0 pso smoke cccccc"
+    assert (
+        labels[1] == "ours s0 mixed-pso"
+        and labels[4] == "ours s0 bo"
+        and labels[2] == "ours s0 pso smoke cccccc"
+    )

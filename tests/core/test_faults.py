@@ -23,19 +23,38 @@ from coadapt_core.errors import UserError
 from coadapt_core.results import ResultsStore
 from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend
 
-BASE = dict(population=4, optimizer_iterations=2, outer_iterations=2, agents_per_design=4, eval_steps=5,
-            train_steps=100, retrain_steps=50, seed=5)
+BASE = dict(
+    population=4,
+    optimizer_iterations=2,
+    outer_iterations=2,
+    agents_per_design=4,
+    eval_steps=5,
+    train_steps=100,
+    retrain_steps=50,
+    seed=5,
+)
 
 
 def start(run_dir, store, factory=lambda s: AnalyticBackend(s), **overrides):
     config = make_config("smoke", overrides={**BASE, "store": str(store), **overrides})
-    return run_coadaptation(config, backend_factory=factory, design_space=SPACE, nominal_design=NOMINAL,
-                            objectives=[TorqueObjective()], run_dir=run_dir)
+    return run_coadaptation(
+        config,
+        backend_factory=factory,
+        design_space=SPACE,
+        nominal_design=NOMINAL,
+        objectives=[TorqueObjective()],
+        run_dir=run_dir,
+    )
 
 
 def resume(run_dir):
-    return run_coadaptation(backend_factory=lambda s: AnalyticBackend(s), design_space=SPACE, nominal_design=NOMINAL,
-                            objectives=[TorqueObjective()], resume=run_dir)
+    return run_coadaptation(
+        backend_factory=lambda s: AnalyticBackend(s),
+        design_space=SPACE,
+        nominal_design=NOMINAL,
+        objectives=[TorqueObjective()],
+        resume=run_dir,
+    )
 
 
 def test_grid_restarts_a_cell_killed_before_its_first_state_file(tmp_path):
@@ -44,13 +63,18 @@ def test_grid_restarts_a_cell_killed_before_its_first_state_file(tmp_path):
     from coadapt_core.experiments.grid import GridSpec, plan_grid
 
     store = ResultsStore(tmp_path / "g.db")
-    spec = GridSpec(methods=["ours"], objectives=["torque"], terrains=["flat"], seeds=[0, 1], preset="smoke")
+    spec = GridSpec(
+        methods=["ours"], objectives=["torque"], terrains=["flat"], seeds=[0, 1], preset="smoke"
+    )
     c0, c1 = spec.cells()
     for cell, run_id in ((c0, "half-registered"), (c1, "has-state")):
         folder = tmp_path / "runs" / run_id
         folder.mkdir(parents=True)
-        store.create_run({"method": "ours", "objective": "torque", "seed": cell.seed, "grid_cell": cell.key},
-                         run_id=run_id, run_dir=str(folder))
+        store.create_run(
+            {"method": "ours", "objective": "torque", "seed": cell.seed, "grid_cell": cell.key},
+            run_id=run_id,
+            run_dir=str(folder),
+        )
     (tmp_path / "runs" / "has-state" / "state.json").write_text("{}")
     tasks, _ = plan_grid(store, spec, out_dir=str(tmp_path / "runs"))
     assert {t.cell.key: t.resume for t in tasks} == {c0.key: None, c1.key: "has-state"}
@@ -65,7 +89,9 @@ def test_resuming_a_finished_run_leaves_it_finished(tmp_path):
     again = resume(tmp_path / "runs" / "done")
     assert again.summary == result.summary
     run = store.get_run(result.run_id)
-    assert run["status"] == "finished" and run["summary"]["best_cost"] == result.summary["best_cost"]
+    assert (
+        run["status"] == "finished" and run["summary"]["best_cost"] == result.summary["best_cost"]
+    )
 
 
 def test_run_folder_resumes_from_any_working_folder(tmp_path, monkeypatch):
@@ -78,7 +104,9 @@ def test_run_folder_resumes_from_any_working_folder(tmp_path, monkeypatch):
     with pytest.raises(RuntimeError):
         start(Path("runs/r"), "none", factory=lambda s: AnalyticBackend(s, fail_on_real_call=3))
     state = json.loads((first / "runs" / "r" / "state.json").read_text())
-    assert state["backend_checkpoint"] is None or not Path(state["backend_checkpoint"]).is_absolute()
+    assert (
+        state["backend_checkpoint"] is None or not Path(state["backend_checkpoint"]).is_absolute()
+    )
     monkeypatch.chdir(second)
     result = resume(first / "runs" / "r")
     monkeypatch.chdir(first)
@@ -91,13 +119,20 @@ def test_run_folder_resumes_from_any_working_folder(tmp_path, monkeypatch):
 def interrupted(tmp_path):
     """A run folder stopped after its second real round, with its state and buffer files."""
     with pytest.raises(RuntimeError):
-        start(tmp_path / "runs" / "r", tmp_path / "s.db", factory=lambda s: AnalyticBackend(s, fail_on_real_call=2))
+        start(
+            tmp_path / "runs" / "r",
+            tmp_path / "s.db",
+            factory=lambda s: AnalyticBackend(s, fail_on_real_call=2),
+        )
     run = tmp_path / "runs" / "r"
     assert (run / "state.json").is_file() and list(run.glob("buffer-*.npz"))
     return run
 
 
-@pytest.mark.parametrize("damage", ["empty state", "garbage state", "truncated state", "garbage buffer", "missing buffer"])
+@pytest.mark.parametrize(
+    "damage",
+    ["empty state", "garbage state", "truncated state", "garbage buffer", "missing buffer"],
+)
 def test_damaged_state_or_buffer_is_one_line_naming_the_file(interrupted, capsys, damage):
     (buffer,) = interrupted.glob("buffer-*.npz")
     state = interrupted / "state.json"
@@ -146,7 +181,11 @@ def test_store_rows_lost_are_refilled_from_the_run_folder_on_resume(interrupted,
         conn.execute("DELETE FROM runs")
     resume(interrupted)
     rows = store.evaluations(run_id)
-    assert len(rows) == len(read_evaluations(interrupted)) == len({(e.outer, e.inner, e.kind, e.idx) for e in rows})
+    assert (
+        len(rows)
+        == len(read_evaluations(interrupted))
+        == len({(e.outer, e.inner, e.kind, e.idx) for e in rows})
+    )
     assert len(rows) > before  # the lost rows are back and the run went on
     assert store.get_run(run_id)["status"] == "finished"
     assert len(store.training(run_id)) == len({t["outer"] for t in store.training(run_id)}) >= 1
@@ -195,9 +234,29 @@ def test_checkpoint_write_on_a_full_disk_leaves_no_partial_file(tmp_path, monkey
 @pytest.mark.slow
 def test_ctrl_c_in_train_writes_a_checkpoint_first(tmp_path):
     out = tmp_path / "t"
-    cmd = [sys.executable, "-c", "import sys; from coadapt_core.cli import main; sys.exit(main(sys.argv[1:]))",
-           "train", "--steps", "100000", "--num-designs", "2", "--agents", "4", "--steps-per-env", "8", "--epochs", "1",
-           "--minibatches", "2", "--checkpoint-every", "1000", "--quiet", "--out", str(out)]
+    cmd = [
+        sys.executable,
+        "-c",
+        "import sys; from coadapt_core.cli import main; sys.exit(main(sys.argv[1:]))",
+        "train",
+        "--steps",
+        "100000",
+        "--num-designs",
+        "2",
+        "--agents",
+        "4",
+        "--steps-per-env",
+        "8",
+        "--epochs",
+        "1",
+        "--minibatches",
+        "2",
+        "--checkpoint-every",
+        "1000",
+        "--quiet",
+        "--out",
+        str(out),
+    ]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     first = proc.stdout.readline()  # the first iteration finished
     assert first.startswith("{"), proc.stderr.read()
@@ -252,8 +311,16 @@ def test_eval_counts_divergences_the_simulator_flags(monkeypatch):
     robot = registry.create("robot", "kuafu")
     sim_cls = registry.get("simulator", "mujoco")
     shipped = robot.shipped_policy("flat", False)
-    result = evaluate_checkpoint(shipped, robot, sim_cls, robot.nominal_design(), terrain="flat", command=[0.5, 0, 0],
-                                 agents=2, seconds=0.2)
+    result = evaluate_checkpoint(
+        shipped,
+        robot,
+        sim_cls,
+        robot.nominal_design(),
+        terrain="flat",
+        command=[0.5, 0, 0],
+        agents=2,
+        seconds=0.2,
+    )
     assert result["divergences"] == 3
 
 
@@ -271,10 +338,17 @@ def read_only(monkeypatch, folder: Path) -> None:
             return False
 
     def refuse(path):
-        raise OSError(errno.EROFS, "Read-only file system", os.fsencode(path))  # as some libraries pass it: bytes
+        raise OSError(
+            errno.EROFS, "Read-only file system", os.fsencode(path)
+        )  # as some libraries pass it: bytes
 
     real_open, real_os_open = builtins.open, os.open
-    real_replace, real_makedirs, real_mkdir, real_unlink = os.replace, os.makedirs, os.mkdir, os.unlink
+    real_replace, real_makedirs, real_mkdir, real_unlink = (
+        os.replace,
+        os.makedirs,
+        os.mkdir,
+        os.unlink,
+    )
 
     def open_(file, mode="r", *a, **k):
         if any(c in mode for c in "wax+") and under(file):
@@ -291,16 +365,23 @@ def read_only(monkeypatch, folder: Path) -> None:
             if under(path) and not (real is real_makedirs and os.path.isdir(path)):
                 refuse(path)
             return real(path, *a, **k)
+
         return wrapped
 
     monkeypatch.setattr(builtins, "open", open_)
     monkeypatch.setattr(os, "open", os_open)
-    monkeypatch.setattr(os, "replace", lambda src, dst, *a, **k: refuse(dst) if under(dst) else real_replace(src, dst, *a, **k))
+    monkeypatch.setattr(
+        os,
+        "replace",
+        lambda src, dst, *a, **k: refuse(dst) if under(dst) else real_replace(src, dst, *a, **k),
+    )
     for name, real in (("makedirs", real_makedirs), ("mkdir", real_mkdir), ("unlink", real_unlink)):
         monkeypatch.setattr(os, name, guard(real))
 
 
-def test_resuming_a_run_in_a_read_only_folder_is_one_line_naming_it(interrupted, capsys, monkeypatch):
+def test_resuming_a_run_in_a_read_only_folder_is_one_line_naming_it(
+    interrupted, capsys, monkeypatch
+):
     """The run folder can be read, not written: one line naming the folder as text (not
     b'...'), exit 2, and no traceback from TensorBoard's writer thread."""
     import shutil
@@ -325,7 +406,10 @@ def test_a_path_given_as_bytes_is_shown_as_text():
     from coadapt_core.cli.common import os_error_line
 
     line = os_error_line(OSError(errno.EROFS, "Read-only file system", b"/data/runs/r/events"))
-    assert line.startswith("cannot write '/data/runs/r/events' (Read-only file system)") and "b'/" not in line
+    assert (
+        line.startswith("cannot write '/data/runs/r/events' (Read-only file system)")
+        and "b'/" not in line
+    )
 
 
 def test_a_grid_settles_runs_killed_before_their_first_state_file(tmp_path):
@@ -335,23 +419,35 @@ def test_a_grid_settles_runs_killed_before_their_first_state_file(tmp_path):
     from coadapt_core.experiments.grid import GridSpec, plan_grid, settle_abandoned
 
     store = ResultsStore(tmp_path / "g.db")
-    spec = GridSpec(methods=["ours"], objectives=["torque"], terrains=["flat"], seeds=[0, 1, 2], preset="smoke")
+    spec = GridSpec(
+        methods=["ours"], objectives=["torque"], terrains=["flat"], seeds=[0, 1, 2], preset="smoke"
+    )
     cells = spec.cells()
     runs = tmp_path / "runs"
-    ids = ["20260101-000000-ours-pso-torque-s0-aaaaaa", "20260101-000000-ours-pso-torque-s1-bbbbbb",
-           "20260101-000000-ours-pso-torque-s2-cccccc"]
+    ids = [
+        "20260101-000000-ours-pso-torque-s0-aaaaaa",
+        "20260101-000000-ours-pso-torque-s1-bbbbbb",
+        "20260101-000000-ours-pso-torque-s2-cccccc",
+    ]
     for cell, run_id in zip(cells, ids, strict=True):
         (runs / run_id / "tb").mkdir(parents=True)
         (runs / run_id / "config.yaml").write_text("seed: 0\n")
-        store.create_run({"method": "ours", "objective": "torque", "seed": cell.seed, "grid_cell": cell.key},
-                         run_id=run_id, run_dir=str(runs / run_id))
+        store.create_run(
+            {"method": "ours", "objective": "torque", "seed": cell.seed, "grid_cell": cell.key},
+            run_id=run_id,
+            run_dir=str(runs / run_id),
+        )
     (runs / ids[1] / "state.json").write_text("{}")  # this one can be resumed: left alone
     (runs / ids[2] / "notes.txt").write_text("mine")  # a file coadapt did not write: folder kept
     settled = settle_abandoned(store, spec, runs)
     assert sorted(settled) == sorted([ids[0], ids[2]])
     status = {r["id"]: r["status"] for r in store.list_runs()}
     assert status == {ids[0]: "failed", ids[1]: "running", ids[2]: "failed"}
-    assert not (runs / ids[0]).exists() and (runs / ids[1]).is_dir() and (runs / ids[2] / "notes.txt").is_file()
+    assert (
+        not (runs / ids[0]).exists()
+        and (runs / ids[1]).is_dir()
+        and (runs / ids[2] / "notes.txt").is_file()
+    )
     tasks, _ = plan_grid(store, spec, out_dir=str(runs))
     assert {t.cell.seed: t.resume for t in tasks} == {0: None, 1: ids[1], 2: None}
 
@@ -368,6 +464,13 @@ def test_a_run_is_registered_in_the_store_only_once_its_state_exists(tmp_path):
             return config["run_id"]
 
     config = make_config("smoke", overrides={**BASE, "store": "none"})
-    run_coadaptation(config, backend_factory=lambda s: AnalyticBackend(s), design_space=SPACE, nominal_design=NOMINAL,
-                     objectives=[TorqueObjective()], run_dir=tmp_path / "r", recorder=Spy())
+    run_coadaptation(
+        config,
+        backend_factory=lambda s: AnalyticBackend(s),
+        design_space=SPACE,
+        nominal_design=NOMINAL,
+        objectives=[TorqueObjective()],
+        run_dir=tmp_path / "r",
+        recorder=Spy(),
+    )
     assert seen == [True]

@@ -33,11 +33,17 @@ def test_scale_one_is_the_plain_reference_and_scales_stride_clip_swing_and_stanc
     # a leg 1.3 x nominal: stance time x sqrt(1.3), offset 0.152 m, clip 0.195 m
     assert long[0, 0, 0].item() == pytest.approx(0.8 * (0.5 * math.sqrt(1.3) / 1.5) / 2, abs=1e-6)
     # the swing apex (mid-swing, full command gate) x 1.3: 0.08 -> 0.104 m above the stance foot
-    assert (long[1, 0, 2] - long[1, 1, 2]).item() == pytest.approx(1.3 * (plain[1, 0, 2] - plain[1, 1, 2]).item(), rel=1e-5)
+    assert (long[1, 0, 2] - long[1, 1, 2]).item() == pytest.approx(
+        1.3 * (plain[1, 0, 2] - plain[1, 1, 2]).item(), rel=1e-5
+    )
     # a fast command saturates the clip, which grows with the leg
     assert _reference(command=2.0)[0, 0, 0].item() == pytest.approx(0.15, abs=1e-6)
-    assert _reference(torch.tensor([1.3, 1.3]), command=2.0)[0, 0, 0].item() == pytest.approx(0.195, abs=1e-6)
-    assert _reference(torch.tensor([0.8, 0.8]), command=2.0)[0, 0, 0].item() == pytest.approx(0.12, abs=1e-6)
+    assert _reference(torch.tensor([1.3, 1.3]), command=2.0)[0, 0, 0].item() == pytest.approx(
+        0.195, abs=1e-6
+    )
+    assert _reference(torch.tensor([0.8, 0.8]), command=2.0)[0, 0, 0].item() == pytest.approx(
+        0.12, abs=1e-6
+    )
 
 
 def test_froude_clock_and_the_setting_off_by_default():
@@ -48,7 +54,9 @@ def test_froude_clock_and_the_setting_off_by_default():
     cfg.design_aware = True
     scale = gait_scales(cfg, legs, 0.658)
     assert scale.tolist() == pytest.approx([0.5 / 0.658, 1.0, 0.9 / 0.658], rel=1e-6)
-    assert clock_frequency(cfg, scale).tolist() == pytest.approx([1.5 * math.sqrt(0.658 / x) for x in (0.5, 0.658, 0.9)], rel=1e-6)
+    assert clock_frequency(cfg, scale).tolist() == pytest.approx(
+        [1.5 * math.sqrt(0.658 / x) for x in (0.5, 0.658, 0.9)], rel=1e-6
+    )
 
 
 @pytest.mark.slow

@@ -22,10 +22,17 @@ ROOT = Path(__file__).resolve().parents[2]
 def test_a_failing_step_stops_the_check_with_its_exit_code_and_brings_the_logs_back(tmp_path):
     """A planted failure: an interpreter that fails (`false`) makes the imports step fail."""
     env = {**os.environ, "SKIP_INSTALL": "1", "PYTHON": "false", "OUT": str(tmp_path / "out")}
-    done = subprocess.run(["bash", str(ROOT / "benchmarks" / "gpu_check.sh")], env=env, capture_output=True, text=True,
-                          timeout=120)
+    done = subprocess.run(
+        ["bash", str(ROOT / "benchmarks" / "gpu_check.sh")],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert done.returncode == 1, done.stdout + done.stderr
-    assert json.loads(done.stdout.splitlines()[0])["error"].startswith("step 'imports' failed (exit 1)")
+    assert json.loads(done.stdout.splitlines()[0])["error"].startswith(
+        "step 'imports' failed (exit 1)"
+    )
     with tarfile.open(tmp_path / "out" / "logs.tar.gz") as logs:
         assert "./imports.log" in logs.getnames()
     assert not (tmp_path / "out" / "gpu_check.json").exists()  # no summary of a check that stopped
@@ -33,16 +40,26 @@ def test_a_failing_step_stops_the_check_with_its_exit_code_and_brings_the_logs_b
 
 def _planted(out: Path, train_rows: list[dict] | None) -> None:
     out.mkdir()
-    (out / "throughput_default.json").write_text(json.dumps(
-        {"end_to_end_env_steps_per_s": 10_000, "collection_env_steps_per_s": 20_000}))
+    (out / "throughput_default.json").write_text(
+        json.dumps({"end_to_end_env_steps_per_s": 10_000, "collection_env_steps_per_s": 20_000})
+    )
     if train_rows is not None:
         (out / "train.jsonl").write_text("".join(json.dumps(r) + "\n" for r in train_rows))
 
 
 def test_the_summary_projects_the_paper_preset_and_exits_0_with_every_result(tmp_path, capsys):
     summary = load_benchmark("gpu_check_summary")
-    rows = [{"iteration": i, "total_steps": 4096 * 24 * i, "collect_steps_per_s": 30_000.0,
-             "update_samples_per_s": 5 * 60_000.0, "learner_share": 0.3, "mean_reward": 0.01 * i} for i in (1, 2, 3)]
+    rows = [
+        {
+            "iteration": i,
+            "total_steps": 4096 * 24 * i,
+            "collect_steps_per_s": 30_000.0,
+            "update_samples_per_s": 5 * 60_000.0,
+            "learner_share": 0.3,
+            "mean_reward": 0.01 * i,
+        }
+        for i in (1, 2, 3)
+    ]
     _planted(tmp_path / "ok", [*rows, {"walking_gate": "not judged"}])
     assert summary.main([str(tmp_path / "ok"), "180", "200"]) == 0
     result = json.loads((tmp_path / "ok" / "gpu_check.json").read_text())
@@ -57,7 +74,9 @@ def test_the_summary_projects_the_paper_preset_and_exits_0_with_every_result(tmp
     assert "no result from train" in capsys.readouterr().err
 
 
-def test_the_tensorboard_logger_falls_back_to_none_where_tensorboard_is_missing(tmp_path, monkeypatch, capsys):
+def test_the_tensorboard_logger_falls_back_to_none_where_tensorboard_is_missing(
+    tmp_path, monkeypatch, capsys
+):
     monkeypatch.setattr(tracking, "tensorboard_installed", lambda: False)
     logger = tracking.make_logger("tensorboard", tmp_path / "tb")
     logger.log_scalar("train/x", 1.0, 1)

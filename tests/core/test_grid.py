@@ -31,15 +31,32 @@ def fake_run(argv: list[str]) -> int:
     from coadapt_core.results import SqliteRecorder
 
     p = argparse.ArgumentParser()
-    for opt in ("--method", "--objective", "--terrain", "--preset", "--sim", "--robot", "--out", "--resume", "--optimizer", "--store",
-                "--optimizer-option"):
+    for opt in (
+        "--method",
+        "--objective",
+        "--terrain",
+        "--preset",
+        "--sim",
+        "--robot",
+        "--out",
+        "--resume",
+        "--optimizer",
+        "--store",
+        "--optimizer-option",
+    ):
         p.add_argument(opt)
     p.add_argument("--seed", type=int)
-    p.add_argument("--threads", type=int)  # recorded in the config, as the real run's config.yaml does
+    p.add_argument(
+        "--threads", type=int
+    )  # recorded in the config, as the real run's config.yaml does
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv[1:])  # argv[0] == "run"
     rec = SqliteRecorder(args.store)
-    config = {k: v for k, v in vars(args).items() if k not in ("json", "resume", "out", "store", "optimizer_option")}
+    config = {
+        k: v
+        for k, v in vars(args).items()
+        if k not in ("json", "resume", "out", "store", "optimizer_option")
+    }
     config["omp_num_threads"] = os.environ.get("OMP_NUM_THREADS")
     if args.resume:
         config["run_id"] = args.resume
@@ -62,19 +79,42 @@ def fake_run(argv: list[str]) -> int:
         if b < done:
             continue
         if inner == 0:
-            rec.record_training(run_id, outer=outer, result=TrainingResult(steps=2000, seconds=0.5, mean_reward=0.1 * b))
-        rec.record_evaluations(run_id, outer=outer, inner=inner, designs=designs, kind="real", interactions=300, seconds=0.01,
-                               costs=[{args.objective: float(((d - opt) ** 2).sum())} for d in designs])
+            rec.record_training(
+                run_id,
+                outer=outer,
+                result=TrainingResult(steps=2000, seconds=0.5, mean_reward=0.1 * b),
+            )
+        rec.record_evaluations(
+            run_id,
+            outer=outer,
+            inner=inner,
+            designs=designs,
+            kind="real",
+            interactions=300,
+            seconds=0.01,
+            costs=[{args.objective: float(((d - opt) ** 2).sum())} for d in designs],
+        )
         count += 1
-        if crash_cell == os.environ.get("COADAPT_GRID_CELL") and count == int(crash_n or 0) and not marker.exists():
+        if (
+            crash_cell == os.environ.get("COADAPT_GRID_CELL")
+            and count == int(crash_n or 0)
+            and not marker.exists()
+        ):
             marker.write_text("x")
             os._exit(9)  # after recording batch `count`, before saving the state that says so
         state_file.write_text(json.dumps({"done": b + 1}))
     real = rec.store.evaluations(run_id, kind="real")
     i = int(np.argmin([e.costs[args.objective] for e in real]))
     best = (real[i].costs[args.objective], real[i].design)
-    summary = {"run_id": run_id, "best_design": best[1], "best_cost": best[0], "nominal_cost": float(((1 - opt) ** 2).sum()),
-               "improvement": 0.5, "interactions": 300 * len(real) + 4000, "seconds": 0.1}
+    summary = {
+        "run_id": run_id,
+        "best_design": best[1],
+        "best_cost": best[0],
+        "nominal_cost": float(((1 - opt) ** 2).sum()),
+        "improvement": 0.5,
+        "interactions": 300 * len(real) + 4000,
+        "seconds": 0.1,
+    }
     rec.finish(run_id, summary)
     print("fake run done")
     print(json.dumps(summary))
@@ -82,15 +122,24 @@ def fake_run(argv: list[str]) -> int:
 
 
 def _spec(**kw) -> GridSpec:
-    base = {"methods": ["ours", "no-surrogate"], "objectives": ["torque"], "terrains": ["flat"], "seeds": [0],
-            "preset": "smoke"}
+    base = {
+        "methods": ["ours", "no-surrogate"],
+        "objectives": ["torque"],
+        "terrains": ["flat"],
+        "seeds": [0],
+        "preset": "smoke",
+    }
     base.update(kw)
     return GridSpec(**base)
 
 
 def test_grid_expands_every_combination():
-    spec = GridSpec(methods=["ours", "no-surrogate", "no-real", "no-retrain", "bo-specialized"],
-                    objectives=["tracking", "power", "torque"], terrains=["flat", "slope", "random"], seeds=[0, 1, 2])
+    spec = GridSpec(
+        methods=["ours", "no-surrogate", "no-real", "no-retrain", "bo-specialized"],
+        objectives=["tracking", "power", "torque"],
+        terrains=["flat", "slope", "random"],
+        seeds=[0, 1, 2],
+    )
     cells = spec.cells()
     assert len(cells) == 5 * 3 * 3 * 3 == len({c.key for c in cells})
     argv = cells[0].run_args(out_dir="runs")
@@ -98,15 +147,22 @@ def test_grid_expands_every_combination():
     assert spec.grid_id == GridSpec.from_dict(spec.to_dict()).grid_id  # same grid, same id
     bo = next(c for c in cells if c.method == "bo-specialized").run_args(store="sqlite:///x.db")
     assert bo[bo.index("--store") + 1] == "sqlite:///x.db"
-    assert bo[bo.index("--optimizer-option") + 1] == "storage=sqlite:///x.db"  # the option BO declares for its study
-    assert "--optimizer-option" not in cells[0].run_args(store="sqlite:///x.db")  # only BO keeps a study
+    assert (
+        bo[bo.index("--optimizer-option") + 1] == "storage=sqlite:///x.db"
+    )  # the option BO declares for its study
+    assert "--optimizer-option" not in cells[0].run_args(
+        store="sqlite:///x.db"
+    )  # only BO keeps a study
 
 
-@pytest.mark.parametrize(("field", "value", "message"), [
-    ("methods", ["ours", "sgd"], "unknown method 'sgd'"),
-    ("seeds", [], "at least one value"),
-    ("terrains", ["flat", "flat"], "twice"),
-])
+@pytest.mark.parametrize(
+    ("field", "value", "message"),
+    [
+        ("methods", ["ours", "sgd"], "unknown method 'sgd'"),
+        ("seeds", [], "at least one value"),
+        ("terrains", ["flat", "flat"], "twice"),
+    ],
+)
 def test_bad_grid_is_one_clear_error(field, value, message):
     with pytest.raises(UserError, match=message):
         _spec(**{field: value})
@@ -144,14 +200,20 @@ def test_killed_cell_is_resumed_without_losing_or_duplicating_evaluations(tmp_pa
     store = ResultsStore(tmp_path / "g.db")
     spec = _spec(methods=["ours"])
     (cell,) = spec.cells()
-    monkeypatch.setenv("FAKE_CRASH_AT", f"{cell.key}:2")  # dies after batch 1 is recorded, before its state is saved
+    monkeypatch.setenv(
+        "FAKE_CRASH_AT", f"{cell.key}:2"
+    )  # dies after batch 1 is recorded, before its state is saved
     first = run_grid(spec, store, workers=1, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
     assert first.failed == [cell.key]
     (run,) = store.list_runs(cell=cell.key)
     assert run["status"] == "interrupted" and store.count_evaluations(run["id"]) == 6
     assert store.cells(spec.grid_id)[cell.key]["status"] == "failed"
     tasks, skipped = plan_grid(store, spec, out_dir=str(tmp_path / "runs"))
-    assert not skipped and tasks[0].resume == run["id"] and tasks[0].argv[-3:] == ["--resume", run["id"], "--json"]
+    assert (
+        not skipped
+        and tasks[0].resume == run["id"]
+        and tasks[0].argv[-3:] == ["--resume", run["id"], "--json"]
+    )
 
     second = run_grid(spec, store, workers=1, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
     assert second.finished == [cell.key] and second.resumed == [cell.key]
@@ -171,16 +233,33 @@ def test_killed_grid_resumes_runs_left_running(tmp_path):
     c0, c1, c2, c3 = spec.cells()
     (tmp_path / "runs" / "r0").mkdir(parents=True)
     (tmp_path / "runs" / "r0" / "state.json").write_text("{}")  # got as far as its first state
-    store.create_run({"method": c0.method, "objective": c0.objective, "seed": c0.seed, "grid_cell": c0.key},
-                     run_id="r0", run_dir=str(tmp_path / "runs" / "r0"))
-    store.create_run({"method": c1.method, "objective": c1.objective, "seed": c1.seed, "grid_cell": c1.key},
-                     run_id="r1", run_dir=str(tmp_path / "runs" / "gone"))
+    store.create_run(
+        {"method": c0.method, "objective": c0.objective, "seed": c0.seed, "grid_cell": c0.key},
+        run_id="r0",
+        run_dir=str(tmp_path / "runs" / "r0"),
+    )
+    store.create_run(
+        {"method": c1.method, "objective": c1.objective, "seed": c1.seed, "grid_cell": c1.key},
+        run_id="r1",
+        run_dir=str(tmp_path / "runs" / "gone"),
+    )
     from coadapt_core.coadapt.config import make_config
 
     def by_hand(cell, run_id, **changed):
-        config = make_config("smoke", overrides={"method": cell.method, "objective": cell.objective, "terrain": "flat",
-                                                 "seed": cell.seed, "sim": "mujoco", **changed}).to_dict()
-        store.finish_run(store.create_run({**config, "out": "elsewhere"}, run_id=run_id), {"best_cost": 1.0})
+        config = make_config(
+            "smoke",
+            overrides={
+                "method": cell.method,
+                "objective": cell.objective,
+                "terrain": "flat",
+                "seed": cell.seed,
+                "sim": "mujoco",
+                **changed,
+            },
+        ).to_dict()
+        store.finish_run(
+            store.create_run({**config, "out": "elsewhere"}, run_id=run_id), {"best_cost": 1.0}
+        )
 
     by_hand(c2, "r2")  # finished by hand, no grid, the cell's whole config: reused
     by_hand(c3, "r3", population=7)  # by hand with another population: not this cell's run
@@ -196,8 +275,12 @@ def test_killed_grid_resumes_runs_left_running(tmp_path):
 
 def test_cell_that_cannot_start_is_reported_failed(tmp_path):
     store = ResultsStore(tmp_path / "g.db")
-    report = run_grid(_spec(methods=["ours"]), store, out_dir=str(tmp_path / "runs"),
-                      command=[sys.executable, "-c", "import sys; print('boom', file=sys.stderr); sys.exit(3)"])
+    report = run_grid(
+        _spec(methods=["ours"]),
+        store,
+        out_dir=str(tmp_path / "runs"),
+        command=[sys.executable, "-c", "import sys; print('boom', file=sys.stderr); sys.exit(3)"],
+    )
     assert len(report.failed) == 1
     assert "boom" in report.outcomes[report.failed[0]].error
 
@@ -205,13 +288,33 @@ def test_cell_that_cannot_start_is_reported_failed(tmp_path):
 def test_grid_cli_dry_run_and_bad_input(tmp_path):
     from tests.conftest import run_cli
 
-    proc = run_cli("grid", "--methods", "ours,no-real", "--objectives", "torque", "--terrains", "flat,slope",
-                   "--seeds", "0", "--preset", "smoke", "--store", str(tmp_path / "g.db"), "--dry-run")
+    proc = run_cli(
+        "grid",
+        "--methods",
+        "ours,no-real",
+        "--objectives",
+        "torque",
+        "--terrains",
+        "flat,slope",
+        "--seeds",
+        "0",
+        "--preset",
+        "smoke",
+        "--store",
+        str(tmp_path / "g.db"),
+        "--dry-run",
+    )
     assert proc.returncode == 0, proc.stderr
     lines = proc.stdout.strip().splitlines()
-    assert sum(line.startswith("new") for line in lines) == 4 and lines[-1].endswith("0 finished, 4 to run")
+    assert sum(line.startswith("new") for line in lines) == 4 and lines[-1].endswith(
+        "0 finished, 4 to run"
+    )
     bad = run_cli("grid", "--seeds", "0,x", "--store", str(tmp_path / "g.db"))
-    assert bad.returncode == 2 and bad.stderr.strip() == "error: --seeds must be comma-separated integers, e.g. 0,1,2; got '0,x'"
+    assert (
+        bad.returncode == 2
+        and bad.stderr.strip()
+        == "error: --seeds must be comma-separated integers, e.g. 0,1,2; got '0,x'"
+    )
 
 
 @pytest.mark.slow
@@ -222,10 +325,14 @@ def test_ray_executor_runs_a_two_cell_grid(tmp_path):
         store = ResultsStore(tmp_path / "ray.db")
         spec = _spec()
         start = time.perf_counter()
-        report = run_grid(spec, store, executor="ray", out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
+        report = run_grid(
+            spec, store, executor="ray", out_dir=str(tmp_path / "runs"), command=FAKE_RUN
+        )
         print(f"ray grid of 2 cells: {time.perf_counter() - start:.1f} s")
         assert sorted(report.finished) == sorted(c.key for c in spec.cells()) and not report.failed
-        assert all(store.count_evaluations(r["id"]) == 12 for r in store.list_runs(grid_id=spec.grid_id))
+        assert all(
+            store.count_evaluations(r["id"]) == 12 for r in store.list_runs(grid_id=spec.grid_id)
+        )
     finally:
         ray.shutdown()
 
@@ -240,16 +347,24 @@ def test_local_grid_of_two_cells_at_once_on_two_cores_gives_each_one_thread(tmp_
     monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
     pools = []  # the cells at once the grid gave its process pool
     pool = grid_module.local_executor
-    monkeypatch.setattr(grid_module, "local_executor", lambda tasks, workers: (pools.append(workers), pool(tasks, workers))[1])
+    monkeypatch.setattr(
+        grid_module,
+        "local_executor",
+        lambda tasks, workers: (pools.append(workers), pool(tasks, workers))[1],
+    )
     store = ResultsStore(tmp_path / "g.db")
     report = run_grid(_spec(), store, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
     assert len(report.outcomes) == 2 and all(o.returncode == 0 for o in report.outcomes.values())
     configs = [r["config"] for r in store.list_runs(grid_id=_spec().grid_id)]
     assert [(c["threads"], c["omp_num_threads"]) for c in configs] == [(1, "1"), (1, "1")]
     assert pools == [2]  # the two at once
-    one = run_grid(_spec(methods=["ours"], seeds=[5]), store, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
+    one = run_grid(
+        _spec(methods=["ours"], seeds=[5]), store, out_dir=str(tmp_path / "runs"), command=FAKE_RUN
+    )
     (row,) = store.list_runs(grid_id=_spec(methods=["ours"], seeds=[5]).grid_id)
-    assert row["config"]["threads"] == 2 and not one.failed and pools == [2, 1]  # a cell alone gets both cores
+    assert (
+        row["config"]["threads"] == 2 and not one.failed and pools == [2, 1]
+    )  # a cell alone gets both cores
 
 
 def test_a_local_grid_refuses_more_threads_than_cores(tmp_path, monkeypatch):
@@ -258,9 +373,16 @@ def test_a_local_grid_refuses_more_threads_than_cores(tmp_path, monkeypatch):
     monkeypatch.setattr(grid_module, "usable_cpus", lambda: 2)
     store = ResultsStore(tmp_path / "g.db")
     with pytest.raises(UserError, match="--workers 2 x --threads 2 = 4 threads on 2 CPUs"):
-        run_grid(_spec(), store, workers=2, threads=2, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
+        run_grid(
+            _spec(), store, workers=2, threads=2, out_dir=str(tmp_path / "runs"), command=FAKE_RUN
+        )
     with pytest.raises(UserError, match="--run-arg=--threads"):
-        run_grid(_spec(extra_args=["--threads", "2"]), store, out_dir=str(tmp_path / "runs"), command=FAKE_RUN)
+        run_grid(
+            _spec(extra_args=["--threads", "2"]),
+            store,
+            out_dir=str(tmp_path / "runs"),
+            command=FAKE_RUN,
+        )
 
 
 if __name__ == "__main__":  # the fake `coadapt run` the grid starts in these tests

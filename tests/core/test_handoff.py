@@ -22,16 +22,25 @@ from coadapt_core.handoff import model_files
 from coadapt_core.handoff.policy import ONNX_TOLERANCE, missing_deploy_modules
 from tests.conftest import run_cli
 
-needs_deploy = pytest.mark.skipif(bool(missing_deploy_modules()), reason="needs the deploy extra (coadapt[deploy])")
+needs_deploy = pytest.mark.skipif(
+    bool(missing_deploy_modules()), reason="needs the deploy extra (coadapt[deploy])"
+)
 
 #: runs a script with every coadapt import refused, so it can only use numpy, mujoco, onnxruntime
-NO_COADAPT = ("import runpy, sys; sys.modules['coadapt_core'] = None; sys.modules['coadapt_plugins'] = None; "
-              "sys.argv = sys.argv[1:]; runpy.run_path(sys.argv[0], run_name='__main__')")
+NO_COADAPT = (
+    "import runpy, sys; sys.modules['coadapt_core'] = None; sys.modules['coadapt_plugins'] = None; "
+    "sys.argv = sys.argv[1:]; runpy.run_path(sys.argv[0], run_name='__main__')"
+)
 
 
 def run_without_coadapt(folder: Path, script: str, *args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-c", NO_COADAPT, script, *args], cwd=folder, capture_output=True,
-                          text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-c", NO_COADAPT, script, *args],
+        cwd=folder,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
 
 
 # -- without a run ------------------------------------------------------------------------------
@@ -85,11 +94,13 @@ def test_model_files_carry_every_referenced_mesh(tmp_path, monkeypatch):
     _stl(elsewhere / "foot.stl")  # the same file name from another folder: kept apart
     monkeypatch.setattr(model_files, "robot_folder", lambda robot: home)
     mjcf = f"""<mujoco><compiler meshdir="meshes"/>
-  <asset><mesh name="a" file="foot.stl"/><mesh name="b" file="{elsewhere / 'foot.stl'}"/></asset>
+  <asset><mesh name="a" file="foot.stl"/><mesh name="b" file="{elsewhere / "foot.stl"}"/></asset>
   <worldbody><body name="base"><freejoint/><geom type="mesh" mesh="a"/><geom type="mesh" mesh="b" pos="0.1 0 0"/></body></worldbody>
 </mujoco>"""
-    urdf = ('<robot name="r"><link name="base"><visual><geometry><mesh filename="package://meshes/foot.stl"/>'
-            "</geometry></visual></link></robot>")
+    urdf = (
+        '<robot name="r"><link name="base"><visual><geometry><mesh filename="package://meshes/foot.stl"/>'
+        "</geometry></visual></link></robot>"
+    )
     written = model_files.write_model_files(_MeshRobot(), _Model(mjcf, urdf), out)
     assert sorted(p.name for p in written.assets) == ["foot.stl", "foot_1.stl"]
     model = mujoco.MjModel.from_xml_path(str(out / "robot.xml"))
@@ -97,8 +108,11 @@ def test_model_files_carry_every_referenced_mesh(tmp_path, monkeypatch):
     assert 'filename="assets/foot.stl"' in (out / "robot.urdf").read_text()
     # a reference that resolves nowhere is one line naming it
     with pytest.raises(UserError, match=r"missing\.stl"):
-        model_files.write_model_files(_MeshRobot(), _Model(mjcf.replace('file="foot.stl"', 'file="missing.stl"'), urdf),
-                                      tmp_path / "out2")
+        model_files.write_model_files(
+            _MeshRobot(),
+            _Model(mjcf.replace('file="foot.stl"', 'file="missing.stl"'), urdf),
+            tmp_path / "out2",
+        )
 
 
 @needs_deploy
@@ -123,7 +137,12 @@ def test_onnx_graph_bakes_the_design_and_matches_the_learner(tmp_path):
     dims = Dims(num_obs=30, num_critic_obs=36, num_design=2, num_actions=4, num_metrics=1)
     ppo = PPO(dims, config, torch.device("cpu"))
     ppo.obs_norm.update(3.0 * torch.randn(500, 30) + 1.0)
-    state = {"dims": vars(dims), "train_config": config.to_dict(), "objectives": ["torque"], "ppo": ppo.state_dict()}
+    state = {
+        "dims": vars(dims),
+        "train_config": config.to_dict(),
+        "objectives": ["torque"],
+        "ppo": ppo.state_dict(),
+    }
     default = np.array([0.1, -0.2, 0.3, -0.4])
     obs = (3.0 * np.random.default_rng(0).standard_normal((200, 30)) + 1.0).astype(np.float32)
     paths = {}
@@ -131,7 +150,10 @@ def test_onnx_graph_bakes_the_design_and_matches_the_learner(tmp_path):
         policy = SpecialisedPolicy(state, xi, default, action_scale=0.25, action_clip=10.0)
         paths[label] = export_onnx(policy, tmp_path / f"{label}.onnx", {"robot": "test"})
         check = verify_onnx(paths[label], state, obs, xi, default, 0.25, 10.0)
-        assert check["max_abs_action_difference"] <= 1e-5 and check["max_abs_target_difference"] <= 1e-5
+        assert (
+            check["max_abs_action_difference"] <= 1e-5
+            and check["max_abs_target_difference"] <= 1e-5
+        )
     one, _ = onnx_actions(paths["a"], obs[:1])
     many, targets = onnx_actions(paths["a"], obs[:3])
     assert one.shape == (1, 4) and many.shape == (3, 4)
@@ -141,7 +163,10 @@ def test_onnx_graph_bakes_the_design_and_matches_the_learner(tmp_path):
     import onnx
 
     graph = onnx.load(str(paths["a"])).graph
-    assert [i.name for i in graph.input] == ["obs"] and [o.name for o in graph.output] == ["actions", "joint_targets"]
+    assert [i.name for i in graph.input] == ["obs"] and [o.name for o in graph.output] == [
+        "actions",
+        "joint_targets",
+    ]
 
 
 # -- a real Kuafu run ------------------------------------------------------------------------------
@@ -153,13 +178,47 @@ def kuafu_handoff(tmp_path_factory):
     if missing_deploy_modules():
         pytest.skip("needs the deploy extra (coadapt[deploy])")
     root = tmp_path_factory.mktemp("handoff_kuafu")
-    args = ["run", "--optimizer", "pso", "--sim", "mujoco", "--objective", "torque", "--preset", "smoke",
-            "--population", "3", "--agents-per-design", "2", "--eval-steps", "10", "--train-steps", "100",
-            "--retrain-steps", "50", "--store", "none", "--out", str(root / "runs"), "--json"]
+    args = [
+        "run",
+        "--optimizer",
+        "pso",
+        "--sim",
+        "mujoco",
+        "--objective",
+        "torque",
+        "--preset",
+        "smoke",
+        "--population",
+        "3",
+        "--agents-per-design",
+        "2",
+        "--eval-steps",
+        "10",
+        "--train-steps",
+        "100",
+        "--retrain-steps",
+        "50",
+        "--store",
+        "none",
+        "--out",
+        str(root / "runs"),
+        "--json",
+    ]
     assert main(args) == 0
     run_dir = next((root / "runs").iterdir())
     out = root / "handoff"
-    done = run_cli("handoff", str(run_dir), "-o", str(out), "--agents", "2", "--seconds", "0.5", "--json", timeout=600)
+    done = run_cli(
+        "handoff",
+        str(run_dir),
+        "-o",
+        str(out),
+        "--agents",
+        "2",
+        "--seconds",
+        "0.5",
+        "--json",
+        timeout=600,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     return run_dir, out, json.loads(done.stdout.strip().splitlines()[-1]), done.stderr
 
@@ -171,8 +230,14 @@ def test_handoff_costs_say_their_protocol_and_no_library_banner(kuafu_handoff):
     stderr = kuafu_handoff[3]
     costs = [line for line in stderr.splitlines() if " vs nominal " in line]
     assert costs and all(", handoff protocol: " in line for line in costs), costs
-    said = [line for line in stderr.splitlines() if line.startswith("evaluating the design and the nominal one")]
-    assert said and all("handoff protocol, not comparable with `coadapt run` or `coadapt eval`" in x for x in said)
+    said = [
+        line
+        for line in stderr.splitlines()
+        if line.startswith("evaluating the design and the nominal one")
+    ]
+    assert said and all(
+        "handoff protocol, not comparable with `coadapt run` or `coadapt eval`" in x for x in said
+    )
     assert "pybullet build time" not in stderr
 
 
@@ -185,11 +250,22 @@ def test_kuafu_handoff_folder_holds_models_controller_and_sheet(kuafu_handoff):
     from coadapt_core.plugins import get_registry
 
     run_dir, out, result, stderr = kuafu_handoff
-    for name in ("robot.xml", "robot.urdf", "policy.onnx", "policy.json", "design.json", "design.md", "README.md",
-                 "check.py", "reference.npz"):
+    for name in (
+        "robot.xml",
+        "robot.urdf",
+        "policy.onnx",
+        "policy.json",
+        "design.json",
+        "design.md",
+        "README.md",
+        "check.py",
+        "reference.npz",
+    ):
         assert (out / name).is_file(), name
     if (run_dir / "best_vs_nominal.gif").is_file():
-        assert (out / "best_vs_nominal.gif").read_bytes() == (run_dir / "best_vs_nominal.gif").read_bytes()
+        assert (out / "best_vs_nominal.gif").read_bytes() == (
+            run_dir / "best_vs_nominal.gif"
+        ).read_bytes()
     # ONNX against torch: printed, below the stated tolerance
     assert re.search(r"max \|action difference\| \d\.\d\de-\d\d \(tolerance 0\.0001\)", stderr)
     assert result["max_abs_action_difference"] <= ONNX_TOLERANCE == 1e-4
@@ -217,7 +293,10 @@ def test_kuafu_handoff_folder_holds_models_controller_and_sheet(kuafu_handoff):
     assert prov["final_policy_sha256"] == sha256(run_dir / "checkpoints" / "backend-outer1.pt")
     assert prov["starting_policy_sha256"] == sha256(robot.shipped_policy("flat"))
     by_source = {(e["simulator"], e["source"].split(" (")[0]): e for e in sheet["evaluations"]}
-    assert by_source[("mujoco", "the run's final check")]["objectives"]["torque"]["design"] == summary["best_costs"]["torque"]
+    assert (
+        by_source[("mujoco", "the run's final check")]["objectives"]["torque"]["design"]
+        == summary["best_costs"]["torque"]
+    )
     fresh = by_source[("mujoco", "evaluated by coadapt handoff")]
     row = fresh["objectives"]["torque"]
     assert np.isfinite([row["design"], row["nominal"], row["design_se"], row["improvement"]]).all()
@@ -226,7 +305,11 @@ def test_kuafu_handoff_folder_holds_models_controller_and_sheet(kuafu_handoff):
         other = by_source[("pybullet", "evaluated by coadapt handoff")]
         assert "error" not in other and np.isfinite(other["objectives"]["torque"]["design"])
     text = (out / "design.md").read_text()
-    assert "## Validation: feasible" in text and "## Provenance" in text and prov["final_policy_sha256"] in text
+    assert (
+        "## Validation: feasible" in text
+        and "## Provenance" in text
+        and prov["final_policy_sha256"] in text
+    )
 
 
 @pytest.mark.slow
@@ -235,8 +318,12 @@ def test_check_script_walks_the_design_without_coadapt(kuafu_handoff):
     0.5 m/s with every coadapt import refused, and the robot walks."""
     _, out, result, _ = kuafu_handoff
     tree = ast.parse((out / "check.py").read_text())
-    imported = {a.name.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
-    imported |= {n.module.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module}
+    imported = {
+        a.name.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names
+    }
+    imported |= {
+        n.module.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module
+    }
     assert not {m for m in imported if m.startswith("coadapt")}
     done = run_without_coadapt(out, "check.py", "--json")
     assert done.returncode == 0, done.stderr[-2000:]
@@ -244,7 +331,10 @@ def test_check_script_walks_the_design_without_coadapt(kuafu_handoff):
     assert walked["seconds"] == 10.0 and walked["command"] == [0.5, 0.0, 0.0]
     assert walked["survival"] == 1.0 and walked["vx_mean"] >= 0.3, walked
     assert walked["onnx_vs_torch_max_abs_action_difference"] <= ONNX_TOLERANCE
-    assert result["controller_check"]["survival"] == 1.0 and result["controller_check"]["vx_mean"] >= 0.3
+    assert (
+        result["controller_check"]["survival"] == 1.0
+        and result["controller_check"]["vx_mean"] >= 0.3
+    )
     plain = run_without_coadapt(out, "check.py")
     assert "survival 1.00" in plain.stdout and "mean forward speed" in plain.stdout
 
@@ -284,7 +374,9 @@ def test_check_script_rebuilds_the_task_observation(kuafu_handoff, terrain):
     registry = get_registry()
     robot = registry.create("robot", "kuafu")
     design = np.array(list(spec["design"].values()))
-    sim = registry.get("simulator", "mujoco")(robot, design[None], terrain=terrain, randomization=RandomizationConfig.off())
+    sim = registry.get("simulator", "mujoco")(
+        robot, design[None], terrain=terrain, randomization=RandomizationConfig.off()
+    )
     task = TaskConfig()
     task.noise.enabled = False
     env = LocomotionEnv(sim, robot, task, [], seed=0)
@@ -309,7 +401,9 @@ def test_check_script_rebuilds_the_task_observation(kuafu_handoff, terrain):
 
 
 @pytest.mark.slow
-def test_a_graph_that_differs_from_torch_is_refused_and_nothing_is_left(kuafu_handoff, tmp_path, monkeypatch, capsys):
+def test_a_graph_that_differs_from_torch_is_refused_and_nothing_is_left(
+    kuafu_handoff, tmp_path, monkeypatch, capsys
+):
     from coadapt_core.handoff import policy as policy_module
 
     export = policy_module.export_onnx
@@ -335,7 +429,9 @@ def test_an_existing_folder_or_a_bad_design_is_one_line_exit_2(kuafu_handoff, ca
     run_dir, out, _, _ = kuafu_handoff
     assert main(["handoff", str(run_dir), "-o", str(out)]) == 2
     assert "--force" in capsys.readouterr().err
-    assert main(["handoff", str(run_dir), "-o", str(out.parent / "x"), "--design", "1.0,1.0,1.0"]) == 2
+    assert (
+        main(["handoff", str(run_dir), "-o", str(out.parent / "x"), "--design", "1.0,1.0,1.0"]) == 2
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--design" in err[0]
     assert main(["handoff", str(run_dir), "-o", str(run_dir.parent)]) == 2
@@ -356,29 +452,78 @@ def test_handoff_of_the_example_quadruped(example_plugin_site, tmp_path):
         from coadapt_example.robot import Trotter
     finally:
         sys.path.remove(str(example_plugin_site))
-    done = run_cli("run", "--robot", "trotter", "--preset", "smoke", "--checkpoint", "none", "--population", "2",
-                   "--outer-iterations", "1", "--optimizer-iterations", "1", "--no-video", "--out", str(tmp_path / "runs"),
-                   "--store", "none", "--json", pythonpath=[example_plugin_site], timeout=600)
+    done = run_cli(
+        "run",
+        "--robot",
+        "trotter",
+        "--preset",
+        "smoke",
+        "--checkpoint",
+        "none",
+        "--population",
+        "2",
+        "--outer-iterations",
+        "1",
+        "--optimizer-iterations",
+        "1",
+        "--no-video",
+        "--out",
+        str(tmp_path / "runs"),
+        "--store",
+        "none",
+        "--json",
+        pythonpath=[example_plugin_site],
+        timeout=600,
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     run_dir = next((tmp_path / "runs").iterdir())
     out = tmp_path / "trotter-handoff"
-    done = run_cli("handoff", str(run_dir), "-o", str(out), "--design", "1.2,0.9", "--sim", "mujoco", "--agents", "2",
-                   "--seconds", "0.5", "--no-video", "--json", pythonpath=[example_plugin_site], timeout=600)
+    done = run_cli(
+        "handoff",
+        str(run_dir),
+        "-o",
+        str(out),
+        "--design",
+        "1.2,0.9",
+        "--sim",
+        "mujoco",
+        "--agents",
+        "2",
+        "--seconds",
+        "0.5",
+        "--no-video",
+        "--json",
+        pythonpath=[example_plugin_site],
+        timeout=600,
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     result = json.loads(done.stdout.strip().splitlines()[-1])
-    assert result["robot"] == "trotter" and result["design"] == [1.2, 0.9] and result["is_run_best"] is False
+    assert (
+        result["robot"] == "trotter"
+        and result["design"] == [1.2, 0.9]
+        and result["is_run_best"] is False
+    )
     assert result["max_abs_action_difference"] <= ONNX_TOLERANCE
     model = Trotter().build(np.array([1.2, 0.9]))
-    assert (out / "robot.xml").read_text() == model.text("mjcf") and (out / "robot.urdf").read_text() == model.text("urdf")
+    assert (out / "robot.xml").read_text() == model.text("mjcf") and (
+        out / "robot.urdf"
+    ).read_text() == model.text("urdf")
     assert mujoco.MjModel.from_xml_path(str(out / "robot.xml")).nu == 8
     spec = json.loads((out / "policy.json").read_text())
     assert spec["action"]["joint_order"] == model.joint_names
     assert [leg["phase_offset"] for leg in spec["gait"]["legs"]] == [0.0, 0.5, 0.5, 0.0]
     sheet = json.loads((out / "design.json").read_text())
     assert sheet["body"]["total_mass"] == pytest.approx(model.total_mass, rel=1e-6)
-    assert [e["source"].split(" (")[0] for e in sheet["evaluations"]] == ["evaluated by coadapt handoff"]
+    assert [e["source"].split(" (")[0] for e in sheet["evaluations"]] == [
+        "evaluated by coadapt handoff"
+    ]
     assert "survival" in sheet["controller_check"]
     assert sheet["picture"].startswith("none")
     walked = run_without_coadapt(out, "check.py", "--seconds", "2", "--json")
     assert walked.returncode == 0, walked.stderr[-2000:]
-    assert json.loads(walked.stdout.strip().splitlines()[-1])["onnx_vs_torch_max_abs_action_difference"] <= ONNX_TOLERANCE
+    assert (
+        json.loads(walked.stdout.strip().splitlines()[-1])[
+            "onnx_vs_torch_max_abs_action_difference"
+        ]
+        <= ONNX_TOLERANCE
+    )

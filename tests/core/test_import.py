@@ -30,7 +30,10 @@ def contents(store: ResultsStore) -> dict[str, list]:
     fixed order: what two stores holding the same runs must agree on."""
     out = {}
     for t in TABLES:
-        rows = [{k: v for k, v in r.items() if not (t != "runs" and k == "id")} for r in store.table_rows(t)]
+        rows = [
+            {k: v for k, v in r.items() if not (t != "runs" and k == "id")}
+            for r in store.table_rows(t)
+        ]
         out[t] = sorted(rows, key=lambda r: json.dumps(r, sort_keys=True, default=str))
     return out
 
@@ -39,18 +42,28 @@ def counts(store: ResultsStore) -> dict[str, int]:
     return {t: len(store.table_rows(t)) for t in TABLES}
 
 
-def filled(path: Path, methods=("ours", "no-surrogate"), seeds=(0, 1), objectives=("torque",)) -> tuple[ResultsStore, dict]:
+def filled(
+    path: Path, methods=("ours", "no-surrogate"), seeds=(0, 1), objectives=("torque",)
+) -> tuple[ResultsStore, dict]:
     rec = SqliteRecorder(path)
     ckpt = path.parent / "policy.pt"
     ckpt.write_text("weights")
-    ids = {(m, s): record_run(rec, m, s, checkpoint=ckpt, objectives=objectives) for m in methods for s in seeds}
+    ids = {
+        (m, s): record_run(rec, m, s, checkpoint=ckpt, objectives=objectives)
+        for m in methods
+        for s in seeds
+    }
     return rec.store, ids
 
 
 def transfer(store: ResultsStore, run_id: str) -> None:
     """Sim-to-sim rows for one run, through an analytic backend (as test_report does)."""
-    transfer_runs(store, [store.get_run(run_id)], simulator="pybullet",
-                  factory=lambda *a, **k: AnalyticBackend(scale=1.5))
+    transfer_runs(
+        store,
+        [store.get_run(run_id)],
+        simulator="pybullet",
+        factory=lambda *a, **k: AnalyticBackend(scale=1.5),
+    )
 
 
 def same_report(a: ResultsStore, b: ResultsStore, tmp_path: Path) -> None:
@@ -88,7 +101,9 @@ def test_parquet_round_trip(tmp_path):
     source, _ = filled(tmp_path / "a" / "r.db")
     export_tables(source, tmp_path / "exp", fmt="parquet")
     target = ResultsStore(tmp_path / "b.db")
-    done = import_tables(target, tmp_path / "exp" / "runs.parquet")  # a file of the export names its folder
+    done = import_tables(
+        target, tmp_path / "exp" / "runs.parquet"
+    )  # a file of the export names its folder
     assert done.fmt == "parquet" and len(done.added) == 4
     assert contents(target) == contents(source)
     same_report(source, target, tmp_path)
@@ -108,9 +123,13 @@ def test_two_stores_merge_each_run_once_and_a_second_import_changes_nothing(tmp_
     first = import_tables(merged, tmp_path / "exp_a")
     second = import_tables(merged, tmp_path / "exp_b")
     assert sorted(first.added) == sorted(ids_a.values())
-    assert sorted(second.added) == sorted(ids_b.values()) and sorted(second.skipped) == sorted(ids_a.values())
+    assert sorted(second.added) == sorted(ids_b.values()) and sorted(second.skipped) == sorted(
+        ids_a.values()
+    )
     assert len(merged.list_runs()) == 4
-    assert counts(merged) == counts(b) and contents(merged) == contents(b)  # b holds a's runs once, and its own
+    assert counts(merged) == counts(b) and contents(merged) == contents(
+        b
+    )  # b holds a's runs once, and its own
     before = contents(merged)
     again = import_tables(merged, tmp_path / "exp_b")
     assert not again.added and not again.replaced and len(again.skipped) == 4
@@ -130,8 +149,20 @@ def test_a_finished_copy_replaces_an_unfinished_one_and_not_the_other_way(tmp_pa
     partial = ResultsStore(tmp_path / "partial.db")
     run = done_store.get_run(run_id)
     partial.create_run(run["config"], run_id=run_id)
-    partial.record_evaluations(run_id, [{"outer": 0, "inner": 0, "idx": i, "kind": "real", "design": [0.9, 0.9],
-                                         "costs": {"torque": 99.0}} for i in range(7)])
+    partial.record_evaluations(
+        run_id,
+        [
+            {
+                "outer": 0,
+                "inner": 0,
+                "idx": i,
+                "kind": "real",
+                "design": [0.9, 0.9],
+                "costs": {"torque": 99.0},
+            }
+            for i in range(7)
+        ],
+    )
     export_tables(done_store, tmp_path / "exp_done")
     export_tables(partial, tmp_path / "exp_partial")
     for order in (("exp_partial", "exp_done"), ("exp_done", "exp_partial")):
@@ -150,19 +181,45 @@ def test_grid_skips_imported_finished_cells(tmp_path):
     hand with the cell's whole configuration; after the import the grid plans only the rest."""
     from coadapt_core.coadapt.config import make_config
 
-    spec = GridSpec(methods=["ours", "no-surrogate"], objectives=["torque"], terrains=["flat"], seeds=[0, 1],
-                    preset="smoke", sim="mujoco")
+    spec = GridSpec(
+        methods=["ours", "no-surrogate"],
+        objectives=["torque"],
+        terrains=["flat"],
+        seeds=[0, 1],
+        preset="smoke",
+        sim="mujoco",
+    )
     c0, c1, c2, _c3 = spec.cells()
     elsewhere = ResultsStore(tmp_path / "elsewhere.db")
     for cell, run_id in ((c0, "g0"), (c1, "g1")):  # as the grid's recorder stores them
-        rid = elsewhere.create_run({"method": cell.method, "objective": cell.objective, "terrain": cell.terrain,
-                                    "seed": cell.seed, "preset": cell.preset, "sim": cell.sim,
-                                    "grid_id": spec.grid_id, "grid_cell": cell.key}, run_id=run_id)
+        rid = elsewhere.create_run(
+            {
+                "method": cell.method,
+                "objective": cell.objective,
+                "terrain": cell.terrain,
+                "seed": cell.seed,
+                "preset": cell.preset,
+                "sim": cell.sim,
+                "grid_id": spec.grid_id,
+                "grid_cell": cell.key,
+            },
+            run_id=run_id,
+        )
         elsewhere.finish_run(rid, {"best_cost": 1.0})
-    config = make_config("smoke", overrides={"method": c2.method, "objective": c2.objective, "terrain": "flat",
-                                             "seed": c2.seed, "sim": "mujoco"}).to_dict()
+    config = make_config(
+        "smoke",
+        overrides={
+            "method": c2.method,
+            "objective": c2.objective,
+            "terrain": "flat",
+            "seed": c2.seed,
+            "sim": "mujoco",
+        },
+    ).to_dict()
     elsewhere.finish_run(elsewhere.create_run(config, run_id="byhand"), {"best_cost": 2.0})
-    elsewhere.create_run({**config, "seed": 1}, run_id="unfinished")  # c3 started there, never finished
+    elsewhere.create_run(
+        {**config, "seed": 1}, run_id="unfinished"
+    )  # c3 started there, never finished
     export_tables(elsewhere, tmp_path / "exp")
 
     here = ResultsStore(tmp_path / "here.db")
@@ -171,7 +228,9 @@ def test_grid_skips_imported_finished_cells(tmp_path):
     import_tables(here, tmp_path / "exp")
     tasks, skipped = plan_grid(here, spec, out_dir=str(tmp_path / "runs"))
     assert [c.key for c in skipped] == [c0.key, c1.key, c2.key]
-    assert [t.cell.key for t in tasks] == [_c3.key] and tasks[0].resume is None  # no run folder here to resume
+    assert [t.cell.key for t in tasks] == [_c3.key] and tasks[
+        0
+    ].resume is None  # no run folder here to resume
 
 
 def _export(tmp_path: Path) -> Path:
@@ -194,19 +253,59 @@ def _edit_csv(path: Path, row: int, column: str, value: str) -> None:
         writer.writerows(rows)
 
 
-@pytest.mark.parametrize(("table", "column", "value", "message"), [
-    ("runs", "id", "../../etc", "runs row 2: '../../etc' is not a run id"),
-    ("runs", "config", "{not json", "runs row 2, column 'config': not JSON text"),
-    ("runs", "summary", "[1, 2]", "runs row 2, column 'summary': expected a JSON dict, got list"),
-    ("runs", "created_at", "", "runs row 2, column 'created_at': a value is required"),
-    ("evaluations", "outer", "first", "evaluations row 3, column 'outer': expected an integer, got 'first'"),
-    ("evaluations", "kind", "dream", "evaluations row 3, column 'kind': 'dream' is not one of real, surrogate, sim2sim"),
-    ("evaluations", "design", '["a"]', "evaluations row 3, column 'design': expected a JSON list of numbers"),
-    ("evaluations", "run_id", "other-run", "evaluations row 3: run 'other-run' is not in the runs file"),
-    ("evaluations", "cost_torque", "cheap", "evaluations row 3, column 'cost_torque': expected a number, got 'cheap'"),
-    ("training_phases", "steps", "1.5", "training_phases row 3, column 'steps': expected an integer, got '1.5'"),
-])
-def test_a_bad_row_is_one_error_naming_it_and_writes_nothing(tmp_path, table, column, value, message):
+@pytest.mark.parametrize(
+    ("table", "column", "value", "message"),
+    [
+        ("runs", "id", "../../etc", "runs row 2: '../../etc' is not a run id"),
+        ("runs", "config", "{not json", "runs row 2, column 'config': not JSON text"),
+        (
+            "runs",
+            "summary",
+            "[1, 2]",
+            "runs row 2, column 'summary': expected a JSON dict, got list",
+        ),
+        ("runs", "created_at", "", "runs row 2, column 'created_at': a value is required"),
+        (
+            "evaluations",
+            "outer",
+            "first",
+            "evaluations row 3, column 'outer': expected an integer, got 'first'",
+        ),
+        (
+            "evaluations",
+            "kind",
+            "dream",
+            "evaluations row 3, column 'kind': 'dream' is not one of real, surrogate, sim2sim",
+        ),
+        (
+            "evaluations",
+            "design",
+            '["a"]',
+            "evaluations row 3, column 'design': expected a JSON list of numbers",
+        ),
+        (
+            "evaluations",
+            "run_id",
+            "other-run",
+            "evaluations row 3: run 'other-run' is not in the runs file",
+        ),
+        (
+            "evaluations",
+            "cost_torque",
+            "cheap",
+            "evaluations row 3, column 'cost_torque': expected a number, got 'cheap'",
+        ),
+        (
+            "training_phases",
+            "steps",
+            "1.5",
+            "training_phases row 3, column 'steps': expected an integer, got '1.5'",
+        ),
+    ],
+)
+def test_a_bad_row_is_one_error_naming_it_and_writes_nothing(
+    tmp_path, table, column, value, message
+):
     exp = _export(tmp_path)
     _edit_csv(exp / f"{table}.csv", 0 if table == "runs" else 1, column, value)
     target = ResultsStore(tmp_path / "t.db")
@@ -257,7 +356,9 @@ def test_import_cli_round_trip_and_bad_input(tmp_path):
         assert bad.returncode == 2, bad.stderr
         (line,) = bad.stderr.strip().splitlines()
         assert line.startswith("error: ") and "Traceback" not in bad.stderr
-    assert not (tmp_path / "t2.db").exists() or counts(ResultsStore(tmp_path / "t2.db"))["runs"] == 0
+    assert (
+        not (tmp_path / "t2.db").exists() or counts(ResultsStore(tmp_path / "t2.db"))["runs"] == 0
+    )
 
 
 def test_design_values_and_costs_are_exact_after_the_round_trip(tmp_path):
@@ -265,15 +366,35 @@ def test_design_values_and_costs_are_exact_after_the_round_trip(tmp_path):
     rec = SqliteRecorder(tmp_path / "n.db")
     run_id = rec.start_run({"method": "ours", "objective": "torque,power", "seed": 0})
     designs = np.array([[1 / 3, 2 / 7], [0.1 + 0.2, 1e-17]])
-    rec.record_evaluations(run_id, outer=0, inner=0, designs=designs, kind="real", interactions=5, seconds=0.1,
-                           costs=[{"torque": float("nan"), "power": 1 / 9}, {"torque": 2 / 3, "power": 1e300}])
-    rec.record_evaluations(run_id, outer=0, inner=0, designs=designs[:1], kind="surrogate", interactions=0, seconds=0.0,
-                           costs=[{"torque": 0.5}])  # one objective only: the other column stays empty
+    rec.record_evaluations(
+        run_id,
+        outer=0,
+        inner=0,
+        designs=designs,
+        kind="real",
+        interactions=5,
+        seconds=0.1,
+        costs=[{"torque": float("nan"), "power": 1 / 9}, {"torque": 2 / 3, "power": 1e300}],
+    )
+    rec.record_evaluations(
+        run_id,
+        outer=0,
+        inner=0,
+        designs=designs[:1],
+        kind="surrogate",
+        interactions=0,
+        seconds=0.0,
+        costs=[{"torque": 0.5}],
+    )  # one objective only: the other column stays empty
     export_tables(rec.store, tmp_path / "exp")
     target = ResultsStore(tmp_path / "t.db")
     import_tables(target, tmp_path / "exp")
     real = target.evaluations(run_id, kind="real")
     assert [e.design for e in real] == designs.tolist()
-    assert np.isnan(real[0].costs["torque"]) and real[0].costs["power"] == 1 / 9 and real[1].costs["power"] == 1e300
+    assert (
+        np.isnan(real[0].costs["torque"])
+        and real[0].costs["power"] == 1 / 9
+        and real[1].costs["power"] == 1e300
+    )
     (sur,) = target.evaluations(run_id, kind="surrogate")
     assert sur.costs == {"torque": 0.5}

@@ -26,8 +26,16 @@ def test_training_allocates_nothing_on_the_default_device() -> None:
     registry = get_registry()
     robot = registry.get("robot", "kuafu")()
     objectives = [registry.get("objective", n)() for n in ("tracking", "power")]
-    config = TrainConfig(num_designs=2, agents_per_design=2, steps_per_env=8, hidden=(16, 16), epochs=2,
-                         minibatches=2, device="cpu", torch_threads=1)
+    config = TrainConfig(
+        num_designs=2,
+        agents_per_design=2,
+        steps_per_env=8,
+        hidden=(16, 16),
+        epochs=2,
+        minibatches=2,
+        device="cpu",
+        torch_threads=1,
+    )
     trainer = Trainer(robot, registry.get("simulator", "mujoco"), objectives, train_config=config)
     trainer.set_designs(trainer.sample_designs())  # module construction, then .to(device)
     with torch.device("meta"):
@@ -40,7 +48,9 @@ def test_training_allocates_nothing_on_the_default_device() -> None:
 def test_update_uses_the_thread_budget_and_collection_one(fake_robot, fake_sim_cls) -> None:
     """The update runs on the trainer's thread budget (here 2), never on the `torch_threads`
     a configuration (a checkpoint's: the shipped policies record 1) carries; collection on one."""
-    trainer = Trainer(fake_robot, fake_sim_cls, [], train_config=small_config(torch_threads=1), num_threads=2)
+    trainer = Trainer(
+        fake_robot, fake_sim_cls, [], train_config=small_config(torch_threads=1), num_threads=2
+    )
     trainer.set_designs(np.array([[1.0, 1.0], [0.8, 1.2]]))
     seen = {"update": set(), "step": set()}
     update, step = trainer.ppo.update, trainer.env.step
@@ -49,7 +59,9 @@ def test_update_uses_the_thread_budget_and_collection_one(fake_robot, fake_sim_c
     trainer.learn(2)
     assert seen == {"update": {2}, "step": {1}}
     assert torch.get_num_threads() == 1  # back to one outside the update
-    assert trainer.update_threads_seen == 2 and trainer.env.sim.num_threads == 2  # physics: the same budget
+    assert (
+        trainer.update_threads_seen == 2 and trainer.env.sim.num_threads == 2
+    )  # physics: the same budget
     from coadapt_core import threads
 
     default = Trainer(fake_robot, fake_sim_cls, [], train_config=small_config(torch_threads=1))
@@ -60,8 +72,14 @@ def test_randomized_parameters_are_converted_once_per_reset(fake_robot, fake_sim
     sim = fake_sim_factory(4, randomize=True)
     reads = []
     cls = type(sim)
-    sim.__class__ = type("CountingSim", (cls,), {"env_params": property(lambda s: reads.append(1) or cls.env_params.fget(s))})
-    env = LocomotionEnv(sim, fake_robot, TaskConfig(noise=NoiseConfig(enabled=False), episode_seconds=0.1))
+    sim.__class__ = type(
+        "CountingSim",
+        (cls,),
+        {"env_params": property(lambda s: reads.append(1) or cls.env_params.fget(s))},
+    )
+    env = LocomotionEnv(
+        sim, fake_robot, TaskConfig(noise=NoiseConfig(enabled=False), episode_seconds=0.1)
+    )
     env.reset()
     before = len(reads)
     res = env.step(torch.zeros(4, 8))  # 5 steps per episode: nobody restarts yet
@@ -74,12 +92,16 @@ def test_randomized_parameters_are_converted_once_per_reset(fake_robot, fake_sim
 
 
 def test_bf16_and_profiled_update_run_on_the_cpu(fake_robot, fake_sim_cls) -> None:
-    trainer = make_trainer(fake_robot, fake_sim_cls, small_config(precision="bf16", pseudo_precision="bf16"))
+    trainer = make_trainer(
+        fake_robot, fake_sim_cls, small_config(precision="bf16", pseudo_precision="bf16")
+    )
     trainer.set_designs(np.array([[1.0, 1.0]]))
     trainer.ppo.profile = True
     stats = trainer.learn(2)
     assert all(np.isfinite(v) for v in stats.losses.values())
-    assert all(p.dtype == torch.float32 for p in trainer.ppo.pseudo_critic.parameters())  # autocast, not a cast
+    assert all(
+        p.dtype == torch.float32 for p in trainer.ppo.pseudo_critic.parameters()
+    )  # autocast, not a cast
     timing = trainer.ppo.timing
     assert 0 < timing["pseudo"] < timing["returns"] + timing["update"]
 
@@ -90,7 +112,10 @@ def test_auto_precision_is_bf16_only_where_the_device_has_it() -> None:
 
     native = torch.backends.mkldnn.is_available() and torch.ops.mkldnn._is_mkldnn_bf16_supported()
     assert resolve_precision("auto", "cpu") == ("bf16" if native else "float32")
-    assert resolve_precision("float32", "cpu") == "float32" and resolve_precision("bf16", "cpu") == "bf16"
+    assert (
+        resolve_precision("float32", "cpu") == "float32"
+        and resolve_precision("bf16", "cpu") == "bf16"
+    )
     assert TrainConfig().precision == TrainConfig().pseudo_precision == "auto"
     with pytest.raises(UserError, match="pseudo_precision"):
         TrainConfig(pseudo_precision="fp8")

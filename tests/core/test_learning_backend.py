@@ -44,10 +44,26 @@ def backend(fake_robot, fake_sim_factory):
 
     build.name = "fake"
     # pseudo-critics train in every PPO epoch here: the test is about their target's scale
-    config = TrainConfig(num_designs=2, agents_per_design=8, steps_per_env=16, hidden=(64, 64), epochs=2, minibatches=2, pseudo_epochs=0, torch_threads=1)
+    config = TrainConfig(
+        num_designs=2,
+        agents_per_design=8,
+        steps_per_env=16,
+        hidden=(64, 64),
+        epochs=2,
+        minibatches=2,
+        pseudo_epochs=0,
+        torch_threads=1,
+    )
     out = UniversalPolicyBackend(
-        fake_robot, build, [SquaredTorque(), ShankLength()], terrain="flat", design_space=fake_robot.design_space(),
-        agents_per_design=8, device="cpu", seed=0, train_config=config,
+        fake_robot,
+        build,
+        [SquaredTorque(), ShankLength()],
+        terrain="flat",
+        design_space=fake_robot.design_space(),
+        agents_per_design=8,
+        device="cpu",
+        seed=0,
+        train_config=config,
     )
     yield out
     out.close()
@@ -74,42 +90,79 @@ def test_train_real_and_surrogate_fitness_shapes_and_units(backend, tmp_path) ->
     surrogate = backend.surrogate_fitness(designs, objectives, fit.buffer, samples=256, seed=0)
     assert surrogate.shape == (3, 2) and np.all(np.isfinite(surrogate))
     # the same seed gives the same sample of states; one column follows its objective
-    np.testing.assert_allclose(backend.surrogate_fitness(designs, objectives, fit.buffer, samples=256, seed=0), surrogate)
-    reordered = backend.surrogate_fitness(designs, objectives[::-1], fit.buffer, samples=256, seed=0)
+    np.testing.assert_allclose(
+        backend.surrogate_fitness(designs, objectives, fit.buffer, samples=256, seed=0), surrogate
+    )
+    reordered = backend.surrogate_fitness(
+        designs, objectives[::-1], fit.buffer, samples=256, seed=0
+    )
     np.testing.assert_allclose(reordered, surrogate[:, ::-1], rtol=1e-6)
 
     path = tmp_path / "backend.pt"
     backend.save(str(path))
     other = UniversalPolicyBackend(
-        backend.trainer.robot, backend.trainer.simulator_cls, objectives, design_space=backend.trainer.design_space,
-        agents_per_design=8, seed=3, checkpoint=str(path), train_config=backend.trainer.config,
+        backend.trainer.robot,
+        backend.trainer.simulator_cls,
+        objectives,
+        design_space=backend.trainer.design_space,
+        agents_per_design=8,
+        seed=3,
+        checkpoint=str(path),
+        train_config=backend.trainer.config,
     )
-    np.testing.assert_allclose(other.surrogate_fitness(designs, objectives, fit.buffer, samples=256, seed=0), surrogate, rtol=1e-6)
+    np.testing.assert_allclose(
+        other.surrogate_fitness(designs, objectives, fit.buffer, samples=256, seed=0),
+        surrogate,
+        rtol=1e-6,
+    )
 
 
 @pytest.mark.slow
-def test_the_papers_estimator_computes_only_its_heads_to_the_bit(fake_robot, fake_sim_factory) -> None:
+def test_the_papers_estimator_computes_only_its_heads_to_the_bit(
+    fake_robot, fake_sim_factory
+) -> None:
     """surrogate_fitness runs only the objectives' pseudo-critics (one alone twice: a batch of
     one takes another product path, 1e-6 apart at these sizes) on the learner's threads:
     every column equals, bit for bit, the mean of all heads computed together on one thread,
     as before. The shipped policies' sizes: 512-256-128 heads, 4096 states."""
     sim_type = type(fake_sim_factory(1))
-    config = TrainConfig(num_designs=2, agents_per_design=8, steps_per_env=16, hidden=(512, 256, 128), torch_threads=1)
-    backend = UniversalPolicyBackend(fake_robot, lambda robot, designs, **kw: sim_type(robot, designs, **kw),
-                                     [SquaredTorque(), ShankLength()], design_space=fake_robot.design_space(),
-                                     agents_per_design=8, seed=0, train_config=config)
+    config = TrainConfig(
+        num_designs=2,
+        agents_per_design=8,
+        steps_per_env=16,
+        hidden=(512, 256, 128),
+        torch_threads=1,
+    )
+    backend = UniversalPolicyBackend(
+        fake_robot,
+        lambda robot, designs, **kw: sim_type(robot, designs, **kw),
+        [SquaredTorque(), ShankLength()],
+        design_space=fake_robot.design_space(),
+        agents_per_design=8,
+        seed=0,
+        train_config=config,
+    )
     designs = np.array([[1.0, 1.0], [0.6, 1.4], [1.4, 0.6]])
     fit = backend.real_fitness(designs, backend.objectives, agents=4, steps=20, seed=1)
     states = backend._states(fit.buffer, 4096, 0)
     xi = backend.trainer_normalize(designs)
     with torch.no_grad():
-        every = torch.stack([backend.ppo.pseudo_values(states, xi[k].expand(4096, -1)).mean(dim=0) for k in range(3)]).numpy()
+        every = torch.stack(
+            [
+                backend.ppo.pseudo_values(states, xi[k].expand(4096, -1)).mean(dim=0)
+                for k in range(3)
+            ]
+        ).numpy()
     backend.trainer.learner_threads = 2
     for j, objective in enumerate(backend.objectives):
         alone = backend.surrogate_fitness(designs, [objective], fit.buffer, samples=4096, seed=0)
         assert np.array_equal(alone[:, 0], every[:, j])
-    assert np.array_equal(backend.surrogate_fitness(designs, backend.objectives[::-1], fit.buffer, samples=4096, seed=0),
-                          every[:, ::-1])
+    assert np.array_equal(
+        backend.surrogate_fitness(
+            designs, backend.objectives[::-1], fit.buffer, samples=4096, seed=0
+        ),
+        every[:, ::-1],
+    )
     assert torch.get_num_threads() == backend.trainer.collect_threads  # collection's threads again
     backend.close()
 

@@ -13,10 +13,30 @@ from coadapt_core.cli import main
 @pytest.mark.slow
 def test_train_writes_a_checkpoint_that_eval_and_resume_read(tmp_path, capsys) -> None:
     out = tmp_path / "run"
-    args = ["train", "--steps", "128", "--num-designs", "2", "--agents", "4", "--steps-per-env", "8",
-            "--epochs", "1", "--minibatches", "2", "--out", str(out), "--checkpoint-every", "1", "--quiet"]
+    args = [
+        "train",
+        "--steps",
+        "128",
+        "--num-designs",
+        "2",
+        "--agents",
+        "4",
+        "--steps-per-env",
+        "8",
+        "--epochs",
+        "1",
+        "--minibatches",
+        "2",
+        "--out",
+        str(out),
+        "--checkpoint-every",
+        "1",
+        "--quiet",
+    ]
     assert main(args) == 0
-    lines = [json.loads(line) for line in capsys.readouterr().out.splitlines() if line.startswith("{")]
+    lines = [
+        json.loads(line) for line in capsys.readouterr().out.splitlines() if line.startswith("{")
+    ]
     # one line per iteration, then the walking gate on the policy written (2 iterations: it does not walk)
     gate = lines.pop()["walking_gate"]
     assert [row["iteration"] for row in lines] == [1, 2] and lines[-1]["total_steps"] == 128
@@ -27,21 +47,63 @@ def test_train_writes_a_checkpoint_that_eval_and_resume_read(tmp_path, capsys) -
     assert len((out / "progress.jsonl").read_text().splitlines()) == 2
     assert any((out / "logs").glob("events.out.tfevents.*"))  # TensorBoard, a dependency
 
-    code = main(["eval", "--checkpoint", str(out / "model_final.pt"), "--design", "1.0,1.0", "--agents", "2",
-                 "--seconds", "0.4", "--command", "0.5,0,0.3", "--json"])
+    code = main(
+        [
+            "eval",
+            "--checkpoint",
+            str(out / "model_final.pt"),
+            "--design",
+            "1.0,1.0",
+            "--agents",
+            "2",
+            "--seconds",
+            "0.4",
+            "--command",
+            "0.5,0,0.3",
+            "--json",
+        ]
+    )
     assert code == 0
     result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
-    assert {"survival", "vx_mean", "yaw_rate_mean", "tracking_error", "torque_cost", "power_cost"} <= set(result)
+    assert {
+        "survival",
+        "vx_mean",
+        "yaw_rate_mean",
+        "tracking_error",
+        "torque_cost",
+        "power_cost",
+    } <= set(result)
     assert result["yaw_rate_command"] == pytest.approx(0.3) and abs(result["yaw_rate_mean"]) < 20.0
-    assert 0.0 <= result["survival"] <= 1.0 and result["torque_cost"] > 0 and result["steps"] == 2 * 20
+    assert (
+        0.0 <= result["survival"] <= 1.0 and result["torque_cost"] > 0 and result["steps"] == 2 * 20
+    )
     # speeds carry their standard error over the (two) agents: half the gap between them
     assert result["vx_mean_se"] > 0 and result["yaw_rate_mean_se"] > 0
 
     resumed = tmp_path / "resumed"
-    assert main(["train", "--resume", str(out / "model_final.pt"), "--steps", "64", "--out", str(resumed), "--quiet",
-                 "--epochs", "1"]) == 0
-    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines() if line.startswith("{")][:-1]
-    assert rows[0]["iteration"] == 3 and rows[-1]["total_steps"] == 192  # 2 designs x 4 agents from the checkpoint
+    assert (
+        main(
+            [
+                "train",
+                "--resume",
+                str(out / "model_final.pt"),
+                "--steps",
+                "64",
+                "--out",
+                str(resumed),
+                "--quiet",
+                "--epochs",
+                "1",
+            ]
+        )
+        == 0
+    )
+    rows = [
+        json.loads(line) for line in capsys.readouterr().out.splitlines() if line.startswith("{")
+    ][:-1]
+    assert (
+        rows[0]["iteration"] == 3 and rows[-1]["total_steps"] == 192
+    )  # 2 designs x 4 agents from the checkpoint
 
 
 @pytest.mark.parametrize(
@@ -53,13 +115,25 @@ def test_train_writes_a_checkpoint_that_eval_and_resume_read(tmp_path, capsys) -
         (["train", "--designs", "0.5-1.5"], "low:high"),
         (["train", "--steps", "0"], "--steps must be >= 1"),
         (["train", "--device", "tpu"], "--device 'tpu'"),
-        (["train", "--resume", "a.pt", "--init-from", "b.pt"], "--resume and --init-from exclude each other"),
-        (["train", "--reset-pseudo-critics", "--steps", "8"], "--reset-pseudo-critics needs --resume or --init-from"),
-        (["train", "--pseudo-critics-only", "--steps", "8"], "--pseudo-critics-only needs --resume or --init-from"),
+        (
+            ["train", "--resume", "a.pt", "--init-from", "b.pt"],
+            "--resume and --init-from exclude each other",
+        ),
+        (
+            ["train", "--reset-pseudo-critics", "--steps", "8"],
+            "--reset-pseudo-critics needs --resume or --init-from",
+        ),
+        (
+            ["train", "--pseudo-critics-only", "--steps", "8"],
+            "--pseudo-critics-only needs --resume or --init-from",
+        ),
         (["eval", "--command", "fast"], "--command 'fast'"),
         (["eval", "--checkpoint", "/no/such.pt"], "does not exist"),
         # --robot given: another test may have left a second robot (the example plugin's) registered
-        (["eval", "--robot", "kuafu", "--design", "3,3", "--checkpoint", "x.pt"], "outside its bounds"),
+        (
+            ["eval", "--robot", "kuafu", "--design", "3,3", "--checkpoint", "x.pt"],
+            "outside its bounds",
+        ),
         (["eval", "--video", "out.avi", "--checkpoint", "x.pt"], ".gif or .mp4"),
     ],
 )
@@ -75,6 +149,15 @@ def test_eval_without_checkpoint_says_no_policy_is_shipped(capsys, monkeypatch) 
     from coadapt_core.robot import Robot
 
     shipped = Robot.shipped_policy
-    monkeypatch.setattr(Robot, "shipped_policy", lambda self, terrain, mixed=False: None if (terrain, mixed) == ("slope", True) else shipped(self, terrain, mixed))
+    monkeypatch.setattr(
+        Robot,
+        "shipped_policy",
+        lambda self, terrain, mixed=False: (
+            None if (terrain, mixed) == ("slope", True) else shipped(self, terrain, mixed)
+        ),
+    )
     assert main(["eval", "--robot", "kuafu", "--terrain", "slope", "--design", "1,1,1,1"]) == 2
-    assert "robot 'kuafu' ships no policy for terrain 'slope' and the mixed design space" in capsys.readouterr().err
+    assert (
+        "robot 'kuafu' ships no policy for terrain 'slope' and the mixed design space"
+        in capsys.readouterr().err
+    )

@@ -13,8 +13,15 @@ from tests.core.test_learning_backend import ShankLength, SquaredTorque
 
 def test_make_backend_builds_the_universal_policy_as_asked(fake_robot, fake_sim_cls):
     config = TrainConfig(num_designs=2, agents_per_design=8, hidden=(32, 32), torch_threads=1)
-    backend = make_backend(fake_robot, fake_sim_cls, [SquaredTorque(), ShankLength()], terrain="flat",
-                           agents_per_design=3, seed=7, train_config=config)
+    backend = make_backend(
+        fake_robot,
+        fake_sim_cls,
+        [SquaredTorque(), ShankLength()],
+        terrain="flat",
+        agents_per_design=3,
+        seed=7,
+        train_config=config,
+    )
     assert isinstance(backend, CoadaptationBackend)
     trainer = backend.trainer
     assert trainer.config.agents_per_design == 3  # the argument wins over the train config's 8

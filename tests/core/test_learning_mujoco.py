@@ -19,11 +19,23 @@ def test_short_mujoco_training_lengthens_episodes_and_raises_the_reward() -> Non
     from coadapt_core.task.config import CommandConfig
 
     robot = registry.get("robot", "kuafu")()
-    config = TrainConfig(num_designs=1, agents_per_design=64, steps_per_env=24, hidden=(128, 128), epochs=5, minibatches=4, seed=0)
+    config = TrainConfig(
+        num_designs=1,
+        agents_per_design=64,
+        steps_per_env=24,
+        hidden=(128, 128),
+        epochs=5,
+        minibatches=4,
+        seed=0,
+    )
     task = TaskConfig(commands=CommandConfig(curriculum=False, vx_range=(0.0, 0.0)))
     trainer = Trainer(
-        robot, registry.get("simulator", "mujoco"), [registry.get("objective", "torque")()],
-        train_config=config, task_config=task, randomization=RandomizationConfig.off(),
+        robot,
+        registry.get("simulator", "mujoco"),
+        [registry.get("objective", "torque")()],
+        train_config=config,
+        task_config=task,
+        randomization=RandomizationConfig.off(),
     )
     trainer.set_designs(robot.nominal_design()[None])
     rows = []

@@ -32,16 +32,32 @@ class SpeedError(Objective):
 
 
 def small_config(**over) -> TrainConfig:
-    base = dict(num_designs=2, agents_per_design=16, steps_per_env=16, hidden=(64, 64), epochs=3, minibatches=2,
-                seed=0, torch_threads=1)
+    base = dict(
+        num_designs=2,
+        agents_per_design=16,
+        steps_per_env=16,
+        hidden=(64, 64),
+        epochs=3,
+        minibatches=2,
+        seed=0,
+        torch_threads=1,
+    )
     base.update(over)
     return TrainConfig(**base)
 
 
-def make_trainer(fake_robot, fake_sim_cls, config: TrainConfig | None = None, objectives=None, task=None) -> Trainer:
+def make_trainer(
+    fake_robot, fake_sim_cls, config: TrainConfig | None = None, objectives=None, task=None
+) -> Trainer:
     task = task or TaskConfig(noise=NoiseConfig(enabled=False))
     objectives = [SquaredTorque(), SpeedError()] if objectives is None else objectives
-    return Trainer(fake_robot, fake_sim_cls, objectives, train_config=config or small_config(), task_config=task)
+    return Trainer(
+        fake_robot,
+        fake_sim_cls,
+        objectives,
+        train_config=config or small_config(),
+        task_config=task,
+    )
 
 
 def test_pseudo_targets_are_the_discounted_average_of_the_metric() -> None:
@@ -67,7 +83,14 @@ def test_pseudo_critics_get_no_gradient_from_the_policy_loss(fake_robot, fake_si
     for _ in range(4):
         actions = ppo.act(obs, critic, design)
         res = env.step(actions)
-        ppo.process_env_step(res.reward, res.done, res.timeout, res.info["final_critic_obs"], res.design_obs, res.info["metrics"])
+        ppo.process_env_step(
+            res.reward,
+            res.done,
+            res.timeout,
+            res.info["final_critic_obs"],
+            res.design_obs,
+            res.info["metrics"],
+        )
         obs, critic, design = res.obs, res.critic_obs, res.design_obs
     batch = ppo.compute_returns().reshape(-1)
     out = ppo.loss(batch)
@@ -89,7 +112,8 @@ def test_pseudo_critics_get_no_gradient_from_the_policy_loss(fake_robot, fake_si
 def test_short_training_raises_the_mean_reward(fake_robot, fake_sim_cls) -> None:
     # forward commands of 0.5-1 m/s: standing still tracks badly, so there is reward to gain
     task = TaskConfig(
-        noise=NoiseConfig(enabled=False), commands=CommandConfig(curriculum=False, vx_range=(0.5, 1.0), zero_share=0.0)
+        noise=NoiseConfig(enabled=False),
+        commands=CommandConfig(curriculum=False, vx_range=(0.5, 1.0), zero_share=0.0),
     )
     trainer = make_trainer(fake_robot, fake_sim_cls, small_config(steps_per_env=24), task=task)
     trainer.set_designs(np.array([[1.0, 1.0], [1.0, 1.0]]))
@@ -130,7 +154,9 @@ def test_checkpoint_round_trip_gives_identical_actions(fake_robot, fake_sim_cls,
     assert restored.iteration == 3
 
 
-def test_weights_export_is_small_float32_and_acts_the_same(fake_robot, fake_sim_cls, tmp_path) -> None:
+def test_weights_export_is_small_float32_and_acts_the_same(
+    fake_robot, fake_sim_cls, tmp_path
+) -> None:
     config = small_config(hidden=(512, 256, 128))
     trainer = make_trainer(fake_robot, fake_sim_cls, config)
     trainer.set_designs(np.array([[1.0, 1.0]]))
@@ -143,10 +169,14 @@ def test_weights_export_is_small_float32_and_acts_the_same(fake_robot, fake_sim_
     restored = make_trainer(fake_robot, fake_sim_cls, small_config(hidden=(512, 256, 128)))
     restored.load(weights)
     obs, _, design = trainer.env.reset()
-    assert torch.equal(restored.ppo.act_inference(obs, design), trainer.ppo.act_inference(obs, design))
+    assert torch.equal(
+        restored.ppo.act_inference(obs, design), trainer.ppo.act_inference(obs, design)
+    )
 
 
-def test_pseudo_critics_follow_objectives_by_name_on_load(fake_robot, fake_sim_cls, tmp_path) -> None:
+def test_pseudo_critics_follow_objectives_by_name_on_load(
+    fake_robot, fake_sim_cls, tmp_path
+) -> None:
     trainer = make_trainer(fake_robot, fake_sim_cls)
     trainer.set_designs(np.array([[1.0, 1.0]]))
     trainer.learn(1)
@@ -163,8 +193,12 @@ def test_pseudo_critics_follow_objectives_by_name_on_load(fake_robot, fake_sim_c
 def test_designs_are_redrawn_from_the_range_every_n_iterations(fake_robot, fake_sim_cls) -> None:
     space = fake_robot.design_space().with_bounds({"thigh_scale": (0.6, 0.8)})
     trainer = Trainer(
-        fake_robot, fake_sim_cls, [SquaredTorque()], design_space=space,
-        train_config=small_config(design_resample_every=2, steps_per_env=4), task_config=TaskConfig(),
+        fake_robot,
+        fake_sim_cls,
+        [SquaredTorque()],
+        design_space=space,
+        train_config=small_config(design_resample_every=2, steps_per_env=4),
+        task_config=TaskConfig(),
     )
     trainer.set_designs(trainer.sample_designs())
     first = trainer.designs.copy()
@@ -176,7 +210,9 @@ def test_designs_are_redrawn_from_the_range_every_n_iterations(fake_robot, fake_
 
 
 def test_pseudo_epochs_limit_the_pseudo_critic_steps(fake_robot, fake_sim_cls) -> None:
-    trainer = make_trainer(fake_robot, fake_sim_cls, small_config(epochs=3, minibatches=2, pseudo_epochs=1))
+    trainer = make_trainer(
+        fake_robot, fake_sim_cls, small_config(epochs=3, minibatches=2, pseudo_epochs=1)
+    )
     trainer.set_designs(np.array([[1.0, 1.0]]))
     trainer.learn(1)
     ppo = trainer.ppo
@@ -209,13 +245,19 @@ def test_non_finite_metrics_do_not_poison_the_pseudo_critics(fake_robot, fake_si
 def mixed_space():
     from coadapt_core.design_space import Continuous, DesignSpace, Discrete
 
-    return DesignSpace([
-        Continuous("thigh_scale", 0.5, 1.5), Continuous("shank_scale", 0.5, 1.5),
-        Discrete("hip_motor", (1.0, 2.0, 3.0)), Discrete("knee_motor", (1.0, 2.0, 3.0)),
-    ])
+    return DesignSpace(
+        [
+            Continuous("thigh_scale", 0.5, 1.5),
+            Continuous("shank_scale", 0.5, 1.5),
+            Discrete("hip_motor", (1.0, 2.0, 3.0)),
+            Discrete("knee_motor", (1.0, 2.0, 3.0)),
+        ]
+    )
 
 
-def test_widened_policy_acts_exactly_as_before_whatever_the_new_design_values(fake_robot, fake_sim_cls, tmp_path) -> None:
+def test_widened_policy_acts_exactly_as_before_whatever_the_new_design_values(
+    fake_robot, fake_sim_cls, tmp_path
+) -> None:
     trainer = make_trainer(fake_robot, fake_sim_cls)
     trainer.set_designs(np.array([[1.0, 1.0], [0.6, 1.4]]))
     trainer.learn(2)
@@ -223,27 +265,42 @@ def test_widened_policy_acts_exactly_as_before_whatever_the_new_design_values(fa
     obs, critic_obs, design = trainer.env.reset()
     critic_in = trainer.ppo.critic_norm(critic_obs)
 
-    wide = Trainer(fake_robot, fake_sim_cls, [SquaredTorque(), SpeedError()], design_space=mixed_space(),
-                   train_config=small_config(), task_config=TaskConfig(noise=NoiseConfig(enabled=False)))
+    wide = Trainer(
+        fake_robot,
+        fake_sim_cls,
+        [SquaredTorque(), SpeedError()],
+        design_space=mixed_space(),
+        train_config=small_config(),
+        task_config=TaskConfig(noise=NoiseConfig(enabled=False)),
+    )
     wide.load(path, optimizers=False, widen=True)
     assert wide.ppo.dims.num_design == 4
     gen = torch.Generator().manual_seed(0)
     for _ in range(3):  # any motor values: the new inputs have zero weights
         extra = torch.randint(-1, 2, (design.shape[0], 2), generator=gen).float()
         xi = torch.cat([design, extra], dim=-1)
-        assert torch.allclose(wide.ppo.act_inference(obs, xi), trainer.ppo.act_inference(obs, design), atol=1e-6)
-        assert torch.allclose(wide.ppo.pseudo_values(critic_in, xi), trainer.ppo.pseudo_values(critic_in, design), rtol=1e-5)
+        assert torch.allclose(
+            wide.ppo.act_inference(obs, xi), trainer.ppo.act_inference(obs, design), atol=1e-6
+        )
+        assert torch.allclose(
+            wide.ppo.pseudo_values(critic_in, xi),
+            trainer.ppo.pseudo_values(critic_in, design),
+            rtol=1e-5,
+        )
     weight = wide.ppo.actor_net.body[0].weight
     assert weight.shape[1] == trainer.ppo.actor_net.body[0].weight.shape[1] + 2
     assert torch.count_nonzero(weight[:, -2:]) == 0
 
 
-
-def test_a_command_never_varied_opens_with_zero_weights_and_its_true_scale(fake_robot, fake_sim_cls, tmp_path, capsys) -> None:
+def test_a_command_never_varied_opens_with_zero_weights_and_its_true_scale(
+    fake_robot, fake_sim_cls, tmp_path, capsys
+) -> None:
     """A policy trained at yaw rate 0 and fine-tuned on yaw commands: its yaw input was always 0
     (variance 0), so it must start with zero weights (acting as before whatever the command)
     and the normaliser must scale the new command by the new range, not by 1/sqrt(eps)."""
-    still = TaskConfig(noise=NoiseConfig(enabled=False), commands=CommandConfig(yaw_range=(0.0, 0.0)))
+    still = TaskConfig(
+        noise=NoiseConfig(enabled=False), commands=CommandConfig(yaw_range=(0.0, 0.0))
+    )
     trainer = make_trainer(fake_robot, fake_sim_cls, task=still)
     trainer.set_designs(np.array([[1.0, 1.0], [0.6, 1.4]]))
     trainer.learn(2)
@@ -253,7 +310,9 @@ def test_a_command_never_varied_opens_with_zero_weights_and_its_true_scale(fake_
     obs, critic_obs, design = trainer.env.reset()
     assert torch.count_nonzero(obs[:, yaw]) == 0
 
-    turning = TaskConfig(noise=NoiseConfig(enabled=False), commands=CommandConfig(yaw_range=(-1.0, 1.0)))
+    turning = TaskConfig(
+        noise=NoiseConfig(enabled=False), commands=CommandConfig(yaw_range=(-1.0, 1.0))
+    )
     tuned = make_trainer(fake_robot, fake_sim_cls, task=turning)
     tuned.load(path)
     assert "yaw-rate" in capsys.readouterr().err
@@ -265,11 +324,18 @@ def test_a_command_never_varied_opens_with_zero_weights_and_its_true_scale(fake_
     for rate in (-1.0, 0.3, 1.0):
         turned, turned_critic = obs.clone(), critic_obs.clone()
         turned[:, yaw], turned_critic[:, yaw] = rate, rate
-        assert torch.allclose(ppo.act_inference(turned, design), trainer.ppo.act_inference(obs, design), atol=1e-6)
-        assert torch.allclose(ppo.pseudo_values(ppo.critic_norm(turned_critic), design),
-                              trainer.ppo.pseudo_values(trainer.ppo.critic_norm(critic_obs), design), rtol=1e-5)
+        assert torch.allclose(
+            ppo.act_inference(turned, design), trainer.ppo.act_inference(obs, design), atol=1e-6
+        )
+        assert torch.allclose(
+            ppo.pseudo_values(ppo.critic_norm(turned_critic), design),
+            trainer.ppo.pseudo_values(trainer.ppo.critic_norm(critic_obs), design),
+            rtol=1e-5,
+        )
         # and the input reaches the network at its true scale (the old normaliser clipped it at 5)
-        assert float(ppo.obs_norm(turned)[0, yaw]) == pytest.approx(rate / (1.0 / 3.0 + ppo.obs_norm.eps) ** 0.5, rel=1e-5)
+        assert float(ppo.obs_norm(turned)[0, yaw]) == pytest.approx(
+            rate / (1.0 / 3.0 + ppo.obs_norm.eps) ** 0.5, rel=1e-5
+        )
     assert abs(float(trainer.ppo.obs_norm(turned)[0, yaw])) == pytest.approx(5.0)
     # the vx channel varied in training: left alone
     assert torch.equal(ppo.obs_norm.var[9], trainer.ppo.obs_norm.var[9])
@@ -282,7 +348,9 @@ def test_a_command_never_varied_opens_with_zero_weights_and_its_true_scale(fake_
     assert torch.equal(again.ppo.obs_norm.var, tuned.ppo.obs_norm.var)
 
 
-def test_non_finite_pseudo_critics_in_a_checkpoint_restart_fresh(fake_robot, fake_sim_cls, tmp_path, capsys) -> None:
+def test_non_finite_pseudo_critics_in_a_checkpoint_restart_fresh(
+    fake_robot, fake_sim_cls, tmp_path, capsys
+) -> None:
     trainer = make_trainer(fake_robot, fake_sim_cls)
     trainer.set_designs(np.array([[1.0, 1.0]]))
     trainer.learn(1)
@@ -305,7 +373,9 @@ def test_non_finite_pseudo_critics_in_a_checkpoint_restart_fresh(fake_robot, fak
     assert torch.isfinite(ppo.pseudo_norm.mean).all() and torch.isfinite(ppo.pseudo_norm.var).all()
 
 
-def test_weights_export_carries_the_command_curriculum_and_learning_rate(fake_robot, fake_sim_cls, tmp_path) -> None:
+def test_weights_export_carries_the_command_curriculum_and_learning_rate(
+    fake_robot, fake_sim_cls, tmp_path
+) -> None:
     trainer = make_trainer(fake_robot, fake_sim_cls)
     trainer.set_designs(np.array([[1.0, 1.0]]))
     trainer.env.commands.limit = 0.9
@@ -336,13 +406,19 @@ def test_act_is_the_torchrl_actors_sample_to_the_bit(fake_robot, fake_sim_cls) -
     action = ppo.act(obs, critic_obs, design_obs)
     mine = ppo.transitions.pop()
     torch.manual_seed(11)
-    reference = TensorDict({"obs": ppo.obs_norm(obs), "design_obs": design_obs}, batch_size=[obs.shape[0]])
+    reference = TensorDict(
+        {"obs": ppo.obs_norm(obs), "design_obs": design_obs}, batch_size=[obs.shape[0]]
+    )
     with torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
         ppo.actor(reference)
     key = ppo.loss.tensor_keys.sample_log_prob
-    assert torch.equal(action, reference["action"]) and torch.equal(mine["action"], reference["action"])
+    assert torch.equal(action, reference["action"]) and torch.equal(
+        mine["action"], reference["action"]
+    )
     assert torch.equal(mine[key], reference[key])
-    assert torch.equal(mine["loc"], reference["loc"]) and torch.equal(mine["scale"], reference["scale"])
+    assert torch.equal(mine["loc"], reference["loc"]) and torch.equal(
+        mine["scale"], reference["scale"]
+    )
     assert not torch.equal(action, mine["loc"])  # a sample, not the mean
 
 
@@ -351,7 +427,14 @@ def _rollout(ppo, env, steps: int) -> None:
     for _ in range(steps):
         actions = ppo.act(obs, critic, design)
         res = env.step(actions)
-        ppo.process_env_step(res.reward, res.done, res.timeout, res.info["final_critic_obs"], res.design_obs, res.info["metrics"])
+        ppo.process_env_step(
+            res.reward,
+            res.done,
+            res.timeout,
+            res.info["final_critic_obs"],
+            res.design_obs,
+            res.info["metrics"],
+        )
         obs, critic, design = res.obs, res.critic_obs, res.design_obs
 
 
@@ -371,7 +454,9 @@ def test_a_runaway_pseudo_critic_cannot_inflate_its_own_targets(fake_robot, fake
     metrics = batch["metrics"].reshape(-1, 2)
     lo, hi = metrics.amin(0), metrics.amax(0)
     norm = ppo.pseudo_norm
-    target = batch["pseudo_target"].reshape(-1, 2) * torch.sqrt(norm.var[:2] + norm.eps) + norm.mean[:2]
+    target = (
+        batch["pseudo_target"].reshape(-1, 2) * torch.sqrt(norm.var[:2] + norm.eps) + norm.mean[:2]
+    )
     assert bool((target >= lo - 1e-4 * hi.abs()).all()) and bool((target <= hi * (1 + 1e-4)).all())
     # the normaliser holds the statistics of the per-step metric, whatever the critic says
     torch.testing.assert_close(norm.mean[:2], metrics.mean(0), rtol=1e-4, atol=1e-6)
@@ -383,38 +468,68 @@ def test_pseudo_critics_only_leaves_the_policy_exactly_as_loaded(fake_robot, fak
     trainer.set_designs(np.array([[1.0, 1.0], [0.7, 1.2]]))
     trainer.learn(1)
     ppo = trainer.ppo
-    before = {name: {k: t.clone() for k, t in getattr(ppo, attr).state_dict().items()}
-              for name, attr in (("actor", "actor_net"), ("critic", "critic_net"), ("obs", "obs_norm"), ("critic_obs", "critic_norm"))}
+    before = {
+        name: {k: t.clone() for k, t in getattr(ppo, attr).state_dict().items()}
+        for name, attr in (
+            ("actor", "actor_net"),
+            ("critic", "critic_net"),
+            ("obs", "obs_norm"),
+            ("critic_obs", "critic_norm"),
+        )
+    }
     pseudo_before = {k: t.clone() for k, t in ppo.pseudo_critic.state_dict().items()}
     adam_steps = int(ppo.optimizer.state_dict()["state"][0]["step"])
     rate = ppo.learning_rate
     ppo.freeze_policy()
     trainer.learn(2)
-    for name, attr in (("actor", "actor_net"), ("critic", "critic_net"), ("obs", "obs_norm"), ("critic_obs", "critic_norm")):
+    for name, attr in (
+        ("actor", "actor_net"),
+        ("critic", "critic_net"),
+        ("obs", "obs_norm"),
+        ("critic_obs", "critic_norm"),
+    ):
         for k, t in getattr(ppo, attr).state_dict().items():
             assert torch.equal(t, before[name][k]), (name, k)
-    assert int(ppo.optimizer.state_dict()["state"][0]["step"]) == adam_steps and ppo.learning_rate == rate
-    moved = [k for k, t in ppo.pseudo_critic.state_dict().items() if not torch.equal(t, pseudo_before[k])]
+    assert (
+        int(ppo.optimizer.state_dict()["state"][0]["step"]) == adam_steps
+        and ppo.learning_rate == rate
+    )
+    moved = [
+        k for k, t in ppo.pseudo_critic.state_dict().items() if not torch.equal(t, pseudo_before[k])
+    ]
     assert len(moved) == len(pseudo_before)  # every pseudo-critic parameter learned
     per_iteration = (ppo.config.pseudo_epochs or ppo.config.epochs) * ppo.config.minibatches
-    assert int(ppo.pseudo_optimizer.state_dict()["state"][0]["step"]) == 3 * per_iteration  # 1 + 2 iterations
+    assert (
+        int(ppo.pseudo_optimizer.state_dict()["state"][0]["step"]) == 3 * per_iteration
+    )  # 1 + 2 iterations
 
 
 def test_rollout_speeds_are_the_mean_of_each_agents_mean(fake_robot, fake_sim_cls) -> None:
     from coadapt_core.learning.evaluate import rollout
 
-    task = TaskConfig(noise=NoiseConfig(enabled=False), commands=CommandConfig(curriculum=False, vx_range=(0.5, 1.0), yaw_range=(-0.5, 0.5), zero_share=0.0))
+    task = TaskConfig(
+        noise=NoiseConfig(enabled=False),
+        commands=CommandConfig(
+            curriculum=False, vx_range=(0.5, 1.0), yaw_range=(-0.5, 0.5), zero_share=0.0
+        ),
+    )
     trainer = make_trainer(fake_robot, fake_sim_cls, task=task)
     trainer.set_designs(np.array([[1.0, 1.0], [0.7, 1.2]]))
     result = rollout(trainer.ppo.action_distribution, trainer.env, 2, 20, seed=3)
     per_agent = result.per_agent_velocity
     assert per_agent.shape == (2, 16, 3)
     np.testing.assert_allclose(per_agent[:, :, 0].mean(axis=1), result.vx, rtol=1e-5, atol=1e-7)
-    np.testing.assert_allclose(per_agent[:, :, 2].mean(axis=1), result.yaw_rate, rtol=1e-5, atol=1e-7)
-    assert per_agent[:, :, 0].std(axis=1).min() > 0  # agents differ: the standard error has something to measure
+    np.testing.assert_allclose(
+        per_agent[:, :, 2].mean(axis=1), result.yaw_rate, rtol=1e-5, atol=1e-7
+    )
+    assert (
+        per_agent[:, :, 0].std(axis=1).min() > 0
+    )  # agents differ: the standard error has something to measure
 
 
-def test_rollout_takes_any_policy_callable_and_pairs_its_action_noise(fake_robot, fake_sim_cls) -> None:
+def test_rollout_takes_any_policy_callable_and_pairs_its_action_noise(
+    fake_robot, fake_sim_cls
+) -> None:
     """A rollout needs only a callable to a Gaussian's (mean, std): deterministic steps take
     the mean, stochastic ones the mean plus std times noise that agent i of every design shares;
     the learner's own `action_distribution` gives the policy mean `act_inference` gives."""
@@ -425,7 +540,9 @@ def test_rollout_takes_any_policy_callable_and_pairs_its_action_noise(fake_robot
     trainer.set_designs(np.array([[1.0, 1.0], [0.7, 1.2]]))
     env = trainer.env
     obs, _, design = env.reset()
-    assert torch.equal(trainer.ppo.action_distribution(obs, design)[0], trainer.ppo.act_inference(obs, design))
+    assert torch.equal(
+        trainer.ppo.action_distribution(obs, design)[0], trainer.ppo.act_inference(obs, design)
+    )
 
     mean = torch.linspace(-0.3, 0.3, env.num_actions)
     seen: list[torch.Tensor] = []
@@ -447,5 +564,7 @@ def test_rollout_takes_any_policy_callable_and_pairs_its_action_noise(fake_robot
     for actions in seen:
         noise = (actions - mean) / 0.1
         assert noise.abs().max() > 0.05  # the std is used
-        torch.testing.assert_close(noise[:agents], noise[agents:])  # paired: design 2's agent i = design 1's
+        torch.testing.assert_close(
+            noise[:agents], noise[agents:]
+        )  # paired: design 2's agent i = design 1's
         assert not torch.allclose(noise[0], noise[1])  # agents differ

@@ -26,14 +26,26 @@ from tests.fakes.analytic import (
 )
 
 # a swarm of 20 for 3 x 5 rounds with 50 agents per design: seconds on the analytic backend
-BASE = dict(population=20, optimizer_iterations=5, outer_iterations=3, agents_per_design=50,
-            eval_steps=20, train_steps=5000, retrain_steps=2000)
+BASE = dict(
+    population=20,
+    optimizer_iterations=5,
+    outer_iterations=3,
+    agents_per_design=50,
+    eval_steps=20,
+    train_steps=5000,
+    retrain_steps=2000,
+)
 
 
-def run(tmp_path, objectives=None, space=SPACE, nominal=NOMINAL, backend=AnalyticBackend, **overrides):
+def run(
+    tmp_path, objectives=None, space=SPACE, nominal=NOMINAL, backend=AnalyticBackend, **overrides
+):
     config = make_config("smoke", overrides={**BASE, "out": str(tmp_path), **overrides})
     return run_coadaptation(
-        config, backend_factory=lambda seed: backend(seed), design_space=space, nominal_design=nominal,
+        config,
+        backend_factory=lambda seed: backend(seed),
+        design_space=space,
+        nominal_design=nominal,
         objectives=objectives or [TorqueObjective()],
     )
 
@@ -74,7 +86,12 @@ def test_bo_in_the_loop_finds_optimum(tmp_path):
 
 
 def test_nsga2_front_spans_both_optima_with_real_costs(tmp_path):
-    summary = run(tmp_path, objectives=[TorqueObjective(), PowerObjective()], optimizer="nsga2", objective="torque,power").summary
+    summary = run(
+        tmp_path,
+        objectives=[TorqueObjective(), PowerObjective()],
+        optimizer="nsga2",
+        objective="torque,power",
+    ).summary
     front = summary["pareto_front"]
     designs = np.array(front["designs"])
     assert len(designs) >= 5
@@ -88,8 +105,15 @@ def test_nsga2_front_spans_both_optima_with_real_costs(tmp_path):
 @pytest.mark.slow
 def test_hybrid_switch_uses_surrogate_with_probability_w(tmp_path):
     w = 0.3
-    summary = run(tmp_path, population=2, agents_per_design=3, eval_steps=7, optimizer_iterations=150,
-                  outer_iterations=2, surrogate_probability=w).summary
+    summary = run(
+        tmp_path,
+        population=2,
+        agents_per_design=3,
+        eval_steps=7,
+        optimizer_iterations=150,
+        outer_iterations=2,
+        surrogate_probability=w,
+    ).summary
     batches = summary["batches"]
     assert len(batches) == 300
     # the first round of each outer iteration is real (it fills the evaluation buffer)
@@ -119,12 +143,16 @@ def test_no_real_fills_buffer_from_training_and_spends_no_evaluation_interaction
     assert summary["surrogate_evaluations"] == 15
     # its surrogate is tilted, so it lands off the optimum, and the reported cost is still real
     best = np.array(summary["best_design"])
-    assert summary["best_cost"] == pytest.approx(true_cost(best, "torque")[0], abs=5 * NOISE_STD / np.sqrt(50))
+    assert summary["best_cost"] == pytest.approx(
+        true_cost(best, "torque")[0], abs=5 * NOISE_STD / np.sqrt(50)
+    )
     assert summary["final_interactions"] > 0
 
 
 def test_no_real_without_training_buffer_spends_one_real_round_per_outer(tmp_path):
-    summary = run(tmp_path, method="no-real", backend=lambda s: AnalyticBackend(s, buffer_from_training=False)).summary
+    summary = run(
+        tmp_path, method="no-real", backend=lambda s: AnalyticBackend(s, buffer_from_training=False)
+    ).summary
     assert summary["real_evaluations"] == 3 and summary["surrogate_evaluations"] == 12
 
 
@@ -144,7 +172,13 @@ def test_bo_specialized_trains_a_policy_per_design(tmp_path):
             trained.append(np.array(designs))
             return super().train(designs, steps, seed=seed)
 
-    result = run(tmp_path, method="bo-specialized", bo_designs=12, specialized_train_steps=300, backend=Recording)
+    result = run(
+        tmp_path,
+        method="bo-specialized",
+        bo_designs=12,
+        specialized_train_steps=300,
+        backend=Recording,
+    )
     summary = result.summary
     # 12 proposals, then in the final check the nominal design and those of its 3 candidates
     # (the best real designs) whose policies were no longer among the 4 kept
@@ -152,7 +186,11 @@ def test_bo_specialized_trains_a_policy_per_design(tmp_path):
     evaluated = [e["design"] for e in read_evaluations(result.run_dir)]
     assert [d[0].tolist() for d in trained[:12]] == evaluated
     final = [d[0].tolist() for d in trained[12:]]
-    assert final[-1] == NOMINAL.tolist() and 2 <= len(final) <= 4 and len({tuple(d) for d in final}) == len(final)
+    assert (
+        final[-1] == NOMINAL.tolist()
+        and 2 <= len(final) <= 4
+        and len({tuple(d) for d in final}) == len(final)
+    )
     assert all(d in evaluated for d in final[:-1])
     assert summary["train_interactions"] == len(trained) * 300
     assert summary["real_evaluations"] == 12 and summary["surrogate_evaluations"] == 0
@@ -166,7 +204,9 @@ def test_narrowing_shrinks_range_around_optimum(tmp_path):
     assert widths[0] == pytest.approx(1.0)
     assert widths[-1] < 0.5 * widths[0]
     final = DesignSpace.from_dict(summary["final_space"])
-    assert np.all(final.lower <= optimum_of("torque") + 0.02) and np.all(final.upper >= optimum_of("torque") - 0.02)
+    assert np.all(final.lower <= optimum_of("torque") + 0.02) and np.all(
+        final.upper >= optimum_of("torque") - 0.02
+    )
 
 
 def test_surrogate_error_recorded_on_real_batches_matches_known_bias(tmp_path):
@@ -180,7 +220,9 @@ def test_surrogate_error_recorded_on_real_batches_matches_known_bias(tmp_path):
         design = np.array([r["design"]])
         # error = surrogate - real = known bias - noise; first range is ~ the full range
         expected = backend.surrogate_bias(design)[0]
-        assert r["surrogate_error"]["torque"] == pytest.approx(expected, abs=0.06 * SURROGATE_BIAS + 5 * NOISE_STD / np.sqrt(50))
+        assert r["surrogate_error"]["torque"] == pytest.approx(
+            expected, abs=0.06 * SURROGATE_BIAS + 5 * NOISE_STD / np.sqrt(50)
+        )
         assert r["kind"] == "real" and r["interactions"] == 50 * 20
 
 
@@ -189,7 +231,13 @@ def test_run_folder_holds_config_evaluations_and_summary(tmp_path):
 
     result = run(tmp_path, seed=4)
     files = {p.name for p in result.run_dir.iterdir()}
-    assert {"config.yaml", "evaluations.jsonl", "trainings.jsonl", "summary.json", "state.json"} <= files
+    assert {
+        "config.yaml",
+        "evaluations.jsonl",
+        "trainings.jsonl",
+        "summary.json",
+        "state.json",
+    } <= files
     # the evaluation buffer lives in a file of its own while the run can continue; a finished
     # run resumes from its summary alone and keeps none (issue 30: 33 MB per quick run)
     assert [f for f in files if f.startswith("buffer-")] == []
@@ -197,7 +245,9 @@ def test_run_folder_holds_config_evaluations_and_summary(tmp_path):
     assert state["phase"] == "done" and state["buffer_saved_serial"] == -1
     assert yaml.safe_load((result.run_dir / "config.yaml").read_text())["seed"] == 4
     summary = json.loads((result.run_dir / "summary.json").read_text())
-    assert summary["status"] == "finished" and summary["best_design"] == result.summary["best_design"]
+    assert (
+        summary["status"] == "finished" and summary["best_design"] == result.summary["best_design"]
+    )
     records = read_evaluations(result.run_dir)
     assert len(records) == result.summary["designs_evaluated"] == 15 * 20
     assert sum(r["interactions"] for r in records) == result.summary["eval_interactions"]
@@ -205,10 +255,31 @@ def test_run_folder_holds_config_evaluations_and_summary(tmp_path):
     assert kinds == {"real", "surrogate"}
     assert len((result.run_dir / "trainings.jsonl").read_text().splitlines()) == 3
     line = result.json_line()
-    assert set(line) == {"run_id", "best_design", "best_cost", "best_cost_se", "nominal_cost", "nominal_cost_se", "improvement",
-                         "improvement_se", "significant", "best_fall_rate", "nominal_fall_rate", *PLAIN_AND_FALLS, "interactions", "seconds",
-                         "reliable", "reliability", "warnings"}
-    assert line["interactions"] == result.summary["train_interactions"] + result.summary["eval_interactions"] + result.summary["final_interactions"]
+    assert set(line) == {
+        "run_id",
+        "best_design",
+        "best_cost",
+        "best_cost_se",
+        "nominal_cost",
+        "nominal_cost_se",
+        "improvement",
+        "improvement_se",
+        "significant",
+        "best_fall_rate",
+        "nominal_fall_rate",
+        *PLAIN_AND_FALLS,
+        "interactions",
+        "seconds",
+        "reliable",
+        "reliability",
+        "warnings",
+    }
+    assert (
+        line["interactions"]
+        == result.summary["train_interactions"]
+        + result.summary["eval_interactions"]
+        + result.summary["final_interactions"]
+    )
 
 
 def test_same_seed_same_run(tmp_path):
@@ -238,10 +309,14 @@ def test_diverged_surrogate_nan_is_counted_and_never_best(tmp_path):
 def test_no_retrain_from_a_pretrained_policy_trains_nothing(tmp_path, monkeypatch):
     import coadapt_core.coadapt.setup as loop_setup
 
-    monkeypatch.setattr(loop_setup, "universal_policy_factory", lambda *a, **k: (lambda seed: AnalyticBackend(seed)))
+    monkeypatch.setattr(
+        loop_setup, "universal_policy_factory", lambda *a, **k: lambda seed: AnalyticBackend(seed)
+    )
     monkeypatch.setattr(loop_setup, "resolve_checkpoint", lambda config: "/shipped/policy.pt")
     config = make_config("smoke", overrides={**BASE, "out": str(tmp_path), "method": "no-retrain"})
-    summary = run_coadaptation(config, design_space=SPACE, nominal_design=NOMINAL, objectives=[TorqueObjective()]).summary
+    summary = run_coadaptation(
+        config, design_space=SPACE, nominal_design=NOMINAL, objectives=[TorqueObjective()]
+    ).summary
     # the paper's Table 7 row: 0 training + N*J real rounds
     assert summary["train_interactions"] == 0
     assert summary["eval_interactions"] == 15 * 20 * 50 * 20

@@ -13,12 +13,23 @@ from tests.benchmarks import load_benchmark
 ROOT = Path(__file__).resolve().parents[2]
 
 
-
-
 @pytest.mark.slow
 def test_paper_preset_on_fake_reproduces_table7_interaction_counts(tmp_path, capsys):
     bench = load_benchmark("coadapt_cost")
-    assert bench.main(["--fake", "--preset", "paper", "--out", str(tmp_path), "--methods", "ours,no-surrogate,no-real"]) == 0
+    assert (
+        bench.main(
+            [
+                "--fake",
+                "--preset",
+                "paper",
+                "--out",
+                str(tmp_path),
+                "--methods",
+                "ours,no-surrogate,no-real",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "| ours |" in out and "ours / no-surrogate" in out
     payload = json.loads(out.strip().splitlines()[-1])
@@ -38,6 +49,9 @@ def test_unknown_method_is_exit_2(capsys):
 
 @pytest.mark.parametrize("method", ["no-retrain", "bo-specialized"])
 def test_smoke_preset_each_method_runs(tmp_path, capsys, method):
-    assert load_benchmark("coadapt_cost").main(["--fake", "--out", str(tmp_path), "--methods", method]) == 0
+    assert (
+        load_benchmark("coadapt_cost").main(["--fake", "--out", str(tmp_path), "--methods", method])
+        == 0
+    )
     payload = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert payload["rows"][0]["method"] == method and payload["rows"][0]["best_cost"] > 0

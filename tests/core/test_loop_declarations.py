@@ -72,10 +72,24 @@ def test_a_third_party_optimizer_that_implies_mixed_gets_the_mixed_space(monkeyp
 def test_a_third_party_optimizer_keeps_its_study_in_the_run_store_under_the_run_id(tmp_path):
     StudyKeeper.built.clear()
     store = tmp_path / "runs.db"
-    config = make_config("smoke", overrides={"out": str(tmp_path / "runs"), "store": str(store), "logger": "none",
-                                             "outer_iterations": 2, "optimizer_iterations": 2})
-    result = run_coadaptation(config, backend_factory=lambda seed: AnalyticBackend(seed), design_space=SPACE,
-                              nominal_design=NOMINAL, objectives=[TorqueObjective()], optimizer_cls=StudyKeeper)
+    config = make_config(
+        "smoke",
+        overrides={
+            "out": str(tmp_path / "runs"),
+            "store": str(store),
+            "logger": "none",
+            "outer_iterations": 2,
+            "optimizer_iterations": 2,
+        },
+    )
+    result = run_coadaptation(
+        config,
+        backend_factory=lambda seed: AnalyticBackend(seed),
+        design_space=SPACE,
+        nominal_design=NOMINAL,
+        objectives=[TorqueObjective()],
+        optimizer_cls=StudyKeeper,
+    )
     names = [o["study_name"] for o in StudyKeeper.built]
     assert names[:2] == [f"{result.run_id}-outer0", f"{result.run_id}-outer1"]
     assert {o["storage"] for o in StudyKeeper.built} == {f"sqlite:///{store}"}
@@ -89,12 +103,16 @@ def test_only_options_declared_from_run_are_filled():
 
     from coadapt_core.options import fill_from_run
 
-    specs = (PluginOption("study_name", "str", None, "not declared from_run"),
-             PluginOption("journal", "str", None, "a name", from_run="run_name"),
-             PluginOption("db", "str", None, "a store", from_run="store_url"))
+    specs = (
+        PluginOption("study_name", "str", None, "not declared from_run"),
+        PluginOption("journal", "str", None, "a name", from_run="run_name"),
+        PluginOption("db", "str", None, "a store", from_run="store_url"),
+    )
     facts = {"run_name": "r-outer1", "store_url": None}  # a run without a database store
     assert fill_from_run(specs, {}, facts) == {"journal": "r-outer1"}
     assert fill_from_run(specs, {"journal": "mine"}, facts) == {"journal": "mine"}
-    assert fill_from_run(specs, {}, {**facts, "store_url": "sqlite:///x.db"})["db"] == "sqlite:///x.db"
+    assert (
+        fill_from_run(specs, {}, {**facts, "store_url": "sqlite:///x.db"})["db"] == "sqlite:///x.db"
+    )
     with pytest.raises(TypeError, match="from_run"):
         PluginOption("x", "str", None, "help", from_run="the moon")

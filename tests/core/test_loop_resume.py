@@ -10,8 +10,16 @@ from coadapt_core.coadapt import make_config, read_evaluations, run_coadaptation
 from coadapt_core.errors import UserError
 from tests.fakes.analytic import MIXED_NOMINAL, MIXED_SPACE, NOMINAL, SPACE, AnalyticBackend
 
-BASE = dict(population=10, optimizer_iterations=4, outer_iterations=3, agents_per_design=20, eval_steps=10,
-            train_steps=1000, retrain_steps=500, seed=3)
+BASE = dict(
+    population=10,
+    optimizer_iterations=4,
+    outer_iterations=3,
+    agents_per_design=20,
+    eval_steps=10,
+    train_steps=1000,
+    retrain_steps=500,
+    seed=3,
+)
 
 
 class TrainFails(AnalyticBackend):
@@ -24,29 +32,76 @@ class TrainFails(AnalyticBackend):
 def start(tmp_path, name, factory, **overrides):
     # a store of this test's own (the default, beside the runs folder, is shared by every test
     # of the session, and BO studies are named after the run folder)
-    config = make_config("smoke", overrides={**BASE, "store": str(tmp_path / "coadapt.db"), **overrides})
-    space, nominal = (MIXED_SPACE, MIXED_NOMINAL) if overrides.get("optimizer") == "mixed-pso" else (SPACE, NOMINAL)
-    return run_coadaptation(config, backend_factory=factory, design_space=space, nominal_design=nominal,
-                            objectives=[TorqueObjective()], run_dir=tmp_path / name)
+    config = make_config(
+        "smoke", overrides={**BASE, "store": str(tmp_path / "coadapt.db"), **overrides}
+    )
+    space, nominal = (
+        (MIXED_SPACE, MIXED_NOMINAL)
+        if overrides.get("optimizer") == "mixed-pso"
+        else (SPACE, NOMINAL)
+    )
+    return run_coadaptation(
+        config,
+        backend_factory=factory,
+        design_space=space,
+        nominal_design=nominal,
+        objectives=[TorqueObjective()],
+        run_dir=tmp_path / name,
+    )
 
 
 def resume(tmp_path, name, **overrides):
-    space, nominal = (MIXED_SPACE, MIXED_NOMINAL) if overrides.get("optimizer") == "mixed-pso" else (SPACE, NOMINAL)
-    return run_coadaptation(backend_factory=lambda s: AnalyticBackend(s), design_space=space, nominal_design=nominal,
-                            objectives=[TorqueObjective()], resume=tmp_path / name)
+    space, nominal = (
+        (MIXED_SPACE, MIXED_NOMINAL)
+        if overrides.get("optimizer") == "mixed-pso"
+        else (SPACE, NOMINAL)
+    )
+    return run_coadaptation(
+        backend_factory=lambda s: AnalyticBackend(s),
+        design_space=space,
+        nominal_design=nominal,
+        objectives=[TorqueObjective()],
+        resume=tmp_path / name,
+    )
 
 
 def comparable(summary):
-    keep = ("best_design", "best_cost", "nominal_cost", "improvement", "interactions", "train_interactions",
-            "eval_interactions", "final_interactions", "real_evaluations", "surrogate_evaluations", "spaces", "final_space")
+    keep = (
+        "best_design",
+        "best_cost",
+        "nominal_cost",
+        "improvement",
+        "interactions",
+        "train_interactions",
+        "eval_interactions",
+        "final_interactions",
+        "real_evaluations",
+        "surrogate_evaluations",
+        "spaces",
+        "final_space",
+    )
     out = {k: summary[k] for k in keep}
     out["batches"] = [{k: v for k, v in b.items() if k != "seconds"} for b in summary["batches"]]
     return out
 
 
 def records(run_dir):
-    return [{k: r[k] for k in ("outer", "inner", "idx", "kind", "design", "costs", "interactions", "surrogate_error")}
-            for r in read_evaluations(run_dir)]
+    return [
+        {
+            k: r[k]
+            for k in (
+                "outer",
+                "inner",
+                "idx",
+                "kind",
+                "design",
+                "costs",
+                "interactions",
+                "surrogate_error",
+            )
+        }
+        for r in read_evaluations(run_dir)
+    ]
 
 
 @pytest.mark.parametrize(
@@ -56,7 +111,11 @@ def records(run_dir):
         ("ours", "pso", lambda s: TrainFails(s)),
         ("ours", "mixed-pso", lambda s: AnalyticBackend(s, fail_on_real_call=5)),
         ("ours", "bo", lambda s: AnalyticBackend(s, fail_on_real_call=3)),
-        ("bo-specialized", "bo", lambda s: AnalyticBackend(s, fail_on_real_call=1) if s % 3 == 0 else AnalyticBackend(s)),
+        (
+            "bo-specialized",
+            "bo",
+            lambda s: AnalyticBackend(s, fail_on_real_call=1) if s % 3 == 0 else AnalyticBackend(s),
+        ),
     ],
 )
 def test_interrupted_and_resumed_run_equals_uninterrupted(tmp_path, method, optimizer, failing):
@@ -105,11 +164,25 @@ def test_state_is_saved_after_training_and_every_batch(tmp_path):
     # the first state is written where the run starts (run.py), the others by the loop
     loop_module.save_state = run_module.save_state = spy
     try:
-        start(tmp_path, "spy", lambda s: AnalyticBackend(s), outer_iterations=2, optimizer_iterations=2)
+        start(
+            tmp_path,
+            "spy",
+            lambda s: AnalyticBackend(s),
+            outer_iterations=2,
+            optimizer_iterations=2,
+        )
     finally:
         loop_module.save_state = run_module.save_state = original
     # start, then per outer: after training, after each of 2 batches, after narrowing; then done
     assert saves == [
-        ("train", 0, 0), ("optimize", 0, 0), ("optimize", 0, 1), ("optimize", 0, 2), ("train", 1, 0),
-        ("optimize", 1, 0), ("optimize", 1, 1), ("optimize", 1, 2), ("final", 2, 0), ("done", 2, 0),
+        ("train", 0, 0),
+        ("optimize", 0, 0),
+        ("optimize", 0, 1),
+        ("optimize", 0, 2),
+        ("train", 1, 0),
+        ("optimize", 1, 0),
+        ("optimize", 1, 1),
+        ("optimize", 1, 2),
+        ("final", 2, 0),
+        ("done", 2, 0),
     ]

@@ -28,7 +28,10 @@ def test_tracking_improvement_is_restated_as_the_reduction_of_p_cmd():
     assert as_cost_reduction(tracking, -0.2)[0] == pytest.approx(-0.44, abs=1e-12)
     assert differs(tracking) and not differs(PowerObjective()) and not differs(None)
     # an objective whose improvement is the cost reduction already: unchanged, SE too
-    assert as_cost_reduction(PowerObjective(), 0.14, 0.006) == (pytest.approx(0.14), pytest.approx(0.006))
+    assert as_cost_reduction(PowerObjective(), 0.14, 0.006) == (
+        pytest.approx(0.14),
+        pytest.approx(0.006),
+    )
     assert as_cost_reduction(None, 0.3, None) == (pytest.approx(0.3), None)
     assert as_cost_reduction(tracking, None, 0.1) == (None, None)
 
@@ -55,8 +58,10 @@ def _rows(path: Path) -> list[dict[str, str]]:
 
 def test_committed_tracking_cells_are_the_reduction_of_the_runs_own_costs():
     runs = {r["id"]: json.loads(r["summary"]) for r in _rows(RESULTS / "export" / "runs.csv")}
-    table6 = {(r["objective"], r["method"], r["optimizer"], r["terrain"]): r
-              for r in _rows(RESULTS / "report" / "table6.csv")}
+    table6 = {
+        (r["objective"], r["method"], r["optimizer"], r["terrain"]): r
+        for r in _rows(RESULTS / "report" / "table6.csv")
+    }
     checked = 0
     for name in ("paper_table6.csv", "paper_table9.csv"):
         for row in _rows(RESULTS / "report" / name):

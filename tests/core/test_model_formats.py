@@ -25,8 +25,10 @@ def test_a_model_gives_each_format_it_writes_and_names_them_when_asked_for_anoth
     assert model.text("mjcf").lstrip().startswith("<mujoco") and "<robot" in model.text("urdf")
     with pytest.raises(UserError) as err:
         model.text("sdf")
-    assert str(err.value) == ("the robot model has no 'sdf' description (it writes: mjcf, urdf); a simulator "
-                              "that reads it needs a robot plugin that writes it")
+    assert str(err.value) == (
+        "the robot model has no 'sdf' description (it writes: mjcf, urdf); a simulator "
+        "that reads it needs a robot plugin that writes it"
+    )
     assert err.value.field == "robot"
 
 
@@ -40,7 +42,11 @@ def test_the_built_in_simulators_declare_what_they_read():
 def test_a_third_format_needs_no_core_change(kuafu):
     """A robot that also writes a "toy" description and a simulator declaring it: the
     declaration check passes; the same simulator with a robot that lacks it fails."""
-    toy_sim = type("ToySim", (get_registry().get("simulator", "mujoco"),), {"name": "toy", "model_formats": ("toy",)})
+    toy_sim = type(
+        "ToySim",
+        (get_registry().get("simulator", "mujoco"),),
+        {"name": "toy", "model_formats": ("toy",)},
+    )
 
     class ToyKuafu(type(kuafu)):
         def build(self, design):

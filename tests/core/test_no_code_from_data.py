@@ -79,8 +79,15 @@ def test_planted_state_json_cannot_name_a_class(tmp_path, capsys):
     """JSON can only name a registered dataclass; `os:system` or a plugin's arbitrary class is refused."""
     run = tmp_path / "r2"
     run.mkdir()
-    state = {"format": "coadapt-loop-state-1", "run_id": "r2", "config": {},
-             "summary": {"__dataclass__": "os:system", "fields": {"command": f"touch {tmp_path / 'ran'}"}}}
+    state = {
+        "format": "coadapt-loop-state-1",
+        "run_id": "r2",
+        "config": {},
+        "summary": {
+            "__dataclass__": "os:system",
+            "fields": {"command": f"touch {tmp_path / 'ran'}"},
+        },
+    }
     (run / "state.json").write_text(json.dumps(state))
     line = one_line_exit_2(capsys, ["run", "--resume", str(run)])
     assert "state.json" in line and "damaged" in line and not (tmp_path / "ran").exists()
@@ -105,12 +112,28 @@ def test_planted_buffer_pickle_is_never_read(tmp_path, capsys):
 
 
 # -- 3-6: checkpoints given on the command line ----------------------------------------------
-@pytest.mark.parametrize("argv", [
-    ["eval", "--agents", "1", "--seconds", "0.1", "--checkpoint", "{ckpt}"],
-    ["run", "--preset", "smoke", "--store", "none", "--out", "{out}", "--checkpoint", "{ckpt}"],
-    ["train", "--steps", "64", "--out", "{out}", "--init-from", "{ckpt}"],
-    ["landscape", "--grid", "2", "--agents", "1", "--steps", "2", "--store", "{out}/s.db", "--checkpoint", "{ckpt}"],
-], ids=["eval", "run", "train-init-from", "landscape"])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["eval", "--agents", "1", "--seconds", "0.1", "--checkpoint", "{ckpt}"],
+        ["run", "--preset", "smoke", "--store", "none", "--out", "{out}", "--checkpoint", "{ckpt}"],
+        ["train", "--steps", "64", "--out", "{out}", "--init-from", "{ckpt}"],
+        [
+            "landscape",
+            "--grid",
+            "2",
+            "--agents",
+            "1",
+            "--steps",
+            "2",
+            "--store",
+            "{out}/s.db",
+            "--checkpoint",
+            "{ckpt}",
+        ],
+    ],
+    ids=["eval", "run", "train-init-from", "landscape"],
+)
 def test_planted_checkpoint_is_refused_without_running(tmp_path, capsys, argv):
     marker = tmp_path / "ran-checkpoint"
     ckpt = plant_checkpoint(tmp_path / "evil.pt", marker)
@@ -125,10 +148,36 @@ def test_planted_checkpoint_is_refused_without_running(tmp_path, capsys, argv):
 def tiny_run(tmp_path_factory) -> Path:
     """A finished real run at the smallest size (MuJoCo, no store)."""
     out = tmp_path_factory.mktemp("tiny")
-    args = ["run", "--optimizer", "pso", "--sim", "mujoco", "--objective", "torque", "--preset", "smoke",
-            "--outer-iterations", "1", "--population", "2", "--optimizer-iterations", "1", "--agents-per-design", "1",
-            "--eval-steps", "4", "--train-steps", "50", "--checkpoint", "none", "--store", "none", "--out", str(out),
-            "--json"]
+    args = [
+        "run",
+        "--optimizer",
+        "pso",
+        "--sim",
+        "mujoco",
+        "--objective",
+        "torque",
+        "--preset",
+        "smoke",
+        "--outer-iterations",
+        "1",
+        "--population",
+        "2",
+        "--optimizer-iterations",
+        "1",
+        "--agents-per-design",
+        "1",
+        "--eval-steps",
+        "4",
+        "--train-steps",
+        "50",
+        "--checkpoint",
+        "none",
+        "--store",
+        "none",
+        "--out",
+        str(out),
+        "--json",
+    ]
     assert main(args) == 0
     (run,) = [p for p in out.iterdir() if (p / "state.json").is_file()]
     return run
@@ -140,7 +189,9 @@ def test_planted_backend_checkpoint_in_a_run_folder_is_refused(tiny_run, tmp_pat
     run = tmp_path / tiny_run.name
     shutil.copytree(tiny_run, run)
     state = json.loads((run / "state.json").read_text())
-    assert state["backend_checkpoint"] == "checkpoints/backend-outer0.pt"  # relative to the run folder
+    assert (
+        state["backend_checkpoint"] == "checkpoints/backend-outer0.pt"
+    )  # relative to the run folder
     state["phase"] = "final"  # resuming must load the backend checkpoint again
     (run / "state.json").write_text(json.dumps(state))
     marker = tmp_path / "ran-backend"
@@ -174,13 +225,41 @@ def test_store_checkpoint_rows_outside_the_run_folder_are_ignored(tmp_path, caps
     rec = SqliteRecorder(tmp_path / "s.db")
     run_dir = tmp_path / "runs" / "r8"
     run_dir.mkdir(parents=True)
-    rec.store.create_run({"method": "ours", "objective": "torque", "terrain": "flat", "seed": 0, "preset": "smoke",
-                          "sim": "mujoco", "robot": "kuafu", "optimizer": "pso"}, run_id="r8", run_dir=str(run_dir))
-    rec.record_evaluations("r8", outer=0, inner=0, designs=[[1.0, 1.0]], costs=[{"torque": 1.0}], kind="real",
-                           interactions=10, seconds=0.1)
+    rec.store.create_run(
+        {
+            "method": "ours",
+            "objective": "torque",
+            "terrain": "flat",
+            "seed": 0,
+            "preset": "smoke",
+            "sim": "mujoco",
+            "robot": "kuafu",
+            "optimizer": "pso",
+        },
+        run_id="r8",
+        run_dir=str(run_dir),
+    )
+    rec.record_evaluations(
+        "r8",
+        outer=0,
+        inner=0,
+        designs=[[1.0, 1.0]],
+        costs=[{"torque": 1.0}],
+        kind="real",
+        interactions=10,
+        seconds=0.1,
+    )
     rec.store.record_checkpoint("r8", outer=0, path=str(evil))
-    rec.store.finish_run("r8", {"run_id": "r8", "best_design": [1.0, 1.0], "best_cost": 1.0, "nominal_cost": 1.1,
-                                "improvement": 0.1})
+    rec.store.finish_run(
+        "r8",
+        {
+            "run_id": "r8",
+            "best_design": [1.0, 1.0],
+            "best_cost": 1.0,
+            "nominal_cost": 1.1,
+            "improvement": 0.1,
+        },
+    )
     run = rec.store.get_run("r8")
     assert checkpoint_of(run, str(evil)) is None
     assert checkpoint_of(run, "../../elsewhere/evil.pt") is None
@@ -205,7 +284,9 @@ def test_grid_never_resumes_a_run_id_that_leaves_the_runs_folder(tmp_path):
     from coadapt_core.results import ResultsStore
 
     store = ResultsStore(tmp_path / "g.db")
-    spec = GridSpec(methods=["ours"], objectives=["torque"], terrains=["flat"], seeds=[0], preset="smoke")
+    spec = GridSpec(
+        methods=["ours"], objectives=["torque"], terrains=["flat"], seeds=[0], preset="smoke"
+    )
     (cell,) = spec.cells()
     evil = tmp_path / "evilrun"
     evil.mkdir()
@@ -214,10 +295,15 @@ def test_grid_never_resumes_a_run_id_that_leaves_the_runs_folder(tmp_path):
     (evil / "state.json").write_text("{}")
     for run_id, run_dir in (("../evilrun", tmp_path / "runs" / ".." / "evilrun"), ("okid", evil)):
         with sqlite3.connect(tmp_path / "g.db") as db:  # rows as a hostile store user writes them
-            db.execute("INSERT INTO runs (id, cell, method, objectives, status, run_dir, created_at, updated_at) "
-                       "VALUES (?, ?, 'ours', 'torque', 'running', ?, 0, 0)", (run_id, cell.key, str(run_dir)))
+            db.execute(
+                "INSERT INTO runs (id, cell, method, objectives, status, run_dir, created_at, updated_at) "
+                "VALUES (?, ?, 'ours', 'torque', 'running', ?, 0, 0)",
+                (run_id, cell.key, str(run_dir)),
+            )
         tasks, _ = plan_grid(store, spec, out_dir=str(tmp_path / "runs"))
-        assert tasks[0].resume is None and "--resume" not in tasks[0].argv  # started afresh inside runs/
+        assert (
+            tasks[0].resume is None and "--resume" not in tasks[0].argv
+        )  # started afresh inside runs/
         with sqlite3.connect(tmp_path / "g.db") as db:
             db.execute("DELETE FROM runs")
     assert not marker.exists()
@@ -235,4 +321,6 @@ def test_shipped_policies_load_as_weights_only():
         state = read_checkpoint(path)
         assert state["robot"] == "kuafu"
         actor = state["ppo"]["actor"]
-        assert actor and all(isinstance(t, torch.Tensor) and torch.isfinite(t).all() for t in actor.values())
+        assert actor and all(
+            isinstance(t, torch.Tensor) and torch.isfinite(t).all() for t in actor.values()
+        )

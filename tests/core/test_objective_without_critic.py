@@ -17,11 +17,24 @@ from tests.fakes.analytic import AnalyticBackend
 
 @pytest.fixture
 def fake_learner(monkeypatch):
-    monkeypatch.setattr(loop_setup, "universal_policy_factory", lambda *a, **k: (lambda seed: AnalyticBackend(seed)))
+    monkeypatch.setattr(
+        loop_setup, "universal_policy_factory", lambda *a, **k: lambda seed: AnalyticBackend(seed)
+    )
 
 
-ARGS = ["run", "--preset", "smoke", "--store", "none", "--json", "--no-video", "--evaluation-probability", "0.9",
-        "--optimizer-iterations", "4"]
+ARGS = [
+    "run",
+    "--preset",
+    "smoke",
+    "--store",
+    "none",
+    "--json",
+    "--no-video",
+    "--evaluation-probability",
+    "0.9",
+    "--optimizer-iterations",
+    "4",
+]
 
 
 def run(tmp_path, capsys, *extra):
@@ -38,10 +51,14 @@ def test_without_a_critic_a_surrogate_round_comes_only_after_a_fit(tmp_path, cap
     code, err, summary = run(tmp_path, capsys, "--objective", "composite")
     assert code == 0, err
     first = err.strip().splitlines()[0]
-    assert first.startswith("note: objective 'composite' has no pseudo-critic in the starting policy flat.pt")
+    assert first.startswith(
+        "note: objective 'composite' has no pseudo-critic in the starting policy flat.pt"
+    )
     assert "waits until the pseudo-critics are fitted to a real round" in first
     assert summary["notes"] == [first]
-    for outer, seq in _kinds(summary).items():  # after each training, a real round comes before any surrogate round
+    for outer, seq in _kinds(
+        summary
+    ).items():  # after each training, a real round comes before any surrogate round
         assert seq[0] == "real", (outer, seq)
     assert summary["surrogate_evaluations"] > 0  # ... and then the fitted surrogate is used
 
@@ -59,7 +76,9 @@ def test_with_fit_surrogate_off_every_round_is_real(tmp_path, capsys, fake_learn
     assert "every round of this run is real" in err.splitlines()[0]
     assert summary["surrogate_evaluations"] == 0 and summary["real_evaluations"] > 0
     # an objective the policy has a pseudo-critic for, same settings: surrogate rounds as usual
-    code, err, plain = run(tmp_path / "tracking", capsys, "--objective", "tracking", "--no-fit-surrogate")
+    code, err, plain = run(
+        tmp_path / "tracking", capsys, "--objective", "tracking", "--no-fit-surrogate"
+    )
     assert code == 0 and "pseudo-critic" not in err and plain["notes"] == []
     assert plain["surrogate_evaluations"] > 0
 

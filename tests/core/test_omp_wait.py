@@ -29,7 +29,9 @@ def test_spin_only_with_cores_to_spare(cores, running, expected):
     assert omp_wait_settings({}, cores, running) == expected
 
 
-@pytest.mark.parametrize("given", [{"OMP_WAIT_POLICY": "ACTIVE"}, {"GOMP_SPINCOUNT": "0"}, {"OMP_WAIT_POLICY": ""}])
+@pytest.mark.parametrize(
+    "given", [{"OMP_WAIT_POLICY": "ACTIVE"}, {"GOMP_SPINCOUNT": "0"}, {"OMP_WAIT_POLICY": ""}]
+)
 def test_the_users_setting_wins(given):
     assert omp_wait_settings(given, 2, 1) == {}
 
@@ -58,8 +60,13 @@ print(json.dumps({{"opened": opened, "listed": listed, "before": before, "after"
 
 def _probe(module: str, call: str = "", env: dict | None = None) -> dict:
     base = {k: v for k, v in os.environ.items() if k not in ("OMP_WAIT_POLICY", "GOMP_SPINCOUNT")}
-    out = subprocess.run([sys.executable, "-c", _PROBE.format(module=module, call=call)], env={**base, **(env or {})},
-                         capture_output=True, text=True, check=True).stdout
+    out = subprocess.run(
+        [sys.executable, "-c", _PROBE.format(module=module, call=call)],
+        env={**base, **(env or {})},
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
     return json.loads(out.strip().splitlines()[-1])
 
 
@@ -80,19 +87,29 @@ def test_the_probe_sees_proc_reads_and_environment_changes():
 
 
 def test_the_entry_point_keeps_the_users_setting_and_does_nothing_after_torch():
-    kept = _probe("coadapt_core.launch", "coadapt_core.launch.apply_omp_wait_policy()", env={"OMP_WAIT_POLICY": "ACTIVE"})
+    kept = _probe(
+        "coadapt_core.launch",
+        "coadapt_core.launch.apply_omp_wait_policy()",
+        env={"OMP_WAIT_POLICY": "ACTIVE"},
+    )
     assert kept["after"] == kept["before"]
     late = _probe("torch, coadapt_core.launch", "coadapt_core.launch.apply_omp_wait_policy()")
-    assert late["after"] == late["before"] and not [p for p in late["opened"] if p.startswith("/proc/stat")]
+    assert late["after"] == late["before"] and not [
+        p for p in late["opened"] if p.startswith("/proc/stat")
+    ]
 
 
 def test_the_command_chooses_before_torch_is_loaded():
     """`python -m coadapt_core` (as the console script) sets the policy before torch loads libgomp."""
-    code = ("import sys, runpy; sys.argv = ['coadapt', '--version']\n"
-            "import os\n"
-            "try:\n    runpy.run_module('coadapt_core', run_name='__main__')\n"
-            "except SystemExit:\n    pass\n"
-            "print(os.environ.get('OMP_WAIT_POLICY'), os.environ.get('GOMP_SPINCOUNT'))")
+    code = (
+        "import sys, runpy; sys.argv = ['coadapt', '--version']\n"
+        "import os\n"
+        "try:\n    runpy.run_module('coadapt_core', run_name='__main__')\n"
+        "except SystemExit:\n    pass\n"
+        "print(os.environ.get('OMP_WAIT_POLICY'), os.environ.get('GOMP_SPINCOUNT'))"
+    )
     env = {k: v for k, v in os.environ.items() if k not in ("OMP_WAIT_POLICY", "GOMP_SPINCOUNT")}
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout.split()
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+    ).stdout.split()
     assert out[-2:] in (["PASSIVE", "None"], ["None", SPIN_WHEN_IDLE])

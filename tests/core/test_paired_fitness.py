@@ -33,8 +33,14 @@ class Cost(Objective):
 
 # -- commands ------------------------------------------------------------------------------
 def test_stratified_commands_are_a_fixed_vx_grid_and_a_latin_hypercube():
-    cfg = CommandConfig(vx_range=(-0.5, 1.25), vy_range=(-0.4, 0.4), yaw_range=(-1.0, 1.0), zero_share=0.0,
-                        zero_threshold=0.0, curriculum=False)
+    cfg = CommandConfig(
+        vx_range=(-0.5, 1.25),
+        vy_range=(-0.4, 0.4),
+        yaw_range=(-1.0, 1.0),
+        zero_share=0.0,
+        zero_threshold=0.0,
+        curriculum=False,
+    )
     sampler = CommandSampler(cfg, "cpu", torch.Generator())
     a = sampler.stratified(20, torch.Generator().manual_seed(0))
     b = sampler.stratified(20, torch.Generator().manual_seed(1))
@@ -48,8 +54,14 @@ def test_stratified_commands_are_a_fixed_vx_grid_and_a_latin_hypercube():
 
 
 def test_stratified_commands_keep_the_zero_rules():
-    cfg = CommandConfig(vx_range=(-0.5, 1.25), vy_range=(0.0, 0.0), yaw_range=(0.0, 0.0), zero_share=0.05,
-                        zero_threshold=0.1, curriculum=False)
+    cfg = CommandConfig(
+        vx_range=(-0.5, 1.25),
+        vy_range=(0.0, 0.0),
+        yaw_range=(0.0, 0.0),
+        zero_share=0.05,
+        zero_threshold=0.1,
+        curriculum=False,
+    )
     cmd = CommandSampler(cfg, "cpu", torch.Generator()).stratified(40).numpy()
     standing = np.abs(cmd).sum(axis=1) == 0
     # the strata with |vx| < 0.1 stand (the threshold), and round(0.05 * 40) = 2 more, the slowest
@@ -110,8 +122,15 @@ def _synthetic(effect: float, agents: int = 16):
         own = rng.normal(0.0, 0.15, size=(len(designs), agents))
         scale = np.array([1.0 - effect] * (len(designs) - 1) + [1.0])[:, None]
         per = (scale * shared[None, :] + own)[:, :, None]
-        return RealFitness(costs=robust_cost(per), buffer=None, interactions=len(designs) * agents, seconds=0.0,
-                           per_scenario=per, cost_se=scenario_se(per), fall_rate=np.zeros(len(designs)))
+        return RealFitness(
+            costs=robust_cost(per),
+            buffer=None,
+            interactions=len(designs) * agents,
+            seconds=0.0,
+            per_scenario=per,
+            cost_se=scenario_se(per),
+            fall_rate=np.zeros(len(designs)),
+        )
 
     return real_fitness, calls
 
@@ -127,10 +146,16 @@ def test_final_check_stops_once_the_improvement_is_four_standard_errors():
 
 def test_final_check_says_not_significant_when_there_is_nothing_to_find():
     fitness, calls = _synthetic(0.0)
-    check = final_check(fitness, np.array([[0.5, 0.5], [0.6, 0.6], [1.0, 1.0]]), [Cost()], max_blocks=3)
+    check = final_check(
+        fitness, np.array([[0.5, 0.5], [0.6, 0.6], [1.0, 1.0]]), [Cost()], max_blocks=3
+    )
     assert check.significant is False and check.blocks == 3 and calls == [1, 2, 3]
     summary = check.uncertainty(["cost"])
-    assert summary["improvement_se"] > 0 and summary["best_cost_se"] > 0 and summary["final_scenarios"] == 48
+    assert (
+        summary["improvement_se"] > 0
+        and summary["best_cost_se"] > 0
+        and summary["final_scenarios"] == 48
+    )
 
 
 def test_final_check_without_per_scenario_costs_evaluates_once():
@@ -138,7 +163,11 @@ def test_final_check_without_per_scenario_costs_evaluates_once():
         return RealFitness(costs=np.array([[1.0], [2.0]]), buffer=None, interactions=2, seconds=0.0)
 
     check = final_check(plain, np.array([[0.5, 0.5], [1.0, 1.0]]), [Cost()], max_blocks=5)
-    assert check.blocks == 1 and check.significant is None and check.uncertainty(["cost"])["improvement_se"] is None
+    assert (
+        check.blocks == 1
+        and check.significant is None
+        and check.uncertainty(["cost"])["improvement_se"] is None
+    )
 
 
 def test_a_real_round_records_its_error_bars_and_fall_rate():
@@ -149,7 +178,10 @@ def test_a_real_round_records_its_error_bars_and_fall_rate():
     assert errors["best_cost_se"] == pytest.approx(fit.cost_se[0, 0]) and errors["best_cost_se"] > 0
     assert errors["best_fall_rate"] == 0.25 and errors["fall_rate"] == 0.125
     assert 0 < errors["median_relative_se"] < 1
-    assert batch_errors(RealFitness(costs=np.ones((2, 1)), buffer=None, interactions=2, seconds=0.0)) == {}
+    assert (
+        batch_errors(RealFitness(costs=np.ones((2, 1)), buffer=None, interactions=2, seconds=0.0))
+        == {}
+    )
 
 
 # -- real MuJoCo, the shipped policy ---------------------------------------------------------
@@ -161,7 +193,9 @@ def shipped_backend():
     checkpoint = shipped_checkpoint("kuafu", "flat")
     assert checkpoint is not None, "the built-in Kuafu robot ships flat.pt"
     robot, sim_cls, objectives = resolve_plugins("kuafu", "mujoco", ["tracking", "power", "torque"])
-    backend = make_backend(robot, sim_cls, objectives, terrain="flat", checkpoint=str(checkpoint), agents_per_design=4)
+    backend = make_backend(
+        robot, sim_cls, objectives, terrain="flat", checkpoint=str(checkpoint), agents_per_design=4
+    )
     yield backend, objectives
     backend.close()
 
@@ -189,12 +223,16 @@ def test_every_design_sees_the_same_scenarios(shipped_backend):
     alone = backend.real_fitness(designs[1:2], objectives, agents=4, steps=40, seed=3)
     np.testing.assert_allclose(alone.per_scenario[0], fit.per_scenario[1], rtol=1e-5)
     other = backend.real_fitness(designs[:1], objectives, agents=4, steps=40, seed=4)
-    assert not np.allclose(other.per_scenario[0], fit.per_scenario[0])  # another seed, other scenarios
+    assert not np.allclose(
+        other.per_scenario[0], fit.per_scenario[0]
+    )  # another seed, other scenarios
 
 
 def test_ranking_of_two_clearly_different_designs_repeats_across_scenario_seeds(shipped_backend):
     backend, objectives = shipped_backend
-    designs = np.array([[0.7, 0.7], [1.3, 1.3]])  # short legs: far lower torque (Table 6's direction)
+    designs = np.array(
+        [[0.7, 0.7], [1.3, 1.3]]
+    )  # short legs: far lower torque (Table 6's direction)
     orders = []
     for seed in (0, 1):
         fit = backend.real_fitness(designs, objectives, agents=16, steps=100, seed=seed)

@@ -22,8 +22,20 @@ from coadapt_core.pareto import (
 )
 from tests.fakes.analytic import AnalyticBackend
 
-NSGA2 = ["run", "--optimizer", "nsga2", "--objective", "power,torque", "--preset", "smoke", "--population", "8",
-         "--optimizer-iterations", "4", "--no-video"]
+NSGA2 = [
+    "run",
+    "--optimizer",
+    "nsga2",
+    "--objective",
+    "power,torque",
+    "--preset",
+    "smoke",
+    "--population",
+    "8",
+    "--optimizer-iterations",
+    "4",
+    "--no-video",
+]
 
 
 def _area(points: np.ndarray, ref: float) -> float:
@@ -39,8 +51,11 @@ def _area(points: np.ndarray, ref: float) -> float:
 
 @pytest.fixture
 def paired_fake(monkeypatch):
-    monkeypatch.setattr(loop_setup, "universal_policy_factory",
-                        lambda *a, **k: (lambda seed: AnalyticBackend(seed, paired=True)))
+    monkeypatch.setattr(
+        loop_setup,
+        "universal_policy_factory",
+        lambda *a, **k: lambda seed: AnalyticBackend(seed, paired=True),
+    )
 
 
 @pytest.fixture
@@ -53,7 +68,11 @@ def nsga2_run(tmp_path, capsys, paired_fake):
 def test_nsga2_run_leaves_its_front_plot_and_a_hypervolume_with_se(nsga2_run):
     run_dir, summary, captured = nsga2_run
     png = run_dir / "pareto.png"
-    assert png.is_file() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+    assert (
+        png.is_file()
+        and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        and png.stat().st_size > 10_000
+    )
     assert f"figures: pareto.png in {run_dir}" in captured.err
     front = summary["pareto_front"]
     names = ["power", "torque"]
@@ -76,15 +95,35 @@ def test_nsga2_run_leaves_its_front_plot_and_a_hypervolume_with_se(nsga2_run):
     assert "hypervolume" in captured.out and f"{hv:.3f} +- {se:.3f}" in captured.out
 
 
-def test_a_single_objective_run_leaves_its_convergence_plot_with_the_final_check(tmp_path, capsys, paired_fake):
+def test_a_single_objective_run_leaves_its_convergence_plot_with_the_final_check(
+    tmp_path, capsys, paired_fake
+):
     from coadapt_core.analysis.report import run_facts
     from coadapt_core.analysis.report_figures import convergence_series
     from coadapt_core.analysis.run_figures import FolderRecords, run_row
     from coadapt_core.results import ResultsStore
 
     db = tmp_path / "s.db"
-    assert main(["run", "--preset", "smoke", "--population", "4", "--optimizer-iterations", "2", "--out",
-                 str(tmp_path / "runs"), "--store", str(db), "--no-video", "--json"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "--preset",
+                "smoke",
+                "--population",
+                "4",
+                "--optimizer-iterations",
+                "2",
+                "--out",
+                str(tmp_path / "runs"),
+                "--store",
+                str(db),
+                "--no-video",
+                "--json",
+            ]
+        )
+        == 0
+    )
     (run_dir,) = (tmp_path / "runs").iterdir()
     assert (run_dir / "convergence.png").is_file() and not (run_dir / "pareto.png").exists()
     # the run folder's records give the report's functions the same series as the store
@@ -95,8 +134,13 @@ def test_a_single_objective_run_leaves_its_convergence_plot_with_the_final_check
     summary = json.loads((run_dir / "summary.json").read_text())
     import yaml
 
-    from_folder = convergence_series(records, run_facts(records, run_row(run_dir, yaml.safe_load(
-        (run_dir / "config.yaml").read_text()), summary)))
+    from_folder = convergence_series(
+        records,
+        run_facts(
+            records,
+            run_row(run_dir, yaml.safe_load((run_dir / "config.yaml").read_text()), summary),
+        ),
+    )
     assert len(from_store[0]) >= 2
     np.testing.assert_array_equal(from_folder[0], from_store[0])
     np.testing.assert_array_equal(from_folder[1], from_store[1])
@@ -106,11 +150,19 @@ def test_hypervolume_is_measured_against_the_nominal_design():
     nominal = np.array([2.0, 10.0])
     assert hypervolume(nominal[None], nominal) == pytest.approx(1.0)  # the nominal design alone
     front = np.array([[1.0, 15.0], [3.0, 5.0]])  # relative (0.5, 1.5) and (1.5, 0.5)
-    assert hypervolume(front, nominal) == pytest.approx(1.5 * 0.5 + 0.5 * 1.5 - 0.5 * 0.5)  # two boxes less their overlap
-    assert hypervolume(front, nominal) == pytest.approx(_area(relative_costs(front, nominal), HV_REFERENCE))
-    assert hypervolume(np.array([[5.0, 25.0]]), nominal) == 0.0  # beyond twice the nominal cost: nothing
+    assert hypervolume(front, nominal) == pytest.approx(
+        1.5 * 0.5 + 0.5 * 1.5 - 0.5 * 0.5
+    )  # two boxes less their overlap
+    assert hypervolume(front, nominal) == pytest.approx(
+        _area(relative_costs(front, nominal), HV_REFERENCE)
+    )
+    assert (
+        hypervolume(np.array([[5.0, 25.0]]), nominal) == 0.0
+    )  # beyond twice the nominal cost: nothing
     # a dominated design adds nothing
-    assert hypervolume(np.vstack([front, [[3.5, 16.0]]]), nominal) == pytest.approx(hypervolume(front, nominal))
+    assert hypervolume(np.vstack([front, [[3.5, 16.0]]]), nominal) == pytest.approx(
+        hypervolume(front, nominal)
+    )
 
 
 def test_hypervolume_se_is_paired_over_scenarios():
@@ -122,8 +174,11 @@ def test_hypervolume_se_is_paired_over_scenarios():
     hv, se = hypervolume_se(true[:, None, :] + shared + own, mean)
     _, se_unpaired = hypervolume_se(true[:, None, :] + rng.normal(0.0, 0.3, size=(3, 32, 2)), mean)
     assert 0 < se < se_unpaired  # pairing cancels what the designs share
-    assert hv == pytest.approx(hypervolume(mean(true[:, None, :] + shared + own)[:2],
-                                           mean(true[:, None, :] + shared + own)[2]))
+    assert hv == pytest.approx(
+        hypervolume(
+            mean(true[:, None, :] + shared + own)[:2], mean(true[:, None, :] + shared + own)[2]
+        )
+    )
     assert hypervolume_se(true[:, None, :], mean)[1] == 0.0  # one scenario: nothing to resample
 
 
@@ -143,7 +198,10 @@ def test_handoff_pick_refuses_in_one_line(nsga2_run, tmp_path, capsys):
         pytest.skip("needs the deploy extra (coadapt[deploy])")
     run_dir, summary, _ = nsga2_run
     size = len(summary["pareto_front"]["designs"])
-    for args, says in ((["--pick", str(size)], f"0 to {size - 1}"), (["--pick", "1", "--design", "1,1"], "give one")):
+    for args, says in (
+        (["--pick", str(size)], f"0 to {size - 1}"),
+        (["--pick", "1", "--design", "1,1"], "give one"),
+    ):
         assert main(["handoff", str(run_dir), "-o", str(tmp_path / "h"), *args]) == 2
         err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
         assert len(err) == 1 and "--pick" in err[0] and says in err[0], err
@@ -156,10 +214,31 @@ def test_the_report_compares_fronts_across_seeds(tmp_path, capsys, paired_fake):
 
     db = tmp_path / "s.db"
     for seed in ("0", "1"):
-        assert main([*NSGA2, "--seed", seed, "--out", str(tmp_path / "runs"), "--store", str(db), "--json"]) == 0
-        line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])  # the --json line carries the hypervolume
-        front = json.loads((tmp_path / "runs" / line["run_id"] / "summary.json").read_text())["pareto_front"]
-        assert (line["hypervolume"], line["hypervolume_se"]) == (front["hypervolume"], front["hypervolume_se"])
+        assert (
+            main(
+                [
+                    *NSGA2,
+                    "--seed",
+                    seed,
+                    "--out",
+                    str(tmp_path / "runs"),
+                    "--store",
+                    str(db),
+                    "--json",
+                ]
+            )
+            == 0
+        )
+        line = json.loads(
+            capsys.readouterr().out.strip().splitlines()[-1]
+        )  # the --json line carries the hypervolume
+        front = json.loads((tmp_path / "runs" / line["run_id"] / "summary.json").read_text())[
+            "pareto_front"
+        ]
+        assert (line["hypervolume"], line["hypervolume_se"]) == (
+            front["hypervolume"],
+            front["hypervolume_se"],
+        )
     with ResultsStore(db) as store:
         files = write_report(store, None, tmp_path / "rep", sim2sim=False)
         runs = store.list_runs()
@@ -168,7 +247,10 @@ def test_the_report_compares_fronts_across_seeds(tmp_path, capsys, paired_fake):
     text = (tmp_path / "rep" / "pareto.md").read_text()
     for r in runs:
         front = r["summary"]["pareto_front"]
-        assert f"| {r['id']} | {len(front['designs'])} | {front['hypervolume']:.3f} +- {front['hypervolume_se']:.3f} |" in text
+        assert (
+            f"| {r['id']} | {len(front['designs'])} | {front['hypervolume']:.3f} +- {front['hypervolume_se']:.3f} |"
+            in text
+        )
     # the group of both seeds: their mean +- the SE over seeds
     mean, se = hvs.mean(), hvs.std(ddof=1) / np.sqrt(2)
     assert f"| 2 seeds |  | {mean:.3f} +- {se:.3f} |" in text
@@ -184,9 +266,33 @@ def test_a_real_nsga2_run_leaves_its_plots_and_hands_off_its_second_front_design
 
     if missing_deploy_modules():
         pytest.skip("needs the deploy extra (coadapt[deploy])")
-    args = ["run", "--optimizer", "nsga2", "--objective", "power,torque", "--sim", "mujoco", "--preset", "smoke",
-            "--population", "4", "--agents-per-design", "2", "--eval-steps", "10", "--train-steps", "100",
-            "--retrain-steps", "50", "--store", "none", "--out", str(tmp_path / "runs"), "--no-video", "--json"]
+    args = [
+        "run",
+        "--optimizer",
+        "nsga2",
+        "--objective",
+        "power,torque",
+        "--sim",
+        "mujoco",
+        "--preset",
+        "smoke",
+        "--population",
+        "4",
+        "--agents-per-design",
+        "2",
+        "--eval-steps",
+        "10",
+        "--train-steps",
+        "100",
+        "--retrain-steps",
+        "50",
+        "--store",
+        "none",
+        "--out",
+        str(tmp_path / "runs"),
+        "--no-video",
+        "--json",
+    ]
     assert main(args) == 0
     (run_dir,) = (tmp_path / "runs").iterdir()
     assert (run_dir / "pareto.png").is_file()
@@ -199,30 +305,79 @@ def test_a_real_nsga2_run_leaves_its_plots_and_hands_off_its_second_front_design
     assert np.isfinite(front["hypervolume_se"]) and front["hypervolume_se"] >= 0
     capsys.readouterr()
     out = tmp_path / "pick1"
-    assert main(["handoff", str(run_dir), "-o", str(out), "--pick", "1", "--agents", "2", "--seconds", "0.5",
-                 "--no-check", "--no-video", "--sim", "mujoco", "--json"]) == 0
+    assert (
+        main(
+            [
+                "handoff",
+                str(run_dir),
+                "-o",
+                str(out),
+                "--pick",
+                "1",
+                "--agents",
+                "2",
+                "--seconds",
+                "0.5",
+                "--no-check",
+                "--no-video",
+                "--sim",
+                "mujoco",
+                "--json",
+            ]
+        )
+        == 0
+    )
     result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert result["design"] == front["designs"][1]
     assert result["pareto_front_index"] == 1 and result["is_run_best"] is False
     sheet = json.loads((out / "design.json").read_text())
-    assert sheet["design"] == front["designs"][1] and (out / "robot.xml").is_file() and (out / "policy.onnx").is_file()
-    (own,) = [e for e in sheet["evaluations"] if e["source"] == "the run's final check (Pareto front design 1)"]
+    assert (
+        sheet["design"] == front["designs"][1]
+        and (out / "robot.xml").is_file()
+        and (out / "policy.onnx").is_file()
+    )
+    (own,) = [
+        e
+        for e in sheet["evaluations"]
+        if e["source"] == "the run's final check (Pareto front design 1)"
+    ]
     assert own["objectives"]["power"]["design"] == front["costs"][1]["power"]
     assert own["objectives"]["torque"]["design_se"] == front["costs_se"][1]["torque"]
 
 
-def test_a_figure_that_cannot_be_drawn_is_one_line_and_the_result_stands(tmp_path, capsys, monkeypatch, paired_fake):
+def test_a_figure_that_cannot_be_drawn_is_one_line_and_the_result_stands(
+    tmp_path, capsys, monkeypatch, paired_fake
+):
     import coadapt_core.analysis.run_figures as run_figures
 
     def broken(*args, **kwargs):
         raise ValueError("no backend")
 
     monkeypatch.setattr(run_figures, "write_run_figures", broken)
-    assert main(["run", "--preset", "smoke", "--population", "4", "--optimizer-iterations", "2", "--out",
-                 str(tmp_path / "runs"), "--store", "none", "--no-video", "--json"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "--preset",
+                "smoke",
+                "--population",
+                "4",
+                "--optimizer-iterations",
+                "2",
+                "--out",
+                str(tmp_path / "runs"),
+                "--store",
+                "none",
+                "--no-video",
+                "--json",
+            ]
+        )
+        == 0
+    )
     captured = capsys.readouterr()
     assert [line for line in captured.err.splitlines() if line.startswith("figures:")] == [
-        "figures: not drawn (ValueError: no backend)"]
+        "figures: not drawn (ValueError: no backend)"
+    ]
     (run_dir,) = (tmp_path / "runs").iterdir()
     assert json.loads((run_dir / "summary.json").read_text())["status"] == "finished"
     assert json.loads(captured.out.strip().splitlines()[-1])["run_id"] == run_dir.name
@@ -235,13 +390,17 @@ def test_the_hypervolume_se_matches_its_spread_over_independent_scenario_sets():
     from coadapt_core.plugins import get_registry
 
     objectives = [get_registry().create("objective", name) for name in ("power", "torque")]
-    designs = np.array([[1.1, 0.8], [0.9, 0.7], [0.75, 0.65], [0.6, 0.6], [1.0, 1.0]])  # the nominal last
+    designs = np.array(
+        [[1.1, 0.8], [0.9, 0.7], [0.75, 0.65], [0.6, 0.6], [1.0, 1.0]]
+    )  # the nominal last
     backend, rule = AnalyticBackend(0, paired=True), CostRule("capped")
     hvs, ses = [], []
     for seed in range(60):
         fit = backend.real_fitness(designs, objectives, agents=8, steps=10, seed=seed)
         reference = rule.reference(fit.per_scenario[-1], fit.scenario_falls[-1])
-        hv, se = hypervolume_se(rule.scenario_values(fit.per_scenario, fit.scenario_falls, reference), rule.aggregate)
+        hv, se = hypervolume_se(
+            rule.scenario_values(fit.per_scenario, fit.scenario_falls, reference), rule.aggregate
+        )
         hvs.append(hv)
         ses.append(se)
     spread = float(np.std(hvs, ddof=1))  # 0.0107 when written; mean SE 0.0110

@@ -24,8 +24,18 @@ from coadapt_core.coadapt.loop import seed_at
 from coadapt_core.coadapt.phase import PARTIAL_CHECKPOINT
 from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend
 
-BASE = dict(population=6, optimizer_iterations=2, outer_iterations=2, agents_per_design=4, eval_steps=10,
-            train_steps=1000, retrain_steps=500, checkpoint_interactions=300, seed=5, store="none")
+BASE = dict(
+    population=6,
+    optimizer_iterations=2,
+    outer_iterations=2,
+    agents_per_design=4,
+    eval_steps=10,
+    train_steps=1000,
+    retrain_steps=500,
+    checkpoint_interactions=300,
+    seed=5,
+    store="none",
+)
 
 
 class Counting(AnalyticBackend):
@@ -44,8 +54,12 @@ class Counting(AnalyticBackend):
 
 
 def _run(folder, calls, kill_at=None, resume=False):
-    kwargs = dict(backend_factory=lambda s: Counting(s, calls, kill_at), design_space=SPACE, nominal_design=NOMINAL,
-                  objectives=[TorqueObjective()])
+    kwargs = dict(
+        backend_factory=lambda s: Counting(s, calls, kill_at),
+        design_space=SPACE,
+        nominal_design=NOMINAL,
+        objectives=[TorqueObjective()],
+    )
     if resume:
         return run_coadaptation(resume=folder, **kwargs)
     return run_coadaptation(make_config("smoke", overrides=dict(BASE)), run_dir=folder, **kwargs)
@@ -55,10 +69,19 @@ def test_a_phase_cut_inside_continues_from_its_last_chunk(tmp_path):
     full_calls: list = []
     full = _run(tmp_path / "full", full_calls).summary
     seed = BASE["seed"]
-    phase0 = [(300, seed_at(seed, 1, 0)), (300, seed_at(seed, 1, 0, 1)), (300, seed_at(seed, 1, 0, 2)),
-              (100, seed_at(seed, 1, 0, 3))]
-    assert full_calls[:4] == phase0  # 1000 interactions in chunks of 300; chunk 0 has the phase's own seed
-    assert full_calls[4:] == [(300, seed_at(seed, 1, 1)), (200, seed_at(seed, 1, 1, 1))]  # the retraining
+    phase0 = [
+        (300, seed_at(seed, 1, 0)),
+        (300, seed_at(seed, 1, 0, 1)),
+        (300, seed_at(seed, 1, 0, 2)),
+        (100, seed_at(seed, 1, 0, 3)),
+    ]
+    assert (
+        full_calls[:4] == phase0
+    )  # 1000 interactions in chunks of 300; chunk 0 has the phase's own seed
+    assert full_calls[4:] == [
+        (300, seed_at(seed, 1, 1)),
+        (200, seed_at(seed, 1, 1, 1)),
+    ]  # the retraining
     assert full["train_interactions"] == 1500
 
     cut_calls: list = []
@@ -66,7 +89,11 @@ def test_a_phase_cut_inside_continues_from_its_last_chunk(tmp_path):
         _run(tmp_path / "cut", cut_calls, kill_at=3)  # after two chunks of the first phase
     state = json.loads((tmp_path / "cut" / "state.json").read_text())
     assert state["phase"] == "train" and state["backend_checkpoint"] == PARTIAL_CHECKPOINT
-    assert {k: state["train_progress"][k] for k in ("outer", "done", "chunk")} == {"outer": 0, "done": 600, "chunk": 2}
+    assert {k: state["train_progress"][k] for k in ("outer", "done", "chunk")} == {
+        "outer": 0,
+        "done": 600,
+        "chunk": 2,
+    }
     assert (tmp_path / "cut" / PARTIAL_CHECKPOINT).is_file()
 
     resumed_calls: list = []
@@ -74,24 +101,57 @@ def test_a_phase_cut_inside_continues_from_its_last_chunk(tmp_path):
     assert cut_calls + resumed_calls == full_calls  # every chunk trained once, none repeated
     assert sum(steps for steps, _ in cut_calls + resumed_calls) == 1500
     assert resumed["train_interactions"] == full["train_interactions"] == 1500
-    assert resumed["best_design"] == full["best_design"] and resumed["interactions"] == full["interactions"]
+    assert (
+        resumed["best_design"] == full["best_design"]
+        and resumed["interactions"] == full["interactions"]
+    )
     assert resumed["spaces"] == full["spaces"]  # the range of the cut phase recorded once
 
 
 def test_no_mid_phase_checkpoint_when_the_phase_fits_in_one_chunk(tmp_path):
     calls: list = []
-    config = make_config("smoke", overrides={**BASE, "checkpoint_interactions": 0, "outer_iterations": 1})
-    run_coadaptation(config, backend_factory=lambda s: Counting(s, calls), design_space=SPACE, nominal_design=NOMINAL,
-                     objectives=[TorqueObjective()], run_dir=tmp_path / "r")
+    config = make_config(
+        "smoke", overrides={**BASE, "checkpoint_interactions": 0, "outer_iterations": 1}
+    )
+    run_coadaptation(
+        config,
+        backend_factory=lambda s: Counting(s, calls),
+        design_space=SPACE,
+        nominal_design=NOMINAL,
+        objectives=[TorqueObjective()],
+        run_dir=tmp_path / "r",
+    )
     assert calls == [(1000, seed_at(BASE["seed"], 1, 0))]
     assert not (tmp_path / "r" / PARTIAL_CHECKPOINT).exists()
 
 
 #: a real `coadapt run` whose one training phase is 20 PPO iterations of 48 interactions
 #: (2 designs x 1 agent x 24 steps), a checkpoint every 2 iterations: 10 chunks
-REAL = ["run", "--preset", "smoke", "--population", "2", "--outer-iterations", "1", "--optimizer-iterations", "1",
-        "--agents-per-design", "1", "--eval-steps", "4", "--train-steps", "960", "--checkpoint-interactions", "96",
-        "--store", "none", "--no-video", "--json", "--threads", "1"]
+REAL = [
+    "run",
+    "--preset",
+    "smoke",
+    "--population",
+    "2",
+    "--outer-iterations",
+    "1",
+    "--optimizer-iterations",
+    "1",
+    "--agents-per-design",
+    "1",
+    "--eval-steps",
+    "4",
+    "--train-steps",
+    "960",
+    "--checkpoint-interactions",
+    "96",
+    "--store",
+    "none",
+    "--no-video",
+    "--json",
+    "--threads",
+    "1",
+]
 
 
 def _in_process(args):
@@ -112,7 +172,9 @@ def _folder(out: Path) -> Path:
 
 
 def _weights(folder: Path) -> dict:
-    state = torch.load(folder / "checkpoints" / "backend-outer0.pt", map_location="cpu", weights_only=True)
+    state = torch.load(
+        folder / "checkpoints" / "backend-outer0.pt", map_location="cpu", weights_only=True
+    )
     return state["ppo"]["actor"] if "ppo" in state else state
 
 
@@ -123,7 +185,9 @@ def test_a_real_run_killed_inside_its_training_phase_resumes_where_it_was(tmp_pa
     interactions, best design and final policy weights."""
     cut = tmp_path / "cut"
     code = f"import sys; from coadapt_core.cli import main; sys.exit(main({[*REAL, '--out', str(cut)]!r}))"
-    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+    )
     deadline, progress = time.monotonic() + 300, None
     try:
         while progress is None and proc.poll() is None and time.monotonic() < deadline:
@@ -146,15 +210,25 @@ def test_a_real_run_killed_inside_its_training_phase_resumes_where_it_was(tmp_pa
     _in_process([*REAL, "--out", str(tmp_path / "full")])
     full = _folder(tmp_path / "full")
     summaries = [json.loads((f / "summary.json").read_text()) for f in (folder, full)]
-    phases = [[json.loads(line) for line in (f / "trainings.jsonl").read_text().splitlines()] for f in (folder, full)]
+    phases = [
+        [json.loads(line) for line in (f / "trainings.jsonl").read_text().splitlines()]
+        for f in (folder, full)
+    ]
     assert [p["steps"] for p in phases[0]] == [p["steps"] for p in phases[1]] == [960]
-    assert phases[0][0]["extra"]["resumed_at"] == killed_at and phases[1][0]["extra"]["resumed_at"] == 0
+    assert (
+        phases[0][0]["extra"]["resumed_at"] == killed_at
+        and phases[1][0]["extra"]["resumed_at"] == 0
+    )
     assert phases[0][0]["extra"]["chunks"] == phases[1][0]["extra"]["chunks"] == 10
     assert summaries[0]["interactions"] == summaries[1]["interactions"]
     assert summaries[0]["train_interactions"] == summaries[1]["train_interactions"] == 960
     assert summaries[0]["best_design"] == summaries[1]["best_design"]
     records = [[(r["design"], r["costs"]) for r in read_evaluations(f)] for f in (folder, full)]
-    assert records[0] == records[1] and len(records[0]) == 2  # both designs of the real round, cost to the bit
+    assert (
+        records[0] == records[1] and len(records[0]) == 2
+    )  # both designs of the real round, cost to the bit
     a, b = _weights(folder), _weights(full)
-    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)  # the same policy, bit for bit
+    assert a.keys() == b.keys() and all(
+        torch.equal(a[k], b[k]) for k in a
+    )  # the same policy, bit for bit
     assert yaml.safe_load((folder / "config.yaml").read_text())["checkpoint_interactions"] == 96

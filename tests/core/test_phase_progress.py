@@ -49,14 +49,43 @@ class ReportingBackend(AnalyticBackend):
 def test_a_run_shows_its_training_phase_moving_with_an_eta(tmp_path, capsys, monkeypatch):
     from coadapt_core.cli import main
 
-    monkeypatch.setattr(loop_setup, "universal_policy_factory", lambda *a, **k: (lambda seed: ReportingBackend(seed)))
+    monkeypatch.setattr(
+        loop_setup, "universal_policy_factory", lambda *a, **k: lambda seed: ReportingBackend(seed)
+    )
     monkeypatch.setenv("COADAPT_PROGRESS_EVERY", "0.2")
-    assert main(["run", "--preset", "smoke", "--outer-iterations", "1", "--optimizer-iterations", "1",
-                 "--train-steps", "1000", "--out", str(tmp_path), "--store", "none", "--no-video"]) == 0
-    lines = [line for line in capsys.readouterr().err.splitlines() if "training " in line and "% of 1,000" in line]
+    assert (
+        main(
+            [
+                "run",
+                "--preset",
+                "smoke",
+                "--outer-iterations",
+                "1",
+                "--optimizer-iterations",
+                "1",
+                "--train-steps",
+                "1000",
+                "--out",
+                str(tmp_path),
+                "--store",
+                "none",
+                "--no-video",
+            ]
+        )
+        == 0
+    )
+    lines = [
+        line
+        for line in capsys.readouterr().err.splitlines()
+        if "training " in line and "% of 1,000" in line
+    ]
     shown = [int(line.split("training ")[1].split("%")[0]) for line in lines]
     assert shown and shown == sorted(shown) and shown[-1] >= 60, lines
     # from the second report on, the phase's ETA is a duration measured from its rate (0.3 s a fifth)
-    etas = [line.split("phase ETA ")[1].split()[0] for line in lines if "% of 1,000, phase ETA 0:" in line]
+    etas = [
+        line.split("phase ETA ")[1].split()[0]
+        for line in lines
+        if "% of 1,000, phase ETA 0:" in line
+    ]
     assert etas and all(e in ("0:00:00", "0:00:01") for e in etas), lines
     assert any(f"  {n:,} interactions" in line for line in lines for n in (400, 600, 800)), lines

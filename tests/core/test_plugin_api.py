@@ -39,9 +39,13 @@ def test_recorded_signature_matches_the_interfaces_and_the_version():
             (problem or f"the plugin interfaces changed since {latest['version']} was recorded")
             + f"; then run `python -m coadapt_core.api_signature {SIGNATURE_FILE.relative_to(Path.cwd())}`"
         )
-    assert latest["version"] == PLUGIN_API_VERSION, "PLUGIN_API_VERSION changed: record it (python -m coadapt_core.api_signature)"
+    assert latest["version"] == PLUGIN_API_VERSION, (
+        "PLUGIN_API_VERSION changed: record it (python -m coadapt_core.api_signature)"
+    )
     for old, new in itertools.pairwise(history):  # every recorded step was bumped enough
-        assert bump_problem(old["version"], old["signature"], new["version"], new["signature"]) is None
+        assert (
+            bump_problem(old["version"], old["signature"], new["version"], new["signature"]) is None
+        )
 
 
 def test_signature_covers_what_plugins_are_written_against():
@@ -51,7 +55,10 @@ def test_signature_covers_what_plugins_are_written_against():
     opt = sig["coadapt_core.optimizer.Optimizer"]
     assert opt["_ask"].startswith("abstract") and "initial_designs" in opt["__init__"]
     assert "coadapt_register_robots" in sig["coadapt_core.hookspecs"]
-    assert "test_initial_designs_are_the_first_proposals" in sig["coadapt_core.testing.OptimizerConformance"]
+    assert (
+        "test_initial_designs_are_the_first_proposals"
+        in sig["coadapt_core.testing.OptimizerConformance"]
+    )
 
 
 def test_bump_rules_catch_a_change_the_version_does_not_account_for():
@@ -70,15 +77,21 @@ def test_bump_rules_catch_a_change_the_version_does_not_account_for():
     abstract["coadapt_core.robot.Robot"]["must_do"] = "abstract method(self) -> 'None'"
     assert required_bump(old, abstract) == "major"
     required = copy.deepcopy(old)
-    required["coadapt_core.objective.StepBatch (fields)"]["power"] = "field: torch.Tensor (required)"
+    required["coadapt_core.objective.StepBatch (fields)"]["power"] = (
+        "field: torch.Tensor (required)"
+    )
     assert required_bump(old, required) == "major"
     assert required_bump(old, copy.deepcopy(old)) is None
-    renamed = copy.deepcopy(old)  # a suite's check renamed: it runs on the plugin under its new name
+    renamed = copy.deepcopy(
+        old
+    )  # a suite's check renamed: it runs on the plugin under its new name
     suite = renamed["coadapt_core.testing.RobotConformance"]
     suite["test_renamed_check"] = suite.pop("test_one_actuator_per_joint")
     assert required_bump(old, renamed) == "minor"
     assert bump_problem("2.0.0", old, "2.1.0", renamed) is None
-    fixture = copy.deepcopy(old)  # a suite's fixture is what a plugin's tests supply or use: removing it breaks them
+    fixture = copy.deepcopy(
+        old
+    )  # a suite's fixture is what a plugin's tests supply or use: removing it breaks them
     del fixture["coadapt_core.testing.SimulatorConformance"]["make"]
     assert required_bump(old, fixture) == "major"
 
@@ -93,12 +106,17 @@ def test_record_refuses_an_unbumped_change(tmp_path, monkeypatch):
     with pytest.raises(ValueError, match="PLUGIN_API_VERSION"):
         api_signature.record(path)
     major, minor, _ = (int(x) for x in plugin_api.PLUGIN_API_VERSION.split("."))
-    monkeypatch.setattr(plugin_api, "PLUGIN_API_VERSION", f"{major}.{minor + 1}.0")  # 'gone' removed: minor is not enough
+    monkeypatch.setattr(
+        plugin_api, "PLUGIN_API_VERSION", f"{major}.{minor + 1}.0"
+    )  # 'gone' removed: minor is not enough
     with pytest.raises(ValueError, match="major"):
         api_signature.record(path)
     monkeypatch.setattr(plugin_api, "PLUGIN_API_VERSION", f"{major + 1}.0.0")
     assert api_signature.record(path) == "recorded"
-    assert [e["version"] for e in json.loads(path.read_text())["history"]] == [f"{major}.{minor}.0", f"{major + 1}.0.0"]
+    assert [e["version"] for e in json.loads(path.read_text())["history"]] == [
+        f"{major}.{minor}.0",
+        f"{major + 1}.0.0",
+    ]
 
 
 @pytest.mark.parametrize("declared", ["2", "2.0", "2.0.0", "2.1", 2])
@@ -115,8 +133,10 @@ def test_an_older_major_version_is_refused_naming_what_changed():
     assert "\n" not in line
 
 
-@pytest.mark.parametrize("declared,expected", [("3.0", "upgrade coadapt"), ("2.9", "upgrade coadapt"),
-                                               ("two", "not a version")])
+@pytest.mark.parametrize(
+    "declared,expected",
+    [("3.0", "upgrade coadapt"), ("2.9", "upgrade coadapt"), ("two", "not a version")],
+)
 def test_newer_or_malformed_declarations_are_refused(declared, expected):
     assert expected in api_problem(declared)
 
@@ -125,13 +145,21 @@ def test_migration_guide_covers_every_breaking_change():
     """Each change the refusal line names has its entry in docs/plugins.md's migration guide."""
     docs = (Path(__file__).resolve().parents[2] / "docs" / "plugins.md").read_text()
     assert MIGRATION_HEADING in docs
-    guide = docs[docs.index(MIGRATION_HEADING):]
-    for key in ("`action`", "`initial_designs`", "`option_specs`", "state_dict", "2**63", "seed32", "COADAPT_PLUGIN_API",
-                "cma"):
+    guide = docs[docs.index(MIGRATION_HEADING) :]
+    for key in (
+        "`action`",
+        "`initial_designs`",
+        "`option_specs`",
+        "state_dict",
+        "2**63",
+        "seed32",
+        "COADAPT_PLUGIN_API",
+        "cma",
+    ):
         assert key in guide, key
 
 
-QUAD_V1 = '''
+QUAD_V1 = """
 from coadapt_core import hookimpl
 
 COADAPT_PLUGIN_API = "1.0"
@@ -147,19 +175,27 @@ def coadapt_register_robots():
         leg_inverse_kinematics = default_foot_positions = None
 
     return [Quad]
-'''
+"""
 
 QUAD_UNDECLARED = QUAD_V1.replace('COADAPT_PLUGIN_API = "1.0"\n', "").replace('"quad"', '"quad2"')
 
 
 def test_a_plugin_for_an_older_major_version_is_one_line_and_exit_2(tmp_path):
-    site = make_dist(tmp_path / "site", "quad-coadapt", "[coadapt]\nquad-coadapt = quad_coadapt\n",
-                     {"quad_coadapt": QUAD_V1})
+    site = make_dist(
+        tmp_path / "site",
+        "quad-coadapt",
+        "[coadapt]\nquad-coadapt = quad_coadapt\n",
+        {"quad_coadapt": QUAD_V1},
+    )
     done = run_cli("robot", "show", "quad", pythonpath=[site])
     assert done.returncode == 2, done.stderr
     lines = [line for line in done.stderr.splitlines() if line.strip()]
     assert len(lines) == 1, done.stderr
-    assert "quad-coadapt" in lines[0] and "plugin API 1.x" in lines[0] and "docs/plugins.md#migration" in lines[0]
+    assert (
+        "quad-coadapt" in lines[0]
+        and "plugin API 1.x" in lines[0]
+        and "docs/plugins.md#migration" in lines[0]
+    )
     listed = run_cli("plugins", "--json", pythonpath=[site])
     assert listed.returncode == 0
     data = json.loads(listed.stdout)
@@ -171,15 +207,21 @@ def test_a_plugin_for_an_older_major_version_is_one_line_and_exit_2(tmp_path):
 def test_plugins_shows_the_declared_version_and_refuses_an_undeclared_one(tmp_path):
     """A package declaring no version was written before versions were declared: for 1.x. It
     is listed as broken with the 1.x line (saying it declared nothing), not loaded."""
-    site = make_dist(tmp_path / "site", "quad2-coadapt", "[coadapt]\nquad2-coadapt = quad2_coadapt\n",
-                     {"quad2_coadapt": QUAD_UNDECLARED})
+    site = make_dist(
+        tmp_path / "site",
+        "quad2-coadapt",
+        "[coadapt]\nquad2-coadapt = quad2_coadapt\n",
+        {"quad2_coadapt": QUAD_UNDECLARED},
+    )
     done = run_cli("plugins", "--json", pythonpath=[site])
     assert done.returncode == 0, done.stderr
     data = json.loads(done.stdout)
     robots = {p["name"]: p for p in data["plugins"]["robot"]}
     assert "quad2" not in robots and robots["kuafu"]["plugin_api"] == "2.0"
     (broken,) = [b for b in data["broken"] if b["distribution"] == "quad2-coadapt"]
-    assert "declares no plugin API version" in broken["error"] and "plugin API 1.x" in broken["error"]
+    assert (
+        "declares no plugin API version" in broken["error"] and "plugin API 1.x" in broken["error"]
+    )
     table = run_cli("plugins", pythonpath=[site])
     assert f"plugin API {PLUGIN_API_VERSION}" in table.stdout and " api " in table.stdout
 
@@ -221,12 +263,31 @@ def test_an_optimizer_ignoring_initial_designs_is_named_at_the_start_of_a_run(tm
     assert note is not None and "old-random" in note and "initial_designs" in note
     from coadapt_core.plugins import get_registry
 
-    assert initial_designs_note(get_registry().get("optimizer", get_registry().default("optimizer")), SPACE, 5, 1, {}) is None
+    assert (
+        initial_designs_note(
+            get_registry().get("optimizer", get_registry().default("optimizer")), SPACE, 5, 1, {}
+        )
+        is None
+    )
 
-    config = make_config("smoke", overrides={"out": str(tmp_path), "population": 5, "outer_iterations": 1,
-                                             "optimizer_iterations": 2, "store": "none"})
-    result = run_coadaptation(config, backend_factory=lambda seed: AnalyticBackend(seed), design_space=SPACE,
-                              nominal_design=NOMINAL, objectives=[TorqueObjective()], optimizer_cls=old)
+    config = make_config(
+        "smoke",
+        overrides={
+            "out": str(tmp_path),
+            "population": 5,
+            "outer_iterations": 1,
+            "optimizer_iterations": 2,
+            "store": "none",
+        },
+    )
+    result = run_coadaptation(
+        config,
+        backend_factory=lambda seed: AnalyticBackend(seed),
+        design_space=SPACE,
+        nominal_design=NOMINAL,
+        objectives=[TorqueObjective()],
+        optimizer_cls=old,
+    )
     err = capsys.readouterr().err
     assert err.startswith("warning: optimizer 'old-random' ignores `initial_designs`"), err
     assert result.summary["notes"] and "old-random" in result.summary["notes"][0]
@@ -252,11 +313,27 @@ def test_an_optimizer_keeping_a_study_is_checked_at_its_first_round(tmp_path, ca
             super().__init__(space, **kwargs)
             type(self).built += 1
 
-    config = make_config("smoke", overrides={"out": str(tmp_path), "population": 5, "outer_iterations": 2,
-                                             "optimizer_iterations": 2, "store": "none"})
-    result = run_coadaptation(config, backend_factory=lambda seed: AnalyticBackend(seed), design_space=SPACE,
-                              nominal_design=NOMINAL, objectives=[TorqueObjective()], optimizer_cls=OldStudy)
+    config = make_config(
+        "smoke",
+        overrides={
+            "out": str(tmp_path),
+            "population": 5,
+            "outer_iterations": 2,
+            "optimizer_iterations": 2,
+            "store": "none",
+        },
+    )
+    result = run_coadaptation(
+        config,
+        backend_factory=lambda seed: AnalyticBackend(seed),
+        design_space=SPACE,
+        nominal_design=NOMINAL,
+        objectives=[TorqueObjective()],
+        optimizer_cls=OldStudy,
+    )
     assert OldStudy.built == 2  # one per outer iteration: no probe
-    warnings = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warning:")]
+    warnings = [
+        line for line in capsys.readouterr().err.splitlines() if line.startswith("warning:")
+    ]
     assert len(warnings) == 1 and "optimizer 'old-study' ignores `initial_designs`" in warnings[0]
     assert result.summary["notes"] == warnings

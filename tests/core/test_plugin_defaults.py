@@ -9,7 +9,9 @@ from coadapt_core.plugins import PluginInfo, Registry, get_registry
 def _registry(*classes: type) -> Registry:
     registry = Registry()
     for cls in classes:
-        registry.entries["robot"][cls.name] = PluginInfo("robot", cls.name, cls, "test", "0", "test")
+        registry.entries["robot"][cls.name] = PluginInfo(
+            "robot", cls.name, cls, "test", "0", "test"
+        )
     return registry
 
 
@@ -44,9 +46,16 @@ def test_the_run_config_takes_its_defaults_from_the_declarations():
 
     registry = get_registry()
     config = CoadaptConfig()
-    for kind, value in (("robot", config.robot), ("simulator", config.sim), ("optimizer", config.optimizer),
-                        ("objective", config.objective)):
-        ranks = {name: getattr(registry.get(kind, name), "default_rank", 0) for name in registry.names(kind)}
+    for kind, value in (
+        ("robot", config.robot),
+        ("simulator", config.sim),
+        ("optimizer", config.optimizer),
+        ("objective", config.objective),
+    ):
+        ranks = {
+            name: getattr(registry.get(kind, name), "default_rank", 0)
+            for name in registry.names(kind)
+        }
         assert ranks[value] == max(ranks.values()), (kind, ranks)
         assert value == min(n for n, r in ranks.items() if r == ranks[value])
 

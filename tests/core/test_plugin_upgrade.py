@@ -14,7 +14,7 @@ from tests.conftest import make_dist, run_cli
 ROOT = Path(__file__).resolve().parents[2]
 
 #: a robot package as written for plugin API 1.x: no declared version, RobotModel's old fields
-OLD_ROBOT = '''
+OLD_ROBOT = """
 import numpy as np
 
 from coadapt_core import hookimpl
@@ -47,22 +47,39 @@ def coadapt_register_robots():
             raise NotImplementedError
 
     return [OldBot]
-'''
+"""
 
 
 def test_a_1x_package_declaring_no_version_is_one_line_exit_2_and_no_run_folder(tmp_path):
-    site = make_dist(tmp_path / "site", "oldbot-coadapt", "[coadapt]\noldbot-coadapt = oldbot_coadapt\n",
-                     {"oldbot_coadapt": OLD_ROBOT})
+    site = make_dist(
+        tmp_path / "site",
+        "oldbot-coadapt",
+        "[coadapt]\noldbot-coadapt = oldbot_coadapt\n",
+        {"oldbot_coadapt": OLD_ROBOT},
+    )
     runs = tmp_path / "work" / "runs"
-    done = run_cli("run", "--robot", "oldbot", "--preset", "smoke", "--out", str(runs), "--no-video",
-                   pythonpath=[site])
+    done = run_cli(
+        "run",
+        "--robot",
+        "oldbot",
+        "--preset",
+        "smoke",
+        "--out",
+        str(runs),
+        "--no-video",
+        pythonpath=[site],
+    )
     assert done.returncode == 2, done.stderr[-2000:]
     lines = [line for line in done.stderr.splitlines() if line.strip()]
     assert len(lines) == 1, done.stderr
     line = lines[0]
     assert line.startswith("error:") and "Traceback" not in done.stderr
     assert "oldbot-coadapt" in line and "robot 'oldbot'" in line
-    assert "declares no plugin API version" in line and "plugin API 1.x" in line and PLUGIN_API_VERSION in line
+    assert (
+        "declares no plugin API version" in line
+        and "plugin API 1.x" in line
+        and PLUGIN_API_VERSION in line
+    )
     assert MIGRATION_DOC in line and f'COADAPT_PLUGIN_API = "{current()[0]}.{current()[1]}"' in line
     for change in BREAKING_CHANGES[2]:  # every change since 1.x, RobotModel's `formats` included
         assert change in line, change
@@ -83,5 +100,5 @@ def test_docs_say_which_version_a_new_plugin_declares_and_that_the_robot_suite_n
     declared |= set(re.findall(r'plugin_api = "([0-9.]+)"', docs))
     assert declared == {now}, declared  # one version wherever a plugin declares one
     assert "declares no plugin API version" in docs and "1.x" in docs
-    section9 = docs[docs.index("## 9."):docs.index("## 10.")]
+    section9 = docs[docs.index("## 9.") : docs.index("## 10.")]
     assert "PyBullet" in section9 and "pip install" in section9

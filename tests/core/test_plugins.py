@@ -15,7 +15,7 @@ from coadapt_core.errors import PluginError, UnknownPluginError
 from coadapt_core.plugins import KINDS, load_registry
 from tests.conftest import make_dist, run_cli
 
-DUPLICATE_SOURCE = '''
+DUPLICATE_SOURCE = """
 from coadapt_core import hookimpl
 from coadapt_core.objective import Objective
 
@@ -30,15 +30,21 @@ class Impostor(Objective):
 @hookimpl
 def coadapt_register_objectives():
     return [Impostor]
-'''
+"""
 
 
 def test_builtin_plugins_register_through_entry_points():
     from importlib import metadata
 
-    eps = [ep for ep in metadata.entry_points(group="coadapt") if ep.dist and ep.dist.metadata["Name"] == "coadapt"]
+    eps = [
+        ep
+        for ep in metadata.entry_points(group="coadapt")
+        if ep.dist and ep.dist.metadata["Name"] == "coadapt"
+    ]
     assert eps, "coadapt's own pyproject declares its built-ins in the `coadapt` group"
-    assert all(ep.name.startswith("coadapt.") for ep in eps), "built-in entry-point names are namespaced"
+    assert all(ep.name.startswith("coadapt.") for ep in eps), (
+        "built-in entry-point names are namespaced"
+    )
     registry = load_registry()
     for info in registry.all():
         if info.distribution == "coadapt":
@@ -58,11 +64,18 @@ def test_plugins_json_lists_every_kind_and_the_example_plugin(example_plugin_sit
 
 
 def test_example_plugin_hidden_by_empty_load_list(example_plugin_site):
-    result = run_cli("plugins", "--json", pythonpath=[example_plugin_site], env={"COADAPT_LOAD_PLUGINS": ""})
+    result = run_cli(
+        "plugins", "--json", pythonpath=[example_plugin_site], env={"COADAPT_LOAD_PLUGINS": ""}
+    )
     assert result.returncode == 0, result.stderr
     names = {p["name"] for p in json.loads(result.stdout)["plugins"]["objective"]}
     assert "joint-speed" not in names
-    shown = run_cli("plugins", "--json", pythonpath=[example_plugin_site], env={"COADAPT_LOAD_PLUGINS": "coadapt-example"})
+    shown = run_cli(
+        "plugins",
+        "--json",
+        pythonpath=[example_plugin_site],
+        env={"COADAPT_LOAD_PLUGINS": "coadapt-example"},
+    )
     assert "joint-speed" in {p["name"] for p in json.loads(shown.stdout)["plugins"]["objective"]}
 
 
@@ -97,13 +110,21 @@ def test_help_shows_third_party_choices(example_plugin_site):
 
 
 def test_duplicate_name_is_one_clear_line_naming_both(example_plugin_site, tmp_path):
-    dup = make_dist(tmp_path / "dup", "coadapt-impostor", "[coadapt]\ncoadapt-impostor = impostor_plugin\n",
-                    {"impostor_plugin": DUPLICATE_SOURCE})
+    dup = make_dist(
+        tmp_path / "dup",
+        "coadapt-impostor",
+        "[coadapt]\ncoadapt-impostor = impostor_plugin\n",
+        {"impostor_plugin": DUPLICATE_SOURCE},
+    )
     result = run_cli("plugins", pythonpath=[example_plugin_site, dup])
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1, result.stderr
-    assert "joint-speed" in lines[0] and "coadapt-example" in lines[0] and "coadapt-impostor" in lines[0]
+    assert (
+        "joint-speed" in lines[0]
+        and "coadapt-example" in lines[0]
+        and "coadapt-impostor" in lines[0]
+    )
 
 
 def test_duplicate_in_process_raises_plugin_error(example_plugin_site, monkeypatch):
@@ -118,7 +139,11 @@ def test_duplicate_in_process_raises_plugin_error(example_plugin_site, monkeypat
 
 
 def test_broken_plugin_reported_by_name_others_load(example_plugin_site, tmp_path):
-    broken = make_dist(tmp_path / "broken", "coadapt-broken", "[coadapt]\ncoadapt-broken = coadapt_no_such_module\n")
+    broken = make_dist(
+        tmp_path / "broken",
+        "coadapt-broken",
+        "[coadapt]\ncoadapt-broken = coadapt_no_such_module\n",
+    )
     result = run_cli("plugins", "--json", pythonpath=[example_plugin_site, broken])
     assert result.returncode == 0
     data = json.loads(result.stdout)

@@ -22,7 +22,9 @@ from tests.fakes.analytic import AnalyticBackend
 
 @pytest.fixture
 def fake_learner(monkeypatch):
-    monkeypatch.setattr(loop_setup, "universal_policy_factory", lambda *a, **k: (lambda seed: AnalyticBackend(seed)))
+    monkeypatch.setattr(
+        loop_setup, "universal_policy_factory", lambda *a, **k: lambda seed: AnalyticBackend(seed)
+    )
 
 
 def sha256(path: Path) -> str:
@@ -38,12 +40,31 @@ def shipped(terrain: str = "flat") -> Path:
 
 def test_a_default_run_records_the_shipped_policy_and_its_hash(tmp_path, fake_learner, capsys):
     store = tmp_path / "runs.db"
-    assert main(["run", "--preset", "smoke", "--out", str(tmp_path / "runs"), "--store", str(store), "--json",
-                 "--no-video"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "--preset",
+                "smoke",
+                "--out",
+                str(tmp_path / "runs"),
+                "--store",
+                str(store),
+                "--json",
+                "--no-video",
+            ]
+        )
+        == 0
+    )
     line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     run_dir = tmp_path / "runs" / line["run_id"]
-    expected = {"source": "shipped", "file": shipped().name, "path": str(shipped().resolve()), "sha256": sha256(shipped()),
-                "robot": get_registry().default("robot")}
+    expected = {
+        "source": "shipped",
+        "file": shipped().name,
+        "path": str(shipped().resolve()),
+        "sha256": sha256(shipped()),
+        "robot": get_registry().default("robot"),
+    }
     config = yaml.safe_load((run_dir / "config.yaml").read_text())
     assert config["checkpoint"] == ""  # what the user gave: nothing ...
     assert config["policy"] == expected  # ... and what that meant
@@ -52,13 +73,43 @@ def test_a_default_run_records_the_shipped_policy_and_its_hash(tmp_path, fake_le
         run = results.get_run(line["run_id"])
     assert run["config"]["policy"] == expected and run["summary"]["policy"] == expected
     # a run folder's config.yaml given back to --config repeats the run (policy is a record, not a setting)
-    assert main(["run", "--config", str(run_dir / "config.yaml"), "--out", str(tmp_path / "again"), "--store", "none",
-                 "--json", "--no-video"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "--config",
+                str(run_dir / "config.yaml"),
+                "--out",
+                str(tmp_path / "again"),
+                "--store",
+                "none",
+                "--json",
+                "--no-video",
+            ]
+        )
+        == 0
+    )
 
 
 def test_from_scratch_records_none(tmp_path, fake_learner, capsys):
-    assert main(["run", "--preset", "smoke", "--checkpoint", "none", "--out", str(tmp_path), "--store", "none", "--json",
-                 "--no-video"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "--preset",
+                "smoke",
+                "--checkpoint",
+                "none",
+                "--out",
+                str(tmp_path),
+                "--store",
+                "none",
+                "--json",
+                "--no-video",
+            ]
+        )
+        == 0
+    )
     line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     summary = json.loads((tmp_path / line["run_id"] / "summary.json").read_text())
     assert summary["policy"] == {"source": "none", "file": None, "path": None, "sha256": None}
@@ -74,7 +125,10 @@ def test_resume_refuses_a_policy_file_that_changed(tmp_path, fake_learner, capsy
 
     policy = tmp_path / "policy.pt"
     shutil.copy(shipped("flat"), policy)
-    config = make_config("smoke", overrides={"checkpoint": str(policy), "out": str(tmp_path / "runs"), "store": "none"})
+    config = make_config(
+        "smoke",
+        overrides={"checkpoint": str(policy), "out": str(tmp_path / "runs"), "store": "none"},
+    )
 
     def stop_after_first_round(event):
         if event["phase"] == "evaluated":
@@ -91,7 +145,9 @@ def test_resume_refuses_a_policy_file_that_changed(tmp_path, fake_learner, capsy
     capsys.readouterr()
     assert main(["run", "--resume", str(run_dir), "--json", "--no-video"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "starting policy" in err[0] and "changed since the run started" in err[0], err
+    assert (
+        len(err) == 1 and "starting policy" in err[0] and "changed since the run started" in err[0]
+    ), err
 
     shutil.copy(shipped("flat"), policy)  # the file it started from: the resume goes on
     assert main(["run", "--resume", str(run_dir), "--json", "--no-video"]) == 0

@@ -23,7 +23,11 @@ def _mixed_policy() -> str:
 
 
 CASES = [
-    ("bo study storage bad://", ["--optimizer", "bo", "--bo-storage", "bad://x"], "bo_storage 'bad://x'"),
+    (
+        "bo study storage bad://",
+        ["--optimizer", "bo", "--bo-storage", "bad://x"],
+        "bo_storage 'bad://x'",
+    ),
     ("mixed policy on the continuous space", ["--checkpoint", "{MIXED}"], "takes 4 design values"),
     ("cuda without CUDA", ["--device", "cuda"], "no CUDA device"),
 ]
@@ -35,8 +39,15 @@ def test_run_refuses_before_a_run_folder_or_store_exists(tmp_path, capsys, monke
         pytest.skip("this machine has CUDA")
     monkeypatch.delenv("COADAPT_STORE", raising=False)
     runs = tmp_path / "runs"  # the default store would be runs/../coadapt.db
-    argv = ["run", "--preset", "smoke", "--out", str(runs), "--no-video",
-            *[a.replace("{MIXED}", _mixed_policy()) for a in args]]
+    argv = [
+        "run",
+        "--preset",
+        "smoke",
+        "--out",
+        str(runs),
+        "--no-video",
+        *[a.replace("{MIXED}", _mixed_policy()) for a in args],
+    ]
     t0 = time.perf_counter()
     assert main(argv) == 2
     seconds = time.perf_counter() - t0
@@ -52,12 +63,34 @@ def test_run_refuses_before_a_run_folder_or_store_exists(tmp_path, capsys, monke
 def test_report_to_a_read_only_folder_refuses_before_evaluating(tmp_path, capsys, monkeypatch):
     import coadapt_core.cli.report as report_cli
 
-    monkeypatch.setattr(loop_setup, "universal_policy_factory", lambda *a, **k: (lambda seed: AnalyticBackend(seed)))
+    monkeypatch.setattr(
+        loop_setup, "universal_policy_factory", lambda *a, **k: lambda seed: AnalyticBackend(seed)
+    )
     db = tmp_path / "s.db"
-    assert main(["run", "--preset", "smoke", "--population", "4", "--optimizer-iterations", "2", "--out",
-                 str(tmp_path / "runs"), "--store", str(db), "--no-video", "--json"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "--preset",
+                "smoke",
+                "--population",
+                "4",
+                "--optimizer-iterations",
+                "2",
+                "--out",
+                str(tmp_path / "runs"),
+                "--store",
+                str(db),
+                "--no-video",
+                "--json",
+            ]
+        )
+        == 0
+    )
     evaluated = []
-    monkeypatch.setattr(report_cli, "_evaluate", lambda *a, **k: evaluated.append(1) or (None, None))
+    monkeypatch.setattr(
+        report_cli, "_evaluate", lambda *a, **k: evaluated.append(1) or (None, None)
+    )
     capsys.readouterr()
     assert main(["report", "--store", str(db), "--no-sim-to-sim", "-o", RO]) == 2
     err = capsys.readouterr().err
@@ -69,17 +102,63 @@ def test_report_to_a_read_only_folder_refuses_before_evaluating(tmp_path, capsys
     assert evaluated == [1]
 
 
-def test_run_check_and_so_a_grid_refuse_a_policy_of_the_other_design_space(tmp_path, capsys, monkeypatch):
+def test_run_check_and_so_a_grid_refuse_a_policy_of_the_other_design_space(
+    tmp_path, capsys, monkeypatch
+):
     monkeypatch.delenv("COADAPT_STORE", raising=False)
     mixed = _mixed_policy()
-    assert main(["run", "--check", "--preset", "smoke", "--checkpoint", mixed, "--out", str(tmp_path / "runs")]) == 2
+    assert (
+        main(
+            [
+                "run",
+                "--check",
+                "--preset",
+                "smoke",
+                "--checkpoint",
+                mixed,
+                "--out",
+                str(tmp_path / "runs"),
+            ]
+        )
+        == 2
+    )
     err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
     assert len(err) == 1 and "takes 4 design values" in err[0] and "--mixed" in err[0], err
-    assert main(["run", "--check", "--preset", "smoke", "--mixed", "--checkpoint", mixed, "--out",
-                 str(tmp_path / "runs")]) == 0  # the same policy on the mixed space is fine
+    assert (
+        main(
+            [
+                "run",
+                "--check",
+                "--preset",
+                "smoke",
+                "--mixed",
+                "--checkpoint",
+                mixed,
+                "--out",
+                str(tmp_path / "runs"),
+            ]
+        )
+        == 0
+    )  # the same policy on the mixed space is fine
     capsys.readouterr()
-    grid = ["grid", "--methods", "ours", "--objectives", "torque", "--terrains", "flat", "--seeds", "0", "--preset",
-            "smoke", "--store", str(tmp_path / "g.db"), "--out", str(tmp_path / "g"), f"--run-arg=--checkpoint={mixed}"]
+    grid = [
+        "grid",
+        "--methods",
+        "ours",
+        "--objectives",
+        "torque",
+        "--terrains",
+        "flat",
+        "--seeds",
+        "0",
+        "--preset",
+        "smoke",
+        "--store",
+        str(tmp_path / "g.db"),
+        "--out",
+        str(tmp_path / "g"),
+        f"--run-arg=--checkpoint={mixed}",
+    ]
     assert main(grid) == 2
     err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
     assert len(err) == 1 and "takes 4 design values" in err[0], err

@@ -50,8 +50,12 @@ class AnalyticBackend:
         if self.fail_on_call is not None and self.calls == self.fail_on_call:
             raise RuntimeError("simulated crash")
         c = analytic_cost(designs, self.scale)
-        return RealFitness(costs=np.stack([c] * len(objectives), axis=1), buffer=None,
-                           interactions=len(designs) * agents * steps, seconds=0.01)
+        return RealFitness(
+            costs=np.stack([c] * len(objectives), axis=1),
+            buffer=None,
+            interactions=len(designs) * agents * steps,
+            seconds=0.01,
+        )
 
     def surrogate_fitness(self, designs, objectives, buffer, *, samples, seed=0):
         return np.stack([analytic_cost(designs)] * len(objectives), axis=1)
@@ -63,14 +67,32 @@ class AnalyticBackend:
         pass
 
 
-def record_run(rec: SqliteRecorder, method: str, seed: int, *, objectives=("torque",), terrain="flat",
-               checkpoint: Path | None = None, optimizer="pso") -> str:
+def record_run(
+    rec: SqliteRecorder,
+    method: str,
+    seed: int,
+    *,
+    objectives=("torque",),
+    terrain="flat",
+    checkpoint: Path | None = None,
+    optimizer="pso",
+) -> str:
     """A small finished run as the loop records it: 2 training phases, 2 x 2 batches of 4
     real designs (surrogate scored too), 4 surrogate-only designs, best and nominal."""
     rng = np.random.default_rng(seed + 17 * len(method))
-    config = {"method": method, "objective": ",".join(objectives), "terrain": terrain, "seed": seed,
-              "preset": "smoke", "sim": "mujoco", "robot": "kuafu", "optimizer": optimizer}
-    if checkpoint is not None:  # a run folder named after the run, holding its policy (as the loop writes)
+    config = {
+        "method": method,
+        "objective": ",".join(objectives),
+        "terrain": terrain,
+        "seed": seed,
+        "preset": "smoke",
+        "sim": "mujoco",
+        "robot": "kuafu",
+        "optimizer": optimizer,
+    }
+    if (
+        checkpoint is not None
+    ):  # a run folder named after the run, holding its policy (as the loop writes)
         config["run_id"] = f"{method}-{'+'.join(objectives)}-{terrain}-{optimizer}-s{seed}"
         config["run_dir"] = str(checkpoint.parent / config["run_id"])
         (checkpoint.parent / config["run_id"] / "checkpoints").mkdir(parents=True, exist_ok=True)
@@ -78,23 +100,50 @@ def record_run(rec: SqliteRecorder, method: str, seed: int, *, objectives=("torq
         checkpoint.write_text("weights")
     run_id = rec.start_run(config)
     for outer in range(2):
-        rec.record_training(run_id, outer=outer, result=TrainingResult(steps=10_000 * (seed + 1), seconds=2.0 + seed, mean_reward=0.3))
+        rec.record_training(
+            run_id,
+            outer=outer,
+            result=TrainingResult(steps=10_000 * (seed + 1), seconds=2.0 + seed, mean_reward=0.3),
+        )
         for inner in range(2):
             designs = rng.uniform(0.5, 1.5, size=(4, 2))
             real = analytic_cost(designs)
-            rec.record_evaluations(run_id, outer=outer, inner=inner, designs=designs, kind="real",
-                                   costs=[{o: float(c) * (1 + i) for i, o in enumerate(objectives)} for c in real],
-                                   interactions=1000, seconds=0.5,
-                                   surrogate_errors=[{objectives[0]: 0.1 * (d[0] - 1)} for d in designs])
-            rec.record_evaluations(run_id, outer=outer, inner=inner, designs=rng.uniform(0.5, 1.5, size=(1, 2)),
-                                   costs=[{objectives[0]: 1.0}], kind="surrogate", interactions=0, seconds=0.05)
+            rec.record_evaluations(
+                run_id,
+                outer=outer,
+                inner=inner,
+                designs=designs,
+                kind="real",
+                costs=[{o: float(c) * (1 + i) for i, o in enumerate(objectives)} for c in real],
+                interactions=1000,
+                seconds=0.5,
+                surrogate_errors=[{objectives[0]: 0.1 * (d[0] - 1)} for d in designs],
+            )
+            rec.record_evaluations(
+                run_id,
+                outer=outer,
+                inner=inner,
+                designs=rng.uniform(0.5, 1.5, size=(1, 2)),
+                costs=[{objectives[0]: 1.0}],
+                kind="surrogate",
+                interactions=0,
+                seconds=0.05,
+            )
         if checkpoint is not None:
             rec.record_checkpoint(run_id, outer=outer, path=str(checkpoint))
     real = rec.store.evaluations(run_id, kind="real")
     best = min(real, key=lambda e: e.costs[objectives[0]])
     nominal = float(analytic_cost(np.array([1.0, 1.0]))[0])
-    rec.finish(run_id, {"run_id": run_id, "best_design": best.design, "best_cost": best.costs[objectives[0]],
-                        "nominal_cost": nominal, "improvement": (nominal - best.costs[objectives[0]]) / nominal})
+    rec.finish(
+        run_id,
+        {
+            "run_id": run_id,
+            "best_design": best.design,
+            "best_cost": best.costs[objectives[0]],
+            "nominal_cost": nominal,
+            "improvement": (nominal - best.costs[objectives[0]]) / nominal,
+        },
+    )
     return run_id
 
 
@@ -103,7 +152,11 @@ def filled_store(tmp_path):
     ckpt = tmp_path / "policy.pt"
     ckpt.write_text("weights")
     rec = SqliteRecorder(tmp_path / "r.db")
-    ids = {(m, s): record_run(rec, m, s, checkpoint=ckpt) for m in ("ours", "no-surrogate") for s in (0, 1)}
+    ids = {
+        (m, s): record_run(rec, m, s, checkpoint=ckpt)
+        for m in ("ours", "no-surrogate")
+        for s in (0, 1)
+    }
     return rec.store, ids
 
 
@@ -115,8 +168,16 @@ def read_csv(path: Path) -> list[dict[str, str]]:
 def test_report_tables_match_the_store(filled_store, tmp_path):
     store, ids = filled_store
     files = write_report(store, None, tmp_path / "rep", sim2sim=False)
-    for name in ("table6.csv", "table6.md", "table7.csv", "table7.md", "report.html", "heatmap_flat.png", "convergence.png",
-                 "surrogate_error.png"):
+    for name in (
+        "table6.csv",
+        "table6.md",
+        "table7.csv",
+        "table7.md",
+        "report.html",
+        "heatmap_flat.png",
+        "convergence.png",
+        "surrogate_error.png",
+    ):
         assert files[name].exists() and files[name].stat().st_size > 0, name
     t6 = {(r["method"], r["terrain"]): r for r in read_csv(files["table6.csv"])}
     assert all(r["optimizer"] == "pso" for r in t6.values())
@@ -128,7 +189,9 @@ def test_report_tables_match_the_store(filled_store, tmp_path):
         thighs = [r["summary"]["best_design"][0] for r in runs]
         assert float(row["thigh_scale"]) == pytest.approx(np.mean(thighs))
         assert float(row["thigh_scale_std"]) == pytest.approx(np.std(thighs, ddof=1))
-        assert float(row["shank_scale"]) == pytest.approx(np.mean([r["summary"]["best_design"][1] for r in runs]))
+        assert float(row["shank_scale"]) == pytest.approx(
+            np.mean([r["summary"]["best_design"][1] for r in runs])
+        )
         improvements = [r["summary"]["improvement"] for r in runs]
         assert float(row["improvement"]) == pytest.approx(np.mean(improvements))
         assert float(row["improvement_std"]) == pytest.approx(np.std(improvements, ddof=1))
@@ -139,10 +202,19 @@ def test_report_tables_match_the_store(filled_store, tmp_path):
         train = [sum(t["steps"] for t in store.training(ids[(method, s)])) for s in (0, 1)]
         evals = [store.evaluations(ids[(method, s)]) for s in (0, 1)]
         assert float(t7[method]["interactions_training"]) == pytest.approx(np.mean(train)) == 30_000
-        assert float(t7[method]["interactions_evaluation"]) == pytest.approx(
-            np.mean([sum(e.interactions for e in ev if e.kind == "real") for ev in evals])) == 16_000
-        assert float(t7[method]["seconds_evaluation"]) == pytest.approx(np.mean([sum(e.seconds for e in ev) for ev in evals]))
-        assert float(t7[method]["designs_real"]) == 16 and float(t7[method]["designs_surrogate"]) == 4
+        assert (
+            float(t7[method]["interactions_evaluation"])
+            == pytest.approx(
+                np.mean([sum(e.interactions for e in ev if e.kind == "real") for ev in evals])
+            )
+            == 16_000
+        )
+        assert float(t7[method]["seconds_evaluation"]) == pytest.approx(
+            np.mean([sum(e.seconds for e in ev) for ev in evals])
+        )
+        assert (
+            float(t7[method]["designs_real"]) == 16 and float(t7[method]["designs_surrogate"]) == 4
+        )
     md = files["table7.md"].read_text()
     # thousands: 30 k training (20 k and 40 k: std 14.1 k) + 16 k evaluation
     assert "| Ours | pso | 2 | 46 ± 14.1 (30+16) |" in md
@@ -151,7 +223,9 @@ def test_report_tables_match_the_store(filled_store, tmp_path):
     mean, std = np.mean(improvements), np.std(improvements, ddof=1)  # the last method's
     assert f"{100 * mean:.1f}% ± {100 * std:.1f}% (n=2)" in t6md
     html = files["report.html"].read_text()
-    assert all(f"src='{p}'" in html for p in ("heatmap_flat.png", "convergence.png", "surrogate_error.png"))
+    assert all(
+        f"src='{p}'" in html for p in ("heatmap_flat.png", "convergence.png", "surrogate_error.png")
+    )
 
 
 def test_sim_to_sim_transfer_uses_the_backend_writes_rows_the_report_reads(filled_store, tmp_path):
@@ -159,7 +233,9 @@ def test_sim_to_sim_transfer_uses_the_backend_writes_rows_the_report_reads(fille
     built = []
 
     def factory(robot, simulator, objectives, *, terrain, checkpoint, **kwargs):
-        assert simulator.name == "pybullet" and checkpoint.endswith("policy.pt") and terrain == "flat"
+        assert (
+            simulator.name == "pybullet" and checkpoint.endswith("policy.pt") and terrain == "flat"
+        )
         backend = AnalyticBackend(scale=1.5)
         built.append(backend)
         assert isinstance(backend, CoadaptationBackend)
@@ -175,7 +251,9 @@ def test_sim_to_sim_transfer_uses_the_backend_writes_rows_the_report_reads(fille
     assert row["sim2sim_note"] == "pybullet, 2 designs"
     rows = store.evaluations(run["id"], kind="sim2sim")
     assert [(e.idx, e.simulator) for e in rows] == [(0, "pybullet"), (1, "pybullet")]
-    assert store.count_evaluations(run["id"], kind="real") == 16  # transfer rows are not real-run evidence
+    assert (
+        store.count_evaluations(run["id"], kind="real") == 16
+    )  # transfer rows are not real-run evidence
     assert transfer_runs(store, [run], simulator="pybullet", factory=factory) == {}
     assert len(built) == 1  # the second transfer finds the stored rows
 
@@ -184,12 +262,17 @@ def test_the_report_reads_and_never_writes(filled_store, tmp_path):
     """The report runs no simulation and writes no row: without transfer rows its column
     says so; every table's row count is the same after it."""
     store, _ = filled_store
-    before = {t: len(store.table_rows(t)) for t in ("runs", "evaluations", "training_phases", "checkpoints")}
+    before = {
+        t: len(store.table_rows(t))
+        for t in ("runs", "evaluations", "training_phases", "checkpoints")
+    }
     files = write_report(store, None, tmp_path / "rep")
     after = {t: len(store.table_rows(t)) for t in before}
     assert after == before and before["evaluations"] > 0
     rows = read_csv(files["table6.csv"])
-    assert rows and all(r["sim2sim_improvement"] == "" and "no sim-to-sim rows" in r["sim2sim_note"] for r in rows)
+    assert rows and all(
+        r["sim2sim_improvement"] == "" and "no sim-to-sim rows" in r["sim2sim_note"] for r in rows
+    )
 
 
 def test_sim_to_sim_says_why_when_not_available(tmp_path):
@@ -197,9 +280,14 @@ def test_sim_to_sim_says_why_when_not_available(tmp_path):
     run_id = record_run(rec, "ours", 0)  # no checkpoint recorded
     notes = transfer_runs(rec.store, [rec.store.get_run(run_id)], simulator="pybullet")
     assert notes == {run_id: "n/a: the run recorded no policy checkpoint"}
-    files = write_report(rec.store, run_id, tmp_path / "rep", transfer_simulator="pybullet", transfer_notes=notes)
+    files = write_report(
+        rec.store, run_id, tmp_path / "rep", transfer_simulator="pybullet", transfer_notes=notes
+    )
     (row,) = read_csv(files["table6.csv"])
-    assert row["sim2sim_improvement"] == "" and row["sim2sim_note"] == "n/a: the run recorded no policy checkpoint"
+    assert (
+        row["sim2sim_improvement"] == ""
+        and row["sim2sim_note"] == "n/a: the run recorded no policy checkpoint"
+    )
     assert "| n/a | n/a: the run recorded no policy checkpoint |" in files["table6.md"].read_text()
 
 
@@ -207,8 +295,15 @@ def test_landscape_is_stored_as_a_run_and_drives_the_heatmap(filled_store, tmp_p
     store, _ = filled_store
     rec = SqliteRecorder(store)
     (torque,) = objective_instances(["torque"])
-    summary = run_landscape(AnalyticBackend(), [torque], rec, config={"terrain": "flat", "sim": "mujoco", "robot": "kuafu"},
-                            grid=11, agents=2, steps=5)
+    summary = run_landscape(
+        AnalyticBackend(),
+        [torque],
+        rec,
+        config={"terrain": "flat", "sim": "mujoco", "robot": "kuafu"},
+        grid=11,
+        agents=2,
+        steps=5,
+    )
     run = store.get_run(summary["run_id"])
     assert run["method"] == "landscape" and run["status"] == "finished"
     rows = store.evaluations(run["id"], kind="real")
@@ -226,12 +321,21 @@ def test_interrupted_landscape_resumes_without_reevaluating_rows(tmp_path):
     (torque,) = objective_instances(["torque"])
     crashing = AnalyticBackend(fail_on_call=4)  # dies on the 4th grid row
     with pytest.raises(RuntimeError):
-        run_landscape(crashing, [torque], rec, config={"terrain": "flat"}, grid=5, agents=1, steps=1)
+        run_landscape(
+            crashing, [torque], rec, config={"terrain": "flat"}, grid=5, agents=1, steps=1
+        )
     (run,) = rec.store.list_runs(method="landscape")
     assert rec.store.count_evaluations(run["id"]) == 15 and run["status"] == "interrupted"
     again = AnalyticBackend()
-    summary = run_landscape(again, [torque], SqliteRecorder(tmp_path / "l.db"), config={"terrain": "flat", "run_id": run["id"]},
-                            grid=5, agents=1, steps=1)
+    summary = run_landscape(
+        again,
+        [torque],
+        SqliteRecorder(tmp_path / "l.db"),
+        config={"terrain": "flat", "run_id": run["id"]},
+        grid=5,
+        agents=1,
+        steps=1,
+    )
     assert again.calls == 2 and summary["run_id"] == run["id"]
     assert rec.store.count_evaluations(run["id"]) == 25
 
@@ -269,17 +373,25 @@ def test_report_cli_writes_files(filled_store, tmp_path):
     store, _ = filled_store
     proc = run_cli("report", "--store", store.url, "-o", str(tmp_path / "cli"), "--no-sim-to-sim")
     assert proc.returncode == 0, proc.stderr
-    assert (tmp_path / "cli" / "report.html").exists() and (tmp_path / "cli" / "heatmap_flat.png").exists()
+    assert (tmp_path / "cli" / "report.html").exists() and (
+        tmp_path / "cli" / "heatmap_flat.png"
+    ).exists()
     bad = run_cli("report", "missing-run", "--store", store.url, "-o", str(tmp_path / "cli"))
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
 
 
-@pytest.mark.parametrize(("args", "message"), [
-    (["--grid", "1"], "error: grid must be an integer in [2, 101], got 1"),
-    (["--terrain", "ice"], "error: terrain 'ice' is not one of flat, slope, random"),
-    (["--checkpoint", "/nonexistent/policy.pt"], "error: --checkpoint /nonexistent/policy.pt does not exist"),
-    (["--objective", "speed"], "error: unknown objective 'speed'"),
-])
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--grid", "1"], "error: grid must be an integer in [2, 101], got 1"),
+        (["--terrain", "ice"], "error: terrain 'ice' is not one of flat, slope, random"),
+        (
+            ["--checkpoint", "/nonexistent/policy.pt"],
+            "error: --checkpoint /nonexistent/policy.pt does not exist",
+        ),
+        (["--objective", "speed"], "error: unknown objective 'speed'"),
+    ],
+)
 def test_landscape_cli_bad_input_is_one_line(tmp_path, args, message):
     from tests.conftest import run_cli
 
@@ -299,19 +411,46 @@ def test_landscape_cli_on_real_mujoco_with_a_saved_policy(tmp_path):
 
     registry = get_registry()
     robot = registry.get("robot", "kuafu")()
-    backend = UniversalPolicyBackend(robot, registry.get("simulator", "mujoco"), objective_instances(["torque"]),
-                                     terrain="flat", design_space=robot.design_space(), agents_per_design=1, seed=0)
+    backend = UniversalPolicyBackend(
+        robot,
+        registry.get("simulator", "mujoco"),
+        objective_instances(["torque"]),
+        terrain="flat",
+        design_space=robot.design_space(),
+        agents_per_design=1,
+        seed=0,
+    )
     backend.train(np.array([[1.0, 1.0]]), 64, seed=0)  # builds the networks; a few PPO steps
     backend.save(str(tmp_path / "policy.pt"))
-    proc = run_cli("landscape", "--objective", "torque", "--grid", "3", "--agents", "1", "--steps", "10",
-                   "--checkpoint", str(tmp_path / "policy.pt"), "--store", str(tmp_path / "l.db"), "--json", timeout=300)
+    proc = run_cli(
+        "landscape",
+        "--objective",
+        "torque",
+        "--grid",
+        "3",
+        "--agents",
+        "1",
+        "--steps",
+        "10",
+        "--checkpoint",
+        str(tmp_path / "policy.pt"),
+        "--store",
+        str(tmp_path / "l.db"),
+        "--json",
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout.strip().splitlines()[-1])
     store = ResultsStore(tmp_path / "l.db")
     rows = store.evaluations(summary["run_id"], kind="real")
     assert len(rows) == 9 and sum(e.interactions for e in rows) == 9 * 10
-    assert summary["interactions"] == 10 * 10  # and the nominal design once more: the capped rule's reference
+    assert (
+        summary["interactions"] == 10 * 10
+    )  # and the nominal design once more: the capped rule's reference
     assert sorted({round(e.design[0], 6) for e in rows}) == [0.5, 1.0, 1.5]
     best = min(rows, key=lambda e: e.costs["torque"])
-    assert summary["best_cost"] == pytest.approx(best.costs["torque"]) and summary["best_design"] == best.design
+    assert (
+        summary["best_cost"] == pytest.approx(best.costs["torque"])
+        and summary["best_design"] == best.design
+    )
     assert all(np.isfinite(e.costs["torque"]) and e.costs["torque"] >= 0 for e in rows)

@@ -18,10 +18,22 @@ from coadapt_core.fitness import RunRecorder, TrainingResult
 from coadapt_core.results import ResultsStore, SqliteRecorder, resolve_store_url
 from coadapt_core.results.export import export_tables
 
-CONFIG = {"method": "ours", "objective": "torque", "terrain": "flat", "seed": 3, "preset": "smoke",
-          "optimizer": "pso", "sim": "mujoco", "robot": "kuafu",
-          "design_space": {"variables": [{"name": "thigh_scale", "type": "continuous", "low": 0.5, "high": 1.5},
-                                         {"name": "shank_scale", "type": "continuous", "low": 0.5, "high": 1.5}]}}
+CONFIG = {
+    "method": "ours",
+    "objective": "torque",
+    "terrain": "flat",
+    "seed": 3,
+    "preset": "smoke",
+    "optimizer": "pso",
+    "sim": "mujoco",
+    "robot": "kuafu",
+    "design_space": {
+        "variables": [
+            {"name": "thigh_scale", "type": "continuous", "low": 0.5, "high": 1.5},
+            {"name": "shank_scale", "type": "continuous", "low": 0.5, "high": 1.5},
+        ]
+    },
+}
 
 
 def _cost(design) -> float:
@@ -34,7 +46,9 @@ def test_recorder_satisfies_the_protocol(tmp_path):
 
 def test_store_url_resolution(tmp_path, monkeypatch):
     assert resolve_store_url(tmp_path / "x.db") == f"sqlite:///{tmp_path / 'x.db'}"
-    assert resolve_store_url(tmp_path) == f"sqlite:///{tmp_path / 'coadapt.db'}"  # a folder: its coadapt.db
+    assert (
+        resolve_store_url(tmp_path) == f"sqlite:///{tmp_path / 'coadapt.db'}"
+    )  # a folder: its coadapt.db
     assert resolve_store_url("postgresql://u@h/db") == "postgresql://u@h/db"
     monkeypatch.setenv("COADAPT_STORE", str(tmp_path / "env.db"))
     assert resolve_store_url(None).endswith("env.db")
@@ -49,30 +63,69 @@ def test_round_trip_of_runs_evaluations_training_and_checkpoints(tmp_path):
     designs = rng.uniform(0.5, 1.5, size=(6, 2))
     for inner in range(2):
         batch = designs[3 * inner : 3 * inner + 3]
-        rec.record_evaluations(run_id, outer=0, inner=inner, designs=batch, costs=[{"torque": _cost(d)} for d in batch],
-                               kind="real", interactions=500, seconds=0.25)
-    rec.record_evaluations(run_id, outer=0, inner=2, designs=designs[:1], costs=[{"torque": 0.5}], kind="surrogate",
-                           interactions=[0], seconds=[0.01], surrogate_errors=[{"torque": 0.125}])
-    rec.record_training(run_id, outer=0, result=TrainingResult(steps=12_000, seconds=4.5, mean_reward=1.25, extra={"kl": 0.01}))
+        rec.record_evaluations(
+            run_id,
+            outer=0,
+            inner=inner,
+            designs=batch,
+            costs=[{"torque": _cost(d)} for d in batch],
+            kind="real",
+            interactions=500,
+            seconds=0.25,
+        )
+    rec.record_evaluations(
+        run_id,
+        outer=0,
+        inner=2,
+        designs=designs[:1],
+        costs=[{"torque": 0.5}],
+        kind="surrogate",
+        interactions=[0],
+        seconds=[0.01],
+        surrogate_errors=[{"torque": 0.125}],
+    )
+    rec.record_training(
+        run_id,
+        outer=0,
+        result=TrainingResult(steps=12_000, seconds=4.5, mean_reward=1.25, extra={"kl": 0.01}),
+    )
     rec.record_checkpoint(run_id, outer=0, path="/tmp/ckpt-0.pt")
     rec.finish(run_id, {"best_cost": 0.02, "best_design": [0.7, 0.6]})
 
     store = ResultsStore(tmp_path / "r.db")  # a fresh connection reads what was committed
     run = store.get_run(run_id)
     assert run["status"] == "finished" and run["finished_at"] is not None
-    assert (run["method"], run["objectives"], run["terrain"], run["seed"], run["preset"]) == ("ours", ["torque"], "flat", 3, "smoke")
+    assert (run["method"], run["objectives"], run["terrain"], run["seed"], run["preset"]) == (
+        "ours",
+        ["torque"],
+        "flat",
+        3,
+        "smoke",
+    )
     assert run["summary"] == {"best_cost": 0.02, "best_design": [0.7, 0.6]}
     assert run["code_version"] == "0.1.0" and run["config"]["robot"] == "kuafu"
     real = store.evaluations(run_id, kind="real")
     assert len(real) == 6
-    assert [(e.outer, e.inner, e.idx) for e in real] == [(0, 0, 0), (0, 0, 1), (0, 0, 2), (0, 1, 0), (0, 1, 1), (0, 1, 2)]
+    assert [(e.outer, e.inner, e.idx) for e in real] == [
+        (0, 0, 0),
+        (0, 0, 1),
+        (0, 0, 2),
+        (0, 1, 0),
+        (0, 1, 1),
+        (0, 1, 2),
+    ]
     np.testing.assert_allclose([e.design for e in real], designs)
     np.testing.assert_allclose([e.costs["torque"] for e in real], [_cost(d) for d in designs])
     assert sum(e.interactions for e in real) == 3000
     (sur,) = store.evaluations(run_id, kind="surrogate")
     assert sur.surrogate_error == {"torque": 0.125} and sur.interactions == 0
     (phase,) = store.training(run_id)
-    assert (phase["steps"], phase["seconds"], phase["final_reward"], phase["extra"]) == (12_000, 4.5, 1.25, {"kl": 0.01})
+    assert (phase["steps"], phase["seconds"], phase["final_reward"], phase["extra"]) == (
+        12_000,
+        4.5,
+        1.25,
+        {"kl": 0.01},
+    )
     assert [c["path"] for c in store.checkpoints(run_id)] == ["/tmp/ckpt-0.pt"]
 
 
@@ -91,18 +144,36 @@ def test_redone_batch_on_resume_replaces_rows_instead_of_duplicating(tmp_path):
     batch0 = np.array([[0.6, 0.6], [0.8, 0.9], [1.2, 1.1]])
     batch1 = np.array([[0.7, 0.65], [0.75, 0.6], [0.9, 0.8]])
     for outer, batch in ((0, batch0), (1, batch1)):
-        first.record_evaluations(run_id, outer=outer, inner=0, designs=batch, costs=[{"torque": _cost(d)} for d in batch],
-                                 kind="real", interactions=10, seconds=0.1)
+        first.record_evaluations(
+            run_id,
+            outer=outer,
+            inner=0,
+            designs=batch,
+            costs=[{"torque": _cost(d)} for d in batch],
+            kind="real",
+            interactions=10,
+            seconds=0.1,
+        )
     assert first.store.count_evaluations(run_id) == 6
 
     resumed = SqliteRecorder(tmp_path / "r.db")  # new process
     assert resumed.start_run({**CONFIG, "run_id": run_id}) == run_id
-    resumed.record_evaluations(run_id, outer=1, inner=0, designs=batch1, costs=[{"torque": _cost(d)} for d in batch1],
-                               kind="real", interactions=10, seconds=0.1)
+    resumed.record_evaluations(
+        run_id,
+        outer=1,
+        inner=0,
+        designs=batch1,
+        costs=[{"torque": _cost(d)} for d in batch1],
+        kind="real",
+        interactions=10,
+        seconds=0.1,
+    )
     resumed.finish(run_id, {"best_cost": _cost(batch1[0])})
     rows = resumed.store.evaluations(run_id)
     assert len(rows) == 6
-    assert sorted(map(tuple, (e.design for e in rows))) == sorted(map(tuple, np.vstack([batch0, batch1])))
+    assert sorted(map(tuple, (e.design for e in rows))) == sorted(
+        map(tuple, np.vstack([batch0, batch1]))
+    )
     assert resumed.store.get_run(run_id)["status"] == "finished"
     assert resumed.store.get_run(run_id)["created_at"] == first.store.get_run(run_id)["created_at"]
 
@@ -118,11 +189,21 @@ def _crashing_run(db: str, crash_after: int, queue) -> None:
     queue.join_thread()
     n = 0
     for outer in range(2):
-        rec.record_training(run_id, outer=outer, result=TrainingResult(steps=1000, seconds=1.0, mean_reward=0.5))
+        rec.record_training(
+            run_id, outer=outer, result=TrainingResult(steps=1000, seconds=1.0, mean_reward=0.5)
+        )
         for inner in range(3):
             batch = [[0.5 + 0.1 * k, 0.5 + 0.1 * inner] for k in range(4)]
-            rec.record_evaluations(run_id, outer=outer, inner=inner, designs=batch, costs=[{"torque": _cost(d)} for d in batch],
-                                   kind="real", interactions=100, seconds=0.01)
+            rec.record_evaluations(
+                run_id,
+                outer=outer,
+                inner=inner,
+                designs=batch,
+                costs=[{"torque": _cost(d)} for d in batch],
+                kind="real",
+                interactions=100,
+                seconds=0.01,
+            )
             n += 1
             if n == crash_after:
                 os._exit(9)  # no cleanup, no flush: a killed process
@@ -153,11 +234,29 @@ def test_export_csv_matches_store(tmp_path):
     run_id = rec.start_run(CONFIG)
     other = rec.start_run({**CONFIG, "seed": 4})
     designs = [[0.6, 0.7], [1.1, 0.9]]
-    rec.record_evaluations(run_id, outer=0, inner=0, designs=designs, costs=[{"torque": _cost(d)} for d in designs],
-                           kind="real", interactions=7, seconds=0.5)
-    rec.record_evaluations(other, outer=0, inner=0, designs=designs, costs=[{"torque": 9.0}] * 2, kind="real",
-                           interactions=7, seconds=0.5)
-    rec.record_training(run_id, outer=0, result=TrainingResult(steps=99, seconds=1.5, mean_reward=0.25))
+    rec.record_evaluations(
+        run_id,
+        outer=0,
+        inner=0,
+        designs=designs,
+        costs=[{"torque": _cost(d)} for d in designs],
+        kind="real",
+        interactions=7,
+        seconds=0.5,
+    )
+    rec.record_evaluations(
+        other,
+        outer=0,
+        inner=0,
+        designs=designs,
+        costs=[{"torque": 9.0}] * 2,
+        kind="real",
+        interactions=7,
+        seconds=0.5,
+    )
+    rec.record_training(
+        run_id, outer=0, result=TrainingResult(steps=99, seconds=1.5, mean_reward=0.25)
+    )
     rec.finish(run_id, {"best_cost": 0.02})
     written = export_tables(rec.store, tmp_path / "out", fmt="csv", run_ids=[run_id])
     with written["evaluations"].open() as fh:
@@ -191,9 +290,19 @@ def test_export_cli_parquet_without_pandas_is_one_line(tmp_path):
         pytest.skip("pandas and pyarrow are installed; the missing-package message cannot be shown")
     except ImportError:
         pass
-    proc = run_cli("export", "--store", str(tmp_path / "p.db"), "--format", "parquet", "-o", str(tmp_path / "o"))
+    proc = run_cli(
+        "export",
+        "--store",
+        str(tmp_path / "p.db"),
+        "--format",
+        "parquet",
+        "-o",
+        str(tmp_path / "o"),
+    )
     assert proc.returncode == 2
-    assert proc.stderr.strip().splitlines() == ["error: parquet export needs pandas and pyarrow: pip install 'coadapt[parquet]' (or use --format csv)"]
+    assert proc.stderr.strip().splitlines() == [
+        "error: parquet export needs pandas and pyarrow: pip install 'coadapt[parquet]' (or use --format csv)"
+    ]
 
 
 def test_bo_study_lives_in_the_store_and_optuna_finds_it(tmp_path):
@@ -215,7 +324,9 @@ def test_bo_study_lives_in_the_store_and_optuna_finds_it(tmp_path):
     study = optuna.load_study(study_name=f"coadapt-bo-{run_id}", storage=store.url)
     assert len(study.trials) == 4
     assert study.best_value == pytest.approx(bo.best()[1])
-    assert ResultsStore(tmp_path / "bo.db").get_run(run_id)["method"] == "bo-specialized"  # our tables intact
+    assert (
+        ResultsStore(tmp_path / "bo.db").get_run(run_id)["method"] == "bo-specialized"
+    )  # our tables intact
 
 
 def test_make_recorder_tees_json_files_into_the_store_beside_the_runs_folder(tmp_path, monkeypatch):
@@ -226,8 +337,16 @@ def test_make_recorder_tees_json_files_into_the_store_beside_the_runs_folder(tmp
     rec = make_recorder(run_dir)
     assert isinstance(rec, SqliteRecorder) and rec.url == f"sqlite:///{tmp_path / 'coadapt.db'}"
     assert rec.start_run(CONFIG) == "r1"  # the JSON recorder names the run after its folder
-    rec.record_evaluations("r1", outer=0, inner=0, designs=[[1.0, 1.0]], costs=[{"torque": 2.0}], kind="real",
-                           interactions=5, seconds=0.1)
+    rec.record_evaluations(
+        "r1",
+        outer=0,
+        inner=0,
+        designs=[[1.0, 1.0]],
+        costs=[{"torque": 2.0}],
+        kind="real",
+        interactions=5,
+        seconds=0.1,
+    )
     rec.record_checkpoint("r1", outer=0, path="runs/r1/ckpt.pt")
     assert (run_dir / "evaluations.jsonl").read_text().count("\n") == 1
     store = ResultsStore(tmp_path / "coadapt.db")
@@ -242,8 +361,16 @@ def _open_and_record(db: str, n: int) -> None:
     rec = SqliteRecorder(db)
     run_id = rec.start_run({**CONFIG, "seed": n})
     for i in range(20):
-        rec.record_evaluations(run_id, outer=0, inner=i, designs=[[1.0, 1.0]], costs=[{"torque": float(i)}], kind="real",
-                               interactions=1, seconds=0.0)
+        rec.record_evaluations(
+            run_id,
+            outer=0,
+            inner=i,
+            designs=[[1.0, 1.0]],
+            costs=[{"torque": float(i)}],
+            kind="real",
+            interactions=1,
+            seconds=0.0,
+        )
     rec.finish(run_id, {"n": n})
 
 
@@ -251,7 +378,9 @@ def test_processes_creating_and_writing_one_store_at_once(tmp_path):
     """Four processes open a store that does not exist yet and write to it concurrently
     (what a grid's first cells do): every row arrives."""
     ctx = multiprocessing.get_context("spawn")
-    procs = [ctx.Process(target=_open_and_record, args=(str(tmp_path / "c.db"), n)) for n in range(4)]
+    procs = [
+        ctx.Process(target=_open_and_record, args=(str(tmp_path / "c.db"), n)) for n in range(4)
+    ]
     for p in procs:
         p.start()
     for p in procs:
@@ -280,7 +409,9 @@ def test_a_new_store_records_its_schema_version(tmp_path):
     assert store.schema_version == SCHEMA_VERSION == 2
     store.close()
     assert _recorded_version(tmp_path / "new.db") == "2"
-    assert ResultsStore(tmp_path / "new.db").schema_version == 2  # opened again: the same version, one row
+    assert (
+        ResultsStore(tmp_path / "new.db").schema_version == 2
+    )  # opened again: the same version, one row
     with sqlite3.connect(tmp_path / "new.db") as conn:
         assert conn.execute("SELECT count(*) FROM store_info").fetchone()[0] == 1
 
@@ -297,7 +428,9 @@ def test_a_store_of_a_newer_schema_is_refused_with_one_line(tmp_path, version):
         message = str(err.value)
         assert "\n" not in message and err.value.field == "store"
         shown = version if version != "x" else "unreadable"
-        assert f"has schema version {shown}; coadapt" in message and "reads versions 1 to 2" in message
+        assert (
+            f"has schema version {shown}; coadapt" in message and "reads versions 1 to 2" in message
+        )
 
 
 def test_cli_on_a_newer_store_prints_one_line_and_exits_2(tmp_path):

@@ -31,10 +31,23 @@ class SquaredTorque(Objective):
 
 
 def trainer_for(robot, sim_cls, seed: int = 0) -> Trainer:
-    config = TrainConfig(num_designs=2, agents_per_design=4, steps_per_env=8, hidden=(32, 32), epochs=1, minibatches=2,
-                         seed=seed, torch_threads=1)
-    trainer = Trainer(robot, sim_cls, [SquaredTorque()], train_config=config,
-                      task_config=TaskConfig(noise=NoiseConfig(enabled=False)))
+    config = TrainConfig(
+        num_designs=2,
+        agents_per_design=4,
+        steps_per_env=8,
+        hidden=(32, 32),
+        epochs=1,
+        minibatches=2,
+        seed=seed,
+        torch_threads=1,
+    )
+    trainer = Trainer(
+        robot,
+        sim_cls,
+        [SquaredTorque()],
+        train_config=config,
+        task_config=TaskConfig(noise=NoiseConfig(enabled=False)),
+    )
     trainer.set_designs(trainer.sample_designs())
     return trainer
 
@@ -42,23 +55,33 @@ def trainer_for(robot, sim_cls, seed: int = 0) -> Trainer:
 def test_a_budget_is_whole_iterations_recorded_and_checkpointed(tmp_path, fake_robot, fake_sim_cls):
     trainer = trainer_for(fake_robot, fake_sim_cls)
     runner = Runner(trainer, tmp_path / "run", checkpoint_every=2)
-    assert runner.iterations_for(100) == 2 and runner.iterations_for(1) == 1  # 64 samples an iteration
+    assert (
+        runner.iterations_for(100) == 2 and runner.iterations_for(1) == 1
+    )  # 64 samples an iteration
     seen = []
     stats = runner.learn(100, seen.append)
     assert [s.iteration for s in seen] == [1, 2] and stats.total_steps == 128 == trainer.total_steps
-    rows = [json.loads(line) for line in (tmp_path / "run" / "progress.jsonl").read_text().splitlines()]
+    rows = [
+        json.loads(line) for line in (tmp_path / "run" / "progress.jsonl").read_text().splitlines()
+    ]
     assert [r["iteration"] for r in rows] == [1, 2] and rows[-1]["total_steps"] == 128
     assert sorted(p.name for p in (tmp_path / "run" / "checkpoints").iterdir()) == ["model_2.pt"]
     assert runner.run(0) is None and trainer.iteration == 2  # no iteration: the trainer untouched
     final, weights = runner.finish()
     assert final.name == "model_final.pt" and weights.name == "policy.pt"
-    assert int(read_checkpoint(final)["iteration"]) == 2 and read_checkpoint(weights)["ppo"]["learning_rate"] > 0
+    assert (
+        int(read_checkpoint(final)["iteration"]) == 2
+        and read_checkpoint(weights)["ppo"]["learning_rate"] > 0
+    )
 
 
-def test_a_runner_without_a_folder_writes_nothing_and_trains_as_the_trainer(tmp_path, fake_robot, fake_sim_cls,
-                                                                            monkeypatch):
+def test_a_runner_without_a_folder_writes_nothing_and_trains_as_the_trainer(
+    tmp_path, fake_robot, fake_sim_cls, monkeypatch
+):
     monkeypatch.chdir(tmp_path)
-    alone = trainer_for(fake_robot, fake_sim_cls, seed=3)  # each seeds torch's global generator: one after the other
+    alone = trainer_for(
+        fake_robot, fake_sim_cls, seed=3
+    )  # each seeds torch's global generator: one after the other
     expected = alone.learn(alone.iterations_for(100))
     driven = trainer_for(fake_robot, fake_sim_cls, seed=3)
     got = Runner(driven).learn(100)
@@ -82,9 +105,13 @@ def test_the_learning_rate_given_wins_over_the_checkpoints(tmp_path, fake_robot,
     resumed.close()
 
 
-def test_ctrl_c_stops_after_the_iteration_with_a_checkpoint_and_the_run_resumes(tmp_path, fake_robot, fake_sim_cls):
+def test_ctrl_c_stops_after_the_iteration_with_a_checkpoint_and_the_run_resumes(
+    tmp_path, fake_robot, fake_sim_cls
+):
     out = tmp_path / "run"
-    runner = Runner(trainer_for(fake_robot, fake_sim_cls), out, checkpoint_every=1000, catch_ctrl_c=True)
+    runner = Runner(
+        trainer_for(fake_robot, fake_sim_cls), out, checkpoint_every=1000, catch_ctrl_c=True
+    )
     previous = signal.getsignal(signal.SIGINT)
 
     def press_ctrl_c(stats) -> None:
@@ -101,5 +128,7 @@ def test_ctrl_c_stops_after_the_iteration_with_a_checkpoint_and_the_run_resumes(
     again = Runner(trainer_for(fake_robot, fake_sim_cls), out)
     again.resume(stop.value.checkpoint)
     assert again.learn(64).iteration == 2
-    assert [json.loads(r)["iteration"] for r in (out / "progress.jsonl").read_text().splitlines()] == [1, 2]
+    assert [
+        json.loads(r)["iteration"] for r in (out / "progress.jsonl").read_text().splitlines()
+    ] == [1, 2]
     again.close()

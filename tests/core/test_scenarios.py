@@ -24,7 +24,9 @@ DESIGNS, AGENTS = 3, 4
 @pytest.fixture
 def env(fake_robot, fake_sim_factory):
     designs = np.repeat(np.array([[0.7, 1.2], [1.0, 1.0], [1.3, 0.8]]), AGENTS, axis=0)
-    out = LocomotionEnv(fake_sim_factory(designs=designs, randomize=True, seed=2), fake_robot, TaskConfig(), seed=2)
+    out = LocomotionEnv(
+        fake_sim_factory(designs=designs, randomize=True, seed=2), fake_robot, TaskConfig(), seed=2
+    )
     yield out
     out.sim.close()
 
@@ -35,9 +37,13 @@ def groups(x: torch.Tensor) -> torch.Tensor:
 
 def test_the_seed_and_the_fitness_protocols_need_no_torch() -> None:
     assert scenario_seed(5, 1) == scenario_seed(5, 1) != scenario_seed(5, 2)
-    probe = ("import json, sys, coadapt_core.fitness, coadapt_core.scenarios.seeds; "
-             "print(json.dumps(['torch' in sys.modules, 'coadapt_core.physics' in sys.modules]))")
-    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout
+    probe = (
+        "import json, sys, coadapt_core.fitness, coadapt_core.scenarios.seeds; "
+        "print(json.dumps(['torch' in sys.modules, 'coadapt_core.physics' in sys.modules]))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, check=True
+    ).stdout
     assert json.loads(out.strip().splitlines()[-1]) == [False, False]
 
 
@@ -52,7 +58,9 @@ def test_agent_i_of_every_design_gets_scenario_i(env) -> None:
         for field in ("friction", "motor_strength", "delay"):
             values = groups(torch.as_tensor(getattr(params, field)))
             assert torch.equal(values[k], values[0]), field
-    assert torch.equal(cmd[0], commands) and len(torch.unique(cmd[0], dim=0)) > 1  # stratified over the box
+    assert (
+        torch.equal(cmd[0], commands) and len(torch.unique(cmd[0], dim=0)) > 1
+    )  # stratified over the box
     assert len(torch.unique(phase[0])) == AGENTS
     # the same observation noise and action noise for agent i of every design
     noisy = obs - env._observe(env.state)[1][:, : obs.shape[1]]
@@ -96,5 +104,12 @@ def test_restart_streams_repeats_the_draws_of_an_unpaired_reset(env) -> None:
 
 
 def test_paired_streams_are_drawn_from_their_seed() -> None:
-    a, b = PairedStreams.draw(4, 9, torch.device("cpu")), PairedStreams.draw(4, 9, torch.device("cpu"))
-    assert torch.equal(a.phase, b.phase) and a.phase.shape == (4,) and ((a.phase >= 0) & (a.phase < 1)).all()
+    a, b = (
+        PairedStreams.draw(4, 9, torch.device("cpu")),
+        PairedStreams.draw(4, 9, torch.device("cpu")),
+    )
+    assert (
+        torch.equal(a.phase, b.phase)
+        and a.phase.shape == (4,)
+        and ((a.phase >= 0) & (a.phase < 1)).all()
+    )

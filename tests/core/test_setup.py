@@ -24,15 +24,18 @@ def test_shipped_policies_match_their_design_spaces() -> None:
     mixed = shipped_checkpoint("kuafu", "flat", mixed=True)
     if mixed is not None:
         assert int(read_checkpoint(mixed)["dims"]["num_design"]) == 4
-        assert resolve_checkpoint(make_config("quick", overrides={"optimizer": "mixed-pso"})) == str(mixed)
+        assert resolve_checkpoint(
+            make_config("quick", overrides={"optimizer": "mixed-pso"})
+        ) == str(mixed)
     for terrain in ("slope", "random"):  # issue 17: fine-tuned from flat.pt on their terrain
         policy = read_checkpoint(shipped_checkpoint("kuafu", terrain))
         assert policy["terrain"] == terrain and int(policy["dims"]["num_design"]) == 2
     for terrain in ("slope", "random"):  # widened from the terrain's checkpoint to the motor types
         mixed_policy = read_checkpoint(shipped_checkpoint("kuafu", terrain, mixed=True))
         assert mixed_policy["terrain"] == terrain and int(mixed_policy["dims"]["num_design"]) == 4
-        assert resolve_checkpoint(make_config("quick", overrides={"optimizer": "mixed-pso", "terrain": terrain})) == str(
-            shipped_checkpoint("kuafu", terrain, mixed=True))
+        assert resolve_checkpoint(
+            make_config("quick", overrides={"optimizer": "mixed-pso", "terrain": terrain})
+        ) == str(shipped_checkpoint("kuafu", terrain, mixed=True))
 
 
 SHIPPED = [(t, m) for t in ("flat", "slope", "random") for m in (False, True)]
@@ -45,7 +48,9 @@ def test_shipped_pseudo_critics_are_trained_in_the_metrics_units(terrain, mixed)
     # bootstrap had run away (docs/training.md, Pseudo-critics) held means of -1e9..1e13, or
     # NaN, which loads as untrained pseudo-critics (count 0)
     path = shipped_checkpoint("kuafu", terrain, mixed=mixed)
-    assert path is not None, f"Kuafu ships a {terrain} policy for the {'mixed' if mixed else 'continuous'} space"
+    assert path is not None, (
+        f"Kuafu ships a {terrain} policy for the {'mixed' if mixed else 'continuous'} space"
+    )
     state = read_checkpoint(path)
     norm = state["ppo"]["pseudo_norm"]
     mean, std = norm["mean"].double(), norm["var"].double().sqrt()
@@ -60,14 +65,26 @@ def test_shipped_pseudo_critics_are_trained_in_the_metrics_units(terrain, mixed)
 
 @pytest.mark.parametrize(("init", "warm"), [("universal", True), ("scratch", False)])
 def test_specialised_policies_start_from_the_universal_policy_or_from_scratch(init, warm) -> None:
-    config = make_config("quick", overrides={"method": "bo-specialized", "specialized_init": init, "population": 3, "agents_per_design": 2})
+    config = make_config(
+        "quick",
+        overrides={
+            "method": "bo-specialized",
+            "specialized_init": init,
+            "population": 3,
+            "agents_per_design": 2,
+        },
+    )
     parts = build_parts(config)
     assert not parts.pretrained  # the BO baseline shares no universal policy
     backend = parts.backend_factory(0).policy_factory(0)  # the policy of one design
     try:
         backend.train(np.array([[1.0, 1.0]]), 1, seed=0)  # builds the networks; one PPO iteration
-        assert backend.trainer.env.num_envs == 3 * 2  # the universal training's batch, on one design
-        shipped = read_checkpoint(shipped_checkpoint("kuafu", "flat"))["ppo"]["actor"]["body.0.weight"]
+        assert (
+            backend.trainer.env.num_envs == 3 * 2
+        )  # the universal training's batch, on one design
+        shipped = read_checkpoint(shipped_checkpoint("kuafu", "flat"))["ppo"]["actor"][
+            "body.0.weight"
+        ]
         distance = float((actor_weight(backend) - shipped).abs().max())
         if warm:
             assert distance < 0.05  # one small update away from the shipped weights

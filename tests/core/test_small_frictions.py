@@ -54,21 +54,34 @@ def test_surrogate_quality_ticks_are_whole_rounds(tmp_path, monkeypatch):
     import coadapt_core.analysis.surrogate_figure as figure
 
     rounds = [{"eligible": True, "objectives": {"power": {"spearman": rho}}} for rho in (0.6, 0.14)]
-    run = {"seed": 0, "summary": {"surrogate_quality": {"by_objective": {"power": {"spearman": 0.45}},
-                                                        "rounds": rounds}}}
+    run = {
+        "seed": 0,
+        "summary": {
+            "surrogate_quality": {"by_objective": {"power": {"spearman": 0.45}}, "rounds": rounds}
+        },
+    }
     kept = {}
 
     def keep(plt, fig, path, caption):
-        kept["ticks"] = [t for ax in fig.axes for t in ax.get_xticks() if ax.get_xlim()[0] <= t <= ax.get_xlim()[1]]
+        kept["ticks"] = [
+            t
+            for ax in fig.axes
+            for t in ax.get_xticks()
+            if ax.get_xlim()[0] <= t <= ax.get_xlim()[1]
+        ]
         plt.close(fig)
         return [(path, caption)]
 
     monkeypatch.setattr(figure, "save_figure", keep)
-    figure.figure_surrogate_quality([SimpleNamespace(run=run, terrain="flat", method="ours")], tmp_path)
+    figure.figure_surrogate_quality(
+        [SimpleNamespace(run=run, terrain="flat", method="ours")], tmp_path
+    )
     assert kept["ticks"] == [1.0, 2.0]
     # a run with no judged round: ticks still on whole rounds (were -0.05 ... 0.05)
     run["summary"]["surrogate_quality"]["rounds"] = []
-    figure.figure_surrogate_quality([SimpleNamespace(run=run, terrain="flat", method="ours")], tmp_path)
+    figure.figure_surrogate_quality(
+        [SimpleNamespace(run=run, terrain="flat", method="ours")], tmp_path
+    )
     assert kept["ticks"] == [1.0]
 
 
@@ -76,16 +89,20 @@ def test_surrogate_quality_ticks_are_whole_rounds(tmp_path, monkeypatch):
 def test_pybullet_workers_print_no_banner():
     """A batch large enough for worker processes: stderr holds no 'pybullet build time' (it
     came once per worker, into the progress line of `coadapt report` and `coadapt handoff`)."""
-    script = ("import numpy as np\n"
-              "from coadapt_core.cli.report import _quiet_imports\n"
-              "_quiet_imports(('pybullet',))\n"
-              "from coadapt_plugins.simulators.pybullet import PyBulletSimulator\n"
-              "from coadapt_core.plugins import get_registry\n"
-              "robot = get_registry().create('robot', 'kuafu')\n"
-              "with PyBulletSimulator(robot, np.ones((2, 2)), processes=2) as sim:\n"
-              "    assert len(sim.worker_pids()) == 2\n"
-              "    sim.step(sim.default_joint_pos)\n"
-              "print('stepped')\n")
-    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    script = (
+        "import numpy as np\n"
+        "from coadapt_core.cli.report import _quiet_imports\n"
+        "_quiet_imports(('pybullet',))\n"
+        "from coadapt_plugins.simulators.pybullet import PyBulletSimulator\n"
+        "from coadapt_core.plugins import get_registry\n"
+        "robot = get_registry().create('robot', 'kuafu')\n"
+        "with PyBulletSimulator(robot, np.ones((2, 2)), processes=2) as sim:\n"
+        "    assert len(sim.worker_pids()) == 2\n"
+        "    sim.step(sim.default_joint_pos)\n"
+        "print('stepped')\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, cwd=ROOT, timeout=300
+    )
     assert done.returncode == 0 and "stepped" in done.stdout, done.stderr[-2000:]
     assert "pybullet build time" not in done.stderr + done.stdout

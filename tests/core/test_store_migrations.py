@@ -39,7 +39,10 @@ def _rows(db: Path) -> dict[str, list[tuple]]:
 
 def _objects(db: Path) -> set[str]:
     with sqlite3.connect(db) as conn:
-        return {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE name NOT LIKE 'sqlite_%'")}
+        return {
+            r[0]
+            for r in conn.execute("SELECT name FROM sqlite_master WHERE name NOT LIKE 'sqlite_%'")
+        }
 
 
 def _version(db: Path) -> str | None:
@@ -51,17 +54,28 @@ def _version(db: Path) -> str | None:
 
 
 @pytest.mark.parametrize("recorded", [True, False], ids=["store_info-1", "no-store_info"])
-def test_a_version_1_store_is_upgraded_in_place_and_reads_every_run_back(tmp_path, capsys, recorded):
+def test_a_version_1_store_is_upgraded_in_place_and_reads_every_run_back(
+    tmp_path, capsys, recorded
+):
     db = _v1_store(tmp_path / "coadapt.db", recorded=recorded)
     before = _rows(db)
     assert {t: len(r) for t, r in before.items()} == {
-        "runs": 3, "evaluations": 52, "training_phases": 6, "checkpoints": 6, "grids": 1, "grid_cells": 2}
+        "runs": 3,
+        "evaluations": 52,
+        "training_phases": 6,
+        "checkpoints": 6,
+        "grids": 1,
+        "grid_cells": 2,
+    }
     assert _version(db) == ("1" if recorded else None) and "ix_runs_status" not in _objects(db)
 
     store = ResultsStore(db, create=False)  # a read-only open upgrades too
     lines = capsys.readouterr().err.strip().splitlines()
     assert store.schema_version == SCHEMA_VERSION == 2
-    assert len(lines) == 1 and f"store 'sqlite:///{db}' upgraded from schema version 1 to 2" in lines[0]
+    assert (
+        len(lines) == 1
+        and f"store 'sqlite:///{db}' upgraded from schema version 1 to 2" in lines[0]
+    )
     backups = sorted(tmp_path.glob("coadapt.v1-backup-*.db"))
     assert len(backups) == 1 and lines[0].endswith(f"the store as it was is copied to {backups[0]}")
 
@@ -71,15 +85,19 @@ def test_a_version_1_store_is_upgraded_in_place_and_reads_every_run_back(tmp_pat
     assert "ix_runs_status" in _objects(db) and "ix_runs_status" not in _objects(backups[0])
     runs = store.list_runs()
     assert [(r["method"], r["objectives"], r["seed"], r["status"]) for r in runs] == [
-        ("ours", ["torque"], 0, "finished"), ("ours", ["power", "torque"], 1, "finished"),
-        ("bo-specialized", ["tracking"], 2, "interrupted")]
+        ("ours", ["torque"], 0, "finished"),
+        ("ours", ["power", "torque"], 1, "finished"),
+        ("bo-specialized", ["tracking"], 2, "interrupted"),
+    ]
     assert runs[0]["summary"]["improvement"] == 0.125 and runs[1]["summary"]["best_cost"] == 2.5
     assert runs[0]["config"]["design_space"]["variables"][0]["name"] == "thigh_scale"
     assert [len(store.evaluations(r["id"])) for r in runs] == [20, 16, 16]
     assert [r["id"] for r in store.list_runs(status="finished")] == [RUN0, runs[1]["id"]]
     common = store.evaluations(RUN0, kind="common")
     assert [(e.outer, e.design, e.costs) for e in common] == [
-        (-2, [0.75, 0.875], {"torque": 2.0}), (-2, [0.75, 0.875], {"torque": 2.5})]
+        (-2, [0.75, 0.875], {"torque": 2.0}),
+        (-2, [0.75, 0.875], {"torque": 2.5}),
+    ]
     sim2sim = store.evaluations(RUN0, kind="sim2sim")
     assert [e.simulator for e in sim2sim] == ["pybullet", "pybullet"]
     surrogate = store.evaluations(runs[1]["id"], kind="surrogate")
@@ -88,12 +106,19 @@ def test_a_version_1_store_is_upgraded_in_place_and_reads_every_run_back(tmp_pat
     assert real[4].costs == {"power": 1.5, "torque": 2.0} and real[4].interactions == 8000
     phases = store.training(runs[2]["id"])
     assert [(p["outer"], p["steps"], p["final_reward"], p["extra"]) for p in phases] == [
-        (0, 120_000, 3.25, {"kl": 0.0125}), (1, 120_000, 4.25, {"kl": 0.0125})]
-    assert [c["path"] for c in store.checkpoints(RUN0)] == ["checkpoints/outer_0.pt", "checkpoints/outer_1.pt"]
+        (0, 120_000, 3.25, {"kl": 0.0125}),
+        (1, 120_000, 4.25, {"kl": 0.0125}),
+    ]
+    assert [c["path"] for c in store.checkpoints(RUN0)] == [
+        "checkpoints/outer_0.pt",
+        "checkpoints/outer_1.pt",
+    ]
     assert store.get_grid("g-1")["spec"]["seeds"] == [0, 1]
     cells = store.cells("g-1")
     assert sorted((c["status"], c["attempts"], c["last_error"]) for c in cells.values()) == [
-        ("failed", 2, "exit 1: killed"), ("finished", 1, None)]
+        ("failed", 2, "exit 1: killed"),
+        ("finished", 1, None),
+    ]
     store.close()
 
     # the upgraded layout is the one a new store gets: alembic finds nothing to change
@@ -119,9 +144,13 @@ def test_a_new_store_has_the_layout_of_the_migrations(tmp_path):
 
     def layout(db: Path) -> dict[str, object]:
         inspector = sa.inspect(sa.create_engine(f"sqlite:///{db}"))
-        return {t: ([c["name"] for c in inspector.get_columns(t)],
-                    sorted((i["name"], tuple(i["column_names"])) for i in inspector.get_indexes(t)))
-                for t in (*TABLES, "store_info")}
+        return {
+            t: (
+                [c["name"] for c in inspector.get_columns(t)],
+                sorted((i["name"], tuple(i["column_names"])) for i in inspector.get_indexes(t)),
+            )
+            for t in (*TABLES, "store_info")
+        }
 
     assert layout(tmp_path / "new.db") == layout(tmp_path / "old.db")
     assert ("ix_runs_status", ("status",)) in layout(tmp_path / "new.db")["runs"][1]
@@ -133,7 +162,9 @@ def test_a_failed_upgrade_leaves_the_store_as_it_was(tmp_path, capsys):
     to refuse the new version row, after the index was made) rolls every change back."""
     db = _v1_store(tmp_path / "coadapt.db", recorded=True)
     with sqlite3.connect(db) as conn:
-        conn.execute("CREATE TRIGGER planted BEFORE INSERT ON store_info BEGIN SELECT RAISE(ABORT, 'planted'); END")
+        conn.execute(
+            "CREATE TRIGGER planted BEFORE INSERT ON store_info BEGIN SELECT RAISE(ABORT, 'planted'); END"
+        )
     before, objects = _rows(db), _objects(db)
     with pytest.raises(UserError) as err:
         ResultsStore(db)
@@ -165,8 +196,21 @@ def test_an_optuna_study_in_the_store_survives_the_upgrade(tmp_path):
 
 def test_coadapt_export_on_a_version_1_store_prints_one_line_and_exports_every_row(tmp_path):
     db = _v1_store(tmp_path / "coadapt.db", recorded=False)
-    proc = subprocess.run([sys.executable, "-m", "coadapt_core", "export", "--store", str(db),
-                           "-o", str(tmp_path / "out")], capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "coadapt_core",
+            "export",
+            "--store",
+            str(db),
+            "-o",
+            str(tmp_path / "out"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr
     lines = proc.stderr.strip().splitlines()  # the one line, nothing else (alembic logs nothing)
     assert len(lines) == 1 and "upgraded from schema version 1 to 2" in lines[0], proc.stderr
@@ -181,6 +225,8 @@ def test_the_migration_scripts_ship_in_the_package():
 
     root = Path(__file__).resolve().parents[2]
     packages = find_packages(str(root), include=["coadapt_core", "coadapt_core.*"])
-    assert {"coadapt_core.results.migrations", "coadapt_core.results.migrations.versions"} <= set(packages)
+    assert {"coadapt_core.results.migrations", "coadapt_core.results.migrations.versions"} <= set(
+        packages
+    )
     versions = root / "coadapt_core" / "results" / "migrations" / "versions"
     assert sorted(p.name[:4] for p in versions.glob("0*.py")) == ["0001", "0002"]

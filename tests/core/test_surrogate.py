@@ -48,7 +48,10 @@ def test_rank_correlations_match_scipy_with_ties():
 
 
 def test_pooled_concatenates_pairs_and_averages_regret():
-    rounds = [{"surrogate": [1, 2, 3], "real": [1, 2, 3]}, {"surrogate": [3, 2, 1], "real": [10, 20, 30]}]
+    rounds = [
+        {"surrogate": [1, 2, 3], "real": [1, 2, 3]},
+        {"surrogate": [3, 2, 1], "real": [10, 20, 30]},
+    ]
     p = pooled(rounds)
     assert p["n"] == 6 and p["rounds"] == 2
     assert p["spearman"] == pytest.approx(spearman([1, 2, 3, 3, 2, 1], [1, 2, 3, 10, 20, 30]))
@@ -82,19 +85,60 @@ def test_fit_ensemble_ranks_unseen_designs_through_xi(one_thread):
     states = torch.randn(512, 6)
     cost = lambda xi: 5.0 + 2.0 * xi[:, 0] - 1.0 * xi[:, 1] + 0.5 * xi[:, 0] ** 2  # noqa: E731
     gen = torch.Generator().manual_seed(1)
-    seen, unseen = torch.rand(24, 2, generator=gen) * 2 - 1, torch.rand(16, 2, generator=gen) * 2 - 1
-    fitted = fit_ensemble(bank, [1], torch.ones(2), torch.zeros(2), states, seen, cost(seen)[:, None],
-                          members=3, steps=300, batch=64, lr=3e-3, seed=0)
+    seen, unseen = (
+        torch.rand(24, 2, generator=gen) * 2 - 1,
+        torch.rand(16, 2, generator=gen) * 2 - 1,
+    )
+    fitted = fit_ensemble(
+        bank,
+        [1],
+        torch.ones(2),
+        torch.zeros(2),
+        states,
+        seen,
+        cost(seen)[:, None],
+        members=3,
+        steps=300,
+        batch=64,
+        lr=3e-3,
+        seed=0,
+    )
     members = fitted.predict(states, unseen).numpy()  # [E, K, 1]
     assert members.shape == (3, 16, 1)
     q = quality(members.mean(axis=0)[:, 0], cost(unseen).numpy())
     assert q["spearman"] > 0.9 and q["mean_relative_error"] < 0.1
-    again = fit_ensemble(bank, [1], torch.ones(2), torch.zeros(2), states, seen, cost(seen)[:, None],
-                         members=3, steps=300, batch=64, lr=3e-3, seed=0)
-    np.testing.assert_allclose(again.predict(states, unseen).numpy(), members)  # a function of its seed
-    assert torch.equal(bank.weight_0, CriticBank(6, 2, (32, 32), "elu", outputs=2).weight_0) is False  # untouched copy
+    again = fit_ensemble(
+        bank,
+        [1],
+        torch.ones(2),
+        torch.zeros(2),
+        states,
+        seen,
+        cost(seen)[:, None],
+        members=3,
+        steps=300,
+        batch=64,
+        lr=3e-3,
+        seed=0,
+    )
+    np.testing.assert_allclose(
+        again.predict(states, unseen).numpy(), members
+    )  # a function of its seed
+    assert (
+        torch.equal(bank.weight_0, CriticBank(6, 2, (32, 32), "elu", outputs=2).weight_0) is False
+    )  # untouched copy
     before = bank.weight_0.clone()
-    fit_ensemble(bank, [0], torch.ones(2), torch.zeros(2), states, seen, cost(seen)[:, None], members=2, steps=5)
+    fit_ensemble(
+        bank,
+        [0],
+        torch.ones(2),
+        torch.zeros(2),
+        states,
+        seen,
+        cost(seen)[:, None],
+        members=2,
+        steps=5,
+    )
     assert torch.equal(bank.weight_0, before)  # the trained pseudo-critics stay as they are
 
 
@@ -106,7 +150,9 @@ def test_prediction_equals_each_members_mlp_averaged_over_its_states(one_thread)
     bank = CriticBank(6, 2, (16, 8), "elu", outputs=3)
     states, xi = torch.randn(40, 6), torch.rand(12, 2) * 2 - 1
     costs = torch.stack([1.0 + xi[:, 0], 2.0 - xi[:, 1]], dim=1)
-    fitted = fit_ensemble(bank, [0, 2], torch.ones(3), torch.zeros(3), states, xi, costs, members=4, steps=3)
+    fitted = fit_ensemble(
+        bank, [0, 2], torch.ones(3), torch.zeros(3), states, xi, costs, members=4, steps=3
+    )
     designs = torch.rand(5, 2) * 2 - 1
     got = fitted.predict(states, designs, chunk=2)  # [E, K, M]
     e, m = 4, 2
@@ -127,11 +173,27 @@ def test_prediction_equals_each_members_mlp_averaged_over_its_states(one_thread)
 
 
 def run(tmp_path, backend, **overrides):
-    config = make_config("smoke", overrides={"optimizer": "pso", "objective": "torque", "outer_iterations": 2,
-                                            "population": 8, "optimizer_iterations": 5, "store": "none",
-                                            "logger": "none", "out": str(tmp_path), **overrides})
-    return run_coadaptation(config, backend_factory=lambda seed: backend(seed), design_space=SPACE,
-                            nominal_design=NOMINAL, objectives=[TorqueObjective()])
+    config = make_config(
+        "smoke",
+        overrides={
+            "optimizer": "pso",
+            "objective": "torque",
+            "outer_iterations": 2,
+            "population": 8,
+            "optimizer_iterations": 5,
+            "store": "none",
+            "logger": "none",
+            "out": str(tmp_path),
+            **overrides,
+        },
+    )
+    return run_coadaptation(
+        config,
+        backend_factory=lambda seed: backend(seed),
+        design_space=SPACE,
+        nominal_design=NOMINAL,
+        objectives=[TorqueObjective()],
+    )
 
 
 def agreeing(spread):
@@ -139,6 +201,7 @@ def agreeing(spread):
         b = AnalyticBackend(seed, buffer_from_training=False)
         b.member_spread = spread
         return b
+
     return make
 
 
@@ -152,7 +215,9 @@ def test_uncertainty_policy_trusts_an_agreeing_ensemble_and_not_a_disagreeing_on
     assert disagree["real_evaluations"] == 10 and disagree["surrogate_evaluations"] == 0
     assert all(b["uncertainty"] > 0.5 for b in disagree["batches"] if b["inner"] > 0)
     # the threshold decides: a lax one trusts the same disagreeing ensemble
-    lax = run(tmp_path / "l", agreeing(50.0), evaluation_policy="uncertainty", uncertainty_threshold=1e9).summary
+    lax = run(
+        tmp_path / "l", agreeing(50.0), evaluation_policy="uncertainty", uncertainty_threshold=1e9
+    ).summary
     assert lax["surrogate_evaluations"] == 8
 
 
@@ -174,16 +239,32 @@ def test_surrogate_quality_in_summary_json(tmp_path):
     summary = json.loads((result.run_dir / "summary.json").read_text())
     summary = summary.get("summary", summary)
     q = summary["surrogate_quality"]
-    assert set(q["pooled"]) >= {"spearman", "kendall", "mean_relative_error", "bias", "top_k_regret"}
+    assert set(q["pooled"]) >= {
+        "spearman",
+        "kendall",
+        "mean_relative_error",
+        "bias",
+        "top_k_regret",
+    }
     rounds = q["rounds"]
-    assert len(rounds) == 10 and [r["eligible"] for r in rounds] == [False, True, True, True, True] * 2
+    assert (
+        len(rounds) == 10 and [r["eligible"] for r in rounds] == [False, True, True, True, True] * 2
+    )
     assert [r["estimator"] for r in rounds][:2] == ["paper", "fitted"]
     # the pooled figures are those of the eligible rounds' pairs (kept in the run state)
     state = json.loads((result.run_dir / "state.json").read_text())
-    pairs = [{"surrogate": r["objectives"]["torque"]["surrogate"], "real": r["objectives"]["torque"]["real"]}
-             for r in state["quality_rounds"] if r["eligible"]]
+    pairs = [
+        {
+            "surrogate": r["objectives"]["torque"]["surrogate"],
+            "real": r["objectives"]["torque"]["real"],
+        }
+        for r in state["quality_rounds"]
+        if r["eligible"]
+    ]
     expected = pooled(pairs)
-    assert q["pooled"]["n"] == 8 * 8 and q["pooled"]["spearman"] == pytest.approx(expected["spearman"])
+    assert q["pooled"]["n"] == 8 * 8 and q["pooled"]["spearman"] == pytest.approx(
+        expected["spearman"]
+    )
     assert q["pooled"]["bias"] == pytest.approx(expected["bias"])
     # the fake's fitted surrogate is its bowl plus a shrunk tilt; the real costs add noise
     # that matters once the swarm has gathered near the optimum
@@ -201,21 +282,34 @@ def test_real_rounds_are_judged_only_by_a_fit_that_covers_them(tmp_path):
         return made[-1]
 
     none = run(tmp_path / "n", factory, surrogate_probability=0.0).summary
-    assert sum(getattr(b, "fits", 0) for b in made) == 0 and none["surrogate_quality"]["rounds"] == []
+    assert (
+        sum(getattr(b, "fits", 0) for b in made) == 0 and none["surrogate_quality"]["rounds"] == []
+    )
     assert none["surrogate_seconds"] == 0.0
     made.clear()
     result = run(tmp_path / "h", factory, surrogate_probability=0.5, seed=3)
     kinds = [(b["outer"], b["inner"], b["kind"]) for b in result.summary["batches"]]
-    after = [(o, i) for (o, i, k), (o0, _, k0) in zip(kinds[1:], kinds[:-1], strict=True)
-             if k == "real" and k0 == "surrogate" and o == o0]
+    after = [
+        (o, i)
+        for (o, i, k), (o0, _, k0) in zip(kinds[1:], kinds[:-1], strict=True)
+        if k == "real" and k0 == "surrogate" and o == o0
+    ]
     judged = [(r["outer"], r["inner"]) for r in result.summary["surrogate_quality"]["rounds"]]
-    assert after and judged == after and all(r["estimator"] == "fitted" for r in result.summary["surrogate_quality"]["rounds"])
+    assert (
+        after
+        and judged == after
+        and all(r["estimator"] == "fitted" for r in result.summary["surrogate_quality"]["rounds"])
+    )
     surrogate_rounds = sum(k == "surrogate" for *_, k in kinds)
-    assert 0 < sum(getattr(b, "fits", 0) for b in made) <= surrogate_rounds  # at most one fit per surrogate round
+    assert (
+        0 < sum(getattr(b, "fits", 0) for b in made) <= surrogate_rounds
+    )  # at most one fit per surrogate round
 
 
 def test_bad_evaluation_policy_is_one_line_error(tmp_path):
-    with pytest.raises(UserError, match="evaluation_policy 'sometimes' is not one of fixed, uncertainty"):
+    with pytest.raises(
+        UserError, match="evaluation_policy 'sometimes' is not one of fixed, uncertainty"
+    ):
         run(tmp_path, agreeing(0.0), evaluation_policy="sometimes")
     with pytest.raises(UserError, match="uncertainty_threshold"):
         run(tmp_path, agreeing(0.0), uncertainty_threshold=-1)
@@ -227,10 +321,19 @@ def test_report_figure_reads_each_runs_surrogate_quality(tmp_path):
     from coadapt_core.analysis.surrogate_figure import figure_surrogate_quality, quality_series
 
     result = run(tmp_path, agreeing(None), surrogate_probability=0.0)
-    facts = [SimpleNamespace(run={"summary": result.summary, "seed": 0}, method="ours", terrain="flat")]
+    facts = [
+        SimpleNamespace(run={"summary": result.summary, "seed": 0}, method="ours", terrain="flat")
+    ]
     series = quality_series(facts)
     rounds = [r for r in result.summary["surrogate_quality"]["rounds"] if r["eligible"]]
-    assert series[("torque", "flat")][0]["spearman"] == pytest.approx([r["objectives"]["torque"]["spearman"] for r in rounds])
+    assert series[("torque", "flat")][0]["spearman"] == pytest.approx(
+        [r["objectives"]["torque"]["spearman"] for r in rounds]
+    )
     figures = figure_surrogate_quality(facts, tmp_path)
     assert len(figures) == 1 and figures[0][0].stat().st_size > 1000
-    assert figure_surrogate_quality([SimpleNamespace(run={"summary": {}}, method="ours", terrain="flat")], tmp_path) == []
+    assert (
+        figure_surrogate_quality(
+            [SimpleNamespace(run={"summary": {}}, method="ours", terrain="flat")], tmp_path
+        )
+        == []
+    )

@@ -14,8 +14,6 @@ from tests.benchmarks import load_benchmark
 ROOT = Path(__file__).resolve().parents[2]
 
 
-
-
 def test_variants_parse_and_bad_ones_name_the_item():
     bench = load_benchmark("surrogate_fit_cost")
     assert bench.parse_variants("5x128x200, 3X64x100") == [(5, 128, 200), (3, 64, 100)]
@@ -24,7 +22,10 @@ def test_variants_parse_and_bad_ones_name_the_item():
             bench.parse_variants(bad)
 
 
-@pytest.mark.parametrize("args", [["--variants", "5x0x3"], ["--held-out", "1"], ["--seeds", "a,b"], ["--check-states", "0"]])
+@pytest.mark.parametrize(
+    "args",
+    [["--variants", "5x0x3"], ["--held-out", "1"], ["--seeds", "a,b"], ["--check-states", "0"]],
+)
 def test_bad_input_is_one_line_and_exit_2(args, capsys):
     with pytest.raises(SystemExit) as stop:
         load_benchmark("surrogate_fit_cost").main(args)
@@ -43,9 +44,29 @@ def test_a_tiny_round_times_and_ranks_each_variant(capsys, monkeypatch):
         return real_fit(*args, **kwargs)
 
     monkeypatch.setattr("coadapt_core.learning.backend.fit_ensemble", spy)
-    code = load_benchmark("surrogate_fit_cost").main(["--variants", "3x16x4,2x8x2", "--objectives", "torque", "--designs", "8",
-                                  "--held-out", "4", "--agents", "2", "--steps", "10", "--seeds", "0,1",
-                                  "--samples", "64", "--check-states", "32", "--json"])
+    code = load_benchmark("surrogate_fit_cost").main(
+        [
+            "--variants",
+            "3x16x4,2x8x2",
+            "--objectives",
+            "torque",
+            "--designs",
+            "8",
+            "--held-out",
+            "4",
+            "--agents",
+            "2",
+            "--steps",
+            "10",
+            "--seeds",
+            "0,1",
+            "--samples",
+            "64",
+            "--check-states",
+            "32",
+            "--json",
+        ]
+    )
     assert code == 0
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert set(out["variants"]) == {"3x16x4", "2x8x2"}

@@ -26,14 +26,20 @@ def test_a_stored_config_with_the_old_key_has_the_same_hash_as_the_new_one():
     new = make_config("smoke", None, {**BASE, "surrogate_probability": 0.3})
     old = _as_older_code_stored_it(new)
     assert "surrogate_probability" not in old and old["evaluation_probability"] == 0.3
-    assert run_config_hash({"config": old}) == run_config_hash({"config": new.to_dict()}) == config_hash(new.to_dict())
+    assert (
+        run_config_hash({"config": old})
+        == run_config_hash({"config": new.to_dict()})
+        == config_hash(new.to_dict())
+    )
     # the value is carried over, not dropped for the default (0.5 hashes differently)
     default = make_config("smoke", None, BASE)
     assert run_config_hash({"config": old}) != config_hash(default.to_dict())
     assert config_from_dict(old).surrogate_probability == 0.3
     # the grid's cell with the same setting given as a run argument finds the old run
     cell = Cell("ours", "torque", "flat", 0, "smoke", "mujoco")
-    assert cell_config_hash(cell, ["--surrogate-probability", "0.3"]) == run_config_hash({"config": old})
+    assert cell_config_hash(cell, ["--surrogate-probability", "0.3"]) == run_config_hash(
+        {"config": old}
+    )
 
 
 def test_the_old_yaml_key_and_override_still_set_it(tmp_path):
@@ -41,7 +47,9 @@ def test_the_old_yaml_key_and_override_still_set_it(tmp_path):
     path.write_text("evaluation_probability: 0.2\n")
     assert make_config("smoke", path).surrogate_probability == 0.2
     assert make_config("smoke", None, {"evaluation_probability": 0.7}).surrogate_probability == 0.7
-    assert make_config("smoke", path, {"surrogate_probability": 0.9}).surrogate_probability == 0.9  # option over YAML
+    assert (
+        make_config("smoke", path, {"surrogate_probability": 0.9}).surrogate_probability == 0.9
+    )  # option over YAML
 
 
 def test_the_old_command_line_option_is_an_alias():
@@ -51,13 +59,22 @@ def test_the_old_command_line_option_is_an_alias():
     assert {"--surrogate-probability", "--evaluation-probability"} <= set(option.param_decls)
 
 
-@pytest.mark.parametrize(("method", "forced"), [("ours", None), ("no-surrogate", 0.0), ("no-real", 1.0)])
+@pytest.mark.parametrize(
+    ("method", "forced"), [("ours", None), ("no-surrogate", 0.0), ("no-real", 1.0)]
+)
 def test_the_loop_uses_the_setting_unless_the_method_forces_it(method, forced):
     from coadapt_core.coadapt.hybrid import HybridPolicy
     from coadapt_core.coadapt.state import LoopState
 
     config = make_config("smoke", None, {"surrogate_probability": 0.25, "method": method})
     assert METHODS[method].surrogate_probability == forced
-    policy = HybridPolicy(config, METHODS[method], [], LoopState(run_id="r", config={}), None, lambda: None,
-                          lambda *parts: 0)
+    policy = HybridPolicy(
+        config,
+        METHODS[method],
+        [],
+        LoopState(run_id="r", config={}),
+        None,
+        lambda: None,
+        lambda *parts: 0,
+    )
     assert policy.surrogate_probability == (0.25 if forced is None else forced)

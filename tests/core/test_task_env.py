@@ -43,15 +43,23 @@ def test_observation_has_70_values_in_the_documented_order(fake_robot, fake_sim_
     obs, critic, _ = env.reset()
     assert obs.shape == (4, 70) and env.num_obs == 70
     expected = [
-        ("base_lin_vel", 0, 3), ("base_ang_vel", 3, 6), ("projected_gravity", 6, 9), ("command", 9, 12),
-        ("joint_pos", 12, 20), ("joint_vel", 20, 28), ("action_history", 28, 68), ("clock", 68, 70),
+        ("base_lin_vel", 0, 3),
+        ("base_ang_vel", 3, 6),
+        ("projected_gravity", 6, 9),
+        ("command", 9, 12),
+        ("joint_pos", 12, 20),
+        ("joint_vel", 20, 28),
+        ("action_history", 28, 68),
+        ("clock", 68, 70),
     ]
     assert [(k, s.start, s.stop) for k, s in env.obs_slices.items()] == expected
     actions = torch.full((4, 8), 0.4)
     obs, critic, *_ = env.step(actions)
     s = env.obs_slices
     assert torch.allclose(obs[:, s["command"]], env.command)
-    assert torch.allclose(obs[:, s["projected_gravity"]], torch.tensor([0.0, 0.0, -1.0]).expand(4, 3))
+    assert torch.allclose(
+        obs[:, s["projected_gravity"]], torch.tensor([0.0, 0.0, -1.0]).expand(4, 3)
+    )
     # joints move halfway to target (fake sim): 0.25 x 0.4 x 0.5 = 0.05 rad from the default
     assert torch.allclose(obs[:, s["joint_pos"]], torch.full((4, 8), 0.05), atol=1e-6)
     assert torch.allclose(obs[:, 28:36], actions)  # newest action first
@@ -66,12 +74,19 @@ def test_observation_has_70_values_in_the_documented_order(fake_robot, fake_sim_
 
 
 def test_noise_is_bounded_by_table_3(fake_robot, fake_sim_factory) -> None:
-    env = LocomotionEnv(fake_sim_factory(256), fake_robot, TaskConfig(noise=NoiseConfig(kind="uniform")))
+    env = LocomotionEnv(
+        fake_sim_factory(256), fake_robot, TaskConfig(noise=NoiseConfig(kind="uniform"))
+    )
     obs, critic, _ = env.reset()
     diff = (obs - critic[:, :70]).abs().amax(0)
     s = env.obs_slices
-    for name, scale in (("base_lin_vel", 0.01), ("base_ang_vel", 0.2), ("projected_gravity", 0.05),
-                        ("joint_pos", 0.01), ("joint_vel", 1.5)):
+    for name, scale in (
+        ("base_lin_vel", 0.01),
+        ("base_ang_vel", 0.2),
+        ("projected_gravity", 0.05),
+        ("joint_pos", 0.01),
+        ("joint_vel", 1.5),
+    ):
         assert float(diff[s[name]].max()) <= scale + 1e-6
         assert float(diff[s[name]].max()) > 0.8 * scale  # uniform noise reaches near its bound
     assert float(diff[s["command"]].max()) == 0.0 and float(diff[s["clock"]].max()) == 0.0
@@ -86,7 +101,9 @@ def test_design_input_is_normalised_to_the_design_space(fake_robot, fake_sim_fac
 
 def test_commands_have_zeros_threshold_and_a_widening_curriculum() -> None:
     gen = torch.Generator().manual_seed(0)
-    sampler = CommandSampler(CommandConfig(zero_share=0.1, zero_threshold=0.1, yaw_range=(0.0, 0.0)), "cpu", gen)
+    sampler = CommandSampler(
+        CommandConfig(zero_share=0.1, zero_threshold=0.1, yaw_range=(0.0, 0.0)), "cpu", gen
+    )
     cmd = sampler.sample(20_000)
     assert float(cmd[:, 0].max()) <= 0.3 + 1e-6 and float(cmd[:, 0].min()) >= -0.3 - 1e-6
     assert float(cmd[:, 1:].abs().max()) == 0.0
@@ -102,7 +119,9 @@ def test_commands_have_zeros_threshold_and_a_widening_curriculum() -> None:
     assert sampler.ranges()[0] == (-0.5, 1.25)
 
 
-def test_fall_terminates_and_resets_while_timeout_only_truncates(fake_robot, fake_sim_factory) -> None:
+def test_fall_terminates_and_resets_while_timeout_only_truncates(
+    fake_robot, fake_sim_factory
+) -> None:
     sim = fake_sim_factory(2)
     env = LocomotionEnv(sim, fake_robot, quiet_task(episode_seconds=0.2))
     env.reset()
@@ -128,7 +147,9 @@ def test_fall_terminates_and_resets_while_timeout_only_truncates(fake_robot, fak
 
 
 def test_metrics_come_from_each_objective_in_order(fake_robot, fake_sim_factory) -> None:
-    env = LocomotionEnv(fake_sim_factory(3), fake_robot, quiet_task(), [SquaredTorque(), SpeedError()])
+    env = LocomotionEnv(
+        fake_sim_factory(3), fake_robot, quiet_task(), [SquaredTorque(), SpeedError()]
+    )
     env.reset()
     env.set_commands(torch.tensor([0.5, 0.0, 0.0]))
     res = env.step(torch.full((3, 8), 0.2))
@@ -141,7 +162,9 @@ def test_metrics_come_from_each_objective_in_order(fake_robot, fake_sim_factory)
     assert env.metric_names == ["sq_torque", "speed_error"]
 
 
-def test_zero_command_freezes_the_clock_with_both_feet_in_stance(fake_robot, fake_sim_factory) -> None:
+def test_zero_command_freezes_the_clock_with_both_feet_in_stance(
+    fake_robot, fake_sim_factory
+) -> None:
     env = LocomotionEnv(fake_sim_factory(2), fake_robot, quiet_task())
     env.reset()
     env.set_commands(torch.zeros(3))
@@ -170,7 +193,9 @@ def test_curriculum_widens_only_on_a_full_window_of_well_tracked_upright_episode
     assert sampler.record_episodes(4, 1, 190.0, 200.0, 80.0) and sampler.limit == pytest.approx(0.5)
 
 
-def test_default_commands_cover_the_papers_range_and_yaw_rates_once_the_curriculum_is_wide() -> None:
+def test_default_commands_cover_the_papers_range_and_yaw_rates_once_the_curriculum_is_wide() -> (
+    None
+):
     """Issue 17: training draws vx over [-0.5, 1.25] m/s and yaw rates over [-1, 1] rad/s (the
     yaw range was (0, 0), so no policy ever saw a turn command)."""
     sampler = CommandSampler(CommandConfig(zero_share=0.0), "cpu", torch.Generator().manual_seed(1))
@@ -187,7 +212,9 @@ def test_default_commands_cover_the_papers_range_and_yaw_rates_once_the_curricul
     assert float(((cmd[:, 0] == 0) & turning).float().mean()) > 0.04
 
 
-def test_a_turn_in_place_command_runs_the_gait_clock_and_pays_for_yaw_tracking(fake_robot, fake_sim_factory) -> None:
+def test_a_turn_in_place_command_runs_the_gait_clock_and_pays_for_yaw_tracking(
+    fake_robot, fake_sim_factory
+) -> None:
     env = LocomotionEnv(fake_sim_factory(2), fake_robot, quiet_task())
     env.reset()
     env.set_commands(torch.tensor([0.0, 0.0, 0.5]))

@@ -71,9 +71,16 @@ def test_every_term_on_a_hand_made_state() -> None:
 
 def test_weights_are_the_papers_table_1() -> None:
     assert PAPER_REWARD_WEIGHTS == {
-        "tracking_lin_vel": 2.0, "tracking_ang_vel": 1.5, "lin_vel_z": -1.25, "ang_vel_xy": -0.1,
-        "torques": -5e-6, "orientation": -10.0, "dof_acc": -2e-7, "action_rate": -0.025,
-        "default_pos": -0.2, "raibert": -0.75,
+        "tracking_lin_vel": 2.0,
+        "tracking_ang_vel": 1.5,
+        "lin_vel_z": -1.25,
+        "ang_vel_xy": -0.1,
+        "torques": -5e-6,
+        "orientation": -10.0,
+        "dof_acc": -2e-7,
+        "action_rate": -0.025,
+        "default_pos": -0.2,
+        "raibert": -0.75,
     }
     assert set(EXTRA_REWARD_WEIGHTS) == {"contact_match", "feet_air_time", "termination"}
     assert RewardConfig().weights == {**PAPER_REWARD_WEIGHTS, **EXTRA_REWARD_WEIGHTS}
@@ -85,7 +92,9 @@ def test_air_time_pays_nothing_under_a_zero_command() -> None:
 
 
 def test_combine_scales_by_dt_clips_at_zero_then_adds_termination() -> None:
-    config = RewardConfig(weights={"tracking_lin_vel": 2.0, "orientation": -10.0, "termination": -200.0})
+    config = RewardConfig(
+        weights={"tracking_lin_vel": 2.0, "orientation": -10.0, "termination": -200.0}
+    )
     x = inputs(terminated=torch.tensor([True]), projected_gravity=torch.tensor([[0.5, 0.0, -0.8]]))
     terms = compute_terms(x, config)
     total, weighted = combine(terms, config, dt=0.02)
@@ -133,7 +142,13 @@ def test_raibert_targets_equal_the_default_pose_at_zero_command(fake_robot) -> N
     designs = torch.tensor([[1.0, 1.0], [0.6, 1.4]])
     feet = fake_robot.default_foot_positions(designs)
     for phase in (0.1, 0.6, 0.9):
-        targets = raibert_foot_targets(feet, leg_phases(torch.full((2,), phase), 2), torch.zeros(2, 3), torch.zeros(2, 3), GaitConfig())
+        targets = raibert_foot_targets(
+            feet,
+            leg_phases(torch.full((2,), phase), 2),
+            torch.zeros(2, 3),
+            torch.zeros(2, 3),
+            GaitConfig(),
+        )
         assert torch.allclose(targets, feet)
     q_star = fake_robot.leg_inverse_kinematics(designs, feet)
     assert torch.allclose(q_star, torch.tensor([[0.0, -0.4, 0.8, -0.4] * 2] * 2), atol=1e-5)
@@ -149,6 +164,12 @@ def test_kuafu_raibert_targets_at_zero_command_are_its_standing_pose() -> None:
     for design in (np.array([1.0, 1.0]), np.array([0.6, 1.3])):
         designs = torch.tensor(design[None, :], dtype=torch.float32)
         feet = robot.default_foot_positions(designs)
-        targets = raibert_foot_targets(feet, leg_phases(torch.tensor([0.3]), 2), torch.zeros(1, 3), torch.zeros(1, 3), GaitConfig())
+        targets = raibert_foot_targets(
+            feet,
+            leg_phases(torch.tensor([0.3]), 2),
+            torch.zeros(1, 3),
+            torch.zeros(1, 3),
+            GaitConfig(),
+        )
         q_star = robot.leg_inverse_kinematics(designs, targets)[0].numpy()
         assert np.allclose(q_star, robot.build(design).default_joint_pos, atol=1e-4)

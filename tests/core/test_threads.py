@@ -63,8 +63,14 @@ def test_usable_cpus_is_the_affinity_capped_by_the_quota_rounded_up(tmp_path, mo
 
 
 def _in_subprocess(code: str, env: dict[str, str] | None = None) -> str:
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120,
-                         env={**os.environ, **(env or {})})
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=120,
+        env={**os.environ, **(env or {})},
+    )
     return out.stdout.strip()
 
 
@@ -82,14 +88,21 @@ def test_the_default_budget_follows_affinity_and_quota(tmp_path):
         _write(root / line.split(":")[1], "cpu.cfs_period_us", "100000\n")
     assert _in_subprocess(code.format(pre=""), {threads.ENV_CGROUP_ROOT: str(root)}) == "1 1"
     full = len(os.sched_getaffinity(0))
-    assert _in_subprocess(code.format(pre=""), {threads.ENV_CGROUP_ROOT: str(tmp_path / "none")}) == f"{full} {full}"
+    assert (
+        _in_subprocess(code.format(pre=""), {threads.ENV_CGROUP_ROOT: str(tmp_path / "none")})
+        == f"{full} {full}"
+    )
 
 
 def test_apply_threads_gives_torch_and_the_budget_n_and_refuses_nonsense():
     before = torch.get_num_threads()
     try:
-        assert threads.apply_threads(3) == 3 and threads.budget() == 3 and torch.get_num_threads() == 3
-        assert threads.apply_threads() == threads.usable_cpus() == torch.get_num_threads()  # the default
+        assert (
+            threads.apply_threads(3) == 3 and threads.budget() == 3 and torch.get_num_threads() == 3
+        )
+        assert (
+            threads.apply_threads() == threads.usable_cpus() == torch.get_num_threads()
+        )  # the default
         for bad in (0, -1, 1.5, True, "2"):
             with pytest.raises(UserError, match="threads must be a whole number >= 1"):
                 threads.apply_threads(bad)
@@ -98,13 +111,16 @@ def test_apply_threads_gives_torch_and_the_budget_n_and_refuses_nonsense():
         torch.set_num_threads(before)
 
 
-@pytest.mark.parametrize(("cores", "cells", "workers", "per_cell", "expected"), [
-    (2, 2, None, None, (2, 1)),   # 2 cells at once on 2 cores: 1 thread each
-    (2, 1, None, None, (1, 2)),   # one cell: both cores
-    (16, 3, None, None, (3, 5)),  # 3 cells: 5 threads each (15 <= 16)
-    (2, 4, None, 2, (1, 2)),      # --threads 2 on 2 cores: one cell at a time
-    (16, 8, 2, None, (2, 8)),     # --workers 2: the cores divided between them
-])
+@pytest.mark.parametrize(
+    ("cores", "cells", "workers", "per_cell", "expected"),
+    [
+        (2, 2, None, None, (2, 1)),  # 2 cells at once on 2 cores: 1 thread each
+        (2, 1, None, None, (1, 2)),  # one cell: both cores
+        (16, 3, None, None, (3, 5)),  # 3 cells: 5 threads each (15 <= 16)
+        (2, 4, None, 2, (1, 2)),  # --threads 2 on 2 cores: one cell at a time
+        (16, 8, 2, None, (2, 8)),  # --workers 2: the cores divided between them
+    ],
+)
 def test_a_local_grid_shares_the_cores(cores, cells, workers, per_cell, expected):
     got = threads.share_cores(cores, cells, workers, per_cell)
     assert got == expected and min(got[0], cells) * got[1] <= cores
@@ -118,9 +134,27 @@ def test_a_local_grid_refuses_more_threads_than_cores():
 
 
 #: a real `coadapt run` of one tiny training phase (one PPO iteration) and one real round
-TINY_RUN = ["run", "--preset", "smoke", "--population", "2", "--outer-iterations", "1", "--optimizer-iterations", "1",
-            "--agents-per-design", "1", "--eval-steps", "2", "--train-steps", "10", "--store", "none", "--no-video",
-            "--json"]
+TINY_RUN = [
+    "run",
+    "--preset",
+    "smoke",
+    "--population",
+    "2",
+    "--outer-iterations",
+    "1",
+    "--optimizer-iterations",
+    "1",
+    "--agents-per-design",
+    "1",
+    "--eval-steps",
+    "2",
+    "--train-steps",
+    "10",
+    "--store",
+    "none",
+    "--no-video",
+    "--json",
+]
 
 
 def _recorded(out) -> tuple[int, list[dict]]:
@@ -131,8 +165,12 @@ def _recorded(out) -> tuple[int, list[dict]]:
 
     (folder,) = [p for p in out.iterdir() if (p / "config.yaml").is_file()]
     config = yaml.safe_load((folder / "config.yaml").read_text())
-    phases = [json.loads(line)["extra"] for line in (folder / "trainings.jsonl").read_text().splitlines()]
-    return config["threads"], [{k: p[k] for k in ("torch_threads", "physics_threads")} for p in phases]
+    phases = [
+        json.loads(line)["extra"] for line in (folder / "trainings.jsonl").read_text().splitlines()
+    ]
+    return config["threads"], [
+        {k: p[k] for k in ("torch_threads", "physics_threads")} for p in phases
+    ]
 
 
 @pytest.mark.slow
@@ -158,7 +196,14 @@ def test_run_default_threads_follow_the_affinity_not_the_checkpoint(tmp_path):
     though its starting policy records torch_threads 7."""
     from pathlib import Path
 
-    shipped = Path(__file__).resolve().parents[2] / "plugins" / "robots" / "kuafu" / "policies" / "flat.pt"
+    shipped = (
+        Path(__file__).resolve().parents[2]
+        / "plugins"
+        / "robots"
+        / "kuafu"
+        / "policies"
+        / "flat.pt"
+    )
     state = torch.load(shipped, map_location="cpu", weights_only=True)
     state["train_config"]["torch_threads"] = 7
     torch.save(state, tmp_path / "seven.pt")

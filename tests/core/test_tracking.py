@@ -16,7 +16,9 @@ from tests.fakes.analytic import AnalyticBackend
 
 @pytest.fixture
 def fake_learner(monkeypatch):
-    monkeypatch.setattr(loop_setup, "universal_policy_factory", lambda *a, **k: (lambda seed: AnalyticBackend(seed)))
+    monkeypatch.setattr(
+        loop_setup, "universal_policy_factory", lambda *a, **k: lambda seed: AnalyticBackend(seed)
+    )
 
 
 def scalars(folder):
@@ -29,8 +31,22 @@ def scalars(folder):
 
 def test_run_writes_rounds_phases_and_surrogate_error_to_tensorboard(tmp_path, fake_learner):
     # every real round judged (a fit before each), so the surrogate's error is logged
-    assert main(["run", "--preset", "smoke", "--out", str(tmp_path), "--store", "none", "--json",
-                 "--surrogate-error-fits"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "--preset",
+                "smoke",
+                "--out",
+                str(tmp_path),
+                "--store",
+                "none",
+                "--json",
+                "--surrogate-error-fits",
+            ]
+        )
+        == 0
+    )
     (run_dir,) = [p for p in tmp_path.iterdir() if p.is_dir()]
     found = scalars(run_dir / "tb")
     # smoke: 2 outer x 2 rounds; one training phase per outer iteration
@@ -43,7 +59,23 @@ def test_run_writes_rounds_phases_and_surrogate_error_to_tensorboard(tmp_path, f
 
 
 def test_logger_none_writes_no_events(tmp_path, fake_learner):
-    assert main(["run", "--preset", "smoke", "--out", str(tmp_path), "--store", "none", "--logger", "none", "--json"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "--preset",
+                "smoke",
+                "--out",
+                str(tmp_path),
+                "--store",
+                "none",
+                "--logger",
+                "none",
+                "--json",
+            ]
+        )
+        == 0
+    )
     (run_dir,) = [p for p in tmp_path.iterdir() if p.is_dir()]
     assert not (run_dir / "tb").exists()
 
@@ -62,8 +94,26 @@ def test_real_smoke_run_leaves_event_files_and_a_best_vs_nominal_gif(tmp_path, c
     with per-iteration training curves and a GIF of both designs walking side by side."""
     from PIL import Image
 
-    args = ["run", "--preset", "smoke", "--population", "3", "--agents-per-design", "2", "--eval-steps", "10",
-            "--train-steps", "100", "--retrain-steps", "50", "--store", "none", "--out", str(tmp_path), "--json"]
+    args = [
+        "run",
+        "--preset",
+        "smoke",
+        "--population",
+        "3",
+        "--agents-per-design",
+        "2",
+        "--eval-steps",
+        "10",
+        "--train-steps",
+        "100",
+        "--retrain-steps",
+        "50",
+        "--store",
+        "none",
+        "--out",
+        str(tmp_path),
+        "--json",
+    ]
     assert main(args) == 0
     (run_dir,) = [p for p in tmp_path.iterdir() if p.is_dir()]
     found = scalars(run_dir / "tb")
@@ -82,7 +132,9 @@ def test_run_without_gl_still_finishes_with_one_line_note(tmp_path, capsys, monk
     monkeypatch.setenv("MUJOCO_GL", "not-a-backend")
     (tmp_path / "checkpoints").mkdir()
     (tmp_path / "checkpoints" / "backend-outer0.pt").write_bytes(b"not a checkpoint")
-    written = render_run_video(tmp_path, {"best_design": [1.0, 1.0], "nominal_design": [1.0, 1.0]}, {"robot": "kuafu"})
+    written = render_run_video(
+        tmp_path, {"best_design": [1.0, 1.0], "nominal_design": [1.0, 1.0]}, {"robot": "kuafu"}
+    )
     lines = capsys.readouterr().err.strip().splitlines()
     assert written == [] and len(lines) == 1 and lines[0].startswith("video: not rendered")
 
@@ -95,8 +147,26 @@ def test_bo_study_is_kept_in_the_run_store_under_the_run_id(tmp_path, fake_learn
     from coadapt_core.results import ResultsStore
 
     db = tmp_path / "s.db"
-    assert main(["run", "--method", "bo-specialized", "--preset", "smoke", "--bo-designs", "3", "--out", str(tmp_path),
-                 "--store", str(db), "--json", "--no-video"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "--method",
+                "bo-specialized",
+                "--preset",
+                "smoke",
+                "--bo-designs",
+                "3",
+                "--out",
+                str(tmp_path),
+                "--store",
+                str(db),
+                "--json",
+                "--no-video",
+            ]
+        )
+        == 0
+    )
     (run,) = ResultsStore(db).list_runs()
     assert run["optimizer"] == "bo" and "-bo-specialized-bo-" in run["id"]
     study = optuna.load_study(study_name=f"{run['id']}-outer0", storage=f"sqlite:///{db}")
@@ -109,8 +179,24 @@ def test_export_names_design_columns_after_the_run_design_space(tmp_path, fake_l
     import csv
 
     db = tmp_path / "s.db"
-    assert main(["run", "--optimizer", "mixed-pso", "--preset", "smoke", "--out", str(tmp_path / "runs"),
-                 "--store", str(db), "--json", "--no-video"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "--optimizer",
+                "mixed-pso",
+                "--preset",
+                "smoke",
+                "--out",
+                str(tmp_path / "runs"),
+                "--store",
+                str(db),
+                "--json",
+                "--no-video",
+            ]
+        )
+        == 0
+    )
     assert main(["export", "--store", str(db), "-o", str(tmp_path / "x")]) == 0
     with (tmp_path / "x" / "evaluations.csv").open() as fh:
         header = next(csv.reader(fh))

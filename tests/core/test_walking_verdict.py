@@ -21,7 +21,12 @@ def test_judge_policy_applies_the_run_gate_with_numbers() -> None:
     assert walking is False and "tracking error 0.97 x command > 0.5" in reason
     walking, reason = judge_policy(0.5, 0.1, 250)
     assert walking is False and "survival 0.50 < 0.8" in reason
-    assert judge_policy(WALKING_GATE.min_survival, WALKING_GATE.max_tracking_ratio, MIN_JUDGED_STEPS)[0] is True
+    assert (
+        judge_policy(WALKING_GATE.min_survival, WALKING_GATE.max_tracking_ratio, MIN_JUDGED_STEPS)[
+            0
+        ]
+        is True
+    )
     # too short to judge tracking, unless it falls or stands still
     assert judge_policy(1.0, 0.6, MIN_JUDGED_STEPS - 1)[0] is None
     assert judge_policy(1.0, 0.99, MIN_JUDGED_STEPS - 1)[0] is False
@@ -40,7 +45,9 @@ def _standing_policy(path) -> None:
 
 
 def _eval(capsys, *args: str) -> dict:
-    assert main(["eval", "--robot", "kuafu", "--agents", "8", "--seconds", "4", "--json", *args]) == 0
+    assert (
+        main(["eval", "--robot", "kuafu", "--agents", "8", "--seconds", "4", "--json", *args]) == 0
+    )
     return json.loads(capsys.readouterr().out.strip().splitlines()[-1])
 
 
@@ -59,9 +66,18 @@ def test_eval_does_not_pass_a_standing_policy_as_walking(tmp_path, capsys) -> No
 
     robot = get_registry().create("robot", "kuafu")
     space = DesignSpace.from_dict(torch.load(KUAFU_FLAT, weights_only=True)["design_space"])
-    verdict = training_verdict(tmp_path / "standing.pt", robot, get_registry().get("simulator", "mujoco"), space,
-                               terrain="flat")
-    assert verdict["walking"] is False and verdict["design"] == [1.0, 1.0] and verdict["tracking_ratio"] > 0.8
+    verdict = training_verdict(
+        tmp_path / "standing.pt",
+        robot,
+        get_registry().get("simulator", "mujoco"),
+        space,
+        terrain="flat",
+    )
+    assert (
+        verdict["walking"] is False
+        and verdict["design"] == [1.0, 1.0]
+        and verdict["tracking_ratio"] > 0.8
+    )
 
 
 @pytest.mark.slow

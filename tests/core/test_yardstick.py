@@ -33,8 +33,14 @@ class ScenarioBackend:
         falls = np.zeros((len(designs), agents), dtype=bool)
         falls[0, ::10] = True
         per[0, ::10] *= 5.0
-        return RealFitness(costs=per.mean(axis=1), buffer=None, interactions=len(designs) * agents * steps, seconds=0.1,
-                           per_scenario=per, scenario_falls=falls)
+        return RealFitness(
+            costs=per.mean(axis=1),
+            buffer=None,
+            interactions=len(designs) * agents * steps,
+            seconds=0.1,
+            per_scenario=per,
+            scenario_falls=falls,
+        )
 
 
 @pytest.fixture
@@ -63,14 +69,20 @@ def test_rows_hold_compare_designs_of_the_common_blocks(store_run):
     assert best.design == run["summary"]["best_design"]
     # the same figures computed directly from the same per-scenario costs
     torque = get_registry().create("objective", "torque")
-    fits = [ScenarioBackend().real_fitness(np.zeros((2, 2)), [torque], agents=8, steps=5, seed=scenario_seed(COMMON_SEED, b))
-            for b in range(3)]
+    fits = [
+        ScenarioBackend().real_fitness(
+            np.zeros((2, 2)), [torque], agents=8, steps=5, seed=scenario_seed(COMMON_SEED, b)
+        )
+        for b in range(3)
+    ]
     per = np.concatenate([f.per_scenario for f in fits], axis=1)
     falls = np.concatenate([f.scenario_falls for f in fits], axis=1)
     want = compare_designs(CostRule.from_config(run["config"]), [torque], per, falls, 0, 1)
     got = yardstick_improvement(store, run["id"], "torque")
     assert got["improvement"] == pytest.approx(want["objectives"]["torque"]["improvement"])
-    assert got["improvement_plain_se"] == pytest.approx(want["objectives"]["torque"]["improvement_plain_se"])
+    assert got["improvement_plain_se"] == pytest.approx(
+        want["objectives"]["torque"]["improvement_plain_se"]
+    )
     assert got["fall_rate"] == pytest.approx(falls[0].mean()) and got["nominal_fall_rate"] == 0.0
     assert got["fall_rate_difference"] == pytest.approx(falls[0].mean())
     # falls cost the cap: the capped improvement is below the unfallen 20 %, the plain mean's further below
@@ -84,7 +96,9 @@ def test_rows_hold_compare_designs_of_the_common_blocks(store_run):
 def test_a_run_without_policy_says_why(tmp_path):
     rec = SqliteRecorder(tmp_path / "r.db")
     run_id = record_run(rec, "ours", 0)  # no checkpoint recorded
-    notes = yardstick_runs(rec.store, [rec.store.get_run(run_id)], factory=lambda *a, **k: pytest.fail("no backend"))
+    notes = yardstick_runs(
+        rec.store, [rec.store.get_run(run_id)], factory=lambda *a, **k: pytest.fail("no backend")
+    )
     assert notes == {run_id: "n/a: the run recorded no policy checkpoint"}
     assert yardstick_improvement(rec.store, run_id, "torque") is None
 
@@ -92,8 +106,13 @@ def test_a_run_without_policy_says_why(tmp_path):
 def test_a_block_is_the_size_of_the_runs_real_evaluation():
     from coadapt_core.experiments.yardstick import block_size
 
-    assert block_size({"config": {"eval_agents": 32, "eval_steps": 250, "agents_per_design": 16}}) == (32, 250)
-    assert block_size({"config": {"eval_agents": 0, "eval_steps": 20, "agents_per_design": 2}}) == (2, 20)
+    assert block_size(
+        {"config": {"eval_agents": 32, "eval_steps": 250, "agents_per_design": 16}}
+    ) == (32, 250)
+    assert block_size({"config": {"eval_agents": 0, "eval_steps": 20, "agents_per_design": 2}}) == (
+        2,
+        20,
+    )
 
 
 def test_a_run_without_a_shared_policy_evaluates_each_design_with_its_own(tmp_path):
@@ -103,7 +122,9 @@ def test_a_run_without_a_shared_policy_evaluates_each_design_with_its_own(tmp_pa
     from coadapt_core.experiments.transfer import transfer_runs
 
     rec = SqliteRecorder(tmp_path / "r.db")
-    run_id = record_run(rec, "bo-specialized", 0, checkpoint=tmp_path / "policy-best.pt", optimizer="bo")
+    run_id = record_run(
+        rec, "bo-specialized", 0, checkpoint=tmp_path / "policy-best.pt", optimizer="bo"
+    )
     run = rec.store.get_run(run_id)
     (tmp_path / run["config"]["run_id"] / OWN_POLICY_FILES["nominal"]).write_text("weights")
     asked = []
@@ -119,6 +140,7 @@ def test_a_run_without_a_shared_policy_evaluates_each_design_with_its_own(tmp_pa
                 fit.per_scenario = fit.per_scenario * (0.8 if role == "best" else 1.0)
                 fit.scenario_falls[:] = False
                 return fit
+
         return Own()
 
     assert yardstick_runs(rec.store, [run], blocks=2, agents=8, steps=5, factory=factory) == {}
@@ -135,7 +157,13 @@ def test_an_old_bo_run_whose_starting_policy_changed_says_why(tmp_path):
     rec = SqliteRecorder(tmp_path / "r.db")
     run_id = record_run(rec, "bo-specialized", 0, checkpoint=tmp_path / "other.pt", optimizer="bo")
     run = rec.store.get_run(run_id)
-    run["config"].update(specialized_init="universal", checkpoint="", policy={"source": "shipped", "sha256": "0" * 64})
+    run["config"].update(
+        specialized_init="universal",
+        checkpoint="",
+        policy={"source": "shipped", "sha256": "0" * 64},
+    )
     notes = yardstick_runs(rec.store, [run], factory=lambda *a, **k: pytest.fail("no backend"))
-    assert notes == {run_id: "n/a: the starting policy flat.pt is not the one the run started from (SHA-256 differs); "
-                             "its policies cannot be trained again"}
+    assert notes == {
+        run_id: "n/a: the starting policy flat.pt is not the one the run started from (SHA-256 differs); "
+        "its policies cannot be trained again"
+    }

@@ -41,11 +41,19 @@ class SlowBackend(AnalyticBackend):
         return super().real_fitness(designs, objectives, **kwargs)
 
 
-def fake_rollout(checkpoint: Any, robot: Any, sim_cls: Any, design: Any, *, seconds: float, **kwargs: Any) -> dict:
+def fake_rollout(
+    checkpoint: Any, robot: Any, sim_cls: Any, design: Any, *, seconds: float, **kwargs: Any
+) -> dict:
     model = robot.build(robot.check_design(design) if hasattr(robot, "check_design") else design)
     steps = int(VIDEO_SECONDS / 0.02)
-    frames = [{"pos": [0.01 * k, 0.0, 0.55], "quat": [1.0, 0.0, 0.0, 0.0], "q": [0.0] * len(model.joint_names)}
-              for k in range(steps)]
+    frames = [
+        {
+            "pos": [0.01 * k, 0.0, 0.55],
+            "quat": [1.0, 0.0, 0.0, 0.0],
+            "q": [0.0] * len(model.joint_names),
+        }
+        for k in range(steps)
+    ]
     return {"_trajectory": {"frames": frames, "dt": 0.02}, "vx_mean": 0.5}
 
 
@@ -60,7 +68,7 @@ def announced_offscreen(function: str, kwargs: dict, **rest: Any) -> Any:
 def main() -> int:
     import coadapt_core.experiments.evaluate as evaluate
 
-    loop_setup.universal_policy_factory = lambda *a, **k: (lambda seed: SlowBackend(seed))
+    loop_setup.universal_policy_factory = lambda *a, **k: lambda seed: SlowBackend(seed)
     evaluate.evaluate_checkpoint = fake_rollout
     video.offscreen = announced_offscreen
     from coadapt_core.cli import main as cli_main

@@ -76,7 +76,9 @@ class PowerObjective(Objective):
     short_label: ClassVar[str] = "P"  # Table 6's column
     unit: ClassVar[str] = "W"
     summary_key: ClassVar[str] = "power_cost"  # `coadapt eval` reports it always
-    description: ClassVar[str] = "P_p = w_t sum |tau| |dtheta|, mechanical power with tracking penalty (eq. 7)"
+    description: ClassVar[str] = (
+        "P_p = w_t sum |tau| |dtheta|, mechanical power with tracking penalty (eq. 7)"
+    )
 
     def step_cost(self, step: StepBatch) -> torch.Tensor:
         power = (step.joint_torque.abs() * step.joint_vel.abs()).sum(dim=-1)  # [N]
@@ -92,7 +94,9 @@ class TorqueObjective(Objective):
     short_label: ClassVar[str] = "τ"  # Table 6's column
     unit: ClassVar[str] = "(Nm)^2"
     summary_key: ClassVar[str] = "torque_cost"  # `coadapt eval` reports it always
-    description: ClassVar[str] = "P_tau = w_t sum tau^2, squared joint torque with tracking penalty (eq. 8)"
+    description: ClassVar[str] = (
+        "P_tau = w_t sum tau^2, squared joint torque with tracking penalty (eq. 8)"
+    )
 
     def step_cost(self, step: StepBatch) -> torch.Tensor:
         return tracking_penalty_weight(step) * (step.joint_torque**2).sum(dim=-1)  # [N]
@@ -110,12 +114,18 @@ class CompositeObjective(Objective):
 
     name: ClassVar[str] = "composite"
     display_name: ClassVar[str] = "Composite"
-    description: ClassVar[str] = "weighted sum of tracking, power and torque (default P_cmd + P_p + P_tau)"
+    description: ClassVar[str] = (
+        "weighted sum of tracking, power and torque (default P_cmd + P_p + P_tau)"
+    )
 
     option_specs: ClassVar[tuple[PluginOption, ...]] = (
         PluginOption(
-            "weights", "str", "", "component weights, e.g. 'tracking=1,power=0.5,torque=1' (missing ones "
-            "weigh 0; empty: all 1)", alias="objective_weights",
+            "weights",
+            "str",
+            "",
+            "component weights, e.g. 'tracking=1,power=0.5,torque=1' (missing ones "
+            "weigh 0; empty: all 1)",
+            alias="objective_weights",
         ),
     )
 
@@ -161,11 +171,15 @@ def parse_weights(weights: Mapping[str, float] | str | None) -> dict[str, float]
         value = float(value)
         if not math.isfinite(value) or value < 0:
             raise UserError(
-                f"objective weight '{key}' = {value:g} must be a finite number >= 0", field="objective_options"
+                f"objective weight '{key}' = {value:g} must be a finite number >= 0",
+                field="objective_options",
             )
         out[key] = value
     if not any(v > 0 for v in out.values()):
-        raise UserError("objective weights must give at least one component a weight > 0", field="objective_options")
+        raise UserError(
+            "objective weights must give at least one component a weight > 0",
+            field="objective_options",
+        )
     return out
 
 

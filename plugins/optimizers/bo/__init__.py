@@ -37,13 +37,32 @@ class BOOptimizer(Optimizer):
     supports_mixed: ClassVar[bool] = True
     sequential: ClassVar[bool] = True
     option_specs: ClassVar[tuple] = (
-        PluginOption("sampler", "str", "tpe", "optuna sampler: tpe or gp", choices=SAMPLERS,
-                     alias="bo_sampler"),
-        PluginOption("n_startup_trials", "int", 8, "random trials before the model is used", minimum=1),
-        PluginOption("storage", "str", None, "optuna storage URL for the study (default: in memory)",
-                     alias="bo_storage", from_run="store_url"),
-        PluginOption("study_name", "str", None, "name of the optuna study (default: coadapt-bo-<seed>)",
-                     from_run="run_name"),
+        PluginOption(
+            "sampler",
+            "str",
+            "tpe",
+            "optuna sampler: tpe or gp",
+            choices=SAMPLERS,
+            alias="bo_sampler",
+        ),
+        PluginOption(
+            "n_startup_trials", "int", 8, "random trials before the model is used", minimum=1
+        ),
+        PluginOption(
+            "storage",
+            "str",
+            None,
+            "optuna storage URL for the study (default: in memory)",
+            alias="bo_storage",
+            from_run="store_url",
+        ),
+        PluginOption(
+            "study_name",
+            "str",
+            None,
+            "name of the optuna study (default: coadapt-bo-<seed>)",
+            from_run="run_name",
+        ),
     )
 
     def __init__(self, space: DesignSpace, **kwargs: Any):
@@ -70,7 +89,9 @@ class BOOptimizer(Optimizer):
         import optuna
 
         if self.sampler_name == "gp":
-            return optuna.samplers.GPSampler(seed=self.seed32, n_startup_trials=self.n_startup_trials)
+            return optuna.samplers.GPSampler(
+                seed=self.seed32, n_startup_trials=self.n_startup_trials
+            )
         return optuna.samplers.TPESampler(seed=self.seed32, n_startup_trials=self.n_startup_trials)
 
     def _make_study(self, *, load_if_exists: bool, sampler=None) -> None:

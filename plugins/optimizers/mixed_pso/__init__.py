@@ -36,7 +36,9 @@ class MixedPSOOptimizer(Optimizer):
     """
 
     name: ClassVar[str] = "mixed-pso"
-    description: ClassVar[str] = "particle swarm over continuous + discrete variables (relaxed positions, binned decoding)"
+    description: ClassVar[str] = (
+        "particle swarm over continuous + discrete variables (relaxed positions, binned decoding)"
+    )
     supports_mixed: ClassVar[bool] = True
     implies_mixed: ClassVar[bool] = True
     option_specs: ClassVar[tuple] = SWARM_OPTIONS
@@ -44,11 +46,18 @@ class MixedPSOOptimizer(Optimizer):
     def __init__(self, space: DesignSpace, **kwargs: Any):
         super().__init__(space, **kwargs)
         o = self.options
-        self.inertia, self.c1, self.c2, self.max_velocity = o["inertia"], o["c1"], o["c2"], o["max_velocity_rate"]
+        self.inertia, self.c1, self.c2, self.max_velocity = (
+            o["inertia"],
+            o["c1"],
+            o["c2"],
+            o["max_velocity_rate"],
+        )
         self._rng = np.random.default_rng(self.seed)
         n, d = self.population, space.dim
         initial = self.initial_designs
-        self.x = self._rng.uniform(0, 1, (n, d)) if initial is None else space.encode(initial)  # [n, dim]
+        self.x = (
+            self._rng.uniform(0, 1, (n, d)) if initial is None else space.encode(initial)
+        )  # [n, dim]
         self.v = self._rng.uniform(-self.max_velocity, self.max_velocity, (n, d))  # [n, dim]
         self.p_best = self.x.copy()  # [n, dim] relaxed personal bests
         self.p_cost = np.full(n, np.inf)  # [n]
@@ -64,7 +73,11 @@ class MixedPSOOptimizer(Optimizer):
     def _move(self) -> None:
         n, d = self.x.shape
         r1, r2 = self._rng.uniform(size=(n, d)), self._rng.uniform(size=(n, d))
-        self.v = self.inertia * self.v + self.c1 * r1 * (self.p_best - self.x) + self.c2 * r2 * (self.g_best - self.x)
+        self.v = (
+            self.inertia * self.v
+            + self.c1 * r1 * (self.p_best - self.x)
+            + self.c2 * r2 * (self.g_best - self.x)
+        )
         self.v = np.clip(self.v, -self.max_velocity, self.max_velocity)
         x = self.x + self.v
         outside = (x < 0) | (x > 1)
@@ -89,16 +102,23 @@ class MixedPSOOptimizer(Optimizer):
     def state_dict(self) -> dict[str, Any]:
         state = super().state_dict()
         state["swarm"] = {
-            "x": self.x.tolist(), "v": self.v.tolist(), "p_best": self.p_best.tolist(),
-            "p_cost": self.p_cost.tolist(), "g_best": self.g_best.tolist(), "g_cost": float(self.g_cost),
-            "evaluated_first": bool(self._evaluated_first), "rng": self._rng.bit_generator.state,
+            "x": self.x.tolist(),
+            "v": self.v.tolist(),
+            "p_best": self.p_best.tolist(),
+            "p_cost": self.p_cost.tolist(),
+            "g_best": self.g_best.tolist(),
+            "g_cost": float(self.g_cost),
+            "evaluated_first": bool(self._evaluated_first),
+            "rng": self._rng.bit_generator.state,
         }
         return state
 
     def _restore(self, state: dict[str, Any], rounds: list) -> None:
         swarm = state["swarm"]
         n, d = self.x.shape
-        arrays = {k: np.asarray(swarm[k], dtype=float) for k in ("x", "v", "p_best", "p_cost", "g_best")}
+        arrays = {
+            k: np.asarray(swarm[k], dtype=float) for k in ("x", "v", "p_best", "p_cost", "g_best")
+        }
         shapes = {"x": (n, d), "v": (n, d), "p_best": (n, d), "p_cost": (n,), "g_best": (d,)}
         for key, shape in shapes.items():
             if arrays[key].shape != shape:

@@ -40,9 +40,16 @@ class NSGA2Optimizer(Optimizer):
 
         initial = self.initial_designs
         sampling = FloatRandomSampling() if initial is None else space.encode(initial)
-        problem = Problem(n_var=space.dim, n_obj=self.num_objectives, xl=np.zeros(space.dim), xu=np.ones(space.dim))
+        problem = Problem(
+            n_var=space.dim,
+            n_obj=self.num_objectives,
+            xl=np.zeros(space.dim),
+            xu=np.ones(space.dim),
+        )
         self._algorithm = NSGA2(pop_size=self.population, sampling=sampling)
-        self._algorithm.setup(problem, seed=self.seed32, termination=("n_gen", 10**9), verbose=False)
+        self._algorithm.setup(
+            problem, seed=self.seed32, termination=("n_gen", 10**9), verbose=False
+        )
         self._pending = None
         self._designs: list[np.ndarray] = []  # every told batch [n, dim]
         self._costs: list[np.ndarray] = []  # [n, M]

@@ -44,7 +44,9 @@ class PSOOptimizer(Optimizer):
 
         initial = self.initial_designs
         sampling = LHS() if initial is None else space.encode(initial)
-        self._problem = Problem(n_var=space.dim, n_obj=1, xl=np.zeros(space.dim), xu=np.ones(space.dim))
+        self._problem = Problem(
+            n_var=space.dim, n_obj=1, xl=np.zeros(space.dim), xu=np.ones(space.dim)
+        )
         self._algorithm = PSO(
             pop_size=self.population,
             sampling=sampling,
@@ -55,7 +57,9 @@ class PSOOptimizer(Optimizer):
             max_velocity_rate=o["max_velocity_rate"],
         )
         # the budget is enforced by the Optimizer base; pymoo's own termination never stops it
-        self._algorithm.setup(self._problem, seed=self.seed32, termination=("n_gen", 10**9), verbose=False)
+        self._algorithm.setup(
+            self._problem, seed=self.seed32, termination=("n_gen", 10**9), verbose=False
+        )
         self._pending = None
 
     def _ask(self) -> np.ndarray:

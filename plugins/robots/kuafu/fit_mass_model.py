@@ -49,15 +49,25 @@ def fit() -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--check", action="store_true", help="compare with the stored file instead of writing")
+    parser.add_argument(
+        "--check", action="store_true", help="compare with the stored file instead of writing"
+    )
     args = parser.parse_args(argv)
     data = fit()
     if args.check:
         stored = json.loads(MASS_MODEL_FILE.read_text())
         for name, entry in data["links"].items():
             for q in QUANTITIES:
-                if not np.allclose(entry["coefficients"][q], stored["links"][name]["coefficients"][q], rtol=1e-9, atol=1e-12):
-                    print(f"{name}.{q}: stored coefficients are stale; rerun without --check", file=sys.stderr)
+                if not np.allclose(
+                    entry["coefficients"][q],
+                    stored["links"][name]["coefficients"][q],
+                    rtol=1e-9,
+                    atol=1e-12,
+                ):
+                    print(
+                        f"{name}.{q}: stored coefficients are stale; rerun without --check",
+                        file=sys.stderr,
+                    )
                     return 1
         return 0
     MASS_MODEL_FILE.write_text(json.dumps(data, indent=2) + "\n")

@@ -99,7 +99,9 @@ def _upper_body_parts(design: KuafuDesign, torso_mass: float) -> list[Part]:
         sphere(C.HEAD_MASS, C.HEAD_RADIUS, head_centre),
     ]
     for side in C.SIDES:
-        parts.append(actuator(design.hip_motor, _hip_centre(side) + C.HIP_ROLL_ACTUATOR_OFFSET, "x"))
+        parts.append(
+            actuator(design.hip_motor, _hip_centre(side) + C.HIP_ROLL_ACTUATOR_OFFSET, "x")
+        )
     return parts
 
 
@@ -109,19 +111,30 @@ def leg_parts(design: KuafuDesign) -> dict[str, Part]:
     models = load_mass_models()
     l0, l1 = design.thigh_length, design.shank_length
     bracket = box(C.HIP_ROLL_BRACKET_MASS, (0.08, 0.08, 0.08), np.zeros(3))
-    foot_centre = np.array([C.FOOT_TOE - 0.5 * C.FOOT_LENGTH, 0.0, -C.ANKLE_HEIGHT + 0.5 * C.FOOT_THICKNESS])
+    foot_centre = np.array(
+        [C.FOOT_TOE - 0.5 * C.FOOT_LENGTH, 0.0, -C.ANKLE_HEIGHT + 0.5 * C.FOOT_THICKNESS]
+    )
     return {
         "hip_roll_link": combine([bracket, actuator(design.hip_motor, np.zeros(3), "y")]),
         # the knee actuator housing is carried by the thigh at the knee
-        "thigh": combine([models["thigh"].part(l0), actuator(design.knee_motor, np.array([0.0, 0.0, -l0]), "y")]),
+        "thigh": combine(
+            [models["thigh"].part(l0), actuator(design.knee_motor, np.array([0.0, 0.0, -l0]), "y")]
+        ),
         # the ankle actuator sits high in the shank and drives the ankle by a push rod
-        "shank": combine([models["shank"].part(l1), actuator(C.ANKLE_MOTOR_TYPE, np.array([0.0, 0.0, -0.07]), "y")]),
+        "shank": combine(
+            [
+                models["shank"].part(l1),
+                actuator(C.ANKLE_MOTOR_TYPE, np.array([0.0, 0.0, -0.07]), "y"),
+            ]
+        ),
         "foot": box(C.FOOT_MASS, (C.FOOT_LENGTH, C.FOOT_WIDTH, C.FOOT_THICKNESS), foot_centre),
     }
 
 
 def arm_part() -> Part:
-    return cylinder(C.ARM_MASS, C.ARM_RADIUS, C.ARM_LENGTH, np.array([0.0, 0.0, -0.5 * C.ARM_LENGTH]), axis="z")
+    return cylinder(
+        C.ARM_MASS, C.ARM_RADIUS, C.ARM_LENGTH, np.array([0.0, 0.0, -0.5 * C.ARM_LENGTH]), axis="z"
+    )
 
 
 @cache
@@ -168,7 +181,9 @@ def sagittal_ik(l0: float, l1: float, x: float, depth: float) -> tuple[float, fl
 
 def default_joint_pos(design: KuafuDesign) -> np.ndarray:
     """[8] standing pose: ankles straight below the hips, soles flat, no hip roll."""
-    pitch, knee, ankle = sagittal_ik(design.thigh_length, design.shank_length, 0.0, stance_hip_to_ankle(design))
+    pitch, knee, ankle = sagittal_ik(
+        design.thigh_length, design.shank_length, 0.0, stance_hip_to_ankle(design)
+    )
     leg = [0.0, pitch, knee, ankle]
     return np.array(leg + leg)
 
@@ -263,7 +278,9 @@ def foot_contact_points() -> np.ndarray:
     """[4, 3] sole corners in the foot frame (origin at the ankle centre)."""
     z = -C.ANKLE_HEIGHT
     w = 0.5 * C.FOOT_WIDTH
-    return np.array([[C.FOOT_TOE, w, z], [C.FOOT_TOE, -w, z], [-C.FOOT_HEEL, w, z], [-C.FOOT_HEEL, -w, z]])
+    return np.array(
+        [[C.FOOT_TOE, w, z], [C.FOOT_TOE, -w, z], [-C.FOOT_HEEL, w, z], [-C.FOOT_HEEL, -w, z]]
+    )
 
 
 # -- text ------------------------------------------------------------------------------------
@@ -307,7 +324,9 @@ class _Geometry:
 
 def _sole_box() -> tuple[np.ndarray, np.ndarray]:
     """(centre in the foot frame, full size) of the sole box: the feet's collision shape."""
-    centre = np.array([C.FOOT_TOE - 0.5 * C.FOOT_LENGTH, 0.0, -C.ANKLE_HEIGHT + 0.5 * C.FOOT_THICKNESS])
+    centre = np.array(
+        [C.FOOT_TOE - 0.5 * C.FOOT_LENGTH, 0.0, -C.ANKLE_HEIGHT + 0.5 * C.FOOT_THICKNESS]
+    )
     return centre, np.array([C.FOOT_LENGTH, C.FOOT_WIDTH, C.FOOT_THICKNESS])
 
 
@@ -412,7 +431,12 @@ def _urdf(g: _Geometry) -> str:
     for side in C.SIDES:
         links = [f"{side}_hip_roll_link", f"{side}_thigh", f"{side}_shank", f"{side}_foot"]
         parents = ["base", *links[:3]]
-        origins = [_hip_centre(side), np.zeros(3), np.array([0.0, 0.0, -l0]), np.array([0.0, 0.0, -l1])]
+        origins = [
+            _hip_centre(side),
+            np.zeros(3),
+            np.array([0.0, 0.0, -l0]),
+            np.array([0.0, 0.0, -l1]),
+        ]
         axes = ["1 0 0", "0 1 0", "0 1 0", "0 1 0"]
         shapes = [
             _both('<sphere radius="0.06"/>', np.zeros(3)),
@@ -435,7 +459,10 @@ def _urdf(g: _Geometry) -> str:
             _urdf_link(
                 f"{side}_arm",
                 g.arm,
-                _both(f'<cylinder radius="{_f(C.ARM_RADIUS)}" length="{_f(C.ARM_LENGTH)}"/>', np.array([0.0, 0.0, -0.5 * C.ARM_LENGTH])),
+                _both(
+                    f'<cylinder radius="{_f(C.ARM_RADIUS)}" length="{_f(C.ARM_LENGTH)}"/>',
+                    np.array([0.0, 0.0, -0.5 * C.ARM_LENGTH]),
+                ),
             )
         )
         out.append(
@@ -506,10 +533,21 @@ def build_cached(key: tuple[float, ...]) -> RobotModel:
         "hip_offset": _readonly(C.HIP_OFFSET),
         "gear_ratio": C.GEAR_RATIO,
         # the unit of each entry above, for `coadapt robot show` (the key convention of RobotModel.info)
-        "units": {"thigh_length": "m", "shank_length": "m", "standing_height": "m", "hip_to_ankle": "m",
-                  "segment_masses": "kg", "joint_load_inertia": "kg m^2", "joint_swing_inertia": "kg m^2",
-                  "armature": "kg m^2", "joint_damping": "N m s/rad", "hip_offset": "m", "hip_motor": "type",
-                  "knee_motor": "type", "ankle_motor": "type"},
+        "units": {
+            "thigh_length": "m",
+            "shank_length": "m",
+            "standing_height": "m",
+            "hip_to_ankle": "m",
+            "segment_masses": "kg",
+            "joint_load_inertia": "kg m^2",
+            "joint_swing_inertia": "kg m^2",
+            "armature": "kg m^2",
+            "joint_damping": "N m s/rad",
+            "hip_offset": "m",
+            "hip_motor": "type",
+            "knee_motor": "type",
+            "ankle_motor": "type",
+        },
     }
     return RobotModel(
         design=_readonly(np.array(key)),

@@ -30,7 +30,14 @@ def box(mass: float, size: np.ndarray, centre: np.ndarray) -> Part:
     return Part(mass, np.asarray(centre, dtype=float), inertia)
 
 
-def cylinder(mass: float, radius: float, length: float, centre: np.ndarray, axis: str = "z", inner_radius: float = 0.0) -> Part:
+def cylinder(
+    mass: float,
+    radius: float,
+    length: float,
+    centre: np.ndarray,
+    axis: str = "z",
+    inner_radius: float = 0.0,
+) -> Part:
     """Solid (or hollow, with `inner_radius`) cylinder whose axis is `axis`."""
     r2 = radius * radius + inner_radius * inner_radius
     axial = 0.5 * mass * r2
@@ -75,7 +82,9 @@ def rotation_x(angle: float) -> np.ndarray:
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
-def inertia_about_axis(part: Part, rotation: np.ndarray, position: np.ndarray, point: np.ndarray, axis: np.ndarray) -> float:
+def inertia_about_axis(
+    part: Part, rotation: np.ndarray, position: np.ndarray, point: np.ndarray, axis: np.ndarray
+) -> float:
     """Moment of inertia of `part` (placed with `rotation`, `position` in some frame) about
     the line through `point` along unit `axis` (same frame)."""
     com = position + rotation @ part.com

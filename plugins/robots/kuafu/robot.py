@@ -24,7 +24,10 @@ _CONTINUOUS = (
     Continuous("shank_scale", *C.SCALE_BOUNDS, unit="x 0.35 m"),
 )
 _MOTORS = tuple(float(k) for k in sorted(C.MOTOR_TYPES))
-_DISCRETE = (Discrete("hip_motor", _MOTORS, unit="Table 8 type"), Discrete("knee_motor", _MOTORS, unit="Table 8 type"))
+_DISCRETE = (
+    Discrete("hip_motor", _MOTORS, unit="Table 8 type"),
+    Discrete("knee_motor", _MOTORS, unit="Table 8 type"),
+)
 
 
 class Kuafu(Robot):
@@ -32,7 +35,9 @@ class Kuafu(Robot):
 
     name: ClassVar[str] = "kuafu"
     default_rank: ClassVar[int] = 10  # the default --robot
-    description: ClassVar[str] = "Kuafu humanoid (42 kg, 1.6 m): thigh/shank scale in [0.5, 1.5], hip/knee motor types 1-3"
+    description: ClassVar[str] = (
+        "Kuafu humanoid (42 kg, 1.6 m): thigh/shank scale in [0.5, 1.5], hip/knee motor types 1-3"
+    )
 
     def design_space(self, mixed: bool = False) -> DesignSpace:
         return DesignSpace(_CONTINUOUS + _DISCRETE if mixed else _CONTINUOUS)
@@ -104,7 +109,9 @@ class Kuafu(Robot):
         reach = torch.minimum(torch.maximum(reach, (l0 - l1).abs() + 1e-9), (l0 + l1) * (1 - 1e-9))
         cos_knee = (reach * reach - l0 * l0 - l1 * l1) / (2.0 * l0 * l1)
         knee = torch.acos(cos_knee.clamp(-1.0, 1.0))  # [n, 2]
-        pitch = torch.atan2(-x, depth) - torch.atan2(l1 * torch.sin(knee), l0 + l1 * torch.cos(knee))
+        pitch = torch.atan2(-x, depth) - torch.atan2(
+            l1 * torch.sin(knee), l0 + l1 * torch.cos(knee)
+        )
         ankle = -(pitch + knee)
         q = torch.stack([roll, pitch, knee, ankle], dim=-1)  # [n, 2, 4] (leg, joint)
         return q.reshape(designs.shape[0], 8)

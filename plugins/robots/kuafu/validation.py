@@ -66,7 +66,11 @@ class _Indexer:
 
 
 def _standing_q(model: RobotModel, ix: _Indexer) -> np.ndarray:
-    return ix.q(np.array([0.0, 0.0, model.standing_base_height]), np.array([1.0, 0.0, 0.0, 0.0]), model.default_joint_pos)
+    return ix.q(
+        np.array([0.0, 0.0, model.standing_base_height]),
+        np.array([1.0, 0.0, 0.0, 0.0]),
+        model.default_joint_pos,
+    )
 
 
 def _convex_hull(points: np.ndarray) -> np.ndarray:
@@ -131,13 +135,17 @@ def _kinematics(pin, pmodel, pdata, model: RobotModel, q: np.ndarray) -> list[Fi
                 limit=expected,
             )
         )
-    inside = (model.joint_lower < model.default_joint_pos) & (model.default_joint_pos < model.joint_upper)
+    inside = (model.joint_lower < model.default_joint_pos) & (
+        model.default_joint_pos < model.joint_upper
+    )
     bad = [n for n, ok in zip(model.joint_names, inside, strict=True) if not ok]
     findings.append(
         Finding(
             "kinematics.joint_limits",
             not bad,
-            "lower < default < upper for all 8 joints" if not bad else f"default pose outside the limits of {', '.join(bad)}",
+            "lower < default < upper for all 8 joints"
+            if not bad
+            else f"default pose outside the limits of {', '.join(bad)}",
         )
     )
     base_z = float(q[2])
@@ -180,7 +188,9 @@ def _mass(pin, pmodel, pdata, model: RobotModel, q: np.ndarray) -> list[Finding]
     ]
 
 
-def _stance_torques(pin, pmodel, pdata, model: RobotModel, ix: _Indexer, q: np.ndarray, loads: dict[str, float]) -> np.ndarray:
+def _stance_torques(
+    pin, pmodel, pdata, model: RobotModel, ix: _Indexer, q: np.ndarray, loads: dict[str, float]
+) -> np.ndarray:
     """[8] joint torques holding the default pose statically with `loads` {foot: fraction
     of the weight}: tau = g(q) - sum_c J_c^T f_c, each foot's share a vertical force at its
     centre of pressure, the sole point closest to below the CoM."""
@@ -197,7 +207,9 @@ def _stance_torques(pin, pmodel, pdata, model: RobotModel, ix: _Indexer, q: np.n
         cop = np.array([*np.clip(com[:2], lo, hi), corners[:, 2].mean()])
         frame = pmodel.getFrameId(foot)
         placement = pdata.oMf[frame]
-        jac = pin.getFrameJacobian(pmodel, pdata, frame, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)  # [6, nv] at the frame origin
+        jac = pin.getFrameJacobian(
+            pmodel, pdata, frame, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        )  # [6, nv] at the frame origin
         # linear velocity of the CoP point: v_origin + w x r
         r = cop - placement.translation
         skew = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
@@ -229,7 +241,9 @@ def _statics(pin, pmodel, pdata, model: RobotModel, ix: _Indexer, q: np.ndarray)
     return findings
 
 
-def _pd_stability(pin, pmodel, pdata, model: RobotModel, ix: _Indexer, q: np.ndarray) -> list[Finding]:
+def _pd_stability(
+    pin, pmodel, pdata, model: RobotModel, ix: _Indexer, q: np.ndarray
+) -> list[Finding]:
     """The PD law is explicit in the physics step (torques written to ctrl), so a light
     chain with stiff gains can ring or diverge. Per joint, with the base held (a swinging
     leg) and I = 1 / (M^-1)_jj its effective inertia (armature included), the discrete
@@ -258,7 +272,9 @@ def _pd_stability(pin, pmodel, pdata, model: RobotModel, ix: _Indexer, q: np.nda
     ]
 
 
-def _random_configurations(model: RobotModel, count: int, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+def _random_configurations(
+    model: RobotModel, count: int, seed: int = 0
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     rng = np.random.default_rng(seed)
     out = []
     for _ in range(count):
@@ -280,7 +296,9 @@ def _quat_to_matrix(wxyz: np.ndarray) -> np.ndarray:
     )
 
 
-def consistency(model: RobotModel, pmodel=None, count: int = RANDOM_CONFIGURATIONS, seed: int = 0) -> dict[str, float]:
+def consistency(
+    model: RobotModel, pmodel=None, count: int = RANDOM_CONFIGURATIONS, seed: int = 0
+) -> dict[str, float]:
     """Worst disagreement between MuJoCo (MJCF) and Pinocchio (URDF) over `count` random
     configurations: total mass (relative), CoM and foot positions (m), joint-space mass
     matrix (max abs difference / max abs entry). MuJoCo's free joint takes the linear
@@ -294,12 +312,23 @@ def consistency(model: RobotModel, pmodel=None, count: int = RANDOM_CONFIGURATIO
     ix = _Indexer(pmodel, model.joint_names)
     mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
     md = mujoco.MjData(mj)
-    qadr = np.array([mj.jnt_qposadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, n)] for n in model.joint_names])
-    vadr = np.array([mj.jnt_dofadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, n)] for n in model.joint_names])
+    qadr = np.array(
+        [
+            mj.jnt_qposadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, n)]
+            for n in model.joint_names
+        ]
+    )
+    vadr = np.array(
+        [
+            mj.jnt_dofadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, n)]
+            for n in model.joint_names
+        ]
+    )
     base_id = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, model.base_body)
     foot_ids = [mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, f) for f in model.foot_bodies]
     worst = {
-        "mass": abs(float(mj.body_subtreemass[0]) - float(pin.computeTotalMass(pmodel))) / float(mj.body_subtreemass[0]),
+        "mass": abs(float(mj.body_subtreemass[0]) - float(pin.computeTotalMass(pmodel)))
+        / float(mj.body_subtreemass[0]),
         "com": 0.0,
         "feet": 0.0,
         "mass_matrix": 0.0,
@@ -326,7 +355,9 @@ def consistency(model: RobotModel, pmodel=None, count: int = RANDOM_CONFIGURATIO
         m_expected = t.T @ m_pin @ t
         mj_order = np.concatenate([np.arange(6), vadr])
         m_mj = full[np.ix_(mj_order, mj_order)]
-        worst["mass_matrix"] = max(worst["mass_matrix"], float(np.abs(m_mj - m_expected).max() / np.abs(m_mj).max()))
+        worst["mass_matrix"] = max(
+            worst["mass_matrix"], float(np.abs(m_mj - m_expected).max() / np.abs(m_mj).max())
+        )
     return worst
 
 

@@ -82,7 +82,10 @@ def hip_centre(leg: str) -> np.ndarray:
 #: type 1: the Go1 joint motor (23.7 N m, 30.1 rad/s); type 2: the same motor behind the Go1
 #: knee's further 1.5 reduction (35.55 N m, 20.06 rad/s). Assumption: the extra stage weighs
 #: nothing and adds no reflected inertia (the Go1 MJCF gives every joint armature 0.01)
-MOTOR_TYPES = {1: {"torque_limit": 23.7, "speed_limit": 30.1}, 2: {"torque_limit": 35.55, "speed_limit": 20.06}}
+MOTOR_TYPES = {
+    1: {"torque_limit": 23.7, "speed_limit": 30.1},
+    2: {"torque_limit": 35.55, "speed_limit": 20.06},
+}
 #: the Go1's own: type 1 at the abduction and hip joints, type 2 at the knee
 NOMINAL_HIP_MOTOR, NOMINAL_KNEE_MOTOR = 1, 2
 #: the abduction joint always carries a type-1 motor (not a design variable)

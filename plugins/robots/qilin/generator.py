@@ -65,8 +65,11 @@ def thigh_part(design: QilinDesign) -> Part:
     com_z = rod * (-length / 2) / mass
     # parallel-axis shifts of both parts to the common centre of mass (along z only)
     shift = C.THIGH_MOTOR_MASS * com_z**2 + rod * (-length / 2 - com_z) ** 2
-    inertia = (_cylinder_y(C.THIGH_MOTOR_MASS, C.MOTOR_RADIUS, C.MOTOR_LENGTH) + _rod_z(rod, 0.015, length)
-               + np.array([shift, shift, 0.0]))
+    inertia = (
+        _cylinder_y(C.THIGH_MOTOR_MASS, C.MOTOR_RADIUS, C.MOTOR_LENGTH)
+        + _rod_z(rod, 0.015, length)
+        + np.array([shift, shift, 0.0])
+    )
     return Part(mass, np.array([0.0, 0.0, com_z]), inertia)
 
 
@@ -89,7 +92,9 @@ def base_part() -> Part:
 
 
 def total_mass(design: QilinDesign) -> float:
-    return C.TRUNK_MASS + len(C.LEGS) * (C.HIP_MASS + thigh_part(design).mass + calf_part(design).mass + C.FOOT_MASS)
+    return C.TRUNK_MASS + len(C.LEGS) * (
+        C.HIP_MASS + thigh_part(design).mass + calf_part(design).mass + C.FOOT_MASS
+    )
 
 
 def stance_depth(design: QilinDesign) -> float:
@@ -147,14 +152,20 @@ def _mj_inertial(p: Part) -> str:
 
 def _urdf_inertial(p: Part) -> str:
     i = p.inertia
-    return (f'<inertial><origin xyz="{_v(p.com)}" rpy="0 0 0"/><mass value="{_f(p.mass)}"/>'
-            f'<inertia ixx="{_f(i[0])}" ixy="0" ixz="0" iyy="{_f(i[1])}" iyz="0" izz="{_f(i[2])}"/></inertial>')
+    return (
+        f'<inertial><origin xyz="{_v(p.com)}" rpy="0 0 0"/><mass value="{_f(p.mass)}"/>'
+        f'<inertia ixx="{_f(i[0])}" ixy="0" ixz="0" iyy="{_f(i[1])}" iyz="0" izz="{_f(i[2])}"/></inertial>'
+    )
 
 
 def _leg_frames(design: QilinDesign, leg: str) -> list[np.ndarray]:
     """Origins of the hip, thigh, calf and foot frames, each in its parent's frame."""
-    return [C.hip_centre(leg), np.array([0.0, C.side(leg) * C.THIGH_OFFSET, 0.0]),
-            np.array([0.0, 0.0, -design.thigh]), np.array([0.0, 0.0, -design.calf])]
+    return [
+        C.hip_centre(leg),
+        np.array([0.0, C.side(leg) * C.THIGH_OFFSET, 0.0]),
+        np.array([0.0, 0.0, -design.thigh]),
+        np.array([0.0, 0.0, -design.calf]),
+    ]
 
 
 def _mjcf(design: QilinDesign, torque: np.ndarray, height: float) -> str:
@@ -200,14 +211,19 @@ def _mjcf(design: QilinDesign, torque: np.ndarray, height: float) -> str:
             "      </body>",
         ]
     out += ["    </body>", "  </worldbody>", "  <actuator>"]
-    out += [f'    <motor name="{n}" joint="{n}" ctrlrange="{_f(-t)} {_f(t)}"/>' for n, t in zip(C.JOINT_NAMES, torque, strict=True)]
+    out += [
+        f'    <motor name="{n}" joint="{n}" ctrlrange="{_f(-t)} {_f(t)}"/>'
+        for n, t in zip(C.JOINT_NAMES, torque, strict=True)
+    ]
     return "\n".join([*out, "  </actuator>", "</mujoco>", ""])
 
 
 def _link(name: str, part: Part, geometry: str, xyz) -> str:
     shape = f'<origin xyz="{_v(xyz)}" rpy="0 0 0"/><geometry>{geometry}</geometry>'
-    return (f'  <link name="{name}">{_urdf_inertial(part)}'
-            f"<visual>{shape}</visual><collision>{shape}</collision></link>")
+    return (
+        f'  <link name="{name}">{_urdf_inertial(part)}'
+        f"<visual>{shape}</visual><collision>{shape}</collision></link>"
+    )
 
 
 def _urdf(design: QilinDesign, torque: np.ndarray, speed: np.ndarray) -> str:
@@ -222,24 +238,30 @@ def _urdf(design: QilinDesign, torque: np.ndarray, speed: np.ndarray) -> str:
     for i, leg in enumerate(C.LEGS):
         frames = _leg_frames(design, leg)
         links = [f"{leg}_hip", f"{leg}_thigh", f"{leg}_calf", f"{leg}_foot"]
-        shapes = [(f'<cylinder radius="{_f(C.MOTOR_RADIUS)}" length="0.04"/>', np.zeros(3)),
-                  (f'<cylinder radius="0.015" length="{_f(design.thigh)}"/>', [0, 0, -design.thigh / 2]),
-                  (f'<cylinder radius="0.01" length="{_f(design.calf)}"/>', [0, 0, -design.calf / 2]),
-                  (f'<sphere radius="{_f(C.FOOT_RADIUS)}"/>', np.zeros(3))]
+        shapes = [
+            (f'<cylinder radius="{_f(C.MOTOR_RADIUS)}" length="0.04"/>', np.zeros(3)),
+            (f'<cylinder radius="0.015" length="{_f(design.thigh)}"/>', [0, 0, -design.thigh / 2]),
+            (f'<cylinder radius="0.01" length="{_f(design.calf)}"/>', [0, 0, -design.calf / 2]),
+            (f'<sphere radius="{_f(C.FOOT_RADIUS)}"/>', np.zeros(3)),
+        ]
         for k, link in enumerate(links):
             out.append(_link(link, parts[k], *shapes[k]))
             parent = C.BASE_BODY if k == 0 else links[k - 1]
             origin = f'<origin xyz="{_v(frames[k])}" rpy="0 0 0"/>'
             if k == 3:
-                out.append(f'  <joint name="{leg}_foot_fixed" type="fixed"><parent link="{parent}"/>'
-                           f'<child link="{link}"/>{origin}</joint>')
+                out.append(
+                    f'  <joint name="{leg}_foot_fixed" type="fixed"><parent link="{parent}"/>'
+                    f'<child link="{link}"/>{origin}</joint>'
+                )
                 continue
             j, n = C.JOINTS[k], 3 * i + k
             lo, hi = C.JOINT_RANGES[j]
-            out.append(f'  <joint name="{leg}_{j}" type="revolute"><parent link="{parent}"/><child link="{link}"/>'
-                       f'{origin}<axis xyz="{"1 0 0" if k == 0 else "0 1 0"}"/><limit lower="{_f(lo)}" upper="{_f(hi)}" '
-                       f'effort="{_f(torque[n])}" velocity="{_f(speed[n])}"/>'
-                       f'<dynamics damping="{_f(C.JOINT_DAMPING)}" friction="0"/></joint>')
+            out.append(
+                f'  <joint name="{leg}_{j}" type="revolute"><parent link="{parent}"/><child link="{link}"/>'
+                f'{origin}<axis xyz="{"1 0 0" if k == 0 else "0 1 0"}"/><limit lower="{_f(lo)}" upper="{_f(hi)}" '
+                f'effort="{_f(torque[n])}" velocity="{_f(speed[n])}"/>'
+                f'<dynamics damping="{_f(C.JOINT_DAMPING)}" friction="0"/></joint>'
+            )
     return "\n".join([*out, "</robot>", ""])
 
 
@@ -261,18 +283,34 @@ def build_cached(key: tuple[float, ...]) -> RobotModel:
     lower = [C.JOINT_RANGES[j][0] for _ in C.LEGS for j in C.JOINTS]
     upper = [C.JOINT_RANGES[j][1] for _ in C.LEGS for j in C.JOINTS]
     info = {
-        "thigh_length": design.thigh, "calf_length": design.calf, "hip_motor": design.hip_motor,
+        "thigh_length": design.thigh,
+        "calf_length": design.calf,
+        "hip_motor": design.hip_motor,
         "knee_motor": design.knee_motor,
-        "segment_masses": {"base": C.TRUNK_MASS, "hip": C.HIP_MASS, "thigh": thigh_part(design).mass,
-                           "calf": calf_part(design).mass, "foot": C.FOOT_MASS},
+        "segment_masses": {
+            "base": C.TRUNK_MASS,
+            "hip": C.HIP_MASS,
+            "thigh": thigh_part(design).mass,
+            "calf": calf_part(design).mass,
+            "foot": C.FOOT_MASS,
+        },
         "armature": _readonly(np.full(n, C.ARMATURE)),
         "joint_damping": _readonly(np.full(n, C.JOINT_DAMPING)),
-        "units": {"thigh_length": "m", "calf_length": "m", "segment_masses": "kg",
-                  "armature": "kg m^2", "joint_damping": "N m s/rad", "hip_motor": "type", "knee_motor": "type"},
+        "units": {
+            "thigh_length": "m",
+            "calf_length": "m",
+            "segment_masses": "kg",
+            "armature": "kg m^2",
+            "joint_damping": "N m s/rad",
+            "hip_motor": "type",
+            "knee_motor": "type",
+        },
     }
     return RobotModel(
         design=_readonly(np.array(key)),
-        formats=MappingProxyType({"mjcf": _mjcf(design, torque, height), "urdf": _urdf(design, torque, speed)}),
+        formats=MappingProxyType(
+            {"mjcf": _mjcf(design, torque, height), "urdf": _urdf(design, torque, speed)}
+        ),
         base_body=C.BASE_BODY,
         joint_names=list(C.JOINT_NAMES),
         foot_bodies=list(C.FOOT_BODIES),

@@ -24,7 +24,10 @@ _CONTINUOUS = (
     Continuous("calf_scale", *C.SCALE_BOUNDS, unit=f"x {C.NOMINAL_CALF} m"),
 )
 _MOTORS = tuple(float(k) for k in sorted(C.MOTOR_TYPES))
-_DISCRETE = (Discrete("hip_motor", _MOTORS, unit="type"), Discrete("knee_motor", _MOTORS, unit="type"))
+_DISCRETE = (
+    Discrete("hip_motor", _MOTORS, unit="type"),
+    Discrete("knee_motor", _MOTORS, unit="type"),
+)
 
 
 class Qilin(Robot):
@@ -32,8 +35,10 @@ class Qilin(Robot):
     hip/knee motor types when mixed)."""
 
     name: ClassVar[str] = "qilin"
-    description: ClassVar[str] = ("quadruped modelled on the Unitree Go1 (12.7 kg, 12 joints): thigh/calf scale in "
-                                  "[0.7, 1.3], hip/knee motor types 1-2")
+    description: ClassVar[str] = (
+        "quadruped modelled on the Unitree Go1 (12.7 kg, 12 joints): thigh/calf scale in "
+        "[0.7, 1.3], hip/knee motor types 1-2"
+    )
 
     def design_space(self, mixed: bool = False) -> DesignSpace:
         return DesignSpace(_CONTINUOUS + _DISCRETE if mixed else _CONTINUOUS)
@@ -49,8 +54,11 @@ class Qilin(Robot):
         """The design as a validated float vector; `DesignError` naming what is accepted."""
         values = np.atleast_1d(np.asarray(design, dtype=float))
         if values.ndim != 1 or values.shape[0] not in (2, 4):
-            raise DesignError(f"qilin design needs 2 values (thigh_scale, calf_scale) or 4 values (thigh_scale, "
-                              f"calf_scale, hip_motor, knee_motor), got {values.size}", field="design")
+            raise DesignError(
+                f"qilin design needs 2 values (thigh_scale, calf_scale) or 4 values (thigh_scale, "
+                f"calf_scale, hip_motor, knee_motor), got {values.size}",
+                field="design",
+            )
         return self.design_space(values.shape[0] == 4).validate(values)
 
     def build(self, design: np.ndarray) -> RobotModel:
@@ -80,7 +88,9 @@ class Qilin(Robot):
         import torch
 
         thigh, calf = self._lengths(designs)
-        feet = torch.zeros(designs.shape[0], len(C.LEGS), 3, dtype=designs.dtype, device=designs.device)
+        feet = torch.zeros(
+            designs.shape[0], len(C.LEGS), 3, dtype=designs.dtype, device=designs.device
+        )
         feet[:, :, 2] = -C.STANCE_SHARE * (thigh + calf)
         return feet
 
@@ -93,7 +103,9 @@ class Qilin(Robot):
         import torch
 
         thigh, calf = self._lengths(designs)  # [n, 1]
-        sides = torch.tensor([C.side(leg) for leg in C.LEGS], dtype=designs.dtype, device=designs.device)
+        sides = torch.tensor(
+            [C.side(leg) for leg in C.LEGS], dtype=designs.dtype, device=designs.device
+        )
         offset = sides * C.THIGH_OFFSET  # [4] the hip-pitch joint's y from the abduction axis
         x = foot_pos[..., 0]
         y = foot_pos[..., 1] + offset  # [n, 4] relative to the abduction axis
@@ -103,7 +115,15 @@ class Qilin(Robot):
         abduction = torch.atan2(z, y) - torch.atan2(-depth, offset)
         abduction = torch.remainder(abduction + torch.pi, 2 * torch.pi) - torch.pi
         reach = torch.sqrt(x * x + depth * depth)
-        reach = torch.minimum(torch.maximum(reach, (thigh - calf).abs() + 1e-9), (thigh + calf) * (1 - 1e-9))
-        knee = -torch.acos(((reach * reach - thigh * thigh - calf * calf) / (2 * thigh * calf)).clamp(-1.0, 1.0))
-        hip = torch.atan2(-x, depth) - torch.atan2(calf * torch.sin(knee), thigh + calf * torch.cos(knee))
-        return torch.stack([abduction, hip, knee], dim=-1).reshape(designs.shape[0], 3 * len(C.LEGS))
+        reach = torch.minimum(
+            torch.maximum(reach, (thigh - calf).abs() + 1e-9), (thigh + calf) * (1 - 1e-9)
+        )
+        knee = -torch.acos(
+            ((reach * reach - thigh * thigh - calf * calf) / (2 * thigh * calf)).clamp(-1.0, 1.0)
+        )
+        hip = torch.atan2(-x, depth) - torch.atan2(
+            calf * torch.sin(knee), thigh + calf * torch.cos(knee)
+        )
+        return torch.stack([abduction, hip, knee], dim=-1).reshape(
+            designs.shape[0], 3 * len(C.LEGS)
+        )

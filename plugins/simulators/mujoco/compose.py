@@ -58,7 +58,9 @@ def terrain_normal(terrain: Terrain) -> np.ndarray:
     return np.array([-math.sin(a), 0.0, math.cos(a)])
 
 
-def compose_spec(robot_model: RobotModel, terrain: Terrain, *, physics_dt: float, fixed_base: bool) -> mujoco.MjSpec:
+def compose_spec(
+    robot_model: RobotModel, terrain: Terrain, *, physics_dt: float, fixed_base: bool
+) -> mujoco.MjSpec:
     spec = mujoco.MjSpec.from_string(robot_model.text("mjcf"))
     spec.option.timestep = physics_dt
     world = spec.worldbody
@@ -75,18 +77,30 @@ def compose_spec(robot_model: RobotModel, terrain: Terrain, *, physics_dt: float
             userdata=(grid / terrain.max_height).ravel().tolist(),
         )
         world.add_geom(
-            name=TERRAIN_GEOM, type=mujoco.mjtGeom.mjGEOM_HFIELD, hfieldname=HFIELD, contype=0, conaffinity=1
+            name=TERRAIN_GEOM,
+            type=mujoco.mjtGeom.mjGEOM_HFIELD,
+            hfieldname=HFIELD,
+            contype=0,
+            conaffinity=1,
         )
         world.add_geom(
-            name=FLOOR_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1],
-            pos=[0, 0, -FLOOR_BELOW_FIELD], contype=0, conaffinity=1,
+            name=FLOOR_GEOM,
+            type=mujoco.mjtGeom.mjGEOM_PLANE,
+            size=[0, 0, 1],
+            pos=[0, 0, -FLOOR_BELOW_FIELD],
+            contype=0,
+            conaffinity=1,
         )
     else:
         # slope: the plane rotated about y by -angle so it rises along +x
         half = -terrain.slope_radians / 2
         world.add_geom(
-            name=TERRAIN_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1],
-            quat=[math.cos(half), 0.0, math.sin(half), 0.0], contype=0, conaffinity=1,
+            name=TERRAIN_GEOM,
+            type=mujoco.mjtGeom.mjGEOM_PLANE,
+            size=[0, 0, 1],
+            quat=[math.cos(half), 0.0, math.sin(half), 0.0],
+            contype=0,
+            conaffinity=1,
         )
     # The envelope in coadapt_core.physics.actuation is the one torque limit; MuJoCo's own ctrl
     # clamp would be a second, possibly different one (rounding of the MJCF's ctrlrange).
@@ -112,7 +126,12 @@ def compose_spec(robot_model: RobotModel, terrain: Terrain, *, physics_dt: float
 
 
 def compile_design(
-    robot: Robot, design: np.ndarray, terrain: Terrain, *, physics_dt: float, fixed_base: bool,
+    robot: Robot,
+    design: np.ndarray,
+    terrain: Terrain,
+    *,
+    physics_dt: float,
+    fixed_base: bool,
     robot_model: RobotModel | None = None,
 ) -> CompiledDesign:
     rm = robot_model if robot_model is not None else robot.build(design)
@@ -120,7 +139,10 @@ def compile_design(
     try:
         model = spec.compile()
     except ValueError as exc:
-        raise UserError(f"design {np.round(design, 4).tolist()}: MuJoCo cannot compile its model: {exc}", field="design") from None
+        raise UserError(
+            f"design {np.round(design, 4).tolist()}: MuJoCo cannot compile its model: {exc}",
+            field="design",
+        ) from None
     if terrain.name == "random":
         # exact heights (the compiler may renormalise user elevation data)
         hid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_HFIELD, HFIELD)
@@ -130,10 +152,17 @@ def compile_design(
     base_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, rm.base_body)
     if base_id < 0:
         raise UserError(f"robot model has no base body '{rm.base_body}'", field="robot")
-    if not fixed_base and (model.body_jntnum[base_id] < 1 or model.jnt_type[model.body_jntadr[base_id]] != mujoco.mjtJoint.mjJNT_FREE):
+    if not fixed_base and (
+        model.body_jntnum[base_id] < 1
+        or model.jnt_type[model.body_jntadr[base_id]] != mujoco.mjtJoint.mjJNT_FREE
+    ):
         raise UserError(f"robot base body '{rm.base_body}' has no free joint", field="robot")
-    foot_ids = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f) for f in rm.foot_bodies])
-    jids = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in rm.joint_names])
+    foot_ids = np.array(
+        [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f) for f in rm.foot_bodies]
+    )
+    jids = np.array(
+        [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in rm.joint_names]
+    )
     if np.any(jids < 0) or np.any(foot_ids < 0):
         raise UserError("robot model lacks a joint or foot body it names", field="robot")
     actuator_ids = np.full(len(jids), -1)
@@ -179,11 +208,24 @@ class ModelCache:
         self.misses = 0
 
     def get(
-        self, robot: Robot, design: np.ndarray, terrain: Terrain, *, physics_dt: float, fixed_base: bool
+        self,
+        robot: Robot,
+        design: np.ndarray,
+        terrain: Terrain,
+        *,
+        physics_dt: float,
+        fixed_base: bool,
     ) -> CompiledDesign:
         # the robot's class as well as its name: a subclass (a test's planted fault, a
         # variant) named like its parent builds other models and must not read the parent's
-        key = (type(robot), robot.name, tuple(np.round(np.asarray(design, dtype=float), 12)), terrain, fixed_base, physics_dt)
+        key = (
+            type(robot),
+            robot.name,
+            tuple(np.round(np.asarray(design, dtype=float), 12)),
+            terrain,
+            fixed_base,
+            physics_dt,
+        )
         item = self._items.get(key)
         if item is not None:
             self.hits += 1

@@ -44,7 +44,9 @@ def pd_torque(spec: dict, target: np.ndarray, q: np.ndarray, dq: np.ndarray) -> 
 
 
 def terrain_height(spec: dict, terrain: str, x: float) -> float:
-    return x * math.tan(math.radians(spec["terrain"]["slope_degrees"])) if terrain == "slope" else 0.0
+    return (
+        x * math.tan(math.radians(spec["terrain"]["slope_degrees"])) if terrain == "slope" else 0.0
+    )
 
 
 class Robot:
@@ -60,9 +62,14 @@ class Robot:
         slope = math.radians(spec["terrain"]["slope_degrees"]) if terrain == "slope" else 0.0
         # the plane rotated about y by -slope rises along +x; conaffinity 1 meets the robot's
         # contact geoms (contype 1, conaffinity 0)
-        mjspec.worldbody.add_geom(name="ground", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1],
-                                  quat=[math.cos(-slope / 2), 0.0, math.sin(-slope / 2), 0.0],
-                                  contype=0, conaffinity=1)
+        mjspec.worldbody.add_geom(
+            name="ground",
+            type=mujoco.mjtGeom.mjGEOM_PLANE,
+            size=[0, 0, 1],
+            quat=[math.cos(-slope / 2), 0.0, math.sin(-slope / 2), 0.0],
+            contype=0,
+            conaffinity=1,
+        )
         for actuator in mjspec.actuators:  # the motor envelope below is the one torque limit
             actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
         self.model = model = mjspec.compile()
@@ -105,7 +112,12 @@ class Robot:
         """(position [3] world, quaternion [4], linear velocity [3] world, angular velocity [3] base frame)."""
         q, v = self.data.qpos, self.data.qvel
         b, w = self.base_q, self.base_v
-        return q[b : b + 3].copy(), q[b + 3 : b + 7].copy(), v[w : w + 3].copy(), v[w + 3 : w + 6].copy()
+        return (
+            q[b : b + 3].copy(),
+            q[b + 3 : b + 7].copy(),
+            v[w : w + 3].copy(),
+            v[w + 3 : w + 6].copy(),
+        )
 
 
 class Controller:
@@ -116,14 +128,20 @@ class Controller:
 
         options = ort.SessionOptions()
         options.intra_op_num_threads = 1
-        self.session = ort.InferenceSession(str(onnx_path), options, providers=["CPUExecutionProvider"])
+        self.session = ort.InferenceSession(
+            str(onnx_path), options, providers=["CPUExecutionProvider"]
+        )
         self.spec = spec
         self.command = np.asarray(command, dtype=float)
         joints = len(spec["action"]["joint_order"])
         self.history = np.zeros((spec["observation"]["history"], joints))  # newest first
         gait = spec["gait"]
         self.moving = bool(np.abs(self.command).sum() > 0)
-        self.phase = phase if (self.moving or not gait["freeze_on_zero_command"]) else gait["zero_command_phase"]
+        self.phase = (
+            phase
+            if (self.moving or not gait["freeze_on_zero_command"])
+            else gait["zero_command_phase"]
+        )
 
     def observe(self, robot: Robot) -> np.ndarray:
         _, quat, lin_world, ang_base = robot.base()
@@ -135,7 +153,9 @@ class Controller:
             "joint_pos": robot.data.qpos[robot.qadr] - robot.default,
             "joint_vel": robot.data.qvel[robot.dadr],
             "action_history": self.history.reshape(-1),
-            "clock": np.array([math.sin(2 * math.pi * self.phase), math.cos(2 * math.pi * self.phase)]),
+            "clock": np.array(
+                [math.sin(2 * math.pi * self.phase), math.cos(2 * math.pi * self.phase)]
+            ),
         }
         obs = np.concatenate([parts[item["name"]] for item in self.spec["observation"]["slices"]])
         return obs.astype(np.float32)[None, :]  # [1, num_obs]
@@ -159,7 +179,9 @@ def fell(spec: dict, robot: Robot) -> bool:
     height = pos[2] - terrain_height(spec, robot.terrain, pos[0])
     gravity_z = quat_rotate_inverse(quat, np.array([0.0, 0.0, -1.0]))[2]
     end = spec["termination"]
-    return bool(height < end["min_base_height"] * robot.standing_height or gravity_z > -end["max_tilt_cos"])
+    return bool(
+        height < end["min_base_height"] * robot.standing_height or gravity_z > -end["max_tilt_cos"]
+    )
 
 
 def check_reference(spec: dict, folder: Path) -> tuple[float, int] | None:
@@ -170,14 +192,24 @@ def check_reference(spec: dict, folder: Path) -> tuple[float, int] | None:
     import onnxruntime as ort
 
     data = np.load(path, allow_pickle=False)
-    session = ort.InferenceSession(str(folder / spec["files"]["onnx"]), providers=["CPUExecutionProvider"])
+    session = ort.InferenceSession(
+        str(folder / spec["files"]["onnx"]), providers=["CPUExecutionProvider"]
+    )
     (actions,) = session.run(["actions"], {"obs": data["obs"].astype(np.float32)})
     return float(np.max(np.abs(actions - data["actions"]))), len(actions)
 
 
-def walk(folder: Path, seconds: float, command: list[float], terrain: str | None = None, phase: float = 0.0) -> dict:
+def walk(
+    folder: Path,
+    seconds: float,
+    command: list[float],
+    terrain: str | None = None,
+    phase: float = 0.0,
+) -> dict:
     spec = json.loads((folder / "policy.json").read_text())
-    terrain = terrain or (spec["terrain"]["name"] if spec["terrain"]["name"] in ("flat", "slope") else "flat")
+    terrain = terrain or (
+        spec["terrain"]["name"] if spec["terrain"]["name"] in ("flat", "slope") else "flat"
+    )
     robot = Robot(spec, folder, terrain)
     robot.reset()
     controller = Controller(spec, folder / spec["files"]["onnx"], np.array(command), phase)
@@ -210,14 +242,26 @@ def walk(folder: Path, seconds: float, command: list[float], terrain: str | None
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description="Walk this folder's robot with its ONNX controller in MuJoCo.")
-    parser.add_argument("--seconds", type=float, default=10.0, help="simulated seconds (default 10)")
-    parser.add_argument("--vx", type=float, default=0.5, help="forward velocity command, m/s (default 0.5)")
+    parser = argparse.ArgumentParser(
+        description="Walk this folder's robot with its ONNX controller in MuJoCo."
+    )
+    parser.add_argument(
+        "--seconds", type=float, default=10.0, help="simulated seconds (default 10)"
+    )
+    parser.add_argument(
+        "--vx", type=float, default=0.5, help="forward velocity command, m/s (default 0.5)"
+    )
     parser.add_argument("--vy", type=float, default=0.0, help="lateral velocity command, m/s")
     parser.add_argument("--yaw", type=float, default=0.0, help="yaw-rate command, rad/s")
-    parser.add_argument("--terrain", choices=("flat", "slope"), default=None,
-                        help="ground (default: the one the policy was trained on; flat for the random terrain)")
-    parser.add_argument("--phase", type=float, default=0.0, help="initial gait clock phase in [0, 1)")
+    parser.add_argument(
+        "--terrain",
+        choices=("flat", "slope"),
+        default=None,
+        help="ground (default: the one the policy was trained on; flat for the random terrain)",
+    )
+    parser.add_argument(
+        "--phase", type=float, default=0.0, help="initial gait clock phase in [0, 1)"
+    )
     parser.add_argument("--json", action="store_true", help="print the result as one JSON line")
     args = parser.parse_args(argv)
     if not (args.seconds > 0 and 0.0 <= args.phase < 1.0):
@@ -233,14 +277,21 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(result))
     else:
         if difference is not None:
-            print(f"ONNX vs torch on {rows} recorded observations (reference.npz): "
-                  f"max |action difference| {difference:.2e} (tolerance {tolerance:g})")
-        print(f"{spec['robot']} {spec['design_text']} on {result['terrain']} ground, command vx {args.vx:g} m/s "
-              f"vy {args.vy:g} m/s yaw {args.yaw:g} rad/s for {args.seconds:g} s: survival {result['survival']:.2f} "
-              f"({result['survived_seconds']:.2f} s), mean forward speed {result['vx_mean']:.3f} m/s, "
-              f"distance {result['distance_x']:.2f} m, lateral drift {result['lateral_drift']:+.2f} m")
+            print(
+                f"ONNX vs torch on {rows} recorded observations (reference.npz): "
+                f"max |action difference| {difference:.2e} (tolerance {tolerance:g})"
+            )
+        print(
+            f"{spec['robot']} {spec['design_text']} on {result['terrain']} ground, command vx {args.vx:g} m/s "
+            f"vy {args.vy:g} m/s yaw {args.yaw:g} rad/s for {args.seconds:g} s: survival {result['survival']:.2f} "
+            f"({result['survived_seconds']:.2f} s), mean forward speed {result['vx_mean']:.3f} m/s, "
+            f"distance {result['distance_x']:.2f} m, lateral drift {result['lateral_drift']:+.2f} m"
+        )
     if difference is not None and difference > tolerance:
-        print(f"error: the ONNX controller differs from the torch policy by {difference:.2e} > {tolerance:g}", file=sys.stderr)
+        print(
+            f"error: the ONNX controller differs from the torch policy by {difference:.2e} > {tolerance:g}",
+            file=sys.stderr,
+        )
         return 1
     return 0
 

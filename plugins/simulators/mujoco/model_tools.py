@@ -22,13 +22,19 @@ def _compiled(model: Any) -> mujoco.MjModel:
     return mujoco.MjModel.from_xml_string(model.text(MODEL_FORMAT))
 
 
-def _pose(mj: mujoco.MjModel, model: Any, joint_pos: np.ndarray, base_height: float | None = None) -> mujoco.MjData:
+def _pose(
+    mj: mujoco.MjModel, model: Any, joint_pos: np.ndarray, base_height: float | None = None
+) -> mujoco.MjData:
     """Data with the actuated joints at `joint_pos` (the base at its reference placement, or
     upright at `base_height` when it has a free joint), kinematics computed."""
     data = mujoco.MjData(mj)
     base = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, model.base_body)
-    if (base_height is not None and base >= 0 and mj.body_jntnum[base] > 0
-            and mj.jnt_type[mj.body_jntadr[base]] == mujoco.mjtJoint.mjJNT_FREE):
+    if (
+        base_height is not None
+        and base >= 0
+        and mj.body_jntnum[base] > 0
+        and mj.jnt_type[mj.body_jntadr[base]] == mujoco.mjtJoint.mjJNT_FREE
+    ):
         adr = mj.jnt_qposadr[mj.body_jntadr[base]]
         data.qpos[adr : adr + 7] = [0.0, 0.0, base_height, 1.0, 0.0, 0.0, 0.0]
     for name, q in zip(model.joint_names, joint_pos, strict=True):
@@ -45,24 +51,33 @@ def link_facts(model: Any) -> dict[str, Any]:
     links = []
     for b in range(1, mj.nbody):
         parent = int(mj.body_parentid[b])
-        joints = [mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_JOINT, j)
-                  for j in range(mj.body_jntadr[b], mj.body_jntadr[b] + mj.body_jntnum[b])]
-        links.append({
-            "name": mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_BODY, b) or f"body{b}",
-            "parent": (mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_BODY, parent) or "world") if parent else "world",
-            "joints": [j for j in joints if j],
-            "offset_from_parent": float(np.linalg.norm(mj.body_pos[b])) if parent else None,
-            "mass": float(mj.body_mass[b]),
-            "com": [float(x) for x in mj.body_ipos[b]],
-            "principal_inertia": [float(x) for x in mj.body_inertia[b]],
-        })
+        joints = [
+            mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_JOINT, j)
+            for j in range(mj.body_jntadr[b], mj.body_jntadr[b] + mj.body_jntnum[b])
+        ]
+        links.append(
+            {
+                "name": mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_BODY, b) or f"body{b}",
+                "parent": (mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_BODY, parent) or "world")
+                if parent
+                else "world",
+                "joints": [j for j in joints if j],
+                "offset_from_parent": float(np.linalg.norm(mj.body_pos[b])) if parent else None,
+                "mass": float(mj.body_mass[b]),
+                "com": [float(x) for x in mj.body_ipos[b]],
+                "principal_inertia": [float(x) for x in mj.body_inertia[b]],
+            }
+        )
     # height: the geoms' bounding boxes at the default pose, the base at its standing height
     low, high = math.inf, -math.inf
     for g in range(mj.ngeom):
         if mj.geom_bodyid[g] == 0:
             continue
         centre, half = mj.geom_aabb[g, :3], mj.geom_aabb[g, 3:]
-        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half + centre
+        corners = (
+            np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
+            + centre
+        )
         z = data.geom_xpos[g, 2] + corners @ data.geom_xmat[g].reshape(3, 3)[2]
         low, high = min(low, float(z.min())), max(high, float(z.max()))
     return {
@@ -86,8 +101,12 @@ def foot_positions(model: Any, joint_pos: np.ndarray) -> np.ndarray:
 def actuated_joints(model: Any) -> list[str | None]:
     """The joint each actuator drives, in actuator order (None: it drives no joint)."""
     mj = _compiled(model)
-    return [mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_JOINT, int(mj.actuator_trnid[a, 0]))
-            if mj.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT else None for a in range(mj.nu)]
+    return [
+        mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_JOINT, int(mj.actuator_trnid[a, 0]))
+        if mj.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
+        else None
+        for a in range(mj.nu)
+    ]
 
 
 def handoff_usage(rates: dict[str, Any], model_file: str) -> str:
@@ -95,8 +114,8 @@ def handoff_usage(rates: dict[str, Any], model_file: str) -> str:
     return f"""## Load the model and run the controller (numpy, mujoco, onnxruntime)
 
 The policy was trained with the robot on a ground plane at a physics step of
-{rates['physics_dt']:g} s and a policy period of {rates['control_dt']:g} s ({rates['decimation']} physics steps per
-action, {rates['control_hz']:g} Hz). `check.py` is the full version of this (clock, falls, speed):
+{rates["physics_dt"]:g} s and a policy period of {rates["control_dt"]:g} s ({rates["decimation"]} physics steps per
+action, {rates["control_hz"]:g} Hz). `check.py` is the full version of this (clock, falls, speed):
 
 ```python
 import json, math, mujoco, numpy as np, onnxruntime as ort

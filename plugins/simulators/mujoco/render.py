@@ -45,10 +45,19 @@ def camera_for(model: Any, data: Any) -> tuple[float, float]:
     return 1.9 * height + 0.4, 0.5 * height
 
 
-def scene_model(mjcf: str, width: int, height: int, *, floor: float = 20.0, texrepeat: int = 40,
-                lights: tuple[tuple[tuple[float, float, float], tuple[float, float, float], float], ...] = (
-                    ((0.0, -2.0, 4.0), (0.0, 0.4, -1.0), 0.8),),
-                floor_collides: bool = True, shadow_size: int = SHADOW_SIZE) -> Any:
+def scene_model(
+    mjcf: str,
+    width: int,
+    height: int,
+    *,
+    floor: float = 20.0,
+    texrepeat: int = 40,
+    lights: tuple[tuple[tuple[float, float, float], tuple[float, float, float], float], ...] = (
+        ((0.0, -2.0, 4.0), (0.0, 0.4, -1.0), 0.8),
+    ),
+    floor_collides: bool = True,
+    shadow_size: int = SHADOW_SIZE,
+) -> Any:
     """The design's MJCF with a checkered floor (half size `floor` m) and lights ((pos, dir,
     diffuse) each), compiled for offscreen frames of `width` x `height` (shared by
     `coadapt robot render`, `coadapt eval --video` and the run's best-vs-nominal GIF), with a
@@ -56,13 +65,20 @@ def scene_model(mjcf: str, width: int, height: int, *, floor: float = 20.0, texr
     import mujoco
 
     spec = mujoco.MjSpec.from_string(mjcf)
-    texture = spec.add_texture(name="grid", type=mujoco.mjtTexture.mjTEXTURE_2D,
-                               builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, rgb1=[0.82, 0.84, 0.86],
-                               rgb2=[0.68, 0.7, 0.72], width=256, height=256)
+    texture = spec.add_texture(
+        name="grid",
+        type=mujoco.mjtTexture.mjTEXTURE_2D,
+        builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
+        rgb1=[0.82, 0.84, 0.86],
+        rgb2=[0.68, 0.7, 0.72],
+        width=256,
+        height=256,
+    )
     material = spec.add_material(name="grid", texrepeat=[texrepeat, texrepeat], reflectance=0.05)
     material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = texture.name
-    plane = spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[floor, floor, 0.05],
-                                    material="grid")
+    plane = spec.worldbody.add_geom(
+        name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[floor, floor, 0.05], material="grid"
+    )
     if not floor_collides:
         plane.contype, plane.conaffinity = 0, 0
     for pos, direction, diffuse in lights:
@@ -74,7 +90,9 @@ def scene_model(mjcf: str, width: int, height: int, *, floor: float = 20.0, texr
     return model
 
 
-def render_pose_png(model: str, qpos_joints: list[float], base_height: float, output: str, width: int, height: int) -> None:
+def render_pose_png(
+    model: str, qpos_joints: list[float], base_height: float, output: str, width: int, height: int
+) -> None:
     """Draw the robot at the given pose, standing on a checker floor, into a PNG (run through
     `offscreen`)."""
     import matplotlib
@@ -84,8 +102,18 @@ def render_pose_png(model: str, qpos_joints: list[float], base_height: float, ou
     import mujoco
 
     mjcf = model
-    model = scene_model(mjcf, width, height, floor=4.0, texrepeat=8, floor_collides=False,
-                        lights=(((1.5, -1.5, 3.5), (-0.4, 0.4, -1.0), 0.8), ((-2.0, 2.0, 3.0), (0.5, -0.5, -1.0), 0.4)))
+    model = scene_model(
+        mjcf,
+        width,
+        height,
+        floor=4.0,
+        texrepeat=8,
+        floor_collides=False,
+        lights=(
+            ((1.5, -1.5, 3.5), (-0.4, 0.4, -1.0), 0.8),
+            ((-2.0, 2.0, 3.0), (0.5, -0.5, -1.0), 0.4),
+        ),
+    )
     data = mujoco.MjData(model)
     data.qpos[2] = base_height
     data.qpos[3:7] = [1, 0, 0, 0]
@@ -104,8 +132,14 @@ def render_pose_png(model: str, qpos_joints: list[float], base_height: float, ou
     matplotlib.image.imsave(output, pixels)
 
 
-def render_panels(panels: list[dict], outputs: list[str], width: int, height: int, fps: float,
-                  report: bool = False) -> None:
+def render_panels(
+    panels: list[dict],
+    outputs: list[str],
+    width: int,
+    height: int,
+    fps: float,
+    report: bool = False,
+) -> None:
     """Replay each panel's base poses and joint angles in its own MuJoCo model, offscreen,
     and write the panels side by side, one frame per recorded step (the shorter rollout
     holds its last frame). Runs in a fresh interpreter: MUJOCO_GL is read at import."""
@@ -134,26 +168,60 @@ def render_panels(panels: list[dict], outputs: list[str], width: int, height: in
                 renderer.update_scene(data, camera=camera)
                 image = Image.fromarray(np.array(renderer.render()))
                 if panel.get("label"):  # readable on the dark sky and the floor
-                    ImageDraw.Draw(image).text((6, 6), panel["label"], fill=(255, 255, 255), stroke_width=1,
-                                               stroke_fill=(0, 0, 0))
+                    ImageDraw.Draw(image).text(
+                        (6, 6),
+                        panel["label"],
+                        fill=(255, 255, 255),
+                        stroke_width=1,
+                        stroke_fill=(0, 0, 0),
+                    )
                 images.append(np.array(image))
                 if report:
                     print(f"frame {sum(map(len, rendered)) + len(images)}", flush=True)
         rendered.append(images)
     n = max(len(images) for images in rendered)
-    frames = [np.concatenate([images[min(i, len(images) - 1)] for images in rendered], axis=1) for i in range(n)]
+    frames = [
+        np.concatenate([images[min(i, len(images) - 1)] for images in rendered], axis=1)
+        for i in range(n)
+    ]
     for output in outputs:
         partial = partial_name(output)  # renamed once whole: an interrupt never leaves half a file
         if output.endswith(".gif"):
             pil = [Image.fromarray(f) for f in frames]
-            pil[0].save(partial, format="GIF", save_all=True, append_images=pil[1:], duration=int(1000 / fps), loop=0)
+            pil[0].save(
+                partial,
+                format="GIF",
+                save_all=True,
+                append_images=pil[1:],
+                duration=int(1000 / fps),
+                loop=0,
+            )
             os.replace(partial, output)
         else:
             proc = subprocess.run(
-                ["ffmpeg", "-y", "-loglevel", "error", "-f", "rawvideo", "-pix_fmt", "rgb24",
-                 "-s", f"{frames[0].shape[1]}x{frames[0].shape[0]}", "-r", str(fps), "-i", "-", "-pix_fmt", "yuv420p",
-                 "-f", "mp4", partial],
-                input=np.stack(frames).tobytes(), capture_output=True,
+                [
+                    "ffmpeg",
+                    "-y",
+                    "-loglevel",
+                    "error",
+                    "-f",
+                    "rawvideo",
+                    "-pix_fmt",
+                    "rgb24",
+                    "-s",
+                    f"{frames[0].shape[1]}x{frames[0].shape[0]}",
+                    "-r",
+                    str(fps),
+                    "-i",
+                    "-",
+                    "-pix_fmt",
+                    "yuv420p",
+                    "-f",
+                    "mp4",
+                    partial,
+                ],
+                input=np.stack(frames).tobytes(),
+                capture_output=True,
             )
             if proc.returncode != 0:
                 Path(partial).unlink(missing_ok=True)

@@ -42,10 +42,22 @@ RESET_CLOCK = 1.0
 
 #: MuJoCo's warnings for a bad state, after which it resets the simulation itself
 _BAD_STATE_WARNINGS = [
-    int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mjWARN_BADQVEL), int(mujoco.mjtWarning.mjWARN_BADQACC)
+    int(mujoco.mjtWarning.mjWARN_BADQPOS),
+    int(mujoco.mjtWarning.mjWARN_BADQVEL),
+    int(mujoco.mjtWarning.mjWARN_BADQACC),
 ]
 #: attributes holding arrays bound to the batch (they keep it and its threads alive)
-_BOUND = ("_qpos", "_qvel", "_ctrl", "_time", "_xpos", "_sensordata", "_cdof", "_subtree_com", "_warnings")
+_BOUND = (
+    "_qpos",
+    "_qvel",
+    "_ctrl",
+    "_time",
+    "_xpos",
+    "_sensordata",
+    "_cdof",
+    "_subtree_com",
+    "_warnings",
+)
 #: seed of the fixed environment-to-batch-row shuffle (load balance across threads)
 ROW_SHUFFLE_SEED = 0x5EED
 #: model fields never expanded per design (MuJoCo options, shared by the whole batch)
@@ -81,7 +93,10 @@ class MujocoSimulator(Simulator):
     model_formats = ("mjcf",)  # the robot model it compiles
     renderer = "coadapt_plugins.simulators.mujoco.render"  # pictures and videos, offscreen
     speed_limit_modes = ("soft", "binding")  # coadapt_core.physics.actuation, `bind_speed`
-    gain_laws = ("robot", "nominal")  # models compiled through self.robot (a NominalGains is its own cache key)
+    gain_laws = (
+        "robot",
+        "nominal",
+    )  # models compiled through self.robot (a NominalGains is its own cache key)
     model_tools = "coadapt_plugins.simulators.mujoco.model_tools"  # link facts, feet, handoff check
 
     def __init__(self, robot: Robot, designs: np.ndarray, **options: Any):
@@ -100,7 +115,11 @@ class MujocoSimulator(Simulator):
         # Environment e lives in batch row _row[e]. mujoco.batch hands each thread one
         # contiguous block of rows, so a fixed shuffle spreads each design's agents (and
         # whatever makes some environments costlier, such as falling) over all threads.
-        self._row = np.random.default_rng(ROW_SHUFFLE_SEED).permutation(n) if ROW_SHUFFLE_SEED is not None else np.arange(n)  # [N] env -> row
+        self._row = (
+            np.random.default_rng(ROW_SHUFFLE_SEED).permutation(n)
+            if ROW_SHUFFLE_SEED is not None
+            else np.arange(n)
+        )  # [N] env -> row
         self._env_of_row = np.argsort(self._row)  # [N] row -> env
         self._env_of_row_t = torch.from_numpy(self._env_of_row)
         self._batch = mujoco.batch.Batch(ref.model, n, nthread=self._threads)
@@ -113,13 +132,21 @@ class MujocoSimulator(Simulator):
         self._warnings_seen = self._warnings[:, _BAD_STATE_WARNINGS, 1].copy()  # [N, 3]
         self._xpos = b.bind("xpos")  # [N, nbody, 3], refreshed after each call
         self._sensordata = b.bind("sensordata")  # [N, nsensordata]
-        self._cdof = b.bind("cdof")  # [N, nv, 6] motion axes (angular, linear) at the root subtree's CoM
+        self._cdof = b.bind(
+            "cdof"
+        )  # [N, nv, 6] motion axes (angular, linear) at the root subtree's CoM
         self._subtree_com = b.bind("subtree_com")  # [N, nbody, 3]
-        self._foot_root = ref.model.body_rootid[ref.foot_body_ids]  # [L] root body of each foot's tree
+        self._foot_root = ref.model.body_rootid[
+            ref.foot_body_ids
+        ]  # [L] root body of each foot's tree
         self._foot_dofs = [self._ancestor_dofs(ref.model, body) for body in ref.foot_body_ids]
         self._sensor_adr = np.array(
-            [ref.model.sensor_adr[mujoco.mj_name2id(ref.model, mujoco.mjtObj.mjOBJ_SENSOR, "coadapt_contact_" + f)]
-             for f in ref.robot_model.foot_bodies]
+            [
+                ref.model.sensor_adr[
+                    mujoco.mj_name2id(ref.model, mujoco.mjtObj.mjOBJ_SENSOR, "coadapt_contact_" + f)
+                ]
+                for f in ref.robot_model.foot_bodies
+            ]
         )
         # contiguous joint blocks read as slices (no gather in the hot loop)
         self._q_index = self._as_slice(ref.qpos_adr)
@@ -132,7 +159,14 @@ class MujocoSimulator(Simulator):
 
         # per-environment model fields: those the designs differ in, plus randomization's
         self._expanded: dict[str, np.ndarray] = {}
-        for name in ("geom_friction", "geom_solref", "body_ipos", "body_pos", "dof_damping", "dof_armature"):
+        for name in (
+            "geom_friction",
+            "geom_solref",
+            "body_ipos",
+            "body_pos",
+            "dof_damping",
+            "dof_armature",
+        ):
             self._expanded[name] = b.expand(name)
         self._design_fields: set[str] = set()
         self._field_diff_cache: dict[int, tuple[CompiledDesign, list[str]]] = {}
@@ -142,7 +176,9 @@ class MujocoSimulator(Simulator):
         self._kd = np.zeros((n, j))
         self._tau_max = np.zeros((n, j))
         self._dq_max = np.zeros((n, j))
-        self._gains = tuple(torch.from_numpy(a) for a in (self._kp, self._kd, self._tau_max, self._dq_max))
+        self._gains = tuple(
+            torch.from_numpy(a) for a in (self._kp, self._kd, self._tau_max, self._dq_max)
+        )
         self._default_q = np.zeros((n, j))
         self._standing_height = np.zeros(n)
         self._foot_xy = np.zeros((n, len(ref.robot_model.foot_bodies), 2))
@@ -150,14 +186,18 @@ class MujocoSimulator(Simulator):
         self._base_ipos = np.zeros((n, 3))  # [N, 3] the design's base CoM, before the shift
         self._geom_friction = np.zeros((n, ref.model.ngeom, 3))
         self._geom_solref = np.zeros((n, ref.model.ngeom, 2))
-        self._dof_damping = np.zeros((n, ref.model.nv))  # [N, nv] the design's own, before randomization
+        self._dof_damping = np.zeros(
+            (n, ref.model.nv)
+        )  # [N, nv] the design's own, before randomization
         self._dof_armature = np.zeros((n, ref.model.nv))
         self._base_pos0 = np.zeros((n, 3))
         self._write_designs(self._row, compiled)
 
         # the actuation runs where the physics state lives: on the CPU, in float64
         self._delay = DelayLine(n, j, self.max_delay_steps(), dtype=self.dtype)
-        self._pd_factor = torch.ones(n, dtype=self.dtype)  # [N] row order, of the parameters in force
+        self._pd_factor = torch.ones(
+            n, dtype=self.dtype
+        )  # [N] row order, of the parameters in force
         self._motor_strength = torch.ones(n, dtype=self.dtype)
         self._torque = np.zeros((n, j))  # [N, J] mean applied torque of the last policy step
         self._tau = np.zeros((n, j))  # [N, J] scratch, one physics step
@@ -187,8 +227,16 @@ class MujocoSimulator(Simulator):
 
     def _joint_state(self) -> tuple[torch.Tensor, torch.Tensor]:
         """(q, dq) [N, J] of the actuated joints, row order, as float64 tensors."""
-        q = self._q_view if self._q_view is not None else torch.from_numpy(self._qpos[:, self._q_index])
-        dq = self._dq_view if self._dq_view is not None else torch.from_numpy(self._qvel[:, self._dq_index])
+        q = (
+            self._q_view
+            if self._q_view is not None
+            else torch.from_numpy(self._qpos[:, self._q_index])
+        )
+        dq = (
+            self._dq_view
+            if self._dq_view is not None
+            else torch.from_numpy(self._qvel[:, self._dq_index])
+        )
         return q, dq
 
     @staticmethod
@@ -202,7 +250,13 @@ class MujocoSimulator(Simulator):
         return np.array(sorted(dofs), dtype=int)
 
     def _compile(self, design: np.ndarray) -> CompiledDesign:
-        return _CACHE.get(self.robot, design, self.terrain_model, physics_dt=self.physics_dt, fixed_base=self.fixed_base)
+        return _CACHE.get(
+            self.robot,
+            design,
+            self.terrain_model,
+            physics_dt=self.physics_dt,
+            fixed_base=self.fixed_base,
+        )
 
     def _diff_fields(self, item: CompiledDesign) -> list[str]:
         """Model fields in which `item` differs from the batch's reference model."""
@@ -215,7 +269,12 @@ class MujocoSimulator(Simulator):
             self._field_diff_cache[key] = (item, [])
             return []
         if (ref.nq, ref.nv, ref.nu, ref.nbody, ref.ngeom, ref.nsensordata) != (
-            other.nq, other.nv, other.nu, other.nbody, other.ngeom, other.nsensordata
+            other.nq,
+            other.nv,
+            other.nu,
+            other.nbody,
+            other.ngeom,
+            other.nsensordata,
         ) or not (
             np.array_equal(item.qpos_adr, self._ref.qpos_adr)
             and np.array_equal(item.actuator_ids, self._ref.actuator_ids)
@@ -361,7 +420,11 @@ class MujocoSimulator(Simulator):
         # spawn: standing height above the highest ground under either foot
         xy = self.draw_spawn_xy(envs) if draw else np.zeros((ids.size, 2))
         z = spawn_base_height(
-            self.terrain_model, xy, self._foot_xy[ids], self._foot_radius[ids], self._standing_height[ids],
+            self.terrain_model,
+            xy,
+            self._foot_xy[ids],
+            self._foot_radius[ids],
+            self._standing_height[ids],
             fixed_base=self.fixed_base,
         )
         if self.fixed_base:
@@ -409,7 +472,10 @@ class MujocoSimulator(Simulator):
             joint_targets = torch.as_tensor(np.asarray(joint_targets, dtype=float), device="cpu")
         targets = joint_targets.detach().to("cpu", self.dtype)  # [N, J] environment order
         if tuple(targets.shape) != (self._n, self._j):
-            raise UserError(f"joint_targets must be [{self._n}, {self._j}], got {tuple(targets.shape)}", field="joint_targets")
+            raise UserError(
+                f"joint_targets must be [{self._n}, {self._j}], got {tuple(targets.shape)}",
+                field="joint_targets",
+            )
         targets = targets[self._env_of_row_t]  # [N, J] row order, as everything below
         timings = self.timings
         perf = time.perf_counter
@@ -421,7 +487,13 @@ class MujocoSimulator(Simulator):
             self._delay.push(targets)
             q, dq = self._joint_state()  # [N, J]
             pd_torque(
-                self._delay.current(), q, dq, *self._gains, self._pd_factor, self._motor_strength, out=self._tau_t
+                self._delay.current(),
+                q,
+                dq,
+                *self._gains,
+                self._pd_factor,
+                self._motor_strength,
+                out=self._tau_t,
             )
             if self.speed_limit == "binding":
                 bind_speed(self._tau_t, dq, self._gains[3])
@@ -487,7 +559,9 @@ class MujocoSimulator(Simulator):
             ang_vel = quat_rotate(base_quat, qvel[:, 3:6])  # free joint: angular in the body frame
         sd = self._sensordata[order]
         found = np.stack([sd[:, a] for a in self._sensor_adr], axis=1)  # [N, L] number of contacts
-        force = np.stack([sd[:, a + 1 : a + CONTACT_SENSOR_DIM] for a in self._sensor_adr], axis=1)  # [N, L, 3]
+        force = np.stack(
+            [sd[:, a + 1 : a + CONTACT_SENSOR_DIM] for a in self._sensor_adr], axis=1
+        )  # [N, L, 3]
         normal_force = np.abs(force @ self._normal)  # [N, L]
         terrain_h = self.terrain_model.height_at(base_pos[:, :2])  # [N]
 
@@ -523,7 +597,9 @@ class MujocoSimulator(Simulator):
         """
         qvel = self._qvel
         out = np.empty((self._n, len(self._foot_dofs), 3))
-        for leg, (body, dofs) in enumerate(zip(self._ref.foot_body_ids, self._foot_dofs, strict=True)):
+        for leg, (body, dofs) in enumerate(
+            zip(self._ref.foot_body_ids, self._foot_dofs, strict=True)
+        ):
             twist = np.einsum("nds,nd->ns", self._cdof[:, dofs], qvel[:, dofs])  # [N, 6]
             pos = self._xpos[:, body]  # [N, 3]
             lever = pos - self._subtree_com[:, self._foot_root[leg]]

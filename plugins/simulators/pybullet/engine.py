@@ -85,7 +85,15 @@ class Engine:
         self.motor_strength = np.ones(self.k)
         # zero-copy torch faces of the actuation inputs (the shared law is torch)
         self._actuation = tuple(
-            torch.from_numpy(a) for a in (self.kp, self.kd, self.tau_max, self.dq_max, self.pd_factor, self.motor_strength)
+            torch.from_numpy(a)
+            for a in (
+                self.kp,
+                self.kd,
+                self.tau_max,
+                self.dq_max,
+                self.pd_factor,
+                self.motor_strength,
+            )
         )
         self.friction = np.ones(self.k)
         self.restitution = np.zeros(self.k)
@@ -116,7 +124,9 @@ class Engine:
         self.foot_ids: list[list[int]] = [[] for _ in range(self.k)]
         self.all_links: list[list[int]] = [[] for _ in range(self.k)]
         self.loaded_shift = np.zeros((self.k, 3))
-        self.foot_xy = np.zeros((self.k, self.num_feet, 2))  # [k, L, 2] feet around the base, default pose
+        self.foot_xy = np.zeros(
+            (self.k, self.num_feet, 2)
+        )  # [k, L, 2] feet around the base, default pose
         self.spawn_xy = np.zeros((self.k, 2))  # [k, 2] where each base last spawned
         # base link frame expressed in the base inertial frame (PyBullet reports the latter)
         self.inertial_pos = np.zeros((self.k, 3))
@@ -161,11 +171,17 @@ class Engine:
             # a safety floor just below the field (as in MuJoCo): a robot walking off its
             # edge lands instead of falling forever
             floor = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=client)
-            bodies.append(p.createMultiBody(0, floor, basePosition=[0.0, 0.0, -FLOOR_BELOW_FIELD], physicsClientId=client))
+            bodies.append(
+                p.createMultiBody(
+                    0, floor, basePosition=[0.0, 0.0, -FLOOR_BELOW_FIELD], physicsClientId=client
+                )
+            )
         else:
             angle = t.slope_radians  # 0 on flat ground; the slope rises along +x
             shape = p.createCollisionShape(
-                p.GEOM_PLANE, planeNormal=[-np.sin(angle), 0.0, np.cos(angle)], physicsClientId=client
+                p.GEOM_PLANE,
+                planeNormal=[-np.sin(angle), 0.0, np.cos(angle)],
+                physicsClientId=client,
             )
             position = [0.0, 0.0, 0.0]
         bodies.insert(0, p.createMultiBody(0, shape, basePosition=position, physicsClientId=client))
@@ -173,7 +189,12 @@ class Engine:
             # Bullet multiplies the two bodies' coefficients: 1 on the ground makes the
             # robot's own friction and restitution the ones in force
             p.changeDynamics(
-                ground, -1, lateralFriction=1.0, restitution=1.0, spinningFriction=0.0, rollingFriction=0.0,
+                ground,
+                -1,
+                lateralFriction=1.0,
+                restitution=1.0,
+                spinningFriction=0.0,
+                rollingFriction=0.0,
                 physicsClientId=client,
             )
         return bodies
@@ -184,7 +205,11 @@ class Engine:
             armature = dict(zip(spec.joint_names, spec.joint_armature, strict=True))
         elif spec.joint_armature is not None and self.armature == "foot_link":
             folded = set(_foot_joints(spec))
-            armature = {n: a for n, a in zip(spec.joint_names, spec.joint_armature, strict=True) if n in folded}
+            armature = {
+                n: a
+                for n, a in zip(spec.joint_names, spec.joint_armature, strict=True)
+                if n in folded
+            }
         text = prepare_urdf(spec.urdf, spec.base_body, com_shift=com_shift, armature=armature)
         if self.armature == "foot_link" and armature:
             # tr(added inertia) = a + 2 c: the extra c about the perpendicular axes
@@ -193,7 +218,9 @@ class Engine:
             for i, name in enumerate(spec.joint_names):
                 if name in armature:
                     link = children[name]
-                    self.folded_extra[e, i] = max(0.0, (after[link] - before[link] - armature[name]) / 2)
+                    self.folded_extra[e, i] = max(
+                        0.0, (after[link] - before[link] - armature[name]) / 2
+                    )
         # a new name per load: PyBullet caches files by path and would reuse a stale one
         self._loads += 1
         path = os.path.join(self._tmpdir, f"env{e}-{self._loads}.urdf")
@@ -233,7 +260,11 @@ class Engine:
         for link in self.all_links[e]:
             # Bullet damps every link's motion by 0.04 by default; MuJoCo does not
             p.changeDynamics(
-                body, link, linearDamping=0.0, angularDamping=0.0, maxJointVelocity=1.0e4,
+                body,
+                link,
+                linearDamping=0.0,
+                angularDamping=0.0,
+                maxJointVelocity=1.0e4,
                 physicsClientId=client,
             )
         if spec.joint_damping is not None:
@@ -241,10 +272,17 @@ class Engine:
                 p.changeDynamics(body, jid, jointDamping=float(damping), physicsClientId=client)
         # the default velocity motors would hold the joints; keep them only as MuJoCo's
         # dry joint friction (frictionloss): a zero-velocity motor of that much force
-        frictionloss = spec.joint_frictionloss if spec.joint_frictionloss is not None else np.zeros(self.num_joints)
+        frictionloss = (
+            spec.joint_frictionloss
+            if spec.joint_frictionloss is not None
+            else np.zeros(self.num_joints)
+        )
         p.setJointMotorControlArray(
-            body, self.joint_ids[e], p.VELOCITY_CONTROL,
-            targetVelocities=[0.0] * self.num_joints, forces=[float(f) for f in frictionloss],
+            body,
+            self.joint_ids[e],
+            p.VELOCITY_CONTROL,
+            targetVelocities=[0.0] * self.num_joints,
+            forces=[float(f) for f in frictionloss],
             physicsClientId=client,
         )
         info = p.getDynamicsInfo(body, -1, physicsClientId=client)
@@ -265,15 +303,19 @@ class Engine:
         self._place_base(e, np.zeros(3))
         for jid, q in zip(self.joint_ids[e], spec.default_joint_pos, strict=True):
             p.resetJointState(body, jid, float(q), 0.0, physicsClientId=client)
-        feet = p.getLinkStates(body, self.foot_ids[e], computeForwardKinematics=1, physicsClientId=client)
+        feet = p.getLinkStates(
+            body, self.foot_ids[e], computeForwardKinematics=1, physicsClientId=client
+        )
         return np.array([np.asarray(f[4])[:2] for f in feet])
 
     def _place_base(self, e: int, link_pos: np.ndarray) -> None:
         """Put the base link origin at `link_pos`, level, at rest. PyBullet places a base by
         its inertial frame: com = link * inertial offset."""
         com_pos, com_quat = p.multiplyTransforms(
-            [float(v) for v in link_pos], [0.0, 0.0, 0.0, 1.0],
-            self.inertial_pos[e].tolist(), self.inertial_quat[e].tolist(),
+            [float(v) for v in link_pos],
+            [0.0, 0.0, 0.0, 1.0],
+            self.inertial_pos[e].tolist(),
+            self.inertial_quat[e].tolist(),
         )
         client, body = self.clients[e], self.bodies[e]
         p.resetBasePositionAndOrientation(body, com_pos, com_quat, physicsClientId=client)
@@ -284,7 +326,8 @@ class Engine:
         matrix: 6 base dofs first on a floating base, then the movable joints in order)."""
         client, body = self.clients[e], self.bodies[e]
         movable = [
-            i for i in range(p.getNumJoints(body, physicsClientId=client))
+            i
+            for i in range(p.getNumJoints(body, physicsClientId=client))
             if p.getJointInfo(body, i, physicsClientId=client)[2] != p.JOINT_FIXED
         ]
         offset = 0 if self.fixed_base else 6
@@ -301,14 +344,19 @@ class Engine:
         use = self.armature in ("joint_space", "foot_link") and spec.joint_armature is not None
         self.armature_diag[e] = spec.joint_armature if use else 0.0
         folded = set(_foot_joints(spec)) if use and self.armature == "foot_link" else set()
-        self.folded[e] = np.array([i for i, n in enumerate(spec.joint_names) if n in folded], dtype=int)
+        self.folded[e] = np.array(
+            [i for i, n in enumerate(spec.joint_names) if n in folded], dtype=int
+        )
 
     def _apply_contact_params(self, e: int) -> None:
         for link in self.all_links[e]:
             p.changeDynamics(
-                self.bodies[e], link,
-                lateralFriction=float(self.friction[e]), restitution=float(self.restitution[e]),
-                spinningFriction=0.0, rollingFriction=0.0,
+                self.bodies[e],
+                link,
+                lateralFriction=float(self.friction[e]),
+                restitution=float(self.restitution[e]),
+                spinningFriction=0.0,
+                rollingFriction=0.0,
                 physicsClientId=self.clients[e],
             )
 
@@ -319,8 +367,12 @@ class Engine:
         xy = self.spawn_xy[e]
         spec = self.specs[e]
         (z,) = spawn_base_height(
-            self.terrain, xy[None], self.foot_xy[e][None], np.array([spec.foot_radius]),
-            np.array([spec.standing_base_height]), fixed_base=self.fixed_base,
+            self.terrain,
+            xy[None],
+            self.foot_xy[e][None],
+            np.array([spec.foot_radius]),
+            np.array([spec.standing_base_height]),
+            fixed_base=self.fixed_base,
         )
         return np.array([xy[0], xy[1], z])
 
@@ -361,7 +413,9 @@ class Engine:
         q = np.empty((self.k, self.num_joints))  # [k, J]
         dq = np.empty((self.k, self.num_joints))  # [k, J]
         for e in range(self.k):
-            states = p.getJointStates(self.bodies[e], self.joint_ids[e], physicsClientId=self.clients[e])
+            states = p.getJointStates(
+                self.bodies[e], self.joint_ids[e], physicsClientId=self.clients[e]
+            )
             for j, s in enumerate(states):
                 q[e, j] = s[0]
                 dq[e, j] = s[1]
@@ -380,7 +434,9 @@ class Engine:
         for _ in range(self.decimation):
             self.delay.push(torch.from_numpy(targets))
             q, dq = self._joints()
-            tau_t = pd_torque(self.delay.current(), torch.from_numpy(q), torch.from_numpy(dq), *self._actuation)
+            tau_t = pd_torque(
+                self.delay.current(), torch.from_numpy(q), torch.from_numpy(dq), *self._actuation
+            )
             if self.binding:
                 bind_speed(tau_t, torch.from_numpy(dq), self._actuation[3])
             tau = tau_t.numpy()  # [k, J]
@@ -392,7 +448,10 @@ class Engine:
             self.prev_applied = applied
             for e in range(self.k):
                 p.setJointMotorControlArray(
-                    self.bodies[e], self.joint_ids[e], p.TORQUE_CONTROL, forces=applied[e].tolist(),
+                    self.bodies[e],
+                    self.joint_ids[e],
+                    p.TORQUE_CONTROL,
+                    forces=applied[e].tolist(),
                     physicsClientId=self.clients[e],
                 )
                 p.stepSimulation(physicsClientId=self.clients[e])
@@ -434,7 +493,11 @@ class Engine:
                 continue
             order = self.movable_order[e]
             positions = q[e][order] if order is not None else self._movable_positions(e)
-            full = np.array(p.calculateMassMatrix(self.bodies[e], positions.tolist(), physicsClientId=self.clients[e]))
+            full = np.array(
+                p.calculateMassMatrix(
+                    self.bodies[e], positions.tolist(), physicsClientId=self.clients[e]
+                )
+            )
             mass[e] = full[self.mass_block[e]]
             if self.folded[e].size:
                 folded_mass[e] = self._folded_mass(e, positions)
@@ -456,9 +519,17 @@ class Engine:
         for j in self.folded[e]:
             link = self.joint_ids[e][j]
             _, angular = p.calculateJacobian(
-                body, link, [0.0, 0.0, 0.0], positions.tolist(), zeros, zeros, physicsClientId=client
+                body,
+                link,
+                [0.0, 0.0, 0.0],
+                positions.tolist(),
+                zeros,
+                zeros,
+                physicsClientId=client,
             )
-            omega = np.asarray(angular)[:, cols]  # [3, J] each column an actuated joint's world axis
+            omega = np.asarray(angular)[
+                :, cols
+            ]  # [3, J] each column an actuated joint's world axis
             v = omega.T @ omega[:, j]  # [J] cosines with the folded joint's axis
             # added tensor a s s^T + c (1 - s s^T), s the folded joint's axis
             a, c = self.armature_diag[e, j], self.folded_extra[e, j]
@@ -482,7 +553,9 @@ class Engine:
             pos, orn = p.getBasePositionAndOrientation(body, physicsClientId=client)
             lin, ang = p.getBaseVelocity(body, physicsClientId=client)
             com_pos[e], quat[e], com_vel[e], ang_vel[e] = pos, orn, lin, ang
-            links = p.getLinkStates(body, self.foot_ids[e], computeForwardKinematics=1, physicsClientId=client)
+            links = p.getLinkStates(
+                body, self.foot_ids[e], computeForwardKinematics=1, physicsClientId=client
+            )
             for f, link in enumerate(links):
                 foot_pos[e, f] = link[4]  # the link frame origin, not its centre of mass
             contacts = p.getContactPoints(bodyA=body, physicsClientId=client)
@@ -494,8 +567,12 @@ class Engine:
         link_quat = np.empty((k, 4))
         base_pos = np.empty((k, 3))
         for e in range(k):
-            inv_pos, inv_quat = p.invertTransform(self.inertial_pos[e].tolist(), self.inertial_quat[e].tolist())
-            pos, orn = p.multiplyTransforms(com_pos[e].tolist(), quat[e].tolist(), inv_pos, inv_quat)
+            inv_pos, inv_quat = p.invertTransform(
+                self.inertial_pos[e].tolist(), self.inertial_quat[e].tolist()
+            )
+            pos, orn = p.multiplyTransforms(
+                com_pos[e].tolist(), quat[e].tolist(), inv_pos, inv_quat
+            )
             base_pos[e], link_quat[e] = pos, orn
         # velocity of the link origin: v_com + w x (origin - com)
         base_lin_vel = com_vel + np.cross(ang_vel, base_pos - com_pos)
@@ -516,7 +593,9 @@ class Engine:
         """Test hook: kick environments' bases to a given speed (divergence checks)."""
         for e in np.asarray(env_ids, dtype=int):
             p.resetBaseVelocity(
-                self.bodies[e], [base_velocity, 0.0, base_velocity], [base_velocity, 0.0, 0.0],
+                self.bodies[e],
+                [base_velocity, 0.0, base_velocity],
+                [base_velocity, 0.0, 0.0],
                 physicsClientId=self.clients[e],
             )
 
@@ -533,9 +612,17 @@ class Engine:
             masses[name] = p.getDynamicsInfo(body, link, physicsClientId=client)[0]
         return {
             "masses": masses,
-            "friction": [p.getDynamicsInfo(body, link, physicsClientId=client)[1] for link in self.foot_ids[e]],
-            "restitution": [p.getDynamicsInfo(body, link, physicsClientId=client)[5] for link in self.foot_ids[e]],
-            "joint_damping": [p.getJointInfo(body, j, physicsClientId=client)[6] for j in self.joint_ids[e]],
+            "friction": [
+                p.getDynamicsInfo(body, link, physicsClientId=client)[1]
+                for link in self.foot_ids[e]
+            ],
+            "restitution": [
+                p.getDynamicsInfo(body, link, physicsClientId=client)[5]
+                for link in self.foot_ids[e]
+            ],
+            "joint_damping": [
+                p.getJointInfo(body, j, physicsClientId=client)[6] for j in self.joint_ids[e]
+            ],
             "inertial_pos": self.inertial_pos[e].tolist(),
         }
 
@@ -550,7 +637,15 @@ class Engine:
 def _diverged(state: dict[str, np.ndarray]) -> np.ndarray:
     """[k] bool: a state no physical robot reaches (or not finite)."""
     finite = np.ones(state["base_pos"].shape[0], dtype=bool)
-    for key in ("base_pos", "base_quat", "base_lin_vel", "base_ang_vel", "joint_pos", "joint_vel", "foot_pos"):
+    for key in (
+        "base_pos",
+        "base_quat",
+        "base_lin_vel",
+        "base_ang_vel",
+        "joint_pos",
+        "joint_vel",
+        "foot_pos",
+    ):
         finite &= np.isfinite(state[key]).reshape(finite.shape[0], -1).all(axis=1)
     with np.errstate(invalid="ignore"):
         huge = (
@@ -582,13 +677,19 @@ def _foot_joints(spec: EnvSpec) -> list[str]:
     out = []
     for joint in root.findall("joint"):
         child = joint.find("child")
-        if child is not None and child.get("link") in feet and joint.get("name") in spec.joint_names:
+        if (
+            child is not None
+            and child.get("link") in feet
+            and joint.get("name") in spec.joint_names
+        ):
             out.append(joint.get("name"))
     return out
 
 
 def _joint_children(urdf: str) -> dict[str, str]:
-    return {j.get("name"): j.find("child").get("link") for j in ET.fromstring(urdf).findall("joint")}
+    return {
+        j.get("name"): j.find("child").get("link") for j in ET.fromstring(urdf).findall("joint")
+    }
 
 
 def _link_traces(urdf: str) -> dict[str, float]:

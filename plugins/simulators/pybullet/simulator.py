@@ -24,7 +24,9 @@ if TYPE_CHECKING:
 
     from coadapt_core.robot import Robot
 
-MISSING_PYBULLET = "the pybullet simulator needs the pybullet package: pip install 'coadapt[pybullet]'"
+MISSING_PYBULLET = (
+    "the pybullet simulator needs the pybullet package: pip install 'coadapt[pybullet]'"
+)
 #: batches up to this size run in-process (worker start-up and pipe traffic cost more
 #: than they save below it; see docs/sim-to-sim.md)
 IN_PROCESS_MAX_ENVS = 8
@@ -46,8 +48,12 @@ class PyBulletSimulator(Simulator):
     """PyBullet (Bullet 3 multibody), one DIRECT client per environment, CPU only."""
 
     name: ClassVar[str] = "pybullet"
-    description: ClassVar[str] = "PyBullet (Bullet) backend for sim-to-sim transfer; one process per CPU core for large batches"
-    quiet_imports: ClassVar[tuple[str, ...]] = ("pybullet",)  # prints "pybullet build time" on import
+    description: ClassVar[str] = (
+        "PyBullet (Bullet) backend for sim-to-sim transfer; one process per CPU core for large batches"
+    )
+    quiet_imports: ClassVar[tuple[str, ...]] = (
+        "pybullet",
+    )  # prints "pybullet build time" on import
     #: it loads the URDF and takes the joints' damping and armature from the MJCF
     model_formats: ClassVar[tuple[str, ...]] = ("urdf", "mjcf")
     speed_limit_modes: ClassVar[tuple[str, ...]] = ("soft", "binding")
@@ -75,7 +81,10 @@ class PyBulletSimulator(Simulator):
         require_pybullet()
         super().__init__(robot, designs, **options)
         if armature not in ARMATURE_MODES:
-            raise UserError(f"armature must be one of {', '.join(ARMATURE_MODES)}, got '{armature}'", field="armature")
+            raise UserError(
+                f"armature must be one of {', '.join(ARMATURE_MODES)}, got '{armature}'",
+                field="armature",
+            )
         self._spec_cache: dict[tuple[float, ...], EnvSpec] = {}
         specs = [self._spec(d) for d in self._designs]
         self._num_joints = len(specs[0].joint_names)
@@ -91,7 +100,9 @@ class PyBulletSimulator(Simulator):
         }
         n = len(specs)
         if processes is None:
-            processes = 0 if n <= IN_PROCESS_MAX_ENVS else min(self.num_threads or threads.budget(), n)
+            processes = (
+                0 if n <= IN_PROCESS_MAX_ENVS else min(self.num_threads or threads.budget(), n)
+            )
         if processes < 0:
             raise UserError(f"processes must be >= 0, got {processes}", field="processes")
         self.processes = min(int(processes), n)
@@ -149,7 +160,10 @@ class PyBulletSimulator(Simulator):
         values = sub.numpy()
         return {
             "spawn_xy": spawn_xy,
-            **{k: values[k] for k in ("friction", "restitution", "com_shift", "pd_factor", "motor_strength")},
+            **{
+                k: values[k]
+                for k in ("friction", "restitution", "com_shift", "pd_factor", "motor_strength")
+            },
             "delay_steps": sub.delay_steps(self.physics_dt).cpu().numpy(),
         }
 
@@ -189,7 +203,10 @@ class PyBulletSimulator(Simulator):
             return
         self._pool.call_some(
             "reset",
-            {w: (local, self._engine_params(ids[pos], spawn_xy[pos])) for w, (pos, local) in self._split(ids).items()},
+            {
+                w: (local, self._engine_params(ids[pos], spawn_xy[pos]))
+                for w, (pos, local) in self._split(ids).items()
+            },
         )
 
     def reset(self, env_ids: torch.Tensor | np.ndarray | None = None) -> SimState:
@@ -237,13 +254,18 @@ class PyBulletSimulator(Simulator):
         ids, designs = self.parse_new_designs(env_ids, designs)
         specs = [self._spec(d) for d in designs]  # validates every design before touching any env
         if specs and len(specs[0].joint_names) != self._num_joints:
-            raise DesignError("set_designs: the new design has a different number of joints", field="designs")
+            raise DesignError(
+                "set_designs: the new design has a different number of joints", field="designs"
+            )
         if self._engine is not None:
             self._engine.set_specs(ids, specs)
         else:
             self._pool.call_some(
                 "set_specs",
-                {w: (local, [specs[i] for i in pos]) for w, (pos, local) in self._split(ids).items()},
+                {
+                    w: (local, [specs[i] for i in pos])
+                    for w, (pos, local) in self._split(ids).items()
+                },
             )
         self._designs[ids] = designs
         self._default_joint_pos[ids] = np.stack([s.default_joint_pos for s in specs])
@@ -282,4 +304,7 @@ class PyBulletSimulator(Simulator):
         if self._engine is not None:
             self._engine.inject(ids, base_velocity)
         else:
-            self._pool.call_some("inject", {w: (local, base_velocity) for w, (pos, local) in self._split(ids).items()})
+            self._pool.call_some(
+                "inject",
+                {w: (local, base_velocity) for w, (pos, local) in self._split(ids).items()},
+            )

@@ -96,7 +96,11 @@ def prepare_urdf(
         keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
         v = {k: float(tensor.get(k, 0.0)) for k in keys}
         inertia = np.array(
-            [[v["ixx"], v["ixy"], v["ixz"]], [v["ixy"], v["iyy"], v["iyz"]], [v["ixz"], v["iyz"], v["izz"]]]
+            [
+                [v["ixx"], v["ixy"], v["ixz"]],
+                [v["ixy"], v["iyy"], v["iyz"]],
+                [v["ixz"], v["iyz"], v["izz"]],
+            ]
         )
         inertia = _physical(inertia + a * np.outer(axis_inertial, axis_inertial), axis_inertial)
         for k, (i, j) in zip(keys, [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)], strict=True):

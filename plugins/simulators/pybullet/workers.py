@@ -49,7 +49,9 @@ def _quiet_import(name: str) -> None:
 def _serve(conn: Connection) -> None:
     """Worker side: build the engine from the first message, then answer method calls."""
     specs, options = conn.recv()
-    _quiet_import("pybullet")  # its "pybullet build time" banner, once per worker, would cut into progress lines
+    _quiet_import(
+        "pybullet"
+    )  # its "pybullet build time" banner, once per worker, would cut into progress lines
     from coadapt_plugins.simulators.pybullet.engine import Engine
 
     try:
@@ -109,7 +111,12 @@ class WorkerPool:
             parent, child = socket.socketpair()
             try:
                 proc = subprocess.Popen(
-                    [sys.executable, "-m", "coadapt_plugins.simulators.pybullet.workers", str(child.fileno())],
+                    [
+                        sys.executable,
+                        "-m",
+                        "coadapt_plugins.simulators.pybullet.workers",
+                        str(child.fileno()),
+                    ],
                     pass_fds=(child.fileno(),),
                     stdin=subprocess.DEVNULL,
                     stdout=subprocess.DEVNULL,  # PyBullet prints banners and warnings on stdout

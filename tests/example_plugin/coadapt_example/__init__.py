@@ -37,7 +37,9 @@ class RandomSearch(Optimizer):
     description = "shrinking-box random search (example plugin)"
     supports_mixed = True
     option_specs = (
-        PluginOption("shrink", "float", 0.7, "box half-width factor per round", minimum=0.01, maximum=1.0),
+        PluginOption(
+            "shrink", "float", 0.7, "box half-width factor per round", minimum=0.01, maximum=1.0
+        ),
     )
 
     def __init__(self, space, **kwargs):
@@ -51,7 +53,9 @@ class RandomSearch(Optimizer):
         if self._first is not None:
             first, self._first = self._first, None
             return first
-        unit = self._centre + self._rng.uniform(-self._radius, self._radius, (self.population, self.space.dim))
+        unit = self._centre + self._rng.uniform(
+            -self._radius, self._radius, (self.population, self.space.dim)
+        )
         return self.space.decode(np.clip(unit, 0.0, 1.0))
 
     def _tell(self, designs: np.ndarray, costs: np.ndarray) -> None:

@@ -56,7 +56,9 @@ class Trotter(Robot):
     """A small trotting quadruped: thigh/shank scale in [0.7, 1.3], motor type 1-2."""
 
     name: ClassVar[str] = "trotter"
-    description: ClassVar[str] = "example quadruped (6 kg, 8 joints): thigh/shank scale in [0.7, 1.3], motor type 1-2"
+    description: ClassVar[str] = (
+        "example quadruped (6 kg, 8 joints): thigh/shank scale in [0.7, 1.3], motor type 1-2"
+    )
 
     def design_space(self, mixed: bool = False) -> DesignSpace:
         variables = [Continuous("thigh_scale", 0.7, 1.3), Continuous("shank_scale", 0.7, 1.3)]
@@ -90,7 +92,9 @@ class Trotter(Robot):
         import torch
 
         lt, ls = self._lengths(designs)
-        hip, knee = two_link_ik(foot_pos[..., 0], foot_pos[..., 2], lt[..., None], ls[..., None])  # [n, L]
+        hip, knee = two_link_ik(
+            foot_pos[..., 0], foot_pos[..., 2], lt[..., None], ls[..., None]
+        )  # [n, L]
         return torch.stack([hip, knee], dim=-1).reshape(*hip.shape[:-1], 2 * len(LEGS))  # [n, 8]
 
     # -- models ------------------------------------------------------------------------------
@@ -98,7 +102,9 @@ class Trotter(Robot):
         design = np.atleast_1d(np.asarray(design, dtype=float))
         space = self.design_space(design.shape[0] == 3)
         if design.ndim != 1 or design.shape[0] not in (2, 3):
-            raise DesignError(f"trotter design needs 2 or 3 values, got {design.size}", field="design")
+            raise DesignError(
+                f"trotter design needs 2 or 3 values, got {design.size}", field="design"
+            )
         space.validate(design)
         thigh, shank = float(design[0]), float(design[1])
         motor = float(design[2]) if design.shape[0] == 3 else 1.0
@@ -113,8 +119,10 @@ class Trotter(Robot):
         standing = height + FOOT_RADIUS
         return RobotModel(
             design=design.copy(),
-            formats={"mjcf": self._mjcf(lt, ls, m_thigh, m_shank, m_foot, motor_mass, peak, standing),
-                     "urdf": self._urdf(lt, ls, m_thigh, m_shank, m_foot, motor_mass)},
+            formats={
+                "mjcf": self._mjcf(lt, ls, m_thigh, m_shank, m_foot, motor_mass, peak, standing),
+                "urdf": self._urdf(lt, ls, m_thigh, m_shank, m_foot, motor_mass),
+            },
             base_body="base",
             joint_names=joint_names,
             foot_bodies=[f"{leg}_foot" for leg in LEGS],
@@ -149,7 +157,9 @@ class Trotter(Robot):
         </body>
       </body>""")
             for j in ("hip", "knee"):
-                motors.append(f'    <motor name="{leg}_{j}" joint="{leg}_{j}" gear="1" ctrlrange="{-peak} {peak}"/>')
+                motors.append(
+                    f'    <motor name="{leg}_{j}" joint="{leg}_{j}" gear="1" ctrlrange="{-peak} {peak}"/>'
+                )
         return f"""<mujoco model="trotter">
   <compiler angle="radian"/>
   <worldbody>
@@ -167,12 +177,16 @@ class Trotter(Robot):
     def _urdf(self, lt, ls, m_thigh, m_shank, m_foot, motor_mass) -> str:
         def inertial(mass, z):
             i = max(mass * 1e-4, 1e-6)
-            return (f'<inertial><origin xyz="0 0 {z}"/><mass value="{mass}"/>'
-                    f'<inertia ixx="{i}" iyy="{i}" izz="{i}" ixy="0" ixz="0" iyz="0"/></inertial>')
+            return (
+                f'<inertial><origin xyz="0 0 {z}"/><mass value="{mass}"/>'
+                f'<inertia ixx="{i}" iyy="{i}" izz="{i}" ixy="0" ixz="0" iyz="0"/></inertial>'
+            )
 
         bx, by, bz = BASE_SIZE
-        parts = [f'<robot name="trotter"><link name="base">{inertial(BASE_MASS, 0)}'
-                 f'<collision><geometry><box size="{bx} {by} {bz}"/></geometry></collision></link>']
+        parts = [
+            f'<robot name="trotter"><link name="base">{inertial(BASE_MASS, 0)}'
+            f'<collision><geometry><box size="{bx} {by} {bz}"/></geometry></collision></link>'
+        ]
         for leg, (x, y) in HIPS.items():
             parts.append(
                 f'<link name="{leg}_thigh">{inertial(motor_mass + m_thigh, -lt / 2 * m_thigh / (motor_mass + m_thigh))}</link>'
@@ -200,12 +214,26 @@ class Trotter(Robot):
         knee_torque = weight_per_foot * knee_arm
         clearance = model.standing_base_height - BASE_SIZE[2] / 2
         findings = [
-            Finding("kinematics.reach", bool(STANCE < 1.0), f"stance height is {STANCE:.2f} of the leg's length (< 1)",
-                    float(STANCE), 1.0),
-            Finding("statics.knee_torque", bool(knee_torque < 0.8 * float(model.torque_limit[1])),
-                    f"static knee torque {knee_torque:.2f} N m < 80 % of the motor's {model.torque_limit[1]:.1f} N m",
-                    float(knee_torque), float(0.8 * model.torque_limit[1])),
-            Finding("geometry.belly_clearance", bool(clearance > 0.1),
-                    f"belly {clearance:.3f} m above flat ground (> 0.1 m)", float(clearance), 0.1),
+            Finding(
+                "kinematics.reach",
+                bool(STANCE < 1.0),
+                f"stance height is {STANCE:.2f} of the leg's length (< 1)",
+                float(STANCE),
+                1.0,
+            ),
+            Finding(
+                "statics.knee_torque",
+                bool(knee_torque < 0.8 * float(model.torque_limit[1])),
+                f"static knee torque {knee_torque:.2f} N m < 80 % of the motor's {model.torque_limit[1]:.1f} N m",
+                float(knee_torque),
+                float(0.8 * model.torque_limit[1]),
+            ),
+            Finding(
+                "geometry.belly_clearance",
+                bool(clearance > 0.1),
+                f"belly {clearance:.3f} m above flat ground (> 0.1 m)",
+                float(clearance),
+                0.1,
+            ),
         ]
         return ValidationReport(design, findings)

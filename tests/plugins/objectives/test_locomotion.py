@@ -25,8 +25,12 @@ def hand_step() -> StepBatch:
         command=torch.tensor([[1.0, 0.0, 0.0], [1.0, 0.0, 0.5]]),
         base_lin_vel=torch.tensor([[1.0, 0.0, 0.1], [0.7, 0.4, -0.2]]),
         base_ang_vel=torch.tensor([[0.3, 0.1, 0.0], [0.0, 0.0, 0.3]]),
-        joint_torque=torch.tensor([[1.0, -2.0, 0, 0, 0, 0, 0, 3.0], [10.0, 0, 0, 0, 0, 0, 0, -1.0]]),
-        joint_vel=torch.tensor([[2.0, 1.0, 5.0, 0, 0, 0, 0, -1.0], [-0.5, 4.0, 0, 0, 0, 0, 0, 2.0]]),
+        joint_torque=torch.tensor(
+            [[1.0, -2.0, 0, 0, 0, 0, 0, 3.0], [10.0, 0, 0, 0, 0, 0, 0, -1.0]]
+        ),
+        joint_vel=torch.tensor(
+            [[2.0, 1.0, 5.0, 0, 0, 0, 0, -1.0], [-0.5, 4.0, 0, 0, 0, 0, 0, 2.0]]
+        ),
         joint_targets=torch.zeros(2, 8),
         design=torch.ones(2, 2),
         total_mass=torch.tensor([20.0, 21.0]),
@@ -36,7 +40,9 @@ def hand_step() -> StepBatch:
     )
 
 
-@pytest.mark.parametrize("cls", [TrackingObjective, PowerObjective, TorqueObjective, CompositeObjective])
+@pytest.mark.parametrize(
+    "cls", [TrackingObjective, PowerObjective, TorqueObjective, CompositeObjective]
+)
 class TestConformance(ObjectiveConformance):
     @pytest.fixture
     def objective(self, cls):
@@ -63,10 +69,14 @@ def test_torque_is_penalised_sum_of_squared_torques():
 def test_composite_default_is_paper_sum_and_weights_apply():
     step = hand_step()
     parts = [o.step_cost(step) for o in (TrackingObjective(), PowerObjective(), TorqueObjective())]
-    assert CompositeObjective().step_cost(step).tolist() == pytest.approx((parts[0] + parts[1] + parts[2]).tolist())
+    assert CompositeObjective().step_cost(step).tolist() == pytest.approx(
+        (parts[0] + parts[1] + parts[2]).tolist()
+    )
     weighted = CompositeObjective("tracking=2,torque=0.5").step_cost(step)
     assert weighted.tolist() == pytest.approx((2 * parts[0] + 0.5 * parts[2]).tolist())
-    assert CompositeObjective({"power": 1.0}).step_cost(step).tolist() == pytest.approx(parts[1].tolist())
+    assert CompositeObjective({"power": 1.0}).step_cost(step).tolist() == pytest.approx(
+        parts[1].tolist()
+    )
 
 
 @pytest.mark.parametrize("text", ["speed=1", "tracking=x", "tracking", "torque=-1", "tracking=0"])
@@ -98,11 +108,17 @@ def test_penalty_weight_stays_finite_for_a_diverged_robot():
     for objective in (PowerObjective(), TorqueObjective(), CompositeObjective()):
         cost = objective.step_cost(step)
         assert torch.isfinite(cost).all()
-    assert TorqueObjective().step_cost(step)[1].item() == pytest.approx(101.0 * math.exp(5.0), rel=1e-5)
+    assert TorqueObjective().step_cost(step)[1].item() == pytest.approx(
+        101.0 * math.exp(5.0), rel=1e-5
+    )
     # the tracking cost itself is not capped
-    assert TrackingObjective().step_cost(step)[1].item() == pytest.approx(49.0**2 + 0.4**2 + 0.04, rel=1e-5)
+    assert TrackingObjective().step_cost(step)[1].item() == pytest.approx(
+        49.0**2 + 0.4**2 + 0.04, rel=1e-5
+    )
     # below the cap eqs. 7-8 hold exactly: a robot standing still under the fastest command
     step.base_lin_vel[1] = torch.tensor([0.0, 0.0, 0.0])
     step.command[1] = torch.tensor([1.25, 0.0, 0.0])
     step.base_ang_vel[1] = torch.tensor([0.0, 0.0, 0.5])
-    assert TorqueObjective().step_cost(step)[1].item() == pytest.approx(101.0 * math.exp(1.25**2 + 0.25), rel=1e-5)
+    assert TorqueObjective().step_cost(step)[1].item() == pytest.approx(
+        101.0 * math.exp(1.25**2 + 0.25), rel=1e-5
+    )

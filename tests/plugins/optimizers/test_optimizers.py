@@ -19,7 +19,12 @@ from coadapt_core.testing import OptimizerConformance
 
 SPACE = DesignSpace([Continuous("thigh", 0.5, 1.5), Continuous("shank", 0.5, 1.5)])
 MIXED = DesignSpace(
-    [Continuous("thigh", 0.5, 1.5), Continuous("shank", 0.5, 1.5), Discrete("hip", (1, 2, 3)), Discrete("knee", (1, 2, 3))]
+    [
+        Continuous("thigh", 0.5, 1.5),
+        Continuous("shank", 0.5, 1.5),
+        Discrete("hip", (1, 2, 3)),
+        Discrete("knee", (1, 2, 3)),
+    ]
 )
 
 
@@ -60,7 +65,9 @@ def run(opt, cost):
 
 def test_pso_reaches_known_optimum_within_0_02():
     optimum = np.array([0.55, 1.37])
-    opt = run(PSOOptimizer(SPACE, population=20, budget=25, seed=0), lambda d: ((d - optimum) ** 2).sum(1))
+    opt = run(
+        PSOOptimizer(SPACE, population=20, budget=25, seed=0), lambda d: ((d - optimum) ** 2).sum(1)
+    )
     best, cost = opt.best()
     assert np.abs(best - optimum).max() < 0.02
     assert cost < 4e-4
@@ -68,7 +75,9 @@ def test_pso_reaches_known_optimum_within_0_02():
 
 def test_pso_starts_from_initial_designs_and_uses_set_coefficients():
     initial = SPACE.sample(6, rng=1)
-    opt = PSOOptimizer(SPACE, population=6, budget=2, seed=0, initial_designs=initial, inertia=0.5, c1=1.0, c2=1.5)
+    opt = PSOOptimizer(
+        SPACE, population=6, budget=2, seed=0, initial_designs=initial, inertia=0.5, c1=1.0, c2=1.5
+    )
     np.testing.assert_allclose(opt.ask(), initial)
     algorithm = opt._algorithm
     assert (algorithm.w, algorithm.c1, algorithm.c2, algorithm.adaptive) == (0.5, 1.0, 1.5, False)
@@ -118,7 +127,10 @@ def test_bo_handles_mixed_space_and_finds_motor():
 
 @pytest.mark.slow
 def test_bo_gp_sampler_and_bad_sampler():
-    opt = run(BOOptimizer(SPACE, budget=12, seed=0, sampler="gp", n_startup_trials=4), lambda d: ((d - 1.1) ** 2).sum(1))
+    opt = run(
+        BOOptimizer(SPACE, budget=12, seed=0, sampler="gp", n_startup_trials=4),
+        lambda d: ((d - 1.1) ** 2).sum(1),
+    )
     assert opt.best()[1] < 0.05
     with pytest.raises(UserError, match="sampler"):
         BOOptimizer(SPACE, sampler="cmaes")
@@ -137,7 +149,9 @@ def test_bo_study_in_sqlite_storage_survives_a_state_round_trip(tmp_path):
     state = json.loads(json.dumps(a.state_dict()))
     a = BOOptimizer(SPACE, budget=6, seed=3, storage=url, study_name="s")
     a.load_state_dict(state)
-    assert len(optuna.load_study(study_name="s", storage=url).trials) == 3  # in the database, not told twice
+    assert (
+        len(optuna.load_study(study_name="s", storage=url).trials) == 3
+    )  # in the database, not told twice
     np.testing.assert_allclose(a.ask(), b.ask())
 
 
@@ -185,5 +199,10 @@ def test_json_state_continues_identically(cls):
 
 def test_all_registered_under_their_names():
     registry = get_registry()
-    for name, cls in {"pso": PSOOptimizer, "mixed-pso": MixedPSOOptimizer, "bo": BOOptimizer, "nsga2": NSGA2Optimizer}.items():
+    for name, cls in {
+        "pso": PSOOptimizer,
+        "mixed-pso": MixedPSOOptimizer,
+        "bo": BOOptimizer,
+        "nsga2": NSGA2Optimizer,
+    }.items():
         assert registry.get("optimizer", name) is cls

@@ -23,8 +23,14 @@ def test_default_keeps_table_2_and_its_random_stream() -> None:
     assert np.all(default.armature == 1.0)
     # the same draws as Table 2 alone: friction, restitution, CoM shift, PD, strength, delay
     rng = np.random.default_rng(7)
-    for name, shape in (("friction", (64,)), ("restitution", (64,)), ("com_shift", (64, 3)),
-                        ("pd_factor", (64,)), ("motor_strength", (64,)), ("delay", (64,))):
+    for name, shape in (
+        ("friction", (64,)),
+        ("restitution", (64,)),
+        ("com_shift", (64, 3)),
+        ("pd_factor", (64,)),
+        ("motor_strength", (64,)),
+        ("delay", (64,)),
+    ):
         lo, hi = getattr(RandomizationConfig(), name)
         np.testing.assert_array_equal(getattr(default, name), rng.uniform(lo, hi, size=shape))
     assert drawn.privileged().shape == (64, 8)  # the critic input keeps its size
@@ -60,9 +66,15 @@ def test_engine_parameters_are_drawn_in_range_and_written_into_each_model(kuafu)
             model = sim.env_model(env)
             own = mujoco.MjModel.from_xml_string(kuafu.build(sim.designs[env]).text("mjcf"))
             np.testing.assert_allclose(model.geom_solref[:, 0], params.contact_timeconst[env])
-            np.testing.assert_allclose(model.dof_damping[dofs], own.dof_damping[dofs] + params.joint_damping[env])
-            np.testing.assert_allclose(model.dof_armature[dofs], own.dof_armature[dofs] * params.armature[env])
-            np.testing.assert_array_equal(model.dof_damping[:6], own.dof_damping[:6])  # the free joint untouched
+            np.testing.assert_allclose(
+                model.dof_damping[dofs], own.dof_damping[dofs] + params.joint_damping[env]
+            )
+            np.testing.assert_allclose(
+                model.dof_armature[dofs], own.dof_armature[dofs] * params.armature[env]
+            )
+            np.testing.assert_array_equal(
+                model.dof_damping[:6], own.dof_damping[:6]
+            )  # the free joint untouched
         # two environments really differ
         assert abs(params.joint_damping[0] - params.joint_damping[1]) > 1e-3
 
@@ -73,7 +85,9 @@ def _fixed(**overrides) -> RandomizationConfig:
     return RandomizationConfig(**values)
 
 
-def _run(kuafu, rand: RandomizationConfig, steps: int, fixed_base: bool = False, offset: float = 0.0) -> tuple:
+def _run(
+    kuafu, rand: RandomizationConfig, steps: int, fixed_base: bool = False, offset: float = 0.0
+) -> tuple:
     design = np.tile(kuafu.nominal_design(), (1, 1))
     with MujocoSimulator(kuafu, design, randomization=rand, seed=0, fixed_base=fixed_base) as sim:
         state = sim.reset()
@@ -104,7 +118,9 @@ def test_each_engine_parameter_changes_the_physics(kuafu) -> None:
     design = np.tile(kuafu.nominal_design(), (1, 1))
     diag = []
     for scale in (0.75, 1.25):
-        with MujocoSimulator(kuafu, design, randomization=_fixed(armature=scale), fixed_base=True) as sim:
+        with MujocoSimulator(
+            kuafu, design, randomization=_fixed(armature=scale), fixed_base=True
+        ) as sim:
             sim.reset()
             model = sim.env_model(0)
             data = mujoco.MjData(model)

@@ -53,7 +53,9 @@ def _sole_corners(sim: MujocoSimulator, env: int) -> np.ndarray:
     data = sim._live().get_data(int(sim.rows(env)))
     mujoco.mj_kinematics(model, data)
     points = sim._ref.robot_model.foot_contact_points  # [4, 3] in the foot frame
-    return np.stack([data.xpos[b] + points @ data.xmat[b].reshape(3, 3).T for b in sim._ref.foot_body_ids])
+    return np.stack(
+        [data.xpos[b] + points @ data.xmat[b].reshape(3, 3).T for b in sim._ref.foot_body_ids]
+    )
 
 
 def _ray_heights(sim: MujocoSimulator, env: int, xy: np.ndarray) -> np.ndarray:
@@ -65,7 +67,12 @@ def _ray_heights(sim: MujocoSimulator, env: int, xy: np.ndarray) -> np.ndarray:
     mujoco.mj_forward(model, data)
     geomid = np.zeros(1, dtype=np.int32)
     down = np.array([0.0, 0.0, -1.0])
-    return np.array([5.0 - mujoco.mj_ray(model, data, np.array([x, y, 5.0]), down, None, 1, -1, geomid) for x, y in xy])
+    return np.array(
+        [
+            5.0 - mujoco.mj_ray(model, data, np.array([x, y, 5.0]), down, None, 1, -1, geomid)
+            for x, y in xy
+        ]
+    )
 
 
 # -- registration and input checks --------------------------------------------------------
@@ -97,7 +104,9 @@ def test_slope_ground_is_ten_degrees_rising_along_x(kuafu) -> None:
     with MujocoSimulator(kuafu, _designs(kuafu, 1), terrain="slope") as sim:
         xy = np.array([[-3.0, 0.5], [0.0, -2.0], [2.0, 1.0], [4.0, 0.0]])
         heights = _ray_heights(sim, 0, xy)
-        np.testing.assert_allclose(heights, xy[:, 0] * math.tan(math.radians(SLOPE_DEGREES)), atol=1e-6)
+        np.testing.assert_allclose(
+            heights, xy[:, 0] * math.tan(math.radians(SLOPE_DEGREES)), atol=1e-6
+        )
         terrain = make_terrain("slope")
         np.testing.assert_allclose(heights, terrain.height_at(xy), atol=1e-6)
 
@@ -110,7 +119,9 @@ def test_random_terrain_is_the_shared_height_grid(kuafu) -> None:
         rows, cols = rng.integers(5, terrain.samples - 5, size=(2, 40))
         vertices = np.column_stack([cols, rows]) * terrain.resolution - terrain.size / 2
         # at grid vertices MuJoCo's height field is exactly the grid (row along y)
-        np.testing.assert_allclose(_ray_heights(sim, 0, vertices + 1e-7), grid[rows, cols], atol=2e-5)
+        np.testing.assert_allclose(
+            _ray_heights(sim, 0, vertices + 1e-7), grid[rows, cols], atol=2e-5
+        )
         # between vertices MuJoCo triangulates each cell, `height_at` interpolates bilinearly:
         # they differ by at most a quarter of the cell's twist, 2.5 cm for 5 cm noise
         points = rng.uniform(-8, 8, size=(400, 2))
@@ -127,9 +138,11 @@ def test_spawn_puts_soles_just_above_the_highest_ground(kuafu, terrain) -> None:
         u, v = np.meshgrid(np.linspace(0, 1, 23), np.linspace(0, 1, 11))
         for env in range(sim.num_envs):
             c = _sole_corners(sim, env)  # [L, 4, 3] toe-left, toe-right, heel-left, heel-right
-            soles = c[:, None, None, 2] + u[..., None] * (c[:, None, None, 0] - c[:, None, None, 2]) + v[
-                ..., None
-            ] * (c[:, None, None, 3] - c[:, None, None, 2])  # [L, 11, 23, 3] points over each sole
+            soles = (
+                c[:, None, None, 2]
+                + u[..., None] * (c[:, None, None, 0] - c[:, None, None, 2])
+                + v[..., None] * (c[:, None, None, 3] - c[:, None, None, 2])
+            )  # [L, 11, 23, 3] points over each sole
             clearance = soles[..., 2] - ground.height_at(soles[..., :2])
             assert clearance.min() >= SPAWN_CLEARANCE - 1e-6, (terrain, env, clearance)
             # never far above: the highest ground within the sole's reach sets the height
@@ -166,7 +179,9 @@ def test_fixed_base_hangs_in_the_air_without_contacts(kuafu) -> None:
     with MujocoSimulator(kuafu, _designs(kuafu, 2), fixed_base=True) as sim:
         start = sim.reset()
         heights = np.array([kuafu.build(d).standing_base_height for d in sim.designs])
-        np.testing.assert_allclose(start.base_pos[:, 2].numpy(), heights + SPAWN_CLEARANCE + FIXED_BASE_LIFT, atol=1e-5)
+        np.testing.assert_allclose(
+            start.base_pos[:, 2].numpy(), heights + SPAWN_CLEARANCE + FIXED_BASE_LIFT, atol=1e-5
+        )
         for _ in range(25):
             state = sim.step(sim.default_joint_pos + 0.4)
         assert torch.equal(state.base_pos, start.base_pos)
@@ -175,7 +190,9 @@ def test_fixed_base_hangs_in_the_air_without_contacts(kuafu) -> None:
 
 
 # -- state readings -----------------------------------------------------------------------
-@pytest.mark.parametrize("randomization", [RandomizationConfig.off(), RandomizationConfig()], ids=["off", "table2"])
+@pytest.mark.parametrize(
+    "randomization", [RandomizationConfig.off(), RandomizationConfig()], ids=["off", "table2"]
+)
 def test_standing_contact_force_carries_the_weight(kuafu, randomization) -> None:
     """Standing still, the feet's normal forces sum to the weight (also with Table 2
     randomization: a bouncier contact must still come to rest, not ring)."""
@@ -211,7 +228,12 @@ def test_base_angular_velocity_is_in_the_world_frame(kuafu) -> None:
     with MujocoSimulator(kuafu, _designs(kuafu, 1)) as sim:
         sim.reset()
         qpos, qvel = sim._qpos, sim._qvel  # one environment: row 0
-        qpos[0, 3:7] = [math.cos(0.25 * math.pi), 0.0, 0.0, math.sin(0.25 * math.pi)]  # yaw 90 degrees
+        qpos[0, 3:7] = [
+            math.cos(0.25 * math.pi),
+            0.0,
+            0.0,
+            math.sin(0.25 * math.pi),
+        ]  # yaw 90 degrees
         qvel[0, 3:6] = [1.0, 0.0, 0.0]  # roll rate about the body x axis = world y
         state = sim._build_state()
         np.testing.assert_allclose(state.base_ang_vel[0].numpy(), [0.0, 1.0, 0.0], atol=1e-6)
@@ -221,24 +243,42 @@ def test_base_angular_velocity_is_in_the_world_frame(kuafu) -> None:
 def test_applied_torque_follows_the_shared_actuation_law(kuafu) -> None:
     """One physics step from rest: joint_torque equals coadapt_core.physics.actuation with each
     environment's own PD factor and motor strength."""
-    rand = RandomizationConfig(friction=(1.0, 1.0), restitution=(0.0, 0.0), com_shift=(0.0, 0.0), delay=(0.0, 0.0))
-    with MujocoSimulator(kuafu, _designs(kuafu, 8, mixed=True), randomization=rand, decimation=1, fixed_base=True) as sim:
+    rand = RandomizationConfig(
+        friction=(1.0, 1.0), restitution=(0.0, 0.0), com_shift=(0.0, 0.0), delay=(0.0, 0.0)
+    )
+    with MujocoSimulator(
+        kuafu, _designs(kuafu, 8, mixed=True), randomization=rand, decimation=1, fixed_base=True
+    ) as sim:
         sim.reset()
         params = sim.env_params
-        assert float(params.pd_factor.max() - params.pd_factor.min()) > 0.05 and float(params.motor_strength.max() - params.motor_strength.min()) > 0.05
+        assert (
+            float(params.pd_factor.max() - params.pd_factor.min()) > 0.05
+            and float(params.motor_strength.max() - params.motor_strength.min()) > 0.05
+        )
         q0 = sim.default_joint_pos.double().numpy()
         offsets = np.linspace(-0.3, 0.3, 8)[None, :].repeat(sim.num_envs, 0)
         state = sim.step(torch.as_tensor(q0 + offsets))
         models = [kuafu.build(d) for d in sim.designs]
         kp, kd = np.stack([m.kp for m in models]), np.stack([m.kd for m in models])
-        tmax, vmax = np.stack([m.torque_limit for m in models]), np.stack([m.speed_limit for m in models])
+        tmax, vmax = (
+            np.stack([m.torque_limit for m in models]),
+            np.stack([m.speed_limit for m in models]),
+        )
         gains = (q0 + offsets, q0, np.zeros_like(q0), kp, kd, tmax, vmax)
-        expected = pd_torque(*(torch.tensor(a, dtype=torch.float64) for a in gains), params.pd_factor, params.motor_strength)
-        np.testing.assert_allclose(state.joint_torque.double().numpy(), expected.numpy(), rtol=1e-5, atol=1e-3)
+        expected = pd_torque(
+            *(torch.tensor(a, dtype=torch.float64) for a in gains),
+            params.pd_factor,
+            params.motor_strength,
+        )
+        np.testing.assert_allclose(
+            state.joint_torque.double().numpy(), expected.numpy(), rtol=1e-5, atol=1e-3
+        )
 
 
 def test_delay_holds_the_previous_target_for_whole_physics_steps(kuafu) -> None:
-    with MujocoSimulator(kuafu, _designs(kuafu, 1), randomization=_fixed(delay=0.010), decimation=1, fixed_base=True) as sim:
+    with MujocoSimulator(
+        kuafu, _designs(kuafu, 1), randomization=_fixed(delay=0.010), decimation=1, fixed_base=True
+    ) as sim:
         sim.reset()
         assert sim._delay.delay_steps.tolist() == [2]  # one environment
         moved = sim.default_joint_pos + 0.5
@@ -267,7 +307,9 @@ def test_far_target_respects_torque_limit_and_speed_limit_margin(kuafu, fixed_ba
         models = [kuafu.build(d) for d in designs]
         tmax = torch.as_tensor(np.stack([m.torque_limit for m in models]))
         vmax = torch.as_tensor(np.stack([m.speed_limit for m in models]))
-        inertia = torch.as_tensor(np.stack([sim.env_model(e).dof_M0[sim._ref.dof_adr] for e in range(sim.num_envs)]))
+        inertia = torch.as_tensor(
+            np.stack([sim.env_model(e).dof_M0[sim._ref.dof_adr] for e in range(sim.num_envs)])
+        )
         margin = 1.1 * tmax * sim.physics_dt / inertia + 0.5 * vmax
         fastest = 0.0
         for _ in range(50):
@@ -294,17 +336,26 @@ def test_randomization_draws_every_range_per_environment_in_the_model(kuafu) -> 
             assert values.min() >= lo and values.max() <= hi, name
             assert np.ptp(values) > 0.6 * (hi - lo), name  # spread over the range
         shifts = np.concatenate([p.com_shift for p in draws])
-        assert shifts.min() >= -0.025 and shifts.max() <= 0.025 and np.ptp(shifts, axis=0).min() > 0.03
+        assert (
+            shifts.min() >= -0.025 and shifts.max() <= 0.025 and np.ptp(shifts, axis=0).min() > 0.03
+        )
         params = draws[-1]
         for env in (0, 17, 47):
             model = sim.env_model(env)
             nominal = kuafu.build(sim.designs[env])
             # every geom carries the env's sliding friction (a contact takes the max of its pair)
             np.testing.assert_allclose(model.geom_friction[:, 0], params.friction[env])
-            np.testing.assert_allclose(model.geom_solref[:, 1], restitution_to_dampratio(params.restitution[env : env + 1])[0])
+            np.testing.assert_allclose(
+                model.geom_solref[:, 1],
+                restitution_to_dampratio(params.restitution[env : env + 1])[0],
+            )
             compiled = mujoco.MjModel.from_xml_string(nominal.text("mjcf"))
-            np.testing.assert_allclose(model.body_ipos[base] - compiled.body_ipos[base], params.com_shift[env], atol=1e-12)
-            assert sim._delay.delay_steps[sim.rows(env)] == round(params.delay[env] / sim.physics_dt)
+            np.testing.assert_allclose(
+                model.body_ipos[base] - compiled.body_ipos[base], params.com_shift[env], atol=1e-12
+            )
+            assert sim._delay.delay_steps[sim.rows(env)] == round(
+                params.delay[env] / sim.physics_dt
+            )
 
 
 def test_randomization_off_means_nominal_everywhere(kuafu) -> None:
@@ -379,8 +430,15 @@ def test_set_designs_rebuilds_only_the_given_environments(kuafu) -> None:
         sim.set_designs(np.array([1]), np.array([[1.4, 0.6]]))
         np.testing.assert_allclose(sim.designs[1], [1.4, 0.6])
         new = kuafu.build(np.array([1.4, 0.6]))
-        np.testing.assert_allclose(sim.default_joint_pos[1].numpy(), new.default_joint_pos, atol=1e-6)
-        assert abs(float(sim.get_state().base_pos[1, 2]) - (new.standing_base_height + SPAWN_CLEARANCE)) < 1e-6
+        np.testing.assert_allclose(
+            sim.default_joint_pos[1].numpy(), new.default_joint_pos, atol=1e-6
+        )
+        assert (
+            abs(
+                float(sim.get_state().base_pos[1, 2]) - (new.standing_base_height + SPAWN_CLEARANCE)
+            )
+            < 1e-6
+        )
         thigh = mujoco.mj_name2id(sim._ref.model, mujoco.mjtObj.mjOBJ_BODY, "left_shank")
         assert not np.allclose(sim.env_model(1).body_pos[thigh], sim.env_model(0).body_pos[thigh])
         for _ in range(3):
@@ -401,9 +459,18 @@ def test_nan_and_runaway_speeds_reset_that_environment_only(kuafu) -> None:
         sim._qvel[sim.rows(3), 0] = 5e4  # beyond MAX_QVEL but below MuJoCo's own 1e10 check
         state = sim.step(sim.default_joint_pos)
         assert state.diverged.tolist() == [False, True, False, True]
-        for name in ("base_pos", "joint_pos", "joint_vel", "joint_torque", "foot_pos", "foot_contact_force"):
+        for name in (
+            "base_pos",
+            "joint_pos",
+            "joint_vel",
+            "joint_torque",
+            "foot_pos",
+            "foot_contact_force",
+        ):
             assert torch.isfinite(getattr(state, name)).all(), name
-        assert float(state.base_pos[1, 2]) > 0.5 and float(state.base_pos[3, 2]) > 0.5  # respawned standing
+        assert (
+            float(state.base_pos[1, 2]) > 0.5 and float(state.base_pos[3, 2]) > 0.5
+        )  # respawned standing
         assert sim.divergence_count == 2
         state = sim.step(sim.default_joint_pos)
         assert not bool(state.diverged.any())  # the flag describes the last step only
@@ -417,7 +484,9 @@ def test_mujoco_self_reset_is_detected_as_divergence(kuafu) -> None:
         sim._qpos[sim.rows(0), 2] = np.inf
         state = sim.step(sim.default_joint_pos)
         assert state.diverged.tolist() == [True, False]
-        assert abs(float(state.base_pos[0, 2]) - float(sim.reset(np.array([0])).base_pos[0, 2])) < 0.05
+        assert (
+            abs(float(state.base_pos[0, 2]) - float(sim.reset(np.array([0])).base_pos[0, 2])) < 0.05
+        )
 
 
 def test_device_and_dtype(kuafu) -> None:
@@ -457,8 +526,14 @@ def test_environments_are_spread_over_the_batch_rows(kuafu) -> None:
         assert 2 <= int((first_design_rows < 8).sum()) <= 6
         state = sim.reset()
         heights = np.array([kuafu.build(d).standing_base_height for d in designs])
-        np.testing.assert_allclose(state.base_pos[:, 2].numpy(), heights + SPAWN_CLEARANCE, atol=1e-6)
-        np.testing.assert_allclose(sim.default_joint_pos.numpy(), np.stack([kuafu.build(d).default_joint_pos for d in designs]), atol=1e-6)
+        np.testing.assert_allclose(
+            state.base_pos[:, 2].numpy(), heights + SPAWN_CLEARANCE, atol=1e-6
+        )
+        np.testing.assert_allclose(
+            sim.default_joint_pos.numpy(),
+            np.stack([kuafu.build(d).default_joint_pos for d in designs]),
+            atol=1e-6,
+        )
 
 
 def test_close_joins_the_batch_threads(kuafu) -> None:
@@ -499,6 +574,8 @@ def test_a_robot_subclass_named_like_its_parent_gets_its_own_compiled_models():
     kp = {}
     for robot in (Kuafu(), Weak(), Kuafu()):
         with MujocoSimulator(robot, design, randomization=RandomizationConfig.off()) as sim:
-            kp.setdefault(type(robot).__name__, []).append(float(sim._compile(design[0]).robot_model.kp[0]))
+            kp.setdefault(type(robot).__name__, []).append(
+                float(sim._compile(design[0]).robot_model.kp[0])
+            )
     assert kp["Weak"][0] == pytest.approx(0.02 * kp["Kuafu"][0])
     assert kp["Kuafu"][0] == kp["Kuafu"][1]

@@ -44,7 +44,9 @@ def test_worker_processes_match_in_process_and_close_cleanly(kuafu):
     designs = kuafu.design_space().sample(3, rng=4)
     finals = {}
     for processes in (0, 2):
-        sim = PyBulletSimulator(kuafu, designs, randomization=RandomizationConfig(), seed=7, processes=processes)
+        sim = PyBulletSimulator(
+            kuafu, designs, randomization=RandomizationConfig(), seed=7, processes=processes
+        )
         pids = sim.worker_pids()
         assert len(pids) == processes
         sim.reset()
@@ -60,7 +62,14 @@ def test_worker_processes_match_in_process_and_close_cleanly(kuafu):
         for pid in pids:
             with pytest.raises(ProcessLookupError):
                 os.kill(pid, 0)
-    for key in ("base_pos", "base_quat", "joint_pos", "joint_vel", "joint_torque", "foot_contact_force"):
+    for key in (
+        "base_pos",
+        "base_quat",
+        "joint_pos",
+        "joint_vel",
+        "joint_torque",
+        "foot_contact_force",
+    ):
         assert torch.equal(getattr(finals[0], key), getattr(finals[2], key)), key
     assert np.ptp(params.friction) > 0  # randomization really was on
 
@@ -89,7 +98,10 @@ def test_masses_and_joint_damping_match_the_mujoco_model(kuafu):
         body = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, name)
         assert mass == pytest.approx(mj.body_mass[body], rel=1e-9), name
     assert sum(info["masses"].values()) == pytest.approx(model.total_mass, rel=1e-6)
-    dampings = [mj.dof_damping[mj.jnt_dofadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, j)]] for j in model.joint_names]
+    dampings = [
+        mj.dof_damping[mj.jnt_dofadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, j)]]
+        for j in model.joint_names
+    ]
     np.testing.assert_allclose(info["joint_damping"], dampings)
 
 
@@ -106,7 +118,9 @@ def test_friction_restitution_and_com_shift_are_applied(kuafu):
             # Bullet multiplies both bodies' coefficients; the ground carries 1
             np.testing.assert_allclose(info["friction"], params.friction[e])
             np.testing.assert_allclose(info["restitution"], params.restitution[e])
-            np.testing.assert_allclose(info["inertial_pos"], base_ipos + params.com_shift[e], atol=1e-9)
+            np.testing.assert_allclose(
+                info["inertial_pos"], base_ipos + params.com_shift[e], atol=1e-9
+            )
         assert np.all((params.friction >= 0.5) & (params.friction <= 1.25))
         assert np.all(np.abs(params.com_shift) <= 0.025)
 
@@ -116,7 +130,9 @@ def test_torque_scales_with_motor_strength_and_pd_factor(kuafu, name):
     """One physics step from the same state: the torque scales exactly by the factor."""
     torques = []
     for value in (1.0, 0.9):
-        with PyBulletSimulator(kuafu, NOMINAL, randomization=fixed(name, value), decimation=1, fixed_base=True) as sim:
+        with PyBulletSimulator(
+            kuafu, NOMINAL, randomization=fixed(name, value), decimation=1, fixed_base=True
+        ) as sim:
             sim.reset()
             targets = sim.default_joint_pos + 0.1
             torques.append(sim.step(targets).joint_torque[0].double().numpy())
@@ -128,7 +144,9 @@ def test_delay_holds_the_old_targets_for_the_delay(kuafu):
     """20 ms delay at 5 ms steps: the first 4 physics steps still see the reset targets."""
     runs = {}
     for delay in (0.0, 0.02):
-        with PyBulletSimulator(kuafu, NOMINAL, randomization=fixed("delay", delay), decimation=1, fixed_base=True) as sim:
+        with PyBulletSimulator(
+            kuafu, NOMINAL, randomization=fixed("delay", delay), decimation=1, fixed_base=True
+        ) as sim:
             sim.reset()
             assert sim.env_params.delay[0] == pytest.approx(delay)
             moved = sim.default_joint_pos.clone()
@@ -148,9 +166,12 @@ def test_random_terrain_height_field_is_the_core_grid(kuafu):
         engine = sim._engine
         terrain = make_terrain("random", seed=5)
         rng = np.random.default_rng(0)
-        vertices = np.round(rng.uniform(-9, 9, size=(100, 2)) / terrain.resolution) * terrain.resolution
+        vertices = (
+            np.round(rng.uniform(-9, 9, size=(100, 2)) / terrain.resolution) * terrain.resolution
+        )
         hits = p.rayTestBatch(
-            [[x, y, 1.0] for x, y in vertices], [[x, y, -1.0] for x, y in vertices],
+            [[x, y, 1.0] for x, y in vertices],
+            [[x, y, -1.0] for x, y in vertices],
             physicsClientId=engine.clients[0],
         )
         heights = np.array([h[3][2] for h in hits])
@@ -158,7 +179,10 @@ def test_random_terrain_height_field_is_the_core_grid(kuafu):
         state = sim.reset()
         # spawned at a drawn point of the field, soles clear of the ground below them
         assert float(state.base_pos[0, :2].abs().max()) > 0.0
-        assert torch.all(state.foot_pos[0, :, 2] - 0.07 > torch.as_tensor(terrain.height_at(state.foot_pos[0, :, :2].numpy())) - 1e-3)
+        assert torch.all(
+            state.foot_pos[0, :, 2] - 0.07
+            > torch.as_tensor(terrain.height_at(state.foot_pos[0, :, :2].numpy())) - 1e-3
+        )
 
 
 def test_slope_rises_along_x(kuafu):
@@ -168,9 +192,13 @@ def test_slope_rises_along_x(kuafu):
         client = sim._engine.clients[0]
         xs = (-2.0, 0.0, 2.0)
         # rays beside the robot (it stands at the origin)
-        hits = p.rayTestBatch([[x, 3.0, 5.0] for x in xs], [[x, 3.0, -5.0] for x in xs], physicsClientId=client)
+        hits = p.rayTestBatch(
+            [[x, 3.0, 5.0] for x in xs], [[x, 3.0, -5.0] for x in xs], physicsClientId=client
+        )
         heights = [h[3][2] for h in hits]
-        np.testing.assert_allclose(heights, np.array([-2.0, 0.0, 2.0]) * np.tan(np.radians(10.0)), atol=1e-6)
+        np.testing.assert_allclose(
+            heights, np.array([-2.0, 0.0, 2.0]) * np.tan(np.radians(10.0)), atol=1e-6
+        )
 
 
 @pytest.mark.parametrize("kick", [1.0e6, float("nan")])
@@ -180,7 +208,15 @@ def test_divergence_resets_and_flags_without_nan(kuafu, kick):
         sim._inject(np.array([1]), kick)
         state = sim.step(sim.default_joint_pos)
         assert state.diverged.tolist() == [False, True]
-        for name in ("base_pos", "base_quat", "base_lin_vel", "joint_pos", "joint_vel", "joint_torque", "foot_pos"):
+        for name in (
+            "base_pos",
+            "base_quat",
+            "base_lin_vel",
+            "joint_pos",
+            "joint_vel",
+            "joint_torque",
+            "foot_pos",
+        ):
             assert torch.isfinite(getattr(state, name)).all()
         # the broken environment is back at its spawn pose
         assert float((state.base_pos[1] - start.base_pos[1]).abs().max()) < 1e-6
@@ -210,10 +246,15 @@ def test_missing_pybullet_names_the_extra(kuafu, monkeypatch):
     import importlib.util
 
     real = importlib.util.find_spec
-    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "pybullet" else real(name, *a))
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda name, *a: None if name == "pybullet" else real(name, *a)
+    )
     with pytest.raises(UserError) as info:
         PyBulletSimulator(kuafu, NOMINAL)
-    assert str(info.value) == "the pybullet simulator needs the pybullet package: pip install 'coadapt[pybullet]'"
+    assert (
+        str(info.value)
+        == "the pybullet simulator needs the pybullet package: pip install 'coadapt[pybullet]'"
+    )
     assert isinstance(info.value, ImportError)  # for callers guarding optional backends
 
 
@@ -234,7 +275,9 @@ def test_set_designs_loads_the_new_robot(kuafu):
     assert after["left_thigh"] > before["left_thigh"]
     assert sum(after.values()) == pytest.approx(model.total_mass, rel=1e-6)
     # standing height of the new legs (+ the 2 mm spawn clearance)
-    assert float(state.base_pos[1, 2]) == pytest.approx(model.standing_base_height + 0.002, abs=1e-6)
+    assert float(state.base_pos[1, 2]) == pytest.approx(
+        model.standing_base_height + 0.002, abs=1e-6
+    )
 
 
 @pytest.mark.slow
@@ -253,7 +296,9 @@ def test_workers_end_with_the_interpreter(ending, tmp_path):
         "print(*sim.worker_pids(), flush=True)\n"
         f"if {ending == 'kill'}: os.kill(os.getpid(), signal.SIGKILL)\n"
     )
-    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    out = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=120
+    )
     pids = [int(x) for x in out.stdout.split()]
     assert len(pids) == 2, out.stderr
     deadline = time.monotonic() + 10
@@ -298,16 +343,34 @@ def test_joint_order_other_than_the_urdf_gives_the_same_physics(kuafu):
     swapped = replace(
         spec,
         joint_names=[spec.joint_names[i] for i in perm],
-        **{k: getattr(spec, k)[perm] for k in (
-            "default_joint_pos", "kp", "kd", "torque_limit", "speed_limit",
-            "joint_damping", "joint_armature", "joint_frictionloss",
-        )},
+        **{
+            k: getattr(spec, k)[perm]
+            for k in (
+                "default_joint_pos",
+                "kp",
+                "kd",
+                "torque_limit",
+                "speed_limit",
+                "joint_damping",
+                "joint_armature",
+                "joint_frictionloss",
+            )
+        },
     )
-    options = dict(terrain="flat", terrain_seed=0, physics_dt=0.005, decimation=4, fixed_base=True, max_delay_steps=0)
+    options = dict(
+        terrain="flat",
+        terrain_seed=0,
+        physics_dt=0.005,
+        decimation=4,
+        fixed_base=True,
+        max_delay_steps=0,
+    )
     finals = []
     for s, order in ((spec, np.arange(8)), (swapped, perm)):
         engine = Engine([s], **options)
-        targets = (spec.default_joint_pos + np.array([0.2, 0.4, 0.5, 0.3, -0.1, -0.3, 0.2, -0.2]))[order]
+        targets = (spec.default_joint_pos + np.array([0.2, 0.4, 0.5, 0.3, -0.1, -0.3, 0.2, -0.2]))[
+            order
+        ]
         for _ in range(10):
             state = engine.step(targets[None])
         engine.close()

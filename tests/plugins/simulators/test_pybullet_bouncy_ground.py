@@ -25,8 +25,9 @@ def _late_joint_speed(mode: str) -> float:
     values["restitution"] = (0.4, 0.4)
     robot = Kuafu()
     kwargs = {} if mode == "default" else {"armature": mode}
-    with PyBulletSimulator(robot, np.array([[1.5, 1.5]]), randomization=RandomizationConfig(**values),
-                           **kwargs) as sim:
+    with PyBulletSimulator(
+        robot, np.array([[1.5, 1.5]]), randomization=RandomizationConfig(**values), **kwargs
+    ) as sim:
         sim.reset()
         target = sim.default_joint_pos.clone()
         speeds = []

@@ -28,10 +28,28 @@ from coadapt_plugins.robots.kuafu.robot import Kuafu
 from coadapt_core.physics.randomization import RandomizationConfig
 
 RECORD = Path(__file__).parent / "data" / "rollout_fingerprint.json"
-STATE = ("base_pos", "base_quat", "base_lin_vel", "joint_pos", "joint_vel", "joint_torque", "foot_pos",
-         "foot_contact_force", "terrain_height")
-PARAMS = ("friction", "restitution", "com_shift", "pd_factor", "motor_strength", "delay", "contact_timeconst",
-          "joint_damping", "armature")
+STATE = (
+    "base_pos",
+    "base_quat",
+    "base_lin_vel",
+    "joint_pos",
+    "joint_vel",
+    "joint_torque",
+    "foot_pos",
+    "foot_contact_force",
+    "terrain_height",
+)
+PARAMS = (
+    "friction",
+    "restitution",
+    "com_shift",
+    "pd_factor",
+    "motor_strength",
+    "delay",
+    "contact_timeconst",
+    "joint_damping",
+    "armature",
+)
 #: (case, backend, environments, terrain, randomization)
 CASES = {
     "mujoco": ("mujoco", 6, "random", "table2"),
@@ -52,7 +70,9 @@ def rollout(case: str) -> dict[str, list]:
     designs = robot.design_space(False).sample(n, rng=1)
     designs[0] = robot.nominal_design(False)
     out: dict[str, list] = {}
-    with cls(robot, designs, terrain=terrain, randomization=RandomizationConfig.preset(preset), seed=7) as sim:
+    with cls(
+        robot, designs, terrain=terrain, randomization=RandomizationConfig.preset(preset), seed=7
+    ) as sim:
         sim.reset()
         default = sim.default_joint_pos
         for k in range(6):
@@ -92,7 +112,9 @@ def test_rollout_repeats_the_recorded_numbers(case: str) -> None:
         pytest.importorskip("pybullet")
     now = rollout(case)
     misses = [matches(now, recorded) for recorded in variants(case)]
-    assert None in misses, f"{case}: matches none of its {len(misses)} recorded variants (first differing keys: {misses})"
+    assert None in misses, (
+        f"{case}: matches none of its {len(misses)} recorded variants (first differing keys: {misses})"
+    )
 
 
 def test_a_changed_number_matches_no_variant() -> None:
@@ -106,7 +128,9 @@ def test_a_changed_number_matches_no_variant() -> None:
 
 if __name__ == "__main__":
     if sys.argv[1:] not in (["--write"], ["--add"]):
-        sys.exit("usage: python tests/plugins/simulators/test_rollout_fingerprint.py --add | --write")
+        sys.exit(
+            "usage: python tests/plugins/simulators/test_rollout_fingerprint.py --add | --write"
+        )
     record = {} if sys.argv[1] == "--write" else json.loads(RECORD.read_text())
     for case in CASES:
         now = rollout(case)

@@ -18,8 +18,15 @@ from coadapt_core.physics.randomization import RandomizationConfig
 def test_bind_speed_zeroes_exactly_the_joints_beyond_their_no_load_speed():
     dq_max = torch.tensor([[10.0, 10.0, 20.0, 20.0]])
     dq = torch.tensor([[9.9, -10.5, 25.0, -5.0]])
-    tau = pd_torque(torch.zeros(1, 4), torch.full((1, 4), 0.5), dq, torch.full((1, 4), 100.0),
-                    torch.full((1, 4), 1.0), torch.full((1, 4), 40.0), dq_max)
+    tau = pd_torque(
+        torch.zeros(1, 4),
+        torch.full((1, 4), 0.5),
+        dq,
+        torch.full((1, 4), 100.0),
+        torch.full((1, 4), 1.0),
+        torch.full((1, 4), 40.0),
+        dq_max,
+    )
     # soft: PD -50 - dq, clipped by the envelope: braking at full torque (also beyond dq_max,
     # joint 2), no torque driving a joint further beyond it (joint 1), -40 x (1 - 5/20) (joint 3)
     assert tau.tolist()[0] == pytest.approx([-40.0, 0.0, -40.0, -30.0])
@@ -38,11 +45,14 @@ def _overspeed_step(sim, set_velocity, dq_max: np.ndarray) -> np.ndarray:
 def _mujoco(robot, designs, mode):
     from coadapt_plugins.simulators.mujoco.simulator import MujocoSimulator
 
-    sim = MujocoSimulator(robot, designs, decimation=1, fixed_base=True, randomization=RandomizationConfig.off())
+    sim = MujocoSimulator(
+        robot, designs, decimation=1, fixed_base=True, randomization=RandomizationConfig.off()
+    )
     sim.set_speed_limit(mode)
 
     def set_velocity(v):
         sim._qvel[:, sim._dq_index] = v
+
     return sim, set_velocity
 
 
@@ -51,8 +61,14 @@ def _pybullet(robot, designs, mode):
     import pybullet as p
     from coadapt_plugins.simulators.pybullet.simulator import PyBulletSimulator
 
-    sim = PyBulletSimulator(robot, designs, processes=0, decimation=1, fixed_base=True,
-                            randomization=RandomizationConfig.off())
+    sim = PyBulletSimulator(
+        robot,
+        designs,
+        processes=0,
+        decimation=1,
+        fixed_base=True,
+        randomization=RandomizationConfig.off(),
+    )
     sim.set_speed_limit(mode)
     eng = sim._engine
 
@@ -60,7 +76,14 @@ def _pybullet(robot, designs, mode):
         q, _ = eng._joints()
         for e in range(eng.k):
             for j, jid in enumerate(eng.joint_ids[e]):
-                p.resetJointState(eng.bodies[e], jid, float(q[e, j]), float(v[e, j]), physicsClientId=eng.clients[e])
+                p.resetJointState(
+                    eng.bodies[e],
+                    jid,
+                    float(q[e, j]),
+                    float(v[e, j]),
+                    physicsClientId=eng.clients[e],
+                )
+
     return sim, set_velocity
 
 
@@ -92,7 +115,9 @@ def test_a_backend_refuses_a_mode_it_does_not_declare():
     class SoftMujoco(MujocoSimulator):
         speed_limit_modes = ("soft",)
 
-    with SoftMujoco(Kuafu(), np.array([[1.0, 1.0]]), randomization=RandomizationConfig.off()) as sim:
+    with SoftMujoco(
+        Kuafu(), np.array([[1.0, 1.0]]), randomization=RandomizationConfig.off()
+    ) as sim:
         with pytest.raises(UserError, match=r"motor_speed_limit.*offers soft, got 'binding'"):
             sim.set_speed_limit("binding")
         assert sim.speed_limit == "soft"
@@ -123,9 +148,13 @@ def test_task_ends_an_episode_beyond_no_load_speed_for_overspeed_seconds_when_bi
             if mode == "soft":
                 assert not any(any(e) for e in ended)
             else:  # 0.1 s = 5 policy steps of 0.02 s: the fifth ends env 0
-                assert [e[0] for e in ended[:5]] == [False] * 4 + [True] and not any(e[1] for e in ended)
+                assert [e[0] for e in ended[:5]] == [False] * 4 + [True] and not any(
+                    e[1] for e in ended
+                )
                 assert env.design_inputs.speed_limit[0].tolist() == pytest.approx(dq_max.tolist())
-                env._termination(state, gravity)  # a step back under the limit: the count starts again
+                env._termination(
+                    state, gravity
+                )  # a step back under the limit: the count starts again
                 assert env.overspeed_time[0].item() == 0.0
 
 
@@ -140,26 +169,45 @@ def test_nominal_gain_law_gives_every_design_the_nominal_designs_pd_gains(sim_na
     if sim_name == "pybullet":
         pytest.importorskip("pybullet")
         from coadapt_plugins.simulators.pybullet.simulator import PyBulletSimulator as Sim
+
         extra = {"processes": 0}
     else:
         from coadapt_plugins.simulators.mujoco.simulator import MujocoSimulator as Sim
+
         extra = {}
     robot = Kuafu()
     designs = np.array([[0.5, 1.0], [1.5, 1.0]])
     own = [robot.build(d) for d in designs]
     nominal = robot.build(robot.nominal_design())
-    assert [m.kp[2] for m in own] == pytest.approx([457.9, 1252.9], abs=0.5) and nominal.kp[2] == pytest.approx(800.0)
+    assert [m.kp[2] for m in own] == pytest.approx([457.9, 1252.9], abs=0.5) and nominal.kp[
+        2
+    ] == pytest.approx(800.0)
     for law in ("robot", "nominal"):
-        with Sim(robot, designs, decimation=1, fixed_base=True, randomization=RandomizationConfig.off(), **extra) as sim:
+        with Sim(
+            robot,
+            designs,
+            decimation=1,
+            fixed_base=True,
+            randomization=RandomizationConfig.off(),
+            **extra,
+        ) as sim:
             sim.set_gain_law(law)
             assert sim.gain_law == law
             state = sim.reset()
             targets = sim.default_joint_pos.double().cpu() + 0.05
             after = sim.step(targets.to(sim.default_joint_pos))
             models = own if law == "robot" else [nominal, nominal]
-            gains = [torch.tensor(np.stack([getattr(m, k) for m in models]), dtype=torch.float64)
-                     for k in ("kp", "kd", "torque_limit", "speed_limit")]
-            expected = pd_torque(targets, state.joint_pos.double().cpu(), state.joint_vel.double().cpu(), *gains)
-            torch.testing.assert_close(after.joint_torque.double().cpu(), expected, rtol=1e-4, atol=2e-2)
+            gains = [
+                torch.tensor(np.stack([getattr(m, k) for m in models]), dtype=torch.float64)
+                for k in ("kp", "kd", "torque_limit", "speed_limit")
+            ]
+            expected = pd_torque(
+                targets, state.joint_pos.double().cpu(), state.joint_vel.double().cpu(), *gains
+            )
+            torch.testing.assert_close(
+                after.joint_torque.double().cpu(), expected, rtol=1e-4, atol=2e-2
+            )
             # the knee of the short-thigh design: 0.05 rad x its kp
-            assert after.joint_torque[0, 2].item() == pytest.approx(0.05 * models[0].kp[2], rel=0.02)
+            assert after.joint_torque[0, 2].item() == pytest.approx(
+                0.05 * models[0].kp[2], rel=0.02
+            )

@@ -14,7 +14,9 @@ def with_floor(model: RobotModel) -> mujoco.MjModel:
     """The robot's MJCF plus a ground plane that collides with it (the simulators add
     terrain the same way, through MjSpec)."""
     spec = mujoco.MjSpec.from_string(model.text("mjcf"))
-    floor = spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[5, 5, 0.1])
+    floor = spec.worldbody.add_geom(
+        name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[5, 5, 0.1]
+    )
     floor.contype, floor.conaffinity = 1, 1
     return spec.compile()
 
@@ -28,8 +30,12 @@ def standing_data(model: RobotModel, mj: mujoco.MjModel) -> mujoco.MjData:
     return data
 
 
-def stand_under_pd(model: RobotModel, seconds: float, push: tuple[float, float] = (0.0, 0.0),
-                   gain_factor: float = 1.0) -> dict[str, float]:
+def stand_under_pd(
+    model: RobotModel,
+    seconds: float,
+    push: tuple[float, float] = (0.0, 0.0),
+    gain_factor: float = 1.0,
+) -> dict[str, float]:
     """Hold the default pose with the shared PD law for `seconds` on flat ground, adding a
     base velocity `push` (vx, vy) after 1 s. Returns the final base tilt (rad), the base's
     drop below its standing height (m) and the largest joint error (rad)."""
@@ -37,10 +43,20 @@ def stand_under_pd(model: RobotModel, seconds: float, push: tuple[float, float] 
     data = standing_data(model, mj)
     target = model.default_joint_pos[None]  # [1, 8]
     for k in range(int(round(seconds / mj.opt.timestep))):
-        state = (target, data.qpos[None, 7:15], data.qvel[None, 6:14], model.kp, model.kd, model.torque_limit,
-                 model.speed_limit)
-        data.ctrl[:] = pd_torque(*(torch.tensor(a, dtype=torch.float64) for a in state), pd_factor=gain_factor,
-                                 motor_strength=gain_factor)[0].numpy()
+        state = (
+            target,
+            data.qpos[None, 7:15],
+            data.qvel[None, 6:14],
+            model.kp,
+            model.kd,
+            model.torque_limit,
+            model.speed_limit,
+        )
+        data.ctrl[:] = pd_torque(
+            *(torch.tensor(a, dtype=torch.float64) for a in state),
+            pd_factor=gain_factor,
+            motor_strength=gain_factor,
+        )[0].numpy()
         if k == int(round(1.0 / mj.opt.timestep)):
             data.qvel[0] += push[0]
             data.qvel[1] += push[1]

@@ -28,10 +28,20 @@ def test_show_json_reports_lengths_motors_and_validation(capsys):
     code, out, _ = cli(capsys, "show", "kuafu", "--design", "1.2,0.8,2,3", "--json")
     assert code == 0
     data = json.loads(out)
-    assert data["design"] == {"thigh_scale": 1.2, "shank_scale": 0.8, "hip_motor": 2.0, "knee_motor": 3.0}
+    assert data["design"] == {
+        "thigh_scale": 1.2,
+        "shank_scale": 0.8,
+        "hip_motor": 2.0,
+        "knee_motor": 3.0,
+    }
     assert data["info"]["thigh_length"] == pytest.approx(0.42)
     assert data["info"]["shank_length"] == pytest.approx(0.28)
-    assert [j["name"] for j in data["joints"]][:4] == ["left_hip_roll", "left_hip_pitch", "left_knee", "left_ankle"]
+    assert [j["name"] for j in data["joints"]][:4] == [
+        "left_hip_roll",
+        "left_hip_pitch",
+        "left_knee",
+        "left_ankle",
+    ]
     assert [j["torque_limit"] for j in data["joints"]][:4] == [120.3, 120.3, 135.1, 119.7]
     assert data["joints"][2]["speed_limit_rpm"] == pytest.approx(310.0)
     assert data["total_mass"] == pytest.approx(Kuafu().build(np.array([1.2, 0.8, 2, 3])).total_mass)
@@ -50,13 +60,17 @@ def test_show_table_defaults_to_the_nominal_design(capsys):
 @pytest.mark.parametrize("fmt", ["urdf", "mjcf"])
 def test_export_writes_a_loadable_model(capsys, tmp_path, fmt):
     target = tmp_path / f"kuafu.{fmt}"
-    code, _, err = cli(capsys, "export", "kuafu", "--design", "0.7,1.3", "--format", fmt, "-o", str(target))
+    code, _, err = cli(
+        capsys, "export", "kuafu", "--design", "0.7,1.3", "--format", fmt, "-o", str(target)
+    )
     assert code == 0 and str(target) in err
     text = target.read_text()
     if fmt == "urdf":
         pmodel = pin.buildModelFromXML(text, pin.JointModelFreeFlyer())
         assert pmodel.nv == 14
-        assert pin.computeTotalMass(pmodel) == pytest.approx(Kuafu().build(np.array([0.7, 1.3])).total_mass)
+        assert pin.computeTotalMass(pmodel) == pytest.approx(
+            Kuafu().build(np.array([0.7, 1.3])).total_mass
+        )
     else:
         mj = mujoco.MjModel.from_xml_string(text)
         assert (mj.nq, mj.nv, mj.nu) == (15, 14, 8)
@@ -72,10 +86,17 @@ def test_validate_exit_codes(capsys, monkeypatch):
     assert code == 0 and "feasible" in out and err == ""
 
     def infeasible(self, design):
-        return ValidationReport(np.asarray(design), [
-            Finding("statics.single_support", False, "largest gravity torque 150.0 N m at left_knee vs limit 119.7 N m"),
-            Finding("mass.total", True, "42.000 kg"),
-        ])
+        return ValidationReport(
+            np.asarray(design),
+            [
+                Finding(
+                    "statics.single_support",
+                    False,
+                    "largest gravity torque 150.0 N m at left_knee vs limit 119.7 N m",
+                ),
+                Finding("mass.total", True, "42.000 kg"),
+            ],
+        )
 
     monkeypatch.setattr(Kuafu, "validate", infeasible)
     code, out, err = cli(capsys, "validate", "kuafu", "--design", "1,1", "--json")
@@ -98,8 +119,11 @@ def test_validate_exit_codes(capsys, monkeypatch):
     ],
 )
 def test_bad_designs_are_one_line_exit_2(capsys, design, words):
-    for command in (["show", "kuafu", "--design", design], ["validate", "kuafu", "--design", design],
-                    ["export", "kuafu", "--design", design]):
+    for command in (
+        ["show", "kuafu", "--design", design],
+        ["validate", "kuafu", "--design", design],
+        ["export", "kuafu", "--design", design],
+    ):
         code, _, err = cli(capsys, *command)
         assert code == 2
         lines = err.strip().splitlines()
@@ -118,9 +142,19 @@ def test_unknown_robot_and_format(capsys):
 
 def test_bad_design_in_a_fresh_process_is_one_line_no_traceback():
     proc = subprocess.run(
-        [sys.executable, "-c", "import sys; from coadapt_core.cli import main; sys.exit(main(sys.argv[1:]))",
-         "robot", "validate", "kuafu", "--design", "1.2,0.8,7,1"],
-        capture_output=True, text=True, timeout=120,
+        [
+            sys.executable,
+            "-c",
+            "import sys; from coadapt_core.cli import main; sys.exit(main(sys.argv[1:]))",
+            "robot",
+            "validate",
+            "kuafu",
+            "--design",
+            "1.2,0.8,7,1",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert proc.returncode == 2
     assert proc.stderr.strip() == "error: design variable 'hip_motor' = 7 is not one of {1, 2, 3}"
@@ -130,9 +164,25 @@ def test_bad_design_in_a_fresh_process_is_one_line_no_traceback():
 def test_render_writes_a_picture(tmp_path):
     target = tmp_path / "design.png"
     proc = subprocess.run(
-        [sys.executable, "-c", "import sys; from coadapt_core.cli import main; sys.exit(main(sys.argv[1:]))",
-         "robot", "render", "kuafu", "--design", "1.2,0.8", "-o", str(target), "--width", "160", "--height", "200"],
-        capture_output=True, text=True, timeout=300,
+        [
+            sys.executable,
+            "-c",
+            "import sys; from coadapt_core.cli import main; sys.exit(main(sys.argv[1:]))",
+            "robot",
+            "render",
+            "kuafu",
+            "--design",
+            "1.2,0.8",
+            "-o",
+            str(target),
+            "--width",
+            "160",
+            "--height",
+            "200",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     if proc.returncode == 1 and "offscreen rendering failed" in proc.stderr:
         pytest.skip(f"no GL backend for offscreen rendering: {proc.stderr.strip()}")
@@ -147,13 +197,32 @@ def test_render_writes_a_picture(tmp_path):
 @pytest.mark.slow
 def test_render_without_a_gl_backend_is_one_line_exit_1(tmp_path):
     proc = subprocess.run(
-        [sys.executable, "-c", "import sys; from coadapt_core.cli import main; sys.exit(main(sys.argv[1:]))",
-         "robot", "render", "kuafu", "-o", str(tmp_path / "x.png"), "--width", "64", "--height", "64"],
-        capture_output=True, text=True, timeout=300, env={**os.environ, "MUJOCO_GL": "not-a-backend"},
+        [
+            sys.executable,
+            "-c",
+            "import sys; from coadapt_core.cli import main; sys.exit(main(sys.argv[1:]))",
+            "robot",
+            "render",
+            "kuafu",
+            "-o",
+            str(tmp_path / "x.png"),
+            "--width",
+            "64",
+            "--height",
+            "64",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**os.environ, "MUJOCO_GL": "not-a-backend"},
     )
     assert proc.returncode == 1
     lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and "offscreen rendering failed" in lines[0] and "apt-get install" in lines[0]
+    assert (
+        len(lines) == 1
+        and "offscreen rendering failed" in lines[0]
+        and "apt-get install" in lines[0]
+    )
 
 
 def test_render_into_a_missing_folder_is_exit_2(capsys, tmp_path):

@@ -22,7 +22,9 @@ def ankle_relative_to_hip(model, joints: np.ndarray) -> tuple[np.ndarray, np.nda
     mujoco.mj_kinematics(mj, data)
     rel, rot = [], []
     for side in C.SIDES:
-        rel.append(data.xpos[mj.body(f"{side}_foot").id] - data.xpos[mj.body(f"{side}_hip_roll_link").id])
+        rel.append(
+            data.xpos[mj.body(f"{side}_foot").id] - data.xpos[mj.body(f"{side}_hip_roll_link").id]
+        )
         rot.append(data.xmat[mj.body(f"{side}_foot").id].reshape(3, 3))
     return np.array(rel), np.array(rot)
 
@@ -49,13 +51,17 @@ def test_ik_places_the_ankle_where_asked(kuafu):
 def test_default_foot_positions_match_the_default_pose(kuafu):
     designs = np.array([[0.5, 0.5], [1.0, 1.0], [1.5, 0.7], [0.6, 1.4]])
     feet = kuafu.default_foot_positions(torch.as_tensor(designs))
-    np.testing.assert_allclose(kuafu.hip_height(torch.as_tensor(designs)).numpy(), 0.94 * 0.35 * designs.sum(axis=1))
+    np.testing.assert_allclose(
+        kuafu.hip_height(torch.as_tensor(designs)).numpy(), 0.94 * 0.35 * designs.sum(axis=1)
+    )
     for i, design in enumerate(designs):
         model = kuafu.build(design)
         rel, _ = ankle_relative_to_hip(model, model.default_joint_pos)
         np.testing.assert_allclose(rel, feet[i].numpy(), atol=1e-12)
         # standing base height = sole depth + hip-to-ankle + hip drop below the base
-        assert model.standing_base_height == pytest.approx(C.ANKLE_HEIGHT - feet[i, 0, 2].item() - C.HIP_OFFSET[2])
+        assert model.standing_base_height == pytest.approx(
+            C.ANKLE_HEIGHT - feet[i, 0, 2].item() - C.HIP_OFFSET[2]
+        )
 
 
 def test_hip_roll_follows_the_lateral_offset(kuafu):
@@ -80,7 +86,9 @@ def test_unreachable_targets_are_clamped_not_nan(kuafu):
 
 
 def test_random_designs_have_link_lengths_0_35_xi_in_pinocchio(kuafu):
-    designs = np.vstack([kuafu.design_space().sample(6, rng=3), kuafu.design_space(True).sample(4, rng=4)[:, :2]])
+    designs = np.vstack(
+        [kuafu.design_space().sample(6, rng=3), kuafu.design_space(True).sample(4, rng=4)[:, :2]]
+    )
     for design in designs:
         model = kuafu.build(design)
         pmodel = pinocchio_model(model)
@@ -88,6 +96,13 @@ def test_random_designs_have_link_lengths_0_35_xi_in_pinocchio(kuafu):
         q = pin.neutral(pmodel)
         pin.forwardKinematics(pmodel, pdata, q)
         for side in C.SIDES:
-            pos = {j: pdata.oMi[pmodel.getJointId(f"{side}_{j}")].translation for j in ("hip_pitch", "knee", "ankle")}
-            assert np.linalg.norm(pos["knee"] - pos["hip_pitch"]) == pytest.approx(0.35 * design[0], abs=1e-3)
-            assert np.linalg.norm(pos["ankle"] - pos["knee"]) == pytest.approx(0.35 * design[1], abs=1e-3)
+            pos = {
+                j: pdata.oMi[pmodel.getJointId(f"{side}_{j}")].translation
+                for j in ("hip_pitch", "knee", "ankle")
+            }
+            assert np.linalg.norm(pos["knee"] - pos["hip_pitch"]) == pytest.approx(
+                0.35 * design[0], abs=1e-3
+            )
+            assert np.linalg.norm(pos["ankle"] - pos["knee"]) == pytest.approx(
+                0.35 * design[1], abs=1e-3
+            )

@@ -49,5 +49,8 @@ def test_total_mass_monotonic_in_each_length(kuafu):
         thigh = [kuafu.build(np.array([s, other])).total_mass for s in scales]
         shank = [kuafu.build(np.array([other, s])).total_mass for s in scales]
         assert np.all(np.diff(thigh) > 0) and np.all(np.diff(shank) > 0)
-    light, heavy = kuafu.build(np.array([0.5, 0.5])).total_mass, kuafu.build(np.array([1.5, 1.5])).total_mass
+    light, heavy = (
+        kuafu.build(np.array([0.5, 0.5])).total_mass,
+        kuafu.build(np.array([1.5, 1.5])).total_mass,
+    )
     assert 39.0 < light < 42.0 < heavy < 46.0

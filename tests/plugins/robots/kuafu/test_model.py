@@ -30,8 +30,16 @@ def measured_height(model) -> tuple[float, float]:
     bottoms = []
     for side in C.SIDES:
         sole = mj.geom(f"{side}_sole").id
-        corners = data.geom_xpos[sole] + (data.geom_xmat[sole].reshape(3, 3) @ (np.array(
-            [[sx, sy, -1.0] for sx in (-1, 1) for sy in (-1, 1)]) * mj.geom_size[sole]).T).T
+        corners = (
+            data.geom_xpos[sole]
+            + (
+                data.geom_xmat[sole].reshape(3, 3)
+                @ (
+                    np.array([[sx, sy, -1.0] for sx in (-1, 1) for sy in (-1, 1)])
+                    * mj.geom_size[sole]
+                ).T
+            ).T
+        )
         bottoms.append(corners[:, 2].min())
     return float(top), float(min(bottoms))
 
@@ -51,7 +59,9 @@ def test_standing_height_follows_the_legs(kuafu):
     short = kuafu.build(np.array([0.5, 0.5]))
     tall = kuafu.build(np.array([1.5, 1.5]))
     # 0.94 of the leg-length change shows up in the height (bent knees at the default pose)
-    assert measured_height(tall)[0] - measured_height(short)[0] == pytest.approx(0.94 * 0.35 * 2.0, abs=1e-9)
+    assert measured_height(tall)[0] - measured_height(short)[0] == pytest.approx(
+        0.94 * 0.35 * 2.0, abs=1e-9
+    )
 
 
 def test_urdf_in_pinocchio_has_8_revolute_joints_with_table_8_limits(kuafu):
@@ -65,7 +75,11 @@ def test_urdf_in_pinocchio_has_8_revolute_joints_with_table_8_limits(kuafu):
         j = pmodel.joints[pmodel.getJointId(name)]
         assert pmodel.effortLimit[j.idx_v] == pytest.approx(119.7)
         assert pmodel.velocityLimit[j.idx_v] == pytest.approx(99.0 * RPM)
-    fixed = [f.name for f in pmodel.frames if f.type == pin.FrameType.FIXED_JOINT and f.name != "universe"]
+    fixed = [
+        f.name
+        for f in pmodel.frames
+        if f.type == pin.FrameType.FIXED_JOINT and f.name != "universe"
+    ]
     assert sorted(fixed) == ["left_shoulder", "right_shoulder"]
 
 
@@ -82,7 +96,9 @@ def test_motor_types_set_limits_in_every_description(kuafu, hip, knee):
         act = mj.actuator(name)
         assert mj.actuator_trnid[act.id, 0] == mj.joint(name).id
         assert mj.actuator_gear[act.id, 0] == 1.0
-        np.testing.assert_allclose(mj.actuator_ctrlrange[act.id], [-model.torque_limit[k], model.torque_limit[k]])
+        np.testing.assert_allclose(
+            mj.actuator_ctrlrange[act.id], [-model.torque_limit[k], model.torque_limit[k]]
+        )
         idx = pmodel.joints[pmodel.getJointId(name)].idx_v
         assert pmodel.effortLimit[idx] == pytest.approx(model.torque_limit[k])
         assert pmodel.velocityLimit[idx] == pytest.approx(model.speed_limit[k])
@@ -91,10 +107,16 @@ def test_motor_types_set_limits_in_every_description(kuafu, hip, knee):
 def test_motor_mass_enters_the_model(kuafu):
     base = kuafu.build(np.array([1.0, 1.0, 1, 1])).total_mass
     # type 3 is 0.05 kg heavier: 2 knee actuators; 4 hip actuators (roll and pitch)
-    assert kuafu.build(np.array([1.0, 1.0, 1, 3])).total_mass - base == pytest.approx(0.10, abs=1e-9)
-    assert kuafu.build(np.array([1.0, 1.0, 3, 1])).total_mass - base == pytest.approx(0.20, abs=1e-9)
+    assert kuafu.build(np.array([1.0, 1.0, 1, 3])).total_mass - base == pytest.approx(
+        0.10, abs=1e-9
+    )
+    assert kuafu.build(np.array([1.0, 1.0, 3, 1])).total_mass - base == pytest.approx(
+        0.20, abs=1e-9
+    )
     # a 2-vector design is motor types (1, 1)
-    assert kuafu.build(np.array([1.0, 1.0])).text("mjcf") == kuafu.build(np.array([1.0, 1.0, 1, 1])).text("mjcf")
+    assert kuafu.build(np.array([1.0, 1.0])).text("mjcf") == kuafu.build(
+        np.array([1.0, 1.0, 1, 1])
+    ).text("mjcf")
 
 
 def test_mjcf_conventions(kuafu):
@@ -112,7 +134,7 @@ def test_mjcf_conventions(kuafu):
         assert mj.body_jntnum[mj.body(f"{side}_arm").id] == 0
     # robot only: no geom on the world body; collision geoms collide with terrain, not each other
     assert not np.any(mj.geom_bodyid == 0)
-    collision = (mj.geom_contype == 1)
+    collision = mj.geom_contype == 1
     assert np.all(mj.geom_conaffinity == 0)
     assert np.all((mj.geom_contype == 0) | (mj.geom_contype == 1))
     for side in C.SIDES:
@@ -128,7 +150,9 @@ def test_foot_contact_points_are_the_sole_corners(kuafu):
     mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
     sole = mj.geom("left_sole").id
     centre, half = mj.geom_pos[sole], mj.geom_size[sole]
-    corners = {tuple(np.round(centre + half * [sx, sy, -1.0], 9)) for sx in (-1, 1) for sy in (-1, 1)}
+    corners = {
+        tuple(np.round(centre + half * [sx, sy, -1.0], 9)) for sx in (-1, 1) for sy in (-1, 1)
+    }
     assert {tuple(np.round(p, 9)) for p in model.foot_contact_points} == corners
     # the URDF collision box of each foot is the same box
     root = ET.fromstring(model.text("urdf"))
@@ -151,7 +175,9 @@ def test_default_pose_knees_bent_soles_flat_feet_under_hips(kuafu):
         for side in C.SIDES:
             foot = mj.body(f"{side}_foot").id
             hip = mj.body(f"{side}_hip_roll_link").id
-            np.testing.assert_allclose(data.xmat[foot].reshape(3, 3), np.eye(3), atol=1e-12)  # sole flat
+            np.testing.assert_allclose(
+                data.xmat[foot].reshape(3, 3), np.eye(3), atol=1e-12
+            )  # sole flat
             np.testing.assert_allclose(data.xpos[foot][:2], data.xpos[hip][:2], atol=1e-12)
 
 
@@ -165,7 +191,10 @@ def test_pd_gains_follow_the_scaling_rule(kuafu):
         model = kuafu.build(np.array(design))
         inertia = leg_joint_inertias(KuafuDesign(*design))
         load = np.array([inertia["load"][j] / i_nom["load"][j] for j in joints] * 2)
-        swing = np.array([(inertia["swing"][j] + C.ARMATURE) / (i_nom["swing"][j] + C.ARMATURE) for j in joints] * 2)
+        swing = np.array(
+            [(inertia["swing"][j] + C.ARMATURE) / (i_nom["swing"][j] + C.ARMATURE) for j in joints]
+            * 2
+        )
         np.testing.assert_allclose(model.kp / nominal.kp, load, rtol=1e-12)
         np.testing.assert_allclose(model.kd / nominal.kd, np.sqrt(load * swing), rtol=1e-12)
     short, tall = kuafu.build(np.array([0.5, 0.5])), kuafu.build(np.array([1.5, 1.5]))

@@ -12,7 +12,15 @@ from coadapt_core.physics.actuation import pd_torque
 
 from .helpers import stand_under_pd
 
-CORNERS = [[1.0, 1.0], [0.5, 0.5], [1.5, 1.5], [1.5, 0.5], [0.5, 1.5], [1.5, 1.5, 3, 3], [0.5, 0.5, 2, 2]]
+CORNERS = [
+    [1.0, 1.0],
+    [0.5, 0.5],
+    [1.5, 1.5],
+    [1.5, 0.5],
+    [0.5, 1.5],
+    [1.5, 1.5, 3, 3],
+    [0.5, 0.5, 2, 2],
+]
 
 
 @pytest.mark.parametrize("design", CORNERS)
@@ -30,10 +38,14 @@ def test_rides_out_pushes(kuafu, design, push):
     assert out["tilt"] < 0.1 and out["drop"] < 0.03
 
 
-@pytest.mark.parametrize("gain_factor", [0.9, 1.21])  # PD factor x motor strength (Table 2: 0.81-1.21)
+@pytest.mark.parametrize(
+    "gain_factor", [0.9, 1.21]
+)  # PD factor x motor strength (Table 2: 0.81-1.21)
 @pytest.mark.parametrize("design", CORNERS[:5])
 def test_stands_with_randomized_gains(kuafu, design, gain_factor):
-    out = stand_under_pd(kuafu.build(np.array(design, dtype=float)), seconds=3.0, gain_factor=gain_factor)
+    out = stand_under_pd(
+        kuafu.build(np.array(design, dtype=float)), seconds=3.0, gain_factor=gain_factor
+    )
     assert out["tilt"] < 0.1 and out["drop"] < 0.03
 
 
@@ -54,13 +66,25 @@ def test_hanging_legs_settle_after_a_step_at_the_highest_gains(kuafu, design):
     mj = spec.compile()
     data = mujoco.MjData(mj)
     data.qpos[:] = model.default_joint_pos
-    target = (model.default_joint_pos + np.array([0.1, -0.3, 0.3, -0.3] * 2)).clip(model.joint_lower, model.joint_upper)
+    target = (model.default_joint_pos + np.array([0.1, -0.3, 0.3, -0.3] * 2)).clip(
+        model.joint_lower, model.joint_upper
+    )
     speeds = []
     for _ in range(400):  # 2 s
-        state = (target[None], data.qpos[None], data.qvel[None], model.kp, model.kd, model.torque_limit,
-                 model.speed_limit)
-        data.ctrl[:] = pd_torque(*(torch.tensor(a, dtype=torch.float64) for a in state), pd_factor=1.1,
-                                 motor_strength=1.1)[0].numpy()
+        state = (
+            target[None],
+            data.qpos[None],
+            data.qvel[None],
+            model.kp,
+            model.kd,
+            model.torque_limit,
+            model.speed_limit,
+        )
+        data.ctrl[:] = pd_torque(
+            *(torch.tensor(a, dtype=torch.float64) for a in state),
+            pd_factor=1.1,
+            motor_strength=1.1,
+        )[0].numpy()
         mujoco.mj_step(mj, data)
         speeds.append(np.abs(data.qvel).max())
     assert np.abs(data.qpos - target).max() < 0.02  # gravity sag only

@@ -12,20 +12,33 @@ import pytest
 from coadapt_plugins.robots.kuafu.validation import consistency, validate_model
 
 CHECKS = {
-    "kinematics.thigh_length", "kinematics.shank_length", "kinematics.joint_limits",
-    "kinematics.feet_below_pelvis", "mass.total", "mass.com_over_support",
-    "statics.double_support", "statics.single_support", "control.pd_stability", "consistency.total_mass",
-    "consistency.com", "consistency.foot_positions", "consistency.mass_matrix",
+    "kinematics.thigh_length",
+    "kinematics.shank_length",
+    "kinematics.joint_limits",
+    "kinematics.feet_below_pelvis",
+    "mass.total",
+    "mass.com_over_support",
+    "statics.double_support",
+    "statics.single_support",
+    "control.pd_stability",
+    "consistency.total_mass",
+    "consistency.com",
+    "consistency.foot_positions",
+    "consistency.mass_matrix",
 }
 
 
-@pytest.mark.parametrize("design", [[1.0, 1.0], [0.5, 0.5], [1.5, 1.5], [1.5, 0.5], [0.5, 1.5, 3, 2]])
+@pytest.mark.parametrize(
+    "design", [[1.0, 1.0], [0.5, 0.5], [1.5, 1.5], [1.5, 0.5], [0.5, 1.5, 3, 2]]
+)
 def test_corner_designs_are_feasible_with_all_checks(kuafu, design):
     report = kuafu.validate(np.array(design, dtype=float))
     assert {f.check for f in report.findings} == CHECKS
     assert report.feasible, report.reasons
     found = {f.check: f for f in report.findings}
-    assert found["mass.total"].value == pytest.approx(kuafu.build(np.array(design, dtype=float)).total_mass)
+    assert found["mass.total"].value == pytest.approx(
+        kuafu.build(np.array(design, dtype=float)).total_mass
+    )
     assert 0 < found["statics.double_support"].value < found["statics.single_support"].value
 
 
@@ -40,7 +53,9 @@ def test_mujoco_and_pinocchio_agree_on_random_designs(kuafu):
 
 def test_mass_matrix_check_sees_a_missing_armature(kuafu):
     model = kuafu.build(np.array([1.0, 1.0]))
-    bare = pin.buildModelFromXML(model.text("urdf"), pin.JointModelFreeFlyer())  # URDF alone: no armature
+    bare = pin.buildModelFromXML(
+        model.text("urdf"), pin.JointModelFreeFlyer()
+    )  # URDF alone: no armature
     worst = consistency(model, pmodel=bare, count=2)
     assert worst["mass_matrix"] > 1e-4
 
@@ -62,7 +77,8 @@ def test_kinematics_fail_on_a_wrong_urdf(kuafu):
     model = kuafu.build(np.array([1.0, 1.0]))
     # move the left knee 5 mm down in the URDF only
     broken = model.text("urdf").replace(
-        '<child link="left_shank"/><origin xyz="0 0 -0.35"', '<child link="left_shank"/><origin xyz="0 0 -0.355"'
+        '<child link="left_shank"/><origin xyz="0 0 -0.35"',
+        '<child link="left_shank"/><origin xyz="0 0 -0.355"',
     )
     assert broken != model.text("urdf")
     found = _findings(dataclasses.replace(model, formats={**model.formats, "urdf": broken}))
@@ -76,7 +92,9 @@ def test_limit_and_support_checks_fail(kuafu):
     model = kuafu.build(np.array([1.0, 1.0]))
     at_limit = dataclasses.replace(model, joint_upper=model.default_joint_pos.copy())
     assert not _findings(at_limit)["kinematics.joint_limits"].ok
-    toes_only = dataclasses.replace(model, foot_contact_points=model.foot_contact_points + np.array([0.3, 0.0, 0.0]))
+    toes_only = dataclasses.replace(
+        model, foot_contact_points=model.foot_contact_points + np.array([0.3, 0.0, 0.0])
+    )
     found = _findings(toes_only)
     assert not found["mass.com_over_support"].ok
     assert "outside" in found["mass.com_over_support"].message

@@ -29,8 +29,16 @@ def test_the_nominal_design_is_the_go1(qilin) -> None:
     assert model.standing_base_height == pytest.approx(2 * 0.213 * np.cos(0.9) + 0.023, abs=1e-9)
     np.testing.assert_allclose(model.torque_limit, [23.7, 23.7, 35.55] * 4)
     np.testing.assert_allclose(model.speed_limit, [30.1, 30.1, 20.06] * 4)
-    assert model.joint_names[:3] == ["FL_abduction", "FL_hip", "FL_knee"] and model.foot_bodies[0] == "FL_foot"
-    assert [(leg.name, leg.phase_offset) for leg in qilin.legs()] == [("FL", 0.0), ("FR", 0.5), ("RL", 0.5), ("RR", 0.0)]
+    assert (
+        model.joint_names[:3] == ["FL_abduction", "FL_hip", "FL_knee"]
+        and model.foot_bodies[0] == "FL_foot"
+    )
+    assert [(leg.name, leg.phase_offset) for leg in qilin.legs()] == [
+        ("FL", 0.0),
+        ("FR", 0.5),
+        ("RL", 0.5),
+        ("RR", 0.0),
+    ]
 
 
 def test_masses_and_gains_follow_the_legs(qilin) -> None:
@@ -40,14 +48,18 @@ def test_masses_and_gains_follow_the_legs(qilin) -> None:
     assert large.total_mass - 12.743448 == pytest.approx(4 * per_leg_change, abs=1e-6)
     assert 12.743448 - small.total_mass == pytest.approx(4 * per_leg_change, abs=1e-6)
     assert small.standing_base_height < 0.29 < large.standing_base_height
-    assert large.kp[0] == pytest.approx(C.KP * 1.3**2) and small.kd[0] == pytest.approx(C.KD * 0.7**2)
+    assert large.kp[0] == pytest.approx(C.KP * 1.3**2) and small.kd[0] == pytest.approx(
+        C.KD * 0.7**2
+    )
 
 
 def test_motor_types_set_hip_and_knee_limits_but_not_abduction(qilin) -> None:
     model = qilin.build(np.array([1.0, 1.0, 2.0, 1.0]))
     np.testing.assert_allclose(model.torque_limit[:3], [23.7, 35.55, 23.7])
     np.testing.assert_allclose(model.speed_limit[:3], [30.1, 20.06, 30.1])
-    assert model.total_mass == pytest.approx(12.743448, abs=1e-6)  # a reduction stage weighs nothing (assumed)
+    assert model.total_mass == pytest.approx(
+        12.743448, abs=1e-6
+    )  # a reduction stage weighs nothing (assumed)
 
 
 @pytest.mark.parametrize("design", [[1.0, 1.0], *CORNERS])
@@ -60,12 +72,15 @@ def test_leg_ik_puts_every_foot_where_asked_in_mujoco(qilin, design) -> None:
     model = qilin.build(np.array(design))
     tools = tools_for(get_registry(), model)[1]
     designs = torch.tensor([design], dtype=torch.float64)
-    target = qilin.default_foot_positions(designs) + torch.tensor([[0.04, 0.03, 0.02], [-0.03, -0.04, -0.01],
-                                                                   [0.0, 0.05, 0.03], [0.05, -0.02, 0.0]],
-                                                                  dtype=torch.float64)
+    target = qilin.default_foot_positions(designs) + torch.tensor(
+        [[0.04, 0.03, 0.02], [-0.03, -0.04, -0.01], [0.0, 0.05, 0.03], [0.05, -0.02, 0.0]],
+        dtype=torch.float64,
+    )
     q = qilin.leg_inverse_kinematics(designs, target)[0].numpy()
     feet = np.asarray(tools.foot_positions(model, q), dtype=float)  # base frame
-    hips = np.array([C.hip_centre(leg) + np.array([0.0, C.side(leg) * C.THIGH_OFFSET, 0.0]) for leg in C.LEGS])
+    hips = np.array(
+        [C.hip_centre(leg) + np.array([0.0, C.side(leg) * C.THIGH_OFFSET, 0.0]) for leg in C.LEGS]
+    )
     np.testing.assert_allclose(feet - hips, target[0].numpy(), atol=1e-6)
 
 
@@ -73,14 +88,23 @@ def test_leg_ik_puts_every_foot_where_asked_in_mujoco(qilin, design) -> None:
 def test_the_corners_validate(qilin, design) -> None:
     report = qilin.validate(np.array(design))
     assert report.feasible, report.reasons
-    assert {f.check for f in report.findings} >= {"kinematics.thigh_length", "mass.total", "statics.standing_torque",
-                                                  "statics.com_over_feet", "consistency.feet_and_com"}
+    assert {f.check for f in report.findings} >= {
+        "kinematics.thigh_length",
+        "mass.total",
+        "statics.standing_torque",
+        "statics.com_over_feet",
+        "consistency.feet_and_com",
+    }
 
 
 def test_validation_fails_a_model_that_is_wrong(qilin) -> None:
     model = qilin.build(qilin.nominal_design())
     heavier = dataclasses.replace(model, total_mass=model.total_mass + 0.5)
     assert [f.check for f in validate_model(heavier).findings if not f.ok] == ["mass.total"]
-    weak = dataclasses.replace(model, torque_limit=np.full(12, 5.0))  # the knees need 5.05 N m to stand
+    weak = dataclasses.replace(
+        model, torque_limit=np.full(12, 5.0)
+    )  # the knees need 5.05 N m to stand
     failed = {f.check: f for f in validate_model(weak).findings if not f.ok}
-    assert set(failed) == {"statics.standing_torque"} and failed["statics.standing_torque"].value > 1.0
+    assert (
+        set(failed) == {"statics.standing_torque"} and failed["statics.standing_torque"].value > 1.0
+    )
