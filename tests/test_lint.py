@@ -14,3 +14,12 @@ def test_ruff_is_clean():
         [ruff, "check", "."], cwd=ROOT, capture_output=True, text=True, timeout=120
     )
     assert result.returncode == 0, result.stdout[-3000:]
+
+
+def test_ruff_format_is_clean():
+    """One layout for the whole tree (`ruff format`), so a diff shows changes, not styles."""
+    ruff = shutil.which("ruff") or str(Path(sys.executable).parent / "ruff")
+    result = subprocess.run(
+        [ruff, "format", "--check", "."], cwd=ROOT, capture_output=True, text=True, timeout=120
+    )
+    assert result.returncode == 0, result.stdout[-3000:]
