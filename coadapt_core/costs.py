@@ -88,7 +88,10 @@ class CostRule:
 
     def describe(self) -> str:
         if self.rule == "capped":
-            return f"capped mean (a scenario costs at most {self.cap:g} x the nominal design's median scenario; a fall costs the cap)"
+            return (
+                f"capped mean (a scenario costs at most {self.cap:g} x the nominal design's "
+                "median scenario; a fall costs the cap)"
+            )
         if self.rule == "trimmed":
             return f"trimmed mean (each design's costliest {TRIM_SHARE:.0%} of scenarios left out)"
         return "plain mean (eq. 4)"
@@ -138,7 +141,8 @@ class CostRule:
         return self.aggregate(self.scenario_values(per_scenario, falls, reference))
 
 
-#: the rule before the capped one (what `robust_cost` computes): the tests' and benchmarks' reference
+#: the rule before the capped one (what `robust_cost` computes), the reference of the tests
+#: and benchmarks
 TRIMMED = CostRule("trimmed")
 
 

@@ -46,7 +46,8 @@ def disk_error(path: Path, exc: OSError) -> UserError:
     """One line for an OS error writing `path`."""
     if exc.errno in (errno.ENOSPC, errno.EDQUOT):
         return UserError(
-            f"disk full writing '{path}'; nothing partial was left, free space and run the command again",
+            f"disk full writing '{path}'; nothing partial was left, "
+            "free space and run the command again",
             field="out",
         )
     if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS):

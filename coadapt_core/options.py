@@ -72,7 +72,8 @@ class PluginOption:
             )
         if self.from_run is not None and self.from_run not in RUN_FACTS:
             raise TypeError(
-                f"option '{self.name}' is filled from_run={self.from_run!r}; use one of {', '.join(RUN_FACTS)}"
+                f"option '{self.name}' is filled from_run={self.from_run!r}; "
+                f"use one of {', '.join(RUN_FACTS)}"
             )
 
     def convert(self, value: Any, owner: str, field: str) -> Any:
@@ -208,7 +209,8 @@ def check_specs(specs: Any, owner: str) -> tuple[PluginOption, ...]:
             isinstance(spec.alias, str) and spec.alias.isidentifier()
         ):
             raise TypeError(
-                f"{owner}: option '{spec.name}' has alias {spec.alias!r}; use a name like 'my_option'"
+                f"{owner}: option '{spec.name}' has alias {spec.alias!r}; "
+                "use a name like 'my_option'"
             )
         if spec.default is not None:
             spec.convert(spec.default, owner, "option_specs")

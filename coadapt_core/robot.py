@@ -2,9 +2,9 @@
 
 A robot plugin owns its design space, turns a design into model descriptions, one per
 format it can write (`RobotModel.formats`: "mjcf" for MuJoCo, "urdf" for Pinocchio and
-PyBullet, any other name a simulator plugin reads), plus the actuator facts a simulator needs, knows its
-leg kinematics (for the Raibert foot-placement reward), declares its legs (order and gait
-phase offsets), validates designs and may ship trained universal policies.
+PyBullet, any other name a simulator plugin reads), plus the actuator facts a simulator
+needs, knows its leg kinematics (for the Raibert foot-placement reward), declares its legs
+(order and gait phase offsets), validates designs and may ship trained universal policies.
 
 The MJCF contract (checked by `coadapt_core.testing.RobotConformance`): the floating base is
 the first joint, then the actuated joints; exactly one actuator per actuated joint (a

@@ -30,8 +30,8 @@ class ThreadSettings:
 
     threads: Int | None = setting(
         None,
-        "CPU threads of the physics and of torch (default: the CPUs this process may use, its affinity "
-        "mask and cgroup CPU quota; never the checkpoint's).",
+        "CPU threads of the physics and of torch (default: the CPUs this process may use, "
+        "its affinity mask and cgroup CPU quota; never the checkpoint's).",
         ge=1,
     )
 
@@ -158,8 +158,8 @@ def share_cores(
             else f"--workers {cores} --threads 1"
         )
         raise UserError(
-            f"--workers {at_once} x --threads {threads} = {at_once * threads} threads on {cores} CPUs "
-            f"(cells at once x threads per cell must be <= the CPUs); e.g. {fits}",
+            f"--workers {at_once} x --threads {threads} = {at_once * threads} threads "
+            f"on {cores} CPUs (cells at once x threads per cell must be <= the CPUs); e.g. {fits}",
             field="threads",
         )
     return workers, threads

@@ -142,8 +142,8 @@ def make_logger(
         import sys
 
         print(
-            "note: tensorboard is not installed: no event files are written (pip install tensorboard; "
-            "--logger none says this is meant)",
+            "note: tensorboard is not installed: no event files are written "
+            "(pip install tensorboard; --logger none says this is meant)",
             file=sys.stderr,
         )
         return ExperimentLogger()

@@ -27,7 +27,8 @@ def check_run_id(value: object, *, field: str = "run_id") -> str:
     """`value` if it is a well-formed run id, else a one-line `UserError`."""
     if not is_run_id(value):
         raise UserError(
-            f"{field} {value!r} is not a run id (letters, digits and . _ + = - only, no '..' or '/')",
+            f"{field} {value!r} is not a run id "
+            "(letters, digits and . _ + = - only, no '..' or '/')",
             field=field,
         )
     return str(value)

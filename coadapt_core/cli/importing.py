@@ -32,7 +32,8 @@ def register(app: typer.Typer) -> None:
 
     def import_command(**values: Any) -> None:
         """Merge exported runs into a store: new runs are added, a run already there is replaced only by a copy further along (finished, or updated later)."""
-        from coadapt_core.results.importer import export_files, import_tables
+        from coadapt_core.results.import_files import export_files
+        from coadapt_core.results.importer import import_tables
         from coadapt_core.results.store import ResultsStore
 
         o = filled(values, options)

@@ -151,7 +151,8 @@ def import_rows(
     """Merge a bundle's rows into `store` by `coadapt import`'s rule, with the run's folder
     recorded as `folder`. The rows must hold exactly the run `run_id` (and, with `cell`,
     that grid cell's run); anything else is refused before anything is written."""
-    from coadapt_core.results.importer import export_files, import_tables, read_table
+    from coadapt_core.results.import_files import export_files, read_table
+    from coadapt_core.results.importer import import_tables
 
     if not isinstance(tables, dict) or set(tables) != set(EXPORT_TABLES):
         raise BundleError(

@@ -73,7 +73,8 @@ def evaluate_checkpoint(
     state = read_checkpoint(checkpoint)
     if state["robot"] != robot_obj.name:
         raise UserError(
-            f"checkpoint '{checkpoint}' was trained for robot '{state['robot']}', not '{robot_obj.name}'",
+            f"checkpoint '{checkpoint}' was trained for robot '{state['robot']}', "
+            f"not '{robot_obj.name}'",
             field="checkpoint",
         )
     registry = get_registry()

@@ -108,8 +108,8 @@ def run_grid(
         check_threads(threads, "threads")
     if any(arg == "--threads" or arg.startswith("--threads=") for arg in spec.extra_args):
         raise UserError(
-            "--run-arg=--threads: give the threads per cell as `coadapt grid --threads N` (the grid "
-            "divides the cores among the cells by it)",
+            "--run-arg=--threads: give the threads per cell as `coadapt grid --threads N` "
+            "(the grid divides the cores among the cells by it)",
             field="run_arg",
         )
     grid_id = spec.grid_id

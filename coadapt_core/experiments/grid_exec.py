@@ -193,15 +193,16 @@ def check_ray_address(address: str, connect_timeout: float = 10.0) -> None:
         pool.submit(connect).result(timeout=connect_timeout + 1)
     except Timeout:
         raise UserError(
-            f"cannot reach a Ray cluster at --address '{address}' (no answer in {connect_timeout:g} s); "
-            "check the head node's host and port, or use --executor local",
+            f"cannot reach a Ray cluster at --address '{address}' "
+            f"(no answer in {connect_timeout:g} s); check the head node's host and port, "
+            "or use --executor local",
             field="address",
         ) from None
     except OSError as exc:
         reason = exc.strerror or type(exc).__name__
         raise UserError(
-            f"cannot reach a Ray cluster at --address '{address}' ({reason}); check the head node's "
-            "host and port, or use --executor local",
+            f"cannot reach a Ray cluster at --address '{address}' ({reason}); "
+            "check the head node's host and port, or use --executor local",
             field="address",
         ) from None
     finally:

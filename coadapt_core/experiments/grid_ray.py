@@ -177,8 +177,8 @@ class _Driver:
         threads, gpu = cell_threads(task.argv), cell_gpus(task.argv)
         if threads > cpus:
             return (
-                f"the cell reserves {threads} CPUs (--threads) and the largest node of the cluster has "
-                f"{cpus:g}; give --threads <= {cpus:g} or add bigger nodes"
+                f"the cell reserves {threads} CPUs (--threads) and the largest node of the "
+                f"cluster has {cpus:g}; give --threads <= {cpus:g} or add bigger nodes"
             )
         if gpu > gpus:
             return "the cell runs on a GPU (--device cuda) and no node of the cluster has one"

@@ -94,8 +94,8 @@ def run_cell(job: RayCell, mailbox: Any = None) -> dict[str, Any]:
     key = job.task.cell.key
     if differs:
         error = (
-            f"node {host} refused the cell: {differs}; install the driver's coadapt and plugins on every "
-            "node (docs/cluster.md)"
+            f"node {host} refused the cell: {differs}; install the driver's coadapt and "
+            "plugins on every node (docs/cluster.md)"
         )
         return {"outcome": CellOutcome(key, REFUSED, 0.0, None, error), "node": node, "host": host}
     scratch = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX))

@@ -218,8 +218,10 @@ def markdown_tables(figures: list[DesignFigures]) -> str:
                 lines.append(f"| {test} | {key} ({units[key]}) | {err.rms:.4f} | {err.max:.4f} |")
         lines.append("")
         lines.append(
-            f"Swing joint motion RMS {fig.swing_amplitude:.3f} rad; standing base height drop over 1 s: "
-            f"reference {fig.height_drop['reference'] * 100:.2f} cm, other {fig.height_drop['other'] * 100:.2f} cm."
+            f"Swing joint motion RMS {fig.swing_amplitude:.3f} rad; "
+            "standing base height drop over 1 s: "
+            f"reference {fig.height_drop['reference'] * 100:.2f} cm, "
+            f"other {fig.height_drop['other'] * 100:.2f} cm."
         )
         lines.append("")
     return "\n".join(lines)
@@ -418,7 +420,8 @@ def main(argv: list[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     if len(args) != 3:
         print(
-            "usage: python -m coadapt_core.experiments.transfer ROBOT REFERENCE_SIMULATOR OTHER_SIMULATOR",
+            "usage: python -m coadapt_core.experiments.transfer "
+            "ROBOT REFERENCE_SIMULATOR OTHER_SIMULATOR",
             file=sys.stderr,
         )
         return 2

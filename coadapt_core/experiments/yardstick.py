@@ -5,10 +5,11 @@ methods, two seeds) are each measured with a different ruler. Here every run's b
 its nominal design are evaluated with the policy the run handed back (its last checkpoint) on
 one common set per terrain and preset: `blocks` blocks of scenarios drawn from
 `scenario_seed(COMMON_SEED, b)`, a set no run with a small seed draws, each block as large as
-one of the run's real evaluations (its `eval_agents` scenarios x `eval_steps` policy steps: 32 x
-250 in the quick preset, so 8 blocks are the 256 scenarios of docs/coadaptation.md). The costs follow
-the run's own cost rule (the reference level from the nominal row), with the plain mean of
-eq. 4, the fall rates and the paired improvements beside them, each with its standard error.
+one of the run's real evaluations (its `eval_agents` scenarios x `eval_steps` policy steps:
+32 x 250 in the quick preset, so 8 blocks are the 256 scenarios of docs/coadaptation.md). The
+costs follow the run's own cost rule (the reference level from the nominal row), with the
+plain mean of eq. 4, the fall rates and the paired improvements beside them, each with its
+standard error.
 
 The figures are stored as two evaluation rows of kind "common" (idx 0 best, 1 nominal); the
 report reads them, an export carries them, and a run that has them is not evaluated again.
@@ -41,7 +42,8 @@ from coadapt_core.results.schema import COMMON_KIND, COMMON_OUTER
 from coadapt_core.results.store import ResultsStore
 from coadapt_core.scenarios.seeds import scenario_seed
 
-#: the common scenario set: blocks of scenario_seed(COMMON_SEED, b) (benchmarks/common_scenarios.py draws the same)
+#: the common scenario set: blocks of scenario_seed(COMMON_SEED, b); the same set
+#: benchmarks/common_scenarios.py draws
 COMMON_SEED = 1000
 DEFAULT_BLOCKS = 8
 

@@ -18,7 +18,8 @@ from coadapt_core.io import jsonable
 
 
 def dumps(value: Any) -> str:
-    # numpy scalars and arrays, paths and dataclass configs end up in run configs; NaN costs stay NaN
+    # numpy scalars and arrays, paths and dataclass configs end up in run configs;
+    # NaN costs stay NaN
     return json.dumps(jsonable(value, nan=math.nan), default=str, sort_keys=True)
 
 

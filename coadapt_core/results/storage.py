@@ -98,7 +98,8 @@ class StoreError(UserError):
         hint = ""
         if url.startswith("sqlite"):
             hint = (
-                "; if the file is damaged, move it aside and run `coadapt run --resume <run folder>` for each run: "
+                "; if the file is damaged, move it aside and run "
+                "`coadapt run --resume <run folder>` for each run: "
                 "a resumed run records its rows again from its run folder"
             )
         super().__init__(f"store '{url}' cannot be used: {detail}{hint}", field="store")
@@ -120,15 +121,17 @@ def check_database_url(url: str, *, field: str = "store") -> str:
     except Exception:
         raise UserError(
             f"{field} '{url}': unknown database kind '{parsed.drivername}'; accepted: a file path, "
-            "sqlite:///file.db, postgresql://user@host/db (with psycopg installed) or another SQLAlchemy URL",
+            "sqlite:///file.db, postgresql://user@host/db (with psycopg installed) "
+            "or another SQLAlchemy URL",
             field=field,
         ) from None
     try:
         dialect.import_dbapi() if hasattr(dialect, "import_dbapi") else dialect.dbapi()
     except ImportError as exc:
         raise UserError(
-            f"{field} '{url}': the database driver for '{parsed.drivername}' is not installed ({exc.name or exc}); "
-            "install it (for PostgreSQL: pip install 'psycopg[binary]') or use an SQLite file",
+            f"{field} '{url}': the database driver for '{parsed.drivername}' is not installed "
+            f"({exc.name or exc}); install it (for PostgreSQL: pip install 'psycopg[binary]') "
+            "or use an SQLite file",
             field=field,
         ) from None
     return url

@@ -52,14 +52,15 @@ def apply_scenarios(
     """Give the `designs` consecutive groups of `agents` environments of `env` the scenario
     set of `seed`: agent i of each group gets scenario i, that is its command (`commands`
     [agents, 3] when given, else stratified over the command box of `command_state`, the
-    curriculum's, or the env's own when None), its randomization draw (Table 2) and spawn point, its initial gait phase
-    and its observation- and action-noise streams (`PairedStreams`). A scenario depends on
-    `seed` and i alone, not on the designs or on the other agents. Returns the commands
-    [agents, 3]."""
+    curriculum's, or the env's own when None), its randomization draw (Table 2) and spawn
+    point, its initial gait phase and its observation- and action-noise streams
+    (`PairedStreams`). A scenario depends on `seed` and i alone, not on the designs or on the
+    other agents. Returns the commands [agents, 3]."""
     agents = int(agents)
     if agents < 1 or env.num_envs % agents:
         raise UserError(
-            f"paired scenarios: {env.num_envs} environments do not split into groups of {agents} agents",
+            f"paired scenarios: {env.num_envs} environments do not split into groups "
+            f"of {agents} agents",
             field="agents",
         )
     if commands is None:

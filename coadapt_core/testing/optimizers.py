@@ -100,7 +100,8 @@ class OptimizerConformance:
             if not hasattr(opt, a)
         ]
         assert not missing, (
-            f"Optimizer.__init__ did not run (no {', '.join(missing)}): call super().__init__(space, **kwargs)"
+            f"Optimizer.__init__ did not run (no {', '.join(missing)}): "
+            "call super().__init__(space, **kwargs)"
         )
         assert opt.space is space and opt.seed == 3 and opt.iteration == 0
 

@@ -49,7 +49,8 @@ def _reading_simulators(model: RobotModel) -> list[type]:
 
 
 class RobotConformance:
-    """Every robot: design spaces, models an installed simulator reads, validation, leg kinematics."""
+    """Every robot: design spaces, models an installed simulator reads, validation and
+    leg kinematics."""
 
     def test_is_robot_with_name(self, robot: Robot) -> None:
         assert isinstance(robot, Robot)
@@ -193,7 +194,8 @@ class RobotConformance:
             others = np.delete(np.linalg.norm(moved, axis=1), leg)
             assert np.all(others < 1e-6), f"IK leg {leg} moved other feet by {others}"
             assert abs(moved[leg, 0] - step) < 0.5 * step, (
-                f"IK leg {leg} moved foot body '{model.foot_bodies[leg]}' by {moved[leg]} for a {step} m step in x"
+                f"IK leg {leg} moved foot body '{model.foot_bodies[leg]}' by {moved[leg]} "
+                f"for a {step} m step in x"
             )
 
     def test_stands_in_each_simulator(self, robot: Robot) -> None:
