@@ -81,7 +81,8 @@ class BrokenPlugin:
     refused: tuple[str, str] | None = None
 
     def line(self) -> str:
-        return f"plugin '{self.entry_point}' (distribution {self.distribution}) failed to load: {self.error}"
+        where = f"plugin '{self.entry_point}' (distribution {self.distribution})"
+        return f"{where} failed to load: {self.error}"
 
 
 @dataclass
@@ -169,17 +170,11 @@ def _distribution_of(ep: metadata.EntryPoint) -> tuple[str, str]:
     return dist.metadata["Name"], dist.version
 
 
-def load_registry(extra_plugins: list[tuple[ModuleType | object, str]] | None = None) -> Registry:
-    """Discover plugins from entry points (and `extra_plugins`: (module-or-object,
-    distribution) pairs, for tests) and build a fresh registry.
-
-    Raises `PluginError` when two plugins claim the same name for one kind.
-    """
-    pm = pluggy.PluginManager("coadapt")
-    pm.add_hookspecs(hookspecs)
-    registry = Registry(manager=pm)
-    sources: list[tuple[object, str, str, str]] = []  # (plugin object, dist, version, ep name)
-
+def _entry_point_plugins(registry: Registry) -> list[tuple[object, str, str, str]]:
+    """The plugin modules the entry points name, loaded one by one (allowed ones only, each
+    distribution once), as (plugin, distribution, version, entry-point name); one that fails
+    to import is recorded in `registry.broken`, the others load."""
+    sources: list[tuple[object, str, str, str]] = []
     seen: set[tuple[str, str]] = set()
     for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
         dist, version = _distribution_of(ep)
@@ -194,65 +189,82 @@ def load_registry(extra_plugins: list[tuple[ModuleType | object, str]] | None = 
             registry.broken.append(BrokenPlugin(ep.name, dist, f"{type(exc).__name__}: {exc}"))
             continue
         sources.append((plugin, dist, version, ep.name))
+    return sources
+
+
+def _refusal(kind: str, cls: Any, plugin: object) -> tuple[str, bool] | None:
+    """Why a class a `coadapt_register_*` hook returned cannot be registered as a `kind`
+    (with whether it was refused for the plugin API version it declares), or None."""
+    hook_name, base = KINDS[kind][0], _base_class(kind)
+    if not (isinstance(cls, type) and issubclass(cls, base)):
+        return f"{hook_name} returned {cls!r}, not a {base.__name__} subclass", False
+    name = getattr(cls, "name", None)
+    if not isinstance(name, str) or not name:
+        return f"{cls.__qualname__} has no `name`", False
+    problem = api_problem(declared_api(cls, plugin))  # the API version it was written for
+    if problem is not None:
+        return f"{kind} '{name}' {problem}", True
+    try:  # declared options must be well formed before anyone passes values to them
+        check_specs(getattr(cls, "option_specs", ()), f"{kind} '{name}'")
+    except (TypeError, UserError) as exc:
+        return str(exc), False
+    return None
+
+
+def _register_classes(
+    registry: Registry, plugin: object, dist: str, version: str, ep_name: str
+) -> None:
+    """The classes of each kind that `plugin`'s hooks return, checked (`_refusal`) and
+    entered in `registry`; `PluginError` when a name of a kind is claimed twice."""
+    for kind, (hook_name, _) in KINDS.items():
+        impl = getattr(plugin, hook_name, None)
+        if impl is None:
+            continue
+        try:
+            classes = impl() or []
+        except Exception as exc:
+            error = f"{hook_name} raised {type(exc).__name__}: {exc}"
+            registry.broken.append(BrokenPlugin(ep_name, dist, error))
+            continue
+        for cls in classes:
+            refused = _refusal(kind, cls, plugin)
+            if refused is not None:
+                error, for_api = refused
+                claim = (kind, cls.name) if for_api else None
+                registry.broken.append(BrokenPlugin(ep_name, dist, error, claim))
+                continue
+            existing = registry.entries[kind].get(cls.name)
+            if existing is not None and existing.cls is not cls:
+                raise PluginError(
+                    f"{kind} name '{cls.name}' is claimed twice: by {existing.cls.__qualname__} "
+                    f"from distribution {existing.distribution} and by {cls.__qualname__} from "
+                    f"distribution {dist}; uninstall one or restrict {ENV_LOAD_PLUGINS}"
+                )
+            api = declared_api(cls, plugin)
+            registry.entries[kind][cls.name] = PluginInfo(
+                kind, cls.name, cls, dist, version, ep_name, api
+            )
+
+
+def load_registry(extra_plugins: list[tuple[ModuleType | object, str]] | None = None) -> Registry:
+    """Discover plugins from entry points (and `extra_plugins`: (module-or-object,
+    distribution) pairs, for tests) and build a fresh registry.
+
+    Raises `PluginError` when two plugins claim the same name for one kind.
+    """
+    pm = pluggy.PluginManager("coadapt")
+    pm.add_hookspecs(hookspecs)
+    registry = Registry(manager=pm)
+    sources = _entry_point_plugins(registry)
     for plugin, dist in extra_plugins or []:
         sources.append((plugin, dist, "test", getattr(plugin, "__name__", repr(plugin))))
-
     for plugin, dist, version, ep_name in sources:
         try:
             pm.register(plugin, name=f"{dist}:{ep_name}")
         except ValueError as exc:
             registry.broken.append(BrokenPlugin(ep_name, dist, str(exc)))
             continue
-        for kind, (hook_name, _) in KINDS.items():
-            impl = getattr(plugin, hook_name, None)
-            if impl is None:
-                continue
-            try:
-                classes = impl() or []
-            except Exception as exc:
-                registry.broken.append(
-                    BrokenPlugin(ep_name, dist, f"{hook_name} raised {type(exc).__name__}: {exc}")
-                )
-                continue
-            base = _base_class(kind)
-            for cls in classes:
-                if not (isinstance(cls, type) and issubclass(cls, base)):
-                    registry.broken.append(
-                        BrokenPlugin(
-                            ep_name,
-                            dist,
-                            f"{hook_name} returned {cls!r}, not a {base.__name__} subclass",
-                        )
-                    )
-                    continue
-                name = getattr(cls, "name", None)
-                if not isinstance(name, str) or not name:
-                    registry.broken.append(
-                        BrokenPlugin(ep_name, dist, f"{cls.__qualname__} has no `name`")
-                    )
-                    continue
-                api = declared_api(cls, plugin)  # the plugin API version it was written for
-                problem = api_problem(api)
-                if problem is not None:
-                    registry.broken.append(
-                        BrokenPlugin(ep_name, dist, f"{kind} '{name}' {problem}", (kind, name))
-                    )
-                    continue
-                try:  # declared options must be well formed before anyone passes values to them
-                    check_specs(getattr(cls, "option_specs", ()), f"{kind} '{name}'")
-                except (TypeError, UserError) as exc:
-                    registry.broken.append(BrokenPlugin(ep_name, dist, str(exc)))
-                    continue
-                existing = registry.entries[kind].get(name)
-                if existing is not None and existing.cls is not cls:
-                    raise PluginError(
-                        f"{kind} name '{name}' is claimed twice: by {existing.cls.__qualname__} from "
-                        f"distribution {existing.distribution} and by {cls.__qualname__} from "
-                        f"distribution {dist}; uninstall one or restrict {ENV_LOAD_PLUGINS}"
-                    )
-                registry.entries[kind][name] = PluginInfo(
-                    kind, name, cls, dist, version, ep_name, api
-                )
+        _register_classes(registry, plugin, dist, version, ep_name)
     pm.check_pending()
     return registry
 

@@ -10,7 +10,8 @@ A settings class is a pydantic dataclass made with `@settings`; each field is de
   and taken as it is by the other (`shared`),
 - the checks: a bad value is a one-line `UserError` naming the key and what is accepted
   (`user_error` turns pydantic's report into that line),
-- the table of settings in docs/settings.md (`coadapt_core.coadapt.config.settings_markdown`).
+- the table of settings in docs/settings.md (`coadapt_core.cli.settings_doc`, from the same
+  help renderer as --help: `coadapt_core.cli.help`).
 
 Command-line and YAML text is read by the field's type: a range `(low, high)` is written
 `low:high` (or a YAML list), a mapping of numbers `name=value,name=value` (or a YAML mapping),
@@ -21,17 +22,15 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import types
-import typing
 from collections.abc import Mapping
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 from pydantic import AfterValidator, BeforeValidator, ConfigDict, Field, ValidationError
 from pydantic.dataclasses import dataclass as _pydantic_dataclass
-from pydantic.fields import FieldInfo
 
 from coadapt_core.errors import UserError
 from coadapt_core.io import jsonable
+from coadapt_core.settings_leaf import Leaf, strip_optional
 
 #: every settings class: unknown keys refused, no inf/nan
 SETTINGS_CONFIG = ConfigDict(extra="forbid", allow_inf_nan=False)
@@ -211,152 +210,12 @@ def is_settings(cls: Any) -> bool:
 
 
 # -- walking the tree ----------------------------------------------------------------------
-def _unwrap(annotation: Any) -> tuple[Any, list[Any]]:
-    """Annotated[Annotated[T, a], b] -> (T, [a, b])."""
-    metadata: list[Any] = []
-    while typing.get_origin(annotation) is Annotated:
-        args = typing.get_args(annotation)
-        annotation, metadata = args[0], [*args[1:], *metadata]
-    return annotation, metadata
-
-
-def _strip_optional(annotation: Any) -> tuple[Any, bool]:
-    origin = typing.get_origin(annotation)
-    if origin in (typing.Union, types.UnionType):
-        args = [a for a in typing.get_args(annotation) if a is not type(None)]
-        if len(args) == 1:
-            return args[0], True
-    return annotation, False
-
-
-@dataclasses.dataclass(frozen=True)
-class Leaf:
-    """One setting of a settings tree: its key path, type, default, help and constraints."""
-
-    path: tuple[str, ...]
-    info: FieldInfo
-    owner: type
-
-    @property
-    def key(self) -> str:
-        """The dotted YAML key: `task.commands.yaw_range`."""
-        return ".".join(self.path)
-
-    @property
-    def option(self) -> str:
-        """The command-line option: `--task-commands-yaw-range`."""
-        return "--" + "-".join(self.path).replace("_", "-")
-
-    @property
-    def param(self) -> str:
-        """The Python parameter name of the option: `task_commands_yaw_range`."""
-        return "_".join(self.path)
-
-    @property
-    def annotation(self) -> Any:
-        return _unwrap(_strip_optional(self.info.annotation)[0])[0]
-
-    @property
-    def metadata(self) -> list[Any]:
-        return [*self.info.metadata, *_unwrap(_strip_optional(self.info.annotation)[0])[1]]
-
-    @property
-    def optional(self) -> bool:
-        return _strip_optional(self.info.annotation)[1]
-
-    @property
-    def kind(self) -> str:
-        """bool | int | float | str | choice | range | ints | weights | mapping."""
-        ann = self.annotation
-        if typing.get_origin(ann) is Literal:
-            return "choice"
-        if ann in (bool, int, float, str):
-            return ann.__name__
-        args = typing.get_args(ann)
-        if typing.get_origin(ann) is tuple:
-            return "ints" if args[-1] is Ellipsis else "range"
-        if typing.get_origin(ann) is dict:
-            return "weights" if args[1] is float else "mapping"
-        return "str"
-
-    @property
-    def choices(self) -> tuple[Any, ...] | None:
-        return typing.get_args(self.annotation) if self.kind == "choice" else None
-
-    @property
-    def help(self) -> str:
-        return self.info.description or ""
-
-    @property
-    def extra(self) -> dict[str, Any]:
-        return (
-            dict(self.info.json_schema_extra or {})
-            if isinstance(self.info.json_schema_extra, dict)
-            else {}
-        )
-
-    @property
-    def required(self) -> bool:
-        """Declared without a default: the command cannot run without it."""
-        return self.info.is_required()
-
-    @property
-    def default(self) -> Any:
-        if self.info.default_factory is not None:
-            return self.info.default_factory()
-        return (
-            None if self.info.default is dataclasses.MISSING or self.required else self.info.default
-        )
-
-    def bounds(self) -> dict[str, float]:
-        out: dict[str, float] = {}
-        for item in self.metadata:
-            for name in ("ge", "gt", "le", "lt"):
-                value = getattr(item, name, None)
-                if value is not None:
-                    out[name] = value
-        return out
-
-    def accepted(self) -> str:
-        """What the setting accepts, in words: 'an integer >= 1', 'one of a, b'."""
-        if self.extra.get("accepted"):
-            return str(self.extra["accepted"])
-        kind = self.kind
-        if kind == "choice":
-            return "one of " + ", ".join(str(c) for c in self.choices or ())
-        words = {
-            "bool": "true or false",
-            "int": "an integer",
-            "float": "a finite number",
-            "str": "text",
-            "range": "a range low:high",
-            "ints": "comma-separated integers",
-            "weights": "name=number pairs, comma-separated",
-            "mapping": "a mapping of names to values",
-        }[kind]
-        b = self.bounds()
-        low = ("ge", b["ge"]) if "ge" in b else ("gt", b["gt"]) if "gt" in b else None
-        high = ("le", b["le"]) if "le" in b else ("lt", b["lt"]) if "lt" in b else None
-        if low and high:
-            words += f" in {'[' if low[0] == 'ge' else '('}{low[1]:g}, {high[1]:g}{']' if high[0] == 'le' else ')'}"
-        elif low:
-            words += f" {'>=' if low[0] == 'ge' else '>'} {low[1]:g}"
-        elif high:
-            words += f" {'<=' if high[0] == 'le' else '<'} {high[1]:g}"
-        validators = {getattr(getattr(m, "func", None), "__name__", "") for m in self.metadata}
-        if "_positive" in validators:
-            words += " of positive numbers"
-        elif "_nonnegative" in validators:
-            words += " of numbers >= 0"
-        return words
-
-
 def leaves(cls: type, prefix: tuple[str, ...] = ()) -> list[Leaf]:
     """Every setting of the tree rooted at settings class `cls`, nested sections expanded,
     in declaration order."""
     out: list[Leaf] = []
     for name, info in cls.__pydantic_fields__.items():
-        inner = _strip_optional(info.annotation)[0]
+        inner = strip_optional(info.annotation)[0]
         if is_settings(inner):
             out.extend(leaves(inner, (*prefix, name)))
         else:
@@ -369,7 +228,7 @@ def sections(cls: type) -> list[str]:
     return [
         n
         for n, i in cls.__pydantic_fields__.items()
-        if is_settings(_strip_optional(i.annotation)[0])
+        if is_settings(strip_optional(i.annotation)[0])
     ]
 
 
@@ -397,7 +256,7 @@ def partial(
     for field_name, info in cls.__pydantic_fields__.items():
         if field_name in exclude:
             continue
-        inner = _strip_optional(info.annotation)[0]
+        inner = strip_optional(info.annotation)[0]
         base = {**(info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {})}
         if is_settings(inner):
             sub = partial(inner, f"{name}_{field_name}", unset=unset, doc=info.description or "")
@@ -484,7 +343,7 @@ def user_error(exc: ValidationError, cls: type, prefix: str = "") -> UserError:
         parent = cls
         for name in names[:-1]:
             field = parent.__pydantic_fields__.get(name)
-            parent = _strip_optional(field.annotation)[0] if field else parent
+            parent = strip_optional(field.annotation)[0] if field else parent
         known = ", ".join(parent.__pydantic_fields__) if is_settings(parent) else known
         return UserError(f"unknown key '{key}'; accepted keys: {known}", field=key)
     if err.get("type") == "missing":
@@ -506,7 +365,6 @@ __all__ = [
     "Float",
     "Int",
     "Ints",
-    "Leaf",
     "NonNegativeRange",
     "PositiveRange",
     "Range",
