@@ -30,7 +30,7 @@ def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(ROOT))
     import yaml
 
-    from coadapt_core.coadapt.config import config_from_dict
+    from coadapt_core.coadapt.config_loading import config_from_dict
     from coadapt_core.coadapt.loop import seed_at
     from coadapt_core.coadapt.setup import make_objectives
     from coadapt_core.coadapt.specialized import SpecializedPolicyBackend

@@ -12,7 +12,7 @@ What a command receives: each option's value as given on the command line, None 
 out; `settings_from` turns them into the settings object and `filled` into a plain mapping
 (the declared defaults filled in, every value checked: a bad one is a `UserError`, one line
 naming the setting and what it accepts, exit 2). `coadapt run` reads its config settings as
-overrides instead (preset < YAML < option, `coadapt_core.coadapt.config.make_config`), so
+overrides instead (preset < YAML < option, `coadapt_core.coadapt.config_loading.make_config`), so
 those options show the preset's default.
 """
 

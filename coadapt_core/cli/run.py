@@ -134,7 +134,7 @@ def _check_run_config(cfg: Any) -> None:
     store = cfg.store or os.environ.get(ENV_STORE) or ""
     if store and store.strip().lower() not in NO_STORE:
         check_database_url(resolve_store_url(store), field="store")
-    from coadapt_core.coadapt.config import option_aliases
+    from coadapt_core.coadapt.config_aliases import option_aliases
 
     # an optimizer option `storage` is a database URL (a study kept there); named as its alias
     options = getattr(cfg, "optimizer_options", None) or {}
@@ -415,7 +415,8 @@ def alias_settings_class() -> type:
     (`PluginOption.alias`), as a settings class: `--<alias>` sets that plugin option."""
     import dataclasses
 
-    from coadapt_core.coadapt.config import CoadaptConfig, option_aliases
+    from coadapt_core.coadapt.config import CoadaptConfig
+    from coadapt_core.coadapt.config_aliases import option_aliases
     from coadapt_core.settings import leaves
 
     taken = {leaf.param for leaf in leaves(CoadaptConfig)} | set(RunCommand.__pydantic_fields__)
@@ -443,7 +444,8 @@ def alias_settings_class() -> type:
 
 def config_options() -> OptionGroup:
     """The options of every config setting on the command line (their defaults: the preset's)."""
-    from coadapt_core.coadapt.config import OPTION_ALIASES, CoadaptConfig
+    from coadapt_core.coadapt.config import CoadaptConfig
+    from coadapt_core.coadapt.config_aliases import OPTION_ALIASES
 
     return options_of(CoadaptConfig, aliases=OPTION_ALIASES, show_defaults=False)
 
@@ -466,7 +468,7 @@ def _resume_folder(resume: str, out: str | None) -> Path:
 def _new_config(values: dict[str, Any], overrides: dict[str, Any]) -> Any:
     """The config of a new run (preset, YAML file, options), its plugins resolved; None
     after `--check` (`coadapt grid` checks every cell's arguments before it starts any)."""
-    from coadapt_core.coadapt.config import make_config
+    from coadapt_core.coadapt.config_loading import make_config
     from coadapt_core.options import parse_assignments
 
     if values["optimizer_option"]:

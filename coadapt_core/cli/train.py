@@ -281,7 +281,7 @@ def _build_trainer(
     """The trainer `coadapt train` runs: the checkpoint's settings (the defaults of a new
     run) with the options given, on the design range asked for (on --resume: the
     checkpoint's)."""
-    from coadapt_core.coadapt.config import resolve_learner
+    from coadapt_core.coadapt.learner_overrides import resolve_learner
     from coadapt_core.design_space import DesignSpace
     from coadapt_core.learning.config import TrainConfig
     from coadapt_core.learning.trainer import Trainer

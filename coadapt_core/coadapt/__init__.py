@@ -1,7 +1,8 @@
 """The co-adaptation loop (paper Algorithm 4): config and presets, the method registry, the
 loop with its resumable state, and the run recorders."""
 
-from coadapt_core.coadapt.config import PRESETS, CoadaptConfig, make_config
+from coadapt_core.coadapt.config import PRESETS, CoadaptConfig
+from coadapt_core.coadapt.config_loading import make_config
 from coadapt_core.coadapt.run import run_coadaptation
 from coadapt_core.coadapt.summary import CoadaptResult
 from coadapt_core.methods import METHOD_NAMES, METHODS, Method

@@ -6,27 +6,24 @@ Precedence: CLI option > YAML key > preset > declared default."""
 from __future__ import annotations
 
 import functools
-import typing
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
-from pathlib import Path
+from dataclasses import fields
 from typing import Annotated, Any, Literal
 
 from pydantic import AfterValidator, field_validator
 
+from coadapt_core.coadapt.learner_overrides import resolve_learner
 from coadapt_core.costs import COST_RULES
 from coadapt_core.design_space import parse_range_pairs
 from coadapt_core.errors import UserError
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.methods import DEFAULT_METHOD, METHOD_NAMES, method_help, optimizer_for
-from coadapt_core.options import PluginOption
 from coadapt_core.physics.randomization import RANDOMIZATION_PRESETS, RandomizationConfig
 from coadapt_core.physics.terrain import TERRAINS
 from coadapt_core.plugins import default_plugin
 from coadapt_core.settings import (
     Float,
     Int,
-    apply_overrides,
     overrides,
     partial,
     sections,
@@ -71,8 +68,9 @@ RandomizationSection = partial(
             Literal[RANDOMIZATION_PRESETS] | None,
             setting(
                 None,
-                "Named ranges the others apply over: table2 (the paper's), engine (table2 plus contact softness, "
-                "joint damping, armature and delay) or off (unset: the starting policy's, table2 when it names none).",
+                "Named ranges the others apply over: table2 (the paper's), engine (table2 plus "
+                "contact softness, joint damping, armature and delay) or off (unset: the starting "
+                "policy's, table2 when it names none).",
             ),
         )
     },
@@ -148,11 +146,13 @@ class CoadaptConfig:
     method: Literal[METHOD_NAMES] = setting(DEFAULT_METHOD, method_help())
     mixed: bool = setting(
         False,
-        "Add the robot's discrete variables (motor types); implied by an optimizer that declares implies_mixed.",
+        "Add the robot's discrete variables (motor types); implied by an optimizer that declares "
+        "implies_mixed.",
     )
     design_ranges: str = setting(
         "",
-        "Initial range low:high per continuous variable, e.g. 0.5:1.5,0.5:1.0 (empty: the full range).",
+        "Initial range low:high per continuous variable, e.g. 0.5:1.5,0.5:1.0 (empty: the full "
+        "range).",
     )
     seed: Int = setting(0, "Random seed.", ge=0)
     # -- Algorithm 4 -------------------------------------------------------------------------
@@ -195,8 +195,9 @@ class CoadaptConfig:
     )
     evaluation_policy: Literal[EVALUATION_POLICIES] = setting(
         "fixed",
-        "fixed: a surrogate round with probability surrogate_probability (w, the paper's); uncertainty: a surrogate round when the "
-        "fitted ensemble agrees (spread ratio <= uncertainty_threshold).",
+        "fixed: a surrogate round with probability surrogate_probability (w, the paper's); "
+        "uncertainty: a surrogate round when the fitted ensemble agrees (spread ratio <= "
+        "uncertainty_threshold).",
     )
     uncertainty_threshold: Float = setting(
         0.5,
@@ -215,12 +216,13 @@ class CoadaptConfig:
         "Final check: at least this many blocks (the fall-rate comparison needs scenarios).",
         ge=1,
     )
-    # -- the cost of a design over its scenarios (docs/coadaptation.md, "How a fall enters the fitness") --
+    # -- a design's cost over its scenarios (docs/coadaptation.md, "How a fall enters the fitness")
     cost_rule: Literal[COST_RULES] = setting(
         "capped",
-        "capped: each scenario costs at most cost_cap x the nominal design's median scenario and a fall costs "
-        "that cap (every design on the same scenarios, the same rule); mean: the paper's plain mean (eq. 4); trimmed: "
-        "each design's costliest quarter of scenarios left out (the rule before, falls unpriced).",
+        "capped: each scenario costs at most cost_cap x the nominal design's median scenario and a "
+        "fall costs that cap (every design on the same scenarios, the same rule); mean: the "
+        "paper's plain mean (eq. 4); trimmed: each design's costliest quarter of scenarios left "
+        "out (the rule before, falls unpriced).",
     )
     cost_cap: Float = setting(
         3.0,
@@ -238,7 +240,8 @@ class CoadaptConfig:
     # -- plugin options: declared by the optimizer / objective plugin (`option_specs`) ------
     optimizer_options: dict[str, Any] = setting(
         default_factory=dict,
-        help="Options the optimizer plugin declares (`coadapt plugins --json`), e.g. {inertia: 0.9}.",
+        help="Options the optimizer plugin declares (`coadapt plugins --json`), e.g. "
+        "{inertia: 0.9}.",
         cli=False,
     )
     objective_options: dict[str, Any] = setting(
@@ -262,7 +265,8 @@ class CoadaptConfig:
     )
     specialized_init: Literal["scratch", "universal"] = setting(
         "scratch",
-        "bo-specialized: scratch (the paper's) or universal (fine-tune the universal policy per design).",
+        "bo-specialized: scratch (the paper's) or universal (fine-tune the universal policy per "
+        "design).",
     )
     # -- infrastructure ----------------------------------------------------------------------
     checkpoint_interactions: Int = setting(
@@ -273,19 +277,22 @@ class CoadaptConfig:
     )
     checkpoint: str = setting(
         "",
-        "Universal policy to start from (empty: the one the robot ships, if any; none: from scratch).",
+        "Universal policy to start from (empty: the one the robot ships, if any; none: from "
+        "scratch).",
     )
     device: Device = setting(
         "cpu", "Torch device of the learner.", accepted="one of cpu, cuda, cuda:N"
     )
     logger: Literal["tensorboard", "wandb", "none"] = setting(
         "tensorboard",
-        "Experiment tracking: tensorboard (event files in <run folder>/tb), wandb (if installed) or none.",
+        "Experiment tracking: tensorboard (event files in <run folder>/tb), wandb (if installed) "
+        "or none.",
     )
     out: str = setting("runs", "Parent folder of run folders.")
     store: str = setting(
         "",
-        "Results store URL or path (empty: $COADAPT_STORE, else coadapt.db beside out; none: JSON files only).",
+        "Results store URL or path (empty: $COADAPT_STORE, else coadapt.db beside out; none: JSON "
+        "files only).",
     )
     preset: Literal[tuple(PRESETS)] = setting(
         "quick", "Preset the other defaults come from (recorded)."
@@ -294,24 +301,26 @@ class CoadaptConfig:
     train: TrainSection = setting(
         default_factory=TrainSection,
         help=(
-            "PPO and training settings of the universal policy (`coadapt_core.learning.config.TrainConfig`). "
-            "Unset keys keep the starting policy's (its checkpoint records them), else the defaults shown. The batch "
-            "size, device and seed are the run's own population, agents_per_design, device and seed."
+            "PPO and training settings of the universal policy "
+            "(`coadapt_core.learning.config.TrainConfig`). Unset keys keep the starting policy's "
+            "(its checkpoint records them), else the defaults shown. The batch size, device and "
+            "seed are the run's own population, agents_per_design, device and seed."
         ),
     )
     task: TaskSection = setting(
         default_factory=TaskSection,
         help=(
-            "The locomotion task: commands, rewards, gait reference, observation noise, termination "
-            "(`coadapt_core.task.config.TaskConfig`). Unset keys keep the starting policy's; weights given replace "
-            "those terms' weights only."
+            "The locomotion task: commands, rewards, gait reference, observation noise, "
+            "termination (`coadapt_core.task.config.TaskConfig`). Unset keys keep the starting "
+            "policy's; weights given replace those terms' weights only."
         ),
     )
     randomization: RandomizationSection = setting(
         default_factory=RandomizationSection,
         help=(
-            "Domain randomization (paper Table 2; `coadapt_core.physics.randomization.RandomizationConfig`): a "
-            "preset, then single ranges over it. Unset: the starting policy's preset (table2 when it names none)."
+            "Domain randomization (paper Table 2; "
+            "`coadapt_core.physics.randomization.RandomizationConfig`): a preset, then single "
+            "ranges over it. Unset: the starting policy's preset (table2 when it names none)."
         ),
     )
 
@@ -366,98 +375,16 @@ class CoadaptConfig:
                 "evaluation_policy 'uncertainty' needs fit_surrogate (the fitted ensemble decides)",
                 field="evaluation_policy",
             )
-        _learner_settings(
-            self, None
-        )  # the sections' keys applied over the defaults: checked together
+        # the sections' keys applied over the defaults: checked together
+        resolve_learner(
+            None, overrides(self.train), overrides(self.task), overrides(self.randomization)
+        )
         return self
 
 
 FIELD_NAMES = tuple(f.name for f in fields(CoadaptConfig))
 #: the nested sections of the config (YAML mappings; options --train-..., --task-..., ...)
 SECTIONS = tuple(sections(CoadaptConfig))
-
-
-def _merge(tree: dict[str, Any], new: Mapping[str, Any]) -> None:
-    for key, value in new.items():
-        if isinstance(value, Mapping) and isinstance(tree.get(key), dict):
-            _merge(tree[key], value)
-        else:
-            tree[str(key)] = dict(value) if isinstance(value, Mapping) else value
-
-
-#: config keys that are plugin-option mappings, merged key by key (CLI over YAML over preset)
-OPTION_FIELDS = ("optimizer_options", "objective_options")
-#: the plugin kind whose declared options each of those mappings holds
-OPTION_KINDS = {"objective_options": "objective", "optimizer_options": "optimizer"}
-#: settings of earlier versions under another name: old YAML key -> the setting's key now
-#: (the old command-line option is kept as an alias, `OPTION_ALIASES`)
-RENAMED_KEYS: dict[str, str] = {"evaluation_probability": "surrogate_probability"}
-OPTION_ALIASES: dict[str, tuple[str, ...]] = {
-    new: ("--" + old.replace("_", "-"),) for old, new in RENAMED_KEYS.items()
-}
-
-
-@dataclass(frozen=True)
-class OptionAlias:
-    """A top-level key (and `coadapt run` option) that sets one plugin option, as the plugin
-    declares it (`PluginOption.alias`): the keys of earlier versions."""
-
-    key: str
-    field: str  # optimizer_options | objective_options
-    option: PluginOption
-    plugins: tuple[str, ...]  # the installed plugins declaring it
-
-
-def option_aliases() -> dict[str, OptionAlias]:
-    """Every alias the installed optimizer and objective plugins declare for their options,
-    by key (none when the registry cannot be built; a key that is a config setting, or that
-    two plugins declare for different options, is left out)."""
-    from coadapt_core.plugins import get_registry
-
-    try:
-        registry = get_registry()
-    except Exception:  # the commands report why the registry cannot be built
-        return {}
-    out: dict[str, OptionAlias] = {}
-    clashes: set[str] = set()
-    for field_name, kind in OPTION_KINDS.items():
-        for name in registry.names(kind):
-            for spec in getattr(registry.get(kind, name), "option_specs", ()):
-                if not spec.alias or spec.alias in FIELD_NAMES:
-                    continue
-                known = out.get(spec.alias)
-                if known is None:
-                    out[spec.alias] = OptionAlias(spec.alias, field_name, spec, (name,))
-                elif (known.field, known.option.name) == (field_name, spec.name):
-                    out[spec.alias] = OptionAlias(
-                        spec.alias, field_name, known.option, (*known.plugins, name)
-                    )
-                else:
-                    clashes.add(spec.alias)
-    return {k: v for k, v in out.items() if k not in clashes}
-
-
-def load_yaml(path: str | Path) -> dict[str, Any]:
-    import yaml
-
-    path = Path(path)
-    if not path.is_file():
-        raise UserError(f"config file '{path}' does not exist", field="config")
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
-    except UnicodeDecodeError:
-        raise UserError(f"config file '{path}' is not a text (YAML) file", field="config") from None
-    except OSError as exc:
-        raise UserError(
-            f"config file '{path}' cannot be read ({exc.strerror})", field="config"
-        ) from None
-    except yaml.YAMLError as exc:
-        raise UserError(
-            f"config file '{path}' is not valid YAML: {str(exc).splitlines()[0]}", field="config"
-        ) from None
-    if not isinstance(data, dict):
-        raise UserError(f"config file '{path}' must hold a mapping of config keys", field="config")
-    return {str(k).replace("-", "_"): v for k, v in data.items()}
 
 
 @functools.cache
@@ -476,217 +403,3 @@ def preset_defaults() -> dict[str, tuple[Any, dict[str, Any]]]:
             )
             out[leaf.param] = (leaf, values)
     return out
-
-
-def learner_settings(config: CoadaptConfig, checkpoint: str | None) -> dict[str, Any]:
-    """The backend's `train_config`, `task_config` and `randomization` where the run sets
-    any of them: the starting policy's (the `checkpoint` file's; the defaults without one)
-    with the run's keys applied. Sections the run leaves unset are not returned, so the
-    backend takes them from the checkpoint as it always has."""
-    if not any(overrides(getattr(config, name)) for name in SECTIONS):
-        return {}
-    saved = None
-    if checkpoint:
-        from coadapt_core.learning.trainer import read_checkpoint
-
-        saved = read_checkpoint(checkpoint)
-    return _learner_settings(config, saved)
-
-
-def _learner_settings(config: CoadaptConfig, saved: Mapping[str, Any] | None) -> dict[str, Any]:
-    return resolve_learner(
-        saved, overrides(config.train), overrides(config.task), overrides(config.randomization)
-    )
-
-
-def resolve_learner(
-    saved: Mapping[str, Any] | None,
-    train: dict[str, Any],
-    task: dict[str, Any],
-    randomization: dict[str, Any],
-) -> dict[str, Any]:
-    """`train_config`, `task_config` and `randomization` for the learner: a checkpoint's
-    (`saved`, None: the defaults) with the given nested overrides applied; only the parts
-    with overrides are returned. A randomization `preset` replaces the checkpoint's before
-    single ranges apply; the train config records both (`extra`), so a resumed training
-    draws the same ranges."""
-    out: dict[str, Any] = {}
-    saved_train = TrainConfig.from_dict(saved["train_config"]) if saved else TrainConfig()
-    randomization = dict(randomization)
-    preset = randomization.pop("preset", None)
-    if train or preset or randomization:
-        config = apply_overrides(saved_train, train)
-        extra = dict(config.extra)
-        if preset:
-            extra.update(randomization=preset, randomization_ranges={})
-        if randomization:
-            extra["randomization_ranges"] = {
-                **extra.get("randomization_ranges", {}),
-                **randomization,
-            }
-        config.extra = extra
-        out["train_config"] = config
-        if preset or randomization:
-            out["randomization"] = RandomizationConfig.recorded(extra)
-    if task:
-        out["task_config"] = apply_overrides(
-            TaskConfig.from_dict(saved["task_config"]) if saved else TaskConfig(), task
-        )
-    return out
-
-
-#: keys a run folder's config.yaml records beside the config (where and what it ran on);
-#: a config file may hold them (a run's config.yaml given to --config) and they are ignored
-RECORD_KEYS = ("run_id", "run_dir", "design_space", "grid_id", "grid_cell", "policy", "threads")
-
-
-def make_config(
-    preset: str | None = None,
-    yaml_file: str | Path | None = None,
-    overrides: dict[str, Any] | None = None,
-) -> CoadaptConfig:
-    """Preset, then YAML keys, then overrides (CLI options that were given), validated."""
-    yaml_values = load_yaml(yaml_file) if yaml_file else {}
-    for key in RECORD_KEYS:
-        yaml_values.pop(key, None)
-    overrides = {k: v for k, v in (overrides or {}).items() if v is not None}
-    preset = preset or overrides.get("preset") or yaml_values.get("preset") or "quick"
-    if preset not in PRESETS:
-        raise UserError(f"preset '{preset}' is not one of {', '.join(PRESETS)}", field="preset")
-    values: dict[str, Any] = {**PRESETS[preset], "preset": preset}
-    aliases = option_aliases()
-    for source, label in ((yaml_values, "config file"), (overrides, "option")):
-        for key, value in source.items():
-            key = RENAMED_KEYS.get(key, key)
-            if key in aliases:  # an earlier version's key: one option of a plugin now
-                alias = aliases[key]
-                values[alias.field] = {**values.get(alias.field, {}), alias.option.name: value}
-                continue
-            section, dot, rest = key.partition(".")
-            if section not in FIELD_NAMES or (dot and section not in SECTIONS):
-                import difflib
-
-                close = difflib.get_close_matches(section, FIELD_NAMES, n=1, cutoff=0.75)
-                if close:
-                    raise UserError(
-                        f"unknown {label} key '{key}'; did you mean '{close[0]}'? (every key: "
-                        "docs/settings.md)",
-                        field=key,
-                    )
-                raise UserError(
-                    f"unknown {label} key '{key}'; accepted keys: {', '.join(FIELD_NAMES)}",
-                    field=key,
-                )
-            if value is None:
-                raise UserError(f"config key '{key}' has no value", field=key)
-            if dot or section in SECTIONS:  # a nested key: merged into its section
-                tree = values.setdefault(section, {})
-                if not isinstance(value, Mapping) and not dot:
-                    raise UserError(
-                        f"{key} must be a mapping of its settings, got {value!r}", field=key
-                    )
-                path = rest.split(".") if dot else []
-                for name in path[:-1]:
-                    tree = tree.setdefault(name, {})
-                if path:
-                    tree[path[-1]] = value
-                else:
-                    _merge(tree, value)
-                continue
-            if key in OPTION_FIELDS:  # merged key by key: a CLI option keeps the YAML file's others
-                if not isinstance(value, Mapping):
-                    raise UserError(
-                        f"{key} must be a mapping of option names to values, got {value!r}",
-                        field=key,
-                    )
-                value = {
-                    **values.get(key, {}),
-                    **{str(k).replace("-", "_"): v for k, v in value.items()},
-                }
-            values[key] = value
-    values["preset"] = preset
-    _fold_names(values)
-    return _typed_options(CoadaptConfig(**values).validate())
-
-
-#: settings that name a plugin or a fixed choice: `Torque` or `FLAT` is taken as written in
-#: lower case when only that spelling is known
-_FOLDED = ("robot", "sim", "optimizer", "objective", "terrain", "method", "evaluation_policy")
-
-
-def _fold_names(values: dict[str, Any]) -> None:
-    from coadapt_core.plugins import get_registry
-
-    kinds = {
-        "robot": "robot",
-        "sim": "simulator",
-        "optimizer": "optimizer",
-        "objective": "objective",
-    }
-    for key in _FOLDED:
-        value = values.get(key)
-        if isinstance(value, list | tuple):
-            value = ",".join(map(str, value))
-        if not isinstance(value, str) or value == value.lower():
-            continue
-        if key in kinds:
-            try:
-                known = set(get_registry().names(kinds[key]))
-            except Exception:  # the registry cannot be built: the run's own checks report it
-                continue
-        else:
-            known = set(typing.get_args(CoadaptConfig.__pydantic_fields__[key].annotation))
-        names = [n.strip() for n in value.split(",")]
-        values[key] = ",".join(
-            n.lower() if n not in known and n.lower() in known else n for n in names
-        )
-
-
-def _typed_options(config: CoadaptConfig) -> CoadaptConfig:
-    """Plugin option values as the plugins declare them (command-line text '0.5' -> 0.5), so
-    a config means one thing however its options were written (config.yaml, grid hashes).
-    A bad value is the one-line user error the run would give; unknown plugins or
-    undeclared keys are left for the run's own checks to report."""
-    try:
-        from coadapt_core.plugins import get_registry
-
-        registry = get_registry()
-        optimizer = registry.get("optimizer", config.optimizer)
-        objectives = [registry.get("objective", n) for n in config.objectives]
-    except Exception:
-        return config
-    sources = [
-        ("optimizer_options", [optimizer], "optimizer"),
-        ("objective_options", objectives, "objective"),
-    ]
-    for field_name, classes, kind in sources:
-        given = dict(getattr(config, field_name))
-        for key, value in given.items():
-            owner = next(
-                (c for c in classes if any(s.name == key for s in getattr(c, "option_specs", ()))),
-                None,
-            )
-            if owner is not None:
-                spec = next(s for s in owner.option_specs if s.name == key)
-                given[key] = spec.convert(value, f"{kind} '{owner.name}'", field_name)
-        setattr(config, field_name, given)
-    return config
-
-
-def config_from_dict(data: dict[str, Any]) -> CoadaptConfig:
-    """Rebuild a recorded config (e.g. from a run folder's config.yaml)."""
-    renamed = {
-        RENAMED_KEYS[k]: v
-        for k, v in data.items()
-        if k in RENAMED_KEYS and RENAMED_KEYS[k] not in data
-    }
-    known = {k: v for k, v in {**data, **renamed}.items() if k in FIELD_NAMES and v is not None}
-    # a config.yaml of an earlier version recorded every alias key; their old defaults are the
-    # plugins' declared defaults now (empty text: unset), so only values that differed are carried over
-    for key, alias in option_aliases().items():
-        if data.get(key) not in (None, "", alias.option.default):
-            known[alias.field] = {alias.option.name: data[key], **known.get(alias.field, {})}
-    return CoadaptConfig(**known).validate()
-
-
-__all__ = ["FIELD_NAMES", "PRESETS", "CoadaptConfig", "config_from_dict", "make_config"]

@@ -16,7 +16,8 @@ from typing import Any
 import numpy as np
 
 from coadapt_core import threads
-from coadapt_core.coadapt.config import CoadaptConfig, config_from_dict
+from coadapt_core.coadapt.config import CoadaptConfig
+from coadapt_core.coadapt.config_loading import config_from_dict
 from coadapt_core.coadapt.loop import CoadaptationLoop, ProgressFn
 from coadapt_core.coadapt.setup import LoopParts, build_parts
 from coadapt_core.coadapt.state import (

@@ -7,10 +7,12 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
-from coadapt_core.coadapt.config import CoadaptConfig, learner_settings
+from coadapt_core.coadapt.config import SECTIONS, CoadaptConfig
+from coadapt_core.coadapt.learner_overrides import resolve_learner
 from coadapt_core.coadapt.specialized import SpecializedPolicyBackend
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import CoadaptError, UserError
@@ -18,6 +20,7 @@ from coadapt_core.fitness import CoadaptationBackend
 from coadapt_core.methods import get_method
 from coadapt_core.objective import Objective
 from coadapt_core.optimizer import Optimizer
+from coadapt_core.settings import overrides
 
 
 @dataclass
@@ -422,6 +425,22 @@ def universal_policy_factory(
         )
 
     return factory
+
+
+def learner_settings(config: CoadaptConfig, checkpoint: str | None) -> dict[str, Any]:
+    """The backend's `train_config`, `task_config` and `randomization` where the run sets
+    any of them: the starting policy's (the `checkpoint` file's; the defaults without one)
+    with the run's keys applied. Sections the run leaves unset are not returned, so the
+    backend takes them from the checkpoint as it always has."""
+    changed = {name: overrides(getattr(config, name)) for name in SECTIONS}
+    if not any(changed.values()):
+        return {}
+    saved = None
+    if checkpoint:
+        from coadapt_core.learning.trainer import read_checkpoint
+
+        saved = read_checkpoint(checkpoint)
+    return resolve_learner(saved, changed["train"], changed["task"], changed["randomization"])
 
 
 def specialized_factory(

@@ -284,7 +284,7 @@ def _extra_overrides(extra: Sequence[str]) -> dict[str, Any] | None:
 def cell_config_hash(cell: Cell, extra: Sequence[str] = ()) -> str | None:
     """The config hash `coadapt run` will record for this cell, or None when it cannot be
     known here (an --run-arg option that is not a config field, a config that does not validate)."""
-    from coadapt_core.coadapt.config import make_config
+    from coadapt_core.coadapt.config_loading import make_config
 
     overrides = _extra_overrides(extra)
     if overrides is None:
@@ -308,7 +308,7 @@ def cell_config_hash(cell: Cell, extra: Sequence[str] = ()) -> str | None:
 
 def run_config_hash(run: dict[str, Any]) -> str | None:
     """The config hash of a stored run (its recorded config, resolved again), or None."""
-    from coadapt_core.coadapt.config import config_from_dict
+    from coadapt_core.coadapt.config_loading import config_from_dict
 
     config = run.get("config")
     if not isinstance(config, dict) or not config:

@@ -66,7 +66,7 @@ def retrain_policies(
     `folder` as `policy-<role>.pt` and return the paths. `policy_factory(seed)` builds one
     policy (default: the run's learner, from its recorded config). BackendUnavailable when
     the run cannot be repeated (its starting policy is not the one it recorded)."""
-    from coadapt_core.coadapt.config import config_from_dict
+    from coadapt_core.coadapt.config_loading import config_from_dict
     from coadapt_core.coadapt.loop import seed_at
 
     try:

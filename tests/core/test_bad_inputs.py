@@ -235,7 +235,7 @@ def test_bad_input_is_one_line_and_exit_2(folder, capsys, monkeypatch, argv, env
     [('"false"', False), ("false", False), ("no", False), ('"true"', True), ("yes", True)],
 )
 def test_yaml_booleans_mean_what_they_say(tmp_path, text, expected):
-    from coadapt_core.coadapt.config import make_config
+    from coadapt_core.coadapt.config_loading import make_config
 
     (tmp_path / "c.yaml").write_text(f"mixed: {text}\nmeasure_surrogate_error: {text}\n")
     config = make_config("smoke", tmp_path / "c.yaml", {})

@@ -250,7 +250,7 @@ def test_run_help_is_short_with_the_common_options_first_and_help_all_has_every_
 
 # -- small things a user reads --------------------------------------------------------------
 def test_plugin_and_choice_names_are_case_folded(tmp_path):
-    from coadapt_core.coadapt.config import make_config
+    from coadapt_core.coadapt.config_loading import make_config
 
     config = make_config(
         "smoke",

@@ -243,7 +243,7 @@ def test_killed_grid_resumes_runs_left_running(tmp_path):
         run_id="r1",
         run_dir=str(tmp_path / "runs" / "gone"),
     )
-    from coadapt_core.coadapt.config import make_config
+    from coadapt_core.coadapt.config_loading import make_config
 
     def by_hand(cell, run_id, **changed):
         config = make_config(

@@ -179,7 +179,7 @@ def test_a_finished_copy_replaces_an_unfinished_one_and_not_the_other_way(tmp_pa
 def test_grid_skips_imported_finished_cells(tmp_path):
     """Cells finished on another machine: by the same grid command (same grid id), or by
     hand with the cell's whole configuration; after the import the grid plans only the rest."""
-    from coadapt_core.coadapt.config import make_config
+    from coadapt_core.coadapt.config_loading import make_config
 
     spec = GridSpec(
         methods=["ours", "no-surrogate"],

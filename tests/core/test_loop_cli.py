@@ -10,7 +10,8 @@ import pytest
 
 import coadapt_core.coadapt.setup as loop_setup
 from coadapt_core.cli import main
-from coadapt_core.coadapt.config import PRESETS, make_config
+from coadapt_core.coadapt.config import PRESETS
+from coadapt_core.coadapt.config_loading import make_config
 from coadapt_core.coadapt.summary import JSON_PLAIN_AND_FALLS as PLAIN_AND_FALLS
 from coadapt_core.errors import UserError
 from tests.fakes.analytic import AnalyticBackend, optimum_of

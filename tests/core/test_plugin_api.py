@@ -253,7 +253,7 @@ class _IgnoresInitial:
 def test_an_optimizer_ignoring_initial_designs_is_named_at_the_start_of_a_run(tmp_path, capsys):
     from coadapt_plugins.objectives.locomotion import TorqueObjective
 
-    from coadapt_core.coadapt.config import make_config
+    from coadapt_core.coadapt.config_loading import make_config
     from coadapt_core.coadapt.run import run_coadaptation
     from coadapt_core.coadapt.setup import initial_designs_note
     from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend
@@ -299,7 +299,7 @@ def test_an_optimizer_keeping_a_study_is_checked_at_its_first_round(tmp_path, ca
     checked instead, once per run."""
     from coadapt_plugins.objectives.locomotion import TorqueObjective
 
-    from coadapt_core.coadapt.config import make_config
+    from coadapt_core.coadapt.config_loading import make_config
     from coadapt_core.coadapt.run import run_coadaptation
     from coadapt_core.options import PluginOption
     from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend

@@ -120,7 +120,7 @@ class Stop(Exception):
 
 
 def test_resume_refuses_a_policy_file_that_changed(tmp_path, fake_learner, capsys):
-    from coadapt_core.coadapt.config import make_config
+    from coadapt_core.coadapt.config_loading import make_config
     from coadapt_core.coadapt.run import run_coadaptation
 
     policy = tmp_path / "policy.pt"

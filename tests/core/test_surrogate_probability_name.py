@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import pytest
 
-from coadapt_core.coadapt.config import CoadaptConfig, config_from_dict, make_config
+from coadapt_core.coadapt.config import CoadaptConfig
+from coadapt_core.coadapt.config_loading import config_from_dict, make_config
 from coadapt_core.methods import METHODS
 
 BASE = {"method": "ours", "objective": "torque", "terrain": "flat", "seed": 0, "sim": "mujoco"}

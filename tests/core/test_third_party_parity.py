@@ -307,7 +307,7 @@ def test_report_rows_mark_runs_below_the_walking_gate(tmp_path):
 def test_option_text_from_the_cli_is_typed_in_the_config():
     """'--optimizer-option inertia=0.5' and YAML 'inertia: 0.5' make the same config (and
     the same grid config hash); a legacy key is an alias."""
-    from coadapt_core.coadapt.config import make_config
+    from coadapt_core.coadapt.config_loading import make_config
     from coadapt_core.experiments.grid import config_hash
 
     cli = make_config("smoke", None, {"optimizer_options": {"inertia": "0.5"}})
