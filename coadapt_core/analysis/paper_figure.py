@@ -95,6 +95,7 @@ def figure_beside_paper(
         fig,
         out / FILE,
         "Table 6 beside the paper's: each method's improvement over the nominal design (the cost "
-        "reduction 1 - c/c0, the paper's measure) on the common scenario set (mean ± SE over seeds; hatched: a cell without common-scenario rows, its runs' "
-        "own final check) and the paper's figure for the same cell (black tick), one panel per terrain.",
+        "reduction 1 - c/c0, the paper's measure) on the common scenario set (mean ± SE over "
+        "seeds; hatched: a cell without common-scenario rows, its runs' own final check) and the "
+        "paper's figure for the same cell (black tick), one panel per terrain.",
     )

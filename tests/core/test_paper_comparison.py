@@ -12,13 +12,8 @@ from unittest import mock
 import numpy as np
 import pytest
 
-from coadapt_core.analysis.paper_comparison import (
-    direction,
-    direction_verdict,
-    order_comparison,
-    table6_comparison,
-    value_verdict,
-)
+from coadapt_core.analysis.paper_comparison import order_comparison, table6_comparison
+from coadapt_core.analysis.paper_verdicts import direction, direction_verdict, value_verdict
 from coadapt_core.analysis.report import write_report
 from coadapt_core.fitness import TrainingResult
 from coadapt_core.results import SqliteRecorder
