@@ -19,7 +19,7 @@ from pathlib import Path
 
 from coadapt_core.errors import UserError
 from coadapt_core.experiments.grid_exec import (
-    ENTRY_CODE,
+    ENTRY,
     EXECUTORS,
     NOT_STARTED,
     Executor,
@@ -52,7 +52,7 @@ from coadapt_core.threads import check_threads, share_cores, usable_cpus
 
 __all__ = [
     "CONFIG_HASH_IGNORES",
-    "ENTRY_CODE",
+    "ENTRY",
     "EXECUTORS",
     "NOT_STARTED",
     "Cell",

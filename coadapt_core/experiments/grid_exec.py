@@ -22,8 +22,9 @@ from coadapt_core.experiments.grid_plan import CellOutcome, CellTask
 
 EXECUTORS = ("local", "ray")
 #: how a cell process starts coadapt when no command is given: the interpreter running the
-#: grid (or the Ray worker), so it works without the console script on PATH
-ENTRY_CODE = "import sys; from coadapt_core.cli import main; sys.exit(main(sys.argv[1:]))"
+#: grid (or the Ray worker) on `python -m coadapt_core`, the console script's twin, so no
+#: script on PATH is needed and nothing here imports the CLI
+ENTRY = ("-m", "coadapt_core")
 
 #: cell processes running in this process, and whether the grid is stopping (Ctrl-C): then
 #: no further cell starts, and `stop_cells` passes the interrupt on to those running
@@ -56,7 +57,7 @@ def stop_cells(grace: float = 60.0) -> None:
 
 def execute_cell(task: CellTask, cwd: str | os.PathLike | None = None) -> CellOutcome:
     """Run one cell's process to the end, in the folder `cwd` (default: this process's)."""
-    prefix = task.command if task.command is not None else [sys.executable, "-c", ENTRY_CODE]
+    prefix = task.command if task.command is not None else [sys.executable, *ENTRY]
     env = {**os.environ, **task.env}
     start = time.perf_counter()
     if _STOPPING.is_set():

@@ -165,8 +165,8 @@ def test_ctrl_c_on_a_grid_stops_its_cells_and_the_same_command_resumes_them(
 
     monkeypatch.setattr(
         grid_module,
-        "ENTRY_CODE",
-        "import sys; from tests.fakes.fake_learner_cli import main; sys.exit(main())",
+        "ENTRY",
+        ("-c", "import sys; from tests.fakes.fake_learner_cli import main; sys.exit(main())"),
     )
     monkeypatch.setenv("PYTHONPATH", str(ROOT))
     monkeypatch.setenv("FAKE_DELAY", "3")
