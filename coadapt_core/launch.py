@@ -1,9 +1,10 @@
-"""The `coadapt` command's entry point, and the OpenMP wait policy it picks before torch is
-imported (libgomp reads its settings once, when torch loads it).
+"""The OpenMP wait policy the `coadapt` command picks before torch is imported (libgomp
+reads its settings once, when torch loads it).
 
-Importing the library does none of this: only `entry` (the console script and
-`python -m coadapt_core`) and the benchmark scripts that call `apply_omp_wait_policy`
-before importing torch read /proc and set the environment."""
+Importing the library does none of this: only the command's entry point
+(`coadapt_core.__main__.entry`: the console script and `python -m coadapt_core`) and the
+benchmark scripts that call `apply_omp_wait_policy` before importing torch read /proc and
+set the environment."""
 
 from __future__ import annotations
 
@@ -68,10 +69,3 @@ def apply_omp_wait_policy() -> dict[str, str]:
     chosen = omp_wait_settings(os.environ, usable_cpus(), running_processes())
     os.environ.update(chosen)
     return chosen
-
-
-def entry() -> None:  # pragma: no cover - console script
-    apply_omp_wait_policy()
-    from coadapt_core.cli import main
-
-    sys.exit(main())
