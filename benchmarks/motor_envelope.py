@@ -149,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:
                 designs, objectives, agents=agents, steps=250, seed=scenario_seed(1000, b)
             )
             # the backend may step its environments in another order (rows): env of each row
-            order = getattr(backend.eval_env.sim, "_env_of_row_t", None)
+            order = getattr(backend.trainer.eval_env.sim, "_env_of_row_t", None)
             env_of_row = np.arange(len(designs) * agents) if order is None else np.asarray(order)
             design_of_row = env_of_row // agents
             probes.append(

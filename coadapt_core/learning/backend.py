@@ -21,14 +21,13 @@ from coadapt_core.learning.checkpoints import read_checkpoint
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.evaluate import EvalBuffer, rollout
 from coadapt_core.learning.runner import Runner
-from coadapt_core.learning.surrogate import MEMBERS, FittedEnsemble, fit_ensemble
+from coadapt_core.learning.surrogate import MEMBERS, FittedEnsemble, fit_ensemble, paper_estimate
 from coadapt_core.learning.trainer import Trainer
 from coadapt_core.objective import Objective
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.robot import Robot
 from coadapt_core.scenarios.sets import prepare
 from coadapt_core.task.config import TaskConfig
-from coadapt_core.task.env import LocomotionEnv
 
 
 class UniversalPolicyBackend:
@@ -114,12 +113,9 @@ class UniversalPolicyBackend:
             seed=seed,
         )
         self.objectives = list(objectives)
-        # the robot's full spaces (continuous, mixed), asked once: a batch's normalisation bounds and checks
-        self.full_spaces = (robot.design_space(False), robot.design_space(True))
         self.stochastic_evaluation = True
         # common random numbers across designs (docs/coadaptation.md, evaluation protocol)
         self.paired_evaluation = True
-        self.eval_env: LocomotionEnv | None = None
         # pseudo-critics fitted to real rounds of the current policy (fit_surrogate)
         self.fitted: FittedEnsemble | None = None
         self.fitted_columns: list[int] | None = None
@@ -176,39 +172,6 @@ class UniversalPolicyBackend:
         return {"torch_threads": self.trainer.update_threads_seen, "physics_threads": physics}
 
     # -- Algorithm 2 ------------------------------------------------------------------------
-    def _eval_env(self, designs: np.ndarray, agents: int, steps: int) -> LocomotionEnv:
-        """The evaluation environment for `agents` environments per design (built, or its
-        models swapped in place), with the learner built for it and episodes that outlast
-        `steps` policy steps."""
-        tr = self.trainer
-        # checked once, where designs become worlds (`Simulator._check_designs`), before any
-        # environment changes
-        per_env = np.repeat(designs, agents, axis=0)
-        if self.eval_env is not None and self.eval_env.num_envs == len(per_env):
-            self.eval_env.set_designs(np.arange(len(per_env)), per_env)
-        else:
-            if self.eval_env is not None:
-                self.eval_env.sim.close()
-            task = copy.deepcopy(tr.task_config)
-            task.commands.resample_seconds = 0.0
-            # built with the backend's seed, not the call's: the terrain (seeded by the simulator's
-            # seed) must not depend on which call happened to build the environment
-            sim = tr.simulator_cls(
-                tr.robot,
-                per_env,
-                terrain=tr.terrain,
-                randomization=tr.randomization,
-                seed=tr.config.seed,
-            )
-            self.eval_env = LocomotionEnv(
-                sim, tr.robot, task, tr.objectives, seed=tr.config.seed, device=tr.device
-            )
-        env = self.eval_env
-        tr.ensure_ppo(env)
-        env.cfg.episode_seconds = steps * env.dt + 1.0
-        env.max_episode_length = steps + 10
-        return env
-
     def _check_objectives(self, objectives: Sequence[Objective]) -> list[int]:
         names = [o.name for o in self.objectives]
         index = []
@@ -234,7 +197,7 @@ class UniversalPolicyBackend:
         columns = self._check_objectives(objectives)
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
         k = len(designs)
-        env = self._eval_env(designs, agents, steps)
+        env = self.trainer.evaluation_env(designs, agents, steps)
         # real fitness is a function of the policy, the curriculum, the designs and `seed`
         # alone: the scenario set of `seed`, paired (common random numbers) or not
         prepare(
@@ -249,7 +212,7 @@ class UniversalPolicyBackend:
         # so real and surrogate fitness estimate the same quantity (the mean action's torque
         # and power are lower while the policy's std is large)
         result = rollout(
-            self.ppo.action_distribution,
+            self.trainer.ppo.action_distribution,
             env,
             k,
             steps,
@@ -294,7 +257,8 @@ class UniversalPolicyBackend:
         seed: int = 0,
     ) -> np.ndarray:
         columns = self._check_objectives(objectives)
-        if self.ppo is None or self.ppo.pseudo_critic is None:
+        critics = self.trainer.pseudo_critics()
+        if critics is None:
             raise UserError(
                 "surrogate fitness needs a trained policy with pseudo-critics", field="backend"
             )
@@ -309,36 +273,9 @@ class UniversalPolicyBackend:
                 designs, objectives, buffer, samples=samples, seed=seed
             ).mean(axis=0)
         states = self._states(buffer, samples, seed)  # [S, C]
-        xi = self.trainer_normalize(designs)  # [K, D]
-        # only the pseudo-critics of `objectives` (each head is its own MLP: the same values, to
-        # the bit, as computing every head and keeping these columns; one head alone is computed
-        # twice, because a batch of one takes another matrix-product path, 1e-6 apart)
-        bank = self.ppo.pseudo_critic
-        idx = torch.as_tensor(
-            columns * 2 if len(columns) == 1 and bank.num_heads > 1 else columns, dtype=torch.long
-        )
-        layers = [(w[idx], b[idx]) for w, b in (bank.layer(k) for k in range(bank.num_layers))]
-        norm, m = self.ppo.pseudo_norm, self.ppo.dims.num_metrics
-        scale, offset = torch.sqrt(norm.var[:m] + norm.eps)[idx], norm.mean[:m][idx]
-        n = len(columns)
+        xi = self.trainer.normalize_designs(designs)  # [K, D]
         with self._learner_threads():
-            return self._paper_estimate(states, xi, bank, layers, scale, offset, n)
-
-    @staticmethod
-    def _paper_estimate(states, xi, bank, layers, scale, offset, n: int) -> np.ndarray:
-        """[K, n]: the mean over `states` of the heads `layers` (weights, biases per layer)
-        at each design of `xi`, in cost units, the first `n` heads."""
-        out = []
-        for k in range(xi.shape[0]):  # one candidate at a time keeps memory at [S, C]
-            h = torch.cat([states, xi[k].expand(states.shape[0], -1)], dim=-1)
-            h = h.unsqueeze(0).expand(layers[0][0].shape[0], -1, -1)
-            for j, (weight, bias) in enumerate(layers):
-                h = torch.baddbmm(bias.unsqueeze(1), h, weight.transpose(1, 2))
-                if j < len(layers) - 1:
-                    h = bank.act(h)
-            values = h.squeeze(-1).transpose(0, 1) * scale + offset  # [S, M]
-            out.append(values.mean(dim=0)[:n])
-        return torch.stack(out).cpu().numpy()
+            return paper_estimate(critics, columns, states, xi)
 
     # -- pseudo-critics fitted to the current range (issue 16; learning/surrogate.py) -------
     @contextlib.contextmanager
@@ -357,7 +294,7 @@ class UniversalPolicyBackend:
         gen = torch.Generator(device="cpu")
         gen.manual_seed(int(seed))
         rows = torch.randint(len(buffer), (int(samples),), generator=gen)
-        return self.ppo.critic_norm(buffer.critic_obs[rows].to(self.ppo.device))
+        return self.trainer.critic_states(buffer.critic_obs[rows])
 
     def fit_surrogate(
         self,
@@ -377,20 +314,18 @@ class UniversalPolicyBackend:
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
         costs = np.asarray(costs, dtype=float).reshape(len(designs), len(columns))
         ok = np.isfinite(costs).all(axis=1)
-        if self.ppo is None or self.ppo.pseudo_critic is None or ok.sum() < 2:
+        critics = self.trainer.pseudo_critics()
+        if critics is None or ok.sum() < 2:
             return
-        norm = self.ppo.pseudo_norm
-        m = self.ppo.dims.num_metrics
-        scale = torch.sqrt(norm.var[:m] + norm.eps)
         states = self._states(buffer, min(len(buffer), 65536), seed)
         with self._learner_threads():
             self.fitted = fit_ensemble(
-                self.ppo.pseudo_critic,
+                critics.bank,
                 columns,
-                scale,
-                norm.mean[:m],
+                critics.scale,
+                critics.offset,
                 states,
-                self.trainer_normalize(designs[ok]),
+                self.trainer.normalize_designs(designs[ok]),
                 torch.as_tensor(costs[ok], dtype=torch.float32),
                 members=self.surrogate_members_count,
                 seed=seed,
@@ -416,25 +351,8 @@ class UniversalPolicyBackend:
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
         states = self._states(buffer, samples, seed)
         with self._learner_threads():
-            return self.fitted.predict(states, self.trainer_normalize(designs)).cpu().numpy()
-
-    def full_space(self, designs: np.ndarray) -> DesignSpace:
-        """The robot's full space (continuous, or mixed when the arity says so) of a batch;
-        as `Robot.design_space_for`, without asking the robot again."""
-        plain, mixed = self.full_spaces
-        arity = np.atleast_2d(np.asarray(designs, dtype=float)).shape[1]
-        return mixed if arity == mixed.dim and mixed.dim != plain.dim else plain
-
-    def trainer_normalize(self, designs: np.ndarray) -> torch.Tensor:
-        space = self.full_space(designs)
-        low = torch.as_tensor(space.lower, dtype=torch.float32)
-        high = torch.as_tensor(space.upper, dtype=torch.float32)
-        xi = torch.as_tensor(designs, dtype=torch.float32)
-        width = high - low
-        norm = torch.where(
-            width > 0, 2.0 * (xi - low) / torch.where(width > 0, width, 1.0) - 1.0, 0.0
-        )
-        return norm.to(self.ppo.device)
+            xi = self.trainer.normalize_designs(designs)
+            return self.fitted.predict(states, xi).cpu().numpy()
 
     # -- checkpoints ------------------------------------------------------------------------
     def save(self, path: str) -> None:
@@ -447,6 +365,3 @@ class UniversalPolicyBackend:
 
     def close(self) -> None:
         self.trainer.close()
-        if self.eval_env is not None:
-            self.eval_env.sim.close()
-            self.eval_env = None

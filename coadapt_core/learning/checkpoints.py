@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import pickle  # only for its exception type: nothing is unpickled here
 import re
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -182,3 +183,38 @@ def open_command_inputs(state: dict, commands: CommandConfig) -> tuple[dict, lis
         ppo[norm] = buffers
     out["ppo"] = ppo
     return out, [_COMMAND_NAMES[j] for j in opened]
+
+
+def weights_of(ppo_state: dict) -> dict:
+    """The weights export's share of a `PPO.state_dict`: the networks and normalisers as
+    float32 on the CPU, and the learning rate reached."""
+    keep = ("actor", "critic", "pseudo_critic", "obs_norm", "critic_norm", "pseudo_norm")
+    weights = {
+        k: {n: (t.float() if t.is_floating_point() else t).cpu() for n, t in ppo_state[k].items()}
+        for k in keep
+        if ppo_state.get(k) is not None
+    }
+    # the KL-adapted learning rate reached: fine-tuning from this file starts there, not at
+    # the configured initial rate (a fresh Adam at 1e-3 knocks a trained policy over)
+    weights["learning_rate"] = float(ppo_state["learning_rate"])
+    return weights
+
+
+def fit_to_trainer(
+    path: str | Path, state: dict, widen_to: int | None, commands: CommandConfig
+) -> tuple[dict, bool]:
+    """(the state read from `path` after its surgery, whether its design input was widened):
+    widened to `widen_to` design values when it takes fewer (`widen_design_input`; None
+    leaves it), its command inputs opened for the box of `commands` (`open_command_inputs`,
+    with a note on stderr)."""
+    widened = widen_to is not None and int(state["dims"]["num_design"]) < widen_to
+    if widened:
+        state = widen_design_input(state, widen_to)
+    state, opened = open_command_inputs(state, commands)
+    if opened:
+        print(
+            f"note: '{path}' never saw {' or '.join(opened)} commands vary; their inputs "
+            "start with zero weights and the new range's scale",
+            file=sys.stderr,
+        )
+    return state, widened

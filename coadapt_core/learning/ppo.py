@@ -1,26 +1,8 @@
 """PPO for the universal policy with a critic and pseudo-critics, on TorchRL's `ClipPPOLoss`
 and `GAE`, split the rsl_rl way: `act`, `process_env_step`, `compute_returns`, `update`.
 
-Pseudo-critics (paper section 3.2.2) share the critic's architecture and inputs (s, xi) but
-are excluded from the policy update: they live in their own optimizer and regress, per
-objective m, the discounted-average metric
-
-    target_t = (1 - gamma) sum_k gamma^k P_{m, t+k}
-
-(TD(lambda) estimate, bootstrapped with the pseudo-critic itself), whose scale equals the
-per-step metric — so the surrogate fitness (mean of V_pseudo over states, Algorithm 3) is
-directly comparable with the real fitness (mean of P over steps, Algorithm 2). A fall does
-not end the metric stream (the real fitness keeps averaging after an auto-reset), so both
-terminations and timeouts bootstrap from the pseudo-critic at the final state.
-
-Two things keep the bootstrap from feeding on itself (before they did, every long fine-tune
-diverged: the bootstrap values grew past anything the metric reached, the running scale grew
-with them, and after ~1 M steps the surrogate ranked designs backwards):
-- targets are normalised per objective by running statistics of the per-step metric P itself,
-  data the pseudo-critics do not produce, so their own errors cannot inflate the scale
-  (predictions are de-normalised with the same statistics);
-- bootstrap values are clamped to the range the metric spans in the rollout: a discounted
-  average of P cannot leave [min P, max P].
+The pseudo-critics (paper section 3.2.2), their targets and what the surrogate reads of
+them live in `coadapt_core.learning.pseudo_critics`.
 """
 
 from __future__ import annotations
@@ -34,33 +16,15 @@ from tensordict.nn import TensorDictModule
 
 from coadapt_core.learning.config import TrainConfig, resolve_precision
 from coadapt_core.learning.networks import ActorNet, CriticBank, EmpiricalNormalization, ValueNet
+from coadapt_core.learning.pseudo_critics import (
+    PseudoCritics,
+    all_finite,
+    discounted_average_targets,
+    new_pseudo_critics,
+)
 
 #: per-step metrics are clamped to +-METRIC_LIMIT before the pseudo-critics see them
 METRIC_LIMIT = 1e15
-
-
-def discounted_average_targets(
-    metrics: torch.Tensor,  # [N, T, M] per-step metric P_t
-    value_next: torch.Tensor,  # [N, T, M] pseudo-critic at s_{t+1} (the final state where done)
-    done: torch.Tensor,  # [N, T, 1] bool, the episode ended after step t
-    gamma: float,
-    lam: float,
-) -> torch.Tensor:
-    """[N, T, M] TD(lambda) targets of (1 - gamma) sum_k gamma^k P_{t+k}: a constant metric
-    c has target c. Episode ends (falls and timeouts alike) and the rollout end bootstrap
-    from `value_next`."""
-    done = done.to(metrics.dtype)
-    target = torch.empty_like(metrics)
-    following = value_next[:, -1]
-    for t in reversed(range(metrics.shape[1])):
-        if t == metrics.shape[1] - 1:
-            blend = value_next[:, t]
-        else:
-            blend = (1 - lam) * value_next[:, t] + lam * following
-        boot = done[:, t] * value_next[:, t] + (1 - done[:, t]) * blend
-        target[:, t] = (1 - gamma) * metrics[:, t] + gamma * boot
-        following = target[:, t]
-    return target
 
 
 @dataclass
@@ -106,7 +70,9 @@ class PPO:
         )
         self.obs_norm = EmpiricalNormalization(dims.num_obs).to(self.device)
         self.critic_norm = EmpiricalNormalization(dims.num_critic_obs).to(self.device)
-        self.pseudo_critic, self.pseudo_norm, self.pseudo_optimizer = self._new_pseudo_critics()
+        self.pseudo_critic, self.pseudo_norm, self.pseudo_optimizer = new_pseudo_critics(
+            dims.num_critic_obs, dims.num_design, dims.num_metrics, config, self.device
+        )
 
         self.actor = ProbabilisticActor(
             TensorDictModule(
@@ -228,12 +194,25 @@ class PPO:
         self, critic_obs_normed: torch.Tensor, design_obs: torch.Tensor
     ) -> torch.Tensor:
         """[*, M] de-normalised pseudo-critic predictions (in units of the per-step metric)."""
-        out = self.pseudo_critic(critic_obs_normed, design_obs)
-        m = self.dims.num_metrics
-        return (
-            out * torch.sqrt(self.pseudo_norm.var[:m] + self.pseudo_norm.eps)
-            + self.pseudo_norm.mean[:m]
-        )
+        scale, offset = self.pseudo_scale()
+        return self.pseudo_critic(critic_obs_normed, design_obs) * scale + offset
+
+    def pseudo_scale(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """(scale [M], offset [M]): a pseudo-critic's raw output times scale plus offset is
+        in units of the per-step metric (the metric's running statistics, `pseudo_norm`)."""
+        norm, m = self.pseudo_norm, self.dims.num_metrics
+        return torch.sqrt(norm.var[:m] + norm.eps), norm.mean[:m]
+
+    def pseudo_critics(self) -> PseudoCritics | None:
+        """The pseudo-critics as the surrogate reads them (None without objectives)."""
+        if self.pseudo_critic is None:
+            return None
+        scale, offset = self.pseudo_scale()
+        return PseudoCritics(self.pseudo_critic, scale, offset)
+
+    def normalize_critic_states(self, critic_obs: torch.Tensor) -> torch.Tensor:
+        """Raw critic states [n, C] as the critics read them, on the learner's device."""
+        return self.critic_norm(critic_obs.to(self.device))
 
     @torch.no_grad()
     def compute_returns(self) -> TensorDict:
@@ -258,9 +237,8 @@ class PPO:
                 metrics, value_next, td["next", "done"], self.config.gamma, self.config.pseudo_lam
             )
             self.pseudo_norm.update(metrics)
-            td["pseudo_target"] = (target - self.pseudo_norm.mean[:m]) / torch.sqrt(
-                self.pseudo_norm.var[:m] + self.pseudo_norm.eps
-            )
+            scale, offset = self.pseudo_scale()
+            td["pseudo_target"] = (target - offset) / scale
             self.timing["pseudo"] += self._clock() - tick
         self.rollout = td
         self.timing["returns"] += self._clock() - begin
@@ -397,7 +375,7 @@ class PPO:
         self.pseudo_norm.load_state_dict(state["pseudo_norm"])
         # pseudo-critics poisoned by non-finite metrics (checkpoints written before the w_t
         # exponent was capped) predict NaN forever: they restart from scratch instead
-        self.pseudo_reset = self.pseudo_critic is not None and not _all_finite(
+        self.pseudo_reset = self.pseudo_critic is not None and not all_finite(
             self.pseudo_critic, self.pseudo_norm
         )
         if self.pseudo_reset:
@@ -422,23 +400,6 @@ class PPO:
             for group in self.optimizer.param_groups:
                 group["lr"] = self.learning_rate
 
-    def _new_pseudo_critics(
-        self,
-    ) -> tuple[CriticBank | None, EmpiricalNormalization, torch.optim.Adam | None]:
-        """Fresh pseudo-critics (None when there are no objectives), target normaliser and optimizer."""
-        d, c = self.dims, self.config
-        norm = EmpiricalNormalization(max(d.num_metrics, 1), eps=1e-8, clip=1e9).to(self.device)
-        if d.num_metrics == 0:
-            return None, norm, None
-        net = CriticBank(
-            d.num_critic_obs, d.num_design, c.hidden, c.activation, outputs=d.num_metrics
-        ).to(self.device)
-        return (
-            net,
-            norm,
-            torch.optim.Adam(net.parameters(), lr=c.pseudo_learning_rate, foreach=True),
-        )
-
     def freeze_policy(self) -> None:
         """Train only the pseudo-critics from now on: refit the surrogate of a finished policy
         (or give it a new objective) without changing how it acts."""
@@ -448,13 +409,7 @@ class PPO:
 
     def reset_pseudo_critics(self) -> None:
         """Restart the pseudo-critics, their target normaliser and optimizer from scratch."""
-        self.pseudo_critic, self.pseudo_norm, self.pseudo_optimizer = self._new_pseudo_critics()
-
-
-def _all_finite(*modules: torch.nn.Module) -> bool:
-    return all(
-        bool(torch.isfinite(t).all())
-        for m in modules
-        for t in m.state_dict().values()
-        if t.is_floating_point()
-    )
+        d = self.dims
+        self.pseudo_critic, self.pseudo_norm, self.pseudo_optimizer = new_pseudo_critics(
+            d.num_critic_obs, d.num_design, d.num_metrics, self.config, self.device
+        )

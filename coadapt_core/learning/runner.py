@@ -30,7 +30,8 @@ from typing import Any
 
 from coadapt_core import phase_progress, tracking
 from coadapt_core.errors import UserError
-from coadapt_core.learning.trainer import IterationStats, Trainer
+from coadapt_core.learning.iteration_stats import IterationStats
+from coadapt_core.learning.trainer import Trainer
 
 
 class TrainingInterrupted(Exception):

@@ -22,9 +22,11 @@ from __future__ import annotations
 import copy
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 
 from coadapt_core.learning.networks import CriticBank
+from coadapt_core.learning.pseudo_critics import PseudoCritics
 
 #: defaults of the fit (measured on flat with the shipped policy; docs/coadaptation.md)
 MEMBERS = 5
@@ -91,6 +93,34 @@ class FittedEnsemble:
             raw = raw.reshape(e, m, b, -1).mean(dim=-1).transpose(1, 2)  # [E, b, M]
             out.append(raw * self.scale + self.offset.unsqueeze(1))
         return torch.cat(out, dim=1)  # [E, K, M]
+
+
+def paper_estimate(
+    critics: PseudoCritics, columns: list[int], states: torch.Tensor, xi: torch.Tensor
+) -> np.ndarray:
+    """[K, n] Algorithm 3: the mean over `states` [S, C] (normalised) of the pseudo-critics
+    `columns` (n of them) at each design of `xi` [K, D] (normalised), in cost units.
+
+    Only the heads of `columns` are computed (each head is its own MLP: the same values, to
+    the bit, as computing every head and keeping these columns; one head alone is computed
+    twice, because a batch of one takes another matrix-product path, 1e-6 apart)."""
+    bank = critics.bank
+    idx = torch.as_tensor(
+        columns * 2 if len(columns) == 1 and bank.num_heads > 1 else columns, dtype=torch.long
+    )
+    layers = [(w[idx], b[idx]) for w, b in (bank.layer(k) for k in range(bank.num_layers))]
+    scale, offset = critics.scale[idx], critics.offset[idx]
+    out = []
+    for k in range(xi.shape[0]):  # one candidate at a time keeps memory at [S, C]
+        h = torch.cat([states, xi[k].expand(states.shape[0], -1)], dim=-1)
+        h = h.unsqueeze(0).expand(layers[0][0].shape[0], -1, -1)
+        for j, (weight, bias) in enumerate(layers):
+            h = torch.baddbmm(bias.unsqueeze(1), h, weight.transpose(1, 2))
+            if j < len(layers) - 1:
+                h = bank.act(h)
+        values = h.squeeze(-1).transpose(0, 1) * scale + offset  # [S, M]
+        out.append(values.mean(dim=0)[: len(columns)])
+    return torch.stack(out).cpu().numpy()
 
 
 def fit_ensemble(

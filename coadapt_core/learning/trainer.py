@@ -3,11 +3,11 @@ as one batched environment, rollouts, updates, statistics, checkpoints and resum
 
 from __future__ import annotations
 
+import copy
 import math
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -20,61 +20,26 @@ from coadapt_core.io import write_atomic
 from coadapt_core.learning.checkpoints import (
     CHECKPOINT_FORMAT,
     WEIGHTS_FORMAT,
+    fit_to_trainer,
     match_objectives,
-    open_command_inputs,
     read_checkpoint,
-    widen_design_input,
+    weights_of,
 )
 from coadapt_core.learning.config import TrainConfig
+from coadapt_core.learning.iteration_stats import (
+    IterationClock,
+    IterationStats,
+    RolloutSums,
+    iteration_stats,
+)
 from coadapt_core.learning.ppo import PPO, Dims
+from coadapt_core.learning.pseudo_critics import PseudoCritics
 from coadapt_core.objective import Objective
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.robot import Robot
 from coadapt_core.task.config import TaskConfig
+from coadapt_core.task.designs import normalize_designs
 from coadapt_core.task.env import LocomotionEnv
-
-
-@dataclass
-class IterationStats:
-    iteration: int
-    total_steps: int
-    mean_reward: float  # per-step reward over the rollout
-    episode_reward: float  # mean return of the episodes that ended (nan if none)
-    episode_length_s: float
-    tracking_error: float  # mean |v_xy_cmd - v_xy| over the rollout, m/s
-    vx: float  # mean base-frame forward speed over envs with a forward command
-    command_vx: float
-    alternation: float  # share of steps with exactly half of the feet down (NaN: odd leg count)
-    fall_rate: float  # falls per env per second
-    command_limit: float  # curriculum half-width
-    collect_steps_per_s: float
-    update_samples_per_s: float
-    physics_share: float
-    task_share: float
-    learner_share: float
-    losses: dict[str, float]
-    reward_terms: dict[str, float] = field(default_factory=dict)  # mean weighted value per step
-
-    def to_dict(self) -> dict:
-        out = {k: v for k, v in self.__dict__.items() if k not in ("losses", "reward_terms")}
-        out.update({f"loss/{k}": v for k, v in self.losses.items()})
-        out.update({f"reward/{k}": v for k, v in self.reward_terms.items()})
-        return out
-
-
-@dataclass
-class _RolloutSums:
-    """What one training rollout sums up for its statistics (`Trainer._collect`)."""
-
-    vx_sum: torch.Tensor  # forward speed over envs with a forward command, on the device
-    cmd_sum: torch.Tensor
-    vx_count: torch.Tensor
-    rewards: list[torch.Tensor] = field(default_factory=list)  # per step
-    errors: list[torch.Tensor] = field(default_factory=list)
-    alternation: list[torch.Tensor] = field(default_factory=list)
-    episodes: list[dict] = field(default_factory=list)
-    visited: list[torch.Tensor] = field(default_factory=list)  # critic states
-    term_sums: dict[str, torch.Tensor] = field(default_factory=dict)
 
 
 class Trainer:
@@ -147,6 +112,10 @@ class Trainer:
         self._obs = None
         self._pending_commands: dict | None = None
         self.last_rollout_critic_obs: torch.Tensor | None = None  # [T * N, C] raw, cpu
+        #: the robot's full spaces (continuous, mixed), asked once: the design inputs' bounds
+        self.full_spaces = (robot.design_space(False), robot.design_space(True))
+        #: real fitness's environment (`evaluation_env`), beside the training one
+        self.eval_env: LocomotionEnv | None = None
 
     # -- environment ------------------------------------------------------------------------
     def sample_designs(self, k: int | None = None) -> np.ndarray:
@@ -166,7 +135,7 @@ class Trainer:
                 self.env.set_designs(np.arange(len(per_env)), per_env)
         else:
             commands = self.command_state()  # the curriculum outlives a rebuilt environment
-            self.close()
+            self._close_training_env()
             sim = self.simulator_cls(
                 self.robot,
                 per_env,
@@ -189,6 +158,63 @@ class Trainer:
         self.agents = agents
         self._obs = None
         self.ensure_ppo(self.env)
+
+    def evaluation_env(self, designs: np.ndarray, agents: int, steps: int) -> LocomotionEnv:
+        """The environment of real fitness: `agents` environments per design [K, D] (built, or
+        its models swapped in place), its commands held from the first step, episodes that
+        outlast `steps` policy steps, and the learner built for it. Its random streams are
+        the caller's to restart (`coadapt_core.scenarios`)."""
+        # checked once, where designs become worlds (`Simulator._check_designs`), before any
+        # environment changes
+        per_env = np.repeat(designs, agents, axis=0)
+        if self.eval_env is not None and self.eval_env.num_envs == len(per_env):
+            self.eval_env.set_designs(np.arange(len(per_env)), per_env)
+        else:
+            if self.eval_env is not None:
+                self.eval_env.sim.close()
+            task = copy.deepcopy(self.task_config)
+            task.commands.resample_seconds = 0.0
+            # built with the trainer's seed, not the call's: the terrain (seeded by the
+            # simulator's seed) must not depend on which call happened to build it
+            sim = self.simulator_cls(
+                self.robot,
+                per_env,
+                terrain=self.terrain,
+                randomization=self.randomization,
+                seed=self.config.seed,
+            )
+            self.eval_env = LocomotionEnv(
+                sim, self.robot, task, self.objectives, seed=self.config.seed, device=self.device
+            )
+        env = self.eval_env
+        self.ensure_ppo(env)
+        env.cfg.episode_seconds = steps * env.dt + 1.0
+        env.max_episode_length = steps + 10
+        return env
+
+    def full_space(self, designs: np.ndarray) -> DesignSpace:
+        """The robot's full space (continuous, or mixed when the arity says so) of a batch;
+        as `Robot.design_space_for`, without asking the robot again."""
+        plain, mixed = self.full_spaces
+        arity = np.atleast_2d(np.asarray(designs, dtype=float)).shape[1]
+        return mixed if arity == mixed.dim and mixed.dim != plain.dim else plain
+
+    def normalize_designs(self, designs: np.ndarray) -> torch.Tensor:
+        """[K, D] designs as the policy reads them (xi, `task.designs.normalize_designs` over
+        the robot's full space), on the learner's device."""
+        space = self.full_space(designs)
+        low = torch.as_tensor(space.lower, dtype=torch.float32)
+        high = torch.as_tensor(space.upper, dtype=torch.float32)
+        return normalize_designs(designs, low, high).to(self.device)
+
+    def pseudo_critics(self) -> PseudoCritics | None:
+        """The trained pseudo-critics as the surrogate reads them (None before the learner
+        exists or without objectives)."""
+        return self.ppo.pseudo_critics() if self.ppo is not None else None
+
+    def critic_states(self, critic_obs: torch.Tensor) -> torch.Tensor:
+        """Raw critic states [n, C] (an evaluation buffer's rows) as the critics read them."""
+        return self.ppo.normalize_critic_states(critic_obs)
 
     def ensure_ppo(self, env: LocomotionEnv) -> PPO:
         """Build the learner for `env`'s sizes (or check a loaded one matches them)."""
@@ -228,10 +254,17 @@ class Trainer:
         self.env.restart_streams(int(seed))
         self._obs = None
 
-    def close(self) -> None:
+    def _close_training_env(self) -> None:
         if self.env is not None:
             self.env.sim.close()
             self.env = None
+
+    def close(self) -> None:
+        """Close the training and the evaluation environments' simulators."""
+        self._close_training_env()
+        if self.eval_env is not None:
+            self.eval_env.sim.close()
+            self.eval_env = None
 
     # -- training ---------------------------------------------------------------------------
     @property
@@ -277,9 +310,17 @@ class Trainer:
             samples = env.num_envs * cfg.steps_per_env
             self.total_steps += samples
             physics = env.timing["physics"] - physics0
-            task = env.timing["step"] - step0 - physics
-            stats = self._iteration_stats(
-                sums, losses, samples, collect_seconds, update_seconds, physics, task
+            clock = IterationClock(
+                collect_seconds, update_seconds, physics, env.timing["step"] - step0 - physics
+            )
+            stats = iteration_stats(
+                sums,
+                losses,
+                clock,
+                env=self.env,
+                config=cfg,
+                iteration=self.iteration,
+                total_steps=self.total_steps,
             )
             if callback is not None:
                 callback(stats)
@@ -290,12 +331,12 @@ class Trainer:
         self._obs = observed
         return stats
 
-    def _collect(self, env: LocomotionEnv, ppo: PPO, observed: tuple) -> tuple[tuple, _RolloutSums]:
+    def _collect(self, env: LocomotionEnv, ppo: PPO, observed: tuple) -> tuple[tuple, RolloutSums]:
         """One rollout of `steps_per_env` steps from the observations `observed` (obs,
         critic_obs, design_obs) into the learner's storage; the observations after it and
         the rollout's sums (on the device: no host synchronisation inside the loop)."""
         obs, critic_obs, design_obs = observed
-        sums = _RolloutSums(*(torch.zeros((), device=self.device) for _ in range(3)))
+        sums = RolloutSums.zeros(self.device)
         for _ in range(self.config.steps_per_env):
             sums.visited.append(critic_obs)
             actions = ppo.act(obs, critic_obs, design_obs)
@@ -309,55 +350,8 @@ class Trainer:
                 res.info["metrics"],
             )
             obs, critic_obs, design_obs = res.obs, res.critic_obs, res.design_obs
-            info = res.info
-            sums.rewards.append(res.reward.mean())
-            lin, command = info["base_lin_vel"], info["command"]
-            sums.errors.append((command[:, :2] - lin[:, :2]).norm(dim=-1).mean())
-            sums.alternation.append(info["half_stance"].mean())
-            forward = (command[:, 0] > 0.1).float()
-            sums.vx_sum += (lin[:, 0] * forward).sum()
-            sums.cmd_sum += (command[:, 0] * forward).sum()
-            sums.vx_count += forward.sum()
-            for name, value in info["reward_terms"].items():
-                sums.term_sums[name] = sums.term_sums.get(name, 0.0) + value
-            if "episode" in info:
-                sums.episodes.append(info["episode"])
+            sums.add_step(res.reward, res.info)
         return (obs, critic_obs, design_obs), sums
-
-    def _iteration_stats(
-        self,
-        sums: _RolloutSums,
-        losses: dict,
-        samples: int,
-        collect_seconds: float,
-        update_seconds: float,
-        physics: float,
-        task: float,
-    ) -> IterationStats:
-        env, cfg, episodes = self.env, self.config, sums.episodes
-        total = collect_seconds + update_seconds
-        falls = sum(e["fell"] * e["count"] for e in episodes)
-        vx_count = sums.vx_count
-        return IterationStats(
-            iteration=self.iteration,
-            total_steps=self.total_steps,
-            mean_reward=float(torch.stack(sums.rewards).mean()),
-            episode_reward=_weighted_mean(episodes, "reward"),
-            episode_length_s=_weighted_mean(episodes, "length_s"),
-            tracking_error=float(torch.stack(sums.errors).mean()),
-            vx=float(sums.vx_sum / vx_count) if float(vx_count) > 0 else float("nan"),
-            command_vx=float(sums.cmd_sum / vx_count) if float(vx_count) > 0 else float("nan"),
-            alternation=float(torch.stack(sums.alternation).mean()),
-            fall_rate=falls / (env.num_envs * cfg.steps_per_env * env.dt),
-            command_limit=float(env.commands.limit),
-            collect_steps_per_s=samples / collect_seconds,
-            update_samples_per_s=samples * cfg.epochs / update_seconds,
-            physics_share=physics / total,
-            task_share=task / total,
-            learner_share=1.0 - (physics + task) / total,
-            losses=losses,
-            reward_terms={k: float(v) / cfg.steps_per_env for k, v in sums.term_sums.items()},
-        )
 
     # -- checkpoints ------------------------------------------------------------------------
     def _header(self) -> dict:
@@ -399,21 +393,10 @@ class Trainer:
         shipped with a robot."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        full = self.ppo.state_dict()
-        keep = ("actor", "critic", "pseudo_critic", "obs_norm", "critic_norm", "pseudo_norm")
-        weights = {
-            k: {n: (t.float() if t.is_floating_point() else t).cpu() for n, t in full[k].items()}
-            for k in keep
-            if full.get(k) is not None
-        }
-        # the KL-adapted learning rate reached: fine-tuning from this file starts there, not at
-        # the configured initial rate (a fresh Adam at 1e-3 knocks a trained policy over)
-        weights["learning_rate"] = float(full["learning_rate"])
+        weights = weights_of(self.ppo.state_dict())
         state = {"format": WEIGHTS_FORMAT, **self._header(), "ppo": weights}
         commands = self.command_state()
-        if (
-            commands is not None
-        ):  # the command box the policy was trained to (real fitness draws from it)
+        if commands is not None:  # the command box trained to (real fitness draws from it)
             state["commands"] = commands
         write_atomic(path, lambda tmp: torch.save(state, tmp))
         return path
@@ -424,18 +407,13 @@ class Trainer:
         `widen=True` also accepts a policy that takes fewer design values than this trainer's
         design space (its leading variables, e.g. the leg scales of the mixed space with motor
         types): see `widen_design_input`. Optimizer states are then not restored."""
-        state = read_checkpoint(path)
-        wanted = self.design_space.dim
-        if widen and int(state["dims"]["num_design"]) < wanted:
-            state = widen_design_input(state, wanted)
-            optimizers = False
-        state, opened = open_command_inputs(state, self.task_config.commands)
-        if opened:
-            print(
-                f"note: '{path}' never saw {' or '.join(opened)} commands vary; their inputs start with zero "
-                "weights and the new range's scale",
-                file=sys.stderr,
-            )
+        state, widened = fit_to_trainer(
+            path,
+            read_checkpoint(path),
+            self.design_space.dim if widen else None,
+            self.task_config.commands,
+        )
+        optimizers = optimizers and not widened
         self.config.hidden = tuple(state["train_config"]["hidden"])
         self.config.activation = state["train_config"]["activation"]
         saved_names = list(state["objectives"])
@@ -468,9 +446,3 @@ class Trainer:
         if "design_rng" in state:
             self.rng.bit_generator.state = state["design_rng"]
         return state
-
-
-def _weighted_mean(episodes: list[dict], key: str) -> float:
-    """Mean of an episode statistic over the episodes that ended (nan when none did)."""
-    count = sum(e["count"] for e in episodes)
-    return sum(e[key] * e["count"] for e in episodes) / count if count else float("nan")

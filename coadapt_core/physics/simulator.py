@@ -17,16 +17,15 @@ stepping and reading state (docs/plugins.md, "Simulators").
 
 from __future__ import annotations
 
-import dataclasses
-import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, fields
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 import torch
 
 from coadapt_core.errors import DesignError, UserError
+from coadapt_core.physics.options import NominalGains, check_options, design_array
 from coadapt_core.physics.randomization import EnvParams, RandomizationConfig
 from coadapt_core.physics.terrain import TERRAINS, Terrain, make_terrain
 
@@ -167,31 +166,6 @@ def spawn_base_height(
     return z + FIXED_BASE_LIFT if fixed_base else z
 
 
-class NominalGains:
-    """A robot whose every design gets the nominal design's PD gains (kp, kd; the nominal
-    design of the space the design's arity names), everything else its own: the "nominal"
-    gain law of `Simulator.set_gain_law`, for any robot."""
-
-    def __init__(self, robot: Robot):
-        self._robot = robot
-        self._gains: dict[bool, tuple[np.ndarray, np.ndarray]] = {}
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._robot, name)
-
-    def build(self, design: np.ndarray):
-        model = self._robot.build(design)
-        mixed = len(np.atleast_1d(design)) != self._robot.design_space(False).dim
-        if mixed not in self._gains:
-            nominal = self._robot.build(self._robot.nominal_design(mixed))
-            self._gains[mixed] = (
-                np.array(nominal.kp, dtype=float),
-                np.array(nominal.kd, dtype=float),
-            )
-        kp, kd = self._gains[mixed]
-        return dataclasses.replace(model, kp=kp.copy(), kd=kd.copy())
-
-
 class Simulator(ABC):
     """A batched physics backend. Construct, `reset()`, then `step(targets)` repeatedly.
 
@@ -250,50 +224,17 @@ class Simulator(ABC):
         """`fixed_base=True` welds the base where it spawns, raised clear of the terrain
         (contact-free swing tests, sim-to-sim checks). Bad options are one-line `UserError`s
         naming the field."""
-        if terrain not in self.terrains:
-            raise UserError(
-                f"unknown terrain '{terrain}'; {self.name} offers: {', '.join(self.terrains)}",
-                field="terrain",
-            )
-        if isinstance(decimation, bool) or not (
-            isinstance(decimation, int | np.integer) and decimation >= 1
-        ):
-            raise UserError(
-                f"decimation must be a whole number >= 1, got {decimation!r}", field="decimation"
-            )
-        if isinstance(physics_dt, bool) or not (
-            isinstance(physics_dt, int | float | np.number)
-            and math.isfinite(physics_dt)
-            and physics_dt > 0
-        ):
-            raise UserError(
-                f"physics_dt must be a positive number of seconds, got {physics_dt!r}",
-                field="physics_dt",
-            )
-        if num_threads is not None and (
-            isinstance(num_threads, bool)
-            or not isinstance(num_threads, int | np.integer)
-            or num_threads < 1
-        ):
-            raise UserError(
-                f"num_threads must be a whole number >= 1, got {num_threads!r}", field="num_threads"
-            )
-        if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
-            raise UserError(f"seed must be a whole number >= 0, got {seed!r}", field="seed")
-        try:
-            torch_device = torch.device(device)
-        except (RuntimeError, TypeError) as exc:
-            raise UserError(
-                f"device must be a torch device such as 'cpu' or 'cuda', got {device!r}",
-                field="device",
-            ) from exc
-        designs = np.asarray(designs, dtype=float)
-        designs = designs.reshape(1, -1) if designs.ndim == 1 else designs
-        if designs.ndim != 2 or designs.shape[0] < 1:
-            raise UserError(
-                f"designs must be a non-empty [num_envs, design_dim] array, got shape {designs.shape}",
-                field="designs",
-            )
+        torch_device = check_options(
+            self.name,
+            self.terrains,
+            terrain=terrain,
+            physics_dt=physics_dt,
+            decimation=decimation,
+            seed=seed,
+            device=device,
+            num_threads=num_threads,
+        )
+        designs = design_array(designs)
         self.robot = robot
         self._check_designs(designs)
         self.fixed_base = bool(fixed_base)

@@ -19,6 +19,19 @@ if TYPE_CHECKING:
 MASS_CACHE_SIZE = 4096
 
 
+def normalize_designs(
+    designs: np.ndarray | torch.Tensor, low: torch.Tensor, high: torch.Tensor
+) -> torch.Tensor:
+    """[n, D] designs as the policy reads them (xi): each variable mapped linearly from its
+    bounds [low, high] (the robot's full design space) to [-1, 1], 0 where the bounds meet;
+    float32 on the bounds' device. The one normalisation: the environment's design inputs and
+    the learner's surrogate both use it."""
+    xi = torch.as_tensor(np.asarray(designs, dtype=np.float32), device=low.device)
+    width = high - low
+    safe = torch.where(width > 0, width, torch.ones_like(width))
+    return torch.where(width > 0, 2.0 * (xi - low) / safe - 1.0, torch.zeros_like(xi))
+
+
 class DesignInputs:
     """The per-environment design buffers of a `LocomotionEnv`, refreshed from its simulator
     (`refresh`) whenever designs change: `designs` [N, D], `design_obs` [N, D] (xi),
@@ -51,17 +64,10 @@ class DesignInputs:
                 self._nominal_leg = float(self.robot.hip_height(design)[0])
         return self._nominal_leg
 
-    def normalize(self, designs: np.ndarray | torch.Tensor) -> torch.Tensor:
-        """[n, D] designs mapped to [-1, 1] over the robot's full design-space bounds."""
-        xi = torch.as_tensor(np.asarray(designs, dtype=np.float32), device=self.device)
-        width = self.high - self.low
-        safe = torch.where(width > 0, width, torch.ones_like(width))
-        return torch.where(width > 0, 2.0 * (xi - self.low) / safe - 1.0, torch.zeros_like(xi))
-
     def refresh(self, sim: Simulator) -> None:
         designs = np.asarray(sim.designs, dtype=np.float32)
         self.designs = torch.as_tensor(designs, device=self.device)  # [N, D]
-        self.design_obs = self.normalize(designs)  # [N, D]
+        self.design_obs = normalize_designs(designs, self.low, self.high)  # [N, D]
         self.default_joint_pos = sim.default_joint_pos.to(self.device).float()  # [N, J]
         with torch.no_grad():
             self.default_feet = (

@@ -138,10 +138,6 @@ class LocomotionEnv:
     def _to_device(self, state: SimState) -> SimState:
         return state if state.base_pos.device == self.device else state.to(self.device)
 
-    def normalize_designs(self, designs: np.ndarray | torch.Tensor) -> torch.Tensor:
-        """[n, D] designs mapped to [-1, 1] over the robot's full design-space bounds."""
-        return self.design_inputs.normalize(designs)
-
     def _refresh_design_buffers(self) -> None:
         d = self.design_inputs
         d.refresh(self.sim)

@@ -49,7 +49,9 @@ def test_a_design_outside_the_space_is_refused_and_changes_nothing() -> None:
         ) as caught:  # the built environment's designs swapped in place
             backend.real_fitness(bad, objectives, agents=2, steps=5, seed=1)
         assert caught.value.field == space.names[1]
-        np.testing.assert_array_equal(backend.eval_env.sim.designs, np.repeat(good, 2, axis=0))
+        np.testing.assert_array_equal(
+            backend.trainer.eval_env.sim.designs, np.repeat(good, 2, axis=0)
+        )
         again = backend.real_fitness(good, objectives, agents=2, steps=5, seed=1)
         np.testing.assert_array_equal(again.per_scenario, first.per_scenario)
         assert np.isfinite(first.costs).all() and first.costs.shape == (2, 1)

@@ -145,7 +145,7 @@ def test_the_papers_estimator_computes_only_its_heads_to_the_bit(
     designs = np.array([[1.0, 1.0], [0.6, 1.4], [1.4, 0.6]])
     fit = backend.real_fitness(designs, backend.objectives, agents=4, steps=20, seed=1)
     states = backend._states(fit.buffer, 4096, 0)
-    xi = backend.trainer_normalize(designs)
+    xi = backend.trainer.normalize_designs(designs)
     with torch.no_grad():
         every = torch.stack(
             [

@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from coadapt_core.learning.config import TrainConfig
-from coadapt_core.learning.ppo import discounted_average_targets
+from coadapt_core.learning.pseudo_critics import discounted_average_targets
 from coadapt_core.learning.trainer import Trainer
 from coadapt_core.objective import Objective, StepBatch
 from coadapt_core.task import TaskConfig

@@ -204,7 +204,7 @@ def test_every_design_sees_the_same_scenarios(shipped_backend):
     backend, objectives = shipped_backend
     designs = np.array([[1.0, 1.0], [0.7, 1.3], [1.0, 1.0]])
     fit = backend.real_fitness(designs, objectives, agents=4, steps=40, seed=3)
-    env = backend.eval_env
+    env = backend.trainer.eval_env
     a = 4
     cmd = env.command.reshape(3, a, 3)
     assert torch.equal(cmd[0], cmd[1]) and torch.equal(cmd[0], cmd[2])  # agent i: one command
