@@ -165,7 +165,8 @@ def parse_weights(weights: Mapping[str, float] | str | None) -> dict[str, float]
     for key, value in dict(weights).items():
         if key not in COMPONENTS:
             raise UserError(
-                f"objective weight for unknown component '{key}'; accepted: {', '.join(COMPONENTS)}",
+                f"objective weight for unknown component '{key}'; accepted: "
+                f"{', '.join(COMPONENTS)}",
                 field="objective_options",
             )
         value = float(value)

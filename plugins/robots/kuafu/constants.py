@@ -27,6 +27,7 @@ JOINT_NAMES = [
     "right_ankle",
 ]
 SIDES = ("left", "right")
+LEG_JOINTS = ("hip_roll", "hip_pitch", "knee", "ankle")  # of each side, hip to foot
 SIDE_SIGN = {"left": 1.0, "right": -1.0}  # +y is left
 FOOT_BODIES = ["left_foot", "right_foot"]
 BASE_BODY = "base"

@@ -28,7 +28,9 @@ SAMPLES = 41
 def fit() -> dict:
     lengths = np.linspace(SCALE_BOUNDS[0], SCALE_BOUNDS[1], SAMPLES) * NOMINAL_LINK_LENGTH
     out: dict = {
-        "description": "cubic fits of the Kuafu link solid model (mass_model.py) over link length in m",
+        "description": (
+            "cubic fits of the Kuafu link solid model (mass_model.py) over link length in m"
+        ),
         "degree": DEGREE,
         "lengths": [float(lengths[0]), float(lengths[-1]), SAMPLES],
         "links": {},

@@ -30,10 +30,9 @@ from coadapt_plugins.robots.kuafu.inertia import (
     sphere,
 )
 from coadapt_plugins.robots.kuafu.mass_model import load_mass_models
+from coadapt_plugins.robots.kuafu.model_text import Geometry, mjcf_text, urdf_text
 
 from coadapt_core.robot import RobotModel
-
-LEG_JOINTS = ("hip_roll", "hip_pitch", "knee", "ankle")
 
 
 @dataclass(frozen=True)
@@ -254,7 +253,7 @@ def pd_gains(design: KuafuDesign) -> tuple[np.ndarray, np.ndarray, dict[str, dic
     inertias = leg_joint_inertias(design)
     nominal = _nominal_inertias()
     kp, kd = [], []
-    for j in LEG_JOINTS:
+    for j in C.LEG_JOINTS:
         kp_ratio = inertias["load"][j] / nominal["load"][j]
         swing_ratio = (inertias["swing"][j] + C.ARMATURE) / (nominal["swing"][j] + C.ARMATURE)
         kp.append(C.NOMINAL_KP[j] * kp_ratio)
@@ -265,7 +264,7 @@ def pd_gains(design: KuafuDesign) -> tuple[np.ndarray, np.ndarray, dict[str, dic
 def joint_limits() -> tuple[np.ndarray, np.ndarray]:
     lower, upper = [], []
     for side in C.SIDES:
-        for j in LEG_JOINTS:
+        for j in C.LEG_JOINTS:
             lo, hi = C.JOINT_LIMITS_LEFT[j]
             if j == "hip_roll" and side == "right":  # mirror: abduction is -x rotation
                 lo, hi = -hi, -lo
@@ -283,208 +282,31 @@ def foot_contact_points() -> np.ndarray:
     )
 
 
-# -- text ------------------------------------------------------------------------------------
-def _f(x: float) -> str:
-    return f"{float(x):.10g}"
-
-
-def _v(v: np.ndarray) -> str:
-    return " ".join(_f(x) for x in v)
-
-
-def _mj_inertial(p: Part) -> str:
-    i = p.inertia
-    full = [i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2]]
-    return f'<inertial pos="{_v(p.com)}" mass="{_f(p.mass)}" fullinertia="{_v(np.array(full))}"/>'
-
-
-def _urdf_inertial(p: Part) -> str:
-    i = p.inertia
-    return (
-        f'<inertial><origin xyz="{_v(p.com)}" rpy="0 0 0"/><mass value="{_f(p.mass)}"/>'
-        f'<inertia ixx="{_f(i[0, 0])}" ixy="{_f(i[0, 1])}" ixz="{_f(i[0, 2])}" '
-        f'iyy="{_f(i[1, 1])}" iyz="{_f(i[1, 2])}" izz="{_f(i[2, 2])}"/></inertial>'
-    )
-
-
-@dataclass(frozen=True)
-class _Geometry:
-    """What the text writers need for one design."""
-
-    design: KuafuDesign
-    base: Part
-    legs: dict[str, Part]
-    arm: Part
-    lower: np.ndarray
-    upper: np.ndarray
-    torque_limit: np.ndarray
-    speed_limit: np.ndarray
-    base_height: float
-
-
-def _sole_box() -> tuple[np.ndarray, np.ndarray]:
-    """(centre in the foot frame, full size) of the sole box: the feet's collision shape."""
-    centre = np.array(
-        [C.FOOT_TOE - 0.5 * C.FOOT_LENGTH, 0.0, -C.ANKLE_HEIGHT + 0.5 * C.FOOT_THICKNESS]
-    )
-    return centre, np.array([C.FOOT_LENGTH, C.FOOT_WIDTH, C.FOOT_THICKNESS])
-
-
-def _mjcf(g: _Geometry) -> str:
-    l0, l1 = g.design.thigh_length, g.design.shank_length
-    head_z = head_top_above_base() - C.HEAD_RADIUS
-    sole_centre, sole_size = _sole_box()
-    out = [
-        '<mujoco model="kuafu">',
-        '  <compiler angle="radian" autolimits="true"/>',
-        f'  <option timestep="{_f(C.TIMESTEP)}"/>',
-        "  <default>",
-        f'    <joint type="hinge" damping="{_f(C.JOINT_DAMPING)}" armature="{_f(C.ARMATURE)}" limited="true"/>',
-        '    <geom contype="1" conaffinity="0" condim="3" rgba="0.7 0.7 0.75 1"/>',
-        '    <motor ctrllimited="true" gear="1"/>',
-        '    <default class="visual"><geom contype="0" conaffinity="0" group="1" rgba="0.25 0.35 0.6 1"/></default>',
-        "  </default>",
-        "  <worldbody>",
-        f'    <body name="base" pos="0 0 {_f(g.base_height)}">',
-        '      <freejoint name="root"/>',
-        f"      {_mj_inertial(g.base)}",
-        f'      <geom name="pelvis" type="box" pos="{_v(C.PELVIS_CENTRE)}" size="{_v(0.5 * C.PELVIS_SIZE)}"/>',
-        f'      <geom name="torso" type="box" pos="{_v(C.TORSO_CENTRE)}" size="{_v(0.5 * C.TORSO_SIZE)}"/>',
-        f'      <geom name="head" type="sphere" pos="0 0 {_f(head_z)}" size="{_f(C.HEAD_RADIUS)}"/>',
-        f'      <geom name="neck" class="visual" type="cylinder" fromto="0 0 {_f(C.TORSO_CENTRE[2] + 0.5 * C.TORSO_SIZE[2])} 0 0 {_f(head_z)}" size="0.04"/>',
-    ]
-    joint_index = 0
-    for side in C.SIDES:
-        hip = _hip_centre(side)
-        names = [f"{side}_{j}" for j in LEG_JOINTS]
-        rng = [(g.lower[joint_index + k], g.upper[joint_index + k]) for k in range(4)]
-        joint_index += 4
-        out += [
-            f'      <body name="{side}_hip_roll_link" pos="{_v(hip)}">',
-            f'        <joint name="{names[0]}" axis="1 0 0" range="{_f(rng[0][0])} {_f(rng[0][1])}"/>',
-            f"        {_mj_inertial(g.legs['hip_roll_link'])}",
-            f'        <geom name="{side}_hip" type="sphere" size="0.06"/>',
-            f'        <body name="{side}_thigh">',
-            f'          <joint name="{names[1]}" axis="0 1 0" range="{_f(rng[1][0])} {_f(rng[1][1])}"/>',
-            f"          {_mj_inertial(g.legs['thigh'])}",
-            f'          <geom name="{side}_thigh" type="capsule" fromto="0 0 0 0 0 {_f(-l0)}" size="0.05"/>',
-            f'          <body name="{side}_shank" pos="0 0 {_f(-l0)}">',
-            f'            <joint name="{names[2]}" axis="0 1 0" range="{_f(rng[2][0])} {_f(rng[2][1])}"/>',
-            f"            {_mj_inertial(g.legs['shank'])}",
-            f'            <geom name="{side}_shank" type="capsule" fromto="0 0 0 0 0 {_f(-l1)}" size="0.04"/>',
-            f'            <body name="{side}_foot" pos="0 0 {_f(-l1)}">',
-            f'              <joint name="{names[3]}" axis="0 1 0" range="{_f(rng[3][0])} {_f(rng[3][1])}"/>',
-            f"              {_mj_inertial(g.legs['foot'])}",
-            f'              <geom name="{side}_sole" type="box" pos="{_v(sole_centre)}" size="{_v(0.5 * sole_size)}" rgba="0.2 0.2 0.2 1"/>',
-            "            </body>",
-            "          </body>",
-            "        </body>",
-            "      </body>",
-        ]
-    for side in C.SIDES:
-        out += [
-            f'      <body name="{side}_arm" pos="{_v(_shoulder(side))}">',
-            f"        {_mj_inertial(g.arm)}",
-            f'        <geom name="{side}_arm" type="capsule" fromto="0 0 0 0 0 {_f(-C.ARM_LENGTH)}" size="{_f(C.ARM_RADIUS)}"/>',
-            "      </body>",
-        ]
-    out += ["    </body>", "  </worldbody>", "  <actuator>"]
-    for k, name in enumerate(C.JOINT_NAMES):
-        t = g.torque_limit[k]
-        out.append(f'    <motor name="{name}" joint="{name}" ctrlrange="{_f(-t)} {_f(t)}"/>')
-    out += ["  </actuator>", "</mujoco>", ""]
-    return "\n".join(out)
-
-
-def _urdf_link(name: str, part: Part, shapes: list[str]) -> str:
-    geometry = "".join(shapes)
-    return f'  <link name="{name}">{_urdf_inertial(part)}{geometry}</link>'
-
-
-def _shape(kind: str, geometry: str, xyz: np.ndarray) -> str:
-    return f'<{kind}><origin xyz="{_v(xyz)}" rpy="0 0 0"/><geometry>{geometry}</geometry></{kind}>'
-
-
-def _both(geometry: str, xyz: np.ndarray) -> list[str]:
-    return [_shape("visual", geometry, xyz), _shape("collision", geometry, xyz)]
-
-
-def _urdf(g: _Geometry) -> str:
-    l0, l1 = g.design.thigh_length, g.design.shank_length
-    head_z = head_top_above_base() - C.HEAD_RADIUS
-    sole_centre, sole_size = _sole_box()
-    out = [
-        '<?xml version="1.0"?>',
-        "<!-- Kuafu humanoid generated by coadapt; floating base implied (root link base).",
-        f"     Every revolute joint has a reflected rotor inertia (armature) of {_f(C.ARMATURE)} kg m^2",
-        "     (rotor inertia x gear ratio^2, see the transmissions); URDF has no element for it. -->",
-        '<robot name="kuafu">',
-        _urdf_link(
-            "base",
-            g.base,
-            _both(f'<box size="{_v(C.PELVIS_SIZE)}"/>', C.PELVIS_CENTRE)
-            + _both(f'<box size="{_v(C.TORSO_SIZE)}"/>', C.TORSO_CENTRE)
-            + _both(f'<sphere radius="{_f(C.HEAD_RADIUS)}"/>', np.array([0.0, 0.0, head_z])),
-        ),
-    ]
-    joint_index = 0
-    for side in C.SIDES:
-        links = [f"{side}_hip_roll_link", f"{side}_thigh", f"{side}_shank", f"{side}_foot"]
-        parents = ["base", *links[:3]]
-        origins = [
-            _hip_centre(side),
-            np.zeros(3),
-            np.array([0.0, 0.0, -l0]),
-            np.array([0.0, 0.0, -l1]),
-        ]
-        axes = ["1 0 0", "0 1 0", "0 1 0", "0 1 0"]
-        shapes = [
-            _both('<sphere radius="0.06"/>', np.zeros(3)),
-            _both(f'<cylinder radius="0.05" length="{_f(l0)}"/>', np.array([0.0, 0.0, -0.5 * l0])),
-            _both(f'<cylinder radius="0.04" length="{_f(l1)}"/>', np.array([0.0, 0.0, -0.5 * l1])),
-            _both(f'<box size="{_v(sole_size)}"/>', sole_centre),
-        ]
-        for k, j in enumerate(LEG_JOINTS):
-            out.append(_urdf_link(links[k], g.legs[links[k].removeprefix(f"{side}_")], shapes[k]))
-            i = joint_index + k
-            out.append(
-                f'  <joint name="{side}_{j}" type="revolute"><parent link="{parents[k]}"/><child link="{links[k]}"/>'
-                f'<origin xyz="{_v(origins[k])}" rpy="0 0 0"/><axis xyz="{axes[k]}"/>'
-                f'<limit lower="{_f(g.lower[i])}" upper="{_f(g.upper[i])}" effort="{_f(g.torque_limit[i])}" velocity="{_f(g.speed_limit[i])}"/>'
-                f'<dynamics damping="{_f(C.JOINT_DAMPING)}" friction="0"/></joint>'
-            )
-        joint_index += 4
-    for side in C.SIDES:
-        out.append(
-            _urdf_link(
-                f"{side}_arm",
-                g.arm,
-                _both(
-                    f'<cylinder radius="{_f(C.ARM_RADIUS)}" length="{_f(C.ARM_LENGTH)}"/>',
-                    np.array([0.0, 0.0, -0.5 * C.ARM_LENGTH]),
-                ),
-            )
-        )
-        out.append(
-            f'  <joint name="{side}_shoulder" type="fixed"><parent link="base"/><child link="{side}_arm"/>'
-            f'<origin xyz="{_v(_shoulder(side))}" rpy="0 0 0"/></joint>'
-        )
-    for name in C.JOINT_NAMES:
-        out.append(
-            f'  <transmission name="{name}_transmission"><type>transmission_interface/SimpleTransmission</type>'
-            f'<joint name="{name}"><hardwareInterface>hardware_interface/EffortJointInterface</hardwareInterface></joint>'
-            f'<actuator name="{name}_motor"><mechanicalReduction>{_f(C.GEAR_RATIO)}</mechanicalReduction></actuator></transmission>'
-        )
-    out += ["</robot>", ""]
-    return "\n".join(out)
-
-
 # -- the model -------------------------------------------------------------------------------
+#: the unit of each entry of a model's info, for `coadapt robot show` (RobotModel.info's
+#: convention)
+INFO_UNITS = {
+    "thigh_length": "m",
+    "shank_length": "m",
+    "standing_height": "m",
+    "hip_to_ankle": "m",
+    "segment_masses": "kg",
+    "joint_load_inertia": "kg m^2",
+    "joint_swing_inertia": "kg m^2",
+    "armature": "kg m^2",
+    "joint_damping": "N m s/rad",
+    "hip_offset": "m",
+    "hip_motor": "type",
+    "knee_motor": "type",
+    "ankle_motor": "type",
+}
+
+
 def motor_limits(design: KuafuDesign) -> tuple[np.ndarray, np.ndarray]:
     """([8] torque limit N m, [8] speed limit rad/s) from Table 8 per joint's motor type."""
     torque, speed = [], []
     for _side in C.SIDES:
-        for j in LEG_JOINTS:
+        for j in C.LEG_JOINTS:
             motor = C.MOTOR_TYPES[design.motor_of(j)]
             torque.append(motor["torque_limit"])
             speed.append(C.rpm_to_rad_s(motor["speed_limit_rpm"]))
@@ -509,7 +331,20 @@ def build_cached(key: tuple[float, ...]) -> RobotModel:
     torque, speed = motor_limits(design)
     kp, kd, inertias = pd_gains(design)
     height = standing_base_height(design)
-    geometry = _Geometry(design, base, legs, arm, lower, upper, torque, speed, height)
+    geometry = Geometry(
+        design,
+        base,
+        legs,
+        arm,
+        lower,
+        upper,
+        torque,
+        speed,
+        height,
+        head_z=head_top_above_base() - C.HEAD_RADIUS,
+        hips={side: _hip_centre(side) for side in C.SIDES},
+        shoulders={side: _shoulder(side) for side in C.SIDES},
+    )
     total = base.mass + 2.0 * sum(p.mass for p in legs.values()) + 2.0 * arm.mass
     info = {
         "thigh_length": design.thigh_length,
@@ -517,7 +352,7 @@ def build_cached(key: tuple[float, ...]) -> RobotModel:
         "hip_motor": design.hip_motor,
         "knee_motor": design.knee_motor,
         "ankle_motor": C.ANKLE_MOTOR_TYPE,
-        "motor_types": [design.motor_of(j) for _ in C.SIDES for j in LEG_JOINTS],
+        "motor_types": [design.motor_of(j) for _ in C.SIDES for j in C.LEG_JOINTS],
         "standing_height": height + head_top_above_base(),
         "hip_to_ankle": stance_hip_to_ankle(design),
         "segment_masses": {
@@ -532,26 +367,11 @@ def build_cached(key: tuple[float, ...]) -> RobotModel:
         "joint_swing_inertia": dict(inertias["swing"]),
         "hip_offset": _readonly(C.HIP_OFFSET),
         "gear_ratio": C.GEAR_RATIO,
-        # the unit of each entry above, for `coadapt robot show` (the key convention of RobotModel.info)
-        "units": {
-            "thigh_length": "m",
-            "shank_length": "m",
-            "standing_height": "m",
-            "hip_to_ankle": "m",
-            "segment_masses": "kg",
-            "joint_load_inertia": "kg m^2",
-            "joint_swing_inertia": "kg m^2",
-            "armature": "kg m^2",
-            "joint_damping": "N m s/rad",
-            "hip_offset": "m",
-            "hip_motor": "type",
-            "knee_motor": "type",
-            "ankle_motor": "type",
-        },
+        "units": dict(INFO_UNITS),
     }
     return RobotModel(
         design=_readonly(np.array(key)),
-        formats=MappingProxyType({"mjcf": _mjcf(geometry), "urdf": _urdf(geometry)}),
+        formats=MappingProxyType({"mjcf": mjcf_text(geometry), "urdf": urdf_text(geometry)}),
         base_body=C.BASE_BODY,
         joint_names=list(C.JOINT_NAMES),
         foot_bodies=list(C.FOOT_BODIES),

@@ -130,7 +130,8 @@ def _kinematics(pin, pmodel, pdata, model: RobotModel, q: np.ndarray) -> list[Fi
             Finding(
                 f"kinematics.{link}_length",
                 abs(worst) <= LENGTH_TOL,
-                f"{link} {expected + worst:.4f} m from Pinocchio forward kinematics vs 0.35 x scale = {expected:.4f} m (tolerance 1 mm)",
+                f"{link} {expected + worst:.4f} m from Pinocchio forward kinematics vs 0.35 x "
+                f"scale = {expected:.4f} m (tolerance 1 mm)",
                 value=expected + worst,
                 limit=expected,
             )
@@ -174,14 +175,16 @@ def _mass(pin, pmodel, pdata, model: RobotModel, q: np.ndarray) -> list[Finding]
         Finding(
             "mass.total",
             abs(total - model.total_mass) <= CONSISTENCY_REL_TOL * model.total_mass,
-            f"{total:.3f} kg (Pinocchio) vs {model.total_mass:.3f} kg (generator); nominal design {C.NOMINAL_MASS:.1f} kg",
+            f"{total:.3f} kg (Pinocchio) vs {model.total_mass:.3f} kg (generator); nominal design "
+            f"{C.NOMINAL_MASS:.1f} kg",
             value=total,
             limit=model.total_mass,
         ),
         Finding(
             "mass.com_over_support",
             margin > 0,
-            f"CoM {'inside' if margin > 0 else 'outside'} the support polygon of both soles by {abs(margin) * 100:.1f} cm",
+            f"CoM {'inside' if margin > 0 else 'outside'} the support polygon of both soles by "
+            f"{abs(margin) * 100:.1f} cm",
             value=margin,
             limit=0.0,
         ),
@@ -233,7 +236,8 @@ def _statics(pin, pmodel, pdata, model: RobotModel, ix: _Indexer, q: np.ndarray)
             Finding(
                 check,
                 bool(ratio[worst] <= 1.0),
-                f"largest gravity torque {abs(tau[worst]):.1f} N m at {name} vs limit {model.torque_limit[worst]:.1f} N m ({100 * ratio[worst]:.0f} %)",
+                f"largest gravity torque {abs(tau[worst]):.1f} N m at {name} vs limit "
+                f"{model.torque_limit[worst]:.1f} N m ({100 * ratio[worst]:.0f} %)",
                 value=float(abs(tau[worst])),
                 limit=float(model.torque_limit[worst]),
             )
@@ -264,8 +268,9 @@ def _pd_stability(
         Finding(
             "control.pd_stability",
             ok,
-            f"explicit PD at dt {dt * 1000:g} ms, gains x{factor:.2f}: worst {model.joint_names[worst]} "
-            f"at {100 * index[worst]:.0f} % of the stability bound (effective inertia {effective[worst]:.4f} kg m^2)",
+            f"explicit PD at dt {dt * 1000:g} ms, gains x{factor:.2f}: "
+            f"worst {model.joint_names[worst]} at {100 * index[worst]:.0f} % of the stability "
+            f"bound (effective inertia {effective[worst]:.4f} kg m^2)",
             value=float(index[worst]),
             limit=1.0,
         )
@@ -367,28 +372,32 @@ def _consistency_findings(model: RobotModel, pmodel) -> list[Finding]:
         Finding(
             "consistency.total_mass",
             worst["mass"] <= CONSISTENCY_REL_TOL,
-            f"MuJoCo vs Pinocchio total mass differ by {worst['mass']:.1e} (relative; tolerance 1e-6)",
+            f"MuJoCo vs Pinocchio total mass differ by {worst['mass']:.1e} (relative; tolerance "
+            "1e-6)",
             value=worst["mass"],
             limit=CONSISTENCY_REL_TOL,
         ),
         Finding(
             "consistency.com",
             worst["com"] <= CONSISTENCY_POS_TOL,
-            f"CoM differs by at most {worst['com']:.1e} m over {RANDOM_CONFIGURATIONS} random configurations (tolerance 1e-6 m)",
+            f"CoM differs by at most {worst['com']:.1e} m over {RANDOM_CONFIGURATIONS} random "
+            "configurations (tolerance 1e-6 m)",
             value=worst["com"],
             limit=CONSISTENCY_POS_TOL,
         ),
         Finding(
             "consistency.foot_positions",
             worst["feet"] <= CONSISTENCY_POS_TOL,
-            f"foot positions differ by at most {worst['feet']:.1e} m over {RANDOM_CONFIGURATIONS} random configurations (tolerance 1e-6 m)",
+            f"foot positions differ by at most {worst['feet']:.1e} m over {RANDOM_CONFIGURATIONS} "
+            "random configurations (tolerance 1e-6 m)",
             value=worst["feet"],
             limit=CONSISTENCY_POS_TOL,
         ),
         Finding(
             "consistency.mass_matrix",
             worst["mass_matrix"] <= CONSISTENCY_REL_TOL,
-            f"joint-space mass matrices differ by at most {worst['mass_matrix']:.1e} (relative to the largest entry; tolerance 1e-6)",
+            f"joint-space mass matrices differ by at most {worst['mass_matrix']:.1e} (relative to "
+            "the largest entry; tolerance 1e-6)",
             value=worst["mass_matrix"],
             limit=CONSISTENCY_REL_TOL,
         ),

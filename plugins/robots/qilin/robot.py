@@ -110,7 +110,8 @@ class Qilin(Robot):
         x = foot_pos[..., 0]
         y = foot_pos[..., 1] + offset  # [n, 4] relative to the abduction axis
         z = foot_pos[..., 2]
-        # a point (d, -h) of the leg plane turned by the abduction a about x: (d cos a + h sin a, d sin a - h cos a)
+        # a point (d, -h) of the leg plane turned by the abduction a about x:
+        # (d cos a + h sin a, d sin a - h cos a)
         depth = torch.sqrt((y * y + z * z - offset * offset).clamp(min=1e-12))  # [n, 4] h
         abduction = torch.atan2(z, y) - torch.atan2(-depth, offset)
         abduction = torch.remainder(abduction + torch.pi, 2 * torch.pi) - torch.pi

@@ -109,7 +109,8 @@ class Robot:
             self.mujoco.mj_step(self.model, self.data)
 
     def base(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(position [3] world, quaternion [4], linear velocity [3] world, angular velocity [3] base frame)."""
+        """(position [3] world, quaternion [4], linear velocity [3] world, angular velocity [3] "
+        "base frame)."""
         q, v = self.data.qpos, self.data.qvel
         b, w = self.base_q, self.base_v
         return (
@@ -185,7 +186,8 @@ def fell(spec: dict, robot: Robot) -> bool:
 
 
 def check_reference(spec: dict, folder: Path) -> tuple[float, int] | None:
-    """(max |ONNX - torch| action difference, rows) on the recorded observations of reference.npz."""
+    """(max |ONNX - torch| action difference, rows) on the recorded observations of "
+    "reference.npz."""
     path = folder / spec["files"]["reference"]
     if not path.is_file():
         return None
@@ -282,14 +284,18 @@ def main(argv: list[str] | None = None) -> int:
                 f"max |action difference| {difference:.2e} (tolerance {tolerance:g})"
             )
         print(
-            f"{spec['robot']} {spec['design_text']} on {result['terrain']} ground, command vx {args.vx:g} m/s "
-            f"vy {args.vy:g} m/s yaw {args.yaw:g} rad/s for {args.seconds:g} s: survival {result['survival']:.2f} "
-            f"({result['survived_seconds']:.2f} s), mean forward speed {result['vx_mean']:.3f} m/s, "
+            f"{spec['robot']} {spec['design_text']} on {result['terrain']} ground, command vx "
+            f"{args.vx:g} m/s "
+            f"vy {args.vy:g} m/s yaw {args.yaw:g} rad/s for {args.seconds:g} s: survival "
+            f"{result['survival']:.2f} "
+            f"({result['survived_seconds']:.2f} s), mean forward speed {result['vx_mean']:.3f} "
+            "m/s, "
             f"distance {result['distance_x']:.2f} m, lateral drift {result['lateral_drift']:+.2f} m"
         )
     if difference is not None and difference > tolerance:
         print(
-            f"error: the ONNX controller differs from the torch policy by {difference:.2e} > {tolerance:g}",
+            f"error: the ONNX controller differs from the torch policy by {difference:.2e} > "
+            f"{tolerance:g}",
             file=sys.stderr,
         )
         return 1

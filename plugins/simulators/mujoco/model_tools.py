@@ -114,8 +114,9 @@ def handoff_usage(rates: dict[str, Any], model_file: str) -> str:
     return f"""## Load the model and run the controller (numpy, mujoco, onnxruntime)
 
 The policy was trained with the robot on a ground plane at a physics step of
-{rates["physics_dt"]:g} s and a policy period of {rates["control_dt"]:g} s ({rates["decimation"]} physics steps per
-action, {rates["control_hz"]:g} Hz). `check.py` is the full version of this (clock, falls, speed):
+{rates["physics_dt"]:g} s and a policy period of {rates["control_dt"]:g} s
+({rates["decimation"]} physics steps per action, {rates["control_hz"]:g} Hz). `check.py` is
+the full version of this (clock, falls, speed):
 
 ```python
 import json, math, mujoco, numpy as np, onnxruntime as ort
@@ -125,17 +126,22 @@ spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], contyp
 for a in spec.actuators: a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
 m = spec.compile(); d = mujoco.MjData(m); policy = ort.InferenceSession("policy.onnx")
 qa = m.jnt_qposadr[[m.joint(n).id for n in J]]; va = m.jnt_dofadr[[m.joint(n).id for n in J]]
-q0 = np.array(p["action"]["default_joint_pos"]); kp, kd = np.array(p["joints"]["kp"]), np.array(p["joints"]["kd"])
-d.qpos[:7] = [0, 0, p["simulation"]["standing_base_height"] + 0.002, 1, 0, 0, 0]; d.qpos[qa] = q0; mujoco.mj_forward(m, d)
-rot = lambda q, v: v * (2 * q[0] ** 2 - 1) - np.cross(q[1:], v) * 2 * q[0] + q[1:] * 2 * q[1:] @ v  # world -> base
+q0 = np.array(p["action"]["default_joint_pos"])
+kp, kd = np.array(p["joints"]["kp"]), np.array(p["joints"]["kd"])
+d.qpos[:7] = [0, 0, p["simulation"]["standing_base_height"] + 0.002, 1, 0, 0, 0]
+d.qpos[qa] = q0; mujoco.mj_forward(m, d)
+def rot(q, v):  # world -> base
+    return v * (2 * q[0] ** 2 - 1) - np.cross(q[1:], v) * 2 * q[0] + q[1:] * 2 * q[1:] @ v
 hist, phase, cmd = np.zeros((p["observation"]["history"], len(J))), 0.0, np.array([0.5, 0.0, 0.0])
 for step in range(round(10 / p["rates"]["control_dt"])):  # 10 s
-    obs = np.concatenate([rot(d.qpos[3:7], d.qvel[:3]), d.qvel[3:6], rot(d.qpos[3:7], g), cmd, d.qpos[qa] - q0,
-                          d.qvel[va], hist.ravel(), [math.sin(2 * math.pi * phase), math.cos(2 * math.pi * phase)]])
+    clock = [math.sin(2 * math.pi * phase), math.cos(2 * math.pi * phase)]
+    obs = np.concatenate([rot(d.qpos[3:7], d.qvel[:3]), d.qvel[3:6], rot(d.qpos[3:7], g), cmd,
+                          d.qpos[qa] - q0, d.qvel[va], hist.ravel(), clock])
     action, target = policy.run(None, {{"obs": obs[None].astype(np.float32)}})
-    for _ in range(p["rates"]["decimation"]):  # PD at the physics rate (check.py adds the motor envelope)
+    for _ in range(p["rates"]["decimation"]):  # PD at the physics rate (check.py: motor limits too)
         d.ctrl[:] = kp * (target[0] - d.qpos[qa]) - kd * d.qvel[va]; mujoco.mj_step(m, d)
-    hist = np.roll(hist, 1, axis=0); hist[0] = action[0]; phase = (phase + p["rates"]["control_dt"] * p["gait"]["frequency"]) % 1
+    hist = np.roll(hist, 1, axis=0); hist[0] = action[0]
+    phase = (phase + p["rates"]["control_dt"] * p["gait"]["frequency"]) % 1
 print("base x after 10 s:", d.qpos[0])
 ```
 

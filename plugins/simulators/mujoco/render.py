@@ -143,87 +143,105 @@ def render_panels(
     """Replay each panel's base poses and joint angles in its own MuJoCo model, offscreen,
     and write the panels side by side, one frame per recorded step (the shorter rollout
     holds its last frame). Runs in a fresh interpreter: MUJOCO_GL is read at import."""
-    import mujoco
     import numpy as np
-    from PIL import Image, ImageDraw
 
     rendered = []
     for panel in panels:
-        model = scene_model(panel["model"], width, height)
-        data = mujoco.MjData(model)
-        addresses = [model.jnt_qposadr[model.joint(name).id] for name in panel["joint_names"]]
-        camera = mujoco.MjvCamera()
-        camera.azimuth, camera.elevation = 90.0, -10.0
-        images = []
-        with mujoco.Renderer(model, height, width) as renderer:
-            for k, frame in enumerate(panel["frames"]):
-                data.qpos[0:3] = frame["pos"]
-                data.qpos[3:7] = frame["quat"]
-                data.qpos[addresses] = frame["q"]
-                mujoco.mj_forward(model, data)
-                if k == 0:
-                    distance, look_z = camera_for(model, data)
-                    camera.distance = distance
-                camera.lookat[:] = [frame["pos"][0], frame["pos"][1], look_z]
-                renderer.update_scene(data, camera=camera)
-                image = Image.fromarray(np.array(renderer.render()))
-                if panel.get("label"):  # readable on the dark sky and the floor
-                    ImageDraw.Draw(image).text(
-                        (6, 6),
-                        panel["label"],
-                        fill=(255, 255, 255),
-                        stroke_width=1,
-                        stroke_fill=(0, 0, 0),
-                    )
-                images.append(np.array(image))
-                if report:
-                    print(f"frame {sum(map(len, rendered)) + len(images)}", flush=True)
-        rendered.append(images)
+        done = sum(map(len, rendered))
+        rendered.append(_render_panel(panel, width, height, done if report else None))
     n = max(len(images) for images in rendered)
     frames = [
         np.concatenate([images[min(i, len(images) - 1)] for images in rendered], axis=1)
         for i in range(n)
     ]
     for output in outputs:
-        partial = partial_name(output)  # renamed once whole: an interrupt never leaves half a file
-        if output.endswith(".gif"):
-            pil = [Image.fromarray(f) for f in frames]
-            pil[0].save(
-                partial,
-                format="GIF",
-                save_all=True,
-                append_images=pil[1:],
-                duration=int(1000 / fps),
-                loop=0,
-            )
-            os.replace(partial, output)
-        else:
-            proc = subprocess.run(
-                [
-                    "ffmpeg",
-                    "-y",
-                    "-loglevel",
-                    "error",
-                    "-f",
-                    "rawvideo",
-                    "-pix_fmt",
-                    "rgb24",
-                    "-s",
-                    f"{frames[0].shape[1]}x{frames[0].shape[0]}",
-                    "-r",
-                    str(fps),
-                    "-i",
-                    "-",
-                    "-pix_fmt",
-                    "yuv420p",
-                    "-f",
-                    "mp4",
-                    partial,
-                ],
-                input=np.stack(frames).tobytes(),
-                capture_output=True,
-            )
-            if proc.returncode != 0:
-                Path(partial).unlink(missing_ok=True)
-                raise RuntimeError(proc.stderr.decode().strip().splitlines()[-1])
-            os.replace(partial, output)
+        _write_frames(frames, output, fps)
+
+
+def _render_panel(panel: dict, width: int, height: int, report_from: int | None) -> list:
+    """One panel's frames [H, W, 3] as uint8 arrays; with `report_from`, a "frame N" line
+    per frame, counted on from the frames of the panels before."""
+    import mujoco
+    import numpy as np
+    from PIL import Image, ImageDraw
+
+    model = scene_model(panel["model"], width, height)
+    data = mujoco.MjData(model)
+    addresses = [model.jnt_qposadr[model.joint(name).id] for name in panel["joint_names"]]
+    camera = mujoco.MjvCamera()
+    camera.azimuth, camera.elevation = 90.0, -10.0
+    images = []
+    with mujoco.Renderer(model, height, width) as renderer:
+        for k, frame in enumerate(panel["frames"]):
+            data.qpos[0:3] = frame["pos"]
+            data.qpos[3:7] = frame["quat"]
+            data.qpos[addresses] = frame["q"]
+            mujoco.mj_forward(model, data)
+            if k == 0:
+                distance, look_z = camera_for(model, data)
+                camera.distance = distance
+            camera.lookat[:] = [frame["pos"][0], frame["pos"][1], look_z]
+            renderer.update_scene(data, camera=camera)
+            image = Image.fromarray(np.array(renderer.render()))
+            if panel.get("label"):  # readable on the dark sky and the floor
+                ImageDraw.Draw(image).text(
+                    (6, 6),
+                    panel["label"],
+                    fill=(255, 255, 255),
+                    stroke_width=1,
+                    stroke_fill=(0, 0, 0),
+                )
+            images.append(np.array(image))
+            if report_from is not None:
+                print(f"frame {report_from + len(images)}", flush=True)
+    return images
+
+
+def _write_frames(frames: list, output: str, fps: float) -> None:
+    """Write the frames as a GIF or (through ffmpeg) an MP4 at `output`; the file appears
+    only once whole (an interrupt never leaves half a file)."""
+    import numpy as np
+    from PIL import Image
+
+    partial = partial_name(output)
+    if output.endswith(".gif"):
+        pil = [Image.fromarray(f) for f in frames]
+        pil[0].save(
+            partial,
+            format="GIF",
+            save_all=True,
+            append_images=pil[1:],
+            duration=int(1000 / fps),
+            loop=0,
+        )
+        os.replace(partial, output)
+        return
+    proc = subprocess.run(
+        [
+            "ffmpeg",
+            "-y",
+            "-loglevel",
+            "error",
+            "-f",
+            "rawvideo",
+            "-pix_fmt",
+            "rgb24",
+            "-s",
+            f"{frames[0].shape[1]}x{frames[0].shape[0]}",
+            "-r",
+            str(fps),
+            "-i",
+            "-",
+            "-pix_fmt",
+            "yuv420p",
+            "-f",
+            "mp4",
+            partial,
+        ],
+        input=np.stack(frames).tobytes(),
+        capture_output=True,
+    )
+    if proc.returncode != 0:
+        Path(partial).unlink(missing_ok=True)
+        raise RuntimeError(proc.stderr.decode().strip().splitlines()[-1])
+    os.replace(partial, output)

@@ -12,42 +12,22 @@ import contextlib
 import os
 import shutil
 import tempfile
-import xml.etree.ElementTree as ET
 
 import numpy as np
 import pybullet as p
 import torch
+from coadapt_plugins.simulators.pybullet.armature import ArmatureMixin
+from coadapt_plugins.simulators.pybullet.divergence import diverged
 from coadapt_plugins.simulators.pybullet.spec import EnvSpec
 from coadapt_plugins.simulators.pybullet.urdf import prepare_urdf
+from coadapt_plugins.simulators.pybullet.world import open_world
 
 from coadapt_core.physics.actuation import DelayLine, bind_speed, pd_torque
 from coadapt_core.physics.simulator import spawn_base_height
 from coadapt_core.physics.terrain import Terrain
 
-#: gravity, m/s^2 (MuJoCo's default)
-GRAVITY = 9.81
-#: random terrain: the safety floor lies this far below z = 0 (as in MuJoCo), m
-FLOOR_BELOW_FIELD = 0.001
-#: divergence: any state beyond these magnitudes (or not finite) resets the environment
-MAX_BASE_DISTANCE = 1.0e3  # m
-MAX_BASE_SPEED = 1.0e2  # m/s
-MAX_ANGULAR_SPEED = 1.0e3  # rad/s (base and joints)
 
-STATE_KEYS = (
-    "base_pos",
-    "base_quat",
-    "base_lin_vel",
-    "base_ang_vel",
-    "joint_pos",
-    "joint_vel",
-    "joint_torque",
-    "foot_pos",
-    "foot_contact",
-    "foot_contact_force",
-)
-
-
-class Engine:
+class Engine(ArmatureMixin):
     """Environments [k] of one slice; methods take local indices into the slice."""
 
     def __init__(
@@ -75,7 +55,19 @@ class Engine:
         self.specs: list[EnvSpec] = list(specs)
         self.num_joints = len(specs[0].joint_names)
         self.num_feet = len(specs[0].foot_bodies)
-        j = self.num_joints
+        self._init_actuation(self.num_joints, max_delay_steps)
+        self._init_armature(self.num_joints)
+        self._init_bodies()
+        for _ in range(self.k):
+            client, ground = open_world(self.terrain, self.physics_dt, self.solver_iterations)
+            self.clients.append(client)
+            self.grounds.append(ground)
+        for e in range(self.k):
+            self._load(e, self.specs[e])
+        self.reset(np.arange(self.k), _nominal_params(self.k))
+
+    def _init_actuation(self, j: int, max_delay_steps: int) -> None:
+        """Per env the PD law's inputs [k, J], the randomized factors [k] and the delay line."""
         self.kp = np.zeros((self.k, j))
         self.kd = np.zeros((self.k, j))
         self.tau_max = np.zeros((self.k, j))
@@ -100,23 +92,9 @@ class Engine:
         self.delay = DelayLine(self.k, j, max_delay_steps)
         self.binding = False  # the binding motor speed limit (`set_binding`)
         self.last_torque = np.zeros((self.k, j))  # [k, J] mean over the last policy step
-        # joint-space armature (see `_armature_torque`): per env the armature [J], the
-        # positions of the actuated joints in Bullet's mass matrix, and the last step's
-        # velocities and applied torques, from which the other generalized forces follow
-        self.armature_diag = np.zeros((self.k, j))  # [k, J] kg m^2
-        # "foot_link": per env, the actuated joints whose armature sits in their foot link's
-        # inertia (Bullet's mass matrix then carries it and its coupling to the joints above)
-        self.folded: list[np.ndarray] = [np.zeros(0, dtype=int) for _ in range(self.k)]
-        # [k, J] inertia added about the two axes perpendicular to a folded joint's (so
-        # that the foot's principal moments stay physical, `urdf._physical`)
-        self.folded_extra = np.zeros((self.k, j))
-        self.mass_block: list[tuple] = [np.ix_(np.arange(j), np.arange(j)) for _ in range(self.k)]
-        self._diag = np.arange(j)
-        self.movable: list[list[int]] = [[] for _ in range(self.k)]
-        self.movable_order: list[np.ndarray | None] = [None] * self.k
-        self.prev_dq = np.zeros((self.k, j))  # [k, J]
-        self.prev_applied = np.zeros((self.k, j))  # [k, J]
-        self.fresh = np.ones(self.k, dtype=bool)  # [k] no physics step since reset
+
+    def _init_bodies(self) -> None:
+        """Per env its client, terrain bodies, robot body and the ids and frames read from it."""
         self.clients: list[int] = []
         self.grounds: list[list[int]] = []  # per env: the terrain's bodies
         self.bodies: list[int] = [-1] * self.k
@@ -131,96 +109,13 @@ class Engine:
         # base link frame expressed in the base inertial frame (PyBullet reports the latter)
         self.inertial_pos = np.zeros((self.k, 3))
         self.inertial_quat = np.tile([0.0, 0.0, 0.0, 1.0], (self.k, 1))
-        for _ in range(self.k):
-            client = p.connect(p.DIRECT)
-            if client < 0:
-                raise RuntimeError("pybullet could not open a DIRECT physics client")
-            self.clients.append(client)
-            self._setup_world(client)
-        for e in range(self.k):
-            self._load(e, self.specs[e])
-        self.reset(np.arange(self.k), _nominal_params(self.k))
 
     # -- world ---------------------------------------------------------------------------
-    def _setup_world(self, client: int) -> None:
-        p.setGravity(0.0, 0.0, -GRAVITY, physicsClientId=client)
-        p.setTimeStep(self.physics_dt, physicsClientId=client)
-        p.setPhysicsEngineParameter(
-            numSubSteps=0,
-            numSolverIterations=self.solver_iterations,
-            deterministicOverlappingPairs=1,
-            physicsClientId=client,
-        )
-        self.grounds.append(self._create_ground(client))
-
-    def _create_ground(self, client: int) -> list[int]:
-        t = self.terrain
-        bodies = []
-        if t.name == "random":
-            grid = t.height_grid()  # [rows along y, cols along x]
-            shape = p.createCollisionShape(
-                p.GEOM_HEIGHTFIELD,
-                meshScale=[t.resolution, t.resolution, 1.0],
-                heightfieldData=grid.ravel().tolist(),
-                numHeightfieldRows=t.samples,
-                numHeightfieldColumns=t.samples,
-                physicsClientId=client,
-            )
-            # Bullet centres a height field on its bounding box, heights included
-            position = [0.0, 0.0, 0.5 * (float(grid.min()) + float(grid.max()))]
-            # a safety floor just below the field (as in MuJoCo): a robot walking off its
-            # edge lands instead of falling forever
-            floor = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=client)
-            bodies.append(
-                p.createMultiBody(
-                    0, floor, basePosition=[0.0, 0.0, -FLOOR_BELOW_FIELD], physicsClientId=client
-                )
-            )
-        else:
-            angle = t.slope_radians  # 0 on flat ground; the slope rises along +x
-            shape = p.createCollisionShape(
-                p.GEOM_PLANE,
-                planeNormal=[-np.sin(angle), 0.0, np.cos(angle)],
-                physicsClientId=client,
-            )
-            position = [0.0, 0.0, 0.0]
-        bodies.insert(0, p.createMultiBody(0, shape, basePosition=position, physicsClientId=client))
-        for ground in bodies:
-            # Bullet multiplies the two bodies' coefficients: 1 on the ground makes the
-            # robot's own friction and restitution the ones in force
-            p.changeDynamics(
-                ground,
-                -1,
-                lateralFriction=1.0,
-                restitution=1.0,
-                spinningFriction=0.0,
-                rollingFriction=0.0,
-                physicsClientId=client,
-            )
-        return bodies
-
     def _urdf_path(self, e: int, spec: EnvSpec, com_shift: np.ndarray) -> str:
-        armature = None
-        if spec.joint_armature is not None and self.armature == "link_inertia":
-            armature = dict(zip(spec.joint_names, spec.joint_armature, strict=True))
-        elif spec.joint_armature is not None and self.armature == "foot_link":
-            folded = set(_foot_joints(spec))
-            armature = {
-                n: a
-                for n, a in zip(spec.joint_names, spec.joint_armature, strict=True)
-                if n in folded
-            }
+        armature = self._urdf_armature(spec)
         text = prepare_urdf(spec.urdf, spec.base_body, com_shift=com_shift, armature=armature)
         if self.armature == "foot_link" and armature:
-            # tr(added inertia) = a + 2 c: the extra c about the perpendicular axes
-            before, after = _link_traces(spec.urdf), _link_traces(text)
-            children = _joint_children(spec.urdf)
-            for i, name in enumerate(spec.joint_names):
-                if name in armature:
-                    link = children[name]
-                    self.folded_extra[e, i] = max(
-                        0.0, (after[link] - before[link] - armature[name]) / 2
-                    )
+            self._fold_extra(e, spec, text, armature)
         # a new name per load: PyBullet caches files by path and would reuse a stale one
         self._loads += 1
         path = os.path.join(self._tmpdir, f"env{e}-{self._loads}.urdf")
@@ -320,33 +215,6 @@ class Engine:
         client, body = self.clients[e], self.bodies[e]
         p.resetBasePositionAndOrientation(body, com_pos, com_quat, physicsClientId=client)
         p.resetBaseVelocity(body, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], physicsClientId=client)
-
-    def _index_dofs(self, e: int, spec: EnvSpec) -> None:
-        """Where each actuated joint sits among the body's degrees of freedom (Bullet's mass
-        matrix: 6 base dofs first on a floating base, then the movable joints in order)."""
-        client, body = self.clients[e], self.bodies[e]
-        movable = [
-            i
-            for i in range(p.getNumJoints(body, physicsClientId=client))
-            if p.getJointInfo(body, i, physicsClientId=client)[2] != p.JOINT_FIXED
-        ]
-        offset = 0 if self.fixed_base else 6
-        self.movable[e] = movable
-        # mass matrix positions come in Bullet's joint order: the actuated columns to take,
-        # or None when some movable joint is not actuated (then they are read)
-        self.movable_order[e] = (
-            np.array([self.joint_ids[e].index(m) for m in movable])
-            if sorted(movable) == sorted(self.joint_ids[e])
-            else None
-        )
-        cols = np.array([offset + movable.index(jid) for jid in self.joint_ids[e]])
-        self.mass_block[e] = np.ix_(cols, cols)
-        use = self.armature in ("joint_space", "foot_link") and spec.joint_armature is not None
-        self.armature_diag[e] = spec.joint_armature if use else 0.0
-        folded = set(_foot_joints(spec)) if use and self.armature == "foot_link" else set()
-        self.folded[e] = np.array(
-            [i for i, n in enumerate(spec.joint_names) if n in folded], dtype=int
-        )
 
     def _apply_contact_params(self, e: int) -> None:
         for link in self.all_links[e]:
@@ -458,87 +326,8 @@ class Engine:
             tau_sum += tau
         self.last_torque = tau_sum / self.decimation
         state = self.get_state()
-        state["diverged"] = broken | _diverged(state)
+        state["diverged"] = broken | diverged(state)
         return state
-
-    def _armature_torque(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        """[k, J] torque A ddq that MuJoCo's armature A (reflected rotor inertia, added to
-        the joint-space mass matrix only) would absorb this step; Bullet has no armature,
-        so it is taken off the motor torque.
-
-        MuJoCo: (M + A) ddq = tau + h, h every other generalized force (gravity, Coriolis,
-        damping, contacts, limits). Bullet: M ddq = tau' + h. Predicting ddq from the
-        current M, the motor torque and h of the last step (h = M ddq - tau', measured)
-        gives tau' = tau - A ddq. The stiff part (the PD torque) is thus exact; only h
-        lags one physics step.
-
-        "foot_link": a foot joint's armature a is already in its foot link's inertia (about
-        the joint axis, plus c about the perpendicular axes where the foot's principal
-        moments needed it), so Bullet's matrix is M_b = M + dM, dM = (a - c) v v^T + c W^T W,
-        W the foot's angular Jacobian and v_k = W^T s the cosine between joint k's axis and
-        the foot joint's axis s;
-        the correction becomes tau' = tau - (A - dM) ddq, ddq = (M_b - dM + A)^-1 (tau + h).
-        The contact solver then sees the foot as heavy as MuJoCo's does (without it, a light
-        foot under stiff PD chattered on a bouncy ground, docs/sim-to-sim.md).
-        """
-        if not np.any(self.armature_diag):
-            return np.zeros_like(tau)
-        ddq = (dq - self.prev_dq) / self.physics_dt  # [k, J] the last step's acceleration
-        mass = np.empty((self.k, self.num_joints, self.num_joints))  # [k, J, J] joint blocks
-        folded_mass = np.zeros_like(mass)  # [k, J, J] dM of foot-link armature
-        finite = np.isfinite(q).all(axis=1) & np.isfinite(dq).all(axis=1)  # [k]
-        for e in range(self.k):
-            if not finite[e]:  # diverged: its torque is already NaN and it will be reset
-                mass[e] = np.eye(self.num_joints)
-                continue
-            order = self.movable_order[e]
-            positions = q[e][order] if order is not None else self._movable_positions(e)
-            full = np.array(
-                p.calculateMassMatrix(
-                    self.bodies[e], positions.tolist(), physicsClientId=self.clients[e]
-                )
-            )
-            mass[e] = full[self.mass_block[e]]
-            if self.folded[e].size:
-                folded_mass[e] = self._folded_mass(e, positions)
-        h = np.einsum("kij,kj->ki", mass, ddq) - self.prev_applied  # [k, J]
-        h[self.fresh | ~finite] = 0.0  # nothing measured yet right after a reset
-        correction = -folded_mass  # [k, J, J] A - dM
-        correction[:, self._diag, self._diag] += self.armature_diag
-        predicted = np.linalg.solve(mass + correction, (tau + h)[..., None])[..., 0]  # [k, J]
-        self.prev_dq = dq.copy()
-        self.fresh[:] = False
-        return np.einsum("kij,kj->ki", correction, predicted)
-
-    def _folded_mass(self, e: int, positions: np.ndarray) -> np.ndarray:
-        """[J, J] dM of the armature folded into env e's foot links (see `_armature_torque`)."""
-        client, body = self.clients[e], self.bodies[e]
-        cols = self.mass_block[e][1][0]  # [J] the actuated joints' columns
-        zeros = [0.0] * len(positions)
-        out = np.zeros((self.num_joints, self.num_joints))
-        for j in self.folded[e]:
-            link = self.joint_ids[e][j]
-            _, angular = p.calculateJacobian(
-                body,
-                link,
-                [0.0, 0.0, 0.0],
-                positions.tolist(),
-                zeros,
-                zeros,
-                physicsClientId=client,
-            )
-            omega = np.asarray(angular)[
-                :, cols
-            ]  # [3, J] each column an actuated joint's world axis
-            v = omega.T @ omega[:, j]  # [J] cosines with the folded joint's axis
-            # added tensor a s s^T + c (1 - s s^T), s the folded joint's axis
-            a, c = self.armature_diag[e, j], self.folded_extra[e, j]
-            out += (a - c) * np.outer(v, v) + c * (omega.T @ omega)
-        return out
-
-    def _movable_positions(self, e: int) -> np.ndarray:
-        states = p.getJointStates(self.bodies[e], self.movable[e], physicsClientId=self.clients[e])
-        return np.array([s_[0] for s_ in states])
 
     def get_state(self) -> dict[str, np.ndarray]:
         k, nf = self.k, self.num_feet
@@ -634,29 +423,6 @@ class Engine:
         shutil.rmtree(self._tmpdir, ignore_errors=True)
 
 
-def _diverged(state: dict[str, np.ndarray]) -> np.ndarray:
-    """[k] bool: a state no physical robot reaches (or not finite)."""
-    finite = np.ones(state["base_pos"].shape[0], dtype=bool)
-    for key in (
-        "base_pos",
-        "base_quat",
-        "base_lin_vel",
-        "base_ang_vel",
-        "joint_pos",
-        "joint_vel",
-        "foot_pos",
-    ):
-        finite &= np.isfinite(state[key]).reshape(finite.shape[0], -1).all(axis=1)
-    with np.errstate(invalid="ignore"):
-        huge = (
-            (np.abs(state["base_pos"]).max(axis=1) > MAX_BASE_DISTANCE)
-            | (np.linalg.norm(state["base_lin_vel"], axis=1) > MAX_BASE_SPEED)
-            | (np.linalg.norm(state["base_ang_vel"], axis=1) > MAX_ANGULAR_SPEED)
-            | (np.abs(state["joint_vel"]).max(axis=1) > MAX_ANGULAR_SPEED)
-        )
-    return ~finite | huge
-
-
 def _nominal_params(k: int) -> dict[str, np.ndarray]:
     return {
         "friction": np.ones(k),
@@ -667,36 +433,3 @@ def _nominal_params(k: int) -> dict[str, np.ndarray]:
         "delay_steps": np.zeros(k, dtype=int),
         "spawn_xy": np.zeros((k, 2)),
     }
-
-
-def _foot_joints(spec: EnvSpec) -> list[str]:
-    """Actuated joints whose child link is a foot (their armature goes into the foot link
-    in the "foot_link" mode)."""
-    feet = set(spec.foot_bodies)
-    root = ET.fromstring(spec.urdf)
-    out = []
-    for joint in root.findall("joint"):
-        child = joint.find("child")
-        if (
-            child is not None
-            and child.get("link") in feet
-            and joint.get("name") in spec.joint_names
-        ):
-            out.append(joint.get("name"))
-    return out
-
-
-def _joint_children(urdf: str) -> dict[str, str]:
-    return {
-        j.get("name"): j.find("child").get("link") for j in ET.fromstring(urdf).findall("joint")
-    }
-
-
-def _link_traces(urdf: str) -> dict[str, float]:
-    """Trace of each link's inertia tensor (kg m^2)."""
-    out = {}
-    for link in ET.fromstring(urdf).findall("link"):
-        tensor = link.find("inertial/inertia")
-        if tensor is not None:
-            out[link.get("name")] = sum(float(tensor.get(k, 0.0)) for k in ("ixx", "iyy", "izz"))
-    return out

@@ -1,8 +1,9 @@
 """`PyBulletSimulator`: the `Simulator` interface on PyBullet, for sim-to-sim transfer.
 
 Same semantics as the MuJoCo backend from the same robot model: torque control through
-`coadapt_core.physics.actuation`, Table 2 randomization drawn by `coadapt_core.physics.randomization` from
-the simulator's seed, terrains from `coadapt_core.physics.terrain`. Small batches run in this
+`coadapt_core.physics.actuation`, Table 2 randomization drawn by
+`coadapt_core.physics.randomization` from the simulator's seed, terrains from
+`coadapt_core.physics.terrain`. Small batches run in this
 process; larger ones in worker processes (see `workers.py`), with identical numbers.
 """
 
@@ -49,7 +50,8 @@ class PyBulletSimulator(Simulator):
 
     name: ClassVar[str] = "pybullet"
     description: ClassVar[str] = (
-        "PyBullet (Bullet) backend for sim-to-sim transfer; one process per CPU core for large batches"
+        "PyBullet (Bullet) backend for sim-to-sim transfer; one process per CPU core for large "
+        "batches"
     )
     quiet_imports: ClassVar[tuple[str, ...]] = (
         "pybullet",
@@ -235,7 +237,8 @@ class PyBulletSimulator(Simulator):
         targets = np.asarray(joint_targets, dtype=float)  # [N, J]
         if targets.shape != (self.num_envs, self.num_joints):
             raise UserError(
-                f"joint_targets must have shape ({self.num_envs}, {self.num_joints}), got {targets.shape}",
+                f"joint_targets must have shape ({self.num_envs}, {self.num_joints}), got "
+                f"{targets.shape}",
                 field="joint_targets",
             )
         if self._engine is not None:

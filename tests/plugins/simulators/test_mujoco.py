@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 import torch
 from coadapt_plugins.robots.kuafu.robot import Kuafu
-from coadapt_plugins.simulators.mujoco.simulator import MujocoSimulator, restitution_to_dampratio
+from coadapt_plugins.simulators.mujoco.row_reset import restitution_to_dampratio
+from coadapt_plugins.simulators.mujoco.simulator import MujocoSimulator
 
 from coadapt_core.errors import DesignError, UserError
 from coadapt_core.physics.actuation import pd_torque
@@ -283,7 +284,8 @@ def test_delay_holds_the_previous_target_for_whole_physics_steps(kuafu) -> None:
         assert sim._delay.delay_steps.tolist() == [2]  # one environment
         moved = sim.default_joint_pos + 0.5
         torques = [float(sim.step(moved).joint_torque[0, 1].abs()) for _ in range(4)]
-        # 10 ms = 2 physics steps: two steps still hold the reset pose (tiny torque), then full effort
+        # 10 ms = 2 physics steps: two steps still hold the reset pose (tiny torque),
+        # then full effort
         assert torques[0] < 5.0 and torques[1] < 5.0
         assert torques[2] > 100.0
 
@@ -376,7 +378,8 @@ def _drop_rebound(dampratio: float, speed: float = 1.0) -> float:
     """Rebound speed ratio of a 40 kg box hitting the ground at `speed` (5 ms steps)."""
     xml = f"""<mujoco><option timestep="0.005"/><worldbody>
       <geom type="plane" size="0 0 1" solref="0.02 {dampratio}"/>
-      <body pos="0 0 0.101"><freejoint/><geom type="box" size="0.1 0.05 0.1" mass="40" solref="0.02 {dampratio}"/></body>
+      <body pos="0 0 0.101"><freejoint/>
+        <geom type="box" size="0.1 0.05 0.1" mass="40" solref="0.02 {dampratio}"/></body>
     </worldbody></mujoco>"""
     model = mujoco.MjModel.from_xml_string(xml)
     data = mujoco.MjData(model)

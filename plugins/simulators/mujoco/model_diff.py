@@ -1,0 +1,57 @@
+"""Which model fields a design changes: one `mujoco.batch.Batch` runs every design on the
+first design's model, with the fields the others differ in expanded to per-row values. A
+design that changes the model's structure (bodies, joints, geoms, actuators, field sizes)
+cannot share the batch and is refused."""
+
+from __future__ import annotations
+
+import mujoco
+import mujoco.batch
+import numpy as np
+from coadapt_plugins.simulators.mujoco.compose import CompiledDesign
+
+from coadapt_core.errors import UserError
+
+#: model fields never expanded per design (MuJoCo options, shared by the whole batch)
+SKIP_PREFIX = ("opt.",)
+
+
+def diff_fields(reference: CompiledDesign, item: CompiledDesign) -> list[str]:
+    """Model fields in which `item` differs from the batch's `reference` model."""
+    ref, other = reference.model, item.model
+    design = np.round(item.robot_model.design, 4).tolist()
+    if (ref.nq, ref.nv, ref.nu, ref.nbody, ref.ngeom, ref.nsensordata) != (
+        other.nq,
+        other.nv,
+        other.nu,
+        other.nbody,
+        other.ngeom,
+        other.nsensordata,
+    ) or not (
+        np.array_equal(item.qpos_adr, reference.qpos_adr)
+        and np.array_equal(item.actuator_ids, reference.actuator_ids)
+        and np.array_equal(item.foot_body_ids, reference.foot_body_ids)
+    ):
+        raise UserError(
+            f"design {design} changes the model's structure (bodies, joints, geoms or "
+            "actuators); one MuJoCo batch needs designs that differ only in parameters",
+            field="designs",
+        )
+    out = []
+    for name in mujoco.batch.MODEL_FIELDS:
+        if name.startswith(SKIP_PREFIX):
+            continue
+        try:
+            a, c = getattr(ref, name), getattr(other, name)
+        except AttributeError:
+            continue
+        a, c = np.asarray(a), np.asarray(c)
+        if a.shape != c.shape:
+            raise UserError(
+                f"design {design} changes the size of model field {name}; "
+                "one MuJoCo batch needs designs that differ only in parameters",
+                field="designs",
+            )
+        if not np.array_equal(a, c):
+            out.append(name)
+    return out
