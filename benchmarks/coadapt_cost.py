@@ -2,7 +2,7 @@
 interactions (training + evaluation) and wall clock, on one preset and seed.
 
     python benchmarks/coadapt_cost.py                  # smoke preset, the real learner
-    python benchmarks/coadapt_cost.py --fake           # the analytic backend (coadapt_core.testing.analytic)
+    python benchmarks/coadapt_cost.py --fake           # coadapt_core.testing.analytic's backend
     python benchmarks/coadapt_cost.py --preset quick --methods ours,no-surrogate --json out.json
 
 Prints a Markdown table, the ratio ours / no-surrogate (the paper: 102 M / 132 M = 0.77
@@ -16,7 +16,8 @@ grid's optimum, (true cost - grid minimum) / |grid minimum|. Table 7-style, mean
 the seeds, per method: evaluation interactions, true cost, gap. Methods may carry an
 evaluation policy: `ours:uncertainty`, `ours:fixed`.
 
-    python benchmarks/coadapt_cost.py --fake --seeds 0,1,2 --methods no-surrogate,ours:fixed,ours:uncertainty
+    python benchmarks/coadapt_cost.py --fake --seeds 0,1,2 \
+        --methods no-surrogate,ours:fixed,ours:uncertainty
     python benchmarks/coadapt_cost.py --preset quick --train-steps 0 --seeds 0,1,2 \
         --methods no-surrogate,ours:uncertainty --objective torque
 
@@ -115,16 +116,20 @@ def run_method(label: str, args: argparse.Namespace, out: Path) -> dict:
 
 def table(rows: list[dict]) -> str:
     lines = [
-        "| Method | Interactions (training + evaluation) | Wall clock s (training + evaluation) | Rounds real / surrogate | Designs | Best cost | Improvement | Paper (M; h) |",
+        "| Method | Interactions (training + evaluation) | Wall clock s (training + evaluation) | "
+        "Rounds real / surrogate | Designs | Best cost | Improvement | Paper (M; h) |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         search = r["train_interactions"] + r["eval_interactions"]
         (pt, pe), (ht, he) = PAPER[split_method(r["method"])[0]]
         lines.append(
-            f"| {r['method']} | {search:,} ({r['train_interactions']:,} + {r['eval_interactions']:,}) "
-            f"| {r['train_seconds'] + r['eval_seconds']:.1f} ({r['train_seconds']:.1f} + {r['eval_seconds']:.1f}) "
-            f"| {r['real_rounds']} / {r['surrogate_rounds']} | {r['designs_evaluated']} | {r['best_cost']:.4g} "
+            f"| {r['method']} | {search:,} ({r['train_interactions']:,} + "
+            f"{r['eval_interactions']:,}) "
+            f"| {r['train_seconds'] + r['eval_seconds']:.1f} ({r['train_seconds']:.1f} + "
+            f"{r['eval_seconds']:.1f}) "
+            f"| {r['real_rounds']} / {r['surrogate_rounds']} | {r['designs_evaluated']} | "
+            f"{r['best_cost']:.4g} "
             f"| {100 * r['improvement']:+.1f} % | {pt + pe} ({pt}+{pe}); {ht + he:.2f} |"
         )
     return "\n".join(lines)
@@ -228,7 +233,8 @@ def truth_table(rows: list[dict], methods: list[str]) -> tuple[str, dict]:
     rounds, final true cost and gap to the grid optimum; ratios against no-surrogate (paired
     by seed)."""
     lines = [
-        "| Method | Evaluation interactions | Real / surrogate rounds | Final true cost | Gap to grid optimum | "
+        "| Method | Evaluation interactions | Real / surrogate rounds | Final true cost | Gap to "
+        "grid optimum | "
         "Eval. interactions / no-surrogate | True cost vs no-surrogate | Seeds |",
         "|---|---|---|---|---|---|---|---|",
     ]
@@ -267,9 +273,12 @@ def truth_table(rows: list[dict], methods: list[str]) -> tuple[str, dict]:
         }
         lines.append(
             f"| {m} | {mean_std([r['eval_interactions'] for r in rs])} "
-            f"| {mean_std([r['real_rounds'] for r in rs])} / {mean_std([r['surrogate_rounds'] for r in rs])} "
-            f"| {mean_std([r['true_cost'] for r in rs])} | {mean_std([100 * r['gap'] for r in rs])} % "
-            f"| {mean_std(ratio) if ratio else '-'} | {100 * mean_delta:+.2f} % (paired {mean_std([100 * d for d in delta]) if delta else '-'} %) "
+            f"| {mean_std([r['real_rounds'] for r in rs])} / "
+            f"{mean_std([r['surrogate_rounds'] for r in rs])} "
+            f"| {mean_std([r['true_cost'] for r in rs])} | "
+            f"{mean_std([100 * r['gap'] for r in rs])} % "
+            f"| {mean_std(ratio) if ratio else '-'} | {100 * mean_delta:+.2f} % (paired "
+            f"{mean_std([100 * d for d in delta]) if delta else '-'} %) "
             f"| {len(rs)} |"
         )
     return "\n".join(lines), stats
@@ -297,7 +306,10 @@ def main(argv: list[str] | None = None) -> int:
         "--train-steps",
         type=int,
         default=None,
-        help="training and retraining interactions (default: the preset's; 0 keeps the starting policy)",
+        help=(
+            "training and retraining interactions "
+            "(default: the preset's; 0 keeps the starting policy)"
+        ),
     )
     parser.add_argument(
         "--fake", action="store_true", help="the analytic backend of the tests (seconds)"
@@ -364,7 +376,8 @@ def main(argv: list[str] | None = None) -> int:
             / max(1e-9, n["train_seconds"] + n["eval_seconds"]),
         }
         print(
-            f"\nours / no-surrogate: interactions {ratios['interactions']:.2f} (paper 102/132 = 0.77), "
+            f"\nours / no-surrogate: interactions {ratios['interactions']:.2f} (paper 102/132 = "
+            "0.77), "
             f"evaluation interactions {ratios['eval_interactions']:.2f} (paper 30/60 = 0.50), "
             f"wall clock {ratios['wall_seconds']:.2f} (paper 1.07/1.73 = 0.62)"
         )
@@ -406,8 +419,10 @@ def judged(args: argparse.Namespace, methods: list[str], out: Path) -> int:
     text, stats = truth_table(rows, methods)
     print(
         f"\nEvaluation cost and answer quality, preset {args.preset}, objective {args.objective}, "
-        f"{'analytic backend' if args.fake else args.sim}, seeds {','.join(map(str, args.seeds))}; ground truth: "
-        f"{args.grid} x {args.grid} paired-scenario landscape, optimum {best:.4g} at {truth['best_design']}\n"
+        f"{'analytic backend' if args.fake else args.sim}, seeds "
+        f"{','.join(map(str, args.seeds))}; ground truth: "
+        f"{args.grid} x {args.grid} paired-scenario landscape, optimum {best:.4g} at "
+        f"{truth['best_design']}\n"
     )
     print(text)
     payload = {

@@ -143,7 +143,8 @@ def main(argv: list[str] | None = None) -> int:
         space = robot.design_space(mixed)
         if space.dim != dim:
             return _fail(
-                f"designs have {dim} values; robot '{robot_name}' has {robot.design_space(False).dim} "
+                f"designs have {dim} values; robot '{robot_name}' has "
+                f"{robot.design_space(False).dim} "
                 f"(continuous) or {robot.design_space(True).dim} (mixed)"
             )
         nominal = np.asarray(robot.nominal_design(mixed), dtype=float)
@@ -165,7 +166,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.policy == "run":
             if any("folder" not in s for s in summaries):
                 return _fail(
-                    "--policy run judges runs with their own policies: give run folders or ids, not --design"
+                    "--policy run judges runs with their own policies: give run folders or ids, "
+                    "not --design"
                 )
             groups = [
                 ([s], _run_policy(s["folder"]), f"nominal (policy of {s['label']})")
@@ -290,10 +292,12 @@ def _print_row(row: dict, *, as_json: bool) -> None:
         print(json.dumps(row), flush=True)
         return
     parts = [
-        f"{n} {e['cost']:.4g} +- {e['cost_se']:.2g} (plain {e['plain_mean']:.4g} +- {e['plain_mean_se']:.2g})"
+        f"{n} {e['cost']:.4g} +- {e['cost_se']:.2g} (plain {e['plain_mean']:.4g} +- "
+        f"{e['plain_mean_se']:.2g})"
         + (
             f" improvement {100 * e['improvement']:+.1f} +- {100 * e['improvement_se']:.1f} % "
-            f"(plain {100 * e['improvement_plain']:+.1f} +- {100 * e['improvement_plain_se']:.1f} %)"
+            f"(plain {100 * e['improvement_plain']:+.1f} +- {100 * e['improvement_plain_se']:.1f} "
+            "%)"
             if "improvement" in e
             else ""
         )

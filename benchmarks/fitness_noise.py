@@ -189,12 +189,14 @@ def main(argv: list[str] | None = None) -> int:
         "objectives": {},
     }
     print(
-        f"{args.grid}x{args.grid} grid, {args.agents} agents x {args.steps} steps, protocol {args.protocol}, "
+        f"{args.grid}x{args.grid} grid, {args.agents} agents x {args.steps} steps, protocol "
+        f"{args.protocol}, "
         f"seeds {seeds}, {wall:.0f} s"
     )
     print(f"cost rule: {rule.describe()}")
     print(
-        f"{'objective':10s} {'spearman':>9s} {'(plain mean)':>13s} {'(trimmed)':>10s} {'median rel SE':>14s} {'paired/unpaired SE':>19s}"
+        f"{'objective':10s} {'spearman':>9s} {'(plain mean)':>13s} {'(trimmed)':>10s} "
+        f"{'median rel SE':>14s} {'paired/unpaired SE':>19s}"
     )
     for j, name in enumerate(OBJECTIVES):
         rho = spearman(runs[0]["costs"][:, j], runs[1]["costs"][:, j])
@@ -220,7 +222,8 @@ def main(argv: list[str] | None = None) -> int:
         }
         result["objectives"][name] = entry
         print(
-            f"{name:10s} {entry['spearman']:9.3f} {entry['spearman_plain_mean']:13.3f} {entry['spearman_trimmed']:10.3f} {entry['median_relative_se']:14.4f} "
+            f"{name:10s} {entry['spearman']:9.3f} {entry['spearman_plain_mean']:13.3f} "
+            f"{entry['spearman_trimmed']:10.3f} {entry['median_relative_se']:14.4f} "
             f"{entry['paired_to_unpaired_se']:19.3f}"
         )
     print(f"fall rate: mean {result['fall_rate_mean']}, max {result['fall_rate_max']}")

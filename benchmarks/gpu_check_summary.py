@@ -94,7 +94,8 @@ def paper_projection(train: dict | None, throughput: dict) -> dict | None:
         "evaluation_hours": round(evaluation_h, 2),
         "total_hours": round(training_h + evaluation_h, 2),
         "rates_from": "coadapt train" if source else "throughput",
-        "note": "interactions only: surrogate fits, optimizer and final-check overheads not included",
+        "note": "interactions only: surrogate fits, optimizer and final-check overheads not "
+        "included",
     }
 
 

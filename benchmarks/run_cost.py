@@ -207,7 +207,8 @@ def main(argv: list[str] | None = None) -> int:
             f"{row['interactions_per_s'] or '-'} | {vs if vs is not None else '-'} |"
         )
     print(
-        f"wall clock {report['wall_seconds']} s; physics ceiling {report['physics_ceiling_env_steps_per_s']} env steps/s; "
+        f"wall clock {report['wall_seconds']} s; physics ceiling "
+        f"{report['physics_ceiling_env_steps_per_s']} env steps/s; "
         f"surrogate share {report['surrogate_share']}",
         file=sys.stderr,
     )

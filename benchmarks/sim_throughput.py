@@ -312,10 +312,12 @@ def main(argv: list[str] | None = None) -> int:
     print(json.dumps(result))
     b = result["breakdown"]
     print(
-        f"where the time goes ({result['envs']} envs, {result['threads']} threads, load {result['load_avg_1min']}): "
+        f"where the time goes ({result['envs']} envs, {result['threads']} threads, load "
+        f"{result['load_avg_1min']}): "
         f"physics {b['physics_share']:.0%}, actuation {b['actuation_share']:.0%}, "
         f"state extraction {b['state_share']:.0%}, other {b['other_s']:.2f} s; "
-        f"backend {result['policy_steps_per_s']:.0f} vs ceiling {result['ceiling_policy_steps_per_s']:.0f} "
+        f"backend {result['policy_steps_per_s']:.0f} vs ceiling "
+        f"{result['ceiling_policy_steps_per_s']:.0f} "
         f"policy steps/s = {result['ratio']:.2f}",
         file=sys.stderr,
     )

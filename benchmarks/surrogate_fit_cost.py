@@ -13,7 +13,8 @@ real costs carry their own scenario noise (a relative standard error of about 7-
 design at 32 x 250), which bounds every Spearman figure alike: compare variants with each
 other on the same data, not with 1.
 
-    python benchmarks/surrogate_fit_cost.py --json                      # the earlier fit (5x128x200), today's (5x64x100), three between
+    # the earlier fit (5x128x200), today's (5x64x100) and three between
+    python benchmarks/surrogate_fit_cost.py --json
     python benchmarks/surrogate_fit_cost.py --variants 5x128x200,5x64x100 --seeds 0,1,2,3,4
     python benchmarks/surrogate_fit_cost.py --variants 5x64x100 --samples 1024 --check-states 1024
 
@@ -149,7 +150,8 @@ def main(argv: list[str] | None = None) -> int:
         print(
             f"{key:>11}  "
             + "  ".join(
-                f"{n}: {v['fit_seconds']:.1f} s, Spearman {v['spearman']}, rel. error {v['mean_relative_error']}"
+                f"{n}: {v['fit_seconds']:.1f} s, Spearman {v['spearman']}, rel. error "
+                f"{v['mean_relative_error']}"
                 for n, v in per.items()
             ),
             flush=True,

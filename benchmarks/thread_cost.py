@@ -115,7 +115,8 @@ def main(argv: list[str] | None = None) -> int:
         config = make_config(SIZES[args.size][0], None, overrides)
         runs[label] = one_run(config, out / f"{args.size}-{label}", learner)
         print(
-            f"{label}: {runs[label]['wall_seconds']} s, best {runs[label]['best_design']}, improvement "
+            f"{label}: {runs[label]['wall_seconds']} s, best {runs[label]['best_design']}, "
+            "improvement "
             f"{runs[label]['improvement']:.3f} +- {runs[label]['improvement_se'] or 0:.3f}",
             file=sys.stderr,
         )

@@ -1,15 +1,17 @@
 """Training throughput of the universal-policy learner on this machine.
 
 Measures, separately: (1) the physics ceiling — the simulator stepped with fixed targets,
-no task and no policy, before and after the training iterations (their mean is used); (2) rollout collection — policy act + task + physics, env steps/s,
-with the share of time in physics, task code and the policy; (3) the PPO update — samples/s
-(rollout samples per second of update, all epochs) and sample-epochs/s. Prints JSON, with
+no task and no policy, before and after the training iterations (their mean is used);
+(2) rollout collection — policy act + task + physics, env steps/s, with the share of time
+in physics, task code and the policy; (3) the PPO update — samples/s (rollout samples per
+second of update, all epochs) and sample-epochs/s. Prints JSON, with
 `end_to_end_vs_physics_ceiling` (training env steps/s over the physics ceiling measured in
 the same run) and `pseudo_critic_share` (the pseudo-critics' part of the update's time:
 their targets in compute_returns and their regression steps, over compute_returns + update).
 
     .venv/bin/python benchmarks/train_throughput.py --num-designs 16 --agents 16
-    .venv/bin/python benchmarks/train_throughput.py --num-designs 128 --agents 32 --device cuda --threads 16
+    .venv/bin/python benchmarks/train_throughput.py --num-designs 128 --agents 32 \
+        --device cuda --threads 16
 """
 
 from __future__ import annotations
@@ -50,7 +52,10 @@ def main() -> None:
         "--threads",
         type=int,
         default=None,
-        help="thread budget of the physics and torch's update (default: the CPUs this process may use)",
+        help=(
+            "thread budget of the physics and torch's update "
+            "(default: the CPUs this process may use)"
+        ),
     )
     parser.add_argument(
         "--torch-threads",
@@ -77,7 +82,8 @@ def main() -> None:
     )
     args = parser.parse_args()
 
-    # the `coadapt` command's OpenMP wait policy, chosen before torch is imported (coadapt_core/launch.py)
+    # the `coadapt` command's OpenMP wait policy, chosen before torch is imported
+    # (coadapt_core/launch.py)
     from coadapt_core.launch import apply_omp_wait_policy
 
     apply_omp_wait_policy()

@@ -19,10 +19,11 @@ averaged over `--eval-agents` agents; falls restart the agent and count their pe
 paper reports the episode reward of its own task, so only ratios compare with it
 (universal / specialized: 54.2 / 58.4 = 0.93 at (0.5, 0.5), 56.5 / 60.8 = 0.93 at (1.5, 1.5)).
 
-    python benchmarks/universal_vs_specialized.py --steps 20000 --seeds 2          # smoke scale
-    python benchmarks/universal_vs_specialized.py --init-from plugins/robots/kuafu/policies/flat.pt \\
-        --steps 2000000 --seeds 3 --device cuda --designs 64 --agents 32           # a real table
-    python benchmarks/universal_vs_specialized.py ... --json                      # one JSON line last
+    python benchmarks/universal_vs_specialized.py --steps 20000 --seeds 2   # smoke scale
+    python benchmarks/universal_vs_specialized.py \\
+        --init-from plugins/robots/kuafu/policies/flat.pt \\
+        --steps 2000000 --seeds 3 --device cuda --designs 64 --agents 32    # a real table
+    python benchmarks/universal_vs_specialized.py ... --json               # one JSON line last
 
 Prints a markdown table and the ratio of each universal row to the specialized one: per seed
 (seed s of every row is evaluated on the same scenarios), mean +- standard error over seeds.
@@ -174,7 +175,8 @@ def main(argv: list[str] | None = None) -> int:
                 }
             )
             print(
-                f"{design} {label}: {rows[-1]['mean']:.3f} +- {rows[-1]['std']:.3f} ({len(rewards)} seeds)",
+                f"{design} {label}: {rows[-1]['mean']:.3f} +- {rows[-1]['std']:.3f} "
+                f"({len(rewards)} seeds)",
                 file=sys.stderr,
                 flush=True,
             )
@@ -191,7 +193,8 @@ def main(argv: list[str] | None = None) -> int:
             float(ratios.std(ddof=1) / np.sqrt(len(ratios))) if len(ratios) > 1 else float("nan")
         )
         print(
-            f"| ({row['design'][0]}, {row['design'][1]}) | {row['policy']} | {row['mean']:.2f} +- {row['std']:.2f} "
+            f"| ({row['design'][0]}, {row['design'][1]}) | {row['policy']} | {row['mean']:.2f} +- "
+            f"{row['std']:.2f} "
             f"| {row['ratio']:.3f} +- {row['ratio_se']:.3f} |"
         )
     seconds = time.perf_counter() - t0

@@ -157,7 +157,8 @@ def findings(path: Path, rel: str = "") -> list[str]:
                 out.append(f"{node.lineno}: imports coadapt_plugins")
             elif any(m.split(".")[0] in PROPER for m in modules):
                 out.append(
-                    f"{node.lineno}: imports {', '.join(m for m in modules if m.split('.')[0] in PROPER)}"
+                    f"{node.lineno}: imports "
+                    f"{', '.join(m for m in modules if m.split('.')[0] in PROPER)}"
                 )
             continue
         name = _identifier(node)

@@ -50,7 +50,7 @@ def test_import_then_report_reproduces_the_committed_report(tmp_path):
             assert (out / name).read_text() == (REPORT / name).read_text(), (
                 f"{name} differs from the committed one"
             )
-        else:  # numbers to 1e-9: a last-bit change of a mean from another numpy is not a different report
+        else:  # numbers to 1e-9: a mean's last bit from another numpy is not another report
             mine, theirs = _csv(out / name), _csv(REPORT / name)
             assert len(mine) == len(theirs) and all(
                 len(a) == len(b) for a, b in zip(mine, theirs, strict=True)

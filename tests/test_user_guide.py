@@ -105,7 +105,8 @@ def test_every_documented_command_runs_in_smoke_form(tmp_path, monkeypatch, caps
         captured = capsys.readouterr()
         if code != expected:
             failures.append(
-                f"coadapt {shlex.join(args)} -> exit {code}: {captured.err.strip().splitlines()[-1:]}"
+                f"coadapt {shlex.join(args)} -> exit {code}: "
+                f"{captured.err.strip().splitlines()[-1:]}"
             )
     assert not failures, "\n".join(failures)
     assert (tmp_path / "report" / "report.html").is_file() and (

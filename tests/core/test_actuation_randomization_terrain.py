@@ -130,7 +130,8 @@ def test_randomization_ranges_and_off():
         and bool((off.delay == 0.0).all())
         and bool((off.pd_factor == 1.0).all())
     )
-    # delay in whole physics steps, rounded half to even: 7.5 ms at 5 ms is 2 steps, 12.5 ms 2, 17.5 ms 4
+    # delay in whole physics steps, rounded half to even: at 5 ms a step, 7.5 ms is 2 steps,
+    # 12.5 ms 2 and 17.5 ms 4
     p.delay[:3] = torch.tensor([0.0075, 0.0125, 0.0175], dtype=torch.float64)
     assert p.delay_steps(0.005)[:3].tolist() == [2, 2, 4]
     assert p.delay_steps(0.005).dtype == torch.long

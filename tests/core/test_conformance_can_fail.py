@@ -17,7 +17,8 @@ class Unseeded(Optimizer):
     name = "unseeded"
 
     def _ask(self):
-        return self.space.decode(np.random.default_rng().uniform(size=(self.population, self.space.dim)))
+        draw = np.random.default_rng().uniform(size=(self.population, self.space.dim))
+        return self.space.decode(draw)
 
     def _tell(self, designs, costs):
         pass

@@ -84,8 +84,11 @@ class NumpyBoolFindings(Trotter):
     """Point 9: a validation check returning numpy's bool (robot show --json crashed on it)."""
     def validate(self, design):
         report = super().validate(design)
-        return ValidationReport(report.design, [Finding(f.check, np.bool_(f.ok), f.message, f.value, f.limit)
-                                                for f in report.findings])
+        findings = [
+            Finding(f.check, np.bool_(f.ok), f.message, f.value, f.limit)
+            for f in report.findings
+        ]
+        return ValidationReport(report.design, findings)
 
 
 def _optimizer(cls):
@@ -132,7 +135,8 @@ def test_each_planted_mistake_fails_its_contract_test(pytester):
         "-p",
         "no:cacheprovider",
         "-k",
-        "initial_designs_are or any_seed or state_round_trips or one_actuator or ik_leg_order or plain_json",
+        "initial_designs_are or any_seed or state_round_trips or one_actuator or ik_leg_order or "
+        "plain_json",
     )
     failed = {line.split(" ")[1] for line in result.outlines if line.startswith("FAILED")}
     failed = {name.split("::", 1)[1] for name in failed}

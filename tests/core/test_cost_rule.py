@@ -172,7 +172,8 @@ def _with_falls(fall_rates: list[float], effects: list[float], agents: int = 64)
 
 def test_final_check_never_picks_a_candidate_that_falls_more_than_nominal():
     designs = np.array([[0.5, 0.5], [0.7, 0.7], [1.0, 1.0]])
-    # candidate 0: 40 % cheaper when it walks but falls in 10 % of scenarios; candidate 1: 10 % cheaper, no falls
+    # candidate 0: 40 % cheaper when it walks but falls in 10 % of scenarios;
+    # candidate 1: 10 % cheaper, no falls
     fitness = _with_falls([0.10, 0.0], [0.4, 0.1])
     check = final_check(
         fitness,

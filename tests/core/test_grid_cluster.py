@@ -153,7 +153,8 @@ class Cluster:
         own PID namespace; returns its first process's id."""
         start = (
             f"{self.keep_code()}exec {RAY} start --address {self.address} --block "
-            f"--node-ip-address 127.0.0.1 --num-cpus 1 --disable-usage-stats --object-store-memory {MB100} "
+            "--node-ip-address 127.0.0.1 --num-cpus 1 --disable-usage-stats "
+            f"--object-store-memory {MB100} "
             "--include-log-monitor false"
         )
         proc = subprocess.Popen(
@@ -176,7 +177,8 @@ class Cluster:
     def keep_code(self) -> str:
         """The shell lines that empty the node's /tmp but bind the code back where it lies under
         /tmp (a checkout or virtualenv there, as in a CI clone): a worker node runs the driver's
-        code, as on a real cluster, and reads none of its data (the test's folders, store, --out)."""
+        code, as on a real cluster, and reads none of its data (the test's folders, store,
+        --out)."""
         code = [
             p for p in {str(ROOT), os.path.realpath(sys.prefix)} if Path(p).is_relative_to("/tmp")
         ]
@@ -350,7 +352,8 @@ def test_grid_on_a_cluster_without_a_shared_disk(cluster, tmp_path, capsys):
     assert len(set(scratch)) == 4 and not any(Path(s).exists() for s in scratch)
     assert cluster.scratch_left() == 0  # removed on the nodes too
     print(
-        f"4-cell grid on 2 worker nodes: {grid_seconds:.1f} s; {len(runs)} runs in the driver's store"
+        f"4-cell grid on 2 worker nodes: {grid_seconds:.1f} s; {len(runs)} runs in the driver's "
+        "store"
     )
 
     # the report (sim-to-sim and common-scenario rows) and a handoff from the driver alone
@@ -390,8 +393,10 @@ def test_grid_on_a_cluster_without_a_shared_disk(cluster, tmp_path, capsys):
             float(row["common_improvement"])
         )
         print(
-            f"{row['method']}: improvement {float(row['improvement']):.3f} +- {float(row['improvement_se']):.3f}, "
-            f"sim-to-sim {float(row['sim2sim_improvement']):.3f}, common {float(row['common_improvement']):.3f} "
+            f"{row['method']}: improvement {float(row['improvement']):.3f} +- "
+            f"{float(row['improvement_se']):.3f}, "
+            f"sim-to-sim {float(row['sim2sim_improvement']):.3f}, common "
+            f"{float(row['common_improvement']):.3f} "
             f"+- {float(row['common_improvement_se']):.3f}"
         )
     run_id = runs[0]["id"]
@@ -484,7 +489,8 @@ def test_a_cell_lost_with_its_node_runs_again_from_its_last_state(cluster, tmp_p
     ).read_text()
     assert "# attempt 2 on node 127.0.0.1" in log
     print(
-        f"2-cell grid, {lost} lost with its node after {sent['evaluations']} evaluations had been sent back, "
+        f"2-cell grid, {lost} lost with its node after {sent['evaluations']} evaluations had been "
+        "sent back, "
         f"resumed elsewhere: {seconds:.1f} s; evaluations per run {sorted(counts.values())}"
     )
 
@@ -520,7 +526,7 @@ def test_a_cell_no_node_can_hold_fails_in_one_line(cluster, tmp_path):
     )
     assert done.returncode == 1
     assert (
-        "the cell reserves 2 CPUs (--threads) and the largest node of the cluster has 1; give --threads <= 1"
-        in " ".join(done.stderr.split())
+        "the cell reserves 2 CPUs (--threads) and the largest node of the cluster has 1; give "
+        "--threads <= 1" in " ".join(done.stderr.split())
     )
     assert not ResultsStore(tmp_path / "g.db").list_runs()  # nothing ran

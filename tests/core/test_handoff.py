@@ -95,10 +95,12 @@ def test_model_files_carry_every_referenced_mesh(tmp_path, monkeypatch):
     monkeypatch.setattr(model_files, "robot_folder", lambda robot: home)
     mjcf = f"""<mujoco><compiler meshdir="meshes"/>
   <asset><mesh name="a" file="foot.stl"/><mesh name="b" file="{elsewhere / "foot.stl"}"/></asset>
-  <worldbody><body name="base"><freejoint/><geom type="mesh" mesh="a"/><geom type="mesh" mesh="b" pos="0.1 0 0"/></body></worldbody>
+  <worldbody><body name="base"><freejoint/><geom type="mesh" mesh="a"/>
+    <geom type="mesh" mesh="b" pos="0.1 0 0"/></body></worldbody>
 </mujoco>"""
     urdf = (
-        '<robot name="r"><link name="base"><visual><geometry><mesh filename="package://meshes/foot.stl"/>'
+        '<robot name="r"><link name="base"><visual><geometry><mesh '
+        'filename="package://meshes/foot.stl"/>'
         "</geometry></visual></link></robot>"
     )
     written = model_files.write_model_files(_MeshRobot(), _Model(mjcf, urdf), out)
@@ -438,7 +440,7 @@ def test_an_existing_folder_or_a_bad_design_is_one_line_exit_2(kuafu_handoff, ca
     assert "holds it" in capsys.readouterr().err
 
 
-# -- the example plugin's quadruped ------------------------------------------------------------------
+# -- the example plugin's quadruped -------------------------------------------------------------
 @needs_deploy
 @pytest.mark.slow
 def test_handoff_of_the_example_quadruped(example_plugin_site, tmp_path):

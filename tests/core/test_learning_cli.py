@@ -37,7 +37,8 @@ def test_train_writes_a_checkpoint_that_eval_and_resume_read(tmp_path, capsys) -
     lines = [
         json.loads(line) for line in capsys.readouterr().out.splitlines() if line.startswith("{")
     ]
-    # one line per iteration, then the walking gate on the policy written (2 iterations: it does not walk)
+    # one line per iteration, then the walking gate on the policy written
+    # (2 iterations: it does not walk)
     gate = lines.pop()["walking_gate"]
     assert [row["iteration"] for row in lines] == [1, 2] and lines[-1]["total_steps"] == 128
     assert gate["walking"] is False and gate["design"] == [1.0, 1.0] and gate["agents"] == 16

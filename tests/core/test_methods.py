@@ -304,7 +304,10 @@ def test_the_baseline_takes_its_optimizer_by_the_declared_capability(monkeypatch
     assert optimizer_for("bo-specialized", "other-seq") == "other-seq"  # a third party's, as asked
     with pytest.raises(
         UserError,
-        match=r"needs an optimizer that declares sequential; 'swarm' does not .*other-seq, seq-random",
+        match=(
+            r"needs an optimizer that declares sequential; 'swarm' does not "
+            r".*other-seq, seq-random"
+        ),
     ):
         optimizer_for("bo-specialized", "swarm")
 

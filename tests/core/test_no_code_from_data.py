@@ -76,7 +76,8 @@ def test_planted_state_pickle_is_never_read(tmp_path, capsys):
 
 
 def test_planted_state_json_cannot_name_a_class(tmp_path, capsys):
-    """JSON can only name a registered dataclass; `os:system` or a plugin's arbitrary class is refused."""
+    """JSON can only name a registered dataclass; `os:system` or a plugin's arbitrary class is "
+    "refused."""
     run = tmp_path / "r2"
     run.mkdir()
     state = {
@@ -296,7 +297,8 @@ def test_grid_never_resumes_a_run_id_that_leaves_the_runs_folder(tmp_path):
     for run_id, run_dir in (("../evilrun", tmp_path / "runs" / ".." / "evilrun"), ("okid", evil)):
         with sqlite3.connect(tmp_path / "g.db") as db:  # rows as a hostile store user writes them
             db.execute(
-                "INSERT INTO runs (id, cell, method, objectives, status, run_dir, created_at, updated_at) "
+                "INSERT INTO runs (id, cell, method, objectives, status, run_dir, created_at, "
+                "updated_at) "
                 "VALUES (?, ?, 'ours', 'torque', 'running', ?, 0, 0)",
                 (run_id, cell.key, str(run_dir)),
             )

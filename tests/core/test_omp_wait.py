@@ -54,7 +54,8 @@ import {module}
 {call}
 after = dict(os.environ)
 builtins.open, io.open, os.listdir = real_open, real_io_open, real_listdir
-print(json.dumps({{"opened": opened, "listed": listed, "before": before, "after": after, "torch": "torch" in sys.modules}}))
+facts = {{"opened": opened, "listed": listed, "before": before, "after": after}}
+print(json.dumps({{**facts, "torch": "torch" in sys.modules}}))
 """
 
 
@@ -100,7 +101,8 @@ def test_the_entry_point_keeps_the_users_setting_and_does_nothing_after_torch():
 
 
 def test_the_command_chooses_before_torch_is_loaded():
-    """`python -m coadapt_core` (as the console script) sets the policy before torch loads libgomp."""
+    """`python -m coadapt_core` (as the console script) sets the policy before torch loads "
+    "libgomp."""
     code = (
         "import sys, runpy; sys.argv = ['coadapt', '--version']\n"
         "import os\n"

@@ -26,7 +26,8 @@ def test_tables_are_complete_and_use_the_registry_names():
     }
     assert set(paper.table9) == {(o, METHOD_NAMES[0], t) for o in OBJECTIVES for t in TERRAINS}
     assert "10.1016/j.birob.2025.100255" in paper.citation and "Du et al. 2025" in paper.citation
-    # spot checks, as printed: ours, torque on flat ground; BO's Table 7 row; Table 9 tracking on slope
+    # spot checks, as printed: ours, torque on flat ground; BO's Table 7 row;
+    # Table 9 tracking on slope
     assert paper.table6[("torque", "ours", "flat")] == {
         "thigh": 0.51,
         "shank": 0.54,
@@ -102,7 +103,8 @@ def test_every_number_is_the_papers():
             r["interactions_evaluation"],
         ) == (it * 1e6, itr * 1e6, iev * 1e6), m
         assert (r["hours_total"], r["hours_training"], r["hours_evaluation"]) == (ht, htr, hev), m
-    # Table 9: thigh, hip motor, shank, knee motor, improvement % per objective (V, P, T) and terrain
+    # Table 9: thigh, hip motor, shank, knee motor, improvement % per objective (V, P, T)
+    # and terrain
     lines = _table_lines(text, "Table 9", 9)
     for i, line in enumerate(lines):
         o, t = OBJECTIVES[i // 3], TERRAINS[i % 3]

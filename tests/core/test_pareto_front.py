@@ -248,8 +248,8 @@ def test_the_report_compares_fronts_across_seeds(tmp_path, capsys, paired_fake):
     for r in runs:
         front = r["summary"]["pareto_front"]
         assert (
-            f"| {r['id']} | {len(front['designs'])} | {front['hypervolume']:.3f} +- {front['hypervolume_se']:.3f} |"
-            in text
+            f"| {r['id']} | {len(front['designs'])} | {front['hypervolume']:.3f} +- "
+            f"{front['hypervolume_se']:.3f} |" in text
         )
     # the group of both seeds: their mean +- the SE over seeds
     mean, se = hvs.mean(), hvs.std(ddof=1) / np.sqrt(2)

@@ -184,7 +184,8 @@ def test_a_real_run_killed_inside_its_training_phase_resumes_where_it_was(tmp_pa
     --resume` trains only the rest of the phase and ends as the uninterrupted run: the same
     interactions, best design and final policy weights."""
     cut = tmp_path / "cut"
-    code = f"import sys; from coadapt_core.cli import main; sys.exit(main({[*REAL, '--out', str(cut)]!r}))"
+    argv = [*REAL, "--out", str(cut)]
+    code = f"import sys; from coadapt_core.cli import main; sys.exit(main({argv!r}))"
     proc = subprocess.Popen(
         [sys.executable, "-c", code], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
     )

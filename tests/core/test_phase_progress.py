@@ -81,7 +81,8 @@ def test_a_run_shows_its_training_phase_moving_with_an_eta(tmp_path, capsys, mon
     ]
     shown = [int(line.split("training ")[1].split("%")[0]) for line in lines]
     assert shown and shown == sorted(shown) and shown[-1] >= 60, lines
-    # from the second report on, the phase's ETA is a duration measured from its rate (0.3 s a fifth)
+    # from the second report on, the phase's ETA is a duration measured from its rate
+    # (0.3 s a fifth)
     etas = [
         line.split("phase ETA ")[1].split()[0]
         for line in lines

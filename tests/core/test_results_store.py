@@ -301,7 +301,8 @@ def test_export_cli_parquet_without_pandas_is_one_line(tmp_path):
     )
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [
-        "error: parquet export needs pandas and pyarrow: pip install 'coadapt[parquet]' (or use --format csv)"
+        "error: parquet export needs pandas and pyarrow: pip install 'coadapt[parquet]' (or use "
+        "--format csv)"
     ]
 
 

@@ -174,7 +174,8 @@ def test_a_weak_surrogate_is_said_with_the_rounds_it_covers():
 def test_the_surrogate_s_pooled_figure_is_printed_with_the_rounds_it_covers(capsys):
     out = " ".join(printed(capsys, planted()).split())
     assert (
-        "surrogate (in-run rounds): pooled Spearman 0.80 over 4 judged real rounds of 6 (only rounds a fit "
+        "surrogate (in-run rounds): pooled Spearman 0.80 over 4 judged real rounds of 6 (only "
+        "rounds a fit "
         "already covers are judged; --surrogate-error-fits judges every one)"
     ) in out
     weak = planted(surrogate_quality={"pooled": {"spearman": 0.3, "rounds": 6}, "rounds": []})
@@ -223,7 +224,8 @@ def test_improvements_and_fall_differences_read_in_one_direction(capsys):
     assert falls_more_by(-0.02, 0.01) == "falls less by 2.0 +- 1.0 points than nominal"
     out = " ".join(printed(capsys, planted()).split())
     assert (
-        "improvement over nominal (final check): power better by 10.0 +- 1.5 % (plain mean: power better by "
+        "improvement over nominal (final check): power better by 10.0 +- 1.5 % (plain mean: power "
+        "better by "
         "9.0 +- 2.0 %); best falls more by 0.8 +- 0.4 points than nominal"
     ) in out
     assert "+10.0" not in out and "+0.8" not in out
@@ -270,7 +272,8 @@ def test_a_smoke_run_says_only_that_it_is_too_short_to_judge(capsys):
     assert "walking gate: too short to judge (smoke preset, 20 steps per scenario" in out
     assert "walk (" not in out and "does not walk" not in out
     assert (
-        "improvement over nominal (final check; smoke preset, too short to judge: a check that the run is wired, "
+        "improvement over nominal (final check; smoke preset, too short to judge: a check that "
+        "the run is wired, "
         "not a result)" in out
     )
     # a run trained from scratch at the smoke preset too: its summary keeps reliable false

@@ -163,7 +163,8 @@ def test_a_failed_upgrade_leaves_the_store_as_it_was(tmp_path, capsys):
     db = _v1_store(tmp_path / "coadapt.db", recorded=True)
     with sqlite3.connect(db) as conn:
         conn.execute(
-            "CREATE TRIGGER planted BEFORE INSERT ON store_info BEGIN SELECT RAISE(ABORT, 'planted'); END"
+            "CREATE TRIGGER planted BEFORE INSERT ON store_info BEGIN SELECT RAISE(ABORT, "
+            "'planted'); END"
         )
     before, objects = _rows(db), _objects(db)
     with pytest.raises(UserError) as err:

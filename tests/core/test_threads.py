@@ -79,7 +79,10 @@ def test_the_default_budget_follows_affinity_and_quota(tmp_path):
     """A process pinned to one core, or under a cgroup quota of one CPU (a fake cgroup tree
     named by $COADAPT_CGROUP_ROOT), gets a budget of 1 for torch and the physics (what
     `apply_threads()` then gives torch is checked in-process below; torch is not imported here)."""
-    code = "import os; {pre}from coadapt_core import threads; print(threads.usable_cpus(), threads.budget())"
+    code = (
+        "import os; {pre}from coadapt_core import threads; "
+        "print(threads.usable_cpus(), threads.budget())"
+    )
     assert _in_subprocess(code.format(pre="os.sched_setaffinity(0, {0}); ")) == "1 1"
     root = tmp_path / "sys"
     _write(root, "cpu.max", "100000 100000\n")
@@ -209,6 +212,9 @@ def test_run_default_threads_follow_the_affinity_not_the_checkpoint(tmp_path):
     torch.save(state, tmp_path / "seven.pt")
     out = tmp_path / "runs"
     args = [*TINY_RUN, "--checkpoint", str(tmp_path / "seven.pt"), "--out", str(out)]
-    code = f"import os, sys; os.sched_setaffinity(0, {{0}}); from coadapt_core.cli import main; sys.exit(main({args!r}))"
+    code = (
+        "import os, sys; os.sched_setaffinity(0, {0}); "
+        f"from coadapt_core.cli import main; sys.exit(main({args!r}))"
+    )
     subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, timeout=600)
     assert _recorded(out) == (1, [{"torch_threads": 1, "physics_threads": 1}])

@@ -85,7 +85,8 @@ def test_rows_hold_compare_designs_of_the_common_blocks(store_run):
     )
     assert got["fall_rate"] == pytest.approx(falls[0].mean()) and got["nominal_fall_rate"] == 0.0
     assert got["fall_rate_difference"] == pytest.approx(falls[0].mean())
-    # falls cost the cap: the capped improvement is below the unfallen 20 %, the plain mean's further below
+    # falls cost the cap: the capped improvement is below the unfallen 20 %, the plain
+    # mean's further below
     assert got["improvement_plain"] < got["improvement"] < 0.2
     assert best.interactions == 3 * 8 * 5 and nominal.interactions == 3 * 8 * 5
     # stored once: a second call evaluates nothing
@@ -164,6 +165,6 @@ def test_an_old_bo_run_whose_starting_policy_changed_says_why(tmp_path):
     )
     notes = yardstick_runs(rec.store, [run], factory=lambda *a, **k: pytest.fail("no backend"))
     assert notes == {
-        run_id: "n/a: the starting policy flat.pt is not the one the run started from (SHA-256 differs); "
-        "its policies cannot be trained again"
+        run_id: "n/a: the starting policy flat.pt is not the one the run started from "
+        "(SHA-256 differs); its policies cannot be trained again"
     }

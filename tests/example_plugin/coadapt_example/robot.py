@@ -147,25 +147,30 @@ class Trotter(Robot):
       <body name="{leg}_thigh" pos="{x} {y} 0">
         <joint name="{leg}_hip" axis="0 1 0" range="-1.6 1.6" armature="0.005" damping="0.01"/>
         <geom type="sphere" size="0.025" mass="{motor_mass}" contype="0" conaffinity="0"/>
-        <geom type="capsule" fromto="0 0 0 0 0 {-lt}" size="0.012" mass="{m_thigh}" contype="0" conaffinity="0"/>
+        <geom type="capsule" fromto="0 0 0 0 0 {-lt}" size="0.012" mass="{m_thigh}"
+              contype="0" conaffinity="0"/>
         <body name="{leg}_shank" pos="0 0 {-lt}">
           <joint name="{leg}_knee" axis="0 1 0" range="-2.7 -0.05" armature="0.005" damping="0.01"/>
-          <geom type="capsule" fromto="0 0 0 0 0 {-ls}" size="0.01" mass="{m_shank}" contype="0" conaffinity="0"/>
+          <geom type="capsule" fromto="0 0 0 0 0 {-ls}" size="0.01" mass="{m_shank}"
+                contype="0" conaffinity="0"/>
           <body name="{leg}_foot" pos="0 0 {-ls}">
-            <geom type="sphere" size="{FOOT_RADIUS}" mass="{m_foot}" contype="1" conaffinity="0" condim="3" friction="1.0 0.005 0.0001"/>
+            <geom type="sphere" size="{FOOT_RADIUS}" mass="{m_foot}" contype="1" conaffinity="0"
+                  condim="3" friction="1.0 0.005 0.0001"/>
           </body>
         </body>
       </body>""")
             for j in ("hip", "knee"):
                 motors.append(
-                    f'    <motor name="{leg}_{j}" joint="{leg}_{j}" gear="1" ctrlrange="{-peak} {peak}"/>'
+                    f'    <motor name="{leg}_{j}" joint="{leg}_{j}" gear="1" ctrlrange="{-peak} '
+                    f'{peak}"/>'
                 )
         return f"""<mujoco model="trotter">
   <compiler angle="radian"/>
   <worldbody>
     <body name="base" pos="0 0 {standing}">
       <freejoint name="root"/>
-      <geom type="box" size="{bx} {by} {bz}" mass="{BASE_MASS}" contype="1" conaffinity="0"/>{"".join(legs)}
+      <geom type="box" size="{bx} {by} {bz}" mass="{BASE_MASS}" contype="1" conaffinity="0"/>
+      {"".join(legs)}
     </body>
   </worldbody>
   <actuator>
@@ -188,16 +193,23 @@ class Trotter(Robot):
             f'<collision><geometry><box size="{bx} {by} {bz}"/></geometry></collision></link>'
         ]
         for leg, (x, y) in HIPS.items():
+            thigh_com = -lt / 2 * m_thigh / (motor_mass + m_thigh)
             parts.append(
-                f'<link name="{leg}_thigh">{inertial(motor_mass + m_thigh, -lt / 2 * m_thigh / (motor_mass + m_thigh))}</link>'
-                f'<joint name="{leg}_hip" type="revolute"><parent link="base"/><child link="{leg}_thigh"/>'
-                f'<origin xyz="{x} {y} 0"/><axis xyz="0 1 0"/><limit lower="-1.6" upper="1.6" effort="12" velocity="25"/></joint>'
+                f'<link name="{leg}_thigh">{inertial(motor_mass + m_thigh, thigh_com)}</link>'
+                f'<joint name="{leg}_hip" type="revolute"><parent link="base"/><child '
+                f'link="{leg}_thigh"/>'
+                f'<origin xyz="{x} {y} 0"/><axis xyz="0 1 0"/><limit lower="-1.6" upper="1.6" '
+                'effort="12" velocity="25"/></joint>'
                 f'<link name="{leg}_shank">{inertial(m_shank, -ls / 2)}</link>'
-                f'<joint name="{leg}_knee" type="revolute"><parent link="{leg}_thigh"/><child link="{leg}_shank"/>'
-                f'<origin xyz="0 0 {-lt}"/><axis xyz="0 1 0"/><limit lower="-2.7" upper="-0.05" effort="12" velocity="25"/></joint>'
+                f'<joint name="{leg}_knee" type="revolute"><parent link="{leg}_thigh"/><child '
+                f'link="{leg}_shank"/>'
+                f'<origin xyz="0 0 {-lt}"/><axis xyz="0 1 0"/><limit lower="-2.7" upper="-0.05" '
+                'effort="12" velocity="25"/></joint>'
                 f'<link name="{leg}_foot">{inertial(m_foot, 0)}'
-                f'<collision><geometry><sphere radius="{FOOT_RADIUS}"/></geometry></collision></link>'
-                f'<joint name="{leg}_foot_fixed" type="fixed"><parent link="{leg}_shank"/><child link="{leg}_foot"/>'
+                "<collision><geometry><sphere "
+                f'radius="{FOOT_RADIUS}"/></geometry></collision></link>'
+                f'<joint name="{leg}_foot_fixed" type="fixed"><parent link="{leg}_shank"/><child '
+                f'link="{leg}_foot"/>'
                 f'<origin xyz="0 0 {-ls}"/></joint>'
             )
         parts.append("</robot>")
@@ -224,7 +236,8 @@ class Trotter(Robot):
             Finding(
                 "statics.knee_torque",
                 bool(knee_torque < 0.8 * float(model.torque_limit[1])),
-                f"static knee torque {knee_torque:.2f} N m < 80 % of the motor's {model.torque_limit[1]:.1f} N m",
+                f"static knee torque {knee_torque:.2f} N m < 80 % of the motor's "
+                f"{model.torque_limit[1]:.1f} N m",
                 float(knee_torque),
                 float(0.8 * model.torque_limit[1]),
             ),

@@ -10,8 +10,10 @@ its machine: an AMD EPYC (AVX-512) and an Intel Xeon (AVX-512 with AMX) differ b
 `reseed` agree to the bit; the slope and PyBullet cases are one variant on both). A rollout
 passes when it matches one variant of its case to 1e-6.
 
-    python tests/plugins/simulators/test_rollout_fingerprint.py --add    # this machine's variant, if new
-    python tests/plugins/simulators/test_rollout_fingerprint.py --write  # start again (a deliberate physics change)
+    # this machine's variant, if new
+    python tests/plugins/simulators/test_rollout_fingerprint.py --add
+    # start again (a deliberate physics change)
+    python tests/plugins/simulators/test_rollout_fingerprint.py --write
 """
 
 from __future__ import annotations
@@ -113,7 +115,8 @@ def test_rollout_repeats_the_recorded_numbers(case: str) -> None:
     now = rollout(case)
     misses = [matches(now, recorded) for recorded in variants(case)]
     assert None in misses, (
-        f"{case}: matches none of its {len(misses)} recorded variants (first differing keys: {misses})"
+        f"{case}: matches none of its {len(misses)} recorded variants (first differing keys: "
+        f"{misses})"
     )
 
 

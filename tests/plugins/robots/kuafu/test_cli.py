@@ -103,7 +103,8 @@ def test_validate_exit_codes(capsys, monkeypatch):
     assert code == 1
     assert json.loads(out)["feasible"] is False
     assert err.strip().splitlines() == [
-        "infeasible: statics.single_support: largest gravity torque 150.0 N m at left_knee vs limit 119.7 N m"
+        "infeasible: statics.single_support: largest gravity torque 150.0 N m at left_knee vs "
+        "limit 119.7 N m"
     ]
 
 

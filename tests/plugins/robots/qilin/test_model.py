@@ -43,7 +43,8 @@ def test_the_nominal_design_is_the_go1(qilin) -> None:
 
 def test_masses_and_gains_follow_the_legs(qilin) -> None:
     small, large = qilin.build(np.array([0.7, 0.7])), qilin.build(np.array([1.3, 1.3]))
-    # thigh structure 0.409 kg and the calf less its 0.02 kg foot scale with length; the rest is fixed
+    # thigh structure 0.409 kg and the calf less its 0.02 kg foot scale with length;
+    # the rest is fixed
     per_leg_change = 0.3 * (1.009 - 0.60 + 0.195862 - 0.02)
     assert large.total_mass - 12.743448 == pytest.approx(4 * per_leg_change, abs=1e-6)
     assert 12.743448 - small.total_mass == pytest.approx(4 * per_leg_change, abs=1e-6)
