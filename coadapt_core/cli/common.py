@@ -1,5 +1,6 @@
-"""Helpers shared by the CLI commands: plugins by name, one-line user errors, one help style
-(the options themselves: `coadapt_core.cli.options`)."""
+"""Helpers shared by the CLI commands: plugins by name, one-line user errors, Ctrl-C, and
+`run_app`, which runs the app (the options: `coadapt_core.cli.options`; their help:
+`coadapt_core.cli.help`)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from typing import Any, NoReturn
 
 import typer
 
-from coadapt_core.cli.options import _HAND_DEFAULT, leaf_default, show_default
+from coadapt_core.cli.help import plain_help
 from coadapt_core.errors import CoadaptError, PluginError, UnknownPluginError, UserError
 from coadapt_core.plugins import get_registry
 
@@ -132,150 +133,11 @@ def resolve(kind: str, name: str) -> type:
         fail(str(exc))
 
 
-def config_default(name: str) -> str | None:
-    """The default of a `coadapt run` option that is a config setting: the value, or the
-    value per preset when the presets differ; for a learner setting, the starting policy's."""
-    from coadapt_core.coadapt.config import preset_defaults
-
-    found = preset_defaults().get(name)
-    if found is None and name == "preset":  # the preset's own default: the one the others come from
-        from coadapt_core.coadapt.config import CoadaptConfig
-        from coadapt_core.settings import leaves
-
-        return next(
-            (leaf_default(leaf) for leaf in leaves(CoadaptConfig) if leaf.key == "preset"), None
-        )
-    if found is None:
-        return None
-    leaf, values = found
-    if leaf.extra.get("plugin") or leaf.extra.get("unset"):
-        return leaf_default(leaf)
-    if all(v in ("", None) for v in values.values()):
-        return None  # the help text says what an empty value means
-    if len(set(map(repr, values.values()))) == 1:
-        return show_default(next(iter(values.values())))
-    return ", ".join(f"{show_default(v)} ({p})" for p, v in values.items())
-
-
-def style_help(command: Any, *, config_options: bool = False) -> None:
-    """One help style for every command: plain Click help (no table: option names are never
-    cut at 80 columns) and every known default as `[default: X]` at the end of the text. For
-    `coadapt run` (config_options) an option left unset takes the preset's value: shown per
-    preset when the presets differ."""
-    if hasattr(command, "rich_markup_mode"):
-        command.rich_markup_mode = None
-    for param in command.params:
-        kind = getattr(param, "param_type_name", "")
-        if kind == "argument" and getattr(param, "help", None):
-            found = _HAND_DEFAULT.search(param.help)
-            if found:  # arguments: the same style, the text they were given
-                rest = (param.help[: found.start()] + param.help[found.end() :]).strip()
-                param.help = f"{rest} [default: {(found.group(1) or found.group(2) or '').strip()}]"
-            continue
-        if kind != "option" or param.hidden:
-            continue
-        text = param.help or ""
-        found = _HAND_DEFAULT.search(text)
-        default = None
-        if found:
-            default = (found.group(1) or found.group(2) or "").strip()
-            text = (text[: found.start()] + text[found.end() :]).strip()
-        elif config_options and param.default is None and param.name:
-            default = config_default(param.name)
-        elif (
-            param.default is not None
-            and not (param.is_flag and param.default is False)
-            and param.name != "help"
-        ):
-            value = param.default
-            if param.is_flag and param.secondary_opts:
-                default = "on" if value else "off"
-            elif not param.is_flag:
-                default = show_default(value)
-        param.show_default = False
-        if default:
-            text = text.rstrip()
-            text = f"{text} [default: {default}]" if text else f"[default: {default}]"
-        param.help = text
-    for sub in getattr(command, "commands", {}).values():
-        top_run = sub.name == "run" and command.name in (None, "coadapt", "main")
-        style_help(sub, config_options=top_run)
-        if top_run:
-            short_help(sub, RUN_COMMON_OPTIONS)
-
-
-#: what `coadapt run --help` shows, in this order; `--help-all` shows every option
-RUN_COMMON_OPTIONS = (
-    "config",
-    "resume",
-    "preset",
-    "objective",
-    "optimizer",
-    "terrain",
-    "method",
-    "seed",
-    "robot",
-    "sim",
-    "mixed",
-    "checkpoint",
-    "out",
-    "store",
-    "as_json",
-    "video",
-    "device",
-    "logger",
-    "population",
-    "outer_iterations",
-    "optimizer_iterations",
-    "train_steps",
-    "eval_steps",
-    "design_ranges",
-)
-
-
-def short_help(command: Any, common: tuple[str, ...]) -> None:
-    """`--help` lists only the `common` options (in that order) and says how to see the
-    rest; the command's `--help-all` option (`help_all`) lists every option, in its order."""
-    original = command.format_options
-
-    def format_options(ctx: Any, formatter: Any) -> None:
-        if ctx.meta.get("coadapt_help_all"):
-            return original(ctx, formatter)
-        by_name = {p.name: p for p in command.get_params(ctx)}
-        shown = [by_name[n] for n in common if n in by_name] + [
-            by_name[n] for n in ("help_all", "help") if n in by_name
-        ]
-        records = [r for r in (p.get_help_record(ctx) for p in shown) if r]
-        with formatter.section("Common options"):
-            formatter.write_dl(records)
-        hidden = sum(
-            1
-            for p in by_name.values()
-            if getattr(p, "param_type_name", "") == "option" and not p.hidden and p not in shown
-        )
-        formatter.write_paragraph()
-        formatter.write_text(
-            f"{hidden} more options (training, task, randomization, surrogate, final check, "
-            "optimizer aliases): `coadapt run --help-all`, or docs/settings.md."
-        )
-
-    command.format_options = format_options
-
-
-def help_all(ctx: typer.Context, value: bool) -> None:
-    """`--help-all`: the command's help with every option (see `short_help`)."""
-    if not value or ctx.resilient_parsing:
-        return
-    ctx.meta["coadapt_help_all"] = True
-    typer.echo(ctx.get_help())
-    raise typer.Exit(0)
-
-
 def run_app(app: typer.Typer, argv: list[str] | None = None) -> int:
     """Run the `coadapt` app (or a command of it) on `argv`; user errors become one line on
     stderr and exit code 2 (`coadapt_core.cli.main`, and `coadapt grid`'s check of its cells)."""
     command = typer.main.get_command(app)
-    style_help(command)
+    plain_help(command)
     _INVOCATION[:] = list(sys.argv[1:] if argv is None else argv)
     try:
         result = command.main(args=argv, prog_name="coadapt", standalone_mode=False)

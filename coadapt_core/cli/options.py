@@ -2,24 +2,25 @@
 
 A command declares what it takes as settings classes (`coadapt_core.settings`: `@settings`
 and `setting(...)`, or `shared(...)` for a setting another command declares). `options_of`
-makes each field an option (or, with `argument=`, a positional argument): its type, names,
-help and shown default read from the declaration. `register` makes the command of those
-options and records them in `DECLARED`, from which docs/settings.md is generated
-(`coadapt_core.coadapt.settings_doc`) and against which the settings test compares every
+makes each field an option (or, with `argument=`, a positional argument): its type and
+names read from the declaration, its help and shown default rendered by the one help
+renderer (`coadapt_core.cli.help`). `register` makes the command of those options and
+records them in `DECLARED`, from which docs/settings.md is generated
+(`coadapt_core.cli.settings_doc`) and against which the settings test compares every
 command's --help. No command writes a `typer.Option` by hand (a test checks the sources).
 
 What a command receives: each option's value as given on the command line, None when left
 out; `settings_from` turns them into the settings object and `filled` into a plain mapping
 (the declared defaults filled in, every value checked: a bad one is a `UserError`, one line
 naming the setting and what it accepts, exit 2). `coadapt run` reads its config settings as
-overrides instead (preset < YAML < option, `coadapt_core.coadapt.config_loading.make_config`), so
-those options show the preset's default.
+overrides instead (preset < YAML < option,
+`coadapt_core.coadapt.config_loading.make_config`), so those options show the preset's
+default.
 """
 
 from __future__ import annotations
 
 import inspect
-import re
 import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -28,49 +29,13 @@ from typing import Any
 
 import typer
 
-from coadapt_core.settings import Leaf, leaves
+from coadapt_core.cli.help import option_help
+from coadapt_core.settings import leaves
+from coadapt_core.settings_leaf import Leaf
 
 #: command path ("run", "robot show", "" for `coadapt` itself) -> the option groups (one per
 #: settings class) of its options, in the order --help lists them
 DECLARED: dict[str, tuple[OptionGroup, ...]] = {}
-
-#: "(default X)" / "(default: X)" written into a help text by hand
-_HAND_DEFAULT = re.compile(
-    r"\s*(?:\(default:?\s+((?:[^()]|\([^()]*\))*)\)|\[default:\s*([^\]]*)\])"
-)
-
-
-def choices(kind: str) -> list[str]:
-    """Registered names for a plugin kind (empty when the registry cannot be built)."""
-    from coadapt_core.plugins import get_registry
-
-    try:
-        return get_registry().names(kind)
-    except Exception:
-        return []
-
-
-def choice_help(kind: str, text: str) -> str:
-    names = choices(kind)
-    return f"{text} One of: {', '.join(names)}." if names else text
-
-
-def show_default(value: object) -> str:
-    """A default as help shows it: on/off, 1_000_000, lists comma-separated."""
-    if isinstance(value, bool):
-        return "on" if value else "off"
-    if isinstance(value, int) and abs(value) >= 10_000:
-        return f"{value:_}"
-    if isinstance(value, list | tuple):
-        return (":" if len(value) == 2 and all(isinstance(v, float) for v in value) else ",").join(
-            map(str, value)
-        )
-    if isinstance(value, dict):
-        return ",".join(
-            f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in value.items()
-        )
-    return str(value)
-
 
 #: the command-line type of each kind of setting (text is parsed by the setting's type)
 _CLI_TYPES = {"bool": bool, "int": int, "float": float}
@@ -101,54 +66,6 @@ def option_names(leaf: Leaf, aliases: tuple[str, ...] = ()) -> tuple[str, ...]:
     return (*names, *tuple(leaf.extra.get("aliases") or ()), *aliases)
 
 
-def leaf_default(leaf: Leaf) -> str | None:
-    """A setting's default as help and docs/settings.md show it: a default its help writes
-    "(default: ...)"; for a plugin, the rule and the plugin it picks now (`default_rank`);
-    for an override, what unset means; else the declared value (None: nothing to show)."""
-    found = _HAND_DEFAULT.search(leaf.help)
-    if found:
-        return (found.group(1) or found.group(2) or "").strip()
-    if leaf.extra.get("plugin"):  # declared by the plugins themselves (`default_rank`)
-        rule = f"the installed {leaf.extra['plugin']} of highest default_rank"
-        try:
-            value = leaf.default
-        except Exception:  # the registry cannot be built: the command reports why
-            return rule
-        if value is None:  # unset: the ranked one; a list left unset names none
-            return None if typing.get_origin(leaf.annotation) is list else rule
-        return f"{value}, {rule}"
-    if leaf.extra.get("unset"):
-        return f"{leaf.extra['unset']}, else {show_default(leaf.extra['base_default'])}"
-    try:
-        value = leaf.default
-    except Exception:  # a default from the registry, which cannot be built: the command says why
-        return None
-    return None if value in ("", None) or value == {} else show_default(value)
-
-
-def option_help(leaf: Leaf, *, show: bool = True) -> str:
-    """The help of a setting's option: its declared help, what it accepts when that is a
-    choice or a structured value, the installed plugins when it names one, and (`show`) its
-    default as `[default: X]` (a switch that is off shows none)."""
-    text = leaf.help
-    if leaf.extra.get("plugin"):
-        text = choice_help(leaf.extra["plugin"], text)
-    elif leaf.kind == "choice":
-        text = f"{text} One of: {', '.join(map(str, leaf.choices or ()))}."
-    elif leaf.kind in ("range", "ints", "weights"):
-        text = f"{text} ({leaf.accepted()})"
-    if leaf.extra.get("unset"):
-        return f"{text} [default: {leaf.extra['unset']}, else {show_default(leaf.extra['base_default'])}]"
-    if (
-        show
-        and not _HAND_DEFAULT.search(text)
-        and not (leaf.kind == "bool" and leaf.default is False)
-    ):
-        default = leaf_default(leaf)
-        text = f"{text} [default: {default}]" if default else text
-    return text
-
-
 def _kind(leaf: Leaf) -> Any:
     """The type typer parses the option's text as (the setting's own checks come after)."""
     if leaf.annotation is Path:
@@ -167,17 +84,23 @@ class OptionGroup(list):
 
 
 def options_of(
-    cls: type, *, aliases: Mapping[str, tuple[str, ...]] | None = None, show_defaults: bool = True
+    cls: type, *, aliases: Mapping[str, tuple[str, ...]] | None = None, per_preset: bool = False
 ) -> OptionGroup:
     """One `CommandOption` per command-line setting of the settings tree `cls` (nested
-    sections expanded: `--task-commands-yaw-range`). `aliases` adds option names by key;
-    `show_defaults=False` leaves the shown default to the caller (`coadapt run`: per preset)."""
+    sections expanded: `--task-commands-yaw-range`), its help rendered by
+    `coadapt_core.cli.help.option_help`. `aliases` adds option names by key; `per_preset`:
+    the settings of `coadapt run`'s config, whose shown default is the preset's."""
+    presets = None
+    if per_preset:
+        from coadapt_core.coadapt.config import preset_defaults
+
+        presets = preset_defaults()
     out = []
     for leaf in leaves(cls):
         if not leaf.extra.get("cli", True):
             continue
         default = ... if leaf.required else None
-        text = option_help(leaf, show=show_defaults)
+        text = option_help(leaf, presets)
         metavar, names = (
             leaf.extra.get("argument"),
             option_names(leaf, tuple((aliases or {}).get(leaf.key, ()))),
@@ -259,8 +182,6 @@ __all__ = [
     "bind",
     "filled",
     "given_settings",
-    "leaf_default",
-    "option_help",
     "option_names",
     "options_of",
     "register",

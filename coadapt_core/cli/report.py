@@ -98,7 +98,7 @@ def _transfer_simulator(transfer_sim: str | None) -> str:
     """The sim-to-sim column's simulator: the one given, else the installed simulator of highest
     default_rank after the default one; its import lines silenced once."""
     from coadapt_core.cli.common import fail
-    from coadapt_core.cli.options import choices
+    from coadapt_core.cli.help import choices
     from coadapt_core.errors import UserError
     from coadapt_core.plugins import get_registry
 

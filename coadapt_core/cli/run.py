@@ -15,7 +15,8 @@ from typing import Any
 
 import typer
 
-from coadapt_core.cli.common import ctrl_c_once, fail, help_all, interrupted, resolve
+from coadapt_core.cli.common import ctrl_c_once, fail, interrupted, resolve
+from coadapt_core.cli.help import help_all
 from coadapt_core.cli.options import OptionGroup, filled, options_of
 from coadapt_core.cli.options import register as register_command
 from coadapt_core.cli.progress import ProgressLine
@@ -447,7 +448,7 @@ def config_options() -> OptionGroup:
     from coadapt_core.coadapt.config import CoadaptConfig
     from coadapt_core.coadapt.config_aliases import OPTION_ALIASES
 
-    return options_of(CoadaptConfig, aliases=OPTION_ALIASES, show_defaults=False)
+    return options_of(CoadaptConfig, aliases=OPTION_ALIASES, per_preset=True)
 
 
 def _resume_folder(resume: str, out: str | None) -> Path:
@@ -580,7 +581,7 @@ def _report(result: Any, as_json: bool) -> None:
 
 def register(app: typer.Typer) -> None:
     settings, own = config_options(), options_of(RunCommand)
-    aliases = options_of(alias_settings_class(), show_defaults=False)
+    aliases = options_of(alias_settings_class(), per_preset=True)
 
     def run_command(**values: Any) -> None:
         """Co-adapt design and policy: universal policy + pseudo-critics, optimizer with hybrid

@@ -21,7 +21,8 @@ from typing import Any
 import typer
 
 from coadapt_core.cli.common import fail, plugin_name, resolve
-from coadapt_core.cli.options import OptionGroup, choices, filled, given_settings, options_of
+from coadapt_core.cli.help import choices
+from coadapt_core.cli.options import OptionGroup, filled, given_settings, options_of
 from coadapt_core.cli.options import register as register_command
 from coadapt_core.cli.policy_source import EVAL_CHECKPOINTS, eval_checkpoint_path
 from coadapt_core.cli.progress import ProgressLine

@@ -11,9 +11,9 @@ import pytest
 import yaml
 
 from coadapt_core.cli.options import DECLARED
+from coadapt_core.cli.settings_doc import settings_markdown
 from coadapt_core.coadapt.config import CoadaptConfig
 from coadapt_core.coadapt.config_loading import config_from_dict, make_config
-from coadapt_core.coadapt.settings_doc import settings_markdown
 from coadapt_core.coadapt.setup import learner_settings
 from coadapt_core.errors import UserError
 from coadapt_core.settings import leaves
@@ -26,10 +26,10 @@ def _app_command():
     from typer.main import get_command
 
     from coadapt_core.cli import app
-    from coadapt_core.cli.common import style_help
+    from coadapt_core.cli.help import plain_help
 
     command = get_command(app)
-    style_help(command)
+    plain_help(command)
     return command
 
 
@@ -80,7 +80,7 @@ def documented(command: str) -> dict[str, tuple[str, str]]:
 
 def test_docs_table_is_generated_from_the_tree():
     """docs/settings.md is exactly what the tree generates (regenerate it with
-    `python -m coadapt_core.coadapt.settings_doc > docs/settings.md`)."""
+    `python -m coadapt_core.cli.settings_doc > docs/settings.md`)."""
     assert DOC.read_text() == settings_markdown()
 
 
@@ -141,7 +141,7 @@ def test_each_commands_help_is_its_declarations(command):
     names (aliases included), the declared help word for word, a shown default equal to the
     declared one; and every declared setting is a parameter. docs/settings.md lists the same
     options with the same meaning and default."""
-    from coadapt_core.cli.options import _HAND_DEFAULT, leaf_default
+    from coadapt_core.cli.help import HAND_DEFAULT, leaf_default
 
     cli = _command(command)
     params = {p.name: p for p in cli.params if p.name != "help"}
@@ -164,7 +164,7 @@ def test_each_commands_help_is_its_declarations(command):
         row = docs[option.names[0].split("/")[0] if option.names else leaf.extra["argument"]]
         hidden = " (hidden from --help)" if leaf.extra.get("hidden") else ""
         assert row == (
-            _HAND_DEFAULT.sub("", leaf.help).strip() + hidden,
+            HAND_DEFAULT.sub("", leaf.help).strip() + hidden,
             "required" if leaf.required else default or "''",
         )
         if (
@@ -193,7 +193,7 @@ def test_no_command_declares_an_option_by_hand():
 def test_a_shared_setting_is_one_declaration():
     """A setting two commands share reads the same in both: type, help, constraints, default
     (`terrain` was typed by hand in three commands)."""
-    from coadapt_core.settings import Leaf
+    from coadapt_core.settings_leaf import Leaf
 
     shared = 0
     for command in COMMANDS:

@@ -1,8 +1,9 @@
 """docs/settings.md, generated from the settings classes every command's options come from
 (`coadapt_core.cli.options.DECLARED`): `coadapt run`'s config tree (`CoadaptConfig`, also its
-YAML keys) first, then each command's own settings, command by command.
+YAML keys) first, then each command's own settings, command by command. Each setting's
+meaning and default are those --help shows, from the same renderer (`coadapt_core.cli.help`).
 
-    python -m coadapt_core.coadapt.settings_doc > docs/settings.md
+    python -m coadapt_core.cli.settings_doc > docs/settings.md
 
 tests/core/test_settings.py regenerates the page and compares it with the committed one, and
 compares each command's options with those of its `--help` (`coadapt run --help-all`)."""
@@ -11,11 +12,16 @@ from __future__ import annotations
 
 from typing import Any
 
+from coadapt_core.cli.help import config_default, leaf_default, meaning
+from coadapt_core.cli.options import DECLARED
+from coadapt_core.coadapt.config import CoadaptConfig, preset_defaults
+from coadapt_core.settings import leaves, sections
+
 HEADER = """# Settings of every command
 
 Generated from the one declaration of every setting: `coadapt run`'s config tree
 (`CoadaptConfig` in `coadapt_core/coadapt/config.py`) and each command's settings classes,
-named in its section, by `python -m coadapt_core.coadapt.settings_doc > docs/settings.md`.
+named in its section, by `python -m coadapt_core.cli.settings_doc > docs/settings.md`.
 Every option of every command comes from these declarations (`coadapt_core.cli.options`);
 a test regenerates this page and compares each command's `--help` (`coadapt run --help-all`)
 with it. A setting two commands share is declared once (`coadapt_core.settings.shared`)
@@ -48,28 +54,19 @@ def _names(option: Any) -> str:
     return " ".join(f"`{name.split('/')[0]}`" for name in option.names)
 
 
-def _meaning(leaf: Any) -> str:
-    from coadapt_core.cli.options import _HAND_DEFAULT
-
-    return _cell(_HAND_DEFAULT.sub("", leaf.help).strip())
-
-
 def _config_rows(group: Any) -> list[list[str]]:
     """`coadapt run`'s config settings by section (the run's own first): heading and rows; a
     setting kept off the command line says "(YAML only)"."""
-    from coadapt_core.cli.common import config_default
-    from coadapt_core.coadapt.config import CoadaptConfig
-    from coadapt_core.settings import leaves, sections
-
     nested, options = sections(CoadaptConfig), {option.leaf.key: option for option in group}
+    presets = preset_defaults()
     groups: dict[str, list[str]] = {"run": []}
     for leaf in leaves(CoadaptConfig):
         section = leaf.path[0] if leaf.path[0] in nested else "run"
         empty = "{}" if leaf.kind == "mapping" else "''"
-        default = _cell(config_default(leaf.param) or empty)
+        default = _cell(config_default(leaf, presets) or empty)
         names = _names(options[leaf.key]) if leaf.key in options else "(YAML only)"
         groups.setdefault(section, []).append(
-            f"| `{leaf.key}` | {names} | {default} | {leaf.accepted()} | {_cell(leaf.help)} |"
+            f"| `{leaf.key}` | {names} | {default} | {leaf.accepted()} | {_cell(meaning(leaf))} |"
         )
     out = []
     for section, rows in groups.items():
@@ -90,8 +87,6 @@ def _config_rows(group: Any) -> list[list[str]]:
 
 def _group_table(group: Any) -> list[str]:
     """One settings class of a command: its name, its docstring and one row per option."""
-    from coadapt_core.cli.options import leaf_default
-
     cls = group.root
     doc = " ".join((cls.__doc__ or "").split())
     out = [f"`{cls.__module__}.{cls.__name__}`. {doc}\n", *_OPTIONS_ONLY]
@@ -100,7 +95,7 @@ def _group_table(group: Any) -> list[str]:
         default = "required" if leaf.required else _cell(leaf_default(leaf) or "''")
         hidden = " (hidden from --help)" if leaf.extra.get("hidden") else ""
         out.append(
-            f"| {_names(option)} | {default} | {leaf.accepted()} | {_meaning(leaf)}{hidden} |"
+            f"| {_names(option)} | {default} | {leaf.accepted()} | {_cell(meaning(leaf))}{hidden} |"
         )
     return out
 
@@ -108,8 +103,6 @@ def _group_table(group: Any) -> list[str]:
 def command_order() -> list[str]:
     """Every command path with declared options: `run` first, then as `coadapt --help` lists
     them, `coadapt` itself last."""
-    from coadapt_core.cli.options import DECLARED
-
     first, last = ["run"], [""]
     return (
         first + [p for p in DECLARED if p not in first + last] + [p for p in last if p in DECLARED]
@@ -120,8 +113,6 @@ def settings_markdown() -> str:
     """The page: `coadapt run`'s config tree, one table per section, then every command's
     own settings."""
     import coadapt_core.cli  # noqa: F401  (registering the commands fills DECLARED)
-    from coadapt_core.cli.options import DECLARED
-    from coadapt_core.coadapt.config import CoadaptConfig
 
     out = [HEADER]
     for group in DECLARED["run"]:

@@ -1,0 +1,218 @@
+"""The one renderer of help: what `--help` says of each option and what docs/settings.md
+says of each setting, from the setting's declaration (`coadapt_core.settings`), in one pass.
+
+A setting's help is its declared text (a default written into it by hand, "(default: X)",
+taken out), what it accepts when that is a choice or a structured value, the installed
+plugins when it names one, then its default, once, as `[default: X]` (`shown_default`).
+`coadapt run`'s config settings show the preset's default instead (`config_default`: per
+preset when the presets differ), since an option left out takes the preset's value.
+`coadapt_core.cli.options` writes these texts into the options when a command is made;
+`plain_help` then only sets the one layout of every command's --help (and `coadapt run
+--help`'s short list); `coadapt_core.cli.settings_doc` writes the same defaults and
+meanings into docs/settings.md.
+"""
+
+from __future__ import annotations
+
+import re
+import typing
+from typing import Any
+
+import typer
+
+from coadapt_core.settings_leaf import Leaf
+
+#: "(default X)" / "(default: X)" written into a help text by hand
+HAND_DEFAULT = re.compile(r"\s*(?:\(default:?\s+((?:[^()]|\([^()]*\))*)\)|\[default:\s*([^\]]*)\])")
+
+
+def choices(kind: str) -> list[str]:
+    """Registered names for a plugin kind (empty when the registry cannot be built)."""
+    from coadapt_core.plugins import get_registry
+
+    try:
+        return get_registry().names(kind)
+    except Exception:
+        return []
+
+
+def show_default(value: object) -> str:
+    """A default as help shows it: on/off, 1_000_000, lists comma-separated."""
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    if isinstance(value, int) and abs(value) >= 10_000:
+        return f"{value:_}"
+    if isinstance(value, list | tuple):
+        pair = len(value) == 2 and all(isinstance(v, float) for v in value)
+        return (":" if pair else ",").join(map(str, value))
+    if isinstance(value, dict):
+        return ",".join(
+            f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in value.items()
+        )
+    return str(value)
+
+
+def meaning(leaf: Leaf) -> str:
+    """The setting's declared help without a default written into it by hand."""
+    return HAND_DEFAULT.sub("", leaf.help).strip()
+
+
+def _hand_default(leaf: Leaf) -> str | None:
+    found = HAND_DEFAULT.search(leaf.help)
+    return (found.group(1) or found.group(2) or "").strip() if found else None
+
+
+def leaf_default(leaf: Leaf) -> str | None:
+    """A setting's default as help and docs/settings.md show it: a default its help writes
+    "(default: ...)"; for a plugin, the rule and the plugin it picks now (`default_rank`);
+    for an override, what unset means; else the declared value (None: nothing to show)."""
+    hand = _hand_default(leaf)
+    if hand is not None:
+        return hand
+    if leaf.extra.get("plugin"):  # declared by the plugins themselves (`default_rank`)
+        rule = f"the installed {leaf.extra['plugin']} of highest default_rank"
+        try:
+            value = leaf.default
+        except Exception:  # the registry cannot be built: the command reports why
+            return rule
+        if value is None:  # unset: the ranked one; a list left unset names none
+            return None if typing.get_origin(leaf.annotation) is list else rule
+        return f"{value}, {rule}"
+    if leaf.extra.get("unset"):
+        return f"{leaf.extra['unset']}, else {show_default(leaf.extra['base_default'])}"
+    try:
+        value = leaf.default
+    except Exception:  # a default from the registry, which cannot be built: the command says why
+        return None
+    return None if value in ("", None) or value == {} else show_default(value)
+
+
+def config_default(leaf: Leaf, presets: dict[str, Any] | None = None) -> str | None:
+    """The default of a `coadapt run` option that is a config setting (or a plugin option's
+    alias): the value, or the value per preset when the presets differ; for a plugin or a
+    learner setting, `leaf_default`'s. `presets`: `preset_defaults()`, when already read."""
+    from coadapt_core.coadapt.config import preset_defaults
+
+    hand = _hand_default(leaf)
+    if hand is not None:
+        return hand
+    found = (preset_defaults() if presets is None else presets).get(leaf.param)
+    if found is None:  # the preset itself, and names that are no config setting
+        return leaf_default(leaf) if leaf.key == "preset" else None
+    leaf, values = found
+    if leaf.extra.get("plugin") or leaf.extra.get("unset"):
+        return leaf_default(leaf)
+    if all(v in ("", None) for v in values.values()):
+        return None  # the help text says what an empty value means
+    if len(set(map(repr, values.values()))) == 1:
+        return show_default(next(iter(values.values())))
+    return ", ".join(f"{show_default(v)} ({p})" for p, v in values.items())
+
+
+def shown_default(leaf: Leaf, presets: dict[str, Any] | None = None) -> str | None:
+    """The default --help shows at the end of the setting's help (None: none shown; a
+    switch that is off shows none). `presets` (`preset_defaults()`): a config setting of
+    `coadapt run`, whose default is the preset's (`config_default`)."""
+    if presets is not None:
+        return config_default(leaf, presets)
+    if _hand_default(leaf) is None and leaf.kind == "bool" and leaf.default is False:
+        return None
+    return leaf_default(leaf)
+
+
+def option_help(leaf: Leaf, presets: dict[str, Any] | None = None) -> str:
+    """The help of a setting's option: its meaning, what it accepts when that is a choice
+    or a structured value, the installed plugins when it names one, and its default once,
+    as `[default: X]` (`shown_default`)."""
+    text = meaning(leaf)
+    if leaf.extra.get("plugin"):
+        names = choices(leaf.extra["plugin"])
+        text = f"{text} One of: {', '.join(names)}." if names else text
+    elif leaf.kind == "choice":
+        text = f"{text} One of: {', '.join(map(str, leaf.choices or ()))}."
+    elif leaf.kind in ("range", "ints", "weights"):
+        text = f"{text} ({leaf.accepted()})"
+    default = shown_default(leaf, presets)
+    return f"{text} [default: {default}]" if default else text
+
+
+#: what `coadapt run --help` shows, in this order; `--help-all` shows every option
+RUN_COMMON_OPTIONS = (
+    "config",
+    "resume",
+    "preset",
+    "objective",
+    "optimizer",
+    "terrain",
+    "method",
+    "seed",
+    "robot",
+    "sim",
+    "mixed",
+    "checkpoint",
+    "out",
+    "store",
+    "as_json",
+    "video",
+    "device",
+    "logger",
+    "population",
+    "outer_iterations",
+    "optimizer_iterations",
+    "train_steps",
+    "eval_steps",
+    "design_ranges",
+)
+
+
+def plain_help(command: Any) -> None:
+    """One help layout for every command: plain Click help (no table: option names are never
+    cut at 80 columns), each option's text as `option_help` wrote it (Click adds no default
+    of its own); `coadapt run --help` lists the common options only (`short_help`)."""
+    if hasattr(command, "rich_markup_mode"):
+        command.rich_markup_mode = None
+    for param in command.params:
+        if getattr(param, "param_type_name", "") == "option":
+            param.show_default = False
+    for sub in getattr(command, "commands", {}).values():
+        plain_help(sub)
+        if sub.name == "run" and command.name in (None, "coadapt", "main"):
+            short_help(sub, RUN_COMMON_OPTIONS)
+
+
+def short_help(command: Any, common: tuple[str, ...]) -> None:
+    """`--help` lists only the `common` options (in that order) and says how to see the
+    rest; the command's `--help-all` option (`help_all`) lists every option, in its order."""
+    original = command.format_options
+
+    def format_options(ctx: Any, formatter: Any) -> None:
+        if ctx.meta.get("coadapt_help_all"):
+            return original(ctx, formatter)
+        by_name = {p.name: p for p in command.get_params(ctx)}
+        shown = [by_name[n] for n in common if n in by_name] + [
+            by_name[n] for n in ("help_all", "help") if n in by_name
+        ]
+        records = [r for r in (p.get_help_record(ctx) for p in shown) if r]
+        with formatter.section("Common options"):
+            formatter.write_dl(records)
+        hidden = sum(
+            1
+            for p in by_name.values()
+            if getattr(p, "param_type_name", "") == "option" and not p.hidden and p not in shown
+        )
+        formatter.write_paragraph()
+        formatter.write_text(
+            f"{hidden} more options (training, task, randomization, surrogate, final check, "
+            "optimizer aliases): `coadapt run --help-all`, or docs/settings.md."
+        )
+
+    command.format_options = format_options
+
+
+def help_all(ctx: typer.Context, value: bool) -> None:
+    """`--help-all`: the command's help with every option (see `short_help`)."""
+    if not value or ctx.resilient_parsing:
+        return
+    ctx.meta["coadapt_help_all"] = True
+    typer.echo(ctx.get_help())
+    raise typer.Exit(0)
