@@ -57,59 +57,37 @@ def evaluate_checkpoint(
     `objectives` names further installed objectives (a plugin's included, built with their
     default options): `costs` and `costs_se` hold each one's mean cost per step and its
     standard error over the agents."""
-    import numpy as np
-    import torch
-
-    from coadapt_core.learning.checkpoints import read_checkpoint
-    from coadapt_core.learning.config import TrainConfig
     from coadapt_core.learning.evaluate import rollout
-    from coadapt_core.learning.trainer import Trainer
-    from coadapt_core.physics.randomization import RandomizationConfig
     from coadapt_core.plugins import get_registry
-    from coadapt_core.scenarios.seeds import scenario_seed
-    from coadapt_core.scenarios.sets import apply_scenarios
-    from coadapt_core.task import LocomotionEnv, TaskConfig
 
-    state = read_checkpoint(checkpoint)
-    if state["robot"] != robot_obj.name:
-        raise UserError(
-            f"checkpoint '{checkpoint}' was trained for robot '{state['robot']}', "
-            f"not '{robot_obj.name}'",
-            field="checkpoint",
-        )
     registry = get_registry()
     always, metric_names = reported_objectives(objectives)
     requested = list(dict.fromkeys(objectives))
     objective_objs = [registry.get("objective", n)() for n in metric_names]
-    config = TrainConfig.from_dict(state["train_config"])
-    config.device = device
-    task = TaskConfig.from_dict(state["task_config"])
-    task.commands.resample_seconds = 0.0
-    task.episode_seconds = seconds + 1.0
-    trainer = Trainer(
+    trainer, task = _checkpoint_trainer(
+        checkpoint,
         robot_obj,
         sim_cls,
         objective_objs,
         terrain=terrain,
-        train_config=config,
-        task_config=task,
+        seconds=seconds,
         device=device,
         seed=seed,
     )
-    trainer.load(checkpoint, optimizers=False)
-    randomization = RandomizationConfig() if randomize else RandomizationConfig.off()
-    designs = np.tile(np.asarray(design, dtype=float), (agents, 1))
-    sim = sim_cls(robot_obj, designs, terrain=terrain, randomization=randomization, seed=seed)
-    env = LocomotionEnv(sim, robot_obj, task, objective_objs, seed=seed, device=device)
-    trainer.ensure_ppo(env)
-    # the scenario set of `seed` (as `coadapt run/landscape --seed`), under the given command
-    apply_scenarios(
-        env,
-        agents,
-        1,
-        scenario_seed(seed),
-        commands=torch.tensor(command, dtype=torch.float32).expand(agents, 3),
+    sim, env = _design_env(
+        robot_obj,
+        sim_cls,
+        task,
+        objective_objs,
+        design,
+        terrain=terrain,
+        agents=agents,
+        seed=seed,
+        device=device,
+        randomize=randomize,
     )
+    trainer.ensure_ppo(env)
+    _hold_command(env, agents, seed, command)
     steps = max(1, int(round(seconds / env.dt)))
     watch = _Watch(
         record=record,
@@ -134,6 +112,93 @@ def evaluate_checkpoint(
     if record:
         out["_trajectory"] = {"frames": watch.frames, "dt": env.dt, "terrain": terrain}
     return out
+
+
+def _design_env(
+    robot_obj: Any,
+    sim_cls: type,
+    task: Any,
+    objective_objs: list,
+    design: Any,
+    *,
+    terrain: str,
+    agents: int,
+    seed: int,
+    device: str,
+    randomize: bool,
+) -> tuple[Any, Any]:
+    """(simulator, env) of `agents` copies of `design`, randomized or not."""
+    import numpy as np
+
+    from coadapt_core.physics.randomization import RandomizationConfig
+    from coadapt_core.task import LocomotionEnv
+
+    randomization = RandomizationConfig() if randomize else RandomizationConfig.off()
+    designs = np.tile(np.asarray(design, dtype=float), (agents, 1))
+    sim = sim_cls(robot_obj, designs, terrain=terrain, randomization=randomization, seed=seed)
+    env = LocomotionEnv(sim, robot_obj, task, objective_objs, seed=seed, device=device)
+    return sim, env
+
+
+def _hold_command(env: Any, agents: int, seed: int, command: list[float]) -> None:
+    """Give the env's agents the scenario set of `seed` (as `coadapt run/landscape --seed`),
+    every agent under the given command."""
+    import torch
+
+    from coadapt_core.scenarios.seeds import scenario_seed
+    from coadapt_core.scenarios.sets import apply_scenarios
+
+    apply_scenarios(
+        env,
+        agents,
+        1,
+        scenario_seed(seed),
+        commands=torch.tensor(command, dtype=torch.float32).expand(agents, 3),
+    )
+
+
+def _checkpoint_trainer(
+    checkpoint: Path | str,
+    robot_obj: Any,
+    sim_cls: type,
+    objective_objs: list,
+    *,
+    terrain: str,
+    seconds: float,
+    device: str,
+    seed: int,
+) -> tuple[Any, Any]:
+    """(a Trainer holding the checkpoint's policy, the checkpoint's task set to hold one
+    command for `seconds`); a checkpoint of another robot is refused."""
+    from coadapt_core.learning.checkpoints import read_checkpoint
+    from coadapt_core.learning.config import TrainConfig
+    from coadapt_core.learning.trainer import Trainer
+    from coadapt_core.task import TaskConfig
+
+    state = read_checkpoint(checkpoint)
+    if state["robot"] != robot_obj.name:
+        raise UserError(
+            f"checkpoint '{checkpoint}' was trained for robot '{state['robot']}', "
+            f"not '{robot_obj.name}'",
+            field="checkpoint",
+        )
+    config = TrainConfig.from_dict(state["train_config"])
+    config.device = device
+    task = TaskConfig.from_dict(state["task_config"])
+    task.commands.resample_seconds = 0.0
+    task.episode_seconds = seconds + 1.0
+    trainer = Trainer(
+        robot_obj,
+        sim_cls,
+        objective_objs,
+        terrain=terrain,
+        train_config=config,
+        task_config=task,
+        device=device,
+        seed=seed,
+    )
+    trainer.load(checkpoint, optimizers=False)
+    return trainer, task
 
 
 #: the walking-gate check at the end of `coadapt train`: agents, simulated seconds (250

@@ -18,6 +18,12 @@ from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 from coadapt_core.errors import UserError
+from coadapt_core.experiments.cell_hash import (
+    CONFIG_HASH_IGNORES,
+    cell_config_hash,
+    config_hash,
+    run_config_hash,
+)
 from coadapt_core.experiments.grid_exec import (
     ENTRY,
     EXECUTORS,
@@ -31,18 +37,14 @@ from coadapt_core.experiments.grid_exec import (
     stop_cells,
 )
 from coadapt_core.experiments.grid_plan import (
-    CONFIG_HASH_IGNORES,
     Cell,
     CellOutcome,
     CellTask,
     GridReport,
     GridSpec,
-    cell_config_hash,
-    config_hash,
     finished_run,
     parse_list,
     plan_grid,
-    run_config_hash,
     settle_abandoned,
     unfinished_run,
 )
@@ -121,34 +123,10 @@ def run_grid(
         store, spec, out_dir=out_dir, command=command, timeout=timeout, log_dir=log_dir
     )
     report = GridReport(grid_id)
-    for cell in skipped:
-        run = finished_run(store, cell, spec)
-        store.set_cell(grid_id, cell.key, status="finished", run_id=run["id"] if run else None)
-        report.skipped.append(cell.key)
-        if on_event:
-            on_event("skipped", cell, None)
-    for task in tasks:
-        store.set_cell(grid_id, task.cell.key, status="running", run_id=task.resume, attempt=True)
-        if task.resume:
-            report.resumed.append(task.cell.key)
-        if on_event:
-            on_event("started", task.cell, None)
+    _record_plan(store, spec, skipped, tasks, report, on_event)
     if not tasks:
         return report
-    if executor == "local":  # the cores shared by the cells at once: cells x threads <= cores
-        workers, threads = share_cores(usable_cpus(), len(tasks), workers, threads)
-    else:  # a Ray cell reserves its threads on a node of the cluster
-        workers, threads = workers or default_workers(), threads or 1
-    for task in tasks:
-        task.argv += [
-            "--threads",
-            str(threads),
-        ]  # not in the cell's config hash: any split resumes it
-        task.env.setdefault("OMP_NUM_THREADS", os.environ.get("OMP_NUM_THREADS", str(threads)))
-        if min(workers, len(tasks)) > 1 and "GOMP_SPINCOUNT" not in os.environ:
-            # cells started together share the cores: their OpenMP workers sleep when idle
-            # instead of spinning (coadapt_core.launch.omp_wait_settings)
-            task.env.setdefault("OMP_WAIT_POLICY", os.environ.get("OMP_WAIT_POLICY", "PASSIVE"))
+    workers = _give_threads(tasks, executor, workers, threads)
     if executor == "local":
         stream = local_executor(tasks, workers)
     else:
@@ -171,6 +149,51 @@ def run_grid(
             raise GridInterrupted(report) from None
         raise
     return report
+
+
+def _record_plan(
+    store: ResultsStore,
+    spec: GridSpec,
+    skipped: Sequence[Cell],
+    tasks: Sequence[CellTask],
+    report: GridReport,
+    on_event: Callable[[str, Cell, CellOutcome | None], None] | None,
+) -> None:
+    """Mark the skipped cells finished (with the run that answers them) and the cells to run
+    running, in the store and the report."""
+    grid_id = spec.grid_id
+    for cell in skipped:
+        run = finished_run(store, cell, spec)
+        store.set_cell(grid_id, cell.key, status="finished", run_id=run["id"] if run else None)
+        report.skipped.append(cell.key)
+        if on_event:
+            on_event("skipped", cell, None)
+    for task in tasks:
+        store.set_cell(grid_id, task.cell.key, status="running", run_id=task.resume, attempt=True)
+        if task.resume:
+            report.resumed.append(task.cell.key)
+        if on_event:
+            on_event("started", task.cell, None)
+
+
+def _give_threads(
+    tasks: Sequence[CellTask], executor: str, workers: int | None, threads: int | None
+) -> int:
+    """Give every cell its threads (`--threads`, OMP_NUM_THREADS and, when cells run
+    together, the passive OpenMP wait); returns the cells to run at once."""
+    if executor == "local":  # the cores shared by the cells at once: cells x threads <= cores
+        workers, threads = share_cores(usable_cpus(), len(tasks), workers, threads)
+    else:  # a Ray cell reserves its threads on a node of the cluster
+        workers, threads = workers or default_workers(), threads or 1
+    for task in tasks:
+        # not in the cell's config hash: any split resumes it
+        task.argv += ["--threads", str(threads)]
+        task.env.setdefault("OMP_NUM_THREADS", os.environ.get("OMP_NUM_THREADS", str(threads)))
+        if min(workers, len(tasks)) > 1 and "GOMP_SPINCOUNT" not in os.environ:
+            # cells started together share the cores: their OpenMP workers sleep when idle
+            # instead of spinning (coadapt_core.launch.omp_wait_settings)
+            task.env.setdefault("OMP_WAIT_POLICY", os.environ.get("OMP_WAIT_POLICY", "PASSIVE"))
+    return workers
 
 
 def _mark_interrupted(

@@ -142,52 +142,17 @@ def _evaluate_grid(
         fit = backend.real_fitness(
             batch, objectives, agents=agents, steps=steps, seed=scenario_seed(seed)
         )
-        if getattr(fit, "per_scenario", None) is not None:
-            for design, per in zip(batch, np.asarray(fit.per_scenario, dtype=float), strict=True):
-                per_scenario[tuple(np.round(design, 9))] = per
-        if getattr(fit, "fall_rate", None) is not None:
-            for design, rate in zip(batch, np.asarray(fit.fall_rate, dtype=float), strict=True):
-                fall_rate[tuple(np.round(design, 9))] = float(rate)
-        if getattr(fit, "scenario_falls", None) is not None:
-            for design, falls in zip(
-                batch, np.asarray(fit.scenario_falls, dtype=bool), strict=True
-            ):
-                scenario_falls[tuple(np.round(design, 9))] = falls
+        _keep_scenarios(fit, batch, per_scenario, scenario_falls, fall_rate)
         if (
             getattr(fit, "per_scenario", None) is not None
             and rule.needs_reference
             and reference is None
         ):
-            # the nominal design on the grid's scenario set: the rule's reference level
-            ref_fit = backend.real_fitness(
-                np.asarray(nominal, dtype=float)[None, :],
-                objectives,
-                agents=agents,
-                steps=steps,
-                seed=scenario_seed(seed),
+            reference, extra_interactions = _reference_level(
+                backend, objectives, nominal, agents=agents, steps=steps, seed=seed, rule=rule
             )
-            extra_interactions = int(ref_fit.interactions)
-            falls = getattr(ref_fit, "scenario_falls", None)
-            reference = rule.reference(
-                np.asarray(ref_fit.per_scenario)[0], None if falls is None else np.asarray(falls)[0]
-            )
-        if getattr(fit, "per_scenario", None) is not None and (
-            reference is not None or not rule.needs_reference
-        ):
-            costs = rule.cost(fit.per_scenario, getattr(fit, "scenario_falls", None), reference)
-        else:
-            costs = np.asarray(fit.costs, dtype=float)
-        costs = costs.reshape(len(batch), len(names))  # [grid, M]
-        recorder.record_evaluations(
-            run_id,
-            outer=0,
-            inner=row,
-            designs=batch.tolist(),
-            costs=[dict(zip(names, c.tolist(), strict=True)) for c in costs],
-            kind="real",
-            interactions=[fit.interactions // len(batch)] * len(batch),
-            seconds=[fit.seconds / len(batch)] * len(batch),
-        )
+        costs = _row_costs(fit, rule, reference).reshape(len(batch), len(names))  # [grid, M]
+        _record_row(recorder, run_id, row, batch, names, costs, fit)
         if on_row is not None:
             on_row(row, grid)
     rows = store.evaluations(run_id, kind="real")
@@ -195,7 +160,7 @@ def _evaluate_grid(
     best = min(rows, key=lambda e: e.costs[first])
     nominal_arr = np.asarray(nominal, dtype=float)
     nominal_row = min(rows, key=lambda e: float(np.abs(np.asarray(e.design) - nominal_arr).sum()))
-    summary = {
+    return {
         "run_id": run_id,
         "best_design": best.design,
         "best_cost": best.costs[first],
@@ -218,7 +183,84 @@ def _evaluate_grid(
             fall_rate,
         ),
     }
-    return summary
+
+
+def _record_row(
+    recorder: SqliteRecorder,
+    run_id: str,
+    row: int,
+    batch: np.ndarray,
+    names: list[str],
+    costs: np.ndarray,
+    fit: Any,
+) -> None:
+    """One grid row's designs and costs [grid, M] as real evaluations (inner = the row), the
+    interactions and seconds shared evenly."""
+    recorder.record_evaluations(
+        run_id,
+        outer=0,
+        inner=row,
+        designs=batch.tolist(),
+        costs=[dict(zip(names, c.tolist(), strict=True)) for c in costs],
+        kind="real",
+        interactions=[fit.interactions // len(batch)] * len(batch),
+        seconds=[fit.seconds / len(batch)] * len(batch),
+    )
+
+
+def _row_costs(fit: Any, rule: CostRule, reference: Any) -> np.ndarray:
+    """A row's costs by the run's cost rule where the backend gave per-scenario costs (and
+    the rule's reference level is known), else the backend's own costs."""
+    if getattr(fit, "per_scenario", None) is not None and (
+        reference is not None or not rule.needs_reference
+    ):
+        return rule.cost(fit.per_scenario, getattr(fit, "scenario_falls", None), reference)
+    return np.asarray(fit.costs, dtype=float)
+
+
+def _keep_scenarios(
+    fit: Any,
+    batch: np.ndarray,
+    per_scenario: dict[tuple[float, ...], np.ndarray],
+    scenario_falls: dict[tuple[float, ...], np.ndarray],
+    fall_rate: dict[tuple[float, ...], float],
+) -> None:
+    """Keep each design's per-scenario costs, falls and fall rate, where `fit` has them."""
+    if getattr(fit, "per_scenario", None) is not None:
+        for design, per in zip(batch, np.asarray(fit.per_scenario, dtype=float), strict=True):
+            per_scenario[tuple(np.round(design, 9))] = per
+    if getattr(fit, "fall_rate", None) is not None:
+        for design, rate in zip(batch, np.asarray(fit.fall_rate, dtype=float), strict=True):
+            fall_rate[tuple(np.round(design, 9))] = float(rate)
+    if getattr(fit, "scenario_falls", None) is not None:
+        for design, falls in zip(batch, np.asarray(fit.scenario_falls, dtype=bool), strict=True):
+            scenario_falls[tuple(np.round(design, 9))] = falls
+
+
+def _reference_level(
+    backend: CoadaptationBackend,
+    objectives: Sequence[Objective],
+    nominal: Sequence[float],
+    *,
+    agents: int,
+    steps: int,
+    seed: int,
+    rule: CostRule,
+) -> tuple[Any, int]:
+    """(the rule's reference level, the interactions it took): the nominal design on the
+    grid's scenario set."""
+    ref_fit = backend.real_fitness(
+        np.asarray(nominal, dtype=float)[None, :],
+        objectives,
+        agents=agents,
+        steps=steps,
+        seed=scenario_seed(seed),
+    )
+    falls = getattr(ref_fit, "scenario_falls", None)
+    reference = rule.reference(
+        np.asarray(ref_fit.per_scenario)[0], None if falls is None else np.asarray(falls)[0]
+    )
+    return reference, int(ref_fit.interactions)
 
 
 def _uncertainty(
