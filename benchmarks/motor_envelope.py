@@ -188,13 +188,15 @@ def main(argv: list[str] | None = None) -> int:
         if args.json:
             print(json.dumps(row))
         else:
+            hip, knee = row["hip"], row["knee"]
             print(
-                f"{design.tolist()}: torque {row['torque_cost']:.0f} +- {row['torque_cost_se']:.0f} (plain "
-                f"{row['torque_plain_mean']:.0f}), falls {100 * row['fall_rate']:.1f} %, tracking ratio "
-                f"{row['tracking_ratio']:.2f}; clipped hip {100 * row['hip']['clipped_share']:.1f} % knee "
-                f"{100 * row['knee']['clipped_share']:.1f} %; |tau| asked/applied knee "
-                f"{row['knee']['commanded_abs_torque']:.1f}/{row['knee']['applied_abs_torque']:.1f} N m; knee speed p99 "
-                f"{row['knee']['speed_over_no_load_p99']:.2f} x no-load"
+                f"{design.tolist()}: torque {row['torque_cost']:.0f} +- "
+                f"{row['torque_cost_se']:.0f} (plain {row['torque_plain_mean']:.0f}), "
+                f"falls {100 * row['fall_rate']:.1f} %, tracking ratio "
+                f"{row['tracking_ratio']:.2f}; clipped hip {100 * hip['clipped_share']:.1f} % "
+                f"knee {100 * knee['clipped_share']:.1f} %; |tau| asked/applied knee "
+                f"{knee['commanded_abs_torque']:.1f}/{knee['applied_abs_torque']:.1f} N m; "
+                f"knee speed p99 {knee['speed_over_no_load_p99']:.2f} x no-load"
             )
     backend.close()
     return 0

@@ -94,7 +94,8 @@ def _row(
 
 
 def test_method_order_counts_reversed_pairs_and_skips_the_papers_ties():
-    # torque on flat: paper ours 45.9, no-surrogate 46.5, no-real 43.6, no-retrain 46.8 = BO 46.8 (a tie)
+    # torque on flat: paper ours 45.9, no-surrogate 46.5, no-real 43.6,
+    # no-retrain 46.8 = BO 46.8 (a tie)
     rows = [
         _row("ours", 0.47, 0.01),
         _row("no-surrogate", 0.46, 0.01),
@@ -109,8 +110,9 @@ def test_method_order_counts_reversed_pairs_and_skips_the_papers_ties():
         "bo-specialized",
     ]  # tied, the paper's row order
     assert order["our_order"] == "ours > no-surrogate > bo-specialized > no-retrain > no-real"
-    # 10 pairs, one tied in the paper; reversed: ours/no-surrogate (0.01 apart: within noise), and no-retrain and
-    # BO each below ours and no-surrogate (4, each ~0.06 apart against 2 x hypot(SE) = 0.016: clear)
+    # 10 pairs, one tied in the paper; reversed: ours/no-surrogate (0.01 apart: within noise),
+    # and no-retrain and BO each below ours and no-surrogate (4, each ~0.06 apart against
+    # 2 x hypot(SE) = 0.016: clear)
     assert (order["pairs"], order["reversed"], order["clear_reversals"]) == (9, 5, 4)
     assert order["verdict"] == "5 of 9 pairs reversed (4 beyond 2 SE)"
     same = order_comparison(
@@ -223,8 +225,8 @@ def test_table6_beside_the_paper(compared):
     assert order["verdict"] == "1 of 1 pairs reversed (1 beyond 2 SE)"
     md = files["paper_comparison.md"].read_text()
     assert (
-        "| τ | Ours | pso | flat | 3 | 0.52 ± 0.01 / 0.51 | 0.55 ± 0.00 / 0.54 | agrees | 45.0% ± 2.9 / 45.9% | within |"
-        in md
+        "| τ | Ours | pso | flat | 3 | 0.52 ± 0.01 / 0.51 | 0.55 ± 0.00 / 0.54 | agrees "
+        "| 45.0% ± 2.9 / 45.9% | within |" in md
     )
     assert "Paper cells with no run here: 43 of 45 (Table 6), 8 of 9 (Table 9): not yet run." in md
     assert "Du et al. 2025" in md
@@ -349,8 +351,8 @@ def test_table7_ratios_are_paired_per_cell_with_their_standard_error(tmp_path):
     )
     md = files["paper_comparison.md"].read_text()
     assert (
-        f"| Ours w/o Surrogate | pso | 4 | 3 | {ratios.mean():.2f} ± {ratios.std(ddof=1) / math.sqrt(3):.2f}, 1.29 |"
-        in md
+        f"| Ours w/o Surrogate | pso | 4 | 3 | {ratios.mean():.2f} "
+        f"± {ratios.std(ddof=1) / math.sqrt(3):.2f}, 1.29 |" in md
     )
 
 

@@ -72,7 +72,8 @@ def test_a_default_run_records_the_shipped_policy_and_its_hash(tmp_path, fake_le
     with ResultsStore(store) as results:
         run = results.get_run(line["run_id"])
     assert run["config"]["policy"] == expected and run["summary"]["policy"] == expected
-    # a run folder's config.yaml given back to --config repeats the run (policy is a record, not a setting)
+    # a run folder's config.yaml given back to --config repeats the run (policy is a record,
+    # not a setting)
     assert (
         main(
             [
