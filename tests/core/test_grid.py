@@ -10,6 +10,7 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -27,9 +28,43 @@ def fake_run(argv: list[str]) -> int:
     evaluations of an analytic cost; saves its position after every batch in its run folder
     and continues from it with --resume, like the real loop. FAKE_CRASH_AT=<cell>:<n> makes
     the cell die after n batches (once: a marker file records it)."""
-    from coadapt_core.fitness import TrainingResult
     from coadapt_core.results import SqliteRecorder
 
+    args = _fake_run_args(argv)
+    rec = SqliteRecorder(args.store)
+    config = {
+        k: v
+        for k, v in vars(args).items()
+        if k not in ("json", "resume", "out", "store", "optimizer_option")
+    }
+    config["omp_num_threads"] = os.environ.get("OMP_NUM_THREADS")
+    if args.resume:
+        config["run_id"] = args.resume
+    run_id = rec.start_run(config)
+    run_dir = Path(args.out) / run_id
+    run_dir.mkdir(parents=True, exist_ok=True)
+    rec.store.create_run(config, run_id=run_id, run_dir=str(run_dir))
+    _fake_batches(rec, run_id, run_dir, args)
+    real = rec.store.evaluations(run_id, kind="real")
+    i = int(np.argmin([e.costs[args.objective] for e in real]))
+    opt = np.array(OPTIMUM[args.objective])
+    summary = {
+        "run_id": run_id,
+        "best_design": real[i].design,
+        "best_cost": real[i].costs[args.objective],
+        "nominal_cost": float(((1 - opt) ** 2).sum()),
+        "improvement": 0.5,
+        "interactions": 300 * len(real) + 4000,
+        "seconds": 0.1,
+    }
+    rec.finish(run_id, summary)
+    print("fake run done")
+    print(json.dumps(summary))
+    return 0
+
+
+def _fake_run_args(argv: list[str]) -> argparse.Namespace:
+    """The options of `coadapt run` the fake reads (argv[0] is "run")."""
     p = argparse.ArgumentParser()
     for opt in (
         "--method",
@@ -50,20 +85,14 @@ def fake_run(argv: list[str]) -> int:
         "--threads", type=int
     )  # recorded in the config, as the real run's config.yaml does
     p.add_argument("--json", action="store_true")
-    args = p.parse_args(argv[1:])  # argv[0] == "run"
-    rec = SqliteRecorder(args.store)
-    config = {
-        k: v
-        for k, v in vars(args).items()
-        if k not in ("json", "resume", "out", "store", "optimizer_option")
-    }
-    config["omp_num_threads"] = os.environ.get("OMP_NUM_THREADS")
-    if args.resume:
-        config["run_id"] = args.resume
-    run_id = rec.start_run(config)
-    run_dir = Path(args.out) / run_id
-    run_dir.mkdir(parents=True, exist_ok=True)
-    rec.store.create_run(config, run_id=run_id, run_dir=str(run_dir))
+    return p.parse_args(argv[1:])
+
+
+def _fake_batches(rec: Any, run_id: str, run_dir: Path, args: argparse.Namespace) -> None:
+    """The batches not yet done (state.json), each recorded and then saved as done; the
+    FAKE_CRASH_AT cell dies between the two, once."""
+    from coadapt_core.fitness import TrainingResult
+
     state_file = run_dir / "state.json"
     done = json.loads(state_file.read_text())["done"] if state_file.exists() else 0
     crash = os.environ.get("FAKE_CRASH_AT", "")
@@ -72,7 +101,6 @@ def fake_run(argv: list[str]) -> int:
     rng = np.random.default_rng(args.seed)
     opt = np.array(OPTIMUM[args.objective])
     count = 0
-    best = (np.inf, None)
     for b in range(4):
         outer, inner = divmod(b, 2)
         designs = opt + rng.normal(0.0, 0.3 / (b + 1), size=(3, 2))
@@ -103,22 +131,6 @@ def fake_run(argv: list[str]) -> int:
             marker.write_text("x")
             os._exit(9)  # after recording batch `count`, before saving the state that says so
         state_file.write_text(json.dumps({"done": b + 1}))
-    real = rec.store.evaluations(run_id, kind="real")
-    i = int(np.argmin([e.costs[args.objective] for e in real]))
-    best = (real[i].costs[args.objective], real[i].design)
-    summary = {
-        "run_id": run_id,
-        "best_design": best[1],
-        "best_cost": best[0],
-        "nominal_cost": float(((1 - opt) ** 2).sum()),
-        "improvement": 0.5,
-        "interactions": 300 * len(real) + 4000,
-        "seconds": 0.1,
-    }
-    rec.finish(run_id, summary)
-    print("fake run done")
-    print(json.dumps(summary))
-    return 0
 
 
 def _spec(**kw) -> GridSpec:
