@@ -36,10 +36,32 @@ def _fail(message: str) -> int:
     return 2
 
 
+class _Refused(Exception):
+    """Bad input, said in one line (exit 2)."""
+
+
 def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(ROOT))
-    from coadapt_core.costs import COST_RULES, CostRule
-    from coadapt_core.scenarios.seeds import scenario_seed
+    args = _parser().parse_args(argv)
+    if args.blocks < 1 or args.agents < 2 or args.steps < 1:
+        return _fail("--blocks must be >= 1, --agents >= 2, --steps >= 1")
+    if not args.cost_cap > 1:
+        return _fail(f"--cost-cap must be > 1, got {args.cost_cap}")
+    from coadapt_core.errors import CoadaptError
+
+    try:
+        summaries = _summaries(args)
+        for row in _evaluate(args, summaries):
+            _print_row(row, as_json=args.json)
+    except _Refused as exc:
+        return _fail(str(exc))
+    except CoadaptError as exc:
+        return _fail(" ".join(str(exc).split()))
+    return 0
+
+
+def _parser() -> argparse.ArgumentParser:
+    from coadapt_core.costs import COST_RULES
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("runs", nargs="*", help="run folders or run ids (each with a summary.json)")
@@ -92,33 +114,38 @@ def main(argv: list[str] | None = None) -> int:
         help="the capped rule's cap (nominal median scenarios)",
     )
     p.add_argument("--json", action="store_true", help="one JSON line per design")
-    args = p.parse_args(argv)
-    if args.blocks < 1 or args.agents < 2 or args.steps < 1:
-        return _fail("--blocks must be >= 1, --agents >= 2, --steps >= 1")
-    if not args.cost_cap > 1:
-        return _fail(f"--cost-cap must be > 1, got {args.cost_cap}")
+    return p
+
+
+def _summaries(args: argparse.Namespace) -> list[dict]:
+    """The runs' summaries (label, folder) and the hand-given designs, in the order given."""
     summaries: list[dict] = []
     for name in args.runs:
         folder = Path(name) if Path(name).is_dir() else Path(args.runs_dir) / name
         path = folder / "summary.json"
         if not path.is_file():
-            return _fail(f"run '{name}' has no summary.json (looked in {folder})")
+            raise _Refused(f"run '{name}' has no summary.json (looked in {folder})")
         summary = json.loads(path.read_text())
         if "best_design" not in summary:
-            return _fail(f"run '{name}' did not finish (its summary has no best_design)")
+            raise _Refused(f"run '{name}' did not finish (its summary has no best_design)")
         summaries.append({**summary, "label": summary.get("run_id", name), "folder": folder})
     for text in args.design:
         try:
             design = [float(x) for x in text.split(",")]
         except ValueError:
-            return _fail(f"--design '{text}' is not comma-separated numbers")
+            raise _Refused(f"--design '{text}' is not comma-separated numbers") from None
         summaries.append({"best_design": design, "label": f"design {text}"})
     if not summaries:
-        return _fail("give run folders / ids or at least one --design t,s")
+        raise _Refused("give run folders / ids or at least one --design t,s")
 
-    from coadapt_core.errors import CoadaptError
+    return summaries
+
+
+def _setting(args: argparse.Namespace, summaries: list[dict]) -> dict:
+    """Robot, simulator, objectives, terrain, design space and the policy groups: each
+    group's members, its policy and the nominal design's label."""
     from coadapt_core.learning import shipped_checkpoint
-    from coadapt_core.learning.factory import make_backend, resolve_plugins
+    from coadapt_core.learning.factory import resolve_plugins
     from coadapt_core.plugins import default_plugin, get_registry
 
     config: dict = {}
@@ -131,82 +158,95 @@ def main(argv: list[str] | None = None) -> int:
         config = yaml.safe_load((folders[0] / "config.yaml").read_text()) or {}
     robot_name = args.robot or config.get("robot") or default_plugin("robot")
     terrain = args.terrain or summaries[0].get("terrain") or config.get("terrain") or "flat"
-    try:
-        robot = get_registry().create("robot", robot_name)
-        dims = {len(s["best_design"]) for s in summaries}
-        if len(dims) != 1:
-            return _fail(
-                f"designs of different lengths {sorted(dims)}: compare one design space at a time"
-            )
-        dim = dims.pop()
-        mixed = dim != robot.design_space(False).dim
-        space = robot.design_space(mixed)
-        if space.dim != dim:
-            return _fail(
-                f"designs have {dim} values; robot '{robot_name}' has "
-                f"{robot.design_space(False).dim} "
-                f"(continuous) or {robot.design_space(True).dim} (mixed)"
-            )
-        nominal = np.asarray(robot.nominal_design(mixed), dtype=float)
-        checkpoint = args.checkpoint or shipped_checkpoint(robot, terrain, mixed)
-        if checkpoint is None:
-            return _fail(
-                f"robot '{robot_name}' ships no policy for terrain '{terrain}'; pass --checkpoint"
-            )
-        # default: every objective any of the runs optimised (each design is scored on all of them)
-        names = (
-            [o.strip() for o in args.objectives.split(",") if o.strip()]
-            if args.objectives
-            else list(dict.fromkeys(k for s in summaries for k in (s.get("best_costs") or {})))
-            or ["tracking", "power", "torque"]
+    robot = get_registry().create("robot", robot_name)
+    dims = {len(s["best_design"]) for s in summaries}
+    if len(dims) != 1:
+        raise _Refused(
+            f"designs of different lengths {sorted(dims)}: compare one design space at a time"
         )
-        robot, sim_cls, objectives = resolve_plugins(
-            robot, args.sim or default_plugin("simulator"), names
+    dim = dims.pop()
+    mixed = dim != robot.design_space(False).dim
+    space = robot.design_space(mixed)
+    if space.dim != dim:
+        raise _Refused(
+            f"designs have {dim} values; robot '{robot_name}' has "
+            f"{robot.design_space(False).dim} "
+            f"(continuous) or {robot.design_space(True).dim} (mixed)"
         )
-        if args.policy == "run":
-            if any("folder" not in s for s in summaries):
-                return _fail(
-                    "--policy run judges runs with their own policies: give run folders or ids, "
-                    "not --design"
-                )
-            groups = [
-                ([s], _run_policy(s["folder"]), f"nominal (policy of {s['label']})")
-                for s in summaries
-            ]
-        else:
-            groups = [(summaries, Path(str(checkpoint)), "nominal")]
-        rule = CostRule(args.cost_rule, args.cost_cap)
-        for members, policy, nominal_label in groups:
-            backend = make_backend(
-                robot,
-                sim_cls,
+    nominal = np.asarray(robot.nominal_design(mixed), dtype=float)
+    checkpoint = args.checkpoint or shipped_checkpoint(robot, terrain, mixed)
+    if checkpoint is None:
+        raise _Refused(
+            f"robot '{robot_name}' ships no policy for terrain '{terrain}'; pass --checkpoint"
+        )
+    # default: every objective any of the runs optimised (each design is scored on all of them)
+    names = (
+        [o.strip() for o in args.objectives.split(",") if o.strip()]
+        if args.objectives
+        else list(dict.fromkeys(k for s in summaries for k in (s.get("best_costs") or {})))
+        or ["tracking", "power", "torque"]
+    )
+    robot, sim_cls, objectives = resolve_plugins(
+        robot, args.sim or default_plugin("simulator"), names
+    )
+    if args.policy == "run":
+        if any("folder" not in s for s in summaries):
+            raise _Refused(
+                "--policy run judges runs with their own policies: give run folders or ids, "
+                "not --design"
+            )
+        groups = [
+            ([s], _run_policy(s["folder"]), f"nominal (policy of {s['label']})") for s in summaries
+        ]
+    else:
+        groups = [(summaries, Path(str(checkpoint)), "nominal")]
+    return {
+        "robot": robot,
+        "sim_cls": sim_cls,
+        "objectives": objectives,
+        "terrain": terrain,
+        "space": space,
+        "mixed": mixed,
+        "nominal": nominal,
+        "groups": groups,
+    }
+
+
+def _evaluate(args: argparse.Namespace, summaries: list[dict]):
+    """Each design's row, group by group, on the common scenario blocks."""
+    from coadapt_core.costs import CostRule
+    from coadapt_core.learning.factory import make_backend
+    from coadapt_core.scenarios.seeds import scenario_seed
+
+    s = _setting(args, summaries)
+    robot, sim_cls, objectives, terrain = s["robot"], s["sim_cls"], s["objectives"], s["terrain"]
+    space, mixed, nominal, groups = s["space"], s["mixed"], s["nominal"], s["groups"]
+    rule = CostRule(args.cost_rule, args.cost_cap)
+    for members, policy, nominal_label in groups:
+        backend = make_backend(
+            robot,
+            sim_cls,
+            objectives,
+            terrain=terrain,
+            design_space=space,
+            mixed=mixed,
+            checkpoint=str(policy),
+            agents_per_design=args.agents,
+        )
+        designs = np.array([s["best_design"] for s in members] + [nominal.tolist()], dtype=float)
+        fits = [
+            backend.real_fitness(
+                designs,
                 objectives,
-                terrain=terrain,
-                design_space=space,
-                mixed=mixed,
-                checkpoint=str(policy),
-                agents_per_design=args.agents,
+                agents=args.agents,
+                steps=args.steps,
+                seed=scenario_seed(1000, b),
             )
-            designs = np.array(
-                [s["best_design"] for s in members] + [nominal.tolist()], dtype=float
-            )
-            fits = [
-                backend.real_fitness(
-                    designs,
-                    objectives,
-                    agents=args.agents,
-                    steps=args.steps,
-                    seed=scenario_seed(1000, b),
-                )
-                for b in range(args.blocks)
-            ]
-            backend.close()
-            labelled = [*members, {"label": nominal_label, "best_design": nominal.tolist()}]
-            for row in _rows(fits, designs, labelled, objectives, rule, terrain, policy.name):
-                _print_row(row, as_json=args.json)
-    except CoadaptError as exc:
-        return _fail(" ".join(str(exc).split()))
-    return 0
+            for b in range(args.blocks)
+        ]
+        backend.close()
+        labelled = [*members, {"label": nominal_label, "best_design": nominal.tolist()}]
+        yield from _rows(fits, designs, labelled, objectives, rule, terrain, policy.name)
 
 
 def _run_policy(folder: Path) -> Path:
