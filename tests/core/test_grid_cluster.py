@@ -15,10 +15,8 @@ import os
 import re
 import secrets
 import shutil
-import signal
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -26,6 +24,7 @@ import pytest
 
 from coadapt_core.cli import main
 from coadapt_core.results import ResultsStore
+from tests.core.ray_cluster import FAST_HEALTH, Cluster
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -38,7 +37,6 @@ pytestmark = [
     ),
 ]
 
-RAY = str(Path(sys.executable).parent / "ray")
 #: a smoke run made small (about 5 s of work on one core here)
 TINY = [
     "--population",
@@ -61,206 +59,6 @@ TINY = [
     "32",
     "--no-video",
 ]
-#: node death noticed within about 2 s (Ray's default is 15 s)
-FAST_HEALTH = {
-    "RAY_health_check_period_ms": "500",
-    "RAY_health_check_failure_threshold": "4",
-    "RAY_health_check_timeout_ms": "500",
-}
-MB100 = str(100 * 1024**2)
-
-
-def _children(pid: int) -> list[int]:
-    out = []
-    for task in Path(f"/proc/{pid}/task").glob("*"):
-        with contextlib.suppress(OSError):
-            out += [int(c) for c in (task / "children").read_text().split()]
-    return out
-
-
-def _session_of(pid: int) -> int | None:
-    try:
-        return int(Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[3])
-    except (OSError, ValueError, IndexError):
-        return None
-
-
-class Cluster:
-    """A network namespace with only 127.0.0.1 (its holder process), the head node and the
-    worker nodes in it; every process id here was started by this test."""
-
-    def __init__(self, env: dict[str, str]):
-        self.env = env
-        self.holder = subprocess.Popen(
-            ["unshare", "--net", "sh", "-c", "ip link set lo up && exec sleep 100000"],
-            start_new_session=True,
-        )
-        deadline = time.monotonic() + 10
-        while (
-            "UP"
-            not in subprocess.run(
-                self.in_net(["ip", "-o", "link", "show", "lo"]), capture_output=True, text=True
-            ).stdout
-        ):
-            assert time.monotonic() < deadline, (
-                "loopback did not come up in the test's network namespace"
-            )
-            time.sleep(0.05)
-        self.port = 6379
-        self.address = f"127.0.0.1:{self.port}"
-        self.temp = tempfile.mkdtemp(prefix="cr-", dir="/tmp")  # short: Ray's socket paths
-        self.head = subprocess.Popen(
-            self.in_net(
-                [
-                    RAY,
-                    "start",
-                    "--head",
-                    "--block",
-                    "--node-ip-address",
-                    "127.0.0.1",
-                    "--port",
-                    str(self.port),
-                    "--num-cpus",
-                    "0",
-                    "--include-dashboard",
-                    "false",
-                    "--disable-usage-stats",
-                    "--temp-dir",
-                    self.temp,
-                    "--object-store-memory",
-                    MB100,
-                    "--include-log-monitor",
-                    "false",
-                ]
-            ),
-            env=env,
-            start_new_session=True,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-        )
-        self.workers: dict[
-            int, subprocess.Popen
-        ] = {}  # the node's first process (PID namespace) -> unshare
-        self.keep: str | None = (
-            None  # where a node's mount namespace holds the code while /tmp is emptied
-        )
-
-    def in_net(self, argv: list[str]) -> list[str]:
-        return ["nsenter", f"--net=/proc/{self.holder.pid}/ns/net", *argv]
-
-    def add_worker(self) -> int:
-        """A worker node of 1 CPU with an empty /tmp (it cannot read the driver's files) and its
-        own PID namespace; returns its first process's id."""
-        start = (
-            f"{self.keep_code()}exec {RAY} start --address {self.address} --block "
-            "--node-ip-address 127.0.0.1 --num-cpus 1 --disable-usage-stats "
-            f"--object-store-memory {MB100} "
-            "--include-log-monitor false"
-        )
-        proc = subprocess.Popen(
-            self.in_net(
-                ["unshare", "--mount", "--pid", "--fork", "--mount-proc", "sh", "-c", start]
-            ),
-            env=self.env,
-            start_new_session=True,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-        )
-        deadline = time.monotonic() + 10
-        while not _children(proc.pid):
-            assert time.monotonic() < deadline, "the worker node's namespace did not start"
-            time.sleep(0.05)
-        (first,) = _children(proc.pid)
-        self.workers[first] = proc
-        return first
-
-    def keep_code(self) -> str:
-        """The shell lines that empty the node's /tmp but bind the code back where it lies under
-        /tmp (a checkout or virtualenv there, as in a CI clone): a worker node runs the driver's
-        code, as on a real cluster, and reads none of its data (the test's folders, store,
-        --out)."""
-        code = [
-            p for p in {str(ROOT), os.path.realpath(sys.prefix)} if Path(p).is_relative_to("/tmp")
-        ]
-        code = sorted(
-            p for p in code if not any(p != q and Path(p).is_relative_to(q) for q in code)
-        )
-        if code and self.keep is None:
-            self.keep = tempfile.mkdtemp(prefix="coadapt-keep-", dir="/dev/shm")
-        lines = [
-            f"mkdir -p {self.keep}/{i} && mount --bind {p} {self.keep}/{i}"
-            for i, p in enumerate(code)
-        ]
-        lines.append("mount -t tmpfs tmpfs /tmp")
-        lines += [f"mkdir -p {p} && mount --bind {self.keep}/{i} {p}" for i, p in enumerate(code)]
-        return "".join(f"{line} && " for line in lines)
-
-    def remove_worker(self, first: int) -> None:
-        """The node and every process on it end at once (its PID namespace's first process)."""
-        with contextlib.suppress(OSError):
-            os.kill(first, signal.SIGKILL)
-        self.workers.pop(first).wait(timeout=30)
-
-    def node_running(self, cell: str) -> int | None:
-        """The worker node (its first process) where a process of this grid cell runs."""
-        spaces = {os.readlink(f"/proc/{first}/ns/pid"): first for first in self.workers}
-        for proc in Path("/proc").glob("[0-9]*"):
-            with contextlib.suppress(OSError):
-                if f"COADAPT_GRID_CELL={cell}".encode() in (proc / "environ").read_bytes().split(
-                    b"\0"
-                ):
-                    space = spaces.get(os.readlink(proc / "ns" / "pid"))
-                    if space is not None:
-                        return space
-        return None
-
-    def scratch_left(self) -> int:
-        """Cells' scratch folders left on the worker nodes (read through each node's own /tmp)."""
-        from coadapt_core.experiments.ray_cell import SCRATCH_PREFIX
-
-        return sum(
-            len(list(Path(f"/proc/{first}/root/tmp").glob(f"{SCRATCH_PREFIX}*")))
-            for first in self.workers
-        )
-
-    def wait_workers(self, count: int, timeout: float = 60.0) -> None:
-        script = (
-            "import ray, sys, time\n"
-            f"ray.init(address='{self.address}', log_to_driver=False)\n"
-            f"deadline = time.monotonic() + {timeout}\n"
-            "while sum(n['Alive'] and n['Resources'].get('CPU', 0) > 0 for n in ray.nodes()) < "
-            f"{count} and time.monotonic() < deadline:\n"
-            "    time.sleep(0.3)\n"
-            "print(sum(n['Alive'] and n['Resources'].get('CPU', 0) > 0 for n in ray.nodes()))\n"
-        )
-        done = subprocess.run(
-            self.in_net([sys.executable, "-c", script]),
-            env=self.env,
-            capture_output=True,
-            text=True,
-            timeout=timeout + 30,
-        )
-        assert done.stdout.strip().endswith(str(count)), done.stderr[-2000:]
-
-    def stop(self) -> None:
-        for first in list(self.workers):
-            self.remove_worker(first)
-        for proc in Path("/proc").glob(
-            "[0-9]*"
-        ):  # the head's processes: all in the session it started
-            if proc.name.isdigit() and _session_of(int(proc.name)) == self.head.pid:
-                with contextlib.suppress(OSError):
-                    os.kill(int(proc.name), signal.SIGKILL)
-        self.head.wait(timeout=30)
-        self.holder.kill()
-        self.holder.wait(timeout=30)
-        shutil.rmtree(self.temp, ignore_errors=True)
-        if self.keep:  # empty here: the binds were made in the nodes' own mount namespaces
-            for folder in sorted(Path(self.keep).glob("*")):
-                with contextlib.suppress(OSError):
-                    folder.rmdir()
-            with contextlib.suppress(OSError):
-                os.rmdir(self.keep)
 
 
 @pytest.fixture(scope="module")
@@ -332,7 +130,21 @@ def test_grid_on_a_cluster_without_a_shared_disk(cluster, tmp_path, capsys):
     runs = store.list_runs(grid_id=summary["grid_id"])
     assert len(runs) == 4 and {r["status"] for r in runs} == {"finished"}
     assert {c["status"] for c in store.cells(summary["grid_id"]).values()} == {"finished"}
-    for run in runs:  # each run's folder under the driver's --out, its rows naming it
+    _check_run_folders(store, runs, tmp_path)
+    logs = sorted((tmp_path / "runs" / "grid-logs" / summary["grid_id"]).glob("*.log"))
+    assert len(logs) == 4 and all("attempt 1 on node 127.0.0.1" in p.read_text() for p in logs)
+    scratch = re.findall(r"scratch (\S+) \(removed\)", "".join(p.read_text() for p in logs))
+    assert len(set(scratch)) == 4 and not any(Path(s).exists() for s in scratch)
+    assert cluster.scratch_left() == 0  # removed on the nodes too
+    print(f"4-cell grid on 2 worker nodes: {grid_seconds:.1f} s; {len(runs)} runs in its store")
+    _check_report(summary["grid_id"], tmp_path, capsys)
+    _check_handoff(runs[0]["id"], tmp_path, capsys)
+
+
+def _check_run_folders(store: ResultsStore, runs: list[dict], tmp_path: Path) -> None:
+    """Each run's folder under the driver's --out, its rows naming it; the evaluation buffer
+    stays behind on the node."""
+    for run in runs:
         folder = tmp_path / "runs" / run["id"]
         assert Path(run["run_dir"]) == folder.resolve()
         assert (folder / "summary.json").is_file() and (folder / "state.json").is_file()
@@ -346,23 +158,16 @@ def test_grid_on_a_cluster_without_a_shared_disk(cluster, tmp_path, capsys):
             tmp_path / "runs"
         )
         assert store.count_evaluations(run["id"], "real") > 0
-    logs = sorted((tmp_path / "runs" / "grid-logs" / summary["grid_id"]).glob("*.log"))
-    assert len(logs) == 4 and all("attempt 1 on node 127.0.0.1" in p.read_text() for p in logs)
-    scratch = re.findall(r"scratch (\S+) \(removed\)", "".join(p.read_text() for p in logs))
-    assert len(set(scratch)) == 4 and not any(Path(s).exists() for s in scratch)
-    assert cluster.scratch_left() == 0  # removed on the nodes too
-    print(
-        f"4-cell grid on 2 worker nodes: {grid_seconds:.1f} s; {len(runs)} runs in the driver's "
-        "store"
-    )
 
-    # the report (sim-to-sim and common-scenario rows) and a handoff from the driver alone
+
+def _check_report(grid_id: str, tmp_path: Path, capsys) -> None:
+    """The report (sim-to-sim and common-scenario rows) from the driver alone."""
     started = time.perf_counter()
     assert (
         main(
             [
                 "report",
-                summary["grid_id"],
+                grid_id,
                 "--store",
                 str(tmp_path / "g.db"),
                 "-o",
@@ -399,7 +204,10 @@ def test_grid_on_a_cluster_without_a_shared_disk(cluster, tmp_path, capsys):
             f"{float(row['common_improvement']):.3f} "
             f"+- {float(row['common_improvement_se']):.3f}"
         )
-    run_id = runs[0]["id"]
+
+
+def _check_handoff(run_id: str, tmp_path: Path, capsys) -> None:
+    """A handoff of one of the grid's runs from the driver alone."""
     assert (
         main(
             [
