@@ -178,7 +178,8 @@ class UniversalPolicyBackend:
         for o in objectives:
             if o.name not in names:
                 raise UserError(
-                    f"objective '{o.name}' has no pseudo-critic in this backend (trained: {', '.join(names)})",
+                    f"objective '{o.name}' has no pseudo-critic in this backend "
+                    f"(trained: {', '.join(names)})",
                     field="objective",
                 )
             index.append(names.index(o.name))

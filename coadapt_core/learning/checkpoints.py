@@ -43,7 +43,8 @@ def read_checkpoint(path: str | Path) -> dict:
         ) from None
     except Exception as exc:
         raise UserError(
-            f"checkpoint '{path}' cannot be read ({type(exc).__name__}); it is damaged or not a checkpoint",
+            f"checkpoint '{path}' cannot be read ({type(exc).__name__}); "
+            "it is damaged or not a checkpoint",
             field="checkpoint",
         ) from None
     if not isinstance(state, dict) or state.get("format") not in (

@@ -11,7 +11,8 @@ under way and writes a checkpoint first) and the end (`model_final.pt` and the s
 (`UniversalPolicyBackend.train`), the benchmarks and the tests drive it:
 
     runner = Runner(trainer, out=Path("runs/train"), checkpoint_every=50)
-    runner.learn(1_000_000, callback=print)   # interactions; TrainingInterrupted on Ctrl-C (catch_ctrl_c)
+    # interactions; TrainingInterrupted on Ctrl-C (catch_ctrl_c)
+    runner.learn(1_000_000, callback=print)
     final, weights = runner.finish()
 
 A runner without `out` writes nothing: `learn` is the trainer's iterations for the budget.
@@ -105,7 +106,8 @@ class Runner:
         if pseudo_critics_only:
             if ppo.pseudo_critic is None:
                 raise UserError(
-                    "--pseudo-critics-only: no objectives, so no pseudo-critics to train (see --objectives)",
+                    "--pseudo-critics-only: no objectives, so no pseudo-critics to train "
+                    "(see --objectives)",
                     field="pseudo_critics_only",
                 )
             ppo.freeze_policy()
@@ -210,8 +212,8 @@ class Runner:
                 raise KeyboardInterrupt
             self._stop_requested = True
             print(
-                "\nCtrl-C: stopping after this iteration and writing a checkpoint (Ctrl-C again: stop now, "
-                "without one)",
+                "\nCtrl-C: stopping after this iteration and writing a checkpoint "
+                "(Ctrl-C again: stop now, without one)",
                 file=sys.stderr,
                 flush=True,
             )

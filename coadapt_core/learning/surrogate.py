@@ -171,25 +171,8 @@ def fit_ensemble(
     # each member sees its own bootstrap resample of the labelled designs (member 0: all)
     picks = [torch.arange(n)] + [torch.randint(n, (n,), generator=gen) for _ in range(members - 1)]
     picks = torch.stack(picks)  # [E, N]
-    optimizer = torch.optim.Adam(bank.parameters(), lr=lr, foreach=True)
-    bank.train()
-    for _ in range(int(steps)):
-        rows = torch.randint(states.shape[0], (batch,), generator=gen)
-        which = torch.randint(n, (members, batch), generator=gen)
-        labels = torch.gather(picks, 1, which)  # [E, B] labelled design per member and sample
-        # each member's heads read that member's own batch of (state, design) rows
-        s = states[rows.to(device)]  # [B, C], shared by the members
-        x = xi[labels.to(device)]  # [E, B, D]
-        inputs = torch.cat([s.unsqueeze(0).expand(members, -1, -1), x], dim=-1)  # [E, B, C + D]
-        raw = _per_head(bank, inputs.repeat_interleave(m, dim=0))  # [E M, B]
-        own = raw.reshape(members, m, batch).transpose(1, 2)  # [E, B, M]
-        pred = own * scale + offset
-        target = costs[labels.reshape(-1).to(device)].reshape(members, batch, m)
-        loss = (((pred - target) / spread) ** 2).mean()
-        optimizer.zero_grad(set_to_none=True)
-        loss.backward()
-        optimizer.step()
-    bank.eval()
+    labelled = (xi, costs, picks, spread)
+    _regress(bank, scale, offset, states, labelled, steps, batch, lr, gen)
     for p in bank.parameters():
         p.requires_grad_(False)
     fitted = FittedEnsemble(
@@ -212,6 +195,46 @@ def fit_ensemble(
         )  # [E, M]
         fitted.offset -= own
     return fitted
+
+
+def _regress(
+    bank: CriticBank,
+    scale: torch.Tensor,
+    offset: torch.Tensor,
+    states: torch.Tensor,
+    labelled: tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor],
+    steps: int,
+    batch: int,
+    lr: float,
+    gen: torch.Generator,
+) -> None:
+    """`steps` Adam steps of the members of `bank` (member-major heads, output raw * scale +
+    offset) on pairs (state, labelled design): `labelled` holds the designs xi [N, D] (in
+    the members' frame), their costs [N, M], each member's bootstrap picks [E, N] and the
+    loss's unit per objective [M]. Leaves `bank` in eval mode."""
+    xi, costs, picks, spread = labelled
+    members, n = picks.shape
+    m = costs.shape[1]
+    device = states.device
+    optimizer = torch.optim.Adam(bank.parameters(), lr=lr, foreach=True)
+    bank.train()
+    for _ in range(int(steps)):
+        rows = torch.randint(states.shape[0], (batch,), generator=gen)
+        which = torch.randint(n, (members, batch), generator=gen)
+        labels = torch.gather(picks, 1, which)  # [E, B] labelled design per member and sample
+        # each member's heads read that member's own batch of (state, design) rows
+        s = states[rows.to(device)]  # [B, C], shared by the members
+        x = xi[labels.to(device)]  # [E, B, D]
+        inputs = torch.cat([s.unsqueeze(0).expand(members, -1, -1), x], dim=-1)  # [E, B, C + D]
+        raw = _per_head(bank, inputs.repeat_interleave(m, dim=0))  # [E M, B]
+        own = raw.reshape(members, m, batch).transpose(1, 2)  # [E, B, M]
+        pred = own * scale + offset
+        target = costs[labels.reshape(-1).to(device)].reshape(members, batch, m)
+        loss = (((pred - target) / spread) ** 2).mean()
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        optimizer.step()
+    bank.eval()
 
 
 def _member_bank(pseudo: CriticBank, idx: torch.Tensor, members: int) -> CriticBank:

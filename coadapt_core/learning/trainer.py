@@ -435,7 +435,8 @@ class Trainer:
         )
         if self.ppo.pseudo_reset:
             print(
-                f"note: the pseudo-critics in '{path}' hold non-finite values; they restart from scratch",
+                f"note: the pseudo-critics in '{path}' hold non-finite values; "
+                "they restart from scratch",
                 file=sys.stderr,
             )
         self.iteration = int(state["iteration"])

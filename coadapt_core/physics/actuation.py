@@ -23,8 +23,9 @@ The "binding" speed limit (`bind_speed`; `task.motor_speed_limit`, issue 41) add
     tau = 0   where |dq| > dq_max
 
 no torque at all beyond the no-load speed, either way: the motor cannot follow, and the task
-ends an episode whose joint stays beyond it (`task.overspeed_seconds`). A CPU backend whose state lives in numpy arrays
-passes `torch.from_numpy` views (no copy) and reads the result back the same way.
+ends an episode whose joint stays beyond it (`task.overspeed_seconds`). A CPU backend whose
+state lives in numpy arrays passes `torch.from_numpy` views (no copy) and reads the result
+back the same way.
 """
 
 from __future__ import annotations

@@ -18,9 +18,9 @@ robot's model in one of the simulator's `model_formats` and offers:
         the handoff README's section on loading the model and running the controller
 
 The core picks the run's simulator's tools, else those of the first installed simulator that
-declares tools and reads one of the model's formats (`tools_for`, which names that simulator); a robot plugin's
-conformance suite does the same, so a third-party simulator that reads a new format brings
-its own tools and needs no change here.
+declares tools and reads one of the model's formats (`tools_for`, which names that
+simulator); a robot plugin's conformance suite does the same, so a third-party simulator
+that reads a new format brings its own tools and needs no change here.
 """
 
 from __future__ import annotations

@@ -1,6 +1,7 @@
-"""The rules of a simulator's options, shared by every backend (`Simulator.__init__` and
-`Simulator.set_gain_law` apply them): the checks of the constructor's arguments, each a
-one-line `UserError` naming the field, and the "nominal" PD gain law (`NominalGains`)."""
+"""The rules of a simulator's options and arguments, shared by every backend (the `Simulator`
+base applies them): the checks of the constructor's arguments, of the task settings a
+backend offers, of environment ids and new designs, each a one-line error naming the field,
+and the "nominal" PD gain law (`NominalGains`)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import torch
 
-from coadapt_core.errors import UserError
+from coadapt_core.errors import DesignError, UserError
 
 if TYPE_CHECKING:
     from coadapt_core.robot import Robot
@@ -75,6 +76,48 @@ def design_array(designs: np.ndarray) -> np.ndarray:
     if designs.ndim != 2 or designs.shape[0] < 1:
         raise UserError(
             f"designs must be a non-empty [num_envs, design_dim] array, got shape {designs.shape}",
+            field="designs",
+        )
+    return designs
+
+
+def check_offered(choice: str, offered: tuple[str, ...], name: str, setting: str) -> str:
+    """`choice` of the task setting `setting` when the simulator `name` offers it."""
+    if choice not in offered:
+        raise UserError(
+            f"task.{setting}: the {name} simulator offers {', '.join(offered)}, got '{choice}'",
+            field=setting,
+        )
+    return choice
+
+
+def env_id_array(env_ids: torch.Tensor | np.ndarray | None, num_envs: int) -> np.ndarray:
+    """Environment ids [n] (int numpy) from None (all), an index tensor or array, or a
+    boolean mask; ids outside [0, num_envs) are a `UserError`."""
+    if env_ids is None:
+        return np.arange(num_envs)
+    if isinstance(env_ids, torch.Tensor):
+        env_ids = env_ids.detach().cpu().numpy()
+    ids = np.asarray(env_ids)
+    if ids.dtype == bool:
+        ids = np.flatnonzero(ids)
+    ids = ids.astype(int).reshape(-1)
+    if ids.size and (ids.min() < 0 or ids.max() >= num_envs):
+        raise UserError(
+            f"env_ids must lie in [0, {num_envs - 1}], got {ids.tolist()}", field="env_ids"
+        )
+    return ids
+
+
+def new_design_array(designs: np.ndarray, count: int, width: int) -> np.ndarray:
+    """`designs` as `count` designs of `width` values each (one may be given flat), for
+    `Simulator.set_designs`; any other shape is a `DesignError`."""
+    designs = np.asarray(designs, dtype=float)
+    designs = designs.reshape(1, -1) if designs.ndim == 1 else designs
+    if designs.shape != (count, width):
+        raise DesignError(
+            f"set_designs needs one design of {width} values per env id ({count} ids), "
+            f"got an array of shape {designs.shape}",
             field="designs",
         )
     return designs

@@ -2,9 +2,9 @@
 of one batch's physical parameters (`EnvParams`).
 
 Every simulator backend applies the same `EnvParams` with the same meaning, so the same
-seed gives the same physical parameters on MuJoCo and PyBullet. The draw itself,
-`sample_env_params`, lives with the simulator base, which owns every random stream
-(`coadapt_core.physics.simulator`).
+seed gives the same physical parameters on MuJoCo and PyBullet: the draw, `sample_env_params`,
+is defined once here, beside the ranges it draws from; the simulator base calls it from the
+random streams it owns (`Simulator.draw_env_params`).
 """
 
 from __future__ import annotations
@@ -197,3 +197,48 @@ class EnvParams:
     def repeat(self, times: int) -> EnvParams:
         """The batch repeated `times` times end to end ([times * num_envs] rows)."""
         return self._map(lambda v: v.repeat((times,) + (1,) * (v.dim() - 1)))
+
+
+def nominal_env_params(
+    num_envs: int, *, device: str | torch.device = "cpu", dtype: torch.dtype = torch.float64
+) -> EnvParams:
+    return sample_env_params(
+        RandomizationConfig.off(), num_envs, np.random.default_rng(0), device=device, dtype=dtype
+    )
+
+
+def sample_env_params(
+    config: RandomizationConfig,
+    num_envs: int,
+    rng: np.random.Generator,
+    *,
+    device: str | torch.device = "cpu",
+    dtype: torch.dtype = torch.float64,
+) -> EnvParams:
+    """Draw parameters for `num_envs` environments from numpy's `rng` (so one seed gives
+    the same numbers on every backend and device; always consumes the same amount of
+    randomness whether or not randomization is enabled, so seeds stay aligned; the
+    engine-robustness parameters draw only when their range is not a point, after Table
+    2's), returned as tensors on `device` in `dtype`."""
+
+    def draw(name: str, shape: tuple[int, ...]) -> torch.Tensor:
+        lo, hi = getattr(config, name)
+        if name in RandomizationConfig.OPTIONAL and lo == hi:
+            value = np.full(shape, lo, dtype=float)
+        else:
+            value = rng.uniform(lo, hi, size=shape)
+        if not config.enabled:
+            value = np.full(shape, RandomizationConfig.NOMINAL[name], dtype=float)
+        return torch.as_tensor(value, dtype=dtype, device=device)
+
+    return EnvParams(
+        friction=draw("friction", (num_envs,)),
+        restitution=draw("restitution", (num_envs,)),
+        com_shift=draw("com_shift", (num_envs, 3)),
+        pd_factor=draw("pd_factor", (num_envs,)),
+        motor_strength=draw("motor_strength", (num_envs,)),
+        delay=draw("delay", (num_envs,)),
+        contact_timeconst=draw("contact_timeconst", (num_envs,)),
+        joint_damping=draw("joint_damping", (num_envs,)),
+        armature=draw("armature", (num_envs,)),
+    )

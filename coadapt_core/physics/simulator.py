@@ -8,8 +8,9 @@ commands, observations or rewards: that is the locomotion task's room, which run
 on every backend.
 
 The base class owns everything sim-to-sim honesty rests on, so that two backends cannot
-drift apart in it: the option rules, the named random streams and their `reseed`, Table 2
-parameter draws (`draw_env_params`), spawn points and spawn height (`draw_spawn_xy`,
+drift apart in it: the option rules (`coadapt_core.physics.options`), the named random
+streams and their `reseed`, Table 2 parameter draws (`draw_env_params`, through
+`randomization.sample_env_params`), spawn points and spawn height (`draw_spawn_xy`,
 `spawn_base_height`), environment-id parsing (`parse_env_ids`) and the paired-evaluation
 scenarios (`fix_scenarios`). A backend fills in building its worlds, applying parameters,
 stepping and reading state (docs/plugins.md, "Simulators").
@@ -24,9 +25,20 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 import torch
 
-from coadapt_core.errors import DesignError, UserError
-from coadapt_core.physics.options import NominalGains, check_options, design_array
-from coadapt_core.physics.randomization import EnvParams, RandomizationConfig
+from coadapt_core.physics.options import (
+    NominalGains,
+    check_offered,
+    check_options,
+    design_array,
+    env_id_array,
+    new_design_array,
+)
+from coadapt_core.physics.randomization import (
+    EnvParams,
+    RandomizationConfig,
+    nominal_env_params,
+    sample_env_params,
+)
 from coadapt_core.physics.terrain import TERRAINS, Terrain, make_terrain
 
 if TYPE_CHECKING:
@@ -90,51 +102,6 @@ def _quat_rotate_inverse(quat: torch.Tensor, vec: torch.Tensor) -> torch.Tensor:
     b = torch.cross(xyz, vec, dim=-1) * (2.0 * w)
     c = xyz * (2.0 * (xyz * vec).sum(dim=-1, keepdim=True))
     return a - b + c
-
-
-def nominal_env_params(
-    num_envs: int, *, device: str | torch.device = "cpu", dtype: torch.dtype = torch.float64
-) -> EnvParams:
-    return sample_env_params(
-        RandomizationConfig.off(), num_envs, np.random.default_rng(0), device=device, dtype=dtype
-    )
-
-
-def sample_env_params(
-    config: RandomizationConfig,
-    num_envs: int,
-    rng: np.random.Generator,
-    *,
-    device: str | torch.device = "cpu",
-    dtype: torch.dtype = torch.float64,
-) -> EnvParams:
-    """Draw parameters for `num_envs` environments from numpy's `rng` (so one seed gives
-    the same numbers on every backend and device; always consumes the same amount of
-    randomness whether or not randomization is enabled, so seeds stay aligned; the
-    engine-robustness parameters draw only when their range is not a point, after Table
-    2's), returned as tensors on `device` in `dtype`."""
-
-    def draw(name: str, shape: tuple[int, ...]) -> torch.Tensor:
-        lo, hi = getattr(config, name)
-        if name in RandomizationConfig.OPTIONAL and lo == hi:
-            value = np.full(shape, lo, dtype=float)
-        else:
-            value = rng.uniform(lo, hi, size=shape)
-        if not config.enabled:
-            value = np.full(shape, RandomizationConfig.NOMINAL[name], dtype=float)
-        return torch.as_tensor(value, dtype=dtype, device=device)
-
-    return EnvParams(
-        friction=draw("friction", (num_envs,)),
-        restitution=draw("restitution", (num_envs,)),
-        com_shift=draw("com_shift", (num_envs, 3)),
-        pd_factor=draw("pd_factor", (num_envs,)),
-        motor_strength=draw("motor_strength", (num_envs,)),
-        delay=draw("delay", (num_envs,)),
-        contact_timeconst=draw("contact_timeconst", (num_envs,)),
-        joint_damping=draw("joint_damping", (num_envs,)),
-        armature=draw("armature", (num_envs,)),
-    )
 
 
 def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -270,25 +237,15 @@ class Simulator(ABC):
         envelope alone) or "binding" (also no torque beyond the no-load speed; see
         `coadapt_core.physics.actuation`), one of the backend's `speed_limit_modes`. A backend
         that keeps its actuation elsewhere (worker processes) extends this to reach it."""
-        if mode not in self.speed_limit_modes:
-            raise UserError(
-                f"task.motor_speed_limit: the {self.name} simulator offers "
-                f"{', '.join(self.speed_limit_modes)}, got '{mode}'",
-                field="motor_speed_limit",
-            )
-        self.speed_limit = mode
+        self.speed_limit = check_offered(
+            mode, self.speed_limit_modes, self.name, "motor_speed_limit"
+        )
 
     def set_gain_law(self, law: str) -> None:
         """The PD gains of every design from now on: "robot" (each design's own) or "nominal"
         (the nominal design's, `NominalGains`), one of the backend's `gain_laws`; every
         environment is rebuilt (and restarts) when the law changes."""
-        if law not in self.gain_laws:
-            raise UserError(
-                f"task.gain_law: the {self.name} simulator offers {', '.join(self.gain_laws)}, "
-                f"got '{law}'",
-                field="gain_law",
-            )
-        if law == self.gain_law:
+        if check_offered(law, self.gain_laws, self.name, "gain_law") == self.gain_law:
             return
         self.gain_law = law
         self.robot = NominalGains(self._own_robot) if law == "nominal" else self._own_robot
@@ -361,19 +318,7 @@ class Simulator(ABC):
     def parse_env_ids(self, env_ids: torch.Tensor | np.ndarray | None) -> np.ndarray:
         """Environment ids [n] (int numpy) from None (all), an index tensor or array, or a
         boolean mask; ids outside [0, num_envs) are a `UserError`."""
-        if env_ids is None:
-            return np.arange(self.num_envs)
-        if isinstance(env_ids, torch.Tensor):
-            env_ids = env_ids.detach().cpu().numpy()
-        ids = np.asarray(env_ids)
-        if ids.dtype == bool:
-            ids = np.flatnonzero(ids)
-        ids = ids.astype(int).reshape(-1)
-        if ids.size and (ids.min() < 0 or ids.max() >= self.num_envs):
-            raise UserError(
-                f"env_ids must lie in [0, {self.num_envs - 1}], got {ids.tolist()}", field="env_ids"
-            )
-        return ids
+        return env_id_array(env_ids, self.num_envs)
 
     def parse_new_designs(
         self, env_ids: torch.Tensor | np.ndarray, designs: np.ndarray
@@ -382,14 +327,7 @@ class Simulator(ABC):
         simulator's length per id, each inside the robot's design space (`DesignError`
         otherwise, before any environment changes)."""
         ids = self.parse_env_ids(env_ids)
-        designs = np.asarray(designs, dtype=float)
-        designs = designs.reshape(1, -1) if designs.ndim == 1 else designs
-        if designs.shape != (ids.size, self._designs.shape[1]):
-            raise DesignError(
-                f"set_designs needs one design of {self._designs.shape[1]} values per env id "
-                f"({ids.size} ids), got an array of shape {designs.shape}",
-                field="designs",
-            )
+        designs = new_design_array(designs, ids.size, self._designs.shape[1])
         return ids, self._check_designs(designs)
 
     def _check_designs(self, designs: np.ndarray) -> np.ndarray:

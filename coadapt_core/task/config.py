@@ -30,7 +30,8 @@ PAPER_REWARD_WEIGHTS: dict[str, float] = {
 
 #: Terms we add (not the paper's) to escape the standing optimum (shared/walking-notes.md).
 EXTRA_REWARD_WEIGHTS: dict[str, float] = {
-    "contact_match": 1.0,  # feet contacts that match the clock's stance schedule (+1 / -0.3 per foot)
+    # feet contacts that match the clock's stance schedule (+1 / -0.3 per foot)
+    "contact_match": 1.0,
     "feet_air_time": 1.0,  # sum over touchdowns of (t_air - offset), zero under a zero command
     "termination": -200.0,  # on a fall (not on a timeout); x dt like every weight
 }
@@ -122,9 +123,10 @@ class GaitConfig:
     design_aware: bool = setting(
         False,
         "Each design's reference in units of its leg length L (hip height at the standing pose): "
-        "placement clip and swing height x L/L_nominal, clock frequency x sqrt(L_nominal/L) (Froude scaling); "
-        "off: the same reference for every design. Measured (flat.pt fine-tuned 1 M with it, one seed): power's "
-        "optimum stays at thigh 0.5, 10.8 +- 2.5 % below nominal (off: 9.3 +- 3.0 %); docs/reproduction.md.",
+        "placement clip and swing height x L/L_nominal, clock frequency x sqrt(L_nominal/L) "
+        "(Froude scaling); off: the same reference for every design. Measured (flat.pt fine-tuned "
+        "1 M with it, one seed): power's optimum stays at thigh 0.5, 10.8 +- 2.5 % below nominal "
+        "(off: 9.3 +- 3.0 %); docs/reproduction.md.",
     )
 
 
@@ -167,22 +169,24 @@ class TaskConfig:
     )
     motor_speed_limit: Literal["soft", "binding"] = setting(
         "soft",
-        "soft: the torque-speed envelope alone (a joint past its motor's no-load speed is only driven "
-        "no further); binding: also no torque at all beyond the no-load speed, and a joint beyond it for "
-        "overspeed_seconds ends the episode as a fall (issue 41). Measured: Table 9's torque cell (quick, 3 "
-        "seeds) chooses motor 1 in 0 of 6 choices (soft: 4 of 6), its nominal design falling in 29-35 % of "
-        "scenarios; docs/reproduction.md.",
+        "soft: the torque-speed envelope alone (a joint past its motor's no-load speed is only "
+        "driven no further); binding: also no torque at all beyond the no-load speed, and a joint "
+        "beyond it for overspeed_seconds ends the episode as a fall (issue 41). Measured: Table "
+        "9's torque cell (quick, 3 seeds) chooses motor 1 in 0 of 6 choices (soft: 4 of 6), its "
+        "nominal design falling in 29-35 % of scenarios; docs/reproduction.md.",
     )
     gain_law: Literal["robot", "nominal"] = setting(
         "robot",
-        "PD gains: robot: each design's own, as the robot builds them (Kuafu: stiffness grows with the "
-        "load inertia); nominal: the nominal design's gains for every design (issue 41). Measured (flat.pt "
-        "fine-tuned 1 M with it, one seed): power's optimum moves from (0.5, 1.0), 9.3 +- 3.0 % below nominal, "
-        "to (1.25, 0.75), 3.1 +- 1.3 % below; docs/reproduction.md.",
+        "PD gains: robot: each design's own, as the robot builds them (Kuafu: stiffness grows with "
+        "the load inertia); nominal: the nominal design's gains for every design (issue 41). "
+        "Measured (flat.pt fine-tuned 1 M with it, one seed): power's optimum moves from (0.5, "
+        "1.0), 9.3 +- 3.0 % below nominal, to (1.25, 0.75), 3.1 +- 1.3 % below; "
+        "docs/reproduction.md.",
     )
     overspeed_seconds: Float = setting(
         0.1,
-        "binding speed limit: a joint beyond its no-load speed this long without a break ends the episode, s.",
+        "binding speed limit: a joint beyond its no-load speed this long without a break ends the "
+        "episode, s.",
         gt=0,
     )
 

@@ -45,7 +45,8 @@ class DesignInputs:
         self.high = torch.as_tensor(high, dtype=torch.float32, device=device)
         self._mass: dict[tuple[float, ...], float] = {}
         self._nominal_leg: float | None = None
-        #: also keep `speed_limit` [N, J], each joint's motor no-load speed, rad/s (the binding limit)
+        #: also keep `speed_limit` [N, J], each joint's motor no-load speed, rad/s (for the
+        #: binding limit)
         self.track_speed_limit = False
         self._speed: dict[tuple[float, ...], np.ndarray] = {}
 

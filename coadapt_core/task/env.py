@@ -9,44 +9,25 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from typing import Protocol
 
 import numpy as np
 import torch
 
 from coadapt_core.objective import Objective, StepBatch
-from coadapt_core.physics.randomization import EnvParams
-from coadapt_core.physics.simulator import SimState, Simulator, sample_env_params
+from coadapt_core.physics.simulator import SimState, Simulator
 from coadapt_core.robot import Robot
 from coadapt_core.task import observations as layout
 from coadapt_core.task.commands import CommandSampler
 from coadapt_core.task.config import TaskConfig
 from coadapt_core.task.designs import DesignInputs
-from coadapt_core.task.gait import (  # noqa: F401 - the gait functions' old home re-exports them
-    clock_frequency,
-    command_gate,
-    expected_stance,
-    gait_scales,
-    half_stance,
-    leg_phases,
-    raibert_foot_targets,
-    stance_triangle,
-    von_mises_height,
-)
+from coadapt_core.task.episodes import EpisodeSums, ended_episodes
+from coadapt_core.task.gait import GaitClock, half_stance
 from coadapt_core.task.observations import StepResult
 from coadapt_core.task.rewards import RewardInputs, combine, compute_terms
+from coadapt_core.task.scenario_hooks import ScenarioHooks, SharedStreams
 
 
-class SharedStreams(Protocol):
-    """What `use_scenarios` reads of a scenario set's shared random numbers (the scenarios
-    room's `PairedStreams`): groups of `agents`, their gait phases [agents], the noise seed."""
-
-    agents: int
-    seed: int
-    phase: torch.Tensor
-
-
-class LocomotionEnv:
+class LocomotionEnv(ScenarioHooks):
     """The task, simulator-agnostic. `step` returns a `StepResult` (its `info` keys are
     listed there)."""
 
@@ -90,12 +71,11 @@ class LocomotionEnv:
         legs = robot.legs()
         if len(legs) != self.num_legs:
             raise ValueError(
-                f"robot '{robot.name}' declares {len(legs)} legs but its model has {self.num_legs} feet"
+                f"robot '{robot.name}' declares {len(legs)} legs "
+                f"but its model has {self.num_legs} feet"
             )
         # the gait clock's per-leg offsets (a trotting quadruped moves diagonal pairs together)
-        self.leg_offsets = torch.tensor(
-            [float(leg.phase_offset) for leg in legs], device=self.device
-        )
+        offsets = torch.tensor([float(leg.phase_offset) for leg in legs], device=self.device)
         self.policy_layout = layout.policy_layout(self.num_actions, self.cfg.history)
         self.critic_layout = self.policy_layout + layout.privileged_layout(self.num_legs)
         self.obs_slices = layout.slices(self.policy_layout)
@@ -109,19 +89,13 @@ class LocomotionEnv:
         n, j, legs = self.num_envs, self.num_actions, self.num_legs
         z = lambda *shape: torch.zeros(*shape, device=self.device)  # noqa: E731
         self.command = z(n, 3)  # [N, 3]
-        self.phase = z(n)  # [N] gait clock in [0, 1)
+        self.gait = GaitClock(self.cfg.gait, offsets, n, self.dt, self.device)
         self.episode_length = torch.zeros(n, dtype=torch.long, device=self.device)
         self.action_history = z(n, self.cfg.history, j)  # [N, H, J] newest first
         self.last_joint_vel = z(n, j)
-        self.air_time = z(n, legs)
         self.last_contact = torch.zeros(n, legs, dtype=torch.bool, device=self.device)
         self.standing_height = z(n)
-        self.episode_reward = z(n)
-        self.episode_tracking = z(n)  # sum of the unweighted linear tracking term
-        self.episode_moving_tracking = z(n)  # ... over steps with a moving command
-        self.episode_moving_steps = z(n)
-        self.episode_speed = z(n)  # sum of base-frame vx
-        self.episode_command = z(n)  # sum of commanded vx
+        self.episode_sums = EpisodeSums(n, self.device)
         # the binding motor speed limit: the actuation's no torque beyond the no-load speed, and
         # how long each environment has had a joint beyond it without a break (s)
         self.sim.set_speed_limit(self.cfg.motor_speed_limit)
@@ -143,10 +117,8 @@ class LocomotionEnv:
         d.refresh(self.sim)
         self.designs, self.design_obs, self.total_mass = d.designs, d.design_obs, d.total_mass
         self.default_joint_pos, self.default_feet = d.default_joint_pos, d.default_feet
-        # leg length L: the hip height at the standing pose (`Robot.hip_height`), against the nominal design's
         aware = self.cfg.gait.design_aware
-        legs = -self.default_feet[..., 2].mean(dim=-1)
-        self.gait_scale = gait_scales(self.cfg.gait, legs, d.nominal_leg_length if aware else 1.0)
+        self.gait.rescale(self.default_feet, d.nominal_leg_length if aware else 1.0)
 
     def set_designs(self, env_ids: torch.Tensor | np.ndarray, designs: np.ndarray) -> None:
         """Rebuild the given environments for new designs [len(env_ids), D] (they restart)."""
@@ -166,63 +138,19 @@ class LocomotionEnv:
         )
         self._freeze_clock(torch.arange(self.num_envs, device=self.device))
 
-    def use_scenarios(self, scenarios: SharedStreams | None) -> None:
-        """Paired evaluation's hook (`coadapt_core.scenarios`): environment k * agents + i
-        draws what environment i draws (gait phase, observation noise, `paired_draw`), as
-        `PairedStreams` says; None returns to independent draws."""
-        self.scenarios = scenarios
-
-    # -- what the scenarios room asks of the env (coadapt_core.scenarios.sets) --------------
-    def restart_streams(self, seed: int, *, task: bool = True) -> None:
-        """Restart the random streams from `seed`: the simulator's (`Simulator.reseed`:
-        randomization draws, spawn points) and, with `task`, the task's generator (gait
-        phases, observation noise, commands while drawn). Exact resume rests on it."""
-        if task:
-            self.generator.manual_seed(int(seed))
-        self.sim.reseed(int(seed))
-
-    def draw_commands(
-        self, agents: int, seed: int, *, command_state: dict | None, paired: bool
-    ) -> torch.Tensor:
-        """[agents, 3] commands of the scenario set of `seed` under the curriculum
-        `command_state` (None: the sampler's own): stratified over the command box (paired),
-        or drawn independently by a generator seeded `seed` that the sampler keeps."""
-        if command_state is not None:
-            self.commands.load_state_dict(command_state)
-        gen = torch.Generator() if paired else torch.Generator(device=self.device)
-        gen.manual_seed(int(seed))
-        if paired:
-            return self.commands.stratified(agents, gen)
-        self.commands.generator = gen
-        return self.commands.sample(agents)
-
-    def draw_randomization(self, agents: int, rng: np.random.Generator) -> EnvParams:
-        """`agents` draws of the simulator's Table 2 randomization from `rng`."""
-        return sample_env_params(self.sim.randomization, agents, rng)
-
-    def fix_scenarios(self, params: EnvParams | None, spawn: np.ndarray | None = None) -> None:
-        """Hold every environment's randomization draw and spawn point
-        (`Simulator.fix_scenarios`); None draws them afresh at each reset again."""
-        self.sim.fix_scenarios(params, spawn)
-
-    def paired_draw(
-        self, shape: tuple[int, ...], generator: torch.Generator, normal: bool = True
-    ) -> torch.Tensor:
-        """[num_envs, *shape[1:]] random numbers, standard normal or uniform in [0, 1): one
-        draw per agent of a group repeated for every design when paired, else one per
-        environment."""
-        rows = self.scenarios.agents if self.scenarios is not None else shape[0]
-        draw = torch.randn if normal else torch.rand
-        x = draw((rows, *shape[1:]), generator=generator, device=self.device)
-        if self.scenarios is not None:
-            x = x.repeat(shape[0] // rows, *([1] * (len(shape) - 1)))
-        return x
-
     # -- episode bookkeeping ----------------------------------------------------------------
+    @property
+    def phase(self) -> torch.Tensor:
+        """[N] each environment's gait phase in [0, 1) (`GaitClock`)."""
+        return self.gait.phase
+
+    @property
+    def gait_scale(self) -> torch.Tensor:
+        """[N] each environment's design-aware gait scale (`GaitClock`)."""
+        return self.gait.scale
+
     def _freeze_clock(self, ids: torch.Tensor) -> None:
-        if self.cfg.gait.freeze_on_zero_command:
-            still = self.command[ids].abs().sum(dim=-1) == 0
-            self.phase[ids[still]] = 0.25  # mid-stance of the first leg; the clock waits
+        self.gait.freeze(ids, self.command)
 
     def _start(self, ids: torch.Tensor, state: SimState) -> None:
         """Per-env buffers of environments that (re)start an episode."""
@@ -231,23 +159,16 @@ class LocomotionEnv:
         self.episode_length[ids] = 0
         self.action_history[ids] = 0.0
         self.last_joint_vel[ids] = state.joint_vel[ids].float()
-        self.air_time[ids] = 0.0
+        self.gait.air_time[ids] = 0.0
         self.overspeed_time[ids] = 0.0
         self.last_contact[ids] = state.foot_contact[ids]
         self.standing_height[ids] = (state.base_pos[ids, 2] - state.terrain_height[ids]).float()
-        for sums in (
-            self.episode_reward,
-            self.episode_tracking,
-            self.episode_moving_tracking,
-            self.episode_moving_steps,
-            self.episode_speed,
-            self.episode_command,
-        ):
-            sums[ids] = 0.0
+        self.episode_sums.restart(ids)
         if self.scenarios is not None:  # paired: agent i always starts at its own phase
-            self.phase[ids] = self.scenarios.phase[ids % self.scenarios.phase.numel()]
+            self.gait.phase[ids] = self.scenarios.phase[ids % self.scenarios.phase.numel()]
         else:
-            self.phase[ids] = torch.rand(ids.numel(), generator=self.generator, device=self.device)
+            draw = torch.rand(ids.numel(), generator=self.generator, device=self.device)
+            self.gait.phase[ids] = draw
         if not self.fixed_commands:
             self.command[ids] = self.commands.sample(ids.numel())
         self._freeze_clock(ids)
@@ -283,8 +204,7 @@ class LocomotionEnv:
         lin, ang, gravity = state.base_frame()
         joint_pos = state.joint_pos.float() - self.default_joint_pos
         joint_vel = state.joint_vel.float()
-        angle = 2.0 * math.pi * self.phase
-        clock = torch.stack([torch.sin(angle), torch.cos(angle)], dim=-1)
+        clock = self.gait.features()
         clean = torch.cat(
             [
                 lin,
@@ -330,18 +250,7 @@ class LocomotionEnv:
         self, command: torch.Tensor, lin_vel: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """(q* [N, J], expected stance [N, L]) of the paper's Raibert reference at this step."""
-        phases = leg_phases(self.phase, self.num_legs, self.leg_offsets)
-        moving = command.abs().sum(dim=-1) > 0
-        stance = expected_stance(phases)
-        if self.cfg.gait.freeze_on_zero_command:
-            stance = stance | ~moving[:, None]
-        scale = self.gait_scale if self.cfg.gait.design_aware else None
-        feet = raibert_foot_targets(
-            self.default_feet, phases, command, lin_vel, self.cfg.gait, scale
-        )
-        with torch.no_grad():
-            q_star = self.robot.leg_inverse_kinematics(self.designs, feet).to(self.device).float()
-        return q_star, stance
+        return self.gait.reference(self.robot, self.designs, self.default_feet, command, lin_vel)
 
     def step(self, actions: torch.Tensor) -> StepResult:
         start = time.perf_counter()
@@ -363,42 +272,14 @@ class LocomotionEnv:
         self._tick += 1
 
         moving = self.command.abs().sum(dim=-1) > 0  # [N]
-        advance = moving if cfg.gait.freeze_on_zero_command else torch.ones_like(moving)
-        frequency = (
-            clock_frequency(cfg.gait, self.gait_scale)
-            if cfg.gait.design_aware
-            else cfg.gait.frequency
-        )
-        self.phase = torch.remainder(self.phase + self.dt * frequency * advance, 1.0)
+        self.gait.advance(moving)
 
         lin, ang, gravity = state.base_frame()
-        joint_pos = state.joint_pos.float()
         joint_vel = state.joint_vel.float()
-        torque = state.joint_torque.float()
         contact = state.foot_contact
-        first_contact, air_time = self._air_time(contact)
         height, terminated, timeout = self._termination(state, gravity)
-
-        q_star, stance = self.raibert_joint_targets(self.command, lin)
-        inputs = RewardInputs(
-            command=self.command,
-            base_lin_vel=lin,
-            base_ang_vel=ang,
-            projected_gravity=gravity,
-            joint_pos=joint_pos,
-            default_joint_pos=self.default_joint_pos,
-            joint_acc=(joint_vel - self.last_joint_vel) / self.dt,
-            joint_torque=torque,
-            action=actions,
-            last_action=self.action_history[:, 0],
-            raibert_targets=q_star,
-            foot_contact=contact,
-            expected_stance=stance,
-            first_contact=first_contact,
-            air_time=air_time,
-            moving_command=moving,
-            terminated=terminated,
-        )
+        frame = (lin, ang, gravity)
+        inputs = self._reward_inputs(state, frame, actions, joint_vel, moving, terminated)
         terms = compute_terms(inputs, cfg.rewards)
         reward, weighted = combine(terms, cfg.rewards, self.dt)
         metrics = self._metrics(
@@ -406,7 +287,7 @@ class LocomotionEnv:
                 command=self.command,
                 base_lin_vel=lin,
                 base_ang_vel=ang,
-                joint_torque=torque,
+                joint_torque=inputs.joint_torque,
                 joint_vel=joint_vel,
                 joint_targets=targets,
                 design=self.designs,
@@ -439,14 +320,41 @@ class LocomotionEnv:
             obs, critic = self._observe(state)
         return StepResult(obs, critic, self.design_obs, reward, done, timeout, info)
 
-    def _air_time(self, contact: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """(first contact [N, L], air time before this step's touch-downs [N, L]); the
-        feet's air clocks advance and restart on contact."""
-        first_contact = (self.air_time > 0) & contact
-        self.air_time += self.dt
-        air_time = self.air_time.clone()
-        self.air_time *= ~contact
-        return first_contact, air_time
+    def _reward_inputs(
+        self,
+        state: SimState,
+        frame: tuple[torch.Tensor, torch.Tensor, torch.Tensor],
+        actions: torch.Tensor,
+        joint_vel: torch.Tensor,
+        moving: torch.Tensor,
+        terminated: torch.Tensor,
+    ) -> RewardInputs:
+        """What the reward terms read of this step (`state` after it and its `base_frame`,
+        the clipped `actions`, float joint velocities, which commands move, which
+        environments ended in a fall)."""
+        lin, ang, gravity = frame
+        contact = state.foot_contact
+        first_contact, air_time = self.gait.touch_down(contact)
+        q_star, stance = self.raibert_joint_targets(self.command, lin)
+        return RewardInputs(
+            command=self.command,
+            base_lin_vel=lin,
+            base_ang_vel=ang,
+            projected_gravity=gravity,
+            joint_pos=state.joint_pos.float(),
+            default_joint_pos=self.default_joint_pos,
+            joint_acc=(joint_vel - self.last_joint_vel) / self.dt,
+            joint_torque=state.joint_torque.float(),
+            action=actions,
+            last_action=self.action_history[:, 0],
+            raibert_targets=q_star,
+            foot_contact=contact,
+            expected_stance=stance,
+            first_contact=first_contact,
+            air_time=air_time,
+            moving_command=moving,
+            terminated=terminated,
+        )
 
     def _termination(
         self, state: SimState, gravity: torch.Tensor
@@ -481,13 +389,7 @@ class LocomotionEnv:
         self.action_history[:, 0] = actions
         self.last_joint_vel = joint_vel
         self.last_contact = contact
-        self.episode_reward += reward
-        if tracking is not None:
-            self.episode_tracking += tracking
-            self.episode_moving_tracking += tracking * moving
-        self.episode_moving_steps += moving.float()
-        self.episode_speed += lin[:, 0]
-        self.episode_command += self.command[:, 0]
+        self.episode_sums.add(reward, tracking, moving, lin[:, 0], self.command[:, 0])
 
     def _end_episodes(
         self, done, terminated, info: dict, state: SimState, sim_device
@@ -503,52 +405,22 @@ class LocomotionEnv:
             due = torch.zeros_like(done)
         ended = done.float()
         lengths = self.episode_length.float()  # >= 1 after this step
-        sums = torch.stack(
-            [
-                ended.sum(),
-                (terminated.float() * ended).sum(),
-                (self.episode_reward * ended).sum(),
-                (lengths * ended).sum(),
-                (self.episode_tracking / lengths * ended).sum(),
-                (self.episode_speed / lengths * ended).sum(),
-                (self.episode_command / lengths * ended).sum(),
-                (self.episode_moving_tracking * ended).sum(),
-                (self.episode_moving_steps * ended).sum(),
-            ]
-        )
+        sums = self.episode_sums.over_ended(ended, terminated, lengths)
         host = torch.cat([ended, due.float(), sums]).cpu().numpy()
         n = self.num_envs
         done_ids = np.flatnonzero(host[:n])
         due_ids = np.flatnonzero(host[n : 2 * n])
         changed = done_ids.size > 0
         if changed:
-            (
-                count,
-                falls,
-                returns,
-                length,
-                tracking,
-                speed,
-                command,
-                moving_tracking,
-                moving_steps,
-            ) = host[2 * n :].tolist()
-            info["episode"] = {
-                "reward": returns / count,
-                "length_s": length / count * self.dt,
-                "tracking_fraction": tracking / count,
-                "vx": speed / count,
-                "command_vx": command / count,
-                "fell": falls / count,
-                "count": int(done_ids.size),
-            }
+            episodes = ended_episodes(host[2 * n :].tolist(), int(done_ids.size), self.dt)
+            info["episode"] = episodes.report
             if not self.fixed_commands:
                 self.commands.record_episodes(
-                    int(done_ids.size),
-                    int(round(falls)),
-                    moving_tracking,
-                    moving_steps,
-                    length * self.dt,
+                    episodes.count,
+                    int(round(episodes.falls)),
+                    episodes.moving_tracking,
+                    episodes.moving_steps,
+                    episodes.seconds,
                 )
             cpu_ids = torch.from_numpy(done_ids)
             tick = time.perf_counter()

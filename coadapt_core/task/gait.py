@@ -1,6 +1,7 @@
-"""The gait clock and the Raibert reference of the locomotion task (paper 3.2.3), moved out of
-`task.env`: per-leg phases, the stance schedule, the von Mises swing height, the Raibert foot
-targets, and the design-aware reference (`task.gait.design_aware`).
+"""The gait clock and the Raibert reference of the locomotion task (paper 3.2.3): per-leg
+phases, the stance schedule, the von Mises swing height, the Raibert foot targets, the
+design-aware reference (`task.gait.design_aware`), and `GaitClock`, the clock of a
+`LocomotionEnv`'s environments.
 
 Design-aware reference (off by default): every design gets the nominal design's gait in units
 of its own leg length L (the robot's hip height at the standing pose, `Robot.hip_height`),
@@ -13,10 +14,14 @@ slower, higher steps, a short one shorter, quicker, lower ones.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import torch
 
 from coadapt_core.task.config import GaitConfig
+
+if TYPE_CHECKING:
+    from coadapt_core.robot import Robot
 
 # -- the gait clock and the Raibert reference (paper 3.2.3): Raibert foot placement in x-y, a
 # von Mises swing height in z, joint targets q* by the robot's leg IK. Leg l is in stance for
@@ -122,3 +127,74 @@ def gait_scales(
 def clock_frequency(cfg: GaitConfig, scale: torch.Tensor) -> torch.Tensor:
     """[N] gait clock frequency, Hz: `cfg.frequency` x s^-1/2 (Froude scaling; s = 1: as set)."""
     return cfg.frequency / torch.sqrt(scale)
+
+
+class GaitClock:
+    """The gait clock of N environments: `phase` [N] in [0, 1), each leg's offset [L] (a
+    trotting quadruped moves diagonal pairs together), the design-aware `scale` [N] of each
+    environment's gait and the feet's `air_time` [N, L], s."""
+
+    def __init__(
+        self, cfg: GaitConfig, leg_offsets: torch.Tensor, n: int, dt: float, device: torch.device
+    ):
+        self.cfg = cfg
+        self.dt = dt
+        self.leg_offsets = leg_offsets
+        self.phase = torch.zeros(n, device=device)
+        self.air_time = torch.zeros(n, leg_offsets.numel(), device=device)
+        self.scale = torch.ones(n, device=device)
+
+    def rescale(self, default_feet: torch.Tensor, nominal_leg_length: float) -> None:
+        """The gait scales of designs whose feet stand at `default_feet` [N, L, 3] (relative
+        to the hips): leg length L, the hip height at the standing pose, against the nominal
+        design's (1.0 when the reference is not design-aware)."""
+        legs = -default_feet[..., 2].mean(dim=-1)
+        self.scale = gait_scales(self.cfg, legs, nominal_leg_length)
+
+    def freeze(self, ids: torch.Tensor, command: torch.Tensor) -> None:
+        """Environments `ids` with a zero command wait at mid-stance of the first leg."""
+        if self.cfg.freeze_on_zero_command:
+            still = command[ids].abs().sum(dim=-1) == 0
+            self.phase[ids[still]] = 0.25
+
+    def advance(self, moving: torch.Tensor) -> None:
+        """One policy step of the clock; `moving` [N]: the command is not zero."""
+        cfg = self.cfg
+        advance = moving if cfg.freeze_on_zero_command else torch.ones_like(moving)
+        frequency = clock_frequency(cfg, self.scale) if cfg.design_aware else cfg.frequency
+        self.phase = torch.remainder(self.phase + self.dt * frequency * advance, 1.0)
+
+    def features(self) -> torch.Tensor:
+        """[N, 2] the observation's clock: sin and cos of 2 pi phase."""
+        angle = 2.0 * math.pi * self.phase
+        return torch.stack([torch.sin(angle), torch.cos(angle)], dim=-1)
+
+    def touch_down(self, contact: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(first contact [N, L], air time before this step's touch-downs [N, L]); the
+        feet's air clocks advance and restart on contact."""
+        first_contact = (self.air_time > 0) & contact
+        self.air_time += self.dt
+        air_time = self.air_time.clone()
+        self.air_time *= ~contact
+        return first_contact, air_time
+
+    def reference(
+        self,
+        robot: Robot,
+        designs: torch.Tensor,
+        default_feet: torch.Tensor,
+        command: torch.Tensor,
+        lin_vel: torch.Tensor,
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """(q* [N, J], expected stance [N, L]) of the paper's Raibert reference at this phase
+        for designs [N, D] standing with their feet at `default_feet`."""
+        phases = leg_phases(self.phase, self.leg_offsets.numel(), self.leg_offsets)
+        moving = command.abs().sum(dim=-1) > 0
+        stance = expected_stance(phases)
+        if self.cfg.freeze_on_zero_command:
+            stance = stance | ~moving[:, None]
+        scale = self.scale if self.cfg.design_aware else None
+        feet = raibert_foot_targets(default_feet, phases, command, lin_vel, self.cfg, scale)
+        with torch.no_grad():
+            q_star = robot.leg_inverse_kinematics(designs, feet).to(command.device).float()
+        return q_star, stance

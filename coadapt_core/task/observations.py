@@ -1,5 +1,6 @@
-"""Observation layouts and the step's record (`StepResult`): the policy observation o (70 values for an 8-joint biped with 5
-actions of history), the design input xi and the critic state s.
+"""Observation layouts and the step's record (`StepResult`): the policy observation o (70
+values for an 8-joint biped with 5 actions of history), the design input xi and the critic
+state s.
 
 Policy observation o, in order (J actuated joints, H = history):
 

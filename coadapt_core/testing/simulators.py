@@ -11,14 +11,13 @@ import pytest
 
 from coadapt_core.errors import DesignError, UserError
 from coadapt_core.physics.actuation import pd_torque
-from coadapt_core.physics.randomization import RandomizationConfig
+from coadapt_core.physics.randomization import RandomizationConfig, sample_env_params
 from coadapt_core.physics.simulator import (
     SPAWN_MARGIN,
     SPAWN_STREAM_KEY,
     SimState,
     Simulator,
     quat_rotate,
-    sample_env_params,
 )
 from coadapt_core.robot import Robot
 

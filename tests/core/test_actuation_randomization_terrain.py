@@ -4,8 +4,7 @@ import torch
 
 from coadapt_core.errors import UserError
 from coadapt_core.physics.actuation import DelayLine, pd_torque, torque_speed_bounds
-from coadapt_core.physics.randomization import RandomizationConfig
-from coadapt_core.physics.simulator import sample_env_params
+from coadapt_core.physics.randomization import RandomizationConfig, sample_env_params
 from coadapt_core.physics.terrain import make_terrain
 
 

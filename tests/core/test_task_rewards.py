@@ -13,7 +13,7 @@ from coadapt_core.task.config import (
     GaitConfig,
     RewardConfig,
 )
-from coadapt_core.task.env import (
+from coadapt_core.task.gait import (
     leg_phases,
     raibert_foot_targets,
     stance_triangle,

@@ -46,7 +46,7 @@ def test_trotter_trots_on_the_gait_clock():
     """Declared legs reach the task: diagonal pairs share a phase, the pairs alternate."""
     import torch
 
-    from coadapt_core.task.env import expected_stance, leg_phases
+    from coadapt_core.task.gait import expected_stance, leg_phases
 
     offsets = torch.tensor([leg.phase_offset for leg in Trotter().legs()])
     stance = expected_stance(

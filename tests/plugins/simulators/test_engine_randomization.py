@@ -12,8 +12,7 @@ import pytest
 from coadapt_plugins.simulators.mujoco.simulator import MujocoSimulator
 
 from coadapt_core.errors import UserError
-from coadapt_core.physics.randomization import RandomizationConfig
-from coadapt_core.physics.simulator import sample_env_params
+from coadapt_core.physics.randomization import RandomizationConfig, sample_env_params
 
 
 def test_default_keeps_table_2_and_its_random_stream() -> None:
