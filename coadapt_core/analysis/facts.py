@@ -19,7 +19,8 @@ from coadapt_core.results.schema import COMMON_KIND, LANDSCAPE_METHOD, TRANSFER_
 from coadapt_core.results.store import ResultsStore
 from coadapt_core.terrains import TERRAINS
 
-#: the paper's row labels, and each method's marker and colour in the figures (the method registry's)
+#: the paper's row labels, and each method's marker and colour in the figures (from the
+#: method registry)
 METHOD_LABELS = {m.name: m.label for m in METHODS.values()}
 METHOD_MARKERS = {m.name: m.marker for m in METHODS.values()}
 METHOD_COLORS = {m.name: m.color for m in METHODS.values()}
@@ -137,7 +138,8 @@ def select_runs(store: ResultsStore, selection: str | None) -> tuple[list[dict[s
     else:
         grids = ", ".join(store.list_grids()[-3:]) or "none"
         raise UserError(
-            f"'{selection}' is neither a run nor a grid in store {store.url} (recent grids: {grids})",
+            f"'{selection}' is neither a run nor a grid in store {store.url} (recent grids: "
+            f"{grids})",
             field="run",
         )
     runs = [r for r in runs if r["method"] != LANDSCAPE_METHOD or selection is not None]
@@ -221,7 +223,7 @@ def transfer_improvement(
 # -- tables ------------------------------------------------------------------------------------
 
 
-# -- the common yardstick (rows written by coadapt_core.experiments.yardstick) ----------------------
+# -- the common yardstick (rows written by coadapt_core.experiments.yardstick) -----------------
 def yardstick_improvement(
     store: ResultsStore, run_id: str, objective: str
 ) -> dict[str, float] | None:

@@ -15,7 +15,7 @@ import numpy as np
 
 from coadapt_core.analysis.facts import RunFacts
 from coadapt_core.analysis.figures import PANEL_H, panel_grid, pyplot, save_figure, tidy_axes
-from coadapt_core.analysis.report_figures import hv_text, pareto_points
+from coadapt_core.analysis.pareto_figure import hv_text, pareto_points
 from coadapt_core.pareto import HV_REFERENCE, relative_costs
 
 
@@ -89,20 +89,21 @@ def pareto_markdown(rows: Sequence[dict[str, Any]]) -> str:
     lines = [
         "# Pareto fronts: hypervolume",
         "",
-        "Hypervolume of each run's final front in costs relative to its nominal design (1 + (cost - nominal) "
-        f"/ |nominal|, up to {HV_REFERENCE:g} in each objective; the nominal design alone has 1), +- its paired "
-        "bootstrap SE over the final check's scenarios; a row of several seeds gives their mean +- its SE over "
-        "the seeds (docs/results.md).",
+        "Hypervolume of each run's final front in costs relative to its nominal design (1 + (cost "
+        f"- nominal) / |nominal|, up to {HV_REFERENCE:g} in each objective; the nominal design "
+        "alone has 1), +- its paired bootstrap SE over the final check's scenarios; a row of "
+        "several seeds gives their mean +- its SE over the seeds (docs/results.md).",
         "",
-        "| robot | simulator | preset | method | optimizer | objectives | terrain | run | front designs | "
-        "hypervolume |",
+        "| robot | simulator | preset | method | optimizer | objectives | terrain | run | front "
+        "designs | hypervolume |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         hv = hv_text(r["hypervolume"], r["hypervolume_se"]).removeprefix("hypervolume ") or "-"
         lines.append(
-            f"| {r['robot']} | {r['simulator']} | {r['preset']} | {r['method']} | {r['optimizer']} | "
-            f"{r['objectives']} | {r['terrain']} | {r['run']} | {r['front_designs'] or ''} | {hv} |"
+            f"| {r['robot']} | {r['simulator']} | {r['preset']} | {r['method']} | "
+            f"{r['optimizer']} | {r['objectives']} | {r['terrain']} | {r['run']} | "
+            f"{r['front_designs'] or ''} | {hv} |"
         )
     return "\n".join(lines) + "\n"
 
@@ -138,7 +139,8 @@ def figure_pareto_seeds(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path
                 fmt="o-",
                 capsize=2,
                 markersize=4,
-                label=f"seed {f.run.get('seed')}: {hv_text(d['hypervolume'], d['hypervolume_se']) or 'no front'}",
+                label=f"seed {f.run.get('seed')}: "
+                f"{hv_text(d['hypervolume'], d['hypervolume_se']) or 'no front'}",
             )
         ax.plot(
             [1.0],
@@ -161,10 +163,10 @@ def figure_pareto_seeds(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path
         plt,
         fig,
         out / "pareto_seeds.png",
-        "Pareto fronts compared across seeds: per group of runs "
-        "that differ only in the seed, each seed's final front in costs relative to its own nominal "
-        "design (1 = the nominal design's cost in the same final check; the cross), error bars +- SE, "
-        "and its hypervolume +- SE in the legend (pareto.md gives the mean over seeds).",
+        "Pareto fronts compared across seeds: per group of runs that differ only in the seed, "
+        "each seed's final front in costs relative to its own nominal design (1 = the nominal "
+        "design's cost in the same final check; the cross), error bars +- SE, and its hypervolume "
+        "+- SE in the legend (pareto.md gives the mean over seeds).",
     )
 
 

@@ -4,7 +4,8 @@ method) as Markdown and CSV, Fig. 6-style cost heat-maps, convergence curves, su
 error and Pareto fronts as PNG, and one report.html holding them all.
 
 The parts live beside it: each run's facts and the shared labels in `facts`, the tables in
-`tables`, the figures in `report_figures`; their public names are imported here too."""
+`tables` (as Markdown and CSV: `table_markdown`), the figures in `report_figures`,
+`heatmap_figure` and `pareto_figure`; their public names are imported here too."""
 
 from __future__ import annotations
 
@@ -22,18 +23,16 @@ from coadapt_core.analysis.facts import (
     transfer_improvement,
     yardstick_improvement,
 )
+from coadapt_core.analysis.heatmap_figure import figure_heatmaps
+from coadapt_core.analysis.pareto_figure import figure_pareto, hv_text, pareto_points
 from coadapt_core.analysis.pareto_report import figure_pareto_seeds, pareto_markdown, pareto_rows
 from coadapt_core.analysis.report_figures import (
     figure_convergence,
-    figure_heatmaps,
-    figure_pareto,
     figure_surrogate_error,
     figure_videos,
-    hv_text,
-    pareto_points,
 )
 from coadapt_core.analysis.surrogate_figure import figure_surrogate_quality
-from coadapt_core.analysis.tables import (
+from coadapt_core.analysis.table_markdown import (
     POOLING_NOTE,
     cell,
     common_cell,
@@ -42,13 +41,12 @@ from coadapt_core.analysis.tables import (
     design_header,
     reduction_cell,
     table6_markdown,
-    table6_rows,
     table7_markdown,
-    table7_rows,
     table7_units,
     unreliable_mark,
     write_csv,
 )
+from coadapt_core.analysis.tables import table6_rows, table7_rows
 from coadapt_core.results.schema import LANDSCAPE_METHOD
 from coadapt_core.results.store import ResultsStore
 
@@ -60,9 +58,9 @@ REPORT_STEPS = 7
 _STYLE = (
     "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em}"
     "table{border-collapse:collapse;margin:1em 0;font-size:90%}"
-    "td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#eee}"
-    ".scroll{overflow-x:auto}img{max-width:100%;height:auto}figure{margin:1.5em 0}figcaption{color:#444;font-size:90%;max-width:60em}"
-    "</style>"
+    "td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}"
+    "th{background:#eee}.scroll{overflow-x:auto}img{max-width:100%;height:auto}"
+    "figure{margin:1.5em 0}figcaption{color:#444;font-size:90%;max-width:60em}</style>"
 )
 
 
@@ -189,10 +187,10 @@ def _report_html(
         "<!doctype html><html><head><meta charset='utf-8'><title>coadapt report</title>",
         _STYLE + "</head><body>",
         f"<h1>coadapt report — {html.escape(title)}</h1>",
-        f"<p>Store: <code>{html.escape(store.url)}</code>; {n_runs} runs. Each number is the mean ± sample standard "
-        "deviation over the runs (seeds) of its row, with how many runs had it (n); one row per method and optimizer. "
-        f"{html.escape(POOLING_NOTE)} "
-        "A single run shows its own standard error (SE) when it recorded one.</p>",
+        f"<p>Store: <code>{html.escape(store.url)}</code>; {n_runs} runs. Each number is the mean "
+        "± sample standard deviation over the runs (seeds) of its row, with how many runs had it "
+        f"(n); one row per method and optimizer. {html.escape(POOLING_NOTE)} A single run shows "
+        "its own standard error (SE) when it recorded one.</p>",
         "<h2>Table 6 — optimization results</h2>",
         "<div class='scroll'>" + _table6_html(t6) + "</div>",
         "<h2>Table 7 — computational cost</h2>",

@@ -68,7 +68,8 @@ class FolderRecords:
 
 
 def run_row(run_dir: str | Path, config: dict[str, Any], summary: dict[str, Any]) -> dict[str, Any]:
-    """The run as a store row would hold it (`ResultsStore.get_run`), from its config and summary."""
+    """The run as a store row would hold it (`ResultsStore.get_run`), from its config and
+    summary."""
     run_dir = Path(run_dir)
     return {
         "id": run_dir.name,
@@ -93,11 +94,8 @@ def write_run_figures(
     """Draw the run's figures into its folder; returns [(PNG path, caption)]. The run's config
     is its config.yaml (`config` where the folder has none)."""
     from coadapt_core.analysis.facts import run_facts
-    from coadapt_core.analysis.report_figures import (
-        figure_convergence,
-        figure_pareto,
-        figure_surrogate_error,
-    )
+    from coadapt_core.analysis.pareto_figure import figure_pareto
+    from coadapt_core.analysis.report_figures import figure_convergence, figure_surrogate_error
 
     run_dir = Path(run_dir)
     import yaml

@@ -69,7 +69,8 @@ def figure_surrogate_quality(facts: Sequence[Any], out: Path) -> list[tuple[Path
             p = entry["pooled"]
             if isinstance(p.get("spearman"), int | float):
                 lines.append(
-                    f"{entry['label']}: pooled {p['spearman']:.2f}, bias {100 * (p.get('bias') or 0):+.1f} %"
+                    f"{entry['label']}: pooled {p['spearman']:.2f}, bias "
+                    f"{100 * (p.get('bias') or 0):+.1f} %"
                 )
         ax.axhline(0.0, color="grey", linewidth=0.8)
         ax.axhline(0.7, color="grey", linewidth=0.8, linestyle=":")
@@ -98,8 +99,8 @@ def figure_surrogate_quality(facts: Sequence[Any], out: Path) -> list[tuple[Path
         plt,
         fig,
         out / "surrogate_quality.png",
-        "Surrogate quality per objective and terrain: Spearman rank correlation between the surrogate's "
-        "prediction (made before the round's real costs were known) and the real cost of the same designs, "
-        "on every real round where a surrogate round was allowed; the title gives each run's pooled "
-        "Spearman and bias ((surrogate − real) / |real|). Dotted: 0.7.",
+        "Surrogate quality per objective and terrain: Spearman rank correlation between the "
+        "surrogate's prediction (made before the round's real costs were known) and the real cost "
+        "of the same designs, on every real round where a surrogate round was allowed; the title "
+        "gives each run's pooled Spearman and bias ((surrogate − real) / |real|). Dotted: 0.7.",
     )
