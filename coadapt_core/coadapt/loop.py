@@ -7,10 +7,11 @@ One code path serves every method of the paper's comparison, each a row of the m
 registry (`coadapt_core.methods`): its switches, and the kind of backend its designs
 are evaluated with (the universal policy, or a policy per design for the BO baseline). The
 rooms around it: the state and its persistence (`state.py`: written after every training
-phase and every evaluation batch, so a run continues where it stopped), the hybrid
-evaluation policy and the surrogate's records (`hybrid.py`), the final check
-(`final_check.py`) and the summary (`summary.py`); `run.py` starts or resumes a run
-(`run_coadaptation`) and drives this loop.
+phase and every evaluation batch, so a run continues where it stopped), the run's plan and
+ETA (`schedule.py`), a training phase in chunks (`phase.py`), each outer iteration's
+optimizer (`outer_optimizer.py`), the hybrid evaluation policy and the surrogate's records
+(`hybrid.py`), the final phase (`final_phase.py` over `final_check.py`) and the summary
+(`summary.py`); `run.py` starts or resumes a run (`run_coadaptation`) and drives this loop.
 """
 
 from __future__ import annotations
@@ -24,37 +25,25 @@ import numpy as np
 
 from coadapt_core import phase_progress
 from coadapt_core.coadapt.config import CoadaptConfig
-from coadapt_core.coadapt.final_check import batch_errors, final_check
+from coadapt_core.coadapt.final_check import batch_errors
+from coadapt_core.coadapt.final_phase import check_final_designs, save_own_policies
 from coadapt_core.coadapt.hybrid import HybridPolicy
+from coadapt_core.coadapt.outer_optimizer import make_optimizer, optimizer_init, optimizer_options
 from coadapt_core.coadapt.phase import train_in_chunks
 from coadapt_core.coadapt.reliability import walking
+from coadapt_core.coadapt.schedule import Schedule
 from coadapt_core.coadapt.setup import note_first_round
-from coadapt_core.coadapt.specialized import OWN_POLICY_FILES, OwnPolicies
 from coadapt_core.coadapt.state import LoopState, RoundRecord, save_state
-from coadapt_core.coadapt.summary import (
-    FinalOutcome,
-    final_candidates,
-    run_summary,
-)
+from coadapt_core.coadapt.summary import final_candidates, run_summary
 from coadapt_core.costs import CostRule
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.fitness import CoadaptationBackend, RealFitness, RunRecorder, TrainingResult
-from coadapt_core.methods import get_method
+from coadapt_core.methods import Method, get_method
 from coadapt_core.objective import Objective
 from coadapt_core.optimizer import Optimizer
-from coadapt_core.options import fill_from_run
-from coadapt_core.pareto import front_rows
 from coadapt_core.scenarios.seeds import scenario_seed
 
 ProgressFn = Callable[[dict[str, Any]], None]
-
-
-def _split(total: float, n: int) -> list[float]:
-    """Share a batch's cost among its n designs (integers stay integers and sum exactly)."""
-    if isinstance(total, int):
-        base, rest = divmod(total, n)
-        return [base + (1 if i < rest else 0) for i in range(n)]
-    return [total / n] * n
 
 
 def seed_at(seed: int, *parts: int) -> int:
@@ -69,6 +58,7 @@ class CoadaptationLoop:
         self,
         config: CoadaptConfig,
         *,
+        method: Method | None = None,
         backend_factory: Callable[[int], CoadaptationBackend],
         design_space: DesignSpace,
         nominal_design: np.ndarray,
@@ -82,10 +72,11 @@ class CoadaptationLoop:
     ):
         self.config = config
         self.pretrained = pretrained
-        self.method = get_method(config.method)
+        self.method = method if method is not None else get_method(config.method)
         # the method's backend shares one policy between designs (universal) or not (a
         # policy per design: nothing to train up front, no surrogate, real costs are final)
         self.shared = self.method.backend_kind.shared_policy
+        self.schedule = Schedule.of(config, self.method, pretrained=pretrained)
         self.backend_factory = backend_factory
         self.full_space = design_space
         self.nominal = np.asarray(nominal_design, dtype=float)
@@ -106,43 +97,13 @@ class CoadaptationLoop:
         self.hybrid = HybridPolicy(
             config, self.method, self.objectives, state, self.rng, self.get_backend, self.seed_for
         )
-        if (
-            state.optimizer is None and state.optimizer_init is not None
-        ):  # resumed: rebuild from data
-            state.optimizer = self.make_optimizer(state.optimizer_init)
+        if state.optimizer is None and state.optimizer_init is not None:  # resumed: from data
+            state.optimizer = make_optimizer(optimizer_cls, state.optimizer_init)
             if state.optimizer_state is not None:
                 state.optimizer.load_state_dict(state.optimizer_state)
             state.optimizer_state = None
 
-    def make_optimizer(self, init: dict[str, Any]) -> Optimizer:
-        """The optimizer from its constructor arguments as data (`LoopState.optimizer_init`)."""
-        return self.optimizer_cls(
-            DesignSpace.from_dict(init["space"]),
-            population=init["population"],
-            budget=init["budget"],
-            seed=init["seed"],
-            num_objectives=init["num_objectives"],
-            initial_designs=init["initial_designs"],
-            **init["options"],
-        )
-
     # -- bookkeeping -----------------------------------------------------------------------
-    @property
-    def outer_count(self) -> int:
-        return (
-            1 if not (self.method.retrain or self.method.narrow) else self.config.outer_iterations
-        )
-
-    @property
-    def rounds_per_outer(self) -> int:
-        if self.method.rounds_setting is not None:
-            return int(getattr(self.config, self.method.rounds_setting))
-        if (
-            self.outer_count == 1 and self.config.outer_iterations > 1
-        ):  # no-retrain: N*J in one swarm
-            return self.config.outer_iterations * self.config.optimizer_iterations
-        return self.config.optimizer_iterations
-
     def elapsed(self) -> float:
         return self.state.elapsed + time.perf_counter() - self.started
 
@@ -153,87 +114,16 @@ class CoadaptationLoop:
         save_state(self.run_dir, self.state)
 
     def emit(self, phase: str, **extra: Any) -> None:
-        if self.progress is None:
-            return
-        s = self.state
-        training = 1 if self.shared else 0  # a training step per outer iteration
-        total = self.outer_count * (self.rounds_per_outer + training) + 1
-        done = s.outer * (self.rounds_per_outer + training)
-        if s.phase == "optimize":
-            done += training + s.inner
-        if s.phase in ("final", "done"):
-            done = total - (1 if s.phase == "final" else 0)
-        c = s.counters
-        eta, elapsed = self.eta_seconds(), self.elapsed()
-        # the share of the time, once the ETA is known; else the share of the steps
-        fraction = (
-            elapsed / (elapsed + eta)
-            if eta is not None and elapsed + eta > 0
-            else min(done / total, 1.0)
-        )
-        self.progress(
-            {
-                "phase": phase,
-                "outer": s.outer,
-                "outer_total": self.outer_count,
-                "inner": s.inner,
-                "inner_total": self.rounds_per_outer,
-                "fraction": fraction,
-                "best_cost": None if s.best_real is None else s.best_real[1],
-                "best_any": None if s.best_any is None else s.best_any[1],
-                "interactions": int(
-                    c["train_interactions"] + c["eval_interactions"] + c["final_interactions"]
-                ),
-                "elapsed": elapsed,
-                "eta": eta,
-                **extra,
-            }
-        )
+        if self.progress is not None:
+            eta, elapsed = self.eta_seconds(), self.elapsed()
+            self.progress(self.schedule.progress_event(self.state, phase, elapsed, eta, **extra))
 
     def eta_seconds(self) -> float | None:
-        """Seconds left, from the wall clock this run has measured (the counters are part of
-        the state, so this holds right after a resume): the training phases still to come at
-        the measured seconds per training interaction; the rounds still to come at the
-        measured seconds of a real round and of a surrogate round (each including the
-        pseudo-critics' fits it triggered), the hybrid policy's share of them real
-        (`HybridPolicy.real_share`); the final check at the measured rollout seconds per
-        design, for its designs and one block. None until a training phase (when one is to
-        come) and a real round have been timed. The video is not included."""
-        s, c = self.state, self.config
-        cnt = s.counters
-        if s.phase == "done":
-            return 0.0
-        real_rounds, real_wall = cnt.get("real_rounds_timed", 0), cnt.get("real_round_wall", 0.0)
-        if real_rounds <= 0:
-            return None
-        per_real = real_wall / real_rounds
-        surrogate_rounds = cnt.get("surrogate_rounds_timed", 0)
-        per_surrogate = (
-            cnt.get("surrogate_round_wall", 0.0) / surrogate_rounds
-            if surrogate_rounds
-            else 0.5 * per_real
+        """Seconds left (`Schedule.eta_seconds`), the hybrid policy's share of the rounds
+        still to come real."""
+        return self.schedule.eta_seconds(
+            self.state, self.config.population, len(self.objectives), self.hybrid.real_share
         )
-        # training phases still to come (this outer iteration's if it has not trained yet)
-        steps_left = 0
-        if self.shared and not (self.pretrained and not self.method.retrain):
-            first = s.outer if s.phase == "train" else s.outer + 1
-            for outer in range(first, self.outer_count):
-                if outer == 0 or self.method.retrain:
-                    steps_left += c.train_steps if outer == 0 else c.retrain_steps
-        train_wall, train_steps = cnt.get("train_wall", 0.0), cnt.get("train_steps_timed", 0)
-        if steps_left and train_steps <= 0:
-            return None
-        seconds = steps_left * (train_wall / train_steps if train_steps else 0.0)
-        if s.phase in ("train", "optimize"):
-            rounds_left = self.rounds_per_outer * (self.outer_count - s.outer) - (
-                s.inner if s.phase == "optimize" else 0
-            )
-            real_share = self.hybrid.real_share(real_rounds, surrogate_rounds)
-            seconds += rounds_left * (real_share * per_real + (1 - real_share) * per_surrogate)
-        real = [b for b in s.batches if b.get("kind") == "real"]
-        per_design = sum(b["seconds"] for b in real) / max(sum(b["designs"] for b in real), 1)
-        designs = (len(s.top_real) + 2) if len(self.objectives) == 1 else c.population + 1
-        return float(seconds + per_design * designs)
 
     def seed_for(self, *parts: int) -> int:
         """A seed fixed by position in the run, so a resumed run draws what it would have."""
@@ -253,21 +143,6 @@ class CoadaptationLoop:
                 self.backend.load(str(self.run_dir / self.state.backend_checkpoint))
         return self.backend
 
-    def optimizer_options(self) -> dict[str, Any]:
-        """The run's `optimizer_options`, as the optimizer plugin declared them (checked
-        against its `option_specs` by the optimizer's constructor), with the options it
-        declares `from_run` filled where the run leaves them unset (`coadapt_core.options`):
-        a study kept under `<run id>-outer<k>` in the run's results store, where a study
-        browser reads it and no two runs of a grid share a name."""
-        url = getattr(self.recorder, "url", None)
-        facts = {
-            "run_name": f"{self.state.run_id}-outer{self.state.outer}",
-            "store_url": url if isinstance(url, str) and "://" in url else None,
-        }
-        return fill_from_run(
-            getattr(self.optimizer_cls, "option_specs", ()), self.config.optimizer_options, facts
-        )
-
     # -- the phases ------------------------------------------------------------------------
     def run(self) -> dict[str, Any]:
         s = self.state
@@ -285,57 +160,54 @@ class CoadaptationLoop:
         """Algorithm 4 lines 10-11 and the set-up of this outer iteration's optimizer."""
         s, c = self.state, self.config
         space = DesignSpace.from_dict(s.space)
-        if (
-            s.train_progress is None
-        ):  # else resumed inside the phase: its designs are drawn (phase.py)
+        if s.train_progress is None:  # else resumed inside the phase: its designs are drawn
             s.spaces.append(space.to_dict())
-            s.train_designs = (
-                space.sample(c.population, self.rng) if self.shared else None
-            )  # [K, dim], line 10
+            # [K, dim], line 10
+            s.train_designs = space.sample(c.population, self.rng) if self.shared else None
         population = 1 if self.optimizer_cls.sequential else c.population
         initial = None
         if self.shared:
             initial = s.train_designs[:population] if population == c.population else None
             self.train_shared_policy()
-        s.optimizer_init = {
-            "space": space.to_dict(),
-            "population": population,
-            "budget": self.rounds_per_outer,
-            "seed": self.seed_for(2, s.outer),
-            "num_objectives": len(self.objectives),
-            "initial_designs": initial,
-            "options": self.optimizer_options(),
-        }
-        s.optimizer = self.make_optimizer(s.optimizer_init)
+        options = optimizer_options(
+            self.optimizer_cls,
+            c.optimizer_options,
+            run_name=f"{s.run_id}-outer{s.outer}",
+            recorder=self.recorder,
+        )
+        s.optimizer_init = optimizer_init(
+            space,
+            population=population,
+            budget=self.schedule.rounds_per_outer,
+            seed=self.seed_for(2, s.outer),
+            num_objectives=len(self.objectives),
+            initial_designs=initial,
+            options=options,
+        )
+        s.optimizer = make_optimizer(self.optimizer_cls, s.optimizer_init)
         s.phase, s.inner = "optimize", 0
         self.checkpoint()
 
     def train_shared_policy(self) -> None:
         """Algorithm 4 line 11: (re)train the shared policy on this outer iteration's designs
         and checkpoint it."""
-        s, c = self.state, self.config
-        steps = c.train_steps if s.outer == 0 else c.retrain_steps
-        if self.pretrained and not self.method.retrain:
-            # no-retrain starting from a universal policy over the full range trains nothing,
-            # as the paper's (0 training interactions in its Table 7)
-            steps = 0
-        if (s.outer == 0 or self.method.retrain) and steps > 0:
+        s = self.state
+        steps = self.schedule.training_steps(s.outer)
+        if steps > 0:
             s.labels = []  # a new policy: earlier real rounds no longer label it
             self.hybrid.forget_fit()
             self.emit("training")
             t0 = time.perf_counter()
-            rate = (
-                phase_progress.PhaseRate()
-            )  # the phase's own count and ETA, from its measured rate
+            # the phase's own count and ETA, from its measured rate
+            rate = phase_progress.PhaseRate()
 
             def heard(done: int, total: int) -> None:
                 self.emit(
                     "training", phase_done=done, phase_total=total, phase_eta=rate.eta(done, total)
                 )
 
-            result = train_in_chunks(
-                self, steps, heard
-            )  # a checkpoint every checkpoint_interactions
+            # a checkpoint every checkpoint_interactions
+            result = train_in_chunks(self, steps, heard)
             s.counters["train_wall"] = s.counters.get("train_wall", 0.0) + time.perf_counter() - t0
             s.counters["train_steps_timed"] = s.counters.get("train_steps_timed", 0) + int(steps)
             self.count_training([result])
@@ -404,12 +276,10 @@ class CoadaptationLoop:
         t0 = time.perf_counter()
         designs = opt.ask()  # [P, dim]
         initial = (s.optimizer_init or {}).get("initial_designs")
-        if (
-            s.inner == 0 and initial is not None
-        ):  # the swarm starts from the training designs (line 10)
-            note_first_round(
-                self.state.notes, self.optimizer_cls, np.asarray(initial, dtype=float), designs
-            )
+        if s.inner == 0 and initial is not None:
+            # the swarm starts from the training designs (line 10): say when it does not
+            initial = np.asarray(initial, dtype=float)
+            note_first_round(s.notes, self.optimizer_cls, initial, designs)
         kind, uncertainty = self.hybrid.choose_kind(designs)
         self.emit(f"{kind} evaluation")
         record = self.evaluate(designs, kind, uncertainty=uncertainty)
@@ -428,7 +298,8 @@ class CoadaptationLoop:
         self, designs: np.ndarray, kind: str, *, uncertainty: float | None = None
     ) -> RoundRecord:
         """The round's record: costs [P, M], what it spent, surrogate errors [P, M] and, for a
-        real round, survival, tracking and error bars; `uncertainty` as the hybrid policy judged it."""
+        real round, survival, tracking and error bars; `uncertainty` as the hybrid policy
+        judged it."""
         s, c = self.state, self.config
         seed = self.seed_for(3, s.outer, s.inner)
         if kind != "real":
@@ -476,29 +347,17 @@ class CoadaptationLoop:
         )
 
     def record_batch(self, designs: np.ndarray, record: RoundRecord) -> None:
+        """The round into the state (best costs, candidates, `batches`) and the recorder."""
         s = self.state
-        n = len(designs)
-        kind, costs, errors = record.kind, record.costs, record.surrogate_errors
-        interactions, seconds = record.interactions, record.seconds
-        s.counters["designs_evaluated"] += n
-        s.note_costs(designs, costs[:, 0], kind, self.config.final_candidates)
-        cost_dicts = [dict(zip(self.names, map(float, row), strict=True)) for row in costs]
-        error_dicts = (
-            None
-            if errors is None
-            else [dict(zip(self.names, map(float, row), strict=True)) for row in errors]
-        )
-        shares, secs = _split(int(interactions), n), _split(float(seconds), n)
+        s.counters["designs_evaluated"] += len(designs)
+        s.note_costs(designs, record.costs[:, 0], record.kind, self.config.final_candidates)
         self.recorder.record_evaluations(
             s.run_id,
             outer=s.outer,
             inner=s.inner,
             designs=designs.tolist(),
-            costs=cost_dicts,
-            kind=kind,
-            interactions=shares,
-            seconds=secs,
-            surrogate_errors=error_dicts,
+            kind=record.kind,
+            **record.per_design(self.names),
         )
         s.add_batch(record)
 
@@ -516,19 +375,35 @@ class CoadaptationLoop:
             s.space = narrowed.to_dict()
         s.outer += 1
         s.inner = 0
-        s.phase = "train" if s.outer < self.outer_count else "final"
+        s.phase = "train" if s.outer < self.schedule.outer_count else "final"
         self.checkpoint()
 
     def final_phase(self) -> None:
         """Re-evaluate for real the best designs (best real, best of any kind; the Pareto front
-        for several objectives) and the nominal design, with the final policy (or each its own)."""
+        for several objectives) and the nominal design, with the final policy (or each its
+        own), and write the run's summary."""
         s, c = self.state, self.config
         self.emit("final evaluation")
         candidates = final_candidates(s, s.optimizer, len(self.objectives), c.population)
         designs = np.stack([*candidates, self.nominal])  # [C + 1, dim]
-        outcome = self._final_check(designs)  # with a policy per design: each candidate's own
+        # with a policy per design: each candidate's own
+        outcome, fit = check_final_designs(
+            self._final_fitness,
+            designs,
+            self.objectives,
+            c,
+            self.cost_rule,
+            on_block=lambda b: self.emit(f"final check, scenario block {b}"),
+        )
+        s.counters["final_interactions"] += int(fit.interactions)
+        s.counters["final_seconds"] += float(fit.seconds)
         if not self.shared:
-            outcome.uncertainty["own_policies"] = self._save_own_policies(outcome.best_design)
+            outcome.uncertainty["own_policies"] = save_own_policies(
+                self.get_backend(),
+                self.run_dir,
+                {"best": outcome.best_design, "nominal": self.nominal},
+                self.count_training,
+            )
         s.summary = run_summary(
             s,
             c,
@@ -546,23 +421,9 @@ class CoadaptationLoop:
         # e.g. the CLI's video) is done too: an interrupt there leaves the run resumable
         self.emit("done")
 
-    def _save_own_policies(self, best_design: np.ndarray) -> dict[str, str]:
-        """Without a shared policy, the best and nominal designs' own policies go to the run
-        folder as `OWN_POLICY_FILES` (the yardstick and sim-to-sim look them up by name)."""
-        backend = self.get_backend()
-        if not isinstance(backend, OwnPolicies):
-            return {}
-        (self.run_dir / "checkpoints").mkdir(exist_ok=True)
-        for role, design in (("best", best_design), ("nominal", self.nominal)):
-            self.count_training(
-                backend.save_policy(
-                    np.asarray(design, dtype=float), str(self.run_dir / OWN_POLICY_FILES[role])
-                )
-            )
-        return dict(OWN_POLICY_FILES)
-
     def _final_fitness(self, designs: np.ndarray, block: int) -> RealFitness:
-        """One scenario block of the final check; policies a backend trains first count as training."""
+        """One scenario block of the final check; policies a backend trains first count as
+        training."""
         c = self.config
         fit = self.get_backend().real_fitness(
             designs,
@@ -573,35 +434,3 @@ class CoadaptationLoop:
         )
         self.count_training(fit.training)
         return fit
-
-    def _final_check(self, designs: np.ndarray) -> FinalOutcome:
-        """Paired blocks of fresh scenarios for the candidates and the nominal design (last)
-        until the improvement is >= 4 standard errors (final_check.py)."""
-        s, c = self.state, self.config
-        check = final_check(
-            self._final_fitness,
-            designs,
-            self.objectives,
-            max_blocks=c.final_max_blocks,
-            min_blocks=min(c.final_min_blocks, c.final_max_blocks),
-            rule=self.cost_rule,
-            fall_tolerance=c.fall_tolerance if len(self.objectives) == 1 else None,
-            on_block=lambda b: self.emit(f"final check, scenario block {b}"),
-        )
-        fit = check.fit
-        costs = np.asarray(fit.costs, dtype=float).reshape(len(designs), -1)
-        s.counters["final_interactions"] += int(fit.interactions)
-        s.counters["final_seconds"] += float(fit.seconds)
-        # several objectives: the front is the non-dominated part of this real re-evaluation and the run returns its
-        # design of lowest first cost; one: the lowest cost among candidates that do not fall more (else the nominal)
-        front = check.front(designs, self.names) if len(self.objectives) > 1 else None
-        i = int(front_rows(designs[:-1], costs[:-1])[0]) if front is not None else check.best
-        best_design, best_costs = designs[i], costs[i]
-        return FinalOutcome(
-            best_design=best_design,
-            best_costs=best_costs,
-            nominal_costs=costs[-1],
-            uncertainty=check.uncertainty(self.names),
-            front=front,
-            walking={"best": walking(fit, [i]), "nominal": walking(fit, [len(designs) - 1])},
-        )

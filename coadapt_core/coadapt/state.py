@@ -40,10 +40,24 @@ class RoundRecord:
     surrogate_errors: np.ndarray | None = None
     survival: float | None = None  # mean survival of a real batch
     tracking_ratio: float | None = None  # mean tracking ratio of a real batch
-    error_bars: dict[str, Any] = field(
-        default_factory=dict
-    )  # best design's cost SE, median relative SE, fall rate
+    # best design's cost SE, median relative SE, fall rate
+    error_bars: dict[str, Any] = field(default_factory=dict)
     uncertainty: float | None = None
+
+    def per_design(self, names: list[str]) -> dict[str, Any]:
+        """The round as the recorder's rows take it (`RunRecorder.record_evaluations`): each
+        design's costs and surrogate errors by objective name, and its share of what the
+        round spent (interactions stay integers that sum to the round's)."""
+        n = len(self.costs)
+        errors = self.surrogate_errors
+        return {
+            "costs": [dict(zip(names, map(float, row), strict=True)) for row in self.costs],
+            "interactions": _shares(int(self.interactions), n),
+            "seconds": _shares(float(self.seconds), n),
+            "surrogate_errors": None
+            if errors is None
+            else [dict(zip(names, map(float, row), strict=True)) for row in errors],
+        }
 
     def measured(self) -> dict[str, Any]:
         return {
@@ -52,6 +66,15 @@ class RoundRecord:
             **self.error_bars,
             "uncertainty": self.uncertainty,
         }
+
+
+def _shares(total: float, n: int) -> list[float]:
+    """A round's total split evenly among its n designs (integers stay integers and sum
+    exactly)."""
+    if isinstance(total, int):
+        base, rest = divmod(total, n)
+        return [base + (1 if i < rest else 0) for i in range(n)]
+    return [total / n] * n
 
 
 @dataclass
@@ -79,9 +102,8 @@ class LoopState:
     # "chunk" (chunks done), "seconds"} after its last mid-phase checkpoint; None between phases
     train_progress: dict[str, Any] | None = None
     best_real: tuple[list[float], float] | None = None  # (design, cost) lowest real cost seen
-    top_real: list[tuple[list[float], float]] = field(
-        default_factory=list
-    )  # lowest distinct real costs
+    # lowest distinct real costs
+    top_real: list[tuple[list[float], float]] = field(default_factory=list)
     best_any: tuple[list[float], float, str] | None = None  # lowest cost of any kind
     counters: dict[str, float] = field(
         default_factory=lambda: {
@@ -110,15 +132,11 @@ class LoopState:
     reference_outer: int = -1
     elapsed: float = 0.0  # wall-clock seconds spent before the current process
     summary: dict[str, Any] | None = None
-    policy: dict[str, Any] | None = (
-        None  # the starting policy's provenance (setup.policy_provenance)
-    )
-    notes: list[str] = field(
-        default_factory=list
-    )  # warnings printed at the start, kept in the summary
-    no_critic: list[str] = field(
-        default_factory=list
-    )  # objectives without a pseudo-critic in the starting policy
+    policy: dict[str, Any] | None = None  # the starting policy's provenance
+    # warnings printed at the start, kept in the summary
+    notes: list[str] = field(default_factory=list)
+    # objectives without a pseudo-critic in the starting policy
+    no_critic: list[str] = field(default_factory=list)
 
     def note_costs(self, designs: np.ndarray, costs: np.ndarray, kind: str, keep: int) -> None:
         """The lowest cost of any kind and the lowest real costs seen, from a batch's designs
@@ -151,7 +169,8 @@ class LoopState:
                 "seconds": seconds,
                 "best_cost": float(costs[finite, 0].min()) if finite.any() else None,
                 "mean_cost": float(costs[finite, 0].mean()) if finite.any() else None,
-                # a diverged pseudo-critic gives NaN/inf: counted, and told to the optimizer as worst
+                # a diverged pseudo-critic gives NaN/inf: counted, and told to the optimizer
+                # as the worst cost
                 "nonfinite_costs": int((~finite).sum()),
                 "surrogate_abs_error": float(np.abs(errors[error_finite, 0]).mean())
                 if errors is not None and error_finite.any()
@@ -175,7 +194,10 @@ class LoopState:
         del top[keep:]
 
 
-_RECOVER = "; the run cannot continue from it: start it again with `coadapt run` (same options) in a new --out"
+_RECOVER = (
+    "; the run cannot continue from it: start it again with `coadapt run` (same options) "
+    "in a new --out"
+)
 _NOT_SAVED = ("optimizer", "optimizer_state", "buffer")
 
 
@@ -215,12 +237,13 @@ def load_state(run_dir: Path) -> LoopState:
     if not path.is_file():
         if (run_dir / LEGACY_STATE_FILE).is_file():
             raise UserError(
-                f"cannot resume: '{run_dir}' holds a {LEGACY_STATE_FILE} from an older coadapt; pickled state is "
-                "never read (it can run code): start the run again",
+                f"cannot resume: '{run_dir}' holds a {LEGACY_STATE_FILE} from an older "
+                "coadapt; pickled state is never read (it can run code): start the run again",
                 field="resume",
             )
         raise UserError(
-            f"cannot resume: '{run_dir}' has no {STATE_FILE} (not a run folder, or it never started)",
+            f"cannot resume: '{run_dir}' has no {STATE_FILE} (not a run folder, or it never "
+            "started)",
             field="resume",
         )
     data = read_json(path, what="run state", recover=_RECOVER)
@@ -299,10 +322,11 @@ def check_same_policy(state: LoopState, policy: dict[str, Any] | None) -> None:
         return
     if policy.get("sha256") != recorded:
         now = policy.get("sha256")
+        now_text = now[:12] + "..." if now else "no file"
         raise UserError(
-            f"cannot resume run {state.run_id}: its starting policy {state.policy.get('path')} changed since the run "
-            f"started (SHA-256 {recorded[:12]}... then, {now[:12] + '...' if now else 'no file'} now); restore that "
-            "file, or start a new run",
+            f"cannot resume run {state.run_id}: its starting policy {state.policy.get('path')} "
+            f"changed since the run started (SHA-256 {recorded[:12]}... then, {now_text} now); "
+            "restore that file, or start a new run",
             field="resume",
         )
 
@@ -317,7 +341,8 @@ def check_writable(run_path: Path, state: LoopState) -> None:
         probe.unlink()
     except OSError as exc:
         raise UserError(
-            f"cannot resume: run folder '{run_path}' cannot be written ({exc.strerror or type(exc).__name__}); "
-            "make it writable, or copy it to a folder you can write and resume the copy",
+            f"cannot resume: run folder '{run_path}' cannot be written "
+            f"({exc.strerror or type(exc).__name__}); make it writable, or copy it to a folder "
+            "you can write and resume the copy",
             field="resume",
         ) from None
