@@ -85,7 +85,7 @@ def phases(summary: dict, evaluations: list[dict], wall: float) -> dict:
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
         "--size", choices=sorted(SIZES), default="quick", help="named run size (default quick)"
@@ -98,7 +98,11 @@ def main(argv: list[str] | None = None) -> int:
         "--out", default=None, help="parent folder of the run folder (default: a temporary one)"
     )
     parser.add_argument("--json", action="store_true", help="print one JSON line last")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
 
     # the `coadapt` command's OpenMP wait policy, chosen before torch is imported
     from coadapt_core.launch import apply_omp_wait_policy
@@ -147,7 +151,6 @@ def main(argv: list[str] | None = None) -> int:
     result = run_coadaptation(config, run_dir=out / f"run-cost-{args.size}-s{args.seed}")
     wall = time.perf_counter() - t0
     after = ceilings()
-    ceiling = {k: 0.5 * (before[k] + after[k]) for k in batches}
 
     run_dir = Path(result.run_dir)
     summary = json.loads((run_dir / "summary.json").read_text())
@@ -157,13 +160,33 @@ def main(argv: list[str] | None = None) -> int:
         if line.strip()
     ]
     parts = phases(summary, evaluations, wall)
+    report = _report(args, parts, wall, before, after, summary, result.summary, run_dir)
+    _print_report(report)
+    if args.json:
+        print(json.dumps(report))
+    return 0
+
+
+def _report(
+    args: argparse.Namespace,
+    parts: dict,
+    wall: float,
+    before: dict[str, float],
+    after: dict[str, float],
+    summary: dict,
+    result_summary: dict,
+    run_dir: Path,
+) -> dict:
+    """The JSON report: each phase's seconds, share and rate, the physics ceiling (mean of
+    before and after the run) and the run's outcome."""
+    ceiling = {k: 0.5 * (before[k] + after[k]) for k in before}
 
     def rate(name: str) -> float | None:
         seconds, steps = parts[name]
         return steps / seconds if seconds > 0 and steps > 0 else None
 
     evaluation_rate, training_rate = rate("real evaluation"), rate("train")
-    report = {
+    return {
         "size": args.size,
         "objective": args.objective,
         "optimizer": args.optimizer,
@@ -180,7 +203,7 @@ def main(argv: list[str] | None = None) -> int:
             for name, (s, n) in parts.items()
         },
         "physics_ceiling_env_steps_per_s": {k: round(v) for k, v in ceiling.items()},
-        "physics_ceiling_before_after": {k: [round(before[k]), round(after[k])] for k in batches},
+        "physics_ceiling_before_after": {k: [round(before[k]), round(after[k])] for k in before},
         "evaluation_vs_physics_ceiling": None
         if evaluation_rate is None
         else round(evaluation_rate / ceiling["evaluation"], 3),
@@ -191,10 +214,14 @@ def main(argv: list[str] | None = None) -> int:
         "real_rounds": summary.get("real_evaluations"),
         "surrogate_rounds": summary.get("surrogate_evaluations"),
         "best_design": summary.get("best_design"),
-        "improvement": result.summary.get("improvement"),
-        "improvement_se": result.summary.get("improvement_se"),
+        "improvement": result_summary.get("improvement"),
+        "improvement_se": result_summary.get("improvement_se"),
         "run_dir": str(run_dir),
     }
+
+
+def _print_report(report: dict) -> None:
+    """The phases as a Markdown table on stdout, the wall clock and ceiling on stderr."""
     print("| phase | seconds | share | interactions | interactions/s | vs physics ceiling |")
     print("|---|---|---|---|---|---|")
     for name, row in report["phases"].items():
@@ -212,9 +239,6 @@ def main(argv: list[str] | None = None) -> int:
         f"surrogate share {report['surrogate_share']}",
         file=sys.stderr,
     )
-    if args.json:
-        print(json.dumps(report))
-    return 0
 
 
 if __name__ == "__main__":
