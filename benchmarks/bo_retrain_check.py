@@ -32,7 +32,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from coadapt_core.coadapt.config_loading import config_from_dict
     from coadapt_core.coadapt.loop import seed_at
-    from coadapt_core.coadapt.setup import make_objectives
+    from coadapt_core.coadapt.search import make_objectives
     from coadapt_core.coadapt.specialized import SpecializedPolicyBackend
     from coadapt_core.costs import CostRule
     from coadapt_core.errors import CoadaptError

@@ -103,7 +103,8 @@ METHODS: dict[str, Method] = {
         Method(
             "no-retrain",
             "Ours w/o Retraining",
-            "one universal policy over the full range, trained once; N x J real rounds in one search",
+            "one universal policy over the full range, trained once; N x J real rounds in one "
+            "search",
             marker="D",
             color="tab:purple",
             retrain=False,
@@ -113,7 +114,8 @@ METHODS: dict[str, Method] = {
         Method(
             "bo-specialized",
             "BO",
-            "baseline: a sequential optimizer proposing bo_designs designs, each with a policy trained for it alone",
+            "baseline: a sequential optimizer proposing bo_designs designs, each with a policy "
+            "trained for it alone",
             marker="P",
             color="tab:orange",
             retrain=False,

@@ -55,8 +55,9 @@ def at_bound(summary: dict[str, Any], share: float = BOUND_SHARE) -> str | None:
     if not hits:
         return None
     return (
-        f"best design at a bound of the design space ({'; '.join(hits)}; within {100 * share:g} % of the range): "
-        "the optimum may lie beyond it; widen the range (--design-ranges) or read the answer as found at the bound"
+        f"best design at a bound of the design space ({'; '.join(hits)}; within {100 * share:g} % "
+        "of the range): the optimum may lie beyond it; widen the range (--design-ranges) or read "
+        "the answer as found at the bound"
     )
 
 
@@ -78,10 +79,10 @@ def plain_mean_not_significant(summary: dict[str, Any], ratio: float | None = No
     rule = summary.get("cost_rule") or "the rule's"
     shown = f"{100 * gain:+.1f}" + (f" +- {100 * gain_se:.1f}" if _finite(gain_se) else "")
     return (
-        f"{objective}: the improvement ({shown} %, {rule} cost) is significant but its plain mean's "
-        f"({100 * plain:+.1f} +- {100 * plain_se:.1f} %) is not (under {ratio:g} paired standard errors"
-        f"{' or of the other sign' if plain * gain <= 0 else ''}): the gain may be the cost rule's, not a "
-        "cheaper gait"
+        f"{objective}: the improvement ({shown} %, {rule} cost) is significant but its plain "
+        f"mean's ({100 * plain:+.1f} +- {100 * plain_se:.1f} %) is not (under {ratio:g} "
+        f"paired standard errors{' or of the other sign' if plain * gain <= 0 else ''}): the "
+        "gain may be the cost rule's, not a cheaper gait"
     )
 
 
@@ -127,14 +128,14 @@ def weak_surrogate(summary: dict[str, Any], threshold: float = WEAK_SPEARMAN) ->
     )
     last_text = f", last judged round {last:.2f}" if _finite(last) else ""
     partial = (
-        " (a round is judged only where a fit already covers it unless --surrogate-error-fits: not comparable "
-        "with runs judged on every round)"
+        " (a round is judged only where a fit already covers it unless --surrogate-error-fits: not "
+        "comparable with runs judged on every round)"
         if _finite(real) and _finite(rounds) and rounds < real
         else ""
     )
     return (
-        f"surrogate: pooled Spearman {rho:.2f} over {covers}{last_text} is below {threshold:g}: its rounds "
-        f"ranked designs weakly{partial}"
+        f"surrogate: pooled Spearman {rho:.2f} over {covers}{last_text} is below "
+        f"{threshold:g}: its rounds ranked designs weakly{partial}"
     )
 
 

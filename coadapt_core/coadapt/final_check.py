@@ -27,16 +27,20 @@ SIGNIFICANCE_RATIO = 4.0
 @dataclass
 class FinalCheck:
     fit: RealFitness  # pooled over blocks: costs [C + 1, M] etc.; the nominal design is last
-    best: int  # index of the best candidate (lowest first cost among those that do not fall more); -1: the nominal
+    #: index of the best candidate (the lowest first cost among those that do not fall more);
+    #: -1: the nominal design
+    best: int
     blocks: int
     scenarios: int  # per design
     cost_se: np.ndarray | None  # [C + 1, M]
     improvement_se: dict[str, float | None]
     significant: bool | None  # None: the backend gives no per-scenario costs
     rule: CostRule = field(default_factory=CostRule)
-    # best against nominal on the pooled scenarios (costs.compare_designs); None without per-scenario costs
+    # best against nominal on the pooled scenarios (costs.compare_designs); None without
+    # per-scenario costs
     comparison: dict[str, Any] | None = None
-    # per candidate: its paired fall-rate difference to the nominal design and whether it may be the best
+    # per candidate: its paired fall-rate difference to the nominal design and whether it may
+    # be the best
     fall_check: list[dict[str, Any]] = field(default_factory=list)
 
     def uncertainty(self, names: Sequence[str]) -> dict[str, Any]:
@@ -131,7 +135,8 @@ class FinalCheck:
                 else None
             )
             values = self.rule.scenario_values(per, falls, ref)
-            # every candidate: one off the front here may be on it in a resample (a dominated one adds nothing)
+            # every candidate: one off the front here may be on it in a resample (a dominated
+            # one adds nothing)
             out["hypervolume"], out["hypervolume_se"] = hypervolume_se(values, self.rule.aggregate)
         else:
             out["hypervolume"], out["hypervolume_se"] = hypervolume(costs[rows], costs[-1]), None
@@ -206,6 +211,26 @@ def _fall_check(
     return out
 
 
+def _best_row(
+    costs: np.ndarray,
+    falls: np.ndarray | None,
+    fall_tolerance: float | None,
+    choose_best: Callable[[np.ndarray], int] | None,
+) -> tuple[int, list[dict[str, Any]]]:
+    """(the best row of `costs` [C + 1, M], the nominal design last; the fall gate per
+    candidate): `choose_best`'s row, else the lowest first cost among the candidates the
+    fall gate lets through, the nominal design when none is cheaper than it."""
+    if choose_best is not None:
+        return choose_best(costs), []
+    nominal = len(costs) - 1
+    gate = _fall_check(falls, nominal, fall_tolerance) if fall_tolerance is not None else []
+    allowed = [i for i in range(nominal) if not gate or gate[i]["eligible"]]
+    best = min(allowed, key=lambda i: costs[i, 0]) if allowed else nominal
+    if fall_tolerance is not None and costs[best, 0] >= costs[nominal, 0]:
+        best = nominal
+    return best, gate
+
+
 def final_check(
     real_fitness: Callable[[np.ndarray, int], RealFitness],
     designs: np.ndarray,
@@ -240,18 +265,7 @@ def final_check(
         fits.append(real_fitness(designs, block))
         pooled = _pool(fits, rule)
         costs = np.asarray(pooled.costs, dtype=float).reshape(len(designs), -1)
-        if choose_best is not None:
-            best = choose_best(costs)
-        else:
-            gate = (
-                _fall_check(pooled.scenario_falls, nominal, fall_tolerance)
-                if fall_tolerance is not None
-                else []
-            )
-            allowed = [i for i in range(nominal) if not gate or gate[i]["eligible"]]
-            best = min(allowed, key=lambda i: costs[i, 0]) if allowed else nominal
-            if fall_tolerance is not None and costs[best, 0] >= costs[nominal, 0]:
-                best = nominal
+        best, gate = _best_row(costs, pooled.scenario_falls, fall_tolerance, choose_best)
         if pooled.per_scenario is None:  # no scenario spread to measure: one block is all
             break
         per = np.asarray(pooled.per_scenario, dtype=float)

@@ -123,7 +123,8 @@ class HybridPolicy:
             return "real", None
         if s.no_critic and not self.ensure_fitted():
             # an objective without a pseudo-critic in the starting policy: the fit to this
-            # policy's real rounds stands in for it, or the round is real (setup.objectives_without_critic)
+            # policy's real rounds stands in for it, or the round is real
+            # (starting_policy.objectives_without_critic)
             return "real", None
         if self.uncertainty and designs is not None:
             return self._agreed_kind(designs)
@@ -356,7 +357,8 @@ class HybridPolicy:
             "by_objective": by_objective,
             "rounds": brief,
             "estimator": "fitted" if self.config.fit_surrogate else "paper",
-            "definition": "over eligible real rounds (a real round of the same policy came before); relative error "
-            "(surrogate - real) / |real|; top_k_regret: (best real cost among the surrogate's "
+            "definition": "over eligible real rounds (a real round of the same policy came "
+            "before); relative error (surrogate - real) / |real|; top_k_regret: (best real "
+            "cost among the surrogate's "
             f"{sq.TOP_K} cheapest - best real cost) / |best real cost|, mean over rounds",
         }

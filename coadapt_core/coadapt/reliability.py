@@ -20,7 +20,8 @@ is **reliable** when
 Otherwise its summary, its `--json` line and its report row say `reliable: false` with the
 reason. A run whose best design falls significantly more often than the nominal design (its
 paired fall-rate difference over the final check's scenarios above max(1 percentage point,
-2 standard errors), `fall_verdict`) is not reliable either: its cost was bought with falls. A backend that reports neither measurement (the analytic fake of the tests) leaves
+2 standard errors), `fall_verdict`) is not reliable either: its cost was bought with falls.
+A backend that reports neither measurement (the analytic fake of the tests) leaves
 `reliable` null ("not measured").
 """
 
@@ -39,7 +40,10 @@ class WalkingGate:
     max_tracking_ratio: float = 0.5
 
     def describe(self) -> str:
-        return f"survival >= {self.min_survival:g} and tracking error <= {self.max_tracking_ratio:g} x command"
+        return (
+            f"survival >= {self.min_survival:g} and tracking error <= "
+            f"{self.max_tracking_ratio:g} x command"
+        )
 
 
 WALKING_GATE = WalkingGate()
@@ -126,14 +130,18 @@ def judge_short(
     reliable, reason = verdict
     if reliable is not False or eval_steps >= MIN_JUDGED_STEPS:
         return verdict
-    short = f"{eval_steps} steps per scenario are too short to judge tracking (the gate needs >= {MIN_JUDGED_STEPS})"
+    short = (
+        f"{eval_steps} steps per scenario are too short to judge tracking (the gate needs >= "
+        f"{MIN_JUDGED_STEPS})"
+    )
     if from_scratch:
         return False, f"trained from scratch in this run, and {short}; measured: {reason}"
     loose = WalkingGate(min_survival=gate.min_survival, max_tracking_ratio=SHORT_MAX_TRACKING_RATIO)
     if assess(batches, final, loose)[0] is False:
         return (
             False,
-            f"{reason}; it falls or stands still, which {eval_steps} steps per scenario do not explain",
+            f"{reason}; it falls or stands still, which {eval_steps} steps per scenario do not "
+            "explain",
         )
     return None, f"not judged: {short}; measured: {reason}"
 
@@ -190,9 +198,10 @@ def fall_verdict(summary: dict[str, Any], margin: float = FALL_MARGIN) -> dict[s
         return {"falls_more": None}
     if not falls_more(d, se, margin):
         return {"falls_more": False}
+    best_rate, nominal_rate = summary.get("best_fall_rate", 0), summary.get("nominal_fall_rate", 0)
     why = (
-        f"the best design falls more often than the nominal design ({100 * summary.get('best_fall_rate', 0):.1f} % "
-        f"against {100 * summary.get('nominal_fall_rate', 0):.1f} % of scenarios, difference "
+        f"the best design falls more often than the nominal design ({100 * best_rate:.1f} % "
+        f"against {100 * nominal_rate:.1f} % of scenarios, difference "
         f"{100 * d:.1f} +- {100 * (se or 0):.1f} points > max({100 * margin:g}, 2 SE))"
     )
     previous = summary.get("reliability") or ""

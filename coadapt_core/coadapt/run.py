@@ -10,6 +10,7 @@ import contextlib
 import os
 import sys
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -56,9 +57,9 @@ def run_coadaptation(
     """Run (or resume) Algorithm 4 and return its summary.
 
     Anything not given is built from the registry and the config: the robot's design space
-    (mixed for `mixed` or an optimizer that implies it) narrowed to `design_ranges`, its nominal design, the
-    objectives, the optimizer class and the universal-policy backend. With `resume` (a run
-    folder) the recorded config and state are used and `config` is ignored.
+    (mixed for `mixed` or an optimizer that implies it) narrowed to `design_ranges`, its
+    nominal design, the objectives, the optimizer class and the universal-policy backend. With
+    `resume` (a run folder) the recorded config and state are used and `config` is ignored.
 
     `on_start(run_id, run_dir)` is called as soon as the run folder holds a state to resume
     from; `finishing(result)` after the final check and before the store says "finished"
@@ -77,16 +78,17 @@ def run_coadaptation(
         state = load_state(run_path)
         config = config_from_dict(state.config)
         check_writable(run_path, state)
-        parts = build_parts(config, **given)
+    elif config is None:
+        raise UserError("run_coadaptation needs a config or a run folder to resume", field="config")
+    else:
+        config.validate()
+    parts = build_parts(config, **given)
+    # the config as recorded (config.yaml, the store, the logger), its plugin options typed
+    recorded = config.to_dict()
+    if resume is not None:
         check_same_policy(state, parts.policy)
     else:
-        if config is None:
-            raise UserError(
-                "run_coadaptation needs a config or a run folder to resume", field="config"
-            )
-        config.validate()
-        parts = build_parts(config, **given)
-        run_path, state, recorder = _new_run(config, parts, run_dir, recorder)
+        run_path, state, recorder = _new_run(config, recorded, parts, run_dir, recorder)
     recorder = recorder or make_recorder(run_path, config.store or None)
     if on_start is not None:
         on_start(state.run_id, run_path)
@@ -95,7 +97,7 @@ def run_coadaptation(
     # phase records the threads it ran on in trainings.jsonl)
     recorder.start_run(
         {
-            **config.to_dict(),
+            **recorded,
             "run_id": state.run_id,
             "run_dir": str(run_path),
             "design_space": parts.full_space.to_dict(),
@@ -103,13 +105,13 @@ def run_coadaptation(
             "threads": threads.budget(),
         }
     )
-    return _drive(
-        config, state, parts, run_path, recorder, progress, finishing, resumed=resume is not None
-    )
+    run = _Run(config, recorded, state, parts, run_path, recorder)
+    return _drive(run, progress, finishing, resumed=resume is not None)
 
 
 def _new_run(
     config: CoadaptConfig,
+    recorded: dict[str, Any],
     parts: LoopParts,
     run_dir: str | os.PathLike | None,
     recorder: RunRecorder | None,
@@ -132,7 +134,7 @@ def _new_run(
     )  # a bad store: one line, nothing written
     state = LoopState(
         run_id=run_id,
-        config=config.to_dict(),
+        config=recorded,
         space=parts.space.to_dict(),
         policy=parts.policy,
         notes=list(parts.notes),
@@ -146,32 +148,43 @@ def _new_run(
     return run_path, state, recorder
 
 
+@dataclass
+class _Run:
+    """A started (or resumed) run as `_drive` takes it on: its config, as an object and as
+    recorded, its state, its parts, its folder and its recorder."""
+
+    config: CoadaptConfig
+    recorded: dict[str, Any]
+    state: LoopState
+    parts: LoopParts
+    path: Path
+    recorder: RunRecorder
+
+
 def _drive(
-    config: CoadaptConfig,
-    state: LoopState,
-    parts: LoopParts,
-    run_path: Path,
-    recorder: RunRecorder,
+    run: _Run,
     progress: ProgressFn | None,
     finishing: Callable[[CoadaptResult], None] | None,
     *,
     resumed: bool,
 ) -> CoadaptResult:
-    """The loop from `state` to the store's "finished" (or "interrupted", re-raising)."""
+    """The loop from the run's state to the store's "finished" (or "interrupted",
+    re-raising)."""
+    state, recorder = run.state, run.recorder
     try:
         if resumed:
             # a store that lost this run's rows (emptied, replaced, an old copy) gets them back
             # from the run folder's JSON lines before anything new is recorded
             refill = getattr(recorder, "refill_from_run_folder", None)
             if refill is not None:
-                refill(state.run_id, run_path)
+                refill(state.run_id, run.path)
         if state.phase == "done":  # resuming a finished run (or one stopped in `finishing`)
             assert state.summary is not None
             summary = state.summary
         else:
-            summary = _continue(config, state, parts, run_path, recorder, progress)
-        result = CoadaptResult(state.run_id, run_path, summary)
-        _draw_figures(run_path, summary, config)
+            summary = _continue(run, progress)
+        result = CoadaptResult(state.run_id, run.path, summary)
+        _draw_figures(run.path, summary, run.recorded)
         if finishing is not None:
             finishing(result)
     except BaseException as exc:
@@ -194,14 +207,14 @@ def _drive(
     return result
 
 
-def _draw_figures(run_path: Path, summary: dict[str, Any], config: CoadaptConfig) -> None:
+def _draw_figures(run_path: Path, summary: dict[str, Any], recorded: dict[str, Any]) -> None:
     """The run's figures in its folder (`analysis.run_figures`: convergence, the Pareto front,
     the surrogate's error), one line naming them; a figure that cannot be drawn is said in
     that line and leaves the run's result alone."""
     try:
         from coadapt_core.analysis.run_figures import write_run_figures
 
-        written = write_run_figures(run_path, summary, config.to_dict())
+        written = write_run_figures(run_path, summary, recorded)
     except Exception as exc:  # matplotlib missing or a record it cannot draw: the result stands
         print(f"figures: not drawn ({type(exc).__name__}: {exc})", file=sys.stderr)
         return
@@ -209,35 +222,26 @@ def _draw_figures(run_path: Path, summary: dict[str, Any], config: CoadaptConfig
         print(f"figures: {', '.join(p.name for p, _ in written)} in {run_path}", file=sys.stderr)
 
 
-def _continue(
-    config: CoadaptConfig,
-    state: LoopState,
-    parts: LoopParts,
-    run_path: Path,
-    recorder: RunRecorder,
-    progress: ProgressFn | None,
-) -> dict[str, Any]:
-    """Run the loop from `state` to its summary, with the run's TensorBoard/wandb logger."""
+def _continue(run: _Run, progress: ProgressFn | None) -> dict[str, Any]:
+    """Run the loop from the run's state to its summary, with its TensorBoard/wandb logger."""
     from coadapt_core import tracking
 
     # TensorBoard (default) / wandb: training curves, best cost per round, surrogate error
     logger = tracking.make_logger(
-        getattr(config, "logger", "tensorboard"),
-        run_path / "tb",
-        name=state.run_id,
-        config=config.to_dict(),
+        run.config.logger, run.path / "tb", name=run.state.run_id, config=run.recorded
     )
-    recorder = tracking.TrackingRecorder(recorder, logger)
+    recorder = tracking.TrackingRecorder(run.recorder, logger)
+    parts = run.parts
     loop = CoadaptationLoop(
-        config,
+        run.config,
         backend_factory=parts.backend_factory,
         design_space=parts.full_space,
         nominal_design=parts.nominal,
         objectives=parts.objectives,
         optimizer_cls=parts.optimizer_cls,
-        run_dir=run_path,
+        run_dir=run.path,
         recorder=recorder,
-        state=state,
+        state=run.state,
         progress=progress,
         pretrained=parts.pretrained,
     )

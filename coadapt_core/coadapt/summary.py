@@ -126,22 +126,7 @@ def run_summary(
     """summary.json: the run's settings, its best and nominal designs with their costs and
     improvements, its interactions and seconds by phase, every batch, the surrogate's quality,
     the walking gate's verdict and the fall comparison."""
-    s, c, names = state, config, [o.name for o in objectives]
-    best_costs, nominal_costs = outcome.best_costs, outcome.nominal_costs
-    improvements = {
-        o.name: float(
-            o.improvement(
-                float(best_costs[j]) if j < len(best_costs) else float("nan"),
-                float(nominal_costs[j]),
-            )
-        )
-        for j, o in enumerate(objectives)
-        if j < len(best_costs)
-    }
-    cnt = s.counters
-    interactions = int(
-        cnt["train_interactions"] + cnt["eval_interactions"] + cnt["final_interactions"]
-    )
+    s, c = state, config
     summary = {
         "run_id": s.run_id,
         "method": c.method,
@@ -150,26 +135,8 @@ def run_summary(
         "terrain": c.terrain,
         "seed": c.seed,
         "preset": c.preset,
-        "best_design": [float(x) for x in outcome.best_design],
-        "best_cost": float(best_costs[0]),
-        "best_costs": dict(zip(names, map(float, best_costs), strict=False)),
-        "nominal_design": nominal.tolist(),
-        "nominal_cost": float(nominal_costs[0]),
-        "nominal_costs": dict(zip(names, map(float, nominal_costs), strict=True)),
-        "improvement": improvements[names[0]],
-        "improvements": improvements,
-        "interactions": interactions,
-        "train_interactions": int(cnt["train_interactions"]),
-        "eval_interactions": int(cnt["eval_interactions"]),
-        "final_interactions": int(cnt["final_interactions"]),
-        "seconds": seconds,
-        "train_seconds": cnt["train_seconds"],
-        "eval_seconds": cnt["eval_seconds"],
-        "surrogate_seconds": cnt["surrogate_seconds"],
-        "final_seconds": cnt["final_seconds"],
-        "real_evaluations": int(cnt["real_evaluations"]),
-        "surrogate_evaluations": int(cnt["surrogate_evaluations"]),
-        "designs_evaluated": int(cnt["designs_evaluated"]),
+        **_designs_and_costs(objectives, outcome, nominal),
+        **_spend(s.counters, seconds),
         "spaces": s.spaces,
         "final_space": s.space,
         "batches": s.batches,
@@ -197,7 +164,7 @@ def run_summary(
         s.batches, outcome.walking, c.eval_steps, from_scratch=scratch
     )
     summary["starting_policy"] = (
-        None if str(c.checkpoint).strip().lower() == "none" else starting_policy(c)
+        None if str(c.checkpoint).strip().lower() == "none" else starting_policy_file(c)
     )
     summary["final_walking"] = outcome.walking
     summary.update(outcome.uncertainty)
@@ -208,12 +175,61 @@ def run_summary(
     return summary
 
 
-def starting_policy(config: CoadaptConfig) -> str | None:
+def _designs_and_costs(
+    objectives: Sequence[Objective], outcome: FinalOutcome, nominal: np.ndarray
+) -> dict[str, Any]:
+    """The best and nominal designs with their costs per objective and the improvements."""
+    names = [o.name for o in objectives]
+    best_costs, nominal_costs = outcome.best_costs, outcome.nominal_costs
+    improvements = {
+        o.name: float(
+            o.improvement(
+                float(best_costs[j]) if j < len(best_costs) else float("nan"),
+                float(nominal_costs[j]),
+            )
+        )
+        for j, o in enumerate(objectives)
+        if j < len(best_costs)
+    }
+    return {
+        "best_design": [float(x) for x in outcome.best_design],
+        "best_cost": float(best_costs[0]),
+        "best_costs": dict(zip(names, map(float, best_costs), strict=False)),
+        "nominal_design": nominal.tolist(),
+        "nominal_cost": float(nominal_costs[0]),
+        "nominal_costs": dict(zip(names, map(float, nominal_costs), strict=True)),
+        "improvement": improvements[names[0]],
+        "improvements": improvements,
+    }
+
+
+def _spend(cnt: dict[str, Any], seconds: float) -> dict[str, Any]:
+    """The run's interactions, seconds and evaluations, in all and by phase."""
+    interactions = int(
+        cnt["train_interactions"] + cnt["eval_interactions"] + cnt["final_interactions"]
+    )
+    return {
+        "interactions": interactions,
+        "train_interactions": int(cnt["train_interactions"]),
+        "eval_interactions": int(cnt["eval_interactions"]),
+        "final_interactions": int(cnt["final_interactions"]),
+        "seconds": seconds,
+        "train_seconds": cnt["train_seconds"],
+        "eval_seconds": cnt["eval_seconds"],
+        "surrogate_seconds": cnt["surrogate_seconds"],
+        "final_seconds": cnt["final_seconds"],
+        "real_evaluations": int(cnt["real_evaluations"]),
+        "surrogate_evaluations": int(cnt["surrogate_evaluations"]),
+        "designs_evaluated": int(cnt["designs_evaluated"]),
+    }
+
+
+def starting_policy_file(config: CoadaptConfig) -> str | None:
     """The policy the run started from, as a path (the robot's shipped one when not given)."""
     if config.checkpoint.strip():
         return config.checkpoint.strip()
     try:
-        from coadapt_core.coadapt.setup import resolve_checkpoint
+        from coadapt_core.coadapt.starting_policy import resolve_checkpoint
 
         found = resolve_checkpoint(config)
     except Exception:  # a fake or third-party robot without one

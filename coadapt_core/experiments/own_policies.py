@@ -96,34 +96,35 @@ def retrain_policies(
 
 
 def run_learner(config: Any, run: dict[str, Any]) -> Callable[[int], CoadaptationBackend]:
-    """The per-design policy factory of the run (`setup.universal_policy_factory`), after
+    """The per-design policy factory of the run (`backends.universal_policy_factory`), after
     checking that the starting policy it resolves to is the file the run recorded."""
-    from coadapt_core.coadapt.setup import (
-        make_objectives,
-        policy_provenance,
-        universal_policy_factory,
-        uses_mixed_space,
-    )
+    from coadapt_core.coadapt.backends import universal_policy_factory
+    from coadapt_core.coadapt.search import make_objectives, uses_mixed_space
+    from coadapt_core.coadapt.starting_policy import policy_provenance, resolve_checkpoint
     from coadapt_core.plugins import get_registry
 
     recorded = (
         (run.get("config") or {}).get("policy") or (run.get("summary") or {}).get("policy") or {}
     )
+    checkpoint = None  # each design's policy from scratch (the paper's)
     if config.specialized_init == "universal":
         if config.checkpoint.strip():
             raise BackendUnavailable(
                 "the run's policies started from a file it was given (--checkpoint), "
                 "not one the robot ships; they cannot be trained again here"
             )
-        now = policy_provenance(config)
+        checkpoint = resolve_checkpoint(config)
+        now = policy_provenance(config, checkpoint)
         if recorded.get("sha256") and now.get("sha256") != recorded.get("sha256"):
             raise BackendUnavailable(
                 f"the starting policy {now.get('file')} is not the one the run started from "
                 "(SHA-256 differs); its policies cannot be trained again"
             )
     robot = get_registry().create("robot", config.robot)
+    space = robot.design_space(uses_mixed_space(config))
+    # only a run without a shared policy has its policies trained again
     return universal_policy_factory(
-        config, robot, robot.design_space(uses_mixed_space(config)), make_objectives(config)
+        config, robot, space, make_objectives(config), shared=False, checkpoint=checkpoint
     )
 
 

@@ -312,7 +312,9 @@ def test_no_retrain_from_a_pretrained_policy_trains_nothing(tmp_path, monkeypatc
     monkeypatch.setattr(
         loop_setup, "universal_policy_factory", lambda *a, **k: lambda seed: AnalyticBackend(seed)
     )
-    monkeypatch.setattr(loop_setup, "resolve_checkpoint", lambda config: "/shipped/policy.pt")
+    import coadapt_core.coadapt.starting_policy as start
+
+    monkeypatch.setattr(start, "find_checkpoint", lambda *a: "/shipped/policy.pt")
     config = make_config("smoke", overrides={**BASE, "out": str(tmp_path), "method": "no-retrain"})
     summary = run_coadaptation(
         config, design_space=SPACE, nominal_design=NOMINAL, objectives=[TorqueObjective()]

@@ -8,7 +8,7 @@ import numpy as np
 from coadapt_plugins.objectives.locomotion import TorqueObjective
 
 from coadapt_core.coadapt import make_config, run_coadaptation
-from coadapt_core.coadapt.setup import uses_mixed_space
+from coadapt_core.coadapt.search import uses_mixed_space
 from coadapt_core.optimizer import Optimizer
 from coadapt_core.options import PluginOption
 from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend

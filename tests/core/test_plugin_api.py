@@ -254,8 +254,8 @@ def test_an_optimizer_ignoring_initial_designs_is_named_at_the_start_of_a_run(tm
     from coadapt_plugins.objectives.locomotion import TorqueObjective
 
     from coadapt_core.coadapt.config_loading import make_config
+    from coadapt_core.coadapt.first_round import initial_designs_note
     from coadapt_core.coadapt.run import run_coadaptation
-    from coadapt_core.coadapt.setup import initial_designs_note
     from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend
 
     old = _IgnoresInitial.make()

@@ -12,9 +12,9 @@ import yaml
 
 from coadapt_core.cli.options import DECLARED
 from coadapt_core.cli.settings_doc import settings_markdown
+from coadapt_core.coadapt.backends import learner_settings
 from coadapt_core.coadapt.config import CoadaptConfig
 from coadapt_core.coadapt.config_loading import config_from_dict, make_config
-from coadapt_core.coadapt.setup import learner_settings
 from coadapt_core.errors import UserError
 from coadapt_core.settings import leaves
 

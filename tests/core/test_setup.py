@@ -8,7 +8,8 @@ import pytest
 import torch
 
 from coadapt_core.coadapt.config_loading import make_config
-from coadapt_core.coadapt.setup import build_parts, resolve_checkpoint
+from coadapt_core.coadapt.setup import build_parts
+from coadapt_core.coadapt.starting_policy import resolve_checkpoint
 from coadapt_core.learning import shipped_checkpoint
 from coadapt_core.learning.checkpoints import read_checkpoint
 
