@@ -27,6 +27,7 @@ import argparse
 import json
 import sys
 import time
+from typing import Any
 
 import numpy as np
 
@@ -47,7 +48,7 @@ def parse_variants(text: str) -> list[tuple[int, int, int]]:
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
         "--variants",
@@ -78,21 +79,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--robot", default=None)
     parser.add_argument("--sim", default=None)
     parser.add_argument("--json", action="store_true", help="one JSON line last")
-    args = parser.parse_args(argv)
-    try:
-        variants = parse_variants(args.variants)
-    except ValueError as exc:
-        parser.error(f"--variants: {exc}")  # one line, exit 2
-    if args.check_states is not None and args.check_states < 1:
-        parser.error("--check-states: needs a whole number >= 1")
-    if not 2 <= args.held_out <= args.designs - 2:
-        parser.error("--held-out: needs at least 2 held-out and 2 fitted designs")
-    try:
-        seeds = [int(s) for s in args.seeds.split(",")]
-    except ValueError:
-        parser.error(f"--seeds: '{args.seeds}' is not a comma-separated list of whole numbers")
+    return parser
 
-    from scipy.stats import spearmanr
+
+def main(argv: list[str] | None = None) -> int:
+    parser = _parser()
+    args = parser.parse_args(argv)
+    variants, seeds = _checked(parser, args)
 
     from coadapt_core.learning.factory import make_backend
     from coadapt_core.plugins import get_registry
@@ -121,30 +114,20 @@ def main(argv: list[str] | None = None) -> int:
         backend.surrogate_fit_options = {"batch": rows, "steps": steps}
         if args.check_states is not None:
             backend.surrogate_fit_options["check_states"] = args.check_states
-        per = {}
-        for j, (name, objective) in enumerate(zip(names, objectives, strict=True)):
-            rho, seconds, error = [], [], []
-            for seed in seeds:
-                t = time.perf_counter()
-                backend.fit_surrogate(
-                    designs[fit], costs[fit, j : j + 1], [objective], real.buffer, seed=seed
-                )
-                seconds.append(time.perf_counter() - t)
-                predicted = backend.surrogate_fitness(
-                    designs[held], [objective], real.buffer, samples=args.samples, seed=seed
-                )[:, 0]
-                rho.append(round(float(spearmanr(predicted, costs[held, j])[0]), 3))
-                error.append(
-                    round(
-                        float(np.mean(np.abs(predicted - costs[held, j]) / np.abs(costs[held, j]))),
-                        3,
-                    )
-                )
-            per[name] = {
-                "spearman": rho,
-                "mean_relative_error": error,
-                "fit_seconds": round(float(np.mean(seconds)), 2),
-            }
+        per = {
+            name: _judge(
+                backend,
+                objective,
+                designs,
+                costs[:, j],
+                real.buffer,
+                fit,
+                held,
+                seeds,
+                args.samples,
+            )
+            for j, (name, objective) in enumerate(zip(names, objectives, strict=True))
+        }
         key = f"{members}x{rows}x{steps}"
         results[key] = per
         print(
@@ -174,6 +157,58 @@ def main(argv: list[str] | None = None) -> int:
             )
         )
     return 0
+
+
+def _checked(
+    parser: argparse.ArgumentParser, args: argparse.Namespace
+) -> tuple[list[tuple[int, int, int]], list[int]]:
+    """(the variants, the fit seeds); bad input is one line and exit 2 (`parser.error`)."""
+    try:
+        variants = parse_variants(args.variants)
+    except ValueError as exc:
+        parser.error(f"--variants: {exc}")  # one line, exit 2
+    if args.check_states is not None and args.check_states < 1:
+        parser.error("--check-states: needs a whole number >= 1")
+    if not 2 <= args.held_out <= args.designs - 2:
+        parser.error("--held-out: needs at least 2 held-out and 2 fitted designs")
+    try:
+        seeds = [int(s) for s in args.seeds.split(",")]
+    except ValueError:
+        parser.error(f"--seeds: '{args.seeds}' is not a comma-separated list of whole numbers")
+    return variants, seeds
+
+
+def _judge(
+    backend: Any,
+    objective: Any,
+    designs: np.ndarray,
+    costs: np.ndarray,
+    buffer: Any,
+    fit: slice,
+    held: slice,
+    seeds: list[int],
+    samples: int,
+) -> dict:
+    """One objective's surrogate, fitted on the `fit` designs with each seed and judged on the
+    held-out ones: Spearman, mean relative error and the mean fit time."""
+    from scipy.stats import spearmanr
+
+    rho, seconds, error = [], [], []
+    for seed in seeds:
+        t = time.perf_counter()
+        backend.fit_surrogate(designs[fit], costs[fit, None], [objective], buffer, seed=seed)
+        seconds.append(time.perf_counter() - t)
+        predicted = backend.surrogate_fitness(
+            designs[held], [objective], buffer, samples=samples, seed=seed
+        )[:, 0]
+        rho.append(round(float(spearmanr(predicted, costs[held])[0]), 3))
+        relative = np.abs(predicted - costs[held]) / np.abs(costs[held])
+        error.append(round(float(np.mean(relative)), 3))
+    return {
+        "spearman": rho,
+        "mean_relative_error": error,
+        "fit_seconds": round(float(np.mean(seconds)), 2),
+    }
 
 
 if __name__ == "__main__":
