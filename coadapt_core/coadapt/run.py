@@ -234,6 +234,7 @@ def _continue(run: _Run, progress: ProgressFn | None) -> dict[str, Any]:
     parts = run.parts
     loop = CoadaptationLoop(
         run.config,
+        method=parts.method,
         backend_factory=parts.backend_factory,
         design_space=parts.full_space,
         nominal_design=parts.nominal,
