@@ -284,7 +284,7 @@ def truth_table(rows: list[dict], methods: list[str]) -> tuple[str, dict]:
     return "\n".join(lines), stats
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--preset", default="smoke", help="smoke | quick | paper (default smoke)")
     parser.add_argument("--methods", default="ours,no-surrogate,no-real,no-retrain,bo-specialized")
@@ -318,7 +318,11 @@ def main(argv: list[str] | None = None) -> int:
         "--out", default=None, help="folder for the run folders (default: a temporary one)"
     )
     parser.add_argument("--json", default=None, help="also write the rows to this JSON file")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
 
     from coadapt_core.errors import UserError
     from coadapt_core.methods import METHOD_NAMES as METHODS

@@ -81,14 +81,7 @@ class EnvelopeProbe:
         }
 
 
-def main(argv: list[str] | None = None) -> int:
-    sys.path.insert(0, str(ROOT))
-    from coadapt_core.costs import CostRule, compare_designs
-    from coadapt_core.errors import CoadaptError
-    from coadapt_core.learning import shipped_checkpoint
-    from coadapt_core.learning.factory import make_backend, resolve_plugins
-    from coadapt_core.scenarios.seeds import scenario_seed
-
+def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--design", default="0.5,0.6", help="thigh,shank scales (default 0.5,0.6)")
     p.add_argument("--robot", default="kuafu")
@@ -98,7 +91,18 @@ def main(argv: list[str] | None = None) -> int:
         "--blocks", type=int, default=1, help="blocks of 32 x 250 paired scenarios (default 1)"
     )
     p.add_argument("--json", action="store_true", help="one JSON line per motor combination")
-    args = p.parse_args(argv)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    sys.path.insert(0, str(ROOT))
+    from coadapt_core.costs import CostRule, compare_designs
+    from coadapt_core.errors import CoadaptError
+    from coadapt_core.learning import shipped_checkpoint
+    from coadapt_core.learning.factory import make_backend, resolve_plugins
+    from coadapt_core.scenarios.seeds import scenario_seed
+
+    args = _parser().parse_args(argv)
     try:
         legs = [float(x) for x in args.design.split(",")]
         assert len(legs) == 2

@@ -25,7 +25,7 @@ import time
 import numpy as np
 
 
-def main() -> None:
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robot", default="kuafu")
     parser.add_argument("--sim", default="mujoco")
@@ -80,7 +80,11 @@ def main() -> None:
         default="tracking,power,torque",
         help="pseudo-critics to train ('' for none)",
     )
-    args = parser.parse_args()
+    return parser
+
+
+def main() -> None:
+    args = _parser().parse_args()
 
     # the `coadapt` command's OpenMP wait policy, chosen before torch is imported
     # (coadapt_core/launch.py)
