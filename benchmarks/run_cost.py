@@ -108,7 +108,8 @@ def main(argv: list[str] | None = None) -> int:
     from coadapt_core.launch import apply_omp_wait_policy
 
     apply_omp_wait_policy()
-    from coadapt_core.coadapt import make_config, run_coadaptation
+    from coadapt_core.coadapt.config_loading import make_config
+    from coadapt_core.coadapt.run import run_coadaptation
     from coadapt_core.learning import shipped_checkpoint
     from coadapt_core.learning.trainer import read_checkpoint
     from coadapt_core.physics.randomization import RandomizationConfig

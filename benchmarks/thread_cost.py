@@ -34,7 +34,7 @@ SIZES: dict[str, tuple[str, dict]] = {
 def one_run(config, out: Path, learner_threads: int | None) -> dict:
     """Run `config` into `out`; `learner_threads` (None: the budget) replaces the learner's
     torch threads of every backend the run builds (the PPO update and the surrogate's fits)."""
-    from coadapt_core.coadapt import run_coadaptation
+    from coadapt_core.coadapt.run import run_coadaptation
     from coadapt_core.coadapt.setup import build_parts
 
     factory = build_parts(config).backend_factory
@@ -94,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
     from coadapt_core.launch import apply_omp_wait_policy
 
     apply_omp_wait_policy()  # the `coadapt` command's, chosen before torch is imported
-    from coadapt_core.coadapt import make_config
+    from coadapt_core.coadapt.config_loading import make_config
     from coadapt_core.threads import apply_threads
 
     budget = apply_threads(args.threads)

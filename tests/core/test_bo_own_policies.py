@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from coadapt_core.coadapt import make_config, run_coadaptation
+from coadapt_core.coadapt.config_loading import make_config
+from coadapt_core.coadapt.run import run_coadaptation
 from coadapt_core.coadapt.specialized import OWN_POLICY_FILES
 from coadapt_core.experiments.own_policies import saved_policies, shares_policy
 from coadapt_core.experiments.yardstick import yardstick_rows, yardstick_runs

@@ -296,7 +296,8 @@ class FallingBackend:
 def _falling_run(tmp_path, rule: str, fall_tolerance: float = 0.01):
     from coadapt_plugins.objectives.locomotion import TorqueObjective
 
-    from coadapt_core.coadapt import make_config, run_coadaptation
+    from coadapt_core.coadapt.config_loading import make_config
+    from coadapt_core.coadapt.run import run_coadaptation
     from tests.fakes.analytic import NOMINAL, SPACE
 
     backends = []

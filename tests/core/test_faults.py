@@ -18,9 +18,11 @@ import pytest
 from coadapt_plugins.objectives.locomotion import TorqueObjective
 
 from coadapt_core.cli import main
-from coadapt_core.coadapt import make_config, read_evaluations, run_coadaptation
+from coadapt_core.coadapt.config_loading import make_config
+from coadapt_core.coadapt.run import run_coadaptation
 from coadapt_core.errors import UserError
 from coadapt_core.results import ResultsStore
+from coadapt_core.results.recorders import read_evaluations
 from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend
 
 BASE = dict(

@@ -10,9 +10,11 @@ import numpy as np
 import pytest
 from coadapt_plugins.objectives.locomotion import PowerObjective, TorqueObjective, TrackingObjective
 
-from coadapt_core.coadapt import make_config, read_evaluations, run_coadaptation
+from coadapt_core.coadapt.config_loading import make_config
+from coadapt_core.coadapt.run import run_coadaptation
 from coadapt_core.coadapt.summary import JSON_PLAIN_AND_FALLS as PLAIN_AND_FALLS
 from coadapt_core.design_space import DesignSpace
+from coadapt_core.results.recorders import read_evaluations
 from tests.fakes.analytic import (
     MIXED_NOMINAL,
     MIXED_SPACE,

@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 from coadapt_plugins.objectives.locomotion import TorqueObjective
 
-from coadapt_core.coadapt import make_config, run_coadaptation
+from coadapt_core.coadapt.config_loading import make_config
+from coadapt_core.coadapt.run import run_coadaptation
 from coadapt_core.coadapt.search import uses_mixed_space
 from coadapt_core.optimizer import Optimizer
 from coadapt_core.options import PluginOption

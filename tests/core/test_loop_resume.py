@@ -6,8 +6,10 @@ from __future__ import annotations
 import pytest
 from coadapt_plugins.objectives.locomotion import TorqueObjective
 
-from coadapt_core.coadapt import make_config, read_evaluations, run_coadaptation
+from coadapt_core.coadapt.config_loading import make_config
+from coadapt_core.coadapt.run import run_coadaptation
 from coadapt_core.errors import UserError
+from coadapt_core.results.recorders import read_evaluations
 from tests.fakes.analytic import MIXED_NOMINAL, MIXED_SPACE, NOMINAL, SPACE, AnalyticBackend
 
 BASE = dict(

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 from coadapt_plugins.objectives.locomotion import TorqueObjective
 
-from coadapt_core.coadapt import make_config, read_evaluations, run_coadaptation
+from coadapt_core.coadapt.config_loading import make_config
+from coadapt_core.coadapt.run import run_coadaptation
 from coadapt_core.coadapt.specialized import OWN_POLICY_FILES, SpecializedPolicyBackend
 from coadapt_core.errors import UserError
 from coadapt_core.methods import (
@@ -24,6 +25,7 @@ from coadapt_core.methods import (
     optimizer_for,
 )
 from coadapt_core.optimizer import Optimizer
+from coadapt_core.results.recorders import read_evaluations
 from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend, optimum_of
 from tests.test_core_plugin_neutral import string_constants
 

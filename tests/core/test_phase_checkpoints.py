@@ -19,9 +19,11 @@ import torch
 import yaml
 from coadapt_plugins.objectives.locomotion import TorqueObjective
 
-from coadapt_core.coadapt import make_config, read_evaluations, run_coadaptation
+from coadapt_core.coadapt.config_loading import make_config
 from coadapt_core.coadapt.loop import seed_at
 from coadapt_core.coadapt.phase import PARTIAL_CHECKPOINT
+from coadapt_core.coadapt.run import run_coadaptation
+from coadapt_core.results.recorders import read_evaluations
 from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend
 
 BASE = dict(

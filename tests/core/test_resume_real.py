@@ -9,11 +9,13 @@ import pytest
 import torch
 from coadapt_plugins.objectives.locomotion import TorqueObjective
 
-from coadapt_core.coadapt import make_config, read_evaluations, run_coadaptation
+from coadapt_core.coadapt.config_loading import make_config
+from coadapt_core.coadapt.run import run_coadaptation
 from coadapt_core.coadapt.setup import build_parts
 from coadapt_core.learning.backend import UniversalPolicyBackend
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.plugins import get_registry
+from coadapt_core.results.recorders import read_evaluations
 
 pytestmark = pytest.mark.slow
 

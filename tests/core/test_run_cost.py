@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from coadapt_core.coadapt import make_config, run_coadaptation
+from coadapt_core.coadapt.config_loading import make_config
+from coadapt_core.coadapt.run import run_coadaptation
 from tests.benchmarks import load_benchmark
 from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend
 

@@ -10,8 +10,9 @@ import pytest
 import torch
 from coadapt_plugins.objectives.locomotion import TorqueObjective
 
-from coadapt_core.coadapt import make_config, run_coadaptation
+from coadapt_core.coadapt.config_loading import make_config
 from coadapt_core.coadapt.hybrid import spread_ratio
+from coadapt_core.coadapt.run import run_coadaptation
 from coadapt_core.errors import UserError
 from coadapt_core.learning.networks import CriticBank
 from coadapt_core.learning.surrogate import fit_ensemble
