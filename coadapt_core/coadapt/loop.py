@@ -27,18 +27,18 @@ from coadapt_core import phase_progress
 from coadapt_core.coadapt.config import CoadaptConfig
 from coadapt_core.coadapt.final_check import batch_errors
 from coadapt_core.coadapt.final_phase import check_final_designs, save_own_policies
+from coadapt_core.coadapt.first_round import note_first_round
 from coadapt_core.coadapt.hybrid import HybridPolicy
 from coadapt_core.coadapt.outer_optimizer import make_optimizer, optimizer_init, optimizer_options
 from coadapt_core.coadapt.phase import train_in_chunks
 from coadapt_core.coadapt.reliability import walking
 from coadapt_core.coadapt.schedule import Schedule
-from coadapt_core.coadapt.setup import note_first_round
 from coadapt_core.coadapt.state import LoopState, RoundRecord, save_state
 from coadapt_core.coadapt.summary import final_candidates, run_summary
 from coadapt_core.costs import CostRule
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.fitness import CoadaptationBackend, RealFitness, RunRecorder, TrainingResult
-from coadapt_core.methods import Method, get_method
+from coadapt_core.methods import Method
 from coadapt_core.objective import Objective
 from coadapt_core.optimizer import Optimizer
 from coadapt_core.scenarios.seeds import scenario_seed
@@ -58,7 +58,7 @@ class CoadaptationLoop:
         self,
         config: CoadaptConfig,
         *,
-        method: Method | None = None,
+        method: Method,
         backend_factory: Callable[[int], CoadaptationBackend],
         design_space: DesignSpace,
         nominal_design: np.ndarray,
@@ -72,7 +72,7 @@ class CoadaptationLoop:
     ):
         self.config = config
         self.pretrained = pretrained
-        self.method = method if method is not None else get_method(config.method)
+        self.method = method
         # the method's backend shares one policy between designs (universal) or not (a
         # policy per design: nothing to train up front, no surrogate, real costs are final)
         self.shared = self.method.backend_kind.shared_policy
