@@ -136,22 +136,7 @@ class Trainer:
         else:
             commands = self.command_state()  # the curriculum outlives a rebuilt environment
             self._close_training_env()
-            sim = self.simulator_cls(
-                self.robot,
-                per_env,
-                terrain=self.terrain,
-                randomization=self.randomization,
-                seed=self.config.seed,
-                num_threads=self.num_threads,
-            )
-            self.env = LocomotionEnv(
-                sim,
-                self.robot,
-                self.task_config,
-                self.objectives,
-                seed=self.config.seed,
-                device=self.device,
-            )
+            self.env = self._new_env(per_env, self.task_config, num_threads=self.num_threads)
             if commands is not None:  # of the environment replaced, or of a loaded checkpoint
                 self.env.commands.load_state_dict(commands)
         self.designs = designs
@@ -174,23 +159,29 @@ class Trainer:
                 self.eval_env.sim.close()
             task = copy.deepcopy(self.task_config)
             task.commands.resample_seconds = 0.0
-            # built with the trainer's seed, not the call's: the terrain (seeded by the
-            # simulator's seed) must not depend on which call happened to build it
-            sim = self.simulator_cls(
-                self.robot,
-                per_env,
-                terrain=self.terrain,
-                randomization=self.randomization,
-                seed=self.config.seed,
-            )
-            self.eval_env = LocomotionEnv(
-                sim, self.robot, task, self.objectives, seed=self.config.seed, device=self.device
-            )
+            self.eval_env = self._new_env(per_env, task)
         env = self.eval_env
         self.ensure_ppo(env)
         env.cfg.episode_seconds = steps * env.dt + 1.0
         env.max_episode_length = steps + 10
         return env
+
+    def _new_env(self, per_env: np.ndarray, task: TaskConfig, **sim_options) -> LocomotionEnv:
+        """A new environment on designs [N, D] with the trainer's robot, terrain,
+        randomization and objectives, and `sim_options` for the simulator. Built with the
+        trainer's seed, not a call's: the terrain (seeded by the simulator's seed) must not
+        depend on which call happened to build it."""
+        sim = self.simulator_cls(
+            self.robot,
+            per_env,
+            terrain=self.terrain,
+            randomization=self.randomization,
+            seed=self.config.seed,
+            **sim_options,
+        )
+        return LocomotionEnv(
+            sim, self.robot, task, self.objectives, seed=self.config.seed, device=self.device
+        )
 
     def full_space(self, designs: np.ndarray) -> DesignSpace:
         """The robot's full space (continuous, or mixed when the arity says so) of a batch;
