@@ -61,7 +61,8 @@ def main(argv: list[str] | None = None) -> int:
     run = {"id": folder.name, "config": cfg, "summary": summary, "method": cfg.get("method")}
     if shares_policy(run):
         print(
-            f"error: run: '{folder}' shares one policy between designs; only runs without one are checked",
+            f"error: run: '{folder}' shares one policy between designs; "
+            "only runs without one are checked",
             file=sys.stderr,
         )
         return 2
@@ -105,7 +106,8 @@ def main(argv: list[str] | None = None) -> int:
             again = float(
                 rule.reference(fit.per_scenario[0], None if falls is None else falls[0])[0]
             )
-        else:  # the cost its one real evaluation recorded (a nominal design without a reference: its final cost)
+        else:  # the cost its one real evaluation recorded (a nominal design without a
+            # reference: its final cost)
             what, recorded = "cost", best_cost if role == "best" else summary.get("nominal_cost")
             again = float(rule.cost(fit.per_scenario, falls, ref)[0, 0])
         out = {
@@ -119,10 +121,12 @@ def main(argv: list[str] | None = None) -> int:
             "difference": None if recorded is None else again - recorded,
             "fall_rate": float(np.mean(fit.scenario_falls)),
         }
+        verdict = "equal" if out["equal"] else "differs"
         print(
             json.dumps(out)
             if args.json
-            else f"{role} {design}: {what} recorded {recorded!r}, trained again {again!r} ({'equal' if out['equal'] else 'differs'})"
+            else f"{role} {design}: {what} recorded {recorded!r}, trained again {again!r} "
+            f"({verdict})"
         )
     backend.close()
     return 0

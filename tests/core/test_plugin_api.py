@@ -37,7 +37,8 @@ def test_recorded_signature_matches_the_interfaces_and_the_version():
         problem = bump_problem(latest["version"], latest["signature"], PLUGIN_API_VERSION, now)
         pytest.fail(
             (problem or f"the plugin interfaces changed since {latest['version']} was recorded")
-            + f"; then run `python -m coadapt_core.api_signature {SIGNATURE_FILE.relative_to(Path.cwd())}`"
+            + "; then run `python -m coadapt_core.api_signature "
+            + f"{SIGNATURE_FILE.relative_to(Path.cwd())}`"
         )
     assert latest["version"] == PLUGIN_API_VERSION, (
         "PLUGIN_API_VERSION changed: record it (python -m coadapt_core.api_signature)"
@@ -228,7 +229,8 @@ def test_plugins_shows_the_declared_version_and_refuses_an_undeclared_one(tmp_pa
 
 # -- an optimizer that ignores initial_designs ---------------------------------------------------
 class _IgnoresInitial:
-    """Written for API 1: reads initial designs from an option it no longer gets, samples instead."""
+    """Written for API 1: reads initial designs from an option it no longer gets, samples
+    instead."""
 
     @staticmethod
     def make():

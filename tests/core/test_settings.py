@@ -159,7 +159,9 @@ def test_each_commands_help_is_its_declarations(command):
         meaning = re.sub(r"\s*\(default:?\s+((?:[^()]|\([^()]*\))*)\)", "", leaf.help).strip()
         assert meaning.rstrip(".") in text, (command, name)
         if name in config:
-            continue  # its table and --help-all: test_docs_table_and_run_help_list_the_same_options_helps_and_defaults
+            # its table and --help-all:
+            # test_docs_table_and_run_help_list_the_same_options_helps_and_defaults
+            continue
         default = leaf_default(leaf)
         row = docs[option.names[0].split("/")[0] if option.names else leaf.extra["argument"]]
         hidden = " (hidden from --help)" if leaf.extra.get("hidden") else ""

@@ -141,8 +141,8 @@ def test_bad_optimizer_option_is_one_line_exit_2(example_plugin_site, tmp_path, 
     done = run_cli(*args, pythonpath=[example_plugin_site])
     assert done.returncode == 2
     assert done.stderr.strip().splitlines() == [
-        "error: optimizer 'random-search' option 'shrink' must be a finite number in [0.01, 1], got "
-        + ("'5'" if where == "cli" else "5")
+        "error: optimizer 'random-search' option 'shrink' must be a finite number "
+        "in [0.01, 1], got " + ("'5'" if where == "cli" else "5")
     ]
     unknown = run_cli(
         "run",
@@ -255,8 +255,8 @@ def test_failed_plugin_is_named_where_it_would_have_been_used(tmp_path):
     assert len(error) == 1
     assert "unknown robot 'quadbot'" in error[0]
     assert (
-        "plugin 'coadapt-quadbot' (distribution coadapt-quadbot) failed to load: ModuleNotFoundError"
-        in error[0]
+        "plugin 'coadapt-quadbot' (distribution coadapt-quadbot) failed to load: "
+        "ModuleNotFoundError" in error[0]
     )
     assert "no_such_dependency_xyz" in error[0]
 
