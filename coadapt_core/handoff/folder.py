@@ -11,9 +11,11 @@ the robot with the ONNX controller in MuJoCo without importing coadapt.
 The folder is built under a temporary name beside the target and renamed when complete, so
 a refused or failed handoff leaves nothing half-written.
 
-The parts live beside it: the run's facts and provenance in `run_info`, policy.json in
-`spec`, what is measured (rollout, evaluations, check.py, the GIF) in `measure`, the README
-in `readme`, the design sheet in `sheet`, the model files in `model_files`.
+The parts live beside it: the run's facts and provenance in `run_info`, the run resolved
+(plugins, policies, the design) in `resolve`, the ONNX controller and its check in
+`controller`, policy.json in `spec`, what is measured (rollout, evaluations, check.py, the
+GIF) in `measure`, the README in `readme`, the design sheet in `sheet`, the model files in
+`model_files`.
 """
 
 from __future__ import annotations
@@ -29,27 +31,25 @@ from typing import Any
 
 import numpy as np
 
-from coadapt_core import __version__
-from coadapt_core.errors import CoadaptError, UserError
+from coadapt_core.errors import UserError
 from coadapt_core.handoff import sheet
+from coadapt_core.handoff.controller import export_controller
 from coadapt_core.handoff.measure import (
-    buffer_observations,
     copy_or_render_video,
     evaluate_on,
     front_final_check,
     front_index,
-    rollout,
     run_check,
     run_final_check,
 )
 from coadapt_core.handoff.model_files import write_model_files
 from coadapt_core.handoff.readme import readme_text
+from coadapt_core.handoff.resolve import ResolvedRun, judges, resolve_run
 from coadapt_core.handoff.run_info import find_run, provenance, read_run, sha256
 from coadapt_core.handoff.spec import FORMAT, foot_facts, policy_spec
 from coadapt_core.io import jsonable
+from coadapt_core.robot import joint_table
 
-#: rows of (observation, torch action) kept in reference.npz for check.py
-REFERENCE_ROWS = 256
 #: the check's forward command, m/s (clipped to the trained range)
 CHECK_VX = 0.5
 
@@ -68,185 +68,8 @@ class HandoffOptions:
     force: bool = False  # replace an existing folder
 
 
-class HandoffRefused(CoadaptError):
-    """The controller failed its own check (ONNX against torch): nothing is handed off."""
-
-
-@dataclass
-class _Run:
-    """A finished run as the handoff resolved it: plugins, policy and the design handed off."""
-
-    run_dir: Path
-    config: dict[str, Any]
-    summary: dict[str, Any]
-    registry: Any
-    robot: Any
-    sim_name: str
-    sim_cls: type
-    terrain: str
-    seed: int
-    checkpoint: Path  # the policy handed off, the one that judges the design
-    nominal_checkpoint: (
-        Path  # the one that judges the nominal design (the same for a shared policy)
-    )
-    own_policies: bool  # a run without a shared policy: each design judged by its own
-    state: dict[str, Any]
-    design: np.ndarray
-    nominal: np.ndarray
-    space: Any
-    is_best: bool
-
-
-def _resolve(
-    run_dir: Path, config: dict[str, Any], summary: dict[str, Any], options: HandoffOptions
-) -> _Run:
-    """The run's plugins, final policy and the design (the best one unless --design gives
-    another, checked against the policy's design input and the design space). A run without
-    a shared policy hands off its best design's own policy and judges the nominal design by
-    the nominal design's own; it has no policy for any other design."""
-    from coadapt_core.experiments.own_policies import shares_policy
-    from coadapt_core.learning.trainer import read_checkpoint
-    from coadapt_core.plugins import get_registry
-    from coadapt_core.viz.video import run_policies
-
-    registry = get_registry()
-    robot = registry.create("robot", config.get("robot") or registry.default("robot"))
-    sim_name = str(config.get("sim") or registry.default("simulator"))
-    sim_cls = registry.get("simulator", sim_name)
-    policies, why = run_policies(run_dir, config)
-    if policies is None:
-        again = (
-            ""
-            if shares_policy({"config": config})
-            else "; coadapt report trains them again for its yardstick, the handoff does not"
-        )
-        raise UserError(
-            f"run {run_dir.name}: {why}; there is no controller to hand off{again}", field="run"
-        )
-    own = policies["best"] != policies["nominal"]
-    state = read_checkpoint(policies["best"])
-    if state.get("robot") != robot.name:
-        raise UserError(
-            f"the run's checkpoint was trained for robot '{state.get('robot')}', not '{robot.name}'",
-            field="run",
-        )
-    best = np.asarray(summary["best_design"], dtype=float)
-    design = best if options.design is None else np.asarray(options.design, dtype=float)
-    if own and (design.shape != best.shape or not np.allclose(design, best)):
-        raise UserError(
-            f"--design: run {run_dir.name} shares no policy between designs and kept a policy of its own "
-            "only for its best and nominal designs, none for another design; leave out --design to hand "
-            "off the best one",
-            field="design",
-        )
-    nominal = summary.get("nominal_design")
-    if not isinstance(nominal, list) or len(nominal) != len(design):
-        nominal = robot.nominal_design(robot.design_space_for(design).is_mixed)
-    num_design = int(state["dims"]["num_design"])
-    if len(design) != num_design:
-        raise UserError(
-            f"--design has {len(design)} values; the run's policy takes {num_design} "
-            f"({', '.join(robot.design_space_for(best).names)})",
-            field="design",
-        )
-    space = robot.design_space_for(design)
-    design = space.validate(design)
-    return _Run(
-        run_dir=run_dir,
-        config=config,
-        summary=summary,
-        registry=registry,
-        robot=robot,
-        sim_name=sim_name,
-        sim_cls=sim_cls,
-        terrain=str(config.get("terrain") or "flat"),
-        seed=int(config.get("seed") or 0),
-        checkpoint=policies["best"],
-        nominal_checkpoint=policies["nominal"],
-        own_policies=own,
-        state=state,
-        design=design,
-        nominal=np.asarray(nominal, dtype=float),
-        space=space,
-        is_best=bool(np.allclose(design, best)),
-    )
-
-
-def _judges(run: _Run) -> dict[str, Any]:
-    """Which policy judged which design (design.json, policy.json, design.md)."""
-
-    def name(path: Path) -> str:
-        return str(path.relative_to(run.run_dir)) if run.run_dir in path.parents else path.name
-
-    note = (
-        "the run shares no policy between designs: the design is judged, and handed off, with its own policy, "
-        "the nominal design with the nominal design's own"
-        if run.own_policies
-        else "one universal policy (the run's final) judges both designs and is the one handed off"
-    )
-    return {
-        "shared": not run.own_policies,
-        "design": name(run.checkpoint),
-        "nominal": name(run.nominal_checkpoint),
-        "note": note,
-    }
-
-
-def _controller(
-    run: _Run, partial: Path, say: Callable[[str], None]
-) -> tuple[dict[str, Any], dict[str, Any], Path]:
-    """The policy specialised to the design, exported to ONNX and checked against torch on
-    recorded observations (refused beyond the tolerance), with reference.npz for check.py:
-    (rollout, verification, ONNX path)."""
-    from coadapt_core.handoff.policy import ONNX_TOLERANCE, export_onnx, torch_actions, verify_onnx
-
-    walked = rollout(run.robot, run.sim_cls, run.design, run.state, run.terrain, run.seed)
-    task = walked["task"]
-    num_obs = int(run.state["dims"]["num_obs"])
-    recorded = np.concatenate([buffer_observations(run.run_dir, num_obs), walked["obs"]])
-    metadata = {
-        "description": f"coadapt universal policy specialised to {run.robot.name} design "
-        + ", ".join(f"{n}={x:g}" for n, x in zip(run.space.names, run.design, strict=True)),
-        "robot": run.robot.name,
-        "design": json.dumps([float(x) for x in run.design]),
-        "run_id": str(run.summary.get("run_id")),
-        "coadapt_version": __version__,
-        "observation_layout": "see policy.json",
-    }
-    onnx_path = export_onnx(walked["policy"], partial / "policy.onnx", metadata)
-    verification = verify_onnx(
-        onnx_path,
-        run.state,
-        recorded,
-        walked["design_obs"],
-        walked["default_joint_pos"],
-        task.action_scale,
-        task.action_clip,
-    )
-    say(
-        f"ONNX vs torch on {verification['observations']} recorded observations: max |action difference| "
-        f"{verification['max_abs_action_difference']:.2e} (tolerance {ONNX_TOLERANCE:g})"
-    )
-    if not verification["max_abs_action_difference"] <= ONNX_TOLERANCE:
-        raise HandoffRefused(
-            f"the ONNX controller differs from the torch policy by {verification['max_abs_action_difference']:.2e} "
-            f"> {ONNX_TOLERANCE:g} on the recorded observations; not handed off"
-        )
-    pick = np.random.default_rng(0).choice(
-        len(recorded), min(REFERENCE_ROWS, len(recorded)), replace=False
-    )
-    reference_obs = recorded[np.sort(pick)]
-    reference_actions = np.clip(
-        torch_actions(run.state, reference_obs, walked["design_obs"]),
-        -task.action_clip,
-        task.action_clip,
-    ).astype(np.float32)
-    np.savez(partial / "reference.npz", obs=reference_obs, actions=reference_actions)
-    return walked, verification, onnx_path
-
-
 def _evaluations(
-    run: _Run,
+    run: ResolvedRun,
     options: HandoffOptions,
     objectives: list[str],
     control_dt: float,
@@ -268,8 +91,9 @@ def _evaluations(
     steps = max(1, int(round(options.seconds / control_dt)))
     for name in simulators:
         say(
-            f"evaluating the design and the nominal one on {name} ({options.agents} paired scenarios x {steps} steps; "
-            "handoff protocol, not comparable with `coadapt run` or `coadapt eval`)"
+            f"evaluating the design and the nominal one on {name} ({options.agents} paired "
+            f"scenarios x {steps} steps; handoff protocol, not comparable with `coadapt run` or "
+            "`coadapt eval`)"
         )
         evaluations.append(
             evaluate_on(
@@ -303,7 +127,7 @@ def _evaluations(
 
 
 def _sheet_data(
-    run: _Run, model: Any, spec: dict[str, Any], tools: Any, **measured: Any
+    run: ResolvedRun, model: Any, spec: dict[str, Any], tools: Any, **measured: Any
 ) -> dict[str, Any]:
     """design.json: the design, its body (from the simulator's model `tools`), joints,
     validation, and what was measured (`evaluations`, `onnx`, `picture`, `provenance`)."""
@@ -317,12 +141,12 @@ def _sheet_data(
         "nominal_design": [float(x) for x in run.nominal],
         "is_run_best": run.is_best,
         "pareto_front_index": front_index(run.summary, run.design),
-        "policies": _judges(run),
+        "policies": judges(run),
         "terrain": run.terrain,
         "parameters": sheet.design_parameters(run.space, run.design),
         "body": body,
         "robot_info": jsonable(model.info if isinstance(model.info, dict) else {}),
-        "joints": sheet.joint_table(model),
+        "joints": joint_table(model),
         "validation": run.robot.validate(run.design).to_dict(),
         "evaluations": measured["evaluations"],
         "onnx": measured["onnx"],
@@ -364,7 +188,7 @@ def _listing(
     ]
 
 
-def _model_files(run: _Run, partial: Path, say: Callable[[str], None]) -> tuple[Any, Any]:
+def _model_files(run: ResolvedRun, partial: Path, say: Callable[[str], None]) -> tuple[Any, Any]:
     """The design's model and its files (with their assets) in the folder."""
     try:
         model = run.robot.build(run.design)
@@ -387,7 +211,7 @@ def _model_files(run: _Run, partial: Path, say: Callable[[str], None]) -> tuple[
 
 
 def _write_folder(
-    run: _Run, options: HandoffOptions, partial: Path, say: Callable[[str], None]
+    run: ResolvedRun, options: HandoffOptions, partial: Path, say: Callable[[str], None]
 ) -> dict[str, Any]:
     """Every file of the handoff folder into `partial`; returns design.json's data."""
     from coadapt_core.physics.model_tools import tools_for
@@ -395,10 +219,9 @@ def _write_folder(
 
     model, model_files = _model_files(run, partial, say)
     tools_sim, tools = tools_for(run.registry, model, prefer=run.sim_name)
-    check_by = (
-        tools_sim if tools.HANDOFF_CHECK else None
-    )  # the simulator check.py walks the model in
-    walked, verification, onnx_path = _controller(run, partial, say)
+    # the simulator check.py walks the model in
+    check_by = tools_sim if tools.HANDOFF_CHECK else None
+    walked, verification, onnx_path = export_controller(run, partial, say)
     files = {
         "mjcf": model_files.mjcf.name,
         "urdf": model_files.urdf.name,
@@ -417,14 +240,37 @@ def _write_folder(
         foot=foot_facts(model, tools),
         files=files,
     )
-    spec["policies"] = _judges(run)
+    spec["policies"] = judges(run)
     (partial / "policy.json").write_text(json.dumps(jsonable(spec), indent=2) + "\n")
     if check_by:
         shutil.copy(tools.HANDOFF_CHECK, partial / "check.py")
+    measured = _measure(run, options, partial, walked["control_dt"], say)
+    sheet_data = _sheet_data(run, model, spec, tools, onnx=verification, **measured)
+    if options.check and check_by:
+        sheet_data["controller_check"] = _check_controller(partial, options, spec, say)
+    (partial / "design.json").write_text(json.dumps(jsonable(sheet_data), indent=2) + "\n")
+    (partial / "design.md").write_text(sheet.render_markdown(jsonable(sheet_data)))
+    listing = _listing(files, model_files, partial, VIDEO_NAME, check_by)
+    usage = tools.handoff_usage(spec["rates"], files["mjcf"]) if check_by else ""
+    (partial / "README.md").write_text(readme_text(spec, jsonable(sheet_data), listing, usage))
+    return sheet_data
+
+
+def _measure(
+    run: ResolvedRun,
+    options: HandoffOptions,
+    partial: Path,
+    control_dt: float,
+    say: Callable[[str], None],
+) -> dict[str, Any]:
+    """What the design sheet reports beside the design: its evaluations against the nominal
+    design, its picture (the GIF, copied or rendered into `partial`) and its provenance."""
+    from coadapt_core.viz.video import VIDEO_NAME
+
     objectives = list((run.summary.get("best_costs") or {}).keys()) or [
         str(run.config.get("objective") or "")
     ]
-    evaluations = _evaluations(run, options, objectives, walked["control_dt"], say)
+    evaluations = _evaluations(run, options, objectives, control_dt, say)
     policies = {"best": run.checkpoint, "nominal": run.nominal_checkpoint}
     gif_note = copy_or_render_video(
         run.run_dir,
@@ -451,34 +297,25 @@ def _write_folder(
         state=run.state,
         nominal_checkpoint=run.nominal_checkpoint if run.own_policies else None,
     )
-    sheet_data = _sheet_data(
-        run,
-        model,
-        spec,
-        tools,
-        evaluations=evaluations,
-        onnx=verification,
-        picture=gif_note,
-        provenance=origin,
-    )
-    if options.check and check_by:
-        vx = min(CHECK_VX, spec["commands"]["trained"]["vx"][1])
-        sheet_data["controller_check"] = check = run_check(partial, options.check_seconds, vx)
-        say(
-            "check.py: "
-            + (
-                check["error"]
-                if "error" in check
-                else f"survival {check['survival']:.2f}, mean forward speed {check['vx_mean']:.3f} m/s under "
-                f"{vx:g} m/s for {check['seconds']:g} s"
-            )
+    return {"evaluations": evaluations, "picture": gif_note, "provenance": origin}
+
+
+def _check_controller(
+    partial: Path, options: HandoffOptions, spec: dict[str, Any], say: Callable[[str], None]
+) -> dict[str, Any]:
+    """The folder's check.py run once, forward at `CHECK_VX` (within the trained range)."""
+    vx = min(CHECK_VX, spec["commands"]["trained"]["vx"][1])
+    check = run_check(partial, options.check_seconds, vx)
+    say(
+        "check.py: "
+        + (
+            check["error"]
+            if "error" in check
+            else f"survival {check['survival']:.2f}, mean forward speed "
+            f"{check['vx_mean']:.3f} m/s under {vx:g} m/s for {check['seconds']:g} s"
         )
-    (partial / "design.json").write_text(json.dumps(jsonable(sheet_data), indent=2) + "\n")
-    (partial / "design.md").write_text(sheet.render_markdown(jsonable(sheet_data)))
-    listing = _listing(files, model_files, partial, VIDEO_NAME, check_by)
-    usage = tools.handoff_usage(spec["rates"], files["mjcf"]) if check_by else ""
-    (partial / "README.md").write_text(readme_text(spec, jsonable(sheet_data), listing, usage))
-    return sheet_data
+    )
+    return check
 
 
 # -- the folder --------------------------------------------------------------------------------
@@ -499,7 +336,7 @@ def make_handoff(
     out = Path(out).absolute()
     config, summary = read_run(run_dir)
     _check_target(out, run_dir, options.force)
-    run = _resolve(run_dir, config, summary, options)
+    run = resolve_run(run_dir, config, summary, options.design)
     partial = out.parent / f".{out.name}.partial-{os.getpid()}"
     if partial.exists():
         shutil.rmtree(partial)
@@ -545,7 +382,8 @@ def _check_target(out: Path, run_dir: Path, force: bool) -> None:
         return
     if not force:
         raise UserError(
-            f"-o {out} exists; give another folder, or --force to replace an earlier handoff folder",
+            f"-o {out} exists; give another folder, or --force to replace an earlier handoff "
+            "folder",
             field="out",
         )
     try:
@@ -554,8 +392,8 @@ def _check_target(out: Path, run_dir: Path, force: bool) -> None:
         earlier = False
     if not earlier:
         raise UserError(
-            f"-o {out} exists and is not a handoff folder (no policy.json of {FORMAT}); --force replaces "
-            "only those",
+            f"-o {out} exists and is not a handoff folder (no policy.json of {FORMAT}); --force "
+            "replaces only those",
             field="out",
         )
 
@@ -563,7 +401,6 @@ def _check_target(out: Path, run_dir: Path, force: bool) -> None:
 __all__ = [
     "FORMAT",
     "HandoffOptions",
-    "HandoffRefused",
     "find_run",
     "make_handoff",
     "read_run",

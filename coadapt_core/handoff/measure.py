@@ -102,9 +102,6 @@ def rollout(
         sim.close()
 
 
-# -- policy.json -------------------------------------------------------------------------------
-
-
 # -- evaluation ------------------------------------------------------------------------------------
 def evaluate_on(
     simulator: str,
@@ -124,8 +121,7 @@ def evaluate_on(
     nominal one on `simulator`, the run's final-check scenario block 1: both under the run's
     policy `checkpoint`, or, given a different `nominal_checkpoint` (a run without a shared
     policy), each under its own on the same scenarios."""
-    from coadapt_core.costs import improvement_se
-    from coadapt_core.learning.factory import make_backend, resolve_plugins
+    from coadapt_core.learning.factory import resolve_plugins
     from coadapt_core.scenarios.seeds import scenario_seed
 
     out: dict[str, Any] = {
@@ -139,43 +135,91 @@ def evaluate_on(
         robot, sim_cls, made = resolve_plugins(robot, simulator, objectives)
         if terrain not in getattr(sim_cls, "terrains", (terrain,)):
             raise BackendUnavailable(f"{simulator} offers no terrain '{terrain}'")
-        space = robot.design_space_for(design)
-
-        def make(policy: Path) -> Any:
-            return make_backend(
-                robot,
-                sim_cls,
-                made,
-                terrain=terrain,
-                design_space=space,
-                agents_per_design=agents,
-                seed=seed,
-                checkpoint=str(policy),
-            )
-
-        def evaluate(backend: Any, designs: np.ndarray) -> list[Any]:
-            return [
-                backend.real_fitness(
-                    designs, made, agents=agents, steps=steps, seed=scenario_seed(seed, 1)
-                )
-            ]
-
         files = {"best": checkpoint, "nominal": nominal_checkpoint or checkpoint}
-        if files["nominal"] != files["best"]:
-            from coadapt_core.experiments.own_policies import each_own_policy
-
-            fit = each_own_policy(make, files, {"best": design, "nominal": nominal}, evaluate)[0]
-        else:
-            backend = make(checkpoint)
-            try:
-                fit = evaluate(backend, np.stack([design, nominal]))[0]
-            finally:
-                close = getattr(backend, "close", None)
-                if callable(close):
-                    close()
+        pair = {"best": design, "nominal": nominal}
+        fit = _paired_fitness(
+            robot,
+            sim_cls,
+            made,
+            files,
+            pair,
+            terrain=terrain,
+            seed=seed,
+            agents=agents,
+            steps=steps,
+        )
     except (BackendUnavailable, UserError, ImportError) as exc:
         out["error"] = " ".join(str(exc).split())
         return out
+    falls = None if fit.fall_rate is None else np.asarray(fit.fall_rate, dtype=float)
+    out.update(
+        {
+            "objectives": _paired_rows(made, fit),
+            "design_fall_rate": None if falls is None else float(falls[0]),
+            "nominal_fall_rate": None if falls is None else float(falls[1]),
+            "seconds": float(fit.seconds),
+        }
+    )
+    return out
+
+
+def _paired_fitness(
+    robot: Any,
+    sim_cls: type,
+    made: list[Any],
+    files: dict[str, Path],
+    pair: dict[str, np.ndarray],
+    *,
+    terrain: str,
+    seed: int,
+    agents: int,
+    steps: int,
+) -> Any:
+    """The real fitness of the pair's designs ("best": the design handed off, "nominal") on
+    the same scenarios (block 1 of `seed`): one backend under the policy both share, or each
+    design under its own (`files`)."""
+    from coadapt_core.learning.factory import make_backend
+    from coadapt_core.scenarios.seeds import scenario_seed
+
+    space = robot.design_space_for(pair["best"])
+
+    def make(policy: Path) -> Any:
+        return make_backend(
+            robot,
+            sim_cls,
+            made,
+            terrain=terrain,
+            design_space=space,
+            agents_per_design=agents,
+            seed=seed,
+            checkpoint=str(policy),
+        )
+
+    def evaluate(backend: Any, designs: np.ndarray) -> list[Any]:
+        return [
+            backend.real_fitness(
+                designs, made, agents=agents, steps=steps, seed=scenario_seed(seed, 1)
+            )
+        ]
+
+    if files["nominal"] != files["best"]:
+        from coadapt_core.experiments.own_policies import each_own_policy
+
+        return each_own_policy(make, files, pair, evaluate)[0]
+    backend = make(files["best"])
+    try:
+        return evaluate(backend, np.stack([pair["best"], pair["nominal"]]))[0]
+    finally:
+        close = getattr(backend, "close", None)
+        if callable(close):
+            close()
+
+
+def _paired_rows(made: list[Any], fit: Any) -> dict[str, dict[str, Any]]:
+    """Per objective: the design's and the nominal design's cost with their SE, and the
+    improvement with its paired SE (from the per-scenario costs, when recorded)."""
+    from coadapt_core.costs import improvement_se
+
     costs = np.asarray(fit.costs, dtype=float).reshape(2, -1)
     se = None if fit.cost_se is None else np.asarray(fit.cost_se, dtype=float).reshape(2, -1)
     per = None if fit.per_scenario is None else np.asarray(fit.per_scenario, dtype=float)
@@ -190,16 +234,7 @@ def evaluate_on(
             "improvement": float(o.improvement(float(costs[0, j]), float(costs[1, j]))),
             "improvement_se": None if paired is None or not np.isfinite(paired) else float(paired),
         }
-    falls = None if fit.fall_rate is None else np.asarray(fit.fall_rate, dtype=float)
-    out.update(
-        {
-            "objectives": rows,
-            "design_fall_rate": None if falls is None else float(falls[0]),
-            "nominal_fall_rate": None if falls is None else float(falls[1]),
-            "seconds": float(fit.seconds),
-        }
-    )
-    return out
+    return rows
 
 
 def run_final_check(
@@ -273,9 +308,6 @@ def front_final_check(
         "nominal_fall_rate": summary.get("nominal_fall_rate"),
         "significant": None,
     }
-
-
-# -- README ------------------------------------------------------------------------------------
 
 
 def run_check(folder: Path, seconds: float, vx: float) -> dict[str, Any]:

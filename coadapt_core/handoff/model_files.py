@@ -64,7 +64,8 @@ def _find(ref: str, bases: list[Path], what: str) -> Path:
             return candidate.resolve()
     raise UserError(
         f"the robot's {what} references '{ref}', which is not a file (looked in "
-        f"{', '.join(str(c.parent) for c in candidates) or 'nowhere'}); the handoff needs every model file",
+        f"{', '.join(str(c.parent) for c in candidates) or 'nowhere'}); the handoff needs every "
+        "model file",
         field="robot",
     )
 

@@ -15,7 +15,6 @@ CHECK_SECTION = """## Check it
 """
 
 
-# -- README ------------------------------------------------------------------------------------
 def readme_text(
     spec: dict[str, Any], sheet_data: dict[str, Any], files: list[tuple[str, str]], usage: str = ""
 ) -> str:
@@ -30,17 +29,21 @@ def readme_text(
     walked = (
         ""
         if not check or check.get("error")
-        else f"\nWhen this folder was written, `python check.py` printed: survival {check['survival']:.2f}, mean forward "
-        f"speed {check['vx_mean']:.3f} m/s under a {check['command'][0]:g} m/s command for {check['seconds']:g} s.\n"
+        else "\nWhen this folder was written, `python check.py` printed: survival "
+        f"{check['survival']:.2f}, mean forward speed {check['vx_mean']:.3f} m/s under a "
+        f"{check['command'][0]:g} m/s command for {check['seconds']:g} s.\n"
     )
     has_check = any(name == "check.py" for name, _ in files)
+    run_id = sheet_data["provenance"]["run_id"]
+    rows = "\n".join(f"| `{name}` | {what} |" for name, what in files)
+    check_section = CHECK_SECTION if has_check else ""
     return f"""# {spec["robot"]} {spec["design_text"]}: model, controller and design sheet
 
-Written by `coadapt handoff` (coadapt {__version__}) from run `{sheet_data["provenance"]["run_id"]}`.
+Written by `coadapt handoff` (coadapt {__version__}) from run `{run_id}`.
 
 | file | what |
 |---|---|
-{chr(10).join(f"| `{name}` | {what} |" for name, what in files)}
+{rows}
 
 {usage}{walked}
 ## The observation (`obs`, {obs["size"]} float32 values, SI units, no scaling)
@@ -55,5 +58,5 @@ at ±{obs["normalisation"]["clip"]:g}) and returns `actions` (raw, feed back int
 noise used in training is listed per slice in `policy.json` (`training_noise`); add none on
 the robot. Commands the policy was trained on: `policy.json` `commands.trained`.
 
-{CHECK_SECTION if has_check else ""}The design sheet is `design.md` (`design.json` holds the same as data).
+{check_section}The design sheet is `design.md` (`design.json` holds the same as data).
 """

@@ -21,7 +21,8 @@ def find_run(text: str, runs_dir: Path = Path("runs")) -> Path:
         if candidate.is_dir() and (candidate / "config.yaml").is_file():
             return candidate.resolve()
     raise UserError(
-        f"run '{text}' is neither a run folder nor a run id under {runs_dir}/ (no config.yaml found)",
+        f"run '{text}' is neither a run folder nor a run id under {runs_dir}/ (no config.yaml "
+        "found)",
         field="run",
     )
 

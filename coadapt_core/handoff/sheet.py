@@ -17,9 +17,6 @@ from typing import Any
 
 import numpy as np
 
-from coadapt_core.io import jsonable
-from coadapt_core.robot import joint_table
-
 
 def design_parameters(space: Any, design: np.ndarray) -> list[dict[str, Any]]:
     """Each design variable: name, value, unit (as the design space declares it), bounds."""
@@ -81,7 +78,8 @@ def _evaluation_lines(ev: dict[str, Any]) -> list[str]:
     if ev.get("error"):
         return [*lines, f"Not evaluated: {ev['error']}", ""]
     lines.append(
-        f"{ev['scenarios']} paired scenarios x {ev['steps'] if ev.get('steps') else '?'} steps per design."
+        f"{ev['scenarios']} paired scenarios x {ev['steps'] if ev.get('steps') else '?'} steps "
+        "per design."
         if ev.get("scenarios")
         else ""
     )
@@ -99,7 +97,8 @@ def _evaluation_lines(ev: dict[str, Any]) -> list[str]:
             f"{_pm(row['nominal'], row.get('nominal_se'))} | {gain_text} |"
         )
     lines.append(
-        f"| fall rate | {_num(ev.get('design_fall_rate'), 3)} | {_num(ev.get('nominal_fall_rate'), 3)} | |"
+        f"| fall rate | {_num(ev.get('design_fall_rate'), 3)} | "
+        f"{_num(ev.get('nominal_fall_rate'), 3)} | |"
     )
     lines.append("")
     return lines
@@ -108,44 +107,77 @@ def _evaluation_lines(ev: dict[str, Any]) -> list[str]:
 def render_markdown(sheet: dict[str, Any]) -> str:
     """`design.md`: the design sheet on one page."""
     d = sheet
-    lines = [f"# {d['robot']} design {d['design_text']}", ""]
-    prov = d["provenance"]
+    lines = [f"# {d['robot']} design {d['design_text']}", "", _origin(d), ""]
+    lines += _parameter_lines(d["parameters"])
+    lines += _body_lines(d["body"], d["robot_info"])
+    lines += _joint_lines(d["joints"])
+    lines += _validation_lines(d["validation"])
+    lines += _measured_lines(d)
+    check = d.get("controller_check")
+    if check:
+        lines += ["## The ONNX controller on the MJCF (check.py)", "", _check_text(check), ""]
+    onnx = d["onnx"]
     lines += [
-        f"From run `{prov['run_id']}` ({prov['method']}, {prov['optimizer']}, objective "
-        f"{', '.join(prov['objectives'])}, terrain {d['terrain']}, seed {prov['seed']}); "
-        f"{'the run' + chr(39) + 's best design' if d['is_run_best'] else 'a design chosen with --design'}. "
-        "Units: SI (m, kg, s, rad, N m).",
+        "## Controller",
+        "",
+        "`policy.onnx`: ONNX max |action difference| from the torch policy "
+        f"{onnx['max_abs_action_difference']:.2e} on {onnx['observations']} recorded "
+        f"observations (tolerance {onnx['tolerance']:g}). Observation, action and PD "
+        "conventions: `policy.json`.",
+        "",
+        "## Provenance",
         "",
     ]
-    lines += [
+    lines += _provenance_lines(d["provenance"])
+    return "\n".join(lines) + "\n"
+
+
+def _origin(d: dict[str, Any]) -> str:
+    """Where the design comes from: the run, its method and objective, which design."""
+    prov = d["provenance"]
+    which = "the run's best design" if d["is_run_best"] else "a design chosen with --design"
+    return (
+        f"From run `{prov['run_id']}` ({prov['method']}, {prov['optimizer']}, objective "
+        f"{', '.join(prov['objectives'])}, terrain {d['terrain']}, seed {prov['seed']}); "
+        f"{which}. Units: SI (m, kg, s, rad, N m)."
+    )
+
+
+def _parameter_lines(parameters: list[dict[str, Any]]) -> list[str]:
+    lines = [
         "## Design parameters",
         "",
         "| parameter | value | unit | allowed |",
         "|---|---|---|---|",
     ]
-    for p in d["parameters"]:
+    for p in parameters:
         allowed = (
             "one of " + ", ".join(_num(c) for c in p["choices"])
             if p.get("choices")
             else f"[{_num(p['bounds'][0])}, {_num(p['bounds'][1])}]"
         )
         lines.append(f"| {p['name']} | {_num(p['value'])} | {p['unit']} | {allowed} |")
-    body = d["body"]
-    lines += [
+    return lines
+
+
+def _body_lines(body: dict[str, Any], robot_info: dict[str, Any]) -> list[str]:
+    """Total mass and height, the robot's own facts and each link of the MJCF."""
+    lines = [
         "",
         "## Body",
         "",
         f"Total mass {_num(body['total_mass'])} kg; overall height {_num(body['height'], 3)} m "
-        f"(bounding boxes of the collision and visual geometry at the standing pose); standing base height "
-        f"{_num(body['standing_base_height'], 3)} m.",
+        "(bounding boxes of the collision and visual geometry at the standing pose); standing "
+        f"base height {_num(body['standing_base_height'], 3)} m.",
         "",
     ]
-    info_rows = _info_rows(d["robot_info"])
+    info_rows = _info_rows(robot_info)
     if info_rows:
         lines += ["| robot fact | value | unit |", "|---|---|---|", *info_rows, ""]
     lines += [
-        "Links (from the MJCF; offset: distance of the link's frame from its parent's, for a serial leg the "
-        "segment length above it; inertia: principal moments about the link's centre of mass):",
+        "Links (from the MJCF; offset: distance of the link's frame from its parent's, for a "
+        "serial leg the segment length above it; inertia: principal moments about the link's "
+        "centre of mass):",
         "",
         "| link | parent | joints | offset m | mass kg | principal inertia kg m² |",
         "|---|---|---|---|---|---|",
@@ -156,20 +188,29 @@ def render_markdown(sheet: dict[str, Any]) -> str:
             f"| {link['name']} | {link['parent']} | {', '.join(link['joints']) or '-'} | "
             f"{_num(link['offset_from_parent'], 3)} | {_num(link['mass'])} | {inertia} |"
         )
-    lines += [
+    return lines
+
+
+def _joint_lines(joints: list[dict[str, Any]]) -> list[str]:
+    lines = [
         "",
         "## Motors and joints (policy order)",
         "",
-        "| joint | default rad | range rad | kp N m/rad | kd N m s/rad | peak torque N m | no-load speed rad/s (RPM) |",
+        "| joint | default rad | range rad | kp N m/rad | kd N m s/rad | peak torque N m | "
+        "no-load speed rad/s (RPM) |",
         "|---|---|---|---|---|---|---|",
     ]
-    for j in d["joints"]:
+    for j in joints:
         lines.append(
-            f"| {j['name']} | {j['default']:+.3f} | [{j['lower']:+.2f}, {j['upper']:+.2f}] | {_num(j['kp'])} | "
-            f"{_num(j['kd'])} | {_num(j['torque_limit'])} | {_num(j['speed_limit'])} ({j['speed_limit_rpm']:.0f}) |"
+            f"| {j['name']} | {j['default']:+.3f} | [{j['lower']:+.2f}, {j['upper']:+.2f}] | "
+            f"{_num(j['kp'])} | {_num(j['kd'])} | {_num(j['torque_limit'])} | "
+            f"{_num(j['speed_limit'])} ({j['speed_limit_rpm']:.0f}) |"
         )
-    val = d["validation"]
-    lines += [
+    return lines
+
+
+def _validation_lines(val: dict[str, Any]) -> list[str]:
+    lines = [
         "",
         f"## Validation: {'feasible' if val['feasible'] else 'INFEASIBLE'}",
         "",
@@ -178,44 +219,46 @@ def render_markdown(sheet: dict[str, Any]) -> str:
     ]
     for f in val["findings"]:
         lines.append(f"| {f['check']} | {'yes' if f['ok'] else 'NO'} | {f['message']} |")
-    lines += ["", "## Measured against the nominal design", ""]
+    return lines
+
+
+def _measured_lines(d: dict[str, Any]) -> list[str]:
+    """The design against the nominal one: how to read the costs, which policies judged
+    them, and each evaluation."""
+    lines = ["", "## Measured against the nominal design", ""]
     nominal_text = ", ".join(_num(x) for x in d["nominal_design"])
     lines.append(
-        f"Nominal design ({nominal_text}). Costs are means per policy step (lower is better) with standard "
-        "errors over paired scenarios: each scenario (command, randomization draw, spawn, gait phase, "
-        "observation noise) is the same for both designs, so the improvement's error is paired."
+        f"Nominal design ({nominal_text}). Costs are means per policy step (lower is better) "
+        "with standard errors over paired scenarios: each scenario (command, randomization "
+        "draw, spawn, gait phase, observation noise) is the same for both designs, so the "
+        "improvement's error is paired."
     )
     judges = d.get("policies")
     if judges:
         lines.append(
-            f"Policies: {judges['note']} (this design: `{judges['design']}`; nominal: `{judges['nominal']}`)."
+            f"Policies: {judges['note']} (this design: `{judges['design']}`; nominal: "
+            f"`{judges['nominal']}`)."
         )
     lines.append("")
     for ev in d["evaluations"]:
         lines += _evaluation_lines(ev)
-    check = d.get("controller_check")
-    if check:
-        lines += ["## The ONNX controller on the MJCF (check.py)", ""]
-        if check.get("error"):
-            lines.append(f"Not run: {check['error']}")
-        else:
-            lines.append(
-                f"{check['seconds']:g} s at vx {check['command'][0]:g} m/s on {check['terrain']} ground, "
-                f"nominal physics: survival {check['survival']:.2f}, mean forward speed {check['vx_mean']:.3f} m/s, "
-                f"distance {check['distance_x']:.2f} m, lateral drift {check['lateral_drift']:+.2f} m."
-            )
-        lines.append("")
-    onnx = d["onnx"]
-    lines += [
-        "## Controller",
-        "",
-        f"`policy.onnx`: ONNX max |action difference| from the torch policy {onnx['max_abs_action_difference']:.2e} "
-        f"on {onnx['observations']} recorded observations (tolerance {onnx['tolerance']:g}). Observation, action "
-        "and PD conventions: `policy.json`.",
-        "",
-        "## Provenance",
-        "",
-    ]
+    return lines
+
+
+def _check_text(check: dict[str, Any]) -> str:
+    """What check.py measured walking the ONNX controller on the MJCF, or why it did not."""
+    if check.get("error"):
+        return f"Not run: {check['error']}"
+    return (
+        f"{check['seconds']:g} s at vx {check['command'][0]:g} m/s on {check['terrain']} "
+        f"ground, nominal physics: survival {check['survival']:.2f}, mean forward speed "
+        f"{check['vx_mean']:.3f} m/s, distance {check['distance_x']:.2f} m, lateral drift "
+        f"{check['lateral_drift']:+.2f} m."
+    )
+
+
+def _provenance_lines(prov: dict[str, Any]) -> list[str]:
+    lines = []
     for key, value in prov.items():
         text = (
             ", ".join(map(str, value))
@@ -227,7 +270,7 @@ def render_markdown(sheet: dict[str, Any]) -> str:
             if value is not None
             else f"- {key.replace('_', ' ')}: -"
         )
-    return "\n".join(lines) + "\n"
+    return lines
 
 
-__all__ = ["design_parameters", "joint_table", "jsonable", "render_markdown"]
+__all__ = ["design_parameters", "render_markdown"]

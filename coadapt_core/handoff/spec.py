@@ -58,8 +58,9 @@ def _trained_command_ranges(task: Any, commands_state: dict[str, Any] | None) ->
         "trained": reached,
         "units": {"vx": "m/s", "vy": "m/s", "yaw_rate": "rad/s"},
         "zero_threshold": cfg.zero_threshold,
-        "note": "the command box the policy reached in training (configured ranges clipped to +-curriculum_limit); "
-        "a planar command slower than zero_threshold was given as exactly 0",
+        "note": "the command box the policy reached in training (configured ranges clipped to "
+        "+-curriculum_limit); a planar command slower than zero_threshold was given as "
+        "exactly 0",
     }
 
 
@@ -110,7 +111,8 @@ def _onnx(size: int, num_joints: int, verification: dict[str, float]) -> dict[st
                 "name": "actions",
                 "shape": ["batch", num_joints],
                 "dtype": "float32",
-                "meaning": "raw action, clipped to +-action.clip; feed it back into the action history",
+                "meaning": "raw action, clipped to +-action.clip; feed it back into the action "
+                "history",
             },
             {
                 "name": "joint_targets",
@@ -144,8 +146,9 @@ def _joints(model: Any) -> dict[str, Any]:
             "lower": "rad",
             "upper": "rad",
         },
-        "pd_law": "tau = kp (target - q) - kd dq at every physics step, then clipped to the motor's torque-speed "
-        "envelope [-torque_limit clip(1 + dq / speed_limit, 0, 1), torque_limit clip(1 - dq / speed_limit, 0, 1)]",
+        "pd_law": "tau = kp (target - q) - kd dq at every physics step, then clipped to the "
+        "motor's torque-speed envelope [-torque_limit clip(1 + dq / speed_limit, 0, 1), "
+        "torque_limit clip(1 - dq / speed_limit, 0, 1)]",
     }
 
 
@@ -155,9 +158,10 @@ def _gait(task: Any, robot: Any) -> dict[str, Any]:
         "legs": [{"name": leg.name, "phase_offset": leg.phase_offset} for leg in robot.legs()],
         "freeze_on_zero_command": task.gait.freeze_on_zero_command,
         "zero_command_phase": 0.25,
-        "rule": "phase in [0, 1) advances by control_dt x frequency after every policy step while the command is "
-        "not zero (held at zero_command_phase under a zero command when freeze_on_zero_command); the "
-        "observation's clock is (sin, cos)(2 pi phase); training started each episode at a random phase",
+        "rule": "phase in [0, 1) advances by control_dt x frequency after every policy step while "
+        "the command is not zero (held at zero_command_phase under a zero command when "
+        "freeze_on_zero_command); the observation's clock is (sin, cos)(2 pi phase); "
+        "training started each episode at a random phase",
     }
 
 
@@ -205,8 +209,8 @@ def policy_spec(
         + ", ".join(f"{n} {x:g}" for n, x in zip(space.names, design, strict=True))
         + ")",
         "design_input": [float(x) for x in rollout["design_obs"]],
-        "design_input_rule": "each design variable mapped linearly from the robot's design-space bounds to [-1, 1]; "
-        "baked into policy.onnx as a constant",
+        "design_input_rule": "each design variable mapped linearly from the robot's design-space "
+        "bounds to [-1, 1]; baked into policy.onnx as a constant",
         "files": files,
         "onnx": _onnx(observation["size"], num_joints, verification),
         "observation": observation,
@@ -236,8 +240,8 @@ def policy_spec(
         "termination": {
             "min_base_height": task.min_base_height,
             "max_tilt_cos": task.max_tilt_cos,
-            "rule": "a fall: base height above the ground < min_base_height x its standing height, or "
-            "projected gravity z > -max_tilt_cos",
+            "rule": "a fall: base height above the ground < min_base_height x its standing "
+            "height, or projected gravity z > -max_tilt_cos",
         },
         "simulation": _simulation(model, foot),
         "training": {

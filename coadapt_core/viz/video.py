@@ -86,8 +86,9 @@ def run_policies(run_dir: Path, config: dict[str, Any]) -> tuple[dict[str, Path]
         if all(p.is_file() for p in own.values()):
             return own, "each design under its own policy"
         return None, (
-            "the run shares no policy between designs and kept none of its best and nominal designs' own "
-            "(runs made since keep them in checkpoints/policy-best.pt and policy-nominal.pt)"
+            "the run shares no policy between designs and kept none of its best and nominal "
+            "designs' own (runs made since keep them in checkpoints/policy-best.pt and "
+            "policy-nominal.pt)"
         )
     checkpoint = run_checkpoint(run_dir, config)
     if checkpoint is None:
@@ -122,56 +123,15 @@ def render_run_video(
     run_dir = Path(run_dir)
     want_mp4 = shutil.which("ffmpeg") is not None  # checked before any rollout
     try:
-        from coadapt_core.plugins import get_registry
-
-        registry = get_registry()
-        # a run config without robot or simulator (older runs) means the defaults in force
-        robot = registry.get("robot", config.get("robot") or registry.default("robot"))()
-        why = "the policies given"
-        if policies is None:
-            policies, why = run_policies(run_dir, config)
-        if policies is None:  # a stand-in policy would mislead
-            print(f"video: not rendered ({why})", file=stream)
-            return []
-        sim_name = config.get("sim") or registry.default("simulator")
-        sim_cls = registry.get("simulator", sim_name)
-        renderer = renderer_for(sim_name)
-        from coadapt_core.experiments.evaluate import evaluate_checkpoint
-
-        panels = []
-        for k, (label, design) in enumerate(
-            (("best", summary["best_design"]), ("nominal", summary["nominal_design"]))
-        ):
-            tell(0.2 * k, f"rolling out the {label} design ({seconds:g} s)")
-            result = evaluate_checkpoint(
-                policies[label],
-                robot,
-                sim_cls,
-                design,
-                terrain=config.get("terrain", "flat"),
-                command=[0.5, 0.0, 0.0],
-                agents=1,
-                seconds=seconds,
-                seed=int(config.get("seed") or 0),
-                randomize=False,
-                record=True,
-            )
-            trajectory = result["_trajectory"]
-            panels.append(
-                rollout_panel(
-                    robot,
-                    design,
-                    trajectory,
-                    panel_label(label, design, result["vx_mean"]),
-                    renderer,
-                )
-            )
-        fps = 1.0 / (2 * trajectory["dt"])
+        panels, fps, why, renderer = _run_panels(run_dir, summary, config, seconds, policies, tell)
     except Exception as exc:  # the run's result stands; the picture is a bonus
         print(
             f"video: not rendered ({type(exc).__name__}: {' '.join(str(exc).split())[:160]})",
             file=stream,
         )
+        return []
+    if panels is None:  # a stand-in policy would mislead
+        print(f"video: not rendered ({why})", file=stream)
         return []
     outputs = [run_dir / f"{VIDEO_NAME}.gif"] + (
         [run_dir / f"{VIDEO_NAME}.mp4"] if want_mp4 else []
@@ -199,12 +159,66 @@ def render_run_video(
     if backend is not None:
         written = [p for p in outputs if p.is_file()]
         print(
-            f"video: {', '.join(str(p) for p in written)} (best left, nominal right, {why}; {backend})",
+            f"video: {', '.join(str(p) for p in written)} (best left, nominal right, {why}; "
+            f"{backend})",
             file=stream,
         )
         return written
     print("video: not rendered, no offscreen GL here (" + "; ".join(errors) + ")", file=stream)
     return []
+
+
+def _run_panels(
+    run_dir: Path,
+    summary: dict[str, Any],
+    config: dict[str, Any],
+    seconds: float,
+    policies: dict[str, Path] | None,
+    tell: Any,
+) -> tuple[list[dict[str, Any]] | None, float, str, str]:
+    """(the best and the nominal design's panels, frames per second, which policies drew them,
+    the renderer): each design rolled out under its policy on the run's simulator; no panels
+    (None) and why when the run kept no policy to draw them with."""
+    from coadapt_core.plugins import get_registry
+
+    registry = get_registry()
+    # a run config without robot or simulator (older runs) means the defaults in force
+    robot = registry.get("robot", config.get("robot") or registry.default("robot"))()
+    why = "the policies given"
+    if policies is None:
+        policies, why = run_policies(run_dir, config)
+    if policies is None:
+        return None, 0.0, why, ""
+    sim_name = config.get("sim") or registry.default("simulator")
+    sim_cls = registry.get("simulator", sim_name)
+    renderer = renderer_for(sim_name)
+    from coadapt_core.experiments.evaluate import evaluate_checkpoint
+
+    panels = []
+    for k, (label, design) in enumerate(
+        (("best", summary["best_design"]), ("nominal", summary["nominal_design"]))
+    ):
+        tell(0.2 * k, f"rolling out the {label} design ({seconds:g} s)")
+        result = evaluate_checkpoint(
+            policies[label],
+            robot,
+            sim_cls,
+            design,
+            terrain=config.get("terrain", "flat"),
+            command=[0.5, 0.0, 0.0],
+            agents=1,
+            seconds=seconds,
+            seed=int(config.get("seed") or 0),
+            randomize=False,
+            record=True,
+        )
+        trajectory = result["_trajectory"]
+        panels.append(
+            rollout_panel(
+                robot, design, trajectory, panel_label(label, design, result["vx_mean"]), renderer
+            )
+        )
+    return panels, 1.0 / (2 * trajectory["dt"]), why, renderer
 
 
 def offscreen(
@@ -226,7 +240,10 @@ def offscreen(
     import threading
 
     renderer = renderer or renderer_for()
-    code = f"import json, sys\nfrom {renderer} import {function}\n{function}(**json.loads(sys.stdin.read()))\n"
+    code = (
+        f"import json, sys\nfrom {renderer} import {function}\n"
+        f"{function}(**json.loads(sys.stdin.read()))\n"
+    )
     errors = []
     for backend, variables in importlib.import_module(renderer).environments():
         env = dict(os.environ, **variables)
