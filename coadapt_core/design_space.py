@@ -41,7 +41,8 @@ def parse_range_pairs(text: str, *, field: str = "design_ranges") -> list[tuple[
             raise UserError(f"design range '{part}' must have finite bounds", field=field)
         if lo > hi:
             raise UserError(
-                f"design range '{part}' has inverted bounds; the lower bound must not exceed the upper",
+                f"design range '{part}' has inverted bounds; the lower bound must not exceed the "
+                "upper",
                 field=field,
             )
         out.append((lo, hi))
@@ -60,7 +61,8 @@ class Continuous:
     def __post_init__(self) -> None:
         if not (math.isfinite(self.low) and math.isfinite(self.high)):
             raise UserError(
-                f"design variable '{self.name}': bounds must be finite numbers, got [{self.low}, {self.high}]",
+                f"design variable '{self.name}': bounds must be finite numbers, got [{self.low}, "
+                f"{self.high}]",
                 field=self.name,
             )
         if self.low > self.high:
@@ -204,7 +206,8 @@ class DesignSpace:
             if isinstance(var, Continuous):
                 if value < var.low - tol or value > var.high + tol:
                     raise DesignError(
-                        f"design variable '{var.name}' = {value:g} is outside its bounds {var.describe()}",
+                        f"design variable '{var.name}' = {value:g} is outside its bounds "
+                        f"{var.describe()}",
                         field=var.name,
                     )
             elif not any(abs(value - c) <= tol for c in var.choices):
@@ -303,7 +306,8 @@ class DesignSpace:
         points = np.atleast_2d(np.asarray(points, dtype=float))
         if points.shape[0] == 0 or points.shape[1] != self.dim:
             raise UserError(
-                f"narrowing needs at least one point of {self.dim} values, got shape {points.shape}",
+                f"narrowing needs at least one point of {self.dim} values, got shape "
+                f"{points.shape}",
                 field="points",
             )
         if margin < 0 or not (0 < min_width_fraction <= 1):
@@ -354,7 +358,8 @@ class DesignSpace:
                     )
                 if lo < var.low - 1e-9 or hi > var.high + 1e-9:
                     raise UserError(
-                        f"design variable '{var.name}': range [{lo:g}, {hi:g}] leaves its bounds {var.describe()}",
+                        f"design variable '{var.name}': range [{lo:g}, {hi:g}] leaves its bounds "
+                        f"{var.describe()}",
                         field=var.name,
                     )
                 variables.append(Continuous(var.name, lo, hi, var.unit))

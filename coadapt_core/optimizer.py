@@ -123,7 +123,8 @@ class Optimizer(ABC):
         if space.is_mixed and not self.supports_mixed:
             raise UserError(
                 f"optimizer '{self.name}' handles continuous variables only; the design space has "
-                f"discrete ones (optimizers that handle them: {_optimizers_where('supports_mixed')})",
+                "discrete ones (optimizers that handle them: "
+                f"{_optimizers_where('supports_mixed')})",
                 field="optimizer",
             )
         if self.multi_objective and num_objectives < 2:
@@ -134,7 +135,8 @@ class Optimizer(ABC):
         if not self.multi_objective and num_objectives != 1:
             raise UserError(
                 f"optimizer '{self.name}' optimizes one objective; got {num_objectives} (use a "
-                f"weighted objective, or a multi-objective optimizer: {_optimizers_where('multi_objective')})",
+                "weighted objective, or a multi-objective optimizer: "
+                f"{_optimizers_where('multi_objective')})",
                 field="objective",
             )
         self.space = space
@@ -193,7 +195,8 @@ class Optimizer(ABC):
         designs = np.atleast_2d(np.asarray(raw, dtype=float))
         if designs.shape[1] != self.space.dim:
             raise RuntimeError(
-                f"optimizer '{self.name}' proposed designs of width {designs.shape[1]}, expected {self.space.dim}"
+                f"optimizer '{self.name}' proposed designs of width {designs.shape[1]}, expected "
+                f"{self.space.dim}"
             )
         self._report_out_of_bounds(designs)
         # discrete values snap to their exact choices; continuous ones are clipped to bounds
@@ -220,9 +223,10 @@ class Optimizer(ABC):
         self.out_of_bounds = getattr(self, "out_of_bounds", 0) + int(outside.sum())
         first = values[outside][0]
         warnings.warn(
-            f"optimizer '{self.name}' proposed {int(outside.sum())} of {len(designs)} designs outside the design "
-            f"space's bounds (e.g. {np.round(first, 4).tolist()} against {np.round(lower, 4).tolist()} to "
-            f"{np.round(upper, 4).tolist()}); they were clipped to the bounds (docs/plugins.md, section 4)",
+            f"optimizer '{self.name}' proposed {int(outside.sum())} of {len(designs)} designs "
+            f"outside the design space's bounds (e.g. {np.round(first, 4).tolist()} against "
+            f"{np.round(lower, 4).tolist()} to {np.round(upper, 4).tolist()}); they were clipped "
+            "to the bounds (docs/plugins.md, section 4)",
             OutOfBoundsProposal,
             stacklevel=3,
         )
@@ -336,7 +340,8 @@ class Optimizer(ABC):
             if proposed.shape != designs.shape or not np.array_equal(proposed, designs):
                 raise UserError(
                     f"optimizer '{self.name}' does not replay its recorded round {i} identically "
-                    "(a different library version or constructor options?); the run cannot be resumed exactly",
+                    "(a different library version or constructor options?); the run cannot be "
+                    "resumed exactly",
                     field="optimizer",
                 )
             self._tell(designs, costs)

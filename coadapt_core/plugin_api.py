@@ -50,7 +50,8 @@ BREAKING_CHANGES: dict[int, tuple[str, ...]] = {
     2: (
         "StepBatch has no `action` field (read `joint_targets`)",
         "`initial_designs` is a constructor argument checked by Optimizer.__init__, not an option",
-        "an optimizer's first ask must return `initial_designs` (a run warns at its start when it does not)",
+        "an optimizer's first ask must return `initial_designs` (a run warns at its start when it "
+        "does not)",
         "undeclared options are refused (declare them in `option_specs`)",
         "optimizer state is plain JSON through state_dict/load_state_dict, never a pickle",
         "seeds are any integer in [0, 2**63) (32-bit libraries get `self.seed32`)",
@@ -102,8 +103,9 @@ def _older_major(major: int) -> str:
     have_major, have_minor, _ = current()
     changed = "; ".join(changes_since(major)) or "see the changelog"
     return (
-        f"was written for coadapt plugin API {major}.x and this coadapt has {PLUGIN_API_VERSION}, which "
-        f"changed: {changed}; adapt it as {MIGRATION_DOC} says, then declare "
+        f"was written for coadapt plugin API {major}.x and this coadapt has "
+        f"{PLUGIN_API_VERSION}, which changed: {changed}; adapt it as {MIGRATION_DOC} says, "
+        "then declare "
         f'{MODULE_ATTRIBUTE} = "{have_major}.{have_minor}"'
     )
 
@@ -120,16 +122,16 @@ def api_problem(declared: str | None) -> str | None:
         major, minor, _ = parse_version(declared)
     except ValueError:
         return (
-            f"declares plugin API {declared!r}, which is not a version; declare the version it was written "
-            f'for, e.g. {MODULE_ATTRIBUTE} = "{current()[0]}.{current()[1]}"'
+            f"declares plugin API {declared!r}, which is not a version; declare the version it "
+            f'was written for, e.g. {MODULE_ATTRIBUTE} = "{current()[0]}.{current()[1]}"'
         )
     have_major, have_minor, _ = current()
     if major < have_major:
         return _older_major(major)
     if major > have_major or minor > have_minor:
         return (
-            f"needs coadapt plugin API {major}.{minor}, newer than this coadapt's {PLUGIN_API_VERSION}: "
-            "upgrade coadapt (pip install -U coadapt)"
+            f"needs coadapt plugin API {major}.{minor}, newer than this coadapt's "
+            f"{PLUGIN_API_VERSION}: upgrade coadapt (pip install -U coadapt)"
         )
     return None
 
@@ -175,7 +177,8 @@ def required_bump(old: dict[str, dict[str, str]], new: dict[str, dict[str, str]]
     ]
     removed = [k for k in diff["removed"] if not _suite_test(k, flat_old[k])]
     if diff["removed"] and not removed:
-        return "minor"  # a check dropped or renamed (and maybe things added): nothing a plugin relies on
+        # a check dropped or renamed (and maybe things added): nothing a plugin relies on
+        return "minor"
     if removed or diff["changed"] or breaking_additions:
         return "major"
     return "minor" if diff["added"] else None
@@ -214,7 +217,7 @@ def bump_problem(old_version: str, old_sig: dict, new_version: str, new_sig: dic
             if keys
         )
         return (
-            f"the plugin interfaces changed ({shown}) and need a {need} version bump over {old_version}; "
-            f"the version is {new_version}"
+            f"the plugin interfaces changed ({shown}) and need a {need} version bump over "
+            f"{old_version}; the version is {new_version}"
         )
     return None

@@ -10,6 +10,7 @@ import typer
 
 from coadapt_core import __version__
 from coadapt_core.cli import (
+    evaluate,
     export,
     grid,
     handoff,
@@ -60,6 +61,7 @@ run.register(app)
 plugins.register(app)
 app.add_typer(robot.app, name="robot")
 train.register(app)
+evaluate.register(app)
 grid.register(app)
 report.register(app)
 export.register(app)

@@ -56,7 +56,10 @@ def os_error_line(exc: OSError) -> str:
     # some libraries (TensorBoard's writer) pass the path as bytes: shown as text all the same
     where = f"'{os.fsdecode(exc.filename)}'" if exc.filename else "a file"
     if exc.errno in (errno.ENOSPC, errno.EDQUOT):
-        return f"disk full writing {where}; free some space and run the command again (nothing partial was kept)"
+        return (
+            f"disk full writing {where}; free some space and run the command again "
+            "(nothing partial was kept)"
+        )
     if exc.errno in (errno.EROFS, errno.EACCES, errno.EPERM):
         return f"cannot write {where} ({exc.strerror}); give a folder you can write to (--out / -o)"
     if exc.errno in (errno.EEXIST, errno.ENOTDIR):
@@ -133,6 +136,31 @@ def resolve(kind: str, name: str) -> type:
         fail(str(exc))
 
 
+def simulator_for(sim: str, terrain: str) -> type:
+    """The simulator plugin class `sim`, checked to build `terrain` (one line, exit 2)."""
+    cls = resolve("simulator", sim)
+    if terrain not in cls.terrains:
+        fail(
+            f"--terrain '{terrain}' is not supported by simulator '{sim}'; "
+            f"one of: {', '.join(cls.terrains)}"
+        )
+    return cls
+
+
+def check_device_option(device: str) -> None:
+    """--device: a device torch knows, and CUDA only where torch sees it (one line, exit 2)."""
+    import torch
+
+    from coadapt_core.coadapt.config import check_device
+
+    try:
+        check_device(device, field="--device")
+    except UserError as exc:
+        fail(str(exc))
+    if device.startswith("cuda") and not torch.cuda.is_available():
+        fail("--device cuda requested but torch sees no CUDA device; use --device cpu")
+
+
 def run_app(app: typer.Typer, argv: list[str] | None = None) -> int:
     """Run the `coadapt` app (or a command of it) on `argv`; user errors become one line on
     stderr and exit code 2 (`coadapt_core.cli.main`, and `coadapt grid`'s check of its cells)."""
@@ -172,8 +200,9 @@ def run_app(app: typer.Typer, argv: list[str] | None = None) -> int:
         # the results store failed under a command (damaged, emptied, locked, unreachable)
         detail = one_line(getattr(exc, "orig", None) or exc)[:200]
         print(
-            f"error: the results store failed ({detail}); check --store / $COADAPT_STORE, or move a damaged "
-            "store aside and resume the runs (`coadapt run --resume`) to record them again",
+            f"error: the results store failed ({detail}); check --store / $COADAPT_STORE, or "
+            "move a damaged store aside and resume the runs (`coadapt run --resume`) to record "
+            "them again",
             file=sys.stderr,
         )
         return EXIT_USAGE

@@ -14,8 +14,9 @@ def front_lines(front: dict[str, Any], with_se: Callable[[float, float | None], 
     returned = front.get("returned", 0)
     n = len(front["designs"])
     lines = [
-        f"Pareto front ({n} design{'' if n == 1 else 's'}, final check costs +- SE; the run returns the one of "
-        "lowest first cost; N: `coadapt handoff RUN --pick N` hands off another):"
+        f"Pareto front ({n} design{'' if n == 1 else 's'}, final check costs +- SE; the run "
+        "returns the one of lowest first cost; N: `coadapt handoff RUN --pick N` hands off "
+        "another):"
     ]
     for j, (design, costs, se) in enumerate(
         zip(front["designs"], front["costs"], ses, strict=True)
@@ -35,8 +36,8 @@ def front_lines(front: dict[str, Any], with_se: Callable[[float, float | None], 
             else " (no SE: no per-scenario costs)"
         )
         lines.append(
-            f"hypervolume {hv:.3f}{error} (costs relative to the nominal design's, up to 2 in each: the "
-            "nominal design alone has 1; docs/results.md)"
+            f"hypervolume {hv:.3f}{error} (costs relative to the nominal design's, up to 2 in "
+            "each: the nominal design alone has 1; docs/results.md)"
         )
     return lines
 

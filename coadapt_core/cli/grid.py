@@ -229,8 +229,8 @@ def _run(s: GridSettings, spec: Any, results: Any, command_line: str) -> Any:
             done_cells = len(stopped.finished) + len(stopped.skipped) if stopped is not None else 0
             results.close()
             interrupted(
-                f"grid {spec.grid_id} stopped ({done_cells} cells finished; the running cells keep their "
-                "last state and resume, the rest start)",
+                f"grid {spec.grid_id} stopped ({done_cells} cells finished; the running cells keep "
+                "their last state and resume, the rest start)",
                 command_line,
             )
 
@@ -264,8 +264,9 @@ def register(app: typer.Typer) -> None:
         report = _run(s, spec, results, command_line)
         results.close()
         Console(stderr=True).print(
-            f"grid {report.grid_id}: {len(report.finished)} finished, {len(report.skipped)} skipped "
-            f"(already finished), {len(report.resumed)} resumed, {len(report.failed)} failed"
+            f"grid {report.grid_id}: {len(report.finished)} finished, {len(report.skipped)} "
+            f"skipped (already finished), {len(report.resumed)} resumed, {len(report.failed)} "
+            "failed"
             + (
                 f", {len(report.ran_again)} ran again ({', '.join(sorted(set(report.ran_again)))})"
                 if report.ran_again

@@ -63,8 +63,8 @@ def _picked(run_dir: Path, pick: str) -> Any:
     front = summary.get("pareto_front")
     if not isinstance(front, dict) or not front.get("designs") or not front.get("costs"):
         fail(
-            f"--pick: run {run_dir.name} has no Pareto front (one objective); leave out --pick to hand off its best "
-            "design, or give --design"
+            f"--pick: run {run_dir.name} has no Pareto front (one objective); leave out --pick to "
+            "hand off its best design, or give --design"
         )
     names = list(front["costs"][0])
     costs = np.array([[float(c[n]) for n in names] for c in front["costs"]], dtype=float)
@@ -95,7 +95,8 @@ def register(app: typer.Typer) -> None:
         missing = missing_deploy_modules()
         if missing:
             fail(
-                f"coadapt handoff needs {', '.join(missing)}: pip install '{DEPLOY_EXTRA}' (or pip install -e '.[deploy]')"
+                f"coadapt handoff needs {', '.join(missing)}: pip install '{DEPLOY_EXTRA}' (or pip "
+                "install -e '.[deploy]')"
             )
         if agents < 1:
             fail(f"--agents must be >= 1, got {agents}")

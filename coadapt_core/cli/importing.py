@@ -31,7 +31,8 @@ def register(app: typer.Typer) -> None:
     options = options_of(ImportCommand)
 
     def import_command(**values: Any) -> None:
-        """Merge exported runs into a store: new runs are added, a run already there is replaced only by a copy further along (finished, or updated later)."""
+        """Merge exported runs into a store: new runs are added, a run already there is
+        replaced only by a copy further along (finished, or updated later)."""
         from coadapt_core.results.import_files import export_files
         from coadapt_core.results.importer import import_tables
         from coadapt_core.results.store import ResultsStore
@@ -50,7 +51,8 @@ def register(app: typer.Typer) -> None:
         rows = ", ".join(f"{n} {t}" for t, n in done.rows.items())
         print(
             f"imported {done.source} ({done.fmt}) into {url}: {len(done.added)} runs added, "
-            f"{len(done.replaced)} replaced, {len(done.skipped)} already there; rows written: {rows}"
+            f"{len(done.replaced)} replaced, {len(done.skipped)} already there; rows written: "
+            f"{rows}"
         )
 
     register_command(app, "import", import_command, options)

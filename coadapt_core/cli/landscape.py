@@ -63,7 +63,7 @@ def landscape_line(summary: dict, agents: int, steps: int, unit: str = "") -> st
     """One line: the grid optimum and the nominal design, costs (in `unit`, the first
     objective's) with standard errors, improvement with its paired standard error, fall rates,
     and the protocol the costs belong to."""
-    from coadapt_core.cli.run import better_by  # improvements in one direction (issue 43)
+    from coadapt_core.cli.run_summary import better_by  # improvements in one direction (issue 43)
 
     def se(key: str, scale: float = 1.0) -> str:
         value = summary.get(key)
@@ -75,12 +75,14 @@ def landscape_line(summary: dict, agents: int, steps: int, unit: str = "") -> st
 
     unit = f" {unit}" if unit else ""
     line = (
-        f"landscape {summary['run_id']} (costs{unit} per step over {agents} paired scenarios x {steps} steps per design, "
-        f"{summary.get('cost_rule', 'capped')} cost: the landscape's protocol, comparable within it, not with "
-        "`coadapt run`'s final check): grid optimum "
-        f"{summary['best_design'][:2]} cost {summary['best_cost']:.4g}{se('best_cost_se')}{unit} (fall rate {rate('best_fall_rate')}); "
-        f"nominal cost {summary['nominal_cost']:.4g}{se('nominal_cost_se')}{unit} (fall rate {rate('nominal_fall_rate')}); "
-        f"improvement: {better_by(summary['improvement'], summary.get('improvement_se'))}"
+        f"landscape {summary['run_id']} (costs{unit} per step over {agents} paired scenarios x "
+        f"{steps} steps per design, {summary.get('cost_rule', 'capped')} cost: the landscape's "
+        "protocol, comparable within it, not with `coadapt run`'s final check): grid optimum "
+        f"{summary['best_design'][:2]} cost {summary['best_cost']:.4g}{se('best_cost_se')}{unit} "
+        f"(fall rate {rate('best_fall_rate')}); nominal cost "
+        f"{summary['nominal_cost']:.4g}{se('nominal_cost_se')}{unit} (fall rate "
+        f"{rate('nominal_fall_rate')}); improvement: "
+        f"{better_by(summary['improvement'], summary.get('improvement_se'))}"
     )
     if summary.get("improvement_plain") is not None:
         line += (
@@ -114,8 +116,9 @@ def _checkpoint(s: LandscapeSettings, robot_cls: type) -> Path:
         shipped = robot_cls().shipped_policy(s.terrain, False)
         if shipped is None:
             fail(
-                f"no --checkpoint given and robot '{s.robot}' ships no policy for terrain '{s.terrain}'; "
-                f"train one with `coadapt train --robot {s.robot} --terrain {s.terrain}` or pass a run's checkpoint"
+                f"no --checkpoint given and robot '{s.robot}' ships no policy for terrain "
+                f"'{s.terrain}'; train one with `coadapt train --robot {s.robot} --terrain "
+                f"{s.terrain}` or pass a run's checkpoint"
             )
         return Path(shipped)
     checkpoint = Path(s.checkpoint)
@@ -246,8 +249,8 @@ def _run(s: LandscapeSettings, job: dict[str, Any]) -> dict[str, Any]:
             if not started:
                 interrupted("the landscape had not started; nothing to resume", None)
             interrupted(
-                f"landscape {started[0]} stopped; its finished rows are stored and the store marks it "
-                "interrupted",
+                f"landscape {started[0]} stopped; its finished rows are stored and the store marks "
+                "it interrupted",
                 shlex.join(["coadapt", *with_resume(argv, started[0])]),
             )
 

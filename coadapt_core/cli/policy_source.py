@@ -13,8 +13,8 @@ from coadapt_core.errors import UserError
 
 #: what `coadapt eval --checkpoint` accepts, said when it gets something else
 EVAL_CHECKPOINTS = (
-    "a checkpoint file (.pt), the --out folder of a `coadapt train`, a `coadapt run` folder or run id "
-    "under ./runs (its last checkpoint), or no --checkpoint for the robot's shipped policy"
+    "a checkpoint file (.pt), the --out folder of a `coadapt train`, a `coadapt run` folder or run "
+    "id under ./runs (its last checkpoint), or no --checkpoint for the robot's shipped policy"
 )
 
 
@@ -49,8 +49,9 @@ def eval_checkpoint_path(checkpoint: Path | None) -> Path | None:
         found = run_checkpoint(run_dir, config if isinstance(config, dict) else {})
         if found is None:
             fail(
-                f"--checkpoint {text}: run folder {run_dir} holds no policy (no checkpoints/backend-outer*.pt and no "
-                f"starting policy file); give {EVAL_CHECKPOINTS}"
+                f"--checkpoint {text}: run folder {run_dir} holds no policy (no "
+                "checkpoints/backend-outer*.pt and no starting policy file); give "
+                f"{EVAL_CHECKPOINTS}"
             )
         print(f"policy: {found} (the last of run {run_dir.name})", file=sys.stderr)
         return found

@@ -59,8 +59,8 @@ def _check_out(out: Path) -> None:
             pass
     except OSError as exc:
         fail(
-            f"--out {out}: cannot write the report there ({exc.strerror or type(exc).__name__}); give a folder "
-            "you can write"
+            f"--out {out}: cannot write the report there ({exc.strerror or type(exc).__name__}); "
+            "give a folder you can write"
         )
 
 
@@ -108,13 +108,14 @@ def _transfer_simulator(transfer_sim: str | None) -> str:
             transfer_sim = registry.default("simulator", exclude=(registry.default("simulator"),))
         except UserError:
             fail(
-                "the sim-to-sim column needs a second simulator installed (one more simulator plugin or extra); "
-                "pass --no-sim-to-sim or --transfer-sim NAME"
+                "the sim-to-sim column needs a second simulator installed (one more simulator "
+                "plugin or extra); pass --no-sim-to-sim or --transfer-sim NAME"
             )
     simulators = choices("simulator")
     if transfer_sim not in simulators:
         fail(
-            f"--transfer-sim '{transfer_sim}' is not a simulator; available: {', '.join(simulators)}"
+            f"--transfer-sim '{transfer_sim}' is not a simulator; available: "
+            f"{', '.join(simulators)}"
         )
     _quiet_imports(tuple(getattr(registry.get("simulator", transfer_sim), "quiet_imports", ())))
     return transfer_sim
@@ -174,8 +175,8 @@ def register(app: typer.Typer) -> None:
         if url.startswith("sqlite:///") and not Path(url.removeprefix("sqlite:///")).is_file():
             # reading a store that is not there must not leave an empty one behind
             fail(
-                f"no results store at {url.removeprefix('sqlite:///')}: run `coadapt run` or `coadapt grid` first, "
-                "or pass --store (or $COADAPT_STORE)"
+                f"no results store at {url.removeprefix('sqlite:///')}: run `coadapt run` or "
+                "`coadapt grid` first, or pass --store (or $COADAPT_STORE)"
             )
         _check_out(
             o.out

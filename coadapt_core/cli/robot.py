@@ -24,14 +24,15 @@ from coadapt_core.settings import Int, setting, settings, shared
 app = typer.Typer(help="Inspect, export, validate and render robot designs.", no_args_is_help=True)
 
 DESIGN_HELP = (
-    "Design values, comma-separated in the order of the robot's design space (e.g. 1.2,0.8 or 1.2,0.8,2,3 "
-    "for kuafu). Default: the nominal design."
+    "Design values, comma-separated in the order of the robot's design space (e.g. 1.2,0.8 or "
+    "1.2,0.8,2,3 for kuafu). Default: the nominal design."
 )
 
 
 @settings
 class RobotShow:
-    """`coadapt robot show`'s settings; `robot` and `design` are shared by the other `robot` commands."""
+    """`coadapt robot show`'s settings; `robot` and `design` are shared by the other `robot`
+    commands."""
 
     robot: str | None = setting(
         None,
@@ -254,7 +255,8 @@ _VALIDATE = options_of(RobotValidate)
 
 
 def validate_command(**values: Any) -> None:
-    """Check a design: kinematics, mass, statics, MuJoCo/Pinocchio agreement (exit 1 if infeasible)."""
+    """Check a design: kinematics, mass, statics, MuJoCo/Pinocchio agreement (exit 1 if
+    infeasible)."""
     o = filled(values, _VALIDATE)
     robot, design, as_json = o["robot"], o["design"], o["as_json"]
     instance = load_robot(robot)
@@ -305,8 +307,9 @@ def render_command(**values: Any) -> None:
         renderer = renderer_for()
     except UserError as exc:  # no simulator can draw here (or its library refused this GL setting)
         fail(
-            f"offscreen rendering failed ({exc}); install an EGL or OSMesa GL library, e.g. apt-get install -y "
-            "libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 (EGL) or libosmesa6 (OSMesa)",
+            f"offscreen rendering failed ({exc}); install an EGL or OSMesa GL library, e.g. "
+            "apt-get install -y libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 (EGL) or libosmesa6 "
+            "(OSMesa)",
             code=1,
         )
     payload = {
@@ -323,7 +326,8 @@ def render_command(**values: Any) -> None:
         return
     fail(
         "offscreen rendering failed (" + "; ".join(errors) + "); install an EGL or OSMesa GL "
-        "library, e.g. apt-get install -y libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 (EGL) or libosmesa6 (OSMesa)",
+        "library, e.g. apt-get install -y libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 (EGL) "
+        "or libosmesa6 (OSMesa)",
         code=1,
     )
 

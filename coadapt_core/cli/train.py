@@ -11,23 +11,19 @@ docs/settings.md.
 from __future__ import annotations
 
 import json
-import math
-import shutil
 import sys
 from pathlib import Path
-from types import SimpleNamespace
 from typing import Any
 
 import typer
 
-from coadapt_core.cli.common import fail, plugin_name, resolve
+from coadapt_core.cli.common import check_device_option, fail, plugin_name, resolve, simulator_for
 from coadapt_core.cli.help import choices
 from coadapt_core.cli.options import OptionGroup, filled, given_settings, options_of
 from coadapt_core.cli.options import register as register_command
-from coadapt_core.cli.policy_source import EVAL_CHECKPOINTS, eval_checkpoint_path
 from coadapt_core.cli.progress import ProgressLine
 from coadapt_core.errors import UserError
-from coadapt_core.settings import Float, Int, overrides, setting, settings, shared
+from coadapt_core.settings import Int, overrides, setting, settings, shared
 from coadapt_core.threads import ThreadSettings, apply_threads
 from coadapt_core.tracking import check_logger, make_logger
 
@@ -86,47 +82,6 @@ class TrainCommand:
     )
 
 
-@settings
-class EvalCommand:
-    """`coadapt eval`'s settings; one declaration each gives the option, its help and its row
-    in docs/settings.md."""
-
-    checkpoint: Path | None = setting(
-        None,
-        "Checkpoint or weights file, a `coadapt train` folder, or a `coadapt run` "
-        "folder or run id under ./runs (its last policy) (default: the policy shipped for "
-        "the robot and terrain).",
-    )
-    robot: str | None = setting(
-        None,
-        "Robot (default: the one the checkpoint was trained for; without --checkpoint, "
-        "the installed robot of highest default_rank).",
-        plugin="robot",
-    )
-    design: str | None = setting(None, "Design, comma-separated (default: the nominal design).")
-    sim: str | None = setting(None, "Simulator backend.", plugin="simulator")
-    terrain: str = setting("flat", "Terrain: flat, slope or random.")
-    command: str = setting("0.5,0,0", "Velocity command vx,vy,yaw_rate (m/s, m/s, rad/s).")
-    agents: Int = setting(50, "Agents (environments) on the design.")
-    seconds: Float = setting(20.0, "Simulated seconds per agent.")
-    device: str = setting("cpu", "Policy device: cpu or cuda.")
-    seed: Int = setting(0, "Random seed.")
-    randomize: bool = setting(True, "Domain randomization (Table 2) as in training.")
-    threads: Any = shared(ThreadSettings)
-    as_json: bool = setting(False, "Print JSON.", names=("--json",))
-    video: Path | None = setting(
-        None, "Render agent 0 offscreen into a .gif (or .mp4 with ffmpeg)."
-    )
-    objective: list[str] | None = setting(
-        None,
-        "Also evaluate this installed objective (repeatable, or a comma list): its "
-        "cost per step and standard error over the agents, in `costs` / `costs_se` with "
-        "--json.",
-        plugin="objective",
-        names=("--objective",),
-    )
-
-
 def default_objectives() -> list[str]:
     """The objectives whose pseudo-critics `coadapt train` trains when --objectives is not
     given: every installed objective that declares no options (one with options, such as a
@@ -148,28 +103,6 @@ def _objectives(text: str | None) -> list:
     if len(set(names)) != len(names):
         fail(f"--objectives '{text}' names an objective twice; each pseudo-critic is trained once")
     return [resolve("objective", n)() for n in names]
-
-
-def _simulator(sim: str, terrain: str) -> type:
-    cls = resolve("simulator", sim)
-    if terrain not in cls.terrains:
-        fail(
-            f"--terrain '{terrain}' is not supported by simulator '{sim}'; one of: {', '.join(cls.terrains)}"
-        )
-    return cls
-
-
-def _check_device(device: str) -> None:
-    import torch
-
-    from coadapt_core.coadapt.config import check_device
-
-    try:
-        check_device(device, field="--device")
-    except UserError as exc:
-        fail(str(exc))
-    if device.startswith("cuda") and not torch.cuda.is_available():
-        fail("--device cuda requested but torch sees no CUDA device; use --device cpu")
 
 
 #: older option names of `coadapt train`, still accepted
@@ -199,9 +132,9 @@ def train_settings_class() -> type:
 
         fields = CoadaptConfig.__pydantic_fields__
         doc = (
-            "Built by `train_settings_class()`: the trainer's settings (`TrainConfig`) and the run's `task` and "
-            "`randomization` sections, each an override of the checkpoint's (--resume / --init-from), else of the "
-            "default."
+            "Built by `train_settings_class()`: the trainer's settings (`TrainConfig`) and the "
+            "run's `task` and `randomization` sections, each an override of the checkpoint's "
+            "(--resume / --init-from), else of the default."
         )
         _TRAIN_SETTINGS = partial(
             TrainConfig,
@@ -243,7 +176,8 @@ def _checkpoint_sources(values: dict[str, Any]) -> tuple[Path | None, Path | Non
     resume, init_from = values["resume"], values["init_from"]
     if resume is not None and init_from is not None:
         fail(
-            "--resume and --init-from exclude each other: resume continues a run, --init-from starts a new one from its weights"
+            "--resume and --init-from exclude each other: resume continues a run, --init-from "
+            "starts a new one from its weights"
         )
     try:
         resume = checkpoint_path(resume, field="--resume") if resume is not None else None
@@ -254,11 +188,13 @@ def _checkpoint_sources(values: dict[str, Any]) -> tuple[Path | None, Path | Non
         fail(str(exc))
     if values["reset_pseudo_critics"] and resume is None and init_from is None:
         fail(
-            "--reset-pseudo-critics needs --resume or --init-from (a new run's pseudo-critics are fresh anyway)"
+            "--reset-pseudo-critics needs --resume or --init-from (a new run's pseudo-critics "
+            "are fresh anyway)"
         )
     if values["pseudo_critics_only"] and resume is None and init_from is None:
         fail(
-            "--pseudo-critics-only needs --resume or --init-from: the policy whose pseudo-critics are trained"
+            "--pseudo-critics-only needs --resume or --init-from: the policy whose "
+            "pseudo-critics are trained"
         )
     return resume, init_from
 
@@ -268,7 +204,7 @@ def _plugins(values: dict[str, Any], robot: str) -> tuple[Any, type, list]:
     robot_obj = resolve("robot", robot)()
     return (
         robot_obj,
-        _simulator(plugin_name("simulator", values["sim"]), values["terrain"]),
+        simulator_for(plugin_name("simulator", values["sim"]), values["terrain"]),
         _objectives(values["objectives"]),
     )
 
@@ -335,8 +271,8 @@ def _start_runner(
         taken = runner.init_from(values["init_from"])
         if taken is not None:
             print(
-                f"widened {values['init_from']}'s design input from {taken} to {trainer.design_space.dim} values "
-                "(zero weights for the new ones)",
+                f"widened {values['init_from']}'s design input from {taken} to "
+                f"{trainer.design_space.dim} values (zero weights for the new ones)",
                 file=sys.stderr,
             )
     try:
@@ -360,11 +296,14 @@ def _announce(values: dict[str, Any], robot: str, trainer: Any, iterations: int)
         trainer.task_config,
         getattr(trainer.simulator_cls, "name", "?"),
     )
+    yaw = task.commands.yaw_range
     print(
-        f"training {robot} on {sim}/{values['terrain']}: {base.num_designs} designs x {base.agents_per_design} agents = "
-        f"{trainer.env.num_envs} envs, {iterations} iterations of {trainer.samples_per_iteration} samples, "
-        f"range {trainer.design_space.describe()}, device {values['device']}, {trainer.num_threads} threads, randomization "
-        f"{base.extra.get('randomization', 'table2')}, yaw {task.commands.yaw_range[0]:g}:{task.commands.yaw_range[1]:g} rad/s"
+        f"training {robot} on {sim}/{values['terrain']}: {base.num_designs} designs x "
+        f"{base.agents_per_design} agents = {trainer.env.num_envs} envs, {iterations} "
+        f"iterations of {trainer.samples_per_iteration} samples, range "
+        f"{trainer.design_space.describe()}, device {values['device']}, "
+        f"{trainer.num_threads} threads, randomization "
+        f"{base.extra.get('randomization', 'table2')}, yaw {yaw[0]:g}:{yaw[1]:g} rad/s"
         + (
             ", pseudo-critics only (the policy stays as loaded)"
             if values["pseudo_critics_only"]
@@ -412,14 +351,15 @@ def _train(values: dict[str, Any], runner: Any, robot: str) -> None:
         except TrainingInterrupted as stop:
             runner.close()
             print(
-                f"interrupted: wrote {stop.checkpoint} after iteration {stop.iteration}; continue with "
-                f"coadapt train --resume {stop.checkpoint} --out {out}",
+                f"interrupted: wrote {stop.checkpoint} after iteration {stop.iteration}; "
+                f"continue with coadapt train --resume {stop.checkpoint} --out {out}",
                 file=sys.stderr,
             )
             raise typer.Exit(130) from None
     final, weights = runner.finish()
     print(
-        f"wrote {final} and {weights} ({weights.stat().st_size / 1e6:.1f} MB) after {trainer.total_steps} steps",
+        f"wrote {final} and {weights} ({weights.stat().st_size / 1e6:.1f} MB) after "
+        f"{trainer.total_steps} steps",
         file=sys.stderr,
     )
     if iterations > 0 and not values["pseudo_critics_only"]:
@@ -441,137 +381,12 @@ def _verdict(values: dict[str, Any], trainer: Any, checkpoint: Path, quiet: bool
         seed=values["seed"],
     )
     print(
-        f"walking gate at design {v['design']} ({v['agents']} agents x {v['seconds']:g} s, vx command "
-        f"{v['vx_command']:g} m/s, vx {v['vx_mean']:.2f} m/s): {v['walking_gate']}",
+        f"walking gate at design {v['design']} ({v['agents']} agents x {v['seconds']:g} s, "
+        f"vx command {v['vx_command']:g} m/s, vx {v['vx_mean']:.2f} m/s): {v['walking_gate']}",
         file=sys.stderr,
     )
     if quiet:
         print(json.dumps({"walking_gate": v}), flush=True)
-
-
-def _names(objective: list[str] | None) -> list[str]:
-    """The objective names of repeated or comma-listed --objective options."""
-    return [n.strip() for text in objective or [] for n in text.split(",") if n.strip()]
-
-
-def _eval_checks(
-    agents: int,
-    seconds: float,
-    video: Path | None,
-    device: str,
-    objective: list[str] | None,
-    command: str,
-) -> list[float]:
-    """`coadapt eval`'s option checks (one line, exit 2, before any rollout); the command's
-    three values."""
-    if agents < 1:
-        fail(f"--agents must be >= 1, got {agents}")
-    if not (0 < seconds <= 3600):
-        fail(f"--seconds must lie in (0, 3600], got {seconds}")
-    if video is not None and video.suffix.lower() not in (".gif", ".mp4"):
-        fail(f"--video '{video}' must end in .gif or .mp4")
-    if video is not None and video.suffix.lower() == ".mp4" and shutil.which("ffmpeg") is None:
-        fail(
-            "--video .mp4 needs ffmpeg on PATH, which is not installed; write a .gif instead"
-        )  # before the rollout
-    _check_device(device)
-    for name in _names(objective):
-        resolve("objective", name)  # unknown: one line listing the installed ones
-    try:
-        values = [float(v) for v in command.split(",")]
-    except ValueError:
-        values = []
-    if len(values) != 3 or not all(math.isfinite(v) for v in values):
-        fail(f"--command '{command}' must be three numbers vx,vy,yaw_rate, e.g. 0.5,0,0")
-    return values
-
-
-def _eval_robot(checkpoint: Path | None) -> str:
-    """The robot a checkpoint records; without one, the default robot."""
-    if checkpoint is not None and checkpoint.is_file():
-        from coadapt_core.learning.checkpoints import read_checkpoint
-
-        try:
-            return str(read_checkpoint(checkpoint)["robot"])
-        except Exception as exc:
-            fail(
-                f"--checkpoint {checkpoint} is not a coadapt checkpoint ({type(exc).__name__}: {exc})"
-            )
-    from coadapt_core.plugins import get_registry
-
-    installed = get_registry().names("robot")
-    if checkpoint is not None and len(installed) != 1:
-        fail(f"--checkpoint {checkpoint} does not exist; give {EVAL_CHECKPOINTS}")
-    return plugin_name(
-        "robot", None
-    )  # the default robot (highest default_rank), as every command takes
-
-
-def _shipped(robot_obj: Any, robot: str, terrain: str, design_values: Any) -> Path:
-    """The policy the robot ships for the terrain and the design's space, or one line, exit 2."""
-    from coadapt_core.learning import shipped_checkpoint
-
-    mixed = robot_obj.design_space_for(design_values).is_mixed
-    checkpoint = shipped_checkpoint(robot_obj, terrain, mixed=mixed)
-    if checkpoint is None:
-        space = "mixed" if mixed else "continuous"
-        fail(
-            f"robot '{robot}' ships no policy for terrain '{terrain}' and the {space} design space; "
-            f"pass --checkpoint (e.g. one `coadapt train --robot {robot} --terrain {terrain}` wrote)"
-        )
-    return checkpoint
-
-
-def _eval_table(result: dict[str, Any], title: str, agents: int, seconds: float) -> None:
-    """`coadapt eval`'s result as a table, each objective's cost in its declared unit."""
-    from rich.console import Console
-    from rich.table import Table
-
-    from coadapt_core.plugins import get_registry
-
-    table = Table(title=f"coadapt eval: {title}")  # eval's costs: this command's protocol
-    table.add_column("metric")
-    table.add_column("value", justify="right")
-    costs, costs_se = result.pop("costs", {}), result.pop("costs_se", {})
-    walking, gate = result.pop("walking", None), result.pop("walking_gate", None)
-    for key, value in result.items():
-        label = (
-            f"{key} (eval)" if key.endswith(("_cost", "_cost_se")) else key
-        )  # every cost says its protocol
-        table.add_row(label, f"{value:.4g}" if isinstance(value, float) else str(value))
-    for name, value in costs.items():
-        table.add_row(f"{name} cost (eval, per step)", f"{value:.4g} +- {costs_se[name]:.2g} SE")
-    Console().print(table)
-    units = []  # each `<objective>_cost` in the objective's declared unit
-    for key in result:
-        name = key.removesuffix("_cost")
-        if key.endswith("_cost") and name in get_registry().names("objective"):
-            unit = getattr(get_registry().get("objective", name), "unit", "")
-            units += [f"{name} {unit}"] if unit else []
-    Console().print(
-        f"costs: mean per step over {agents} agents of {seconds:g} s under this one command "
-        "(`coadapt eval` protocol: not comparable with `coadapt run` or `coadapt landscape`, "
-        "whose scenarios draw their commands)" + (f"; units: {', '.join(units)}" if units else "")
-    )
-    if gate is not None:  # `coadapt run`'s walking gate on this evaluation (coadapt/reliability.py)
-        from rich.markup import escape
-
-        Console().print(f"walking gate: {'[bold red]' if walking is False else ''}{escape(gate)}")
-
-
-def _eval_video(robot_obj: Any, design_values: Any, trajectory: Any, video: Path) -> None:
-    from coadapt_core.viz.video import write_rollout_video
-
-    backend, errors = write_rollout_video(robot_obj, design_values, trajectory, video)
-    if backend is None:
-        fail(
-            "offscreen rendering is unavailable here (" + "; ".join(errors) + "); no video written",
-            code=1,
-        )
-    print(
-        f"wrote {video} ({len(trajectory['frames'][::2])} frames, MUJOCO_GL={backend})",
-        file=sys.stderr,
-    )
 
 
 def register(app: typer.Typer) -> None:
@@ -586,9 +401,10 @@ def register(app: typer.Typer) -> None:
         steps = values["steps"]
         if steps < 0 or (steps == 0 and values["resume"] is None and values["init_from"] is None):
             fail(
-                f"--steps must be >= 1 (or 0 with --resume or --init-from: export without training), got {steps}"
+                "--steps must be >= 1 (or 0 with --resume or --init-from: export without "
+                f"training), got {steps}"
             )
-        _check_device(values["device"])
+        check_device_option(values["device"])
         apply_threads(values["threads"])  # physics and torch; never the checkpoint's
         try:
             check_logger(values["logger"])
@@ -607,54 +423,3 @@ def register(app: typer.Typer) -> None:
         _train(values, _start_runner(values, trainer, source, given.get("learning_rate")), robot)
 
     register_command(app, "train", train_command, own, settings)
-    evaluation = options_of(EvalCommand)
-
-    def eval_command(**values: Any) -> None:
-        """Roll out a policy on one design and report survival, speed and costs."""
-        o = SimpleNamespace(**filled(values, evaluation))
-        velocity = _eval_checks(o.agents, o.seconds, o.video, o.device, o.objective, o.command)
-        apply_threads(o.threads)
-        checkpoint = eval_checkpoint_path(o.checkpoint)
-        robot = o.robot if o.robot is not None else _eval_robot(checkpoint)
-        robot_obj = resolve("robot", robot)()
-        sim = plugin_name("simulator", o.sim)
-        sim_cls = _simulator(sim, o.terrain)
-        from coadapt_core.cli.robot import parse_design
-
-        design = parse_design(robot_obj, o.design)
-        checkpoint = (
-            checkpoint if checkpoint is not None else _shipped(robot_obj, robot, o.terrain, design)
-        )
-        from coadapt_core.experiments.evaluate import evaluate_checkpoint
-
-        with ProgressLine("eval", None, unit=" steps", enabled=not o.as_json) as bar:
-            result = evaluate_checkpoint(
-                checkpoint,
-                robot_obj,
-                sim_cls,
-                design,
-                terrain=o.terrain,
-                command=velocity,
-                agents=o.agents,
-                seconds=o.seconds,
-                device=o.device,
-                seed=o.seed,
-                randomize=o.randomize,
-                record=o.video is not None,
-                progress=bar.update,
-                objectives=_names(o.objective),
-            )
-        trajectory = result.pop("_trajectory", None)
-        if o.as_json:
-            print(json.dumps(result))
-        else:
-            _eval_table(
-                result,
-                f"{robot} design {design.tolist()} on {sim}/{o.terrain}, command {velocity}",
-                o.agents,
-                o.seconds,
-            )
-        if o.video is not None:
-            _eval_video(robot_obj, design, trajectory, o.video)
-
-    register_command(app, "eval", eval_command, evaluation)

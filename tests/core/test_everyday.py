@@ -60,10 +60,10 @@ def test_smoke_run_with_the_shipped_policy_is_not_called_unreliable_but_one_from
     line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert line["reliable"] is False and "trained from scratch" in line["reliability"]
     # printed, a smoke run says only that it is too short to judge (issue 43); its record keeps the verdict
-    from coadapt_core.cli.run import _print_summary
+    from coadapt_core.cli.run_summary import print_summary
 
     summary = json.loads((tmp_path / line["run_id"] / "summary.json").read_text())
-    _print_summary(summary, None)
+    print_summary(summary, None)
     out = capsys.readouterr().out
     assert (
         "UNRELIABLE" not in out and "too short to judge" in out and "starting policy: none" in out
@@ -133,7 +133,8 @@ def test_run_eta_after_the_first_outer_iteration_is_within_half_of_the_truth(tmp
 
     import coadapt_core.coadapt.hybrid as hybrid_module
     import coadapt_core.coadapt.loop as loop_module
-    from coadapt_core.coadapt import make_config, run_coadaptation
+    from coadapt_core.coadapt.config_loading import make_config
+    from coadapt_core.coadapt.run import run_coadaptation
     from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend
 
     clock = FakeClock()
@@ -286,12 +287,12 @@ def test_a_misspelt_name_or_yaml_key_gets_a_suggestion(tmp_path, capsys):
 
 
 def test_costs_print_with_their_error_in_one_notation():
-    from coadapt_core.cli.run import _with_se
+    from coadapt_core.cli.run_summary import with_se
 
-    assert _with_se(6644.7, 480.0) == "6640 +- 480"
-    assert _with_se(1.25791, 0.0123) == "1.258 +- 0.012"
-    assert _with_se(10436.2, 4.8) == "10436.2 +- 4.8"
-    assert _with_se(2.5, None) == "2.5"
+    assert with_se(6644.7, 480.0) == "6640 +- 480"
+    assert with_se(1.25791, 0.0123) == "1.258 +- 0.012"
+    assert with_se(10436.2, 4.8) == "10436.2 +- 4.8"
+    assert with_se(2.5, None) == "2.5"
 
 
 def test_the_run_table_fits_80_columns_with_motor_types_as_whole_numbers_and_cost_units(

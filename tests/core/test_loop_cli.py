@@ -175,7 +175,7 @@ def test_nsga2_front_is_non_dominated_and_printed_stored_plotted_alike(
     tmp_path, capsys, fake_learner
 ):
     from coadapt_core.analysis.report import pareto_points, run_facts
-    from coadapt_core.cli.run import _with_se
+    from coadapt_core.cli.run_summary import with_se
     from coadapt_core.pareto import is_dominated
     from coadapt_core.results import ResultsStore
 
@@ -221,7 +221,7 @@ def test_nsga2_front_is_non_dominated_and_printed_stored_plotted_alike(
         f"{j}: "
         + ", ".join(f"{x:.3f}" for x in d)
         + " -> "
-        + ", ".join(f"{k} {_with_se(v, s.get(k))}" for k, v in c.items())
+        + ", ".join(f"{k} {with_se(v, s.get(k))}" for k, v in c.items())
         + (" <- returned" if j == 0 else "")
         for j, (d, c, s) in enumerate(zip(stored["designs"], stored["costs"], ses, strict=True))
     ]

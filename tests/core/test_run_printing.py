@@ -15,7 +15,7 @@ import sys
 import numpy as np
 import pytest
 
-from coadapt_core.cli.run import _print_summary, better_by, falls_more_by
+from coadapt_core.cli.run_summary import better_by, falls_more_by, print_summary
 from coadapt_core.coadapt.cautions import (
     at_bound,
     plain_mean_not_significant,
@@ -94,7 +94,7 @@ def planted(**changes) -> dict:
 
 
 def printed(capsys, summary: dict) -> str:
-    _print_summary(summary, ["thigh_scale", "shank_scale"])
+    print_summary(summary, ["thigh_scale", "shank_scale"])
     return capsys.readouterr().out
 
 

@@ -1,11 +1,13 @@
 """`coadapt train`'s and `coadapt eval`'s own options come from one declaration each
-(`TrainCommand`, `EvalCommand` in coadapt_core/cli/train.py): the option, its --help and its
-row in docs/settings.md; train's default objectives come from the installed plugins."""
+(`TrainCommand` in coadapt_core/cli/train.py, `EvalCommand` in coadapt_core/cli/evaluate.py):
+the option, its --help and its row in docs/settings.md; train's default objectives come from
+the installed plugins."""
 
 from __future__ import annotations
 
 import pytest
 
+from coadapt_core.cli import evaluate as eval_cli
 from coadapt_core.cli import train as train_cli
 from coadapt_core.cli.options import option_names
 from coadapt_core.plugins import PluginInfo, Registry
@@ -15,7 +17,7 @@ from tests.core.test_settings import documented as documented_rows
 
 
 @pytest.mark.parametrize(
-    ("name", "cls"), [("train", train_cli.TrainCommand), ("eval", train_cli.EvalCommand)]
+    ("name", "cls"), [("train", train_cli.TrainCommand), ("eval", eval_cli.EvalCommand)]
 )
 def test_docs_and_help_show_each_declared_option_its_help_and_default(name, cls):
     command = _command(name)
