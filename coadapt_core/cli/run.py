@@ -144,11 +144,10 @@ def _check_run_config(cfg: Any) -> None:
             "optimizer_options.storage",
         )
         check_database_url(str(storage), field=field)
-    from coadapt_core.coadapt.setup import check_starting_policy
+    from coadapt_core.coadapt.starting_policy import check_starting_policy
 
-    check_starting_policy(
-        cfg
-    )  # a robot without a policy: one line (a grid's cell before the grid starts)
+    # a robot without a policy: one line (a grid's cell before the grid starts)
+    check_starting_policy(cfg)
     Path(cfg.out).mkdir(parents=True, exist_ok=True)  # an OSError here is one line (cli.main)
 
 
