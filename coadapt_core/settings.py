@@ -10,8 +10,8 @@ A settings class is a pydantic dataclass made with `@settings`; each field is de
   and taken as it is by the other (`shared`),
 - the checks: a bad value is a one-line `UserError` naming the key and what is accepted
   (`user_error` turns pydantic's report into that line),
-- the table of settings in docs/settings.md (`coadapt_core.cli.settings_doc`, from the same
-  help renderer as --help: `coadapt_core.cli.help`).
+- the table of settings in docs/settings.md (written by the command line's settings_doc.py
+  with the same help renderer as --help, cli/help.py).
 
 Command-line and YAML text is read by the field's type: a range `(low, high)` is written
 `low:high` (or a YAML list), a mapping of numbers `name=value,name=value` (or a YAML mapping),
@@ -120,7 +120,7 @@ def setting(
     plugin setting whose default is None means the installed one of highest
     default_rank); `cli=False` keeps it off the command line (YAML only).
 
-    Its command-line form (`coadapt_core.cli.options`): the option is `--key` (`--key/--no-key`
+    Its command-line form (made by cli/options.py): the option is `--key` (`--key/--no-key`
     for a switch) unless `names` gives its names (`("-o", "--out")`, a switch without
     `--no-`); `aliases` adds older names; `argument` (a metavar) makes it a positional
     argument; `hidden` keeps it out of --help; `callback` runs as soon as the option is read

@@ -1,7 +1,7 @@
 """One setting of a settings tree (`coadapt_core.settings`), read: its YAML key, its
 command-line option and parameter name, its kind of value, default, help and constraints, and
 what it accepts in words. `coadapt_core.settings.leaves` walks a tree into these; the
-command line (`coadapt_core.cli.options`), the settings reference and the one-line errors of
+command line (cli/options.py), the settings reference and the one-line errors of
 a bad value read a setting through them."""
 
 from __future__ import annotations
