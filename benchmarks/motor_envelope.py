@@ -98,8 +98,6 @@ def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(ROOT))
     from coadapt_core.costs import CostRule, compare_designs
     from coadapt_core.errors import CoadaptError
-    from coadapt_core.learning import shipped_checkpoint
-    from coadapt_core.learning.factory import make_backend, resolve_plugins
     from coadapt_core.scenarios.seeds import scenario_seed
 
     args = _parser().parse_args(argv)
@@ -110,35 +108,22 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: --design must be two numbers t,s, got '{args.design}'", file=sys.stderr)
         return 2
     try:
-        robot, sim_cls, objectives = resolve_plugins(
-            args.robot, args.sim, ["tracking", "power", "torque"]
-        )
-        space = robot.design_space(True)
-        nominal = np.asarray(robot.nominal_design(True), dtype=float)
-        types = [
-            sorted({int(round(v)) for v in np.linspace(space.lower[i], space.upper[i], 8)})
-            for i in range(2, space.dim)
-        ]
-        checkpoint = shipped_checkpoint(robot, args.terrain, True)
-        if checkpoint is None:
-            print(
-                f"error: robot '{args.robot}' ships no mixed policy for terrain '{args.terrain}'",
-                file=sys.stderr,
-            )
-            return 2
-        backend = make_backend(
-            robot,
-            sim_cls,
-            objectives,
-            terrain=args.terrain,
-            design_space=space,
-            mixed=True,
-            checkpoint=str(checkpoint),
-            agents_per_design=32,
-        )
+        robot, sim_cls, objectives, backend = _backend(args)
     except CoadaptError as exc:
         print(f"error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
+    if backend is None:
+        print(
+            f"error: robot '{args.robot}' ships no mixed policy for terrain '{args.terrain}'",
+            file=sys.stderr,
+        )
+        return 2
+    space = robot.design_space(True)
+    nominal = np.asarray(robot.nominal_design(True), dtype=float)
+    types = [
+        sorted({int(round(v)) for v in np.linspace(space.lower[i], space.upper[i], 8)})
+        for i in range(2, space.dim)
+    ]
     combos = list(itertools.product(*types))
     designs = np.array([[*legs, *c] for c in combos] + [nominal.tolist()])
     module = sys.modules[sim_cls.__module__]
@@ -173,37 +158,72 @@ def main(argv: list[str] | None = None) -> int:
     rule = CostRule()
     for i, design in enumerate(designs):
         comp = compare_designs(rule, objectives, per, falls, i, len(designs) - 1)
-        t = comp["objectives"]["torque"]
-        row = {
-            "design": design.tolist(),
-            "torque_cost": t["cost"],
-            "torque_cost_se": t["cost_se"],
-            "torque_plain_mean": t["plain_mean"],
-            "torque_plain_mean_se": t["plain_mean_se"],
-            "tracking_plain_mean": comp["objectives"]["tracking"]["plain_mean"],
-            "fall_rate": comp["fall_rate"],
-            "fall_rate_se": comp["fall_rate_se"],
-            "tracking_ratio": float(tracking_ratio[i]),
-            "scenarios": int(per.shape[1]),
-        }
-        for part in ("hip", "knee"):
-            keys = probes[0][i][part].keys()
-            row[part] = {k: float(np.mean([pr[i][part][k] for pr in probes])) for k in keys}
-        if args.json:
-            print(json.dumps(row))
-        else:
-            hip, knee = row["hip"], row["knee"]
-            print(
-                f"{design.tolist()}: torque {row['torque_cost']:.0f} +- "
-                f"{row['torque_cost_se']:.0f} (plain {row['torque_plain_mean']:.0f}), "
-                f"falls {100 * row['fall_rate']:.1f} %, tracking ratio "
-                f"{row['tracking_ratio']:.2f}; clipped hip {100 * hip['clipped_share']:.1f} % "
-                f"knee {100 * knee['clipped_share']:.1f} %; |tau| asked/applied knee "
-                f"{knee['commanded_abs_torque']:.1f}/{knee['applied_abs_torque']:.1f} N m; "
-                f"knee speed p99 {knee['speed_over_no_load_p99']:.2f} x no-load"
-            )
+        row = _row(comp, design, float(tracking_ratio[i]), int(per.shape[1]), probes, i)
+        print(json.dumps(row) if args.json else _row_text(row))
     backend.close()
     return 0
+
+
+def _backend(args: argparse.Namespace) -> tuple:
+    """(robot, simulator class, objectives, the learner's backend on the robot's shipped
+    mixed policy for the terrain; None when it ships none)."""
+    from coadapt_core.learning import shipped_checkpoint
+    from coadapt_core.learning.factory import make_backend, resolve_plugins
+
+    robot, sim_cls, objectives = resolve_plugins(
+        args.robot, args.sim, ["tracking", "power", "torque"]
+    )
+    checkpoint = shipped_checkpoint(robot, args.terrain, True)
+    if checkpoint is None:
+        return robot, sim_cls, objectives, None
+    backend = make_backend(
+        robot,
+        sim_cls,
+        objectives,
+        terrain=args.terrain,
+        design_space=robot.design_space(True),
+        mixed=True,
+        checkpoint=str(checkpoint),
+        agents_per_design=32,
+    )
+    return robot, sim_cls, objectives, backend
+
+
+def _row(
+    comp: dict, design: np.ndarray, tracking_ratio: float, scenarios: int, probes: list, i: int
+) -> dict:
+    """Design i's row: its torque cost, falls and tracking (`compare_designs` against the
+    nominal design) and the envelope probes' means over the blocks."""
+    t = comp["objectives"]["torque"]
+    row = {
+        "design": design.tolist(),
+        "torque_cost": t["cost"],
+        "torque_cost_se": t["cost_se"],
+        "torque_plain_mean": t["plain_mean"],
+        "torque_plain_mean_se": t["plain_mean_se"],
+        "tracking_plain_mean": comp["objectives"]["tracking"]["plain_mean"],
+        "fall_rate": comp["fall_rate"],
+        "fall_rate_se": comp["fall_rate_se"],
+        "tracking_ratio": tracking_ratio,
+        "scenarios": scenarios,
+    }
+    for part in ("hip", "knee"):
+        keys = probes[0][i][part].keys()
+        row[part] = {k: float(np.mean([pr[i][part][k] for pr in probes])) for k in keys}
+    return row
+
+
+def _row_text(row: dict) -> str:
+    hip, knee = row["hip"], row["knee"]
+    return (
+        f"{row['design']}: torque {row['torque_cost']:.0f} +- "
+        f"{row['torque_cost_se']:.0f} (plain {row['torque_plain_mean']:.0f}), "
+        f"falls {100 * row['fall_rate']:.1f} %, tracking ratio "
+        f"{row['tracking_ratio']:.2f}; clipped hip {100 * hip['clipped_share']:.1f} % "
+        f"knee {100 * knee['clipped_share']:.1f} %; |tau| asked/applied knee "
+        f"{knee['commanded_abs_torque']:.1f}/{knee['applied_abs_torque']:.1f} N m; "
+        f"knee speed p99 {knee['speed_over_no_load_p99']:.2f} x no-load"
+    )
 
 
 if __name__ == "__main__":
