@@ -305,7 +305,8 @@ def test_real_learner_end_to_end_on_mujoco(tmp_path, capsys):
     )
     summary = json.loads((tmp_path / line["run_id"] / "summary.json").read_text())
     assert summary["real_evaluations"] + summary["surrogate_evaluations"] == 2 * 2
-    # every real round, and the nominal design once per policy (the capped cost rule's reference level)
+    # every real round, and the nominal design once per policy (the capped cost rule's
+    # reference level)
     assert (
         summary["eval_interactions"]
         == summary["real_evaluations"] * 3 * 2 * 10 + len(summary["spaces"]) * 2 * 10
