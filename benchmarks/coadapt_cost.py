@@ -62,7 +62,8 @@ def split_method(label: str) -> tuple[str, str | None]:
 
 
 def run_method(label: str, args: argparse.Namespace, out: Path) -> dict:
-    from coadapt_core.coadapt import make_config, run_coadaptation
+    from coadapt_core.coadapt.config_loading import make_config
+    from coadapt_core.coadapt.run import run_coadaptation
 
     method, policy = split_method(label)
     overrides = {
@@ -141,7 +142,7 @@ def ground_truth(args: argparse.Namespace, out: Path) -> dict:
     run; every run of a seed shares its set, and the fake's truth does not depend on it),
     evaluated with the starting policy through `coadapt_core.experiments.landscape.run_landscape`.
     Returns the grid axes and costs [grid, grid] of the first objective."""
-    from coadapt_core.coadapt import make_config
+    from coadapt_core.coadapt.config_loading import make_config
     from coadapt_core.experiments.landscape import run_landscape
     from coadapt_core.results.recorders import SqliteRecorder
 

@@ -19,7 +19,6 @@ from coadapt_core.coadapt.backends import (
 from coadapt_core.coadapt.config import CoadaptConfig
 from coadapt_core.coadapt.first_round import first_round_warnings
 from coadapt_core.coadapt.search import check_search, search_plugins, uses_mixed_space
-from coadapt_core.coadapt.starting_policy import check_starting_policy as check_starting_policy
 from coadapt_core.coadapt.starting_policy import starting_policy
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.fitness import CoadaptationBackend

@@ -383,11 +383,11 @@ def test_run_checkpoint_folder_is_recorded_as_the_file_it_stands_for(tmp_path, m
     monkeypatch.setattr(
         loop_setup, "universal_policy_factory", lambda *a, **k: lambda seed: AnalyticBackend(seed)
     )
-    monkeypatch.setattr(loop_setup, "resolve_checkpoint", lambda config: config.checkpoint)
+    import coadapt_core.coadapt.starting_policy as start
+
+    monkeypatch.setattr(start, "find_checkpoint", lambda config, robot, mixed: config.checkpoint)
     # the checkpoint below is a stand-in file, not one the learner could read for its objectives
-    monkeypatch.setattr(
-        loop_setup, "objectives_without_critic", lambda config, checkpoint, objectives: ([], None)
-    )
+    monkeypatch.setattr(start, "objectives_without_critic", lambda *a: ([], None))
     folder = tmp_path / "train"
     (folder / "checkpoints").mkdir(parents=True)
     (folder / "checkpoints" / "model_7.pt").write_bytes(b"x")
