@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 from coadapt_core.errors import UserError
 
 if TYPE_CHECKING:
-    from coadapt_core.experiments.grid_plan import Cell
+    from coadapt_core.experiments.cell import Cell
 
 #: config keys that say where or how a run is stored or executed, not what it computes
 CONFIG_HASH_IGNORES = frozenset(

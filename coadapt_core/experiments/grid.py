@@ -18,6 +18,7 @@ from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 from coadapt_core.errors import UserError
+from coadapt_core.experiments.cell import Cell
 from coadapt_core.experiments.cell_hash import (
     CONFIG_HASH_IGNORES,
     cell_config_hash,
@@ -37,7 +38,6 @@ from coadapt_core.experiments.grid_exec import (
     stop_cells,
 )
 from coadapt_core.experiments.grid_plan import (
-    Cell,
     CellOutcome,
     CellTask,
     GridReport,

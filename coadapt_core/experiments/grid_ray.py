@@ -138,8 +138,9 @@ class _Driver:
 
     def submit(self, task: CellTask, attempt: int) -> str:
         """Start the cell's attempt; returns how it starts (afresh, or resuming which run)."""
+        from coadapt_core.experiments.cell import keeps_study
         from coadapt_core.experiments.cell_bundle import pack_folder
-        from coadapt_core.experiments.grid_plan import _keeps_study, unfinished_run
+        from coadapt_core.experiments.grid_plan import unfinished_run
         from coadapt_core.experiments.ray_cell import RayCell
 
         argv = (
@@ -155,7 +156,7 @@ class _Driver:
         )
         previous = unfinished_run(self.store, task.cell, self.out)
         how = "from the start"
-        if previous is not None and not _keeps_study(task.cell.method, task.cell.optimizer):
+        if previous is not None and not keeps_study(task.cell.method, task.cell.optimizer):
             job.resume, job.resume_files = (
                 previous["id"],
                 pack_folder(previous["run_dir"], keep_buffer=True),

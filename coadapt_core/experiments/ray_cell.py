@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from coadapt_core.experiments.cell import Cell
 from coadapt_core.experiments.cell_bundle import (
     STATE_NAME,
     export_rows,
@@ -24,7 +25,7 @@ from coadapt_core.experiments.cell_bundle import (
     retarget_state,
     write_folder,
 )
-from coadapt_core.experiments.grid_plan import Cell, CellOutcome, CellTask
+from coadapt_core.experiments.grid_plan import CellOutcome, CellTask
 
 #: where a cell's run records and writes on its node, relative to its scratch folder (the
 #: run's state keeps these relative names, so it resumes in any other scratch folder)

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from coadapt_core.experiments.cell import Cell
 from coadapt_core.experiments.cell_bundle import (
     BundleError,
     Limits,
@@ -19,7 +20,7 @@ from coadapt_core.experiments.cell_bundle import (
     retarget_state,
     write_folder,
 )
-from coadapt_core.experiments.grid_plan import Cell, CellTask
+from coadapt_core.experiments.grid_plan import CellTask
 from coadapt_core.experiments.ray_cell import (
     REFUSED,
     RayCell,
