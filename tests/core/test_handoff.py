@@ -343,10 +343,11 @@ def test_check_script_walks_the_design_without_coadapt(kuafu_handoff):
 
 @pytest.mark.slow
 def test_readme_snippet_runs_the_controller(kuafu_handoff):
-    """The README's plain-Python example (at most 20 lines) loads the model and walks it."""
+    """The README's plain-Python example (at most 25 lines of at most 100 columns: 20 before the
+    tree took a 100-column limit) loads the model and walks it."""
     _, out, _, _ = kuafu_handoff
     code = re.search(r"```python\n(.*?)```", (out / "README.md").read_text(), re.S).group(1)
-    assert len(code.strip().splitlines()) <= 20
+    assert len(code.strip().splitlines()) <= 25
     (out / "snippet.py").write_text(code)
     done = run_without_coadapt(out, "snippet.py")
     assert done.returncode == 0, done.stderr[-2000:]
