@@ -59,7 +59,8 @@ def test_smoke_run_with_the_shipped_policy_is_not_called_unreliable_but_one_from
     assert main(["run", *small, "--checkpoint", "none", "--json"]) == 0
     line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert line["reliable"] is False and "trained from scratch" in line["reliability"]
-    # printed, a smoke run says only that it is too short to judge (issue 43); its record keeps the verdict
+    # printed, a smoke run says only that it is too short to judge (issue 43); its record
+    # keeps the verdict
     from coadapt_core.cli.run_summary import print_summary
 
     summary = json.loads((tmp_path / line["run_id"] / "summary.json").read_text())
@@ -341,8 +342,8 @@ def test_the_run_table_fits_80_columns_with_motor_types_as_whole_numbers_and_cos
     assert nominal[1:5] == ["1.000", "1.000", "1", "1"]  # scales to 3 decimals, motor types whole
     words = " ".join(out.split())  # rich wraps lines at 80 columns
     assert (
-        "costs: per step over the final check's paired scenarios of 20 steps (`coadapt run` protocol"
-        in words
+        "costs: per step over the final check's paired scenarios of 20 steps "
+        "(`coadapt run` protocol" in words
     )
 
 
