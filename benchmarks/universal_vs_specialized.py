@@ -62,7 +62,7 @@ def train_policy(args, ranges: str, seed: int):
     from coadapt_core.learning.config import TrainConfig
     from coadapt_core.learning.runner import Runner
     from coadapt_core.learning.trainer import Trainer
-    from coadapt_core.task import TaskConfig
+    from coadapt_core.task.config import TaskConfig
 
     robot = Kuafu()
     space = robot.design_space().parse_ranges(ranges)

@@ -24,7 +24,7 @@ from coadapt_core.analysis.facts import (
     yardstick_improvement,
 )
 from coadapt_core.analysis.heatmap_figure import figure_heatmaps
-from coadapt_core.analysis.pareto_figure import figure_pareto, hv_text, pareto_points
+from coadapt_core.analysis.pareto_figure import figure_pareto, hv_text
 from coadapt_core.analysis.pareto_report import figure_pareto_seeds, pareto_markdown, pareto_rows
 from coadapt_core.analysis.report_figures import (
     figure_convergence,
@@ -50,7 +50,7 @@ from coadapt_core.analysis.tables import table6_rows, table7_rows
 from coadapt_core.results.schema import LANDSCAPE_METHOD
 from coadapt_core.results.store import ResultsStore
 
-__all__ = ["POOLING_NOTE", "pareto_points", "run_facts", "select_runs", "write_report"]
+__all__ = ["write_report"]
 
 #: the steps of a report, as `progress` hears of them: reading runs, the figures, done
 REPORT_STEPS = 7

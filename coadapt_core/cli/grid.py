@@ -119,7 +119,7 @@ def _check_cells(
 
 
 def _spec(s: GridSettings, run_arg: list[str] | None) -> Any:
-    from coadapt_core.experiments.grid import GridSpec, parse_list
+    from coadapt_core.experiments.grid_plan import GridSpec, parse_list
 
     return GridSpec(
         methods=parse_list(s.methods, "methods"),
@@ -138,7 +138,7 @@ def _print_plan(results: Any, spec: Any, out: str, refused: dict[str, str]) -> N
     """--dry-run: each cell skipped (finished), resumed, new or refused (`coadapt run` would
     refuse it, e.g. its robot has no policy: the grid would not start), and the counts;
     exit 2 when a cell is refused."""
-    from coadapt_core.experiments.grid import plan_grid
+    from coadapt_core.experiments.grid_plan import plan_grid
 
     tasks, skipped = plan_grid(results, spec, out_dir=out)
     for cell in skipped:
@@ -177,7 +177,8 @@ def _run(s: GridSettings, spec: Any, results: Any, command_line: str) -> Any:
     from rich.console import Console
 
     from coadapt_core.cli.progress import ProgressLine
-    from coadapt_core.experiments.grid import default_workers, run_grid
+    from coadapt_core.experiments.grid import run_grid
+    from coadapt_core.experiments.grid_exec import default_workers
 
     console = Console(stderr=True)
     counts = {"finished": 0, "failed": 0, "skipped": 0}
@@ -243,7 +244,7 @@ def register(app: typer.Typer) -> None:
         as finished and resuming cells a killed grid left unfinished."""
         from rich.console import Console
 
-        from coadapt_core.experiments.grid import check_grid_options
+        from coadapt_core.experiments.grid_exec import check_grid_options
         from coadapt_core.results.store import ResultsStore
 
         command_line = shlex.join(

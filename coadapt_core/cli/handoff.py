@@ -56,7 +56,7 @@ def _picked(run_dir: Path, pick: str) -> Any:
     """The design `--pick` names in the run's stored Pareto front (its summary's)."""
     import numpy as np
 
-    from coadapt_core.handoff.folder import read_run
+    from coadapt_core.handoff.run_info import read_run
     from coadapt_core.pareto import pick_index
 
     _, summary = read_run(run_dir)
@@ -102,7 +102,8 @@ def register(app: typer.Typer) -> None:
             fail(f"--agents must be >= 1, got {agents}")
         if not seconds > 0:
             fail(f"--seconds must be > 0, got {seconds}")
-        from coadapt_core.handoff.folder import HandoffOptions, find_run, make_handoff, read_run
+        from coadapt_core.handoff.folder import HandoffOptions, make_handoff
+        from coadapt_core.handoff.run_info import find_run, read_run
 
         run_dir = find_run(run, o["runs_dir"])
         values = None

@@ -135,7 +135,7 @@ def _evaluate(
 ) -> tuple[dict | None, dict | None]:
     """The experiments that write rows the report reads: sim-to-sim transfer and the common
     yardstick (each evaluates only runs without their rows). Returns their notes."""
-    from coadapt_core.analysis.report import select_runs
+    from coadapt_core.analysis.facts import select_runs
     from coadapt_core.results.schema import LANDSCAPE_METHOD
 
     runs = [r for r in select_runs(results, selection)[0] if r["method"] != LANDSCAPE_METHOD]

@@ -222,7 +222,7 @@ def _build_trainer(
     from coadapt_core.design_space import DesignSpace
     from coadapt_core.learning.config import TrainConfig
     from coadapt_core.learning.trainer import Trainer
-    from coadapt_core.task import TaskConfig
+    from coadapt_core.task.config import TaskConfig
 
     robot_obj, sim_cls, objectives = plugins
     try:

@@ -131,7 +131,7 @@ def _design_env(
     import numpy as np
 
     from coadapt_core.physics.randomization import RandomizationConfig
-    from coadapt_core.task import LocomotionEnv
+    from coadapt_core.task.env import LocomotionEnv
 
     randomization = RandomizationConfig() if randomize else RandomizationConfig.off()
     designs = np.tile(np.asarray(design, dtype=float), (agents, 1))
@@ -173,7 +173,7 @@ def _checkpoint_trainer(
     from coadapt_core.learning.checkpoints import read_checkpoint
     from coadapt_core.learning.config import TrainConfig
     from coadapt_core.learning.trainer import Trainer
-    from coadapt_core.task import TaskConfig
+    from coadapt_core.task.config import TaskConfig
 
     state = read_checkpoint(checkpoint)
     if state["robot"] != robot_obj.name:

@@ -19,23 +19,10 @@ from pathlib import Path
 
 from coadapt_core.errors import UserError
 from coadapt_core.experiments.cell import Cell
-from coadapt_core.experiments.cell_hash import (
-    CONFIG_HASH_IGNORES,
-    cell_config_hash,
-    config_hash,
-    run_config_hash,
-)
 from coadapt_core.experiments.grid_exec import (
-    ENTRY,
-    EXECUTORS,
-    NOT_STARTED,
-    Executor,
     check_grid_options,
-    check_ray_address,
     default_workers,
-    execute_cell,
     local_executor,
-    stop_cells,
 )
 from coadapt_core.experiments.grid_plan import (
     CellOutcome,
@@ -43,44 +30,14 @@ from coadapt_core.experiments.grid_plan import (
     GridReport,
     GridSpec,
     finished_run,
-    parse_list,
     plan_grid,
     settle_abandoned,
-    unfinished_run,
 )
 from coadapt_core.experiments.grid_ray import RAN_AGAIN, ray_executor
 from coadapt_core.results.store import ResultsStore
 from coadapt_core.threads import check_threads, share_cores, usable_cpus
 
-__all__ = [
-    "CONFIG_HASH_IGNORES",
-    "ENTRY",
-    "EXECUTORS",
-    "NOT_STARTED",
-    "Cell",
-    "CellOutcome",
-    "CellTask",
-    "Executor",
-    "GridInterrupted",
-    "GridReport",
-    "GridSpec",
-    "cell_config_hash",
-    "check_grid_options",
-    "check_ray_address",
-    "config_hash",
-    "default_workers",
-    "execute_cell",
-    "finished_run",
-    "local_executor",
-    "parse_list",
-    "plan_grid",
-    "ray_executor",
-    "run_config_hash",
-    "run_grid",
-    "settle_abandoned",
-    "stop_cells",
-    "unfinished_run",
-]
+__all__ = ["GridInterrupted", "run_grid"]
 
 
 def run_grid(

@@ -45,7 +45,7 @@ from coadapt_core.handoff.measure import (
 from coadapt_core.handoff.model_files import write_model_files
 from coadapt_core.handoff.readme import readme_text
 from coadapt_core.handoff.resolve import ResolvedRun, judges, resolve_run
-from coadapt_core.handoff.run_info import find_run, provenance, read_run, sha256
+from coadapt_core.handoff.run_info import provenance, read_run
 from coadapt_core.handoff.spec import FORMAT, foot_facts, policy_spec
 from coadapt_core.io import jsonable
 from coadapt_core.robot import joint_table
@@ -398,11 +398,4 @@ def _check_target(out: Path, run_dir: Path, force: bool) -> None:
         )
 
 
-__all__ = [
-    "FORMAT",
-    "HandoffOptions",
-    "find_run",
-    "make_handoff",
-    "read_run",
-    "sha256",
-]
+__all__ = ["HandoffOptions", "make_handoff"]

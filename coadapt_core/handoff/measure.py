@@ -62,7 +62,8 @@ def rollout(
 
     from coadapt_core.handoff.policy import SpecialisedPolicy
     from coadapt_core.physics.randomization import RandomizationConfig
-    from coadapt_core.task import LocomotionEnv, TaskConfig
+    from coadapt_core.task.config import TaskConfig
+    from coadapt_core.task.env import LocomotionEnv
 
     task = TaskConfig.from_dict(state["task_config"])
     randomization = RandomizationConfig.recorded(state["train_config"].get("extra") or {})

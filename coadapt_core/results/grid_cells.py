@@ -1,6 +1,6 @@
 """The grid's bookkeeping in the store: a grid's spec and, per cell, its status, run and
 attempts (`coadapt grid` resumes from these). Mixed into `ResultsStore`, whose engine it
-uses; a cell's key is `coadapt_core.experiments.grid.Cell.key`."""
+uses; a cell's key is `coadapt_core.experiments.cell.Cell.key`."""
 
 from __future__ import annotations
 

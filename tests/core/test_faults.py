@@ -62,7 +62,7 @@ def resume(run_dir):
 def test_grid_restarts_a_cell_killed_before_its_first_state_file(tmp_path):
     """Registered in the store, folder made, no state.json yet: the next grid starts it afresh
     (it used to resume it and fail for good)."""
-    from coadapt_core.experiments.grid import GridSpec, plan_grid
+    from coadapt_core.experiments.grid_plan import GridSpec, plan_grid
 
     store = ResultsStore(tmp_path / "g.db")
     spec = GridSpec(
@@ -418,7 +418,7 @@ def test_a_grid_settles_runs_killed_before_their_first_state_file(tmp_path):
     """An older coadapt registered a run before writing its state; a grid killed in between
     left it "running" over a folder holding only config.yaml. The next grid marks it failed,
     removes that folder (and only such a folder, only inside --out) and starts the cell again."""
-    from coadapt_core.experiments.grid import GridSpec, plan_grid, settle_abandoned
+    from coadapt_core.experiments.grid_plan import GridSpec, plan_grid, settle_abandoned
 
     store = ResultsStore(tmp_path / "g.db")
     spec = GridSpec(

@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from coadapt_core.task import TaskConfig
-from coadapt_core.task.config import GaitConfig
+from coadapt_core.task.config import GaitConfig, TaskConfig
 from coadapt_core.task.gait import clock_frequency, gait_scales, raibert_foot_targets
 
 

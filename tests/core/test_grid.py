@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 from coadapt_core.errors import UserError
-from coadapt_core.experiments.grid import GridSpec, plan_grid, run_grid
+from coadapt_core.experiments.grid import run_grid
+from coadapt_core.experiments.grid_plan import GridSpec, plan_grid
 from coadapt_core.results import ResultsStore
 
 FAKE_RUN = [sys.executable, str(Path(__file__).resolve())]

@@ -248,7 +248,7 @@ def test_kuafu_handoff_folder_holds_models_controller_and_sheet(kuafu_handoff):
     import mujoco
     import torch
 
-    from coadapt_core.handoff.folder import sha256
+    from coadapt_core.handoff.run_info import sha256
     from coadapt_core.plugins import get_registry
 
     run_dir, out, result, stderr = kuafu_handoff
@@ -367,7 +367,8 @@ def test_check_script_rebuilds_the_task_observation(kuafu_handoff, terrain):
 
     from coadapt_core.physics.randomization import RandomizationConfig
     from coadapt_core.plugins import get_registry
-    from coadapt_core.task import LocomotionEnv, TaskConfig
+    from coadapt_core.task.config import TaskConfig
+    from coadapt_core.task.env import LocomotionEnv
 
     _, out, _, _ = kuafu_handoff
     loader = importlib.util.spec_from_file_location("handoff_check", out / "check.py")

@@ -14,7 +14,7 @@ import pytest
 
 from coadapt_core.analysis.report import write_report
 from coadapt_core.errors import UserError
-from coadapt_core.experiments.grid import GridSpec, plan_grid
+from coadapt_core.experiments.grid_plan import GridSpec, plan_grid
 from coadapt_core.experiments.transfer import transfer_runs
 from coadapt_core.results import ResultsStore, SqliteRecorder
 from coadapt_core.results.export import export_tables

@@ -12,8 +12,7 @@ import torch
 from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.trainer import Trainer
 from coadapt_core.plugins import get_registry
-from coadapt_core.task import TaskConfig
-from coadapt_core.task.config import NoiseConfig
+from coadapt_core.task.config import NoiseConfig, TaskConfig
 from coadapt_core.task.env import LocomotionEnv
 from tests.core.test_learning_ppo import make_trainer, small_config
 

@@ -15,8 +15,7 @@ def test_short_mujoco_training_lengthens_episodes_and_raises_the_reward() -> Non
     from coadapt_core.learning.config import TrainConfig
     from coadapt_core.learning.trainer import Trainer
     from coadapt_core.physics.randomization import RandomizationConfig
-    from coadapt_core.task import TaskConfig
-    from coadapt_core.task.config import CommandConfig
+    from coadapt_core.task.config import CommandConfig, TaskConfig
 
     robot = registry.get("robot", "kuafu")()
     config = TrainConfig(

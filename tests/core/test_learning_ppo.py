@@ -11,8 +11,7 @@ from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.pseudo_critics import discounted_average_targets
 from coadapt_core.learning.trainer import Trainer
 from coadapt_core.objective import Objective, StepBatch
-from coadapt_core.task import TaskConfig
-from coadapt_core.task.config import CommandConfig, NoiseConfig
+from coadapt_core.task.config import CommandConfig, NoiseConfig, TaskConfig
 
 
 class SquaredTorque(Objective):

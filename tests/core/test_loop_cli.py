@@ -174,7 +174,8 @@ def test_run_table_output_and_mixed_pso_uses_motor_types(tmp_path, capsys, fake_
 def test_nsga2_front_is_non_dominated_and_printed_stored_plotted_alike(
     tmp_path, capsys, fake_learner
 ):
-    from coadapt_core.analysis.report import pareto_points, run_facts
+    from coadapt_core.analysis.facts import run_facts
+    from coadapt_core.analysis.pareto_figure import pareto_points
     from coadapt_core.cli.run_summary import with_se
     from coadapt_core.pareto import is_dominated
     from coadapt_core.results import ResultsStore

@@ -281,7 +281,7 @@ def test_store_checkpoint_rows_outside_the_run_folder_are_ignored(tmp_path, caps
 
 # -- 9: a run row with a path-like id (grid resume) ------------------------------------------
 def test_grid_never_resumes_a_run_id_that_leaves_the_runs_folder(tmp_path):
-    from coadapt_core.experiments.grid import GridSpec, plan_grid
+    from coadapt_core.experiments.grid_plan import GridSpec, plan_grid
     from coadapt_core.results import ResultsStore
 
     store = ResultsStore(tmp_path / "g.db")

@@ -98,7 +98,7 @@ def test_nsga2_run_leaves_its_front_plot_and_a_hypervolume_with_se(nsga2_run):
 def test_a_single_objective_run_leaves_its_convergence_plot_with_the_final_check(
     tmp_path, capsys, paired_fake
 ):
-    from coadapt_core.analysis.report import run_facts
+    from coadapt_core.analysis.facts import run_facts
     from coadapt_core.analysis.report_figures import convergence_series
     from coadapt_core.analysis.run_figures import FolderRecords, run_row
     from coadapt_core.results import ResultsStore

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from coadapt_core.analysis.report import POOLING_NOTE, write_report
+from coadapt_core.analysis.report import write_report
+from coadapt_core.analysis.table_markdown import POOLING_NOTE
 from coadapt_core.results.recorders import SqliteRecorder
 
 

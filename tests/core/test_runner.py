@@ -18,8 +18,7 @@ from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.runner import Runner, TrainingInterrupted
 from coadapt_core.learning.trainer import Trainer
 from coadapt_core.objective import Objective, StepBatch
-from coadapt_core.task import TaskConfig
-from coadapt_core.task.config import NoiseConfig
+from coadapt_core.task.config import NoiseConfig, TaskConfig
 
 
 class SquaredTorque(Objective):

@@ -16,7 +16,8 @@ import torch
 from coadapt_core.errors import UserError
 from coadapt_core.scenarios.seeds import scenario_seed
 from coadapt_core.scenarios.sets import PairedStreams, apply_scenarios, prepare
-from coadapt_core.task import LocomotionEnv, TaskConfig
+from coadapt_core.task.config import TaskConfig
+from coadapt_core.task.env import LocomotionEnv
 
 DESIGNS, AGENTS = 3, 4
 

@@ -481,7 +481,8 @@ def test_train_takes_the_same_sections_and_a_resume_keeps_them(tmp_path, capsys)
 def test_grid_run_args_of_any_setting_count_in_the_config_hash():
     """A grid's --run-arg may be any setting of the tree (a section's too): the cell's config
     hash is then known and equals that of a run made by hand with the same setting."""
-    from coadapt_core.experiments.grid import Cell, cell_config_hash, config_hash
+    from coadapt_core.experiments.cell import Cell
+    from coadapt_core.experiments.cell_hash import cell_config_hash, config_hash
 
     cell = Cell("ours", "torque", "flat", 0, "smoke", "mujoco")
     base = {"method": "ours", "objective": "torque", "terrain": "flat", "seed": 0, "sim": "mujoco"}

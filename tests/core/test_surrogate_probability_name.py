@@ -22,7 +22,8 @@ def _as_older_code_stored_it(config: CoadaptConfig) -> dict:
 
 
 def test_a_stored_config_with_the_old_key_has_the_same_hash_as_the_new_one():
-    from coadapt_core.experiments.grid import Cell, cell_config_hash, config_hash, run_config_hash
+    from coadapt_core.experiments.cell import Cell
+    from coadapt_core.experiments.cell_hash import cell_config_hash, config_hash, run_config_hash
 
     new = make_config("smoke", None, {**BASE, "surrogate_probability": 0.3})
     old = _as_older_code_stored_it(new)

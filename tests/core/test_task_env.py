@@ -10,9 +10,9 @@ import pytest
 import torch
 
 from coadapt_core.objective import Objective, StepBatch
-from coadapt_core.task import LocomotionEnv, TaskConfig
 from coadapt_core.task.commands import CommandSampler
-from coadapt_core.task.config import CommandConfig, NoiseConfig
+from coadapt_core.task.config import CommandConfig, NoiseConfig, TaskConfig
+from coadapt_core.task.env import LocomotionEnv
 
 
 class SquaredTorque(Objective):

@@ -308,7 +308,7 @@ def test_option_text_from_the_cli_is_typed_in_the_config():
     """'--optimizer-option inertia=0.5' and YAML 'inertia: 0.5' make the same config (and
     the same grid config hash); a legacy key is an alias."""
     from coadapt_core.coadapt.config_loading import make_config
-    from coadapt_core.experiments.grid import config_hash
+    from coadapt_core.experiments.cell_hash import config_hash
 
     cli = make_config("smoke", None, {"optimizer_options": {"inertia": "0.5"}})
     legacy = make_config("smoke", None, {"inertia": 0.5})

@@ -128,7 +128,7 @@ def test_task_ends_an_episode_beyond_no_load_speed_for_overspeed_seconds_when_bi
     from coadapt_plugins.robots.kuafu.robot import Kuafu
     from coadapt_plugins.simulators.mujoco.simulator import MujocoSimulator
 
-    from coadapt_core.task import TaskConfig
+    from coadapt_core.task.config import TaskConfig
     from coadapt_core.task.env import LocomotionEnv
 
     robot = Kuafu()
