@@ -26,7 +26,7 @@ The cells as people read them are `paper_display`; the CSV columns `paper_csv`.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -76,18 +76,18 @@ def _design(row: dict[str, Any], var: str) -> tuple[float | None, float | None]:
     return row.get(var), se_of(row, var)
 
 
-# -- Table 6 ------------------------------------------------------------------------------------
-def table6_comparison(
-    t6: Sequence[dict[str, Any]], paper: PaperTables | None = None
-) -> list[dict[str, Any]]:
-    """One row per table6 row the paper's Table 6 has a cell for: ours, the paper's, verdicts."""
-    paper = paper or paper_tables()
-    out = []
+def _design_rows(
+    t6: Sequence[dict[str, Any]], paper: PaperTables, kind: str
+) -> Iterator[tuple[dict[str, Any], dict[str, Any], dict[str, Any]]]:
+    """(table6 row, the paper's cell, our comparison row so far) for each table6 row the
+    paper's `kind` table ("table6" or "table9") has a cell for: the row's keys, both designs
+    and the direction verdict."""
+    cells = getattr(paper, kind)
     for r in t6:
         key = (r["objective"], r["method"], r["terrain"])
-        if _kind(r, paper) != "table6" or key not in paper.table6:
+        if _kind(r, paper) != kind or key not in cells:
             continue
-        p = paper.table6[key]
+        p = cells[key]
         row: dict[str, Any] = {
             k: r[k] for k in ("objective", "method", "optimizer", "terrain", "runs", "seeds")
         }
@@ -97,6 +97,17 @@ def table6_comparison(
         row["direction"] = direction_verdict(
             {c: row[c] for c in ("thigh", "shank")}, {c: p[c] for c in ("thigh", "shank")}
         )
+        yield r, p, row
+
+
+# -- Table 6 ------------------------------------------------------------------------------------
+def table6_comparison(
+    t6: Sequence[dict[str, Any]], paper: PaperTables | None = None
+) -> list[dict[str, Any]]:
+    """One row per table6 row the paper's Table 6 has a cell for: ours, the paper's, verdicts."""
+    paper = paper or paper_tables()
+    out = []
+    for r, p, row in _design_rows(t6, paper, "table6"):
         _improvements(row, r, p.get("improvement"), p.get("sim2sim_improvement"))
         out.append(row)
     return out
@@ -201,20 +212,7 @@ def table9_comparison(
     """One row per table6 row of the paper robot's mixed space that Table 9 has a cell for."""
     paper = paper or paper_tables()
     out = []
-    for r in t6:
-        key = (r["objective"], r["method"], r["terrain"])
-        if _kind(r, paper) != "table9" or key not in paper.table9:
-            continue
-        p = paper.table9[key]
-        row: dict[str, Any] = {
-            k: r[k] for k in ("objective", "method", "optimizer", "terrain", "runs", "seeds")
-        }
-        for col in ("thigh", "shank"):
-            row[col], row[f"{col}_se"] = _design(r, paper.design_variables[col])
-            row[f"paper_{col}"] = p[col]
-        row["direction"] = direction_verdict(
-            {c: row[c] for c in ("thigh", "shank")}, {c: p[c] for c in ("thigh", "shank")}
-        )
+    for r, p, row in _design_rows(t6, paper, "table9"):
         for col in ("hip_motor", "knee_motor"):
             # a motor type is a choice: each seed's, and how many chose the paper's (a mean of
             # types 1 and 3 would read as type 2)
