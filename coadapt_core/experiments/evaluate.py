@@ -145,8 +145,8 @@ def _hold_command(env: Any, agents: int, seed: int, command: list[float]) -> Non
     every agent under the given command."""
     import torch
 
+    from coadapt_core.learning.evaluate import apply_scenarios
     from coadapt_core.scenarios.seeds import scenario_seed
-    from coadapt_core.scenarios.sets import apply_scenarios
 
     apply_scenarios(
         env,

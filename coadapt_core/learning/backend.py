@@ -19,14 +19,13 @@ from coadapt_core.errors import UserError
 from coadapt_core.fitness import RealFitness, TrainingResult
 from coadapt_core.learning.checkpoints import read_checkpoint
 from coadapt_core.learning.config import TrainConfig
-from coadapt_core.learning.evaluate import EvalBuffer, rollout
+from coadapt_core.learning.evaluate import EvalBuffer, prepare, rollout
 from coadapt_core.learning.runner import Runner
 from coadapt_core.learning.surrogate import MEMBERS, FittedEnsemble, fit_ensemble, paper_estimate
 from coadapt_core.learning.trainer import Trainer
 from coadapt_core.objective import Objective
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.robot import Robot
-from coadapt_core.scenarios.sets import prepare
 from coadapt_core.task.config import TaskConfig
 
 

@@ -38,8 +38,7 @@ from coadapt_core.objective import Objective
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.robot import Robot
 from coadapt_core.task.config import TaskConfig
-from coadapt_core.task.designs import normalize_designs
-from coadapt_core.task.env import LocomotionEnv
+from coadapt_core.task.env import LocomotionEnv, normalize_designs
 
 
 class Trainer:
@@ -191,7 +190,7 @@ class Trainer:
         return mixed if arity == mixed.dim and mixed.dim != plain.dim else plain
 
     def normalize_designs(self, designs: np.ndarray) -> torch.Tensor:
-        """[K, D] designs as the policy reads them (xi, `task.designs.normalize_designs` over
+        """[K, D] designs as the policy reads them (xi, `task.env.normalize_designs` over
         the robot's full space), on the learner's device."""
         space = self.full_space(designs)
         low = torch.as_tensor(space.lower, dtype=torch.float32)

@@ -373,8 +373,8 @@ class Simulator(ABC):
         """Hold each environment's randomized parameters (`params` over all `num_envs`) and,
         on the random terrain, its spawn point (`spawn` [num_envs, 2], fractions in [0, 1) of
         the spawn square) at every later reset, including restarts after a fall; None draws
-        them again. The scenarios room (`coadapt_core.scenarios`) uses this hook to give
-        agent i of every design the same draw in real fitness (docs/coadaptation.md,
+        them again. Real evaluation (`learning.evaluate.apply_scenarios`) uses this hook to
+        give agent i of every design the same draw in real fitness (docs/coadaptation.md,
         "Evaluation protocol"); `draw_env_params` and `draw_spawn_xy` honour it."""
         if params is None:
             self._scenario = None

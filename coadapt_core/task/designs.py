@@ -1,8 +1,9 @@
 """What the locomotion task derives from each environment's design, once per change of
-designs rather than at every step: the design input xi (each variable mapped linearly from
-the robot's full design-space bounds to [-1, 1]), the default joint pose, the feet at the
-standing pose (the Raibert reference starts from them) and the total mass (for objectives
-such as the cost of transport; one model build per distinct design)."""
+designs rather than at every step: the default joint pose, the feet at the standing pose
+(the Raibert reference starts from them), the total mass (for objectives such as the cost of
+transport; one model build per distinct design) and, for the binding motor limit, each
+joint's no-load speed. The design input xi the policy reads is `task.env.normalize_designs`
+over the bounds (`low`, `high`) kept here."""
 
 from __future__ import annotations
 
@@ -19,24 +20,11 @@ if TYPE_CHECKING:
 MASS_CACHE_SIZE = 4096
 
 
-def normalize_designs(
-    designs: np.ndarray | torch.Tensor, low: torch.Tensor, high: torch.Tensor
-) -> torch.Tensor:
-    """[n, D] designs as the policy reads them (xi): each variable mapped linearly from its
-    bounds [low, high] (the robot's full design space) to [-1, 1], 0 where the bounds meet;
-    float32 on the bounds' device. The one normalisation: the environment's design inputs and
-    the learner's surrogate both use it."""
-    xi = torch.as_tensor(np.asarray(designs, dtype=np.float32), device=low.device)
-    width = high - low
-    safe = torch.where(width > 0, width, torch.ones_like(width))
-    return torch.where(width > 0, 2.0 * (xi - low) / safe - 1.0, torch.zeros_like(xi))
-
-
 class DesignInputs:
     """The per-environment design buffers of a `LocomotionEnv`, refreshed from its simulator
-    (`refresh`) whenever designs change: `designs` [N, D], `design_obs` [N, D] (xi),
-    `default_joint_pos` [N, J], `default_feet` [N, L, 3] (relative to the hips, base frame)
-    and `total_mass` [N] kg (NaN for a test robot without models)."""
+    (`refresh`) whenever designs change: `designs` [N, D], `default_joint_pos` [N, J],
+    `default_feet` [N, L, 3] (relative to the hips, base frame) and `total_mass` [N] kg
+    (NaN for a test robot without models)."""
 
     def __init__(self, robot: Robot, low: np.ndarray, high: np.ndarray, device: torch.device):
         self.robot = robot
@@ -68,7 +56,6 @@ class DesignInputs:
     def refresh(self, sim: Simulator) -> None:
         designs = np.asarray(sim.designs, dtype=np.float32)
         self.designs = torch.as_tensor(designs, device=self.device)  # [N, D]
-        self.design_obs = normalize_designs(designs, self.low, self.high)  # [N, D]
         self.default_joint_pos = sim.default_joint_pos.to(self.device).float()  # [N, J]
         with torch.no_grad():
             self.default_feet = (

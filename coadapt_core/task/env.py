@@ -1,8 +1,9 @@
 """`LocomotionEnv`: the locomotion task on any `Simulator`, as one batched vector
 environment (commands, gait clock and Raibert reference, observations, rewards, objective
 metrics, termination and auto-reset). Torch tensors throughout, on the device given (the
-simulator's by default). What it derives from the designs lives in `task.designs`, the
-observation layouts and the step's record (`StepResult`) in `task.observations`."""
+simulator's by default), and `normalize_designs`, the design input xi the policy reads. What
+it derives from the designs lives in `task.designs`, the episodes' statistics in
+`task.episodes`, the observation layouts and the step's record in `task.observations`."""
 
 from __future__ import annotations
 
@@ -16,15 +17,28 @@ import torch
 from coadapt_core.objective import Objective, StepBatch
 from coadapt_core.physics.simulator import SimState, Simulator
 from coadapt_core.robot import Robot
+from coadapt_core.task import episodes
 from coadapt_core.task import observations as layout
 from coadapt_core.task.commands import CommandSampler
 from coadapt_core.task.config import TaskConfig
 from coadapt_core.task.designs import DesignInputs
-from coadapt_core.task.episodes import EpisodeSums, ended_episodes
 from coadapt_core.task.gait import GaitClock, half_stance
 from coadapt_core.task.observations import StepResult
 from coadapt_core.task.rewards import RewardInputs, combine, compute_terms
 from coadapt_core.task.scenario_hooks import ScenarioHooks, SharedStreams
+
+
+def normalize_designs(
+    designs: np.ndarray | torch.Tensor, low: torch.Tensor, high: torch.Tensor
+) -> torch.Tensor:
+    """[n, D] designs as the policy reads them (xi): each variable mapped linearly from its
+    bounds [low, high] (the robot's full design space) to [-1, 1], 0 where the bounds meet;
+    float32 on the bounds' device. The one normalisation: the environment's design observation
+    and the learner's surrogate both use it."""
+    xi = torch.as_tensor(np.asarray(designs, dtype=np.float32), device=low.device)
+    width = high - low
+    safe = torch.where(width > 0, width, torch.ones_like(width))
+    return torch.where(width > 0, 2.0 * (xi - low) / safe - 1.0, torch.zeros_like(xi))
 
 
 class LocomotionEnv(ScenarioHooks):
@@ -95,7 +109,7 @@ class LocomotionEnv(ScenarioHooks):
         self.last_joint_vel = z(n, j)
         self.last_contact = torch.zeros(n, legs, dtype=torch.bool, device=self.device)
         self.standing_height = z(n)
-        self.episode_sums = EpisodeSums(n, self.device)
+        self.episode_sums = episodes.new_sums(n, self.device)  # [ROWS, N]
         # the binding motor speed limit: the actuation's no torque beyond the no-load speed, and
         # how long each environment has had a joint beyond it without a break (s)
         self.sim.set_speed_limit(self.cfg.motor_speed_limit)
@@ -115,7 +129,8 @@ class LocomotionEnv(ScenarioHooks):
     def _refresh_design_buffers(self) -> None:
         d = self.design_inputs
         d.refresh(self.sim)
-        self.designs, self.design_obs, self.total_mass = d.designs, d.design_obs, d.total_mass
+        self.design_obs = normalize_designs(self.sim.designs, d.low, d.high)  # [N, D]
+        self.designs, self.total_mass = d.designs, d.total_mass
         self.default_joint_pos, self.default_feet = d.default_joint_pos, d.default_feet
         aware = self.cfg.gait.design_aware
         self.gait.rescale(self.default_feet, d.nominal_leg_length if aware else 1.0)
@@ -144,13 +159,11 @@ class LocomotionEnv(ScenarioHooks):
         """[N] each environment's gait phase in [0, 1) (`GaitClock`)."""
         return self.gait.phase
 
-    @property
-    def gait_scale(self) -> torch.Tensor:
-        """[N] each environment's design-aware gait scale (`GaitClock`)."""
-        return self.gait.scale
-
     def _freeze_clock(self, ids: torch.Tensor) -> None:
-        self.gait.freeze(ids, self.command)
+        """Environments `ids` with a zero command wait at mid-stance of the first leg."""
+        if self.cfg.gait.freeze_on_zero_command:
+            still = self.command[ids].abs().sum(dim=-1) == 0
+            self.gait.phase[ids[still]] = 0.25
 
     def _start(self, ids: torch.Tensor, state: SimState) -> None:
         """Per-env buffers of environments that (re)start an episode."""
@@ -163,7 +176,7 @@ class LocomotionEnv(ScenarioHooks):
         self.overspeed_time[ids] = 0.0
         self.last_contact[ids] = state.foot_contact[ids]
         self.standing_height[ids] = (state.base_pos[ids, 2] - state.terrain_height[ids]).float()
-        self.episode_sums.restart(ids)
+        self.episode_sums[:, ids] = 0.0
         if self.scenarios is not None:  # paired: agent i always starts at its own phase
             self.gait.phase[ids] = self.scenarios.phase[ids % self.scenarios.phase.numel()]
         else:
@@ -389,7 +402,9 @@ class LocomotionEnv(ScenarioHooks):
         self.action_history[:, 0] = actions
         self.last_joint_vel = joint_vel
         self.last_contact = contact
-        self.episode_sums.add(reward, tracking, moving, lin[:, 0], self.command[:, 0])
+        episodes.add_step(
+            self.episode_sums, reward, tracking, moving, lin[:, 0], self.command[:, 0]
+        )
 
     def _end_episodes(
         self, done, terminated, info: dict, state: SimState, sim_device
@@ -405,22 +420,22 @@ class LocomotionEnv(ScenarioHooks):
             due = torch.zeros_like(done)
         ended = done.float()
         lengths = self.episode_length.float()  # >= 1 after this step
-        sums = self.episode_sums.over_ended(ended, terminated, lengths)
+        sums = episodes.over_ended(self.episode_sums, ended, terminated, lengths)
         host = torch.cat([ended, due.float(), sums]).cpu().numpy()
         n = self.num_envs
         done_ids = np.flatnonzero(host[:n])
         due_ids = np.flatnonzero(host[n : 2 * n])
         changed = done_ids.size > 0
         if changed:
-            episodes = ended_episodes(host[2 * n :].tolist(), int(done_ids.size), self.dt)
-            info["episode"] = episodes.report
+            ended_now = episodes.ended_episodes(host[2 * n :].tolist(), int(done_ids.size), self.dt)
+            info["episode"] = ended_now.report
             if not self.fixed_commands:
                 self.commands.record_episodes(
-                    episodes.count,
-                    int(round(episodes.falls)),
-                    episodes.moving_tracking,
-                    episodes.moving_steps,
-                    episodes.seconds,
+                    ended_now.count,
+                    int(round(ended_now.falls)),
+                    ended_now.moving_tracking,
+                    ended_now.moving_steps,
+                    ended_now.seconds,
                 )
             cpu_ids = torch.from_numpy(done_ids)
             tick = time.perf_counter()

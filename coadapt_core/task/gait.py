@@ -151,12 +151,6 @@ class GaitClock:
         legs = -default_feet[..., 2].mean(dim=-1)
         self.scale = gait_scales(self.cfg, legs, nominal_leg_length)
 
-    def freeze(self, ids: torch.Tensor, command: torch.Tensor) -> None:
-        """Environments `ids` with a zero command wait at mid-stance of the first leg."""
-        if self.cfg.freeze_on_zero_command:
-            still = command[ids].abs().sum(dim=-1) == 0
-            self.phase[ids[still]] = 0.25
-
     def advance(self, moving: torch.Tensor) -> None:
         """One policy step of the clock; `moving` [N]: the command is not zero."""
         cfg = self.cfg

@@ -1,8 +1,8 @@
-"""What the scenarios room (`coadapt_core.scenarios.sets`) asks of a `LocomotionEnv` to give
-every design the same scenarios in real fitness: restart its random streams, draw a scenario
-set's commands and Table 2 parameters, hold the simulator's draws, share its groups' random
-numbers (`use_scenarios`, `paired_draw`). `LocomotionEnv` inherits these methods; they read
-its `sim`, `commands`, `generator`, `device` and `scenarios`."""
+"""What real evaluation (`coadapt_core.learning.evaluate`: `prepare`, `apply_scenarios`)
+asks of a `LocomotionEnv` to give every design the same scenarios: restart its random
+streams, draw a scenario set's commands and Table 2 parameters, hold the simulator's draws,
+share its groups' random numbers (`use_scenarios`, `paired_draw`). `LocomotionEnv` inherits
+these methods; they read its `sim`, `commands`, `generator`, `device` and `scenarios`."""
 
 from __future__ import annotations
 

@@ -75,9 +75,9 @@ def test_env_scales_each_design_by_its_hip_height_in_mujoco():
         with MujocoSimulator(robot, designs, seed=0) as sim:
             env = LocomotionEnv(sim, robot, cfg)
             expected = heights / heights[1] if aware else np.ones(3)
-            assert env.gait_scale.numpy() == pytest.approx(expected, rel=1e-5)
+            assert env.gait.scale.numpy() == pytest.approx(expected, rel=1e-5)
             if aware:  # thigh 0.6 and 1.4 at shank 1.15: legs 0.875 and 1.275 x nominal
-                assert env.gait_scale.numpy() == pytest.approx([0.875, 1.0, 1.275], abs=0.01)
+                assert env.gait.scale.numpy() == pytest.approx([0.875, 1.0, 1.275], abs=0.01)
             env.set_commands(torch.tensor([[0.8, 0.0, 0.0]] * 3))
             env.reset()
             before = env.phase.clone()

@@ -532,8 +532,7 @@ def test_rollout_takes_any_policy_callable_and_pairs_its_action_noise(
     """A rollout needs only a callable to a Gaussian's (mean, std): deterministic steps take
     the mean, stochastic ones the mean plus std times noise that agent i of every design shares;
     the learner's own `action_distribution` gives the policy mean `act_inference` gives."""
-    from coadapt_core.learning.evaluate import rollout
-    from coadapt_core.scenarios.sets import apply_scenarios
+    from coadapt_core.learning.evaluate import apply_scenarios, rollout
 
     trainer = make_trainer(fake_robot, fake_sim_cls)
     trainer.set_designs(np.array([[1.0, 1.0], [0.7, 1.2]]))

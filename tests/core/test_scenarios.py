@@ -1,7 +1,8 @@
-"""The scenarios room (`coadapt_core.scenarios`) on the fake simulator: what a scenario set
-gives every design of a batch, what the unpaired protocol gives, and that the scenario seeds
-stay readable without torch (the results room reads them through `coadapt_core.fitness`).
-The end-to-end pairing on real MuJoCo is tests/core/test_paired_fitness.py."""
+"""Scenario sets (`coadapt_core.scenarios` seeds them, `learning.evaluate` applies them) on
+the fake simulator: what a scenario set gives every design of a batch, what the unpaired
+protocol gives, and that the scenario seeds stay readable without torch (the results room
+reads them through `coadapt_core.fitness`). The end-to-end pairing on real MuJoCo is
+tests/core/test_paired_fitness.py."""
 
 from __future__ import annotations
 
@@ -14,8 +15,8 @@ import pytest
 import torch
 
 from coadapt_core.errors import UserError
+from coadapt_core.learning.evaluate import PairedStreams, apply_scenarios, prepare
 from coadapt_core.scenarios.seeds import scenario_seed
-from coadapt_core.scenarios.sets import PairedStreams, apply_scenarios, prepare
 from coadapt_core.task.config import TaskConfig
 from coadapt_core.task.env import LocomotionEnv
 
