@@ -42,7 +42,9 @@ from coadapt_core.analysis.paper_csv import (
 from coadapt_core.analysis.paper_display import (
     comparison_html,
     comparison_markdown,
+    display_tables,
     figure_html,
+    how_to_read,
 )
 from coadapt_core.analysis.paper_figure import figure_beside_paper
 from coadapt_core.analysis.paper_verdicts import (
@@ -266,11 +268,11 @@ def write_paper_comparison(
     figure = next(iter(figure_beside_paper(rows6, out, objective_labels)), None)
     if figure is not None:
         files[figure[0].name] = figure[0]
-    (out / "paper_comparison.md").write_text(
-        comparison_markdown(rows6, order, rows7, rows9, paper, objective_labels, figure)
-    )
+    tables = display_tables(rows6, order, rows7, rows9, objective_labels or {})
+    reading = how_to_read(paper, rows6, rows9)
+    (out / "paper_comparison.md").write_text(comparison_markdown(tables, reading, figure))
     files["paper_comparison.md"] = out / "paper_comparison.md"
-    section = comparison_html(rows6, order, rows7, rows9, paper, objective_labels)
+    section = comparison_html(tables, reading)
     if figure is not None:
         section += "\n" + figure_html(*figure)
     return files, section

@@ -5,11 +5,12 @@ section of report.html, and the paragraph that says how to read them."""
 from __future__ import annotations
 
 import html
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from coadapt_core.analysis.paper import PaperTables, paper_tables
+from coadapt_core.analysis.paper import PaperTables
 from coadapt_core.analysis.paper_cost import Z
 from coadapt_core.analysis.paper_verdicts import MEASURES, NOMINAL_BAND
 from coadapt_core.methods import METHODS
@@ -62,10 +63,15 @@ def _ratio(v: float | None, se: float | None = None) -> str:
     return "n/a" if v is None else f"{v:.2f}" if se is None else f"{v:.2f} ± {se:.2f}"
 
 
+def _pct_of(r: dict[str, Any], name: str) -> str:
+    """'ours ± SE' of a percentage column `name` (its SE `<name>_se`)."""
+    return _pct(r[name], r[f"{name}_se"])
+
+
 def _pct_beside(r: dict[str, Any], name: str) -> str:
-    """'ours ± SE / paper's' of a percentage column `name` (its SE `<name>_se`, the paper's
-    figure `paper_<name>`)."""
-    return f"{_pct(r[name], r[f'{name}_se'])} / {_pct(r[f'paper_{name}'])}"
+    """'ours ± SE / paper's' of a percentage column `name` (the paper's figure
+    `paper_<name>`)."""
+    return f"{_pct_of(r, name)} / {_pct(r[f'paper_{name}'])}"
 
 
 def _ratio_beside(r: dict[str, Any], name: str, paper: str) -> str:
@@ -83,167 +89,132 @@ def _motor_beside(r: dict[str, Any], name: str) -> str:
     return f"{r[name] or 'n/a'} / {r[f'paper_{name}']} ({r[f'{name}_verdict']})"
 
 
+Row = dict[str, Any]
+#: a comparison table as both renderings take it: (title, header, cells)
+Table = tuple[str, list[str], list[list[str]]]
+
+
+@dataclass(frozen=True)
+class _Labels:
+    """The names people read: objectives by the report's labels, methods by their table
+    labels; a name without a label reads as itself."""
+
+    objectives: dict[str, str]
+    methods: dict[str, str]
+
+    def order(self, text: str) -> str:
+        """A method order ('a > b > c') in the methods' labels."""
+        return " > ".join(self.methods.get(m, m) for m in text.split(" > ") if m)
+
+
+@dataclass(frozen=True)
+class _Column:
+    """One column of a comparison table: its header and how a row reads in it."""
+
+    head: str
+    cell: Callable[[Row, _Labels], str]
+
+
+def _field(name: str) -> Callable[[Row, _Labels], str]:
+    """A cell that shows the row's `name` as it stands."""
+    return lambda r, _: str(r[name])
+
+
+def _of(read: Callable[..., str], *args: str) -> Callable[[Row, _Labels], str]:
+    """A cell that shows `read(row, *args)`."""
+    return lambda r, _: read(r, *args)
+
+
+def _vs_paper(ours: str, paper: str | None = None) -> Callable[[Row, _Labels], str]:
+    """A Table 7 cell: our ratio `<ours>_ratio` beside the paper's `paper_<paper>_ratio`
+    (`paper`: `ours` unless named)."""
+    return _of(_ratio_beside, f"{ours}_ratio", f"paper_{paper or ours}_ratio")
+
+
+OBJECTIVE = _Column("Objective", lambda r, k: k.objectives.get(r["objective"], r["objective"]))
+METHOD = _Column("Method", lambda r, k: k.methods.get(r["method"], r["method"]))
+OPTIMIZER = _Column("Optimizer", _field("optimizer"))
+TERRAIN = _Column("Terrain", _field("terrain"))
+RUNS = _Column("Runs", _field("runs"))
+THIGH = _Column("Thigh ours / paper", _of(_design_beside, "thigh"))
+SHANK = _Column("Shank ours / paper", _of(_design_beside, "shank"))
+DIRECTION = _Column("Direction", _field("direction"))
+HIP = _Column("Hip motor per seed, ours / paper", _of(_motor_beside, "hip_motor"))
+KNEE = _Column("Knee motor per seed, ours / paper", _of(_motor_beside, "knee_motor"))
 #: the columns every improvement table shares: the paper's measure, the plain mean, the
 #: common yardstick and the objective's own measure
-IMPROVEMENT_HEAD = (
-    "Improvement (1 - c/c0) ours / paper",
-    "Verdict",
-    "Plain-mean improvement ours",
-    "Verdict",
-    "Common scenarios: improvement, plain mean, fall-rate difference",
-    "Verdict (plain mean)",
-    OWN_HEADER,
+IMPROVEMENT = (
+    _Column("Improvement (1 - c/c0) ours / paper", _of(_pct_beside, "improvement")),
+    _Column("Verdict", _field("improvement_verdict")),
+    _Column("Plain-mean improvement ours", _of(_pct_of, "improvement_plain")),
+    _Column("Verdict", _field("improvement_plain_verdict")),
+    _Column("Common scenarios: improvement, plain mean, fall-rate difference", _of(_common)),
+    _Column("Verdict (plain mean)", _field("common_improvement_plain_verdict")),
+    _Column(OWN_HEADER, _of(_own)),
 )
-HEAD6 = (
-    "Objective",
-    "Method",
-    "Optimizer",
-    "Terrain",
-    "Runs",
-    "Thigh ours / paper",
-    "Shank ours / paper",
-    "Direction",
-    *IMPROVEMENT_HEAD,
-    "Sim-to-sim ours / paper",
-    "Verdict",
+SIM2SIM = (
+    _Column("Sim-to-sim ours / paper", _of(_pct_beside, "sim2sim_improvement")),
+    _Column("Verdict", _field("sim2sim_verdict")),
 )
-HEAD_ORDER = ("Objective", "Terrain", "Measure", "Paper's order", "Our order", "Verdict")
-HEAD7 = (
-    "Method",
-    "Optimizer",
-    "Runs",
-    "Pairs",
-    "Interactions / paper's method: ours, paper",
-    "Verdict",
-    "Evaluation interactions / paper's method: ours, paper",
-    "Wall-clock pairs (same code)",
-    "Wall clock / paper's method: ours, paper",
-    "Verdict",
-    "Wall clock at equal machine speed: ours, paper",
-    "Verdict",
+TABLE6 = (
+    OBJECTIVE,
+    METHOD,
+    OPTIMIZER,
+    TERRAIN,
+    RUNS,
+    THIGH,
+    SHANK,
+    DIRECTION,
+    *IMPROVEMENT,
+    *SIM2SIM,
 )
-HEAD9 = (
-    "Objective",
-    "Terrain",
-    "Optimizer",
-    "Runs",
-    "Thigh ours / paper",
-    "Hip motor per seed, ours / paper",
-    "Shank ours / paper",
-    "Knee motor per seed, ours / paper",
-    "Direction",
-    *IMPROVEMENT_HEAD,
+ORDER = (
+    OBJECTIVE,
+    TERRAIN,
+    _Column("Measure", lambda r, _: MEASURES.get(r["measure"], r["measure"])),
+    _Column("Paper's order", lambda r, k: k.order(r["paper_order"])),
+    _Column("Our order", lambda r, k: k.order(r["our_order"])),
+    _Column("Verdict", _field("verdict")),
 )
+TABLE7 = (
+    METHOD,
+    OPTIMIZER,
+    RUNS,
+    _Column("Pairs", lambda r, _: str(r.get("pairs", "n/a"))),
+    _Column("Interactions / paper's method: ours, paper", _vs_paper("interactions")),
+    _Column("Verdict", _field("interactions_verdict")),
+    _Column("Evaluation interactions / paper's method: ours, paper", _vs_paper("evaluation")),
+    _Column("Wall-clock pairs (same code)", lambda r, _: str(r.get("time_pairs", "n/a"))),
+    _Column("Wall clock / paper's method: ours, paper", _vs_paper("time")),
+    _Column("Verdict", _field("time_verdict")),
+    _Column("Wall clock at equal machine speed: ours, paper", _vs_paper("speed_time", "time")),
+    _Column("Verdict", _field("speed_time_verdict")),
+)
+TABLE9 = (OBJECTIVE, TERRAIN, OPTIMIZER, RUNS, THIGH, HIP, SHANK, KNEE, DIRECTION, *IMPROVEMENT)
 
 
-def _improvement_cells(r: dict[str, Any]) -> list[str]:
-    """The cells under `IMPROVEMENT_HEAD` of a Table 6 or Table 9 comparison row."""
-    return [
-        _pct_beside(r, "improvement"),
-        r["improvement_verdict"],
-        _pct(r["improvement_plain"], r["improvement_plain_se"]),
-        r["improvement_plain_verdict"],
-        _common(r),
-        r["common_improvement_plain_verdict"],
-        _own(r),
-    ]
-
-
-def _cells6(r: dict[str, Any], objectives: dict[str, str], methods: dict[str, str]) -> list[str]:
-    return [
-        objectives.get(r["objective"], r["objective"]),
-        methods.get(r["method"], r["method"]),
-        r["optimizer"],
-        r["terrain"],
-        str(r["runs"]),
-        _design_beside(r, "thigh"),
-        _design_beside(r, "shank"),
-        r["direction"],
-        *_improvement_cells(r),
-        _pct_beside(r, "sim2sim_improvement"),
-        r["sim2sim_verdict"],
-    ]
-
-
-def _order_cells(
-    r: dict[str, Any], objectives: dict[str, str], methods: dict[str, str]
-) -> list[str]:
-    def labels(order: str) -> str:
-        return " > ".join(methods.get(m, m) for m in order.split(" > ") if m)
-
-    return [
-        objectives.get(r["objective"], r["objective"]),
-        r["terrain"],
-        MEASURES.get(r["measure"], r["measure"]),
-        labels(r["paper_order"]),
-        labels(r["our_order"]),
-        r["verdict"],
-    ]
-
-
-def _cells7(r: dict[str, Any], methods: dict[str, str]) -> list[str]:
-    return [
-        methods.get(r["method"], r["method"]),
-        str(r["optimizer"]),
-        str(r["runs"]),
-        str(r.get("pairs", "n/a")),
-        _ratio_beside(r, "interactions_ratio", "paper_interactions_ratio"),
-        r["interactions_verdict"],
-        _ratio_beside(r, "evaluation_ratio", "paper_evaluation_ratio"),
-        str(r.get("time_pairs", "n/a")),
-        _ratio_beside(r, "time_ratio", "paper_time_ratio"),
-        r["time_verdict"],
-        _ratio_beside(r, "speed_time_ratio", "paper_time_ratio"),
-        r["speed_time_verdict"],
-    ]
-
-
-def _cells9(r: dict[str, Any], objectives: dict[str, str]) -> list[str]:
-    return [
-        objectives.get(r["objective"], r["objective"]),
-        r["terrain"],
-        r["optimizer"],
-        str(r["runs"]),
-        _design_beside(r, "thigh"),
-        _motor_beside(r, "hip_motor"),
-        _design_beside(r, "shank"),
-        _motor_beside(r, "knee_motor"),
-        r["direction"],
-        *_improvement_cells(r),
-    ]
-
-
-def _display(
-    rows6: Sequence[dict[str, Any]],
-    order: Sequence[dict[str, Any]],
-    rows7: Sequence[dict[str, Any]],
-    rows9: Sequence[dict[str, Any]],
+def display_tables(
+    rows6: Sequence[Row],
+    order: Sequence[Row],
+    rows7: Sequence[Row],
+    rows9: Sequence[Row],
     objectives: dict[str, str],
-) -> list[tuple[str, list[str], list[list[str]]]]:
+) -> list[Table]:
     """(title, header, cells) of each comparison table, shared by Markdown and HTML;
     methods by their table labels, objectives by `objectives` (name -> label)."""
-    methods = {m.name: m.label for m in METHODS.values()}
+    labels = _Labels(objectives, {m.name: m.label for m in METHODS.values()})
     return [
-        (
-            "Table 6 beside the paper's",
-            list(HEAD6),
-            [_cells6(r, objectives, methods) for r in rows6],
-        ),
-        (
-            "Method order by improvement, per objective and terrain",
-            list(HEAD_ORDER),
-            [_order_cells(r, objectives, methods) for r in order],
-        ),
-        (
-            "Table 7 beside the paper's (ratios to the paper's method in the same table)",
-            list(HEAD7),
-            [_cells7(r, methods) for r in rows7],
-        ),
-        (
-            "Table 9 beside the paper's (mixed variables)",
-            list(HEAD9),
-            [_cells9(r, objectives) for r in rows9],
-        ),
+        (title, [c.head for c in columns], [[c.cell(r, labels) for c in columns] for r in rows])
+        for title, columns, rows in (
+            ("Table 6 beside the paper's", TABLE6, rows6),
+            ("Method order by improvement, per objective and terrain", ORDER, order),
+            (
+                "Table 7 beside the paper's (ratios to the paper's method in the same table)",
+                TABLE7,
+                rows7,
+            ),
+            ("Table 9 beside the paper's (mixed variables)", TABLE9, rows9),
+        )
     ]
 
 
@@ -255,7 +226,7 @@ def _missing(
     return len(set(paper.table6) - have6), len(set(paper.table9) - have9)
 
 
-def _explanation(
+def how_to_read(
     paper: PaperTables, rows6: Sequence[dict[str, Any]], rows9: Sequence[dict[str, Any]]
 ) -> str:
     miss6, miss9 = _missing(rows6, rows9, paper)
@@ -289,19 +260,14 @@ def _explanation(
 
 
 def comparison_markdown(
-    rows6,
-    order,
-    rows7,
-    rows9,
-    paper: PaperTables | None = None,
-    objectives: dict[str, str] | None = None,
-    figure: tuple[Path, str] | None = None,
+    tables: Sequence[Table], reading: str, figure: tuple[Path, str] | None = None
 ) -> str:
-    paper = paper or paper_tables()
+    """paper_comparison.md: the figure beside the paper (if any), each of `tables`
+    (`display_tables`), then `reading` (`how_to_read`)."""
     lines = ["# Beside the paper", ""]
     if figure is not None:
         lines += [f"![{figure[1]}]({figure[0].name})", ""]
-    for title, head, cells in _display(rows6, order, rows7, rows9, objectives or {}):
+    for title, head, cells in tables:
         lines += [f"## {title}", ""]
         if not cells:
             lines += ["No run of this report has a cell in this table of the paper.", ""]
@@ -309,24 +275,14 @@ def comparison_markdown(
         lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         lines += ["| " + " | ".join(c) + " |" for c in cells]
         lines.append("")
-    lines.append(_explanation(paper, rows6, rows9))
+    lines.append(reading)
     return "\n".join(lines) + "\n"
 
 
-def comparison_html(
-    rows6,
-    order,
-    rows7,
-    rows9,
-    paper: PaperTables | None = None,
-    objectives: dict[str, str] | None = None,
-) -> str:
-    paper = paper or paper_tables()
-    parts = [
-        "<h2>Beside the paper</h2>",
-        f"<p>{html.escape(_explanation(paper, rows6, rows9))}</p>",
-    ]
-    for title, head, cells in _display(rows6, order, rows7, rows9, objectives or {}):
+def comparison_html(tables: Sequence[Table], reading: str) -> str:
+    """The section of report.html: `reading` (`how_to_read`), then each of `tables`."""
+    parts = ["<h2>Beside the paper</h2>", f"<p>{html.escape(reading)}</p>"]
+    for title, head, cells in tables:
         parts.append(f"<h3>{html.escape(title)}</h3>")
         if not cells:
             parts.append("<p>No run of this report has a cell in this table of the paper.</p>")
