@@ -56,7 +56,9 @@ def missing_deploy_modules() -> list[str]:
 
 
 class SpecialisedPolicy(nn.Module):
-    """The actor's mean for one design: obs [B, num_obs] -> (actions, joint_targets) [B, J]."""
+    """The actor's mean for one design: obs [B, num_obs] -> (actions, joint_targets) [B, J].
+    The mean itself is the learner's (`PPO.mean_actor`); this adds the design constant, the
+    action clip and the joint targets."""
 
     def __init__(
         self,
@@ -67,34 +69,18 @@ class SpecialisedPolicy(nn.Module):
         action_clip: float,
     ):
         super().__init__()
-        from coadapt_core.learning.networks import EmpiricalNormalization, mlp
+        from coadapt_core.learning.checkpoints import load_policy
 
-        dims = state["dims"]
-        config = state["train_config"]
-        ppo = state["ppo"]
-        self.num_obs = int(dims["num_obs"])
-        self.num_actions = int(dims["num_actions"])
-        num_design = int(dims["num_design"])
+        ppo = load_policy(state)
+        self.num_obs = int(ppo.dims.num_obs)
+        self.num_actions = int(ppo.dims.num_actions)
+        num_design = int(ppo.dims.num_design)
         if len(design_obs) != num_design:
             raise UserError(
                 f"the policy takes {num_design} design values, the design has {len(design_obs)}",
                 field="design",
             )
-        self.body = mlp(
-            self.num_obs + num_design,
-            self.num_actions,
-            tuple(config["hidden"]),
-            config["activation"],
-        )
-        self.body.load_state_dict(
-            {k[len("body.") :]: v for k, v in ppo["actor"].items() if k.startswith("body.")}
-        )
-        norm = EmpiricalNormalization(self.num_obs)
-        norm.load_state_dict(ppo["obs_norm"])
-        # the normaliser as constants of the graph: (obs - mean) / sqrt(var + eps), clipped
-        self.register_buffer("obs_mean", norm.mean.detach().float().clone())
-        self.register_buffer("obs_std", torch.sqrt(norm.var.detach().float() + norm.eps))
-        self.obs_clip = float(norm.clip)
+        self.actor = ppo.mean_actor()
         self.register_buffer(
             "design_obs", torch.as_tensor(np.asarray(design_obs, dtype=np.float32))
         )  # [D]
@@ -106,29 +92,18 @@ class SpecialisedPolicy(nn.Module):
         self.eval()
 
     def forward(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        normed = ((obs - self.obs_mean) / self.obs_std).clamp(-self.obs_clip, self.obs_clip)
         xi = self.design_obs.unsqueeze(0).expand(obs.shape[0], -1)  # [B, D]
-        actions = self.body(torch.cat([normed, xi], dim=-1)).clamp(
-            -self.action_clip, self.action_clip
-        )
+        actions = self.actor(obs, xi).clamp(-self.action_clip, self.action_clip)
         return actions, self.default_joint_pos + self.action_scale * actions
 
 
 def torch_actions(state: dict[str, Any], obs: np.ndarray, design_obs: np.ndarray) -> np.ndarray:
     """[N, J] the policy mean exactly as the learner computes it (`PPO.act_inference`,
     then the task's action clip is applied by the caller): the reference the ONNX graph is
-    checked against, built from the learner's own classes, not from `SpecialisedPolicy`."""
-    from coadapt_core.learning.config import TrainConfig
-    from coadapt_core.learning.ppo import PPO, Dims
+    checked against, the learner's own forward pass, not `SpecialisedPolicy`'s copy."""
+    from coadapt_core.learning.checkpoints import load_policy
 
-    config = TrainConfig.from_dict(state["train_config"])
-    config.device = "cpu"
-    dims = Dims(**{**state["dims"], "num_metrics": len(state["objectives"])})
-    ppo = PPO(dims, config, torch.device("cpu"))
-    ppo.actor_net.load_state_dict(state["ppo"]["actor"])
-    ppo.obs_norm.load_state_dict(state["ppo"]["obs_norm"])
-    ppo.actor_net.eval()
-    ppo.obs_norm.eval()
+    ppo = load_policy(state)
     with torch.no_grad():
         x = torch.as_tensor(np.asarray(obs, dtype=np.float32))
         xi = torch.as_tensor(np.asarray(design_obs, dtype=np.float32)).expand(x.shape[0], -1)

@@ -68,7 +68,7 @@ def _observation(task: Any, policy: Any, num_joints: int) -> dict[str, Any]:
     """The observation's slices (units, meaning, training noise) and its normalisation."""
     from coadapt_core.task.observations import policy_layout
 
-    mean, std = policy.obs_mean.numpy(), policy.obs_std.numpy()
+    mean, std, clip = policy.actor.normalisation()
     slices, start = [], 0
     noise = task.noise
     for name, size in policy_layout(num_joints, task.history):
@@ -98,7 +98,7 @@ def _observation(task: Any, policy: Any, num_joints: int) -> dict[str, Any]:
             "rule": "clip((obs - mean) / std, -clip, clip)",
             "mean": [float(x) for x in mean],
             "std": [float(x) for x in std],
-            "clip": policy.obs_clip,
+            "clip": clip,
         },
     }
 

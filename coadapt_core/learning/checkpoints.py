@@ -1,6 +1,7 @@
 """Policy checkpoints as files: their two formats (`Trainer.save`'s full checkpoint and
 `Trainer.export_weights`' weights), reading one without unpickling anything
-(`read_checkpoint`), and the surgery a saved state may need before it loads: pseudo-critic
+(`read_checkpoint`), its policy rebuilt for inference (`load_policy`), and the surgery a
+saved state may need before it loads: pseudo-critic
 heads matched to objectives by name, a wider design input (`widen_design_input`), command
 inputs that never varied opened for a wider command box (`open_command_inputs`)."""
 
@@ -15,8 +16,9 @@ from pathlib import Path
 import torch
 
 from coadapt_core.errors import UserError
+from coadapt_core.learning.config import TrainConfig
 from coadapt_core.learning.networks import CriticBank
-from coadapt_core.learning.ppo import PPO
+from coadapt_core.learning.ppo import PPO, Dims
 from coadapt_core.task.config import CommandConfig
 from coadapt_core.task.observations import policy_layout, slices
 
@@ -53,6 +55,18 @@ def read_checkpoint(path: str | Path) -> dict:
     ):
         raise UserError(f"'{path}' is not a coadapt policy checkpoint", field="checkpoint")
     return state
+
+
+def load_policy(state: dict) -> PPO:
+    """A learner on the CPU holding the policy of a state `read_checkpoint` returned (either
+    format): the actor and observation normaliser loaded and in eval mode (`PPO.load_actor`),
+    for `act_inference` and `mean_actor`; the critics and optimizers are fresh."""
+    config = TrainConfig.from_dict(state["train_config"])
+    config.device = "cpu"
+    dims = Dims(**{**state["dims"], "num_metrics": len(state["objectives"])})
+    ppo = PPO(dims, config, torch.device("cpu"))
+    ppo.load_actor(state["ppo"])
+    return ppo
 
 
 def match_objectives(ppo_state: dict, saved_names: list[str], names: list[str], ppo: PPO) -> dict:

@@ -1,5 +1,6 @@
-"""Networks of the universal policy: MLP trunks, the Gaussian actor pi(a | o, xi), the
-critic V(s, xi), the pseudo-critics V_pseudo(s, xi) and running observation normalisers."""
+"""Networks of the universal policy: MLP trunks, the Gaussian actor pi(a | o, xi) and its
+mean on its own (`MeanActor`), the critic V(s, xi), the pseudo-critics V_pseudo(s, xi) and
+running observation normalisers."""
 
 from __future__ import annotations
 
@@ -78,6 +79,32 @@ class ActorNet(nn.Module):
         loc = self.body(torch.cat([obs, design], dim=-1))
         scale = self.log_std.clamp(-5.0, 2.0).exp().expand_as(loc)
         return loc, scale
+
+
+class MeanActor(nn.Module):
+    """The mean of pi(a | o, xi) on its own, for inference and export: raw observations
+    [B, num_obs] and normalised designs [B, num_design] -> mean actions [B, num_actions].
+    The observation normaliser's statistics are constants here (buffers, never updated), so
+    a tracer writes them into the graph. Eval mode from the start; `PPO.mean_actor` builds it.
+    """
+
+    def __init__(self, body: nn.Module, norm: EmpiricalNormalization):
+        super().__init__()
+        self.body = body
+        # what EmpiricalNormalization.forward computes: (obs - mean) / sqrt(var + eps), clipped
+        self.register_buffer("obs_mean", norm.mean.detach().float().clone())
+        self.register_buffer("obs_std", torch.sqrt(norm.var.detach().float() + norm.eps))
+        self.obs_clip = float(norm.clip)
+        self.eval()
+
+    def forward(self, obs: torch.Tensor, design: torch.Tensor) -> torch.Tensor:
+        normed = ((obs - self.obs_mean) / self.obs_std).clamp(-self.obs_clip, self.obs_clip)
+        return self.body(torch.cat([normed, design], dim=-1))
+
+    def normalisation(self) -> tuple[list[float], list[float], float]:
+        """(mean [num_obs], std [num_obs], clip) of the observation normalisation it applies:
+        clip((obs - mean) / std, -clip, clip)."""
+        return self.obs_mean.tolist(), self.obs_std.tolist(), self.obs_clip
 
 
 class ValueNet(nn.Module):

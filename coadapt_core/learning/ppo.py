@@ -7,6 +7,7 @@ them live in `coadapt_core.learning.pseudo_critics`.
 
 from __future__ import annotations
 
+import copy
 import time
 from dataclasses import dataclass
 
@@ -15,7 +16,13 @@ from tensordict import TensorDict
 from tensordict.nn import TensorDictModule
 
 from coadapt_core.learning.config import TrainConfig, resolve_precision
-from coadapt_core.learning.networks import ActorNet, CriticBank, EmpiricalNormalization, ValueNet
+from coadapt_core.learning.networks import (
+    ActorNet,
+    CriticBank,
+    EmpiricalNormalization,
+    MeanActor,
+    ValueNet,
+)
 from coadapt_core.learning.pseudo_critics import (
     PseudoCritics,
     all_finite,
@@ -157,6 +164,12 @@ class PPO:
     def act_inference(self, obs: torch.Tensor, design_obs: torch.Tensor) -> torch.Tensor:
         """Deterministic actions [N, A] (the policy mean), for evaluation and deployment."""
         return self.action_distribution(obs, design_obs)[0]
+
+    def mean_actor(self) -> MeanActor:
+        """The policy mean as a module of its own (a copy, in eval mode): raw observations and
+        normalised designs -> `act_inference`'s actions, the observation normaliser's current
+        statistics held as constants. What a deployment exports."""
+        return MeanActor(copy.deepcopy(self.actor_net.body), self.obs_norm)
 
     @torch.no_grad()
     def process_env_step(
@@ -399,6 +412,15 @@ class PPO:
             self.learning_rate = float(state["learning_rate"])
             for group in self.optimizer.param_groups:
                 group["lr"] = self.learning_rate
+
+    def load_actor(self, state: dict) -> None:
+        """Load only the acting part of a `state_dict()` (the actor and the observation
+        normaliser) and put it in eval mode: the policy for inference; the critics,
+        pseudo-critics and optimizers stay as they are."""
+        self.actor_net.load_state_dict(state["actor"])
+        self.obs_norm.load_state_dict(state["obs_norm"])
+        self.actor_net.eval()
+        self.obs_norm.eval()
 
     def freeze_policy(self) -> None:
         """Train only the pseudo-critics from now on: refit the surrogate of a finished policy

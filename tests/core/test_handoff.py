@@ -117,6 +117,66 @@ def test_model_files_carry_every_referenced_mesh(tmp_path, monkeypatch):
         )
 
 
+def _random_policy_state(seed: int) -> dict:
+    """A saved state of a small random learner whose observation normaliser has seen data."""
+    import torch
+
+    from coadapt_core.learning.config import TrainConfig
+    from coadapt_core.learning.ppo import PPO, Dims
+
+    torch.manual_seed(seed)
+    config = TrainConfig(hidden=(16, 8))
+    dims = Dims(num_obs=6, num_critic_obs=7, num_design=2, num_actions=3, num_metrics=1)
+    ppo = PPO(dims, config, torch.device("cpu"))
+    ppo.obs_norm.update(2.0 * torch.randn(300, 6) - 1.0)
+    return {
+        "dims": vars(dims),
+        "train_config": config.to_dict(),
+        "objectives": ["torque"],
+        "ppo": ppo.state_dict(),
+    }
+
+
+def test_the_specialised_policy_is_the_learners_own_mean_to_the_bit():
+    """The handoff's torch module wraps the learner's mean (`PPO.mean_actor` of the policy
+    `load_policy` rebuilds): the actions of `act_inference`, clipped, equal to the bit, and
+    their joint targets; the mean is a copy, so loading another policy into the learner
+    afterwards leaves it as it was; a design of the wrong length is one `UserError`."""
+    import torch
+
+    from coadapt_core.handoff.policy import SpecialisedPolicy, torch_actions
+    from coadapt_core.learning.checkpoints import load_policy
+
+    state = _random_policy_state(0)
+    obs = (4.0 * np.random.default_rng(1).standard_normal((50, 6))).astype(np.float32)
+    xi = np.array([0.3, -0.7])
+    default = np.array([0.1, 0.0, -0.1])
+    policy = SpecialisedPolicy(state, xi, default, action_scale=0.5, action_clip=0.4)
+    assert not policy.training and not policy.actor.training
+    with torch.no_grad():
+        actions, targets = policy(torch.as_tensor(obs))
+    reference = np.clip(torch_actions(state, obs, xi), -0.4, 0.4)
+    assert 0.0 < np.mean(np.abs(reference) == np.float32(0.4)) < 1.0  # the clip bites on some
+    np.testing.assert_array_equal(actions.numpy(), reference)
+    np.testing.assert_array_equal(
+        targets.numpy(), default.astype(np.float32) + np.float32(0.5) * reference
+    )
+
+    learner = load_policy(state)
+    mean = learner.mean_actor()
+    x = torch.as_tensor(obs)
+    design = torch.as_tensor(xi, dtype=torch.float32).expand(len(obs), -1)
+    with torch.no_grad():
+        first = mean(x, design)
+    np.testing.assert_array_equal(first.numpy(), torch_actions(state, obs, xi))
+    learner.load_actor(_random_policy_state(1)["ppo"])
+    with torch.no_grad():
+        assert torch.equal(mean(x, design), first)
+        assert (learner.act_inference(x, design) - first).abs().max() > 1e-2
+    with pytest.raises(UserError, match="takes 2 design values, the design has 3"):
+        SpecialisedPolicy(state, np.zeros(3), default, action_scale=0.5, action_clip=0.4)
+
+
 @needs_deploy
 @pytest.mark.slow
 def test_onnx_graph_bakes_the_design_and_matches_the_learner(tmp_path):
@@ -416,7 +476,7 @@ def test_a_graph_that_differs_from_torch_is_refused_and_nothing_is_left(
         import torch
 
         with torch.no_grad():
-            policy.body[-1].bias += 1e-3
+            list(policy.parameters())[-1] += 1e-3  # the output layer's bias
         return export(policy, path, metadata)
 
     monkeypatch.setattr(policy_module, "export_onnx", wrong_export)
