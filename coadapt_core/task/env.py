@@ -1,8 +1,8 @@
 """`LocomotionEnv`: the locomotion task on any `Simulator`, as one batched vector
 environment (commands, gait clock and Raibert reference, observations, rewards, objective
-metrics, termination and auto-reset). Torch tensors throughout, on the device given (the
-simulator's by default), and `normalize_designs`, the design input xi the policy reads. What
-it derives from the designs lives in `task.designs`, the episodes' statistics in
+metrics, termination and auto-reset), torch tensors on the device given (the simulator's by
+default); and `normalize_designs`, the design input xi that it and the learner read. What it
+derives from the designs lives in `task.designs`, the episodes' statistics in
 `task.episodes`, the observation layouts and the step's record in `task.observations`."""
 
 from __future__ import annotations
