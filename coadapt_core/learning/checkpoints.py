@@ -1,9 +1,9 @@
 """Policy checkpoints as files: their two formats (`Trainer.save`'s full checkpoint and
 `Trainer.export_weights`' weights), reading one without unpickling anything
 (`read_checkpoint`), its policy rebuilt for inference (`load_policy`), and the surgery a
-saved state may need before it loads: pseudo-critic
-heads matched to objectives by name, a wider design input (`widen_design_input`), command
-inputs that never varied opened for a wider command box (`open_command_inputs`)."""
+saved state may need before it loads: pseudo-critic heads matched to objectives by name, a
+wider design input (`widen_design_input`), command inputs that never varied opened for a
+wider command box (`open_command_inputs`)."""
 
 from __future__ import annotations
 
