@@ -5,11 +5,12 @@ practice); a CPU smoke run overrides the sizes."""
 from __future__ import annotations
 
 from dataclasses import asdict
-from typing import Any, Literal
-
-import torch
+from typing import TYPE_CHECKING, Any, Literal
 
 from coadapt_core.settings import Float, Int, Ints, setting, settings
+
+if TYPE_CHECKING:  # torch loads only when a precision is resolved: the CLI starts without it
+    import torch
 
 PRECISIONS = ("auto", "float32", "bf16")
 
@@ -19,6 +20,8 @@ def resolve_precision(precision: str, device: str | torch.device) -> str:
     device computes bfloat16 natively)."""
     if precision != "auto":
         return precision
+    import torch
+
     device = torch.device(device)
     if device.type == "cuda":
         return "bf16" if torch.cuda.is_available() and torch.cuda.is_bf16_supported() else "float32"

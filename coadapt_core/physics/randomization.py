@@ -10,10 +10,9 @@ random streams it owns (`Simulator.draw_env_params`).
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
-import torch
 
 from coadapt_core.errors import UserError
 from coadapt_core.settings import (
@@ -24,6 +23,9 @@ from coadapt_core.settings import (
     setting,
     settings,
 )
+
+if TYPE_CHECKING:  # the tensors' module loads with the first batch: the settings stay torch-free
+    import torch
 
 
 @settings(prefix="randomization")
@@ -145,6 +147,8 @@ class EnvParams:
 
     def delay_steps(self, physics_dt: float) -> torch.Tensor:
         """[num_envs] long: the delay in whole physics steps (rounded half to even)."""
+        import torch
+
         return torch.round(self.delay / physics_dt).long()
 
     def privileged(self, device: str | torch.device | None = None) -> torch.Tensor:
@@ -152,6 +156,8 @@ class EnvParams:
         restitution, PD factor, motor strength, delay (s), CoM shift (3), the critic state's
         randomized parameters (the engine-robustness ones are not in it: the critic input
         keeps its size)."""
+        import torch
+
         columns = torch.cat(
             [
                 torch.stack(
@@ -184,11 +190,15 @@ class EnvParams:
 
     def take(self, env_ids) -> EnvParams:
         """The parameters of environments `env_ids` (tensor, numpy array or list), a copy."""
+        import torch
+
         index = torch.as_tensor(env_ids, dtype=torch.long, device=self.device)
         return self._map(lambda v: v[index])
 
     def put(self, env_ids, other: EnvParams) -> None:
         """Write `other` (one row per id) into environments `env_ids`."""
+        import torch
+
         index = torch.as_tensor(env_ids, dtype=torch.long, device=self.device)
         for f in fields(self):
             value = getattr(self, f.name)
@@ -200,7 +210,7 @@ class EnvParams:
 
 
 def nominal_env_params(
-    num_envs: int, *, device: str | torch.device = "cpu", dtype: torch.dtype = torch.float64
+    num_envs: int, *, device: str | torch.device = "cpu", dtype: torch.dtype | None = None
 ) -> EnvParams:
     return sample_env_params(
         RandomizationConfig.off(), num_envs, np.random.default_rng(0), device=device, dtype=dtype
@@ -213,13 +223,16 @@ def sample_env_params(
     rng: np.random.Generator,
     *,
     device: str | torch.device = "cpu",
-    dtype: torch.dtype = torch.float64,
+    dtype: torch.dtype | None = None,
 ) -> EnvParams:
     """Draw parameters for `num_envs` environments from numpy's `rng` (so one seed gives
     the same numbers on every backend and device; always consumes the same amount of
     randomness whether or not randomization is enabled, so seeds stay aligned; the
     engine-robustness parameters draw only when their range is not a point, after Table
-    2's), returned as tensors on `device` in `dtype`."""
+    2's), returned as tensors on `device` in `dtype` (None: float64)."""
+    import torch
+
+    dtype = torch.float64 if dtype is None else dtype
 
     def draw(name: str, shape: tuple[int, ...]) -> torch.Tensor:
         lo, hi = getattr(config, name)
