@@ -10,6 +10,7 @@ import typer
 
 from coadapt_core import __version__
 from coadapt_core.cli import (
+    dashboard,
     evaluate,
     export,
     grid,
@@ -68,6 +69,7 @@ export.register(app)
 importing.register(app)
 landscape.register(app)
 handoff.register(app)
+dashboard.register(app)
 
 
 def main(argv: list[str] | None = None) -> int:
