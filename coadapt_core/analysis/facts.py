@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from coadapt_core import sim_to_sim as sim2sim
 from coadapt_core.errors import UserError
 from coadapt_core.methods import METHODS
 from coadapt_core.results.export import space_of_run
@@ -210,6 +211,10 @@ def transfer_improvement(
             None,
             note or "n/a: no sim-to-sim rows (`coadapt report --sim-to-sim` evaluates them)",
         )
+    read = sim2sim.reading(by_idx[0].costs, by_idx[1].costs, first)
+    if read is not None:  # the protocol's figures: the answer, or why none, in one line
+        rule = str((run.get("config") or {}).get("cost_rule") or "trimmed")
+        return read.answer, f"{by_idx[0].simulator}: {sim2sim.line(read, rule)}"
     best_cost, nominal_cost = by_idx[0].costs[first], by_idx[1].costs[first]
     try:
         from coadapt_core.plugins import get_registry

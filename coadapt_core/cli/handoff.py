@@ -41,8 +41,16 @@ class HandoffCommand:
         "the run's and every other installed one).",
         names=("--sim",),
     )
-    agents: Int = setting(16, "Paired scenarios per design and simulator.")
-    seconds: Float = setting(4.0, "Simulated seconds per scenario.")
+    agents: Int = setting(
+        16,
+        "Paired scenarios per design and simulator (the sim-to-sim protocol of `coadapt "
+        "report`'s column: same scenarios, cost rule and fall gate).",
+    )
+    seconds: Float | None = setting(
+        None,
+        "Simulated seconds per scenario (default: the run's own evaluation length, as "
+        "`coadapt report`'s sim-to-sim column).",
+    )
     check: bool = setting(True, "Walk the folder's check.py once written (10 s at 0.5 m/s).")
     video: bool = setting(True, "Render a GIF when the run has none of this design.")
     force: bool = setting(False, "Replace an earlier handoff folder at --out.", names=("--force",))
@@ -100,7 +108,7 @@ def register(app: typer.Typer) -> None:
             )
         if agents < 1:
             fail(f"--agents must be >= 1, got {agents}")
-        if not seconds > 0:
+        if seconds is not None and not seconds > 0:
             fail(f"--seconds must be > 0, got {seconds}")
         from coadapt_core.handoff.folder import HandoffOptions, make_handoff
         from coadapt_core.handoff.run_info import find_run, read_run

@@ -33,8 +33,16 @@ class ReportCommand:
         "Simulator for the sim-to-sim column (default: the installed simulator of "
         "highest default_rank after the default one).",
     )
-    transfer_agents: Int = setting(8, "Agents per design in the sim-to-sim evaluation.")
-    transfer_steps: Int = setting(400, "Policy steps per agent in the sim-to-sim evaluation.")
+    transfer_agents: Int = setting(
+        16,
+        "Paired scenarios per design in the sim-to-sim evaluation (the protocol `coadapt "
+        "handoff` uses: block 1 of the run's seed, the run's cost rule and fall gate).",
+    )
+    transfer_steps: Int | None = setting(
+        None,
+        "Policy steps per scenario in the sim-to-sim evaluation (default: the run's own "
+        "evaluation length, as `coadapt handoff`).",
+    )
     common: bool = setting(
         True,
         "Re-evaluate each run's best and nominal design with the run's own policy on one common "
@@ -128,7 +136,7 @@ def _evaluate(
     sim_to_sim: bool,
     transfer_sim,
     transfer_agents: int,
-    transfer_steps: int,
+    transfer_steps: int | None,
     common: bool,
     common_blocks: int,
     progress,
@@ -169,7 +177,7 @@ def register(app: typer.Typer) -> None:
         from coadapt_core.results.store import ResultsStore
 
         o = SimpleNamespace(**filled(values, options))
-        if o.transfer_agents < 1 or o.transfer_steps < 1 or o.common_blocks < 1:
+        if o.transfer_agents < 1 or (o.transfer_steps or 1) < 1 or o.common_blocks < 1:
             fail("--transfer-agents, --transfer-steps and --common-blocks must be >= 1")
         url = resolve_store_url(o.store)
         if url.startswith("sqlite:///") and not Path(url.removeprefix("sqlite:///")).is_file():

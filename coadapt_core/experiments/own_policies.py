@@ -209,6 +209,18 @@ def run_backend(
     return backend, objectives, nominal
 
 
+def run_objectives(run: dict[str, Any], simulator: str | None = None) -> list:
+    """The run's objectives as `run_backend` makes them (registered names, default options);
+    `BackendUnavailable` when the run's robot or `simulator` cannot be had here."""
+    from coadapt_core.learning.factory import resolve_plugins
+
+    cfg = run.get("config") or {}
+    robot_name = run.get("robot") or cfg.get("robot")
+    if not robot_name or not simulator:
+        raise BackendUnavailable("the run recorded no robot or simulator")
+    return resolve_plugins(str(robot_name), str(simulator), list(run["objectives"]))[2]
+
+
 def nominal_of(run: dict[str, Any], dim: int) -> np.ndarray:
     """The run's nominal design (its summary's, else its robot's of dimension `dim`)."""
     from coadapt_core.plugins import get_registry

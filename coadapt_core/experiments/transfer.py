@@ -21,6 +21,7 @@ check's figures as the Markdown tables of docs/sim-to-sim.md.
 
 from __future__ import annotations
 
+import contextlib
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -29,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from coadapt_core import sim_to_sim as sim2sim
 from coadapt_core.costs import CostRule
 from coadapt_core.errors import BackendUnavailable, CoadaptError, UserError
 from coadapt_core.experiments.own_policies import (
@@ -36,6 +38,7 @@ from coadapt_core.experiments.own_policies import (
     nominal_of,
     policy_files,
     run_backend,
+    run_objectives,
     shares_policy,
 )
 from coadapt_core.fitness import CoadaptationBackend
@@ -46,7 +49,6 @@ from coadapt_core.results.rows import best_of, checkpoint_of
 from coadapt_core.results.schema import TRANSFER_KIND, TRANSFER_OUTER
 from coadapt_core.results.store import ResultsStore
 from coadapt_core.robot import Robot
-from coadapt_core.scenarios.seeds import scenario_seed
 
 #: designs the check runs by default: nominal, both extremes, a mixed one
 DEFAULT_DESIGNS = ((1.0, 1.0), (0.5, 0.5), (1.5, 1.5), (0.7, 1.3))
@@ -260,63 +262,21 @@ def transfer_rows(store: ResultsStore, run_id: str, simulator: str) -> list:
     return [e for e in store.evaluations(run_id, kind=TRANSFER_KIND) if e.simulator == simulator]
 
 
-def _transfer_backend(
-    run: dict[str, Any],
-    dim: int,
-    simulator: str,
-    agents: int,
-    checkpoint: str,
-    factory: BackendFactory | None,
-) -> tuple[CoadaptationBackend, list, np.ndarray]:
-    """(backend on `simulator` with the policy in `checkpoint`, objectives, nominal design)."""
-    return run_backend(run, dim, simulator, agents, checkpoint, factory)
-
-
-def _own_policy_transfer(
-    run: dict[str, Any],
-    best: np.ndarray,
-    simulator: str,
-    agents: int,
-    steps: int,
-    seed: int,
-    factory: BackendFactory | None,
-) -> tuple[Any, list, np.ndarray]:
-    """A run without a shared policy: its best and nominal designs each with its own policy
-    (saved by the run, else trained again as it did, in the run's own simulator) on `simulator`."""
-    designs = {"best": best, "nominal": nominal_of(run, best.shape[0])}
-    made: dict[str, Any] = {}
-
-    def make(path):
-        backend, made["objectives"], _ = _transfer_backend(
-            run, best.shape[0], simulator, agents, str(path), factory
-        )
-        return backend
-
-    with policy_files(run, designs) as files:
-        [fit] = each_own_policy(
-            make,
-            files,
-            designs,
-            lambda backend, d: [
-                backend.real_fitness(d, made["objectives"], agents=agents, steps=steps, seed=seed)
-            ],
-        )
-    return fit, made["objectives"], designs["nominal"]
-
-
 def transfer_run(
     store: ResultsStore,
     run: dict[str, Any],
     best_design: Sequence[float] | None,
     *,
     simulator: str,
-    agents: int = 8,
-    steps: int = 400,
+    agents: int | None = None,
+    steps: int | None = None,
     factory: BackendFactory | None = None,
 ) -> str:
     """Evaluate `best_design` and the run's nominal design with the run's final policy on
-    `simulator` and record them (kind "sim2sim", idx 0 best, 1 nominal), unless the store
-    already holds them. Returns '' when the rows exist, else why not ("n/a: ...")."""
+    `simulator` under the sim-to-sim protocol (`sim2sim.protocol_of`: `agents` paired
+    scenarios of `steps` steps) and record them (kind "sim2sim", idx 0 best, 1 nominal, the
+    protocol's figures), unless the store already holds them. Returns '' when the rows
+    exist, else why not ("n/a: ...")."""
     if not run["objectives"] or best_design is None:
         return "n/a: the run has no best design"
     if len(transfer_rows(store, run["id"], simulator)) >= 2:
@@ -328,37 +288,36 @@ def transfer_run(
     if shared and checkpoint is None:
         return why
     cfg = run.get("config") or {}
+    protocol = sim2sim.protocol_of(cfg, agents, steps)
     best = np.asarray(best_design, dtype=float)
-    seed = scenario_seed(
-        int(run.get("seed") or 0)
-    )  # the run's own scenario set (docs/coadaptation.md)
+    designs = {"best": best, "nominal": nominal_of(run, best.shape[0])}
+
+    def make(path: Any) -> CoadaptationBackend:
+        return run_backend(run, best.shape[0], simulator, protocol.scenarios, str(path), factory)[0]
+
     try:
-        if shared:
-            backend, objectives, nominal = _transfer_backend(
-                run, best.shape[0], simulator, agents, str(checkpoint), factory
+        objectives = run_objectives(run, simulator)
+        with contextlib.ExitStack() as stack:
+            files = (
+                {"best": checkpoint, "nominal": checkpoint}
+                if shared
+                else stack.enter_context(policy_files(run, designs))
             )
-            fit = backend.real_fitness(
-                np.stack([best, nominal]), objectives, agents=agents, steps=steps, seed=seed
-            )
-        else:
-            fit, objectives, nominal = _own_policy_transfer(
-                run, best, simulator, agents, steps, seed, factory
+            fit = evaluate_pair(
+                make, files, designs, objectives, protocol, int(run.get("seed") or 0)
             )
     except BackendUnavailable as exc:
         return f"n/a: {exc}"
     except UserError as exc:  # e.g. a checkpoint that is not one (refused unread): this run only
         return f"n/a: {' '.join(str(exc).split())}"
-    # the run's own cost rule, the nominal design (row 1) giving its reference level
-    costs = CostRule.from_config(cfg).costs_of(fit, nominal=1).reshape(2, -1)  # [2, M]
-    names = [o.name for o in objectives]
     store.record_evaluations(
         run["id"],
         batch_rows(
             outer=TRANSFER_OUTER,
             inner=0,
             kind=TRANSFER_KIND,
-            designs=[best.tolist(), nominal.tolist()],
-            costs=[dict(zip(names, row.tolist(), strict=True)) for row in costs],
+            designs=[best.tolist(), designs["nominal"].tolist()],
+            costs=_rows(fit, objectives, cfg, protocol),
             interactions=fit.interactions // 2,
             seconds=fit.seconds / 2,
             simulator=simulator,
@@ -367,13 +326,52 @@ def transfer_run(
     return ""
 
 
+def evaluate_pair(
+    make: Callable[[Any], Any],
+    files: dict[str, Any],
+    designs: dict[str, np.ndarray],
+    objectives: Sequence[Any],
+    protocol: sim2sim.Protocol,
+    run_seed: int,
+) -> Any:
+    """The paired evaluation of designs["best"] and designs["nominal"] (rows 0 and 1) under
+    the protocol: one backend `make(policy file)` when both share the policy (`files` names
+    one file for both), else each design under its own on the same scenarios."""
+    size = {"agents": protocol.scenarios, "steps": protocol.steps, "seed": protocol.seed(run_seed)}
+
+    def evaluate(backend: Any, rows: np.ndarray) -> list[Any]:
+        return [backend.real_fitness(rows, list(objectives), **size)]
+
+    if str(files["nominal"]) != str(files["best"]):
+        return each_own_policy(make, files, designs, evaluate)[0]
+    backend = make(files["best"])
+    try:
+        return evaluate(backend, np.stack([designs["best"], designs["nominal"]]))[0]
+    finally:
+        close = getattr(backend, "close", None)
+        if callable(close):
+            close()
+
+
+def _rows(fit: Any, objectives: list, cfg: dict[str, Any], protocol: Any) -> list[dict]:
+    """The two stored rows: the protocol's figures, or the costs alone (under the run's rule,
+    the nominal design giving the reference level) from a backend without per-scenario costs."""
+    rule = CostRule.from_config(cfg)
+    rows = sim2sim.figures(fit, objectives, rule, sim2sim.gate_of(cfg), protocol)
+    if rows is not None:
+        return rows
+    costs = rule.costs_of(fit, nominal=1).reshape(2, -1)  # [2, M]
+    names = [o.name for o in objectives]
+    return [dict(zip(names, row.tolist(), strict=True)) for row in costs]
+
+
 def transfer_runs(
     store: ResultsStore,
     runs: Sequence[dict[str, Any]],
     *,
     simulator: str,
-    agents: int = 8,
-    steps: int = 400,
+    agents: int | None = None,
+    steps: int | None = None,
     factory: BackendFactory | None = None,
     progress: Callable[[int, int, str], None] | None = None,
 ) -> dict[str, str]:

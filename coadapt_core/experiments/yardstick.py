@@ -41,6 +41,7 @@ from coadapt_core.results.recorders import batch_rows
 from coadapt_core.results.schema import COMMON_KIND, COMMON_OUTER
 from coadapt_core.results.store import ResultsStore
 from coadapt_core.scenarios.seeds import scenario_seed
+from coadapt_core.sim_to_sim import row_figures
 
 #: the common scenario set: blocks of scenario_seed(COMMON_SEED, b); the same set
 #: benchmarks/common_scenarios.py draws
@@ -58,31 +59,6 @@ def block_size(run: dict[str, Any]) -> tuple[int, int]:
 def yardstick_rows(store: ResultsStore, run_id: str) -> list:
     """The run's common-yardstick rows (idx 0 best design, 1 nominal)."""
     return sorted(store.evaluations(run_id, kind=COMMON_KIND), key=lambda e: e.idx)
-
-
-def figures(comparison: dict[str, Any], *, best: bool) -> dict[str, float]:
-    """A `compare_designs` result as the flat `costs` mapping of one stored row."""
-    out: dict[str, float] = {}
-    for name, v in comparison["objectives"].items():
-        out[name] = v["cost"]
-        out[f"{name}/se"], out[f"{name}/plain"], out[f"{name}/plain_se"] = (
-            v["cost_se"],
-            v["plain_mean"],
-            v["plain_mean_se"],
-        )
-        if best:
-            for key in (
-                "improvement",
-                "improvement_se",
-                "improvement_plain",
-                "improvement_plain_se",
-            ):
-                out[f"{name}/{key}"] = v[key]
-    out["falls"], out["falls/se"] = comparison["fall_rate"], comparison["fall_rate_se"]
-    if best:
-        out["falls/difference"] = comparison["fall_rate_difference"]
-        out["falls/difference_se"] = comparison["fall_rate_difference_se"]
-    return {k: float(x) for k, x in out.items()}
 
 
 def _backend(run: dict[str, Any], dim: int, agents: int, checkpoint: str, factory: Callable | None):
@@ -178,7 +154,8 @@ def yardstick_run(
     )
     rule = CostRule.from_config(run.get("config") or {})
     rows = [
-        figures(compare_designs(rule, objectives, per, falls, i, 1), best=i == 0) for i in (0, 1)
+        row_figures(compare_designs(rule, objectives, per, falls, i, 1), best=i == 0)
+        for i in (0, 1)
     ]
     store.record_evaluations(
         run["id"],

@@ -49,6 +49,7 @@ from coadapt_core.handoff.run_info import provenance, read_run
 from coadapt_core.handoff.spec import FORMAT, foot_facts, policy_spec
 from coadapt_core.io import jsonable
 from coadapt_core.robot import joint_table
+from coadapt_core.sim_to_sim import protocol_of
 
 #: the check's forward command, m/s (clipped to the trained range)
 CHECK_VX = 0.5
@@ -60,8 +61,8 @@ class HandoffOptions:
     simulators: Sequence[str] | None = (
         None  # None: the run's simulator and every other installed one
     )
-    agents: int = 16  # paired scenarios per design and simulator
-    seconds: float = 4.0  # simulated seconds per scenario
+    agents: int = 16  # paired scenarios per design and simulator (the sim-to-sim protocol's)
+    seconds: float | None = None  # simulated seconds per scenario (None: the run's eval_steps)
     check: bool = True  # walk the folder's check.py once it is written
     check_seconds: float = 10.0
     video: bool = True  # render a GIF when the run has none for the design
@@ -88,42 +89,38 @@ def _evaluations(
         if options.simulators
         else [run.sim_name] + [n for n in run.registry.names("simulator") if n != run.sim_name]
     )
-    steps = max(1, int(round(options.seconds / control_dt)))
+    steps = None if options.seconds is None else max(1, int(round(options.seconds / control_dt)))
+    protocol = protocol_of(run.config, options.agents, steps)
     for name in simulators:
         say(
-            f"evaluating the design and the nominal one on {name} ({options.agents} paired "
-            f"scenarios x {steps} steps; handoff protocol, not comparable with `coadapt run` or "
-            "`coadapt eval`)"
+            f"evaluating the design and the nominal one on {name} (sim-to-sim protocol, as "
+            f"`coadapt report`'s column: {protocol.scenarios} paired scenarios x "
+            f"{protocol.steps} steps; not comparable with `coadapt run` or `coadapt eval`)"
         )
-        evaluations.append(
-            evaluate_on(
-                name,
-                robot=run.robot,
-                checkpoint=run.checkpoint,
-                nominal_checkpoint=run.nominal_checkpoint,
-                objectives=objectives,
-                design=run.design,
-                nominal=run.nominal,
-                terrain=run.terrain,
-                seed=run.seed,
-                agents=options.agents,
-                steps=steps,
-            )
+        ev = evaluate_on(
+            name,
+            robot=run.robot,
+            checkpoint=run.checkpoint,
+            nominal_checkpoint=run.nominal_checkpoint,
+            objectives=objectives,
+            design=run.design,
+            nominal=run.nominal,
+            terrain=run.terrain,
+            seed=run.seed,
+            agents=protocol.scenarios,
+            steps=protocol.steps,
+            config=run.config,
         )
-        ev = evaluations[-1]
-        say(
-            f"  {name}, handoff protocol: "
-            + (
-                ev["error"]
-                if "error" in ev
-                else "; ".join(
-                    f"{k} {v['design']:.4g} vs nominal {v['nominal']:.4g}"
-                    for k, v in ev["objectives"].items()
-                )
-                + f"; fall rate {ev['design_fall_rate']:.2f} vs {ev['nominal_fall_rate']:.2f}"
-            )
-        )
+        evaluations.append(ev)
+        say(f"  {name}: {ev.get('error') or ev.get('sim_to_sim') or _costs_text(ev)}")
     return evaluations
+
+
+def _costs_text(ev: dict[str, Any]) -> str:
+    """The costs of an evaluation without per-scenario costs (no protocol figures)."""
+    return "; ".join(
+        f"{k} {v['design']:.4g} vs nominal {v['nominal']:.4g}" for k, v in ev["objectives"].items()
+    )
 
 
 def _sheet_data(

@@ -115,127 +115,113 @@ def evaluate_on(
     terrain: str,
     seed: int,
     agents: int,
-    steps: int,
+    steps: int | None,
+    config: dict[str, Any] | None = None,
     nominal_checkpoint: Path | None = None,
 ) -> dict[str, Any]:
-    """Costs, standard errors, fall rates and paired improvements of the design against the
-    nominal one on `simulator`, the run's final-check scenario block 1: both under the run's
-    policy `checkpoint`, or, given a different `nominal_checkpoint` (a run without a shared
-    policy), each under its own on the same scenarios."""
-    from coadapt_core.learning.factory import resolve_plugins
-    from coadapt_core.scenarios.seeds import scenario_seed
+    """The design against the nominal one on `simulator` under the sim-to-sim protocol that
+    `coadapt report` uses (`coadapt_core.sim_to_sim`: `agents` paired scenarios of `steps`
+    policy steps, default the run's evaluation length, the run's cost rule and fall gate):
+    costs with standard errors, plain means, fall rates, the paired improvements and the
+    protocol's one line (`sim_to_sim`). Both designs run under the run's policy
+    `checkpoint`, or, given a different `nominal_checkpoint` (a run without a shared policy),
+    each under its own on the same scenarios."""
+    from coadapt_core import sim_to_sim
+    from coadapt_core.costs import CostRule
+    from coadapt_core.experiments.transfer import evaluate_pair
+    from coadapt_core.learning.factory import make_backend, resolve_plugins
 
+    protocol = sim_to_sim.protocol_of(config, agents, steps)
+    rule = CostRule.from_config(config)
     out: dict[str, Any] = {
         "simulator": simulator,
-        "source": f"evaluated by coadapt handoff ({agents} paired scenarios)",
-        "scenarios": agents,
-        "steps": steps,
-        "scenario_seed": scenario_seed(seed, 1),
+        "source": f"evaluated by coadapt handoff ({protocol.scenarios} paired scenarios)",
+        "scenarios": protocol.scenarios,
+        "steps": protocol.steps,
+        "scenario_seed": protocol.seed(seed),
+        "cost_rule": rule.rule,
     }
     try:
         robot, sim_cls, made = resolve_plugins(robot, simulator, objectives)
         if terrain not in getattr(sim_cls, "terrains", (terrain,)):
             raise BackendUnavailable(f"{simulator} offers no terrain '{terrain}'")
+        space = robot.design_space_for(design)
+
+        def make(policy: Path) -> Any:
+            return make_backend(
+                robot,
+                sim_cls,
+                made,
+                terrain=terrain,
+                design_space=space,
+                agents_per_design=protocol.scenarios,
+                device=str((config or {}).get("device", "cpu")),
+                seed=seed,
+                checkpoint=str(policy),
+            )
+
         files = {"best": checkpoint, "nominal": nominal_checkpoint or checkpoint}
         pair = {"best": design, "nominal": nominal}
-        fit = _paired_fitness(
-            robot,
-            sim_cls,
-            made,
-            files,
-            pair,
-            terrain=terrain,
-            seed=seed,
-            agents=agents,
-            steps=steps,
-        )
+        fit = evaluate_pair(make, files, pair, made, protocol, seed)
     except (BackendUnavailable, UserError, ImportError) as exc:
         out["error"] = " ".join(str(exc).split())
         return out
-    falls = None if fit.fall_rate is None else np.asarray(fit.fall_rate, dtype=float)
-    out.update(
-        {
-            "objectives": _paired_rows(made, fit),
-            "design_fall_rate": None if falls is None else float(falls[0]),
-            "nominal_fall_rate": None if falls is None else float(falls[1]),
-            "seconds": float(fit.seconds),
-        }
-    )
+    rows = sim_to_sim.figures(fit, made, rule, sim_to_sim.gate_of(config), protocol)
+    out.update(_paired_rows(made, fit, rows, rule.rule), seconds=float(fit.seconds))
     return out
 
 
-def _paired_fitness(
-    robot: Any,
-    sim_cls: type,
-    made: list[Any],
-    files: dict[str, Path],
-    pair: dict[str, np.ndarray],
-    *,
-    terrain: str,
-    seed: int,
-    agents: int,
-    steps: int,
-) -> Any:
-    """The real fitness of the pair's designs ("best": the design handed off, "nominal") on
-    the same scenarios (block 1 of `seed`): one backend under the policy both share, or each
-    design under its own (`files`)."""
-    from coadapt_core.learning.factory import make_backend
-    from coadapt_core.scenarios.seeds import scenario_seed
+def _paired_rows(
+    made: list[Any], fit: Any, rows: list[dict[str, float]] | None, rule: str
+) -> dict[str, Any]:
+    """Per objective the design's and the nominal design's cost (the run's rule) with their
+    SE, their plain means and the paired improvements under both; the fall rates; the
+    protocol's line and answer of the first objective. Without per-scenario costs, the
+    backend's costs alone."""
+    from coadapt_core import sim_to_sim
 
-    space = robot.design_space_for(pair["best"])
-
-    def make(policy: Path) -> Any:
-        return make_backend(
-            robot,
-            sim_cls,
-            made,
-            terrain=terrain,
-            design_space=space,
-            agents_per_design=agents,
-            seed=seed,
-            checkpoint=str(policy),
-        )
-
-    def evaluate(backend: Any, designs: np.ndarray) -> list[Any]:
-        return [
-            backend.real_fitness(
-                designs, made, agents=agents, steps=steps, seed=scenario_seed(seed, 1)
-            )
-        ]
-
-    if files["nominal"] != files["best"]:
-        from coadapt_core.experiments.own_policies import each_own_policy
-
-        return each_own_policy(make, files, pair, evaluate)[0]
-    backend = make(files["best"])
-    try:
-        return evaluate(backend, np.stack([pair["best"], pair["nominal"]]))[0]
-    finally:
-        close = getattr(backend, "close", None)
-        if callable(close):
-            close()
-
-
-def _paired_rows(made: list[Any], fit: Any) -> dict[str, dict[str, Any]]:
-    """Per objective: the design's and the nominal design's cost with their SE, and the
-    improvement with its paired SE (from the per-scenario costs, when recorded)."""
-    from coadapt_core.costs import improvement_se
-
-    costs = np.asarray(fit.costs, dtype=float).reshape(2, -1)
-    se = None if fit.cost_se is None else np.asarray(fit.cost_se, dtype=float).reshape(2, -1)
-    per = None if fit.per_scenario is None else np.asarray(fit.per_scenario, dtype=float)
-    rows = {}
-    for j, o in enumerate(made):
-        paired = None if per is None else improvement_se(o, per[0, :, j], per[1, :, j])
-        rows[o.name] = {
-            "design": float(costs[0, j]),
-            "nominal": float(costs[1, j]),
-            "design_se": None if se is None else float(se[0, j]),
-            "nominal_se": None if se is None else float(se[1, j]),
-            "improvement": float(o.improvement(float(costs[0, j]), float(costs[1, j]))),
-            "improvement_se": None if paired is None or not np.isfinite(paired) else float(paired),
+    if rows is None:
+        costs = np.asarray(fit.costs, dtype=float).reshape(2, -1)
+        objectives = {
+            o.name: {
+                "design": float(costs[0, j]),
+                "nominal": float(costs[1, j]),
+                "improvement": float(o.improvement(float(costs[0, j]), float(costs[1, j]))),
+            }
+            for j, o in enumerate(made)
         }
-    return rows
+        return {"objectives": objectives, "design_fall_rate": None, "nominal_fall_rate": None}
+    best, nominal = rows
+
+    def value(row: dict[str, float], key: str) -> float | None:
+        x = row.get(key)
+        return None if x is None or not np.isfinite(x) else float(x)
+
+    objectives = {
+        o.name: {
+            "design": value(best, o.name),
+            "nominal": value(nominal, o.name),
+            "design_se": value(best, f"{o.name}/se"),
+            "nominal_se": value(nominal, f"{o.name}/se"),
+            "design_plain": value(best, f"{o.name}/plain"),
+            "nominal_plain": value(nominal, f"{o.name}/plain"),
+            **{k: value(best, f"{o.name}/{k}") for k in sim_to_sim.IMPROVEMENT_KEYS},
+        }
+        for o in made
+    }
+    read = sim_to_sim.reading(best, nominal, made[0].name)
+    assert read is not None  # the rows are the protocol's
+    return {
+        "objectives": objectives,
+        "design_fall_rate": value(best, "falls"),
+        "nominal_fall_rate": value(nominal, "falls"),
+        "fall_rate_difference": value(best, "falls/difference"),
+        "fall_rate_difference_se": value(best, "falls/difference_se"),
+        "answer": read.answer,
+        "refusal": read.refusal or None,
+        "warning": read.warning or None,
+        "sim_to_sim": sim_to_sim.line(read, rule),
+    }
 
 
 def run_final_check(

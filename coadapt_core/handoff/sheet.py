@@ -101,6 +101,8 @@ def _evaluation_lines(ev: dict[str, Any]) -> list[str]:
         f"{_num(ev.get('nominal_fall_rate'), 3)} | |"
     )
     lines.append("")
+    if ev.get("sim_to_sim"):  # the sim-to-sim protocol's line, as `coadapt report` prints it
+        lines += [f"Sim-to-sim protocol ({ev.get('cost_rule')} cost rule): {ev['sim_to_sim']}", ""]
     return lines
 
 

@@ -287,19 +287,27 @@ def kuafu_handoff(tmp_path_factory):
 
 @pytest.mark.slow
 def test_handoff_costs_say_their_protocol_and_no_library_banner(kuafu_handoff):
-    """Issue 43: each printed cost line of the handoff says `handoff protocol`, and PyBullet's
-    import banner ("pybullet build time") is not printed."""
+    """Issues 43 and 50: each simulator's evaluation says it follows the sim-to-sim protocol
+    of `coadapt report`'s column and prints the protocol's line (the answer under the cost
+    rule, the plain mean, the fall rates, the scenario count); PyBullet's import banner
+    ("pybullet build time") is not printed."""
     stderr = kuafu_handoff[3]
-    costs = [line for line in stderr.splitlines() if " vs nominal " in line]
-    assert costs and all(", handoff protocol: " in line for line in costs), costs
     said = [
         line
         for line in stderr.splitlines()
         if line.startswith("evaluating the design and the nominal one")
     ]
     assert said and all(
-        "handoff protocol, not comparable with `coadapt run` or `coadapt eval`" in x for x in said
-    )
+        "(sim-to-sim protocol, as `coadapt report`'s column: 2 paired scenarios x 25 steps; "
+        "not comparable with `coadapt run` or `coadapt eval`)" in x
+        for x in said
+    ), said
+    costs = [
+        line for line in stderr.splitlines() if "paired scenarios" in line and "plain mean" in line
+    ]
+    assert len(costs) == len(said) and all(
+        "; plain mean " in x and "; fall rate " in x and "; 2 paired scenarios" in x for x in costs
+    ), costs
     assert "pybullet build time" not in stderr
 
 
