@@ -37,6 +37,10 @@ def test_wheel_carries_data_and_entry_points(tmp_path):
     assert (
         "coadapt_core/analysis/paper_du2025.json" in names
     )  # the paper's tables, for `coadapt report`
+    assert {
+        "coadapt_core/dashboard/static/chart.js",
+        "coadapt_core/dashboard/static/pages.js",
+    } <= names
     entry_points = next(n for n in names if n.endswith("entry_points.txt"))
     text = wheel.read(entry_points).decode()
     for name in (

@@ -85,7 +85,9 @@ class RunFolders:
         if folder is None:
             raise Refused(f"run {run.get('id')}: {self.state(run)}")
         if not relative or relative.startswith(("/", "\\")) or "\x00" in relative:
-            raise Refused("only a path relative to the run folder is served")
+            raise Refused(
+                "an absolute path is refused: only paths inside the run folder are served"
+            )
         parts = relative.replace("\\", "/").split("/")
         if any(p in ("", ".", "..") for p in parts):
             raise Refused("a path with '.', '..' or empty parts is refused")

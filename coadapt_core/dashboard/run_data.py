@@ -99,8 +99,11 @@ def _surrogate_error(facts: RunFacts) -> list[dict[str, Any]]:
 def _convergence(store: ResultsStore, facts: RunFacts) -> dict[str, Any]:
     """Best in-run real cost so far against interactions (the report's convergence.png) and
     the final check of the returned design +- its SE."""
-    if not facts.run["objectives"] or "," in facts.objective or not facts.real:
-        return {"x": [], "y": [], "final": None}
+    if len(facts.run["objectives"]) > 1:
+        note = "a run of several objectives has no single best cost: see its Pareto front"
+        return {"x": [], "y": [], "final": None, "note": note}
+    if not facts.run["objectives"] or not facts.real:
+        return {"x": [], "y": [], "final": None, "note": "no real evaluation recorded yet"}
     x, y = convergence_series(store, facts)
     final = None
     if facts.best_cost is not None and facts.summary.get("best_cost") is not None:
@@ -109,7 +112,7 @@ def _convergence(store: ResultsStore, facts: RunFacts) -> dict[str, Any]:
             "se": as_float(facts.summary.get("best_cost_se")),
             "nominal": facts.nominal_cost,
         }
-    return {"x": _finite(x), "y": _finite(y), "final": final}
+    return {"x": _finite(x), "y": _finite(y), "final": final, "note": ""}
 
 
 def _pareto(facts: RunFacts) -> dict[str, Any] | None:

@@ -219,7 +219,9 @@ def runs_page(
     sort = sort if sort in SORTS or sort == "improvement" else "created"
     base = _where(sa.select(runs), q, status, grid)
     with store.engine.connect() as conn:
-        total = conn.execute(base.with_only_columns(sa.func.count()).order_by(None)).scalar_one()
+        total = conn.execute(
+            sa.select(sa.func.count()).select_from(base.with_only_columns(runs.c.id).subquery())
+        ).scalar_one()
         states = dict(
             conn.execute(sa.select(runs.c.status, sa.func.count()).group_by(runs.c.status)).all()
         )

@@ -83,7 +83,8 @@
     }
     text(g, x0 + 16, M.top + 8, label(hi), { class: "tick" });
     text(g, x0 + 16, M.top + h, label(lo), { class: "tick" });
-    text(g, x0, M.top - 6, title, { class: "axis-title" });
+    const t = text(g, x0 - 4, M.top + h + 14, title, { class: "axis-title" });
+    t.setAttribute("transform", `rotate(90 ${x0 - 4} ${M.top + h + 14})`);
   }
 
   function plot(container, spec) {
@@ -146,7 +147,8 @@
       const g = node("g", { class: "legend" }, svg);
       legend.forEach((s, k) => {
         const y = M.top + 10 + 16 * k, x = M.left + 10;
-        const c = s.color || PALETTE[spec.series.indexOf(s) % PALETTE.length];
+        // a series coloured by its values has no colour of its own: its legend marker is grey
+        const c = s.values ? "#666" : s.color || PALETTE[spec.series.indexOf(s) % PALETTE.length];
         marker(g, s.shape, x, y - 4, 4, c, s.filled !== false);
         text(g, x + 10, y, s.label, { class: "legend-text" });
       });

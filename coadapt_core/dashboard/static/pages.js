@@ -9,7 +9,7 @@
   function chart(spec) {
     const box = el("div", { class: "chart-box" });
     if (spec.series.some(s => s.points && s.points.length)) window.CoChart.plot(box, spec);
-    else box.appendChild(el("p", { class: "empty", text: (spec.title || "chart") + ": nothing recorded yet" }));
+    else box.appendChild(el("p", { class: "empty", text: (spec.title || "chart") + ": " + (spec.empty || "nothing recorded yet") }));
     return box;
   }
 
@@ -101,7 +101,7 @@
       el("h1", { id: "run-id", text: data.run.id }), summaryBlock(data),
       el("h2", { text: "Charts" }),
       el("div", { class: "charts" },
-        chart({ title: "Convergence: best in-run " + firstObjective + " cost so far (square: final check ± SE)", xLabel: "environment interactions", yLabel: firstObjective + " cost", series: convergenceSeries(c, "best so far", "#1f77b4") }),
+        chart({ title: "Convergence: best in-run " + firstObjective + " cost so far (square: final check ± SE)", xLabel: "environment interactions", yLabel: firstObjective + " cost", empty: c.note, series: convergenceSeries(c, "best so far", "#1f77b4") }),
         designChart(data),
         chart({ title: "Surrogate error by round (surrogate − real, % of real)", xLabel: "outer iteration", yLabel: "relative error (%)", series: surrogate }),
         chart({ title: "Training phases: final mean reward", xLabel: "training interactions (cumulative)", yLabel: "mean reward", series: [{ label: "phase", kind: "line", markers: true, points: training }] })),
