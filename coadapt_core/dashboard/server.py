@@ -250,7 +250,12 @@ class DashboardServer(ThreadingHTTPServer):
 
 def start(store: ResultsStore, folders: RunFolders, host: str, port: int) -> DashboardServer:
     """A server bound to (host, port) (port 0: a free one); a port that cannot be bound is a
-    one-line `UserError` naming --port or --host. The caller runs `serve_forever`."""
+    one-line `UserError` naming --port or --host. The caller runs `serve_forever`. The plugin
+    registry (objective and optimizer orders of the tables) is loaded first, so the first
+    page is as quick as the next."""
+    from coadapt_core.plugins import get_registry
+
+    get_registry()
     try:
         return DashboardServer(store, folders, host, port)
     except OSError as exc:
