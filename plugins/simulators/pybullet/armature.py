@@ -28,11 +28,11 @@ class ArmatureMixin:
         # [k, J] inertia added about the two axes perpendicular to a folded joint's (so
         # that the foot's principal moments stay physical, `urdf._physical`)
         self.folded_extra = np.zeros((self.k, j))
-        self.mass_block: list[tuple] = [np.ix_(np.arange(j), np.arange(j)) for _ in range(self.k)]
-        self._diag = np.arange(j)
+        # per env the actuated joints' positions among the body's generalized velocities
+        self.columns: list[np.ndarray] = [np.arange(j) for _ in range(self.k)]
         self.movable: list[list[int]] = [[] for _ in range(self.k)]
         self.movable_order: list[np.ndarray | None] = [None] * self.k
-        self.prev_dq = np.zeros((self.k, j))  # [k, J]
+        self.prev_u: list[np.ndarray] = [np.zeros(0) for _ in range(self.k)]  # [D] each
         self.prev_applied = np.zeros((self.k, j))  # [k, J]
         self.fresh = np.ones(self.k, dtype=bool)  # [k] no physics step since reset
 
@@ -62,8 +62,11 @@ class ArmatureMixin:
                 )
 
     def _index_dofs(self, e: int, spec: EnvSpec) -> None:
-        """Where each actuated joint sits among the body's degrees of freedom (Bullet's mass
-        matrix: 6 base dofs first on a floating base, then the movable joints in order)."""
+        """Where each actuated joint sits among the body's degrees of freedom: Bullet's
+        generalized velocities are, on a floating base, the base's angular and then its
+        linear velocity (of its centre of mass), both in the base's inertial frame, and then
+        the movable joints in order (`base_velocity`; tests check it against the kinetic
+        energy)."""
         client, body = self.clients[e], self.bodies[e]
         movable = [
             i
@@ -79,8 +82,8 @@ class ArmatureMixin:
             if sorted(movable) == sorted(self.joint_ids[e])
             else None
         )
-        cols = np.array([offset + movable.index(jid) for jid in self.joint_ids[e]])
-        self.mass_block[e] = np.ix_(cols, cols)
+        self.columns[e] = np.array([offset + movable.index(jid) for jid in self.joint_ids[e]])
+        self.prev_u[e] = np.zeros(offset + len(movable))
         use = self.armature in ("joint_space", "foot_link") and spec.joint_armature is not None
         self.armature_diag[e] = spec.joint_armature if use else 0.0
         folded = set(foot_joints(spec)) if use and self.armature == "foot_link" else set()
@@ -90,99 +93,129 @@ class ArmatureMixin:
 
     def _armature_torque(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """[k, J] torque A ddq that MuJoCo's armature A (reflected rotor inertia, added to
-        the joint-space mass matrix only) would absorb this step; Bullet has no armature,
-        so it is taken off the motor torque.
+        the mass matrix's joint diagonal only) would absorb this step; Bullet has no
+        armature, so it is taken off the motor torque.
 
-        MuJoCo: (M + A) ddq = tau + h, h every other generalized force (gravity, Coriolis,
-        damping, contacts, limits). Bullet: M ddq = tau' + h. Predicting ddq from the
-        current M, the motor torque and h of the last step (h = M ddq - tau', measured)
-        gives tau' = tau - A ddq. The stiff part (the PD torque) is thus exact; only h
-        lags one physics step.
+        In the body's generalized velocities u (the floating base's six first): MuJoCo
+        solves (M + S'AS) du = S'tau + h, S selecting the actuated joints and h every other
+        generalized force (gravity, Coriolis, damping, contacts, limits); Bullet solves
+        M du = S'tau' + h. Predicting du from the current M, the motor torque and h of the
+        last step (h = M du - S'tau', measured) gives tau' = tau - A S du. The stiff part
+        (the PD torque) is thus exact; only h lags one physics step. The base's rows count:
+        a joint's acceleration moves the base back, and predicted from the joints' block of
+        M alone (as before issue 49) that reaction entered the lagged h, which made a light
+        leg under a large armature (Qilin's) unstable on its feet.
 
         "foot_link": a foot joint's armature a is already in its foot link's inertia (about
         the joint axis, plus c about the perpendicular axes where the foot's principal
-        moments needed it), so Bullet's matrix is M_b = M + dM, dM = (a - c) v v^T + c W^T W,
-        W the foot's angular Jacobian and v_k = W^T s the cosine between joint k's axis and
-        the foot joint's axis s;
-        the correction becomes tau' = tau - (A - dM) ddq, ddq = (M_b - dM + A)^-1 (tau + h).
-        The contact solver then sees the foot as heavy as MuJoCo's does (without it, a light
-        foot under stiff PD chattered on a bouncy ground, docs/sim-to-sim.md).
+        moments needed it), so Bullet's matrix is M_b = M + dM, dM = (a - c) v v' + c W'W,
+        W the foot's angular Jacobian and v = W's the projection of every velocity on the
+        foot joint's axis s; the correction becomes tau' = tau - S(S'AS - dM) du with
+        du = (M_b - dM + S'AS)^-1 (S'tau + h) (the base's rows of dM cannot be applied: the
+        folded inertia stays in the base's own motion). The contact solver then sees the
+        foot as heavy as MuJoCo's does (without it, a light foot under stiff PD chattered on
+        a bouncy ground, docs/sim-to-sim.md).
         """
+        out = np.zeros_like(tau)
         if not np.any(self.armature_diag):
-            return np.zeros_like(tau)
-        ddq = (dq - self.prev_dq) / self.physics_dt  # [k, J] the last step's acceleration
-        mass = np.empty((self.k, self.num_joints, self.num_joints))  # [k, J, J] joint blocks
-        folded_mass = np.zeros_like(mass)  # [k, J, J] dM of foot-link armature
+            return out
         finite = np.isfinite(q).all(axis=1) & np.isfinite(dq).all(axis=1)  # [k]
         for e in range(self.k):
             if not finite[e]:  # diverged: its torque is already NaN and it will be reset
-                mass[e] = np.eye(self.num_joints)
+                self.fresh[e] = True
                 continue
             order = self.movable_order[e]
-            positions = q[e][order] if order is not None else self._movable_positions(e)
-            full = np.array(
+            positions = q[e][order] if order is not None else self._movable_states(e, 0)
+            mass = np.array(
                 p.calculateMassMatrix(
                     self.bodies[e], positions.tolist(), physicsClientId=self.clients[e]
                 )
-            )
-            mass[e] = full[self.mass_block[e]]
-            if self.folded[e].size:
-                folded_mass[e] = self._folded_mass(e, positions)
-        h = np.einsum("kij,kj->ki", mass, ddq) - self.prev_applied  # [k, J]
-        h[self.fresh | ~finite] = 0.0  # nothing measured yet right after a reset
-        correction = -folded_mass  # [k, J, J] A - dM
-        correction[:, self._diag, self._diag] += self.armature_diag
-        predicted = np.linalg.solve(mass + correction, (tau + h)[..., None])[..., 0]  # [k, J]
-        self.prev_dq = dq.copy()
-        self.fresh[:] = False
-        return np.einsum("kij,kj->ki", correction, predicted)
+            )  # [D, D]
+            cols = self.columns[e]
+            u = self._velocities(e, dq[e][order] if order is not None else None)  # [D]
+            force = np.zeros(len(u))  # [D] S'tau
+            force[cols] = tau[e]
+            if not self.fresh[e]:  # h, measured over the last step; nothing right after a reset
+                force += mass @ ((u - self.prev_u[e]) / self.physics_dt)
+                force[cols] -= self.prev_applied[e]
+            correction = -self._folded_mass(e, positions, len(u))  # [D, D] S'AS - dM
+            correction[cols, cols] += self.armature_diag[e]
+            predicted = np.linalg.solve(mass + correction, force)  # [D] du
+            out[e] = (correction @ predicted)[cols]
+            self.prev_u[e] = u
+            self.fresh[e] = False
+        return out
 
-    def _folded_mass(self, e: int, positions: np.ndarray) -> np.ndarray:
-        """[J, J] dM of the armature folded into env e's foot links (see `_armature_torque`)."""
+    def _velocities(self, e: int, movable_dq: np.ndarray | None) -> np.ndarray:
+        """[D] env e's generalized velocities in Bullet's mass matrix's order."""
+        if movable_dq is None:
+            movable_dq = self._movable_states(e, 1)
+        if self.fixed_base:
+            return np.asarray(movable_dq, dtype=float)
+        return np.concatenate([base_velocity(self.clients[e], self.bodies[e]), movable_dq])
+
+    def _folded_mass(self, e: int, positions: np.ndarray, size: int) -> np.ndarray:
+        """[D, D] dM of the armature folded into env e's foot links (see `_armature_torque`)."""
+        out = np.zeros((size, size))
+        if not self.folded[e].size:
+            return out
         client, body = self.clients[e], self.bodies[e]
-        cols = self.mass_block[e][1][0]  # [J] the actuated joints' columns
         zeros = [0.0] * len(positions)
-        out = np.zeros((self.num_joints, self.num_joints))
         for j in self.folded[e]:
-            link = self.joint_ids[e][j]
             _, angular = p.calculateJacobian(
                 body,
-                link,
+                self.joint_ids[e][j],
                 [0.0, 0.0, 0.0],
                 positions.tolist(),
                 zeros,
                 zeros,
                 physicsClientId=client,
             )
-            omega = np.asarray(angular)[
-                :, cols
-            ]  # [3, J] each column an actuated joint's world axis
-            v = omega.T @ omega[:, j]  # [J] cosines with the folded joint's axis
-            # added tensor a s s^T + c (1 - s s^T), s the folded joint's axis
+            omega = np.asarray(angular)  # [3, D] in the base frame, as the mass matrix
+            v = omega.T @ omega[:, self.columns[e][j]]  # [D] projections on the joint's axis
+            # added tensor a s s' + c (1 - s s'), s the folded joint's axis
             a, c = self.armature_diag[e, j], self.folded_extra[e, j]
             out += (a - c) * np.outer(v, v) + c * (omega.T @ omega)
         return out
 
-    def _movable_positions(self, e: int) -> np.ndarray:
+    def _movable_states(self, e: int, which: int) -> np.ndarray:
+        """[movable] positions (which=0) or velocities (1) of env e's movable joints."""
         states = p.getJointStates(self.bodies[e], self.movable[e], physicsClientId=self.clients[e])
-        return np.array([s_[0] for s_ in states])
+        return np.array([s_[which] for s_ in states])
+
+
+def base_velocity(client: int, body: int) -> np.ndarray:
+    """[6] the floating base's angular velocity and its centre of mass's linear velocity,
+    both in the base's inertial frame: the first six generalized velocities of Bullet's
+    `calculateMassMatrix` and `calculateJacobian` on a floating base."""
+    _, orn = p.getBasePositionAndOrientation(body, physicsClientId=client)
+    linear, angular = p.getBaseVelocity(body, physicsClientId=client)
+    rotation = np.array(p.getMatrixFromQuaternion(orn)).reshape(3, 3)
+    return np.concatenate([rotation.T @ np.asarray(angular), rotation.T @ np.asarray(linear)])
 
 
 def foot_joints(spec: EnvSpec) -> list[str]:
-    """Actuated joints whose child link is a foot (their armature goes into the foot link
-    in the "foot_link" mode)."""
+    """The last actuated joint above each foot: an actuated joint whose child link is a foot
+    or carries one through fixed joints only (Kuafu's ankle turns its foot link; Qilin's
+    knee turns the calf its foot sphere is fixed to). Their armature goes into that child
+    link in the "foot_link" mode."""
     feet = set(spec.foot_bodies)
-    root = ET.fromstring(spec.urdf)
-    out = []
-    for joint in root.findall("joint"):
-        child = joint.find("child")
-        if (
-            child is not None
-            and child.get("link") in feet
-            and joint.get("name") in spec.joint_names
-        ):
-            out.append(joint.get("name"))
-    return out
+    joints = ET.fromstring(spec.urdf).findall("joint")
+    fixed: dict[str, list[str]] = {}  # link -> the links fixed to it
+    for joint in joints:
+        if joint.get("type") == "fixed":
+            fixed.setdefault(joint.find("parent").get("link"), []).append(
+                joint.find("child").get("link")
+            )
+
+    def carries_foot(link: str) -> bool:
+        return link in feet or any(carries_foot(child) for child in fixed.get(link, []))
+
+    return [
+        joint.get("name")
+        for joint in joints
+        if joint.get("name") in spec.joint_names and carries_foot(joint.find("child").get("link"))
+    ]
 
 
 def joint_children(urdf: str) -> dict[str, str]:

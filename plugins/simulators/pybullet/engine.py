@@ -267,7 +267,6 @@ class Engine(ArmatureMixin):
         self.delay.set_delay(env_ids, params["delay_steps"])
         self.delay.reset(env_ids, self.default_joint_pos[env_ids])
         self.last_torque[env_ids] = 0.0
-        self.prev_dq[env_ids] = 0.0
         self.prev_applied[env_ids] = 0.0
         self.fresh[env_ids] = True
 

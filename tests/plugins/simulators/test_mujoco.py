@@ -16,20 +16,9 @@ from coadapt_core.physics.actuation import pd_torque
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.physics.simulator import FIXED_BASE_LIFT, SPAWN_CLEARANCE
 from coadapt_core.physics.terrain import SLOPE_DEGREES, make_terrain
-from coadapt_core.testing import SimulatorConformance
 from tests.plugins.simulators.mujoco_helpers import batch_designs, fixed_randomization
 
 G = 9.81
-
-
-class TestMujocoConformance(SimulatorConformance):
-    @pytest.fixture
-    def robot(self, kuafu):
-        return kuafu
-
-    @pytest.fixture
-    def simulator_cls(self):
-        return MujocoSimulator
 
 
 # -- helpers ------------------------------------------------------------------------------

@@ -17,7 +17,6 @@ from coadapt_plugins.simulators.pybullet import simulator as pb_simulator
 from coadapt_core.errors import UserError
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.physics.terrain import make_terrain
-from coadapt_core.testing import SimulatorConformance
 
 NOMINAL = np.array([[1.0, 1.0]])
 
@@ -27,16 +26,6 @@ def fixed(name: str, value: float) -> RandomizationConfig:
     ranges = {k: (v, v) for k, v in RandomizationConfig.NOMINAL.items()}
     ranges[name] = (value, value)
     return RandomizationConfig(**ranges)
-
-
-class TestPyBulletConformance(SimulatorConformance):
-    @pytest.fixture
-    def robot(self, kuafu):
-        return kuafu
-
-    @pytest.fixture
-    def simulator_cls(self):
-        return PyBulletSimulator
 
 
 @pytest.mark.slow
