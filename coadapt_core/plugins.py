@@ -265,8 +265,20 @@ def load_registry(extra_plugins: list[tuple[ModuleType | object, str]] | None = 
             registry.broken.append(BrokenPlugin(ep_name, dist, str(exc)))
             continue
         _register_classes(registry, plugin, dist, version, ep_name)
+    _register_spec_folders(registry)
     pm.check_pending()
     return registry
+
+
+def _register_spec_folders(registry: Registry) -> None:
+    """The spec robots of `COADAPT_ROBOT_PATH` (`robot_spec.discovery`), after every
+    plugin: a robot name a plugin has is refused for the spec, in one broken line."""
+    from coadapt_core.robot_spec.discovery import SpecFolders
+
+    folders = SpecFolders(set(registry.entries["robot"]))
+    _register_classes(registry, folders, folders.distribution, "", "robot-path")
+    for line in folders.problems:
+        registry.broken.append(BrokenPlugin("robot-path", folders.distribution, line))
 
 
 _REGISTRY: Registry | None = None

@@ -161,6 +161,11 @@ def _print_description(data: dict) -> None:
         ):
             text = ", ".join(f"{k} {v:.3g}" for k, v in value.items())
             summary.add_row(key.replace("_", " ") + (f" ({unit.strip()})" if unit else ""), text)
+        elif isinstance(value, str):
+            summary.add_row(key.replace("_", " "), value)  # a spec robot's file, a note
+        elif isinstance(value, dict) and all(isinstance(v, str) for v in value.values()):
+            for name, text in value.items():  # a spec robot's mass rule per parameter
+                summary.add_row(f"{key.replace('_', ' ')}: {name}", text)
     console.print(summary)
     joints = Table(title="actuated joints")
     motors = data["info"].get("motor_types")

@@ -1,0 +1,271 @@
+"""One leg IK for any leg chain: batched forward kinematics and damped least squares in torch.
+
+A leg is the chain of bodies from the floating base to its foot body, read from the model
+at the nominal design; a design scales the links the spec names, so the chain's body
+offsets are the nominal ones times the design's scales (designs rounded as `build` rounds
+them). The IK places the foot body's origin at a target given relative to the leg's hip
+point (the hip body's origin at the standing pose, base frame) with priority, and keeps the
+foot's standing orientation as far as the chain's remaining freedom allows (the null space
+of the position task): a 3-joint leg places its foot exactly; a leg with an ankle keeps its
+sole as it stands. Iterations start from the standing pose, so the knee bends as it does
+there. Joints off every leg chain keep their standing angle.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+import torch
+
+#: Newton steps at most; a batch stops early once its position error (m) is below TOLERANCE
+#: and its last joint step below 1e-7 rad
+MAX_ITERATIONS = 30
+TOLERANCE = 1e-9
+#: the damping of the least-squares steps (m and rad), and the largest joint step (rad)
+DAMPING = 1e-9
+#: the orientation task's damping: a leg with no freedom left after its foot's position
+#: (three joints) gets no orientation step
+SECONDARY_DAMPING = 1e-4
+MAX_STEP = 0.4
+
+
+@dataclass
+class Chain:
+    """The legs' chains as padded tensors: L legs, E elements (a body's fixed offset then at
+    most one hinge; a body with several hinges is several elements), M joints per leg."""
+
+    pos: torch.Tensor  # [L, E, 3] element offset in its parent element's frame (nominal)
+    rot: torch.Tensor  # [L, E, 3, 3] element rotation relative to its parent
+    scale: torch.Tensor  # [L, E, P] 1 where continuous parameter p scales the offset
+    slot: torch.Tensor  # [L, E] the leg's joint slot this element turns, -1 for none
+    axis: torch.Tensor  # [L, E, 3] hinge axis, element frame
+    anchor: torch.Tensor  # [L, E, 3] hinge anchor, element frame
+    hip_element: torch.Tensor  # [L] the element whose frame origin is the leg's hip point
+    joint_index: torch.Tensor  # [L, M] the joint (policy order) of each slot, -1 for padding
+    standing: torch.Tensor  # [J] standing pose
+    nominal: torch.Tensor  # [P] nominal values of the continuous parameters
+    decimals: int = 6
+
+    @property
+    def num_legs(self) -> int:
+        return int(self.pos.shape[0])
+
+
+def _mat(quat) -> np.ndarray:
+    out = np.zeros(9)
+    mujoco.mju_quat2Mat(out, np.asarray(quat, dtype=float))
+    return out.reshape(3, 3)
+
+
+def build_chain(
+    model: mujoco.MjModel,
+    base: str,
+    joints: list[str],
+    legs: list[tuple[str, str | None]],
+    scaled_links: list[set[tuple[str, str]]],
+    standing: np.ndarray,
+    nominal: np.ndarray,
+    decimals: int = 6,
+) -> Chain:
+    """The chains of `legs` ((foot body, hip body or None) each) in `model` (the nominal
+    design); `scaled_links[p]` the links continuous parameter p scales. `ValueError` when a
+    foot does not hang below `base` or a joint lies on two legs."""
+    base_id = model.body(base).id
+    rows, owner = [], {}
+    for leg, (foot, hip) in enumerate(legs):
+        path, b = [], model.body(foot).id
+        while b != base_id:
+            if b == 0:
+                raise ValueError(f"foot body '{foot}' does not hang below the base '{base}'")
+            path.append(b)
+            b = int(model.body_parentid[b])
+        path.reverse()
+        hip_body = model.body(hip).id if hip else path[0]
+        if hip_body not in path:
+            raise ValueError(f"hip body '{hip}' is not on the chain of foot '{foot}'")
+        elements, slots, hip_element = [], [], 0
+        for b in path:
+            parent = model.body(int(model.body_parentid[b])).name
+            link = (parent, model.body(b).name)
+            scale = [1.0 if link in links else 0.0 for links in scaled_links]
+            hinges = [
+                j
+                for j in range(model.njnt)
+                if model.jnt_bodyid[j] == b and model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE
+            ]
+            first = True
+            for j in hinges or [None]:
+                slot = -1
+                if j is not None:
+                    name = model.joint(j).name
+                    if name in owner and owner[name] != leg:
+                        raise ValueError(f"joint '{name}' lies on the chains of two legs")
+                    owner[name] = leg
+                    slot = len(slots)
+                    slots.append(joints.index(name))
+                offset = model.body_pos[b] if first else np.zeros(3)
+                rot = _mat(model.body_quat[b]) if first else np.eye(3)
+                axis = model.jnt_axis[j] if j is not None else np.zeros(3)
+                anchor = model.jnt_pos[j] if j is not None else np.zeros(3)
+                elements.append(
+                    (offset, rot, scale if first else [0.0] * len(scale), slot, axis, anchor)
+                )
+                first = False
+            if b == hip_body:
+                hip_element = len(elements) - 1
+        rows.append((elements, slots, hip_element))
+    num_e = max(len(r[0]) for r in rows)
+    num_m = max(max(len(r[1]) for r in rows), 1)
+    num_p = len(scaled_links)
+    pad = (np.zeros(3), np.eye(3), [0.0] * num_p, -1, np.zeros(3), np.zeros(3))
+
+    def stack(k, dtype=torch.float64):
+        return torch.tensor(
+            np.array([[e[k] for e in r[0] + [pad] * (num_e - len(r[0]))] for r in rows]),
+            dtype=dtype,
+        )
+
+    return Chain(
+        pos=stack(0),
+        rot=stack(1),
+        scale=stack(2),
+        slot=stack(3, torch.long),
+        axis=stack(4),
+        anchor=stack(5),
+        hip_element=torch.tensor([r[2] for r in rows], dtype=torch.long),
+        joint_index=torch.tensor(
+            [r[1] + [-1] * (num_m - len(r[1])) for r in rows], dtype=torch.long
+        ),
+        standing=torch.tensor(np.array(standing), dtype=torch.float64),
+        nominal=torch.as_tensor(nominal, dtype=torch.float64),
+        decimals=decimals,
+    )
+
+
+def _rotation(axis: torch.Tensor, angle: torch.Tensor) -> torch.Tensor:
+    """[..., 3, 3] rotations by `angle` [...] about unit `axis` [..., 3] (Rodrigues)."""
+    x, y, z = axis.unbind(-1)
+    zero = torch.zeros_like(x)
+    k = torch.stack([zero, -z, y, z, zero, -x, -y, x, zero], dim=-1).reshape(*x.shape, 3, 3)
+    s, c = torch.sin(angle)[..., None, None], torch.cos(angle)[..., None, None]
+    return torch.eye(3, dtype=axis.dtype) + s * k + (1 - c) * (k @ k)
+
+
+class LegKinematics:
+    """Forward kinematics and the IK of every leg of a `Chain`, batched over designs."""
+
+    def __init__(self, chain: Chain):
+        self.chain = chain
+        #: elements whose hinge anchor is off their frame's origin (most are on it)
+        self._anchored = [
+            bool(chain.anchor[:, e].abs().max() > 0) for e in range(chain.pos.shape[1])
+        ]
+        #: a leg with more joints than its foot's position needs keeps the foot's orientation
+        self._redundant = int(chain.joint_index.shape[1]) > 3
+
+    def scales(self, designs: torch.Tensor) -> torch.Tensor:
+        """[n, L, E] each element offset's scale for designs [n, D] (continuous part first)."""
+        c = self.chain
+        p = c.nominal.numel()
+        unit = 10.0**c.decimals
+        values = torch.round(designs[:, :p].to(torch.float64) * unit) / unit
+        logs = torch.log(values / c.nominal)  # [n, P]
+        return torch.exp(torch.einsum("lep,np->nle", c.scale, logs))
+
+    def leg_angles(self, q: torch.Tensor) -> torch.Tensor:
+        """[n, L, M] each leg's slot angles from full joint vectors q [n, J]."""
+        index = self.chain.joint_index.clamp(min=0)
+        return q[:, index] * (self.chain.joint_index >= 0)
+
+    def forward(self, scales: torch.Tensor, x: torch.Tensor):
+        """(foot [n, L, 3], foot rotation [n, L, 3, 3], hip [n, L, 3], axes [n, L, E, 3],
+        anchors [n, L, E, 3]) in the base frame for slot angles x [n, L, M]."""
+        c = self.chain
+        n, num_l, num_e = x.shape[0], c.num_legs, c.pos.shape[1]
+        rot = torch.eye(3, dtype=x.dtype).expand(n, num_l, 3, 3)
+        pos = torch.zeros(n, num_l, 3, dtype=x.dtype)
+        axes, anchors, hips = [], [], []
+        angle_all = torch.gather(x, 2, c.slot.clamp(min=0).expand(n, -1, -1)) * (c.slot >= 0)
+        for e in range(num_e):
+            offset = c.pos[:, e] * scales[:, :, e, None]  # [n, L, 3]
+            pos = pos + (rot @ offset[..., None])[..., 0]
+            rot = rot @ c.rot[:, e]
+            axis = (rot @ c.axis[:, e, :, None])[..., 0]
+            turn = _rotation(c.axis[:, e].expand(n, -1, -1), angle_all[:, :, e])
+            if self._anchored[e]:
+                anchor = pos + (rot @ c.anchor[:, e, :, None])[..., 0]
+                pos = anchor + (rot @ turn @ (-c.anchor[:, e, :, None]))[..., 0]
+            else:
+                anchor = pos
+            rot = rot @ turn
+            axes.append(axis)
+            anchors.append(anchor)
+            hips.append(pos)
+        hip = torch.stack(hips, dim=2)[torch.arange(n)[:, None], torch.arange(num_l), c.hip_element]
+        return pos, rot, hip, torch.stack(axes, dim=2), torch.stack(anchors, dim=2)
+
+    def standing(self, designs: torch.Tensor):
+        """(feet relative to hips [n, L, 3], foot rotations [n, L, 3, 3], hips [n, L, 3]) at
+        the standing pose."""
+        x = self.leg_angles(self.chain.standing.expand(designs.shape[0], -1))
+        foot, rot, hip, _, _ = self.forward(self.scales(designs), x)
+        return foot - hip, rot, hip
+
+    def default_foot_positions(self, designs: torch.Tensor) -> torch.Tensor:
+        return self.standing(designs)[0]
+
+    def inverse(self, designs: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
+        """[n, J] joint angles putting each foot at targets [n, L, 3] (relative to its hip)."""
+        c = self.chain
+        dtype = torch.float64
+        scales = self.scales(designs)
+        n = designs.shape[0]
+        q0 = c.standing.expand(n, -1)
+        x = self.leg_angles(q0).clone()
+        _, want_rot, hip = self.standing(designs)
+        goal = targets.to(dtype) + hip
+        mask = (c.joint_index >= 0).to(dtype)[None, :, None, :]  # [1, L, 1, M]
+        index = self._element_of_slot().clamp(min=0)[None, :, :, None]  # [1, L, M, 1]
+        eye3 = torch.eye(3, dtype=dtype)
+        settled = False
+        for it in range(MAX_ITERATIONS):
+            foot, rot, _, axes, anchors = self.forward(scales, x)
+            err_p = goal - foot  # [n, L, 3]
+            if it >= 2 and float(err_p.abs().max()) < TOLERANCE and settled:
+                break
+            a = torch.gather(axes, 2, index.expand(n, -1, -1, 3))  # [n, L, M, 3]
+            r = torch.gather(anchors, 2, index.expand(n, -1, -1, 3))
+            jac_p = torch.cross(a, foot[:, :, None] - r, dim=-1).transpose(-1, -2) * mask
+            jac_o = a.transpose(-1, -2) * mask  # [n, L, 3, M]
+            pinv_p = jac_p.transpose(-1, -2) @ torch.linalg.inv(
+                jac_p @ jac_p.transpose(-1, -2) + DAMPING * eye3
+            )
+            step = (pinv_p @ err_p[..., None])[..., 0]
+            if self._redundant:
+                null = torch.eye(x.shape[-1], dtype=dtype) - pinv_p @ jac_p
+                jo_n = jac_o @ null
+                pinv_o = jo_n.transpose(-1, -2) @ torch.linalg.inv(
+                    jo_n @ jo_n.transpose(-1, -2) + SECONDARY_DAMPING * eye3
+                )
+                err_o = 0.5 * torch.cross(rot, want_rot, dim=-2).sum(-1)  # [n, L, 3]
+                keep = pinv_o @ (err_o - (jac_o @ step[..., None])[..., 0])[..., None]
+                step = step + (null @ keep)[..., 0]
+            step = step.clamp(-MAX_STEP, MAX_STEP) * mask[:, :, 0]
+            x = x + step
+            settled = float(step.abs().max()) < 1e-7
+        q = q0.clone()
+        valid = c.joint_index >= 0
+        q[:, c.joint_index[valid]] = x[:, valid]
+        return q
+
+    def _element_of_slot(self) -> torch.Tensor:
+        """[L, M] the element each joint slot turns (-1 for padding)."""
+        c = self.chain
+        out = torch.full(c.joint_index.shape, -1, dtype=torch.long)
+        for leg in range(c.num_legs):
+            for e, slot in enumerate(c.slot[leg].tolist()):
+                if slot >= 0:
+                    out[leg, slot] = e
+        return out

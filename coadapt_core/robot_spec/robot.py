@@ -1,0 +1,141 @@
+"""The `Robot` a spec becomes: design spaces, cached models per design, the generic leg IK.
+
+`spec_robot_class(path)` turns a spec file into a `Robot` subclass named by the spec, which
+any plugin's `coadapt_register_robots` hook may return (the built-in spec robots and the
+folders of `COADAPT_ROBOT_PATH` are registered that way, `discovery`).
+"""
+
+from __future__ import annotations
+
+from functools import cached_property, lru_cache
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+from coadapt_core.design_space import Continuous, DesignSpace, Discrete
+from coadapt_core.errors import DesignError
+from coadapt_core.robot import Leg, Robot, RobotModel, ValidationReport
+from coadapt_core.robot_spec.spec import RobotSpec, match_value, read_spec
+
+if TYPE_CHECKING:
+    import torch
+
+#: designs closer than this are the same model (cache key rounding), as for every robot
+DESIGN_DECIMALS = 6
+
+
+class SpecRobot(Robot):
+    """A robot described by a spec file (`spec_path`); subclasses name it."""
+
+    spec_path: ClassVar[Path]
+
+    @cached_property
+    def spec(self) -> RobotSpec:
+        return read_spec(self.spec_path)
+
+    @cached_property
+    def _built(self):
+        from coadapt_core.robot_spec.build import SpecBuilder
+
+        return SpecBuilder(self.spec)
+
+    # -- design spaces --------------------------------------------------------------------
+    def design_space(self, mixed: bool = False) -> DesignSpace:
+        variables: list[Any] = [
+            Continuous(p.name, p.low, p.high, unit=p.unit or f"x nominal ({p.nominal:g})")
+            for p in self.spec.parameters
+        ]
+        if mixed:
+            kinds = tuple(float(k) for k in sorted(self.spec.motor_types))
+            variables += [Discrete(m.name, kinds, unit="type") for m in self.spec.motor_parameters]
+        return DesignSpace(variables)
+
+    def nominal_design(self, mixed: bool = False) -> np.ndarray:
+        values = [p.nominal for p in self.spec.parameters]
+        if mixed:
+            values += [float(m.nominal) for m in self.spec.motor_parameters]
+        return np.array(values, dtype=float)
+
+    def check_design(self, design: np.ndarray) -> np.ndarray:
+        values = np.atleast_1d(np.asarray(design, dtype=float))
+        plain, mixed = self.design_space(False), self.design_space(True)
+        if values.ndim != 1 or values.shape[0] not in (plain.dim, mixed.dim):
+            accepted = f"{plain.dim} values ({', '.join(plain.names)})"
+            if mixed.dim != plain.dim:
+                accepted += f" or {mixed.dim} values ({', '.join(mixed.names)})"
+            raise DesignError(
+                f"{self.name} design needs {accepted}, got {values.size}", field="design"
+            )
+        values = self.design_space(values.shape[0] != plain.dim).validate(values)
+        values[plain.dim :] = np.round(values[plain.dim :])
+        return values
+
+    # -- models -----------------------------------------------------------------------------
+    def build(self, design: np.ndarray) -> RobotModel:
+        values = self.check_design(design)
+        return self._cached(tuple(float(x) for x in np.round(values, DESIGN_DECIMALS)))
+
+    @lru_cache(maxsize=1024)  # noqa: B019 - one cache per robot instance is what we want
+    def _cached(self, key: tuple[float, ...]) -> RobotModel:
+        return self._built.model(np.array(key))
+
+    def validate(self, design: np.ndarray) -> ValidationReport:
+        from coadapt_core.robot_spec.validation import validate_spec_model
+
+        return validate_spec_model(self, self.build(design))
+
+    def legs(self) -> list[Leg]:
+        return [Leg(leg.name, leg.phase) for leg in self.spec.legs]
+
+    # -- leg kinematics -------------------------------------------------------------------
+    def default_foot_positions(self, designs: torch.Tensor) -> torch.Tensor:
+        """[n, L, 3] each foot body's origin relative to its leg's hip point at the standing
+        pose, base frame (`kinematics`)."""
+        return self._built.kinematics.default_foot_positions(designs).to(designs.dtype)
+
+    def leg_inverse_kinematics(self, designs: torch.Tensor, foot_pos: torch.Tensor) -> torch.Tensor:
+        """[n, J] the generic numeric IK (`kinematics.LegKinematics.inverse`)."""
+        return self._built.kinematics.inverse(designs, foot_pos).to(designs.dtype)
+
+    def describe_rules(self) -> dict[str, str]:
+        """How each parameter scales mass and inertia (`coadapt robot show`)."""
+        from coadapt_core.robot_spec.build import mass_rule_text
+
+        return {p.name: mass_rule_text(p) for p in self.spec.parameters}
+
+
+def spec_robot_class(path: str | Path, *, description: str | None = None) -> type[SpecRobot]:
+    """A `Robot` subclass for the spec at `path` (a robot.yaml or its folder), named by the
+    spec. The file is read here, so a bad spec fails at registration with its field named."""
+    spec = read_spec(path)
+    text = description or spec.description or f"robot from the spec {spec.folder / 'robot.yaml'}"
+    return type(
+        f"SpecRobot_{spec.name.replace('-', '_')}",
+        (SpecRobot,),
+        {
+            "name": spec.name,
+            "description": text,
+            "spec_path": spec.folder,
+            "__module__": __name__,
+        },
+    )
+
+
+def readonly(values: Any) -> np.ndarray:
+    a = np.array(values, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+def joint_values(patterns: dict[str, Any], joints: list[str], what: str) -> list[Any]:
+    """Each joint's value from full-match patterns; `UserError` naming a joint none match."""
+    from coadapt_core.robot_spec.model import spec_error
+
+    out = []
+    for joint in joints:
+        value = match_value(patterns, joint)
+        if value is None:
+            raise spec_error(what, f"no entry matches joint '{joint}' (patterns match whole names)")
+        out.append(value)
+    return out
