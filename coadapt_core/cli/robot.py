@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 import typer
 
+from coadapt_core.cli import robot_new
 from coadapt_core.cli.common import fail, resolve
 from coadapt_core.cli.options import filled, options_of, register
 from coadapt_core.errors import DesignError, UserError
@@ -338,3 +339,4 @@ def render_command(**values: Any) -> None:
 
 
 register(app, "render", render_command, _RENDER, path="robot render")
+robot_new.register_new(app)
