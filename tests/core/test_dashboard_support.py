@@ -104,10 +104,11 @@ class Browser:
 
     def screenshot(self, path: Path) -> Path:
         """The whole page as PNG (the window stretched to the page's height first)."""
+        rect = self.session + "/window/rect"
+        self._call("POST", rect, {"width": 1700, "height": 900})
         height = self.run("return document.documentElement.scrollHeight;")
-        self._call(
-            "POST", self.session + "/window/rect", {"width": 1400, "height": min(6000, height + 40)}
-        )
+        # the window's height includes the browser's own frame: a margin keeps the page whole
+        self._call("POST", rect, {"width": 1700, "height": min(6000, height + 200)})
         png = base64.b64decode(self._call("GET", self.session + "/screenshot"))
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(png)
