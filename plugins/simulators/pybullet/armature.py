@@ -1,8 +1,10 @@
 """The PyBullet engine's joint-space armature: MuJoCo adds each joint's armature (the
-reflected rotor inertia) to the joint-space mass matrix; Bullet has no such term, so the
-engine takes the torque the armature would absorb off the motor torque (`_armature_torque`),
-and in the "foot_link" mode also folds a foot joint's armature into its foot link's inertia.
-`ArmatureMixin` is the part of `Engine` that holds this state and does the correction."""
+reflected rotor inertia) to the mass matrix; Bullet has no such term, so the engine takes
+the torque the armature would absorb off the motor torque (`_armature_torque`, predicted over
+all of the body's generalized velocities, the floating base's included), and in the
+"foot_link" mode also folds the armature of the last actuated joint above each foot into that
+joint's child link. `ArmatureMixin` is the part of `Engine` that holds this state and does the
+correction."""
 
 from __future__ import annotations
 
@@ -84,6 +86,7 @@ class ArmatureMixin:
         )
         self.columns[e] = np.array([offset + movable.index(jid) for jid in self.joint_ids[e]])
         self.prev_u[e] = np.zeros(offset + len(movable))
+        self.fresh[e] = True  # a (re)loaded body: no last step to measure h over
         use = self.armature in ("joint_space", "foot_link") and spec.joint_armature is not None
         self.armature_diag[e] = spec.joint_armature if use else 0.0
         folded = set(foot_joints(spec)) if use and self.armature == "foot_link" else set()

@@ -75,11 +75,12 @@ class PyBulletSimulator(Simulator):
         `processes`: worker processes (0 = in this process; None = in-process up to
         IN_PROCESS_MAX_ENVS environments, else `num_threads`, by default the process's
         thread budget, `coadapt_core.threads.budget()`).
-        `armature`: how MJCF joint armature is carried over: "foot_link" (the feet joints'
-        in the foot links' inertia, the rest as "joint_space", the coupling corrected),
-        "joint_space" (taken off the motor torque as A ddq, ddq predicted from Bullet's
-        joint-space mass matrix), "link_inertia" (added to the child link's inertia) or
-        "none"; see docs/sim-to-sim.md."""
+        `armature`: how MJCF joint armature is carried over: "foot_link" (that of the last
+        actuated joint above each foot in the link it turns, the rest as "joint_space", the
+        coupling corrected), "joint_space" (taken off the motor torque as A ddq, ddq
+        predicted from Bullet's mass matrix over every generalized velocity, the floating
+        base's included), "link_inertia" (added to the child link's inertia) or "none"; see
+        docs/sim-to-sim.md."""
         require_pybullet()
         super().__init__(robot, designs, **options)
         if armature not in ARMATURE_MODES:
