@@ -50,6 +50,9 @@ RUN_FIELDS = (
     "updated_at",
     "finished_at",
 )
+#: a training phase's measurements the page draws besides its reward: the episode length (s),
+#: the forward speed (m/s) and the velocity tracking error the learner reports
+TRAINING_EXTRAS = ("episode_length_s", "vx", "tracking_error")
 
 
 def _finite(values: Any) -> list[float | None]:
@@ -176,6 +179,8 @@ def run_page(store: ResultsStore, folders: RunFolders, run_id: str) -> dict[str,
                 "steps": int(t["steps"]),
                 "seconds": float(t["seconds"]),
                 "final_reward": as_float(t["final_reward"]),
+                # what the learner measured besides the reward (coadapt_core.learning.backend)
+                **{k: as_float((t["extra"] or {}).get(k)) for k in TRAINING_EXTRAS},
             }
             for t in store.training(run_id)
         ],

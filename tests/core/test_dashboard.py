@@ -244,3 +244,24 @@ def test_unknown_runs_and_hostile_ids_are_one_line_not_a_traceback(small):
         assert PAYLOAD.encode() not in body
     finally:
         served.close()
+
+
+def test_the_dashboard_room_only_reads():
+    """No module of coadapt_core/dashboard calls a store method that writes, imports the
+    learner, physics, the task or the experiments, or opens a file to write."""
+    import ast
+
+    writes = {"record_evaluations", "record_training", "record_checkpoint", "create_run"}
+    writes |= {"finish_run", "set_status", "save_grid", "set_cell", "write_text", "write_bytes"}
+    forbidden = ("learning", "physics", "task", "experiments", "coadapt.")
+    found = []
+    for path in (ROOT / "coadapt_core" / "dashboard").glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Attribute) and node.attr in writes:
+                found.append(f"{path.name}:{node.lineno} .{node.attr}")
+            module = node.module if isinstance(node, ast.ImportFrom) else None
+            if module and any(module.startswith(f"coadapt_core.{f}") for f in forbidden):
+                found.append(f"{path.name}:{node.lineno} imports {node.module}")
+            if isinstance(node, ast.Call) and getattr(node.func, "id", "") == "open":
+                found.append(f"{path.name}:{node.lineno} open()")
+    assert found == []

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pytest
 
+from coadapt_core.errors import UserError
 from coadapt_core.results import ResultsStore
 from tests.core.test_dashboard_support import PAYLOAD, Browser, Served, add_run, needs_browser
 
@@ -161,7 +162,8 @@ def test_a_runs_page_shows_its_report_numbers_charts_gif_and_commands(world):
         or "2.0%" in summary
     )
     assert b.text("#eval-count").startswith("20 rows: 16 real, 4 surrogate")
-    assert b.run("return document.querySelectorAll('svg.chart').length;") == 4
+    # convergence, designs, surrogate error, training reward, training measurements
+    assert b.run("return document.querySelectorAll('svg.chart').length;") == 5
     assert b.run("return document.querySelector('img.gif').naturalWidth;") == 1
     commands = b.text("#commands")
     assert f"coadapt run --resume {world['tmp'] / 'runs' / SINGLE}" in commands
@@ -238,7 +240,12 @@ def test_a_running_runs_page_shows_new_rows_within_10_s_without_a_reload(world, 
             assert time.monotonic() < deadline and proc.poll() is None
             time.sleep(0.2)
         run_id = next((tmp_path / "runs").iterdir()).name
-        served = Served(tmp_path / "live.db")
+        while served is None:  # the store's tables may still be in the making
+            try:
+                served = Served(tmp_path / "live.db")
+            except UserError:
+                assert time.monotonic() < deadline and proc.poll() is None
+                time.sleep(0.2)
         b = world["browser"]
         b.go(served.url + "run/" + run_id)
         b.wait_text("#eval-count")

@@ -191,7 +191,13 @@ def add_run(
     rng = np.random.default_rng(seed)
     for outer in range(2):
         store.record_training(
-            run_id, outer=outer, idx=0, steps=10_000, seconds=2.0, final_reward=0.3 + 0.1 * outer
+            run_id,
+            outer=outer,
+            idx=0,
+            steps=10_000,
+            seconds=2.0,
+            final_reward=0.3 + 0.1 * outer,
+            extra={"vx": 0.35 + 0.1 * outer, "tracking_error": 0.2 - 0.05 * outer},
         )
         for inner in range(2):
             designs = rng.uniform(0.5, 1.5, size=(4, 2))
