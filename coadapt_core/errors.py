@@ -27,6 +27,14 @@ class PluginError(CoadaptError):
     """A plugin could not be loaded or conflicts with another plugin."""
 
 
+def did_you_mean(value: object, accepted: list[str] | tuple[str, ...]) -> str:
+    """ "; did you mean 'X'?" for the accepted value nearest `value` (a typo), else ''."""
+    import difflib
+
+    close = difflib.get_close_matches(str(value).lower(), [str(a) for a in accepted], 1, 0.6)
+    return f"; did you mean '{close[0]}'?" if close else ""
+
+
 class UnknownPluginError(UserError):
     """A plugin name that no loaded plugin provides."""
 
@@ -38,13 +46,8 @@ class UnknownPluginError(UserError):
         broken: list[str] | None = None,
         reason: str | None = None,
     ):
-        import difflib
-
         listing = ", ".join(sorted(available)) or "(none loaded)"
-        message = f"unknown {kind} '{name}'; available: {listing}"
-        close = difflib.get_close_matches(str(name).lower(), list(available), n=1, cutoff=0.6)
-        if close:
-            message += f"; did you mean '{close[0]}'?"
+        message = f"unknown {kind} '{name}'; available: {listing}" + did_you_mean(name, available)
         if broken:  # the name may belong to a plugin that failed to load: say which and why
             message += "; " + "; ".join(broken)
         if reason:  # the plugin of that name is known and refused: its reason alone

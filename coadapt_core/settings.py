@@ -28,7 +28,7 @@ from typing import Annotated, Any
 from pydantic import AfterValidator, BeforeValidator, ConfigDict, Field, ValidationError
 from pydantic.dataclasses import dataclass as _pydantic_dataclass
 
-from coadapt_core.errors import UserError
+from coadapt_core.errors import UserError, did_you_mean
 from coadapt_core.io import jsonable
 from coadapt_core.settings_leaf import Leaf, strip_optional
 
@@ -351,8 +351,10 @@ def user_error(exc: ValidationError, cls: type, prefix: str = "") -> UserError:
     if leaf is None:
         return UserError(f"{key or cls.__name__}: {err.get('msg')}", field=key or None)
     if leaf.kind == "choice":
+        choices = [str(c) for c in leaf.choices or ()]
         return UserError(
-            f"{key} '{value}' is not one of {', '.join(map(str, leaf.choices or ()))}", field=key
+            f"{key} '{value}' is not one of {', '.join(choices)}{did_you_mean(value, choices)}",
+            field=key,
         )
     detail = ""
     if err.get("type") == "value_error":

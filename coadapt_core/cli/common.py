@@ -164,9 +164,18 @@ def check_device_option(device: str) -> None:
 def run_app(app: typer.Typer, argv: list[str] | None = None) -> int:
     """Run the `coadapt` app (or a command of it) on `argv`; user errors become one line on
     stderr and exit code 2 (`coadapt_core.cli.main`, and `coadapt grid`'s check of its cells)."""
+    outer = list(_INVOCATION)  # `coadapt grid` checks its cells' command lines with run_app
+    _INVOCATION[:] = list(sys.argv[1:] if argv is None else argv)  # before the commands are made
+    try:
+        return _run_command(app, argv)
+    finally:  # a command made later (the tests, the settings docs) has all its options
+        _INVOCATION[:] = outer
+
+
+def _run_command(app: typer.Typer, argv: list[str] | None) -> int:
+    """`run_app` once the command line is known: its command made, run, its errors said."""
     command = typer.main.get_command(app)
     plain_help(command)
-    _INVOCATION[:] = list(sys.argv[1:] if argv is None else argv)
     try:
         result = command.main(args=argv, prog_name="coadapt", standalone_mode=False)
     except typer.Exit as exc:

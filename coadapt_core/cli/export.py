@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import typer
 
@@ -18,7 +18,9 @@ class ExportCommand:
     commands that read a results store."""
 
     out: Path = setting(help="Folder to write the tables into.", names=("-o", "--out"))
-    format: str = setting("csv", "csv, or parquet (needs coadapt[parquet]).")
+    format: Literal["csv", "parquet"] = setting(
+        "csv", "Table format (parquet needs coadapt[parquet])."
+    )
     run: list[str] | None = setting(None, "Export only this run (repeatable).", names=("--run",))
     store: str | None = setting(
         None, "Results store: a path or SQLAlchemy URL (default: $COADAPT_STORE or ./coadapt.db)."
@@ -30,10 +32,10 @@ def register(app: typer.Typer) -> None:
 
     def export_command(**values: Any) -> None:
         """Write runs, evaluations, training phases and checkpoints, one file per table."""
+        o = filled(values, options)  # a bad value is refused before the store's library loads
         from coadapt_core.results.export import export_tables
         from coadapt_core.results.store import ResultsStore
 
-        o = filled(values, options)
         with ResultsStore(o["store"]) as results:
             written = export_tables(results, o["out"], fmt=o["format"], run_ids=o["run"] or None)
         for table, path in written.items():

@@ -120,10 +120,66 @@ def shown_default(leaf: Leaf, presets: dict[str, Any] | None = None) -> str | No
     return leaf_default(leaf)
 
 
+#: help texts that name installed plugins, rendered when first read: the CLI starts, answers
+#: `coadapt --help` and refuses a typo without loading a plugin (nor torch, which they import)
+_DEFERRED: dict[str, Any] = {}
+_DEFERRED_MARK = "\0coadapt-help:"
+
+
+def _names_plugins(leaf: Leaf, presets: dict[str, Any] | None) -> bool:
+    """Whether the setting's help may need the plugin registry: its choices, or its default
+    (a plugin's, or one a function computes)."""
+    found = (presets or {}).get(leaf.param)
+    return any(
+        x.extra.get("plugin") or x.info.default_factory is not None
+        for x in (leaf, *(found[:1] if found else ()))
+    )
+
+
 def option_help(leaf: Leaf, presets: dict[str, Any] | None = None) -> str:
     """The help of a setting's option: its meaning, what it accepts when that is a choice
     or a structured value, the installed plugins when it names one, and its default once,
-    as `[default: X]` (`shown_default`)."""
+    as `[default: X]` (`shown_default`). A text naming plugins is a placeholder that
+    `resolved` renders when the option's help is first read (`plain_help`)."""
+    if not _names_plugins(leaf, presets):
+        return _option_help(leaf, presets)
+    mark = f"{_DEFERRED_MARK}{len(_DEFERRED)}"
+    _DEFERRED[mark] = lambda: _option_help(leaf, presets)
+    return mark
+
+
+def resolved(text: Any) -> Any:
+    """A help text with its placeholder rendered (`option_help`); any other value as it is."""
+    if isinstance(text, str) and text.startswith(_DEFERRED_MARK):
+        render = _DEFERRED[text]
+        if callable(render):
+            _DEFERRED[text] = render()
+        return _DEFERRED[text]
+    return text
+
+
+_LAZY_CLASSES: dict[type, type] = {}
+
+
+def _lazy_help(param: Any) -> None:
+    """Make `param.help` render its placeholder when read (a subclass of its own class with
+    `help` as a property), so Click, the tests and the docs read the full text."""
+    base = type(param)
+    if base not in _LAZY_CLASSES:
+        _LAZY_CLASSES[base] = type(
+            base.__name__,
+            (base,),
+            {
+                "help": property(
+                    lambda self: resolved(self.__dict__.get("help")),
+                    lambda self, value: self.__dict__.__setitem__("help", value),
+                )
+            },
+        )
+    param.__class__ = _LAZY_CLASSES[base]
+
+
+def _option_help(leaf: Leaf, presets: dict[str, Any] | None = None) -> str:
     text = meaning(leaf)
     if leaf.extra.get("plugin"):
         names = choices(leaf.extra["plugin"])
@@ -174,6 +230,10 @@ def plain_help(command: Any) -> None:
     for param in command.params:
         if getattr(param, "param_type_name", "") == "option":
             param.show_default = False
+        if isinstance(param.__dict__.get("help"), str) and param.__dict__["help"].startswith(
+            _DEFERRED_MARK
+        ):
+            _lazy_help(param)
     for sub in getattr(command, "commands", {}).values():
         plain_help(sub)
         if sub.name == "run" and command.name in (None, "coadapt", "main"):

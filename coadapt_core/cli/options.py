@@ -83,6 +83,70 @@ class OptionGroup(list):
         self.root = root
 
 
+class LateGroup(OptionGroup):
+    """An option group made on first use (`make()`: an `OptionGroup`), for options read from
+    the installed plugins (`coadapt run`'s aliases): the CLI starts without loading a plugin,
+    and only a command that takes them, or asks for its help, makes them."""
+
+    def __init__(
+        self,
+        make: Callable[[], OptionGroup],
+        needed: Callable[[list[str]], bool] | None = None,
+    ):
+        list.__init__(self)
+        self._make: Callable[[], OptionGroup] | None = make
+        self._root: type | None = None
+        #: whether a command line (the words after `coadapt`) needs these options (None: yes)
+        self.needed = needed
+
+    def _made(self) -> OptionGroup:
+        if self._make is not None:
+            group, self._make = self._make(), None
+            list.extend(self, group)
+            self._root = group.root
+        return self
+
+    def __iter__(self):
+        return list.__iter__(self._made())
+
+    def __len__(self) -> int:
+        return list.__len__(self._made())
+
+    def __getitem__(self, index: Any) -> Any:
+        return list.__getitem__(self._made(), index)
+
+    @property
+    def root(self) -> type:
+        return self._made()._root
+
+
+class LateSignature:
+    """`func` for typer, its signature the options of `groups` read when typer makes the
+    command; a `LateGroup` among them only when `wanted(group)` (else its options are left
+    out: the command is not the one being run, or its command line needs none of them)."""
+
+    def __init__(
+        self, func: Callable[..., Any], groups: tuple, wanted: Callable[[LateGroup], bool]
+    ):
+        self.func, self.groups, self.wanted = func, groups, wanted
+        self.__name__ = self.__qualname__ = func.__name__
+        self.__doc__, self.__module__ = func.__doc__, func.__module__
+
+    def _groups(self) -> tuple:
+        return tuple(g for g in self.groups if not isinstance(g, LateGroup) or self.wanted(g))
+
+    @property
+    def __signature__(self) -> inspect.Signature:
+        return bind(lambda **_: None, *self._groups()).__signature__
+
+    @property
+    def __annotations__(self) -> dict[str, Any]:
+        return {o.param: o.kind for group in self._groups() for o in group}
+
+    def __call__(self, **values: Any) -> Any:
+        return self.func(**values)
+
+
 def options_of(
     cls: type, *, aliases: Mapping[str, tuple[str, ...]] | None = None, per_preset: bool = False
 ) -> OptionGroup:
@@ -142,9 +206,28 @@ def register(
     path: str | None = None,
 ) -> None:
     """`func` as command `name` of `app`, its options those of `groups` (`options_of`),
-    recorded in `DECLARED` under `path`, its full name ("robot show"; default `name`)."""
-    app.command(name)(bind(func, *groups))
-    DECLARED[name if path is None else path] = groups
+    recorded in `DECLARED` under `path`, its full name ("robot show"; default `name`). A
+    `LateGroup` among `groups` is made only when the command line runs this command (or
+    names none, as the tests and the settings docs do)."""
+    full = name if path is None else path
+    if any(isinstance(g, LateGroup) for g in groups):
+        app.command(name)(LateSignature(func, groups, lambda group: _runs(full, group)))
+    else:
+        app.command(name)(bind(func, *groups))
+    DECLARED[full] = groups
+
+
+def _runs(path: str, group: LateGroup) -> bool:
+    """Whether the command line being run names command `path` and needs `group`'s options
+    (or names no command yet: the tests, the settings docs)."""
+    from coadapt_core.cli.common import invocation
+
+    argv = invocation()
+    if not argv:
+        return True
+    words = [w for w in argv if not w.startswith("-")]
+    named = words[: len(path.split())] == path.split()
+    return named and (group.needed is None or group.needed(argv))
 
 
 def given_settings(values: Mapping[str, Any], options: list[CommandOption]) -> dict[str, Any]:
@@ -178,6 +261,7 @@ def filled(values: Mapping[str, Any], group: OptionGroup) -> dict[str, Any]:
 __all__ = [
     "DECLARED",
     "CommandOption",
+    "LateGroup",
     "OptionGroup",
     "bind",
     "filled",

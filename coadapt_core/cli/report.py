@@ -171,14 +171,16 @@ def register(app: typer.Typer) -> None:
 
     def report_command(**values: Any) -> None:
         """Write tables (Markdown, CSV) and figures (PNG, HTML) from a run or grid."""
-        from coadapt_core.analysis.report import write_report
         from coadapt_core.cli.common import fail
-        from coadapt_core.results.storage import resolve_store_url
-        from coadapt_core.results.store import ResultsStore
 
         o = SimpleNamespace(**filled(values, options))
         if o.transfer_agents < 1 or (o.transfer_steps or 1) < 1 or o.common_blocks < 1:
             fail("--transfer-agents, --transfer-steps and --common-blocks must be >= 1")
+        # after the checks, so that a refusal answers at once
+        from coadapt_core.analysis.report import write_report
+        from coadapt_core.results.storage import resolve_store_url
+        from coadapt_core.results.store import ResultsStore
+
         url = resolve_store_url(o.store)
         if url.startswith("sqlite:///") and not Path(url.removeprefix("sqlite:///")).is_file():
             # reading a store that is not there must not leave an empty one behind

@@ -15,7 +15,7 @@ import typer
 
 from coadapt_core.cli.common import ctrl_c_once, fail, interrupted, resolve
 from coadapt_core.cli.help import help_all
-from coadapt_core.cli.options import OptionGroup, filled, options_of
+from coadapt_core.cli.options import LateGroup, OptionGroup, filled, options_of
 from coadapt_core.cli.options import register as register_command
 from coadapt_core.cli.progress import ProgressLine, fmt_duration
 from coadapt_core.cli.run_summary import report
@@ -345,18 +345,34 @@ def _run_loop(cfg: Any, kwargs: dict[str, Any], values: dict[str, Any]) -> Any:
 
 def register(app: typer.Typer) -> None:
     settings, own = config_options(), options_of(RunCommand)
-    aliases = options_of(alias_settings_class(), per_preset=True)
+    # the installed plugins' aliases: made only for a `coadapt run` whose command line may
+    # hold one (an option that is no other of its options) or asks for its help
+    known = {n for group in (settings, own) for o in group for x in o.names for n in x.split("/")}
+    aliases = LateGroup(
+        lambda: options_of(alias_settings_class(), per_preset=True),
+        lambda argv: any(
+            w.split("=")[0] not in known or w in ("--help", "--help-all")
+            for w in argv
+            if w.startswith("-")
+        ),
+    )
 
     def run_command(**values: Any) -> None:
         """Co-adapt design and policy: universal policy + pseudo-critics, optimizer with hybrid
         real/surrogate fitness, range narrowing (paper Algorithm 4)."""
         values = filled(values, own)
+        from coadapt_core.coadapt.config_loading import check_preset
+
+        try:  # a typo is refused before torch and the plugins load
+            check_preset(values["preset"])
+        except UserError as exc:
+            fail(str(exc))
         from coadapt_core.threads import apply_threads
 
         apply_threads(values["threads"])  # physics and torch alike; recorded in config.yaml
         overrides = {option.leaf.key: values[option.param] for option in settings}
         for option in aliases:  # keys of earlier versions, declared by the plugins
-            overrides[option.param] = values[option.param]
+            overrides[option.param] = values.get(option.param)  # none on this command line
         try:
             if values["resume"]:
                 cfg, kwargs = None, {"resume": _resume_folder(values["resume"], values["out"])}

@@ -11,7 +11,7 @@ from typing import Any
 
 from coadapt_core.coadapt.config import FIELD_NAMES, PRESETS, SECTIONS, CoadaptConfig
 from coadapt_core.coadapt.config_aliases import RENAMED_KEYS, OptionAlias, option_aliases
-from coadapt_core.errors import UserError
+from coadapt_core.errors import UserError, did_you_mean
 
 #: config keys that are plugin-option mappings, merged key by key (CLI over YAML over preset)
 OPTION_FIELDS = ("optimizer_options", "objective_options")
@@ -43,6 +43,15 @@ def load_yaml(path: str | Path) -> dict[str, Any]:
     return {str(k).replace("-", "_"): v for k, v in data.items()}
 
 
+def check_preset(preset: str | None) -> None:
+    """A preset name that is none of `PRESETS` is a one-line `UserError` naming the nearest."""
+    if preset is not None and preset not in PRESETS:
+        raise UserError(
+            f"preset '{preset}' is not one of {', '.join(PRESETS)}{did_you_mean(preset, PRESETS)}",
+            field="preset",
+        )
+
+
 def make_config(
     preset: str | None = None,
     yaml_file: str | Path | None = None,
@@ -54,8 +63,7 @@ def make_config(
         yaml_values.pop(key, None)
     overrides = {k: v for k, v in (overrides or {}).items() if v is not None}
     preset = preset or overrides.get("preset") or yaml_values.get("preset") or "quick"
-    if preset not in PRESETS:
-        raise UserError(f"preset '{preset}' is not one of {', '.join(PRESETS)}", field="preset")
+    check_preset(preset)
     values: dict[str, Any] = {**PRESETS[preset], "preset": preset}
     aliases = option_aliases()
     for source, label in ((yaml_values, "config file"), (overrides, "option")):

@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
-from coadapt_core.errors import UserError
+from coadapt_core.errors import UserError, did_you_mean
 from coadapt_core.experiments.grid_plan import CellOutcome, CellTask
 
 EXECUTORS = ("local", "ray")
@@ -158,7 +158,9 @@ def check_grid_options(
     that does not answer within `connect_timeout` seconds (checked before anything starts)."""
     if executor not in EXECUTORS:
         raise UserError(
-            f"--executor '{executor}' is not one of {', '.join(EXECUTORS)}", field="executor"
+            f"--executor '{executor}' is not one of {', '.join(EXECUTORS)}"
+            f"{did_you_mean(executor, EXECUTORS)}",
+            field="executor",
         )
     if workers is not None and workers < 1:
         raise UserError(f"--workers must be >= 1, got {workers}", field="workers")

@@ -10,7 +10,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from coadapt_core.errors import UserError
+from coadapt_core.errors import UserError, did_you_mean
 from coadapt_core.results.schema import metadata
 from coadapt_core.results.store import ResultsStore
 
@@ -99,7 +99,10 @@ def export_tables(
     """Write runs, evaluations, training_phases and checkpoints to `out_dir`; returns the
     files by table."""
     if fmt not in FORMATS:
-        raise UserError(f"export format '{fmt}' is not one of {', '.join(FORMATS)}", field="format")
+        raise UserError(
+            f"export format '{fmt}' is not one of {', '.join(FORMATS)}{did_you_mean(fmt, FORMATS)}",
+            field="format",
+        )
     if run_ids is not None:
         missing = [r for r in run_ids if not store.has_run(r)]
         if missing:

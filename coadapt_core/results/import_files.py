@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from coadapt_core.errors import UserError
+from coadapt_core.errors import UserError, did_you_mean
 from coadapt_core.results.export import EXPORT_TABLES, FORMATS
 
 #: a CSV field may hold a whole run configuration or summary (Pareto fronts), larger than
@@ -35,7 +35,10 @@ def export_files(path: str | Path, fmt: str | None = None) -> tuple[dict[str, Pa
     or any one file in it (`runs.csv`, `evaluations.parquet`, ...)."""
     given = Path(path)
     if fmt is not None and fmt not in FORMATS:
-        raise UserError(f"import format '{fmt}' is not one of {', '.join(FORMATS)}", field="format")
+        raise UserError(
+            f"import format '{fmt}' is not one of {', '.join(FORMATS)}{did_you_mean(fmt, FORMATS)}",
+            field="format",
+        )
     if given.is_file():
         stem, _, suffix = given.name.partition(".")
         if stem not in EXPORT_TABLES or suffix not in FORMATS:
