@@ -277,8 +277,10 @@ def _register_spec_folders(registry: Registry) -> None:
 
     folders = SpecFolders(set(registry.entries["robot"]))
     _register_classes(registry, folders, folders.distribution, "", "robot-path")
-    for line in folders.problems:
-        registry.broken.append(BrokenPlugin("robot-path", folders.distribution, line))
+    for name, line in folders.problems:  # `--robot NAME` of a spec that does not read: its line
+        registry.broken.append(
+            BrokenPlugin("robot-path", folders.distribution, line, ("robot", name))
+        )
 
 
 _REGISTRY: Registry | None = None

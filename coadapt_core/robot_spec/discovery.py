@@ -38,8 +38,9 @@ def robot_folders(folder: Path) -> list[Path]:
     return sorted(p for p in folder.iterdir() if (p / SPEC_FILE).is_file())
 
 
-def spec_robots_in(*folders: Path) -> tuple[list[type], list[str]]:
-    """(Robot classes of every readable spec in `folders`, one line per spec that is not)."""
+def spec_robots_in(*folders: Path) -> tuple[list[type], list[tuple[str, str]]]:
+    """(Robot classes of every readable spec in `folders`, (its folder's name, one line) per
+    spec that is not)."""
     from coadapt_core.robot_spec.robot import spec_robot_class
 
     classes, problems, seen = [], [], set()
@@ -48,7 +49,7 @@ def spec_robots_in(*folders: Path) -> tuple[list[type], list[str]]:
             try:
                 cls = spec_robot_class(robot)
             except UserError as exc:
-                problems.append(f"{robot / SPEC_FILE}: {exc}")
+                problems.append((robot.name, f"{robot / SPEC_FILE}: {exc}"))
                 continue
             if cls.name in seen:
                 problems.append(
@@ -70,7 +71,7 @@ class SpecFolders:
 
     def __init__(self, taken: set[str]):
         self.taken = taken
-        self.problems: list[str] = []
+        self.problems: list[tuple[str, str]] = []
 
     def coadapt_register_robots(self) -> list[type]:
         classes, self.problems = spec_robots_in(*search_path())
@@ -78,8 +79,11 @@ class SpecFolders:
         for cls in classes:
             if cls.name in self.taken:
                 self.problems.append(
-                    f"{cls.spec_path / SPEC_FILE}: robot name '{cls.name}' is taken by an "
-                    "installed plugin; rename the spec"
+                    (
+                        cls.name,
+                        f"{cls.spec_path / SPEC_FILE}: robot name '{cls.name}' is taken by an "
+                        "installed plugin; rename the spec",
+                    )
                 )
             else:
                 kept.append(cls)

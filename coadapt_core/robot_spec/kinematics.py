@@ -20,11 +20,12 @@ import numpy as np
 import torch
 
 #: Newton steps at most; a batch stops early once its position error (m) is below TOLERANCE
-#: and its last joint step below 1e-7 rad
+#: and its last joint step below 1e-6 rad
 MAX_ITERATIONS = 30
 TOLERANCE = 1e-9
 #: the damping of the least-squares steps (m and rad), and the largest joint step (rad)
 DAMPING = 1e-9
+ADAPTIVE_DAMPING = 1.0
 #: the orientation task's damping: a leg with no freedom left after its foot's position
 #: (three joints) gets no orientation step
 SECONDARY_DAMPING = 1e-4
@@ -153,6 +154,40 @@ def _rotation(axis: torch.Tensor, angle: torch.Tensor) -> torch.Tensor:
     return torch.eye(3, dtype=axis.dtype) + s * k + (1 - c) * (k @ k)
 
 
+def _basis_axis(axes: torch.Tensor) -> tuple[int, torch.Tensor]:
+    """(k, signs [L]) when each of the legs' axes [L, 3] is +-e_k or zero, else (-1, ones)."""
+    signs = torch.ones(axes.shape[0], dtype=axes.dtype)
+    for k in range(3):
+        others = axes.clone()
+        others[:, k] = 0
+        if others.abs().max() == 0 and bool((axes[:, k].abs() - 1).abs().max() < 1e-12):
+            return k, torch.sign(axes[:, k])
+    if axes.abs().max() == 0:  # no hinge at this element in any leg
+        return 0, signs
+    return -1, signs
+
+
+def _matvec(m: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+    """[..., 3] m [..., 3, 3] times v [..., 3], as column sums (far faster than a batched
+    matmul or a reduction over so small a dimension)."""
+    return m[..., 0] * v[..., 0, None] + m[..., 1] * v[..., 1, None] + m[..., 2] * v[..., 2, None]
+
+
+def _inverse3(a: torch.Tensor) -> torch.Tensor:
+    """[..., 3, 3] inverses of symmetric positive definite 3 x 3 matrices (cofactors)."""
+    a00, a01, a02 = a[..., 0, 0], a[..., 0, 1], a[..., 0, 2]
+    a11, a12, a22 = a[..., 1, 1], a[..., 1, 2], a[..., 2, 2]
+    c00 = a11 * a22 - a12 * a12
+    c01 = a02 * a12 - a01 * a22
+    c02 = a01 * a12 - a02 * a11
+    c11 = a00 * a22 - a02 * a02
+    c12 = a01 * a02 - a00 * a12
+    c22 = a00 * a11 - a01 * a01
+    det = (a00 * c00 + a01 * c01 + a02 * c02)[..., None, None]
+    rows = [torch.stack(r, dim=-1) for r in ((c00, c01, c02), (c01, c11, c12), (c02, c12, c22))]
+    return torch.stack(rows, dim=-2) / det
+
+
 class LegKinematics:
     """Forward kinematics and the IK of every leg of a `Chain`, batched over designs."""
 
@@ -162,6 +197,13 @@ class LegKinematics:
         self._anchored = [
             bool(chain.anchor[:, e].abs().max() > 0) for e in range(chain.pos.shape[1])
         ]
+        #: elements whose fixed rotation is the identity (most): no product to take
+        self._identity = [
+            bool((chain.rot[:, e] - torch.eye(3, dtype=chain.rot.dtype)).abs().max() == 0)
+            for e in range(chain.pos.shape[1])
+        ]
+        #: per element, (k, signs [L]) when every leg's hinge axis is +-e_k (or it has none)
+        self._basis = [_basis_axis(chain.axis[:, e]) for e in range(chain.pos.shape[1])]
         #: a leg with more joints than its foot's position needs keeps the foot's orientation
         self._redundant = int(chain.joint_index.shape[1]) > 3
 
@@ -190,16 +232,31 @@ class LegKinematics:
         angle_all = torch.gather(x, 2, c.slot.clamp(min=0).expand(n, -1, -1)) * (c.slot >= 0)
         for e in range(num_e):
             offset = c.pos[:, e] * scales[:, :, e, None]  # [n, L, 3]
-            pos = pos + (rot @ offset[..., None])[..., 0]
-            rot = rot @ c.rot[:, e]
-            axis = (rot @ c.axis[:, e, :, None])[..., 0]
-            turn = _rotation(c.axis[:, e].expand(n, -1, -1), angle_all[:, :, e])
-            if self._anchored[e]:
-                anchor = pos + (rot @ c.anchor[:, e, :, None])[..., 0]
-                pos = anchor + (rot @ turn @ (-c.anchor[:, e, :, None]))[..., 0]
-            else:
+            pos = pos + _matvec(rot, offset)
+            if not self._identity[e]:
+                rot = rot @ c.rot[:, e]
+            basis, sign = self._basis[e]
+            if basis >= 0 and not self._anchored[e]:  # a hinge about a frame axis: no matmul
+                axis = rot[..., basis] * sign[:, None]
+                angle = angle_all[:, :, e] * sign
+                sin, cos = torch.sin(angle)[..., None], torch.cos(angle)[..., None]
+                i, j = (basis + 1) % 3, (basis + 2) % 3
+                turned = {
+                    basis: rot[..., basis],
+                    i: cos * rot[..., i] + sin * rot[..., j],
+                    j: cos * rot[..., j] - sin * rot[..., i],
+                }
+                rot = torch.stack([turned[0], turned[1], turned[2]], dim=-1)
                 anchor = pos
-            rot = rot @ turn
+            else:
+                axis = (rot @ c.axis[:, e, :, None])[..., 0]
+                turn = _rotation(c.axis[:, e].expand(n, -1, -1), angle_all[:, :, e])
+                if self._anchored[e]:
+                    anchor = pos + (rot @ c.anchor[:, e, :, None])[..., 0]
+                    pos = anchor + (rot @ turn @ (-c.anchor[:, e, :, None]))[..., 0]
+                else:
+                    anchor = pos
+                rot = rot @ turn
             axes.append(axis)
             anchors.append(anchor)
             hips.append(pos)
@@ -233,28 +290,34 @@ class LegKinematics:
         for it in range(MAX_ITERATIONS):
             foot, rot, _, axes, anchors = self.forward(scales, x)
             err_p = goal - foot  # [n, L, 3]
-            if it >= 2 and float(err_p.abs().max()) < TOLERANCE and settled:
+            if it >= 2 and settled and float(err_p.abs().max()) < TOLERANCE:
                 break
             a = torch.gather(axes, 2, index.expand(n, -1, -1, 3))  # [n, L, M, 3]
             r = torch.gather(anchors, 2, index.expand(n, -1, -1, 3))
             jac_p = torch.cross(a, foot[:, :, None] - r, dim=-1).transpose(-1, -2) * mask
             jac_o = a.transpose(-1, -2) * mask  # [n, L, 3, M]
-            pinv_p = jac_p.transpose(-1, -2) @ torch.linalg.inv(
-                jac_p @ jac_p.transpose(-1, -2) + DAMPING * eye3
-            )
-            step = (pinv_p @ err_p[..., None])[..., 0]
-            if self._redundant:
-                null = torch.eye(x.shape[-1], dtype=dtype) - pinv_p @ jac_p
+            # Levenberg-Marquardt damping: grows with the error, so an unreachable target is
+            # approached without the steps blowing up at the stretched leg's singularity
+            damping = DAMPING + ADAPTIVE_DAMPING * (err_p * err_p).sum(-1)[..., None, None]
+            gram = jac_p @ jac_p.transpose(-1, -2)
+            solved = _matvec(_inverse3(gram + damping * eye3), err_p)  # [n, L, 3]
+            # J^T (J J^T + damping)^-1 e, as a sum of J's rows
+            step = sum(jac_p[..., k, :] * solved[..., k, None] for k in range(3))
+            if self._redundant:  # the exact null space: the damped one would leak into position
+                exact = jac_p.transpose(-1, -2) @ _inverse3(gram + DAMPING * eye3)
+                null = torch.eye(x.shape[-1], dtype=dtype) - exact @ jac_p
                 jo_n = jac_o @ null
-                pinv_o = jo_n.transpose(-1, -2) @ torch.linalg.inv(
+                pinv_o = jo_n.transpose(-1, -2) @ _inverse3(
                     jo_n @ jo_n.transpose(-1, -2) + SECONDARY_DAMPING * eye3
                 )
-                err_o = 0.5 * torch.cross(rot, want_rot, dim=-2).sum(-1)  # [n, L, 3]
+                err_o = 0.5 * sum(  # [n, L, 3] the rotation from the foot's to its standing one
+                    torch.cross(rot[..., k], want_rot[..., k], dim=-1) for k in range(3)
+                )
                 keep = pinv_o @ (err_o - (jac_o @ step[..., None])[..., 0])[..., None]
                 step = step + (null @ keep)[..., 0]
             step = step.clamp(-MAX_STEP, MAX_STEP) * mask[:, :, 0]
             x = x + step
-            settled = float(step.abs().max()) < 1e-7
+            settled = float(step.abs().max()) < 1e-6
         q = q0.clone()
         valid = c.joint_index >= 0
         q[:, c.joint_index[valid]] = x[:, valid]

@@ -17,5 +17,5 @@ def coadapt_register_robots() -> list[type]:
 
     classes, problems = spec_robots_in(Path(__file__).parent)
     if problems:  # a shipped spec that does not read is a bug of this package
-        raise RuntimeError("; ".join(problems))
+        raise RuntimeError("; ".join(line for _, line in problems))
     return classes
