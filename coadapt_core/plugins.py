@@ -277,6 +277,9 @@ def _register_spec_folders(registry: Registry) -> None:
 
     folders = SpecFolders(set(registry.entries["robot"]))
     _register_classes(registry, folders, folders.distribution, "", "robot-path")
+    for info in registry.entries["robot"].values():  # a spec's version: its files' digest
+        if info.distribution == folders.distribution:
+            info.version = getattr(info.cls, "spec_digest", "")
     for name, line in folders.problems:  # `--robot NAME` of a spec that does not read: its line
         registry.broken.append(
             BrokenPlugin("robot-path", folders.distribution, line, ("robot", name))

@@ -7,6 +7,7 @@ folders of `COADAPT_ROBOT_PATH` are registered that way, `discovery`).
 
 from __future__ import annotations
 
+import hashlib
 from functools import cached_property, lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -29,6 +30,7 @@ class SpecRobot(Robot):
     """A robot described by a spec file (`spec_path`); subclasses name it."""
 
     spec_path: ClassVar[Path]
+    spec_digest: ClassVar[str] = ""
 
     @cached_property
     def spec(self) -> RobotSpec:
@@ -110,6 +112,9 @@ def spec_robot_class(path: str | Path, *, description: str | None = None) -> typ
     spec. The file is read here, so a bad spec fails at registration with its field named."""
     spec = read_spec(path)
     text = description or spec.description or f"robot from the spec {spec.folder / 'robot.yaml'}"
+    digest = hashlib.sha256((spec.folder / "robot.yaml").read_bytes())
+    if spec.model_path.is_file():
+        digest.update(spec.model_path.read_bytes())
     return type(
         f"SpecRobot_{spec.name.replace('-', '_')}",
         (SpecRobot,),
@@ -117,6 +122,8 @@ def spec_robot_class(path: str | Path, *, description: str | None = None) -> typ
             "name": spec.name,
             "description": text,
             "spec_path": spec.folder,
+            # the spec's and model's SHA-256 (12 hex): its version where plugins are compared
+            "spec_digest": digest.hexdigest()[:12],
             "__module__": __name__,
         },
     )

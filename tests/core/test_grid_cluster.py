@@ -338,3 +338,51 @@ def test_a_cell_no_node_can_hold_fails_in_one_line(cluster, tmp_path):
         "--threads <= 1" in " ".join(done.stderr.split())
     )
     assert not ResultsStore(tmp_path / "g.db").list_runs()  # nothing ran
+
+
+def _spec_grid(cluster: Cluster, tmp_path: Path, robot: str, env: dict) -> dict:
+    """A one-cell grid over `robot` (from scratch: --checkpoint none) on the cluster."""
+    argv = _grid_command(tmp_path, cluster, "--methods", "ours", "--seeds", "0", "--json")
+    argv[argv.index("kuafu")] = robot
+    done = subprocess.run(
+        [*argv, "--run-arg=--checkpoint=none"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=tmp_path,
+    )
+    return {"done": done, "summary": json.loads(done.stdout.strip().splitlines()[-1])}
+
+
+def test_a_grid_over_a_spec_robot_runs_on_the_cluster(cluster, tmp_path):
+    """nezha, the robot that is only a spec and a model file, runs as a grid cell on a node
+    that shares no disk with the driver; its rows reach the driver's store."""
+    result = _spec_grid(cluster, tmp_path, "nezha", cluster.env)
+    done, summary = result["done"], result["summary"]
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert len(summary["finished"]) == 1 and not summary["failed"]
+    store = ResultsStore(tmp_path / "g.db")
+    (run,) = store.list_runs(grid_id=summary["grid_id"])
+    assert run["robot"] == "nezha" and run["status"] == "finished"
+    assert store.count_evaluations(run["id"], "real") > 0
+
+
+def test_a_node_without_a_users_spec_robot_refuses_its_cell(cluster, tmp_path):
+    """A spec robot found on the driver's COADAPT_ROBOT_PATH is part of its plugin set: a node
+    that cannot read that folder refuses the cell in one line naming the robot."""
+    robots = tmp_path / "robots"
+    shutil.copytree(
+        ROOT / "plugins" / "robots" / "specs" / "nezha",
+        robots / "mine",
+        ignore=shutil.ignore_patterns("policies", "README.md"),
+    )
+    spec = robots / "mine" / "robot.yaml"
+    spec.write_text(spec.read_text().replace("name: nezha", "name: mine"))
+    env = {**cluster.env, "COADAPT_ROBOT_PATH": str(robots)}
+    result = _spec_grid(cluster, tmp_path, "mine", env)
+    done, summary = result["done"], result["summary"]
+    assert done.returncode == 1 and not summary["finished"] and len(summary["failed"]) == 1
+    text = " ".join(done.stderr.split())
+    assert "refused the cell: plugins differ (only on the driver: robot:mine=robot specs" in text
+    assert not ResultsStore(tmp_path / "g.db").list_runs()
