@@ -138,7 +138,7 @@ def test_hostile_strings_show_as_text_and_never_run(world):
     b.wait_text("#runs", contains=HOSTILE)
     assert PAYLOAD in b.text("#runs")  # the markup is shown, letter for letter
     b.go(world["url"] + "run/" + HOSTILE)
-    config = b.wait_text("#config", contains="note")
+    config = b.wait_text("#config", contains="note", shown=False)  # folded away by default
     assert PAYLOAD.replace('"', '\\"') in config
     assert PAYLOAD in b.text("#summary")
     assert b.run(

@@ -85,17 +85,22 @@ class Browser:
             "POST", self.session + "/execute/sync", {"script": script, "args": list(args)}
         )
 
-    def text(self, selector: str = "body") -> str:
+    def text(self, selector: str = "body", shown: bool = True) -> str:
+        """The text `selector` shows (innerText), or all it holds, shown or folded away in
+        a closed <details> (textContent: `shown=False`)."""
+        prop = "innerText" if shown else "textContent"
         return self.run(
-            "const n = document.querySelector(arguments[0]); return n ? n.innerText : null;",
+            f"const n = document.querySelector(arguments[0]); return n ? n.{prop} : null;",
             selector,
         )
 
-    def wait_text(self, selector: str, timeout: float = 20.0, contains: str = "") -> str:
+    def wait_text(
+        self, selector: str, timeout: float = 20.0, contains: str = "", shown: bool = True
+    ) -> str:
         """The text of `selector` once it exists (and holds `contains`)."""
         deadline = time.monotonic() + timeout
         while True:
-            found = self.text(selector)
+            found = self.text(selector, shown)
             if found is not None and contains in found:
                 return found
             if time.monotonic() > deadline:

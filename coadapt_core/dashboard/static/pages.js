@@ -76,7 +76,7 @@
     const names = data.design_names, objectives = data.run.objectives;
     const counts = Object.entries(data.counts).map(([k, n]) => `${n} ${k}`).join(", ");
     return [el("h2", { text: "Evaluations" }), el("p", { id: "eval-count", "data-rows": data.evaluations.length, text: `${data.evaluations.length} rows: ${counts || "none yet"}` }),
-      el("div", { class: "scroll" }, D.table(["outer", "inner", "idx", "kind", ...names, ...objectives.map(o => o + " cost"), "surrogate error"],
+      el("details", { class: "scroll", id: "rows-box", open: data.evaluations.length <= 200 }, el("summary", { text: "every row" }), D.table(["outer", "inner", "idx", "kind", ...names, ...objectives.map(o => o + " cost"), "surrogate error"],
         data.evaluations.map(e => [e.outer, e.inner, e.idx, e.kind, ...names.map((_, i) => e.design[i] === undefined ? "" : Number(e.design[i]).toFixed(4)),
           ...objectives.map(o => e.costs[o] === undefined || e.costs[o] === null ? "" : Number(e.costs[o]).toPrecision(5)),
           Object.entries(e.surrogate_error).map(([k, v]) => k + " " + Number(v).toPrecision(3)).join(", ")]), { id: "evaluations" }))];
@@ -86,12 +86,15 @@
     const id = data.run.id, out = [el("h2", { text: "Run folder" })];
     if (data.folder) out.push(el("p", { class: "warning", id: "folder-state", text: data.folder }));
     if (data.files.includes("best_vs_nominal.gif")) out.push(el("img", { src: D.fileHref(id, "best_vs_nominal.gif"), alt: "best design beside the nominal one", class: "gif" }));
+    for (const png of data.files.filter(f => f.endsWith(".png"))) out.push(el("img", { src: D.fileHref(id, png), alt: png + " as the run drew it", class: "gif" }));
     if (data.files.length) out.push(el("ul", { id: "files" }, data.files.map(f => el("li", {}, D.link(D.fileHref(id, f), f)))));
     return out;
   }
 
   async function runPage() {
     const data = await D.getJSON("/api/run/" + encodeURIComponent(pathId()));
+    // a live redraw keeps what the reader opened or closed
+    const kept = new Map([...main.querySelectorAll("details[id]")].map(d => [d.id, d.open]));
     const c = data.convergence, t = data.training, firstObjective = data.run.objectives[0] || "cost";
     const surrogate = [...new Set(data.surrogate_error.map(s => s.objective))].map(o => ({ label: o, kind: "points",
       points: data.surrogate_error.filter(s => s.objective === o).map(s => [s.outer, s.percent]) }));
@@ -111,7 +114,10 @@
       ...paretoBlock(data.pareto), ...filesBlock(data),
       el("h2", { text: "Commands" }), el("pre", { id: "commands", text: data.commands.resume + "\n" + data.commands.handoff }),
       ...evaluationsBlock(data),
-      el("h2", { text: "Configuration" }), el("pre", { id: "config", text: JSON.stringify(data.config, null, 2) }));
+      el("h2", { text: "Configuration" }),
+      el("details", { id: "config-box" }, el("summary", { text: `the run's configuration (${Object.keys(data.config).length} settings)` }),
+        el("pre", { id: "config", text: JSON.stringify(data.config, null, 2) })));
+    for (const [id, open] of kept) { const d = document.getElementById(id); if (d) d.open = open; }
     D.poll(runPage, data.run.status === "running");
   }
 
