@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import base64
 import json
-import os
 import shutil
 import socket
 import subprocess
@@ -153,15 +152,6 @@ class Served:
         self.server.shutdown()
         self.server.server_close()
         self.store.close()
-
-
-def output_folder(name: str) -> Path:
-    """Where a test's screenshots go: $COADAPT_TEST_OUTPUT/<name>, else a temporary folder."""
-    root = os.environ.get("COADAPT_TEST_OUTPUT")
-    base = Path(root) if root else Path(os.environ.get("TMPDIR", "/tmp")) / "coadapt-dashboard"
-    folder = base / name
-    folder.mkdir(parents=True, exist_ok=True)
-    return folder
 
 
 # -- a small store, as the loop records runs ----------------------------------------------------
