@@ -31,10 +31,6 @@ SEGMENT_SHARE = 0.25
 #: the damping-to-stiffness ratio (legged_gym's A1 and Unitree's G1 settings: 0.02-0.025)
 KP_PER_TORQUE = 1.0
 KD_RATIO = 0.025
-_SIDE_TOKENS = re.compile(
-    r"(^|[_\-.])(left|right|l|r|fl|fr|rl|rr|lf|rf|lh|rh|hl|hr|front|rear|hind|back)(?=$|[_\-.])",
-    re.IGNORECASE,
-)
 
 
 def _base(model: mujoco.MjModel) -> int:
@@ -63,11 +59,26 @@ def _hinges(model: mujoco.MjModel, bodies: list[int]) -> int:
     )
 
 
-def _kind(name: str) -> str:
-    """A body name with its side and leg tokens taken out ("FL_thigh" -> "thigh")."""
-    bare = _SIDE_TOKENS.sub(r"\1", name)
-    bare = re.sub(r"(_link|_body)$", "", bare.strip("_-. "))
-    return re.sub(r"[^a-z0-9_]+", "_", bare.lower()).strip("_") or "segment"
+def _common_kind(names: list[str]) -> str:
+    """What the legs' body names share once their side or leg tokens are dropped: the longest
+    common run of trailing tokens ("FL_thigh", "RR_thigh" -> "thigh"; "ml_femur_link",
+    "fr_femur_link" -> "femur"), else of leading ones, else ""."""
+    split = [[t for t in re.split(r"[_\-.]+", n.lower()) if t] for n in names]
+    for tokens in split:
+        while tokens and tokens[-1] in ("link", "body"):
+            tokens.pop()
+    tail = []
+    for group in zip(*(reversed(t) for t in split), strict=False):
+        if len(set(group)) != 1:
+            break
+        tail.insert(0, group[0])
+    if not tail:
+        for group in zip(*split, strict=False):
+            if len(set(group)) != 1:
+                break
+            tail.append(group[0])
+    kind = "_".join(tail)
+    return re.sub(r"[^a-z0-9_]+", "_", kind).strip("_")
 
 
 def _gait(count: int) -> list[float]:
@@ -118,8 +129,8 @@ def _segments(model, legs: list[dict]) -> list[dict]:
     params = []
     for k in range(count):
         links = [kept[len(kept) - count + k] for kept in per_leg]
-        kinds = {_kind(model.body(int(p)).name) for p, _ in links}
-        name = (kinds.pop() if len(kinds) == 1 else ("upper_leg", "lower_leg")[k % 2]) + "_scale"
+        kind = _common_kind([model.body(int(p)).name for p, _ in links])
+        name = (kind or ("upper_leg", "lower_leg")[k % 2]) + "_scale"
         length = float(np.linalg.norm(model.body_pos[links[0][1]]))
         params.append(
             {

@@ -7,6 +7,8 @@ Pinocchio reads the robot's URDF when it writes one, else its MJCF.
 
 from __future__ import annotations
 
+import re
+
 import mujoco
 import numpy as np
 
@@ -150,7 +152,9 @@ def _pinocchio(rm: RobotModel, model: mujoco.MjModel, data: mujoco.MjData) -> li
     import pinocchio as pin
 
     if "urdf" in rm.formats:
-        pmodel = pin.buildModelFromXML(rm.text("urdf"), pin.JointModelFreeFlyer())
+        # kinematics and inertials only: urdfdom does not parse a capsule (PyBullet does)
+        text = re.sub(r"<(visual|collision)>.*?</\1>", "", rm.text("urdf"), flags=re.S)
+        pmodel = pin.buildModelFromXML(text, pin.JointModelFreeFlyer())
         source = "URDF"
     else:
         import os
