@@ -126,11 +126,18 @@ def _checkpoint(s: LandscapeSettings, robot_cls: type) -> Path:
         fail(f"--checkpoint {checkpoint} does not exist")
     from coadapt_core.learning.checkpoints import read_checkpoint
 
-    trained_for = read_checkpoint(checkpoint).get(
-        "robot"
-    )  # weights_only=True; one line if not a checkpoint
+    state = read_checkpoint(checkpoint)  # weights_only=True; one line if not a checkpoint
+    trained_for = state.get("robot")
     if trained_for != s.robot:
         fail(f"--checkpoint {checkpoint} was trained for robot '{trained_for}', not '{s.robot}'")
+    takes = (state.get("dims") or {}).get("num_design")
+    wanted = robot_cls().design_space(False).dim
+    if takes is not None and int(takes) != wanted:  # e.g. a policy of the mixed space
+        fail(
+            f"--checkpoint {checkpoint} takes {int(takes)} design values; the landscape maps "
+            f"{s.robot}'s continuous design space of {wanted}: give a policy trained without "
+            "--mixed"
+        )
     return checkpoint
 
 

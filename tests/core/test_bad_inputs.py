@@ -9,6 +9,7 @@ YAML booleans that are not booleans. `grid` must refuse before it starts any cel
 
 from __future__ import annotations
 
+import shutil
 import time
 from pathlib import Path
 
@@ -164,6 +165,11 @@ CASES: list[tuple[str, list[str], dict[str, str]]] = [
         [*LAND, "--checkpoint", "{T}/other-robot.pt", "--store", "{T}/l.db"],
         {},
     ),
+    (  # Kuafu's policy of the mixed space (4 design values) on the 2-value landscape
+        "landscape --checkpoint of the mixed space",
+        [*LAND, "--checkpoint", "{T}/mixed.pt", "--store", "{T}/l.db"],
+        {},
+    ),
     (
         "report --transfer-sim nope",
         ["report", "--store", "{T}/r.db", "--out", "{T}/rep", "--transfer-sim", "nope"],
@@ -203,6 +209,7 @@ def folder(tmp_path_factory) -> Path:
         / "policies"
         / "flat.pt"
     )
+    shutil.copy(shipped.with_name("flat-mixed.pt"), T / "mixed.pt")
     state = torch.load(shipped, map_location="cpu", weights_only=True)
     state["robot"] = "another-robot"
     torch.save(state, T / "other-robot.pt")
