@@ -222,10 +222,13 @@ def _pct(value: float, se: float) -> str:
     return text if not np.isfinite(se) else f"{text} ± {100 * se:.1f}"
 
 
-def line(r: Reading, rule: str = "capped") -> str:
+def line(r: Reading, rule: str = "capped", measure: str = "") -> str:
     """The figures in one line: the answer under the cost rule (or why none), the plain mean,
-    the fall rates and their paired difference, the scenario count, and the warning."""
-    head = r.refusal or f"{r.objective} {_pct(r.improvement, r.improvement_se)} ({rule} cost)"
+    the fall rates and their paired difference, the scenario count, and the warning.
+    `measure`: what the objective's improvement measures where it is not 1 - c/c0
+    (`analysis.measures.improvement_measure`: tracking's RMS error reduction)."""
+    what = f"{rule} cost" + (f"; {measure}" if measure else "")
+    head = r.refusal or f"{r.objective} {_pct(r.improvement, r.improvement_se)} ({what})"
     parts = [
         head,
         f"plain mean {_pct(r.plain, r.plain_se)}",

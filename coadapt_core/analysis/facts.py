@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from coadapt_core import sim_to_sim as sim2sim
+from coadapt_core.analysis.measures import improvement_measure, objective_named
 from coadapt_core.errors import UserError
 from coadapt_core.methods import METHODS
 from coadapt_core.results.export import space_of_run
@@ -214,7 +215,8 @@ def transfer_improvement(
     read = sim2sim.reading(by_idx[0].costs, by_idx[1].costs, first)
     if read is not None:  # the protocol's figures: the answer, or why none, in one line
         rule = str((run.get("config") or {}).get("cost_rule") or "trimmed")
-        return read.answer, f"{by_idx[0].simulator}: {sim2sim.line(read, rule)}"
+        measure = improvement_measure(objective_named(first))
+        return read.answer, f"{by_idx[0].simulator}: {sim2sim.line(read, rule, measure)}"
     best_cost, nominal_cost = by_idx[0].costs[first], by_idx[1].costs[first]
     try:
         from coadapt_core.plugins import get_registry

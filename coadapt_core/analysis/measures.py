@@ -87,6 +87,17 @@ def as_cost_reduction(
     return value, abs(slope) * se
 
 
+def improvement_measure(objective: Any | None) -> str:
+    """What an objective's improvement measures, in words, where it is not the cost reduction
+    1 - c / c0 ('' where it is): "RMS error reduction 1 - √(c/c0)" for an objective whose cost
+    is a mean squared error (command tracking's P_cmd), else "its own measure"."""
+    if not differs(objective):
+        return ""
+    if math.isclose(float(objective.improvement(0.25, 1.0)), 0.5, abs_tol=1e-9):
+        return "RMS error reduction 1 - √(c/c0)"
+    return "its own measure"
+
+
 def differs(objective: Any | None) -> bool:
     """Whether the objective's own improvement is not the cost reduction itself."""
     return objective is not None and type(objective).improvement is not _default_improvement()

@@ -141,6 +141,23 @@ def _shipped(robot_obj: Any, robot: str, terrain: str, design_values: Any) -> Pa
     return checkpoint
 
 
+def _measures() -> dict[str, str]:
+    """Row labels that say which measure a figure is: an objective's summary key that is not
+    a `_cost` (tracking's `tracking_error`: P_cmd per step) and the walking gate's ratio."""
+    from coadapt_core.coadapt.reliability import RATIO_MEANS
+    from coadapt_core.plugins import get_registry
+
+    registry = get_registry()
+    out = {"tracking_ratio": RATIO_MEANS}
+    for name in registry.names("objective"):
+        cls = registry.get("objective", name)
+        key, text = getattr(cls, "summary_key", ""), getattr(cls, "description", "")
+        if key and not key.endswith("_cost"):
+            symbol = text.split(" = ")[0] if " = " in text else f"{name} cost"
+            out[key] = f"{symbol} per step (eval), {getattr(cls, 'unit', '')}".rstrip(", ")
+    return out
+
+
 def _eval_table(result: dict[str, Any], title: str, agents: int, seconds: float) -> None:
     """`coadapt eval`'s result as a table, each objective's cost in its declared unit."""
     from rich.console import Console
@@ -153,10 +170,14 @@ def _eval_table(result: dict[str, Any], title: str, agents: int, seconds: float)
     table.add_column("value", justify="right")
     costs, costs_se = result.pop("costs", {}), result.pop("costs_se", {})
     walking, gate = result.pop("walking", None), result.pop("walking_gate", None)
+    measures = _measures()
     for key, value in result.items():
         label = (
             f"{key} (eval)" if key.endswith(("_cost", "_cost_se")) else key
         )  # every cost says its protocol
+        measure = measures.get(key.removesuffix("_se"))  # a tracking figure says its measure
+        if measure:
+            label = f"{key}: {'SE of ' if key.endswith('_se') else ''}{measure}"
         table.add_row(label, f"{value:.4g}" if isinstance(value, float) else str(value))
     for name, value in costs.items():
         table.add_row(f"{name} cost (eval, per step)", f"{value:.4g} +- {costs_se[name]:.2g} SE")

@@ -59,7 +59,7 @@ def _summary_table(summary: dict[str, Any], names: list[str], discrete: list[boo
     units = summary.get("cost_units") or {}
     for objective in summary["best_costs"]:
         unit = f" [{units[objective]}]" if units.get(objective) else ""
-        table.add_column(f"{objective}{unit}\n+- SE", overflow="fold")
+        table.add_column(f"{objective}{_symbol(objective)}{unit}\n+- SE", overflow="fold")
     plain = summary.get("best_plain_means") or {}
     for objective in plain:
         table.add_column(f"{objective} plain\nmean +- SE", overflow="fold")
@@ -105,6 +105,26 @@ def falls_more_by(difference: float, se: float | None = None) -> str:
     return f"falls {direction} by {100 * abs(difference):.1f}{spread} points than nominal"
 
 
+def _symbol(name: str) -> str:
+    """The symbol of an objective's cost (" P_cmd": its description's "P_cmd = ...") where
+    its improvement is not the cost reduction, so that its cost and its improvement are told
+    apart; else ''."""
+    from coadapt_core.analysis.measures import improvement_measure, objective_named
+
+    objective = objective_named(name)
+    text = getattr(objective, "description", "") or ""
+    return f" {text.split(' = ')[0]}" if " = " in text and improvement_measure(objective) else ""
+
+
+def _measured(name: str) -> str:
+    """An objective's name with what its improvement measures where that is not the cost
+    reduction: "tracking (RMS error reduction 1 - √(c/c0))"."""
+    from coadapt_core.analysis.measures import improvement_measure, objective_named
+
+    measure = improvement_measure(objective_named(name))
+    return f"{name} ({measure})" if measure else name
+
+
 def _improvements(summary: dict[str, Any]) -> str:
     """The improvement over the nominal design, per objective (+- its paired SE; the first
     said not significant when it is not), the plain means', the fall-rate difference, each
@@ -113,7 +133,7 @@ def _improvements(summary: dict[str, Any]) -> str:
     first = next(iter(summary["improvements"]), None)
     parts = []
     for k, v in summary["improvements"].items():
-        text = f"{k} {better_by(v, improvement_se.get(k))}"
+        text = f"{_measured(k)} {better_by(v, improvement_se.get(k))}"
         if k == first and summary.get("significant") is False:
             why = (
                 "the nominal design stands"

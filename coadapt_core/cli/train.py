@@ -343,7 +343,8 @@ def _train(values: dict[str, Any], runner: Any, robot: str) -> None:
                 stats.iteration - first,
                 f"{stats.collect_steps_per_s:,.0f} steps/s  reward "
                 f"{stats.mean_reward:.4f}  vx {stats.vx:.2f}/{stats.command_vx:.2f} m/s  "
-                f"err {stats.tracking_error:.3f} m/s  ep {stats.episode_length_s:.1f} s",
+                f"velocity error/step {stats.tracking_error:.3f} m/s  "
+                f"ep {stats.episode_length_s:.1f} s",
             )
 
         try:

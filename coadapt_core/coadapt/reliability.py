@@ -33,6 +33,14 @@ from typing import Any
 
 import numpy as np
 
+#: what the tracking ratio is, said wherever it is printed (not P_cmd, not a per-step error)
+RATIO_MEANS = "RMS velocity error / command size"
+
+
+def ratio_text(ratio: float) -> str:
+    """The tracking ratio as printed: "tracking ratio 0.11 (RMS velocity error / command size)"."""
+    return f"tracking ratio {ratio:.2f} ({RATIO_MEANS})"
+
 
 @dataclass(frozen=True)
 class WalkingGate:
@@ -41,8 +49,8 @@ class WalkingGate:
 
     def describe(self) -> str:
         return (
-            f"survival >= {self.min_survival:g} and tracking error <= "
-            f"{self.max_tracking_ratio:g} x command"
+            f"survival >= {self.min_survival:g} and tracking ratio <= "
+            f"{self.max_tracking_ratio:g} ({RATIO_MEANS})"
         )
 
 
@@ -73,7 +81,7 @@ def _fails(measured: dict[str, Any], gate: WalkingGate) -> list[str]:
     if survival is not None and survival < gate.min_survival:
         out.append(f"survival {survival:.2f} < {gate.min_survival:g}")
     if ratio is not None and ratio > gate.max_tracking_ratio:
-        out.append(f"tracking error {ratio:.2f} x command > {gate.max_tracking_ratio:g}")
+        out.append(f"{ratio_text(ratio)} > {gate.max_tracking_ratio:g}")
     return out
 
 
@@ -162,9 +170,7 @@ def judge_policy(
     problems = _fails(measured, gate)
     if not problems:
         shown = [f"survival {survival:.2f}"] if survival is not None else []
-        shown += (
-            [f"tracking error {tracking_ratio:.2f} x command"] if tracking_ratio is not None else []
-        )
+        shown += [ratio_text(tracking_ratio)] if tracking_ratio is not None else []
         return True, f"walks ({', '.join(shown)}); gate: {gate.describe()}"
     reason = f"does not walk ({'; '.join(problems)}); gate: {gate.describe()}"
     if steps >= MIN_JUDGED_STEPS:

@@ -179,6 +179,7 @@ def _paired_rows(
     protocol's line and answer of the first objective. Without per-scenario costs, the
     backend's costs alone."""
     from coadapt_core import sim_to_sim
+    from coadapt_core.analysis.measures import improvement_measure
 
     if rows is None:
         costs = np.asarray(fit.costs, dtype=float).reshape(2, -1)
@@ -220,7 +221,7 @@ def _paired_rows(
         "answer": read.answer,
         "refusal": read.refusal or None,
         "warning": read.warning or None,
-        "sim_to_sim": sim_to_sim.line(read, rule),
+        "sim_to_sim": sim_to_sim.line(read, rule, improvement_measure(made[0])),
     }
 
 

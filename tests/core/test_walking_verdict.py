@@ -18,7 +18,8 @@ KUAFU_FLAT = "plugins/robots/kuafu/policies/flat.pt"
 def test_judge_policy_applies_the_run_gate_with_numbers() -> None:
     assert judge_policy(1.0, 0.2, 250)[0] is True
     walking, reason = judge_policy(1.0, 0.97, 250)  # stands still: error about the command's size
-    assert walking is False and "tracking error 0.97 x command > 0.5" in reason
+    assert walking is False
+    assert "tracking ratio 0.97 (RMS velocity error / command size) > 0.5" in reason
     walking, reason = judge_policy(0.5, 0.1, 250)
     assert walking is False and "survival 0.50 < 0.8" in reason
     assert (
@@ -58,7 +59,7 @@ def test_eval_does_not_pass_a_standing_policy_as_walking(tmp_path, capsys) -> No
     # survives and stands: survival alone would call this a good policy
     assert result["survival"] >= 0.95 and abs(result["vx_mean"]) < 0.1
     assert result["tracking_ratio"] > 0.8
-    assert result["walking"] is False and "does not walk (tracking error" in result["walking_gate"]
+    assert result["walking"] is False and "does not walk (tracking ratio" in result["walking_gate"]
     # the end of `coadapt train` says the same of it
     from coadapt_core.design_space import DesignSpace
     from coadapt_core.experiments.evaluate import training_verdict
