@@ -196,6 +196,9 @@ def test_a_grids_page_shows_its_cells_by_state_and_the_tables(world):
     assert "Table 6 — optimization results" in body and "Table 7 — computational cost" in body
     assert "Beside the paper" in body and "12.3% ± 0.8% SE (n=1)" in body
     shoot(b, world["tmp"], "grid")
+    b.go(world["url"] + "?grid=" + GRID)  # the link to its runs: the runs table filtered
+    assert b.wait_text("#run-count").startswith("2 runs")
+    assert SINGLE in b.text("#runs") and HOSTILE not in b.text("#runs")
 
 
 def test_the_compare_page_sets_runs_side_by_side(world):

@@ -129,9 +129,12 @@
       }
       if (s.kind === "points" || s.markers) {
         for (const p of pts) {
-          const e = s.err ? s.err[p[2]] : null;
+          const e = s.err ? s.err[p[2]] : null, ex = s.errX ? s.errX[p[2]] : null;
           if (finite(e)) {
             node("line", { x1: sx(p[0]), x2: sx(p[0]), y1: sy(p[1] - e), y2: sy(p[1] + e), stroke: color, "stroke-width": 1.5 }, g);
+          }
+          if (finite(ex)) {
+            node("line", { x1: sx(p[0] - ex), x2: sx(p[0] + ex), y1: sy(p[1]), y2: sy(p[1]), stroke: color, "stroke-width": 1.5 }, g);
           }
           const v = s.values ? s.values[p[2]] : null;
           const c = s.values ? rampColor((v - vlo) / ((vhi - vlo) || 1)) : color;

@@ -91,7 +91,9 @@
       .map(s => el("option", { value: s, text: "sort: " + s, selected: s === (query.get("sort") || "created") })));
     const desc = el("select", { name: "desc" }, el("option", { value: "1", text: "descending" }),
       el("option", { value: "0", text: "ascending", selected: query.get("desc") === "0" }));
-    return el("form", { method: "get", action: "/", class: "controls" }, q, status, sort, desc, el("button", { type: "submit", text: "Apply" }));
+    const grid = query.get("grid") ? el("input", { type: "hidden", name: "grid", value: query.get("grid") }) : null;
+    return el("form", { method: "get", action: "/", class: "controls" }, q, status, sort, desc, grid, el("button", { type: "submit", text: "Apply" }),
+      grid ? el("span", {}, "runs of grid " + query.get("grid") + " · ", link("/", "all runs")) : null);
   }
 
   function runsTable(rows) {

@@ -42,10 +42,10 @@
   function paretoBlock(p) {
     if (!p) return [];
     const [o1, o2] = p.objectives;
-    const err = p.front_se ? p.front_se.map(s => s[1]) : null;
+    const err = p.front_se ? p.front_se.map(s => s[1]) : null, errX = p.front_se ? p.front_se.map(s => s[0]) : null;
     const series = [
       { label: "evaluated (in-run estimates)", kind: "points", color: "#999", size: 3, points: p.evaluated },
-      { label: "front ± SE", kind: "line", markers: true, color: "#d62728", points: p.front, err: err },
+      { label: "front ± SE", kind: "line", markers: true, color: "#d62728", points: p.front, err: err, errX: errX },
     ];
     if (p.nominal) series.push({ label: "nominal", kind: "points", shape: "diamond", color: "#000", points: [p.nominal] });
     return [el("h2", { text: "Pareto front" }),
@@ -125,6 +125,7 @@
     const data = await D.getJSON("/api/grid/" + encodeURIComponent(pathId()));
     const states = Object.entries(data.states).map(([s, n]) => `${n} ${s}`).join(", ");
     const parts = [el("h1", { id: "grid-id", text: "Grid " + data.grid.id }), el("p", { id: "cell-states", text: states || "no cells yet" }),
+      el("p", {}, D.link("/?grid=" + encodeURIComponent(data.grid.id), "its runs in the runs table")),
       D.table(["cell", "state", "attempts", "ran again", "run", "run state", "last error"], data.cells.map(c => [c.cell,
         el("span", { class: "state " + c.status, text: c.status }), c.attempts, c.ran_again ? "yes" : "", c.run_id ? D.link(D.runHref(c.run_id), c.run_id) : "–", c.run_status, c.last_error]), { id: "cells" })];
     for (const [title, head, rows] of data.tables) parts.push(el("h2", { text: title }), el("div", { class: "scroll" }, D.table(head, rows, { class: "report" })));
