@@ -153,8 +153,9 @@ def figure_pareto(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]
         d = pareto_points(f)
         o1, o2 = d["objectives"]
         _draw_front(ax, d)
-        ax.set_xlabel(f"{o1} cost")
-        ax.set_ylabel(f"{o2} cost")
+        units = f.summary.get("cost_units") or {}
+        ax.set_xlabel(f"{o1} cost per step" + (f" [{units[o1]}]" if units.get(o1) else ""))
+        ax.set_ylabel(f"{o2} cost per step" + (f" [{units[o2]}]" if units.get(o2) else ""))
         both = np.vstack([d["evaluated"], d["front"]])
         if spans_decades(both[:, 0]):
             ax.set_xscale("log")

@@ -88,12 +88,12 @@ def figure_convergence(
                     continue
                 _draw_curve(ax, f, x, y, unit, opt)
         ax.set_xlabel(f"environment interactions ({unit_name})")
-        ax.set_ylabel(f"best in-run {o} cost so far\n(square: final check +- SE)")
+        ax.set_ylabel(f"{o} cost per step{_cost_unit(runs, o)}")
         if spans_decades([y for _, ys in series.values() for y in ys]):
             ax.set_yscale("log")
         ax.set_title(f"{o} on {t}", fontsize=10)
         tidy_axes(ax)
-    _method_legend(fig, groups)
+    _method_legend(fig, groups, _reading_handles())
     return save_figure(
         plt,
         fig,
@@ -101,11 +101,42 @@ def figure_convergence(
         "Convergence: best in-run estimate of the real cost found so far against environment "
         "interactions spent (training + real evaluation), one line per run; colour and marker "
         "shape = method, line style and marker fill = optimizer; the marker sits at the run's "
-        "last evaluation. The error bar after it is the final check: the run's returned design "
+        "last evaluation. The square after it is the final check: the run's returned design "
         "re-evaluated on fresh paired scenarios, +- its standard error (the number the run "
-        "reports; in-run estimates of the best design are biased low by its selection).",
+        "reports). It sits above the curve because the in-run estimates come from fewer "
+        "scenarios, the run's own, and the lowest of many noisy estimates is biased low by its "
+        "selection. The dotted line is the nominal design's cost in the same final check.",
         layout=False,
     )
+
+
+def _cost_unit(runs: Sequence[RunFacts], objective: str) -> str:
+    """' [unit]' of an objective's cost as the runs' summaries record it ('' when none does)."""
+    for f in runs:
+        unit = (f.summary.get("cost_units") or {}).get(objective)
+        if unit:
+            return f" [{unit}]"
+    return ""
+
+
+def _reading_handles() -> list[Any]:
+    """Legend entries that say what each mark of a convergence panel is."""
+    from matplotlib.lines import Line2D
+
+    grey = "0.35"
+    return [
+        Line2D([], [], color=grey, label="in-run best (own scenarios, biased low)"),
+        Line2D(
+            [],
+            [],
+            color=grey,
+            marker="s",
+            markerfacecolor="white",
+            linestyle="none",
+            label="final check +- SE (fresh scenarios)",
+        ),
+        Line2D([], [], color=grey, linestyle=":", label="nominal design (final check)"),
+    ]
 
 
 def _draw_curve(ax: Any, f: RunFacts, x: np.ndarray, y: np.ndarray, unit: float, opt: str) -> None:
@@ -131,10 +162,13 @@ def _draw_curve(ax: Any, f: RunFacts, x: np.ndarray, y: np.ndarray, unit: float,
         linestyle="none",
     )
     _final_check_bar(ax, f, x[-1], unit, color)
+    if f.nominal_cost is not None and math.isfinite(f.nominal_cost):
+        ax.axhline(f.nominal_cost, color=color, linestyle=":", linewidth=1.2, alpha=0.9)
 
 
-def _method_legend(fig: Any, groups: Sequence[tuple[str, str]]) -> None:
-    """One legend for the whole figure, in the tables' order: the same in every panel."""
+def _method_legend(fig: Any, groups: Sequence[tuple[str, str]], extra: Sequence[Any] = ()) -> None:
+    """One legend for the whole figure, in the tables' order: the same in every panel;
+    `extra` handles (what each mark is) after the methods."""
     from matplotlib.lines import Line2D
 
     handles = [
@@ -149,10 +183,11 @@ def _method_legend(fig: Any, groups: Sequence[tuple[str, str]]) -> None:
         )
         for m, opt in groups
     ]
-    fig.legend(
-        handles=handles, loc="lower center", ncol=min(3, len(handles)), fontsize=8, frameon=False
-    )
-    fig.tight_layout(rect=(0, 0.06 + 0.03 * math.ceil(len(handles) / 3), 1, 1))
+    handles += list(extra)
+    # the marks' entries are long: one column on a one-panel figure
+    ncol = (1 if fig.get_figwidth() < 6 else 2) if extra else min(3, len(handles))
+    fig.legend(handles=handles, loc="lower center", ncol=ncol, fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0.06 + 0.035 * math.ceil(len(handles) / ncol), 1, 1))
 
 
 def _final_check_bar(ax: Any, f: RunFacts, x_end: float, unit: float, color: Any) -> None:

@@ -405,3 +405,60 @@ def test_the_hypervolume_se_matches_its_spread_over_independent_scenario_sets():
         ses.append(se)
     spread = float(np.std(hvs, ddof=1))  # 0.0107 when written; mean SE 0.0110
     assert spread > 0 and np.mean(ses) == pytest.approx(spread, rel=0.25)
+
+
+def _drawn(monkeypatch, module) -> list:
+    """The figures `module` saves, kept open for reading instead of closed."""
+    kept = []
+
+    def keep(plt, fig, path, caption, *, layout=True):
+        kept.append(fig)
+        return [(path, caption)]
+
+    monkeypatch.setattr(module, "save_figure", keep)
+    return kept
+
+
+def test_convergence_plot_has_its_unit_the_nominal_line_and_says_why_the_check_sits_higher(
+    tmp_path, monkeypatch, paired_fake
+):
+    """Issue 50: the cost axis names its unit, the nominal design's final-check cost is a
+    dotted line at its value, and the legend tells the in-run curve (biased low) from the
+    final check's square (fresh scenarios)."""
+    import coadapt_core.analysis.report_figures as report_figures
+    from coadapt_core.analysis.run_figures import write_run_figures
+
+    args = ["run", "--preset", "smoke", "--population", "4", "--no-video", "--store", "none"]
+    assert main([*args, "--out", str(tmp_path / "runs")]) == 0
+    (run_dir,) = (tmp_path / "runs").iterdir()
+    summary = json.loads((run_dir / "summary.json").read_text())
+    kept = _drawn(monkeypatch, report_figures)
+    write_run_figures(run_dir, summary)
+    (fig,) = kept
+    ax = fig.axes[0]
+    unit = summary["cost_units"]["torque"]
+    assert unit and ax.get_ylabel() == f"torque cost per step [{unit}]"
+    flat = [
+        line for line in ax.lines if len(set(line.get_ydata())) == 1 and line.get_linestyle() == ":"
+    ]
+    assert [line.get_ydata()[0] for line in flat] == [pytest.approx(summary["nominal_cost"])]
+    texts = [t.get_text() for legend in fig.legends for t in legend.get_texts()]
+    assert texts[-3:] == [
+        "in-run best (own scenarios, biased low)",
+        "final check +- SE (fresh scenarios)",
+        "nominal design (final check)",
+    ]
+
+
+def test_pareto_plot_names_the_unit_of_each_cost_axis(tmp_path, monkeypatch, nsga2_run):
+    import coadapt_core.analysis.pareto_figure as pareto_figure
+    from coadapt_core.analysis.run_figures import write_run_figures
+
+    run_dir, summary, _ = nsga2_run
+    kept = _drawn(monkeypatch, pareto_figure)
+    write_run_figures(run_dir, summary)
+    (fig,) = kept
+    names = list(summary["best_costs"])
+    units = summary["cost_units"]
+    assert fig.axes[0].get_xlabel() == f"{names[0]} cost per step [{units[names[0]]}]"
+    assert fig.axes[0].get_ylabel() == f"{names[1]} cost per step [{units[names[1]]}]"
