@@ -210,7 +210,8 @@ def transfer_improvement(
     if first is None or 0 not in by_idx or 1 not in by_idx or first not in by_idx[0].costs:
         return (
             None,
-            note or "n/a: no sim-to-sim rows (`coadapt report --sim-to-sim` evaluates them)",
+            note
+            or "n/a: no sim-to-sim rows (`coadapt report` evaluates them unless --no-evaluate)",
         )
     read = sim2sim.reading(by_idx[0].costs, by_idx[1].costs, first)
     if read is not None:  # the protocol's figures: the answer, or why none, in one line

@@ -52,6 +52,13 @@ class ReportCommand:
     common_blocks: Int = setting(
         8, "Blocks of 32 scenarios x 250 steps in the common scenario set."
     )
+    evaluate: bool = setting(
+        True,
+        "Simulate the sim-to-sim and common-scenario rows a run lacks before the tables are "
+        "drawn (once per run: they are stored and read back by later reports); "
+        "--no-evaluate draws from the stored rows alone and simulates nothing.",
+        names=("--evaluate/--no-evaluate",),
+    )
 
 
 def _check_out(out: Path) -> None:
@@ -147,6 +154,7 @@ def _evaluate(
     from coadapt_core.results.schema import LANDSCAPE_METHOD
 
     runs = [r for r in select_runs(results, selection)[0] if r["method"] != LANDSCAPE_METHOD]
+    _say_missing(results, runs, transfer_sim if sim_to_sim else None, common)
     transfer_notes = common_notes = None
     if sim_to_sim:
         from coadapt_core.experiments.transfer import transfer_runs
@@ -164,6 +172,40 @@ def _evaluate(
 
         common_notes = yardstick_runs(results, runs, blocks=common_blocks, progress=progress)
     return transfer_notes, common_notes
+
+
+def _say_missing(results, runs: list, transfer_sim: str | None, common: bool) -> None:
+    """One line before anything is simulated: which runs lack which stored rows (they are
+    evaluated now, once, and stored), or that every row is stored and nothing is simulated."""
+    import sys
+
+    from coadapt_core.experiments.transfer import transfer_rows
+    from coadapt_core.experiments.yardstick import yardstick_rows
+
+    missing = []
+    if transfer_sim is not None:
+        lack = [
+            r["id"]
+            for r in runs
+            if r.get("simulator") != transfer_sim
+            and len(transfer_rows(results, r["id"], transfer_sim)) < 2
+        ]
+        missing += [f"sim-to-sim on {transfer_sim}: {', '.join(lack)}"] if lack else []
+    if common:
+        lack = [r["id"] for r in runs if len(yardstick_rows(results, r["id"])) < 2]
+        missing += [f"common scenarios: {', '.join(lack)}"] if lack else []
+    if missing:
+        print(
+            "report: simulating the rows these runs lack, once (stored: later reports read them "
+            f"back; --no-evaluate skips them): {'; '.join(missing)}",
+            file=sys.stderr,
+        )
+    elif runs and (transfer_sim is not None or common):
+        print(
+            "report: every run's sim-to-sim and common-scenario rows are stored; nothing is "
+            "simulated",
+            file=sys.stderr,
+        )
 
 
 def register(app: typer.Typer) -> None:
@@ -203,11 +245,11 @@ def register(app: typer.Typer) -> None:
             notes, common_notes = _evaluate(
                 results,
                 o.selection,
-                sim_to_sim=o.sim_to_sim,
+                sim_to_sim=o.sim_to_sim and o.evaluate,
                 transfer_sim=o.transfer_sim,
                 transfer_agents=o.transfer_agents,
                 transfer_steps=o.transfer_steps,
-                common=o.common,
+                common=o.common and o.evaluate,
                 common_blocks=o.common_blocks,
                 progress=progress,
             )

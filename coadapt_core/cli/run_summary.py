@@ -246,8 +246,27 @@ def _print_warnings(console: Any, summary: dict[str, Any]) -> None:
         summary
     ):  # a weak one is said below, with its rounds
         console.print(surrogate_note(summary))
-    for warning in summary["warnings"] if "warnings" in summary else run_warnings(summary):
+    warnings = summary["warnings"] if "warnings" in summary else run_warnings(summary)
+    for warning in warnings:
         console.print(f"[bold yellow]warning[/]: {escape(warning)}")
+    if summary.get("preset") == "quick":
+        console.print(quick_preset_note(len(warnings)))
+
+
+def quick_preset_note(warnings: int) -> str:
+    """What the quick preset (the default) is for and how to get a firmer answer, so that
+    its warnings read as guidance (README, "The first run")."""
+    said = (
+        ("the warning above says" if warnings == 1 else f"the {warnings} warnings above say")
+        + " where it is thin (guidance, not a failure)"
+        if warnings
+        else "nothing flagged at this size"
+    )
+    return (
+        "quick preset: a first answer in minutes (one seed, 3 outer iterations, a small final "
+        f"check); {said}. For a firmer answer: more seeds (--seed 1, --seed 2, or `coadapt "
+        'grid`), then `--preset paper` (about 50 x the interactions); README, "The first run"'
+    )
 
 
 def report(result: Any, as_json: bool) -> None:

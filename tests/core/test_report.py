@@ -454,3 +454,38 @@ def test_landscape_cli_on_real_mujoco_with_a_saved_policy(tmp_path):
         and summary["best_design"] == best.design
     )
     assert all(np.isfinite(e.costs["torque"]) and e.costs["torque"] >= 0 for e in rows)
+
+
+def test_the_report_says_which_rows_it_simulates_and_no_evaluate_simulates_none(
+    filled_store, tmp_path, capsys
+):
+    """Issue 50: before simulating, one line names the runs that lack rows (simulated once,
+    stored); once they are stored it says nothing is simulated; --no-evaluate writes no row."""
+    from coadapt_core.cli.report import _say_missing
+
+    store, ids = filled_store
+    runs = [store.get_run(i) for i in sorted(ids.values())]
+    _say_missing(store, runs, "pybullet", common=False)
+    line = capsys.readouterr().err.strip()
+    listed = ", ".join(r["id"] for r in runs)
+    assert line == (
+        "report: simulating the rows these runs lack, once (stored: later reports read them "
+        f"back; --no-evaluate skips them): sim-to-sim on pybullet: {listed}"
+    )
+
+    def factory(robot, simulator, objectives, *, terrain, checkpoint, **kwargs):
+        return AnalyticBackend(scale=1.5)
+
+    assert transfer_runs(store, runs, simulator="pybullet", factory=factory) == {}
+    _say_missing(store, runs, "pybullet", common=False)
+    assert capsys.readouterr().err.strip() == (
+        "report: every run's sim-to-sim and common-scenario rows are stored; nothing is simulated"
+    )
+    before = len(store.table_rows("evaluations"))
+    db = store.url.removeprefix("sqlite:///")
+    from coadapt_core.cli import main
+
+    out = tmp_path / "rep"
+    assert main(["report", "--store", db, "--no-evaluate", "-o", str(out)]) == 0
+    assert len(store.table_rows("evaluations")) == before
+    assert "simulating" not in capsys.readouterr().err

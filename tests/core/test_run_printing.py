@@ -418,3 +418,21 @@ def test_the_summary_records_the_warnings_and_the_json_line_carries_them(
     assert any("thigh_scale" in w and "lower bound 0.9" in w for w in line["warnings"]), line[
         "warnings"
     ]
+
+
+# -- the first run explains itself (issue 50) ----------------------------------------------------
+def test_a_quick_run_ends_saying_what_the_preset_is_for_after_its_warnings(capsys):
+    out = " ".join(printed(capsys, planted(preset="quick", best_design=[0.52, 1.2])).split())
+    warned = out.index("warning: best design at a bound")
+    note = out.index("quick preset: a first answer in minutes")
+    assert warned < note and out.count("warning:") == 1
+    assert (
+        "the warning above says where it is thin (guidance, not a failure). For a firmer "
+        "answer: more seeds (--seed 1, --seed 2, or `coadapt grid`), then `--preset paper`"
+    ) in out
+    clean = " ".join(printed(capsys, planted(preset="quick")).split())
+    assert (
+        "quick preset: a first answer in minutes" in clean
+        and "nothing flagged at this size" in clean
+    )
+    assert "quick preset" not in printed(capsys, planted(preset="paper"))
