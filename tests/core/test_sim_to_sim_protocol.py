@@ -159,3 +159,53 @@ def test_report_and_handoff_give_the_same_pybullet_figure(tmp_path):
     assert note == f"pybullet: {fresh['sim_to_sim']}"
     assert value == fresh["answer"] == fresh["objectives"]["torque"]["improvement"]
     assert np.isfinite(value) and "4 paired scenarios" in note
+
+
+def test_the_reports_column_is_empty_with_the_reason_where_both_designs_fall(tmp_path):
+    """Rows stored from a both-fall evaluation: the report's figure is None (no percentage in
+    Table 6) and its note is the protocol's line, starting with the reason."""
+    from coadapt_core.analysis.facts import transfer_improvement
+    from coadapt_core.results import SqliteRecorder
+    from coadapt_core.results.recorders import batch_rows
+
+    torque = get_registry().create("objective", "torque")
+    falls = np.ones((2, 8), dtype=bool)
+    per = np.full((2, 8), 30.0)
+    rows = sim_to_sim.figures(
+        _fit(per, falls), [torque], CostRule(), 0.01, sim_to_sim.Protocol(8, 10)
+    )
+    rec = SqliteRecorder(tmp_path / "r.db")
+    run_id = rec.start_run({"objective": "torque", "cost_rule": "capped", "robot": "kuafu"})
+    rec.store.record_evaluations(
+        run_id,
+        batch_rows(
+            outer=-1,
+            inner=0,
+            kind="sim2sim",
+            designs=[[0.8, 1.2], [1.0, 1.0]],
+            costs=rows,
+            interactions=0,
+            seconds=0.0,
+            simulator="pybullet",
+        ),
+    )
+    value, note = transfer_improvement(rec.store, SimpleNamespace(run=rec.store.get_run(run_id)))
+    assert value is None
+    assert note.startswith(
+        "pybullet: no answer: both designs fall (fall rate 1.00 vs 1.00 of 8 scenarios); "
+        "plain mean +0.0 %"
+    )
+
+
+def test_tracking_says_its_improvement_is_the_rms_error_reduction():
+    from coadapt_core.analysis.measures import improvement_measure
+
+    registry = get_registry()
+    assert improvement_measure(registry.create("objective", "tracking")) == (
+        "RMS error reduction 1 - √(c/c0)"
+    )
+    assert improvement_measure(registry.create("objective", "torque")) == ""
+    read = _read([[8.0] * 4, [10.0] * 4], np.zeros((2, 4)))
+    assert sim_to_sim.line(read, "capped", "RMS error reduction 1 - √(c/c0)").startswith(
+        "torque +20.0 % ± 0.0 (capped cost; RMS error reduction 1 - √(c/c0))"
+    )
