@@ -37,8 +37,7 @@ def _generic(robot, design):
     its model at that design (feet from the body holding each hip-pitch joint)."""
     import mujoco
     import numpy as np
-
-    from coadapt_core.robot_spec.kinematics import LegKinematics, build_chain
+    from coadapt_plugins.robots.specs.kinematics import LegKinematics, build_chain
 
     built = getattr(robot, "_built", None)
     if built is not None:

@@ -201,6 +201,9 @@ def _refusal(kind: str, cls: Any, plugin: object) -> tuple[str, bool] | None:
     name = getattr(cls, "name", None)
     if not isinstance(name, str) or not name:
         return f"{cls.__qualname__} has no `name`", False
+    unavailable = getattr(cls, "unavailable", None)  # e.g. a robot whose data file is broken
+    if isinstance(unavailable, str) and unavailable:
+        return unavailable, True
     problem = api_problem(declared_api(cls, plugin))  # the API version it was written for
     if problem is not None:
         return f"{kind} '{name}' {problem}", True
@@ -209,6 +212,27 @@ def _refusal(kind: str, cls: Any, plugin: object) -> tuple[str, bool] | None:
     except (TypeError, UserError) as exc:
         return str(exc), False
     return None
+
+
+def _gives_way(
+    registry: Registry, kind: str, existing: PluginInfo, cls: type, dist: str, ep_name: str
+) -> bool:
+    """A name claimed twice: a class declaring `yields_name = True` (a robot found in a
+    user's folder) gives way in one broken line, the new one (True: skip it) or the one
+    registered before; otherwise `PluginError` naming both distributions."""
+    if getattr(cls, "yields_name", False):
+        line = f"{kind} name '{cls.name}' is taken by {existing.distribution}'s; rename this one"
+        registry.broken.append(BrokenPlugin(ep_name, dist, line))
+        return True
+    if getattr(existing.cls, "yields_name", False):
+        line = f"{kind} name '{cls.name}' is taken by {dist}'s; rename this one"
+        registry.broken.append(BrokenPlugin(existing.entry_point, existing.distribution, line))
+        return False
+    raise PluginError(
+        f"{kind} name '{cls.name}' is claimed twice: by {existing.cls.__qualname__} "
+        f"from distribution {existing.distribution} and by {cls.__qualname__} from "
+        f"distribution {dist}; uninstall one or restrict {ENV_LOAD_PLUGINS}"
+    )
 
 
 def _register_classes(
@@ -234,15 +258,13 @@ def _register_classes(
                 registry.broken.append(BrokenPlugin(ep_name, dist, error, claim))
                 continue
             existing = registry.entries[kind].get(cls.name)
-            if existing is not None and existing.cls is not cls:
-                raise PluginError(
-                    f"{kind} name '{cls.name}' is claimed twice: by {existing.cls.__qualname__} "
-                    f"from distribution {existing.distribution} and by {cls.__qualname__} from "
-                    f"distribution {dist}; uninstall one or restrict {ENV_LOAD_PLUGINS}"
-                )
+            clash = existing is not None and existing.cls is not cls
+            if clash and _gives_way(registry, kind, existing, cls, dist, ep_name):
+                continue
             api = declared_api(cls, plugin)
+            own = getattr(cls, "plugin_version", None)  # e.g. a data file's digest
             registry.entries[kind][cls.name] = PluginInfo(
-                kind, cls.name, cls, dist, version, ep_name, api
+                kind, cls.name, cls, dist, own if isinstance(own, str) else version, ep_name, api
             )
 
 
@@ -265,25 +287,8 @@ def load_registry(extra_plugins: list[tuple[ModuleType | object, str]] | None = 
             registry.broken.append(BrokenPlugin(ep_name, dist, str(exc)))
             continue
         _register_classes(registry, plugin, dist, version, ep_name)
-    _register_spec_folders(registry)
     pm.check_pending()
     return registry
-
-
-def _register_spec_folders(registry: Registry) -> None:
-    """The spec robots of `COADAPT_ROBOT_PATH` (`robot_spec.discovery`), after every
-    plugin: a robot name a plugin has is refused for the spec, in one broken line."""
-    from coadapt_core.robot_spec.discovery import SpecFolders
-
-    folders = SpecFolders(set(registry.entries["robot"]))
-    _register_classes(registry, folders, folders.distribution, "", "robot-path")
-    for info in registry.entries["robot"].values():  # a spec's version: its files' digest
-        if info.distribution == folders.distribution:
-            info.version = getattr(info.cls, "spec_digest", "")
-    for name, line in folders.problems:  # `--robot NAME` of a spec that does not read: its line
-        registry.broken.append(
-            BrokenPlugin("robot-path", folders.distribution, line, ("robot", name))
-        )
 
 
 _REGISTRY: Registry | None = None

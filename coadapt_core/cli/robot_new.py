@@ -1,5 +1,7 @@
-"""`coadapt robot new NAME --from FILE`: a starting robot spec written from a model file
-(`coadapt_core.robot_spec.new`), then checked as every spec robot is."""
+"""`coadapt robot new NAME --from FILE`: a new robot written from a model file by an
+installed robot plugin that offers it (a robot class's optional classmethod
+`write_from_model`, docs/plugins.md; coadapt's spec robots write a robot spec,
+docs/your-robot.md)."""
 
 from __future__ import annotations
 
@@ -7,6 +9,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from coadapt_core.cli.common import fail
 from coadapt_core.cli.options import filled, options_of, register
 from coadapt_core.settings import setting, settings
 
@@ -21,8 +24,8 @@ class RobotNew:
     )
     into: Path | None = setting(
         None,
-        "Folder to write the robot's folder in (default: the first folder of "
-        "COADAPT_ROBOT_PATH, else ~/.coadapt/robots).",
+        "Folder to write the robot's folder in (default: the plugin's; for robot specs the "
+        "first folder of COADAPT_ROBOT_PATH, else ~/.coadapt/robots).",
     )
 
 
@@ -30,23 +33,31 @@ _NEW = options_of(RobotNew)
 
 
 def new_command(**values: Any) -> None:
-    """Write a starting robot spec from a model file and list what to check."""
-    from coadapt_core.robot_spec.discovery import ENV_ROBOT_PATH, search_path
-    from coadapt_core.robot_spec.new import write_robot
+    """Write a starting robot from a model file and list what to check."""
+    from coadapt_core.plugins import get_registry
 
     o = filled(values, _NEW)
-    into = o["into"] if o["into"] is not None else search_path()[0]
-    folder, notes = write_robot(o["name"], Path(o["source"]), Path(into))
-    print(f"wrote {folder / 'robot.yaml'} and a copy of {Path(o['source']).name}")
-    print("check (then edit robot.yaml and run `coadapt robot validate " + o["name"] + "`):")
-    for line in notes:
+    registry = get_registry()
+    writers: dict[Any, Any] = {}  # each writer once, however many robots share it
+    for robot in registry.names("robot"):
+        write = getattr(registry.get("robot", robot), "write_from_model", None)
+        if callable(write):
+            writers.setdefault(getattr(write, "__func__", write), write)
+    into = None if o["into"] is None else str(o["into"])
+    made = None
+    for write in writers.values():
+        made = write(o["name"], str(o["source"]), into)
+        if made is not None:
+            break
+    if made is None:
+        fail(f"--from '{o['source']}': no installed robot plugin writes a robot from a model file")
+    folder = Path(made["folder"])
+    print(f"wrote {folder} from {Path(o['source']).name}")
+    print(f"check (then edit it and run `coadapt robot validate {o['name']}`):")
+    for line in made.get("notes") or []:
         print(f"  - {line}")
-    on_path = any(folder.parent.resolve() == p.resolve() for p in search_path())
-    if not on_path:
-        print(
-            f"{folder.parent} is not on the robot path: export {ENV_ROBOT_PATH}={folder.parent}",
-            file=sys.stderr,
-        )
+    if made.get("hint"):
+        print(made["hint"], file=sys.stderr)
 
 
 def register_new(app: Any) -> None:

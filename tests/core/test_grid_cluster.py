@@ -384,5 +384,5 @@ def test_a_node_without_a_users_spec_robot_refuses_its_cell(cluster, tmp_path):
     done, summary = result["done"], result["summary"]
     assert done.returncode == 1 and not summary["finished"] and len(summary["failed"]) == 1
     text = " ".join(done.stderr.split())
-    assert "refused the cell: plugins differ (only on the driver: robot:mine=robot specs" in text
+    assert "refused the cell: plugins differ (only on the driver: robot:mine=coadapt " in text
     assert not ResultsStore(tmp_path / "g.db").list_runs()

@@ -1,4 +1,4 @@
-"""The generic leg IK (`coadapt_core.robot_spec.kinematics`): it agrees with Kuafu's and
+"""The generic leg IK (`coadapt_plugins.robots.specs.kinematics`): it agrees with Kuafu's and
 Qilin's analytic IKs, places every robot's feet within 1 mm of reachable targets (checked by
 MuJoCo's forward kinematics, not its own), and keeps a six-joint leg's sole as it stands."""
 
@@ -8,9 +8,9 @@ import mujoco
 import numpy as np
 import pytest
 import torch
+from coadapt_plugins.robots.specs.kinematics import LegKinematics, build_chain
 
 from coadapt_core.plugins import get_registry
-from coadapt_core.robot_spec.kinematics import LegKinematics, build_chain
 
 REGISTRY = get_registry()
 

@@ -13,9 +13,9 @@ import mujoco
 import numpy as np
 import pytest
 import yaml
+from coadapt_plugins.robots.specs.robot import spec_robot_class
 
 from coadapt_core.errors import UserError
-from coadapt_core.robot_spec.robot import spec_robot_class
 
 NEZHA = Path(__file__).resolve().parents[2] / "plugins" / "robots" / "specs" / "nezha"
 

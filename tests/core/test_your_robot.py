@@ -109,7 +109,7 @@ def test_the_guide_takes_a_new_robot_to_a_co_design_run(tmp_path):
     new = commands[0].replace("NAME", "hexa").replace("MODEL.xml", "hexa.xml").split()[1:]
     done = _coadapt([*new, "--into", str(robots)], tmp_path, robots)
     assert done.returncode == 0, done.stderr
-    assert "check (then edit robot.yaml" in done.stdout
+    assert "check (then edit it and run `coadapt robot validate hexa`)" in done.stdout
     spec = yaml.safe_load((robots / "hexa" / "robot.yaml").read_text())
     assert [leg["foot"] for leg in spec["legs"]] == [
         "fl_foot", "fr_foot", "ml_foot", "mr_foot", "rl_foot", "rr_foot",

@@ -1,5 +1,14 @@
-"""Spec robots shipped as data: every folder beside this file that holds a `robot.yaml` and
-its model file is a robot (`coadapt_core.robot_spec`); none has Python of its own."""
+"""Robots described by data: a YAML spec over the robot's own MJCF or URDF file
+(docs/your-robot.md). This plugin registers the spec robots it ships (every folder beside
+this file holding a `robot.yaml`: nezha, which has no Python of its own) and those of the
+user's folders (`COADAPT_ROBOT_PATH`, else `~/.coadapt/robots`); its robots write a
+starting spec from a model file for `coadapt robot new` (`SpecRobot.write_from_model`).
+
+`spec` reads the file, `model` scales a model per design with MuJoCo's `MjSpec`, `build`
+makes each design's `RobotModel` (`mjcf` and `urdf` write it), `kinematics` is the batched
+numeric leg IK, `validation` the checks, `robot` the `Robot` a spec becomes, `discovery`
+where specs are found, `new` the starting spec.
+"""
 
 from __future__ import annotations
 
@@ -9,13 +18,15 @@ from coadapt_core import hookimpl
 
 #: the coadapt plugin API version this plugin is written for (docs/plugins.md#migration)
 COADAPT_PLUGIN_API = "2.2"
+HERE = Path(__file__).resolve().parent
 
 
 @hookimpl
 def coadapt_register_robots() -> list[type]:
-    from coadapt_core.robot_spec.discovery import spec_robots_in
+    from coadapt_plugins.robots.specs.discovery import search_path, spec_robots_in
 
-    classes, problems = spec_robots_in(Path(__file__).parent)
+    shipped, problems = spec_robots_in(HERE)
     if problems:  # a shipped spec that does not read is a bug of this package
-        raise RuntimeError("; ".join(line for _, line in problems))
-    return classes
+        raise RuntimeError("; ".join(problems))
+    users, _ = spec_robots_in(*search_path(), user=True)  # each problem is its class's line
+    return shipped + users

@@ -12,8 +12,7 @@ import numpy as np
 import pytest
 import torch
 from coadapt_plugins.robots.qilin.robot import Qilin
-
-from coadapt_core.robot_spec.robot import spec_robot_class
+from coadapt_plugins.robots.specs.robot import spec_robot_class
 
 HERE = Path(__file__).resolve().parent
 DESIGNS = [[1.0, 1.0], [0.7, 0.7], [0.7, 1.3], [1.3, 0.7], [1.3, 1.3], [1.3, 0.7, 2, 1]]

@@ -13,24 +13,25 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
+from coadapt_plugins.robots.specs.spec import DESIGN_DECIMALS, RobotSpec, read_spec
 
 from coadapt_core.design_space import Continuous, DesignSpace, Discrete
 from coadapt_core.errors import DesignError
 from coadapt_core.robot import Leg, Robot, RobotModel, ValidationReport
-from coadapt_core.robot_spec.spec import RobotSpec, match_value, read_spec
 
 if TYPE_CHECKING:
     import torch
-
-#: designs closer than this are the same model (cache key rounding), as for every robot
-DESIGN_DECIMALS = 6
 
 
 class SpecRobot(Robot):
     """A robot described by a spec file (`spec_path`); subclasses name it."""
 
     spec_path: ClassVar[Path]
-    spec_digest: ClassVar[str] = ""
+    #: the SHA-256 (12 hex) of the spec and model files: the registry's version of the robot,
+    #: compared between a Ray driver and its nodes
+    plugin_version: ClassVar[str] = ""
+    #: a robot found in a user's folder gives way to a plugin's robot of its name
+    yields_name: ClassVar[bool] = False
 
     @cached_property
     def spec(self) -> RobotSpec:
@@ -38,7 +39,7 @@ class SpecRobot(Robot):
 
     @cached_property
     def _built(self):
-        from coadapt_core.robot_spec.build import SpecBuilder
+        from coadapt_plugins.robots.specs.build import SpecBuilder
 
         return SpecBuilder(self.spec)
 
@@ -83,7 +84,7 @@ class SpecRobot(Robot):
         return self._built.model(np.array(key))
 
     def validate(self, design: np.ndarray) -> ValidationReport:
-        from coadapt_core.robot_spec.validation import validate_spec_model
+        from coadapt_plugins.robots.specs.validation import validate_spec_model
 
         return validate_spec_model(self, self.build(design))
 
@@ -100,9 +101,24 @@ class SpecRobot(Robot):
         """[n, J] the generic numeric IK (`kinematics.LegKinematics.inverse`)."""
         return self._built.kinematics.inverse(designs, foot_pos).to(designs.dtype)
 
+    @classmethod
+    def write_from_model(cls, name: str, source: str, into: str | None) -> dict:
+        """`coadapt robot new`: a starting spec for the model file `source`, written as
+        `<into>/<name>/` (default: the first folder of the robot path); {"folder", "notes"
+        (lines for the user to check), "hint" (a line, or "")}. Bad input is a `UserError`
+        and leaves nothing behind."""
+        from coadapt_plugins.robots.specs.discovery import ENV_ROBOT_PATH, search_path
+        from coadapt_plugins.robots.specs.new import write_robot
+
+        target = Path(into) if into is not None else search_path()[0]
+        folder, notes = write_robot(name, Path(source), target)
+        on_path = any(folder.parent.resolve() == p.resolve() for p in search_path())
+        hint = "" if on_path else f"export {ENV_ROBOT_PATH}={folder.parent} to use it"
+        return {"folder": str(folder), "notes": notes, "hint": hint}
+
     def describe_rules(self) -> dict[str, str]:
         """How each parameter scales mass and inertia (`coadapt robot show`)."""
-        from coadapt_core.robot_spec.build import mass_rule_text
+        from coadapt_plugins.robots.specs.build import mass_rule_text
 
         return {p.name: mass_rule_text(p) for p in self.spec.parameters}
 
@@ -122,27 +138,7 @@ def spec_robot_class(path: str | Path, *, description: str | None = None) -> typ
             "name": spec.name,
             "description": text,
             "spec_path": spec.folder,
-            # the spec's and model's SHA-256 (12 hex): its version where plugins are compared
-            "spec_digest": digest.hexdigest()[:12],
+            "plugin_version": digest.hexdigest()[:12],
             "__module__": __name__,
         },
     )
-
-
-def readonly(values: Any) -> np.ndarray:
-    a = np.array(values, dtype=float)
-    a.setflags(write=False)
-    return a
-
-
-def joint_values(patterns: dict[str, Any], joints: list[str], what: str) -> list[Any]:
-    """Each joint's value from full-match patterns; `UserError` naming a joint none match."""
-    from coadapt_core.robot_spec.model import spec_error
-
-    out = []
-    for joint in joints:
-        value = match_value(patterns, joint)
-        if value is None:
-            raise spec_error(what, f"no entry matches joint '{joint}' (patterns match whole names)")
-        out.append(value)
-    return out

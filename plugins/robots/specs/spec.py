@@ -14,8 +14,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from coadapt_core.errors import UserError
 
+#: designs closer than this are the same model (cache key rounding), as for every robot
+DESIGN_DECIMALS = 6
 #: the spec's file name inside a robot folder (`<folder>/robot.yaml`)
 SPEC_FILE = "robot.yaml"
 #: what a parameter's `mass` rule may say (docs/your-robot.md#mass-rules)
@@ -88,8 +92,12 @@ class RobotSpec:
         return self.folder / self.model
 
 
-def _fail(path: str, message: str) -> UserError:
+def spec_error(path: str, message: str) -> UserError:
+    """The one-line error of a spec field."""
     return UserError(f"robot spec field '{path}': {message}", field=path)
+
+
+_fail = spec_error
 
 
 def _mapping(value: Any, path: str) -> dict:
@@ -340,3 +348,20 @@ def match_value(patterns: dict[str, Any], joint: str) -> Any | None:
     if found is None and "default" in patterns:
         found = patterns["default"]
     return found
+
+
+def joint_values(patterns: dict[str, Any], joints: list[str], what: str) -> list[Any]:
+    """Each joint's value from full-match patterns; `UserError` naming a joint none match."""
+    out = []
+    for joint in joints:
+        value = match_value(patterns, joint)
+        if value is None:
+            raise spec_error(what, f"no entry matches joint '{joint}' (patterns match whole names)")
+        out.append(value)
+    return out
+
+
+def readonly(values: Any) -> np.ndarray:
+    a = np.array(values, dtype=float)
+    a.setflags(write=False)
+    return a

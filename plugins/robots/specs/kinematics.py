@@ -60,6 +60,52 @@ def _mat(quat) -> np.ndarray:
     return out.reshape(3, 3)
 
 
+def _path(model: mujoco.MjModel, base_id: int, foot: str) -> list[int]:
+    """The bodies from below the base down to `foot`."""
+    path, b = [], model.body(foot).id
+    while b != base_id:
+        if b == 0:
+            raise ValueError(f"foot body '{foot}' does not hang below the base")
+        path.append(b)
+        b = int(model.body_parentid[b])
+    return path[::-1]
+
+
+def _leg_elements(model, path, joints, scaled_links, owner: dict, leg: int, hip_body: int):
+    """(elements, joint indices of the leg's slots, hip element) of one leg's chain."""
+    elements, slots, hip_element = [], [], 0
+    for b in path:
+        link = (model.body(int(model.body_parentid[b])).name, model.body(b).name)
+        scale = [1.0 if link in links else 0.0 for links in scaled_links]
+        hinges = [
+            j
+            for j in range(model.njnt)
+            if model.jnt_bodyid[j] == b and model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE
+        ]
+        for k, j in enumerate(hinges or [None]):
+            slot = -1
+            if j is not None:
+                name = model.joint(j).name
+                if owner.setdefault(name, leg) != leg:
+                    raise ValueError(f"joint '{name}' lies on the chains of two legs")
+                slot = len(slots)
+                slots.append(joints.index(name))
+            first = k == 0  # the body's own offset and rotation go with its first hinge
+            elements.append(
+                (
+                    model.body_pos[b] if first else np.zeros(3),
+                    _mat(model.body_quat[b]) if first else np.eye(3),
+                    scale if first else [0.0] * len(scale),
+                    slot,
+                    model.jnt_axis[j] if j is not None else np.zeros(3),
+                    model.jnt_pos[j] if j is not None else np.zeros(3),
+                )
+            )
+        if b == hip_body:
+            hip_element = len(elements) - 1
+    return elements, slots, hip_element
+
+
 def build_chain(
     model: mujoco.MjModel,
     base: str,
@@ -76,51 +122,14 @@ def build_chain(
     base_id = model.body(base).id
     rows, owner = [], {}
     for leg, (foot, hip) in enumerate(legs):
-        path, b = [], model.body(foot).id
-        while b != base_id:
-            if b == 0:
-                raise ValueError(f"foot body '{foot}' does not hang below the base '{base}'")
-            path.append(b)
-            b = int(model.body_parentid[b])
-        path.reverse()
+        path = _path(model, base_id, foot)
         hip_body = model.body(hip).id if hip else path[0]
         if hip_body not in path:
             raise ValueError(f"hip body '{hip}' is not on the chain of foot '{foot}'")
-        elements, slots, hip_element = [], [], 0
-        for b in path:
-            parent = model.body(int(model.body_parentid[b])).name
-            link = (parent, model.body(b).name)
-            scale = [1.0 if link in links else 0.0 for links in scaled_links]
-            hinges = [
-                j
-                for j in range(model.njnt)
-                if model.jnt_bodyid[j] == b and model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE
-            ]
-            first = True
-            for j in hinges or [None]:
-                slot = -1
-                if j is not None:
-                    name = model.joint(j).name
-                    if name in owner and owner[name] != leg:
-                        raise ValueError(f"joint '{name}' lies on the chains of two legs")
-                    owner[name] = leg
-                    slot = len(slots)
-                    slots.append(joints.index(name))
-                offset = model.body_pos[b] if first else np.zeros(3)
-                rot = _mat(model.body_quat[b]) if first else np.eye(3)
-                axis = model.jnt_axis[j] if j is not None else np.zeros(3)
-                anchor = model.jnt_pos[j] if j is not None else np.zeros(3)
-                elements.append(
-                    (offset, rot, scale if first else [0.0] * len(scale), slot, axis, anchor)
-                )
-                first = False
-            if b == hip_body:
-                hip_element = len(elements) - 1
-        rows.append((elements, slots, hip_element))
+        rows.append(_leg_elements(model, path, joints, scaled_links, owner, leg, hip_body))
     num_e = max(len(r[0]) for r in rows)
     num_m = max(max(len(r[1]) for r in rows), 1)
-    num_p = len(scaled_links)
-    pad = (np.zeros(3), np.eye(3), [0.0] * num_p, -1, np.zeros(3), np.zeros(3))
+    pad = (np.zeros(3), np.eye(3), [0.0] * len(scaled_links), -1, np.zeros(3), np.zeros(3))
 
     def stack(k, dtype=torch.float64):
         return torch.tensor(

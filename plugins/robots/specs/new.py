@@ -18,10 +18,10 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import yaml
+from coadapt_plugins.robots.specs.model import load_mjspec
+from coadapt_plugins.robots.specs.spec import NAME_PATTERN, SPEC_FILE
 
 from coadapt_core.errors import UserError
-from coadapt_core.robot_spec.model import load_mjspec
-from coadapt_core.robot_spec.spec import NAME_PATTERN, SPEC_FILE
 
 #: the no-load speed written for every joint when the model cannot tell it, rad/s
 GUESSED_SPEED = 20.0
@@ -254,7 +254,7 @@ def _body_geoms(model: mujoco.MjModel, body: int) -> list[int]:
 def write_robot(name: str, model_file: Path, into: Path) -> tuple[Path, list[str]]:
     """Write `<into>/<name>/robot.yaml` beside a copy of `model_file` (and the mesh files it
     names); refuses an existing folder. Returns (the folder, the lines to check)."""
-    from coadapt_core.robot_spec.robot import spec_robot_class
+    from coadapt_plugins.robots.specs.robot import spec_robot_class
 
     model_file = Path(model_file)
     if not model_file.is_file():

@@ -68,7 +68,7 @@ def _pose(rm: RobotModel, model: mujoco.MjModel, data: mujoco.MjData) -> list[Fi
         np.all(rm.default_joint_pos >= rm.joint_lower - 1e-12)
         and np.all(rm.default_joint_pos <= rm.joint_upper + 1e-12)
     )
-    from coadapt_core.robot_spec.build import lowest_points
+    from coadapt_plugins.robots.specs.build import lowest_points
 
     frames = (data.geom_xpos, data.geom_xmat.reshape(-1, 3, 3))
     lows = [

@@ -25,9 +25,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
-
-from coadapt_core.errors import UserError
-from coadapt_core.robot_spec.spec import RobotSpec
+from coadapt_plugins.robots.specs.spec import RobotSpec, spec_error
 
 #: a geom lies along a link when its axis is within this angle of it (cosine)
 ALONG = math.cos(math.radians(8.0))
@@ -38,10 +36,6 @@ _SCALABLE = {
     mujoco.mjtGeom.mjGEOM_ELLIPSOID,
     mujoco.mjtGeom.mjGEOM_SPHERE,
 }
-
-
-def spec_error(path: str, message: str) -> UserError:
-    return UserError(f"robot spec field '{path}': {message}", field=path)
 
 
 def load_mjspec(path) -> mujoco.MjSpec:

@@ -8,12 +8,19 @@ from types import MappingProxyType
 
 import mujoco
 import numpy as np
+from coadapt_plugins.robots.specs import model as M
+from coadapt_plugins.robots.specs.kinematics import LegKinematics, build_chain
+from coadapt_plugins.robots.specs.spec import (
+    DESIGN_DECIMALS,
+    Parameter,
+    RobotSpec,
+    joint_values,
+    match_value,
+    readonly,
+    spec_error,
+)
 
 from coadapt_core.robot import RobotModel
-from coadapt_core.robot_spec import model as M
-from coadapt_core.robot_spec.kinematics import LegKinematics, build_chain
-from coadapt_core.robot_spec.robot import DESIGN_DECIMALS, joint_values, readonly
-from coadapt_core.robot_spec.spec import Parameter, RobotSpec, match_value
 
 
 def mass_rule_text(p: Parameter) -> str:
@@ -80,7 +87,7 @@ class SpecBuilder:
             for pattern in param.joints:
                 hits = [k for k, j in enumerate(joints) if match_value({pattern: 1}, j)]
                 if not hits:
-                    raise M.spec_error("motors.parameters", f"'{pattern}' matches no joint")
+                    raise spec_error("motors.parameters", f"'{pattern}' matches no joint")
                 for k in hits:
                     types[k] = param.nominal
         torque, speed = [], []
@@ -92,9 +99,7 @@ class SpecBuilder:
             t, v = match_value(spec.torque, joint), match_value(spec.speed, joint)
             if t is None or v is None:
                 what = "limits.torque" if t is None else "limits.speed"
-                raise M.spec_error(
-                    what, f"no entry matches joint '{joint}' and it has no motor type"
-                )
+                raise spec_error(what, f"no entry matches joint '{joint}' and it has no motor type")
             torque.append(t)
             speed.append(v)
         return np.array(torque), np.array(speed), types
@@ -111,7 +116,7 @@ class SpecBuilder:
                 self.prepared.standing, nominal, DESIGN_DECIMALS,
             )  # fmt: skip
         except ValueError as exc:
-            raise M.spec_error("legs", str(exc)) from None
+            raise spec_error("legs", str(exc)) from None
         return LegKinematics(chain)
 
     def _design_types(self, design: np.ndarray) -> list[int | None]:
@@ -143,8 +148,8 @@ class SpecBuilder:
         return spec, types
 
     def model(self, design: np.ndarray) -> RobotModel:
-        from coadapt_core.robot_spec.mjcf import mjcf_text
-        from coadapt_core.robot_spec.urdf import urdf_text
+        from coadapt_plugins.robots.specs.mjcf import mjcf_text
+        from coadapt_plugins.robots.specs.urdf import urdf_text
 
         spec, types = self.edited(design)
         torque, speed = self.torque.copy(), self.speed.copy()
@@ -197,7 +202,7 @@ class SpecBuilder:
             body = model.body(leg.foot).id
             found = lowest_points(model, body, *world)
             if found.size == 0:
-                raise M.spec_error(f"legs[{k}].foot", f"'{leg.foot}' has no collision geom")
+                raise spec_error(f"legs[{k}].foot", f"'{leg.foot}' has no collision geom")
             lows.append(found[:, 2].min())
         first = self.spec.legs[0]
         if first.contact_points is not None:
@@ -230,11 +235,11 @@ class SpecBuilder:
         for k, joint in enumerate(self.prepared.joints):
             j = model.joint(joint).id
             if not model.jnt_limited[j]:
-                raise M.spec_error("model", f"joint '{joint}' has no range; give it one")
+                raise spec_error("model", f"joint '{joint}' has no range; give it one")
             lower.append(model.jnt_range[j, 0])
             upper.append(model.jnt_range[j, 1])
             if not lower[-1] <= self.prepared.standing[k] <= upper[-1]:
-                raise M.spec_error(
+                raise spec_error(
                     "standing_pose",
                     f"'{joint}' at {self.prepared.standing[k]:g} rad is outside its range "
                     f"[{lower[-1]:g}, {upper[-1]:g}]",
