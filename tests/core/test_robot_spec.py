@@ -222,3 +222,38 @@ def test_robot_new_on_a_broken_model_creates_nothing(tmp_path):
     assert done.returncode == 2
     assert len(done.stderr.strip().splitlines()) == 1 and "does not load in MuJoCo" in done.stderr
     assert not (tmp_path / "robots" / "broken").exists()
+
+
+def test_the_registry_keeps_a_plugins_robot_over_a_users_spec_of_its_name(folder, monkeypatch):
+    from coadapt_core.plugins import load_registry
+
+    edit(folder, lambda d: d.update(name="qilin"))
+    monkeypatch.setenv("COADAPT_ROBOT_PATH", str(folder.parent))
+    registry = load_registry()
+    assert registry.get("robot", "qilin").__name__ == "Qilin"
+    lines = [b.line() for b in registry.broken]
+    assert any("robot name 'qilin' is taken" in line for line in lines), lines
+
+
+def test_a_users_spec_is_versioned_by_its_files(folder, monkeypatch):
+    from coadapt_core.plugins import load_registry
+
+    monkeypatch.setenv("COADAPT_ROBOT_PATH", str(folder.parent))
+    before = {i.name: i.version for i in load_registry().all() if i.kind == "robot"}["probe"]
+    text = (folder / "model.xml").read_text().replace('damping="0.1"', 'damping="0.2"')
+    (folder / "model.xml").write_text(text)
+    after = {i.name: i.version for i in load_registry().all() if i.kind == "robot"}["probe"]
+    assert len(before) == 12 and before != after
+
+
+def test_a_spec_that_does_not_read_is_named_by_its_folder(folder, monkeypatch):
+    from coadapt_core.errors import UnknownPluginError
+    from coadapt_core.plugins import load_registry
+
+    edit(folder, lambda d: d["design"][0].__setitem__("nominal", 2.0))
+    monkeypatch.setenv("COADAPT_ROBOT_PATH", str(folder.parent))
+    registry = load_registry()
+    assert "probe" not in registry.names("robot") and "kuafu" in registry.names("robot")
+    with pytest.raises(UnknownPluginError) as info:
+        registry.get("robot", "probe")
+    assert "design[0].nominal" in str(info.value) and "unknown robot" not in str(info.value)
