@@ -257,3 +257,20 @@ def test_a_spec_that_does_not_read_is_named_by_its_folder(folder, monkeypatch):
     with pytest.raises(UnknownPluginError) as info:
         registry.get("robot", "probe")
     assert "design[0].nominal" in str(info.value) and "unknown robot" not in str(info.value)
+
+
+def test_a_urdf_model_file_makes_a_spec_robot_too(tmp_path):
+    """MuJoCo reads URDF: `robot new` on Qilin's URDF keeps its fixed feet and root link
+    (no static bodies fused) and builds Qilin's masses and feet."""
+    from coadapt_plugins.robots.specs.new import write_robot
+
+    from coadapt_core.plugins import get_registry
+
+    qilin = get_registry().create("robot", "qilin").build(np.array([1.0, 1.0]))
+    (tmp_path / "qilin.urdf").write_text(qilin.text("urdf"))
+    folder, _ = write_robot("qurdf", tmp_path / "qilin.urdf", tmp_path / "robots")
+    robot = spec_robot_class(folder)()
+    model = robot.build(robot.nominal_design())
+    assert model.foot_bodies == qilin.foot_bodies and model.base_body == "base"
+    assert model.total_mass == pytest.approx(qilin.total_mass, rel=1e-12)
+    assert robot.validate(robot.nominal_design()).feasible

@@ -42,6 +42,9 @@ def load_mjspec(path) -> mujoco.MjSpec:
     """The model file as an `MjSpec` (MJCF or URDF); MuJoCo's own message in one line."""
     try:
         spec = mujoco.MjSpec.from_file(str(path))
+        # keep bodies fixed to their parents (a URDF's feet) and a URDF's root link: MuJoCo
+        # fuses them into their parents by default when it reads a URDF
+        spec.compiler.fusestatic = False
         spec.compile()
     except (ValueError, mujoco.FatalError, OSError) as exc:
         first = " ".join(str(exc).split())
