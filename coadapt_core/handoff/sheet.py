@@ -62,8 +62,10 @@ def _info_rows(info: dict[str, Any]) -> list[str]:
             continue
         unit = units.get(key, "")
         unit = "" if unit == "type" else unit
-        if isinstance(value, dict):
-            text = ", ".join(f"{k} {_num(v)}" for k, v in value.items())
+        if isinstance(value, dict):  # numbers (segment masses) or lines (a spec's mass rules)
+            text = ", ".join(
+                f"{k} {_num(v) if isinstance(v, int | float) else v}" for k, v in value.items()
+            )
         elif isinstance(value, list | tuple):
             text = ", ".join(_num(v) for v in value)
         else:

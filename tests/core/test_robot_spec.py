@@ -274,3 +274,13 @@ def test_a_urdf_model_file_makes_a_spec_robot_too(tmp_path):
     assert model.foot_bodies == qilin.foot_bodies and model.base_body == "base"
     assert model.total_mass == pytest.approx(qilin.total_mass, rel=1e-12)
     assert robot.validate(robot.nominal_design()).feasible
+
+
+def test_the_design_sheet_lists_a_spec_robots_mass_rules(folder):
+    """`coadapt handoff`'s design sheet prints a spec robot's info, text entries included."""
+    from coadapt_core.handoff.sheet import _info_rows
+
+    _, model = build(folder)
+    rows = "\n".join(_info_rows(dict(model.info)))
+    assert "| mass rules | thigh_scale 0.53 of the body's mass stretches" in rows
+    assert "| thigh scale link length | 0.19 | m |" in rows
