@@ -284,3 +284,17 @@ def test_the_design_sheet_lists_a_spec_robots_mass_rules(folder):
     rows = "\n".join(_info_rows(dict(model.info)))
     assert "| mass rules | thigh_scale 0.53 of the body's mass stretches" in rows
     assert "| thigh scale link length | 0.19 | m |" in rows
+
+
+def test_a_closed_chain_is_refused(folder):
+    text = (
+        (folder / "model.xml")
+        .read_text()
+        .replace(
+            "</mujoco>",
+            '<equality><connect body1="left_foot" body2="right_foot" anchor="0 0 0"/></equality>'
+            "\n</mujoco>",
+        )
+    )
+    (folder / "model.xml").write_text(text)
+    assert "closed chains" in _refused(folder, "model")

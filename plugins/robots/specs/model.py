@@ -116,6 +116,12 @@ def _standing_pose(spec: mujoco.MjSpec, rs: RobotSpec, joints: list[str]) -> np.
 def prepare(rs: RobotSpec) -> Prepared:
     """Load `rs`'s model file and shape it to the robot contract (module docstring)."""
     spec = load_mjspec(rs.model_path)
+    if list(spec.tendons) or list(spec.equalities):
+        raise spec_error(
+            "model",
+            "tendons and equality constraints (closed chains) are not supported: a spec robot "
+            "is a tree of hinges; write a robot plugin for it (docs/plugins.md)",
+        )
     root = _root(spec, rs.base)
     bodies = _subtree(root)
     for joint in rs.locked_joints:
