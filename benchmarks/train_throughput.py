@@ -4,10 +4,14 @@ Measures, separately: (1) the physics ceiling — the simulator stepped with fix
 no task and no policy, before and after the training iterations (their mean is used);
 (2) rollout collection — policy act + task + physics, env steps/s, with the share of time
 in physics, task code and the policy; (3) the PPO update — samples/s (rollout samples per
-second of update, all epochs) and sample-epochs/s. Prints JSON, with
-`end_to_end_vs_physics_ceiling` (training env steps/s over the physics ceiling measured in
-the same run) and `pseudo_critic_share` (the pseudo-critics' part of the update's time:
-their targets in compute_returns and their regression steps, over compute_returns + update).
+second of update, all epochs) and sample-epochs/s; (4) the learner's ceiling — the same
+networks' forward and backward passes at the update's shapes, each kind timed alone before and
+after the training iterations (`coadapt_core.learning.flops`), and the update's matrix FLOPs.
+Prints JSON, with `end_to_end_vs_physics_ceiling` (training env steps/s over the physics
+ceiling measured in the same run), `update_vs_learner_ceiling` (the update's achieved GFLOP/s,
+compute_returns + update, over the learner's ceiling measured in the same run) and
+`pseudo_critic_share` (the pseudo-critics' part of the update's time: their targets in
+compute_returns and their regression steps, over compute_returns + update).
 
     .venv/bin/python benchmarks/train_throughput.py --num-designs 16 --agents 16
     .venv/bin/python benchmarks/train_throughput.py --num-designs 128 --agents 32 \
@@ -81,6 +85,38 @@ def _parser() -> argparse.ArgumentParser:
         help="pseudo-critics to train ('' for none)",
     )
     return parser
+
+
+def _learner_ceiling(trainer, samples: int):
+    """The learner's ceiling (`learner_ceiling`) on the update's torch threads."""
+    import torch
+
+    from coadapt_core.learning.flops import learner_ceiling
+
+    torch.set_num_threads(trainer.learner_threads)
+    try:
+        return learner_ceiling(trainer.ppo, samples)
+    finally:
+        torch.set_num_threads(trainer.collect_threads)
+
+
+def _learner_figures(ceilings: list, update_seconds: float, samples: int) -> dict:
+    """The update's matrix FLOPs, its achieved GFLOP/s (compute_returns + update, mean of
+    the timed iterations) and the learner's ceiling measured before and after them (the mean
+    of their times for the same FLOPs), with each pass kind's GFLOP/s (the first one's)."""
+    flops = ceilings[0].flops
+    ceiling_seconds = float(np.mean([c.seconds for c in ceilings]))
+    achieved = flops / update_seconds / 1e9
+    return {
+        "update_mflop_per_sample": round(flops / samples / 1e6, 2),
+        "learner_ceiling_gflops_per_s": round(flops / ceiling_seconds / 1e9, 2),
+        "learner_ceiling_before_after": [round(c.gflops_per_s, 2) for c in ceilings],
+        "learner_ceiling_passes_gflops_per_s": {
+            k: round(v, 2) for k, v in ceilings[0].rates.items()
+        },
+        "update_gflops_per_s": round(achieved, 2),
+        "update_vs_learner_ceiling": round(ceiling_seconds / update_seconds, 3),
+    }
 
 
 def main() -> None:
@@ -157,6 +193,8 @@ def main() -> None:
     # (2) + (3): PPO iterations, the first one a warm-up
     runner.run(1)
     ppo = trainer.ppo
+    samples = n * args.steps_per_env
+    learner_ceilings = [_learner_ceiling(trainer, samples)]
     ppo.profile = True  # exact section timings on a GPU (a synchronisation at each boundary)
     ppo.timing = dict.fromkeys(ppo.timing, 0.0)
     rows = []
@@ -166,6 +204,7 @@ def main() -> None:
     sim.reset()
     ceilings.append(ceiling())
     physics_ceiling = float(np.mean(ceilings))
+    learner_ceilings.append(_learner_ceiling(trainer, samples))
     learner_seconds = ppo.timing["returns"] + ppo.timing["update"]
     pseudo_share = ppo.timing["pseudo"] / learner_seconds if learner_seconds > 0 else 0.0
     collect = float(np.mean([r.collect_steps_per_s for r in rows]))
@@ -173,7 +212,6 @@ def main() -> None:
     physics = float(np.mean([r.physics_share for r in rows]))
     task = float(np.mean([r.task_share for r in rows]))
     learner = float(np.mean([r.learner_share for r in rows]))
-    samples = n * args.steps_per_env
     collect_s = samples / collect
     update_s = samples * args.epochs / update_sample_epochs
     result = {
@@ -211,6 +249,7 @@ def main() -> None:
         "end_to_end_vs_physics_ceiling": round(
             samples / (collect_s + update_s) / physics_ceiling, 3
         ),
+        **_learner_figures(learner_ceilings, learner_seconds / args.iterations, samples),
         "pseudo_critic_share": round(pseudo_share, 3),
         "time_share": {
             "physics": round(physics, 3),
