@@ -52,6 +52,19 @@ def tidy_axes(ax: Any) -> None:
             axis.set_major_locator(MaxNLocator(5))
 
 
+def cost_unit(objective: str, summaries: Any = ()) -> str:
+    """' [unit]' of an objective's cost per step: as a run's summary records it, else as the
+    installed objective declares it ('' when neither says)."""
+    for summary in summaries:
+        unit = ((summary or {}).get("cost_units") or {}).get(objective)
+        if unit:
+            return f" [{unit}]"
+    from coadapt_core.analysis.measures import objective_named
+
+    unit = getattr(objective_named(objective), "unit", "")
+    return f" [{unit}]" if unit else ""
+
+
 def save_figure(
     plt: Any, fig: Any, path: Path, caption: str, *, layout: bool = True
 ) -> list[tuple[Path, str]]:
@@ -69,6 +82,7 @@ __all__ = [
     "MAX_COLS",
     "PANEL_H",
     "PANEL_W",
+    "cost_unit",
     "panel_grid",
     "pyplot",
     "save_figure",

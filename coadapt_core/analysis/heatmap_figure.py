@@ -18,7 +18,14 @@ from coadapt_core.analysis.facts import (
     RunFacts,
     objective_order,
 )
-from coadapt_core.analysis.figures import PANEL_H, panel_grid, pyplot, save_figure, spans_decades
+from coadapt_core.analysis.figures import (
+    PANEL_H,
+    cost_unit,
+    panel_grid,
+    pyplot,
+    save_figure,
+    spans_decades,
+)
 from coadapt_core.analysis.tables import group_order, method_label, ordered
 from coadapt_core.results.export import space_of_run
 from coadapt_core.results.schema import LANDSCAPE_METHOD
@@ -192,7 +199,11 @@ def _draw_costs(fig: Any, ax: Any, o: str, d: dict[str, Any]) -> bool:
             s=14,
             linewidths=0,
         )
-    fig.colorbar(mesh, ax=ax, label=f"real {o} cost" + (" (log scale)" if log else ""))
+    fig.colorbar(
+        mesh,
+        ax=ax,
+        label=f"real {o} cost per step{cost_unit(o)}" + (" (log scale)" if log else ""),
+    )
     return d["kind"] == "landscape"
 
 

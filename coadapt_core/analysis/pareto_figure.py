@@ -14,6 +14,7 @@ import numpy as np
 from coadapt_core.analysis.facts import RunFacts
 from coadapt_core.analysis.figures import (
     PANEL_H,
+    cost_unit,
     panel_grid,
     pyplot,
     save_figure,
@@ -153,9 +154,8 @@ def figure_pareto(facts: Sequence[RunFacts], out: Path) -> list[tuple[Path, str]
         d = pareto_points(f)
         o1, o2 = d["objectives"]
         _draw_front(ax, d)
-        units = f.summary.get("cost_units") or {}
-        ax.set_xlabel(f"{o1} cost per step" + (f" [{units[o1]}]" if units.get(o1) else ""))
-        ax.set_ylabel(f"{o2} cost per step" + (f" [{units[o2]}]" if units.get(o2) else ""))
+        ax.set_xlabel(f"{o1} cost per step{cost_unit(o1, [f.summary])}")
+        ax.set_ylabel(f"{o2} cost per step{cost_unit(o2, [f.summary])}")
         both = np.vstack([d["evaluated"], d["front"]])
         if spans_decades(both[:, 0]):
             ax.set_xscale("log")

@@ -21,6 +21,7 @@ from coadapt_core.analysis.facts import (
     objective_order,
 )
 from coadapt_core.analysis.figures import (
+    cost_unit,
     panel_grid,
     pyplot,
     save_figure,
@@ -88,7 +89,7 @@ def figure_convergence(
                     continue
                 _draw_curve(ax, f, x, y, unit, opt)
         ax.set_xlabel(f"environment interactions ({unit_name})")
-        ax.set_ylabel(f"{o} cost per step{_cost_unit(runs, o)}")
+        ax.set_ylabel(f"{o} cost per step{cost_unit(o, [f.summary for f in runs])}")
         if spans_decades([y for _, ys in series.values() for y in ys]):
             ax.set_yscale("log")
         ax.set_title(f"{o} on {t}", fontsize=10)
@@ -108,15 +109,6 @@ def figure_convergence(
         "selection. The dotted line is the nominal design's cost in the same final check.",
         layout=False,
     )
-
-
-def _cost_unit(runs: Sequence[RunFacts], objective: str) -> str:
-    """' [unit]' of an objective's cost as the runs' summaries record it ('' when none does)."""
-    for f in runs:
-        unit = (f.summary.get("cost_units") or {}).get(objective)
-        if unit:
-            return f" [{unit}]"
-    return ""
 
 
 def _reading_handles() -> list[Any]:
@@ -267,7 +259,7 @@ def figure_surrogate_error(facts: Sequence[RunFacts], out: Path) -> list[tuple[P
             f"{key[0]} on {key[1]}: mean |error| {mean_abs}\n({int(finite.sum())} designs{notes})",
             fontsize=9,
         )
-        ax.set_xlabel(f"real {key[0]} cost")
+        ax.set_xlabel(f"real {key[0]} cost per step{cost_unit(key[0])}")
         ax.set_ylabel("(surrogate − real) / |real|  [%]")
         ax.legend(fontsize=7)
         tidy_axes(ax)
