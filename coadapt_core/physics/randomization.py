@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from coadapt_core.errors import UserError
+from coadapt_core.errors import UserError, did_you_mean
 from coadapt_core.settings import (
     NonNegativeRange,
     PositiveRange,
@@ -98,7 +98,8 @@ class RandomizationConfig:
         presets = {"table2": cls, "engine": cls.engine_robust, "off": cls.off}
         if name not in presets:
             raise UserError(
-                f"randomization preset '{name}' is not one of: {', '.join(presets)}",
+                f"randomization preset '{name}' is not one of: {', '.join(presets)}"
+                f"{did_you_mean(name, list(presets))}",
                 field="randomization",
             )
         return presets[name]()
