@@ -163,6 +163,34 @@ def surrogate_ensemble(backend: object) -> SurrogateEnsemble | None:
 
 
 @runtime_checkable
+class SurrogateSlope(Protocol):
+    """The surrogate's gradient in the design (the pseudo-critics take xi as an input): what a
+    gradient optimizer (`coadapt_core.optimizer.FollowsSurrogateSlope`) steps along. A backend that
+    offers it implements this one method; the loop then hands the optimizer, before each
+    round, the cost and gradient of the surrogate a surrogate round would use (the fitted
+    ensemble's mean when fitted, else the paper's estimator) on the states of the last
+    rollouts."""
+
+    def surrogate_slope(
+        self,
+        designs: np.ndarray,
+        objectives: Sequence[Objective],
+        buffer: Any,
+        *,
+        samples: int,
+        seed: int = 0,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(costs [K, M], gradients [K, M, D]): `surrogate_fitness` of designs [K, D] and its
+        derivative in each design variable, in cost units per design unit (a discrete
+        variable's entry is whatever the surrogate's slope there is; callers hold it fixed)."""
+
+
+def surrogate_slope(backend: object) -> SurrogateSlope | None:
+    """`backend` as a `SurrogateSlope` when it offers `surrogate_slope`, else None."""
+    return backend if callable(getattr(backend, "surrogate_slope", None)) else None  # type: ignore[return-value]
+
+
+@runtime_checkable
 class RunRecorder(Protocol):
     """Where a run's evidence goes (JSON files, or the results store)."""
 

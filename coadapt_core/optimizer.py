@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import warnings
 from abc import ABC, abstractmethod
-from typing import Any, ClassVar
+from collections.abc import Callable
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -345,3 +346,27 @@ class Optimizer(ABC):
                     field="optimizer",
                 )
             self._tell(designs, costs)
+
+
+#: what a gradient-following optimizer is handed: designs [K, dim] -> (surrogate costs [K],
+#: their gradients [K, dim] in cost units per design unit)
+SlopeFn = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+@runtime_checkable
+class FollowsSurrogateSlope(Protocol):
+    """An optimizer that steps along the surrogate's gradient declares
+    `follows_surrogate_slope = True` and implements `set_slope`. Before each `ask` the
+    co-adaptation loop hands it the surrogate's cost and gradient (None when the backend
+    offers no `coadapt_core.fitness.SurrogateSlope`), and every round of it is real, so
+    each step is confirmed by rollouts on the run's paired scenarios."""
+
+    follows_surrogate_slope: bool
+
+    def set_slope(self, slope: SlopeFn | None) -> None:
+        """The surrogate's cost and gradient for the next `ask`, or None."""
+
+
+def follows_surrogate_slope(optimizer: object) -> bool:
+    """Whether `optimizer` (a class or an instance) declares `follows_surrogate_slope`."""
+    return getattr(optimizer, "follows_surrogate_slope", False) is True

@@ -38,6 +38,8 @@ OPTION_TYPES: dict[str, type] = {"int": int, "float": float, "str": str, "bool":
 RUN_FACTS: dict[str, str] = {
     "run_name": "a name unique to the run and its outer iteration: <run id>-outer<k>",
     "store_url": "the URL of the run's results store, when it is a database URL (scheme://...)",
+    "start_design": "the design a descent starts from, comma-separated: the robot's nominal "
+    "design in the first outer iteration, the lowest real cost so far after it",
 }
 _TRUE = {"true", "yes", "on", "1"}
 _FALSE = {"false", "no", "off", "0"}

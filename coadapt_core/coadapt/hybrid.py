@@ -21,7 +21,12 @@ import numpy as np
 from coadapt_core import surrogate_quality as sq
 from coadapt_core.coadapt.config import CoadaptConfig
 from coadapt_core.coadapt.state import LoopState
-from coadapt_core.fitness import CoadaptationBackend, SurrogateEnsemble, surrogate_ensemble
+from coadapt_core.fitness import (
+    CoadaptationBackend,
+    SurrogateEnsemble,
+    surrogate_ensemble,
+    surrogate_slope,
+)
 from coadapt_core.methods import Method
 from coadapt_core.objective import Objective
 
@@ -285,6 +290,30 @@ class HybridPolicy:
             spread=None if members is None else spread_ratio(members),
         )
         return predicted - costs
+
+    # -- the surrogate's gradient, for an optimizer that follows it -----------------------
+    def slope_oracle(self) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]] | None:
+        """designs [K, D] -> (costs [K], gradients [K, D]) of the surrogate a surrogate round
+        would use now (the ensemble fitted to this policy's real rounds when there is one),
+        on a fixed bank of states of the last rollouts (`surrogate_samples` of them, drawn by
+        the round's seed); None without a buffer of this policy or a backend that offers no
+        `SurrogateSlope` (the optimizer then works without it)."""
+        s, c = self.state, self.config
+        backend = surrogate_slope(self.backend())
+        if backend is None or s.buffer is None or s.buffer_outer != s.outer:
+            return None
+        self.ensure_fitted()
+        buffer, seed = s.buffer, self.seed_for(7, s.outer, s.inner)
+
+        def oracle(designs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            t0 = time.perf_counter()
+            costs, grads = backend.surrogate_slope(
+                designs, self.objectives[:1], buffer, samples=c.surrogate_samples, seed=seed
+            )
+            s.counters["surrogate_seconds"] += time.perf_counter() - t0
+            return np.asarray(costs, dtype=float)[:, 0], np.asarray(grads, dtype=float)[:, 0]
+
+        return oracle
 
     # -- quality records -------------------------------------------------------------------
     def record_quality(

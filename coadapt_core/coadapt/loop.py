@@ -40,7 +40,7 @@ from coadapt_core.design_space import DesignSpace
 from coadapt_core.fitness import CoadaptationBackend, RealFitness, RunRecorder, TrainingResult
 from coadapt_core.methods import Method
 from coadapt_core.objective import Objective
-from coadapt_core.optimizer import Optimizer
+from coadapt_core.optimizer import Optimizer, follows_surrogate_slope
 from coadapt_core.scenarios.seeds import scenario_seed
 
 ProgressFn = Callable[[dict[str, Any]], None]
@@ -174,6 +174,7 @@ class CoadaptationLoop:
             c.optimizer_options,
             run_name=f"{s.run_id}-outer{s.outer}",
             recorder=self.recorder,
+            start=np.asarray(s.best_real[0]) if s.outer and s.best_real else self.nominal,
         )
         s.optimizer_init = optimizer_init(
             space,
@@ -274,6 +275,9 @@ class CoadaptationLoop:
             self.end_outer()
             return
         t0 = time.perf_counter()
+        follows = follows_surrogate_slope(opt)
+        if follows:  # it steps along the surrogate; its every step is confirmed real
+            opt.set_slope(self.hybrid.slope_oracle())
         designs = opt.ask()  # [P, dim]
         initial = (s.optimizer_init or {}).get("initial_designs")
         if s.inner == 0 and initial is not None:
@@ -281,10 +285,13 @@ class CoadaptationLoop:
             initial = np.asarray(initial, dtype=float)
             note_first_round(s.notes, self.optimizer_cls, initial, designs)
         kind, uncertainty = self.hybrid.choose_kind(designs)
+        kind = "real" if follows else kind
         self.emit(f"{kind} evaluation")
         record = self.evaluate(designs, kind, uncertainty=uncertainty)
         opt.tell(designs, record.costs[:, 0] if len(self.objectives) == 1 else record.costs)
         self.record_batch(designs, record)
+        if follows:  # the step, beside the round's real cost and its SE
+            s.batches[-1]["descent_step"] = getattr(opt, "last_step", None)
         s.inner += 1
         # wall clock per kind of round, for the ETA (`eta_seconds`); saved with the state
         s.counters[f"{kind}_round_wall"] = (

@@ -57,15 +57,18 @@ def optimizer_options(
     *,
     run_name: str,
     recorder: RunRecorder,
+    start: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """The run's `optimizer_options`, as the optimizer plugin declared them (checked
     against its `option_specs` by the optimizer's constructor), with the options it
     declares `from_run` filled where the run leaves them unset (`coadapt_core.options`):
     a study kept under `run_name` (`<run id>-outer<k>`) in the run's results store, where a
-    study browser reads it and no two runs of a grid share a name."""
+    study browser reads it and no two runs of a grid share a name; and the design a descent
+    starts from (`start`)."""
     url = getattr(recorder, "url", None)
     facts = {
         "run_name": run_name,
         "store_url": url if isinstance(url, str) and "://" in url else None,
+        "start_design": None if start is None else ",".join(f"{v:.9g}" for v in start),
     }
     return fill_from_run(getattr(optimizer_cls, "option_specs", ()), options, facts)

@@ -277,6 +277,43 @@ class UniversalPolicyBackend:
         with self._learner_threads():
             return paper_estimate(critics, columns, states, xi)
 
+    #: central-difference step of `surrogate_slope`, as a fraction of each variable's
+    #: full range (float32 networks: far above their rounding, far below their curvature)
+    slope_step = 5e-3
+
+    def surrogate_slope(
+        self,
+        designs: np.ndarray,
+        objectives: Sequence[Objective],
+        buffer: Any,
+        *,
+        samples: int,
+        seed: int = 0,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(costs [K, M], gradients [K, M, D]) of `surrogate_fitness` (the fitted ensemble's
+        mean when fitted, else the paper's estimator) in the design, by central differences of
+        `slope_step` of the full range on one bank of states (`coadapt_core.fitness.
+        SurrogateSlope`): every perturbed design is read on the same states, so the
+        differences carry no sampling noise."""
+        designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        k, d = designs.shape
+        space = self.trainer.full_space(designs)
+        h = self.slope_step * np.where(space.upper > space.lower, space.upper - space.lower, 1.0)
+        steps = np.diag(h)  # [D, D]
+        batch = np.concatenate(
+            [
+                designs,
+                (designs[:, None] + steps).reshape(-1, d),
+                (designs[:, None] - steps).reshape(-1, d),
+            ]
+        )  # [K + 2 K D, D]
+        values = self.surrogate_fitness(batch, objectives, buffer, samples=samples, seed=seed)
+        m = values.shape[1]
+        plus = values[k : k + k * d].reshape(k, d, m)
+        minus = values[k + k * d :].reshape(k, d, m)
+        grads = ((plus - minus) / (2.0 * h[None, :, None])).transpose(0, 2, 1)  # [K, M, D]
+        return values[:k], grads
+
     # -- pseudo-critics fitted to the current range (issue 16; learning/surrogate.py) -------
     @contextlib.contextmanager
     def _learner_threads(self):

@@ -182,6 +182,32 @@ class AnalyticBackend:
             [true_cost(designs, o.name, self.optima) + bias for o in objectives], axis=1
         )  # [K, M]
 
+    def surrogate_slope(
+        self,
+        designs: np.ndarray,
+        objectives: Sequence[Objective],
+        buffer: Any,
+        *,
+        samples: int,
+        seed: int = 0,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(costs [K, M], gradients [K, M, D]) of `surrogate_fitness`, in closed form: the
+        bowl's 2 (x - optimum) plus the bias's tilt (shrunk as the fit shrinks it, plus the
+        members' mean tilt when fitted); 0 along the motor types."""
+        costs = self.surrogate_fitness(designs, objectives, buffer, samples=samples, seed=seed)
+        designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        labels = getattr(self, "fitted_labels", 0)
+        tilt = SURROGATE_BIAS * self.width_fraction() * BIAS_DIRECTION  # [2]
+        if labels:
+            spread = getattr(self, "member_spread", None)
+            spread = 0.1 / np.sqrt(labels) if spread is None else spread
+            members = np.random.default_rng(12345).normal(size=(self.MEMBERS, 2))
+            tilt = tilt / (1.0 + labels / 16.0) + spread * members.mean(axis=0)
+        grads = np.zeros((len(designs), len(objectives), designs.shape[1]))
+        for j, o in enumerate(objectives):
+            grads[:, j, :2] = 2.0 * (designs[:, :2] - optimum_of(o.name, self.optima)) + tilt
+        return costs, grads
+
     # -- pseudo-critics fitted to real rounds (issue 16), for the evaluation policies ------
     #: members of the fitted ensemble; member_spread: their disagreement (cost units per unit
     #: of design offset from the nominal), settable by tests; None: shrinks with the labels
