@@ -94,6 +94,8 @@ def _evaluation_lines(ev: dict[str, Any]) -> list[str]:
             else f"{100 * gain:+.1f} %"
             + ("" if row.get("improvement_se") is None else f" ± {100 * row['improvement_se']:.1f}")
         )
+        if ev.get("refusal"):  # falls decide: no percentage (the protocol's line says why)
+            gain_text = "no answer (below)"
         lines.append(
             f"| {name} | {_pm(row['design'], row.get('design_se'))} | "
             f"{_pm(row['nominal'], row.get('nominal_se'))} | {gain_text} |"

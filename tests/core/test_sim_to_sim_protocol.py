@@ -209,3 +209,26 @@ def test_tracking_says_its_improvement_is_the_rms_error_reduction():
     assert sim_to_sim.line(read, "capped", "RMS error reduction 1 - √(c/c0)").startswith(
         "torque +20.0 % ± 0.0 (capped cost; RMS error reduction 1 - √(c/c0))"
     )
+
+
+def test_the_design_sheet_prints_no_percentage_where_the_protocol_refuses():
+    from coadapt_core.handoff.sheet import _evaluation_lines
+
+    read = _read(np.full((2, 8), 30.0), np.ones((2, 8), dtype=bool))
+    ev = {
+        "simulator": "pybullet",
+        "source": "evaluated by coadapt handoff (8 paired scenarios)",
+        "scenarios": 8,
+        "steps": 10,
+        "objectives": {"torque": {"design": 30.0, "nominal": 30.0, "improvement": 0.0}},
+        "design_fall_rate": 1.0,
+        "nominal_fall_rate": 1.0,
+        "refusal": read.refusal,
+        "sim_to_sim": sim_to_sim.line(read),
+        "cost_rule": "capped",
+    }
+    lines = _evaluation_lines(ev)
+    (row,) = [line for line in lines if line.startswith("| torque |")]
+    assert row == "| torque | 30 | 30 | no answer (below) |"
+    assert lines[-2] == f"Sim-to-sim protocol (capped cost rule): {sim_to_sim.line(read)}"
+    assert "%" not in sim_to_sim.line(read).split("; ")[0]
