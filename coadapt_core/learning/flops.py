@@ -43,19 +43,22 @@ def matrix_flops(fn: Callable[[], object]) -> int:
 @dataclass(frozen=True)
 class Pass:
     """One kind of network pass in an update: `network` ("actor", "critic", "pseudo") on
-    `batch` samples, forward only or forward and backward, `count` times per update."""
+    `batch` samples, forward only or forward and backward, `count` times per update, in the
+    numerics `precision` ("float32" | "bf16", autocast as `PPO._autocast`)."""
 
     network: str
     backward: bool
     batch: int
     count: int
+    precision: str = "float32"
 
 
 def update_passes(ppo, samples: int) -> list[Pass]:
     """The network passes of one `compute_returns` + `update` of `ppo` on a rollout of
     `samples` transitions: GAE's critic values of s and s' and the pseudo-critics' values of s'
-    (forward, all samples), then per minibatch the actor's and critic's forward and backward
-    (the clipped PPO loss) and, in their epochs, the pseudo-critics'."""
+    (forward, all samples; GAE's in float32, outside the loss's autocast), then per minibatch
+    the actor's and critic's forward and backward (the clipped PPO loss) and, in their epochs,
+    the pseudo-critics'."""
     c = ppo.config
     size = max(samples // c.minibatches, 1)
     minibatches = len(range(0, samples - size + 1, size))  # as `PPO.update` loops
@@ -63,22 +66,23 @@ def update_passes(ppo, samples: int) -> list[Pass]:
     passes = []
     if not ppo.policy_frozen:
         passes += [
-            Pass("critic", False, samples, 2),
-            Pass("actor", True, size, c.epochs * minibatches),
-            Pass("critic", True, size, c.epochs * minibatches),
+            Pass("critic", False, samples, 2, "float32"),
+            Pass("actor", True, size, c.epochs * minibatches, ppo.precision),
+            Pass("critic", True, size, c.epochs * minibatches, ppo.precision),
         ]
     if ppo.pseudo_critic is not None:
         epochs = pseudo_epochs if ppo.policy_frozen else min(pseudo_epochs, c.epochs)
         passes += [
-            Pass("pseudo", False, samples, 1),
-            Pass("pseudo", True, size, epochs * minibatches),
+            Pass("pseudo", False, samples, 1, ppo.pseudo_precision),
+            Pass("pseudo", True, size, epochs * minibatches, ppo.pseudo_precision),
         ]
     return passes
 
 
-def _runner(ppo, network: str, backward: bool, batch: int) -> Callable[[], object]:
-    """One pass of a copy of `ppo`'s `network` on random inputs of `batch` rows, in the
-    numerics the update uses for it (the learner's parameters and gradients untouched)."""
+def _runner(ppo, p: Pass) -> Callable[[], object]:
+    """One pass `p` of a copy of `ppo`'s network on random inputs, in the numerics the update
+    uses for it (the learner's parameters and gradients untouched)."""
+    network, backward, batch = p.network, p.backward, p.batch
     dims, device = ppo.dims, ppo.device
     net = copy.deepcopy(
         {"actor": ppo.actor_net, "critic": ppo.critic_net, "pseudo": ppo.pseudo_critic}[network]
@@ -89,10 +93,9 @@ def _runner(ppo, network: str, backward: bool, batch: int) -> Callable[[], objec
         torch.randn(batch, width, device=device, generator=generator),
         torch.rand(batch, dims.num_design, device=device, generator=generator),
     )
-    precision = ppo.pseudo_precision if network == "pseudo" else ppo.precision
 
     def run() -> object:
-        with torch.set_grad_enabled(backward), ppo._autocast(precision):
+        with torch.set_grad_enabled(backward), ppo._autocast(p.precision):
             out = net(*inputs)
         if not backward:
             return out
@@ -128,7 +131,7 @@ def learner_ceiling(ppo, samples: int, repeats: int = 5) -> LearnerCeiling:
     flops = seconds = 0.0
     rates = {}
     for p in update_passes(ppo, samples):
-        run = _runner(ppo, p.network, p.backward, p.batch)
+        run = _runner(ppo, p)
         run()  # warm-up (allocator, kernels)
         pass_flops = matrix_flops(run)
         if ppo.device.type == "cuda":
@@ -139,7 +142,7 @@ def learner_ceiling(ppo, samples: int, repeats: int = 5) -> LearnerCeiling:
         if ppo.device.type == "cuda":
             torch.cuda.synchronize(ppo.device)
         each = (time.perf_counter() - start) / repeats
-        kind = f"{p.network} {'fwd+bwd' if p.backward else 'fwd'} x{p.batch}"
+        kind = f"{p.network} {'fwd+bwd' if p.backward else 'fwd'} x{p.batch} {p.precision}"
         rates[kind] = pass_flops / each / 1e9
         flops += pass_flops * p.count
         seconds += each * p.count

@@ -98,6 +98,8 @@ class PPO:
             critic_coeff=c.value_loss_coef,
             loss_critic_type="l2",
             normalize_advantage=True,
+            # a logged statistic nothing here reads: one more reduction per minibatch
+            log_explained_variance=False,
         )
         self.gae = GAE(gamma=c.gamma, lmbda=c.lam, value_network=self.critic)
         self.learning_rate = c.learning_rate
@@ -280,6 +282,18 @@ class PPO:
         for group in self.optimizer.param_groups:
             group["lr"] = self.learning_rate
 
+    def _update_keys(self) -> list:
+        """The rollout's entries the update reads: the PPO loss's inputs (not the next-state
+        ones, which GAE has used up), its advantages and value targets, and the pseudo-critics'
+        inputs and targets. The rest (the rollout's metrics, loc, scale and values) is never
+        gathered into minibatches."""
+        keys = self.loss.tensor_keys
+        wanted = [k for k in self.loss.in_keys if not (isinstance(k, tuple) and k[0] == "next")]
+        wanted += [keys.advantage, keys.value_target, "critic_obs", "design_obs"]
+        if self.pseudo_critic is not None:
+            wanted.append("pseudo_target")
+        return list(dict.fromkeys(wanted))
+
     def update(self) -> dict[str, float]:
         """Epochs x minibatches of the clipped PPO loss (actor + critic) and, on the same
         minibatch but in its own optimizer, of the pseudo-critic regression. Returns mean
@@ -289,9 +303,8 @@ class PPO:
         learning rate) and whether the pseudo-critic loss is finite travel together; the
         loss sums stay on the device until the end."""
         c = self.config
-        # the minibatches gather only what the losses read (not the next-state entries, which
-        # GAE and the pseudo-critic targets have used up)
-        flat = self.rollout.exclude("next").reshape(-1)
+        # strict=False: a frozen policy's rollout has no advantages (GAE did not run)
+        flat = self.rollout.select(*self._update_keys(), strict=False).reshape(-1)
         n = flat.shape[0]
         size = max(n // c.minibatches, 1)
         keys = ("loss_objective", "loss_critic", "loss_entropy", "entropy")
@@ -307,9 +320,11 @@ class PPO:
         begin = self._clock()
         frozen = self.policy_frozen
         for epoch in range(pseudo_epochs if frozen else c.epochs):
-            order = torch.randperm(n, device=self.device)
+            # one gather per epoch, the minibatches its slices (views): the same rows as
+            # gathering each minibatch on its own, in one pass over memory instead of one each
+            shuffled = flat[torch.randperm(n, device=self.device)]
             for start in range(0, n - size + 1, size):
-                batch = flat[order[start : start + size]]
+                batch = shuffled[start : start + size]
                 if frozen:
                     out = {k: torch.zeros((), device=self.device) for k in keys}
                     out["kl_approx"] = torch.zeros((), device=self.device)

@@ -23,7 +23,7 @@ def _collected(fake_robot, fake_sim_cls, **over):
 
 
 def _pass_flops(ppo, p) -> int:
-    return matrix_flops(_runner(ppo, p.network, p.backward, p.batch))
+    return matrix_flops(_runner(ppo, p))
 
 
 def test_a_pass_counts_two_flops_per_multiply_add_forward_and_twice_that_backward(
@@ -88,11 +88,11 @@ def test_ceiling_counts_the_update_and_leaves_the_learner_untouched(
     assert ceiling.flops == listed
     assert ceiling.seconds > 0 and ceiling.gflops_per_s == ceiling.flops / ceiling.seconds / 1e9
     assert set(ceiling.rates) == {
-        f"critic fwd x{samples}",
-        f"actor fwd+bwd x{samples // 2}",
-        f"critic fwd+bwd x{samples // 2}",
-        f"pseudo fwd x{samples}",
-        f"pseudo fwd+bwd x{samples // 2}",
+        f"critic fwd x{samples} float32",
+        f"actor fwd+bwd x{samples // 2} {ppo.precision}",
+        f"critic fwd+bwd x{samples // 2} {ppo.precision}",
+        f"pseudo fwd x{samples} {ppo.pseudo_precision}",
+        f"pseudo fwd+bwd x{samples // 2} {ppo.pseudo_precision}",
     }
     assert all(torch.equal(v, before[k]) for k, v in ppo.actor_net.state_dict().items())
     after = [p.grad for p in ppo.actor_net.parameters()]
