@@ -153,10 +153,13 @@ def method_help() -> str:
 def optimizer_for(method: str, optimizer: str) -> str:
     """The optimizer a run of `method` searches with: `optimizer`, unless the method needs a
     capability (`Method.optimizer_needs`) that optimizer does not declare; then the one
-    installed optimizer that declares it. None or several such: a user error naming them."""
+    installed optimizer that declares it (for a method without a shared policy, one that does
+    not follow the surrogate's slope: there is no surrogate). None or several such: a user
+    error naming them."""
     need = get_method(method).optimizer_needs
     if need is None:
         return optimizer
+    from coadapt_core.optimizer import follows_surrogate_slope
     from coadapt_core.plugins import get_registry
 
     registry = get_registry()
@@ -164,6 +167,9 @@ def optimizer_for(method: str, optimizer: str) -> str:
     if getattr(classes.get(optimizer), need, False):
         return optimizer
     able = [n for n, cls in classes.items() if getattr(cls, need, False)]
+    if not get_method(method).backend_kind.shared_policy:
+        # no shared policy, no surrogate: an optimizer that follows its slope is no choice
+        able = [n for n in able if not follows_surrogate_slope(classes[n])]
     if len(able) == 1:
         return able[0]
     raise UserError(

@@ -99,3 +99,12 @@ def test_an_interrupted_descent_resumes_where_it_stopped(tmp_path):
         b["descent_step"] for b in whole["batches"]
     ]
     assert resumed["best_design"] == whole["best_design"]
+
+
+def test_a_method_without_a_surrogate_never_falls_back_to_the_gradient_optimizer():
+    from coadapt_core.methods import optimizer_for
+
+    # bo-specialized needs a sequential optimizer: bo and gradient both are, gradient
+    # follows a surrogate that policies per design do not have
+    assert optimizer_for("bo-specialized", "pso") == "bo"
+    assert optimizer_for("ours", "gradient") == "gradient"
