@@ -55,10 +55,10 @@ class Pass:
 
 def update_passes(ppo, samples: int) -> list[Pass]:
     """The network passes of one `compute_returns` + `update` of `ppo` on a rollout of
-    `samples` transitions: GAE's critic values of s and s' and the pseudo-critics' values of s'
-    (forward, all samples; GAE's in float32, outside the loss's autocast), then per minibatch
-    the actor's and critic's forward and backward (the clipped PPO loss) and, in their epochs,
-    the pseudo-critics'."""
+    `samples` transitions: GAE's critic values of s and s' (one batch of both, in float32:
+    outside the loss's autocast) and the pseudo-critics' values of s' (forward only), then per
+    minibatch the actor's and critic's forward and backward (the clipped PPO loss) and, in
+    their epochs, the pseudo-critics'."""
     c = ppo.config
     size = max(samples // c.minibatches, 1)
     minibatches = len(range(0, samples - size + 1, size))  # as `PPO.update` loops
@@ -66,7 +66,8 @@ def update_passes(ppo, samples: int) -> list[Pass]:
     passes = []
     if not ppo.policy_frozen:
         passes += [
-            Pass("critic", False, samples, 2, "float32"),
+            # TorchRL's GAE: one call of the critic on s and s' together
+            Pass("critic", False, 2 * samples, 1, "float32"),
             Pass("actor", True, size, c.epochs * minibatches, ppo.precision),
             Pass("critic", True, size, c.epochs * minibatches, ppo.precision),
         ]

@@ -100,6 +100,7 @@ class PPO:
             normalize_advantage=True,
             # a logged statistic nothing here reads: one more reduction per minibatch
             log_explained_variance=False,
+            functional=False,
         )
         self.gae = GAE(gamma=c.gamma, lmbda=c.lam, value_network=self.critic)
         self.learning_rate = c.learning_rate

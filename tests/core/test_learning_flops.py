@@ -50,7 +50,7 @@ def test_update_passes_are_the_matrix_work_of_a_real_update(fake_robot, fake_sim
     samples = trainer.env.num_envs * trainer.config.steps_per_env
     passes = update_passes(ppo, samples)
     assert [(p.network, p.backward, p.count) for p in passes] == [
-        ("critic", False, 2),
+        ("critic", False, 1),
         ("actor", True, 6),
         ("critic", True, 6),
         ("pseudo", False, 1),
@@ -88,7 +88,7 @@ def test_ceiling_counts_the_update_and_leaves_the_learner_untouched(
     assert ceiling.flops == listed
     assert ceiling.seconds > 0 and ceiling.gflops_per_s == ceiling.flops / ceiling.seconds / 1e9
     assert set(ceiling.rates) == {
-        f"critic fwd x{samples} float32",
+        f"critic fwd x{2 * samples} float32",
         f"actor fwd+bwd x{samples // 2} {ppo.precision}",
         f"critic fwd+bwd x{samples // 2} {ppo.precision}",
         f"pseudo fwd x{samples} {ppo.pseudo_precision}",
