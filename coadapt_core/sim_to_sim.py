@@ -20,6 +20,7 @@ prints them, so a stored row and a fresh evaluation print the same words.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -124,8 +125,8 @@ def figures(
     rows = []
     for i in (0, 1):  # each row's figures of its own design against the nominal one (row 1)
         comparison = compare_designs(rule, objectives, per, falls, i, 1)
-        if falls is None:  # a backend that reports no falls: none counted
-            comparison.update({k: 0.0 for k in comparison if k.startswith(_FALL_KEYS)})
+        if falls is None:  # a backend that reports no falls: not known (NaN), not none
+            comparison.update({k: math.nan for k in comparison if k.startswith(_FALL_KEYS)})
         rows.append(row_figures(comparison, best=i == 0))
     ref = rule.reference(per[1], None if falls is None else falls[1])
     values = rule.scenario_values(per, falls, ref if rule.needs_reference else None)
@@ -229,11 +230,16 @@ def line(r: Reading, rule: str = "capped", measure: str = "") -> str:
     (`analysis.measures.improvement_measure`: tracking's RMS error reduction)."""
     what = f"{rule} cost" + (f"; {measure}" if measure else "")
     head = r.refusal or f"{r.objective} {_pct(r.improvement, r.improvement_se)} ({what})"
+    falls = (
+        f"fall rate {r.fall_rate:.2f} vs {r.nominal_fall_rate:.2f} (difference "
+        f"{_pct(r.fall_difference, r.fall_difference_se).replace(' %', '')} points)"
+        if np.isfinite(r.fall_rate)
+        else "falls not reported by the backend"
+    )
     parts = [
         head,
         f"plain mean {_pct(r.plain, r.plain_se)}",
-        f"fall rate {r.fall_rate:.2f} vs {r.nominal_fall_rate:.2f} (difference "
-        f"{_pct(r.fall_difference, r.fall_difference_se).replace(' %', '')} points)",
+        falls,
         f"{r.scenarios} paired scenarios",
     ]
     if r.warning:

@@ -232,3 +232,16 @@ def test_the_design_sheet_prints_no_percentage_where_the_protocol_refuses():
     assert row == "| torque | 30 | 30 | no answer (below) |"
     assert lines[-2] == f"Sim-to-sim protocol (capped cost rule): {sim_to_sim.line(read)}"
     assert "%" not in sim_to_sim.line(read).split("; ")[0]
+
+
+def test_a_backend_that_reports_no_falls_is_said_so_not_read_as_none():
+    torque = get_registry().create("objective", "torque")
+    fit = _fit([[8.0] * 4, [10.0] * 4], np.zeros((2, 4)))
+    fit.scenario_falls = None
+    best, nominal = sim_to_sim.figures(fit, [torque], CostRule(), 0.01, sim_to_sim.Protocol(4, 10))
+    read = sim_to_sim.reading(best, nominal, "torque")
+    assert read.answer == pytest.approx(0.2) and np.isnan(read.fall_rate)
+    assert sim_to_sim.line(read) == (
+        "torque +20.0 % ± 0.0 (capped cost); plain mean +20.0 % ± 0.0; falls not reported by "
+        "the backend; 4 paired scenarios"
+    )
