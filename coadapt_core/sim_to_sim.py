@@ -159,7 +159,6 @@ class Reading:
     scenarios: int
     falls_share: float
     gate: float
-    rule: str = "capped"
 
     @property
     def refusal(self) -> str:
