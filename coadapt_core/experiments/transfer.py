@@ -1,8 +1,9 @@
 """Sim-to-sim: the same robot and policy on a second simulator.
 
 Policy transfer (`transfer_runs`, Table 6's last column): the run's final universal policy
-evaluates its best and its nominal design on another simulator, on the run's own scenario
-set; the costs are written to the store as rows of kind "sim2sim", which `coadapt report`
+evaluates its best and its nominal design on another simulator under the one sim-to-sim
+protocol (`coadapt_core.sim_to_sim`, which `coadapt handoff` follows too: `evaluate_pair`);
+the figures are written to the store as rows of kind "sim2sim", which `coadapt report`
 reads. A run whose rows exist is not evaluated again.
 
 Backend check (`compare_backends`): do two simulator backends move the same robot the same
@@ -290,12 +291,12 @@ def transfer_run(
     cfg = run.get("config") or {}
     protocol = sim2sim.protocol_of(cfg, agents, steps)
     best = np.asarray(best_design, dtype=float)
-    designs = {"best": best, "nominal": nominal_of(run, best.shape[0])}
 
     def make(path: Any) -> CoadaptationBackend:
         return run_backend(run, best.shape[0], simulator, protocol.scenarios, str(path), factory)[0]
 
     try:
+        designs = {"best": best, "nominal": nominal_of(run, best.shape[0])}
         objectives = run_objectives(run, simulator)
         with contextlib.ExitStack() as stack:
             files = (
