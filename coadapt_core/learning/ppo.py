@@ -284,15 +284,11 @@ class PPO:
             group["lr"] = self.learning_rate
 
     def _update_keys(self) -> list:
-        """The rollout's entries the update reads: the PPO loss's inputs (not the next-state
-        ones, which GAE has used up), its advantages and value targets, and the pseudo-critics'
-        inputs and targets. The rest (the rollout's metrics, loc, scale and values) is never
-        gathered into minibatches."""
+        """The rollout's entries the minibatches gather: the PPO loss's inputs but the next
+        state's (GAE used them up), advantages, value targets, the pseudo-critics' targets."""
         keys = self.loss.tensor_keys
         wanted = [k for k in self.loss.in_keys if not (isinstance(k, tuple) and k[0] == "next")]
-        wanted += [keys.advantage, keys.value_target, "critic_obs", "design_obs"]
-        if self.pseudo_critic is not None:
-            wanted.append("pseudo_target")
+        wanted += [keys.advantage, keys.value_target, "critic_obs", "design_obs", "pseudo_target"]
         return list(dict.fromkeys(wanted))
 
     def update(self) -> dict[str, float]:
