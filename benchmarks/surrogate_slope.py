@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+NOMINAL = np.array([1.0, 1.0])  # Kuafu's nominal scales: the cost rule's reference design
 
 
 def cosine(a: np.ndarray, b: np.ndarray) -> float:
@@ -65,37 +66,53 @@ def real_gradients(per: np.ndarray, n: int, d: int, h: float) -> np.ndarray:
     return ((plus - minus) / (2 * h)).transpose(0, 2, 1)
 
 
-def one_range(backend, objective, centres, h, *, agents, steps, seed, samples) -> dict:
+def one_range(backend, objective, centres, h, *, agents, steps, seed, samples, rule) -> dict:
+    """Real and surrogate gradients at `centres`; the real one from the plain mean and from
+    the run's cost rule (`rule`, its reference the nominal design's, evaluated alongside)."""
     from coadapt_core.scenarios.seeds import scenario_seed
 
     n, d = centres.shape
     t0 = time.perf_counter()
+    designs = np.concatenate([probe_designs(centres, h), NOMINAL[None]])
     fit = backend.real_fitness(
-        probe_designs(centres, h), [objective], agents=agents, steps=steps, seed=scenario_seed(seed)
+        designs, [objective], agents=agents, steps=steps, seed=scenario_seed(seed)
     )
-    per = np.asarray(fit.per_scenario, dtype=float)[:, :, 0]  # [K, A]
-    fd = real_gradients(per, n, d, h)  # [n, A, D]
-    real = fd.mean(axis=1)
-    se = fd.std(axis=1, ddof=1) / np.sqrt(fd.shape[1])
-    half = fd.shape[1] // 2
+    per = np.asarray(fit.per_scenario, dtype=float)  # [K, A, 1]
+    falls = np.asarray(fit.scenario_falls)
+    ref = rule.reference(per[-1], falls[-1]) if rule.needs_reference else None
+    ruled = rule.scenario_values(per[:-1], falls[:-1], ref)[:, :, 0]
     _, slope = backend.surrogate_slope(centres, [objective], fit.buffer, samples=samples, seed=seed)
     slope = slope[:, 0]  # [n, D]
-    return {
-        "cosine": [cosine(slope[i], real[i]) for i in range(n)],
-        "split_half": [cosine(fd[i, :half].mean(0), fd[i, half:].mean(0)) for i in range(n)],
-        "snr": [float(np.linalg.norm(real[i]) / np.linalg.norm(se[i])) for i in range(n)],
-        "real_gradient": np.round(real, 4).tolist(),
-        "real_gradient_se": np.round(se, 4).tolist(),
-        "surrogate_gradient": np.round(slope, 4).tolist(),
-        "fall_rate": float(np.mean(fit.fall_rate)),
+    out = {"surrogate_gradient": np.round(slope, 4).tolist()}
+    for label, values in (("", per[:-1, :, 0]), ("_" + rule.rule, ruled)):
+        fd = real_gradients(values, n, d, h)  # [n, A, D]
+        real = fd.mean(axis=1)
+        se = fd.std(axis=1, ddof=1) / np.sqrt(fd.shape[1])
+        half = fd.shape[1] // 2
+        out |= {
+            f"cosine{label}": [cosine(slope[i], real[i]) for i in range(n)],
+            f"split_half{label}": [
+                cosine(fd[i, :half].mean(0), fd[i, half:].mean(0)) for i in range(n)
+            ],
+            f"snr{label}": [
+                float(np.linalg.norm(real[i]) / np.linalg.norm(se[i])) for i in range(n)
+            ],
+            f"real_gradient{label}": np.round(real, 4).tolist(),
+            f"real_gradient_se{label}": np.round(se, 4).tolist(),
+        }
+    out |= {
+        "fall_rate": float(np.mean(fit.fall_rate[:-1])),
         "seconds": round(time.perf_counter() - t0, 1),
         "interactions": int(fit.interactions),
     }
+    return out
 
 
-def summarise(rows: list[dict]) -> dict:
-    out = {k: mean_se([x for r in rows for x in r[k]]) for k in ("cosine", "split_half", "snr")}
+def summarise(rows: list[dict], rule: str) -> dict:
+    keys = [f"{k}{label}" for label in ("", "_" + rule) for k in ("cosine", "split_half", "snr")]
+    out = {k: mean_se([x for r in rows for x in r[k]]) for k in keys}
     out["cosine_per_seed"] = [mean_se(r["cosine"]) for r in rows]
+    out[f"cosine_{rule}_per_seed"] = [mean_se(r[f"cosine_{rule}"]) for r in rows]
     return out
 
 
@@ -109,6 +126,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--samples", type=int, default=4096, help="buffer states the surrogate reads")
     p.add_argument("--full", default="0.5:1.5", help="the full range of both scales, LOW:HIGH")
     p.add_argument("--narrow", default="0.5:0.7", help="the narrowed range, LOW:HIGH")
+    p.add_argument("--cost-rule", default="capped", help="the run's rule beside the plain mean")
     p.add_argument("--step", type=float, default=0.1, help="h as a fraction of each range")
     p.add_argument("--json", action="store_true", help="print one JSON line last")
     return p
@@ -133,6 +151,7 @@ def _args(argv: list[str] | None):
         ("--samples", args.samples, args.samples >= 1),
         ("--step", args.step, 0 < args.step < 0.5),
         ("--seeds", args.seeds, len(args.seeds) == 2),
+        ("--cost-rule", args.cost_rule, args.cost_rule in ("capped", "mean", "trimmed")),
     ):
         if not ok:
             print(f"error: {name} is out of range, got {value}", file=sys.stderr)
@@ -145,9 +164,11 @@ def main(argv: list[str] | None = None) -> int:
     args = _args(argv)
     if args is None:
         return 2
+    from coadapt_core.costs import CostRule
     from coadapt_core.learning import shipped_checkpoint
     from coadapt_core.learning.factory import make_backend, resolve_plugins
 
+    rule = CostRule(args.cost_rule, 3.0)
     checkpoint = shipped_checkpoint("kuafu", "flat")
     robot, sim_cls, objectives = resolve_plugins("kuafu", "mujoco", [args.objective])
     backend = make_backend(
@@ -183,6 +204,7 @@ def main(argv: list[str] | None = None) -> int:
                 steps=args.steps,
                 seed=s,
                 samples=args.samples,
+                rule=rule,
             )
             for s in args.seeds
         ]
@@ -191,15 +213,18 @@ def main(argv: list[str] | None = None) -> int:
             "high": high,
             "h": h,
             "centres": centres.tolist(),
-            **summarise(rows),
+            **summarise(rows, rule.rule),
             "per_seed": rows,
         }
         s = result["ranges"][name]
-        print(
-            f"{name:9s} [{low}, {high}]^2, h {h:.3f}: cosine {s['cosine']['mean']} +- "
-            f"{s['cosine']['se']} (n {s['cosine']['n']}), split-half {s['split_half']['mean']} "
-            f"+- {s['split_half']['se']}, SNR {s['snr']['mean']} +- {s['snr']['se']}"
-        )
+        for label in ("", "_" + rule.rule):
+            print(
+                f"{name:9s} [{low}, {high}]^2, h {h:.3f}, {label[1:] or 'plain mean'}: cosine "
+                f"{s['cosine' + label]['mean']} +- {s['cosine' + label]['se']} "
+                f"(n {s['cosine' + label]['n']}), split-half {s['split_half' + label]['mean']} "
+                f"+- {s['split_half' + label]['se']}, SNR {s['snr' + label]['mean']} +- "
+                f"{s['snr' + label]['se']}"
+            )
     result["seconds"] = round(time.perf_counter() - t0, 1)
     backend.close()
     if args.json:
