@@ -51,6 +51,23 @@ OPTIONS: tuple[PluginOption, ...] = (
         maximum=1.0,
     ),
     PluginOption(
+        "min_step",
+        "float",
+        0.01,
+        "the smallest radius: a failed step at it keeps it (no real evaluation of designs "
+        "closer than this), as a fraction of the range",
+        minimum=1e-6,
+        maximum=1.0,
+    ),
+    PluginOption(
+        "backtracks",
+        "int",
+        6,
+        "halvings of a step, on the surrogate alone, while it predicts no improvement over the "
+        "centre (before a real evaluation is spent)",
+        minimum=0,
+    ),
+    PluginOption(
         "start_at",
         "str",
         None,
@@ -70,9 +87,11 @@ class GradientOptimizer(Optimizer):
     negative gradient of the surrogate (`set_slope`, handed by the co-adaptation loop)
     over the continuous variables in the unit cube of the range, to the trust region's
     radius, projected onto the bounds; the motor types (discrete variables) stay the
-    centre's. The loop evaluates every round real on the run's paired scenarios: a step
-    whose real cost is lower becomes the centre and the radius grows (`grow`, at most
-    `max_step`); otherwise the radius shrinks (`shrink`).
+    centre's. Before a real evaluation is spent the step is halved on the surrogate alone
+    (at most `backtracks` times) while the surrogate predicts no improvement over the
+    centre. The loop evaluates every round real on the run's paired scenarios: a step whose
+    real cost is lower becomes the centre and the radius grows (`grow`, at most `max_step`);
+    otherwise the radius shrinks (`shrink`, at least `min_step`).
 
     Without a surrogate gradient (a backend that offers none, or the conformance suite's
     sphere) the gradient is a linear least-squares model of the real costs evaluated within
@@ -102,6 +121,11 @@ class GradientOptimizer(Optimizer):
             raise UserError(
                 f"max_step ({o['max_step']}) must be at least step_size ({o['step_size']})",
                 field="optimizer_options.max_step",
+            )
+        if o["min_step"] > o["step_size"]:
+            raise UserError(
+                f"min_step ({o['min_step']}) must be at most step_size ({o['step_size']})",
+                field="optimizer_options.min_step",
             )
         self._mask = space.continuous_mask
         self.center: np.ndarray | None = None  # [dim] accepted design
@@ -181,12 +205,23 @@ class GradientOptimizer(Optimizer):
             slope = np.where(free, slope, 0.0)
         if slope is None or not np.linalg.norm(slope) > 0:
             return self._probe(step, u)
-        target = u - self.radius * slope / np.linalg.norm(slope)
-        step["design"] = self._design(target).tolist()
+        direction = -slope / np.linalg.norm(slope)
+        step["design"] = self._design(u + self.radius * direction).tolist()
         if self.oracle is not None:
-            cost, _ = self.oracle(np.asarray(step["design"])[None])
-            step["surrogate_cost"] = float(cost[0])
+            self._backtrack(step, u, direction)
         return step
+
+    def _backtrack(self, step: dict[str, Any], u: np.ndarray, direction: np.ndarray) -> None:
+        """Halve the step, on the surrogate alone, while it predicts no improvement over the
+        centre (a curved surrogate, a step past its minimum): one batch of the candidate
+        lengths, the longest that improves, else the shortest."""
+        lengths = self.radius * 0.5 ** np.arange(self.options["backtracks"] + 1)
+        designs = np.stack([self._design(u + length * direction) for length in lengths])
+        costs, _ = self.oracle(designs)
+        better = np.flatnonzero(costs < step["surrogate_center"])
+        i = int(better[0]) if better.size else len(lengths) - 1
+        step["design"], step["surrogate_cost"] = designs[i].tolist(), float(costs[i])
+        step["length"] = float(lengths[i])
 
     def _probe(self, step: dict[str, Any], u: np.ndarray) -> dict[str, Any]:
         """One coordinate at the radius (too few evaluations near the centre for a model, or
@@ -224,7 +259,8 @@ class GradientOptimizer(Optimizer):
             self.queue.pop(0)
         elif step["kind"] == "step":
             grown = min(self.radius * self.options["grow"], self.options["max_step"])
-            self.radius = grown if improved else self.radius * self.options["shrink"]
+            shrunk = max(self.radius * self.options["shrink"], self.options["min_step"])
+            self.radius = grown if improved else shrunk
         if improved:
             self.center, self.center_cost = designs[0].copy(), cost
         step["accepted"] = bool(improved)

@@ -88,6 +88,38 @@ def test_trust_region_shrinks_after_a_step_whose_real_cost_does_not_improve():
     assert np.linalg.norm(again - center) == pytest.approx(0.5 * np.linalg.norm(proposed - center))
 
 
+def test_a_step_the_surrogate_itself_says_overshoots_is_halved_before_it_is_evaluated():
+    """A steep bowl 0.05 from the start: a step of 0.3 lands past it (the surrogate predicts
+    a higher cost than the centre's), so it is halved on the surrogate until it improves."""
+    optimum = np.array([0.95, 1.0])
+
+    def steep(designs):
+        designs = np.atleast_2d(designs)
+        return 100 * ((designs - optimum) ** 2).sum(axis=1), 200 * (designs - optimum)
+
+    opt = GradientOptimizer(SPACE, budget=3, start_at="1.0,1.0", step_size=0.3, max_step=0.3)
+    step(opt, cost=lambda d: steep(d)[0], gradient=steep)
+    proposal = step(opt, cost=lambda d: steep(d)[0], gradient=steep)
+    last = opt.last_step
+    # 0.3 and 0.15 overshoot (cost 6.25 and 1.0 against 0.25 at the centre); 0.075 improves
+    assert last["length"] == pytest.approx(0.075)
+    np.testing.assert_allclose(proposal, [0.925, 1.0], atol=1e-12)
+    assert last["surrogate_cost"] == pytest.approx(0.0625)
+    assert last["surrogate_center"] == pytest.approx(0.25)
+    assert last["accepted"] and opt.radius == pytest.approx(0.3)  # grown, capped at max_step
+
+
+def test_the_radius_never_shrinks_below_min_step():
+    opt = GradientOptimizer(SPACE, budget=12, start_at="1.0,1.0", step_size=0.1, min_step=0.02)
+    step(opt)
+    worse = lambda d: np.full(len(np.atleast_2d(d)), 5.0)  # noqa: E731
+    radii = []
+    for _ in range(8):
+        step(opt, cost=worse)
+        radii.append(opt.radius)
+    assert radii[:3] == pytest.approx([0.05, 0.025, 0.02]) and min(radii) == pytest.approx(0.02)
+
+
 def test_a_step_is_projected_onto_the_bounds():
     """The minimum of the gradient lies outside the range: the design stops at the bound and
     the slope along a variable pinned there no longer moves the others off course."""
@@ -141,6 +173,8 @@ def test_state_resumes_a_descent_where_it_stopped():
         ({"shrink": 1.0}, "shrink"),
         ({"step_size": 0.5, "max_step": 0.2}, "max_step"),
         ({"start_at": "1.0"}, "start_at"),
+        ({"min_step": 0.2}, "min_step"),
+        ({"backtracks": -1}, "backtracks"),
     ],
 )
 def test_bad_options_are_one_line_naming_the_field(options, field):
