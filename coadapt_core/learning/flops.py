@@ -80,7 +80,7 @@ def update_passes(ppo, samples: int) -> list[Pass]:
     return passes
 
 
-def _runner(ppo, p: Pass) -> Callable[[], object]:
+def pass_runner(ppo, p: Pass) -> Callable[[], object]:
     """One pass `p` of a copy of `ppo`'s network on random inputs, in the numerics the update
     uses for it (the learner's parameters and gradients untouched)."""
     network, backward, batch = p.network, p.backward, p.batch
@@ -132,7 +132,7 @@ def learner_ceiling(ppo, samples: int, repeats: int = 5) -> LearnerCeiling:
     flops = seconds = 0.0
     rates = {}
     for p in update_passes(ppo, samples):
-        run = _runner(ppo, p)
+        run = pass_runner(ppo, p)
         run()  # warm-up (allocator, kernels)
         pass_flops = matrix_flops(run)
         if ppo.device.type == "cuda":

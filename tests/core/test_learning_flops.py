@@ -7,9 +7,9 @@ import torch
 
 from coadapt_core.learning.flops import (
     Pass,
-    _runner,
     learner_ceiling,
     matrix_flops,
+    pass_runner,
     update_passes,
 )
 from tests.core.test_learning_ppo import make_trainer, small_config
@@ -23,10 +23,10 @@ def _collected(fake_robot, fake_sim_cls, **over):
 
 
 def _pass_flops(ppo, p) -> int:
-    return matrix_flops(_runner(ppo, p))
+    return matrix_flops(pass_runner(ppo, p))
 
 
-def test_a_pass_counts_two_flops_per_multiply_add_forward_and_twice_that_backward(
+def test_a_pass_counts_two_flops_per_multiply_add_and_no_gradient_for_its_inputs(
     fake_robot, fake_sim_cls
 ) -> None:
     """The actor MLP (obs + design -> 64 -> 64 -> actions) on 8 rows: forward 2 B sum(in out);
