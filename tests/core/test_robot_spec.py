@@ -298,3 +298,15 @@ def test_a_closed_chain_is_refused(folder):
     )
     (folder / "model.xml").write_text(text)
     assert "closed chains" in _refused(folder, "model")
+
+
+def test_a_spec_robot_ships_its_policy_in_its_own_folder():
+    from coadapt_core.learning.checkpoints import read_checkpoint
+    from coadapt_core.plugins import get_registry
+
+    robot = get_registry().create("robot", "nezha")
+    path = robot.shipped_policy("flat", False)
+    assert path == NEZHA / "policies" / "flat.pt"
+    state = read_checkpoint(path)
+    assert state["robot"] == "nezha" and int(state["dims"]["num_design"]) == 2
+    assert robot.shipped_policy("flat", True) is None and robot.shipped_policy("slope") is None

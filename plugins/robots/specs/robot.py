@@ -88,6 +88,12 @@ class SpecRobot(Robot):
 
         return validate_spec_model(self, self.build(design))
 
+    def shipped_policy(self, terrain: str, mixed: bool = False) -> Path | None:
+        """`policies/<terrain>.pt` (`<terrain>-mixed.pt`) in the robot's own folder, beside
+        its spec: a spec robot ships a policy as data too."""
+        path = self.spec_path / "policies" / (f"{terrain}-mixed.pt" if mixed else f"{terrain}.pt")
+        return path if path.is_file() else None
+
     def legs(self) -> list[Leg]:
         return [Leg(leg.name, leg.phase) for leg in self.spec.legs]
 
