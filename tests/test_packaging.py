@@ -37,6 +37,12 @@ def test_wheel_carries_data_and_entry_points(tmp_path):
     assert (
         "coadapt_core/analysis/paper_du2025.json" in names
     )  # the paper's tables, for `coadapt report`
+    assert {  # a robot that is only data: its spec, model, README and policy
+        "coadapt_plugins/robots/specs/nezha/robot.yaml",
+        "coadapt_plugins/robots/specs/nezha/model.xml",
+        "coadapt_plugins/robots/specs/nezha/README.md",
+        "coadapt_plugins/robots/specs/nezha/policies/flat.pt",
+    } <= names
     assert {
         "coadapt_core/dashboard/static/chart.js",
         "coadapt_core/dashboard/static/pages.js",
@@ -45,6 +51,7 @@ def test_wheel_carries_data_and_entry_points(tmp_path):
     text = wheel.read(entry_points).decode()
     for name in (
         "coadapt.robots.kuafu",
+        "coadapt.robots.specs",
         "coadapt.simulators.mujoco",
         "coadapt.optimizers.pso",
         "coadapt.objectives.locomotion",
