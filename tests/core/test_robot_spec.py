@@ -310,3 +310,27 @@ def test_a_spec_robot_ships_its_policy_in_its_own_folder():
     state = read_checkpoint(path)
     assert state["robot"] == "nezha" and int(state["dims"]["num_design"]) == 2
     assert robot.shipped_policy("flat", True) is None and robot.shipped_policy("slope") is None
+
+
+@pytest.mark.parametrize("source", ["qilin", "nezha"])
+def test_robot_new_on_qilins_and_nezhas_model_files_writes_specs_that_validate(tmp_path, source):
+    from coadapt_plugins.robots.specs.new import write_robot
+
+    from coadapt_core.plugins import get_registry
+
+    if source == "qilin":
+        qilin = get_registry().create("robot", "qilin")
+        model_file = tmp_path / "qilin.xml"
+        model_file.write_text(qilin.build(qilin.nominal_design()).text("mjcf"))
+    else:
+        model_file = NEZHA / "model.xml"
+    folder, notes = write_robot(f"{source}-new", model_file, tmp_path / "robots")
+    robot = spec_robot_class(folder)()
+    assert len(robot.legs()) == (4 if source == "qilin" else 2)
+    assert robot.design_space().names == (
+        ["thigh_scale", "calf_scale"] if source == "qilin" else ["hip_yaw_scale", "knee_scale"]
+    )
+    for design in ([1.0, 1.0], [0.7, 0.7], [1.3, 1.3]):
+        report = robot.validate(np.array(design))
+        assert report.feasible, report.reasons
+    assert any("speeds are not in the model" in line for line in notes)
