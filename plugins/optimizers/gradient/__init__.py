@@ -22,7 +22,7 @@ OPTIONS: tuple[PluginOption, ...] = (
     PluginOption(
         "step_size",
         "float",
-        0.1,
+        0.2,
         "the first step's length (the trust region's radius), as a fraction of the range",
         minimum=1e-6,
         maximum=1.0,
@@ -53,7 +53,7 @@ OPTIONS: tuple[PluginOption, ...] = (
     PluginOption(
         "min_step",
         "float",
-        0.01,
+        0.05,
         "the smallest radius: a failed step at it keeps it (no real evaluation of designs "
         "closer than this), as a fraction of the range",
         minimum=1e-6,
