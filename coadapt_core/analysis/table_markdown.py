@@ -93,6 +93,20 @@ def reduction_cell(r: dict[str, Any]) -> str:
     return " / ".join(cell(r, name, pct=True) for name, _ in REDUCTIONS[:4])
 
 
+def result_cells(r: dict[str, Any], design: Sequence[tuple]) -> list[str]:
+    """A Table 6 row's design columns, costs, improvements and fall rates as text (the
+    report's Markdown and the dashboard's grid page)."""
+    cells = [design_cell(r, n, d) if f"{n}_n" in r else "" for n, _, d in design]
+    return [
+        *cells,
+        cell(r, "best_cost", spec=".5g"),
+        cell(r, "nominal_cost", spec=".5g"),
+        cell(r, "improvement", pct=True) + unreliable_mark(r),
+        cell(r, "improvement_plain", pct=True),
+        cell(r, "best_fall_rate", pct=True) + " / " + cell(r, "nominal_fall_rate", pct=True),
+    ]
+
+
 def table6_markdown(rows: Sequence[dict[str, Any]]) -> str:
     design = design_columns(rows)
     head = (
@@ -125,13 +139,8 @@ def table6_markdown(rows: Sequence[dict[str, Any]]) -> str:
             r["terrain"],
             str(r["runs"]),
         ]
-        cells += [design_cell(r, n, d) if f"{n}_n" in r else "" for n, _, d in design]
+        cells += result_cells(r, design)
         cells += [
-            cell(r, "best_cost", spec=".5g"),
-            cell(r, "nominal_cost", spec=".5g"),
-            cell(r, "improvement", pct=True) + unreliable_mark(r),
-            cell(r, "improvement_plain", pct=True),
-            cell(r, "best_fall_rate", pct=True) + " / " + cell(r, "nominal_fall_rate", pct=True),
             common_cell(r),
             reduction_cell(r),
             cell(r, "sim2sim_improvement", pct=True),

@@ -27,10 +27,9 @@ from coadapt_core.analysis.paper_cost import table7_comparison
 from coadapt_core.analysis.paper_display import display_tables, how_to_read
 from coadapt_core.analysis.table_markdown import (
     cell,
-    design_cell,
     design_columns,
     design_header,
-    unreliable_mark,
+    result_cells,
 )
 from coadapt_core.analysis.tables import table6_rows, table7_rows
 from coadapt_core.errors import UserError
@@ -56,15 +55,7 @@ def _table6(t6: Sequence[dict[str, Any]]) -> Table:
             r["terrain"],
             str(r["runs"]),
         ]
-        cells += [design_cell(r, n, d) if f"{n}_n" in r else "" for n, _, d in design]
-        cells += [
-            cell(r, "best_cost", spec=".5g"),
-            cell(r, "nominal_cost", spec=".5g"),
-            cell(r, "improvement", pct=True) + unreliable_mark(r),
-            cell(r, "improvement_plain", pct=True),
-            cell(r, "best_fall_rate", pct=True) + " / " + cell(r, "nominal_fall_rate", pct=True),
-        ]
-        rows.append(cells)
+        rows.append(cells + result_cells(r, design))
     return "Table 6 — optimization results", head, rows
 
 
