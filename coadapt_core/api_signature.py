@@ -51,6 +51,8 @@ def _members(cls: type) -> dict[str, str]:
             tag = "abstract " if name in abstract else ""
             out[name] = f"{tag}{kind}{inspect.signature(value)}"
         elif not callable(value):
+            if hasattr(type(value), "__get__"):  # resolved when read (`TorchDtype`): record
+                value = getattr(cls, name)  # what a subclass reads, not the descriptor
             text = (
                 repr(value)
                 if isinstance(value, int | float | str | bool | tuple | type(None))

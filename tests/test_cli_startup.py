@@ -1,15 +1,21 @@
 """The command line answers without loading torch or a plugin where it needs neither (issue 50):
-`coadapt --help`, a command's `--help` page and the refusal of a typo in a choice. Checked
-in a fresh interpreter through `sys.modules`, not by timing (benchmarks/cli_startup.py times
-the commands); a refused choice names the nearest accepted value."""
+`coadapt --help`, a command's `--help` page and the refusal of a typo in a choice; and
+`coadapt plugins` loads every plugin without torch or a physics engine, listing what it listed
+when they imported torch. Checked in a fresh interpreter through `sys.modules`, not by timing
+(benchmarks/cli_startup.py times the commands); a refused choice names the nearest accepted
+value."""
 
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
+
+from tests.conftest import make_dist
 
 PROBE = """
 import contextlib, io, json, sys
@@ -23,9 +29,15 @@ print(json.dumps({"code": code, "heavy": heavy, "out": out.getvalue(), "err": er
 """
 
 
-def _probe(*args: str) -> dict:
+def _probe(*args: str, preload: str = "", pythonpath: Path | None = None) -> dict:
+    """`coadapt ARGS` in a fresh interpreter (after `import PRELOAD` when given): its exit
+    status, the heavy modules loaded by then, its output."""
+    env = {k: v for k, v in os.environ.items() if k != "COADAPT_LOAD_PLUGINS"}
+    if pythonpath is not None:
+        env["PYTHONPATH"] = str(pythonpath)
+    code = (f"import {preload}\n" if preload else "") + PROBE
     done = subprocess.run(
-        [sys.executable, "-c", PROBE, *args], capture_output=True, text=True, timeout=120
+        [sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=120, env=env
     )
     assert done.returncode == 0, done.stderr[-2000:]
     return json.loads(done.stdout.strip().splitlines()[-1])
@@ -89,3 +101,90 @@ def test_run_help_all_still_lists_the_plugins_aliases():
     result = _probe("run", "--help-all")
     assert result["code"] == 0 and "--inertia" in result["out"]
     assert "coadapt_plugins" in result["heavy"]
+
+
+#: the built-in plugins `coadapt plugins` lists (a robot found in a user's folder may add one)
+BUILT_IN = {
+    "simulator": ["mujoco", "pybullet"],
+    "optimizer": ["bo", "gradient", "mixed-pso", "nsga2", "pso"],
+    "objective": ["composite", "power", "torque", "tracking"],
+}
+
+
+def _listing(result: dict) -> dict:
+    assert result["code"] == 0, result["err"]
+    return json.loads(result["out"])
+
+
+def test_plugins_lists_every_plugin_without_torch_or_an_engine():
+    """Listing loads the plugin modules (their classes, names, versions, options) but neither
+    torch nor MuJoCo nor PyBullet: a simulator class reads `dtype` only when asked."""
+    result = _probe("plugins", "--json")
+    assert result["heavy"] == ["coadapt_plugins"]
+    listing = _listing(result)
+    names = {kind: [p["name"] for p in found] for kind, found in listing["plugins"].items()}
+    for kind, expected in BUILT_IN.items():
+        assert names[kind] == expected, kind
+    assert {"kuafu", "nezha", "qilin"} <= set(names["robot"])
+    assert listing["broken"] == []
+
+
+def test_plugins_lists_the_same_with_torch_loaded_first():
+    """What the listing says does not depend on torch being loaded: the JSON of a process
+    that imported torch first (as every plugin module did before) is the same."""
+    lazy = _listing(_probe("plugins", "--json"))
+    loaded = _probe("plugins", "--json", preload="torch")
+    assert "torch" in loaded["heavy"]
+    assert _listing(loaded) == lazy
+
+
+TORCH_AT_TOP = """
+import torch
+
+from coadapt_core import hookimpl
+from coadapt_core.physics.simulator import Simulator
+
+COADAPT_PLUGIN_API = "2.2"
+
+
+class EagerSimulator(Simulator):
+    name = "eager"
+    description = "imports torch with its module"
+    dtype = torch.float32
+
+
+@hookimpl
+def coadapt_register_simulators():
+    return [EagerSimulator]
+"""
+
+
+def test_a_plugin_that_imports_torch_at_its_top_still_loads(tmp_path):
+    """A third-party simulator may import torch with its module and set a plain dtype: it is
+    listed beside the built-ins (that listing just loads torch), its dtype its own."""
+    site = make_dist(
+        tmp_path / "site",
+        "eager-sim",
+        "[coadapt]\neager-sim = eager_sim\n",
+        {"eager_sim": TORCH_AT_TOP},
+    )
+    result = _probe("plugins", "--json", pythonpath=site)
+    assert "torch" in result["heavy"]
+    listing = _listing(result)
+    simulators = {p["name"]: p for p in listing["plugins"]["simulator"]}
+    assert list(simulators) == ["eager", "mujoco", "pybullet"]
+    assert simulators["eager"]["distribution"] == "eager-sim"
+    check = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import torch, eager_sim; from coadapt_core.physics.simulator import Simulator; "
+            "print(eager_sim.EagerSimulator.dtype is torch.float32, "
+            "Simulator.dtype is torch.float64)",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={**os.environ, "PYTHONPATH": str(site)},
+    )
+    assert check.stdout.split() == ["True", "True"], check.stderr[-2000:]

@@ -1,7 +1,8 @@
 """The rules of a simulator's options and arguments, shared by every backend (the `Simulator`
 base applies them): the checks of the constructor's arguments, of the task settings a
 backend offers, of environment ids and new designs, each a one-line error naming the field,
-and the "nominal" PD gain law (`NominalGains`)."""
+and the "nominal" PD gain law (`NominalGains`). Torch is imported by the checks that need it,
+not with the module (docs/architecture.md, "Start-up")."""
 
 from __future__ import annotations
 
@@ -10,11 +11,12 @@ import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import torch
 
 from coadapt_core.errors import DesignError, UserError
 
 if TYPE_CHECKING:
+    import torch
+
     from coadapt_core.robot import Robot
 
 
@@ -59,6 +61,8 @@ def check_options(
         )
     if not _whole(seed, 0):
         raise UserError(f"seed must be a whole number >= 0, got {seed!r}", field="seed")
+    import torch
+
     try:
         return torch.device(device)
     except (RuntimeError, TypeError) as exc:
@@ -96,6 +100,8 @@ def env_id_array(env_ids: torch.Tensor | np.ndarray | None, num_envs: int) -> np
     boolean mask; ids outside [0, num_envs) are a `UserError`."""
     if env_ids is None:
         return np.arange(num_envs)
+    import torch
+
     if isinstance(env_ids, torch.Tensor):
         env_ids = env_ids.detach().cpu().numpy()
     ids = np.asarray(env_ids)

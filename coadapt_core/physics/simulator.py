@@ -14,6 +14,10 @@ streams and their `reseed`, Table 2 parameter draws (`draw_env_params`, through
 `spawn_base_height`), environment-id parsing (`parse_env_ids`) and the paired-evaluation
 scenarios (`fix_scenarios`). A backend fills in building its worlds, applying parameters,
 stepping and reading state (docs/plugins.md, "Simulators").
+
+Importing this module does not import torch (the functions that compute with it import it,
+and `dtype` is resolved when read), so the registry lists a simulator plugin without torch
+(docs/architecture.md, "Start-up").
 """
 
 from __future__ import annotations
@@ -23,8 +27,8 @@ from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
-import torch
 
+from coadapt_core.physics.dtype import TorchDtype
 from coadapt_core.physics.options import (
     NominalGains,
     check_offered,
@@ -42,6 +46,8 @@ from coadapt_core.physics.randomization import (
 from coadapt_core.physics.terrain import TERRAINS, Terrain, make_terrain
 
 if TYPE_CHECKING:
+    import torch
+
     from coadapt_core.robot import Robot
 
 #: spawn clearance between the lowest sole point and the highest ground near it, m
@@ -84,6 +90,8 @@ class SimState:
     def base_frame(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """(linear velocity, angular velocity, gravity's direction), each [N, 3] float32 in
         the base frame: what the robot's IMU reads."""
+        import torch
+
         quat = self.base_quat.float()
         gravity = torch.zeros_like(self.base_lin_vel, dtype=torch.float32)
         gravity[:, 2] = -1.0
@@ -96,6 +104,8 @@ class SimState:
 def _quat_rotate_inverse(quat: torch.Tensor, vec: torch.Tensor) -> torch.Tensor:
     """World vectors vec [N, 3] expressed in the base frame of unit quaternions quat [N, 4]
     (w, x, y, z): R^T v = v (2w^2 - 1) - 2 w (q x v) + 2 q (q . v)."""
+    import torch
+
     w = quat[:, 0:1]
     xyz = quat[:, 1:4]
     a = vec * (2.0 * w * w - 1.0)
@@ -164,8 +174,9 @@ class Simulator(ABC):
     #: model outside a batched simulation (links, feet at a pose, actuated joints) and the
     #: handoff folder's standalone check (`coadapt_core.physics.model_tools`)
     model_tools: ClassVar[str] = ""
-    #: dtype of the backend's actuation and of `env_params` (the state stays float32)
-    dtype: ClassVar[torch.dtype] = torch.float64
+    #: dtype of the backend's actuation and of `env_params` (the state stays float32); read as
+    #: `torch.float64`, resolved when read so that defining a backend imports no torch
+    dtype: ClassVar[torch.dtype] = TorchDtype("float64")
     #: the motor speed limits the backend's actuation honours (`set_speed_limit`): "soft" (the
     #: torque-speed envelope) always; "binding" when it passes `binding` to `pd_torque`
     speed_limit_modes: ClassVar[tuple[str, ...]] = ("soft",)
@@ -274,6 +285,8 @@ class Simulator(ABC):
     def env_params(self) -> EnvParams:
         """The randomized physical parameters currently in force, per environment: tensors
         on the simulator's device in `dtype` (a copy)."""
+        import torch
+
         return self._params.take(torch.arange(self.num_envs, device=self._params.device))
 
     @property
@@ -304,6 +317,8 @@ class Simulator(ABC):
 
     def terrain_height_at(self, xy: torch.Tensor) -> torch.Tensor:
         """Terrain height [...] at world points xy [..., 2] (see `coadapt_core.physics.terrain`)."""
+        import torch
+
         heights = self.terrain_model.height_at(xy.detach().cpu().numpy())
         return torch.as_tensor(heights, dtype=xy.dtype, device=xy.device)
 

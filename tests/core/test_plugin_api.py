@@ -62,6 +62,30 @@ def test_signature_covers_what_plugins_are_written_against():
     )
 
 
+def test_simulator_dtype_reads_as_a_torch_dtype_and_is_recorded_so():
+    """`Simulator.dtype` is resolved when read (its module imports no torch) and reads as the
+    plain class attribute it was: on the class, on an instance, overridden by a subclass or an
+    instance; the signature records what a subclass reads, as before."""
+    import torch
+
+    from coadapt_core.physics.dtype import TorchDtype
+    from coadapt_core.physics.simulator import Simulator
+
+    class Holder:
+        dtype = TorchDtype("float64")
+
+    class Narrow(Holder):
+        dtype = torch.float32
+
+    held = Holder()
+    assert Simulator.dtype is torch.float64 and Holder.dtype is torch.float64
+    assert held.dtype is torch.float64 and Narrow().dtype is torch.float32
+    held.dtype = torch.float16
+    assert held.dtype is torch.float16 and Holder.dtype is torch.float64
+    member = interface_signature()["coadapt_core.physics.simulator.Simulator"]["dtype"]
+    assert member == "attribute: ClassVar[torch.dtype] = dtype"
+
+
 def test_bump_rules_catch_a_change_the_version_does_not_account_for():
     old = interface_signature()
     removed = copy.deepcopy(old)

@@ -4,7 +4,8 @@ The robot plugin gives the robot alone (no floor). Here `mujoco.MjSpec` adds the
 (plane, tilted plane or height field from `coadapt_core.physics.terrain`), one contact sensor per
 foot, the physics step, and for `fixed_base` removes the free joint. Compiled models are
 cached per (design, terrain, fixed_base, physics_dt): environments sharing a design share a
-compilation, and the next PSO iteration re-uses what it has seen.
+compilation, and the next PSO iteration re-uses what it has seen. MuJoCo is imported by the
+functions that compile, not with the module (docs/architecture.md, "Start-up").
 """
 
 from __future__ import annotations
@@ -12,13 +13,16 @@ from __future__ import annotations
 import math
 from collections import OrderedDict
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import mujoco
 import numpy as np
 
 from coadapt_core.errors import UserError
 from coadapt_core.physics.terrain import Terrain, make_terrain
 from coadapt_core.robot import Robot, RobotModel
+
+if TYPE_CHECKING:
+    import mujoco
 
 #: name prefix of everything this module adds, so it never clashes with a robot's names
 PREFIX = "coadapt_"
@@ -61,6 +65,8 @@ def terrain_normal(terrain: Terrain) -> np.ndarray:
 def compose_spec(
     robot_model: RobotModel, terrain: Terrain, *, physics_dt: float, fixed_base: bool
 ) -> mujoco.MjSpec:
+    import mujoco
+
     spec = mujoco.MjSpec.from_string(robot_model.text("mjcf"))
     spec.option.timestep = physics_dt
     world = spec.worldbody
@@ -134,6 +140,8 @@ def compile_design(
     fixed_base: bool,
     robot_model: RobotModel | None = None,
 ) -> CompiledDesign:
+    import mujoco
+
     rm = robot_model if robot_model is not None else robot.build(design)
     spec = compose_spec(rm, terrain, physics_dt=physics_dt, fixed_base=fixed_base)
     try:

@@ -1,12 +1,10 @@
 """Which model fields a design changes: one `mujoco.batch.Batch` runs every design on the
 first design's model, with the fields the others differ in expanded to per-row values. A
 design that changes the model's structure (bodies, joints, geoms, actuators, field sizes)
-cannot share the batch and is refused."""
+cannot share the batch and is refused. MuJoCo is imported when fields are compared."""
 
 from __future__ import annotations
 
-import mujoco
-import mujoco.batch
 import numpy as np
 from coadapt_plugins.simulators.mujoco.compose import CompiledDesign
 
@@ -18,6 +16,8 @@ SKIP_PREFIX = ("opt.",)
 
 def diff_fields(reference: CompiledDesign, item: CompiledDesign) -> list[str]:
     """Model fields in which `item` differs from the batch's `reference` model."""
+    import mujoco.batch
+
     ref, other = reference.model, item.model
     design = np.round(item.robot_model.design, 4).tolist()
     if (ref.nq, ref.nv, ref.nu, ref.nbody, ref.ngeom, ref.nsensordata) != (

@@ -1,13 +1,14 @@
 """Resetting rows of the MuJoCo batch: the randomized parameters (Table 2 and the engine
 robustness draws) written into the expanded model fields, the spawn pose above the ground,
 a clean delay line and a restarted clock. `RowResetMixin` is that part of
-`MujocoSimulator`; the restitution calibration it uses lives here too."""
+`MujocoSimulator`; the restitution calibration it uses lives here too. MuJoCo and torch
+are imported when a row is reset, not with the module (docs/architecture.md, "Start-up")."""
 
 from __future__ import annotations
 
-import mujoco
+import functools
+
 import numpy as np
-import torch
 
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.physics.simulator import spawn_base_height
@@ -15,12 +16,16 @@ from coadapt_core.physics.simulator import spawn_base_height
 #: each environment's MuJoCo clock restarts here at reset, so that MuJoCo resetting a
 #: simulation itself on a bad state (clock back to 0) is always visible
 RESET_CLOCK = 1.0
-#: MuJoCo's warnings for a bad state, after which it resets the simulation itself
-BAD_STATE_WARNINGS = [
-    int(mujoco.mjtWarning.mjWARN_BADQPOS),
-    int(mujoco.mjtWarning.mjWARN_BADQVEL),
-    int(mujoco.mjtWarning.mjWARN_BADQACC),
-]
+
+
+@functools.cache
+def bad_state_warnings() -> list[int]:
+    """MuJoCo's warnings for a bad state, after which it resets the simulation itself."""
+    import mujoco
+
+    warning = mujoco.mjtWarning
+    return [int(warning.mjWARN_BADQPOS), int(warning.mjWARN_BADQVEL), int(warning.mjWARN_BADQACC)]
+
 
 #: restitution calibration: a 40 kg box dropped at 1 m/s onto the plane (dt 5 ms, MuJoCo's
 #: default solref time constant 0.02 s and solimp) rebounds with speed ratio RESTITUTION_MEASURED
@@ -49,6 +54,9 @@ class RowResetMixin:
         backend, so one seed gives one set of parameters everywhere."""
         if ids.size == 0:
             return
+        import mujoco
+        import torch
+
         b = self._live()
         envs = self._env_of_row[ids]
         params = self.draw_env_params(envs) if draw else self._params.take(envs)
@@ -112,7 +120,7 @@ class RowResetMixin:
         self._delay.reset(ids, torch.from_numpy(self._default_q[ids]))
         self._delay.set_delay(ids, delay_steps)
         self._expected_time[ids] = RESET_CLOCK
-        self._warnings_seen[ids] = self._warnings[ids][:, BAD_STATE_WARNINGS, 1]
+        self._warnings_seen[ids] = self._warnings[ids][:, bad_state_warnings(), 1]
         self._torque[ids] = 0.0
 
     def _timeconst_randomized(self) -> bool:

@@ -7,6 +7,10 @@ model fields in which other designs (and the per-environment randomization) diff
 *expanded* to per-simulation values, so a design change or a reset rewrites a few rows of a
 few arrays and never rebuilds the batch. See docs/simulators.md for the measurements behind
 this choice (expand vs `set_models` vs `mujoco.rollout`).
+
+MuJoCo, torch and the shared actuation (torch) are imported by the methods that use them,
+not with the module, so that listing the plugins imports neither (docs/architecture.md,
+"Start-up").
 """
 
 from __future__ import annotations
@@ -14,21 +18,21 @@ from __future__ import annotations
 import time
 from typing import TYPE_CHECKING, Any
 
-import mujoco
-import mujoco.batch
 import numpy as np
-import torch
 from coadapt_plugins.simulators.mujoco.compose import CompiledDesign, ModelCache, terrain_normal
 from coadapt_plugins.simulators.mujoco.model_diff import diff_fields
-from coadapt_plugins.simulators.mujoco.row_reset import BAD_STATE_WARNINGS, RowResetMixin
+from coadapt_plugins.simulators.mujoco.row_reset import RowResetMixin, bad_state_warnings
 from coadapt_plugins.simulators.mujoco.state_read import StateReadMixin
 
 from coadapt_core import threads
 from coadapt_core.errors import UserError
-from coadapt_core.physics.actuation import DelayLine, bind_speed, pd_torque
 from coadapt_core.physics.simulator import SimState, Simulator
 
 if TYPE_CHECKING:
+    import mujoco
+    import mujoco.batch
+    import torch
+
     from coadapt_core.robot import Robot
 
 #: |qvel| above this (rad/s or m/s) counts as a blow-up: no walking robot gets near it
@@ -70,7 +74,10 @@ class MujocoSimulator(RowResetMixin, StateReadMixin, Simulator):
 
     def __init__(self, robot: Robot, designs: np.ndarray, **options: Any):
         """The `Simulator` options (terrain, randomization, physics_dt, decimation, seed,
-        device, num_threads, fixed_base), checked by the base class."""
+        device, num_threads, fixed_base),         checked by the base class."""
+        import mujoco.batch
+        import torch
+
         super().__init__(robot, designs, **options)
         self._normal = terrain_normal(self.terrain_model)
         n = self.num_envs
@@ -103,12 +110,14 @@ class MujocoSimulator(RowResetMixin, StateReadMixin, Simulator):
     def _bind_batch(self, b: mujoco.batch.Batch, ref: CompiledDesign) -> None:
         """Zero-copy views of the batch's live state, the rows of the contact sensors and the
         expanded (per-row) model fields."""
+        import mujoco
+
         self._qpos = b.bind("qpos")  # [N, nq] live state rows
         self._qvel = b.bind("qvel")  # [N, nv]
         self._ctrl = b.bind("ctrl")  # [N, nu]
         self._time = b.bind("time")  # [N]
         self._warnings = b.warning  # [N, mjNWARNING, 2] live (last info, count)
-        self._warnings_seen = self._warnings[:, BAD_STATE_WARNINGS, 1].copy()  # [N, 3]
+        self._warnings_seen = self._warnings[:, bad_state_warnings(), 1].copy()  # [N, 3]
         self._xpos = b.bind("xpos")  # [N, nbody, 3], refreshed after each call
         self._sensordata = b.bind("sensordata")  # [N, nsensordata]
         self._cdof = b.bind(
@@ -153,6 +162,8 @@ class MujocoSimulator(RowResetMixin, StateReadMixin, Simulator):
     def _init_design_arrays(self, n: int, j: int, ref: CompiledDesign) -> None:
         """Per row the design's actuator facts, spawn facts and the model fields that
         randomization starts from (filled by `_write_designs`)."""
+        import torch
+
         self._kp = np.zeros((n, j))  # [N, J] row order, as every per-environment array here
         self._kd = np.zeros((n, j))
         self._tau_max = np.zeros((n, j))
@@ -177,6 +188,10 @@ class MujocoSimulator(RowResetMixin, StateReadMixin, Simulator):
         """The delay line, the randomized gain factors, torque buffers and the step's
         bookkeeping. The actuation runs where the physics state lives: on the CPU, in
         float64."""
+        import torch
+
+        from coadapt_core.physics.actuation import DelayLine
+
         self._delay = DelayLine(n, j, self.max_delay_steps(), dtype=self.dtype)
         self._pd_factor = torch.ones(
             n, dtype=self.dtype
@@ -203,10 +218,14 @@ class MujocoSimulator(RowResetMixin, StateReadMixin, Simulator):
 
     @staticmethod
     def _joint_view(live: np.ndarray, index: slice | np.ndarray) -> torch.Tensor | None:
+        import torch
+
         return torch.from_numpy(live[:, index]) if isinstance(index, slice) else None
 
     def _joint_state(self) -> tuple[torch.Tensor, torch.Tensor]:
         """(q, dq) [N, J] of the actuated joints, row order, as float64 tensors."""
+        import torch
+
         q = (
             self._q_view
             if self._q_view is not None
@@ -330,6 +349,11 @@ class MujocoSimulator(RowResetMixin, StateReadMixin, Simulator):
         self._state = self._build_state()
 
     def step(self, joint_targets: torch.Tensor) -> SimState:
+        import mujoco.batch
+        import torch
+
+        from coadapt_core.physics.actuation import bind_speed, pd_torque
+
         b = self._live()
         if not isinstance(joint_targets, torch.Tensor):
             joint_targets = torch.as_tensor(np.asarray(joint_targets, dtype=float), device="cpu")
@@ -376,7 +400,7 @@ class MujocoSimulator(RowResetMixin, StateReadMixin, Simulator):
             # MuJoCo resets a simulation itself on a bad state: its warning counter rises and
             # its clock restarts; NaN or huge speeds are caught before that happens
             bad = np.abs(self._time - self._expected_time) > 0.5 * self.physics_dt
-            warnings = self._warnings[:, BAD_STATE_WARNINGS, 1]  # [N, 3] counts so far
+            warnings = self._warnings[:, bad_state_warnings(), 1]  # [N, 3] counts so far
             bad |= (warnings > self._warnings_seen).any(axis=1)
             self._warnings_seen[:] = warnings
             speed = np.abs(self._qvel).max(axis=1)

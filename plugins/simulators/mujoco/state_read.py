@@ -5,17 +5,23 @@ velocities from the free joint, joint state, the last policy step's torque, foot
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import torch
 from coadapt_plugins.simulators.mujoco.compose import CONTACT_SENSOR_DIM
 
 from coadapt_core.physics.simulator import SimState, quat_rotate
+
+if TYPE_CHECKING:
+    import torch
 
 
 class StateReadMixin:
     """The state side of `MujocoSimulator` (its bound arrays, rows and reference model)."""
 
     def _build_state(self) -> SimState:
+        import torch
+
         n = self._n
         order = self._row  # row-order arrays below are gathered into environment order
         qpos, qvel = self._qpos[order], self._qvel[order]
