@@ -12,6 +12,20 @@ Sign conventions (docs/coadaptation.md, "The surrogate"):
 
 Pooled figures concatenate the (surrogate, real) pairs of the rounds given (regret: the mean
 over rounds). Designs whose real or surrogate cost is not finite are left out and counted.
+
+The noise ceiling (issue 52, `noise_ceiling`): a round's real costs are noisy (each design's
+standard error over its scenarios), so even a perfect surrogate, one that knew each design's
+true cost, would not rank them perfectly against them. Its expected Spearman is estimated by
+Monte Carlo from the per-design SEs: in each draw the true costs are the real ones shrunk
+towards their mean to a true variance drawn from what the real costs say of it (their
+variance is the true one plus mean(SE^2), estimated from n - 1 degrees of freedom; at least
+0: then the draw's perfect ranking is one at chance), and fresh noise of the designs' SEs is
+added. `ceiling` is the
+mean Spearman between the true costs and one noisy evaluation (what a perfect surrogate
+would score), `ceiling_sd` its spread over draws (a round's own sampling spread), `repeat` the
+mean Spearman between two independent noisy evaluations (rank agreement of the real costs
+with themselves). A surrogate is `near` its ceiling when its Spearman is at least
+`ceiling - 2 ceiling_sd`, else `below`.
 """
 
 from __future__ import annotations
@@ -112,6 +126,69 @@ def pooled(rounds: Sequence[dict[str, Any]], k: int = TOP_K) -> dict[str, Any]:
     out["top_k_regret"] = float(np.mean(regrets)) if regrets else float("nan")
     out["rounds"] = len(rounds)
     return out
+
+
+#: Monte Carlo draws of the noise ceiling
+CEILING_DRAWS = 400
+
+
+def noise_ceiling(
+    real: Sequence[float], se: Sequence[float], draws: int = CEILING_DRAWS, seed: int = 0
+) -> dict[str, Any]:
+    """The Spearman the real costs' own noise allows (module docstring): `ceiling`,
+    `ceiling_sd`, `repeat` and `n` (designs with a finite cost and SE); NaN figures below 3
+    such designs or when the costs do not differ."""
+    r = np.asarray([np.nan if x is None else x for x in real], dtype=float).reshape(-1)
+    e = np.asarray([np.nan if x is None else x for x in se], dtype=float).reshape(-1)
+    ok = np.isfinite(r) & np.isfinite(e) & (e >= 0) if len(e) == len(r) else np.zeros(len(r), bool)
+    r, e = r[ok], e[ok]
+    out = {"ceiling": float("nan"), "ceiling_sd": float("nan"), "repeat": float("nan")}
+    if len(r) < 3 or r.std() == 0:
+        return out | {"n": int(len(r))}
+    rng = np.random.default_rng(seed)
+    n, noise, observed = len(r), float(np.mean(e**2)), float(r.var(ddof=1))
+    # the true costs' variance, drawn from what one noisy draw of them says (observed
+    # variance = true + noise, with n - 1 degrees of freedom), at least 0
+    total = observed * (n - 1) / rng.chisquare(n - 1, size=draws)
+    shrink = np.sqrt(np.maximum(total - noise, 0.0) / observed)
+    perfect, repeat = np.empty(draws), np.empty(draws)
+    for d in range(draws):
+        true = r.mean() + shrink[d] * (r - r.mean())
+        one = true + e * rng.standard_normal(n)
+        two = true + e * rng.standard_normal(n)
+        repeat[d] = spearman(one, two)
+        # no true difference left: a perfect ranking is one at chance
+        perfect[d] = spearman(true, one) if shrink[d] > 0 else spearman(one - true, two - true)
+    perfect, repeat = perfect[np.isfinite(perfect)], repeat[np.isfinite(repeat)]
+    return {
+        "ceiling": float(perfect.mean()) if perfect.size else float("nan"),
+        "ceiling_sd": float(perfect.std(ddof=1)) if perfect.size > 1 else float("nan"),
+        "repeat": float(repeat.mean()) if repeat.size else float("nan"),
+        "n": int(len(r)),
+    }
+
+
+def against_ceiling(rho: Any, ceiling: dict[str, Any]) -> str | None:
+    """`near` when the surrogate's Spearman `rho` is at least ceiling - 2 ceiling_sd, else
+    `below`; None when either is unknown."""
+    c, sd = ceiling.get("ceiling"), ceiling.get("ceiling_sd")
+    if not all(isinstance(x, int | float) and np.isfinite(x) for x in (rho, c, sd)):
+        return None
+    return "near" if rho >= c - 2.0 * sd else "below"
+
+
+#: the ceiling's figures kept beside a round's (or the pooled) Spearman
+CEILING_FIGURES = ("ceiling", "ceiling_sd", "repeat", "against_ceiling")
+
+
+def with_ceiling(figures: dict[str, Any], real: Sequence[Any], se: Sequence[Any]) -> dict[str, Any]:
+    """`figures` (with its `spearman`) and the noise ceiling of `real` with SEs `se`:
+    `CEILING_FIGURES` added, NaN as None."""
+    ceiling = noise_ceiling(real, se)
+    verdict = against_ceiling(figures.get("spearman"), ceiling)
+    return clean(
+        {**figures, **{k: ceiling[k] for k in CEILING_FIGURES[:3]}, "against_ceiling": verdict}
+    )
 
 
 def clean(value: Any) -> Any:

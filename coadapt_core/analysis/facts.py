@@ -83,8 +83,11 @@ class RunFacts:
 
     @property
     def optimizer(self) -> str:
-        """The optimizer the run used."""
-        return str(self.run.get("optimizer") or "unknown")
+        """The optimizer the run used; `<optimizer>+<refiner>` when a refinement stage
+        followed it (`refine_with`, coadapt/refine.py), a row of its own in every table."""
+        name = str(self.run.get("optimizer") or "unknown")
+        refiner = str((self.run.get("config") or {}).get("refine_with") or "").strip()
+        return f"{name}+{refiner}" if refiner else name
 
     @property
     def summary(self) -> dict[str, Any]:

@@ -23,13 +23,21 @@ def quality_series(facts: Sequence[Any]) -> dict[tuple[str, str], list[dict[str,
             continue
         for name, pooled in (q.get("by_objective") or {}).items():
             rounds = [r for r in q.get("rounds") or [] if r.get("eligible")]
-            values = [(r.get("objectives") or {}).get(name, {}).get("spearman") for r in rounds]
+            figures = [(r.get("objectives") or {}).get(name, {}) for r in rounds]
+            values = [q.get("spearman") for q in figures]
             series[(name, f.terrain)].append(
                 {
                     "label": f"{f.method} s{f.run.get('seed', '?')}",
                     "run": f.run,
                     "spearman": [
                         float(v) if isinstance(v, int | float) else math.nan for v in values
+                    ],
+                    # the real costs' noise ceiling of each round (issue 52), where recorded
+                    "ceiling": [
+                        float(q["ceiling"])
+                        if isinstance(q.get("ceiling"), int | float)
+                        else math.nan
+                        for q in figures
                     ],
                     "pooled": pooled or {},
                 }
@@ -65,12 +73,26 @@ def figure_surrogate_quality(facts: Sequence[Any], out: Path) -> list[tuple[Path
         lines = []
         for entry in series[key]:
             y = entry["spearman"]
-            ax.plot(range(1, len(y) + 1), y, marker="o", linewidth=1.2, label=entry["label"])
+            (line,) = ax.plot(
+                range(1, len(y) + 1), y, marker="o", linewidth=1.2, label=entry["label"]
+            )
+            if any(math.isfinite(c) for c in entry["ceiling"]):
+                ax.plot(
+                    range(1, len(y) + 1),
+                    entry["ceiling"],
+                    marker="_",
+                    markersize=12,
+                    linestyle="--",
+                    linewidth=0.8,
+                    color=line.get_color(),
+                )
             p = entry["pooled"]
             if isinstance(p.get("spearman"), int | float):
+                ceiling = p.get("ceiling")
                 lines.append(
                     f"{entry['label']}: pooled {p['spearman']:.2f}, bias "
                     f"{100 * (p.get('bias') or 0):+.1f} %"
+                    + (f", ceiling {ceiling:.2f}" if isinstance(ceiling, int | float) else "")
                 )
         ax.axhline(0.0, color="grey", linewidth=0.8)
         ax.axhline(0.7, color="grey", linewidth=0.8, linestyle=":")
@@ -102,5 +124,8 @@ def figure_surrogate_quality(facts: Sequence[Any], out: Path) -> list[tuple[Path
         "Surrogate quality per objective and terrain: Spearman rank correlation between the "
         "surrogate's prediction (made before the round's real costs were known) and the real cost "
         "of the same designs, on every real round where a surrogate round was allowed; the title "
-        "gives each run's pooled Spearman and bias ((surrogate − real) / |real|). Dotted: 0.7.",
+        "gives each run's pooled Spearman and bias ((surrogate − real) / |real|). Dashed, in "
+        "the run's colour where it recorded one: the real costs' noise ceiling, the Spearman a "
+        "perfect surrogate would reach against those noisy costs (from the designs' paired "
+        "SEs). Dotted: 0.7.",
     )

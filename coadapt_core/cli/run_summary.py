@@ -227,12 +227,32 @@ def print_summary(
         f"{summary['surrogate_evaluations']} surrogate rounds; "
         f"{fmt_duration(summary['seconds'])} wall clock"
     )
+    if summary.get("refinement"):
+        console.print(refinement_line(summary["refinement"]), markup=False, highlight=False)
     if summary.get("pareto_front"):
         from coadapt_core.cli.front import front_lines
 
         for line in front_lines(summary["pareto_front"], with_se):
             console.print(line, markup=False, highlight=False, soft_wrap=True)
     _print_warnings(console, summary)
+
+
+def refinement_line(ref: dict[str, Any]) -> str:
+    """The refinement stage (`refine_with`) in one line: its real rounds, start and accepted
+    costs with their SEs (the run's scenarios, the final policy), whether the final check
+    chose its design."""
+
+    def cost(value: Any, se: Any) -> str:
+        return "?" if value is None else with_se(float(value), se)
+
+    chosen = {True: "its design won the final check", False: "the final check chose another"}
+    return (
+        f"refinement ({ref['with']}, {ref['rounds']} real rounds on the run's scenarios): "
+        f"start {cost(ref.get('start_cost'), ref.get('start_cost_se'))} -> "
+        f"{cost(ref.get('center_cost'), ref.get('center_cost_se'))}, "
+        f"{ref.get('accepted_steps', 0)} of {max(ref['rounds'] - 1, 0)} steps accepted; "
+        f"{chosen.get(ref.get('chosen'), 'not checked')}"
+    )
 
 
 def _print_warnings(console: Any, summary: dict[str, Any]) -> None:

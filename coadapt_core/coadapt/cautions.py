@@ -11,7 +11,9 @@ run prints under its table and records in summary.json's `warnings`.
 - **Weak surrogate**: the surrogate's pooled Spearman over the judged real rounds is below
   `WEAK_SPEARMAN`, said with how many real rounds it covers (a run judges only the rounds a
   fit already covers unless `surrogate_error_fits` is on, so the figure of a run with few
-  judged rounds is not comparable with one judged on every round).
+  judged rounds is not comparable with one judged on every round), and with the noise ceiling
+  of those rounds where the run kept its designs' SEs (`surrogate_quality.noise_ceiling`:
+  near it, the designs differ by little more than their noise; below it, the surrogate is).
 
 Each warning is one line, starting with what it is about. `run_warnings(summary)` works on
 any summary.json (older ones included: a missing field means the warning is not judged)."""
@@ -105,7 +107,28 @@ def surrogate_note(summary: dict[str, Any]) -> str | None:
         if _finite(real) and _finite(rounds) and rounds < real
         else ""
     )
-    return f"surrogate (in-run rounds): pooled Spearman {rho:.2f} over {covers}{partial}"
+    return (
+        f"surrogate (in-run rounds): pooled Spearman {rho:.2f} over {covers}{partial}"
+        f"{ceiling_text(pooled)}"
+    )
+
+
+def ceiling_text(figures: dict[str, Any]) -> str:
+    """'; noise ceiling C +- sd: near it' (surrogate_quality.noise_ceiling: the Spearman the
+    real costs' own noise allows), or '' where the run recorded none."""
+    c, sd, verdict = (
+        figures.get("ceiling"),
+        figures.get("ceiling_sd"),
+        figures.get("against_ceiling"),
+    )
+    if not (_finite(c) and _finite(sd) and verdict):
+        return ""
+    reading = (
+        "near it: the designs differ by little more than their noise"
+        if verdict == "near"
+        else "below it: the real costs rank the designs better than the surrogate does"
+    )
+    return f"; the real costs' noise ceiling {c:.2f} +- {sd:.2f}, {reading}"
 
 
 def weak_surrogate(summary: dict[str, Any], threshold: float = WEAK_SPEARMAN) -> str | None:
@@ -135,7 +158,7 @@ def weak_surrogate(summary: dict[str, Any], threshold: float = WEAK_SPEARMAN) ->
     )
     return (
         f"surrogate: pooled Spearman {rho:.2f} over {covers}{last_text} is below "
-        f"{threshold:g}: its rounds ranked designs weakly{partial}"
+        f"{threshold:g}: its rounds ranked designs weakly{partial}{ceiling_text(pooled)}"
     )
 
 
@@ -149,6 +172,7 @@ __all__ = [
     "BOUND_SHARE",
     "WEAK_SPEARMAN",
     "at_bound",
+    "ceiling_text",
     "plain_mean_not_significant",
     "run_warnings",
     "surrogate_note",

@@ -249,6 +249,18 @@ class CoadaptConfig:
         help="Options the objective plugin declares, e.g. {weights: 'torque=1'}.",
         cli=False,
     )
+    # -- the refinement stage after the search (coadapt/refine.py; beyond the paper) ----------
+    refine_with: str = setting(
+        "",
+        "Refinement after the last outer iteration (empty: none; beyond the paper): an "
+        "optimizer that follows the surrogate's gradient (declares follows_surrogate_slope, "
+        "e.g. gradient) descends from the best real design, its steps confirmed real.",
+    )
+    refine_rounds: Int = setting(
+        8,
+        "Refinement: real rounds, the first re-evaluating the start design under the final policy.",
+        ge=1,
+    )
     # -- narrowing (Algorithm 4 line 22) -----------------------------------------------------
     narrow_margin: Float = setting(
         0.25, "Narrowing: widen the final particles' span by this fraction on each side.", ge=0

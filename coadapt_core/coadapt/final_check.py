@@ -336,7 +336,9 @@ def batch_errors(
     for its best design (first objective, under `rule` with its reference level) the cost's
     standard error, the plain mean (eq. 4) with its standard error and the fall rate with its
     standard error; the median relative standard error and the mean fall rate over its
-    designs. Empty when the backend gives no per-scenario costs."""
+    designs; each design's cost SE (`cost_se`) and, with two designs or more on per-scenario
+    costs, its paired SE (`cost_paired_se`: the noise of their ranking on common scenarios).
+    Empty when the backend gives no per-scenario costs."""
     if getattr(fit, "per_scenario", None) is None and getattr(fit, "cost_se", None) is None:
         return {}
     if getattr(fit, "per_scenario", None) is not None and rule is not None:
@@ -357,7 +359,17 @@ def batch_errors(
         "median_relative_se": float(np.median(rel)) if rel.size else None,
         "best_fall_rate": None if falls is None else float(falls[best]),
         "fall_rate": None if falls is None else float(falls.mean()),
+        # each design's cost SE (first objective): the noise ceiling of the surrogate's ranking
+        "cost_se": [float(x) if np.isfinite(x) else None for x in se[:, 0]],
     }
+    if per is not None and len(values) > 1:
+        # the noise of the designs' ranking: every design ran on the same scenarios, so a
+        # fresh scenario set moves their costs together but for each design's own response
+        # (its scenario values less the designs' mean on each scenario; K/(K-1) corrects
+        # for its own share of that mean)
+        own = values - values.mean(axis=0, keepdims=True)
+        paired = scenario_se(own, rule.aggregate)[:, 0] * np.sqrt(len(values) / (len(values) - 1))
+        out["cost_paired_se"] = [float(x) if np.isfinite(x) else None for x in paired]
     if per is not None:
         column = per[best, :, 0]
         out["best_plain_mean"] = float(column.mean())

@@ -372,11 +372,21 @@ class HybridPolicy:
                 if name in r["objectives"]
             ]
             by_objective[name] = sq.clean(sq.pooled(pairs))
+        if self.names:  # the pooled pairs' noise ceiling, where every judged round kept its SEs
+            first = [r["objectives"].get(self.names[0]) or {} for r in used]
+            if first and all("se" in q for q in first):
+                by_objective[self.names[0]] = sq.with_ceiling(
+                    by_objective[self.names[0]],
+                    [x for q in first for x in q["real"]],
+                    [x for q in first for x in q["se"]],
+                )
         brief = [
             {k: v for k, v in r.items() if k != "objectives"}
             | {
                 "objectives": {
-                    n: {m: q.get(m) for m in (*sq.METRICS, "n")} for n, q in r["objectives"].items()
+                    n: {m: q.get(m) for m in (*sq.METRICS, "n")}
+                    | {m: q[m] for m in sq.CEILING_FIGURES if m in q}
+                    for n, q in r["objectives"].items()
                 }
             }
             for r in rounds

@@ -31,6 +31,7 @@ from coadapt_core.coadapt.first_round import note_first_round
 from coadapt_core.coadapt.hybrid import HybridPolicy
 from coadapt_core.coadapt.outer_optimizer import make_optimizer, optimizer_init, optimizer_options
 from coadapt_core.coadapt.phase import train_in_chunks
+from coadapt_core.coadapt.refine import REFINE, refine_round, refinement_due
 from coadapt_core.coadapt.reliability import walking
 from coadapt_core.coadapt.schedule import Schedule
 from coadapt_core.coadapt.state import LoopState, RoundRecord, save_state
@@ -151,6 +152,8 @@ class CoadaptationLoop:
                 self.train_phase()
             elif s.phase == "optimize":
                 self.optimize_round()
+            elif s.phase == REFINE:  # after the last outer iteration's optimizer (refine.py)
+                refine_round(self)
             elif s.phase == "final":
                 self.final_phase()
         assert s.summary is not None
@@ -370,6 +373,8 @@ class CoadaptationLoop:
 
     def end_outer(self) -> None:
         """Algorithm 4 line 22: the next range, around the final particles."""
+        if refinement_due(self):  # the last one's optimizer done: its best is refined first
+            return
         s, c = self.state, self.config
         space = DesignSpace.from_dict(s.space)
         if self.method.narrow:

@@ -18,6 +18,7 @@ from coadapt_core.coadapt.backends import (
 )
 from coadapt_core.coadapt.config import CoadaptConfig
 from coadapt_core.coadapt.first_round import first_round_warnings
+from coadapt_core.coadapt.refine import check_refinement
 from coadapt_core.coadapt.search import check_search, search_plugins, uses_mixed_space
 from coadapt_core.coadapt.starting_policy import starting_policy
 from coadapt_core.design_space import DesignSpace
@@ -75,6 +76,7 @@ def build_parts(
     ranges = config.design_ranges.strip()
     space = full_space.parse_ranges(config.design_ranges) if ranges else full_space
     check_search(optimizer_cls, objectives, full_space)
+    check_refinement(config, objectives, full_space)
     parts = LoopParts(
         full_space, space, nominal, objectives, optimizer_cls, backend_factory, method
     )

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from coadapt_core import surrogate_quality as sq
 from coadapt_core.errors import UserError
 from coadapt_core.optimizer import Optimizer
 from coadapt_core.statefile import StateFileError, read_json, read_npz, write_json, write_npz
@@ -83,7 +84,7 @@ class LoopState:
 
     run_id: str
     config: dict[str, Any]
-    phase: str = "train"  # train | optimize | final | done
+    phase: str = "train"  # train | optimize | refine | final | done
     outer: int = 0
     inner: int = 0
     space: dict | None = None  # current design range (DesignSpace.to_dict)
@@ -137,6 +138,9 @@ class LoopState:
     notes: list[str] = field(default_factory=list)
     # objectives without a pseudo-critic in the starting policy
     no_critic: list[str] = field(default_factory=list)
+    # the refinement stage after the search (coadapt/refine.py): its optimizer's constructor
+    # arguments and state_dict() as data, its steps, whether it finished; None: not started
+    refine: dict[str, Any] | None = None
 
     def note_costs(self, designs: np.ndarray, costs: np.ndarray, kind: str, keep: int) -> None:
         """The lowest cost of any kind and the lowest real costs seen, from a batch's designs
@@ -178,6 +182,23 @@ class LoopState:
                 **record.measured(),
             }
         )
+        self.note_ceiling(record)
+
+    def note_ceiling(self, record: RoundRecord) -> None:
+        """A judged real round's noise ceiling (`surrogate_quality.noise_ceiling`: the
+        Spearman its designs' cost SEs allow; the paired SEs, as its designs ran on common
+        scenarios) beside the surrogate's Spearman on it, in its `quality_rounds` entry (first
+        objective; the SEs kept as `se`)."""
+        # the paired SE where the round has one (designs on common scenarios), else its own
+        se = record.error_bars.get("cost_paired_se") or record.error_bars.get("cost_se")
+        q = self.quality_rounds[-1] if self.quality_rounds else None
+        if record.kind != "real" or se is None or q is None or not q.get("objectives"):
+            return
+        if (q["outer"], q["inner"]) != (self.outer, self.inner):
+            return
+        first = next(iter(q["objectives"]))
+        entry = q["objectives"][first]
+        q["objectives"][first] = {**sq.with_ceiling(entry, entry["real"], se), "se": se}
 
     def keep_top(self, design: np.ndarray, cost: float, keep: int) -> None:
         """The `keep` (`final_candidates`) lowest real costs over distinct designs (a noisy
@@ -286,7 +307,7 @@ def _check_state(state: LoopState) -> None:
     """Types that the loop relies on (a hand-edited or foreign file fails here, in one line)."""
     if not isinstance(state.run_id, str) or not isinstance(state.config, dict):
         raise ValueError("run_id or config has the wrong type")
-    if state.phase not in ("train", "optimize", "final", "done"):
+    if state.phase not in ("train", "optimize", "refine", "final", "done"):
         raise ValueError(f"unknown phase {state.phase!r}")
     for name in ("outer", "inner", "buffer_serial", "buffer_saved_serial"):
         if not isinstance(getattr(state, name), int):

@@ -13,6 +13,7 @@ import numpy as np
 
 from coadapt_core.coadapt.cautions import run_warnings
 from coadapt_core.coadapt.config import CoadaptConfig
+from coadapt_core.coadapt.refine import refinement_center, refinement_summary
 from coadapt_core.coadapt.reliability import fall_verdict, judge_short
 from coadapt_core.coadapt.state import LoopState
 from coadapt_core.objective import Objective
@@ -105,7 +106,9 @@ def final_candidates(
             front = front[np.unique(np.linspace(0, len(front) - 1, population).round().astype(int))]
         return list(front)
     candidates: list[np.ndarray] = []
-    for item in [*state.top_real, state.best_any]:
+    # and the refinement's accepted design (refine.py): the final check judges what it bought
+    refined = refinement_center(state)
+    for item in [*state.top_real, state.best_any, None if refined is None else (refined,)]:
         if item is not None and not any(np.allclose(item[0], x) for x in candidates):
             candidates.append(np.asarray(item[0]))
     return candidates
@@ -151,6 +154,11 @@ def run_summary(
         "cost_units": {o.name: getattr(o, "unit", "") for o in objectives},
         "eval_steps": int(c.eval_steps),
     }
+    refinement = refinement_summary(s)
+    if refinement is not None:  # the refinement stage (refine.py): was its design the best?
+        center = refinement["center"]
+        refinement["chosen"] = center is not None and bool(np.allclose(center, outcome.best_design))
+        summary["refinement"] = refinement
     summary["policy"] = s.policy
     summary["notes"] = list(s.notes)
     # a policy trained from scratch in this run (no starting policy, or the BO baseline's

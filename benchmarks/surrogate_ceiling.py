@@ -1,0 +1,130 @@
+"""The surrogate's ranking against its noise ceiling, per judged round (issue 52): for each
+finished run folder given, every real round where both the surrogate's prediction and the
+real costs exist, its Spearman beside the Spearman the real costs' own noise allows
+(`coadapt_core.surrogate_quality.noise_ceiling`, Monte Carlo from each design's cost SE) and
+whether the surrogate is near that ceiling or below it; then the run's pooled figures.
+
+Reads each run's `state.json` (JSON; nothing is unpickled). A run recorded before the
+designs' SEs were kept (`cost_se` in its batches) is read with each design's SE taken as the
+round's median relative SE times its cost, and marked `SE approx.`.
+
+    python benchmarks/surrogate_ceiling.py runs/*/            # a Markdown table
+    python benchmarks/surrogate_ceiling.py RUN_DIR ... --json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from coadapt_core import surrogate_quality as sq  # noqa: E402
+
+
+def _floats(values: list[Any]) -> list[float]:
+    return [float("nan") if v is None else float(v) for v in values]
+
+
+def run_rounds(run_dir: Path) -> dict[str, Any]:
+    """The run's judged rounds with their ceilings, and the pooled figures over the eligible
+    ones (the rounds the run's own pooled Spearman covers)."""
+    state = json.loads((run_dir / "state.json").read_text())
+    config = state["config"]
+    batches = {(b["outer"], b["inner"]): b for b in state["batches"] if b["kind"] == "real"}
+    objective = str(config["objective"]).split(",")[0]
+    rows, approx = [], False
+    for q in state["quality_rounds"]:
+        entry = (q.get("objectives") or {}).get(objective)
+        batch = batches.get((q["outer"], q["inner"]))
+        if entry is None or batch is None:
+            continue
+        real, surrogate = _floats(entry["real"]), _floats(entry["surrogate"])
+        se = batch.get("cost_se")
+        if se is None:  # recorded before the designs' SEs were kept
+            approx = True
+            se = [batch.get("median_relative_se", float("nan")) * abs(r) for r in real]
+        figures = sq.with_ceiling(sq.quality(surrogate, real), real, se)
+        rows.append(
+            {
+                "outer": q["outer"],
+                "inner": q["inner"],
+                "eligible": q["eligible"],
+                "designs": len(real),
+                "spread": float(np.nanstd(real) / abs(np.nanmean(real))),
+                "median_relative_se": batch.get("median_relative_se"),
+                **{k: figures.get(k) for k in ("spearman", *sq.CEILING_FIGURES)},
+                "real": real,
+                "surrogate": surrogate,
+                "se": _floats(se),
+            }
+        )
+    used = [r for r in rows if r["eligible"]]
+    real = [x for r in used for x in r["real"]]
+    pooled = sq.with_ceiling(
+        sq.quality([x for r in used for x in r["surrogate"]], real),
+        real,
+        [x for r in used for x in r["se"]],
+    )
+    return {
+        "run": run_dir.name,
+        "robot": config.get("robot"),
+        "objective": objective,
+        "seed": config.get("seed"),
+        "se_approx": approx,
+        "rounds": [
+            {k: v for k, v in r.items() if k not in ("real", "surrogate", "se")} for r in rows
+        ],
+        "pooled": {k: pooled.get(k) for k in ("spearman", "n", *sq.CEILING_FIGURES)},
+    }
+
+
+def _f(x: Any, spec: str = ".2f") -> str:
+    return "-" if x is None else format(x, spec)
+
+
+def markdown(runs: list[dict[str, Any]]) -> str:
+    lines = [
+        "| run | round (outer, inner) | judged | designs | real spread | median rel. SE "
+        "| surrogate Spearman | noise ceiling +- sd | repeat | verdict |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for run in runs:
+        name = f"{run['robot']} {run['objective']} s{run['seed']}" + (
+            " (SE approx.)" if run["se_approx"] else ""
+        )
+        for r in run["rounds"]:
+            lines.append(
+                f"| {name} | ({r['outer']}, {r['inner']}) | {'yes' if r['eligible'] else 'no'} "
+                f"| {r['designs']} | {_f(100 * r['spread'], '.1f')} % "
+                f"| {_f(100 * (r['median_relative_se'] or float('nan')), '.1f')} % "
+                f"| {_f(r['spearman'])} | {_f(r['ceiling'])} +- {_f(r['ceiling_sd'])} "
+                f"| {_f(r['repeat'])} | {r['against_ceiling'] or '-'} |"
+            )
+        p = run["pooled"]
+        lines.append(
+            f"| {name} | pooled (judged) | | {p['n']} | | | {_f(p['spearman'])} "
+            f"| {_f(p['ceiling'])} +- {_f(p['ceiling_sd'])} | {_f(p['repeat'])} "
+            f"| {p['against_ceiling'] or '-'} |"
+        )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("runs", nargs="+", type=Path, help="run folders (each with state.json)")
+    p.add_argument("--json", action="store_true")
+    args = p.parse_args(argv)
+    runs = [run_rounds(d) for d in args.runs if (d / "state.json").is_file()]
+    print(json.dumps(runs, indent=1) if args.json else markdown(runs))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
