@@ -4,9 +4,11 @@ real costs exist, its Spearman beside the Spearman the real costs' own noise all
 (`coadapt_core.surrogate_quality.noise_ceiling`, Monte Carlo from each design's cost SE) and
 whether the surrogate is near that ceiling or below it; then the run's pooled figures.
 
-Reads each run's `state.json` (JSON; nothing is unpickled). A run recorded before the
-designs' SEs were kept (`cost_se` in its batches) is read with each design's SE taken as the
-round's median relative SE times its cost, and marked `SE approx.`.
+Reads each run's `state.json` (JSON; nothing is unpickled). The SE is each design's paired SE
+(`cost_paired_se` in its batches), as a run computes it; a run recorded before that was kept
+is read with its unpaired SE (`cost_se`) or, older still, the round's median relative SE
+times each cost, and marked `unpaired SE`: its ceiling is then a lower bound (common
+scenarios move the designs' costs together, which the unpaired SE counts as noise).
 
     python benchmarks/surrogate_ceiling.py runs/*/            # a Markdown table
     python benchmarks/surrogate_ceiling.py RUN_DIR ... --json
@@ -46,10 +48,17 @@ def run_rounds(run_dir: Path) -> dict[str, Any]:
         if entry is None or batch is None:
             continue
         real, surrogate = _floats(entry["real"]), _floats(entry["surrogate"])
-        se = batch.get("cost_se")
+        # the paired SE (the noise of the ranking on common scenarios), as the run does
+        se, kind = batch.get("cost_paired_se"), "paired"
+        if se is None and batch.get("cost_se") is not None:
+            se, kind = batch["cost_se"], "unpaired"
         if se is None:  # recorded before the designs' SEs were kept
-            approx = True
-            se = [batch.get("median_relative_se", float("nan")) * abs(r) for r in real]
+            se, kind = (
+                [batch.get("median_relative_se", float("nan")) * abs(r) for r in real],
+                "approx",
+            )
+        approx = approx or kind != "paired"
+        paired = [x for x in _floats(se) if np.isfinite(x)]
         figures = sq.with_ceiling(sq.quality(surrogate, real), real, se)
         rows.append(
             {
@@ -59,6 +68,12 @@ def run_rounds(run_dir: Path) -> dict[str, Any]:
                 "designs": len(real),
                 "spread": float(np.nanstd(real) / abs(np.nanmean(real))),
                 "median_relative_se": batch.get("median_relative_se"),
+                "se_kind": kind,
+                "median_relative_paired_se": float(
+                    np.median(np.array(paired) / np.abs(np.nanmean(real)))
+                )
+                if paired
+                else None,
                 **{k: figures.get(k) for k in ("spearman", *sq.CEILING_FIGURES)},
                 "real": real,
                 "surrogate": surrogate,
@@ -92,18 +107,19 @@ def _f(x: Any, spec: str = ".2f") -> str:
 def markdown(runs: list[dict[str, Any]]) -> str:
     lines = [
         "| run | round (outer, inner) | judged | designs | real spread | median rel. SE "
-        "| surrogate Spearman | noise ceiling +- sd | repeat | verdict |",
+        "(paired) | surrogate Spearman | noise ceiling +- sd | repeat | verdict |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for run in runs:
         name = f"{run['robot']} {run['objective']} s{run['seed']}" + (
-            " (SE approx.)" if run["se_approx"] else ""
+            " (unpaired SE)" if run["se_approx"] else ""
         )
         for r in run["rounds"]:
             lines.append(
                 f"| {name} | ({r['outer']}, {r['inner']}) | {'yes' if r['eligible'] else 'no'} "
                 f"| {r['designs']} | {_f(100 * r['spread'], '.1f')} % "
                 f"| {_f(100 * (r['median_relative_se'] or float('nan')), '.1f')} % "
+                f"({_f(100 * (r['median_relative_paired_se'] or float('nan')), '.1f')} %) "
                 f"| {_f(r['spearman'])} | {_f(r['ceiling'])} +- {_f(r['ceiling_sd'])} "
                 f"| {_f(r['repeat'])} | {r['against_ceiling'] or '-'} |"
             )
@@ -113,7 +129,35 @@ def markdown(runs: list[dict[str, Any]]) -> str:
             f"| {_f(p['ceiling'])} +- {_f(p['ceiling_sd'])} | {_f(p['repeat'])} "
             f"| {p['against_ceiling'] or '-'} |"
         )
+    lines += ["", across(runs)]
     return "\n".join(lines)
+
+
+def across(runs: list[dict[str, Any]]) -> str:
+    """Over the judged rounds of the runs read with paired SEs: the surrogate's Spearman, the
+    ceiling and their difference, mean +- standard error over rounds."""
+    rounds = [
+        r
+        for run in runs
+        if not run["se_approx"]
+        for r in run["rounds"]
+        if r["eligible"] and r["spearman"] is not None and r["ceiling"] is not None
+    ]
+    if len(rounds) < 2:
+        return "fewer than 2 judged rounds with paired SEs: no mean over rounds"
+
+    def stat(values: list[float]) -> str:
+        v = np.asarray(values, dtype=float)
+        return f"{v.mean():.2f} +- {v.std(ddof=1) / np.sqrt(len(v)):.2f}"
+
+    rho = [r["spearman"] for r in rounds]
+    ceiling = [r["ceiling"] for r in rounds]
+    below = sum(1 for r in rounds if r["against_ceiling"] == "below")
+    return (
+        f"over {len(rounds)} judged rounds with paired SEs (mean +- SE over rounds): surrogate "
+        f"Spearman {stat(rho)}, noise ceiling {stat(ceiling)}, surrogate - ceiling "
+        f"{stat([a - b for a, b in zip(rho, ceiling, strict=True)])}; {below} round(s) below"
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -64,8 +64,8 @@ class Schedule:
         training = 1 if self.shared else 0  # a training step per outer iteration
         total = self.outer_count * (self.rounds_per_outer + training) + 1
         done = state.outer * (self.rounds_per_outer + training)
-        if state.phase == "optimize":
-            done += training + state.inner
+        if state.phase in ("optimize", "refine"):  # refine: after the last one's rounds
+            done += training + min(state.inner, self.rounds_per_outer)
         if state.phase in ("final", "done"):
             done = total - (1 if state.phase == "final" else 0)
         return min(done / total, 1.0)

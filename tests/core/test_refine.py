@@ -200,3 +200,17 @@ def test_the_run_summary_says_what_the_refinement_bought():
         "refinement (gradient, 8 real rounds on the run's scenarios): start 1.234 +- 0.012 -> "
         "1.200 +- 0.011, 2 of 7 steps accepted; the final check chose another"
     )
+
+
+def test_the_progress_of_a_run_in_its_refinement_is_that_of_its_last_outer_iterations_end():
+    from coadapt_core.coadapt.schedule import Schedule
+    from coadapt_core.coadapt.state import LoopState
+    from coadapt_core.methods import get_method
+
+    config = make_config("smoke", overrides={**BASE, **REFINE})
+    schedule = Schedule.of(config, get_method("ours"), pretrained=False)
+    end = LoopState("r", {}, phase="optimize", outer=1, inner=3)
+    refining = LoopState("r", {}, phase="refine", outer=1, inner=7)
+    final = LoopState("r", {}, phase="final", outer=2)
+    assert schedule.fraction_of_steps(refining) == schedule.fraction_of_steps(end)
+    assert schedule.fraction_of_steps(refining) <= schedule.fraction_of_steps(final) < 1
