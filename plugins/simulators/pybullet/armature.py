@@ -43,7 +43,7 @@ class ArmatureMixin:
         if spec.joint_armature is not None and self.armature == "link_inertia":
             return dict(zip(spec.joint_names, spec.joint_armature, strict=True))
         if spec.joint_armature is not None and self.armature == "foot_link":
-            folded = set(foot_joints(spec))
+            folded = set(folded_joints(spec))
             return {
                 n: a
                 for n, a in zip(spec.joint_names, spec.joint_armature, strict=True)
@@ -89,7 +89,7 @@ class ArmatureMixin:
         self.fresh[e] = True  # a (re)loaded body: no last step to measure h over
         use = self.armature in ("joint_space", "foot_link") and spec.joint_armature is not None
         self.armature_diag[e] = spec.joint_armature if use else 0.0
-        folded = set(foot_joints(spec)) if use and self.armature == "foot_link" else set()
+        folded = set(folded_joints(spec)) if use and self.armature == "foot_link" else set()
         self.folded[e] = np.array(
             [i for i, n in enumerate(spec.joint_names) if n in folded], dtype=int
         )
@@ -219,6 +219,32 @@ def foot_joints(spec: EnvSpec) -> list[str]:
         for joint in joints
         if joint.get("name") in spec.joint_names and carries_foot(joint.find("child").get("link"))
     ]
+
+
+#: armature over turned inertia above which "foot_link" folds a joint (`folded_joints`)
+FOLD_RATIO = 2.0
+
+
+def folded_joints(spec: EnvSpec) -> list[str]:
+    """The joints whose armature the "foot_link" mode folds into their child link: the last
+    actuated joint above each foot (`foot_joints`) and every joint whose armature is more
+    than `FOLD_RATIO` times the inertia it turns at the standing pose
+    (`EnvSpec.joint_inertia`). There the joint-space correction's one-step-late h outweighs
+    the joint's own dynamics: nezha's ankle pitch (armature 0.01 kg m^2, 3.3 times the 0.003
+    it turns, behind a 0.074 kg link) left in joint space made its policy fall on PyBullet
+    (docs/sim-to-sim.md); the folded foot joints of Kuafu and Qilin are at 2.7 and 2.8 at
+    their nominal designs. Every other joint of the three robots, nominal design and corners,
+    is at most 1.54 times (Qilin's hips at its shortest design, which walks on PyBullet
+    unfolded), so Kuafu's and Qilin's sets stay their foot joints."""
+    feet = foot_joints(spec)
+    if spec.joint_armature is None or spec.joint_inertia is None:
+        return feet
+    heavy = {
+        n
+        for n, a, i in zip(spec.joint_names, spec.joint_armature, spec.joint_inertia, strict=True)
+        if a > FOLD_RATIO * i
+    }
+    return [n for n in spec.joint_names if n in heavy or n in feet]
 
 
 def joint_children(urdf: str) -> dict[str, str]:

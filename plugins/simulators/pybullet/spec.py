@@ -35,11 +35,18 @@ class EnvSpec:
     joint_damping: np.ndarray | None  # [J] N m s / rad
     joint_armature: np.ndarray | None  # [J] kg m^2
     joint_frictionloss: np.ndarray | None  # [J] N m
+    # [J] kg m^2, the inertia each joint turns at the standing pose (its subtree about its
+    # axis: the joint's diagonal of MuJoCo's mass matrix less its armature)
+    joint_inertia: np.ndarray | None = None
 
     @classmethod
     def from_model(cls, model: RobotModel) -> EnvSpec:
-        dynamics = mjcf_joint_dynamics(model.text("mjcf"), model.joint_names)
-        damping, armature, frictionloss = dynamics if dynamics is not None else (None, None, None)
+        dynamics = mjcf_joint_dynamics(
+            model.text("mjcf"), model.joint_names, np.asarray(model.default_joint_pos, dtype=float)
+        )
+        damping, armature, frictionloss, inertia = (
+            dynamics if dynamics is not None else (None, None, None, None)
+        )
         return cls(
             design=np.asarray(model.design, dtype=float).copy(),
             urdf=model.text("urdf"),
@@ -56,6 +63,7 @@ class EnvSpec:
             joint_damping=damping,
             joint_armature=armature,
             joint_frictionloss=frictionloss,
+            joint_inertia=inertia,
         )
 
 
@@ -66,9 +74,11 @@ def _foot_radius(points: np.ndarray) -> float:
 
 
 def mjcf_joint_dynamics(
-    mjcf: str, joint_names: list[str]
-) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """(damping, armature, frictionloss) [J] of the named joints in the compiled MJCF.
+    mjcf: str, joint_names: list[str], pose: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """(damping, armature, frictionloss, turned inertia) [J] of the named joints in the
+    compiled MJCF; the turned inertia is the joint's diagonal entry of the joint-space mass
+    matrix less its armature, with the joints at `pose` [J] (default: the model's zero).
 
     Compiling (rather than parsing the XML) resolves MJCF default classes the same way
     MuJoCo does. None when there is no MJCF or it does not compile.
@@ -82,13 +92,22 @@ def mjcf_joint_dynamics(
         mj = mujoco.MjModel.from_xml_string(mjcf)
     except Exception:
         return None
-    damping, armature, frictionloss = (np.zeros(n) for _ in range(3))
+    damping, armature, frictionloss, inertia = (np.zeros(n) for _ in range(4))
+    data = mujoco.MjData(mj)
+    dofs = np.full(n, -1)
     for j, name in enumerate(joint_names):
         jid = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, name)
         if jid < 0:
             continue
-        dof = mj.jnt_dofadr[jid]
+        dofs[j] = dof = mj.jnt_dofadr[jid]
         damping[j] = mj.dof_damping[dof]
         armature[j] = mj.dof_armature[dof]
         frictionloss[j] = mj.dof_frictionloss[dof]
-    return damping, armature, frictionloss
+        if pose is not None:
+            data.qpos[mj.jnt_qposadr[jid]] = pose[j]
+    mujoco.mj_forward(mj, data)
+    full = np.zeros((mj.nv, mj.nv))
+    mujoco.mj_fullM(mj, data, full)
+    found = dofs >= 0
+    inertia[found] = full[dofs[found], dofs[found]] - armature[found]
+    return damping, armature, frictionloss, inertia
