@@ -84,6 +84,14 @@ def _parser() -> argparse.ArgumentParser:
         default="tracking,power,torque",
         help="pseudo-critics to train ('' for none)",
     )
+    parser.add_argument(
+        "--resume",
+        default=None,
+        help=(
+            "start from this checkpoint ('shipped': the robot's shipped policy): a policy "
+            "that walks, under its command curriculum (a new run's box is +-0.3 m/s)"
+        ),
+    )
     return parser
 
 
@@ -170,6 +178,9 @@ def main() -> None:
     runner = Runner(
         trainer
     )  # what `coadapt train` and the loop's retraining drive (here: nothing written)
+    if args.resume:
+        path = robot.shipped_policy(args.terrain) if args.resume == "shipped" else args.resume
+        runner.resume(path)
     t0 = time.perf_counter()
     trainer.set_designs(trainer.sample_designs())
     build_seconds = time.perf_counter() - t0
@@ -240,6 +251,8 @@ def main() -> None:
             "precision": trainer.ppo.precision,
             "pseudo_precision": trainer.ppo.pseudo_precision,
             "physics_threads": getattr(sim, "num_threads_used", None),
+            "resume": args.resume,
+            "command_limit": env.commands.limit,
             "build_seconds": round(build_seconds, 2),
         },
         "physics_ceiling_env_steps_per_s": round(physics_ceiling),

@@ -8,7 +8,10 @@ point (the hip body's origin at the standing pose, base frame) with priority, an
 foot's standing orientation as far as the chain's remaining freedom allows (the null space
 of the position task): a 3-joint leg places its foot exactly; a leg with an ankle keeps its
 sole as it stands. Iterations start from the standing pose, so the knee bends as it does
-there. Joints off every leg chain keep their standing angle.
+there. Joints off every leg chain keep their standing angle. Each design of a batch stops
+iterating once its own legs have settled, so its solution is the one it gets solved alone
+(bit for bit), whatever targets the others have: the rare target out of reach, which takes
+every iteration, keeps only its own design iterating.
 """
 
 from __future__ import annotations
@@ -19,8 +22,8 @@ import mujoco
 import numpy as np
 import torch
 
-#: Newton steps at most; a batch stops early once its position error (m) is below TOLERANCE
-#: and its last joint step below 1e-6 rad
+#: Newton steps at most; a design stops early once its feet's position error (m) is below
+#: TOLERANCE and its last joint step below 1e-6 rad
 MAX_ITERATIONS = 30
 TOLERANCE = 1e-9
 #: the damping of the least-squares steps (m and rad), and the largest joint step (rad)
@@ -179,13 +182,14 @@ def _basis_axis(axes: torch.Tensor) -> tuple[int, torch.Tensor]:
 def _matvec(m: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
     """[..., 3] m [..., 3, 3] times v [..., 3], as column sums (far faster than a batched
     matmul or a reduction over so small a dimension)."""
-    return m[..., 0] * v[..., 0, None] + m[..., 1] * v[..., 1, None] + m[..., 2] * v[..., 2, None]
+    m0, m1, m2 = m.unbind(-1)
+    v0, v1, v2 = v[..., None].unbind(-2)
+    return m0 * v0 + m1 * v1 + m2 * v2
 
 
 def _inverse3(a: torch.Tensor) -> torch.Tensor:
     """[..., 3, 3] inverses of symmetric positive definite 3 x 3 matrices (cofactors)."""
-    a00, a01, a02 = a[..., 0, 0], a[..., 0, 1], a[..., 0, 2]
-    a11, a12, a22 = a[..., 1, 1], a[..., 1, 2], a[..., 2, 2]
+    a00, a01, a02, _, a11, a12, _, _, a22 = a.flatten(-2).unbind(-1)
     c00 = a11 * a22 - a12 * a12
     c01 = a02 * a12 - a01 * a22
     c02 = a01 * a12 - a02 * a11
@@ -193,8 +197,8 @@ def _inverse3(a: torch.Tensor) -> torch.Tensor:
     c12 = a01 * a02 - a00 * a12
     c22 = a00 * a11 - a01 * a01
     det = (a00 * c00 + a01 * c01 + a02 * c02)[..., None, None]
-    rows = [torch.stack(r, dim=-1) for r in ((c00, c01, c02), (c01, c11, c12), (c02, c12, c22))]
-    return torch.stack(rows, dim=-2) / det
+    cofactors = torch.stack([c00, c01, c02, c01, c11, c12, c02, c12, c22], dim=-1)
+    return cofactors.unflatten(-1, (3, 3)) / det
 
 
 class LegKinematics:
@@ -213,8 +217,31 @@ class LegKinematics:
         ]
         #: per element, (k, signs [L]) when every leg's hinge axis is +-e_k (or it has none)
         self._basis = [_basis_axis(chain.axis[:, e]) for e in range(chain.pos.shape[1])]
+        basis = [b >= 0 and not a for (b, _), a in zip(self._basis, self._anchored, strict=True)]
+        self._any_basis = any(basis)
+        #: [L, E] the sign of each frame-axis hinge (1 elsewhere); all 1 skips the products
+        self._signs = torch.stack(
+            [s if b else torch.ones_like(s) for (_, s), b in zip(self._basis, basis, strict=True)],
+            dim=-1,
+        )
+        self._unit_signs = bool((self._signs == 1).all())
+        hip_elements = set(chain.hip_element.tolist())
+        self._hip_element = hip_elements.pop() if len(hip_elements) == 1 else None
         #: a leg with more joints than its foot's position needs keeps the foot's orientation
         self._redundant = int(chain.joint_index.shape[1]) > 3
+        #: [1, L, 1, M] 1 for the slots that are joints (None: no padding), and [1, L, M, 1]
+        #: the element each turns (None: slot s turns element s on every leg)
+        valid = chain.joint_index >= 0
+        self._slot_mask = None if valid.all() else valid.to(torch.float64)[None, :, None, :]
+        element = self._element_of_slot()
+        identity = element.shape[1] == chain.pos.shape[1] and bool(
+            (element == torch.arange(element.shape[1])).all()
+        )
+        self._slot_element = None if identity else element.clamp(min=0)[None, :, :, None]
+        self._eye3 = torch.eye(3, dtype=torch.float64)
+        self._eye_slots = torch.eye(int(chain.joint_index.shape[1]), dtype=torch.float64)
+        self._damping_eye3 = DAMPING * self._eye3
+        self._secondary_eye3 = SECONDARY_DAMPING * self._eye3
 
     def scales(self, designs: torch.Tensor) -> torch.Tensor:
         """[n, L, E] each element offset's scale for designs [n, D] (continuous part first)."""
@@ -233,31 +260,44 @@ class LegKinematics:
     def forward(self, scales: torch.Tensor, x: torch.Tensor):
         """(foot [n, L, 3], foot rotation [n, L, 3, 3], hip [n, L, 3], axes [n, L, E, 3],
         anchors [n, L, E, 3]) in the base frame for slot angles x [n, L, M]."""
+        return self._forward(self.offsets(scales), x)
+
+    def offsets(self, scales: torch.Tensor) -> torch.Tensor:
+        """[n, L, E, 3] each element's offset for the element scales [n, L, E] (`scales`)."""
+        return self.chain.pos * scales[..., None]
+
+    def _forward(self, offsets: torch.Tensor, x: torch.Tensor):
+        """`forward` from the element offsets [n, L, E, 3]. The frame's rotation is kept as
+        its three columns, turned in place by hinges about a frame axis (most), so a chain of
+        them takes no matrix products and no stacking until the end."""
         c = self.chain
-        n, num_l, num_e = x.shape[0], c.num_legs, c.pos.shape[1]
-        rot = torch.eye(3, dtype=x.dtype).expand(n, num_l, 3, 3)
+        n, num_l = x.shape[0], c.num_legs
+        eye = torch.eye(3, dtype=x.dtype)
+        cols = [eye[:, k].expand(n, num_l, 3) for k in range(3)]  # the rotation's columns
         pos = torch.zeros(n, num_l, 3, dtype=x.dtype)
         axes, anchors, hips = [], [], []
         angle_all = torch.gather(x, 2, c.slot.clamp(min=0).expand(n, -1, -1)) * (c.slot >= 0)
-        for e in range(num_e):
-            offset = c.pos[:, e] * scales[:, :, e, None]  # [n, L, 3]
-            pos = pos + _matvec(rot, offset)
+        if self._any_basis:  # every hinge about a frame axis at once (elementwise, as each)
+            signed = angle_all if self._unit_signs else angle_all * self._signs
+            sin_all, cos_all = torch.sin(signed)[..., None], torch.cos(signed)[..., None]
+            sin_all, cos_all = sin_all.unbind(2), cos_all.unbind(2)  # E of [n, L, 1]
+        # each element's offset as its three components [n, L, 1]: one view each, not nine
+        components = [o.unbind(2) for o in offsets[..., None].unbind(2)]
+        for e in range(c.pos.shape[1]):
+            o = components[e]
+            # the rotation times the offset, as column sums (`_matvec`)
+            pos = pos + (cols[0] * o[0] + cols[1] * o[1] + cols[2] * o[2])
             if not self._identity[e]:
-                rot = rot @ c.rot[:, e]
+                cols = list((torch.stack(cols, dim=-1) @ c.rot[:, e]).unbind(-1))
             basis, sign = self._basis[e]
             if basis >= 0 and not self._anchored[e]:  # a hinge about a frame axis: no matmul
-                axis = rot[..., basis] * sign[:, None]
-                angle = angle_all[:, :, e] * sign
-                sin, cos = torch.sin(angle)[..., None], torch.cos(angle)[..., None]
+                axis = cols[basis] if self._unit_signs else cols[basis] * sign[:, None]
+                sin, cos = sin_all[e], cos_all[e]
                 i, j = (basis + 1) % 3, (basis + 2) % 3
-                turned = {
-                    basis: rot[..., basis],
-                    i: cos * rot[..., i] + sin * rot[..., j],
-                    j: cos * rot[..., j] - sin * rot[..., i],
-                }
-                rot = torch.stack([turned[0], turned[1], turned[2]], dim=-1)
+                cols[i], cols[j] = cos * cols[i] + sin * cols[j], cos * cols[j] - sin * cols[i]
                 anchor = pos
             else:
+                rot = torch.stack(cols, dim=-1)
                 axis = (rot @ c.axis[:, e, :, None])[..., 0]
                 turn = _rotation(c.axis[:, e].expand(n, -1, -1), angle_all[:, :, e])
                 if self._anchored[e]:
@@ -265,11 +305,16 @@ class LegKinematics:
                     pos = anchor + (rot @ turn @ (-c.anchor[:, e, :, None]))[..., 0]
                 else:
                     anchor = pos
-                rot = rot @ turn
+                cols = list((rot @ turn).unbind(-1))
             axes.append(axis)
             anchors.append(anchor)
             hips.append(pos)
-        hip = torch.stack(hips, dim=2)[torch.arange(n)[:, None], torch.arange(num_l), c.hip_element]
+        if self._hip_element is not None:  # every leg's hip at the same element
+            hip = hips[self._hip_element]
+        else:
+            rows = torch.arange(n)[:, None]
+            hip = torch.stack(hips, dim=2)[rows, torch.arange(num_l), c.hip_element]
+        rot = torch.stack(cols, dim=-1)
         return pos, rot, hip, torch.stack(axes, dim=2), torch.stack(anchors, dim=2)
 
     def standing(self, designs: torch.Tensor):
@@ -283,54 +328,93 @@ class LegKinematics:
         return self.standing(designs)[0]
 
     def inverse(self, designs: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
-        """[n, J] joint angles putting each foot at targets [n, L, 3] (relative to its hip)."""
+        """[n, J] joint angles putting each foot at targets [n, L, 3] (relative to its hip).
+
+        Each design's legs stop iterating once they have settled (every foot within
+        TOLERANCE of its target after a last joint step below 1e-6 rad, from the third
+        iteration on), so the few targets out of reach, which take every iteration, do not
+        keep the whole batch iterating (`benchmarks/leg_ik.py`)."""
         c = self.chain
-        dtype = torch.float64
-        scales = self.scales(designs)
-        n = designs.shape[0]
-        q0 = c.standing.expand(n, -1)
-        x = self.leg_angles(q0).clone()
-        _, want_rot, hip = self.standing(designs)
-        goal = targets.to(dtype) + hip
-        mask = (c.joint_index >= 0).to(dtype)[None, :, None, :]  # [1, L, 1, M]
-        index = self._element_of_slot().clamp(min=0)[None, :, :, None]  # [1, L, M, 1]
-        eye3 = torch.eye(3, dtype=dtype)
-        settled = False
-        for it in range(MAX_ITERATIONS):
-            foot, rot, _, axes, anchors = self.forward(scales, x)
-            err_p = goal - foot  # [n, L, 3]
-            if it >= 2 and settled and float(err_p.abs().max()) < TOLERANCE:
-                break
-            a = torch.gather(axes, 2, index.expand(n, -1, -1, 3))  # [n, L, M, 3]
-            r = torch.gather(anchors, 2, index.expand(n, -1, -1, 3))
-            jac_p = torch.cross(a, foot[:, :, None] - r, dim=-1).transpose(-1, -2) * mask
-            jac_o = a.transpose(-1, -2) * mask  # [n, L, 3, M]
-            # Levenberg-Marquardt damping: grows with the error, so an unreachable target is
-            # approached without the steps blowing up at the stretched leg's singularity
-            damping = DAMPING + ADAPTIVE_DAMPING * (err_p * err_p).sum(-1)[..., None, None]
-            gram = jac_p @ jac_p.transpose(-1, -2)
-            solved = _matvec(_inverse3(gram + damping * eye3), err_p)  # [n, L, 3]
-            # J^T (J J^T + damping)^-1 e, as a sum of J's rows
-            step = sum(jac_p[..., k, :] * solved[..., k, None] for k in range(3))
-            if self._redundant:  # the exact null space: the damped one would leak into position
-                exact = jac_p.transpose(-1, -2) @ _inverse3(gram + DAMPING * eye3)
-                null = torch.eye(x.shape[-1], dtype=dtype) - exact @ jac_p
-                jo_n = jac_o @ null
-                pinv_o = jo_n.transpose(-1, -2) @ _inverse3(
-                    jo_n @ jo_n.transpose(-1, -2) + SECONDARY_DAMPING * eye3
-                )
-                err_o = 0.5 * sum(  # [n, L, 3] the rotation from the foot's to its standing one
-                    torch.cross(rot[..., k], want_rot[..., k], dim=-1) for k in range(3)
-                )
-                keep = pinv_o @ (err_o - (jac_o @ step[..., None])[..., 0])[..., None]
-                step = step + (null @ keep)[..., 0]
-            step = step.clamp(-MAX_STEP, MAX_STEP) * mask[:, :, 0]
-            x = x + step
-            settled = float(step.abs().max()) < 1e-6
-        q = q0.clone()
+        q = c.standing.expand(designs.shape[0], -1).clone()
+        # no autograd bookkeeping unless a gradient is asked for: the iterations are many
+        # small operations, and on few designs their dispatch is most of the time
+        with torch.inference_mode(not (designs.requires_grad or targets.requires_grad)):
+            x = self._solve(designs, targets)
         valid = c.joint_index >= 0
         q[:, c.joint_index[valid]] = x[:, valid]
         return q
+
+    def _solve(self, designs: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
+        """[n, L, M] the slot angles of `inverse`."""
+        n = designs.shape[0]
+        x = self.leg_angles(self.chain.standing.expand(n, -1)).clone()
+        _, want_rot, hip = self.standing(designs)
+        goal = targets.to(torch.float64) + hip
+        rows = torch.arange(n)  # the designs still iterating
+        part = (x, self.offsets(self.scales(designs)), goal, want_rot)  # their slices
+        settled = torch.zeros(n, dtype=torch.bool)
+        for it in range(MAX_ITERATIONS):
+            foot, rot, _, axes, anchors = self._forward(part[1], part[0])
+            err_p = part[2] - foot  # [m, L, 3]
+            if it >= 2:
+                done = settled & (err_p.abs().amax(dim=(1, 2)) < TOLERANCE)
+                if bool(done.any()):
+                    x[rows[done]] = part[0][done]
+                    keep = ~done
+                    if not bool(keep.any()):
+                        return x
+                    rows, settled = rows[keep], settled[keep]
+                    part = tuple(t[keep] for t in part)
+                    foot, rot, axes, anchors = foot[keep], rot[keep], axes[keep], anchors[keep]
+                    err_p = err_p[keep]
+            step = self._step(part[0], foot, rot, axes, anchors, err_p, part[3])
+            part = (part[0] + step, *part[1:])
+            settled = step.abs().amax(dim=(1, 2)) < 1e-6
+        x[rows] = part[0]
+        return x
+
+    def _step(self, x, foot, rot, axes, anchors, err_p, want_rot) -> torch.Tensor:
+        """[m, L, M] one damped least-squares step of the slot angles x [m, L, M] from the
+        forward kinematics at x, the position errors err_p [m, L, 3] and the feet's standing
+        rotations want_rot [m, L, 3, 3]."""
+        m, mask, eye3 = x.shape[0], self._slot_mask, self._eye3
+        if self._slot_element is None:  # slot s turns element s on every leg (most chains)
+            a, r = axes, anchors  # [m, L, M, 3]
+        else:
+            index = self._slot_element.expand(m, -1, -1, 3)
+            a, r = torch.gather(axes, 2, index), torch.gather(anchors, 2, index)
+        jac_p = torch.cross(a, foot[:, :, None] - r, dim=-1).transpose(-1, -2)
+        jac_o = a.transpose(-1, -2)  # [m, L, 3, M]
+        if mask is not None:  # padded slots
+            jac_p, jac_o = jac_p * mask, jac_o * mask
+        # Levenberg-Marquardt damping: grows with the error, so an unreachable target is
+        # approached without the steps blowing up at the stretched leg's singularity
+        damping = DAMPING + ADAPTIVE_DAMPING * (err_p * err_p).sum(-1)[..., None, None]
+        gram = jac_p @ jac_p.transpose(-1, -2)
+        if self._redundant:  # both inverses at once (elementwise, as each alone)
+            both = torch.stack([gram + damping * eye3, gram + self._damping_eye3])
+            damped, undamped = _inverse3(both).unbind(0)
+        else:
+            damped = _inverse3(gram + damping * eye3)
+        solved = _matvec(damped, err_p)  # [m, L, 3]
+        # J^T (J J^T + damping)^-1 e, as a sum of J's rows
+        rows, weights = jac_p.unbind(-2), solved[..., None].unbind(-2)
+        step = rows[0] * weights[0] + rows[1] * weights[1] + rows[2] * weights[2]
+        if self._redundant:  # the exact null space: the damped one would leak into position
+            exact = jac_p.transpose(-1, -2) @ undamped
+            null = self._eye_slots - exact @ jac_p
+            jo_n = jac_o @ null
+            pinv_o = jo_n.transpose(-1, -2) @ _inverse3(
+                jo_n @ jo_n.transpose(-1, -2) + self._secondary_eye3
+            )
+            # [m, L, 3] the rotation from the foot's to its standing one
+            have, want = rot.unbind(-1), want_rot.unbind(-1)
+            err_o = torch.cross(have[0], want[0], dim=-1) + torch.cross(have[1], want[1], dim=-1)
+            err_o = 0.5 * (err_o + torch.cross(have[2], want[2], dim=-1))
+            keep = pinv_o @ (err_o - (jac_o @ step[..., None])[..., 0])[..., None]
+            step = step + (null @ keep)[..., 0]
+        step = step.clamp(-MAX_STEP, MAX_STEP)
+        return step if mask is None else step * mask[:, :, 0]
 
     def _element_of_slot(self) -> torch.Tensor:
         """[L, M] the element each joint slot turns (-1 for padding)."""
