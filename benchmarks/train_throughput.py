@@ -11,9 +11,12 @@ Prints JSON, with `end_to_end_vs_physics_ceiling` (training env steps/s over the
 ceiling measured in the same run), `update_vs_learner_ceiling` (the update's achieved GFLOP/s,
 compute_returns + update, over the learner's ceiling measured in the same run) and
 `pseudo_critic_share` (the pseudo-critics' part of the update's time: their targets in
-compute_returns and their regression steps, over compute_returns + update).
+compute_returns and their regression steps, over compute_returns + update). `--resume`
+starts from a checkpoint ('shipped': the robot's shipped policy), so the rollouts are a
+walking policy's under its command curriculum rather than a new run's.
 
     .venv/bin/python benchmarks/train_throughput.py --num-designs 16 --agents 16
+    .venv/bin/python benchmarks/train_throughput.py --robot nezha --threads 1 --resume shipped
     .venv/bin/python benchmarks/train_throughput.py --num-designs 128 --agents 32 \
         --device cuda --threads 16
 """
@@ -180,6 +183,8 @@ def main() -> None:
     )  # what `coadapt train` and the loop's retraining drive (here: nothing written)
     if args.resume:
         path = robot.shipped_policy(args.terrain) if args.resume == "shipped" else args.resume
+        if path is None:
+            raise SystemExit(f"error: {args.robot} ships no policy for terrain {args.terrain}")
         runner.resume(path)
     t0 = time.perf_counter()
     trainer.set_designs(trainer.sample_designs())
