@@ -245,13 +245,21 @@ def refinement_line(ref: dict[str, Any]) -> str:
     def cost(value: Any, se: Any) -> str:
         return "?" if value is None else with_se(float(value), se)
 
-    chosen = {True: "its design won the final check", False: "the final check chose another"}
+    step = ref.get("chosen_step")
+    if ref.get("chosen"):
+        verdict = "its design won the final check"
+    elif step == 0:
+        verdict = "the final check chose its start (the search's design)"
+    elif step is not None:
+        verdict = f"the final check chose its step {step}'s design (not the last accepted)"
+    else:
+        verdict = {False: "the final check chose another design"}.get(ref.get("chosen"), "")
     return (
         f"refinement ({ref['with']}, {ref['rounds']} real rounds on the run's scenarios): "
         f"start {cost(ref.get('start_cost'), ref.get('start_cost_se'))} -> "
         f"{cost(ref.get('center_cost'), ref.get('center_cost_se'))}, "
         f"{ref.get('accepted_steps', 0)} of {max(ref['rounds'] - 1, 0)} steps accepted; "
-        f"{chosen.get(ref.get('chosen'), 'not checked')}"
+        f"{verdict or 'not checked'}"
     )
 
 

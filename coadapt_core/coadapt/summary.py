@@ -158,6 +158,15 @@ def run_summary(
     if refinement is not None:  # the refinement stage (refine.py): was its design the best?
         center = refinement["center"]
         refinement["chosen"] = center is not None and bool(np.allclose(center, outcome.best_design))
+        # the step whose design the final check picked (0: the start, the search's own), if any
+        refinement["chosen_step"] = next(
+            (
+                i
+                for i, st in enumerate(refinement["steps"])
+                if st.get("design") is not None and np.allclose(st["design"], outcome.best_design)
+            ),
+            None,
+        )
         summary["refinement"] = refinement
     summary["policy"] = s.policy
     summary["notes"] = list(s.notes)

@@ -101,6 +101,8 @@ def test_refines_the_best_real_design_every_step_real_recorded_and_only_gains_ac
     # the refinement's design went to the final check; the summary says whether it won
     assert isinstance(ref["chosen"], bool)
     assert ref["chosen"] == bool(np.allclose(ref["center"], summary["best_design"]))
+    picked = [i for i, st in enumerate(steps) if np.allclose(st["design"], summary["best_design"])]
+    assert ref["chosen_step"] == (picked[0] if picked else None)
     # the run folder's summary.json (what the store's run row carries) holds every step
     on_disk = json.loads((result.run_dir / "summary.json").read_text())
     assert on_disk["refinement"]["steps"] == json.loads(json.dumps(steps))
@@ -198,7 +200,13 @@ def test_the_run_summary_says_what_the_refinement_bought():
     ref |= {"center_cost": 1.2, "center_cost_se": 0.011, "accepted_steps": 2, "chosen": False}
     assert refinement_line(ref) == (
         "refinement (gradient, 8 real rounds on the run's scenarios): start 1.234 +- 0.012 -> "
-        "1.200 +- 0.011, 2 of 7 steps accepted; the final check chose another"
+        "1.200 +- 0.011, 2 of 7 steps accepted; the final check chose another design"
+    )
+    assert refinement_line(ref | {"chosen_step": 2}).endswith(
+        "the final check chose its step 2's design (not the last accepted)"
+    )
+    assert refinement_line(ref | {"chosen_step": 0}).endswith(
+        "the final check chose its start (the search's design)"
     )
 
 
