@@ -95,6 +95,24 @@ def test_a_refusal_is_one_line_exit_2_without_torch(args, line):
     assert "torch" not in result["heavy"] and "coadapt_plugins" not in result["heavy"]
 
 
+@pytest.mark.parametrize(
+    ("args", "start", "end"),
+    [
+        (["run", "--sim", "mujocoo"], "error: unknown simulator 'mujocoo'", "'mujoco'?"),
+        (["run", "--optimizer", "psoo"], "error: unknown optimizer 'psoo'", "'pso'?"),
+        (["run", "--objective", "power,torq"], "error: unknown objective 'torq'", "'torque'?"),
+    ],
+)
+def test_a_mistyped_plugin_name_is_refused_before_torch_loads(args, start, end):
+    """The registry lists the plugins without torch, so `coadapt run` checks the names on its
+    command line before it sets torch's threads (it took 2.3-2.7 s, torch's import)."""
+    result = _probe(*args)
+    lines = result["err"].strip().splitlines()
+    assert result["code"] == 2 and len(lines) == 1, result["err"]
+    assert lines[0].startswith(start) and lines[0].endswith(end), lines
+    assert "torch" not in result["heavy"]
+
+
 def test_run_help_all_still_lists_the_plugins_aliases():
     """`coadapt run --help-all` makes the aliases the installed plugins declare (the registry
     loads for it): --inertia is an alias of the PSO optimizer's option."""

@@ -343,6 +343,19 @@ def _run_loop(cfg: Any, kwargs: dict[str, Any], values: dict[str, Any]) -> Any:
             )
 
 
+def _check_plugin_names(values: dict[str, Any]) -> None:
+    """Plugin names given on the command line, checked against the registry before torch loads
+    (the registry lists and loads the plugins without it): a typo is one line, exit 2."""
+    for kind, key in (("robot", "robot"), ("simulator", "sim"), ("optimizer", "optimizer")):
+        if values.get(key):
+            resolve(kind, values[key])
+    given = values.get("objective") or []
+    for item in [given] if isinstance(given, str) else given:
+        for name in str(item).split(","):
+            if name.strip():
+                resolve("objective", name.strip())
+
+
 def register(app: typer.Typer) -> None:
     settings, own = config_options(), options_of(RunCommand)
     # the installed plugins' aliases: made only for a `coadapt run` whose command line may
@@ -367,6 +380,7 @@ def register(app: typer.Typer) -> None:
             check_preset(values["preset"])
         except UserError as exc:
             fail(str(exc))
+        _check_plugin_names(values)
         from coadapt_core.threads import apply_threads
 
         apply_threads(values["threads"])  # physics and torch alike; recorded in config.yaml
