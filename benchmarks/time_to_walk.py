@@ -13,6 +13,10 @@ curve, the physics ceiling and the learner's ceiling measured in the same run, t
 
     .venv/bin/python benchmarks/time_to_walk.py --robot qilin --num-designs 16 --agents 16
     .venv/bin/python benchmarks/time_to_walk.py --robot qilin --max-steps 20000 --eval-every 2
+    .venv/bin/python benchmarks/time_to_walk.py --robot qilin --max-seconds 3600 --out runs/ttw
+
+`--max-seconds` bounds the training's wall clock (checked between checks); `--out` keeps
+every check's checkpoint (`check_<iteration>.pt`, for `coadapt eval --checkpoint`).
 """
 
 from __future__ import annotations
@@ -37,7 +41,13 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=None, help="thread budget (physics, torch)")
     parser.add_argument("--max-steps", type=int, default=20_000_000, help="interaction budget")
+    parser.add_argument(
+        "--max-seconds", type=float, default=None, help="training wall-clock budget (s)"
+    )
     parser.add_argument("--eval-every", type=int, default=50, help="iterations between checks")
+    parser.add_argument(
+        "--out", type=Path, default=None, help="keep each check's checkpoint here (check_<it>.pt)"
+    )
     parser.add_argument("--eval-agents", type=int, default=16)
     parser.add_argument("--eval-seconds", type=float, default=5.0)
     # TrainConfig's fields (unset: its defaults, what `coadapt train` uses for a new robot)
@@ -86,11 +96,11 @@ def corners(space) -> dict[str, np.ndarray]:
     }
 
 
-def check(trainer, args, folder: Path) -> dict:
+def check(trainer, args, folder: Path, name: str = "check.pt") -> dict:
     """The walking gate at the nominal design and the corners, on a checkpoint of now."""
     from coadapt_core.experiments.evaluate import VERDICT_COMMAND, evaluate_checkpoint
 
-    path = trainer.save(folder / "check.pt")
+    path = trainer.save(folder / name)
     space = trainer.design_space
     nominal = np.asarray(trainer.robot.nominal_design(space.is_mixed), dtype=float)
     designs = {"nominal": np.clip(nominal, space.lower, space.upper), **corners(space)}
@@ -153,7 +163,11 @@ def main() -> None:
     learner, curve, walked = [], [], None
     train_seconds = 0.0
     with tempfile.TemporaryDirectory() as tmp:
-        while trainer.total_steps < args.max_steps:
+        keep = args.out or Path(tmp)
+        keep.mkdir(parents=True, exist_ok=True)
+        while trainer.total_steps < args.max_steps and (
+            args.max_seconds is None or train_seconds < args.max_seconds
+        ):
             iterations = min(
                 args.eval_every, trainer.iterations_for(args.max_steps - trainer.total_steps)
             )
@@ -162,7 +176,7 @@ def main() -> None:
             train_seconds += time.perf_counter() - start
             tick = time.perf_counter()
             rng = torch.get_rng_state(), np.random.get_state()
-            gate = check(trainer, args, Path(tmp))
+            gate = check(trainer, args, keep, f"check_{trainer.iteration}.pt")
             torch.set_rng_state(rng[0])  # the training's draws as without the checks
             np.random.set_state(rng[1])
             torch.set_num_threads(trainer.learner_threads)
