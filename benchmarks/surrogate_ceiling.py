@@ -3,6 +3,10 @@ finished run folder given, every real round where both the surrogate's predictio
 real costs exist, its Spearman beside the Spearman the real costs' own noise allows
 (`coadapt_core.surrogate_quality.noise_ceiling`, Monte Carlo from each design's cost SE) and
 whether the surrogate is near that ceiling or below it; then the run's pooled figures.
+Beside the surrogate's, the Spearman a plane through the same policy's earlier real rounds
+would have had on the round (`coadapt_core.coadapt.trend`, the estimator of
+`--surrogate-trend`), replayed from the run's `evaluations.jsonl`: the same designs, the same
+real costs, the labels the run had then.
 
 Reads each run's `state.json` (JSON; nothing is unpickled). The SE is each design's paired SE
 (`cost_paired_se` in its batches), as a run computes it; a run recorded before that was kept
@@ -28,6 +32,31 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from coadapt_core import surrogate_quality as sq  # noqa: E402
+from coadapt_core.coadapt.trend import fit_trend  # noqa: E402
+
+
+def replayed_trend(run_dir: Path, objective: str) -> dict[tuple[int, int], float | None]:
+    """(outer, inner) -> the Spearman of the plane through the real rounds of the same outer
+    iteration before it (None where fewer labels than a plane needs)."""
+    path = run_dir / "evaluations.jsonl"
+    if not path.is_file():
+        return {}
+    rounds: dict[tuple[int, int], list[tuple[list[float], float]]] = {}
+    for line in path.read_text().splitlines():
+        row = json.loads(line)
+        if row.get("kind") == "real" and objective in (row.get("costs") or {}):
+            key = (int(row["outer"]), int(row["inner"]))
+            rounds.setdefault(key, []).append((row["design"], float(row["costs"][objective])))
+    out: dict[tuple[int, int], float | None] = {}
+    for (outer, inner), here in rounds.items():
+        before = [x for (o, i), v in rounds.items() if o == outer and i < inner for x in v]
+        trend = fit_trend([d for d, _ in before], [c for _, c in before]) if before else None
+        out[(outer, inner)] = (
+            None
+            if trend is None
+            else sq.spearman(trend.predict([d for d, _ in here])[:, 0], [c for _, c in here])
+        )
+    return out
 
 
 def _floats(values: list[Any]) -> list[float]:
@@ -42,6 +71,7 @@ def run_rounds(run_dir: Path) -> dict[str, Any]:
     batches = {(b["outer"], b["inner"]): b for b in state["batches"] if b["kind"] == "real"}
     objective = str(config["objective"]).split(",")[0]
     rows, approx = [], False
+    trend = replayed_trend(run_dir, objective)
     for q in state["quality_rounds"]:
         entry = (q.get("objectives") or {}).get(objective)
         batch = batches.get((q["outer"], q["inner"]))
@@ -75,6 +105,7 @@ def run_rounds(run_dir: Path) -> dict[str, Any]:
                 if paired
                 else None,
                 **{k: figures.get(k) for k in ("spearman", *sq.CEILING_FIGURES)},
+                "trend_spearman": trend.get((q["outer"], q["inner"])),
                 "real": real,
                 "surrogate": surrogate,
                 "se": _floats(se),
@@ -107,8 +138,9 @@ def _f(x: Any, spec: str = ".2f") -> str:
 def markdown(runs: list[dict[str, Any]]) -> str:
     lines = [
         "| run | round (outer, inner) | judged | designs | real spread | median rel. SE "
-        "(paired) | surrogate Spearman | noise ceiling +- sd | repeat | verdict |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "(paired) | surrogate Spearman | plane (replayed) | noise ceiling +- sd | repeat "
+        "| verdict |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for run in runs:
         name = f"{run['robot']} {run['objective']} s{run['seed']}" + (
@@ -120,12 +152,13 @@ def markdown(runs: list[dict[str, Any]]) -> str:
                 f"| {r['designs']} | {_f(100 * r['spread'], '.1f')} % "
                 f"| {_f(100 * (r['median_relative_se'] or float('nan')), '.1f')} % "
                 f"({_f(100 * (r['median_relative_paired_se'] or float('nan')), '.1f')} %) "
-                f"| {_f(r['spearman'])} | {_f(r['ceiling'])} +- {_f(r['ceiling_sd'])} "
+                f"| {_f(r['spearman'])} | {_f(r['trend_spearman'])} "
+                f"| {_f(r['ceiling'])} +- {_f(r['ceiling_sd'])} "
                 f"| {_f(r['repeat'])} | {r['against_ceiling'] or '-'} |"
             )
         p = run["pooled"]
         lines.append(
-            f"| {name} | pooled (judged) | | {p['n']} | | | {_f(p['spearman'])} "
+            f"| {name} | pooled (judged) | | {p['n']} | | | {_f(p['spearman'])} | "
             f"| {_f(p['ceiling'])} +- {_f(p['ceiling_sd'])} | {_f(p['repeat'])} "
             f"| {p['against_ceiling'] or '-'} |"
         )
@@ -153,11 +186,20 @@ def across(runs: list[dict[str, Any]]) -> str:
     rho = [r["spearman"] for r in rounds]
     ceiling = [r["ceiling"] for r in rounds]
     below = sum(1 for r in rounds if r["against_ceiling"] == "below")
-    return (
+    text = (
         f"over {len(rounds)} judged rounds with paired SEs (mean +- SE over rounds): surrogate "
         f"Spearman {stat(rho)}, noise ceiling {stat(ceiling)}, surrogate - ceiling "
         f"{stat([a - b for a, b in zip(rho, ceiling, strict=True)])}; {below} round(s) below"
     )
+    planes = [r for r in rounds if r.get("trend_spearman") is not None]
+    if len(planes) >= 2:
+        plane = [r["trend_spearman"] for r in planes]
+        text += (
+            f"; the plane (replayed, {len(planes)} rounds): {stat(plane)}, plane - ceiling "
+            f"{stat([a - r['ceiling'] for a, r in zip(plane, planes, strict=True)])}, plane - "
+            f"surrogate {stat([a - r['spearman'] for a, r in zip(plane, planes, strict=True)])}"
+        )
+    return text
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -193,6 +193,11 @@ class CoadaptConfig:
         "Fit the pseudo-critics to each real round's measured designs before a surrogate "
         "round (off: the paper's pseudo-critics as trained).",
     )
+    surrogate_trend: bool = setting(
+        False,
+        "Surrogate rounds cost designs by a least-squares plane in the design through this "
+        "policy's real rounds, not the pseudo-critics (beyond the paper; docs/coadaptation.md).",
+    )
     evaluation_policy: Literal[EVALUATION_POLICIES] = setting(
         "fixed",
         "fixed: a surrogate round with probability surrogate_probability (w, the paper's); "
@@ -386,6 +391,12 @@ class CoadaptConfig:
             raise UserError(
                 "evaluation_policy 'uncertainty' needs fit_surrogate (the fitted ensemble decides)",
                 field="evaluation_policy",
+            )
+        if self.evaluation_policy == "uncertainty" and self.surrogate_trend:
+            raise UserError(
+                "evaluation_policy 'uncertainty' decides by the fitted ensemble's spread; "
+                "surrogate_trend replaces that ensemble's costs: use one of them",
+                field="surrogate_trend",
             )
         # the sections' keys applied over the defaults: checked together
         resolve_learner(

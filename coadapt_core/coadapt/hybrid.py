@@ -21,6 +21,7 @@ import numpy as np
 from coadapt_core import surrogate_quality as sq
 from coadapt_core.coadapt.config import CoadaptConfig
 from coadapt_core.coadapt.state import LoopState
+from coadapt_core.coadapt.trend import LinearTrend, trend_of_labels
 from coadapt_core.fitness import (
     CoadaptationBackend,
     SurrogateEnsemble,
@@ -203,6 +204,8 @@ class HybridPolicy:
             self._pending is not None and self._pending[0] == s.inner
         ):  # the ensemble's, just computed
             predicted = self._pending[1]
+        elif (trend := self.trend()) is not None:
+            predicted = trend.predict(designs)
         else:
             self.ensure_fitted()
             predicted = self.backend().surrogate_fitness(
@@ -214,6 +217,11 @@ class HybridPolicy:
         s.counters["eval_seconds"] += seconds
         s.counters["surrogate_evaluations"] += 1
         return np.asarray(predicted, dtype=float).reshape(len(designs), -1), seconds
+
+    def trend(self) -> LinearTrend | None:
+        """With `surrogate_trend`: the plane through this policy's real rounds (None without
+        enough of them: the backend's surrogate stands in)."""
+        return trend_of_labels(self.state.labels) if self.config.surrogate_trend else None
 
     def before_real_round(self) -> tuple[bool, bool, Any]:
         """(eligible, fitted, states) before a real round's rollouts: whether a surrogate
@@ -230,6 +238,9 @@ class HybridPolicy:
         s, c = self.state, self.config
         eligible = s.buffer is not None and s.buffer_outer == s.outer
         self._judging = c.measure_surrogate_error
+        if c.surrogate_trend and self.trend() is not None:  # the plane costs no fit: judged
+            self._judging = self._judging and eligible
+            return eligible, False, s.buffer
         if c.fit_surrogate and self.ensemble() is not None and not c.surrogate_error_fits:
             self._judging = self._judging and eligible and self._fit_covers_round()
         fitted = eligible and self._judging and self.ensure_fitted()
@@ -269,14 +280,18 @@ class HybridPolicy:
         t0 = time.perf_counter()
         ensemble = self.ensemble() if fitted else None
         members = None
-        if ensemble is not None:  # the members too: their spread ratio is recorded
+        trend = self.trend() if eligible else None
+        if trend is not None:  # the plane a surrogate round here would have used
+            ensemble = None
+            predicted = trend.predict(designs)
+        elif ensemble is not None:  # the members too: their spread ratio is recorded
             members = ensemble.surrogate_members(
                 designs, self.objectives, states, samples=c.surrogate_samples, seed=seed
             )
         if members is not None:
             members = np.asarray(members, dtype=float).reshape(-1, *costs.shape)
             predicted = members.mean(axis=0)
-        else:
+        elif trend is None:
             predicted = self.backend().surrogate_fitness(
                 designs, self.objectives, states, samples=c.surrogate_samples, seed=seed
             )
@@ -288,6 +303,7 @@ class HybridPolicy:
             eligible=eligible,
             fitted=fitted,
             spread=None if members is None else spread_ratio(members),
+            trend=trend is not None,
         )
         return predicted - costs
 
@@ -324,6 +340,7 @@ class HybridPolicy:
         eligible: bool,
         fitted: bool,
         spread: float | None = None,
+        trend: bool = False,
     ) -> None:
         """One entry of `surrogate_quality.rounds`: the round's (surrogate, real) pairs per
         objective and their figures (coadapt_core/surrogate_quality.py), and the fitted
@@ -333,7 +350,7 @@ class HybridPolicy:
             "outer": s.outer,
             "inner": s.inner,
             "eligible": bool(eligible),
-            "estimator": "fitted" if fitted else "paper",
+            "estimator": "trend" if trend else ("fitted" if fitted else "paper"),
             "spread_ratio": spread,
             "objectives": {},
         }
@@ -395,7 +412,9 @@ class HybridPolicy:
             "pooled": by_objective[self.names[0]] if self.names else {},
             "by_objective": by_objective,
             "rounds": brief,
-            "estimator": "fitted" if self.config.fit_surrogate else "paper",
+            "estimator": "trend"
+            if self.config.surrogate_trend
+            else ("fitted" if self.config.fit_surrogate else "paper"),
             "definition": "over eligible real rounds (a real round of the same policy came "
             "before); relative error (surrogate - real) / |real|; top_k_regret: (best real "
             "cost among the surrogate's "
