@@ -1,7 +1,8 @@
 """Time to walk: a robot's universal policy trained from scratch until the walking gate holds.
 
-Trains as `coadapt train` does for a robot with no shipped policy (TrainConfig's and
-TaskConfig's defaults, the options below over them) and, every `--eval-every` iterations,
+Trains as `coadapt train` does for a robot with no shipped policy (the new-robot recipe over
+TrainConfig's defaults, or with `--start defaults` those defaults alone; TaskConfig's defaults;
+the options below over them) and, every `--eval-every` iterations,
 writes a checkpoint and evaluates it as `coadapt train`'s verdict does (`evaluate_checkpoint`:
 `--eval-agents` agents x `--eval-seconds` under the verdict's command, randomization as in
 training) at the nominal design and four corners of the design range (all lower bounds, all
@@ -11,7 +12,8 @@ excluded from the wall clock. Prints one JSON line per evaluation on stderr and,
 JSON: the interactions and training seconds until walking (null if the budget ran out), the
 curve, the physics ceiling and the learner's ceiling measured in the same run, the load.
 
-    .venv/bin/python benchmarks/time_to_walk.py --robot qilin --num-designs 16 --agents 16
+    .venv/bin/python benchmarks/time_to_walk.py --robot qilin                    # the recipe
+    .venv/bin/python benchmarks/time_to_walk.py --robot qilin --start defaults   # 128 x 32
     .venv/bin/python benchmarks/time_to_walk.py --robot qilin --max-steps 20000 --eval-every 2
     .venv/bin/python benchmarks/time_to_walk.py --robot qilin --max-seconds 3600 --out runs/ttw
 
@@ -50,7 +52,14 @@ def _parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--eval-agents", type=int, default=16)
     parser.add_argument("--eval-seconds", type=float, default=5.0)
-    # TrainConfig's fields (unset: its defaults, what `coadapt train` uses for a new robot)
+    parser.add_argument(
+        "--start",
+        choices=("recipe", "defaults"),
+        default="recipe",
+        help="recipe: the new-robot recipe coadapt train starts a robot with no shipped policy "
+        "from (NEW_ROBOT_RECIPE); defaults: TrainConfig's defaults (128 x 32, 5 epochs)",
+    )
+    # TrainConfig's fields (unset: the --start's)
     for name, kind in (
         ("num-designs", int),
         ("agents", int),
@@ -67,7 +76,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _config(args):
-    from coadapt_core.learning.config import TrainConfig
+    from coadapt_core.learning.config import NEW_ROBOT_RECIPE, TrainConfig
 
     fields = {
         "num_designs": args.num_designs,
@@ -80,7 +89,9 @@ def _config(args):
         "entropy_coef": args.entropy_coef,
         "desired_kl": args.desired_kl,
     }
-    return TrainConfig(seed=args.seed, **{k: v for k, v in fields.items() if v is not None})
+    start = dict(NEW_ROBOT_RECIPE) if args.start == "recipe" else {}
+    start.update({k: v for k, v in fields.items() if v is not None})
+    return TrainConfig(seed=args.seed, **start)
 
 
 def corners(space) -> dict[str, np.ndarray]:

@@ -209,6 +209,17 @@ def _plugins(values: dict[str, Any], robot: str) -> tuple[Any, type, list]:
     )
 
 
+def fresh_train_config(robot: Any, terrain: str, mixed: bool) -> Any:
+    """The train config a new `coadapt train` starts from: TrainConfig's defaults where the
+    robot ships a policy for this terrain and design space (Kuafu's were trained so), else
+    the new-robot recipe (`NEW_ROBOT_RECIPE`, measured in docs/training.md "Time to walk");
+    options given on the command line apply over either."""
+    from coadapt_core.learning.config import TrainConfig, new_robot_config
+
+    shipped = robot.shipped_policy(terrain, mixed)
+    return TrainConfig() if shipped is not None else new_robot_config()
+
+
 def _build_trainer(
     values: dict[str, Any],
     plugins: tuple[Any, type, list],
@@ -225,14 +236,18 @@ def _build_trainer(
     from coadapt_core.task.config import TaskConfig
 
     robot_obj, sim_cls, objectives = plugins
+    fresh = None if state else fresh_train_config(robot_obj, values["terrain"], values["mixed"])
+    values["recipe"] = (
+        fresh is not None and robot_obj.shipped_policy(values["terrain"], values["mixed"]) is None
+    )
     try:
         learner = resolve_learner(
-            state, given, given.pop("task", {}), given.pop("randomization", {})
+            state, given, given.pop("task", {}), given.pop("randomization", {}), fresh
         )
     except UserError as exc:
         fail(str(exc))
     base = learner.get("train_config") or (
-        TrainConfig.from_dict(state["train_config"]) if state else TrainConfig()
+        TrainConfig.from_dict(state["train_config"]) if state else fresh
     )
     task = learner.get("task_config") or (
         TaskConfig.from_dict(state["task_config"]) if state else TaskConfig()
@@ -304,6 +319,11 @@ def _announce(values: dict[str, Any], robot: str, trainer: Any, iterations: int)
         f"{trainer.design_space.describe()}, device {values['device']}, "
         f"{trainer.num_threads} threads, randomization "
         f"{base.extra.get('randomization', 'table2')}, yaw {yaw[0]:g}:{yaw[1]:g} rad/s"
+        + (
+            ", the new-robot recipe (no shipped policy here; docs/training.md)"
+            if values.get("recipe")
+            else ""
+        )
         + (
             ", pseudo-critics only (the policy stays as loaded)"
             if values["pseudo_critics_only"]

@@ -18,14 +18,18 @@ def resolve_learner(
     train: dict[str, Any],
     task: dict[str, Any],
     randomization: dict[str, Any],
+    fresh: TrainConfig | None = None,
 ) -> dict[str, Any]:
     """`train_config`, `task_config` and `randomization` for the learner: a checkpoint's
     (`saved`, None: the defaults) with the given nested overrides applied; only the parts
     with overrides are returned. A randomization `preset` replaces the checkpoint's before
     single ranges apply; the train config records both (`extra`), so a resumed training
-    draws the same ranges."""
+    draws the same ranges. `fresh`: the train config a run without `saved` starts from
+    (default: TrainConfig's defaults)."""
     out: dict[str, Any] = {}
-    saved_train = TrainConfig.from_dict(saved["train_config"]) if saved else TrainConfig()
+    saved_train = (
+        TrainConfig.from_dict(saved["train_config"]) if saved else (fresh or TrainConfig())
+    )
     randomization = dict(randomization)
     preset = randomization.pop("preset", None)
     if train or preset or randomization:

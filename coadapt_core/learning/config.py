@@ -120,3 +120,17 @@ class TrainConfig:
     def from_dict(cls, data: dict[str, Any] | None) -> TrainConfig:
         """A recorded training config (a checkpoint's); unknown keys are one-line errors."""
         return cls(**dict(data or {}))
+
+
+#: what `coadapt train` starts from for a robot with no shipped policy for the terrain and
+#: design space asked for (issue 53): 16 designs x 16 agents (256 environments, 6 144 samples
+#: an update) and 2 PPO epochs, the rest TrainConfig's defaults. Qilin from scratch, walking
+#: gate at the nominal design and the four corners (benchmarks/time_to_walk.py, two seeds):
+#: docs/training.md ("Time to walk") has the study. Kuafu's shipped policies and the paper's
+#: comparison keep TrainConfig's defaults (128 x 32, 5 epochs).
+NEW_ROBOT_RECIPE: dict[str, Any] = {"num_designs": 16, "agents_per_design": 16, "epochs": 2}
+
+
+def new_robot_config(**given: Any) -> TrainConfig:
+    """TrainConfig with `NEW_ROBOT_RECIPE` over its defaults (and `given` over both)."""
+    return TrainConfig(**{**NEW_ROBOT_RECIPE, **given})

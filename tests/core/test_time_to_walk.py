@@ -63,14 +63,20 @@ def test_checks_leave_the_training_as_it_was_and_out_keeps_each_checkpoint(
         "alternate",
         "alternate_mirror",
     }
-    assert result["train_config"]["epochs"] == 5 and result["train_config"]["num_designs"] == 2
+    # the new-robot recipe's 2 epochs under the options given (2 designs)
+    assert result["train_config"]["epochs"] == 2 and result["train_config"]["num_designs"] == 2
 
 
 def test_the_wall_clock_budget_stops_after_the_first_check(monkeypatch, capsys):
     out = _run(
-        monkeypatch, capsys, "--max-steps", "640", "--eval-every", "1", "--max-seconds", "0.001"
+        monkeypatch,
+        capsys,
+        *("--max-steps", "640", "--eval-every", "1", "--max-seconds", "0.001"),
+        *("--start", "defaults"),
     )
     assert len(out["rows"]) == 1 and out["result"]["interactions"] == 64
+    # TrainConfig's defaults (5 epochs, 4 minibatches) under the options given
+    assert out["result"]["train_config"]["epochs"] == 5
 
 
 def test_corners_are_the_ranges_ends_and_their_two_alternations():
