@@ -6,13 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from coadapt_plugins.objectives.locomotion import TorqueObjective
 
-from coadapt_core.coadapt.config_loading import make_config
-from coadapt_core.coadapt.run import run_coadaptation
 from coadapt_core.coadapt.trend import fit_trend, trend_of_labels
 from coadapt_core.errors import UserError
-from tests.fakes.analytic import NOMINAL, SPACE, AnalyticBackend
+from tests.core.test_surrogate import run
+from tests.fakes.analytic import AnalyticBackend
 
 
 def test_a_planted_plane_is_recovered_in_any_range_and_too_few_labels_give_none():
@@ -39,26 +37,9 @@ def test_a_planted_plane_is_recovered_in_any_range_and_too_few_labels_give_none(
 
 
 def _run(tmp_path, **overrides):
-    config = make_config(
-        "smoke",
-        overrides={
-            "optimizer": "pso",
-            "objective": "torque",
-            "outer_iterations": 2,
-            "population": 8,
-            "optimizer_iterations": 5,
-            "store": "none",
-            "logger": "none",
-            "out": str(tmp_path),
-            **overrides,
-        },
-    )
-    return run_coadaptation(
-        config,
-        backend_factory=lambda seed: AnalyticBackend(seed, buffer_from_training=False),
-        design_space=SPACE,
-        nominal_design=NOMINAL,
-        objectives=[TorqueObjective()],
+    """test_surrogate.py's small PSO run on the analytic fake, its buffer from real rounds."""
+    return run(
+        tmp_path, lambda seed: AnalyticBackend(seed, buffer_from_training=False), **overrides
     )
 
 
