@@ -209,15 +209,15 @@ def _plugins(values: dict[str, Any], robot: str) -> tuple[Any, type, list]:
     )
 
 
-def fresh_train_config(robot: Any, terrain: str, mixed: bool) -> Any:
-    """The train config a new `coadapt train` starts from: TrainConfig's defaults where the
-    robot ships a policy for this terrain and design space (Kuafu's were trained so), else
-    the new-robot recipe (`NEW_ROBOT_RECIPE`, measured in docs/training.md "Time to walk");
-    options given on the command line apply over either."""
+def fresh_train_config(robot: Any, terrain: str, mixed: bool) -> tuple[Any, bool]:
+    """The train config a new `coadapt train` starts from, and whether it is the recipe:
+    TrainConfig's defaults where the robot ships a policy for this terrain and design space
+    (Kuafu's were trained so), else the new-robot recipe (`NEW_ROBOT_RECIPE`, measured in
+    docs/training.md "Time to walk"); options given on the command line apply over either."""
     from coadapt_core.learning.config import TrainConfig, new_robot_config
 
-    shipped = robot.shipped_policy(terrain, mixed)
-    return TrainConfig() if shipped is not None else new_robot_config()
+    recipe = robot.shipped_policy(terrain, mixed) is None
+    return (new_robot_config() if recipe else TrainConfig()), recipe
 
 
 def _build_trainer(
@@ -236,9 +236,10 @@ def _build_trainer(
     from coadapt_core.task.config import TaskConfig
 
     robot_obj, sim_cls, objectives = plugins
-    fresh = None if state else fresh_train_config(robot_obj, values["terrain"], values["mixed"])
-    values["recipe"] = (
-        fresh is not None and robot_obj.shipped_policy(values["terrain"], values["mixed"]) is None
+    fresh, values["recipe"] = (
+        (None, False)
+        if state
+        else fresh_train_config(robot_obj, values["terrain"], values["mixed"])
     )
     try:
         learner = resolve_learner(

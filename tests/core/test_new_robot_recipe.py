@@ -17,9 +17,11 @@ def _qilin():
 
 
 def test_a_shipped_policy_keeps_the_defaults_and_none_takes_the_recipe():
-    shipped = fresh_train_config(_qilin(), "flat", False)  # Qilin ships flat.pt
+    shipped, recipe = fresh_train_config(_qilin(), "flat", False)  # Qilin ships flat.pt
+    assert recipe is False
     assert (shipped.num_designs, shipped.agents_per_design, shipped.epochs) == (128, 32, 5)
-    fresh = fresh_train_config(_qilin(), "slope", False)  # and no slope policy
+    fresh, recipe = fresh_train_config(_qilin(), "slope", False)  # and no slope policy
+    assert recipe is True
     assert (fresh.num_designs, fresh.agents_per_design, fresh.epochs) == (16, 16, 2)
     # the recipe changes only what it names
     base = TrainConfig().to_dict()
