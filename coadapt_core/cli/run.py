@@ -36,7 +36,9 @@ class RunCommand:
         "repeats that run's config.",
     )
     resume: str | None = setting(
-        None, "Resume the run with this id (a folder under --out) or this run folder."
+        None,
+        "Resume the run with this id (a folder under --out) or this run folder; its recorded "
+        "config holds, but --store names the store this session writes to.",
     )
     as_json: bool = setting(False, "Last stdout line: a JSON summary.", names=("--json",))
     video: bool = setting(
@@ -390,6 +392,10 @@ def register(app: typer.Typer) -> None:
         try:
             if values["resume"]:
                 cfg, kwargs = None, {"resume": _resume_folder(values["resume"], values["out"])}
+                if overrides.get("store"):  # rows go there this time, not to the recorded store
+                    from coadapt_core.results.recorders import make_recorder
+
+                    kwargs["recorder"] = make_recorder(kwargs["resume"], overrides["store"])
             else:
                 cfg, kwargs = _new_config(values, overrides), {}
                 if cfg is None:  # --check

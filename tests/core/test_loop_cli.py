@@ -150,6 +150,34 @@ def test_run_json_last_line_and_resume(tmp_path, capsys, fake_learner):
     assert again["best_design"] == line["best_design"]
 
 
+def test_resume_with_store_writes_there_from_any_folder(
+    tmp_path, capsys, fake_learner, monkeypatch
+):
+    """A run started with a relative --store from one folder, resumed from another with
+    --store: the rows go to the store named now (the recorded relative path would miss)."""
+    from coadapt_core.results import ResultsStore
+    from coadapt_core.results.recorders import read_evaluations
+
+    first, second = tmp_path / "a", tmp_path / "b"
+    first.mkdir()
+    second.mkdir()
+    monkeypatch.chdir(first)
+    args = ["run", "--preset", "smoke", "--objective", "torque", "--population", "6"]
+    assert main([*args, "--store", "runs/s.db", "--out", "runs", "--no-video", "--json"]) == 0
+    line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    run_dir = first / "runs" / line["run_id"]
+    monkeypatch.chdir(second)
+    other = second / "other.db"
+    code = main(["run", "--resume", str(run_dir), "--store", str(other), "--no-video", "--json"])
+    assert code == 0, capsys.readouterr().err
+    again = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert again["best_design"] == line["best_design"]
+    with ResultsStore(other) as store:  # the run and every row, refilled from its folder
+        assert store.get_run(line["run_id"])["status"] == "finished"
+        assert store.count_evaluations(line["run_id"]) == len(read_evaluations(run_dir)) > 0
+    assert not (second / "runs").exists()  # nothing made from the recorded relative path
+
+
 def test_run_table_output_and_mixed_pso_uses_motor_types(tmp_path, capsys, fake_learner):
     assert (
         main(
