@@ -76,7 +76,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _config(args):
-    from coadapt_core.learning.config import NEW_ROBOT_RECIPE, TrainConfig
+    from coadapt_core.learning.config import TrainConfig, new_robot_config
 
     fields = {
         "num_designs": args.num_designs,
@@ -89,9 +89,9 @@ def _config(args):
         "entropy_coef": args.entropy_coef,
         "desired_kl": args.desired_kl,
     }
-    start = dict(NEW_ROBOT_RECIPE) if args.start == "recipe" else {}
-    start.update({k: v for k, v in fields.items() if v is not None})
-    return TrainConfig(seed=args.seed, **start)
+    given = {k: v for k, v in fields.items() if v is not None}
+    make = new_robot_config if args.start == "recipe" else TrainConfig
+    return make(seed=args.seed, **given)
 
 
 def corners(space) -> dict[str, np.ndarray]:
