@@ -1,15 +1,30 @@
 """A compiled spec model written as URDF, for the simulators and tools that read URDF
 (PyBullet, Pinocchio): the same bodies, frames, masses, inertias and primitive geoms.
 
-URDF puts a joint's frame at its child link's origin and allows one joint per link, so a
-body with several joints, a joint off its body's origin or a collision mesh has no URDF;
-`urdf_text` then says why in one line and the robot writes MJCF alone.
+URDF puts a joint's frame at its child link's origin and allows one joint per link. A body
+whose hinges are several, or off its origin, becomes a chain: one intermediate link per hinge,
+placed at that hinge's anchor (MuJoCo applies a body's hinges in order, each about its anchor
+in the frame the previous ones turned), then the body's own link, fixed to the last
+intermediate link at minus the last anchor where that is not the body's origin. Every body's
+link frame is then its MuJoCo body frame. Intermediate links carry a tiny mass and inertia
+(`TINY_MASS`, `TINY_INERTIA`; Bullet integrates a zero-mass moving link badly), named
+`<body>__<joint>`; `intermediate_links` lists them. A collision mesh has no URDF (it needs a
+file); `urdf_text` then says why in one line and the robot writes MJCF alone.
 """
 
 from __future__ import annotations
 
+import re
+
 import mujoco
 import numpy as np
+
+#: an intermediate link's mass (kg) and principal moments (kg m^2): a millionth of a small
+#: robot's link, far below anything the dynamics notice, far above Bullet's zero
+TINY_MASS = 1e-6
+TINY_INERTIA = 1e-9
+#: what separates the body and the joint in an intermediate link's name
+SEPARATOR = "__"
 
 
 def _f(x: float) -> str:
@@ -75,6 +90,72 @@ def _link(model: mujoco.MjModel, b: int) -> tuple[str | None, str]:
     return None, "".join(parts) + "</link>"
 
 
+def _tiny_link(name: str) -> str:
+    i = _f(TINY_INERTIA)
+    return (
+        f'  <link name="{name}"><inertial><origin xyz="0 0 0" rpy="0 0 0"/>'
+        f'<mass value="{_f(TINY_MASS)}"/><inertia ixx="{i}" ixy="0" ixz="0" iyy="{i}" '
+        f'iyz="0" izz="{i}"/></inertial></link>'
+    )
+
+
+def intermediate_links(urdf: str) -> list[str]:
+    """The names of the intermediate links `urdf_text` wrote into `urdf`."""
+    pattern = re.escape(_tiny_link("@")).replace("@", f'([^"]*{SEPARATOR}[^"]*)')
+    return re.findall(pattern, urdf)
+
+
+def _joints(model: mujoco.MjModel, b: int, limit: dict) -> list[str]:
+    """The joint elements, and intermediate links, that hang body b below its parent."""
+    name, parent = model.body(b).name, model.body(int(model.body_parentid[b])).name
+    hinges = [j for j in range(model.njnt) if model.jnt_bodyid[j] == b]
+    body_origin = (
+        np.array(model.body_pos[b], dtype=float), _rpy(model.body_quat[b])
+    )  # fmt: skip
+    if not hinges:
+        return [
+            f'  <joint name="{name}_fixed" type="fixed">'
+            f'<origin xyz="{_v(body_origin[0])}" rpy="{_v(body_origin[1])}"/>'
+            f'<parent link="{parent}"/><child link="{name}"/></joint>'
+        ]
+    out = []
+    rot = np.zeros(9)
+    mujoco.mju_quat2Mat(rot, model.body_quat[b])
+    previous, anchor = parent, None
+    for k, j in enumerate(hinges):
+        jname = model.joint(j).name
+        here = np.array(model.jnt_pos[j], dtype=float)
+        last = k == len(hinges) - 1
+        exact = last and np.linalg.norm(here) <= 1e-12
+        child = name if exact else f"{name}{SEPARATOR}{jname}"
+        if anchor is None:  # the first hinge: the body's offset and turn, then its anchor
+            xyz, rpy = body_origin[0], body_origin[1]
+            if np.linalg.norm(here) > 1e-12:
+                xyz = xyz + rot.reshape(3, 3) @ here
+        else:
+            xyz, rpy = here - anchor, np.zeros(3)
+        effort, velocity = limit[jname]
+        lo, hi = model.jnt_range[j]
+        damping = model.dof_damping[model.jnt_dofadr[j]]
+        if not exact:
+            out.append(_tiny_link(child))
+        out.append(
+            f'  <joint name="{jname}" type="revolute"><origin xyz="{_v(xyz)}" rpy="{_v(rpy)}"/>'
+            f'<parent link="{previous}"/><child link="{child}"/>'
+            f'<axis xyz="{_v(model.jnt_axis[j])}"/>'
+            f'<limit lower="{_f(lo)}" upper="{_f(hi)}" effort="{_f(effort)}" '
+            f'velocity="{_f(velocity)}"/><dynamics damping="{_f(damping)}" friction="0"/></joint>'
+        )
+        previous, anchor = child, here
+    if previous != name:
+        out.append(
+            f'  <joint name="{name}_fixed" type="fixed">'
+            f'<origin xyz="{_v(-anchor)}" rpy="0 0 0"/>'
+            f'<parent link="{previous}"/><child link="{name}"/></joint>'
+        )
+    return out
+
+
 def urdf_text(
     model: mujoco.MjModel, name: str, joints: list[str], torque: np.ndarray, speed: np.ndarray
 ) -> tuple[str | None, str]:
@@ -87,29 +168,6 @@ def urdf_text(
         if why:
             return None, why
         out.append(link)
-        parent = int(model.body_parentid[b])
-        if parent == 0:
-            continue
-        hinges = [j for j in range(model.njnt) if model.jnt_bodyid[j] == b]
-        if len(hinges) > 1:
-            return None, f"body '{model.body(b).name}' has {len(hinges)} joints (URDF: one a link)"
-        origin = (
-            f'<origin xyz="{_v(model.body_pos[b])}" rpy="{_v(_rpy(model.body_quat[b]))}"/>'
-            f'<parent link="{model.body(parent).name}"/><child link="{model.body(b).name}"/>'
-        )
-        if not hinges:
-            out.append(f'  <joint name="{model.body(b).name}_fixed" type="fixed">{origin}</joint>')
-            continue
-        j = hinges[0]
-        if np.linalg.norm(model.jnt_pos[j]) > 1e-12:
-            return None, f"joint '{model.joint(j).name}' is off its body's origin"
-        jname = model.joint(j).name
-        effort, velocity = limit[jname]
-        lo, hi = model.jnt_range[j]
-        damping = model.dof_damping[model.jnt_dofadr[j]]
-        out.append(
-            f'  <joint name="{jname}" type="revolute">{origin}<axis xyz="{_v(model.jnt_axis[j])}"/>'
-            f'<limit lower="{_f(lo)}" upper="{_f(hi)}" effort="{_f(effort)}" '
-            f'velocity="{_f(velocity)}"/><dynamics damping="{_f(damping)}" friction="0"/></joint>'
-        )
+        if int(model.body_parentid[b]) != 0:
+            out += _joints(model, b, limit)
     return "\n".join([*out, "</robot>", ""]), ""

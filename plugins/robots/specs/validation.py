@@ -148,6 +148,26 @@ def _statics(rm: RobotModel, model: mujoco.MjModel, data: mujoco.MjData) -> Find
     )
 
 
+def _coordinate(pin, pmodel, model: mujoco.MjModel, name: str) -> int:
+    """The index in Pinocchio's configuration of MuJoCo's hinge `name`. Pinocchio merges the
+    hinges of one MJCF body into one composite joint (nq > 1, named after none of them but
+    the first): its coordinates follow the body's hinges in MuJoCo's order."""
+    j = pmodel.getJointId(name)
+    if j < pmodel.njoints and pmodel.joints[j].nq == 1:
+        return int(pmodel.joints[j].idx_q)
+    jid = model.joint(name).id
+    body = int(model.jnt_bodyid[jid])
+    hinges = [h for h in range(model.njnt) if model.jnt_bodyid[h] == body]
+    frame = pmodel.frames[pmodel.getFrameId(model.body(body).name)]
+    joint = pmodel.joints[frame.parentJoint]
+    if joint.nq != len(hinges):
+        raise ValueError(
+            f"Pinocchio's joint of body '{model.body(body).name}' has {joint.nq} coordinates, "
+            f"MuJoCo's {len(hinges)} hinges"
+        )
+    return int(joint.idx_q) + hinges.index(jid)
+
+
 def _pinocchio(rm: RobotModel, model: mujoco.MjModel, data: mujoco.MjData) -> list[Finding]:
     import pinocchio as pin
 
@@ -169,12 +189,25 @@ def _pinocchio(rm: RobotModel, model: mujoco.MjModel, data: mujoco.MjData) -> li
     pdata = pmodel.createData()
     q = pin.neutral(pmodel)
     q[:3] = [0.0, 0.0, rm.standing_base_height]
-    for name, angle in zip(rm.joint_names, rm.default_joint_pos, strict=True):
-        q[pmodel.joints[pmodel.getJointId(name)].idx_q] = angle
+    try:
+        for name, angle in zip(rm.joint_names, rm.default_joint_pos, strict=True):
+            q[_coordinate(pin, pmodel, model, name)] = angle
+    except ValueError as exc:
+        return [Finding("consistency.pinocchio", False, f"Pinocchio ({source}): {exc}")]
     pin.forwardKinematics(pmodel, pdata, q)
     pin.updateFramePlacements(pmodel, pdata)
     mass = float(sum(pmodel.inertias[i].mass for i in range(pmodel.njoints)))
     com = pin.centerOfMass(pmodel, pdata, q)
+    extra = ""
+    if source == "URDF":  # leave out the tiny intermediate links the URDF adds for Bullet
+        from coadapt_plugins.robots.specs.urdf import TINY_MASS, intermediate_links
+
+        tiny = intermediate_links(rm.text("urdf"))
+        if tiny:
+            where = sum(pdata.oMf[pmodel.getFrameId(n)].translation for n in tiny)
+            com = (mass * com - TINY_MASS * where) / (mass - TINY_MASS * len(tiny))
+            mass -= TINY_MASS * len(tiny)
+            extra = f" ({len(tiny)} intermediate links of {TINY_MASS:g} kg left out)"
     mj_com = data.subtree_com[model.body(rm.base_body).id]
     feet = max(
         float(
@@ -190,7 +223,7 @@ def _pinocchio(rm: RobotModel, model: mujoco.MjModel, data: mujoco.MjData) -> li
             "consistency.pinocchio",
             gap <= CONSISTENCY_TOL,
             f"Pinocchio ({source}) against MuJoCo: mass, centre of mass and feet agree within "
-            f"{gap:.1e}",
+            f"{gap:.1e}{extra}",
             gap,
             CONSISTENCY_TOL,
         )
