@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from coadapt_core.analysis.facts import RunFacts, as_float, run_facts
+from coadapt_core.analysis.figures import cost_unit
 from coadapt_core.analysis.pareto_figure import hv_text, pareto_points
 from coadapt_core.analysis.pareto_report import pareto_rows
 from coadapt_core.analysis.report_figures import convergence_series
@@ -50,9 +51,19 @@ RUN_FIELDS = (
     "updated_at",
     "finished_at",
 )
-#: a training phase's measurements the page draws besides its reward: the episode length (s),
-#: the forward speed (m/s) and the velocity tracking error the learner reports
-TRAINING_EXTRAS = ("episode_length_s", "vx", "tracking_error")
+#: a training phase's measurements the page draws besides its reward, one chart per unit
+#: (their scales differ tenfold): (unit, chart title, [(key, name)]) — the forward speed and
+#: the velocity tracking error (mean |v_xy_cmd - v_xy|, `learning.iteration_stats`) in m/s,
+#: the episode length in s
+TRAINING_MEASURES = (
+    (
+        "m/s",
+        "Training phases: forward speed and velocity tracking error",
+        (("vx", "forward speed"), ("tracking_error", "tracking error |v_cmd − v|")),
+    ),
+    ("s", "Training phases: episode length", (("episode_length_s", "episode length"),)),
+)
+TRAINING_EXTRAS = tuple(key for _, _, series in TRAINING_MEASURES for key, _ in series)
 
 
 def _finite(values: Any) -> list[float | None]:
@@ -109,13 +120,26 @@ def _convergence(store: ResultsStore, facts: RunFacts) -> dict[str, Any]:
         return {"x": [], "y": [], "final": None, "note": "no real evaluation recorded yet"}
     x, y = convergence_series(store, facts)
     final = None
-    if facts.best_cost is not None and facts.summary.get("best_cost") is not None:
+    summary = facts.summary
+    if facts.best_cost is not None and summary.get("best_cost") is not None:
+        # as the run folder's convergence.png: the final check sits after the curve by the
+        # check's own interactions, the nominal design's final-check cost is a line
         final = {
             "cost": facts.best_cost,
-            "se": as_float(facts.summary.get("best_cost_se")),
+            "se": as_float(summary.get("best_cost_se")),
+            "interactions": int(as_float(summary.get("final_interactions")) or 0),
             "nominal": facts.nominal_cost,
+            "nominal_se": as_float(summary.get("nominal_cost_se")),
         }
-    return {"x": _finite(x), "y": _finite(y), "final": final, "note": ""}
+    objective = facts.run["objectives"][0]
+    unit = cost_unit(objective, [summary])
+    return {
+        "x": _finite(x),
+        "y": _finite(y),
+        "final": final,
+        "note": "",
+        "y_label": f"{objective} cost per step{unit}",
+    }
 
 
 def _pareto(facts: RunFacts) -> dict[str, Any] | None:
@@ -172,6 +196,10 @@ def run_page(store: ResultsStore, folders: RunFolders, run_id: str) -> dict[str,
         "convergence": _convergence(store, facts),
         "surrogate_error": _surrogate_error(facts),
         "pareto": _pareto(facts),
+        "training_measures": [
+            {"unit": unit, "title": title, "series": [list(s) for s in series]}
+            for unit, title, series in TRAINING_MEASURES
+        ],
         "training": [
             {
                 "outer": t["outer"],

@@ -70,6 +70,18 @@ def light_facts(run: dict[str, Any], real: Sequence[Evaluation] = ()) -> RunFact
     )
 
 
+def points_cell(difference: float | None, se: float | None) -> str:
+    """A fall-rate difference (best - nominal, a share) in percentage points, signed, as the
+    CLI says it ("+1.6 ± 0.5 points SE (n=1)"): a difference of two rates is no percentage
+    of anything."""
+    if difference is None or not math.isfinite(difference):
+        return "n/a"
+    text = f"{100 * difference:+.1f}"
+    if se is not None and math.isfinite(se):
+        return f"{text} ± {100 * se:.1f} points SE (n=1)"
+    return f"{text} points (n=1)"
+
+
 def report_cells(facts: RunFacts) -> dict[str, Any]:
     """The run's figures as the report's Table 6 shows them: best design (per variable),
     best and nominal cost, improvement under the cost rule and the plain mean, fall rates and
@@ -77,12 +89,6 @@ def report_cells(facts: RunFacts) -> dict[str, Any]:
     rows = table6_rows([facts])  # none for a landscape run
     row = rows[0] if rows else {}
     summary = facts.summary
-    difference = {
-        "d": as_float(summary.get("fall_rate_difference")),
-        "d_se": as_float(summary.get("fall_rate_difference_se")),
-        "d_std": None,
-        "d_n": 1,
-    }
     return {
         "best_design": [
             [name, design_cell(row, name, discrete)]
@@ -96,7 +102,10 @@ def report_cells(facts: RunFacts) -> dict[str, Any]:
         "fall_rates": cell(row, "best_fall_rate", pct=True)
         + " / "
         + cell(row, "nominal_fall_rate", pct=True),
-        "fall_rate_difference": cell(difference, "d", pct=True),
+        "fall_rate_difference": points_cell(
+            as_float(summary.get("fall_rate_difference")),
+            as_float(summary.get("fall_rate_difference_se")),
+        ),
         "reduction": cell(row, "reduction", pct=True) if row.get("reduction_differs") else "",
     }
 

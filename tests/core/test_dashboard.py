@@ -28,6 +28,8 @@ SUMMARY = {
     "best_cost": 1.0123,
     "best_cost_se": 0.004,
     "nominal_cost": 1.155,
+    "nominal_cost_se": 0.005,
+    "final_interactions": 5000,
     "improvement": 0.1234,
     "improvement_se": 0.0081,
     "fall_rate_difference": 0.016,
@@ -217,13 +219,33 @@ def test_the_json_holds_the_reports_numbers(small):
         served.close()
     assert data["report"]["improvement"] == cell(row, "improvement", pct=True)
     assert data["report"]["improvement"] == "12.3% ± 0.8% SE (n=1)"
-    assert data["report"]["fall_rate_difference"] == "1.6% ± 0.5% SE (n=1)"
+    # a difference of two fall rates is in points, signed, as the CLI says it
+    assert data["report"]["fall_rate_difference"] == "+1.6 ± 0.5 points SE (n=1)"
     assert data["report"]["best_design"] == [
         ["thigh_scale", "0.612 (n=1)"],
         ["shank_scale", "0.587 (n=1)"],
     ]
     assert data["counts"] == {"real": 16, "surrogate": 4}
     assert data["files"] == ["best_vs_nominal.gif"]
+    # the convergence chart as the run folder's convergence.png: the cost's unit on its axis,
+    # the final check +- SE after the curve by its own interactions, the nominal line
+    convergence = data["convergence"]
+    assert convergence["y_label"] == "torque cost per step [(Nm)^2]"
+    assert convergence["final"] == {
+        "cost": 1.0123,
+        "se": 0.004,
+        "interactions": 5000,
+        "nominal": 1.155,
+        "nominal_se": 0.005,
+    }
+    assert convergence["x"][-1] == 2 * 10_000 + 16 * 1000  # training steps + real evaluations
+    # what the learner measured: one chart per unit, each phase's values
+    assert [(m["unit"], [k for k, _ in m["series"]]) for m in data["training_measures"]] == [
+        ("m/s", ["vx", "tracking_error"]),
+        ("s", ["episode_length_s"]),
+    ]
+    assert [t["vx"] for t in data["training"]] == pytest.approx([0.35, 0.45])
+    assert [t["episode_length_s"] for t in data["training"]] == [8.0, 12.0]
 
 
 def test_unknown_runs_and_hostile_ids_are_one_line_not_a_traceback(small):

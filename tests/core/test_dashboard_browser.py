@@ -35,6 +35,7 @@ SUMMARY = {
     "best_cost_se": 0.004,
     "nominal_cost": 1.155,
     "nominal_cost_se": 0.005,
+    "final_interactions": 4000,
     "improvement": 0.1234,
     "improvement_se": 0.0081,
     "improvement_plain": 0.101,
@@ -55,6 +56,13 @@ FRONT = {
     "hypervolume": 0.4321,
     "hypervolume_se": 0.0123,
 }
+
+
+#: each chart of a page: its title, axis titles and the labels of its series
+CHARTS = """return [...document.querySelectorAll('svg.chart')].map(s => ({
+  title: s.getAttribute('aria-label'),
+  x: s.querySelector('.x-title').textContent, y: s.querySelector('.y-title').textContent,
+  series: [...s.querySelectorAll('g.series')].map(g => g.dataset.label)}));"""
 
 
 def shots(tmp: Path) -> list[Path]:
@@ -125,7 +133,7 @@ def test_runs_page_lists_every_run_with_its_numbers(world):
     row = next(line for line in table.splitlines() if SINGLE in line)
     assert "finished" in row and "thigh_scale 0.612, shank_scale 0.587" in row
     assert "12.3% ± 0.8% SE (n=1)" in row  # improvement +- SE as `coadapt report` writes it
-    assert "1.6% ± 0.5% SE (n=1)" in row  # fall-rate difference
+    assert "+1.6 ± 0.5 points SE (n=1)" in row  # fall-rate difference, in points
     running = next(line for line in table.splitlines() if RUNNING in line)
     assert "running" in running and "outer 2/2" in running and "36,000 interactions" in running
     assert GRID in b.text("#grids") and "2 finished" in b.text("#grids")
@@ -162,8 +170,58 @@ def test_a_runs_page_shows_its_report_numbers_charts_gif_and_commands(world):
         or "2.0%" in summary
     )
     assert b.text("#eval-count").startswith("20 rows: 16 real, 4 surrogate")
-    # convergence, designs, surrogate error, training reward, training measurements
-    assert b.run("return document.querySelectorAll('svg.chart').length;") == 5
+    assert "+1.6 ± 0.5 points SE (n=1)" in summary  # a fall-rate difference is in points
+    # convergence, designs, surrogate error, training reward, and what the learner measured:
+    # one chart per unit (speed and tracking error in m/s, episode length in s)
+    charts = {c["title"]: c for c in b.run(CHARTS)}
+    axes = {title: (c["x"], c["y"]) for title, c in charts.items()}
+    assert axes == {
+        "Convergence: best in-run torque cost so far": (
+            "environment interactions",
+            "torque cost per step [(Nm)^2]",
+        ),
+        "Evaluated designs, coloured by torque cost (circle: real, square: surrogate)": (
+            "thigh_scale [x 0.35 m]",  # the design variables with their units
+            "shank_scale [x 0.35 m]",
+        ),
+        "Surrogate error by round (surrogate − real, % of real)": (
+            "outer iteration",
+            "relative error (%)",
+        ),
+        "Training phases: final mean reward": (
+            "training interactions (cumulative)",
+            "mean reward per step",
+        ),
+        "Training phases: forward speed and velocity tracking error": (
+            "training interactions (cumulative)",
+            "m/s",
+        ),
+        "Training phases: episode length": ("training interactions (cumulative)", "s"),
+    }
+    speed = charts["Training phases: forward speed and velocity tracking error"]["series"]
+    assert speed == ["forward speed (m/s)", "tracking error |v_cmd − v| (m/s)"]
+    assert charts["Training phases: episode length"]["series"] == ["episode length (s)"]
+    # the convergence chart has what the run folder's convergence.png has: the final check
+    # +- its SE after the curve, by the check's own interactions, and the nominal line
+    convergence = charts["Convergence: best in-run torque cost so far"]
+    assert convergence["series"] == [
+        "in-run best (own scenarios)",
+        "final check ± SE (fresh scenarios)",
+        "nominal design (final check)",
+    ]
+    final = b.run(
+        "const g = document.querySelector('svg.chart g.series[data-label^=\"final check\"]');"
+        "return [g.querySelector('title').textContent, g.querySelectorAll('line').length];"
+    )
+    # 2 phases of 10 000 steps + 16 real evaluations of 1 000, then the check's 4 000
+    assert final == ["final check ± SE (fresh scenarios) (40000, 1.012) ± 0.004", 1]
+    nominal = b.run(
+        "const g = document.querySelector('svg.chart g.series[data-label^=\"nominal\"] path');"
+        "return [g.getAttribute('stroke-dasharray'), g.getAttribute('d')];"
+    )
+    assert nominal[0] == "2,4"
+    ys = {p.split(",")[1] for p in nominal[1][1:].split("L")}
+    assert len(ys) == 1  # a horizontal line
     assert b.run("return document.querySelector('img.gif').naturalWidth;") == 1
     commands = b.text("#commands")
     assert f"coadapt run --resume {world['tmp'] / 'runs' / SINGLE}" in commands
@@ -199,6 +257,8 @@ def test_a_grids_page_shows_its_cells_by_state_and_the_tables(world):
     b.go(world["url"] + "?grid=" + GRID)  # the link to its runs: the runs table filtered
     assert b.wait_text("#run-count").startswith("2 runs")
     assert SINGLE in b.text("#runs") and HOSTILE not in b.text("#runs")
+    b.go(world["url"] + "?q=" + SINGLE)  # one run: "1 run", not "1 runs"
+    assert b.wait_text("#run-count") == "1 run of 6 shown (the store: 4 finished, 2 running)"
 
 
 def test_the_compare_page_sets_runs_side_by_side(world):
@@ -273,6 +333,8 @@ def test_a_running_runs_page_shows_new_rows_within_10_s_without_a_reload(world, 
         print(f"new rows shown {len(lags)} times, after {max(lags):.1f} s at most")
         assert b.run("return window.sameDocument === true;")  # never reloaded
         b.wait_text("#summary", timeout=15, contains="finished")
+        b.go(served.url)  # a store of one run says so in the singular
+        assert b.wait_text("#run-count") == "1 run: 1 finished"
     finally:
         if proc.poll() is None:
             proc.terminate()

@@ -192,7 +192,11 @@ def add_run(
             steps=10_000,
             seconds=2.0,
             final_reward=0.3 + 0.1 * outer,
-            extra={"vx": 0.35 + 0.1 * outer, "tracking_error": 0.2 - 0.05 * outer},
+            extra={
+                "vx": 0.35 + 0.1 * outer,
+                "tracking_error": 0.2 - 0.05 * outer,
+                "episode_length_s": 8.0 + 4.0 * outer,
+            },
         )
         for inner in range(2):
             designs = rng.uniform(0.5, 1.5, size=(4, 2))

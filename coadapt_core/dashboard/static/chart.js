@@ -88,9 +88,12 @@
   }
 
   function plot(container, spec) {
-    const W = spec.width || 520, H = spec.height || 320;
     const colored = spec.series.some(s => s.values);
-    const M = { top: 24, right: colored ? 90 : 16, bottom: 44, left: 64 };
+    // legend "below": under the x axis's title, the chart taller by its lines (for a chart
+    // whose lines fill every corner); otherwise inside the plot's top left corner
+    const below = spec.legend === "below" ? spec.series.filter(s => s.label).length : 0;
+    const W = spec.width || 520, H = (spec.height || 320) + 16 * below;
+    const M = { top: 24, right: colored ? 90 : 16, bottom: 44 + 16 * below, left: 64 };
     const svg = node("svg", { viewBox: `0 0 ${W} ${H}`, width: W, height: H, class: "chart", role: "img" });
     if (spec.title) svg.setAttribute("aria-label", spec.title);
     const series = spec.series.filter(s => s.points && s.points.length);
@@ -108,8 +111,8 @@
       text(axes, M.left - 6, sy(t) + 4, label(t), { class: "tick", "text-anchor": "end" });
     }
     node("rect", { x: M.left, y: M.top, width: W - M.left - M.right, height: H - M.top - M.bottom, class: "frame" }, axes);
-    text(axes, (M.left + W - M.right) / 2, H - 8, spec.xLabel || "", { class: "axis-title", "text-anchor": "middle" });
-    const yt = text(axes, 14, (M.top + H - M.bottom) / 2, spec.yLabel || "", { class: "axis-title", "text-anchor": "middle" });
+    text(axes, (M.left + W - M.right) / 2, H - M.bottom + 36, spec.xLabel || "", { class: "axis-title x-title", "text-anchor": "middle" });
+    const yt = text(axes, 14, (M.top + H - M.bottom) / 2, spec.yLabel || "", { class: "axis-title y-title", "text-anchor": "middle" });
     yt.setAttribute("transform", `rotate(-90 14 ${(M.top + H - M.bottom) / 2})`);
     if (spec.title) text(svg, M.left, 15, spec.title, { class: "chart-title" });
     let vlo = Infinity, vhi = -Infinity;
@@ -148,12 +151,22 @@
     const legend = series.filter(s => s.label);
     if (legend.length > 1 || spec.legend) {
       const g = node("g", { class: "legend" }, svg);
+      const top = below ? H - M.bottom + 44 : M.top;
+      if (!below) {  // a pale box behind the entries, so that a line under them stays legible
+        const wide = Math.max(...legend.map(s => String(s.label).length)) * 6.2 + 30;
+        node("rect", { x: M.left + 2, y: top + 2, width: Math.min(wide, W - M.left - M.right - 4), height: 16 * legend.length + 4,
+          fill: "white", "fill-opacity": 0.85, stroke: "#ddd", class: "legend-box" }, g);
+      }
       legend.forEach((s, k) => {
-        const y = M.top + 10 + 16 * k, x = M.left + 10;
+        const y = top + 10 + 16 * k, x = M.left + 10;
         // a series coloured by its values has no colour of its own: its legend marker is grey
         const c = s.values ? "#666" : s.color || PALETTE[spec.series.indexOf(s) % PALETTE.length];
-        marker(g, s.shape, x, y - 4, 4, c, s.filled !== false);
-        text(g, x + 10, y, s.label, { class: "legend-text" });
+        // a line's entry is a short stretch of it (dashed as it is), a point's its marker
+        if (s.kind === "line" || s.kind === "step") {
+          node("line", { x1: x - 7, x2: x + 7, y1: y - 4, y2: y - 4, stroke: c, "stroke-width": 1.8, "stroke-dasharray": s.dash || "" }, g);
+        }
+        if (s.kind === "points" || s.markers) marker(g, s.shape, x, y - 4, 4, c, s.filled !== false);
+        text(g, x + 12, y, s.label, { class: "legend-text" });
       });
     }
     container.appendChild(svg);

@@ -23,6 +23,9 @@
     return n;
   }
 
+  // "1 run", "2 runs": a count with its noun, singular for one
+  function count(n, noun, plural) { return `${n} ${Number(n) === 1 ? noun : plural || noun + "s"}`; }
+
   function link(href, content) { return el("a", { href: href, text: content }); }
   function runHref(id) { return "/run/" + encodeURIComponent(id); }
   function gridHref(id) { return "/grid/" + encodeURIComponent(id); }
@@ -106,6 +109,12 @@
     return table(head, body, { id: "runs" });
   }
 
+  // "1 run: 1 finished"; a search or filter says how many of the store's runs it shows
+  function runCount(data, states) {
+    const all = Object.values(data.states).reduce((a, n) => a + n, 0);
+    return data.total === all ? `${count(all, "run")}: ${states}` : `${count(data.total, "run")} of ${all} shown (the store: ${states})`;
+  }
+
   async function runsPage() {
     const params = new URLSearchParams(query);
     const data = await getJSON("/api/runs?" + params.toString());
@@ -120,14 +129,14 @@
       data.page + 1 < data.pages ? link("?" + withPage(data.page + 1), "next") : "");
     const grids = data.grids.length ? [el("h2", { text: "Grids" }), table(["grid", "cells by state"],
       data.grids.map(g => [link(gridHref(g.id), g.id), Object.entries(g.cells).map(([s, n]) => `${n} ${s}`).join(", ")]), { id: "grids" })] : [];
-    main.replaceChildren(el("h1", { text: "Runs" }), el("p", { id: "run-count", text: `${data.total} runs: ${states}` }),
+    main.replaceChildren(el("h1", { text: "Runs" }), el("p", { id: "run-count", text: runCount(data, states) }),
       runsControls(data), compare, runsTable(data.rows), pages, ...grids);
     poll(runsPage, data.rows.some(r => r.status === "running"));
   }
 
   function withPage(n) { const p = new URLSearchParams(query); p.set("page", n); return p.toString(); }
 
-  window.CoDashboard = { el, link, table, facts, getJSON, failed, poll, progressText, designText, show, when, runHref, gridHref, fileHref, duration };
+  window.CoDashboard = { el, count, link, table, facts, getJSON, failed, poll, progressText, designText, show, when, runHref, gridHref, fileHref, duration };
 
   const pages = { runs: runsPage };
   window.CoDashboardPages = pages;

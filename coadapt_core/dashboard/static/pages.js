@@ -13,13 +13,29 @@
     return box;
   }
 
+  // as the run folder's convergence.png (report_figures): the best so far as a step line, the
+  // final check ± SE after it (by the check's own interactions), the nominal design's cost in
+  // the same check as a dotted line
   function convergenceSeries(c, label, color) {
     const out = [{ label: label, kind: "step", color: color, points: c.x.map((x, i) => [x, c.y[i]]) }];
     if (c.final && c.x.length) {
-      out.push({ label: "final check ± SE", kind: "points", shape: "square", color: color, filled: true,
-        points: [[c.x[c.x.length - 1], c.final.cost]], err: [c.final.se] });
+      const end = c.x[c.x.length - 1] + (c.final.interactions || 0);
+      out.push({ label: "final check ± SE (fresh scenarios)", kind: "points", shape: "square", color: color, filled: false,
+        points: [[end, c.final.cost]], err: [c.final.se] });
+      if (c.final.nominal !== null && c.final.nominal !== undefined) {
+        out.push({ label: "nominal design (final check)", kind: "line", dash: "2,4", color: "#555",
+          points: [[c.x[0], c.final.nominal], [end, c.final.nominal]] });
+      }
     }
     return out;
+  }
+
+  // what the learner measured, one chart per unit (their scales differ tenfold)
+  function measureCharts(t, training, measures) {
+    return measures.map(m => chart({ title: m.title, xLabel: "training interactions (cumulative)", yLabel: m.unit, legend: "below",
+      empty: "the phases recorded no " + m.series.map(s => s[1]).join(" or "),
+      series: m.series.map(([key, name]) => ({ label: name + " (" + m.unit + ")", kind: "line", markers: true,
+        points: t.map((p, i) => [training[i][0], p[key]]).filter(q => q[1] !== null && q[1] !== undefined) })).filter(s => s.points.length) }));
   }
 
   function designChart(data) {
@@ -75,7 +91,7 @@
   function evaluationsBlock(data) {
     const names = data.design_names, objectives = data.run.objectives;
     const counts = Object.entries(data.counts).map(([k, n]) => `${n} ${k}`).join(", ");
-    return [el("h2", { text: "Evaluations" }), el("p", { id: "eval-count", "data-rows": data.evaluations.length, text: `${data.evaluations.length} rows: ${counts || "none yet"}` }),
+    return [el("h2", { text: "Evaluations" }), el("p", { id: "eval-count", "data-rows": data.evaluations.length, text: `${D.count(data.evaluations.length, "row")}: ${counts || "none yet"}` }),
       el("details", { class: "scroll", id: "rows-box", open: data.evaluations.length <= 200 }, el("summary", { text: "every row" }), D.table(["outer", "inner", "idx", "kind", ...names, ...objectives.map(o => o + " cost"), "surrogate error"],
         data.evaluations.map(e => [e.outer, e.inner, e.idx, e.kind, ...names.map((_, i) => e.design[i] === undefined ? "" : Number(e.design[i]).toFixed(4)),
           ...objectives.map(o => e.costs[o] === undefined || e.costs[o] === null ? "" : Number(e.costs[o]).toPrecision(5)),
@@ -104,13 +120,12 @@
       el("h1", { id: "run-id", text: data.run.id }), summaryBlock(data),
       el("h2", { text: "Charts" }),
       el("div", { class: "charts" },
-        chart({ title: "Convergence: best in-run " + firstObjective + " cost so far (square: final check ± SE)", xLabel: "environment interactions", yLabel: firstObjective + " cost", empty: c.note, series: convergenceSeries(c, "best so far", "#1f77b4") }),
+        chart({ title: "Convergence: best in-run " + firstObjective + " cost so far", xLabel: "environment interactions", yLabel: c.y_label || firstObjective + " cost",
+          legend: "below", empty: c.note, series: convergenceSeries(c, "in-run best (own scenarios)", "#1f77b4") }),
         designChart(data),
         chart({ title: "Surrogate error by round (surrogate − real, % of real)", xLabel: "outer iteration", yLabel: "relative error (%)", series: surrogate }),
-        chart({ title: "Training phases: final mean reward", xLabel: "training interactions (cumulative)", yLabel: "mean reward", series: [{ label: "phase", kind: "line", markers: true, points: training }] }),
-        chart({ title: "Training phases: what the learner measured", xLabel: "training interactions (cumulative)", yLabel: "value", legend: true, empty: "the phases recorded no measurements",
-          series: [["vx", "forward speed (m/s)"], ["tracking_error", "tracking error"], ["episode_length_s", "episode length (s)"]].map(([key, name]) => ({ label: name, kind: "line", markers: true,
-            points: t.map((p, i) => [training[i][0], p[key]]).filter(q => q[1] !== null && q[1] !== undefined) })).filter(s => s.points.length) })),
+        chart({ title: "Training phases: final mean reward", xLabel: "training interactions (cumulative)", yLabel: "mean reward per step", series: [{ label: "phase", kind: "line", markers: true, points: training }] }),
+        ...measureCharts(t, training, data.training_measures || [])),
       ...paretoBlock(data.pareto), ...filesBlock(data),
       el("h2", { text: "Commands" }), el("pre", { id: "commands", text: data.commands.resume + "\n" + data.commands.handoff }),
       ...evaluationsBlock(data),
@@ -150,7 +165,7 @@
       ["improvement ± SE", r => r.report.improvement], ["improvement (plain mean)", r => r.report.improvement_plain],
       ["fall-rate difference", r => r.report.fall_rate_difference], ["designs evaluated", r => r.evaluated], ["warnings", r => r.warnings.join("; ") || "none"]];
     const series = runs.flatMap((r, i) => r.convergence.x.length ? [{ label: r.run.id, kind: "step", color: window.CoChart.color(i), points: r.convergence.x.map((x, k) => [x, r.convergence.y[k]]) }] : []);
-    main.replaceChildren(el("h1", { text: "Compare " + runs.length + " runs" }),
+    main.replaceChildren(el("h1", { text: "Compare " + D.count(runs.length, "run") }),
       el("div", { class: "scroll" }, D.table(["", ...runs.map(r => D.link(D.runHref(r.run.id), r.run.id))], rows.map(([k, f]) => [k, ...runs.map(f)]), { id: "compare-table" })),
       chart({ title: "Convergence: best in-run cost so far", xLabel: "environment interactions", yLabel: "cost", legend: true, series: series, width: 720 }));
     D.poll(comparePage, runs.some(r => r.run.status === "running"));
