@@ -7,7 +7,9 @@ writes a checkpoint and evaluates it as `coadapt train`'s verdict does (`evaluat
 `--eval-agents` agents x `--eval-seconds` under the verdict's command, randomization as in
 training) at the nominal design and four corners of the design range (all lower bounds, all
 upper, and the two alternating lower/upper by dimension). Walking: the walking gate
-(`coadapt_core.coadapt.reliability`) holds at all five. The evaluations and the ceilings are
+(`coadapt_core.coadapt.reliability`) holds at all five. The loop, the check and the random
+state's restore after it are `coadapt train --until-walks`'s
+(`coadapt_core.experiments.walking_check`). The evaluations and the ceilings are
 excluded from the wall clock. Prints one JSON line per evaluation on stderr and, at the end,
 JSON: the interactions and training seconds until walking (null if the budget ran out), the
 curve, the physics ceiling and the learner's ceiling measured in the same run, the load.
@@ -17,7 +19,8 @@ curve, the physics ceiling and the learner's ceiling measured in the same run, t
     .venv/bin/python benchmarks/time_to_walk.py --robot qilin --max-steps 20000 --eval-every 2
     .venv/bin/python benchmarks/time_to_walk.py --robot qilin --max-seconds 3600 --out runs/ttw
 
-`--max-seconds` bounds the training's wall clock (checked between checks); `--out` keeps
+`--max-seconds` bounds the training's wall clock (checked after every iteration; the last
+iteration it allows is checked too); `--out` keeps
 every check's checkpoint (`check_<iteration>.pt`, for `coadapt eval --checkpoint`).
 """
 
@@ -94,44 +97,6 @@ def _config(args):
     return make(seed=args.seed, **given)
 
 
-def corners(space) -> dict[str, np.ndarray]:
-    """The nominal design's four companions: all lower bounds, all upper, and the two that
-    alternate lower/upper by dimension."""
-    lo, hi = np.asarray(space.lower, float), np.asarray(space.upper, float)
-    odd = np.arange(len(lo)) % 2 == 1
-    return {
-        "lower": lo,
-        "upper": hi,
-        "alternate": np.where(odd, hi, lo),
-        "alternate_mirror": np.where(odd, lo, hi),
-    }
-
-
-def check(trainer, args, folder: Path, name: str = "check.pt") -> dict:
-    """The walking gate at the nominal design and the corners, on a checkpoint of now."""
-    from coadapt_core.experiments.evaluate import VERDICT_COMMAND, evaluate_checkpoint
-
-    path = trainer.save(folder / name)
-    space = trainer.design_space
-    nominal = np.asarray(trainer.robot.nominal_design(space.is_mixed), dtype=float)
-    designs = {"nominal": np.clip(nominal, space.lower, space.upper), **corners(space)}
-    out = {}
-    for name, design in designs.items():
-        r = evaluate_checkpoint(
-            path,
-            trainer.robot,
-            trainer.simulator_cls,
-            design,
-            terrain=args.terrain,
-            command=VERDICT_COMMAND,
-            agents=args.eval_agents,
-            seconds=args.eval_seconds,
-            seed=args.seed,
-        )
-        out[name] = {k: r[k] for k in ("survival", "tracking_ratio", "vx_mean", "walking")}
-    return out
-
-
 def _physics_ceiling(env, steps: int = 48) -> float:
     """Env steps/s of the training simulator alone (default-pose targets, no task, no policy)."""
     sim = env.sim
@@ -152,6 +117,11 @@ def main() -> None:
     apply_omp_wait_policy()  # as the `coadapt` command, before torch loads
     import torch
 
+    from coadapt_core.experiments.walking_check import (
+        check_walking,
+        train_until_walks,
+        training_draws_kept,
+    )
     from coadapt_core.learning.flops import learner_ceiling
     from coadapt_core.learning.runner import Runner
     from coadapt_core.learning.trainer import Trainer
@@ -171,42 +141,36 @@ def main() -> None:
     runner = Runner(trainer)
     trainer.set_designs(trainer.sample_designs())
     physics = [_physics_ceiling(trainer.env)]
-    learner, curve, walked = [], [], None
-    train_seconds = 0.0
+    learner = []
     with tempfile.TemporaryDirectory() as tmp:
         keep = args.out or Path(tmp)
         keep.mkdir(parents=True, exist_ok=True)
-        while trainer.total_steps < args.max_steps and (
-            args.max_seconds is None or train_seconds < args.max_seconds
-        ):
-            iterations = min(
-                args.eval_every, trainer.iterations_for(args.max_steps - trainer.total_steps)
+
+        def check() -> dict:
+            gate = check_walking(
+                trainer,
+                keep / f"check_{trainer.iteration}.pt",
+                agents=args.eval_agents,
+                seconds=args.eval_seconds,
+                seed=args.seed,
             )
-            start = time.perf_counter()
-            stats = runner.run(iterations)
-            train_seconds += time.perf_counter() - start
-            tick = time.perf_counter()
-            rng = torch.get_rng_state(), np.random.get_state()
-            gate = check(trainer, args, keep, f"check_{trainer.iteration}.pt")
-            torch.set_rng_state(rng[0])  # the training's draws as without the checks
-            np.random.set_state(rng[1])
-            torch.set_num_threads(trainer.learner_threads)
-            learner.append(learner_ceiling(trainer.ppo, trainer.samples_per_iteration).gflops_per_s)
-            torch.set_num_threads(trainer.collect_threads)
-            row = {
-                "iteration": trainer.iteration,
-                "interactions": trainer.total_steps,
-                "train_seconds": round(train_seconds, 2),
-                "check_seconds": round(time.perf_counter() - tick, 2),
-                "mean_reward": round(stats.mean_reward, 5),
-                "walking": all(g["walking"] is True for g in gate.values()),
-                "designs": gate,
-            }
-            curve.append(row)
-            print(json.dumps(row), file=sys.stderr, flush=True)
-            if row["walking"]:
-                walked = row
-                break
+            with training_draws_kept():  # the ceiling's draws are not the training's either
+                torch.set_num_threads(trainer.learner_threads)
+                ceiling = learner_ceiling(trainer.ppo, trainer.samples_per_iteration)
+                learner.append(ceiling.gflops_per_s)
+                torch.set_num_threads(trainer.collect_threads)
+            return gate
+
+        done = train_until_walks(
+            runner,
+            steps=args.max_steps,
+            check=check,
+            check_every=args.eval_every,
+            max_seconds=args.max_seconds,
+            on_check=lambda row: print(json.dumps(row), file=sys.stderr, flush=True),
+        )
+    curve, train_seconds = done.checks, done.train_seconds
+    walked = curve[-1] if done.walked else None
     physics.append(_physics_ceiling(trainer.env))
     result = {
         "robot": args.robot,

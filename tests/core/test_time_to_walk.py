@@ -1,6 +1,7 @@
 """benchmarks/time_to_walk.py on real MuJoCo at a tiny size: the checks do not change what the
 training draws, the budgets stop it, `--out` keeps each check's checkpoint, and the corners
-are the design range's."""
+are the design range's (`coadapt_core.experiments.walking_check`, which `coadapt train
+--until-walks` shares: tests/core/test_train_until_walks.py)."""
 
 from __future__ import annotations
 
@@ -80,12 +81,12 @@ def test_the_wall_clock_budget_stops_after_the_first_check(monkeypatch, capsys):
 
 
 def test_corners_are_the_ranges_ends_and_their_two_alternations():
-    bench = load_benchmark("time_to_walk")
+    from coadapt_core.experiments.walking_check import corners
 
     class Space:
         lower, upper = [0.5, 0.7, 1.0], [1.5, 1.3, 2.0]
 
-    got = bench.corners(Space())
+    got = corners(Space())
     np.testing.assert_array_equal(got["lower"], [0.5, 0.7, 1.0])
     np.testing.assert_array_equal(got["upper"], [1.5, 1.3, 2.0])
     np.testing.assert_array_equal(got["alternate"], [0.5, 1.3, 1.0])
