@@ -23,7 +23,7 @@ from coadapt_core.cli.options import OptionGroup, filled, given_settings, option
 from coadapt_core.cli.options import register as register_command
 from coadapt_core.cli.progress import ProgressLine
 from coadapt_core.errors import UserError
-from coadapt_core.settings import Int, overrides, setting, settings, shared
+from coadapt_core.settings import Float, Int, overrides, setting, settings, shared
 from coadapt_core.threads import ThreadSettings, apply_threads
 from coadapt_core.tracking import check_logger, make_logger
 
@@ -74,6 +74,27 @@ class TrainCommand:
         "critic and observation normalisers stay exactly as loaded (refit a finished "
         "policy's surrogate, or give it a new objective).",
         names=("--pseudo-critics-only",),
+    )
+    until_walks: bool = setting(
+        False,
+        "Train until the walking gate holds at the nominal design and the four corners of the "
+        "range (checked every --check-every iterations), within --steps and --max-seconds; "
+        "that checkpoint is kept as OUT/walks.pt (exit 3 when a budget runs out first).",
+        names=("--until-walks",),
+    )
+    max_seconds: Float | None = setting(
+        None,
+        "With --until-walks: training wall-clock budget, s (the checks not counted; "
+        "default: none, --steps alone).",
+        gt=0,
+    )
+    check_every: Int = setting(50, "With --until-walks: iterations between walking checks.", ge=1)
+    check_agents: Int = setting(16, "With --until-walks: agents per design in a check.", ge=1)
+    check_seconds: Float = setting(
+        5.0,
+        "With --until-walks: simulated seconds per design in a check (the gate judges "
+        "tracking over >= 50 policy steps).",
+        gt=0,
     )
     quiet: bool = setting(False, "No progress bar; one JSON line per iteration on stdout.")
     logger: str = setting(
@@ -329,6 +350,18 @@ def _announce(values: dict[str, Any], robot: str, trainer: Any, iterations: int)
             ", pseudo-critics only (the policy stays as loaded)"
             if values["pseudo_critics_only"]
             else ""
+        )
+        + (
+            f", until it walks: the walking gate at the nominal design and the four corners "
+            f"every {values['check_every']} iterations ({values['check_agents']} agents x "
+            f"{values['check_seconds']:g} s each), within {values['steps']:,} interactions"
+            + (
+                f" and {values['max_seconds']:g} s of training"
+                if values["max_seconds"] is not None
+                else ""
+            )
+            if values["until_walks"]
+            else ""
         ),
         file=sys.stderr,
     )
@@ -341,6 +374,8 @@ def _train(values: dict[str, Any], runner: Any, robot: str) -> None:
 
     trainer, out, quiet, steps = runner.trainer, values["out"], values["quiet"], values["steps"]
     iterations = runner.iterations_for(steps) if steps > 0 else 0
+    if values["until_walks"]:
+        _check_check_seconds(values, trainer)
     runner.out.mkdir(parents=True, exist_ok=True)
     runner.tracker = make_logger(
         values["logger"],
@@ -355,6 +390,8 @@ def _train(values: dict[str, Any], runner: Any, robot: str) -> None:
     )
     _announce(values, robot, trainer, iterations)
     first = trainer.iteration
+    last_check: list[str] = []  # --until-walks: the last check, as the progress line shows it
+    walks = None
     with ProgressLine("train", iterations, unit=" it", enabled=not quiet) as bar:
 
         def show(stats) -> None:
@@ -365,11 +402,14 @@ def _train(values: dict[str, Any], runner: Any, robot: str) -> None:
                 f"{stats.collect_steps_per_s:,.0f} steps/s  reward "
                 f"{stats.mean_reward:.4f}  vx {stats.vx:.2f}/{stats.command_vx:.2f} m/s  "
                 f"velocity error/step {stats.tracking_error:.3f} m/s  "
-                f"ep {stats.episode_length_s:.1f} s",
+                f"ep {stats.episode_length_s:.1f} s" + "".join(f"  {t}" for t in last_check[-1:]),
             )
 
         try:
-            runner.run(iterations, show)
+            if values["until_walks"]:
+                walks = _until_walks(values, runner, show, last_check)
+            else:
+                runner.run(iterations, show)
         except TrainingInterrupted as stop:
             runner.close()
             print(
@@ -384,8 +424,134 @@ def _train(values: dict[str, Any], runner: Any, robot: str) -> None:
         f"{trainer.total_steps} steps",
         file=sys.stderr,
     )
-    if iterations > 0 and not values["pseudo_critics_only"]:
+    if walks is not None:
+        _walks_report(values, robot, trainer, walks, weights)
+    elif iterations > 0 and not values["pseudo_critics_only"]:
         _verdict(values, trainer, final, quiet)
+
+
+#: `coadapt train --until-walks`'s exit status when a budget ran out before a check walked
+EXIT_NOT_WALKING = 3
+
+
+def _until_walks(values: dict[str, Any], runner: Any, show: Any, last_check: list[str]) -> Any:
+    """Train until a check walks or a budget runs out (`train_until_walks`): each check's
+    checkpoint is OUT/check.pt, its row appended to OUT/checks.jsonl (and, with --quiet,
+    printed as {"walking_check": row}); the one that walks becomes OUT/walks.pt."""
+    from coadapt_core.experiments.walking_check import check_text, check_walking, train_until_walks
+    from coadapt_core.learning.runner import TrainingInterrupted
+
+    trainer, out = runner.trainer, runner.out
+
+    def check() -> dict[str, Any]:
+        try:
+            return check_walking(
+                trainer,
+                out / "check.pt",
+                agents=values["check_agents"],
+                seconds=values["check_seconds"],
+                seed=values["seed"],
+                device=values["device"],
+            )
+        except KeyboardInterrupt:  # Ctrl-C during a check: as during an iteration
+            raise TrainingInterrupted(runner.checkpoint(), trainer.iteration) from None
+
+    def on_check(row: dict[str, Any]) -> None:
+        with (out / "checks.jsonl").open("a") as log:
+            log.write(json.dumps(row) + "\n")
+        if values["quiet"]:
+            print(json.dumps({"walking_check": row}), flush=True)
+        last_check.append(check_text(row))
+        if row["walking"]:
+            (out / "check.pt").replace(out / "walks.pt")
+
+    return train_until_walks(
+        runner,
+        steps=values["steps"],
+        check=check,
+        check_every=values["check_every"],
+        max_seconds=values["max_seconds"],
+        on_iteration=show,
+        on_check=on_check,
+    )
+
+
+def _walks_report(
+    values: dict[str, Any], robot: str, trainer: Any, walks: Any, weights: Path
+) -> None:
+    """--until-walks's last lines: walked (the time and interactions it took, where the
+    checkpoint is and how to ship it), or which budget ran out (exit `EXIT_NOT_WALKING`)."""
+    from coadapt_core.experiments.walking_check import check_text
+
+    out, quiet = values["out"], values["quiet"]
+    last = walks.checks[-1] if walks.checks else None
+    took = (
+        f"{walks.interactions:,} interactions and {walks.train_seconds:.0f} s of training "
+        f"(the {len(walks.checks)} check{'s' if len(walks.checks) != 1 else ''} took "
+        f"{walks.check_seconds:.0f} s more)"
+    )
+    if quiet:
+        summary = {
+            "walked": walks.walked,
+            "interactions": walks.interactions,
+            "train_seconds": round(walks.train_seconds, 2),
+            "check_seconds": round(walks.check_seconds, 2),
+            "budget": walks.budget,
+            "checkpoint": str(out / "walks.pt") if walks.walked else None,
+            "last_check": last,
+        }
+        print(json.dumps({"until_walks": summary}), flush=True)
+    if walks.walked:
+        policies = f"{values['terrain']}-mixed.pt" if values["mixed"] else f"{values['terrain']}.pt"
+        print(
+            f"walks at the nominal design and the four corners after {took}: "
+            f"{check_text(last)}. Kept: {out / 'walks.pt'} (the checkpoint) and {weights} (its "
+            f"weights). Ship it as {robot}'s policy: copy {weights} to policies/{policies} in "
+            f"the robot's folder (a spec robot: {robot}/policies/{policies} beside robot.yaml); "
+            f"confirm with coadapt eval --robot {robot} --checkpoint {out / 'walks.pt'} "
+            "--agents 50 --seconds 20",
+            file=sys.stderr,
+        )
+        return
+    budget = (
+        f"the wall-clock budget (--max-seconds {values['max_seconds']:g})"
+        if walks.budget == "seconds"
+        else f"the interaction budget (--steps {values['steps']})"
+    )
+    print(
+        f"not walking yet: {budget} ran out after {took}; "
+        + (f"last {check_text(last)}" if last else "no check ran")
+        + f". Go on with coadapt train --robot {robot} --resume {out / 'model_final.pt'} "
+        f"--until-walks --out {out}",
+        file=sys.stderr,
+    )
+    raise typer.Exit(EXIT_NOT_WALKING)
+
+
+def _check_until_walks(values: dict[str, Any]) -> None:
+    """--until-walks's options, checked against the others (one line, exit 2)."""
+    if not values["until_walks"]:
+        if values["max_seconds"] is not None:
+            fail("--max-seconds is the wall-clock budget of --until-walks; give --until-walks too")
+        return
+    if values["pseudo_critics_only"]:
+        fail("--until-walks trains the policy; --pseudo-critics-only keeps it as loaded")
+    if values["steps"] <= 0:
+        fail(f"--steps with --until-walks is the interaction budget, >= 1, got {values['steps']}")
+
+
+def _check_check_seconds(values: dict[str, Any], trainer: Any) -> None:
+    """--check-seconds long enough for the walking gate to judge tracking (`MIN_JUDGED_STEPS`
+    policy steps of the trainer's simulator): over fewer a check never says "walks"."""
+    from coadapt_core.coadapt.reliability import MIN_JUDGED_STEPS
+
+    dt = float(trainer.env.dt)
+    if round(values["check_seconds"] / dt) < MIN_JUDGED_STEPS:
+        fail(
+            f"check_seconds must be >= {MIN_JUDGED_STEPS * dt:g} with --until-walks (the "
+            f"walking gate judges tracking over >= {MIN_JUDGED_STEPS} policy steps of "
+            f"{dt:g} s), got {values['check_seconds']:g}"
+        )
 
 
 def _verdict(values: dict[str, Any], trainer: Any, checkpoint: Path, quiet: bool) -> None:
@@ -426,6 +592,7 @@ def register(app: typer.Typer) -> None:
                 "--steps must be >= 1 (or 0 with --resume or --init-from: export without "
                 f"training), got {steps}"
             )
+        _check_until_walks(values)
         check_device_option(values["device"])
         apply_threads(values["threads"])  # physics and torch; never the checkpoint's
         try:
