@@ -36,7 +36,7 @@ from __future__ import annotations
 import re
 
 #: the version of the plugin interfaces (semantic: major.minor.patch)
-PLUGIN_API_VERSION = "2.2.0"
+PLUGIN_API_VERSION = "2.3.0"
 #: where a plugin author reads what changed and how to adapt
 MIGRATION_DOC = "docs/plugins.md#migration"
 #: the module attribute of a plugin's hook module declaring the version its classes target

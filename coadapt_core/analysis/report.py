@@ -83,6 +83,7 @@ def _table6_html(t6: Sequence[dict[str, Any]]) -> str:
             "simulator": r["simulator"],
             "preset": r["preset"],
             "policy": r.get("policy") or "?",
+            "numerics": r.get("numerics") or "not recorded",
             "objective": r["objective"],
             "method": METHOD_LABELS.get(r["method"], r["method"]),
             "optimizer": r["optimizer"],
@@ -130,6 +131,7 @@ def _table6_html(t6: Sequence[dict[str, Any]]) -> str:
             ("sim2sim", "sim-to-sim improvement"),
             ("sim2sim_note", "sim-to-sim note"),
             ("policy", "starting policy"),
+            ("numerics", "numerics"),
         ],
     )
 

@@ -124,6 +124,7 @@ def table6_markdown(rows: Sequence[dict[str, Any]]) -> str:
             "Sim-to-sim improvement",
             "Sim-to-sim note",
             "Starting policy",
+            "Numerics",
         ]
     )
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
@@ -146,6 +147,7 @@ def table6_markdown(rows: Sequence[dict[str, Any]]) -> str:
             cell(r, "sim2sim_improvement", pct=True),
             r["sim2sim_note"] or "",
             r.get("policy") or "?",
+            r.get("numerics") or "not recorded",
         ]
         lines.append("| " + " | ".join(cells) + " |")
     lines += [
@@ -163,7 +165,9 @@ def table6_markdown(rows: Sequence[dict[str, Any]]) -> str:
         "Common scenarios: the run's best and nominal designs re-evaluated with the run's own "
         "policy on one scenario set shared by every run of the terrain and preset (the methods' "
         "common yardstick; fall-rate difference in points, paired). Starting policy: the policy "
-        "file each run started from and the start of its SHA-256.",
+        "file each run started from and the start of its SHA-256. Numerics: the learner's "
+        "precision in force (bf16 or float32), the device it ran on, torch's and the physics "
+        "engine's versions; another CPU's answer may move within the SEs (README).",
     ]
     return "\n".join(lines) + "\n"
 

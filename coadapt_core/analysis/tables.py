@@ -22,6 +22,7 @@ from coadapt_core.analysis.facts import (
 )
 from coadapt_core.analysis.measures import as_cost_reduction, differs, objective_named
 from coadapt_core.methods import METHOD_NAMES
+from coadapt_core.numerics import numerics_cell
 from coadapt_core.results.schema import LANDSCAPE_METHOD
 
 
@@ -125,6 +126,8 @@ def _table6_row(group: Sequence[RunFacts]) -> dict[str, Any]:
         "runs": len(group),
         "seeds": " ".join(str(f.run.get("seed")) for f in group),
         "policy": "; ".join(sorted({f.policy for f in group})),
+        # which numerics trained and evaluated each run (coadapt_core.numerics)
+        "numerics": "; ".join(sorted({numerics_cell(f.summary.get("numerics")) for f in group})),
     }
     _add_design(row, group)
     _add_outcomes(row, group)

@@ -209,6 +209,12 @@ def print_summary(
     if "starting_policy" in summary:
         policy = summary["starting_policy"] or "none (trained from scratch in this run)"
         console.print(f"starting policy: {policy}")
+    if "numerics" in summary:  # which numerics trained and evaluated (coadapt_core.numerics)
+        from coadapt_core.numerics import numerics_text
+
+        console.print(
+            f"numerics: {numerics_text(summary['numerics'])}", markup=False, highlight=False
+        )
     if summary.get("preset") == "smoke":  # 20 steps per scenario: nothing about walking is known
         console.print(
             f"walking gate: too short to judge (smoke preset, {summary.get('eval_steps')} steps "

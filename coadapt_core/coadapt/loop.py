@@ -426,6 +426,7 @@ class CoadaptationLoop:
             seconds=self.elapsed(),
             surrogate_quality=self.hybrid.quality_summary(),
             shared=self.shared,
+            backend=self.get_backend(),
         )
         s.phase = "done"
         self.checkpoint()

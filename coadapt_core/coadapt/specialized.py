@@ -162,6 +162,14 @@ class SpecializedPolicyBackend:
     def load(self, path: str) -> None:
         """Nothing to restore (see `save`)."""
 
+    def numerics(self) -> dict[str, Any]:
+        """The numerics of the designs' policies (the last one kept: they are all built by
+        the same factory), {} before any was built (`coadapt_core.numerics`)."""
+        for policy in reversed(self._policies.values()):
+            report = getattr(policy, "numerics", None)
+            return dict(report()) if callable(report) else {}
+        return {}
+
     def close(self) -> None:
         """Close the kept policies."""
         while self._policies:

@@ -16,6 +16,7 @@ from coadapt_core.coadapt.config import CoadaptConfig
 from coadapt_core.coadapt.refine import refinement_center, refinement_summary
 from coadapt_core.coadapt.reliability import fall_verdict, judge_short
 from coadapt_core.coadapt.state import LoopState
+from coadapt_core.numerics import simulated_numerics
 from coadapt_core.objective import Objective
 from coadapt_core.optimizer import Optimizer
 
@@ -69,6 +70,7 @@ class CoadaptResult:
         line["reliable"] = s.get("reliable")
         line["reliability"] = s.get("reliability")
         line["warnings"] = s.get("warnings", [])  # what to know before trusting it (cautions.py)
+        line["numerics"] = s.get("numerics")  # precision, device kind, versions (numerics.py)
         front = s.get("pareto_front")
         if isinstance(
             front, dict
@@ -125,10 +127,12 @@ def run_summary(
     seconds: float,
     surrogate_quality: dict[str, Any],
     shared: bool,
+    backend: Any = None,
 ) -> dict[str, Any]:
     """summary.json: the run's settings, its best and nominal designs with their costs and
     improvements, its interactions and seconds by phase, every batch, the surrogate's quality,
-    the walking gate's verdict and the fall comparison."""
+    the walking gate's verdict and the fall comparison, and the numerics `backend` trained and
+    evaluated with (`coadapt_core.numerics`: precision in force, device kind, versions)."""
     s, c = state, config
     summary = {
         "run_id": s.run_id,
@@ -189,6 +193,7 @@ def run_summary(
     summary["warnings"] = run_warnings(
         summary
     )  # at a bound, plain mean, weak surrogate (cautions.py)
+    summary["numerics"] = simulated_numerics(backend, c.sim, c.device)
     return summary
 
 

@@ -159,6 +159,19 @@ class UniversalPolicyBackend:
             buffer=buffer,
         )
 
+    def numerics(self) -> dict[str, str]:
+        """The precision actually in force (`TrainConfig.precision` "auto" resolved on this
+        device): the PPO loss's forward passes, the pseudo-critics' regression, and the
+        policy in rollouts (training and evaluation: float32, never autocast); the device
+        (`coadapt_core.numerics` records them with each run)."""
+        ppo = self.trainer.ppo
+        return {
+            "precision": ppo.precision,
+            "pseudo_precision": ppo.pseudo_precision,
+            "rollout_precision": "float32",
+            "device": str(ppo.device),
+        }
+
     def threads_used(self) -> dict[str, int | None]:
         """The threads this phase ran on, as the engines report them: torch's during the
         update and the physics backend's pool (its `num_threads_used` where it has one)."""

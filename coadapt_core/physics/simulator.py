@@ -160,6 +160,10 @@ class Simulator(ABC):
     #: plugin of highest rank (ties: the first name in alphabetical order; docs/plugins.md)
     default_rank: ClassVar[int] = 0
     description: ClassVar[str] = ""
+    #: the Python distribution (pip name) of the physics engine behind the backend, whose
+    #: installed version each run records with its numerics (`coadapt_core.numerics`); ""
+    #: when it has none to name
+    engine: ClassVar[str] = ""
     #: modules the backend imports that print at import time (at the C level, past Python's
     #: streams); a command showing a progress line imports them first with the output closed
     quiet_imports: ClassVar[tuple[str, ...]] = ()

@@ -275,7 +275,10 @@ def test_run_folder_holds_config_evaluations_and_summary(tmp_path):
         "reliable",
         "reliability",
         "warnings",
+        "numerics",
     }
+    # the analytic backend reports no precision: said so, never guessed (numerics.py)
+    assert line["numerics"]["precision"] is None and line["numerics"]["device"] == "cpu"
     assert (
         line["interactions"]
         == result.summary["train_interactions"]

@@ -76,6 +76,7 @@ def record_run(
     terrain="flat",
     checkpoint: Path | None = None,
     optimizer="pso",
+    numerics: dict | None = None,
 ) -> str:
     """A small finished run as the loop records it: 2 training phases, 2 x 2 batches of 4
     real designs (surrogate scored too), 4 surrogate-only designs, best and nominal."""
@@ -142,6 +143,7 @@ def record_run(
             "best_cost": best.costs[objectives[0]],
             "nominal_cost": nominal,
             "improvement": (nominal - best.costs[objectives[0]]) / nominal,
+            **({"numerics": numerics} if numerics else {}),
         },
     )
     return run_id
@@ -489,3 +491,26 @@ def test_the_report_says_which_rows_it_simulates_and_no_evaluate_simulates_none(
     assert main(["report", "--store", db, "--no-evaluate", "-o", str(out)]) == 0
     assert len(store.table_rows("evaluations")) == before
     assert "simulating" not in capsys.readouterr().err
+
+
+def test_the_report_names_each_runs_numerics(tmp_path):
+    """Table 6 (CSV, Markdown, HTML) says which numerics trained and evaluated each run of a
+    row; a run from before they were recorded says so."""
+    rec = SqliteRecorder(tmp_path / "r.db")
+    numerics = {
+        "precision": "bf16",
+        "device": "cpu",
+        "processor": "AMD EPYC 9B14",
+        "torch": "2.13.0",
+        "engine": "mujoco",
+        "engine_version": "4.0.0",
+    }
+    record_run(rec, "ours", 0, numerics=numerics)
+    record_run(rec, "ours", 1)  # an older run: nothing recorded
+    files = write_report(rec.store, None, tmp_path / "rep", sim2sim=False)
+    (row,) = read_csv(files["table6.csv"])
+    said = "bf16 learner, CPU AMD EPYC 9B14, torch 2.13.0, mujoco 4.0.0; not recorded"
+    assert row["numerics"] == said
+    md = files["table6.md"].read_text()
+    assert "| Numerics |" in md.splitlines()[0] and f"| {said} |" in md
+    assert "<th>numerics</th>" in files["report.html"].read_text()

@@ -376,6 +376,31 @@ def test_every_printed_cost_of_a_run_carries_its_protocol(piped_run):
     assert "real costs" not in flat and " +" not in flat.replace(" +- ", " ")
 
 
+@pytest.mark.slow
+def test_a_run_names_the_numerics_it_trained_and_evaluated_with(piped_run):
+    """summary.json (and so the store's row) records the learner's precision in force ("auto"
+    resolved on this CPU), the CPU's model, torch's and MuJoCo's versions; the run's last
+    lines say them (issue 61)."""
+    import importlib.metadata
+
+    from coadapt_core.learning.config import resolve_precision
+    from coadapt_core.numerics import numerics_text, processor_name
+
+    numerics = piped_run["summary"]["numerics"]
+    expected = resolve_precision("auto", "cpu")
+    assert numerics["precision"] == numerics["pseudo_precision"] == expected
+    assert numerics["rollout_precision"] == "float32" and numerics["device"] == "cpu"
+    assert numerics["processor"] == processor_name()
+    assert numerics["torch"] == importlib.metadata.version("torch")
+    assert (numerics["engine"], numerics["engine_version"]) == (
+        "mujoco",
+        importlib.metadata.version("mujoco"),
+    )
+    flat = " ".join(piped_run["out"].split())
+    assert f"numerics: {numerics_text(numerics)}" in flat
+    assert f"numerics: {expected} learner" in flat
+
+
 def test_the_summary_records_the_warnings_and_the_json_line_carries_them(
     tmp_path, capsys, monkeypatch
 ):

@@ -63,6 +63,7 @@ class MujocoSimulator(RowResetMixin, StateReadMixin, Simulator):
     name = "mujoco"
     default_rank = 10  # the default --sim (the reference backend)
     description = "MuJoCo 4 on a C thread pool (mujoco.batch), one model per design, CPU"
+    engine = "mujoco"  # its version goes into each run's numerics
     model_formats = ("mjcf",)  # the robot model it compiles
     renderer = "coadapt_plugins.simulators.mujoco.render"  # pictures and videos, offscreen
     speed_limit_modes = ("soft", "binding")  # coadapt_core.physics.actuation, `bind_speed`

@@ -53,6 +53,7 @@ class PyBulletSimulator(Simulator):
         "PyBullet (Bullet) backend for sim-to-sim transfer; one process per CPU core for large "
         "batches"
     )
+    engine: ClassVar[str] = "pybullet"  # its version goes into each run's numerics
     quiet_imports: ClassVar[tuple[str, ...]] = (
         "pybullet",
     )  # prints "pybullet build time" on import
