@@ -43,7 +43,8 @@ class RobotModel:
     # XML; its floating base is the first joint, then the actuated joints in order) and "urdf"
     # (a floating base implied, root link = base; same frames as the MJCF). A simulator reads
     # the formats it declares (`Simulator.model_formats`) through `text(format)`; a new format
-    # needs no change here
+    # needs no change here. A key "FORMAT:FILE" holds a file FORMAT's text names by that file
+    # name (a URDF's collision mesh), to be written beside it
     formats: Mapping[str, str]
     base_body: str  # name of the floating base body / root link
     joint_names: list[str]  # actuated joints, the order of every [num_joints] array below
@@ -75,7 +76,7 @@ class RobotModel:
         if not isinstance(value, str) or not value:
             from coadapt_core.errors import UserError
 
-            given = ", ".join(sorted(self.formats)) or "none"
+            given = ", ".join(sorted(k for k in self.formats if ":" not in k)) or "none"
             raise UserError(
                 f"the robot model has no '{fmt}' description (it writes: {given}); "
                 "a simulator that reads it needs a robot plugin that writes it",

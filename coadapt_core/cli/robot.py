@@ -243,15 +243,23 @@ def export_command(**values: Any) -> None:
     instance = load_robot(robot)
     model = instance.build(parse_design(instance, design))
     text = model.text("mjcf") if fmt == "mjcf" else model.text("urdf")
+    # the files the description names (a URDF's meshes): formats "<fmt>:<file name>"
+    files = {k.split(":", 1)[1]: v for k, v in model.formats.items() if k.startswith(f"{fmt}:")}
     if output is None:
+        if files:
+            fail(f"the {fmt} names {len(files)} mesh files: give -o FILE to write them beside it")
         sys.stdout.write(text)
         return
     try:
         output.write_text(text)
+        for name, content in files.items():
+            (output.parent / Path(name).name).write_text(content)
     except OSError as exc:
         fail(f"cannot write -o {output}: {exc.strerror or exc}")
+    also = f" and {len(files)} mesh files beside it" if files else ""
     print(
-        f"wrote {fmt} of {instance.name} ({','.join(f'{x:g}' for x in model.design)}) to {output}",
+        f"wrote {fmt} of {instance.name} ({','.join(f'{x:g}' for x in model.design)}) to "
+        f"{output}{also}",
         file=sys.stderr,
     )
 

@@ -171,7 +171,7 @@ def test_a_model_that_does_not_compile_says_mujocos_line(folder):
     assert "does not load in MuJoCo" in message and "bogus" in message
 
 
-def test_a_mesh_in_a_scaled_body_is_refused(folder):
+def test_a_collision_mesh_off_its_link_is_refused_unless_fitted(folder):
     text = (folder / "model.xml").read_text()
     text = text.replace(
         "<worldbody>",
@@ -182,11 +182,13 @@ def test_a_mesh_in_a_scaled_body_is_refused(folder):
         '<geom name="left_lump" type="mesh" mesh="lump"/><geom name="left_thigh"',
     )
     (folder / "model.xml").write_text(text)
-    robot = spec_robot_class(folder)()
-    robot.build(robot.nominal_design())  # the nominal design scales nothing: it builds
-    with pytest.raises(UserError) as info:
-        robot.build(np.array([1.2, 1.0]))
-    assert info.value.field == "design[0].links[0]" and "mesh geom 'left_lump'" in str(info.value)
+    with pytest.raises(UserError) as info:  # any design: it cannot stretch along the link
+        spec_robot_class(folder)().build(np.array([1.0, 1.0]))
+    assert info.value.field == "design[0].links[0]" and "mesh 'left_lump'" in str(info.value)
+    assert "`collision: fit`" in str(info.value)
+    edit(folder, lambda d: d.update(collision="fit"))
+    _, model = build(folder, [1.2, 1.0])
+    assert "collision mesh 'left_lump' of body 'left_hip_yaw_link'" in model.info["collision_fit"]
 
 
 def _cli(args: list[str], robot_path: Path) -> subprocess.CompletedProcess:

@@ -7,6 +7,7 @@ meshes stretch when aligned with it, are fitted on request or refused in one lin
 from __future__ import annotations
 
 import os
+import struct
 import subprocess
 import sys
 from pathlib import Path
@@ -16,6 +17,8 @@ import numpy as np
 import pytest
 import yaml
 from coadapt_plugins.robots.specs.robot import spec_robot_class
+
+from coadapt_core.errors import UserError
 
 #: a biped whose hips are three stacked hinges (the last off the body's origin on the left)
 #: and whose ankles are two hinges at different anchors, as in MuJoCo's classic humanoid
@@ -245,5 +248,213 @@ def test_stacked_hinges_stand_alike_in_mujoco_and_pybullet(stack):
         sim.close()
         heights[name] = np.array(trace)
         assert np.all(np.isfinite(trace))
+        assert np.abs(heights[name] - model.standing_base_height).max() < 0.02, name
+    assert np.abs(heights["mujoco"] - heights["pybullet"]).max() < 0.002
+
+
+# -- meshes in scaled links -------------------------------------------------------------------
+
+
+def box_triangles(half: tuple[float, float, float]) -> np.ndarray:
+    """[12, 3, 3] the outward triangles of a box of half-sizes `half` about the origin."""
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * half
+    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    return np.array(
+        [corners[[a, b, c]] for a, b, c, d in faces for a, b, c in ((a, b, c), (a, c, d))]
+    )
+
+
+def write_stl(path: Path, triangles: np.ndarray) -> None:
+    """A binary STL (what vendors ship)."""
+    out = [b"coadapt test mesh".ljust(80), struct.pack("<I", len(triangles))]
+    for tri in triangles:
+        normal = np.cross(tri[1] - tri[0], tri[2] - tri[0])
+        out.append(struct.pack("<12fH", *normal, *tri.ravel(), 0))
+    path.write_bytes(b"".join(out))
+
+
+def write_obj(path: Path, triangles: np.ndarray) -> None:
+    lines = [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in triangles.reshape(-1, 3)]
+    lines += [f"f {3 * k + 1} {3 * k + 2} {3 * k + 3}" for k in range(len(triangles))]
+    path.write_text("\n".join(lines) + "\n")
+
+
+#: a visual skin on each thigh, turned 30 deg about x (its vertices stretch, not its axes), an
+#: aligned collision shell on each shin (an STL), and a collision guard on the left thigh
+#: turned `{guard}` deg off the link (0: aligned, so it stretches)
+MESHES = """<asset>
+    <mesh name="skin" file="skin.obj"/>
+    <mesh name="shell" file="shell.stl"/>
+    <mesh name="guard" file="guard.stl"/>
+  </asset>
+  <worldbody>"""
+THIGH = """<geom name="{s}_thigh" type="capsule" fromto="0 0 0 0 0 -0.3" size="0.04"/>
+        <geom name="{s}_skin" type="mesh" mesh="skin" pos="0 0 -0.15" euler="30 0 0"
+              contype="0" conaffinity="0" group="2"/>"""
+GUARD = (
+    """<geom name="left_guard" type="mesh" mesh="guard" pos="0.05 0 -0.15" euler="0 {guard} 0"/>"""
+)
+SHIN = """<geom name="{s}_shin" type="capsule" fromto="0 0 0 0 0 -0.3" size="0.035"/>
+          <geom name="{s}_shell" type="mesh" mesh="shell" pos="0 0 -0.17"/>"""
+
+
+def meshy_folder(folder: Path, guard: float | None = None, collision: str | None = None) -> Path:
+    text = stacked_model().replace("<worldbody>", MESHES, 1)
+    for side in ("left", "right"):
+        thigh = THIGH.format(s=side)
+        if side == "left" and guard is not None:
+            thigh += "\n        " + GUARD.format(guard=guard)
+        text = text.replace(
+            f'<geom name="{side}_thigh" type="capsule" fromto="0 0 0 0 0 -0.3" size="0.04"/>', thigh
+        ).replace(
+            f'<geom name="{side}_shin" type="capsule" fromto="0 0 0 0 0 -0.3" size="0.035"/>',
+            SHIN.format(s=side),
+        )
+    spec = {**SPEC, "name": folder.name}
+    if collision:
+        spec["collision"] = collision
+    write_robot_folder(folder, text, spec)
+    write_obj(folder / "skin.obj", box_triangles((0.05, 0.03, 0.12)))
+    write_stl(folder / "shell.stl", box_triangles((0.03, 0.03, 0.12)))
+    write_stl(folder / "guard.stl", box_triangles((0.01, 0.02, 0.1)))
+    return folder
+
+
+def body_vertices(model, geom: str) -> np.ndarray:
+    """[V, 3] a mesh geom's vertices in its body's frame, as MuJoCo compiled them."""
+    mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
+    g = mj.geom(geom).id
+    mesh = mj.geom_dataid[g]
+    v0, nv = mj.mesh_vertadr[mesh], mj.mesh_vertnum[mesh]
+    return mj.geom_pos[g] + mj.mesh_vert[v0 : v0 + nv] @ _mat(mj.geom_quat[g]).T
+
+
+def _mat(quat) -> np.ndarray:
+    out = np.zeros(9)
+    mujoco.mju_quat2Mat(out, np.asarray(quat, dtype=float))
+    return out.reshape(3, 3)
+
+
+def _sorted(points: np.ndarray) -> np.ndarray:
+    return points[np.lexsort(np.round(points, 9).T[::-1])]
+
+
+@pytest.mark.parametrize("geom", ["left_skin", "right_shell", "left_guard"])
+def test_meshes_stretch_with_their_link(tmp_path, geom):
+    """A design stretches each mesh's vertices along its link (x -> x + (s - 1)(x.u)u in
+    the body frame): the visual skin turned 30 deg off the link, the aligned collision shell
+    and guard; the nominal design keeps the file's shape exactly."""
+    folder = meshy_folder(tmp_path / "meshy", guard=0.0)
+    robot = spec_robot_class(folder)()
+    nominal = body_vertices(robot.build(np.array([1.0, 1.0])), geom)
+    scale = {"left_skin": 1.3, "right_shell": 0.7, "left_guard": 1.3}[geom]
+    stretched = body_vertices(robot.build(np.array([1.3, 0.7])), geom)
+    u = np.array([0.0, 0.0, -1.0])  # the thigh's and the shin's link vectors point down
+    expected = nominal + (scale - 1.0) * np.outer(nominal @ u, u)
+    # MuJoCo keeps mesh vertices in float32
+    np.testing.assert_allclose(_sorted(stretched), _sorted(expected), atol=1e-7)
+    # the file's own box, placed by the geom: 2 x half-size long along the link
+    length = {"left_skin": None, "right_shell": 0.24, "left_guard": 0.2}[geom]
+    if length is not None:
+        assert np.ptp(nominal[:, 2]) == pytest.approx(length, abs=1e-7)
+
+
+def test_a_collision_mesh_off_its_link_is_refused_naming_collision_fit(tmp_path):
+    folder = meshy_folder(tmp_path / "robots" / "meshy", guard=40.0)
+    with pytest.raises(UserError) as info:
+        spec_robot_class(folder)().build(np.array([1.0, 1.0]))  # any design: it cannot scale
+    assert info.value.field == "design[0].links[0]"
+    done = _cli(["robot", "validate", "meshy"], tmp_path / "robots", tmp_path)
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    lines = (done.stdout + done.stderr).strip().splitlines()
+    assert len(lines) == 1 and "'left_guard'" in lines[0] and "40 deg" in lines[0], lines
+    assert "`collision: fit`" in lines[0]
+
+
+def test_a_bad_collision_rule_is_refused(tmp_path):
+    folder = meshy_folder(tmp_path / "meshy", collision="shrink")
+    with pytest.raises(UserError) as info:
+        spec_robot_class(folder)()
+    assert info.value.field == "collision" and "stretch, fit" in str(info.value)
+
+
+def test_collision_fit_replaces_collision_meshes_by_primitives_and_says_how_well(tmp_path):
+    folder = meshy_folder(tmp_path / "meshy", guard=40.0, collision="fit")
+    robot = spec_robot_class(folder)()
+    model = robot.build(np.array([1.3, 0.7]))
+    fits = model.info["collision_fit"].split("; ")
+    assert len(fits) == 3  # the left guard and both shells; the visual skins stay meshes
+    assert (
+        fits[0]
+        == "collision mesh 'left_guard' of body 'left_thigh': a box, its volume +0.0% of the mesh's"
+    )
+    mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
+    guard = mj.geom("left_guard").id
+    assert mj.geom_type[guard] == mujoco.mjtGeom.mjGEOM_BOX
+    # the fitted box is the file's box (half-sizes 0.01, 0.02, 0.1), moved with the link
+    np.testing.assert_allclose(np.sort(mj.geom_size[guard]), [0.01, 0.02, 0.1], atol=1e-6)
+    assert mj.geom_type[mj.geom("left_skin").id] == mujoco.mjtGeom.mjGEOM_MESH
+    assert not any(k.startswith("urdf:") for k in model.formats)  # no collision mesh left
+
+
+def test_robot_new_writes_collision_fit_for_a_collision_mesh_off_its_link(tmp_path):
+    from coadapt_plugins.robots.specs.new import write_robot
+
+    source = meshy_folder(tmp_path / "source", guard=40.0)
+    folder, notes = write_robot("meshy", source / "model.xml", tmp_path / "robots")
+    assert yaml.safe_load((folder / "robot.yaml").read_text())["collision"] == "fit"
+    assert any("'left_guard' (40 deg off its link)" in line for line in notes), notes
+    assert any(line.startswith("fitted: collision mesh 'left_guard'") for line in notes), notes
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("collision", ["stretch", "fit"])
+def test_robots_with_meshes_in_scaled_links_pass_every_step(tmp_path, collision):
+    """Visual and collision meshes in the links a design scales: `robot validate` at the
+    nominal design and two corners, a URDF export (its collision meshes as files beside it),
+    and a 1 s PyBullet and MuJoCo stand at a corner where both stand alike."""
+    from coadapt_core.physics.randomization import RandomizationConfig
+    from coadapt_core.plugins import get_registry
+
+    guard = 0.0 if collision == "stretch" else 40.0
+    folder = meshy_folder(tmp_path / "robots" / "meshy", guard=guard, collision=collision)
+    simulator = get_registry().get("simulator", "mujoco")
+    off = RandomizationConfig.off()
+    two = np.array([[1.0, 1.0], [1.3, 0.7]])
+    if collision == "stretch":  # one MuJoCo batch shares mesh shapes: refused in one line
+        with pytest.raises(UserError, match=r"collision mesh 'left_guard'.*collision: fit"):
+            simulator(spec_robot_class(folder)(), two, randomization=off, num_threads=1)
+    else:  # only visual meshes differ: the batch takes both designs
+        simulator(spec_robot_class(folder)(), two, randomization=off, num_threads=1).close()
+    robot = spec_robot_class(folder)()
+    for design in ([1.0, 1.0], [0.7, 0.7], [1.3, 1.3]):
+        report = robot.validate(np.array(design))
+        assert report.feasible, (design, report.reasons)
+    out = tmp_path / "export" / "meshy.urdf"
+    out.parent.mkdir()
+    done = _cli(
+        ["robot", "export", "meshy", "--design", "1.3,0.7", "--format", "urdf", "-o", str(out)],
+        tmp_path / "robots",
+        tmp_path,
+    )
+    assert done.returncode == 0, done.stderr
+    meshes = sorted(p.name for p in out.parent.glob("*.obj"))
+    # the guard, and the two shins' shells, alike, in one file
+    assert len(meshes) == (2 if collision == "stretch" else 0)
+    for name in meshes:
+        assert f'filename="{name}"' in out.read_text()
+    pytest.importorskip("pybullet")
+    design = np.array([[1.1, 0.9]])  # stretched meshes, and a design that stands
+    model = robot.build(design[0])
+    heights = {}
+    for name in ("mujoco", "pybullet"):
+        options = {"processes": 0} if name == "pybullet" else {}
+        sim = get_registry().get("simulator", name)(
+            robot, design, randomization=off, seed=0, num_threads=1, **options
+        )
+        sim.reset()
+        targets = sim.default_joint_pos.clone()
+        heights[name] = np.array([float(sim.step(targets).base_pos[0, 2]) for _ in range(50)])
+        sim.close()
         assert np.abs(heights[name] - model.standing_base_height).max() < 0.02, name
     assert np.abs(heights["mujoco"] - heights["pybullet"]).max() < 0.002

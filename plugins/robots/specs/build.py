@@ -162,9 +162,11 @@ class SpecBuilder:
         height, contact = self._standing(compiled)
         compiled.body_pos[compiled.body(self.prepared.base).id] = [0.0, 0.0, height]
         formats = {"mjcf": mjcf_text(compiled, self.spec.name, joints, torque)}
-        urdf, why_not = urdf_text(compiled, self.spec.name, joints, torque, speed)
+        files: dict[str, str] = {}
+        urdf, why_not = urdf_text(compiled, self.spec.name, joints, torque, speed, files)
         if urdf is not None:
             formats["urdf"] = urdf
+            formats.update({f"urdf:{name}": text for name, text in files.items()})
         kp, kd = self._gains(design)
         lower, upper = self._limits(compiled)
         return RobotModel(
@@ -266,5 +268,7 @@ class SpecBuilder:
         info["spec"] = str(self.spec.folder / "robot.yaml")
         if why_not:
             info["urdf"] = f"not written: {why_not}"
+        if self.prepared.fits:
+            info["collision_fit"] = "; ".join(self.prepared.fits)
         info["units"] = units
         return info

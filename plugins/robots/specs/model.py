@@ -8,8 +8,14 @@ actuators of its own. `scaled(design)` returns an edited copy for one design:
 
 - a link (parent, child) scaled by s moves the child along its position vector (pos x s);
   the parent's geoms and sites move along that vector likewise, and those lying along it
-  (capsules, cylinders, boxes, ellipsoids whose axis is within 8 deg of it) stretch by s; a
-  mesh in a scaled body is refused in one line;
+  (capsules, cylinders, boxes, ellipsoids whose axis is within 8 deg of it) stretch by s;
+- a mesh geom of a scaled body gets a mesh of its own (the compiled vertices, in the geom's
+  compiled frame) when the model loads, and a design stretches its vertices along the link
+  (x -> x + (s - 1)(x.u)u): a visual mesh (contype = conaffinity = 0) always, a collision
+  mesh when one of its principal axes lies within 8 deg of the link; spec `collision: fit`
+  replaces every collision mesh of a scaled body by the primitive (box, capsule or cylinder)
+  MuJoCo fits to it closest in volume; any other collision mesh is refused in one line
+  naming that option;
 - mass rule "stretch" (explicit inertial): the body's `stretch_share` of its mass stretches
   with the link (density kept: that mass x s, its distribution scaled by s along the link)
   and the rest is a point mass at the body's origin (a motor at its joint); the centre of
@@ -21,7 +27,7 @@ actuators of its own. `scaled(design)` returns an edited copy for one design:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -88,6 +94,7 @@ class Prepared:
     standing: np.ndarray  # [J] standing pose
     armature: np.ndarray  # [J]
     damping: np.ndarray  # [J]
+    fits: list[str] = field(default_factory=list)  # one line per collision mesh fitted
 
 
 def _standing_pose(spec: mujoco.MjSpec, rs: RobotSpec, joints: list[str]) -> np.ndarray:
@@ -157,6 +164,7 @@ def prepare(rs: RobotSpec) -> Prepared:
             if geom.contype or geom.conaffinity:
                 geom.contype, geom.conaffinity = 1, 0
     model = spec.compile()
+    fits = _own_meshes(spec, model, rs)
     dofs = [model.jnt_dofadr[model.joint(j).id] for j in joints]
     return Prepared(
         spec,
@@ -165,7 +173,145 @@ def prepare(rs: RobotSpec) -> Prepared:
         standing,
         model.dof_armature[dofs].copy(),
         model.dof_damping[dofs].copy(),
+        fits,
     )
+
+
+_MESH = mujoco.mjtGeom.mjGEOM_MESH
+#: the primitives `collision: fit` chooses from (an ellipsoid has no URDF shape)
+_FITS = {
+    mujoco.mjtGeom.mjGEOM_BOX: "box",
+    mujoco.mjtGeom.mjGEOM_CAPSULE: "capsule",
+    mujoco.mjtGeom.mjGEOM_CYLINDER: "cylinder",
+}
+
+
+def _scaled_links(spec: mujoco.MjSpec, rs: RobotSpec) -> dict[str, list[tuple[np.ndarray, str]]]:
+    """Body name -> (unit vector, spec field) of each scaled link it is the parent of."""
+    out: dict[str, list[tuple[np.ndarray, str]]] = {}
+    for k, p in enumerate(rs.parameters):
+        for m, (parent, child) in enumerate(p.links):
+            body, kid = spec.body(parent), spec.body(child)
+            if body is None or kid is None or kid.parent.name != parent:
+                continue  # `check_names` says what is wrong
+            vector = np.array(kid.pos, dtype=float)
+            if np.linalg.norm(vector) >= 1e-9:
+                out.setdefault(parent, []).append(
+                    (vector / np.linalg.norm(vector), f"design[{k}].links[{m}]")
+                )
+    return out
+
+
+def _collides(geom: mujoco.MjsGeom) -> bool:
+    return bool(geom.contype or geom.conaffinity)
+
+
+def _set_frame(geom: mujoco.MjsGeom, pos, quat) -> None:
+    geom.pos = np.array(pos, dtype=float)
+    geom.quat = np.array(quat, dtype=float)
+    geom.alt.type = mujoco.mjtOrientation.mjORIENTATION_QUAT
+
+
+def off_link_degrees(model: mujoco.MjModel, g: int, u: np.ndarray) -> float:
+    """How far (deg) the link direction `u` (body frame) lies from the nearest principal axis
+    of mesh geom g (its compiled frame); a collision mesh within 8 deg stretches."""
+    axes = _quat_mat(model.geom_quat[g])
+    return math.degrees(math.acos(min(1.0, float(np.abs(axes.T @ u).max()))))
+
+
+def _own_meshes(spec: mujoco.MjSpec, model: mujoco.MjModel, rs: RobotSpec) -> list[str]:
+    """Give each mesh geom of a scaled body a mesh of its own in its compiled frame, fit or
+    refuse the collision meshes that cannot stretch (module docstring); the fit's lines."""
+    to_fit, replaced = [], set()
+    for name, links in _scaled_links(spec, rs).items():
+        body, b = spec.body(name), model.body(name).id
+        for k, geom in enumerate(body.geoms):
+            g = int(model.body_geomadr[b]) + k
+            if geom.type != _MESH:
+                if geom.meshname:  # a primitive MuJoCo fits to a mesh: keep the fit, stretch it
+                    geom.size = model.geom_size[g]
+                    _set_frame(geom, model.geom_pos[g], model.geom_quat[g])
+                    geom.meshname = ""
+                continue
+            label = f"'{geom.name}'" if geom.name else f"number {k}"
+            if _collides(geom):
+                if rs.collision == "fit":
+                    to_fit.append((name, k, g, label))
+                    continue
+                for u, where in links:
+                    off = off_link_degrees(model, g, u)
+                    if off > math.degrees(math.acos(ALONG)):
+                        raise spec_error(
+                            where,
+                            f"the collision mesh {label} of body '{name}' lies {off:.0f} deg off "
+                            "the link, so it cannot stretch along it: write `collision: fit` in "
+                            "the spec to replace it by a fitted primitive, or make it visual "
+                            "(contype=0 conaffinity=0)",
+                        )
+            replaced.add(geom.meshname)
+            mid = int(model.geom_dataid[g])
+            v0, nv = model.mesh_vertadr[mid], model.mesh_vertnum[mid]
+            f0, nf = model.mesh_faceadr[mid], model.mesh_facenum[mid]
+            source = spec.mesh(geom.meshname)
+            mesh = spec.add_mesh(name=f"coadapt_stretch_{g}")
+            mesh.uservert = model.mesh_vert[v0 : v0 + nv].ravel()
+            mesh.userface = model.mesh_face[f0 : f0 + nf].ravel()
+            mesh.inertia = source.inertia
+            mesh.maxhullvert = source.maxhullvert
+            geom.meshname = mesh.name
+            _set_frame(geom, model.geom_pos[g], model.geom_quat[g])
+    lines = _fit(spec, model, to_fit, replaced) if to_fit else []
+    used = {geom.meshname for geom in spec.geoms}
+    for name in replaced - used:
+        spec.delete(spec.mesh(name))
+    return lines
+
+
+def _mesh_volume(model: mujoco.MjModel, g: int) -> float:
+    mid = int(model.geom_dataid[g])
+    v0, f0, nf = model.mesh_vertadr[mid], model.mesh_faceadr[mid], model.mesh_facenum[mid]
+    tri = model.mesh_vert[v0 + model.mesh_face[f0 : f0 + nf]]  # [F, 3, 3]
+    return abs(float(np.einsum("fi,fi->f", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum()) / 6)
+
+
+def _volume(kind, size: np.ndarray) -> float:
+    if kind == mujoco.mjtGeom.mjGEOM_BOX:
+        return float(8 * np.prod(size))
+    cylinder = math.pi * size[0] ** 2 * 2 * size[1]
+    if kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
+        return cylinder + 4 / 3 * math.pi * size[0] ** 3
+    return cylinder
+
+
+def _fit(spec: mujoco.MjSpec, model: mujoco.MjModel, to_fit: list, replaced: set) -> list[str]:
+    """Replace the collision meshes `to_fit` ((body, index, compiled geom id, label) each)
+    by the primitive MuJoCo fits to each closest in volume; a line per mesh."""
+    trials = {}
+    for kind in _FITS:
+        copy = spec.copy()
+        for body, k, _, _ in to_fit:
+            list(copy.body(body).geoms)[k].type = kind
+        trials[kind] = copy.compile()
+    lines = []
+    for body, k, g, label in to_fit:
+        mesh = _mesh_volume(model, g)
+        errors = {
+            kind: _volume(kind, trials[kind].geom_size[g]) / max(mesh, 1e-300) - 1.0
+            for kind in _FITS
+        }
+        kind = min(errors, key=lambda t: abs(errors[t]))
+        fitted = trials[kind]
+        geom = list(spec.body(body).geoms)[k]
+        replaced.add(geom.meshname)
+        geom.type = kind
+        geom.size = fitted.geom_size[g]
+        _set_frame(geom, fitted.geom_pos[g], fitted.geom_quat[g])
+        geom.meshname = ""
+        lines.append(
+            f"collision mesh {label} of body '{body}': a {_FITS[kind]}, its volume "
+            f"{round(errors[kind], 3) + 0.0:+.1%} of the mesh's"
+        )
+    return lines
 
 
 def check_names(rs: RobotSpec, prepared: Prepared) -> None:
@@ -198,10 +344,20 @@ def check_names(rs: RobotSpec, prepared: Prepared) -> None:
             raise spec_error(f"legs[{k}].hip", f"no body '{leg.hip}' in the model")
 
 
-def _stretch_geoms(body: mujoco.MjsBody, u: np.ndarray, s: float, where: str) -> None:
-    """Move `body`'s geoms and sites along u by s, stretching those that lie along it."""
+def _stretch_geoms(
+    spec: mujoco.MjSpec, body: mujoco.MjsBody, u: np.ndarray, s: float, where: str
+) -> None:
+    """Move `body`'s geoms and sites along u by s, stretching those that lie along it and
+    the vertices of its meshes (`prepare` gave each its own)."""
     shift = np.eye(3) + (s - 1.0) * np.outer(u, u)
     for geom in body.geoms:
+        if geom.type == _MESH and geom.meshname.startswith("coadapt_stretch_"):
+            mesh = spec.mesh(geom.meshname)
+            w = _quat_mat(geom.quat).T @ u  # the link in the mesh's frame
+            vertices = np.array(mesh.uservert, dtype=float).reshape(-1, 3)
+            mesh.uservert = (vertices + (s - 1.0) * np.outer(vertices @ w, w)).ravel()
+            geom.pos = shift @ np.array(geom.pos, dtype=float)
+            continue
         if geom.type == mujoco.mjtGeom.mjGEOM_MESH:
             raise spec_error(
                 where,
@@ -287,7 +443,7 @@ def scale_link(spec: mujoco.MjSpec, parent: str, child: str, s: float, param, wh
     vector = np.array(kid.pos, dtype=float)
     u = vector / np.linalg.norm(vector)
     kid.pos = vector * s
-    _stretch_geoms(body, u, s, where)
+    _stretch_geoms(spec, body, u, s, where)
     if body.explicitinertial and param.mass == "stretch":
         stretch_inertial(body, u, s, param.stretch_share)
 

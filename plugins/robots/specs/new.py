@@ -197,13 +197,7 @@ def starting_spec(name: str, model_file: Path) -> tuple[dict, list[str]]:
     torques = _torques(model, notes)
     notes.append(f"no-load joint speeds are not in the model: {GUESSED_SPEED:g} rad/s written")
     params = _segments(model, legs)
-    for p in params:
-        for parent, _ in p["links"]:
-            body = model.body(parent).id
-            if any(
-                model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH for g in _body_geoms(model, body)
-            ):
-                notes.append(f"body '{parent}' holds a mesh: give it primitive geoms to scale it")
+    collision = _collision_rule(model, params, notes)
     data_out = {
         "name": name,
         "description": f"{name}: written by coadapt robot new from {model_file.name}; check it",
@@ -228,6 +222,8 @@ def starting_spec(name: str, model_file: Path) -> tuple[dict, list[str]]:
             for j, t in torques.items()
         },
     }
+    if collision:
+        data_out["collision"] = collision
     notes.append("gains are the peak torque per rad (kd 0.025 x kp); check that each design stands")
     return data_out, notes
 
@@ -245,6 +241,32 @@ def _inside_ranges(model: mujoco.MjModel, data: mujoco.MjData, notes: list[str])
             data.qpos[model.jnt_qposadr[j]] = angle
             notes.append(f"joint '{model.joint(j).name}': 0 is outside its range; {angle:g} rad")
     return pose
+
+
+def _collision_rule(model: mujoco.MjModel, params: list[dict], notes: list[str]) -> str | None:
+    """ "fit" when a scaled body holds a collision mesh, else None: one off its link cannot
+    stretch, and one MuJoCo batch shares mesh assets across designs, so each becomes a
+    fitted primitive (`collision: fit`)."""
+    from coadapt_plugins.robots.specs.model import off_link_degrees
+
+    found = []
+    for p in params:
+        for parent, child in p["links"]:
+            body, kid = model.body(parent).id, model.body(child).id
+            u = model.body_pos[kid] / np.linalg.norm(model.body_pos[kid])
+            for g in _body_geoms(model, body):
+                if model.geom_type[g] != mujoco.mjtGeom.mjGEOM_MESH:
+                    continue
+                if model.geom_contype[g] or model.geom_conaffinity[g]:
+                    name = f"'{model.geom(g).name}'" if model.geom(g).name else f"of '{parent}'"
+                    found.append(f"{name} ({off_link_degrees(model, g, u):.0f} deg off its link)")
+    if not found:
+        return None
+    notes.append(
+        f"collision meshes in scaled links, {', '.join(found)}: `collision: fit` written "
+        "(each becomes the primitive fitted to it; a MuJoCo batch shares mesh shapes)"
+    )
+    return "fit"
 
 
 def _body_geoms(model: mujoco.MjModel, body: int) -> list[int]:
@@ -277,7 +299,9 @@ def write_robot(name: str, model_file: Path, into: Path) -> tuple[Path, list[str
             "# written by `coadapt robot new`; check every line (docs/your-robot.md)\n" + text,
             encoding="utf-8",
         )
-        spec_robot_class(folder)().build(_nominal(data))  # it must build
+        robot = spec_robot_class(folder)()
+        robot.build(_nominal(data))  # it must build
+        notes += [f"fitted: {line}" for line in robot._built.prepared.fits]
     except Exception:
         shutil.rmtree(folder, ignore_errors=True)
         raise

@@ -24,6 +24,8 @@ DESIGN_DECIMALS = 6
 SPEC_FILE = "robot.yaml"
 #: what a parameter's `mass` rule may say (docs/your-robot.md#mass-rules)
 MASS_RULES = ("stretch", "fixed")
+#: what `collision` may say: how a collision mesh in a scaled link scales (docs/your-robot.md)
+COLLISION_RULES = ("stretch", "fit")
 NAME_PATTERN = re.compile(r"^[a-z][a-z0-9_\-]{0,63}$")
 
 
@@ -86,6 +88,7 @@ class RobotSpec:
     locked_joints: tuple[str, ...] = ()
     gain_scale_exponent: float = 0.0  # gains x (leg length / nominal) ** k
     description: str = ""
+    collision: str = "stretch"  # collision meshes in scaled links: "stretch" or "fit"
 
     @property
     def model_path(self) -> Path:
@@ -266,7 +269,7 @@ def _standing(raw: Any) -> dict[str, float] | str:
 
 _TOP = {
     "name", "description", "model", "base", "locked_joints", "design", "motors", "limits",
-    "legs", "standing_pose", "gains", "gain_scale_exponent",
+    "legs", "standing_pose", "gains", "gain_scale_exponent", "collision",
 }  # fmt: skip
 
 
@@ -315,7 +318,14 @@ def parse_spec(data: Any, folder: Path, *, fallback_name: str = "") -> RobotSpec
         ),
         gain_scale_exponent=_number(data.get("gain_scale_exponent", 0.0), "gain_scale_exponent"),
         description=str(data.get("description", "")),
+        collision=_collision(data.get("collision", "stretch")),
     )
+
+
+def _collision(value: Any) -> str:
+    if value not in COLLISION_RULES:
+        raise _fail("collision", f"{value!r} is not one of: {', '.join(COLLISION_RULES)}")
+    return value
 
 
 def read_spec(path: str | Path) -> RobotSpec:

@@ -8,12 +8,18 @@ in the frame the previous ones turned), then the body's own link, fixed to the l
 intermediate link at minus the last anchor where that is not the body's origin. Every body's
 link frame is then its MuJoCo body frame. Intermediate links carry a tiny mass and inertia
 (`TINY_MASS`, `TINY_INERTIA`; Bullet integrates a zero-mass moving link badly), named
-`<body>__<joint>`; `intermediate_links` lists them. A collision mesh has no URDF (it needs a
-file); `urdf_text` then says why in one line and the robot writes MJCF alone.
+`<body>__<joint>`; `intermediate_links` lists them.
+
+A collision mesh is written as a file the URDF names, `coadapt_<hash>.obj` (its compiled
+vertices and faces, the hash of its text: a stretched design's mesh is another file), which
+the robot model carries beside the URDF as format `urdf:<file>` (`mesh_files`); a reader
+writes those files beside the URDF (PyBullet's engine, `coadapt robot export -o`). Visual
+meshes are left out of the URDF: the simulators that read it do not draw.
 """
 
 from __future__ import annotations
 
+import hashlib
 import re
 
 import mujoco
@@ -48,8 +54,24 @@ def _rpy(quat) -> np.ndarray:
     return np.array([roll, pitch, yaw])
 
 
-def _geometry(model: mujoco.MjModel, g: int) -> str | None:
+def _obj(model: mujoco.MjModel, mesh: int) -> str:
+    """The compiled mesh `mesh` as Wavefront OBJ text (its own frame)."""
+    v0, nv = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
+    f0, nf = model.mesh_faceadr[mesh], model.mesh_facenum[mesh]
+    lines = [f"v {_v(v)}" for v in model.mesh_vert[v0 : v0 + nv]]
+    lines += [f"f {' '.join(str(int(i) + 1) for i in f)}" for f in model.mesh_face[f0 : f0 + nf]]
+    return "\n".join(lines) + "\n"
+
+
+def _geometry(model: mujoco.MjModel, g: int, files: dict[str, str]) -> str | None:
     size, kind = model.geom_size[g], mujoco.mjtGeom(int(model.geom_type[g]))
+    if kind == mujoco.mjtGeom.mjGEOM_MESH:
+        if not (model.geom_contype[g] or model.geom_conaffinity[g]):
+            return None  # a visual mesh: left out
+        text = _obj(model, int(model.geom_dataid[g]))
+        name = f"coadapt_{hashlib.sha1(text.encode()).hexdigest()[:16]}.obj"
+        files[name] = text
+        return f'<mesh filename="{name}"/>'
     if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
         return f'<sphere radius="{_f(size[0])}"/>'
     if kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
@@ -61,7 +83,7 @@ def _geometry(model: mujoco.MjModel, g: int) -> str | None:
     return None
 
 
-def _link(model: mujoco.MjModel, b: int) -> tuple[str | None, str]:
+def _link(model: mujoco.MjModel, b: int, files: dict[str, str]) -> tuple[str | None, str]:
     name = model.body(b).name
     m = np.zeros(9)
     mujoco.mju_quat2Mat(m, model.body_iquat[b])
@@ -76,11 +98,12 @@ def _link(model: mujoco.MjModel, b: int) -> tuple[str | None, str]:
     for g in range(model.ngeom):
         if model.geom_bodyid[g] != b:
             continue
-        shape = _geometry(model, g)
+        shape = _geometry(model, g, files)
         collides = bool(model.geom_contype[g] or model.geom_conaffinity[g])
         if shape is None:
             if collides:
-                return f"body '{name}' has a collision geom URDF cannot describe (a mesh?)", ""
+                why = f"body '{name}' has a collision geom URDF cannot describe (a plane?)"
+                return why, ""
             continue
         origin = f'<origin xyz="{_v(model.geom_pos[g])}" rpy="{_v(_rpy(model.geom_quat[g]))}"/>'
         body = f"{origin}<geometry>{shape}</geometry>"
@@ -156,15 +179,26 @@ def _joints(model: mujoco.MjModel, b: int, limit: dict) -> list[str]:
     return out
 
 
+def mesh_files(formats) -> dict[str, str]:
+    """File name -> text of the files a model's URDF names (its `urdf:<file>` formats)."""
+    return {k.split(":", 1)[1]: v for k, v in formats.items() if k.startswith("urdf:")}
+
+
 def urdf_text(
-    model: mujoco.MjModel, name: str, joints: list[str], torque: np.ndarray, speed: np.ndarray
+    model: mujoco.MjModel,
+    name: str,
+    joints: list[str],
+    torque: np.ndarray,
+    speed: np.ndarray,
+    files: dict[str, str] | None = None,
 ) -> tuple[str | None, str]:
     """(URDF text, "") of the robot in `model` (its first body below the world is the
-    floating base), or (None, why not)."""
+    floating base), or (None, why not); the mesh files it names go into `files`."""
+    files = {} if files is None else files
     limit = dict(zip(joints, zip(torque, speed, strict=True), strict=True))
     out = ['<?xml version="1.0"?>', f'<robot name="{name}">']
     for b in range(1, model.nbody):
-        why, link = _link(model, b)
+        why, link = _link(model, b, files)
         if why:
             return None, why
         out.append(link)

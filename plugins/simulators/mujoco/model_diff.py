@@ -14,6 +14,30 @@ from coadapt_core.errors import UserError
 SKIP_PREFIX = ("opt.",)
 
 
+def _same_collision_meshes(ref, other, design: list) -> None:
+    """Mesh assets are the batch's, shared by every row: a design whose collision meshes
+    differ in shape (a stretched link's) cannot share it. Visual meshes may differ."""
+    import mujoco
+
+    for g in range(ref.ngeom):
+        if ref.geom_type[g] != mujoco.mjtGeom.mjGEOM_MESH:
+            continue
+        if not (ref.geom_contype[g] or ref.geom_conaffinity[g]):
+            continue
+        mesh = int(ref.geom_dataid[g])
+        v0, nv = ref.mesh_vertadr[mesh], ref.mesh_vertnum[mesh]
+        if other.mesh_vertnum[mesh] != nv or not np.array_equal(
+            ref.mesh_vert[v0 : v0 + nv], other.mesh_vert[v0 : v0 + nv]
+        ):
+            name = ref.geom(g).name or f"number {g}"
+            raise UserError(
+                f"design {design} changes the shape of collision mesh '{name}'; one MuJoCo "
+                "batch shares its mesh assets across designs: replace the mesh by a primitive "
+                "(a spec robot: `collision: fit`)",
+                field="designs",
+            )
+
+
 def diff_fields(reference: CompiledDesign, item: CompiledDesign) -> list[str]:
     """Model fields in which `item` differs from the batch's `reference` model."""
     import mujoco.batch
@@ -37,6 +61,7 @@ def diff_fields(reference: CompiledDesign, item: CompiledDesign) -> list[str]:
             "actuators); one MuJoCo batch needs designs that differ only in parameters",
             field="designs",
         )
+    _same_collision_meshes(ref, other, design)
     out = []
     for name in mujoco.batch.MODEL_FIELDS:
         if name.startswith(SKIP_PREFIX):

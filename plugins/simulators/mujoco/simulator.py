@@ -283,7 +283,11 @@ class MujocoSimulator(RowResetMixin, StateReadMixin, Simulator):
             ids = np.array(envs)
             m = item.model
             for name in self._design_fields:
-                self._expanded[name][ids] = np.asarray(getattr(m, name))
+                value = np.asarray(getattr(m, name))
+                target = self._expanded[name]
+                if name == "bvh_aabb":  # the batch expands the bodies' volumes, not the meshes'
+                    value = value[: target.shape[1]]
+                target[ids] = value
             rm = item.robot_model
             self._kp[ids] = rm.kp
             self._kd[ids] = rm.kd

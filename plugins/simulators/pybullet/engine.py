@@ -121,6 +121,11 @@ class Engine(ArmatureMixin):
         path = os.path.join(self._tmpdir, f"env{e}-{self._loads}.urdf")
         with open(path, "w") as f:
             f.write(text)
+        for name, content in spec.urdf_files.items():  # named by their content's hash
+            mesh = os.path.join(self._tmpdir, os.path.basename(name))
+            if not os.path.exists(mesh):
+                with open(mesh, "w") as f:
+                    f.write(content)
         return path
 
     def _load(self, e: int, spec: EnvSpec, com_shift: np.ndarray | None = None) -> None:

@@ -8,7 +8,7 @@ so both backends see the same joint dynamics even where the URDF cannot say it (
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -38,6 +38,9 @@ class EnvSpec:
     # [J] kg m^2, the inertia each joint turns at the standing pose (its subtree about its
     # axis: the joint's diagonal of MuJoCo's mass matrix less its armature)
     joint_inertia: np.ndarray | None = None
+    # file name -> text of the files the URDF names (a collision mesh's OBJ): the model's
+    # "urdf:<file>" formats, written beside the URDF before it loads
+    urdf_files: dict[str, str] = field(default_factory=dict)
 
     @classmethod
     def from_model(cls, model: RobotModel) -> EnvSpec:
@@ -64,6 +67,9 @@ class EnvSpec:
             joint_armature=armature,
             joint_frictionloss=frictionloss,
             joint_inertia=inertia,
+            urdf_files={
+                k.split(":", 1)[1]: v for k, v in model.formats.items() if k.startswith("urdf:")
+            },
         )
 
 
