@@ -1,9 +1,12 @@
 """The thread budget: how many CPU threads this process may use (its affinity mask and its
 cgroup's CPU quota), and one number given to torch and the physics alike (`--threads`).
 
-Nothing here imports torch at module level: `coadapt_core.launch` reads `usable_cpus`
-before torch is loaded (libgomp reads its settings once). A run's budget is never taken from
-a checkpoint: it is the machine's (or `--threads`), recorded in the run's config.yaml.
+Nothing here imports torch or pydantic at module level: `coadapt_core.launch` reads
+`usable_cpus` before torch is loaded (libgomp reads its settings once), and the simulator
+plugins import this module when they are listed. The `--threads` option is declared with
+the other common options (`coadapt_core.cli.common_options.CommonOptions`). A run's budget is
+never taken from a checkpoint: it is the machine's (or `--threads`), recorded in the run's
+config.yaml.
 """
 
 from __future__ import annotations
@@ -14,7 +17,6 @@ from pathlib import Path
 from typing import Any
 
 from coadapt_core.errors import UserError
-from coadapt_core.settings import Int, setting, settings
 
 #: a folder standing in for /sys/fs/cgroup (tests; a container that mounts it elsewhere)
 ENV_CGROUP_ROOT = "COADAPT_CGROUP_ROOT"
@@ -22,18 +24,6 @@ CGROUP_ROOT = "/sys/fs/cgroup"
 
 #: the budget `apply_threads` set in this process (None: `usable_cpus()`)
 _budget: int | None = None
-
-
-@settings
-class ThreadSettings:
-    """`--threads`, declared once and taken as it is by run, train, eval, landscape and grid."""
-
-    threads: Int | None = setting(
-        None,
-        "CPU threads of the physics and of torch (default: the CPUs this process may use, "
-        "its affinity mask and cgroup CPU quota; never the checkpoint's).",
-        ge=1,
-    )
 
 
 def _own_cgroups(proc_file: str = "/proc/self/cgroup") -> list[tuple[str, str]]:
@@ -173,7 +163,6 @@ def budget() -> int:
 
 __all__ = [
     "ENV_CGROUP_ROOT",
-    "ThreadSettings",
     "affinity_cpus",
     "apply_threads",
     "budget",

@@ -43,6 +43,101 @@ def _probe(*args: str, preload: str = "", pythonpath: Path | None = None) -> dic
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
+#: pydantic's models of `coadapt run`'s settings: its config tree and the learner's sections
+RUN_SETTINGS = (
+    "coadapt_core.coadapt.config",
+    "coadapt_core.coadapt.learner_overrides",
+    "coadapt_core.learning.config",
+)
+
+#: what `coadapt --help`, a command's --help and a refusal load (issue 61): never torch nor
+#: the run's settings; no numpy either, but where the command lists the plugins (their
+#: modules import it) or takes `coadapt run`'s settings
+LOADED = """
+import contextlib, io, json, sys
+from coadapt_core.cli import main
+with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as err:
+    code = main(sys.argv[1:])
+watched = ("numpy", "torch", "pydantic", "coadapt_plugins", *RUN_SETTINGS)
+print(json.dumps({"code": code, "err": err.getvalue(),
+                  "loaded": sorted(m for m in watched if m in sys.modules)}))
+"""
+
+
+def _loaded(*args: str) -> dict:
+    """`coadapt ARGS` in a fresh interpreter: its exit status, stderr and which of the watched
+    modules it loaded."""
+    code = f"RUN_SETTINGS = {RUN_SETTINGS!r}\n" + LOADED
+    done = subprocess.run(
+        [sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.parametrize(
+    ("args", "code"),
+    [
+        (["--help"], 0),
+        (["--version"], 0),
+        (["runn"], 2),  # an unknown command: "did you mean 'run'?"
+        (["report", "--help"], 0),
+        (["export", "--help"], 0),
+        (["import", "--help"], 0),
+        (["plugins", "--help"], 0),
+        (["handoff", "--help"], 0),
+        (["dashboard", "--help"], 0),
+        (["export", "-o", "x", "--format", "parket"], 2),
+        (["report", "--transfer-agents", "0"], 2),
+        (["import", "x", "--formt", "csv"], 2),  # "no such option", did you mean --format
+        (["handoff", "x", "--threads", "0"], 2),
+    ],
+)
+def test_help_and_refusals_load_neither_numpy_nor_the_run_settings_nor_torch(args, code):
+    result = _loaded(*args)
+    assert result["code"] == code, result["err"]
+    assert [m for m in result["loaded"] if m != "pydantic"] == [], result["loaded"]
+
+
+def test_top_level_help_and_an_unknown_command_load_no_command_module():
+    """`coadapt --help` lists the commands from `coadapt_core.cli.COMMANDS`: no command module
+    is imported, so neither are their settings classes."""
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import sys; from coadapt_core.cli import main, COMMANDS; main(['--help']); "
+            "main(['runn']); own = {f'coadapt_core.cli.{c.module}' for c in COMMANDS.values()}; "
+            "print(sorted(own & set(sys.modules)))",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_plugins_and_a_mistyped_plugin_name_load_neither_torch_nor_the_run_settings():
+    """`coadapt plugins` imports the plugins (and the numpy their modules import), not torch
+    nor `coadapt run`'s settings; a refusal of `coadapt run` reads its settings but no torch."""
+    listed = _loaded("plugins")
+    assert listed["code"] == 0 and "coadapt_plugins" in listed["loaded"]
+    assert not {"torch", *RUN_SETTINGS} & set(listed["loaded"]), listed["loaded"]
+    refused = _loaded("run", "--sim", "mujocoo")
+    assert refused["code"] == 2 and "torch" not in refused["loaded"]
+
+
+@pytest.mark.parametrize("name", list(__import__("coadapt_core.cli").cli.COMMANDS))
+def test_each_line_of_the_command_table_is_the_commands_own_help(name):
+    """`coadapt --help` shows `COMMANDS`' line of each command without making it: the line is
+    the command's own help (its docstring's first paragraph)."""
+    from coadapt_core.cli import COMMANDS, make_command
+
+    own = " ".join((make_command(name).help or "").split("\n\n")[0].split())
+    assert COMMANDS[name].help == own
+
+
 def test_importing_the_cli_loads_neither_torch_nor_a_plugin():
     done = subprocess.run(
         [

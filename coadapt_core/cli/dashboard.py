@@ -9,7 +9,7 @@ from typing import Any
 
 import typer
 
-from coadapt_core.cli.export import ExportCommand
+from coadapt_core.cli.common_options import CommonOptions
 from coadapt_core.cli.options import filled, options_of
 from coadapt_core.cli.options import register as register_command
 from coadapt_core.settings import Int, setting, settings, shared
@@ -22,7 +22,7 @@ LOCAL = "127.0.0.1"
 class DashboardCommand:
     """`coadapt dashboard`'s settings."""
 
-    store: Any = shared(ExportCommand)
+    store: Any = shared(CommonOptions)
     runs: Path | None = setting(
         None,
         "Folder of run folders, looked in by run id (default: the folder each run's row names).",

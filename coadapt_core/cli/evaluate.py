@@ -17,12 +17,13 @@ from typing import Any
 import typer
 
 from coadapt_core.cli.common import check_device_option, fail, plugin_name, resolve, simulator_for
+from coadapt_core.cli.common_options import CommonOptions
 from coadapt_core.cli.options import filled, options_of
 from coadapt_core.cli.options import register as register_command
 from coadapt_core.cli.policy_source import EVAL_CHECKPOINTS, eval_checkpoint_path
 from coadapt_core.cli.progress import ProgressLine
 from coadapt_core.settings import Float, Int, setting, settings, shared
-from coadapt_core.threads import ThreadSettings, apply_threads
+from coadapt_core.threads import apply_threads
 
 
 @settings
@@ -49,10 +50,11 @@ class EvalCommand:
     agents: Int = setting(50, "Agents (environments) on the design.")
     seconds: Float = setting(20.0, "Simulated seconds per agent.")
     device: str = setting("cpu", "Policy device: cpu or cuda.")
-    seed: Int = setting(0, "Random seed.")
+    seed: Any = shared(CommonOptions)
     randomize: bool = setting(True, "Domain randomization (Table 2) as in training.")
-    threads: Any = shared(ThreadSettings)
-    as_json: bool = setting(False, "Print JSON.", names=("--json",))
+    threads: Any = shared(CommonOptions)
+    as_json: Any = shared(CommonOptions)
+    quiet: Any = shared(CommonOptions)
     video: Path | None = setting(
         None, "Render agent 0 offscreen into a .gif (or .mp4 with ffmpeg)."
     )
@@ -235,7 +237,7 @@ def register(app: typer.Typer) -> None:
         )
         from coadapt_core.experiments.evaluate import evaluate_checkpoint
 
-        with ProgressLine("eval", None, unit=" steps", enabled=not o.as_json) as bar:
+        with ProgressLine("eval", None, unit=" steps", enabled=not (o.as_json or o.quiet)) as bar:
             result = evaluate_checkpoint(
                 checkpoint,
                 robot_obj,

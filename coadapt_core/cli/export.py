@@ -7,24 +7,22 @@ from typing import Any, Literal
 
 import typer
 
+from coadapt_core.cli.common_options import CommonOptions
 from coadapt_core.cli.options import filled, options_of
 from coadapt_core.cli.options import register as register_command
-from coadapt_core.settings import setting, settings
+from coadapt_core.settings import setting, settings, shared
 
 
 @settings
 class ExportCommand:
-    """`coadapt export`'s settings; `store` is declared here once and shared by the other
-    commands that read a results store."""
+    """`coadapt export`'s settings."""
 
     out: Path = setting(help="Folder to write the tables into.", names=("-o", "--out"))
     format: Literal["csv", "parquet"] = setting(
         "csv", "Table format (parquet needs coadapt[parquet])."
     )
     run: list[str] | None = setting(None, "Export only this run (repeatable).", names=("--run",))
-    store: str | None = setting(
-        None, "Results store: a path or SQLAlchemy URL (default: $COADAPT_STORE or ./coadapt.db)."
-    )
+    store: Any = shared(CommonOptions)
 
 
 def register(app: typer.Typer) -> None:

@@ -9,7 +9,7 @@ from typing import Any
 import typer
 
 from coadapt_core.cli.common import ctrl_c_once, interrupted, invocation
-from coadapt_core.cli.export import ExportCommand
+from coadapt_core.cli.common_options import CommonOptions
 from coadapt_core.cli.options import options_of, settings_from
 from coadapt_core.cli.options import register as register_command
 from coadapt_core.coadapt.config import CoadaptConfig
@@ -64,7 +64,7 @@ class GridSettings:
         "(default: locally the cores divided among the cells at once; on Ray 1).",
         ge=1,
     )
-    store: Any = shared(ExportCommand)
+    store: Any = shared(CommonOptions)
     out: str = setting("runs", "Folder for run folders and cell logs.")
     timeout: Float | None = setting(None, "Seconds before a cell is killed (default: none).")
     dry_run: bool = setting(
@@ -73,7 +73,8 @@ class GridSettings:
         "when a cell would be refused.",
         names=("--dry-run",),
     )
-    as_json: bool = setting(False, "Print a JSON summary as the last line.", names=("--json",))
+    as_json: Any = shared(CommonOptions)
+    quiet: Any = shared(CommonOptions)
     run_arg: list[str] | None = setting(
         None,
         "Extra argument passed to every `coadapt run` (repeatable), e.g. --run-arg=--device=cuda.",
@@ -185,7 +186,7 @@ def _run(s: GridSettings, spec: Any, results: Any, command_line: str) -> Any:
     started: list[str] = []  # cells handed to the executor, in the order it starts them
     done: set[str] = set()
     width = s.workers or default_workers()
-    with ProgressLine("grid", None, unit=" cells") as line:
+    with ProgressLine("grid", None, unit=" cells", enabled=not s.quiet) as line:
 
         def on_event(kind, cell, outcome):
             if kind == "rerun":  # a Ray cell lost with its node
@@ -256,8 +257,10 @@ def register(app: typer.Typer) -> None:
             executor=s.executor, workers=s.workers, timeout=s.timeout, address=s.address
         )
         results = ResultsStore(s.store)
+        from coadapt_core.cli import app as coadapt  # the whole command line, `coadapt run` in it
+
         refused = _check_cells(
-            app, spec, s.out, results.url, dry_run=s.dry_run
+            coadapt, spec, s.out, results.url, dry_run=s.dry_run
         )  # every cell, before any starts
         if s.dry_run:
             _print_plan(results, spec, s.out, refused)

@@ -10,9 +10,10 @@ from typing import Any
 import typer
 
 from coadapt_core.cli.common import fail
+from coadapt_core.cli.common_options import CommonOptions
 from coadapt_core.cli.options import filled, options_of
 from coadapt_core.cli.options import register as register_command
-from coadapt_core.settings import Float, Int, setting, settings
+from coadapt_core.settings import Float, Int, setting, settings, shared
 
 
 @settings
@@ -55,9 +56,9 @@ class HandoffCommand:
     video: bool = setting(True, "Render a GIF when the run has none of this design.")
     force: bool = setting(False, "Replace an earlier handoff folder at --out.", names=("--force",))
     runs_dir: Path = setting(Path("runs"), "Where run ids are looked up.")
-    as_json: bool = setting(
-        False, "Print what was written as JSON on the last line.", names=("--json",)
-    )
+    threads: Any = shared(CommonOptions)
+    quiet: Any = shared(CommonOptions)
+    as_json: Any = shared(CommonOptions)
 
 
 def _picked(run_dir: Path, pick: str) -> Any:
@@ -83,15 +84,29 @@ def _picked(run_dir: Path, pick: str) -> Any:
     return np.asarray(front["designs"][index], dtype=float)
 
 
+def _quiet_simulators(sim: list[str] | None) -> None:
+    """The simulators' import-time banners silenced (a library's banner is not a result)."""
+    from coadapt_core.cli.report import _quiet_imports
+    from coadapt_core.plugins import get_registry
+
+    registry = get_registry()
+    for name in sim or registry.names("simulator"):
+        _quiet_imports(tuple(getattr(registry.get("simulator", name), "quiet_imports", ())))
+
+
+def _quiet(line: str) -> None:
+    """--quiet: the progress lines are not printed."""
+
+
 def register(app: typer.Typer) -> None:
     declared = options_of(HandoffCommand)
 
     def handoff_command(**values: Any) -> None:
         """Write the design's URDF and MJCF, its controller as ONNX (checked against torch),
         policy.json, the design sheet (design.md, design.json), the GIF, a README and check.py."""
+        o = filled(values, declared)  # a bad value is refused before torch loads
         from coadapt_core.handoff.policy import DEPLOY_EXTRA, missing_deploy_modules
 
-        o = filled(values, declared)
         run, out, design, sim, agents, seconds = (
             o["run"],
             o["out"],
@@ -132,14 +147,7 @@ def register(app: typer.Typer) -> None:
 
             for name in sim:
                 resolve("simulator", name)
-        from coadapt_core.cli.report import _quiet_imports
-        from coadapt_core.plugins import get_registry
-
-        registry = get_registry()
-        for name in sim or registry.names(
-            "simulator"
-        ):  # a library's import-time banner is not a result
-            _quiet_imports(tuple(getattr(registry.get("simulator", name), "quiet_imports", ())))
+        _quiet_simulators(sim)
         target = out if out is not None else Path(f"handoff-{run_dir.name}")
         options = HandoffOptions(
             design=values,
@@ -150,8 +158,14 @@ def register(app: typer.Typer) -> None:
             video=o["video"],
             force=o["force"],
         )
+        from coadapt_core.threads import apply_threads
+
+        apply_threads(o["threads"])  # both engines' physics and torch, as `coadapt run`'s
         result = make_handoff(
-            run_dir, target, options, progress=lambda line: print(line, file=sys.stderr)
+            run_dir,
+            target,
+            options,
+            progress=_quiet if o["quiet"] else lambda line: print(line, file=sys.stderr),
         )
         print(
             f"wrote {result['out']} ({len(result['files'])} files) in {result['seconds']:.1f} s",

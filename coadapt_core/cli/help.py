@@ -209,6 +209,7 @@ RUN_COMMON_OPTIONS = (
     "out",
     "store",
     "as_json",
+    "quiet",
     "video",
     "device",
     "logger",
@@ -224,7 +225,8 @@ RUN_COMMON_OPTIONS = (
 def plain_help(command: Any) -> None:
     """One help layout for every command: plain Click help (no table: option names are never
     cut at 80 columns), each option's text as `option_help` wrote it (Click adds no default
-    of its own); `coadapt run --help` lists the common options only (`short_help`)."""
+    of its own); `coadapt run --help` lists the common options only (`short_help`, applied
+    where the command is made: `coadapt_core.cli.make_command`)."""
     if hasattr(command, "rich_markup_mode"):
         command.rich_markup_mode = None
     for param in command.params:
@@ -234,10 +236,11 @@ def plain_help(command: Any) -> None:
             _DEFERRED_MARK
         ):
             _lazy_help(param)
-    for sub in getattr(command, "commands", {}).values():
+    subs = getattr(command, "commands", {})
+    # `coadapt` itself: only the commands made so far (`coadapt_core.cli.make_command` lays
+    # out each one it makes, `coadapt run`'s short list included)
+    for sub in getattr(subs, "made", subs).values():
         plain_help(sub)
-        if sub.name == "run" and command.name in (None, "coadapt", "main"):
-            short_help(sub, RUN_COMMON_OPTIONS)
 
 
 def short_help(command: Any, common: tuple[str, ...]) -> None:

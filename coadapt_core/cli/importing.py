@@ -9,7 +9,7 @@ from typing import Any
 
 import typer
 
-from coadapt_core.cli.export import ExportCommand
+from coadapt_core.cli.common_options import CommonOptions
 from coadapt_core.cli.options import filled, options_of
 from coadapt_core.cli.options import register as register_command
 from coadapt_core.settings import setting, settings, shared
@@ -23,8 +23,8 @@ class ImportCommand:
         help="The folder `coadapt export -o` wrote, or a file in it.", argument="EXPORT"
     )
     format: str | None = setting(None, "csv or parquet (default: what the folder holds).")
-    store: Any = shared(ExportCommand)
-    as_json: bool = setting(False, "Print what was imported as one JSON line.", names=("--json",))
+    store: Any = shared(CommonOptions)
+    as_json: Any = shared(CommonOptions)
 
 
 def register(app: typer.Typer) -> None:
@@ -33,15 +33,16 @@ def register(app: typer.Typer) -> None:
     def import_command(**values: Any) -> None:
         """Merge exported runs into a store: new runs are added, a run already there is
         replaced only by a copy further along (finished, or updated later)."""
-        from coadapt_core.results.import_files import export_files
-        from coadapt_core.results.importer import import_tables
-        from coadapt_core.results.store import ResultsStore
-
         o = filled(values, options)
         source, fmt = o["source"], o["format"]
+        from coadapt_core.results.import_files import export_files
+
         export_files(
             source, fmt
         )  # a bad path or format is one line before the store is opened or made
+        from coadapt_core.results.importer import import_tables
+        from coadapt_core.results.store import ResultsStore
+
         with ResultsStore(o["store"]) as results:
             done = import_tables(results, source, fmt=fmt)
             url = results.url

@@ -11,13 +11,13 @@ from typing import Any
 import typer
 
 from coadapt_core.cli.common import ctrl_c_once, fail, interrupted, invocation, resolve
-from coadapt_core.cli.export import ExportCommand
+from coadapt_core.cli.common_options import CommonOptions
 from coadapt_core.cli.options import options_of, settings_from
 from coadapt_core.cli.options import register as register_command
 from coadapt_core.coadapt.config import CoadaptConfig
 from coadapt_core.plugins import default_plugin
 from coadapt_core.settings import Int, setting, settings, shared
-from coadapt_core.threads import ThreadSettings, apply_threads
+from coadapt_core.threads import apply_threads
 
 
 @settings
@@ -45,14 +45,15 @@ class LandscapeSettings:
     steps: Int | None = setting(
         None, "Policy steps per agent, T_eval (default: the quick preset's).", ge=1
     )
-    seed: Any = shared(CoadaptConfig)
+    seed: Any = shared(CommonOptions)
     cost_rule: Any = shared(CoadaptConfig)
     cost_cap: Any = shared(CoadaptConfig)
     device: Any = shared(CoadaptConfig)
-    threads: Any = shared(ThreadSettings)
-    store: Any = shared(ExportCommand)
+    threads: Any = shared(CommonOptions)
+    store: Any = shared(CommonOptions)
     resume: str | None = setting(None, "Continue an interrupted landscape run (its id).")
-    as_json: bool = setting(False, "Print the summary as JSON on the last line.", names=("--json",))
+    as_json: Any = shared(CommonOptions)
+    quiet: Any = shared(CommonOptions)
 
     @property
     def objectives(self) -> list[str]:
@@ -221,7 +222,10 @@ def _run(s: LandscapeSettings, job: dict[str, Any]) -> dict[str, Any]:
     started: list[str] = []
     argv = invocation()
     agents, steps, recorder = job["agents"], job["steps"], job["recorder"]
-    with ctrl_c_once(), ProgressLine("landscape", s.grid, unit=" rows") as line:
+    with (
+        ctrl_c_once(),
+        ProgressLine("landscape", s.grid, unit=" rows", enabled=not s.quiet) as line,
+    ):
 
         def on_row(row: int, total: int) -> None:
             line.update(

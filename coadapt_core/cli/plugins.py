@@ -10,18 +10,19 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from coadapt_core.cli.common_options import CommonOptions
 from coadapt_core.cli.options import options_of
 from coadapt_core.cli.options import register as register_command
 from coadapt_core.plugin_api import PLUGIN_API_VERSION
 from coadapt_core.plugins import KINDS, get_registry
-from coadapt_core.settings import setting, settings
+from coadapt_core.settings import settings, shared
 
 
 @settings
 class PluginsCommand:
     """`coadapt plugins`'s settings."""
 
-    as_json: bool = setting(False, "Print JSON instead of a table.", names=("--json",))
+    as_json: Any = shared(CommonOptions)
 
 
 def register(app: typer.Typer) -> None:

@@ -8,7 +8,7 @@ from typing import Any
 
 import typer
 
-from coadapt_core.cli.export import ExportCommand
+from coadapt_core.cli.common_options import CommonOptions
 from coadapt_core.cli.options import filled, options_of
 from coadapt_core.cli.options import register as register_command
 from coadapt_core.settings import Int, setting, settings, shared
@@ -24,7 +24,9 @@ class ReportCommand:
     out: Path = setting(
         Path("report"), "Folder for the tables, figures and report.html.", names=("-o", "--out")
     )
-    store: Any = shared(ExportCommand)
+    store: Any = shared(CommonOptions)
+    threads: Any = shared(CommonOptions)
+    quiet: Any = shared(CommonOptions)
     sim_to_sim: bool = setting(
         True, "Evaluate each best design's policy on a second simulator (Table 6's last column)."
     )
@@ -235,9 +237,16 @@ def register(app: typer.Typer) -> None:
         )  # before anything is evaluated (the sim-to-sim and common columns take minutes)
         if o.sim_to_sim:
             o.transfer_sim = _transfer_simulator(o.transfer_sim)
+        if o.threads is not None:  # the sim-to-sim and common-scenario rows it simulates
+            from coadapt_core.threads import apply_threads
+
+            apply_threads(o.threads)
         from coadapt_core.cli.progress import ProgressLine
 
-        with ResultsStore(o.store) as results, ProgressLine("report", None) as line:
+        with (
+            ResultsStore(o.store) as results,
+            ProgressLine("report", None, enabled=not o.quiet) as line,
+        ):
 
             def progress(done: int, total: int, what: str) -> None:
                 line.update(done, what, total=total)

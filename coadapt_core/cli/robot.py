@@ -16,7 +16,9 @@ import typer
 
 from coadapt_core.cli import robot_new
 from coadapt_core.cli.common import fail, resolve
-from coadapt_core.cli.options import filled, options_of, register
+from coadapt_core.cli.common_options import CommonOptions
+from coadapt_core.cli.options import filled, options_of
+from coadapt_core.cli.options import register as register_command
 from coadapt_core.errors import DesignError, UserError
 from coadapt_core.io import jsonable
 from coadapt_core.robot import joint_table
@@ -42,7 +44,7 @@ class RobotShow:
         argument="[ROBOT]",
     )
     design: str | None = setting(None, DESIGN_HELP)
-    as_json: bool = setting(False, "Print JSON instead of tables.", names=("--json",))
+    as_json: Any = shared(CommonOptions)
     no_validate: bool = setting(False, "Skip the validation checks.", names=("--no-validate",))
 
 
@@ -64,7 +66,7 @@ class RobotValidate:
 
     robot: Any = shared(RobotShow)
     design: Any = shared(RobotShow)
-    as_json: bool = setting(False, "Print the report as JSON.", names=("--json",))
+    as_json: Any = shared(CommonOptions)
 
 
 @settings
@@ -230,7 +232,7 @@ def show_command(**values: Any) -> None:
         _print_description(data)
 
 
-register(app, "show", show_command, _SHOW, path="robot show")
+register_command(app, "show", show_command, _SHOW, path="robot show")
 _EXPORT = options_of(RobotExport)
 
 
@@ -264,7 +266,7 @@ def export_command(**values: Any) -> None:
     )
 
 
-register(app, "export", export_command, _EXPORT, path="robot export")
+register_command(app, "export", export_command, _EXPORT, path="robot export")
 _VALIDATE = options_of(RobotValidate)
 
 
@@ -285,7 +287,7 @@ def validate_command(**values: Any) -> None:
         raise typer.Exit(EXIT_INFEASIBLE)
 
 
-register(app, "validate", validate_command, _VALIDATE, path="robot validate")
+register_command(app, "validate", validate_command, _VALIDATE, path="robot validate")
 # -- render ----------------------------------------------------------------------------------
 _RENDER = options_of(RobotRender)
 
@@ -346,5 +348,10 @@ def render_command(**values: Any) -> None:
     )
 
 
-register(app, "render", render_command, _RENDER, path="robot render")
+register_command(app, "render", render_command, _RENDER, path="robot render")
 robot_new.register_new(app)
+
+
+def register(parent: typer.Typer) -> None:
+    """`coadapt robot` and its commands, on `parent` (`coadapt_core.cli.COMMANDS`)."""
+    parent.add_typer(app, name="robot")

@@ -14,6 +14,7 @@ from typing import Any
 import typer
 
 from coadapt_core.cli.common import ctrl_c_once, fail, interrupted, resolve
+from coadapt_core.cli.common_options import CommonOptions
 from coadapt_core.cli.help import help_all
 from coadapt_core.cli.options import LateGroup, OptionGroup, filled, options_of
 from coadapt_core.cli.options import register as register_command
@@ -21,7 +22,6 @@ from coadapt_core.cli.progress import ProgressLine, fmt_duration
 from coadapt_core.cli.run_summary import report
 from coadapt_core.errors import UserError
 from coadapt_core.settings import Float, Int, setting, settings, shared
-from coadapt_core.threads import ThreadSettings
 from coadapt_core.tracking import check_logger
 
 
@@ -40,7 +40,8 @@ class RunCommand:
         "Resume the run with this id (a folder under --out) or this run folder; its recorded "
         "config holds, but --store names the store this session writes to.",
     )
-    as_json: bool = setting(False, "Last stdout line: a JSON summary.", names=("--json",))
+    as_json: Any = shared(CommonOptions)
+    quiet: Any = shared(CommonOptions)
     video: bool = setting(
         True,
         "End by rendering the best and the nominal design walking side by side: <run "
@@ -58,7 +59,7 @@ class RunCommand:
         "file's objective_options.",
         names=("--objective-option",),
     )
-    threads: Any = shared(ThreadSettings)
+    threads: Any = shared(CommonOptions)
     help_all: bool = setting(
         False,
         "Show every option (training, task, randomization, ...) and exit.",
@@ -302,6 +303,7 @@ def _run_loop(cfg: Any, kwargs: dict[str, Any], values: dict[str, Any]) -> Any:
         values["video"],
         values["as_json"],
     )
+    quiet = as_json or values["quiet"]  # no progress line (the JSON's last line stays alone)
     started: dict[str, Any] = {}
 
     def on_start(run_id: str, run_dir: Path) -> None:
@@ -312,9 +314,9 @@ def _run_loop(cfg: Any, kwargs: dict[str, Any], values: dict[str, Any]) -> Any:
         view.close()
         # a finished run resumed again keeps the video it has
         if video and not (resume and (result.run_dir / "best_vs_nominal.gif").is_file()):
-            _render_video(result.run_dir, result.summary, progress=not as_json)
+            _render_video(result.run_dir, result.summary, progress=not quiet)
 
-    with ctrl_c_once(), _ProgressView(enabled=not as_json) as view:
+    with ctrl_c_once(), _ProgressView(enabled=not quiet) as view:
         try:
             return run_coadaptation(
                 cfg, progress=view, on_start=on_start, finishing=finishing, **kwargs

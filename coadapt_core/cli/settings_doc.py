@@ -101,18 +101,25 @@ def _group_table(group: Any) -> list[str]:
 
 
 def command_order() -> list[str]:
-    """Every command path with declared options: `run` first, then as `coadapt --help` lists
-    them, `coadapt` itself last."""
-    first, last = ["run"], [""]
-    return (
-        first + [p for p in DECLARED if p not in first + last] + [p for p in last if p in DECLARED]
+    """Every command path with declared options: `run` first, then `robot`'s commands, then
+    the others as `coadapt --help` lists them, `coadapt` itself last."""
+    from coadapt_core.cli import COMMANDS
+
+    # `robot`'s commands ("robot show", ...) in the order declared
+    order = ["run", "robot", *(name for name in COMMANDS if name not in ("run", "robot"))]
+    middle = sorted(
+        (p for p in DECLARED if p not in ("run", "")),
+        key=lambda p: order.index(p.split()[0]) if p.split()[0] in order else len(order),
     )
+    return ["run", *middle] + ([""] if "" in DECLARED else [])
 
 
 def settings_markdown() -> str:
     """The page: `coadapt run`'s config tree, one table per section, then every command's
     own settings."""
-    import coadapt_core.cli  # noqa: F401  (registering the commands fills DECLARED)
+    from coadapt_core.cli import load_all
+
+    load_all()  # making every command fills DECLARED
 
     out = [HEADER]
     for group in DECLARED["run"]:

@@ -18,13 +18,14 @@ from typing import Any
 import typer
 
 from coadapt_core.cli.common import check_device_option, fail, plugin_name, resolve, simulator_for
+from coadapt_core.cli.common_options import CommonOptions
 from coadapt_core.cli.help import choices
 from coadapt_core.cli.options import OptionGroup, filled, given_settings, options_of
 from coadapt_core.cli.options import register as register_command
 from coadapt_core.cli.progress import ProgressLine
 from coadapt_core.errors import UserError
 from coadapt_core.settings import Float, Int, overrides, setting, settings, shared
-from coadapt_core.threads import ThreadSettings, apply_threads
+from coadapt_core.threads import apply_threads
 from coadapt_core.tracking import check_logger, make_logger
 
 
@@ -49,8 +50,8 @@ class TrainCommand:
         "every installed objective that declares no options).",
     )
     device: str = setting("cpu", "Learner device: cpu or cuda.")
-    threads: Any = shared(ThreadSettings)
-    seed: Int = setting(0, "Random seed.")
+    threads: Any = shared(CommonOptions)
+    seed: Any = shared(CommonOptions)
     resume: Path | None = setting(
         None, "Checkpoint to resume from (networks, optimizers, normalisers, counters)."
     )
@@ -96,7 +97,7 @@ class TrainCommand:
         "tracking over >= 50 policy steps).",
         gt=0,
     )
-    quiet: bool = setting(False, "No progress bar; one JSON line per iteration on stdout.")
+    quiet: Any = shared(CommonOptions)
     logger: str = setting(
         "tensorboard",
         "Experiment tracking: tensorboard (event files in OUT/logs), wandb (if installed) or none.",
