@@ -391,24 +391,35 @@ def _train(values: dict[str, Any], runner: Any, robot: str) -> None:
     )
     _announce(values, robot, trainer, iterations)
     first = trainer.iteration
-    last_check: list[str] = []  # --until-walks: the last check, as the progress line shows it
+    # the last iteration's statistics and (--until-walks) the last check, as the line shows them
+    shown: dict[str, Any] = {}
     walks = None
     with ProgressLine("train", iterations, unit=" it", enabled=not quiet) as bar:
 
-        def show(stats) -> None:
-            if quiet:
-                print(json.dumps(stats.to_dict()), flush=True)
+        def redraw() -> None:
+            stats = shown["stats"]
             bar.update(
                 stats.iteration - first,
                 f"{stats.collect_steps_per_s:,.0f} steps/s  reward "
                 f"{stats.mean_reward:.4f}  vx {stats.vx:.2f}/{stats.command_vx:.2f} m/s  "
                 f"velocity error/step {stats.tracking_error:.3f} m/s  "
-                f"ep {stats.episode_length_s:.1f} s" + "".join(f"  {t}" for t in last_check[-1:]),
+                f"ep {stats.episode_length_s:.1f} s"
+                + (f"  {shown['check']}" if "check" in shown else ""),
             )
+
+        def show(stats) -> None:
+            if quiet:
+                print(json.dumps(stats.to_dict()), flush=True)
+            shown["stats"] = stats
+            redraw()
+
+        def show_check(text: str) -> None:
+            shown["check"] = text
+            redraw()
 
         try:
             if values["until_walks"]:
-                walks = _until_walks(values, runner, show, last_check)
+                walks = _until_walks(values, runner, show, show_check)
             else:
                 runner.run(iterations, show)
         except TrainingInterrupted as stop:
@@ -435,7 +446,7 @@ def _train(values: dict[str, Any], runner: Any, robot: str) -> None:
 EXIT_NOT_WALKING = 3
 
 
-def _until_walks(values: dict[str, Any], runner: Any, show: Any, last_check: list[str]) -> Any:
+def _until_walks(values: dict[str, Any], runner: Any, show: Any, show_check: Any) -> Any:
     """Train until a check walks or a budget runs out (`train_until_walks`): each check's
     checkpoint is OUT/check.pt, its row appended to OUT/checks.jsonl (and, with --quiet,
     printed as {"walking_check": row}); the one that walks becomes OUT/walks.pt."""
@@ -462,7 +473,7 @@ def _until_walks(values: dict[str, Any], runner: Any, show: Any, last_check: lis
             log.write(json.dumps(row) + "\n")
         if values["quiet"]:
             print(json.dumps({"walking_check": row}), flush=True)
-        last_check.append(check_text(row))
+        show_check(check_text(row))
         if row["walking"]:
             (out / "check.pt").replace(out / "walks.pt")
 

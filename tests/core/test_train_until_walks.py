@@ -15,6 +15,7 @@ from coadapt_core.cli import main
 from coadapt_core.cli.train import EXIT_NOT_WALKING
 from coadapt_core.experiments.walking_check import (
     GATE_DESIGNS,
+    check_text,
     training_draws_kept,
     worst_design,
 )
@@ -63,7 +64,18 @@ def test_checks_leave_the_training_draws_as_they_were(tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_the_wall_clock_budget_stops_it_with_one_last_check(tmp_path, capsys):
+def test_the_wall_clock_budget_stops_it_with_one_last_check(tmp_path, capsys, monkeypatch):
+    from coadapt_core.cli import progress
+    from coadapt_core.cli import train as train_cli
+
+    shown = []  # what the progress line was given to show
+
+    class Recording(progress.ProgressLine):
+        def update(self, done=None, detail=None, **kw):
+            shown.append(detail)
+            super().update(done, detail, **kw)
+
+    monkeypatch.setattr(train_cli, "ProgressLine", Recording)
     out = tmp_path / "t"
     code = _train(
         out, "--robot", "qilin", "--terrain", "slope", "--steps", "6400", "--max-seconds", "0.001"
@@ -75,6 +87,11 @@ def test_the_wall_clock_budget_stops_it_with_one_last_check(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "the wall-clock budget (--max-seconds 0.001) ran out after 64 interactions" in err
     assert "last check it 1: no, worst " in err
+    # the progress line shows the last check after the iteration's figures
+    row = _checks(out)[0]
+    assert check_text(row).startswith(f"check it 1: no, worst {row['worst']}: survival ")
+    assert "reward" in shown[-1] and shown[-1].endswith("  " + check_text(row))
+    assert "check it" not in shown[0]
 
 
 @pytest.mark.slow
