@@ -533,8 +533,9 @@ def _walks_report(
     print(
         f"not walking yet: {budget} ran out after {took}; "
         + (f"last {check_text(last)}" if last else "no check ran")
-        + f". Go on with coadapt train --robot {robot} --resume {out / 'model_final.pt'} "
-        f"--until-walks --out {out}",
+        + f". Go on with coadapt train --robot {robot} --terrain {values['terrain']}"
+        + (" --mixed" if values["mixed"] else "")
+        + f" --resume {out / 'model_final.pt'} --until-walks --out {out}",
         file=sys.stderr,
     )
     raise typer.Exit(EXIT_NOT_WALKING)

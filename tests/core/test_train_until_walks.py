@@ -61,6 +61,7 @@ def test_checks_leave_the_training_draws_as_they_were(tmp_path, capsys):
     assert summary["walked"] is False and summary["budget"] == "interactions"
     assert summary["interactions"] == 192
     assert "the interaction budget (--steps 192) ran out" in out.err
+    assert f"--terrain slope --resume {every / 'model_final.pt'} --until-walks" in out.err
 
 
 @pytest.mark.slow
