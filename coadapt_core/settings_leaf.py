@@ -9,9 +9,10 @@ from __future__ import annotations
 import dataclasses
 import types
 import typing
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
-from pydantic.fields import FieldInfo
+if TYPE_CHECKING:  # pydantic is loaded with the settings classes, not to read one
+    from pydantic.fields import FieldInfo
 
 
 def _unwrap(annotation: Any) -> tuple[Any, list[Any]]:

@@ -99,6 +99,16 @@ def test_help_and_refusals_load_neither_numpy_nor_the_run_settings_nor_torch(arg
     assert [m for m in result["loaded"] if m != "pydantic"] == [], result["loaded"]
 
 
+@pytest.mark.parametrize("args", [["--help"], ["--version"], []])
+def test_top_level_help_and_version_load_not_even_pydantic(args):
+    """`coadapt` itself answers with typer alone: its `--version` is made without its settings
+    class (`options.EarlySwitch`), the commands are listed from `COMMANDS`. (Any command line
+    typer reads values from loads pydantic: typer converts every value with it.)"""
+    result = _loaded(*args)
+    assert result["code"] == (0 if args else 2)
+    assert result["loaded"] == [], result["loaded"]
+
+
 def test_top_level_help_and_an_unknown_command_load_no_command_module():
     """`coadapt --help` lists the commands from `coadapt_core.cli.COMMANDS`: no command module
     is imported, so neither are their settings classes."""

@@ -120,6 +120,7 @@ def make_command(name: str) -> Any:
     from coadapt_core.cli.help import RUN_COMMON_OPTIONS, plain_help, short_help
 
     if name not in _REGISTERED:
+        declare_root()  # pydantic is loaded with the command's settings classes anyway
         module = importlib.import_module(f"coadapt_core.cli.{COMMANDS[name].module}")
         own = typer.Typer(add_completion=False, pretty_exceptions_enable=False)
         module.register(own)
@@ -193,14 +194,30 @@ def _root(**values: Any) -> None:
     """Co-adapt a robot's design and its locomotion policy."""
 
 
-def _root_options() -> Any:
-    """`coadapt`'s own options (`--version`), from `RootOptions` (`cli/common_options.py`)."""
-    from coadapt_core.cli.common_options import RootOptions
-    from coadapt_core.cli.options import DECLARED, bind, options_of
+def _version(value: bool) -> None:
+    if value:
+        from coadapt_core import __version__
 
-    group = options_of(RootOptions)
-    DECLARED[""] = (group,)
-    return bind(_root, group)
+        print(f"coadapt {__version__}")
+        raise typer.Exit(0)
+
+
+def _root_options() -> Any:
+    """`coadapt`'s own options, as `RootOptions` declares them (`cli/common_options.py`), made
+    without pydantic (`options.EarlySwitch`): `coadapt --help` and `--version` cost typer."""
+    from coadapt_core.cli.options import EarlySwitch, bind
+
+    return bind(_root, [EarlySwitch("version", "--version", "Print the version.", _version)])
+
+
+def declare_root() -> None:
+    """Record `coadapt`'s own options from their declaration (`RootOptions`) in
+    `options.DECLARED`, as every command's are when it is made (docs/settings.md, the tests)."""
+    from coadapt_core.cli.common_options import RootOptions
+    from coadapt_core.cli.options import DECLARED, options_of
+
+    if "" not in DECLARED:
+        DECLARED[""] = (options_of(RootOptions),)
 
 
 def load_all() -> dict[str, Any]:

@@ -13,7 +13,6 @@ import typer
 
 from coadapt_core.cli.help import plain_help
 from coadapt_core.errors import CoadaptError, PluginError, UnknownPluginError, UserError
-from coadapt_core.plugins import get_registry
 
 #: exit code for bad input (usage errors, bad config, unknown plugin names)
 EXIT_USAGE = 2
@@ -122,6 +121,8 @@ def plugin_name(kind: str, given: str | None) -> str:
     error when none is installed)."""
     if given:
         return given
+    from coadapt_core.plugins import get_registry
+
     try:
         return get_registry().default(kind)
     except UnknownPluginError as exc:
@@ -130,6 +131,8 @@ def plugin_name(kind: str, given: str | None) -> str:
 
 def resolve(kind: str, name: str) -> type:
     """The plugin class for `name`, or a one-line error listing what is available."""
+    from coadapt_core.plugins import get_registry
+
     try:
         return get_registry().get(kind, name)
     except UnknownPluginError as exc:

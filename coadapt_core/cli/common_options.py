@@ -52,18 +52,15 @@ class CommonOptions:
 
 
 def _version(value: bool) -> None:
-    if value:
-        import typer
+    from coadapt_core.cli import _version as print_version
 
-        from coadapt_core import __version__
-
-        print(f"coadapt {__version__}")
-        raise typer.Exit(0)
+    print_version(value)
 
 
 @settings
 class RootOptions:
-    """The options of `coadapt` itself, before a command."""
+    """The options of `coadapt` itself, before a command (the option is made without pydantic,
+    from the same words: `coadapt_core.cli.options.EarlySwitch`)."""
 
     version: bool = setting(False, "Print the version.", names=("--version",), callback=_version)
 

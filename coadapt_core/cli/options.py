@@ -30,7 +30,6 @@ from typing import Any
 import typer
 
 from coadapt_core.cli.help import option_help
-from coadapt_core.settings import leaves
 from coadapt_core.settings_leaf import Leaf
 
 #: command path ("run", "robot show", "" for `coadapt` itself) -> the option groups (one per
@@ -154,6 +153,8 @@ def options_of(
     sections expanded: `--task-commands-yaw-range`), its help rendered by
     `coadapt_core.cli.help.option_help`. `aliases` adds option names by key; `per_preset`:
     the settings of `coadapt run`'s config, whose shown default is the preset's."""
+    from coadapt_core.settings import leaves
+
     presets = None
     if per_preset:
         from coadapt_core.coadapt.config import preset_defaults
@@ -182,6 +183,28 @@ def options_of(
             )
         out.append(CommandOption(leaf.param, _kind(leaf), parameter, leaf, names))
     return OptionGroup(cls, out)
+
+
+@dataclass(frozen=True)
+class EarlySwitch:
+    """A switch of `coadapt` itself made without its settings class, so that `coadapt --help`
+    imports no pydantic (a settings class costs pydantic's import, about twice `import typer`);
+    its declaration is still the settings class's (`coadapt_core.cli.common_options.RootOptions`,
+    from which docs/settings.md is generated), and tests/core/test_settings.py compares the two
+    (names and help, word for word)."""
+
+    param: str
+    name: str
+    help: str
+    callback: Callable[[bool], None]
+
+    @property
+    def kind(self) -> Any:
+        return bool
+
+    @property
+    def option(self) -> Any:
+        return typer.Option(None, self.name, help=self.help, callback=self.callback, is_eager=True)
 
 
 def bind(func: Callable[..., Any], *groups: list[CommandOption]) -> Callable[..., Any]:
@@ -261,6 +284,7 @@ def filled(values: Mapping[str, Any], group: OptionGroup) -> dict[str, Any]:
 __all__ = [
     "DECLARED",
     "CommandOption",
+    "EarlySwitch",
     "LateGroup",
     "OptionGroup",
     "bind",
