@@ -397,6 +397,35 @@ def test_collision_fit_replaces_collision_meshes_by_primitives_and_says_how_well
     assert not any(k.startswith("urdf:") for k in model.formats)  # no collision mesh left
 
 
+def prism_triangles(radius: float, half: float, sides: int = 24) -> np.ndarray:
+    """[4 sides, 3, 3] a closed prism of `sides` sides about z (a vendor's cylinder mesh)."""
+    a = np.linspace(0.0, 2 * np.pi, sides, endpoint=False)
+    ring = radius * np.stack([np.cos(a), np.sin(a)], axis=1)
+    out = []
+    for i in range(sides):
+        j = (i + 1) % sides
+        b0, b1 = [*ring[i], -half], [*ring[j], -half]
+        t0, t1 = [*ring[i], half], [*ring[j], half]
+        out += [[b0, b1, t1], [b0, t1, t0], [[0, 0, half], t0, t1], [[0, 0, -half], b1, b0]]
+    return np.array(out)
+
+
+def test_collision_fit_picks_the_primitive_closest_in_volume(tmp_path):
+    """A 24-sided prism shell becomes a cylinder (fitted to its bounding box: radius 3 cm,
+    1.2 % more volume than the prism, pi / (12 sin 15 deg)), not the inertia box MuJoCo fits
+    by default."""
+    folder = meshy_folder(tmp_path / "meshy", collision="fit")
+    write_stl(folder / "shell.stl", prism_triangles(0.03, 0.12))
+    model = spec_robot_class(folder)().build(np.array([1.0, 1.0]))
+    fits = model.info["collision_fit"].split("; ")
+    assert fits[0] == (
+        "collision mesh 'left_shell' of body 'left_shin': a cylinder, its volume +1.2% of the "
+        "mesh's"
+    )
+    mj = mujoco.MjModel.from_xml_string(model.text("mjcf"))
+    np.testing.assert_allclose(mj.geom_size[mj.geom("left_shell").id, :2], [0.03, 0.12], atol=1e-6)
+
+
 def test_robot_new_writes_collision_fit_for_a_collision_mesh_off_its_link(tmp_path):
     from coadapt_plugins.robots.specs.new import write_robot
 
@@ -458,3 +487,19 @@ def test_robots_with_meshes_in_scaled_links_pass_every_step(tmp_path, collision)
         sim.close()
         assert np.abs(heights[name] - model.standing_base_height).max() < 0.02, name
     assert np.abs(heights["mujoco"] - heights["pybullet"]).max() < 0.002
+
+
+def test_robot_new_on_stacked_hinges_writes_a_spec_that_validates(tmp_path):
+    """`robot new` on the stacked-hinge biped as the file is: both legs found through their
+    stacked hips and ankles, and the spec it writes validates at the nominal design and the
+    corners, Pinocchio agreeing hinge by hinge."""
+    from coadapt_plugins.robots.specs.new import write_robot
+
+    source = write_robot_folder(tmp_path / "source", stacked_model())
+    folder, _ = write_robot("stacked", source / "model.xml", tmp_path / "robots")
+    robot = spec_robot_class(folder)()
+    assert [leg.name for leg in robot.legs()] == ["left", "right"]
+    assert len(robot.build(robot.nominal_design()).joint_names) == 12
+    for design in ([1.0, 1.0], [0.7, 0.7], [1.3, 1.3]):
+        report = robot.validate(np.array(design))
+        assert report.feasible, (design, report.reasons)

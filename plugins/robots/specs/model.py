@@ -13,9 +13,9 @@ actuators of its own. `scaled(design)` returns an edited copy for one design:
   compiled frame) when the model loads, and a design stretches its vertices along the link
   (x -> x + (s - 1)(x.u)u): a visual mesh (contype = conaffinity = 0) always, a collision
   mesh when one of its principal axes lies within 8 deg of the link; spec `collision: fit`
-  replaces every collision mesh of a scaled body by the primitive (box, capsule or cylinder)
-  MuJoCo fits to it closest in volume; any other collision mesh is refused in one line
-  naming that option;
+  replaces every collision mesh of a scaled body by the primitive (box, capsule or cylinder,
+  fitted by MuJoCo to its inertia box or its bounding box) closest to it in volume; any
+  other collision mesh is refused in one line naming that option;
 - mass rule "stretch" (explicit inertial): the body's `stretch_share` of its mass stretches
   with the link (density kept: that mass x s, its distribution scaled by s along the link)
   and the rest is a point mass at the body's origin (a motor at its joint); the centre of
@@ -285,31 +285,39 @@ def _volume(kind, size: np.ndarray) -> float:
 
 def _fit(spec: mujoco.MjSpec, model: mujoco.MjModel, to_fit: list, replaced: set) -> list[str]:
     """Replace the collision meshes `to_fit` ((body, index, compiled geom id, label) each)
-    by the primitive MuJoCo fits to each closest in volume; a line per mesh."""
+    by the primitive MuJoCo fits to each (to its inertia-equivalent box or to its bounding
+    box, `fitaabb`) closest to the mesh in volume; a line per mesh."""
     trials = {}
     for kind in _FITS:
-        copy = spec.copy()
-        for body, k, _, _ in to_fit:
-            list(copy.body(body).geoms)[k].type = kind
-        trials[kind] = copy.compile()
+        for aabb in (False, True):
+            copy = spec.copy()
+            copy.compiler.fitaabb = aabb
+            for body, k, _, _ in to_fit:
+                list(copy.body(body).geoms)[k].type = kind
+            try:
+                trials[kind, aabb] = copy.compile()
+            except ValueError:  # a degenerate fit (a capsule of no length): not a candidate
+                continue
+    if not trials:
+        raise spec_error("collision", "MuJoCo fits no primitive to these collision meshes")
     lines = []
     for body, k, g, label in to_fit:
         mesh = _mesh_volume(model, g)
         errors = {
-            kind: _volume(kind, trials[kind].geom_size[g]) / max(mesh, 1e-300) - 1.0
-            for kind in _FITS
+            key: _volume(key[0], fitted.geom_size[g]) / max(mesh, 1e-300) - 1.0
+            for key, fitted in trials.items()
         }
-        kind = min(errors, key=lambda t: abs(errors[t]))
-        fitted = trials[kind]
+        best = min(errors, key=lambda key: abs(errors[key]))
+        fitted = trials[best]
         geom = list(spec.body(body).geoms)[k]
         replaced.add(geom.meshname)
-        geom.type = kind
+        geom.type = best[0]
         geom.size = fitted.geom_size[g]
         _set_frame(geom, fitted.geom_pos[g], fitted.geom_quat[g])
         geom.meshname = ""
         lines.append(
-            f"collision mesh {label} of body '{body}': a {_FITS[kind]}, its volume "
-            f"{round(errors[kind], 3) + 0.0:+.1%} of the mesh's"
+            f"collision mesh {label} of body '{body}': a {_FITS[best[0]]}, its volume "
+            f"{round(errors[best], 3) + 0.0:+.1%} of the mesh's"
         )
     return lines
 
