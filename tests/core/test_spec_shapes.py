@@ -472,6 +472,10 @@ def test_robots_with_meshes_in_scaled_links_pass_every_step(tmp_path, collision)
     assert len(meshes) == (2 if collision == "stretch" else 0)
     for name in meshes:
         assert f'filename="{name}"' in out.read_text()
+    if meshes:  # standard output cannot carry the mesh files: one line, exit 2
+        done = _cli(["robot", "export", "meshy", "--format", "urdf"], tmp_path / "robots", tmp_path)
+        lines = (done.stdout + done.stderr).strip().splitlines()
+        assert done.returncode == 2 and len(lines) == 1 and "give -o FILE" in lines[0], lines
     pytest.importorskip("pybullet")
     design = np.array([[1.1, 0.9]])  # stretched meshes, and a design that stands
     model = robot.build(design[0])
