@@ -100,11 +100,16 @@ def test_the_entry_point_keeps_the_users_setting_and_does_nothing_after_torch():
     ]
 
 
-def test_the_command_chooses_before_torch_is_loaded():
-    """`python -m coadapt_core` (as the console script) sets the policy before torch loads "
-    "libgomp."""
+@pytest.mark.parametrize(
+    ("argv", "chooses"),
+    [(["run", "--preset", "smok"], True), (["--version"], False), (["plugins", "--help"], False)],
+)
+def test_the_command_chooses_before_torch_is_loaded(argv, chooses):
+    """`python -m coadapt_core` (as the console script) sets the policy before torch loads
+    libgomp, for a command that simulates (a refused `coadapt run` too); the others, which
+    load no torch, leave it (and /proc) alone."""
     code = (
-        "import sys, runpy; sys.argv = ['coadapt', '--version']\n"
+        f"import sys, runpy; sys.argv = ['coadapt', *{argv!r}]\n"
         "import os\n"
         "try:\n    runpy.run_module('coadapt_core', run_name='__main__')\n"
         "except SystemExit:\n    pass\n"
@@ -114,4 +119,7 @@ def test_the_command_chooses_before_torch_is_loaded():
     out = subprocess.run(
         [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
     ).stdout.split()
-    assert out[-2:] in (["PASSIVE", "None"], ["None", SPIN_WHEN_IDLE])
+    if chooses:
+        assert out[-2:] in (["PASSIVE", "None"], ["None", SPIN_WHEN_IDLE])
+    else:
+        assert out[-2:] == ["None", "None"]
