@@ -28,6 +28,7 @@ from coadapt_core.dashboard.runs_data import (
     report_cells,
     warnings_of,
 )
+from coadapt_core.numerics import numerics_text
 from coadapt_core.results.store import ResultsStore
 
 #: the run's facts the page shows in its heading table
@@ -186,6 +187,7 @@ def run_page(store: ResultsStore, folders: RunFolders, run_id: str) -> dict[str,
         "design_names": facts.design_names,
         "design_units": facts.design_units,
         "report": report_cells(facts),
+        "numerics": numerics_text(facts.summary.get("numerics")),
         "warnings": warnings_of(run),
         "progress": progress_of(run, counts.get(run_id)),
         "counts": {

@@ -18,6 +18,7 @@ from coadapt_core.analysis.facts import run_facts
 from coadapt_core.analysis.table_markdown import cell
 from coadapt_core.analysis.tables import table6_rows
 from coadapt_core.cli import main
+from coadapt_core.numerics import NOT_RECORDED
 from coadapt_core.results import ResultsStore
 from tests.core.test_dashboard_support import PAYLOAD, Served, add_run
 
@@ -227,6 +228,7 @@ def test_the_json_holds_the_reports_numbers(small):
     ]
     assert data["counts"] == {"real": 16, "surrogate": 4}
     assert data["files"] == ["best_vs_nominal.gif"]
+    assert data["numerics"] == NOT_RECORDED  # a summary from before numerics were recorded
     # the convergence chart as the run folder's convergence.png: the cost's unit on its axis,
     # the final check +- SE after the curve by its own interactions, the nominal line
     convergence = data["convergence"]

@@ -44,6 +44,18 @@ SUMMARY = {
     "nominal_fall_rate": 0.004,
     "fall_rate_difference": 0.016,
     "fall_rate_difference_se": 0.005,
+    "numerics": {
+        "precision": "bf16",
+        "pseudo_precision": "bf16",
+        "rollout_precision": "float32",
+        "device": "cpu",
+        "processor": "AMD EPYC 9B14",
+        "bf16_native": True,
+        "threads": 2,
+        "torch": "2.13.0",
+        "engine": "mujoco",
+        "engine_version": "4.0.0",
+    },
 }
 FRONT = {
     "designs": [[0.6, 0.6], [0.9, 0.8], [1.2, 1.0]],
@@ -171,6 +183,10 @@ def test_a_runs_page_shows_its_report_numbers_charts_gif_and_commands(world):
     )
     assert b.text("#eval-count").startswith("20 rows: 16 real, 4 surrogate")
     assert "+1.6 ± 0.5 points SE (n=1)" in summary  # a fall-rate difference is in points
+    assert b.text("td[data-field=numerics]") == (
+        "bf16 learner (pseudo-critics bf16, rollouts float32) on CPU AMD EPYC 9B14 "
+        "(bf16 native), 2 threads; torch 2.13.0, mujoco 4.0.0"
+    )
     # convergence, designs, surrogate error, training reward, and what the learner measured:
     # one chart per unit (speed and tracking error in m/s, episode length in s)
     charts = {c["title"]: c for c in b.run(CHARTS)}
