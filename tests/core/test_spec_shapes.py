@@ -110,6 +110,21 @@ def stack(tmp_path: Path) -> Path:
     return write_robot_folder(tmp_path / "stack", stacked_model())
 
 
+def with_refs(model: str) -> str:
+    """The left knee and ankle roll given a `ref` (the angle at which MuJoCo leaves them
+    unturned): 20 and -10 deg."""
+    return model.replace(
+        'name="left_knee" axis="0 1 0"', 'name="left_knee" axis="0 1 0" ref="20"'
+    ).replace('name="left_ankle_x" axis="1 0 0.5"', 'name="left_ankle_x" axis="1 0 0.5" ref="-10"')
+
+
+@pytest.fixture(params=["plain", "refs"])
+def stacks(tmp_path: Path, request) -> Path:
+    """The stacked-hinge biped as written, and with hinges that have a `ref`."""
+    model = stacked_model() if request.param == "plain" else with_refs(stacked_model())
+    return write_robot_folder(tmp_path / "stack", model)
+
+
 def _cli(args: list[str], robot_path: Path, cwd: Path) -> subprocess.CompletedProcess:
     env = dict(os.environ, COADAPT_ROBOT_PATH=str(robot_path))
     return subprocess.run(
@@ -125,12 +140,12 @@ def _cli(args: list[str], robot_path: Path, cwd: Path) -> subprocess.CompletedPr
 # -- stacked hinges ---------------------------------------------------------------------------
 
 
-def test_stacked_hinges_write_a_urdf_whose_frames_are_mujocos(stack):
+def test_stacked_hinges_write_a_urdf_whose_frames_are_mujocos(stacks):
     """The URDF's bodies sit where MuJoCo puts them at any joint angles: each stacked hinge
     turns an intermediate link at its anchor, and the body's own link is fixed below."""
     import pinocchio as pin
 
-    robot = spec_robot_class(stack)()
+    robot = spec_robot_class(stacks)()
     model = robot.build(np.array([1.2, 0.8]))
     urdf = model.text("urdf")
     assert urdf.count('type="revolute"') == 12
@@ -190,12 +205,12 @@ def test_pinocchio_composite_joints_are_read_through_their_coordinates(stack):
     assert found["consistency.pinocchio"].value <= 1e-9, found["consistency.pinocchio"].message
 
 
-def test_the_leg_ik_turns_each_stacked_hinge(stack):
+def test_the_leg_ik_turns_each_stacked_hinge(stacks):
     """Each stacked hinge is a joint of the leg's chain: feet land where MuJoCo's kinematics
     of the design's own model puts them, off-origin anchors included."""
     import torch
 
-    robot = spec_robot_class(stack)()
+    robot = spec_robot_class(stacks)()
     kin = robot._built.kinematics
     assert kin.chain.joint_index.shape == (2, 6)  # six hinges per leg, each its own slot
     for design in ([1.0, 1.0], [1.3, 0.7]):

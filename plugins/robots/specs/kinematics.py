@@ -51,6 +51,9 @@ class Chain:
     standing: torch.Tensor  # [J] standing pose
     nominal: torch.Tensor  # [P] nominal values of the continuous parameters
     decimals: int = 6
+    #: [L, E] the angle at which each hinge leaves its element's frame unturned (MuJoCo's
+    #: `ref`, qpos0); None: 0 for every hinge
+    ref: torch.Tensor | None = None
 
     @property
     def num_legs(self) -> int:
@@ -102,6 +105,7 @@ def _leg_elements(model, path, joints, scaled_links, owner: dict, leg: int, hip_
                     slot,
                     model.jnt_axis[j] if j is not None else np.zeros(3),
                     model.jnt_pos[j] if j is not None else np.zeros(3),
+                    float(model.qpos0[model.jnt_qposadr[j]]) if j is not None else 0.0,
                 )
             )
         if b == hip_body:
@@ -132,7 +136,7 @@ def build_chain(
         rows.append(_leg_elements(model, path, joints, scaled_links, owner, leg, hip_body))
     num_e = max(len(r[0]) for r in rows)
     num_m = max(max(len(r[1]) for r in rows), 1)
-    pad = (np.zeros(3), np.eye(3), [0.0] * len(scaled_links), -1, np.zeros(3), np.zeros(3))
+    pad = (np.zeros(3), np.eye(3), [0.0] * len(scaled_links), -1, np.zeros(3), np.zeros(3), 0.0)
 
     def stack(k, dtype=torch.float64):
         return torch.tensor(
@@ -140,6 +144,7 @@ def build_chain(
             dtype=dtype,
         )
 
+    ref = stack(6)
     return Chain(
         pos=stack(0),
         rot=stack(1),
@@ -154,6 +159,7 @@ def build_chain(
         standing=torch.tensor(np.array(standing), dtype=torch.float64),
         nominal=torch.as_tensor(nominal, dtype=torch.float64),
         decimals=decimals,
+        ref=ref if bool(ref.abs().max() > 0) else None,
     )
 
 
@@ -277,6 +283,8 @@ class LegKinematics:
         pos = torch.zeros(n, num_l, 3, dtype=x.dtype)
         axes, anchors, hips = [], [], []
         angle_all = torch.gather(x, 2, c.slot.clamp(min=0).expand(n, -1, -1)) * (c.slot >= 0)
+        if c.ref is not None:  # MuJoCo turns a hinge by its angle less its ref
+            angle_all = angle_all - c.ref
         if self._any_basis:  # every hinge about a frame axis at once (elementwise, as each)
             signed = angle_all if self._unit_signs else angle_all * self._signs
             sin_all, cos_all = torch.sin(signed)[..., None], torch.cos(signed)[..., None]

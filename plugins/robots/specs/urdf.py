@@ -6,7 +6,8 @@ whose hinges are several, or off its origin, becomes a chain: one intermediate l
 placed at that hinge's anchor (MuJoCo applies a body's hinges in order, each about its anchor
 in the frame the previous ones turned), then the body's own link, fixed to the last
 intermediate link at minus the last anchor where that is not the body's origin. Every body's
-link frame is then its MuJoCo body frame. Intermediate links carry a tiny mass and inertia
+link frame is then its MuJoCo body frame, and a hinge's URDF angle is its MuJoCo angle (a
+hinge's `ref` turns its joint origin). Intermediate links carry a tiny mass and inertia
 (`TINY_MASS`, `TINY_INERTIA`; Bullet integrates a zero-mass moving link badly), named
 `<body>__<joint>`; `intermediate_links` lists them.
 
@@ -151,12 +152,22 @@ def _joints(model: mujoco.MjModel, b: int, limit: dict) -> list[str]:
         last = k == len(hinges) - 1
         exact = last and np.linalg.norm(here) <= 1e-12
         child = name if exact else f"{name}{SEPARATOR}{jname}"
+        # MuJoCo turns a hinge by its angle less its `ref`; URDF by its angle: the origin
+        # takes the turn by -ref, so both read the same angle
+        ref = float(model.qpos0[model.jnt_qposadr[j]])
+        turn = np.array([1.0, 0.0, 0.0, 0.0])
+        if ref:
+            mujoco.mju_axisAngle2Quat(turn, model.jnt_axis[j], -ref)
         if anchor is None:  # the first hinge: the body's offset and turn, then its anchor
             xyz, rpy = body_origin[0], body_origin[1]
             if np.linalg.norm(here) > 1e-12:
                 xyz = xyz + rot.reshape(3, 3) @ here
+            if ref:
+                both = np.zeros(4)
+                mujoco.mju_mulQuat(both, model.body_quat[b], turn)
+                rpy = _rpy(both)
         else:
-            xyz, rpy = here - anchor, np.zeros(3)
+            xyz, rpy = here - anchor, _rpy(turn) if ref else np.zeros(3)
         effort, velocity = limit[jname]
         lo, hi = model.jnt_range[j]
         damping = model.dof_damping[model.jnt_dofadr[j]]
