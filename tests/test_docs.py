@@ -1,5 +1,6 @@
 """Meta-tests (datasette style): every hook is documented and exercised, every CLI command
-has a page, and CI runs the README's test command."""
+has a page, CI runs the README's test command, and docs/status.md stays one short table
+whose every row links to the page with its details."""
 
 from __future__ import annotations
 
@@ -70,3 +71,39 @@ def test_readme_quickstart_is_two_lines_run_and_test():
 
 def test_ci_runs_the_readme_test_line_verbatim():
     assert _quickstart()[1] in (ROOT / ".ci" / "run").read_text()
+
+
+#: docs/status.md: a newcomer reads it in a minute (issue 61: it had grown to 2 310 words)
+STATUS_WORDS, STATUS_ROW_WORDS = 1000, 50
+
+
+def heading_anchors(page: Path) -> set[str]:
+    """The anchors of a Markdown page's headings, as GitHub makes them."""
+    out = set()
+    for line in page.read_text().splitlines():
+        if line.startswith("#"):
+            title = line.lstrip("#").strip().lower()
+            out.add(re.sub(r"[^\w\- ]", "", title).replace(" ", "-"))
+    return out
+
+
+def test_status_is_one_short_table_each_row_a_headline_and_a_link():
+    page = ROOT / "docs" / "status.md"
+    text = page.read_text()
+    assert len(text.split()) <= STATUS_WORDS, f"docs/status.md: {len(text.split())} words"
+    lines = text.splitlines()
+    table = [i for i, line in enumerate(lines) if line.startswith("|")]
+    assert table == list(range(table[0], table[-1] + 1)), "one table, no second one"
+    rows = [lines[i] for i in table[2:]]
+    assert len(rows) >= 20
+    for row in rows:
+        cells = [c.strip() for c in row.strip().strip("|").split(" | ")]
+        assert len(cells) == 3, row
+        assert len(cells[1].split()) <= STATUS_ROW_WORDS, f"a long row: {cells[0]}"
+        links = re.findall(r"\]\(([^)]+)\)", cells[2])
+        assert links, f"no link in the row {cells[0]}"
+        for link in links:
+            path, _, anchor = link.partition("#")
+            target = (page.parent / path).resolve()
+            assert target.is_file(), f"{cells[0]}: {link} is no file"
+            assert not anchor or anchor in heading_anchors(target), f"{cells[0]}: {link}"
