@@ -34,8 +34,15 @@ def _common(r: dict[str, Any]) -> str:
     return (
         f"{_pct(r['common_improvement'], r['common_improvement_se'])}, "
         f"{_pct(r['common_improvement_plain'], r['common_improvement_plain_se'])}, "
-        f"{_pct(r['common_fall_rate_difference'], r['common_fall_rate_difference_se'])}"
+        f"{_points(r['common_fall_rate_difference'], r['common_fall_rate_difference_se'])}"
     )
+
+
+def _points(v: float | None, se: float | None = None) -> str:
+    """A difference of two fall rates in percentage points, signed, as `coadapt run` says it."""
+    if v is None:
+        return "n/a"
+    return f"{100 * v:+.1f}" + (f" ± {100 * se:.1f}" if se is not None else "") + " points"
 
 
 #: the own-measure column's header: our improvements as the objective itself reports them

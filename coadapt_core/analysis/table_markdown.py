@@ -20,10 +20,17 @@ POOLING_NOTE = (
 
 
 def cell(
-    row: dict[str, Any], name: str, *, spec: str = ".3g", pct: bool = False, scale: float = 1.0
+    row: dict[str, Any],
+    name: str,
+    *,
+    spec: str = ".3g",
+    pct: bool = False,
+    scale: float = 1.0,
+    points: bool = False,
 ) -> str:
     """'mean ± std (n=k)' of an aggregated column; one run: 'value ± se SE (n=1)' when the
-    run recorded a standard error, else 'value (n=1)'."""
+    run recorded a standard error, else 'value (n=1)'. `points`: a difference of two rates in
+    percentage points, signed ('+0.8 ± 0.8 points (n=3)'), as `coadapt run` says it."""
     mean, std, n = row.get(name), row.get(f"{name}_std"), row.get(f"{name}_n", 0)
     if mean is None or not n:
         return "n/a"
@@ -31,6 +38,11 @@ def cell(
     def fmt(v: float) -> str:
         return f"{100 * v / scale:.1f}%" if pct else format(v / scale, spec)
 
+    if points:
+        spread = std if std is not None else row.get(f"{name}_se")
+        text = f"{100 * mean:+.1f}" + ("" if spread is None else f" ± {100 * spread:.1f}")
+        kind = " SE" if std is None and spread is not None else ""
+        return f"{text} points{kind} (n={n})"
     if std is not None:
         return f"{fmt(mean)} ± {fmt(std)} (n={n})"
     se = row.get(f"{name}_se")
@@ -76,12 +88,11 @@ def common_cell(r: dict[str, Any]) -> str:
     if not r.get("common_improvement_n"):
         return "n/a"
     return " / ".join(
-        cell(r, name, pct=True)
-        for name in (
-            "common_improvement",
-            "common_improvement_plain",
-            "common_fall_rate_difference",
-        )
+        [
+            cell(r, "common_improvement", pct=True),
+            cell(r, "common_improvement_plain", pct=True),
+            cell(r, "common_fall_rate_difference", points=True),
+        ]
     )
 
 

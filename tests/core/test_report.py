@@ -514,3 +514,22 @@ def test_the_report_names_each_runs_numerics(tmp_path):
     md = files["table6.md"].read_text()
     assert "| Numerics |" in md.splitlines()[0] and f"| {said} |" in md
     assert "<th>numerics</th>" in files["report.html"].read_text()
+
+
+def test_fall_rate_differences_read_in_points():
+    """A difference of two fall rates is in percentage points, signed, as `coadapt run` says
+    it, never a percentage (issue 61): over seeds with their spread, one run with its SE."""
+    from coadapt_core.analysis.table_markdown import cell, common_cell
+
+    assert cell({"d": 0.008, "d_std": 0.008, "d_n": 3}, "d", points=True) == (
+        "+0.8 ± 0.8 points (n=3)"
+    )
+    assert cell({"d": -0.004, "d_se": 0.002, "d_n": 1}, "d", points=True) == (
+        "-0.4 ± 0.2 points SE (n=1)"
+    )
+    row = {
+        **{f"common_improvement{k}": v for k, v in (("", 0.3), ("_std", 0.02), ("_n", 2))},
+        **{f"common_improvement_plain{k}": v for k, v in (("", 0.2), ("_std", 0.05), ("_n", 2))},
+        **{f"common_fall_rate_difference{k}": v for k, v in (("", 0.01), ("_std", 0.0), ("_n", 2))},
+    }
+    assert common_cell(row) == "30.0% ± 2.0% (n=2) / 20.0% ± 5.0% (n=2) / +1.0 ± 0.0 points (n=2)"
