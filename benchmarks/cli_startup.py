@@ -7,7 +7,10 @@ goal (issue 61): every command that runs no physics answers in at most 0.3 s on 
 line also gives the command's import profile, from one more run under `python -X
 importtime`: the 5 modules of largest cumulative import time among those imported at the top
 level (a module imported by another is counted in its importer's time, so the five do not
-overlap), and whether it loaded torch, numpy or pydantic.
+overlap), and whether it loaded torch, numpy or pydantic. `cpu s` is the median CPU time
+(user + system) of the command's process: on a loaded machine it stands in for the wall
+time of a quiet one (one thread; it still grows somewhat with the load, through the caches
+the other processes share).
 
     python benchmarks/cli_startup.py [--repeat 5] [--json]
 
@@ -20,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -54,11 +58,13 @@ def _time(args: list[str], expected: int | None, repeat: int) -> dict:
     """Median wall-clock seconds of `python args` over `repeat` fresh processes, and whether
     torch was imported (one extra run with -X importtime)."""
     env = {**os.environ, "COLUMNS": "80"}
-    seconds = []
+    seconds, cpu = [], []
     for _ in range(repeat):
+        used = _children_cpu()
         start = time.perf_counter()
         done = subprocess.run([sys.executable, *args], capture_output=True, env=env, check=False)
         seconds.append(time.perf_counter() - start)
+        cpu.append(_children_cpu() - used)
         if expected is not None and done.returncode != expected:
             raise SystemExit(
                 f"{' '.join(args)} exited {done.returncode}, not {expected}: "
@@ -71,11 +77,18 @@ def _time(args: list[str], expected: int | None, repeat: int) -> dict:
     return {
         "seconds": round(statistics.median(seconds), 3),
         "min_seconds": round(min(seconds), 3),
+        "cpu_seconds": round(statistics.median(cpu), 3),
         "imports_torch": "torch" in profile["loaded"],
         "loads": [name for name in WATCHED if name in profile["loaded"]],
         "top_imports": profile["top"],
         "first_line": next(iter((done.stdout or done.stderr).decode().splitlines()), "")[:100],
     }
+
+
+def _children_cpu() -> float:
+    """CPU seconds (user + system) of this process's finished children so far."""
+    used = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return used.ru_utime + used.ru_stime
 
 
 def import_profile(trace: str, top: int = 5) -> dict:
@@ -118,12 +131,15 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         print(json.dumps(out, indent=2))
         return 0
-    print(f"{'command':50} {'median s':>8} {'min s':>6} {'<=2x typer':>10}  loads")
+    print(f"{'command':50} {'median s':>8} {'min s':>6} {'cpu s':>6} {'<=2x typer':>10}  loads")
     for group in ("ceilings", "commands"):
         for label, r in out[group].items():
             within = "" if group == "ceilings" else ("yes" if r["within_2x_typer"] else "no")
             loads = ", ".join(r["loads"]) or "-"
-            print(f"{label:50} {r['seconds']:8.3f} {r['min_seconds']:6.3f} {within:>10}  {loads}")
+            print(
+                f"{label:50} {r['seconds']:8.3f} {r['min_seconds']:6.3f} {r['cpu_seconds']:6.3f} "
+                f"{within:>10}  {loads}"
+            )
             top = "  ".join(f"{name} {s:.3f}" for name, s in r["top_imports"])
             print(f"{'':4}imports (cumulative s): {top}")
     print(
