@@ -22,6 +22,13 @@ class RobotNew:
     source: Path = setting(
         ..., "The robot's model file (MJCF, or URDF as MuJoCo reads it).", names=("--from",)
     )
+    package_path: list[str] | None = setting(
+        None,
+        "A folder holding the ROS packages a URDF's package://NAME/... URIs name (a folder "
+        "NAME in it, or it is NAME); repeat it for more. Searched after the model's folder "
+        "and each folder above it.",
+        names=("--package-path",),
+    )
     into: Path | None = setting(
         None,
         "Folder to write the robot's folder in (default: the plugin's; for robot specs the "
@@ -45,14 +52,21 @@ def new_command(**values: Any) -> None:
             writers.setdefault(getattr(write, "__func__", write), write)
     into = None if o["into"] is None else str(o["into"])
     made = None
+    # only asked for when given, so a writer without the option still answers
+    extra = {"package_path": list(o["package_path"])} if o["package_path"] else {}
     for write in writers.values():
-        made = write(o["name"], str(o["source"]), into)
+        made = write(o["name"], str(o["source"]), into, **extra)
         if made is not None:
             break
     if made is None:
         fail(f"--from '{o['source']}': no installed robot plugin writes a robot from a model file")
     folder = Path(made["folder"])
     print(f"wrote {folder} from {Path(o['source']).name}")
+    copied = made.get("copied") or []
+    if copied:
+        print(f"copied {len(copied)} files the model needs into it:")
+        for line in copied:
+            print(f"  {line}")
     print(f"check (then edit it and run `coadapt robot validate {o['name']}`):")
     for line in made.get("notes") or []:
         print(f"  - {line}")

@@ -270,7 +270,7 @@ def test_a_urdf_model_file_makes_a_spec_robot_too(tmp_path):
 
     qilin = get_registry().create("robot", "qilin").build(np.array([1.0, 1.0]))
     (tmp_path / "qilin.urdf").write_text(qilin.text("urdf"))
-    folder, _ = write_robot("qurdf", tmp_path / "qilin.urdf", tmp_path / "robots")
+    folder, _, _ = write_robot("qurdf", tmp_path / "qilin.urdf", tmp_path / "robots")
     robot = spec_robot_class(folder)()
     model = robot.build(robot.nominal_design())
     assert model.foot_bodies == qilin.foot_bodies and model.base_body == "base"
@@ -326,7 +326,7 @@ def test_robot_new_on_qilins_and_nezhas_model_files_writes_specs_that_validate(t
         model_file.write_text(qilin.build(qilin.nominal_design()).text("mjcf"))
     else:
         model_file = NEZHA / "model.xml"
-    folder, notes = write_robot(f"{source}-new", model_file, tmp_path / "robots")
+    folder, notes, _ = write_robot(f"{source}-new", model_file, tmp_path / "robots")
     robot = spec_robot_class(folder)()
     assert len(robot.legs()) == (4 if source == "qilin" else 2)
     assert robot.design_space().names == (
@@ -335,4 +335,4 @@ def test_robot_new_on_qilins_and_nezhas_model_files_writes_specs_that_validate(t
     for design in ([1.0, 1.0], [0.7, 0.7], [1.3, 1.3]):
         report = robot.validate(np.array(design))
         assert report.feasible, report.reasons
-    assert any("speeds are not in the model" in line for line in notes)
+    assert any("no-load joint speeds" in line for line in notes)

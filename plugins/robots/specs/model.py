@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -44,18 +45,63 @@ _SCALABLE = {
 }
 
 
-def load_mjspec(path) -> mujoco.MjSpec:
-    """The model file as an `MjSpec` (MJCF or URDF); MuJoCo's own message in one line."""
+def load_mjspec(
+    path,
+    *,
+    package_paths: tuple = (),
+    assets: dict | None = None,
+    balanceinertia: bool = False,
+) -> mujoco.MjSpec:
+    """The model file as an `MjSpec` (MJCF or URDF), read from where it lives: its includes
+    and assets as MuJoCo finds them from the file's folder, a URDF's `package://` meshes and
+    the files of `assets` (reference -> path) handed over as bytes (`files`);
+    `balanceinertia` is MuJoCo's compiler option. MuJoCo's own message in one line."""
+    from coadapt_plugins.robots.specs.files import loader_assets
+
+    path = Path(path)
+    handed = loader_assets(path, tuple(package_paths), assets)
     try:
-        spec = mujoco.MjSpec.from_file(str(path))
+        spec = mujoco.MjSpec.from_file(str(path), assets=handed)
         # keep bodies fixed to their parents (a URDF's feet) and a URDF's root link: MuJoCo
         # fuses them into their parents by default when it reads a URDF
         spec.compiler.fusestatic = False
+        if balanceinertia:
+            spec.compiler.balanceinertia = True
         spec.compile()
     except (ValueError, mujoco.FatalError, OSError) as exc:
         first = " ".join(str(exc).split())
         raise spec_error("model", f"'{path.name}' does not load in MuJoCo: {first}") from None
     return spec
+
+
+def spec_mjspec(rs: RobotSpec) -> mujoco.MjSpec:
+    """`rs`'s model file loaded with the spec's fixes for loading (assets, balanceinertia)."""
+    return load_mjspec(rs.model_path, assets=rs.asset_paths, balanceinertia=rs.balanceinertia)
+
+
+def fix_joints(spec: mujoco.MjSpec, rs: RobotSpec, joints: list[str]) -> None:
+    """The spec's `joints` fixes (range, armature, damping) on the hinges they match; a
+    pattern that matches none is refused."""
+    import re
+
+    for pattern, fix in rs.joints.items():
+        hits = [j for j in joints if re.fullmatch(pattern, j)]
+        if not hits:
+            raise spec_error(
+                f"joints.{pattern}",
+                f"matches no hinge joint of the model (it has: {', '.join(joints)})",
+            )
+        for name in hits:
+            joint = spec.joint(name)
+            if "range" in fix:
+                joint.range = list(fix["range"])
+                joint.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+            if "armature" in fix:
+                joint.armature = fix["armature"]
+            if "damping" in fix:
+                damping = np.atleast_1d(np.array(joint.damping, dtype=float))
+                damping[0] = fix["damping"]  # the linear term (MuJoCo 4 keeps more)
+                joint.damping = damping if damping.size > 1 else float(damping[0])
 
 
 def _root(spec: mujoco.MjSpec, base: str | None) -> mujoco.MjsBody:
@@ -122,7 +168,7 @@ def _standing_pose(spec: mujoco.MjSpec, rs: RobotSpec, joints: list[str]) -> np.
 
 def prepare(rs: RobotSpec) -> Prepared:
     """Load `rs`'s model file and shape it to the robot contract (module docstring)."""
-    spec = load_mjspec(rs.model_path)
+    spec = spec_mjspec(rs)
     if list(spec.tendons) or list(spec.equalities):
         raise spec_error(
             "model",
@@ -153,6 +199,7 @@ def prepare(rs: RobotSpec) -> Prepared:
                 )
     if any(not name for name in joints):
         raise spec_error("model", "every hinge joint needs a name")
+    fix_joints(spec, rs, joints)
     # keep the robot alone: no floor, no keyframes, sensors or actuators of its own
     for geom in list(spec.worldbody.geoms):
         spec.delete(geom)

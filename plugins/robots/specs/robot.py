@@ -108,19 +108,24 @@ class SpecRobot(Robot):
         return self._built.kinematics.inverse(designs, foot_pos).to(designs.dtype)
 
     @classmethod
-    def write_from_model(cls, name: str, source: str, into: str | None) -> dict:
+    def write_from_model(
+        cls, name: str, source: str, into: str | None, package_path: list[str] | None = None
+    ) -> dict:
         """`coadapt robot new`: a starting spec for the model file `source`, written as
-        `<into>/<name>/` (default: the first folder of the robot path); {"folder", "notes"
-        (lines for the user to check), "hint" (a line, or "")}. Bad input is a `UserError`
-        and leaves nothing behind."""
+        `<into>/<name>/` (default: the first folder of the robot path) with a copy of every
+        file the model needs; `package_path`: folders holding the ROS packages a URDF's
+        `package://` URIs name. {"folder", "notes" (lines for the user to check), "copied"
+        (the files copied, inside the folder), "hint" (a line, or "")}. Bad input is a
+        `UserError` and leaves nothing behind."""
         from coadapt_plugins.robots.specs.discovery import ENV_ROBOT_PATH, search_path
         from coadapt_plugins.robots.specs.new import write_robot
 
         target = Path(into) if into is not None else search_path()[0]
-        folder, notes = write_robot(name, Path(source), target)
+        packages = tuple(Path(p) for p in package_path or ())
+        folder, notes, copied = write_robot(name, Path(source), target, packages)
         on_path = any(folder.parent.resolve() == p.resolve() for p in search_path())
         hint = "" if on_path else f"export {ENV_ROBOT_PATH}={folder.parent} to use it"
-        return {"folder": str(folder), "notes": notes, "hint": hint}
+        return {"folder": str(folder), "notes": notes, "copied": copied, "hint": hint}
 
     def describe_rules(self) -> dict[str, str]:
         """How each parameter scales mass and inertia (`coadapt robot show`)."""
@@ -137,6 +142,8 @@ def spec_robot_class(path: str | Path, *, description: str | None = None) -> typ
     digest = hashlib.sha256((spec.folder / "robot.yaml").read_bytes())
     if spec.model_path.is_file():
         digest.update(spec.model_path.read_bytes())
+        for path in _needed_files(spec):
+            digest.update(path.read_bytes())
     return type(
         f"SpecRobot_{spec.name.replace('-', '_')}",
         (SpecRobot,),
@@ -148,3 +155,17 @@ def spec_robot_class(path: str | Path, *, description: str | None = None) -> typ
             "__module__": __name__,
         },
     )
+
+
+def _needed_files(spec: RobotSpec) -> list[Path]:
+    """The files the spec's model names (includes, meshes, textures...) that are there, by
+    reference: part of the robot's version, so a Ray node with other meshes is refused."""
+    from coadapt_plugins.robots.specs.files import model_files
+
+    from coadapt_core.errors import UserError
+
+    try:
+        files = model_files(spec.model_path, assets=spec.asset_paths)
+    except UserError:  # the model says what is wrong with it when it loads
+        return []
+    return [f.path for f in sorted(files, key=lambda f: f.reference) if f.path.is_file()]

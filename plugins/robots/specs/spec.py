@@ -89,10 +89,21 @@ class RobotSpec:
     gain_scale_exponent: float = 0.0  # gains x (leg length / nominal) ** k
     description: str = ""
     collision: str = "stretch"  # collision meshes in scaled links: "stretch" or "fit"
+    #: model fixes (the user's file stays as it is): pattern -> {"range": (lo, hi),
+    #: "armature": kg m^2, "damping": N m s/rad}
+    joints: dict[str, dict[str, Any]] = field(default_factory=dict)
+    balanceinertia: bool = False  # MuJoCo's compiler option, for inertias it would refuse
+    #: files the model names by an absolute path -> their copy inside `folder`
+    assets: dict[str, str] = field(default_factory=dict)
 
     @property
     def model_path(self) -> Path:
         return self.folder / self.model
+
+    @property
+    def asset_paths(self) -> dict[str, Path]:
+        """The `assets` map with each copy's full path."""
+        return {ref: self.folder / rel for ref, rel in self.assets.items()}
 
 
 def spec_error(path: str, message: str) -> UserError:
@@ -258,6 +269,47 @@ def _motors(raw: Any) -> tuple[dict[int, MotorType], dict[str, int], tuple[Motor
     return types, joints, tuple(params)
 
 
+def _joint_fixes(raw: Any) -> dict[str, dict[str, Any]]:
+    data = _mapping(raw, "joints")
+    out: dict[str, dict[str, Any]] = {}
+    for pattern, row in data.items():
+        where = f"joints.{pattern}"
+        try:
+            re.compile(str(pattern))
+        except re.error as exc:
+            raise _fail(where, f"not a regular expression ({exc})") from None
+        row = _mapping(row, where)
+        _unknown(row, {"range", "armature", "damping"}, where)
+        fix: dict[str, Any] = {}
+        if "range" in row:
+            pair = _list(row["range"], f"{where}.range")
+            if len(pair) != 2:
+                raise _fail(f"{where}.range", f"needs [low, high] in rad, got {pair!r}")
+            lo, hi = (_number(x, f"{where}.range") for x in pair)
+            if not lo < hi:
+                raise _fail(f"{where}.range", f"needs low < high, got {pair!r}")
+            fix["range"] = (lo, hi)
+        for key in ("armature", "damping"):
+            if key in row:
+                value = _number(row[key], f"{where}.{key}")
+                if value < 0:
+                    raise _fail(f"{where}.{key}", f"needs a number >= 0, got {value:g}")
+                fix[key] = value
+        out[str(pattern)] = fix
+    return out
+
+
+def _assets(raw: Any) -> dict[str, str]:
+    out = {}
+    for ref, target in _mapping(raw, "assets").items():
+        where = f"assets.{ref}"
+        path = Path(_text(target, where))
+        if path.is_absolute() or ".." in path.parts:
+            raise _fail(where, f"'{target}' must be a path inside the robot's folder")
+        out[str(ref)] = path.as_posix()
+    return out
+
+
 def _standing(raw: Any) -> dict[str, float] | str:
     data = _mapping(raw, "standing_pose")
     _unknown(data, {"keyframe", "joints"}, "standing_pose")
@@ -269,7 +321,8 @@ def _standing(raw: Any) -> dict[str, float] | str:
 
 _TOP = {
     "name", "description", "model", "base", "locked_joints", "design", "motors", "limits",
-    "legs", "standing_pose", "gains", "gain_scale_exponent", "collision",
+    "legs", "standing_pose", "gains", "gain_scale_exponent", "collision", "joints",
+    "balanceinertia", "assets",
 }  # fmt: skip
 
 
@@ -319,7 +372,16 @@ def parse_spec(data: Any, folder: Path, *, fallback_name: str = "") -> RobotSpec
         gain_scale_exponent=_number(data.get("gain_scale_exponent", 0.0), "gain_scale_exponent"),
         description=str(data.get("description", "")),
         collision=_collision(data.get("collision", "stretch")),
+        joints=_joint_fixes(data.get("joints", {})),
+        balanceinertia=_flag(data.get("balanceinertia", False), "balanceinertia"),
+        assets=_assets(data.get("assets", {})),
     )
+
+
+def _flag(value: Any, path: str) -> bool:
+    if not isinstance(value, bool):
+        raise _fail(path, f"needs true or false, got {value!r}")
+    return value
 
 
 def _collision(value: Any) -> str:

@@ -1,6 +1,11 @@
 """Validation of any spec robot's design: physical masses and inertias, the standing pose
 (joint ranges, every foot on the ground, no self-contact), standing torques within the
-motors' peaks, and MuJoCo against Pinocchio (mass, centre of mass, foot positions).
+motors' peaks, MuJoCo against Pinocchio (mass, centre of mass, foot positions), and the stand
+test: joint PD with the spec's gains (torques within the motors' peaks) holds the standing
+pose on flat ground for STAND_SECONDS, the base staying above STAND_HEIGHT_SHARE of its
+standing height and tilting less than STAND_TILT; at the nominal design it is run at every
+corner of the design box too. A robot with three feet or more must pass it; a biped's result
+is reported (its policy balances it, not joint PD).
 
 Pinocchio reads the robot's URDF when it writes one, else its MJCF.
 """
@@ -8,6 +13,7 @@ Pinocchio reads the robot's URDF when it writes one, else its MJCF.
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -21,6 +27,105 @@ FOOT_GROUND_TOL = 0.01
 SELF_CONTACT_TOL = 1e-3
 #: MuJoCo against Pinocchio: m and relative mass
 CONSISTENCY_TOL = 1e-6
+#: the stand test: seconds held, the physics step (s, the simulators' default), the lowest
+#: base height as a share of the standing height, the largest tilt of the base (rad)
+STAND_SECONDS = 3.0
+STAND_DT = 0.005
+STAND_HEIGHT_SHARE = 0.75
+STAND_TILT = 0.35
+
+
+@dataclass(frozen=True)
+class Stand:
+    """What the stand test saw for one design."""
+
+    design: tuple[float, ...]
+    lowest: float  # the base's lowest height over the test, as a share of its standing height
+    tilt: float  # the largest angle between the base's z axis and the vertical, rad
+    saturated: str  # the joint whose torque sat at its peak the longest ("" if none did)
+    saturated_share: float  # the share of the test it sat there
+
+    @property
+    def ok(self) -> bool:
+        return self.lowest >= STAND_HEIGHT_SHARE and self.tilt <= STAND_TILT
+
+    def text(self) -> str:
+        where = ",".join(f"{x:g}" for x in self.design)
+        tilt = np.degrees(self.tilt)
+        line = f"design ({where}): lowest {self.lowest:.0%} of its height, tilt {tilt:.1f} deg"
+        if self.saturated:
+            line += f", '{self.saturated}' at its peak {self.saturated_share:.0%} of the time"
+        return line
+
+
+def stand_test(rm: RobotModel, seconds: float = STAND_SECONDS) -> Stand:
+    """Joint PD toward the standing pose with `rm`'s gains and peaks, on flat ground, from
+    the standing pose at the standing height, for `seconds`."""
+    spec = mujoco.MjSpec.from_string(rm.text("mjcf"))
+    spec.option.timestep = STAND_DT
+    spec.worldbody.add_geom(
+        type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], contype=0, conaffinity=1
+    )
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    data.qpos[:7] = [0.0, 0.0, rm.standing_base_height, 1.0, 0.0, 0.0, 0.0]
+    qadr = np.array([model.jnt_qposadr[model.joint(j).id] for j in rm.joint_names])
+    vadr = np.array([model.jnt_dofadr[model.joint(j).id] for j in rm.joint_names])
+    act = np.array([model.actuator(j).id for j in rm.joint_names])
+    data.qpos[qadr] = rm.default_joint_pos
+    target, kp, kd, peak = (np.asarray(a, dtype=float) for a in (
+        rm.default_joint_pos, rm.kp, rm.kd, rm.torque_limit))  # fmt: skip
+    base = model.body(rm.base_body).id
+    height = max(rm.standing_base_height, 1e-6)
+    lowest, tilt = np.inf, 0.0
+    at_peak = np.zeros(len(rm.joint_names))
+    steps = int(round(seconds / STAND_DT))
+    for _ in range(steps):
+        raw = kp * (target - data.qpos[qadr]) - kd * data.qvel[vadr]
+        torque = np.clip(raw, -peak, peak)
+        at_peak += np.abs(raw) >= peak
+        data.ctrl[act] = torque
+        mujoco.mj_step(model, data)
+        if not np.all(np.isfinite(data.qpos)):
+            lowest, tilt = -np.inf, np.pi
+            break
+        lowest = min(lowest, float(data.xpos[base, 2]) / height)
+        up = float(np.clip(data.xmat[base, 8], -1.0, 1.0))
+        tilt = max(tilt, float(np.arccos(up)))
+    worst = int(np.argmax(at_peak))
+    share = float(at_peak[worst] / steps)
+    return Stand(
+        tuple(float(x) for x in rm.design),
+        float(lowest),
+        float(tilt),
+        rm.joint_names[worst] if share > 0 else "",
+        share,
+    )
+
+
+def stand_finding(stands: list[Stand], required: bool = True) -> Finding:
+    """One finding for the stand tests of a design (and the corners); not `required` (a
+    biped, balanced by its policy rather than by joint PD), it is reported and passes."""
+    failed = [s for s in stands if not s.ok]
+    limits = (
+        f"limits: base above {STAND_HEIGHT_SHARE:.0%} of its standing height, tilt below "
+        f"{np.degrees(STAND_TILT):.0f} deg, {STAND_SECONDS:g} s under joint PD"
+    )
+    worst_low = min(s.lowest for s in stands)
+    worst_tilt = max(s.tilt for s in stands)
+    what = "the design" if len(stands) == 1 else f"the nominal design and {len(stands) - 1} corners"
+    if failed:
+        message = f"falls: {failed[0].text()} ({limits})"
+    else:
+        message = (
+            f"{what} stand{'s' if len(stands) == 1 else ''}: lowest {worst_low:.0%} of the "
+            f"standing height, tilt {np.degrees(worst_tilt):.1f} deg ({limits})"
+        )
+    if failed and not required:
+        message = "reported, not required (a biped is balanced by its policy): " + message
+    return Finding(
+        "stand.hold", not failed or not required, message, float(worst_low), STAND_HEIGHT_SHARE
+    )
 
 
 def _standing_data(rm: RobotModel) -> tuple[mujoco.MjModel, mujoco.MjData]:
@@ -230,6 +335,27 @@ def _pinocchio(rm: RobotModel, model: mujoco.MjModel, data: mujoco.MjData) -> li
     ]
 
 
+def corners(robot) -> list[np.ndarray]:
+    """The corners of a spec robot's continuous design box (motor types nominal)."""
+    import itertools
+
+    space = robot.design_space(False)
+    lows, highs = space.lower.astype(float), space.upper.astype(float)
+    return [
+        np.where(np.array(bits, dtype=bool), highs, lows)
+        for bits in itertools.product((0, 1), repeat=lows.size)
+    ]
+
+
+def stands_of(robot, rm: RobotModel) -> list[Stand]:
+    """The stand test of `rm`'s design, and of every corner when it is the nominal design."""
+    stands = [stand_test(rm)]
+    nominal = robot.nominal_design(mixed=rm.design.size != len(robot.spec.parameters))
+    if np.allclose(rm.design, nominal):
+        stands += [stand_test(robot.build(c)) for c in corners(robot)]
+    return stands
+
+
 def validate_spec_model(robot, rm: RobotModel) -> ValidationReport:
     """The findings above for one built design of a spec robot."""
     model, data = _standing_data(rm)
@@ -240,4 +366,5 @@ def validate_spec_model(robot, rm: RobotModel) -> ValidationReport:
         _statics(rm, model, data),
     ]
     findings += _pinocchio(rm, model, data)
+    findings.append(stand_finding(stands_of(robot, rm), required=len(rm.foot_bodies) >= 3))
     return ValidationReport(np.array(rm.design, dtype=float), findings)
