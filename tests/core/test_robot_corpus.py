@@ -2,8 +2,9 @@
 model that ships with the project's dependencies (pybullet's `pybullet_data`) and the models
 written for these tests (tests/core/robot_files/) go, as the file is, through `coadapt robot
 new`, `coadapt robot validate` (its stand test included), a URDF export, a smoke co-design run
-on MuJoCo and a short PyBullet rollout, with no hand-written spec line. Each command is run as
-a user runs it (a fresh `coadapt` process); each step's time is printed (pytest -s).
+on MuJoCo and a short PyBullet rollout, with no hand-written spec line. Each command is the
+command a user runs (`coadapt_core.cli.main`, in this process: a fresh process per command
+would double the test's time); each step's time is printed (pytest -s).
 
 Left out of the corpus, and what each waits for:
 - `mjcf/humanoid.xml`: stacked hinges in one body (its hips and abdomen; Pinocchio merges
@@ -19,10 +20,7 @@ Left out of the corpus, and what each waits for:
 from __future__ import annotations
 
 import json
-import os
 import re
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -55,17 +53,33 @@ TINY = [
 ]
 
 
-def coadapt(args: list[str], cwd: Path, robots: Path) -> subprocess.CompletedProcess:
-    env = dict(os.environ, COADAPT_ROBOT_PATH=str(robots))
-    env.pop("COADAPT_STORE", None)
-    return subprocess.run(
-        [sys.executable, "-m", "coadapt_core", *args],
-        cwd=cwd,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
+@pytest.fixture
+def robots(tmp_path, monkeypatch):
+    """The robot path of a user (a fresh folder), the registry reloaded over it and again
+    once the test is done."""
+    from coadapt_core.plugins import get_registry
+
+    folder = tmp_path / "robots"
+    monkeypatch.setenv("COADAPT_ROBOT_PATH", str(folder))
+    monkeypatch.delenv("COADAPT_STORE", raising=False)
+    monkeypatch.chdir(tmp_path)
+    get_registry(refresh=True)
+    yield folder
+    monkeypatch.undo()
+    get_registry(refresh=True)
+
+
+def coadapt(args: list[str], capsys) -> tuple[int, str, str]:
+    """(exit code, standard output, standard error) of `coadapt ARGS`, the registry first
+    reloaded (a robot written by `robot new` is found as a new process finds it)."""
+    from coadapt_core.cli import main
+    from coadapt_core.plugins import get_registry
+
+    get_registry(refresh=True)
+    capsys.readouterr()
+    code = main(args)
+    out = capsys.readouterr()
+    return code, out.out, out.err
 
 
 def pybullet_rollout(folder: Path, seconds: float = 1.0) -> tuple[float, float]:
@@ -95,47 +109,46 @@ def pybullet_rollout(folder: Path, seconds: float = 1.0) -> tuple[float, float]:
 
 @pytest.mark.slow
 @pytest.mark.parametrize(("name", "source"), CORPUS, ids=[n for n, _ in CORPUS])
-def test_a_model_file_goes_to_co_design_with_no_edit(name, source, tmp_path):
-    robots = tmp_path / "robots"
+def test_a_model_file_goes_to_co_design_with_no_edit(name, source, robots, tmp_path, capsys):
     times = {}
 
     def step(label, args):
         start = time.perf_counter()
-        done = coadapt(args, tmp_path, robots)
+        done = coadapt(args, capsys)
         times[label] = time.perf_counter() - start
         return done
 
     before = source.read_bytes()
-    done = step("new", ["robot", "new", name, "--from", str(source), "--into", str(robots)])
-    assert done.returncode == 0, done.stdout + done.stderr
+    code, out, err = step("new", ["robot", "new", name, "--from", str(source)])
+    assert code == 0, out + err
     assert source.read_bytes() == before  # the user's file is theirs
-    assert f"wrote {robots / name}" in done.stdout
+    assert f"wrote {robots / name}" in out
     spec = yaml.safe_load((robots / name / "robot.yaml").read_text())
     assert len(spec["legs"]) == 4 and not any(
         re.fullmatch(r"leg\d", leg["name"]) for leg in spec["legs"]
     )  # named from the bodies (or their places), not leg0..leg3
     # validation at the nominal design, its stand test at the nominal design and the corners
-    done = step("validate", ["robot", "validate", name, "--json"])
-    assert done.returncode == 0, done.stdout + done.stderr
-    report = json.loads(done.stdout)
+    code, out, err = step("validate", ["robot", "validate", name, "--json"])
+    assert code == 0, out + err
+    report = json.loads(out)
     stand = next(f for f in report["findings"] if f["check"] == "stand.hold")
     assert report["feasible"] and stand["ok"] and "4 corners stand" in stand["message"]
     assert stand["value"] >= 0.75
     # the URDF PyBullet reads
     urdf = tmp_path / f"{name}.urdf"
-    done = step("export", ["robot", "export", name, "--format", "urdf", "-o", str(urdf)])
-    assert done.returncode == 0, done.stderr
+    code, _, err = step("export", ["robot", "export", name, "--format", "urdf", "-o", str(urdf)])
+    assert code == 0, err
     assert "<robot" in urdf.read_text()
     # a smoke co-design run on MuJoCo, from scratch
-    done = step(
+    code, out, err = step(
         "run",
         [
             *("run", "--robot", name, "--preset", "smoke", "--checkpoint", "none", "--sim"),
             *("mujoco", *TINY, "--store", f"sqlite:///{tmp_path / 'r.db'}", "--out", "runs"),
         ],
     )
-    assert done.returncode == 0, done.stderr[-3000:]
-    folder = Path(re.search(r"run folder: (\S+)", done.stdout).group(1))
+    assert code == 0, err[-3000:]
+    folder = Path(re.search(r"run folder: (\S+)", out).group(1))
     summary = json.loads((folder / "summary.json").read_text())
     assert summary["status"] == "finished" and summary["real_evaluations"] > 0
     # PyBullet holds it standing for a second with joint targets at the standing pose
@@ -143,4 +156,5 @@ def test_a_model_file_goes_to_co_design_with_no_edit(name, source, tmp_path):
     lowest, tilt = pybullet_rollout(robots / name)
     times["pybullet"] = time.perf_counter() - start
     assert lowest >= 0.75 and tilt <= 0.35, (lowest, tilt)
-    print(f"\n{name}: " + ", ".join(f"{k} {v:.1f} s" for k, v in times.items()))
+    with capsys.disabled():
+        print(f"\n{name}: " + ", ".join(f"{k} {v:.1f} s" for k, v in times.items()))

@@ -128,9 +128,7 @@ def test_a_humanoids_arms_are_not_legs_and_its_legs_are_named_left_and_right():
     import pybullet_data
     from coadapt_plugins.robots.specs.new import starting_spec
 
-    data, _, _ = starting_spec(
-        "hum", Path(pybullet_data.getDataPath()) / "mjcf" / "humanoid.xml"
-    )
+    data, _, _ = starting_spec("hum", Path(pybullet_data.getDataPath()) / "mjcf" / "humanoid.xml")
     assert [(leg["name"], leg["foot"]) for leg in data["legs"]] == [
         ("left", "left_foot"),
         ("right", "right_foot"),
@@ -201,3 +199,23 @@ def test_a_range_for_a_joint_that_does_not_exist_is_one_line(tmp_path):
     done = coadapt(["robot", "validate", "mquad"], tmp_path)
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert "joints.FL_knee" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_a_file_named_by_an_absolute_path_is_copied_and_mapped_in_the_spec(tmp_path):
+    """A mesh named by an absolute path: copied to the robot's `assets/`, the spec's `assets`
+    maps the path to it, and the robot builds once the original is gone."""
+    model = tmp_path / "model"
+    shutil.copytree(MENAGERIE.parent, model, ignore=shutil.ignore_patterns("assets"))
+    elsewhere = tmp_path / "meshes" / "trunk.obj"
+    elsewhere.parent.mkdir()
+    shutil.copy(MENAGERIE.parent / "assets" / "trunk.obj", elsewhere)
+    text = (model / "quad.xml").read_text().replace(' meshdir="assets"', "")
+    (model / "quad.xml").write_text(text.replace('file="trunk.obj"', f'file="{elsewhere}"'))
+    folder, _, copied = write_robot("aquad", model / "quad.xml", tmp_path / "robots")
+    assert "assets/trunk.obj" in copied
+    assert yaml.safe_load((folder / "robot.yaml").read_text())["assets"] == {
+        str(elsewhere): "assets/trunk.obj"
+    }
+    shutil.rmtree(elsewhere.parent)
+    robot = spec_robot_class(folder)()
+    assert "<mesh" in robot.build(robot.nominal_design()).text("mjcf")
