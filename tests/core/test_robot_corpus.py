@@ -6,12 +6,15 @@ on MuJoCo and a short PyBullet rollout, with no hand-written spec line. Each com
 command a user runs (`coadapt_core.cli.main`, in this process: a fresh process per command
 would double the test's time); each step's time is printed (pytest -s).
 
-Left out of the corpus, and what each waits for:
-- `mjcf/humanoid.xml`: stacked hinges in one body (its hips and abdomen; Pinocchio merges
-  them into composite joints) and legs sharing the abdomen's joints: issue 58 item 2.
-- `laikago/laikago_toes_zup.urdf`, `mini_cheetah/mini_cheetah.urdf`: collision meshes in
-  the links a design scales: issue 58 item 4 (`laikago/laikago.urdf` also gives its hip
-  motors zero inertia and is y-up: `laikago_toes_zup.urdf` is the same robot z-up).
+A biped (the humanoid) goes through the same steps; its stand test is reported, not required
+(its policy balances it, not joint PD), and its PyBullet rollout only has to run.
+
+Left out of the corpus, and why:
+- `laikago/laikago_toes_zup.urdf`: `robot new` refuses it in one line: its solved standing
+  pose holds at the nominal design (gains 2-4 x) but tips over at the short-thigh long-calf
+  corner (0.7, 1.3) at every gain, the joint angles of a spec's standing pose being the same
+  at every design; it waits for a standing pose solved per design. `laikago/laikago.urdf`
+  is the same robot y-up, with zero hip-motor inertias MuJoCo refuses.
 - `quadruped/minitaur*.urdf`, `quadruped/quadruped.urdf`: each leg is a four-bar whose
   closing joint PyBullet's minitaur environment adds in code; as the file is, every leg is
   two open chains (eight "legs" of two hinges), not a legged tree.
@@ -40,7 +43,9 @@ CORPUS = [
     ("aliengo", DATA / "aliengo" / "aliengo.urdf"),
     ("spirit40", DATA / "quadruped" / "spirit40.urdf"),
     ("vision60", DATA / "quadruped" / "vision60.urdf"),
+    ("mini-cheetah", DATA / "mini_cheetah" / "mini_cheetah.urdf"),  # collision meshes: fit
     ("ant", DATA / "mjcf" / "ant.xml"),
+    ("humanoid", DATA / "mjcf" / "humanoid.xml"),  # stacked hinges; a biped
     ("menagerie-quad", HERE / "menagerie" / "quad.xml"),  # meshdir, nested includes, keyframe
     ("ros-quad", HERE / "ros" / "quad_description" / "urdf" / "quad.urdf"),  # package://, ...
 ]
@@ -124,7 +129,8 @@ def test_a_model_file_goes_to_co_design_with_no_edit(name, source, robots, tmp_p
     assert source.read_bytes() == before  # the user's file is theirs
     assert f"wrote {robots / name}" in out
     spec = yaml.safe_load((robots / name / "robot.yaml").read_text())
-    assert len(spec["legs"]) == 4 and not any(
+    biped = name == "humanoid"
+    assert len(spec["legs"]) == (2 if biped else 4) and not any(
         re.fullmatch(r"leg\d", leg["name"]) for leg in spec["legs"]
     )  # named from the bodies (or their places), not leg0..leg3
     # validation at the nominal design, its stand test at the nominal design and the corners
@@ -132,8 +138,11 @@ def test_a_model_file_goes_to_co_design_with_no_edit(name, source, robots, tmp_p
     assert code == 0, out + err
     report = json.loads(out)
     stand = next(f for f in report["findings"] if f["check"] == "stand.hold")
-    assert report["feasible"] and stand["ok"] and "4 corners stand" in stand["message"]
-    assert stand["value"] >= 0.75
+    assert report["feasible"] and stand["ok"]
+    if biped:
+        assert stand["message"].startswith("reported, not required (a biped")
+    else:
+        assert "4 corners stand" in stand["message"] and stand["value"] >= 0.75
     # the URDF PyBullet reads
     urdf = tmp_path / f"{name}.urdf"
     code, _, err = step("export", ["robot", "export", name, "--format", "urdf", "-o", str(urdf)])
@@ -155,6 +164,6 @@ def test_a_model_file_goes_to_co_design_with_no_edit(name, source, robots, tmp_p
     start = time.perf_counter()
     lowest, tilt = pybullet_rollout(robots / name)
     times["pybullet"] = time.perf_counter() - start
-    assert lowest >= 0.75 and tilt <= 0.35, (lowest, tilt)
+    assert np.isfinite(lowest) and (biped or (lowest >= 0.75 and tilt <= 0.35)), (lowest, tilt)
     with capsys.disabled():
         print(f"\n{name}: " + ", ".join(f"{k} {v:.1f} s" for k, v in times.items()))

@@ -445,7 +445,7 @@ def test_robot_new_writes_collision_fit_for_a_collision_mesh_off_its_link(tmp_pa
     from coadapt_plugins.robots.specs.new import write_robot
 
     source = meshy_folder(tmp_path / "source", guard=40.0)
-    folder, notes = write_robot("meshy", source / "model.xml", tmp_path / "robots")
+    folder, notes, _ = write_robot("meshy", source / "model.xml", tmp_path / "robots")
     assert yaml.safe_load((folder / "robot.yaml").read_text())["collision"] == "fit"
     assert any("'left_guard' (40 deg off its link)" in line for line in notes), notes
     assert any(line.startswith("fitted: collision mesh 'left_guard'") for line in notes), notes
@@ -515,7 +515,7 @@ def test_robot_new_on_stacked_hinges_writes_a_spec_that_validates(tmp_path):
     from coadapt_plugins.robots.specs.new import write_robot
 
     source = write_robot_folder(tmp_path / "source", stacked_model())
-    folder, _ = write_robot("stacked", source / "model.xml", tmp_path / "robots")
+    folder, _, _ = write_robot("stacked", source / "model.xml", tmp_path / "robots")
     robot = spec_robot_class(folder)()
     assert [leg.name for leg in robot.legs()] == ["left", "right"]
     assert len(robot.build(robot.nominal_design()).joint_names) == 12

@@ -211,6 +211,20 @@ def _load(model_file: Path, package_paths: tuple, notes: list[str]) -> tuple[muj
         return spec, True
 
 
+def _shared_joints(model: mujoco.MjModel, legs: list[dict]) -> list[str]:
+    """The hinge joints on the chains of two legs or more (a humanoid's abdomen), in model
+    order."""
+    count: dict[int, int] = {}
+    for g in legs:
+        for j in range(model.njnt):
+            if (
+                model.jnt_bodyid[j] in g["chain"]
+                and model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE
+            ):
+                count[j] = count.get(j, 0) + 1
+    return [model.joint(j).name for j in sorted(count) if count[j] > 1]
+
+
 def _actuated(model: mujoco.MjModel, base: int) -> list[str]:
     """The hinge joints of the base's subtree, in model order (as `model.prepare` lists them)."""
     out = []
@@ -435,6 +449,25 @@ def starting_spec(
         _inside_ranges(model, data, [])
     mujoco.mj_kinematics(model, data)
     legs = _legs(model, data, base)
+    shared = _shared_joints(model, legs)
+    if shared and not model.nkey:  # lock them: each leg needs a chain of its own
+        for actuator in [a for a in spec.actuators if a.target in shared]:
+            spec.delete(actuator)
+        for joint in shared:
+            spec.delete(spec.joint(joint))
+        model = spec.compile()
+        data = mujoco.MjData(model)
+        data.qpos[:] = model.qpos0
+        _inside_ranges(model, data, [])
+        mujoco.mj_kinematics(model, data)
+        legs = _legs(model, data, base)
+        comments["locked_joints"] = (
+            "assumed: joints on the chains of several legs (the gait's leg IK needs each leg's "
+            "own chain)"
+        )
+        notes.append(
+            f"joints on the chains of several legs, locked: {', '.join(shared)} (locked_joints)"
+        )
     torques = _torques(model, notes)
     joints = _actuated(model, base)
     fixes = _fixes(model, joints, torques, notes)
@@ -510,6 +543,8 @@ def starting_spec(
             for j in joints
         },
     }
+    if shared and not model.nkey:
+        data_out["locked_joints"] = shared
     if collision:
         data_out["collision"] = collision
     if balance:
