@@ -172,6 +172,7 @@ def _segments(model, legs: list[dict]) -> list[dict]:
 
 def _torques(model: mujoco.MjModel, notes: list[str]) -> dict[str, float]:
     found: dict[str, float] = {}
+    guessed: list[str] = []
     for a in range(model.nu):
         if model.actuator_trntype[a] != mujoco.mjtTrn.mjTRN_JOINT:
             continue
@@ -191,9 +192,12 @@ def _torques(model: mujoco.MjModel, notes: list[str]) -> dict[str, float]:
             found[name] = float(np.abs(model.jnt_actfrcrange[j]).max())
         if name not in found or found[name] <= 0:
             found[name] = 50.0
-            notes.append(
-                f"joint '{name}': no actuator limit in the model; peak torque set to 50 N m"
-            )
+            guessed.append(name)
+    if guessed:
+        notes.append(
+            f"joints without an actuator limit in the model ({_few(guessed)}): peak torque set "
+            "to 50 N m"
+        )
     return found
 
 
