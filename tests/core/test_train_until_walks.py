@@ -41,26 +41,26 @@ def _actor(path) -> dict:
 @pytest.mark.slow
 def test_checks_leave_the_training_draws_as_they_were(tmp_path, capsys):
     every, once = tmp_path / "every", tmp_path / "once"
-    scratch = ["--robot", "qilin", "--terrain", "slope", "--steps", "192", "--quiet"]
-    # three iterations: checked after each, or once after the last
+    scratch = ["--robot", "qilin", "--terrain", "slope", "--steps", "128", "--quiet"]
+    # two iterations: checked after each, or once after the last
     assert _train(every, *scratch, "--check-every", "1") == EXIT_NOT_WALKING
-    assert _train(once, *scratch, "--check-every", "3") == EXIT_NOT_WALKING
-    assert [r["interactions"] for r in _checks(every)] == [64, 128, 192]
-    assert [r["interactions"] for r in _checks(once)] == [192]
+    assert _train(once, *scratch, "--check-every", "2") == EXIT_NOT_WALKING
+    assert [r["interactions"] for r in _checks(every)] == [64, 128]
+    assert [r["interactions"] for r in _checks(once)] == [128]
     # the same training either way: the final weights are equal to the bit
     a, b = _actor(every / "model_final.pt"), _actor(once / "model_final.pt")
     assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
     last = _checks(every)[-1]
     assert last["mean_reward"] == _checks(once)[-1]["mean_reward"]
-    # three updates from scratch do not walk: the gate says so at all five designs
+    # two updates from scratch do not walk: the gate says so at all five designs
     assert last["walking"] is False and list(last["designs"]) == list(GATE_DESIGNS)
     assert last["designs"]["upper"]["design"] == [1.3, 1.3]  # Qilin's range is [0.7, 1.3]^2
     assert not (every / "walks.pt").exists() and (every / "check.pt").is_file()
     out = capsys.readouterr()
     summary = json.loads(out.out.strip().splitlines()[-1])["until_walks"]
     assert summary["walked"] is False and summary["budget"] == "interactions"
-    assert summary["interactions"] == 192
-    assert "the interaction budget (--steps 192) ran out" in out.err
+    assert summary["interactions"] == 128
+    assert "the interaction budget (--steps 128) ran out" in out.err
     assert f"--terrain slope --resume {every / 'model_final.pt'} --until-walks" in out.err
 
 
