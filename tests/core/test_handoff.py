@@ -278,6 +278,8 @@ def kuafu_handoff(tmp_path_factory):
         "2",
         "--seconds",
         "0.5",
+        "--threads",  # both engines and torch on one thread (issue 61: it was refused)
+        "1",
         "--json",
         timeout=600,
     )
