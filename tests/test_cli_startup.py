@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -146,6 +147,20 @@ def test_each_line_of_the_command_table_is_the_commands_own_help(name):
 
     own = " ".join((make_command(name).help or "").split("\n\n")[0].split())
     assert COMMANDS[name].help == own
+
+
+def test_every_command_module_is_in_the_command_table():
+    """A module of coadapt_core/cli that registers a command (`def register(app`) is named by
+    a line of `COMMANDS`: a command left out of the table would be unreachable."""
+    from coadapt_core.cli import COMMANDS
+
+    cli = Path(__file__).resolve().parents[1] / "coadapt_core" / "cli"
+    registering = {
+        path.stem
+        for path in cli.glob("*.py")
+        if re.search(r"^def register\(\w+: typer\.Typer\)", path.read_text(), re.M)
+    }
+    assert registering == {c.module for c in COMMANDS.values()}
 
 
 def test_importing_the_cli_loads_neither_torch_nor_a_plugin():
