@@ -219,3 +219,20 @@ def test_a_file_named_by_an_absolute_path_is_copied_and_mapped_in_the_spec(tmp_p
     shutil.rmtree(elsewhere.parent)
     robot = spec_robot_class(folder)()
     assert "<mesh" in robot.build(robot.nominal_design()).text("mjcf")
+
+
+def test_a_mesh_above_the_models_folder_keeps_its_layout_in_the_copy(tmp_path):
+    """A URDF in `urdf/` naming `../meshes/trunk.obj`: the robot's folder holds both below
+    their lowest common folder, and the spec's model is the path inside it."""
+    tree = tmp_path / "desc"
+    shutil.copytree(ROS / "quad_description", tree)
+    text = (tree / "urdf" / "quad.urdf").read_text()
+    (tree / "urdf" / "quad.urdf").write_text(
+        text.replace("package://quad_description/meshes/trunk.obj", "../meshes/trunk.obj")
+    )
+    folder, _, copied = write_robot("lquad", tree / "urdf" / "quad.urdf", tmp_path / "robots")
+    assert copied == ["urdf/quad.urdf", "meshes/trunk.obj"]
+    assert yaml.safe_load((folder / "robot.yaml").read_text())["model"] == "urdf/quad.urdf"
+    shutil.rmtree(tree)
+    robot = spec_robot_class(folder)()
+    assert "<mesh" in robot.build(robot.nominal_design()).text("mjcf")
