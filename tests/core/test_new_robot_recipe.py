@@ -6,7 +6,7 @@ from __future__ import annotations
 import torch
 
 from coadapt_core.cli import main
-from coadapt_core.cli.train import fresh_train_config
+from coadapt_core.cli.train_setup import fresh_train_config
 from coadapt_core.coadapt.learner_overrides import resolve_learner
 from coadapt_core.learning.config import NEW_ROBOT_RECIPE, TrainConfig, new_robot_config
 from coadapt_core.plugins import get_registry

@@ -9,6 +9,7 @@ import pytest
 
 from coadapt_core.cli import evaluate as eval_cli
 from coadapt_core.cli import train as train_cli
+from coadapt_core.cli import train_setup
 from coadapt_core.cli.options import option_names
 from coadapt_core.plugins import PluginInfo, Registry
 from coadapt_core.settings import leaves
@@ -77,4 +78,4 @@ def test_default_objectives_are_the_installed_ones_without_options(monkeypatch):
         cls = type(name, (), {"name": name, "option_specs": options})
         registry.entries["objective"][name] = PluginInfo("objective", name, cls, dist, "0", "test")
     monkeypatch.setattr("coadapt_core.plugins.get_registry", lambda refresh=False: registry)
-    assert train_cli.default_objectives() == ["theirs", "zeta", "alpha"]
+    assert train_setup.default_objectives() == ["theirs", "zeta", "alpha"]

@@ -12,7 +12,7 @@ import pytest
 import torch
 
 from coadapt_core.cli import main
-from coadapt_core.cli.train import EXIT_NOT_WALKING
+from coadapt_core.cli.until_walks import EXIT_NOT_WALKING
 from coadapt_core.experiments.walking_check import (
     GATE_DESIGNS,
     check_text,
