@@ -10,11 +10,8 @@ A biped (the humanoid) goes through the same steps; its stand test is reported, 
 (its policy balances it, not joint PD), and its PyBullet rollout only has to run.
 
 Left out of the corpus, and why:
-- `laikago/laikago_toes_zup.urdf`: `robot new` refuses it in one line: its solved standing
-  pose holds at the nominal design (gains 2-4 x) but tips over at the short-thigh long-calf
-  corner (0.7, 1.3) at every gain, the joint angles of a spec's standing pose being the same
-  at every design; it waits for a standing pose solved per design. `laikago/laikago.urdf`
-  is the same robot y-up, with zero hip-motor inertias MuJoCo refuses.
+- `laikago/laikago.urdf`: the same robot as `laikago_toes_zup.urdf` (in the corpus) y-up,
+  with hip motors of zero inertia that MuJoCo refuses.
 - `quadruped/minitaur*.urdf`, `quadruped/quadruped.urdf`: each leg is a four-bar whose
   closing joint PyBullet's minitaur environment adds in code; as the file is, every leg is
   two open chains (eight "legs" of two hinges), not a legged tree.
@@ -43,6 +40,7 @@ CORPUS = [
     ("aliengo", DATA / "aliengo" / "aliengo.urdf"),
     ("spirit40", DATA / "quadruped" / "spirit40.urdf"),
     ("vision60", DATA / "quadruped" / "vision60.urdf"),
+    ("laikago", DATA / "laikago" / "laikago_toes_zup.urdf"),  # collision meshes: fit
     ("mini-cheetah", DATA / "mini_cheetah" / "mini_cheetah.urdf"),  # collision meshes: fit
     ("ant", DATA / "mjcf" / "ant.xml"),
     ("humanoid", DATA / "mjcf" / "humanoid.xml"),  # stacked hinges; a biped

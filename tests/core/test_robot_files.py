@@ -14,6 +14,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 import torch
@@ -236,3 +237,25 @@ def test_a_mesh_above_the_models_folder_keeps_its_layout_in_the_copy(tmp_path):
     shutil.rmtree(tree)
     robot = spec_robot_class(folder)()
     assert "<mesh" in robot.build(robot.nominal_design()).text("mjcf")
+
+
+def test_a_solved_standing_pose_follows_the_design(tmp_path):
+    """`standing_pose.solve`: at every design each foot stands under its hip at 0.75 of its
+    leg's length (MuJoCo's forward kinematics of the built model), so a corner stands as the
+    nominal design does; the gait's default foot positions are those targets."""
+    folder, _, _ = write_robot("rquad", URDF, tmp_path / "robots")
+    assert yaml.safe_load((folder / "robot.yaml").read_text())["standing_pose"]["solve"] == 0.75
+    robot = spec_robot_class(folder)()
+    for design in ([1.0, 1.0], [0.7, 1.3], [1.3, 0.7]):
+        model = robot.build(np.array(design))
+        m = mujoco.MjModel.from_xml_string(model.text("mjcf"))
+        d = mujoco.MjData(m)
+        for joint, angle in zip(model.joint_names, model.default_joint_pos, strict=True):
+            d.qpos[m.jnt_qposadr[m.joint(joint).id]] = angle
+        mujoco.mj_kinematics(m, d)
+        for leg in ("FL", "RR"):
+            rel = d.xpos[m.body(f"{leg}_foot").id] - d.xpos[m.body(f"{leg}_hip").id]
+            assert rel[0] == pytest.approx(0.0, abs=1e-6)
+            assert rel[2] == pytest.approx(-0.75 * 0.2 * sum(design), abs=1e-6)
+        feet = robot.default_foot_positions(torch.tensor([design], dtype=torch.float64))[0]
+        np.testing.assert_allclose(feet[:, 2].numpy(), -0.75 * 0.2 * sum(design), atol=1e-9)

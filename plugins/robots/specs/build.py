@@ -159,7 +159,8 @@ class SpecBuilder:
                 speed[k] = self.spec.motor_types[kind].speed
         joints = self.prepared.joints
         compiled = spec.compile()
-        height, contact = self._standing(compiled)
+        pose = self.standing_pose(design, compiled)
+        height, contact = self._standing(compiled, pose)
         compiled.body_pos[compiled.body(self.prepared.base).id] = [0.0, 0.0, height]
         formats = {"mjcf": mjcf_text(compiled, self.spec.name, joints, torque)}
         files: dict[str, str] = {}
@@ -175,7 +176,7 @@ class SpecBuilder:
             base_body=self.prepared.base,
             joint_names=list(joints),
             foot_bodies=[leg.foot for leg in self.spec.legs],
-            default_joint_pos=readonly(self.prepared.standing),
+            default_joint_pos=readonly(pose),
             kp=readonly(kp),
             kd=readonly(kd),
             torque_limit=readonly(torque),
@@ -188,14 +189,50 @@ class SpecBuilder:
             info=self._info(design, compiled, types, why_not),
         )
 
-    def _standing(self, model: mujoco.MjModel) -> tuple[float, np.ndarray]:
+    def stand_targets(self, designs):
+        """[n, L, 3] each foot relative to its hip (base frame) when the standing pose is
+        solved per design (`standing_pose.solve`): under the hip (x 0), at the nominal
+        pose's lateral offset, STANDING_SHARE of the leg's length down; the leg's length is
+        its scaled links' lengths summed (its chain below the hip when none is scaled)."""
+        import torch
+
+        kin = self.kinematics
+        c = kin.chain
+        nominal = torch.as_tensor(self._nominal_plain()[None], dtype=torch.float64)
+        rel = kin.standing(nominal)[0]  # [1, L, 3]
+        scales = kin.scales(designs)  # [n, L, E]
+        lengths = torch.linalg.norm(c.pos, dim=-1)  # [L, E]
+        scaled = (c.scale.abs().sum(dim=-1) > 0).to(torch.float64)  # [L, E]
+        below = (torch.arange(c.pos.shape[1])[None, :] > c.hip_element[:, None]).to(torch.float64)
+        mask = torch.where(scaled.sum(dim=-1, keepdim=True) > 0, scaled, below)
+        leg = (scales * lengths * mask).sum(dim=-1)  # [n, L]
+        out = torch.zeros(designs.shape[0], c.num_legs, 3, dtype=torch.float64)
+        out[..., 1] = rel[0, :, 1]
+        out[..., 2] = -self.spec.standing_share * leg
+        return out
+
+    def standing_pose(self, design: np.ndarray, model: mujoco.MjModel) -> np.ndarray:
+        """[J] the design's standing pose: the spec's, or solved for it (`stand_targets`,
+        the generic leg IK from the nominal pose), held inside the joint ranges."""
+        if self.spec.standing_share is None:
+            return self.prepared.standing
+        import torch
+
+        plain = torch.as_tensor(np.asarray(design[: len(self.spec.parameters)], dtype=float)[None])
+        pose = self.kinematics.inverse(plain, self.stand_targets(plain))[0].numpy()
+        ids = [model.joint(j).id for j in self.prepared.joints]
+        lo, hi = model.jnt_range[ids, 0], model.jnt_range[ids, 1]
+        limited = model.jnt_limited[ids].astype(bool)
+        return np.where(limited, np.clip(pose, lo, hi), pose)
+
+    def _standing(self, model: mujoco.MjModel, pose: np.ndarray) -> tuple[float, np.ndarray]:
         """(base height that puts the lowest foot point on the ground at the standing pose,
         [k, 3] the first foot's contact points: its geoms' lowest points along its own z, in
         its frame, unless the spec gives them)."""
         data = mujoco.MjData(model)
         data.qpos[:] = model.qpos0
         data.qpos[3:7] = [1.0, 0.0, 0.0, 0.0]
-        for joint, angle in zip(self.prepared.joints, self.prepared.standing, strict=True):
+        for joint, angle in zip(self.prepared.joints, pose, strict=True):
             data.qpos[model.jnt_qposadr[model.joint(joint).id]] = angle
         mujoco.mj_kinematics(model, data)
         world = (data.geom_xpos, data.geom_xmat.reshape(-1, 3, 3))

@@ -6,12 +6,13 @@ right by the sign of their foot's y and ordered front to back, the gait (biped a
 quadruped trotting, hexapod tripod, else evenly spread), a parameter per leg segment kind
 (the two longest links nearest each foot: upper and lower leg), torque limits from the
 model's actuators, gains from those limits, the standing pose from a keyframe or else solved
-by the generic leg IK (each foot under its hip at STAND_SHARE of the leg's length), the legs
+by the generic leg IK (each foot under its hip at STAND_SHARE of the leg's length, solved
+again at each design: `standing_pose.solve`), joints several legs share locked, the legs
 named by their bodies' names. What the model lacks is assumed in the spec, never in the
 model file: a range for a joint without one, armature and damping where it has none,
 `balanceinertia` where MuJoCo refuses an inertia; each such line carries a comment, and the
-gains are raised until the nominal design passes the stand test (`validation`). What it had
-to guess is listed for the user to check.
+gains are raised until the nominal design and every corner pass the stand test
+(`validation`). What it had to guess is listed for the user to check.
 """
 
 from __future__ import annotations
@@ -496,10 +497,13 @@ def starting_spec(
                 j: round(float(v), 6) for j, v in zip(joints, solved, strict=True) if abs(v) > 1e-12
             }
         }
+        if not missed:  # every foot placed: solved again at each design from this pose
+            pose["solve"] = STAND_SHARE
         placed = len(legs) - len(missed)
         comments["standing_pose"] = (
             f"solved by robot new: feet {STAND_SHARE:g} of the leg's length under their hips "
             "(generic leg IK)"
+            + ("; solve: solved so at every design" if not missed else "")
             + (f"; {len(missed)} legs out of reach keep 0 or their nearest limit" if missed else "")
         )
         notes.append(

@@ -100,7 +100,12 @@ class SpecRobot(Robot):
     # -- leg kinematics -------------------------------------------------------------------
     def default_foot_positions(self, designs: torch.Tensor) -> torch.Tensor:
         """[n, L, 3] each foot body's origin relative to its leg's hip point at the standing
-        pose, base frame (`kinematics`)."""
+        pose, base frame (`kinematics`; a pose solved per design: its targets)."""
+        import torch
+
+        if self.spec.standing_share is not None:  # the pose solved per design: its targets
+            plain = designs[:, : len(self.spec.parameters)].to(torch.float64)
+            return self._built.stand_targets(plain).to(designs.dtype)
         return self._built.kinematics.default_foot_positions(designs).to(designs.dtype)
 
     def leg_inverse_kinematics(self, designs: torch.Tensor, foot_pos: torch.Tensor) -> torch.Tensor:

@@ -93,6 +93,9 @@ class RobotSpec:
     #: "armature": kg m^2, "damping": N m s/rad}
     joints: dict[str, dict[str, Any]] = field(default_factory=dict)
     balanceinertia: bool = False  # MuJoCo's compiler option, for inertias it would refuse
+    #: each foot under its hip at this share of its leg's length, solved per design (None:
+    #: the standing pose's joint angles at every design)
+    standing_share: float | None = None
     #: files the model names by an absolute path -> their copy inside `folder`
     assets: dict[str, str] = field(default_factory=dict)
 
@@ -310,9 +313,25 @@ def _assets(raw: Any) -> dict[str, str]:
     return out
 
 
+def _standing_share(raw: Any) -> float | None:
+    """`standing_pose.solve`: each foot under its hip at this share of its leg's length,
+    solved per design (None: the pose's joint angles at every design)."""
+    data = _mapping(raw, "standing_pose")
+    if "solve" not in data:
+        return None
+    share = _number(data["solve"], "standing_pose.solve")
+    if not 0.0 < share < 1.0:
+        raise _fail(
+            "standing_pose.solve", f"needs a share of the leg's length in (0, 1), got {share:g}"
+        )
+    if "keyframe" in data:
+        raise _fail("standing_pose.solve", "goes with joints (the nominal pose), not a keyframe")
+    return share
+
+
 def _standing(raw: Any) -> dict[str, float] | str:
     data = _mapping(raw, "standing_pose")
-    _unknown(data, {"keyframe", "joints"}, "standing_pose")
+    _unknown(data, {"keyframe", "joints", "solve"}, "standing_pose")
     if "keyframe" in data:
         return _text(data["keyframe"], "standing_pose.keyframe")
     joints = _mapping(data.get("joints"), "standing_pose.joints")
@@ -359,6 +378,7 @@ def parse_spec(data: Any, folder: Path, *, fallback_name: str = "") -> RobotSpec
         parameters=params,
         legs=legs,
         standing_pose=_standing(data["standing_pose"]),
+        standing_share=_standing_share(data["standing_pose"]),
         gains=_gains(data.get("gains")),
         torque=_pattern_values(limits.get("torque", {}), "limits.torque"),
         speed=_pattern_values(limits.get("speed", {}), "limits.speed"),
