@@ -259,3 +259,19 @@ def test_a_solved_standing_pose_follows_the_design(tmp_path):
             assert rel[2] == pytest.approx(-0.75 * 0.2 * sum(design), abs=1e-6)
         feet = robot.default_foot_positions(torch.tensor([design], dtype=torch.float64))[0]
         np.testing.assert_allclose(feet[:, 2].numpy(), -0.75 * 0.2 * sum(design), atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("pose", "message"),
+    [
+        ({"joints": {}, "solve": 1.5}, "standing_pose.solve': needs a share of the leg's length"),
+        ({"keyframe": "home", "solve": 0.75}, "standing_pose.solve': goes with joints"),
+    ],
+)
+def test_a_bad_solve_is_one_line_naming_it(tmp_path, pose, message):
+    folder, _, _ = write_robot("mquad", MENAGERIE, tmp_path / "robots")
+    data = yaml.safe_load((folder / "robot.yaml").read_text())
+    data["standing_pose"] = pose
+    (folder / "robot.yaml").write_text(yaml.safe_dump(data))
+    with pytest.raises(UserError, match=message):
+        spec_robot_class(folder)
