@@ -103,6 +103,15 @@ COMMANDS: dict[str, Command] = {
         "Serve a live, read-only web view of the runs, a run, a grid and a comparison.",
     ),
     "robot": Command("robot", "Inspect, export, validate and render robot designs."),
+    "verify": Command(
+        "verify",
+        "Fine-tune a specialist policy at the run's best design and one at the nominal design "
+        "from its universal policy (same budget, same seed), repeat its paired final check with "
+        "each design driven by its own specialist, and say whether the answer holds, shrinks, "
+        "grows or does not hold.",
+        simulates=True,
+        progress=True,
+    ),
 }
 
 

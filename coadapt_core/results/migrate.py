@@ -32,7 +32,7 @@ from coadapt_core.results.storage import StoreError
 #: the folder of alembic's environment and version scripts, shipped in the package
 MIGRATIONS = Path(__file__).with_name("migrations")
 #: the alembic revision of each schema version (versions/<revision>_*.py)
-REVISIONS = {1: "0001", 2: "0002"}
+REVISIONS = {1: "0001", 2: "0002", 3: "0003"}
 #: alembic's record of the revision; optuna's studies, which may share the database, keep
 #: theirs in `alembic_version`
 VERSION_TABLE = "coadapt_alembic_version"

@@ -17,8 +17,9 @@ from coadapt_core import __version__
 from coadapt_core.errors import UserError
 
 #: version of the tables below; 1 is the layout every store had before versions were recorded,
-#: 2 adds the index on runs.status (migrations/versions/ holds each version's script)
-SCHEMA_VERSION = 2
+#: 2 adds the index on runs.status, 3 the table verifications (migrations/versions/ holds each
+#: version's script)
+SCHEMA_VERSION = 3
 #: the key of the version's row in `store_info`
 SCHEMA_VERSION_KEY = "schema_version"
 
@@ -139,6 +140,36 @@ grid_cells = sa.Table(
     sa.Column("updated_at", sa.Float, nullable=False),
 )
 
+#: `coadapt verify` (coadapt_core.coadapt.verify): one row per verified design of a run, its
+#: improvement over the nominal design with specialists and with the universal policy
+verifications = sa.Table(
+    "verifications",
+    metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column(
+        "run_id", sa.String(80), sa.ForeignKey("runs.id", ondelete="CASCADE"), nullable=False
+    ),
+    sa.Column("key", sa.String(80), nullable=False),  # budget and seed, verify.verify_key
+    sa.Column("budget", sa.BigInteger, nullable=False),  # interactions per specialist
+    sa.Column("seed", sa.Integer, nullable=False),
+    sa.Column("role", sa.String(80), nullable=False),  # best | chosen | lowest-<objective> | design
+    sa.Column("design", sa.Text, nullable=False),  # JSON list
+    sa.Column("objective", sa.String(80), nullable=False),  # the first objective
+    sa.Column("universal_improvement", sa.Float),
+    sa.Column("universal_improvement_se", sa.Float),
+    sa.Column("specialist_improvement", sa.Float),
+    sa.Column("specialist_improvement_se", sa.Float),
+    sa.Column("difference", sa.Float),  # specialist - universal
+    sa.Column("difference_se", sa.Float),
+    sa.Column("verdict", sa.String(20), nullable=False),  # holds | grows | shrinks | does not hold
+    sa.Column("scenarios", sa.Integer, nullable=False),
+    sa.Column("interactions", sa.BigInteger, nullable=False),  # training + evaluation
+    sa.Column("seconds", sa.Float, nullable=False),
+    sa.Column("detail", sa.Text),  # JSON: both sides (plain means, fall rates), the verdict line
+    sa.Column("created_at", sa.Float, nullable=False),
+    sa.UniqueConstraint("run_id", "key", "role", name="uq_verification"),
+)
+
 #: one row per fact about the store itself; "schema_version" is the layout's version
 store_info = sa.Table(
     "store_info",
@@ -147,7 +178,15 @@ store_info = sa.Table(
     sa.Column("value", sa.String(200), nullable=False),
 )
 
-TABLES = ("runs", "evaluations", "training_phases", "checkpoints", "grids", "grid_cells")
+TABLES = (
+    "runs",
+    "evaluations",
+    "training_phases",
+    "checkpoints",
+    "grids",
+    "grid_cells",
+    "verifications",
+)
 
 
 def recorded_version(conn: sa.Connection) -> int | None:

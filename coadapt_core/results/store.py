@@ -40,6 +40,7 @@ from coadapt_core.results.schema import (
     metadata,
     runs,
     training_phases,
+    verifications,
 )
 from coadapt_core.results.storage import (
     ENV_GRID_CELL,
@@ -339,6 +340,77 @@ class ResultsStore(GridCells):
         with self.engine.connect() as conn:
             return [dict(r) for r in conn.execute(query).mappings()]
 
+    # -- verifications (coadapt verify) ------------------------------------------------------
+    def record_verification(self, run_id: str, result: dict[str, Any]) -> int:
+        """One row per verified design of `result` (`coadapt_core.coadapt.verify.result_of`);
+        a row with the same (run, key, role) is replaced. Returns the rows written."""
+        now = time.time()
+        values = []
+        interactions = int(result.get("training_interactions") or 0) + int(
+            result.get("evaluation_interactions") or 0
+        )
+        for entry in result.get("designs") or []:
+            u, s = entry["universal"], entry["specialist"]
+            values.append(
+                {
+                    "run_id": run_id,
+                    "key": str(result["key"]),
+                    "budget": int(result["budget"]),
+                    "seed": int(result["seed"]),
+                    "role": str(entry["role"]),
+                    "design": dumps([float(x) for x in entry["design"]]),
+                    "objective": str(entry["objective"]),
+                    "universal_improvement": _float(u.get("improvement")),
+                    "universal_improvement_se": _float(u.get("improvement_se")),
+                    "specialist_improvement": _float(s.get("improvement")),
+                    "specialist_improvement_se": _float(s.get("improvement_se")),
+                    "difference": _float(entry.get("difference")),
+                    "difference_se": _float(entry.get("difference_se")),
+                    "verdict": str(entry["verdict"]),
+                    "scenarios": int(result.get("scenarios") or 0),
+                    "interactions": interactions,
+                    "seconds": float(result.get("seconds") or 0.0),
+                    "detail": dumps(
+                        {
+                            "universal": u,
+                            "specialist": s,
+                            "line": entry.get("line"),
+                            "falls_more": entry.get("falls_more") or [],
+                            "blocks": result.get("blocks"),
+                        }
+                    ),
+                    "created_at": now,
+                }
+            )
+        if not values:
+            return 0
+        with self.engine.begin() as conn:
+            for v in values:
+                conn.execute(
+                    verifications.delete().where(
+                        (verifications.c.run_id == run_id)
+                        & (verifications.c.key == v["key"])
+                        & (verifications.c.role == v["role"])
+                    )
+                )
+            conn.execute(verifications.insert(), values)
+            conn.execute(runs.update().where(runs.c.id == run_id).values(updated_at=now))
+        return len(values)
+
+    def verifications(self, run_ids: Sequence[str] | None = None) -> list[dict[str, Any]]:
+        """Verification rows (design and detail decoded), by run, budget, seed and row id."""
+        query = sa.select(verifications).order_by(
+            verifications.c.run_id, verifications.c.budget, verifications.c.seed, verifications.c.id
+        )
+        if run_ids is not None:
+            query = query.where(verifications.c.run_id.in_(list(run_ids)))
+        with self.engine.connect() as conn:
+            rows = [dict(r) for r in conn.execute(query).mappings()]
+        for r in rows:
+            r["design"] = loads(r["design"])
+            r["detail"] = loads(r["detail"]) if r.get("detail") else {}
+        return rows
+
     # -- raw tables (export) ----------------------------------------------------------------
     def table_rows(self, name: str, run_ids: Sequence[str] | None = None) -> list[dict[str, Any]]:
         table = metadata.tables[name]
@@ -350,3 +422,7 @@ class ResultsStore(GridCells):
                 query = query.where(table.c.id.in_(list(run_ids)))
         with self.engine.connect() as conn:
             return [dict(r) for r in conn.execute(query).mappings()]
+
+
+def _float(value: Any) -> float | None:
+    return None if value is None else float(value)
