@@ -73,6 +73,9 @@ class RunFacts:
     # the common yardstick (coadapt_core.experiments.yardstick): improvements under the rule and
     # the plain mean with their SE, fall rates; None when the run has no such rows
     common: dict[str, float] | None = None
+    # `coadapt verify` (coadapt_core.coadapt.verify): the first verified design of the run's
+    # verification with the largest budget, a row of the store's verifications; None: none
+    verified: dict[str, Any] | None = None
     design_names: list[str] = field(default_factory=list)  # the run's design space, in order
     design_units: list[str] = field(default_factory=list)
     design_discrete: list[bool] = field(default_factory=list)
@@ -255,3 +258,16 @@ def yardstick_improvement(
         fall_rate_difference_se=float(best.get("falls/difference_se", np.nan)),
     )
     return out
+
+
+# -- with specialists (rows written by `coadapt verify`) ---------------------------------------
+def verified_improvement(store: ResultsStore, run_id: str) -> dict[str, Any] | None:
+    """The run's verification row with the largest budget (its first verified design: the
+    best, or the chosen design of several objectives), else None."""
+    rows = store.verifications([run_id])
+    if not rows:
+        return None
+    top = max(int(r["budget"]) for r in rows)
+    rows = [r for r in rows if int(r["budget"]) == top]
+    first = next((r for r in rows if r["role"] in ("best", "chosen")), rows[0])
+    return dict(first)

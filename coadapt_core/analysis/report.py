@@ -21,6 +21,7 @@ from coadapt_core.analysis.facts import (
     run_facts,
     select_runs,
     transfer_improvement,
+    verified_improvement,
     yardstick_improvement,
 )
 from coadapt_core.analysis.heatmap_figure import figure_heatmaps
@@ -224,6 +225,7 @@ def _add_transfer(
         if f.method == LANDSCAPE_METHOD:
             continue
         f.common = yardstick_improvement(store, f.run["id"], f.objective)
+        f.verified = verified_improvement(store, f.run["id"])
         if sim2sim:
             f.sim2sim, f.sim2sim_note = transfer_improvement(
                 store, f, simulator, (notes or {}).get(f.run["id"], "")

@@ -96,6 +96,17 @@ def common_cell(r: dict[str, Any]) -> str:
     )
 
 
+def specialist_cell(r: dict[str, Any]) -> str:
+    """`coadapt verify`'s figures of a Table 6 row: the improvement with specialists, the
+    universal policy's on the same scenarios and the verdicts; 'n/a' when no run has them."""
+    if not r.get("specialist_improvement_n"):
+        return "n/a"
+    return (
+        f"{cell(r, 'specialist_improvement', pct=True)} (universal "
+        f"{cell(r, 'universal_improvement', pct=True)}): {r.get('verdicts') or ''}"
+    )
+
+
 def reduction_cell(r: dict[str, Any]) -> str:
     """The row's improvements as cost reductions 1 - c / c0 (run's cost / plain mean / common
     scenarios / common plain mean), or 'same' when the objective's own measure is that already."""
@@ -134,6 +145,7 @@ def table6_markdown(rows: Sequence[dict[str, Any]]) -> str:
             "plain mean",
             "Sim-to-sim improvement",
             "Sim-to-sim note",
+            "With specialists (universal): verdict",
             "Starting policy",
             "Numerics",
         ]
@@ -157,6 +169,7 @@ def table6_markdown(rows: Sequence[dict[str, Any]]) -> str:
             reduction_cell(r),
             cell(r, "sim2sim_improvement", pct=True),
             r["sim2sim_note"] or "",
+            specialist_cell(r),
             r.get("policy") or "?",
             r.get("numerics") or "not recorded",
         ]
@@ -175,10 +188,13 @@ def table6_markdown(rows: Sequence[dict[str, Any]]) -> str:
         "scenarios; fall rate: share of the final check's scenarios in which the robot fell. "
         "Common scenarios: the run's best and nominal designs re-evaluated with the run's own "
         "policy on one scenario set shared by every run of the terrain and preset (the methods' "
-        "common yardstick; fall-rate difference in points, paired). Starting policy: the policy "
-        "file each run started from and the start of its SHA-256. Numerics: the learner's "
-        "precision in force (bf16 or float32), the device it ran on, torch's and the physics "
-        "engine's versions; another CPU's answer may move within the SEs (README).",
+        "common yardstick; fall-rate difference in points, paired). With specialists: "
+        "`coadapt verify`'s improvement with a policy fine-tuned at each design from the run's "
+        "universal one, the universal policy's on the same scenarios in brackets, and each "
+        "run's verdict. Starting policy: the policy file each run started from and the start "
+        "of its SHA-256. Numerics: the learner's precision in force (bf16 or float32), the "
+        "device it ran on, torch's and the physics engine's versions; another CPU's answer may "
+        "move within the SEs (README).",
     ]
     return "\n".join(lines) + "\n"
 

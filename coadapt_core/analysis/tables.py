@@ -133,6 +133,7 @@ def _table6_row(group: Sequence[RunFacts]) -> dict[str, Any]:
     _add_outcomes(row, group)
     _add_reductions(row, group)
     row["sim2sim_note"] = "; ".join(sorted({f.sim2sim_note for f in group if f.sim2sim_note}))
+    _add_verified(row, group)
     row["design_variables"] = " ".join(first.design_names)
     row["design_units"] = "|".join(first.design_units)
     row["design_discrete"] = " ".join(str(int(d)) for d in first.design_discrete)
@@ -186,6 +187,17 @@ def _add_outcomes(row: dict[str, Any], group: Sequence[RunFacts]) -> None:
             [(f.common or {}).get(key) for f in group],
             [(f.common or {}).get(f"{key}_se") for f in group],
         )
+
+
+def _add_verified(row: dict[str, Any], group: Sequence[RunFacts]) -> None:
+    """`coadapt verify`'s figures of the runs that have them: the improvement with specialists
+    and the universal policy's on the same scenarios, each with its SE, their difference and
+    each run's verdict."""
+    rows = [f.verified or {} for f in group]
+    for name in ("specialist_improvement", "universal_improvement", "difference"):
+        _add_stat(row, name, [r.get(name) for r in rows], [r.get(f"{name}_se") for r in rows])
+    row["verdicts"] = "; ".join(str(r["verdict"]) for r in rows if r.get("verdict"))
+    row["specialist_budget"] = " ".join(str(r["budget"]) for r in rows if r.get("budget"))
 
 
 #: (column of the paper's measure, the improvement it restates): every improvement of a row as

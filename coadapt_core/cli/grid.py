@@ -75,6 +75,15 @@ class GridSettings:
     )
     as_json: Any = shared(CommonOptions)
     quiet: Any = shared(CommonOptions)
+    verify: bool = setting(
+        False,
+        "Each cell's run ends with `coadapt verify` (`coadapt run --verify`): specialists at its "
+        "best and nominal designs; the rows come back with the cell's.",
+        names=("--verify",),
+    )
+    verify_budget: Int | None = setting(
+        None, "--verify: interactions per specialist (default: the preset's)."
+    )
     run_arg: list[str] | None = setting(
         None,
         "Extra argument passed to every `coadapt run` (repeatable), e.g. --run-arg=--device=cuda.",
@@ -99,7 +108,7 @@ def _check_cells(
     for cell in spec.cells():
         argv = [
             a
-            for a in cell.run_args(out_dir=out, extra=spec.extra_args, store=store_url)
+            for a in cell.run_args(out_dir=out, extra=spec.cell_args, store=store_url)
             if a != "--json"
         ]
         key = tuple(
@@ -132,6 +141,8 @@ def _spec(s: GridSettings, run_arg: list[str] | None) -> Any:
         optimizer=s.optimizer,
         extra_args=list(run_arg or []),
         robots=parse_list(s.robots, "robots"),
+        stage_args=(["--verify"] if s.verify else [])
+        + (["--verify-budget", str(s.verify_budget)] if s.verify and s.verify_budget else []),
     )
 
 

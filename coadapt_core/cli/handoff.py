@@ -52,6 +52,11 @@ class HandoffCommand:
         "Simulated seconds per scenario (default: the run's own evaluation length, as "
         "`coadapt report`'s sim-to-sim column).",
     )
+    policy: str = setting(
+        "universal",
+        "The controller handed off: universal (the run's policy) or specialist (the design's "
+        "specialist from `coadapt verify`, the nominal design judged by its own).",
+    )
     check: bool = setting(True, "Walk the folder's check.py once written (10 s at 0.5 m/s).")
     video: bool = setting(True, "Render a GIF when the run has none of this design.")
     force: bool = setting(False, "Replace an earlier handoff folder at --out.", names=("--force",))
@@ -123,6 +128,8 @@ def register(app: typer.Typer) -> None:
             )
         if agents < 1:
             fail(f"--agents must be >= 1, got {agents}")
+        if o["policy"] not in ("universal", "specialist"):
+            fail(f"--policy must be universal or specialist, got '{o['policy']}'")
         if seconds is not None and not seconds > 0:
             fail(f"--seconds must be > 0, got {seconds}")
         from coadapt_core.handoff.folder import HandoffOptions, make_handoff
@@ -157,6 +164,7 @@ def register(app: typer.Typer) -> None:
             check=o["check"],
             video=o["video"],
             force=o["force"],
+            policy=o["policy"],
         )
         from coadapt_core.threads import apply_threads
 

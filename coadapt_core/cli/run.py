@@ -42,6 +42,17 @@ class RunCommand:
     )
     as_json: Any = shared(CommonOptions)
     quiet: Any = shared(CommonOptions)
+    verify: bool = setting(
+        False,
+        "When the run has finished, `coadapt verify` it: specialists fine-tuned at the best and "
+        "the nominal design, the final check repeated with each on its own (docs/cli/verify.md).",
+        names=("--verify",),
+    )
+    verify_budget: Int | None = setting(
+        None,
+        "--verify: interactions per specialist (default by preset: smoke 2,000, quick "
+        "1,000,000, paper 10,000,000).",
+    )
     video: bool = setting(
         True,
         "End by rendering the best and the nominal design walking side by side: <run "
@@ -360,6 +371,33 @@ def _check_plugin_names(values: dict[str, Any]) -> None:
                 resolve("objective", name.strip())
 
 
+def _verify(result: Any, values: dict[str, Any]) -> None:
+    """`coadapt run --verify`: the finished run verified (`coadapt verify`), its rows in the
+    run's store; what it found printed before the run's own summary (on stderr with --json)."""
+    import contextlib
+    import sys
+
+    from coadapt_core.cli.verify import print_result, verify_and_record
+    from coadapt_core.coadapt.verify import plan_verification
+
+    plan = plan_verification(result.run_dir, budget=values["verify_budget"])
+    quiet = values.get("quiet")
+    found = verify_and_record(
+        plan,
+        values.get("store"),
+        (lambda _line: None) if quiet else (lambda line: print(line, file=sys.stderr)),
+    )
+    result.summary["verification"] = {
+        "key": found["key"],
+        "designs": [
+            {k: e[k] for k in ("role", "verdict", "difference", "difference_se", "line")}
+            for e in found["designs"]
+        ],
+    }
+    with contextlib.redirect_stdout(sys.stderr) if values["as_json"] else contextlib.nullcontext():
+        print_result(found)
+
+
 def register(app: typer.Typer) -> None:
     settings, own = config_options(), options_of(RunCommand)
     # the installed plugins' aliases: made only for a `coadapt run` whose command line may
@@ -384,6 +422,11 @@ def register(app: typer.Typer) -> None:
             check_preset(values["preset"])
         except UserError as exc:
             fail(str(exc))
+        if values["verify_budget"] is not None and values["verify_budget"] <= 0:
+            fail(
+                "--verify-budget must be a positive number of interactions, got "
+                f"{values['verify_budget']}"
+            )
         _check_plugin_names(values)
         from coadapt_core.threads import apply_threads
 
@@ -403,6 +446,8 @@ def register(app: typer.Typer) -> None:
                 if cfg is None:  # --check
                     return
             result = _run_loop(cfg, kwargs, values)
+            if values["verify"]:
+                _verify(result, values)
         except UserError as exc:
             fail(str(exc))
         report(result, values["as_json"])

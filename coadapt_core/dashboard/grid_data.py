@@ -15,6 +15,7 @@ from coadapt_core.analysis.facts import (
     objective_labels,
     run_facts,
     transfer_improvement,
+    verified_improvement,
     yardstick_improvement,
 )
 from coadapt_core.analysis.paper import paper_tables
@@ -30,6 +31,7 @@ from coadapt_core.analysis.table_markdown import (
     design_columns,
     design_header,
     result_cells,
+    specialist_cell,
 )
 from coadapt_core.analysis.tables import table6_rows, table7_rows
 from coadapt_core.errors import UserError
@@ -45,7 +47,7 @@ def _table6(t6: Sequence[dict[str, Any]]) -> Table:
     head = ["objective", "method", "optimizer", "terrain", "runs"]
     head += [design_header(n, u) for n, u, _ in design]
     head += ["best cost", "nominal cost", "improvement", "improvement (plain mean)"]
-    head += ["fall rate best / nominal"]
+    head += ["fall rate best / nominal", "with specialists (universal): verdict"]
     rows = []
     for r in t6:
         cells = [
@@ -55,7 +57,7 @@ def _table6(t6: Sequence[dict[str, Any]]) -> Table:
             r["terrain"],
             str(r["runs"]),
         ]
-        rows.append(cells + result_cells(r, design))
+        rows.append(cells + result_cells(r, design) + [specialist_cell(r)])
     return "Table 6 — optimization results", head, rows
 
 
@@ -110,6 +112,7 @@ def grid_page(store: ResultsStore, grid_id: str) -> dict[str, Any]:
         # the sim-to-sim and common-yardstick columns as far as the store holds their rows
         f.common = yardstick_improvement(store, f.run["id"], f.objective)
         f.sim2sim, f.sim2sim_note = transfer_improvement(store, f)
+        f.verified = verified_improvement(store, f.run["id"])  # `coadapt verify`'s rows
     t6 = table6_rows(facts)
     return {
         "grid": {"id": grid_id, "created_at": grid["created_at"]},

@@ -93,7 +93,7 @@ def run_grid(
             address,
             store=store,
             out_dir=out_dir,
-            extra=spec.extra_args,
+            extra=spec.cell_args,
             state_every=state_every,
         )
     try:

@@ -38,6 +38,9 @@ class GridSpec:
     extra_args: list[str] = field(default_factory=list)  # appended to every `coadapt run`
     #: default: the installed robot of highest `default_rank`; every cell names its robot
     robots: list[str] = field(default_factory=lambda: [default_plugin("robot")])
+    #: arguments of the stages after a cell's run (`--verify`, `--verify-budget N`): appended
+    #: to every `coadapt run` like extra_args, but no part of a cell's config (its hash)
+    stage_args: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         for name in ("methods", "objectives", "terrains", "seeds", "robots"):
@@ -64,7 +67,15 @@ class GridSpec:
         ]
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        out = asdict(self)
+        if not out["stage_args"]:  # a grid without stages keeps the id it always had
+            del out["stage_args"]
+        return out
+
+    @property
+    def cell_args(self) -> list[str]:
+        """What every cell's `coadapt run` gets after its own arguments."""
+        return [*self.extra_args, *self.stage_args]
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> GridSpec:
@@ -261,7 +272,7 @@ def plan_grid(
             CellTask(
                 cell=cell,
                 argv=cell.run_args(
-                    out_dir=out_dir, resume=resume, extra=spec.extra_args, store=store.url
+                    out_dir=out_dir, resume=resume, extra=spec.cell_args, store=store.url
                 ),
                 env=env,
                 command=list(command) if command is not None else None,

@@ -67,6 +67,9 @@ class HandoffOptions:
     check_seconds: float = 10.0
     video: bool = True  # render a GIF when the run has none for the design
     force: bool = False  # replace an existing folder
+    #: the controller handed off: the run's universal policy, or the design's specialist from
+    #: `coadapt verify` ("specialist")
+    policy: str = "universal"
 
 
 def _evaluations(
@@ -333,7 +336,9 @@ def make_handoff(
     out = Path(out).absolute()
     config, summary = read_run(run_dir)
     _check_target(out, run_dir, options.force)
-    run = resolve_run(run_dir, config, summary, options.design)
+    run = resolve_run(run_dir, config, summary, options.design, options.policy)
+    used = judges(run)
+    say(f"policy: {run.policy} ({used['design']}; nominal design judged by {used['nominal']})")
     partial = out.parent / f".{out.name}.partial-{os.getpid()}"
     if partial.exists():
         shutil.rmtree(partial)

@@ -36,10 +36,50 @@ class ResolvedRun:
     nominal: np.ndarray
     space: Any
     is_best: bool
+    #: "universal" (the run's own policy) or "specialist" (`coadapt verify`'s, --policy)
+    policy: str = "universal"
+
+
+def _specialists(
+    run_dir: Path, summary: dict[str, Any], design: np.ndarray | None
+) -> dict[str, Path]:
+    """--policy specialist: the specialists of the design (the run's best unless --design or
+    --pick names another verified one) and of the nominal design, from the run's
+    verification with the largest budget (`coadapt verify`)."""
+    from coadapt_core.coadapt.verify import VERIFY_DIR, read_verifications
+
+    found = read_verifications(run_dir)
+    if not found:
+        raise UserError(
+            f"--policy specialist: run {run_dir.name} has no verification; run `coadapt verify "
+            f"{run_dir}` first",
+            field="policy",
+        )
+    wanted = np.asarray(summary["best_design"] if design is None else design, dtype=float)
+    for result in reversed(found):
+        specs = result.get("specialists") or {}
+        for role, spec in specs.items():
+            if role == "nominal" or len(spec["design"]) != len(wanted):
+                continue
+            if np.allclose(spec["design"], wanted) and "nominal" in specs:
+                folder = run_dir / VERIFY_DIR / str(result["key"])
+                return {
+                    "best": folder / str(spec["checkpoint"]),
+                    "nominal": folder / str(specs["nominal"]["checkpoint"]),
+                }
+    raise UserError(
+        f"--policy specialist: no verification of run {run_dir.name} has a specialist for "
+        f"design {', '.join(f'{x:g}' for x in wanted)}",
+        field="policy",
+    )
 
 
 def resolve_run(
-    run_dir: Path, config: dict[str, Any], summary: dict[str, Any], design: np.ndarray | None
+    run_dir: Path,
+    config: dict[str, Any],
+    summary: dict[str, Any],
+    design: np.ndarray | None,
+    policy: str = "universal",
 ) -> ResolvedRun:
     """The run's plugins, final policy and the design (the best one unless --design gives
     another, checked against the policy's design input and the design space). A run without
@@ -55,6 +95,8 @@ def resolve_run(
     sim_name = str(config.get("sim") or registry.default("simulator"))
     sim_cls = registry.get("simulator", sim_name)
     policies, why = run_policies(run_dir, config)
+    if policy == "specialist":
+        policies, why = _specialists(run_dir, summary, design), ""
     if policies is None:
         again = (
             ""
@@ -111,6 +153,7 @@ def resolve_run(
         nominal=np.asarray(nominal, dtype=float),
         space=space,
         is_best=bool(np.allclose(design, best)),
+        policy=policy,
     )
 
 
@@ -121,12 +164,17 @@ def judges(run: ResolvedRun) -> dict[str, Any]:
         return str(path.relative_to(run.run_dir)) if run.run_dir in path.parents else path.name
 
     note = (
-        "the run shares no policy between designs: the design is judged, and handed off, with its "
-        "own policy, the nominal design with the nominal design's own"
+        "specialists fine-tuned from the run's universal policy by `coadapt verify`: the design "
+        "is judged, and handed off, with its own specialist, the nominal design with the "
+        "nominal design's"
+        if run.policy == "specialist"
+        else "the run shares no policy between designs: the design is judged, and handed off, "
+        "with its own policy, the nominal design with the nominal design's own"
         if run.own_policies
         else "one universal policy (the run's final) judges both designs and is the one handed off"
     )
     return {
+        "policy": run.policy,
         "shared": not run.own_policies,
         "design": name(run.checkpoint),
         "nominal": name(run.nominal_checkpoint),

@@ -15,7 +15,9 @@ from coadapt_core.results.schema import metadata
 from coadapt_core.results.store import ResultsStore
 
 FORMATS = ("csv", "parquet")
-EXPORT_TABLES = ("runs", "evaluations", "training_phases", "checkpoints")
+EXPORT_TABLES = ("runs", "evaluations", "training_phases", "checkpoints", "verifications")
+#: tables an export may lack (written by a coadapt before they existed): read as empty
+OPTIONAL_TABLES = ("verifications",)
 
 
 def _flatten(name: str, row: dict[str, Any], design_names: dict[str, list[str]]) -> dict[str, Any]:
@@ -96,8 +98,8 @@ def export_tables(
     fmt: str = "csv",
     run_ids: Sequence[str] | None = None,
 ) -> dict[str, Path]:
-    """Write runs, evaluations, training_phases and checkpoints to `out_dir`; returns the
-    files by table."""
+    """Write runs, evaluations, training_phases, checkpoints and verifications to `out_dir`;
+    returns the files by table."""
     if fmt not in FORMATS:
         raise UserError(
             f"export format '{fmt}' is not one of {', '.join(FORMATS)}{did_you_mean(fmt, FORMATS)}",

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from coadapt_core.errors import UserError, did_you_mean
-from coadapt_core.results.export import EXPORT_TABLES, FORMATS
+from coadapt_core.results.export import EXPORT_TABLES, FORMATS, OPTIONAL_TABLES
 
 #: a CSV field may hold a whole run configuration or summary (Pareto fronts), larger than
 #: csv's default limit
@@ -73,11 +73,13 @@ def export_files(path: str | Path, fmt: str | None = None) -> tuple[dict[str, Pa
             field="file",
         )
     files = {t: folder / f"{t}.{fmt}" for t in EXPORT_TABLES}
+    # an export from before a table existed: that table is empty
+    files = {t: p for t, p in files.items() if t not in OPTIONAL_TABLES or p.is_file()}
     missing = [p.name for p in files.values() if not p.is_file()]
     if missing:
         raise UserError(
             f"export folder '{folder}' lacks {', '.join(missing)} (an export holds "
-            f"{', '.join(f'{t}.{fmt}' for t in EXPORT_TABLES)})",
+            f"{', '.join(f'{t}.{fmt}' for t in EXPORT_TABLES if t not in OPTIONAL_TABLES)})",
             field="file",
         )
     return files, fmt

@@ -37,6 +37,7 @@ ROW_KEYS = {
     "evaluations": ("run_id", "outer", "inner", "kind", "idx"),
     "training_phases": ("run_id", "outer", "idx"),
     "checkpoints": ("run_id", "outer", "path"),
+    "verifications": ("run_id", "key", "role"),
 }
 #: JSON text columns of the runs table and the type their value must have (None allowed)
 RUN_JSON = {"config": dict, "summary": dict}
@@ -285,7 +286,7 @@ def import_tables(
     runs = _run_rows(columns, raw)
     children = {}
     for name in EXPORT_TABLES:
-        if name != "runs":
+        if name != "runs" and name in files:
             columns, raw = read_table(files[name], fmt)
             children[name] = _child_rows(name, columns, raw, set(runs))
     if relocate:

@@ -120,6 +120,29 @@ def world(tmp_path_factory):
         )
         store.create_run({"method": "ours", "robot": PAYLOAD}, run_id=PAYLOAD, run_dir="/etc")
         store.save_grid(GRID, {"methods": ["ours"]})
+        side = {"improvement_se": 0.01, "improvement_plain": 0.1}
+        store.record_verification(
+            SINGLE,
+            {
+                "key": "b1000000-s0",
+                "budget": 1_000_000,
+                "seed": 0,
+                "scenarios": 128,
+                "designs": [
+                    {
+                        "role": "best",
+                        "design": SUMMARY["best_design"],
+                        "objective": "torque",
+                        "specialist": {**side, "improvement": 0.0987},
+                        "universal": {**side, "improvement": 0.1234},
+                        "difference": -0.0247,
+                        "difference_se": 0.006,
+                        "verdict": "shrinks",
+                        "line": "best: shrinks",
+                    }
+                ],
+            },
+        )
         store.set_cell(GRID, "ours/torque/flat/s0", status="finished", run_id=SINGLE, attempt=True)
         store.set_cell(
             GRID, "ours/torque+power/flat/s1", status="finished", run_id=MULTI, attempt=True
@@ -269,6 +292,9 @@ def test_a_grids_page_shows_its_cells_by_state_and_the_tables(world):
     body = b.text("main")
     assert "Table 6 — optimization results" in body and "Table 7 — computational cost" in body
     assert "Beside the paper" in body and "12.3% ± 0.8% SE (n=1)" in body
+    # `coadapt verify`'s column: the improvement with specialists, the universal one beside it
+    assert "with specialists (universal): verdict" in body
+    assert "9.9% ± 1.0% SE (n=1) (universal 12.3% ± 1.0% SE (n=1)): shrinks" in body
     shoot(b, world["tmp"], "grid")
     b.go(world["url"] + "?grid=" + GRID)  # the link to its runs: the runs table filtered
     assert b.wait_text("#run-count").startswith("2 runs")

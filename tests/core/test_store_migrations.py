@@ -71,17 +71,18 @@ def test_a_version_1_store_is_upgraded_in_place_and_reads_every_run_back(
 
     store = ResultsStore(db, create=False)  # a read-only open upgrades too
     lines = capsys.readouterr().err.strip().splitlines()
-    assert store.schema_version == SCHEMA_VERSION == 2
+    assert store.schema_version == SCHEMA_VERSION == 3
     assert (
         len(lines) == 1
-        and f"store 'sqlite:///{db}' upgraded from schema version 1 to 2" in lines[0]
+        and f"store 'sqlite:///{db}' upgraded from schema version 1 to 3" in lines[0]
     )
     backups = sorted(tmp_path.glob("coadapt.v1-backup-*.db"))
     assert len(backups) == 1 and lines[0].endswith(f"the store as it was is copied to {backups[0]}")
 
     # every row is there, unchanged, and reads back through the store's own methods
     assert _rows(db) == before and _rows(backups[0]) == before
-    assert _version(db) == "2" and _version(backups[0]) == ("1" if recorded else None)
+    assert _version(db) == "3" and _version(backups[0]) == ("1" if recorded else None)
+    assert store.verifications() == []  # the new table, empty
     assert "ix_runs_status" in _objects(db) and "ix_runs_status" not in _objects(backups[0])
     runs = store.list_runs()
     assert [(r["method"], r["objectives"], r["seed"], r["status"]) for r in runs] == [
@@ -149,12 +150,12 @@ def test_a_new_store_has_the_layout_of_the_migrations(tmp_path):
                 [c["name"] for c in inspector.get_columns(t)],
                 sorted((i["name"], tuple(i["column_names"])) for i in inspector.get_indexes(t)),
             )
-            for t in (*TABLES, "store_info")
+            for t in (*TABLES, "verifications", "store_info")
         }
 
     assert layout(tmp_path / "new.db") == layout(tmp_path / "old.db")
     assert ("ix_runs_status", ("status",)) in layout(tmp_path / "new.db")["runs"][1]
-    assert _version(tmp_path / "new.db") == _version(tmp_path / "old.db") == "2"
+    assert _version(tmp_path / "new.db") == _version(tmp_path / "old.db") == "3"
 
 
 def test_a_failed_upgrade_leaves_the_store_as_it_was(tmp_path, capsys):
@@ -190,7 +191,7 @@ def test_an_optuna_study_in_the_store_survives_the_upgrade(tmp_path):
     ResultsStore(db).close()
     with sqlite3.connect(db) as conn:
         assert conn.execute("SELECT * FROM alembic_version").fetchall() == optuna_revision
-        assert conn.execute("SELECT * FROM coadapt_alembic_version").fetchall() == [("0002",)]
+        assert conn.execute("SELECT * FROM coadapt_alembic_version").fetchall() == [("0003",)]
     again = optuna.load_study(study_name="coadapt-bo-x-outer0", storage=url)
     assert len(again.trials) == 3 and again.best_value == study.best_value
 
@@ -214,7 +215,7 @@ def test_coadapt_export_on_a_version_1_store_prints_one_line_and_exports_every_r
     )
     assert proc.returncode == 0, proc.stderr
     lines = proc.stderr.strip().splitlines()  # the one line, nothing else (alembic logs nothing)
-    assert len(lines) == 1 and "upgraded from schema version 1 to 2" in lines[0], proc.stderr
+    assert len(lines) == 1 and "upgraded from schema version 1 to 3" in lines[0], proc.stderr
     assert "the store as it was is copied to" in lines[0]
     rows = (tmp_path / "out" / "evaluations.csv").read_text().strip().splitlines()
     assert len(rows) == 1 + 52
@@ -230,4 +231,60 @@ def test_the_migration_scripts_ship_in_the_package():
         packages
     )
     versions = root / "coadapt_core" / "results" / "migrations" / "versions"
-    assert sorted(p.name[:4] for p in versions.glob("0*.py")) == ["0001", "0002"]
+    assert sorted(p.name[:4] for p in versions.glob("0*.py")) == ["0001", "0002", "0003"]
+
+
+def _verification(role: str, improvement: float) -> dict:
+    side = {"improvement": improvement, "improvement_se": 0.01, "improvement_plain": improvement}
+    return {
+        "role": role,
+        "design": [0.5, 0.75],
+        "objective": "torque",
+        "specialist": side,
+        "universal": {**side, "improvement": 0.3},
+        "difference": improvement - 0.3,
+        "difference_se": 0.02,
+        "verdict": "holds",
+        "line": f"{role}: holds",
+    }
+
+
+def test_a_version_2_store_gains_the_verifications_table_and_keeps_every_row(tmp_path, capsys):
+    """Version 3 adds the table of `coadapt verify`'s rows; a version-2 store upgraded to it
+    keeps its rows, and verifications are written, replaced by key and read back."""
+    db = _v1_store(tmp_path / "coadapt.db", recorded=True)
+    ResultsStore(db).close()  # now version 3; step it back to a version-2 store by hand
+    with sqlite3.connect(db) as conn:
+        conn.execute("DROP TABLE verifications")
+        conn.execute("UPDATE store_info SET value='2' WHERE key='schema_version'")
+        conn.execute("UPDATE coadapt_alembic_version SET version_num='0002'")
+    capsys.readouterr()
+    before = _rows(db)
+    store = ResultsStore(db)
+    assert "upgraded from schema version 2 to 3" in capsys.readouterr().err
+    assert _rows(db) == before and _version(db) == "3"
+    result = {
+        "key": "b1000-s0",
+        "budget": 1000,
+        "seed": 0,
+        "scenarios": 64,
+        "training_interactions": 2000,
+        "evaluation_interactions": 500,
+        "seconds": 12.5,
+        "blocks": 2,
+        "designs": [_verification("best", 0.25)],
+    }
+    assert store.record_verification(RUN0, result) == 1
+    result["designs"] = [_verification("best", 0.28)]  # the same key and role: replaced
+    store.record_verification(RUN0, result)
+    (row,) = store.verifications([RUN0])
+    assert (row["role"], row["budget"], row["verdict"], row["interactions"]) == (
+        "best",
+        1000,
+        "holds",
+        2500,
+    )
+    assert row["specialist_improvement"] == 0.28 and row["universal_improvement"] == 0.3
+    assert row["difference"] == pytest.approx(-0.02) and row["design"] == [0.5, 0.75]
+    assert row["detail"]["line"] == "best: holds"
+    store.close()
