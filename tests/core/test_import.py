@@ -21,7 +21,7 @@ from coadapt_core.results.export import export_tables
 from coadapt_core.results.importer import import_tables
 from tests.core.test_report import AnalyticBackend, record_run
 
-TABLES = ("runs", "evaluations", "training_phases", "checkpoints")
+TABLES = ("runs", "evaluations", "training_phases", "checkpoints", "verifications")
 REPORT_FILES = ("table6.csv", "table6.md", "table7.csv", "table7.md")
 
 
