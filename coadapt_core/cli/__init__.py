@@ -75,7 +75,9 @@ COMMANDS: dict[str, Command] = {
         progress=True,
     ),
     "export": Command(
-        "export", "Write runs, evaluations, training phases and checkpoints, one file per table."
+        "export",
+        "Write runs, evaluations, training phases, checkpoints and verifications, one file per "
+        "table.",
     ),
     "import": Command(
         "importing",

@@ -29,7 +29,8 @@ def register(app: typer.Typer) -> None:
     options = options_of(ExportCommand)
 
     def export_command(**values: Any) -> None:
-        """Write runs, evaluations, training phases and checkpoints, one file per table."""
+        """Write runs, evaluations, training phases, checkpoints and verifications, one file per
+        table."""
         o = filled(values, options)  # a bad value is refused before the store's library loads
         from coadapt_core.results.export import export_tables
         from coadapt_core.results.store import ResultsStore

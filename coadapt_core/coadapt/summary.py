@@ -71,6 +71,8 @@ class CoadaptResult:
         line["reliability"] = s.get("reliability")
         line["warnings"] = s.get("warnings", [])  # what to know before trusting it (cautions.py)
         line["numerics"] = s.get("numerics")  # precision, device kind, versions (numerics.py)
+        if s.get("verification") is not None:  # `coadapt run --verify` (coadapt/verify.py)
+            line["verification"] = s["verification"]
         front = s.get("pareto_front")
         if isinstance(
             front, dict

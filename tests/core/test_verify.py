@@ -276,17 +276,27 @@ def test_bad_input_is_one_line_exit_2_and_nothing_created(smoke_run, capsys, tmp
     assert "no final check" in _refused(capsys, ["verify", str(unchecked)], unchecked)
 
 
-def test_a_two_objective_run_verifies_its_chosen_design_and_the_fronts_extremes(tmp_path, capsys):
-    config = make_config(
-        "smoke",
-        overrides={
-            **SMOKE,
-            "objective": "torque,power",
-            "optimizer": "nsga2",
-            "out": str(tmp_path),
-        },
-    )
-    run = run_coadaptation(config, run_dir=tmp_path / "mo").run_dir
+def test_run_verify_and_a_two_objective_run_with_the_chosen_design_and_the_fronts_extremes(
+    tmp_path, capsys
+):
+    """`coadapt run --verify` on a two-objective run stores the chosen design's rows; `coadapt
+    verify --pick all` then verifies the chosen design and the front's extremes."""
+    argv = ["run", "--preset", "smoke", "--objective", "torque,power", "--optimizer", "nsga2"]
+    argv += ["--sim", "mujoco", "--seed", "0", "--no-video", "--threads", "1", "--quiet"]
+    for key in ("eval_steps", "train_steps", "retrain_steps", "final_max_blocks"):
+        argv += ["--" + key.replace("_", "-"), str(SMOKE[key])]
+    argv += ["--final-min-blocks", "1", "--out", str(tmp_path / "runs")]
+    assert main([*argv, "--verify", "--verify-budget", "150", "--json"]) == 0
+    captured = capsys.readouterr()
+    summary = json.loads(captured.out.strip().splitlines()[-1])
+    assert [d["role"] for d in summary["verification"]["designs"]] == ["chosen"]
+    assert "verdict: chosen: " in captured.err  # printed, on stderr with --json
+    (run,) = (tmp_path / "runs").glob("2026*")
+    with ResultsStore(tmp_path / "coadapt.db") as st:
+        rows = st.verifications()
+    assert [(r["role"], r["budget"]) for r in rows] == [("chosen", 150)]
+    assert rows[0]["verdict"] == summary["verification"]["designs"][0]["verdict"]
+
     assert main(["verify", str(run), "--budget", "150", "--pick", "all", "--json"]) == 0
     result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     summary = load_state(run).summary
@@ -302,6 +312,48 @@ def test_a_two_objective_run_verifies_its_chosen_design_and_the_fronts_extremes(
     specs = result["specialists"]
     assert set(specs) == {*roles, "nominal"}
     assert len({s["interactions"] for s in specs.values()}) == 1
+    # the same budget and seed with other designs is another request: refused, nothing changed
+    assert main(["verify", str(run), "--budget", "150", "--pick", "chosen"]) == 2
+    assert "ask for the same designs" in capsys.readouterr().err
+
+
+def test_handoff_hands_off_the_best_designs_specialist_and_says_so(smoke_run, capsys, tmp_path):
+    run = shutil.copytree(smoke_run, tmp_path / "run")
+    argv = ["handoff", str(run), "--policy", "specialist", "--no-check", "--no-video"]
+    argv += ["--sim", "mujoco", "--agents", "2", "--seconds", "0.2", "--threads", "1"]
+    argv += ["-o", str(tmp_path / "h1"), "--json"]
+    assert main(argv) == 2  # no verification yet: one line
+    assert "has no verification" in capsys.readouterr().err
+    assert main(["verify", str(run), "--budget", "150", "--store", "none", "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(argv) == 0
+    captured = capsys.readouterr()
+    assert "policy: specialist (verify/b150-s0/checkpoints/specialist-best.pt;" in captured.err
+    sheet = json.loads((tmp_path / "h1" / "design.json").read_text())
+    assert sheet["policies"]["policy"] == "specialist"
+    assert sheet["policies"]["design"] == "verify/b150-s0/checkpoints/specialist-best.pt"
+    assert sheet["policies"]["nominal"] == "verify/b150-s0/checkpoints/specialist-nominal.pt"
+    universal = ["handoff", str(run), "--no-check", "--no-video", "--sim", "mujoco"]
+    universal += ["--agents", "2", "--seconds", "0.2", "-o", str(tmp_path / "h2")]
+    assert main(universal) == 0
+    assert "policy: universal (checkpoints/" in capsys.readouterr().err
+
+
+def test_grid_verify_is_a_stage_of_every_cell_not_part_of_its_config():
+    """`coadapt grid --verify`: every cell's `coadapt run` gets --verify (its rows come back
+    with the cell's through export/import), but the grid of the same cells without it keeps
+    its id, and a cell's config hash (what finished runs are reused by) does not change."""
+    from coadapt_core.experiments.cell_hash import cell_config_hash
+    from coadapt_core.experiments.grid_plan import GridSpec
+
+    plain = GridSpec(methods=["ours"], objectives=["torque"], terrains=["flat"], seeds=[0])
+    staged = dataclasses.replace(plain, stage_args=["--verify", "--verify-budget", "5000"])
+    assert "stage_args" not in plain.to_dict() and plain.grid_id != staged.grid_id
+    (cell,) = staged.cells()
+    argv = cell.run_args(extra=staged.cell_args)
+    assert argv[-4:] == ["--verify", "--verify-budget", "5000", "--json"]
+    assert cell_config_hash(cell, staged.extra_args) == cell_config_hash(cell, plain.extra_args)
+    assert GridSpec.from_dict(staged.to_dict()) == staged
 
 
 def test_the_verdict_needs_the_same_sign_and_both_significant():
