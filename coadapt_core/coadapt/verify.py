@@ -304,11 +304,16 @@ def _load_state(plan: Plan) -> dict[str, Any] | None:
         raise UserError(f"'{path}' is not a coadapt verification state", field="run")
     wanted = {role: [float(x) for x in d] for role, d in plan.designs.items()}
     if data.get("designs") != wanted:
-        raise UserError(
-            f"{path.parent} verifies {', '.join(data.get('designs') or {})}; this request "
-            f"{', '.join(wanted)}: ask for the same designs, or another --budget or --seed",
-            field="pick",
-        )
+        # other designs at the same budget and seed: the specialists of designs both ask for
+        # are kept (the same design, budget, seeds and universal policy: the same policy);
+        # the others are trained, and the paired check is run again for the new set
+        old = data.get("designs") or {}
+        data["specialists"] = {
+            role: spec
+            for role, spec in (data.get("specialists") or {}).items()
+            if role in wanted and old.get(role) == wanted[role] and not spec.get("same_as")
+        }
+        data.update(designs=wanted, blocks=[], result=None)
     if data.get("universal_sha256") != _sha256(plan.universal):
         raise UserError(
             f"{path.parent} started from another universal policy than '{plan.universal}'",

@@ -297,8 +297,12 @@ def test_run_verify_and_a_two_objective_run_with_the_chosen_design_and_the_front
     assert [(r["role"], r["budget"]) for r in rows] == [("chosen", 150)]
     assert rows[0]["verdict"] == summary["verification"]["designs"][0]["verdict"]
 
+    first = json.loads((run / "verify" / "b150-s0" / "verification.json").read_text())
     assert main(["verify", str(run), "--budget", "150", "--pick", "all", "--json"]) == 0
     result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    # the chosen design's and the nominal's specialists were kept, the extremes' trained now
+    for role in ("chosen", "nominal"):
+        assert result["specialists"][role] == first["specialists"][role]
     summary = load_state(run).summary
     roles = [e["role"] for e in result["designs"]]
     assert roles == ["chosen", "lowest-torque", "lowest-power"]
@@ -312,9 +316,12 @@ def test_run_verify_and_a_two_objective_run_with_the_chosen_design_and_the_front
     specs = result["specialists"]
     assert set(specs) == {*roles, "nominal"}
     assert len({s["interactions"] for s in specs.values()}) == 1
-    # the same budget and seed with other designs is another request: refused, nothing changed
-    assert main(["verify", str(run), "--budget", "150", "--pick", "chosen"]) == 2
-    assert "ask for the same designs" in capsys.readouterr().err
+    with ResultsStore(tmp_path / "coadapt.db") as st:
+        assert sorted(r["role"] for r in st.verifications()) == [
+            "chosen",
+            "lowest-power",
+            "lowest-torque",
+        ]
 
 
 def test_handoff_hands_off_the_best_designs_specialist_and_says_so(smoke_run, capsys, tmp_path):
