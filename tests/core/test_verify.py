@@ -370,3 +370,48 @@ def test_the_verdict_needs_the_same_sign_and_both_significant():
     assert verdict(0.30, 0.02, 0.02, 0.02, -0.28, 0.03) == "does not hold"
     assert verdict(0.30, 0.02, -0.30, 0.02, -0.60, 0.03) == "does not hold"
     assert verdict(0.05, 0.02, 0.30, 0.02, 0.25, 0.03) == "does not hold"
+
+
+def test_a_specialist_that_falls_more_than_the_universal_policy_says_so_in_the_verdict(tmp_path):
+    """Rows: specialist at the best design, at the nominal, universal at the best, at the
+    nominal (a [4, A, 1] block): the best design's specialist falls in 20 of 64 scenarios
+    where the universal policy fell in none; its verdict line says so."""
+    from types import SimpleNamespace
+
+    from coadapt_plugins.objectives.locomotion import TorqueObjective
+
+    from coadapt_core.coadapt.verify import Plan, result_of
+    from coadapt_core.costs import CostRule
+
+    rng = np.random.default_rng(0)
+    a = 64
+    base = rng.uniform(9.0, 11.0, size=a)
+    per = np.stack([base * 0.7, base, base * 0.8, base])[:, :, None]
+    falls = np.zeros((4, a), dtype=bool)
+    falls[0, :20] = True
+    plan = Plan(
+        run_dir=tmp_path,
+        run_id="r",
+        config=SimpleNamespace(fall_tolerance=0.01),
+        summary={},
+        objectives=[TorqueObjective()],
+        designs={"best": np.array([0.6, 0.7]), "nominal": np.array([1.0, 1.0])},
+        universal=tmp_path / "u.pt",
+        budget=100,
+        seed=0,
+        chunk=100,
+        folder=tmp_path / "v",
+        min_blocks=1,
+        max_blocks=1,
+        rule=CostRule("capped"),
+    )
+    state = {
+        "blocks": [{"per_scenario": per, "falls": falls, "interactions": 1, "seconds": 0.0}],
+        "specialists": {},
+    }
+    (entry,) = result_of(plan, state)["designs"]
+    assert entry["specialist"]["fall_rate"] == pytest.approx(20 / 64)
+    assert entry["universal"]["fall_rate"] == 0.0
+    assert len(entry["falls_more"]) == 1
+    assert "the best design's specialist falls more than the universal policy" in entry["line"]
+    assert "31.2 % of scenarios against 0.0 %" in entry["line"]
