@@ -371,33 +371,6 @@ def _check_plugin_names(values: dict[str, Any]) -> None:
                 resolve("objective", name.strip())
 
 
-def _verify(result: Any, values: dict[str, Any]) -> None:
-    """`coadapt run --verify`: the finished run verified (`coadapt verify`), its rows in the
-    run's store; what it found printed before the run's own summary (on stderr with --json)."""
-    import contextlib
-    import sys
-
-    from coadapt_core.cli.verify import print_result, verify_and_record
-    from coadapt_core.coadapt.verify import plan_verification
-
-    plan = plan_verification(result.run_dir, budget=values["verify_budget"])
-    quiet = values.get("quiet")
-    found = verify_and_record(
-        plan,
-        values.get("store"),
-        (lambda _line: None) if quiet else (lambda line: print(line, file=sys.stderr)),
-    )
-    result.summary["verification"] = {
-        "key": found["key"],
-        "designs": [
-            {k: e[k] for k in ("role", "verdict", "difference", "difference_se", "line")}
-            for e in found["designs"]
-        ],
-    }
-    with contextlib.redirect_stdout(sys.stderr) if values["as_json"] else contextlib.nullcontext():
-        print_result(found)
-
-
 def register(app: typer.Typer) -> None:
     settings, own = config_options(), options_of(RunCommand)
     # the installed plugins' aliases: made only for a `coadapt run` whose command line may
@@ -447,7 +420,9 @@ def register(app: typer.Typer) -> None:
                     return
             result = _run_loop(cfg, kwargs, values)
             if values["verify"]:
-                _verify(result, values)
+                from coadapt_core.cli.verify import run_stage
+
+                run_stage(result, values)
         except UserError as exc:
             fail(str(exc))
         report(result, values["as_json"])

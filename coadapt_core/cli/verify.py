@@ -115,6 +115,31 @@ def print_result(result: dict[str, Any]) -> None:
         print(f"  verdict: {e['line']}")
 
 
+def run_stage(result: Any, values: dict[str, Any]) -> None:
+    """`coadapt run --verify`: the finished run verified (`coadapt verify`), its rows in the
+    run's store; what it found printed before the run's own summary (on stderr with --json)."""
+    import contextlib
+
+    from coadapt_core.coadapt.verify import plan_verification
+
+    plan = plan_verification(result.run_dir, budget=values["verify_budget"])
+    quiet = values.get("quiet")
+    found = verify_and_record(
+        plan,
+        values.get("store"),
+        (lambda _line: None) if quiet else (lambda line: print(line, file=sys.stderr)),
+    )
+    result.summary["verification"] = {
+        "key": found["key"],
+        "designs": [
+            {k: e[k] for k in ("role", "verdict", "difference", "difference_se", "line")}
+            for e in found["designs"]
+        ],
+    }
+    with contextlib.redirect_stdout(sys.stderr) if values["as_json"] else contextlib.nullcontext():
+        print_result(found)
+
+
 def register(app: typer.Typer) -> None:
     declared = options_of(VerifyCommand)
 

@@ -74,6 +74,22 @@ def _specialists(
     )
 
 
+def _policies(
+    run_dir: Path,
+    config: dict[str, Any],
+    summary: dict[str, Any],
+    design: np.ndarray | None,
+    policy: str,
+) -> tuple[dict[str, Path] | None, str]:
+    """(role -> policy file, why there is none): the run's own policies, or with
+    `policy` "specialist" the design's and the nominal design's specialists."""
+    from coadapt_core.viz.video import run_policies
+
+    if policy == "specialist":
+        return _specialists(run_dir, summary, design), ""
+    return run_policies(run_dir, config)
+
+
 def resolve_run(
     run_dir: Path,
     config: dict[str, Any],
@@ -88,15 +104,12 @@ def resolve_run(
     from coadapt_core.experiments.own_policies import shares_policy
     from coadapt_core.learning.trainer import read_checkpoint
     from coadapt_core.plugins import get_registry
-    from coadapt_core.viz.video import run_policies
 
     registry = get_registry()
     robot = registry.create("robot", config.get("robot") or registry.default("robot"))
     sim_name = str(config.get("sim") or registry.default("simulator"))
     sim_cls = registry.get("simulator", sim_name)
-    policies, why = run_policies(run_dir, config)
-    if policy == "specialist":
-        policies, why = _specialists(run_dir, summary, design), ""
+    policies, why = _policies(run_dir, config, summary, design, policy)
     if policies is None:
         again = (
             ""
