@@ -386,3 +386,33 @@ def test_a_node_without_a_users_spec_robot_refuses_its_cell(cluster, tmp_path):
     text = " ".join(done.stderr.split())
     assert "refused the cell: plugins differ (only on the driver: robot:mine=coadapt " in text
     assert not ResultsStore(tmp_path / "g.db").list_runs()
+
+
+def test_grid_verify_brings_a_cells_verification_rows_and_specialists_back(cluster, tmp_path):
+    """`coadapt grid --verify` on Ray: the cell's `coadapt run --verify` verifies its run in
+    the node's scratch folder; the verification rows reach the driver's store through the
+    cell's export, and the specialists' checkpoints come back in its run folder."""
+    done = subprocess.run(
+        _grid_command(
+            tmp_path, cluster, "--methods", "ours", "--seeds", "0", "--json", "--verify",
+            "--verify-budget", "100",
+        ),
+        env=cluster.env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=tmp_path,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    summary = json.loads(done.stdout.strip().splitlines()[-1])
+    assert len(summary["finished"]) == 1 and not summary["failed"]
+    store = ResultsStore(tmp_path / "g.db")
+    (run,) = store.list_runs(grid_id=summary["grid_id"])
+    (row,) = store.verifications([run["id"]])
+    assert (row["role"], row["budget"]) == ("best", 100)
+    assert row["verdict"] in ("holds", "grows", "shrinks", "does not hold")
+    folder = tmp_path / "runs" / run["id"] / "verify" / "b100-s0"
+    assert (folder / "checkpoints" / "specialist-best.pt").is_file()
+    assert (folder / "checkpoints" / "specialist-nominal.pt").is_file()
+    result = json.loads((folder / "verification.json").read_text())
+    assert result["designs"][0]["verdict"] == row["verdict"]
