@@ -175,6 +175,18 @@ def _commands(run: dict[str, Any], folder: Path | None) -> dict[str, str]:
     return {"resume": resume, "handoff": handoff}
 
 
+def _verification(store: ResultsStore, run_id: str) -> str:
+    """`coadapt verify`'s verdict line of each verified design (the largest budget first),
+    or 'not verified' (`coadapt_core.coadapt.verify`)."""
+    rows = sorted(store.verifications([run_id]), key=lambda r: -int(r["budget"]))
+    lines = [
+        f"{(r['detail'] or {}).get('line') or r['verdict']} ({int(r['budget']):,} interactions "
+        "per specialist)"
+        for r in rows
+    ]
+    return "; ".join(lines) or "not verified"
+
+
 def run_page(store: ResultsStore, folders: RunFolders, run_id: str) -> dict[str, Any]:
     """Everything a run's page shows, from the store and the run's folder."""
     run = store.get_run(run_id)
@@ -188,6 +200,7 @@ def run_page(store: ResultsStore, folders: RunFolders, run_id: str) -> dict[str,
         "design_units": facts.design_units,
         "report": report_cells(facts),
         "numerics": numerics_text(facts.summary.get("numerics")),
+        "verification": _verification(store, run_id),
         "warnings": warnings_of(run),
         "progress": progress_of(run, counts.get(run_id)),
         "counts": {

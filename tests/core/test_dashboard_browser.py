@@ -206,6 +206,10 @@ def test_a_runs_page_shows_its_report_numbers_charts_gif_and_commands(world):
     )
     assert b.text("#eval-count").startswith("20 rows: 16 real, 4 surrogate")
     assert "+1.6 ± 0.5 points SE (n=1)" in summary  # a fall-rate difference is in points
+    # `coadapt verify`'s verdict line (the store's verifications row)
+    assert b.text("td[data-field=verification]") == (
+        "best: shrinks (1,000,000 interactions per specialist)"
+    )
     assert b.text("td[data-field=numerics]") == (
         "bf16 learner (pseudo-critics bf16, rollouts float32) on CPU AMD EPYC 9B14 "
         "(bf16 native), 2 threads; torch 2.13.0, mujoco 4.0.0"

@@ -82,6 +82,7 @@
       ["nominal cost", rep.nominal_cost, "nominal_cost"], ["improvement ± SE", rep.improvement, "improvement"],
       ["improvement (plain mean)", rep.improvement_plain, "improvement_plain"],
       ["fall rate best / nominal", rep.fall_rates, "fall_rates"], ["fall-rate difference", rep.fall_rate_difference, "fall_rate_difference"],
+      ["with specialists", data.verification, "verification"],
       ["numerics", data.numerics, "numerics"], ["warnings", data.warnings.join("; ") || "none", "warnings"],
       ["started", D.when(r.created_at), "created"], ["last row", D.when(r.updated_at), "updated"],
       ["code", (r.code_version || "?") + " " + (r.git_commit || ""), "code"],
