@@ -4,10 +4,11 @@ this file holding a `robot.yaml`: nezha, which has no Python of its own) and tho
 user's folders (`COADAPT_ROBOT_PATH`, else `~/.coadapt/robots`); its robots write a
 starting spec from a model file for `coadapt robot new` (`SpecRobot.write_from_model`).
 
-`spec` reads the file, `model` scales a model per design with MuJoCo's `MjSpec`, `build`
-makes each design's `RobotModel` (`mjcf` and `urdf` write it), `kinematics` is the batched
-numeric leg IK, `validation` the checks, `robot` the `Robot` a spec becomes, `discovery`
-where specs are found, `new` the starting spec.
+`spec` reads the file (`fields` its field readers), `model` scales a model per design with
+MuJoCo's `MjSpec` (`meshes` the meshes of scaled links), `build` makes each design's
+`RobotModel` (`mjcf` and `urdf` write it), `kinematics` is the batched numeric leg IK,
+`validation` the checks, `robot` the `Robot` a spec becomes, `discovery` where specs are
+found, `new` the starting spec (with `legs`, `assumed` and `stand`).
 """
 
 from __future__ import annotations

@@ -3,18 +3,31 @@
 A spec is one YAML file beside the robot's own model file (docs/your-robot.md has the
 format). Reading it checks every field's type and range and names the field on a mistake
 (`UserError`); the checks that need the model (bodies and joints exist, a link has a child,
-a foot ends a leg chain) happen when `model.SpecModel` loads it.
+a foot ends a leg chain) happen when `model.SpecModel` loads it. The field readers and the
+fields that fix the model (`joints`, `assets`, `balanceinertia`, `collision`) are in `fields`.
 """
 
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from coadapt_plugins.robots.specs.fields import (
+    _assets,
+    _collision,
+    _fail,
+    _flag,
+    _joint_fixes,
+    _list,
+    _mapping,
+    _number,
+    _text,
+    _unknown,
+    spec_error,
+)
 
 from coadapt_core.errors import UserError
 
@@ -24,8 +37,6 @@ DESIGN_DECIMALS = 6
 SPEC_FILE = "robot.yaml"
 #: what a parameter's `mass` rule may say (docs/your-robot.md#mass-rules)
 MASS_RULES = ("stretch", "fixed")
-#: what `collision` may say: how a collision mesh in a scaled link scales (docs/your-robot.md)
-COLLISION_RULES = ("stretch", "fit")
 NAME_PATTERN = re.compile(r"^[a-z][a-z0-9_\-]{0,63}$")
 
 
@@ -107,47 +118,6 @@ class RobotSpec:
     def asset_paths(self) -> dict[str, Path]:
         """The `assets` map with each copy's full path."""
         return {ref: self.folder / rel for ref, rel in self.assets.items()}
-
-
-def spec_error(path: str, message: str) -> UserError:
-    """The one-line error of a spec field."""
-    return UserError(f"robot spec field '{path}': {message}", field=path)
-
-
-_fail = spec_error
-
-
-def _mapping(value: Any, path: str) -> dict:
-    if not isinstance(value, dict):
-        raise _fail(path, f"needs a mapping, got {type(value).__name__}")
-    return value
-
-
-def _list(value: Any, path: str) -> list:
-    if not isinstance(value, list):
-        raise _fail(path, f"needs a list, got {type(value).__name__}")
-    return value
-
-
-def _number(value: Any, path: str, *, positive: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise _fail(path, f"needs a finite number, got {value!r}")
-    if positive and value <= 0:
-        raise _fail(path, f"needs a positive number, got {value!r}")
-    return float(value)
-
-
-def _text(value: Any, path: str) -> str:
-    if not isinstance(value, str) or not value.strip():
-        raise _fail(path, f"needs a non-empty name, got {value!r}")
-    return value.strip()
-
-
-def _unknown(data: dict, allowed: set[str], path: str) -> None:
-    extra = sorted(set(data) - allowed)
-    if extra:
-        where = f"{path}." if path else ""
-        raise _fail(f"{where}{extra[0]}", f"unknown key; accepted: {', '.join(sorted(allowed))}")
 
 
 def _parameter(raw: Any, path: str) -> Parameter:
@@ -272,47 +242,6 @@ def _motors(raw: Any) -> tuple[dict[int, MotorType], dict[str, int], tuple[Motor
     return types, joints, tuple(params)
 
 
-def _joint_fixes(raw: Any) -> dict[str, dict[str, Any]]:
-    data = _mapping(raw, "joints")
-    out: dict[str, dict[str, Any]] = {}
-    for pattern, row in data.items():
-        where = f"joints.{pattern}"
-        try:
-            re.compile(str(pattern))
-        except re.error as exc:
-            raise _fail(where, f"not a regular expression ({exc})") from None
-        row = _mapping(row, where)
-        _unknown(row, {"range", "armature", "damping"}, where)
-        fix: dict[str, Any] = {}
-        if "range" in row:
-            pair = _list(row["range"], f"{where}.range")
-            if len(pair) != 2:
-                raise _fail(f"{where}.range", f"needs [low, high] in rad, got {pair!r}")
-            lo, hi = (_number(x, f"{where}.range") for x in pair)
-            if not lo < hi:
-                raise _fail(f"{where}.range", f"needs low < high, got {pair!r}")
-            fix["range"] = (lo, hi)
-        for key in ("armature", "damping"):
-            if key in row:
-                value = _number(row[key], f"{where}.{key}")
-                if value < 0:
-                    raise _fail(f"{where}.{key}", f"needs a number >= 0, got {value:g}")
-                fix[key] = value
-        out[str(pattern)] = fix
-    return out
-
-
-def _assets(raw: Any) -> dict[str, str]:
-    out = {}
-    for ref, target in _mapping(raw, "assets").items():
-        where = f"assets.{ref}"
-        path = Path(_text(target, where))
-        if path.is_absolute() or ".." in path.parts:
-            raise _fail(where, f"'{target}' must be a path inside the robot's folder")
-        out[str(ref)] = path.as_posix()
-    return out
-
-
 def _standing_share(raw: Any) -> float | None:
     """`standing_pose.solve`: each foot under its hip at this share of its leg's length,
     solved per design (None: the pose's joint angles at every design)."""
@@ -396,18 +325,6 @@ def parse_spec(data: Any, folder: Path, *, fallback_name: str = "") -> RobotSpec
         balanceinertia=_flag(data.get("balanceinertia", False), "balanceinertia"),
         assets=_assets(data.get("assets", {})),
     )
-
-
-def _flag(value: Any, path: str) -> bool:
-    if not isinstance(value, bool):
-        raise _fail(path, f"needs true or false, got {value!r}")
-    return value
-
-
-def _collision(value: Any) -> str:
-    if value not in COLLISION_RULES:
-        raise _fail("collision", f"{value!r} is not one of: {', '.join(COLLISION_RULES)}")
-    return value
 
 
 def read_spec(path: str | Path) -> RobotSpec:

@@ -1,0 +1,211 @@
+"""The standing pose `robot new` solves and the gains it raises (`new`): without a named
+keyframe each foot goes under its hip at STAND_SHARE of its leg's length by the generic leg IK
+(`kinematics`), and the gains, kp KP_PER_TORQUE per N m of peak torque, go up through
+GAIN_FACTORS until the nominal design and every corner pass the stand test (`validation`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from coadapt_plugins.robots.specs.assumed import spec_text
+from coadapt_plugins.robots.specs.spec import SPEC_FILE
+
+#: the stiffness written per N m of a joint's peak torque (the peak at 1 rad of error), and
+#: the damping-to-stiffness ratio (legged_gym's A1 and Unitree's G1 settings: 0.02-0.025)
+KP_PER_TORQUE = 1.0
+KD_RATIO = 0.025
+#: the factors `robot new` tries on those gains, in turn, until the nominal design stands
+GAIN_FACTORS = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0)
+#: a solved standing pose puts each foot under its hip at this share of the leg's length;
+#: the IK starts with each leg's last hinge bent either way by BEND rad too
+STAND_SHARE = 0.75
+BEND = 0.6
+
+
+def _inside_ranges(model: mujoco.MjModel, data: mujoco.MjData, notes: list[str]) -> dict:
+    """Joint angles for a pose: 0, or the nearest limit of a joint whose range excludes 0."""
+    pose = {}
+    for j in range(model.njnt):
+        if model.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE or not model.jnt_limited[j]:
+            continue
+        lo, hi = (float(x) for x in model.jnt_range[j])
+        if not lo <= 0.0 <= hi:
+            angle = lo if abs(lo) < abs(hi) else hi
+            pose[model.joint(j).name] = angle
+            data.qpos[model.jnt_qposadr[j]] = angle
+            notes.append(f"joint '{model.joint(j).name}': 0 is outside its range; {angle:g} rad")
+    return pose
+
+
+def _leg_length(model: mujoco.MjModel, leg: dict, params: list[dict]) -> float:
+    """The leg's length: its design links' lengths summed (its chain's below the hip when
+    it has none)."""
+    names = {model.body(b).name for b in leg["chain"]}
+    links = [c for p in params for parent, c in p["links"] if parent in names and c in names]
+    bodies = [model.body(c).id for c in links] or leg["chain"][1:]
+    return float(sum(np.linalg.norm(model.body_pos[b]) for b in bodies))
+
+
+def _solve_standing(
+    model: mujoco.MjModel,
+    base: int,
+    joints: list[str],
+    legs: list[dict],
+    params: list[dict],
+    guess: np.ndarray,
+    ranges: dict[str, tuple[float, float]],
+    quadruped_like: bool,
+) -> tuple[np.ndarray, list[str]]:
+    """A standing pose with each foot under its hip at STAND_SHARE of its leg's length, by
+    the generic leg IK from three starts (the guess, and its last hinge per leg bent either
+    way); per leg the start whose answer is inside the joint ranges and nearest its target,
+    a quadruped's knee behind its hip-foot line and a biped's in front on a tie. Returns the
+    pose and the legs (by index) it could not place, which keep the guess."""
+    import torch
+    from coadapt_plugins.robots.specs.kinematics import LegKinematics, build_chain
+
+    links = [set(map(tuple, p["links"])) for p in params]
+    nominal = np.ones(len(params))
+    feet = [(model.body(g["foot"]).name, None) for g in legs]
+    starts = []
+    for bend in (0.0, BEND, -BEND):
+        start = guess.copy()
+        for g in legs:
+            hinges = [
+                joints.index(model.joint(j).name)
+                for j in range(model.njnt)
+                if model.jnt_bodyid[j] in g["chain"] and model.joint(j).name in joints
+            ]
+            if hinges and bend:
+                k = hinges[-1]
+                lo, hi = ranges[joints[k]]
+                start[k] = float(np.clip(start[k] + bend, lo, hi))
+        starts.append(start)
+    designs = torch.tensor(nominal[None, :])
+    try:
+        first = LegKinematics(
+            build_chain(model, model.body(base).name, joints, feet, links, starts[0], nominal)
+        )
+    except ValueError:  # legs that share a joint (a humanoid's abdomen): no leg IK for them
+        return guess.copy(), list(range(len(legs)))
+    rel, _, _ = first.standing(designs)
+    targets = torch.zeros_like(rel)
+    for k, g in enumerate(legs):
+        targets[0, k, 1] = rel[0, k, 1]
+        targets[0, k, 2] = -STAND_SHARE * _leg_length(model, g, params)
+    best: list[tuple[float, np.ndarray] | None] = [None] * len(legs)
+    pose = guess.copy()
+    lo = np.array([ranges[j][0] for j in joints])
+    hi = np.array([ranges[j][1] for j in joints])
+    for start in starts:
+        kin = LegKinematics(
+            build_chain(model, model.body(base).name, joints, feet, links, start, nominal)
+        )
+        q = kin.inverse(designs, targets)[0].numpy()
+        chain = kin.chain
+        x = kin.leg_angles(torch.tensor(q[None, :]))
+        foot, _, hip, _, anchors = kin.forward(kin.scales(designs), x)
+        for k, g in enumerate(legs):
+            slots = chain.joint_index[k][chain.joint_index[k] >= 0].numpy()
+            inside = bool(np.all((q[slots] >= lo[slots] - 1e-9) & (q[slots] <= hi[slots] + 1e-9)))
+            error = float(torch.linalg.norm(foot[0, k] - hip[0, k] - targets[0, k]))
+            length = _leg_length(model, g, params)
+            if not inside or error > 0.02 * length:
+                continue
+            last = int(torch.nonzero(chain.slot[k] >= 0)[-1])
+            knee_x = float(anchors[0, k, last, 0] - 0.5 * (foot[0, k, 0] + hip[0, k, 0]))
+            behind = knee_x < 0 if quadruped_like else knee_x > 0
+            score = error + (0.0 if behind else 0.01 * length)
+            if best[k] is None or score < best[k][0]:
+                best[k] = (score, q[slots].copy(), slots)
+    missed = []
+    for k, found in enumerate(best):
+        if found is None:
+            missed.append(k)
+            continue
+        pose[found[2]] = found[1]
+    return pose, missed
+
+
+def _pose_entry(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    key: int,
+    base: int,
+    joints: list[str],
+    legs: list[dict],
+    params: list[dict],
+    ranges: dict[str, tuple[float, float]],
+    notes: list[str],
+    comments: dict[str, str],
+) -> dict:
+    """The spec's `standing_pose`: the model's first "home" or "stand" keyframe (else its
+    first) when it has a name, else the pose `_solve_standing` finds from `data`'s, solved
+    again at each design (`solve`) when it placed every foot."""
+    if model.nkey and model.key(key).name:
+        pose: dict = {"keyframe": model.key(key).name}
+    else:
+        if model.nkey:
+            notes.append("the first keyframe has no name: it is not used")
+        guess = np.array([data.qpos[model.jnt_qposadr[model.joint(j).id]] for j in joints])
+        guess = np.clip(guess, [ranges[j][0] for j in joints], [ranges[j][1] for j in joints])
+        solved, missed = _solve_standing(
+            model, base, joints, legs, params, guess, ranges, len(legs) >= 4
+        )
+        pose = {
+            "joints": {
+                j: round(float(v), 6) for j, v in zip(joints, solved, strict=True) if abs(v) > 1e-12
+            }
+        }
+        if not missed:  # every foot placed: solved again at each design from this pose
+            pose["solve"] = STAND_SHARE
+        placed = len(legs) - len(missed)
+        comments["standing_pose"] = (
+            f"solved by robot new: feet {STAND_SHARE:g} of the leg's length under their hips "
+            "(generic leg IK)"
+            + ("; solve: solved so at every design" if not missed else "")
+            + (f"; {len(missed)} legs out of reach keep 0 or their nearest limit" if missed else "")
+        )
+        notes.append(
+            f"no keyframe: standing pose solved with {placed} of {len(legs)} feet "
+            f"{STAND_SHARE:g} of the leg's length under their hips"
+            + ("" if not missed else "; the others at 0 or their nearest limit")
+        )
+    return pose
+
+
+def _set_gains(data: dict, factor: float) -> None:
+    for row, peak in zip(data["gains"].values(), data["limits"]["torque"].values(), strict=True):
+        row["kp"] = round(factor * KP_PER_TORQUE * peak, 6)
+        row["kd"] = round(factor * KD_RATIO * KP_PER_TORQUE * peak, 6)
+
+
+def _raise_gains(folder: Path, data: dict, comments: dict):
+    """(the first factor of GAIN_FACTORS at which the nominal design and every corner pass
+    the stand test, else the last; the stand test that decided; the first factor at which
+    the nominal design alone passed, or None)."""
+    from coadapt_plugins.robots.specs.robot import spec_robot_class
+    from coadapt_plugins.robots.specs.validation import corners, stand_test
+
+    nominal_ok = None
+    for factor in GAIN_FACTORS:
+        _set_gains(data, factor)
+        (folder / SPEC_FILE).write_text(spec_text(data, comments), encoding="utf-8")
+        robot = spec_robot_class(folder)()
+        stand = stand_test(robot.build(_nominal(data)))  # it must build
+        if stand.ok:
+            nominal_ok = factor if nominal_ok is None else nominal_ok
+            stand = next(
+                (t for t in (stand_test(robot.build(c)) for c in corners(robot)) if not t.ok),
+                stand,
+            )
+        if stand.ok:
+            return factor, stand, nominal_ok
+    return factor, stand, nominal_ok
+
+
+def _nominal(data: dict) -> np.ndarray:
+    return np.array([p["nominal"] for p in data["design"]], dtype=float)
