@@ -11,7 +11,7 @@ from typing import Any
 
 import typer
 
-from coadapt_core.cli.common import fail
+from coadapt_core.cli.common import ctrl_c_once, fail, interrupted, invocation
 from coadapt_core.cli.common_options import CommonOptions
 from coadapt_core.cli.options import filled, options_of
 from coadapt_core.cli.options import register as register_command
@@ -173,7 +173,17 @@ def register(app: typer.Typer) -> None:
         apply_threads(o["threads"])
         t0 = time.perf_counter()
         say = (lambda _line: None) if o["quiet"] else (lambda line: print(line, file=sys.stderr))
-        result = verify_and_record(plan, o["store"], say)
+        with ctrl_c_once():
+            try:
+                result = verify_and_record(plan, o["store"], say)
+            except KeyboardInterrupt:
+                # the state written after the last chunk or block: the same command goes on
+                import shlex
+
+                interrupted(
+                    f"verification of run {plan.run_id} (its state is in {plan.folder})",
+                    shlex.join(["coadapt", *invocation()]),
+                )
         print_result(result)
         print(
             f"written to {plan.folder} in {time.perf_counter() - t0:.0f} s"

@@ -415,3 +415,36 @@ def test_a_specialist_that_falls_more_than_the_universal_policy_says_so_in_the_v
     assert len(entry["falls_more"]) == 1
     assert "the best design's specialist falls more than the universal policy" in entry["line"]
     assert "31.2 % of scenarios against 0.0 %" in entry["line"]
+
+
+def test_ctrl_c_says_the_command_that_continues_and_it_does(
+    smoke_run, capsys, tmp_path, monkeypatch
+):
+    import coadapt_core.coadapt.verify as verify_module
+
+    run = shutil.copytree(smoke_run, tmp_path / "run")
+    real = verify_module._evaluate
+
+    def cut(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(verify_module, "_evaluate", cut)  # after both specialists are trained
+    argv = ["verify", str(run), "--budget", "100", "--store", "none", "--quiet"]
+    assert main(argv) == 130
+    err = capsys.readouterr().err
+    assert f"continue it with: coadapt verify {run} --budget 100 --store none --quiet" in err
+    state = json.loads((run / "verify" / "b100-s0" / "state.json").read_text())
+    assert all(s["finished"] for s in state["specialists"].values()) and state["blocks"] == []
+    monkeypatch.setattr(verify_module, "_evaluate", real)
+    trains = []
+    original = verify_module._train_specialist
+
+    def counted(plan, state, role, *args):
+        if not state["specialists"].get(role, {}).get("finished"):
+            trains.append(role)
+        return original(plan, state, role, *args)
+
+    monkeypatch.setattr(verify_module, "_train_specialist", counted)
+    assert main([*argv[:-1], "--json"]) == 0
+    result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert trains == [] and result["blocks"] >= 1  # nothing trained again; the check ran
