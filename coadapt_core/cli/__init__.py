@@ -205,20 +205,13 @@ def _root(**values: Any) -> None:
     """Co-adapt a robot's design and its locomotion policy."""
 
 
-def _version(value: bool) -> None:
-    if value:
-        from coadapt_core import __version__
-
-        print(f"coadapt {__version__}")
-        raise typer.Exit(0)
-
-
 def _root_options() -> Any:
     """`coadapt`'s own options, as `RootOptions` declares them (`cli/common_options.py`), made
     without pydantic (`options.EarlySwitch`): `coadapt --help` and `--version` cost typer."""
     from coadapt_core.cli.options import EarlySwitch, bind
+    from coadapt_core.cli.version import print_version
 
-    return bind(_root, [EarlySwitch("version", "--version", "Print the version.", _version)])
+    return bind(_root, [EarlySwitch("version", "--version", "Print the version.", print_version)])
 
 
 def declare_root() -> None:

@@ -19,6 +19,7 @@ with these answer their `--help` and refusals without them.
 
 from __future__ import annotations
 
+from coadapt_core.cli.version import print_version
 from coadapt_core.settings import Int, setting, settings
 
 
@@ -51,18 +52,14 @@ class CommonOptions:
     seed: Int = setting(0, "Random seed.", ge=0)
 
 
-def _version(value: bool) -> None:
-    from coadapt_core.cli import _version as print_version
-
-    print_version(value)
-
-
 @settings
 class RootOptions:
     """The options of `coadapt` itself, before a command (the option is made without pydantic,
     from the same words: `coadapt_core.cli.options.EarlySwitch`)."""
 
-    version: bool = setting(False, "Print the version.", names=("--version",), callback=_version)
+    version: bool = setting(
+        False, "Print the version.", names=("--version",), callback=print_version
+    )
 
 
 __all__ = ["CommonOptions", "RootOptions"]
