@@ -256,6 +256,19 @@ def _draw_figures(
     return figures
 
 
+def write_specialists(store: ResultsStore, run_ids: list[str], out: Path) -> dict[str, Path]:
+    """specialists.md and .csv when the runs were verified: `coadapt verify`'s rows in the
+    paper's Tables 4-5 layout, universal beside specialists (`analysis/specialists.py`)."""
+    from coadapt_core.analysis.specialists import specialist_rows, specialists_markdown
+
+    verified = specialist_rows(store, run_ids)
+    if not verified:
+        return {}
+    write_csv(out / "specialists.csv", verified)
+    (out / "specialists.md").write_text(specialists_markdown(verified))
+    return {n: out / n for n in ("specialists.csv", "specialists.md")}
+
+
 def write_report(
     store: ResultsStore,
     selection: str | None,
@@ -296,6 +309,7 @@ def write_report(
         t6, table7_rows(continuous), out, facts=continuous, objective_labels=objective_labels()
     )
     files.update(paper_files)
+    files.update(write_specialists(store, [r["id"] for r in runs], out))  # Tables 4-5 layout
     fronts = pareto_rows(
         facts
     )  # multi-objective runs: hypervolume +- SE per run and per group of seeds

@@ -232,6 +232,18 @@ def test_the_command_verifies_a_smoke_run_and_records_its_rows(smoke_run, capsys
         result["designs"][0]["specialist"]["improvement"]
     )
     assert row["verdicts"] == verdict_text and row["specialist_budget"] == "200"
+    # the paper's Tables 4-5 layout: universal beside the specialist, at the design and nominal
+    entry = result["designs"][0]
+    with open(report / "specialists.csv", newline="") as fh:
+        (spec_row,) = list(csv.DictReader(fh))
+    assert float(spec_row["universal_cost"]) == pytest.approx(entry["universal"]["cost"])
+    assert float(spec_row["specialist_cost"]) == pytest.approx(entry["specialist"]["cost"])
+    assert float(spec_row["specialist_nominal_cost"]) == pytest.approx(
+        entry["specialist"]["nominal_cost"]
+    )
+    assert spec_row["verdict"] == verdict_text
+    layout = (report / "specialists.md").read_text()
+    assert "| Cost at the design: universal / specialist |" in layout
     capsys.readouterr()
     # a finished verification asked again is read back, not redone
     assert main(["verify", str(run), "--budget", "200", "--json"]) == 0
