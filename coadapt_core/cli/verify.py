@@ -44,8 +44,11 @@ class VerifyCommand:
         "it must be a policy of the run's robot.",
     )
     runs_dir: Path = setting(Path("runs"), "Where run ids are looked up.")
-    #: default: the run's seed; the run's store (else coadapt.db beside its runs folder)
-    seed: Any = shared(CommonOptions, default=None)
+    #: its own declaration: the default is the run's seed, not CommonOptions' 0
+    seed: Int | None = setting(
+        None, "Random seed of the specialists' fine-tuning (default: the run's seed).", ge=0
+    )
+    #: default: the run's store (else coadapt.db beside its runs folder)
     store: Any = shared(CommonOptions)
     threads: Any = shared(CommonOptions)
     quiet: Any = shared(CommonOptions)

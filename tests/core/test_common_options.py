@@ -19,8 +19,14 @@ from coadapt_core.cli.options import DECLARED
 ROOT = Path(__file__).resolve().parents[2]
 
 #: options declared elsewhere on purpose: `coadapt run`'s seed and store are settings of its
-#: config (YAML keys; an empty store means "beside --out"); grid's threads are per cell
-OWN_DECLARATION = {("run", "--seed"), ("run", "--store"), ("grid", "--threads")}
+#: config (YAML keys; an empty store means "beside --out"); grid's threads are per cell;
+#: verify's seed defaults to the run's own
+OWN_DECLARATION = {
+    ("run", "--seed"),
+    ("run", "--store"),
+    ("grid", "--threads"),
+    ("verify", "--seed"),
+}
 
 
 def _options(command, path=()) -> dict[str, set[str]]:
