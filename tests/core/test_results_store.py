@@ -407,17 +407,17 @@ def test_a_new_store_records_its_schema_version(tmp_path):
     from coadapt_core.results.schema import SCHEMA_VERSION
 
     store = ResultsStore(tmp_path / "new.db")
-    assert store.schema_version == SCHEMA_VERSION == 2
+    assert store.schema_version == SCHEMA_VERSION == 3
     store.close()
-    assert _recorded_version(tmp_path / "new.db") == "2"
+    assert _recorded_version(tmp_path / "new.db") == "3"
     assert (
-        ResultsStore(tmp_path / "new.db").schema_version == 2
+        ResultsStore(tmp_path / "new.db").schema_version == 3
     )  # opened again: the same version, one row
     with sqlite3.connect(tmp_path / "new.db") as conn:
         assert conn.execute("SELECT count(*) FROM store_info").fetchone()[0] == 1
 
 
-@pytest.mark.parametrize("version", ["3", "99", "x"])
+@pytest.mark.parametrize("version", ["4", "99", "x"])
 def test_a_store_of_a_newer_schema_is_refused_with_one_line(tmp_path, version):
     db = tmp_path / "future.db"
     ResultsStore(db).close()
@@ -430,7 +430,7 @@ def test_a_store_of_a_newer_schema_is_refused_with_one_line(tmp_path, version):
         assert "\n" not in message and err.value.field == "store"
         shown = version if version != "x" else "unreadable"
         assert (
-            f"has schema version {shown}; coadapt" in message and "reads versions 1 to 2" in message
+            f"has schema version {shown}; coadapt" in message and "reads versions 1 to 3" in message
         )
 
 
