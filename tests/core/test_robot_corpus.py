@@ -9,12 +9,11 @@ would double the test's time); each step's time is printed (pytest -s).
 A biped (the humanoid) goes through the same steps; its stand test is reported, not required
 (its policy balances it, not joint PD), and its PyBullet rollout only has to run.
 
-Left out of the corpus, and why:
-- `laikago/laikago.urdf`: the same robot as `laikago_toes_zup.urdf` (in the corpus) y-up,
-  with hip motors of zero inertia that MuJoCo refuses.
-- `quadruped/minitaur*.urdf`, `quadruped/quadruped.urdf`: each leg is a four-bar whose
-  closing joint PyBullet's minitaur environment adds in code; as the file is, every leg is
-  two open chains (eight "legs" of two hinges), not a legged tree.
+Every other legged file of pybullet_data is refused by `robot new` in one line, exit 2,
+nothing created (`REFUSED`, with why): the minitaurs and `quadruped.urdf` have four-bar legs
+whose closing joint PyBullet's minitaur environment adds in code (as the file is, each leg is
+two open chains hinged on one axis); others have their knees or motors fixed, or are files
+MuJoCo refuses as they are (global coordinates, a repeated element, malformed XML).
 """
 
 from __future__ import annotations
@@ -41,6 +40,10 @@ CORPUS = [
     ("spirit40", DATA / "quadruped" / "spirit40.urdf"),
     ("vision60", DATA / "quadruped" / "vision60.urdf"),
     ("laikago", DATA / "laikago" / "laikago_toes_zup.urdf"),  # collision meshes: fit
+    ("laikago-yup", DATA / "laikago" / "laikago.urdf"),  # y-up, zero inertias, knee-ended legs
+    ("laikago-toes", DATA / "laikago" / "laikago_toes.urdf"),  # y-up, zero inertias
+    ("laikago-limits", DATA / "laikago" / "laikago_toes_limits.urdf"),  # the same with limits
+    ("laikago-lores", DATA / "laikago" / "laikago_toes_zup_lores.urdf"),  # coarser meshes
     ("mini-cheetah", DATA / "mini_cheetah" / "mini_cheetah.urdf"),  # collision meshes: fit
     ("ant", DATA / "mjcf" / "ant.xml"),
     ("humanoid", DATA / "mjcf" / "humanoid.xml"),  # stacked hinges; a biped
@@ -165,3 +168,41 @@ def test_a_model_file_goes_to_co_design_with_no_edit(name, source, robots, tmp_p
     assert np.isfinite(lowest) and (biped or (lowest >= 0.75 and tilt <= 0.35)), (lowest, tilt)
     with capsys.disabled():
         print(f"\n{name}: " + ", ".join(f"{k} {v:.1f} s" for k, v in times.items()))
+
+
+FOUR_BAR = "two halves of a four-bar leg"
+#: pybullet_data's other legged files and why `robot new` refuses each: four-bar legs closed
+#: in code (the minitaurs), legs with one hinge or none left (knees or motors fixed), and
+#: files MuJoCo or an XML reader refuses as they are
+REFUSED = [
+    ("quadruped/minitaur.urdf", FOUR_BAR),
+    ("quadruped/minitaur_derpy.urdf", FOUR_BAR),
+    ("quadruped/minitaur_rainbow_dash.urdf", FOUR_BAR),
+    ("quadruped/minitaur_v1.urdf", FOUR_BAR),
+    ("quadruped/quadruped.urdf", FOUR_BAR),
+    ("quadruped/minitaur_fixed_all.urdf", "found no legs"),
+    ("quadruped/minitaur_fixed_knees.urdf", "found no legs"),
+    ("quadruped/minitaur_single_motor.urdf", "found no legs"),
+    ("quadruped/minitaur_rainbow_dash_v1.urdf", FOUR_BAR),
+    ("quadruped/microtaur/microtaur.urdf", "attribute 'rpy' has too much data"),
+    ("quadruped/spirit40newer.urdf", "repeated element: 'axis'"),
+    ("biped/biped2d_pybullet.urdf", "is not readable XML"),
+    ("humanoid/humanoid.urdf", "is not readable XML"),
+    ("mjcf/half_cheetah.xml", "required attribute missing: 'pos'"),
+    ("mjcf/hopper.xml", "global coordinates no longer supported"),
+    ("mjcf/walker2d.xml", "global coordinates no longer supported"),
+    ("mjcf/humanoid_symmetric.xml", "material 'geom' not found"),
+    ("mjcf/humanoid_fixed.xml", "invalid keyword: 'fixed'"),
+    ("mjcf/humanoid_symmetric_no_ground.xml", "tendons and equality constraints"),
+]
+
+
+@pytest.mark.parametrize(("path", "why"), REFUSED, ids=[p for p, _ in REFUSED])
+def test_every_other_legged_file_is_refused_in_one_line_saying_why(path, why, robots, capsys):
+    source = DATA / path
+    before = source.read_bytes()
+    code, out, err = coadapt(["robot", "new", "probe", "--from", str(source)], capsys)
+    assert code == 2, out + err
+    assert err.startswith("error: ") and err.strip().count("\n") == 0, err
+    assert why in err
+    assert not (robots / "probe").exists() and source.read_bytes() == before

@@ -110,3 +110,29 @@ def _collision(value: Any) -> str:
     if value not in COLLISION_RULES:
         raise _fail("collision", f"{value!r} is not one of: {', '.join(COLLISION_RULES)}")
     return value
+
+
+def _quaternion(value: Any) -> tuple[float, float, float, float] | None:
+    """`base_orientation`: a unit quaternion [w, x, y, z] (normalised), or None."""
+    if value is None:
+        return None
+    four = _list(value, "base_orientation")
+    if len(four) != 4:
+        raise _fail("base_orientation", f"needs a quaternion [w, x, y, z], got {four!r}")
+    q = [_number(x, "base_orientation") for x in four]
+    norm = math.sqrt(sum(x * x for x in q))
+    if abs(norm - 1.0) > 1e-3:
+        raise _fail("base_orientation", f"needs a unit quaternion, got one of norm {norm:.4g}")
+    return tuple(x / norm for x in q)
+
+
+def _tips(raw: Any) -> dict[str, tuple[float, float, float]]:
+    """`tips`: {body: [x, y, z] in its frame}, the foot points the model has no body for."""
+    out = {}
+    for body, point in _mapping(raw, "tips").items():
+        where = f"tips.{body}"
+        three = _list(point, where)
+        if len(three) != 3:
+            raise _fail(where, f"needs a point [x, y, z] in the body's frame, got {three!r}")
+        out[str(body)] = tuple(_number(x, where) for x in three)
+    return out

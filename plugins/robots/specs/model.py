@@ -32,6 +32,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 from coadapt_plugins.robots.specs.meshes import _MESH, ALONG, _own_meshes, _quat_mat
+from coadapt_plugins.robots.specs.orient import add_tips, inertia_from_shape, reorient
 from coadapt_plugins.robots.specs.spec import RobotSpec, spec_error
 
 _SCALABLE = {
@@ -49,11 +50,15 @@ def load_mjspec(
     package_paths: tuple = (),
     assets: dict | None = None,
     balanceinertia: bool = False,
+    shape_inertia: bool = False,
+    shaped: list | None = None,
 ) -> mujoco.MjSpec:
     """The model file as an `MjSpec` (MJCF or URDF), read from where it lives: its includes
     and assets as MuJoCo finds them from the file's folder, a URDF's `package://` meshes and
     the files of `assets` (reference -> path) handed over as bytes (`files`);
-    `balanceinertia` is MuJoCo's compiler option. MuJoCo's own message in one line."""
+    `balanceinertia` is MuJoCo's compiler option; `shape_inertia` gives a body of zero
+    inertia its shape's (`orient.inertia_from_shape`; their names appended to `shaped`).
+    MuJoCo's own message in one line."""
     from coadapt_plugins.robots.specs.files import loader_assets
 
     path = Path(path)
@@ -65,6 +70,10 @@ def load_mjspec(
         spec.compiler.fusestatic = False
         if balanceinertia:
             spec.compiler.balanceinertia = True
+        if shape_inertia:
+            names = inertia_from_shape(spec)
+            if shaped is not None:
+                shaped += names
         spec.compile()
     except (ValueError, mujoco.FatalError, OSError) as exc:
         first = " ".join(str(exc).split())
@@ -73,8 +82,14 @@ def load_mjspec(
 
 
 def spec_mjspec(rs: RobotSpec) -> mujoco.MjSpec:
-    """`rs`'s model file loaded with the spec's fixes for loading (assets, balanceinertia)."""
-    return load_mjspec(rs.model_path, assets=rs.asset_paths, balanceinertia=rs.balanceinertia)
+    """`rs`'s model file loaded with the spec's fixes for loading (assets, balanceinertia,
+    inertia_from_shape)."""
+    return load_mjspec(
+        rs.model_path,
+        assets=rs.asset_paths,
+        balanceinertia=rs.balanceinertia,
+        shape_inertia=rs.inertia_from_shape,
+    )
 
 
 def fix_joints(spec: mujoco.MjSpec, rs: RobotSpec, joints: list[str]) -> None:
@@ -168,6 +183,9 @@ def prepare(rs: RobotSpec) -> Prepared:
             "is a tree of hinges; write a robot plugin for it (docs/plugins.md)",
         )
     root = _root(spec, rs.base)
+    if rs.base_orientation is not None:
+        reorient(root, rs.base_orientation)
+    add_tips(spec, rs.tips)
     bodies = _subtree(root)
     for joint in rs.locked_joints:
         found = spec.joint(joint)

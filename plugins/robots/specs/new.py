@@ -27,6 +27,7 @@ from pathlib import Path
 import mujoco
 from coadapt_plugins.robots.specs.assumed import (
     _collision_rule,
+    _few,
     _fixes,
     _speed_table,
     _torques,
@@ -39,10 +40,12 @@ from coadapt_plugins.robots.specs.legs import (
     _gait,
     _leg_names,
     _legs,
+    _refuse_four_bars,
     _segments,
     _shared_joints,
 )
 from coadapt_plugins.robots.specs.model import load_mjspec
+from coadapt_plugins.robots.specs.orient import add_tips, find_tips, reorient, up_rotation
 from coadapt_plugins.robots.specs.spec import NAME_PATTERN, SPEC_FILE
 from coadapt_plugins.robots.specs.stand import (
     GAIN_FACTORS,
@@ -58,18 +61,54 @@ from coadapt_plugins.robots.specs.stand import (
 from coadapt_core.errors import UserError
 
 
-def _load(model_file: Path, package_paths: tuple, notes: list[str]) -> tuple[mujoco.MjSpec, bool]:
-    """The model as MuJoCo reads it from where it lives; an inertia MuJoCo refuses (A + B >=
-    C) is balanced by its own compiler option, written to the spec and said."""
-    try:
-        return load_mjspec(model_file, package_paths=package_paths), False
-    except UserError as exc:
-        if "balanceinertia" not in str(exc):
-            raise
-        spec = load_mjspec(model_file, package_paths=package_paths, balanceinertia=True)
-        why = str(exc).split("does not load in MuJoCo: ", 1)[-1]
-        notes.append(f"balanceinertia: true (MuJoCo refused an inertia: {why})")
-        return spec, True
+def _load(model_file: Path, package_paths: tuple, notes: list[str]) -> tuple:
+    """(the model as MuJoCo reads it from where it lives, the loading fixes it needed): an
+    inertia MuJoCo refuses (A + B >= C) is balanced by its own compiler option, a body of
+    mass and zero inertia gets its shape's (`orient`); each written to the spec and said."""
+    flags = {"balanceinertia": False, "shape_inertia": False}
+    shaped: list[str] = []
+    while True:
+        try:
+            spec = load_mjspec(model_file, package_paths=package_paths, shaped=shaped, **flags)
+            break
+        except UserError as exc:
+            text = str(exc)
+            why = text.split("does not load in MuJoCo: ", 1)[-1]
+            if "balanceinertia" in text and not flags["balanceinertia"]:
+                flags["balanceinertia"] = True
+                notes.append(f"balanceinertia: true (MuJoCo refused an inertia: {why})")
+            elif "mass and inertia of moving bodies" in text and not flags["shape_inertia"]:
+                flags["shape_inertia"] = True
+            else:
+                raise
+    if shaped:
+        notes.append(
+            f"bodies with a mass and zero inertia ({_few(shaped)}): inertia_from_shape: true "
+            "(each gets its geoms' inertia scaled to its mass, as PyBullet computes it)"
+        )
+    return spec, flags, shaped
+
+
+def _upright(spec: mujoco.MjSpec, notes: list[str], comments: dict[str, str]) -> list | None:
+    """The base turned upright when the model is not z-up (`orient.up_rotation`): the
+    quaternion written to `base_orientation`, else None."""
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    base = _base(model)
+    data.qpos[:] = model.qpos0
+    _inside_ranges(model, data, [])
+    mujoco.mj_kinematics(model, data)
+    quat = up_rotation(model, data, base)
+    if quat is None:
+        return None
+    reorient(spec.body(model.body(base).name), quat)
+    quat = [round(float(x), 6) + 0.0 for x in quat]
+    comments["base_orientation"] = (
+        "assumed: the model's feet do not hang along its base's -z; this turns the base so "
+        "that x points forward (the legs named front) and z up"
+    )
+    notes.append(f"the model is not z-up: base_orientation {quat} (w, x, y, z) written")
+    return quat
 
 
 def _model_legs(spec: mujoco.MjSpec, notes: list[str], comments: dict[str, str]) -> tuple:
@@ -108,7 +147,42 @@ def _model_legs(spec: mujoco.MjSpec, notes: list[str], comments: dict[str, str])
         notes.append(
             f"joints on the chains of several legs, locked: {', '.join(shared)} (locked_joints)"
         )
+    if not shared:
+        _refuse_four_bars(model, data, base, legs)
     return model, data, base, key, legs, shared
+
+
+def _loading_fixes(
+    data_out: dict,
+    flags: dict,
+    shaped: list[str],
+    turn: list | None,
+    tips: dict,
+    notes: list[str],
+    comments: dict[str, str],
+) -> None:
+    """The spec lines (each with its comment) of what loading and placing the feet needed."""
+    if flags["balanceinertia"]:
+        data_out["balanceinertia"] = True
+        comments["balanceinertia"] = "assumed: MuJoCo refuses an inertia of the model (A + B < C)"
+    if flags["shape_inertia"]:
+        data_out["inertia_from_shape"] = True
+        comments["inertia_from_shape"] = (
+            f"assumed: {_few(shaped)} have a mass but zero inertia in the model (MuJoCo refuses "
+            "it); each gets its geoms' inertia scaled to its mass"
+        )
+    if turn is not None:
+        data_out["base_orientation"] = turn
+    if tips:
+        data_out["tips"] = tips
+        comments["tips"] = (
+            "assumed: these legs' last bodies turn about their own origins (a knee, not a "
+            "foot); a foot body BODY_tip at the point of their collision geoms farthest from it"
+        )
+        notes.append(
+            f"legs ending in a knee ({_few(list(tips))}): a foot point at each one's tip "
+            "written under tips:"
+        )
 
 
 def starting_spec(
@@ -120,8 +194,14 @@ def starting_spec(
         raise UserError(f"robot name '{name}': use lower case, digits, _ and -", field="name")
     notes: list[str] = []
     comments: dict[str, str] = {}
-    spec, balance = _load(model_file, tuple(package_paths), notes)
+    spec, flags, shaped = _load(model_file, tuple(package_paths), notes)
+    turn = _upright(spec, notes, comments)
     model, data, base, key, legs, shared = _model_legs(spec, notes, comments)
+    tips = find_tips(model, legs)
+    if tips:  # legs whose last body's origin is a knee: a foot point at each tip
+        add_tips(spec, tips)
+        model, data, base, key, legs, again = _model_legs(spec, notes, comments)
+        shared = shared or again
     torques = _torques(model, notes)
     joints = _actuated(model, base)
     fixes = _fixes(model, joints, torques, notes)
@@ -168,9 +248,7 @@ def starting_spec(
         data_out["locked_joints"] = shared
     if collision:
         data_out["collision"] = collision
-    if balance:
-        data_out["balanceinertia"] = True
-        comments["balanceinertia"] = "assumed: MuJoCo refuses an inertia of the model (A + B < C)"
+    _loading_fixes(data_out, flags, shaped, turn, tips, notes, comments)
     if fixes:
         data_out["joints"] = {j: fix for j, (fix, _) in fixes.items()}
         comments["joints"] = "model fixes robot new assumed; the model file is unchanged"

@@ -24,7 +24,9 @@ from coadapt_plugins.robots.specs.fields import (
     _list,
     _mapping,
     _number,
+    _quaternion,
     _text,
+    _tips,
     _unknown,
     spec_error,
 )
@@ -104,6 +106,12 @@ class RobotSpec:
     #: "armature": kg m^2, "damping": N m s/rad}
     joints: dict[str, dict[str, Any]] = field(default_factory=dict)
     balanceinertia: bool = False  # MuJoCo's compiler option, for inertias it would refuse
+    #: a body with a mass and a zero inertia gets its shape's inertia (`orient`)
+    inertia_from_shape: bool = False
+    #: [w, x, y, z] from the model's base frame to the robot's (x forward, z up), `orient`
+    base_orientation: tuple[float, float, float, float] | None = None
+    #: foot points the model has no body for: body -> [x, y, z] in its frame (`orient`)
+    tips: dict[str, tuple[float, float, float]] = field(default_factory=dict)
     #: each foot under its hip at this share of its leg's length, solved per design (None:
     #: the standing pose's joint angles at every design)
     standing_share: float | None = None
@@ -270,7 +278,8 @@ def _standing(raw: Any) -> dict[str, float] | str:
 _TOP = {
     "name", "description", "model", "base", "locked_joints", "design", "motors", "limits",
     "legs", "standing_pose", "gains", "gain_scale_exponent", "collision", "joints",
-    "balanceinertia", "assets",
+    "balanceinertia", "assets", "inertia_from_shape", "base_orientation",
+    "tips",
 }  # fmt: skip
 
 
@@ -324,6 +333,9 @@ def parse_spec(data: Any, folder: Path, *, fallback_name: str = "") -> RobotSpec
         joints=_joint_fixes(data.get("joints", {})),
         balanceinertia=_flag(data.get("balanceinertia", False), "balanceinertia"),
         assets=_assets(data.get("assets", {})),
+        inertia_from_shape=_flag(data.get("inertia_from_shape", False), "inertia_from_shape"),
+        base_orientation=_quaternion(data.get("base_orientation")),
+        tips=_tips(data.get("tips", {})),
     )
 
 

@@ -1,0 +1,120 @@
+"""Models whose frames and inertias are their own (issue 58): a y-up URDF whose bodies have a
+mass but zero inertia and whose legs end in a knee (pybullet_data's laikago.urdf) gets
+`base_orientation`, `inertia_from_shape` and `tips` written by `robot new`, the file left as
+it is; a four-bar leg the file leaves open (the minitaurs) is refused in one line; each new
+spec field's bad value is one line naming it. tests/core/test_robot_corpus.py takes laikago
+on to a co-design run."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+import yaml
+from coadapt_plugins.robots.specs.new import starting_spec
+from coadapt_plugins.robots.specs.orient import TIP_RADIUS, up_rotation
+from coadapt_plugins.robots.specs.spec import parse_spec
+
+from coadapt_core.errors import UserError
+
+pytest.importorskip("pybullet_data")
+import pybullet_data
+
+DATA = Path(pybullet_data.getDataPath())
+NEZHA = Path(__file__).resolve().parents[2] / "plugins" / "robots" / "specs" / "nezha"
+
+
+def test_a_y_up_urdf_with_zero_inertias_and_knee_ended_legs_gets_its_fixes_in_the_spec():
+    source = DATA / "laikago" / "laikago.urdf"
+    before = source.read_bytes()
+    data, notes, comments = starting_spec("laikago-yup", source)
+    assert source.read_bytes() == before
+    # y up, +z forward (the legs named F are at +z): x -> y, y -> z, z -> x
+    assert data["base_orientation"] == [0.5, 0.5, 0.5, 0.5]
+    assert data["inertia_from_shape"] is True
+    assert sorted(data["tips"]) == ["FL_lower_leg", "FR_lower_leg", "RL_lower_leg", "RR_lower_leg"]
+    tip = np.array(data["tips"]["FL_lower_leg"])
+    assert 0.25 < np.linalg.norm(tip) + TIP_RADIUS < 0.3  # the shank's far end, 0.28 m
+    assert [leg["foot"] for leg in data["legs"]] == [
+        f"{g}_lower_leg_tip" for g in ("FL", "FR", "RL", "RR")
+    ]
+    assert data["standing_pose"]["solve"] == 0.75  # every foot placed
+    assert [p["links"][0] for p in data["design"]] == [
+        ["FL_upper_leg", "FL_lower_leg"],
+        ["FL_lower_leg", "FL_lower_leg_tip"],
+    ]
+    assert "base_orientation" in comments and "tips" in comments
+    assert any("the model is not z-up" in n for n in notes)
+    assert any(n.startswith("bodies with a mass and zero inertia (chassis") for n in notes)
+
+
+def test_the_turned_base_stands_its_feet_below_it_and_keeps_the_models_masses(tmp_path):
+    from coadapt_plugins.robots.specs.model import load_mjspec
+    from coadapt_plugins.robots.specs.orient import reorient
+
+    source = DATA / "laikago" / "laikago.urdf"
+    with pytest.raises(UserError, match="mass and inertia of moving bodies"):
+        load_mjspec(source)
+    spec = load_mjspec(source, shape_inertia=True)
+    reorient(spec.body("chassis"), [0.5, 0.5, 0.5, 0.5])
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    assert model.body("chassis").mass[0] == pytest.approx(13.715)
+    assert np.all(model.body_inertia[1:] > 0)
+    front, rear = data.xpos[model.body("FL_hip_motor").id], data.xpos[model.body("RL_hip_motor").id]
+    assert front[0] > 0.2 and rear[0] < -0.15 and front[1] > 0  # x forward, y left
+    assert np.all(data.xpos[[model.body(f"{g}_lower_leg").id for g in ("FL", "RR")], 2] < -0.1)
+    assert up_rotation(model, data, model.body("chassis").id) is None  # upright now
+
+
+def test_z_up_models_and_an_ant_at_rest_are_left_as_they_are():
+    for source in (DATA / "a1" / "a1.urdf", DATA / "mjcf" / "ant.xml", NEZHA / "model.xml"):
+        data, _, _ = starting_spec("probe", source)
+        assert "base_orientation" not in data and "tips" not in data, source.name
+
+
+@pytest.mark.parametrize("name", ["minitaur.urdf", "quadruped.urdf"])
+def test_a_four_bar_leg_left_open_in_the_file_is_refused_in_one_line(name):
+    with pytest.raises(UserError) as found:
+        starting_spec("probe", DATA / "quadruped" / name)
+    message = str(found.value)
+    assert "\n" not in message and "two halves of a four-bar leg" in message
+    assert "'lower_leg_front_rightR_link' and 'lower_leg_front_rightL_link'" in message
+
+
+def _spec(**extra) -> dict:
+    data = yaml.safe_load((NEZHA / "robot.yaml").read_text())
+    data.update(extra)
+    return data
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        ({"base_orientation": [1, 0, 0]}, "'base_orientation': needs a quaternion"),
+        ({"base_orientation": [2, 0, 0, 0]}, "'base_orientation': needs a unit quaternion"),
+        ({"tips": {"left_foot": [0, 0]}}, "'tips.left_foot': needs a point [x, y, z]"),
+        ({"inertia_from_shape": "yes"}, "'inertia_from_shape': needs true or false"),
+    ],
+)
+def test_a_bad_frame_or_inertia_field_is_one_line_naming_it(extra, message):
+    with pytest.raises(UserError) as found:
+        parse_spec(_spec(**extra), NEZHA)
+    assert message in str(found.value) and "\n" not in str(found.value)
+
+
+def test_a_tip_on_a_body_that_does_not_exist_is_one_line(tmp_path):
+    import shutil
+
+    from coadapt_plugins.robots.specs.robot import spec_robot_class
+
+    folder = tmp_path / "probe"
+    shutil.copytree(NEZHA, folder, ignore=shutil.ignore_patterns("policies"))
+    data = _spec(name="probe", tips={"no_such_shin": [0.0, 0.0, -0.2]})
+    (folder / "robot.yaml").write_text(yaml.safe_dump(data))
+    robot = spec_robot_class(folder)()
+    with pytest.raises(UserError, match=r"'tips.no_such_shin': no body 'no_such_shin' in the"):
+        robot.build(robot.nominal_design())
