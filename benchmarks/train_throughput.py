@@ -88,6 +88,11 @@ def _parser() -> argparse.ArgumentParser:
         help="pseudo-critics to train ('' for none)",
     )
     parser.add_argument(
+        "--symmetry",
+        action="store_true",
+        help="join each minibatch by its left-right mirror image (TrainConfig.symmetry)",
+    )
+    parser.add_argument(
         "--resume",
         default=None,
         help=(
@@ -156,6 +161,7 @@ def main() -> None:
         epochs=args.epochs,
         minibatches=args.minibatches,
         device=args.device,
+        symmetry=args.symmetry,
         **{
             k: v
             for k, v in (

@@ -94,6 +94,7 @@ def interface_signature() -> dict[str, dict[str, str]]:
         objective.StepBatch,
         robot.RobotModel,
         robot.Leg,
+        robot.Mirror,
         robot.Finding,
         robot.ValidationReport,
         simulator.SimState,

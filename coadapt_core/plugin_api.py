@@ -36,7 +36,7 @@ from __future__ import annotations
 import re
 
 #: the version of the plugin interfaces (semantic: major.minor.patch)
-PLUGIN_API_VERSION = "2.3.0"
+PLUGIN_API_VERSION = "2.4.0"
 #: where a plugin author reads what changed and how to adapt
 MIGRATION_DOC = "docs/plugins.md#migration"
 #: the module attribute of a plugin's hook module declaring the version its classes target
@@ -167,13 +167,15 @@ def required_bump(old: dict[str, dict[str, str]], new: dict[str, dict[str, str]]
     or changed, an abstract method or a required record field added), 'minor' when things
     were only added, None when nothing changed. A conformance suite's test is a check run on
     a plugin, not an interface the plugin calls or implements: removing or renaming one
-    breaks no plugin (minor), adding one is minor (the plugin's suite has a check more)."""
+    breaks no plugin (minor), adding one is minor (the plugin's suite has a check more). A
+    record or class that is new altogether breaks nothing, its required fields included."""
     diff = signature_changes(old, new)
     flat_old, flat = _flat(old), _flat(new)
     breaking_additions = [
         k
         for k in diff["added"]
-        if flat[k].startswith("abstract ") or flat[k].endswith("(required)")
+        if (flat[k].startswith("abstract ") or flat[k].endswith("(required)"))
+        and k.split("::", 1)[0] in old
     ]
     removed = [k for k in diff["removed"] if not _suite_test(k, flat_old[k])]
     if diff["removed"] and not removed:

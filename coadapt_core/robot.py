@@ -97,6 +97,22 @@ class Leg:
     phase_offset: float  # in [0, 1)
 
 
+@dataclass(frozen=True)
+class Mirror:
+    """The robot's left-right mirror image: the reflection through the base's x-z plane
+    (base-frame y negated), which `TrainConfig.symmetry` trains the policy on as well.
+
+    Joint k of the image is `joint_signs[k]` (+1 or -1) times joint `joints[k]` (positions
+    relative to the standing pose, velocities and actions alike); leg l of the image is leg
+    `legs[l]`; a design variable named in `designs` takes the value of the variable it names
+    there (both directions listed), every other variable keeps its own."""
+
+    joints: tuple[int, ...]
+    joint_signs: tuple[float, ...]
+    legs: tuple[int, ...]
+    designs: Mapping[str, str] = field(default_factory=dict)
+
+
 @dataclass
 class Finding:
     """One named validation check and its outcome."""
@@ -195,6 +211,18 @@ class Robot(ABC):
         nominal = torch.as_tensor(self.nominal_design(False), dtype=torch.float64)[None]
         count = int(self.default_foot_positions(nominal).shape[1])
         return [Leg(f"leg{i}", i / count) for i in range(count)]
+
+    def mirror(self) -> Mirror:
+        """The robot's left-right mirror map (`Mirror`), or a one-line `UserError` saying why
+        it has none. Default: none declared; a robot that is mirror-symmetric overrides
+        this (the spec robots derive it from their legs' names and joint axes)."""
+        from coadapt_core.errors import UserError
+
+        raise UserError(
+            f"robot '{self.name}' declares no left-right mirror map (Robot.mirror), which "
+            "symmetry needs; train without it",
+            field="symmetry",
+        )
 
     # -- shipped policies ---------------------------------------------------------------
     def shipped_policy(self, terrain: str, mixed: bool = False) -> Path | None:

@@ -59,6 +59,11 @@ class TrainConfig:
     entropy_coef: Float = setting(0.005, "Entropy bonus coefficient.", ge=0)
     value_loss_coef: Float = setting(1.0, "Value loss coefficient.", ge=0)
     max_grad_norm: Float = setting(1.0, "Gradient norm clip.", gt=0)
+    symmetry: bool = setting(
+        False,
+        "Join each PPO minibatch by its left-right mirror image (the robot's mirror map; "
+        "refused for a robot without one).",
+    )
     init_noise_std: Float = setting(
         1.0, "Initial std of the Gaussian policy (state-independent, learned).", gt=0
     )

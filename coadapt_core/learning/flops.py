@@ -58,18 +58,20 @@ def update_passes(ppo, samples: int) -> list[Pass]:
     `samples` transitions: GAE's critic values of s and s' (one batch of both, in float32:
     outside the loss's autocast) and the pseudo-critics' values of s' (forward only), then per
     minibatch the actor's and critic's forward and backward (the clipped PPO loss) and, in
-    their epochs, the pseudo-critics'."""
+    their epochs, the pseudo-critics'. Under symmetry each minibatch's mirror image is one more
+    call of the PPO loss."""
     c = ppo.config
     size = max(samples // c.minibatches, 1)
     minibatches = len(range(0, samples - size + 1, size))  # as `PPO.update` loops
     pseudo_epochs = c.pseudo_epochs or c.epochs
     passes = []
+    calls = c.epochs * minibatches * (1 if getattr(ppo, "mirror", None) is None else 2)
     if not ppo.policy_frozen:
         passes += [
             # TorchRL's GAE: one call of the critic on s and s' together
             Pass("critic", False, 2 * samples, 1, "float32"),
-            Pass("actor", True, size, c.epochs * minibatches, ppo.precision),
-            Pass("critic", True, size, c.epochs * minibatches, ppo.precision),
+            Pass("actor", True, size, calls, ppo.precision),
+            Pass("critic", True, size, calls, ppo.precision),
         ]
     if ppo.pseudo_critic is not None:
         epochs = pseudo_epochs if ppo.policy_frozen else min(pseudo_epochs, c.epochs)

@@ -116,6 +116,8 @@ class PPO:
         #: pseudo-critics' part of both ("pseudo"); `profile` makes them exact on a GPU
         self.timing = {"returns": 0.0, "update": 0.0, "pseudo": 0.0}
         self.profile = False
+        self.mirror = None  # `symmetry.MirrorMaps` under TrainConfig.symmetry (the trainer's)
+        self.update_rows = 0  # rows the PPO loss saw in the last update (mirror images too)
         #: numerics in force ("float32" | "bf16"), `TrainConfig.precision` / `pseudo_precision`
         #: resolved for this device
         self.precision = resolve_precision(c.precision, self.device)
@@ -309,25 +311,26 @@ class PPO:
         pseudo_sum = torch.zeros((), device=self.device)
         count = pseudo_count = 0
         params = list(self.loss.parameters())
-        pseudo_params = (
-            list(self.pseudo_critic.parameters()) if self.pseudo_critic is not None else []
-        )
+        pseudo_params = [] if self.pseudo_critic is None else list(self.pseudo_critic.parameters())
         pseudo_epochs = c.pseudo_epochs or c.epochs
         pseudo_seconds = 0.0
         begin = self._clock()
         frozen = self.policy_frozen
+        images = None if self.mirror is None or frozen else self.mirror.image(flat)
         for epoch in range(pseudo_epochs if frozen else c.epochs):
             # one gather per epoch, the minibatches its slices (views): the same rows as
             # gathering each minibatch on its own, in one pass over memory instead of one each
-            shuffled = flat[torch.randperm(n, device=self.device)]
+            order = torch.randperm(n, device=self.device)
+            shuffled, mirrored = flat[order], None if images is None else images[order]
             for start in range(0, n - size + 1, size):
                 batch = shuffled[start : start + size]
                 if frozen:
-                    out = {k: torch.zeros((), device=self.device) for k in keys}
-                    out["kl_approx"] = torch.zeros((), device=self.device)
+                    out = dict.fromkeys((*keys, "kl_approx"), torch.zeros((), device=self.device))
                 else:
                     with self._autocast(self.precision):
                         out = self.loss(batch)
+                        if mirrored is not None:  # and its mirror image (`symmetry`)
+                            out = self.mirror.joined(out, self.loss(mirrored[start : start + size]))
                     loss = out["loss_objective"] + out["loss_critic"] + out["loss_entropy"]
                 pseudo = self.pseudo_critic is not None and epoch < pseudo_epochs
                 flags = [out["kl_approx"].detach().float().reshape(())]
@@ -363,9 +366,9 @@ class PPO:
         self.timing["update"] += self._clock() - begin
         self.timing["pseudo"] += pseudo_seconds
         self.rollout = None
+        self.update_rows = 0 if frozen else count * size * (1 if images is None else 2)
         values = (sums / max(count, 1)).tolist()
-        stats = dict(zip(keys, values[:-1], strict=True))
-        stats["kl"] = values[-1]
+        stats = dict(zip((*keys, "kl"), values, strict=True))
         stats["loss_pseudo"] = float(pseudo_sum) / max(pseudo_count, 1)
         stats["learning_rate"] = self.learning_rate
         stats["action_std"] = self.actor_net.log_std.detach().exp().mean().item()
@@ -381,9 +384,7 @@ class PPO:
             "critic_norm": self.critic_norm.state_dict(),
             "pseudo_norm": self.pseudo_norm.state_dict(),
             "optimizer": self.optimizer.state_dict(),
-            "pseudo_optimizer": self.pseudo_optimizer.state_dict()
-            if self.pseudo_optimizer
-            else None,
+            "pseudo_optimizer": self.pseudo_optimizer and self.pseudo_optimizer.state_dict(),
             "learning_rate": self.learning_rate,
         }
 

@@ -34,6 +34,7 @@ from coadapt_core.learning.iteration_stats import (
 )
 from coadapt_core.learning.ppo import PPO, Dims
 from coadapt_core.learning.pseudo_critics import PseudoCritics
+from coadapt_core.learning.symmetry import MirrorMaps
 from coadapt_core.objective import Objective
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.robot import Robot
@@ -223,6 +224,8 @@ class Trainer:
                 "was the checkpoint trained for another robot?",
                 field="checkpoint",
             )
+        if self.config.symmetry and self.ppo.mirror is None:  # the robot's, or a one-line refusal
+            self.ppo.mirror = MirrorMaps.for_env(self.robot, env, self.ppo)
         return self.ppo
 
     def command_state(self) -> dict | None:

@@ -106,6 +106,10 @@ def test_bump_rules_catch_a_change_the_version_does_not_account_for():
         "field: torch.Tensor (required)"
     )
     assert required_bump(old, required) == "major"
+    # a record new altogether breaks no plugin, whatever its fields
+    record = copy.deepcopy(old)
+    record["coadapt_core.robot.NewRecord (fields)"] = {"joints": "field: tuple (required)"}
+    assert required_bump(old, record) == "minor"
     assert required_bump(old, copy.deepcopy(old)) is None
     renamed = copy.deepcopy(
         old

@@ -17,7 +17,7 @@ from coadapt_plugins.robots.specs.spec import DESIGN_DECIMALS, RobotSpec, read_s
 
 from coadapt_core.design_space import Continuous, DesignSpace, Discrete
 from coadapt_core.errors import DesignError
-from coadapt_core.robot import Leg, Robot, RobotModel, ValidationReport
+from coadapt_core.robot import Leg, Mirror, Robot, RobotModel, ValidationReport
 
 if TYPE_CHECKING:
     import torch
@@ -96,6 +96,13 @@ class SpecRobot(Robot):
 
     def legs(self) -> list[Leg]:
         return [Leg(leg.name, leg.phase) for leg in self.spec.legs]
+
+    def mirror(self) -> Mirror:
+        """Derived from the legs' names and the joints' axes (`mirror.derive_mirror`); a
+        one-line `UserError` saying what does not pair when the robot is not symmetric."""
+        from coadapt_plugins.robots.specs.mirror import derive_mirror
+
+        return derive_mirror(self)
 
     # -- leg kinematics -------------------------------------------------------------------
     def default_foot_positions(self, designs: torch.Tensor) -> torch.Tensor:
