@@ -10,10 +10,12 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from coadapt_core.errors import DesignError, UserError
+
+if TYPE_CHECKING:  # numpy is imported where it is used: listing the plugins loads none
+    import numpy as np
 
 
 def parse_numbers(text: str, *, what: str) -> list[float]:
@@ -119,6 +121,8 @@ class DesignSpace:
     @property
     def continuous_mask(self) -> np.ndarray:
         """[dim] bool: True where the variable is continuous."""
+        import numpy as np
+
         return np.array([isinstance(v, Continuous) for v in self.variables])
 
     @property
@@ -128,6 +132,8 @@ class DesignSpace:
     @property
     def lower(self) -> np.ndarray:
         """[dim] smallest value of each variable (smallest choice for discrete ones)."""
+        import numpy as np
+
         return np.array(
             [v.low if isinstance(v, Continuous) else v.choices[0] for v in self.variables]
         )
@@ -135,6 +141,8 @@ class DesignSpace:
     @property
     def upper(self) -> np.ndarray:
         """[dim] largest value of each variable (largest choice for discrete ones)."""
+        import numpy as np
+
         return np.array(
             [v.high if isinstance(v, Continuous) else v.choices[-1] for v in self.variables]
         )
@@ -190,6 +198,8 @@ class DesignSpace:
     # -- membership ----------------------------------------------------------------------
     def validate(self, design: Iterable[float] | np.ndarray, *, tol: float = 1e-9) -> np.ndarray:
         """Return `design` as a float vector [dim], or raise `DesignError` naming the variable."""
+        import numpy as np
+
         values = np.asarray(
             list(design) if not isinstance(design, np.ndarray) else design, dtype=float
         )
@@ -218,6 +228,8 @@ class DesignSpace:
         return values
 
     def validate_batch(self, designs: np.ndarray) -> np.ndarray:
+        import numpy as np
+
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
         return np.stack([self.validate(d) for d in designs])
 
@@ -244,6 +256,8 @@ class DesignSpace:
     # -- sampling ------------------------------------------------------------------------
     def sample(self, n: int, rng: np.random.Generator | int | None = None) -> np.ndarray:
         """[n, dim] designs drawn uniformly (continuous) and uniformly among choices (discrete)."""
+        import numpy as np
+
         if n < 0:
             raise UserError(f"number of designs must be >= 0, got {n}", field="n")
         rng = np.random.default_rng(rng)
@@ -260,6 +274,8 @@ class DesignSpace:
         """Map designs [n, dim] to the unit cube. A discrete variable with m choices maps its
         i-th choice to the centre (i + 0.5) / m of the i-th of m equal bins, so `decode` of
         any point in that bin gives the choice back (the relaxation used by mixed PSO)."""
+        import numpy as np
+
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
         out = np.empty_like(designs)
         for j, var in enumerate(self.variables):
@@ -274,6 +290,8 @@ class DesignSpace:
 
     def decode(self, unit: np.ndarray) -> np.ndarray:
         """Inverse of `encode`: unit-cube points [n, dim] (clipped to [0, 1]) to designs."""
+        import numpy as np
+
         unit = np.clip(np.atleast_2d(np.asarray(unit, dtype=float)), 0.0, 1.0)
         out = np.empty_like(unit)
         for j, var in enumerate(self.variables):
@@ -303,6 +321,8 @@ class DesignSpace:
         centred on the points' mean, and clip to this space's bounds. A discrete variable
         keeps the choices that some point uses. The result is always inside `self`.
         """
+        import numpy as np
+
         points = np.atleast_2d(np.asarray(points, dtype=float))
         if points.shape[0] == 0 or points.shape[1] != self.dim:
             raise UserError(

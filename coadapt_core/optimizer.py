@@ -17,13 +17,14 @@ from __future__ import annotations
 import warnings
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from typing import Any, ClassVar, Protocol, runtime_checkable
-
-import numpy as np
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
 
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
 from coadapt_core.options import PluginOption, resolve_options
+
+if TYPE_CHECKING:  # numpy is imported where it is used: listing the plugins loads none
+    import numpy as np
 
 #: seeds an optimizer must accept: any integer in [0, SEED_LIMIT)
 SEED_LIMIT = 2**63
@@ -109,6 +110,8 @@ class Optimizer(ABC):
         initial_designs: np.ndarray | None = None,
         **options: Any,
     ):
+        import numpy as np
+
         if (
             isinstance(seed, bool)
             or not isinstance(seed, int | np.integer)
@@ -163,6 +166,8 @@ class Optimizer(ABC):
     def seed32(self) -> int:
         """A seed in [1, 2**32) for libraries that take 32-bit seeds: `seed` itself when it
         fits (and is not 0), else one derived from it (numpy `SeedSequence`)."""
+        import numpy as np
+
         if 0 < self.seed < 2**32:
             return self.seed
         return int(np.random.SeedSequence(self.seed).generate_state(1)[0]) or 1
@@ -170,6 +175,8 @@ class Optimizer(ABC):
     def _check_initial(self, designs: np.ndarray | None) -> np.ndarray | None:
         """`initial_designs` validated: [population, dim] (sequential: [n >= 1, dim]) inside
         the space, or None."""
+        import numpy as np
+
         if designs is None:
             return None
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
@@ -193,6 +200,8 @@ class Optimizer(ABC):
         return designs
 
     def _checked(self, raw: np.ndarray) -> np.ndarray:
+        import numpy as np
+
         designs = np.atleast_2d(np.asarray(raw, dtype=float))
         if designs.shape[1] != self.space.dim:
             raise RuntimeError(
@@ -212,6 +221,8 @@ class Optimizer(ABC):
         """Warn (`OutOfBoundsProposal`) when continuous values lie outside the bounds by more
         than rounding (1e-9 of the width): the clipping below changes the proposal. Counted
         in `self.out_of_bounds` (designs)."""
+        import numpy as np
+
         mask = self.space.continuous_mask
         if not mask.any():
             return
@@ -238,6 +249,8 @@ class Optimizer(ABC):
 
     def tell(self, designs: np.ndarray, costs: np.ndarray) -> None:
         """Report costs [n] (or [n, M]) of the designs last asked for."""
+        import numpy as np
+
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
         costs = np.asarray(costs, dtype=float)
         expected = (
@@ -299,6 +312,8 @@ class Optimizer(ABC):
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore what `state_dict` returned, on a freshly constructed optimizer (same
         constructor arguments). Raises `UserError` if the state does not fit."""
+        import numpy as np
+
         if not isinstance(state, dict) or state.get("optimizer") != self.name:
             found = state.get("optimizer") if isinstance(state, dict) else type(state).__name__
             raise UserError(
@@ -336,6 +351,8 @@ class Optimizer(ABC):
         """Bring the subclass's own state to where `state` was taken. Default: replay the
         recorded rounds through `_ask`/`_tell` (deterministic optimizers, seeded in the
         constructor), refusing if a replayed proposal differs from the recorded one."""
+        import numpy as np
+
         for i, (designs, costs) in enumerate(rounds):
             proposed = self._checked(self._ask())
             if proposed.shape != designs.shape or not np.array_equal(proposed, designs):
@@ -350,7 +367,7 @@ class Optimizer(ABC):
 
 #: what a gradient-following optimizer is handed: designs [K, dim] -> (surrogate costs [K],
 #: their gradients [K, dim] in cost units per design unit)
-SlopeFn = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+SlopeFn = Callable[["np.ndarray"], tuple["np.ndarray", "np.ndarray"]]
 
 
 @runtime_checkable

@@ -7,13 +7,17 @@ picks a front design by."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
-import numpy as np
+if TYPE_CHECKING:  # numpy is imported where it is used: listing the plugins loads none
+    import numpy as np
 
 
 def pareto_mask(costs: np.ndarray) -> np.ndarray:
     """[n] True where no other row of costs [n, M] dominates the row (all <=, one <); rows
     with a non-finite cost are never on the front (unless every row has one)."""
+    import numpy as np
+
     costs = np.asarray(costs, dtype=float)
     n = costs.shape[0]
     mask = np.zeros(n, dtype=bool)
@@ -33,6 +37,8 @@ def pareto_mask(costs: np.ndarray) -> np.ndarray:
 def front_rows(designs: np.ndarray, costs: np.ndarray, *, decimals: int = 12) -> np.ndarray:
     """[F] the row indices of the non-dominated rows, one per distinct design (first
     occurrence), sorted by the first cost (ties by the next)."""
+    import numpy as np
+
     designs = np.asarray(designs, dtype=float)
     costs = np.asarray(costs, dtype=float).reshape(len(designs), -1)
     keep = np.flatnonzero(pareto_mask(costs))
@@ -48,6 +54,8 @@ def pareto_front(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(designs [F, dim], costs [F, M]) of the non-dominated rows, one row per distinct
     design (first occurrence), sorted by the first cost."""
+    import numpy as np
+
     designs = np.asarray(designs, dtype=float)
     costs = np.asarray(costs, dtype=float).reshape(len(designs), -1)
     keep = front_rows(designs, costs, decimals=decimals)
@@ -69,6 +77,8 @@ def relative_costs(costs: np.ndarray, nominal: np.ndarray) -> np.ndarray:
     """[..., M] costs as 1 + (cost - nominal) / |nominal| per objective: the nominal design at
     1, half its cost at 0.5, whatever the objective's units or sign (a zero nominal cost
     counts as 1)."""
+    import numpy as np
+
     nominal = np.asarray(nominal, dtype=float)
     scale = np.where(np.abs(nominal) > 0, np.abs(nominal), 1.0)
     return 1.0 + (np.asarray(costs, dtype=float) - nominal) / scale
@@ -78,6 +88,7 @@ def hypervolume(costs: np.ndarray, nominal: np.ndarray) -> float:
     """The hypervolume (pymoo's indicator) the designs' costs [n, M] dominate, in costs
     relative to `nominal` [M] (`relative_costs`), bounded by `HV_REFERENCE` in every
     objective; a dominated or non-finite row adds nothing."""
+    import numpy as np
     from pymoo.indicators.hv import HV
 
     z = relative_costs(np.asarray(costs, dtype=float).reshape(-1, len(nominal)), nominal)
@@ -96,6 +107,8 @@ def hypervolume_se(
     resampled together for every design (paired: the same scenarios for the candidates and
     the nominal design, as the final check's other standard errors), the front and the
     nominal cost recomputed in each resample; 0 with one scenario."""
+    import numpy as np
+
     from coadapt_core.costs import _resamples
 
     x = np.asarray(values, dtype=float)
@@ -115,6 +128,8 @@ def pick_index(pick: str | int, costs: np.ndarray) -> int:
     order of the stored front: by the first cost), or "knee": the design nearest the ideal
     point once each objective is scaled to the front's own range (0 its best design's cost,
     1 its worst's), ties to the lower index. ValueError naming what is accepted otherwise."""
+    import numpy as np
+
     costs = np.asarray(costs, dtype=float)
     n = len(costs)
     text = str(pick).strip().lower()
@@ -136,6 +151,8 @@ def pick_index(pick: str | int, costs: np.ndarray) -> int:
 
 def is_dominated(point: np.ndarray, others: np.ndarray) -> bool:
     """Whether any row of others [n, M] dominates point [M]."""
+    import numpy as np
+
     others = np.asarray(others, dtype=float).reshape(-1, len(point))
     return bool((np.all(others <= point, axis=1) & np.any(others < point, axis=1)).any())
 

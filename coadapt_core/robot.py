@@ -22,12 +22,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
 
-import numpy as np
-
 from coadapt_core.design_space import DesignSpace
 
 if TYPE_CHECKING:
+    import numpy as np
     import torch
+
+
+def _no_points() -> np.ndarray:
+    """[0, 3]: no contact points given."""
+    import numpy as np
+
+    return np.zeros((0, 3))
 
 
 @dataclass
@@ -58,9 +64,7 @@ class RobotModel:
     joint_upper: np.ndarray  # [num_joints]
     standing_base_height: float  # base origin height above flat ground at the default pose
     total_mass: float
-    foot_contact_points: np.ndarray = field(
-        default_factory=lambda: np.zeros((0, 3))
-    )  # [k, 3] in the foot frame
+    foot_contact_points: np.ndarray = field(default_factory=_no_points)  # [k, 3] in the foot frame
     # lengths, segment masses, motor types, ...; an optional "units" entry maps keys to units
     # ({"thigh_length": "m"}), which `coadapt robot show` prints next to the values
     info: dict[str, Any] = field(default_factory=dict)
@@ -248,6 +252,8 @@ class Robot(ABC):
 
     def design_space_for(self, design: np.ndarray) -> DesignSpace:
         """The space (continuous or mixed) whose arity matches `design`."""
+        import numpy as np
+
         design = np.atleast_1d(np.asarray(design, dtype=float))
         plain, mixed = self.design_space(False), self.design_space(True)
         if design.shape[0] == mixed.dim and mixed.dim != plain.dim:
@@ -258,6 +264,8 @@ class Robot(ABC):
 def joint_table(model: RobotModel) -> list[dict[str, Any]]:
     """A model's actuated joints in policy order, as plain data: default angle, limits, PD
     gains, motor torque and speed limits (`coadapt robot show`, the handoff's design sheet)."""
+    import numpy as np
+
     return [
         {
             "name": name,

@@ -9,9 +9,8 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
 import typer
 
 from coadapt_core.cli import robot_new
@@ -23,6 +22,9 @@ from coadapt_core.errors import DesignError, UserError
 from coadapt_core.io import jsonable
 from coadapt_core.robot import joint_table
 from coadapt_core.settings import Int, setting, settings, shared
+
+if TYPE_CHECKING:  # numpy is imported where it is used: listing the plugins loads none
+    import numpy as np
 
 app = typer.Typer(help="Inspect, export, validate and render robot designs.", no_args_is_help=True)
 

@@ -10,11 +10,10 @@ import dataclasses
 import math
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from coadapt_core.errors import DesignError, UserError
 
 if TYPE_CHECKING:
+    import numpy as np
     import torch
 
     from coadapt_core.robot import Robot
@@ -22,6 +21,8 @@ if TYPE_CHECKING:
 
 def _whole(value: Any, least: int) -> bool:
     """Whether `value` is a whole number (not a bool) of at least `least`."""
+    import numpy as np
+
     return not isinstance(value, bool) and isinstance(value, int | np.integer) and value >= least
 
 
@@ -38,6 +39,8 @@ def check_options(
 ) -> torch.device:
     """Check a simulator's scalar options (`name` is the backend's, `terrains` those it
     offers); the torch device that `device` names."""
+    import numpy as np
+
     if terrain not in terrains:
         raise UserError(
             f"unknown terrain '{terrain}'; {name} offers: {', '.join(terrains)}", field="terrain"
@@ -75,6 +78,8 @@ def check_options(
 def design_array(designs: np.ndarray) -> np.ndarray:
     """`designs` as a float [num_envs, design_dim] array (one design may be given flat);
     anything else is a `UserError`."""
+    import numpy as np
+
     designs = np.asarray(designs, dtype=float)
     designs = designs.reshape(1, -1) if designs.ndim == 1 else designs
     if designs.ndim != 2 or designs.shape[0] < 1:
@@ -98,6 +103,8 @@ def check_offered(choice: str, offered: tuple[str, ...], name: str, setting: str
 def env_id_array(env_ids: torch.Tensor | np.ndarray | None, num_envs: int) -> np.ndarray:
     """Environment ids [n] (int numpy) from None (all), an index tensor or array, or a
     boolean mask; ids outside [0, num_envs) are a `UserError`."""
+    import numpy as np
+
     if env_ids is None:
         return np.arange(num_envs)
     import torch
@@ -118,6 +125,8 @@ def env_id_array(env_ids: torch.Tensor | np.ndarray | None, num_envs: int) -> np
 def new_design_array(designs: np.ndarray, count: int, width: int) -> np.ndarray:
     """`designs` as `count` designs of `width` values each (one may be given flat), for
     `Simulator.set_designs`; any other shape is a `DesignError`."""
+    import numpy as np
+
     designs = np.asarray(designs, dtype=float)
     designs = designs.reshape(1, -1) if designs.ndim == 1 else designs
     if designs.shape != (count, width):
@@ -142,6 +151,8 @@ class NominalGains:
         return getattr(self._robot, name)
 
     def build(self, design: np.ndarray):
+        import numpy as np
+
         model = self._robot.build(design)
         mixed = len(np.atleast_1d(design)) != self._robot.design_space(False).dim
         if mixed not in self._gains:

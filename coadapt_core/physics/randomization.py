@@ -12,8 +12,6 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields
 from typing import TYPE_CHECKING, ClassVar
 
-import numpy as np
-
 from coadapt_core.errors import UserError, did_you_mean
 from coadapt_core.settings import (
     NonNegativeRange,
@@ -25,6 +23,7 @@ from coadapt_core.settings import (
 )
 
 if TYPE_CHECKING:  # the tensors' module loads with the first batch: the settings stay torch-free
+    import numpy as np
     import torch
 
 
@@ -184,6 +183,8 @@ class EnvParams:
 
     def numpy(self) -> dict[str, np.ndarray]:
         """Every field as a float64 numpy array on the CPU (for engines that take numpy)."""
+        import numpy as np
+
         return {
             f.name: getattr(self, f.name).detach().cpu().numpy().astype(np.float64, copy=False)
             for f in fields(self)
@@ -213,6 +214,8 @@ class EnvParams:
 def nominal_env_params(
     num_envs: int, *, device: str | torch.device = "cpu", dtype: torch.dtype | None = None
 ) -> EnvParams:
+    import numpy as np
+
     return sample_env_params(
         RandomizationConfig.off(), num_envs, np.random.default_rng(0), device=device, dtype=dtype
     )
@@ -231,6 +234,7 @@ def sample_env_params(
     randomness whether or not randomization is enabled, so seeds stay aligned; the
     engine-robustness parameters draw only when their range is not a point, after Table
     2's), returned as tensors on `device` in `dtype` (None: float64)."""
+    import numpy as np
     import torch
 
     dtype = torch.float64 if dtype is None else dtype

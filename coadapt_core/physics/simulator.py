@@ -26,9 +26,8 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING, ClassVar
 
-import numpy as np
-
 from coadapt_core.physics.dtype import TorchDtype
+from coadapt_core.physics.frames import quat_rotate_inverse
 from coadapt_core.physics.options import (
     NominalGains,
     check_offered,
@@ -46,6 +45,7 @@ from coadapt_core.physics.randomization import (
 from coadapt_core.physics.terrain import TERRAINS, Terrain, make_terrain
 
 if TYPE_CHECKING:
+    import numpy as np
     import torch
 
     from coadapt_core.robot import Robot
@@ -96,26 +96,15 @@ class SimState:
         gravity = torch.zeros_like(self.base_lin_vel, dtype=torch.float32)
         gravity[:, 2] = -1.0
         return tuple(
-            _quat_rotate_inverse(quat, v)
+            quat_rotate_inverse(quat, v)
             for v in (self.base_lin_vel.float(), self.base_ang_vel.float(), gravity)
         )
 
 
-def _quat_rotate_inverse(quat: torch.Tensor, vec: torch.Tensor) -> torch.Tensor:
-    """World vectors vec [N, 3] expressed in the base frame of unit quaternions quat [N, 4]
-    (w, x, y, z): R^T v = v (2w^2 - 1) - 2 w (q x v) + 2 q (q . v)."""
-    import torch
-
-    w = quat[:, 0:1]
-    xyz = quat[:, 1:4]
-    a = vec * (2.0 * w * w - 1.0)
-    b = torch.cross(xyz, vec, dim=-1) * (2.0 * w)
-    c = xyz * (2.0 * (xyz * vec).sum(dim=-1, keepdim=True))
-    return a - b + c
-
-
 def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Rotate vectors v [N, 3] by unit quaternions q [N, 4] (w, x, y, z)."""
+    import numpy as np
+
     w = q[:, :1]
     u = q[:, 1:]
     t = 2.0 * np.cross(u, v)
@@ -133,6 +122,8 @@ def spawn_base_height(
     """[n] base height at spawn: the standing height above the highest ground within reach
     of either sole, plus SPAWN_CLEARANCE (plus FIXED_BASE_LIFT for a welded base), so no
     foot starts inside the ground on the slope or the bumps."""
+    import numpy as np
+
     feet = np.asarray(xy, dtype=float)[:, None, :] + foot_xy  # [n, L, 2]
     ground = np.empty(feet.shape[:2])  # [n, L] highest ground within each sole's reach
     radii = np.asarray(foot_radius, dtype=float)
@@ -206,6 +197,8 @@ class Simulator(ABC):
         """`fixed_base=True` welds the base where it spawns, raised clear of the terrain
         (contact-free swing tests, sim-to-sim checks). Bad options are one-line `UserError`s
         naming the field."""
+        import numpy as np
+
         torch_device = check_options(
             self.name,
             self.terrains,
@@ -260,6 +253,8 @@ class Simulator(ABC):
         """The PD gains of every design from now on: "robot" (each design's own) or "nominal"
         (the nominal design's, `NominalGains`), one of the backend's `gain_laws`; every
         environment is rebuilt (and restarts) when the law changes."""
+        import numpy as np
+
         if check_offered(law, self.gain_laws, self.name, "gain_law") == self.gain_law:
             return
         self.gain_law = law
@@ -331,7 +326,7 @@ class Simulator(ABC):
         length; 0 with randomization off)."""
         cfg = self.randomization
         longest = max(cfg.delay[1], RandomizationConfig.NOMINAL["delay"]) if cfg.enabled else 0.0
-        return int(np.rint(longest / self.physics_dt))
+        return int(round(longest / self.physics_dt))  # half to even, as numpy's rint
 
     # -- arguments -------------------------------------------------------------------------
     def parse_env_ids(self, env_ids: torch.Tensor | np.ndarray | None) -> np.ndarray:
@@ -354,6 +349,8 @@ class Simulator(ABC):
         (`DesignError` naming the variable and its bounds otherwise): the one check every
         design passes before it becomes a world, at construction and in `set_designs`
         (through `parse_new_designs`), whoever asks for it."""
+        import numpy as np
+
         rows = np.unique(designs, axis=0)
         self.robot.design_space_for(rows[0]).validate_batch(rows)
         return designs
@@ -365,6 +362,8 @@ class Simulator(ABC):
         """Register a named random stream of this backend and return it. Every draw a
         backend makes must come from a registered stream, so that `reseed` restarts it.
         Default seeding: SeedSequence([seed, k]) for the k-th stream."""
+        import numpy as np
+
         if name in self._streams:
             raise ValueError(f"random stream '{name}' exists already")
         if entropy is None:
@@ -382,6 +381,8 @@ class Simulator(ABC):
         randomization and spawn points from it): the k-th stream in order of registration
         from SeedSequence([seed, k]), in place. Exact resume of a co-adaptation run relies
         on it."""
+        import numpy as np
+
         for k, gen in enumerate(self._streams.values()):
             gen.bit_generator.state = type(gen.bit_generator)(
                 np.random.SeedSequence([int(seed), k])
@@ -395,6 +396,8 @@ class Simulator(ABC):
         them again. Real evaluation (`learning.evaluate.apply_scenarios`) uses this hook to
         give agent i of every design the same draw in real fitness (docs/coadaptation.md,
         "Evaluation protocol"); `draw_env_params` and `draw_spawn_xy` honour it."""
+        import numpy as np
+
         if params is None:
             self._scenario = None
             return
@@ -406,6 +409,8 @@ class Simulator(ABC):
         the ones in force (`env_params`) and returned (tensors on the simulator's device):
         the fixed scenario's when `fix_scenarios` set one (consuming no randomness), else a
         draw from the "params" stream, in the order of the ids."""
+        import numpy as np
+
         ids = np.asarray(env_ids, dtype=int)
         if self._scenario is not None:
             params = self._scenario[0].take(ids)
@@ -424,6 +429,8 @@ class Simulator(ABC):
         """[n, 2] base spawn points (x, y) for `env_ids`: the origin, except on the random
         terrain a point at least SPAWN_MARGIN inside the height field's edge, the fixed
         scenario's when set, else drawn from the "spawn" stream."""
+        import numpy as np
+
         ids = np.asarray(env_ids, dtype=int)
         if self.terrain_model.name != "random":
             return np.zeros((ids.size, 2))

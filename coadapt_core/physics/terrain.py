@@ -13,11 +13,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from coadapt_core.errors import UserError
 from coadapt_core.terrains import TERRAINS  # the names, declared once (also read from here)
+
+if TYPE_CHECKING:  # numpy is imported where it is used: listing the plugins loads none
+    import numpy as np
 
 #: slope terrain inclination, degrees (rising along +x)
 SLOPE_DEGREES = 10.0
@@ -35,6 +37,8 @@ class Terrain:
 
     @property
     def slope_radians(self) -> float:
+        import numpy as np
+
         return float(np.radians(SLOPE_DEGREES)) if self.name == "slope" else 0.0
 
     @property
@@ -49,6 +53,8 @@ class Terrain:
 
     def height_at(self, xy: np.ndarray) -> np.ndarray:
         """Heights [...] at world points xy [..., 2]."""
+        import numpy as np
+
         xy = np.asarray(xy, dtype=float)
         if self.name == "flat":
             return np.zeros(xy.shape[:-1])
@@ -74,6 +80,8 @@ class Terrain:
         Exact for the random terrain: within each grid cell `height_at` is bilinear, so its
         maximum over the square is at a corner of some cell-square intersection, i.e. on
         the product of {square edges, grid lines inside} along x and along y."""
+        import numpy as np
+
         xy = np.asarray(xy, dtype=float)
         if self.name == "flat":
             return np.zeros(xy.shape[:-1])
@@ -100,6 +108,8 @@ class Terrain:
 
 @lru_cache(maxsize=16)
 def _grid(name: str, seed: int, samples: int, max_height: float) -> np.ndarray:
+    import numpy as np
+
     if name != "random":
         return np.zeros((samples, samples))
     rng = np.random.default_rng(np.random.SeedSequence([seed, 0x7E2A]))

@@ -2,15 +2,20 @@
 
 from __future__ import annotations
 
-import numpy as np
+from typing import TYPE_CHECKING
 
 from coadapt_core.options import PluginOption
+
+if TYPE_CHECKING:  # numpy is imported where it is used: listing the plugins loads none
+    import numpy as np
 
 #: what a non-finite cost (a fallen robot, a failed rollout) is told as, so it is never best
 WORST_COST = 1e30
 
 
 def finite_costs(costs: np.ndarray) -> np.ndarray:
+    import numpy as np
+
     costs = np.asarray(costs, dtype=float)
     return np.where(np.isfinite(costs), costs, WORST_COST)
 

@@ -4,9 +4,8 @@ a specialised policy per proposed design (`--method bo-specialized`)."""
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
-import numpy as np
 from coadapt_plugins.optimizers._common import finite_costs
 
 from coadapt_core import hookimpl
@@ -14,6 +13,9 @@ from coadapt_core.design_space import Continuous, DesignSpace
 from coadapt_core.errors import UserError
 from coadapt_core.optimizer import Optimizer
 from coadapt_core.options import PluginOption
+
+if TYPE_CHECKING:  # numpy is imported where it is used: listing the plugins loads none
+    import numpy as np
 
 #: the coadapt plugin API version this plugin is written for (docs/plugins.md#migration)
 COADAPT_PLUGIN_API = "2.0"
@@ -129,6 +131,8 @@ class BOOptimizer(Optimizer):
 
     # -- ask / tell ------------------------------------------------------------------------
     def _ask(self) -> np.ndarray:
+        import numpy as np
+
         self._trial = self._ensure_study().ask(self._distributions())
         return np.array([[float(self._trial.params[n]) for n in self.space.names]])  # [1, dim]
 
@@ -140,6 +144,8 @@ class BOOptimizer(Optimizer):
 
     def final_population(self) -> np.ndarray:
         """Every design tried so far (BO has no swarm to narrow around)."""
+        import numpy as np
+
         trials = [t for t in self._ensure_study().trials if t.value is not None]
         if not trials:
             return super().final_population()

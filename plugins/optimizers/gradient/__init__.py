@@ -4,9 +4,8 @@ step's real cost does not improve; every step is confirmed by real rollouts."""
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
-import numpy as np
 from coadapt_plugins.optimizers._common import finite_costs
 
 from coadapt_core import hookimpl
@@ -14,6 +13,9 @@ from coadapt_core.design_space import DesignSpace
 from coadapt_core.errors import UserError
 from coadapt_core.optimizer import Optimizer, SlopeFn
 from coadapt_core.options import PluginOption
+
+if TYPE_CHECKING:  # numpy is imported where it is used: listing the plugins loads none
+    import numpy as np
 
 #: the coadapt plugin API version this plugin is written for (docs/plugins.md#migration)
 COADAPT_PLUGIN_API = "2.2"
@@ -143,6 +145,8 @@ class GradientOptimizer(Optimizer):
         self.oracle = slope
 
     def _starts(self) -> list[np.ndarray]:
+        import numpy as np
+
         if self.initial_designs is not None:
             return [row.copy() for row in self.initial_designs]
         text = self.options["start_at"]
@@ -162,10 +166,14 @@ class GradientOptimizer(Optimizer):
 
     # -- the unit cube of the continuous variables -------------------------------------------
     def _unit(self, designs: np.ndarray) -> np.ndarray:
+        import numpy as np
+
         return self.space.encode(np.atleast_2d(designs))[:, self._mask]
 
     def _design(self, unit: np.ndarray) -> np.ndarray:
         """The centre with its continuous variables at `unit` (clipped: the projection)."""
+        import numpy as np
+
         full = self.space.encode(self.center[None])[0]
         full[self._mask] = np.clip(unit, 0.0, 1.0)
         design = self.space.decode(full[None])[0]
@@ -173,11 +181,15 @@ class GradientOptimizer(Optimizer):
         return design
 
     def _unit_gradient(self, gradient: np.ndarray) -> np.ndarray:
+        import numpy as np
+
         width = (self.space.upper - self.space.lower)[self._mask]
         return np.asarray(gradient, dtype=float)[self._mask] * width
 
     # -- ask / tell --------------------------------------------------------------------------
     def _ask(self) -> np.ndarray:
+        import numpy as np
+
         if self.queue:
             design = self.queue[0]
             self.pending = {"kind": "start", "design": design.tolist()}
@@ -186,6 +198,8 @@ class GradientOptimizer(Optimizer):
         return np.asarray(self.pending["design"], dtype=float)[None]
 
     def _proposal(self) -> dict[str, Any]:
+        import numpy as np
+
         step: dict[str, Any] = {
             "kind": "step",
             "from": self.center.tolist(),
@@ -215,6 +229,8 @@ class GradientOptimizer(Optimizer):
         """Halve the step, on the surrogate alone, while it predicts no improvement over the
         centre (a curved surrogate, a step past its minimum): one batch of the candidate
         lengths, the longest that improves, else the shortest."""
+        import numpy as np
+
         lengths = self.radius * 0.5 ** np.arange(self.options["backtracks"] + 1)
         designs = np.stack([self._design(u + length * direction) for length in lengths])
         costs, _ = self.oracle(designs)
@@ -236,6 +252,8 @@ class GradientOptimizer(Optimizer):
     def _model_gradient(self) -> np.ndarray | None:
         """The slope of a linear least-squares fit of the real costs told within twice the
         radius of the centre (unit cube), or None when they do not determine one."""
+        import numpy as np
+
         if not self._history:
             return None
         designs = np.concatenate([d for d, _ in self._history])
@@ -283,6 +301,8 @@ class GradientOptimizer(Optimizer):
         }
 
     def _restore(self, state: dict[str, Any], rounds: list[tuple[np.ndarray, np.ndarray]]) -> None:
+        import numpy as np
+
         center = state["center"]
         self.center = None if center is None else np.asarray(center, dtype=float)
         self.center_cost = float(state["center_cost"])

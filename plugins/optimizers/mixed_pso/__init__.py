@@ -13,14 +13,16 @@ zeroed (absorbing walls).
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
-import numpy as np
 from coadapt_plugins.optimizers._common import SWARM_OPTIONS, finite_costs
 
 from coadapt_core import hookimpl
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.optimizer import Optimizer
+
+if TYPE_CHECKING:  # numpy is imported where it is used: listing the plugins loads none
+    import numpy as np
 
 #: the coadapt plugin API version this plugin is written for (docs/plugins.md#migration)
 COADAPT_PLUGIN_API = "2.0"
@@ -44,6 +46,8 @@ class MixedPSOOptimizer(Optimizer):
     option_specs: ClassVar[tuple] = SWARM_OPTIONS
 
     def __init__(self, space: DesignSpace, **kwargs: Any):
+        import numpy as np
+
         super().__init__(space, **kwargs)
         o = self.options
         self.inertia, self.c1, self.c2, self.max_velocity = (
@@ -71,6 +75,8 @@ class MixedPSOOptimizer(Optimizer):
         return self.space.decode(self.x)
 
     def _move(self) -> None:
+        import numpy as np
+
         n, d = self.x.shape
         r1, r2 = self._rng.uniform(size=(n, d)), self._rng.uniform(size=(n, d))
         self.v = (
@@ -85,6 +91,8 @@ class MixedPSOOptimizer(Optimizer):
         self.x = np.clip(x, 0.0, 1.0)
 
     def _tell(self, designs: np.ndarray, costs: np.ndarray) -> None:
+        import numpy as np
+
         costs = finite_costs(costs)  # [n]
         improved = costs < self.p_cost
         self.p_best[improved] = self.x[improved]
@@ -114,6 +122,8 @@ class MixedPSOOptimizer(Optimizer):
         return state
 
     def _restore(self, state: dict[str, Any], rounds: list) -> None:
+        import numpy as np
+
         swarm = state["swarm"]
         n, d = self.x.shape
         arrays = {

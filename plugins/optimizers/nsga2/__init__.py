@@ -3,15 +3,17 @@ weighted composite, searched directly. `pareto_front()` gives the non-dominated 
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
-import numpy as np
 from coadapt_plugins.optimizers._common import finite_costs
 
 from coadapt_core import hookimpl
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.optimizer import Optimizer
 from coadapt_core.pareto import pareto_front
+
+if TYPE_CHECKING:  # numpy is imported where it is used: listing the plugins loads none
+    import numpy as np
 
 #: the coadapt plugin API version this plugin is written for (docs/plugins.md#migration)
 COADAPT_PLUGIN_API = "2.0"
@@ -33,6 +35,8 @@ class NSGA2Optimizer(Optimizer):
     multi_objective: ClassVar[bool] = True
 
     def __init__(self, space: DesignSpace, **kwargs: Any):
+        import numpy as np
+
         super().__init__(space, **kwargs)
         from pymoo.algorithms.moo.nsga2 import NSGA2
         from pymoo.core.problem import Problem
@@ -69,12 +73,16 @@ class NSGA2Optimizer(Optimizer):
         self._costs.append(costs.copy())
 
     def pareto_front(self) -> tuple[np.ndarray, np.ndarray]:
+        import numpy as np
+
         if not self._costs:
             return np.zeros((0, self.space.dim)), np.zeros((0, self.num_objectives))
         return pareto_front(np.concatenate(self._designs), np.concatenate(self._costs))
 
     def best(self) -> tuple[np.ndarray | None, float]:
         """The front's best design for the first objective (a single number for progress)."""
+        import numpy as np
+
         designs, costs = self.pareto_front()
         if len(costs) == 0:
             return None, float("inf")

@@ -3,14 +3,16 @@ batch-evaluated through ask/tell, searching the unit-cube encoding of the design
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
-import numpy as np
 from coadapt_plugins.optimizers._common import SWARM_OPTIONS, finite_costs
 
 from coadapt_core import hookimpl
 from coadapt_core.design_space import DesignSpace
 from coadapt_core.optimizer import Optimizer
+
+if TYPE_CHECKING:  # numpy is imported where it is used: listing the plugins loads none
+    import numpy as np
 
 #: the coadapt plugin API version this plugin is written for (docs/plugins.md#migration)
 COADAPT_PLUGIN_API = "2.0"
@@ -35,6 +37,8 @@ class PSOOptimizer(Optimizer):
     option_specs: ClassVar[tuple] = SWARM_OPTIONS
 
     def __init__(self, space: DesignSpace, **kwargs: Any):
+        import numpy as np
+
         super().__init__(space, **kwargs)
         o = self.options
         self.inertia, self.c1, self.c2 = o["inertia"], o["c1"], o["c2"]

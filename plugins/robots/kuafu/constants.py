@@ -6,8 +6,12 @@ assumption of ours unless its comment cites the paper; the README explains each 
 from __future__ import annotations
 
 import math
+from typing import Any
 
-import numpy as np
+#: the 3-vectors of the geometry below, by name: numpy arrays made on first use (`__getattr__`),
+#: so that importing these facts (the robot's class does, `coadapt plugins` lists it) loads no
+#: numpy
+_VECTORS: dict[str, tuple[float, ...]] = {}
 
 # -- paper section 4.1.1 ----------------------------------------------------------------
 NOMINAL_MASS = 42.0  # kg
@@ -64,7 +68,7 @@ ARMATURE = ROTOR_INERTIA * GEAR_RATIO**2  # 0.0182 kg m^2
 JOINT_DAMPING = 0.1  # N m s / rad, assumption
 
 # -- geometry (x forward, y left, z up; base origin at the pelvis centre) ----------------
-HIP_OFFSET = np.array([0.0, 0.10, -0.10])  # hip joint centre of the left leg in the base frame
+_VECTORS["HIP_OFFSET"] = (0.0, 0.10, -0.10)  # hip joint centre of the left leg in the base frame
 #: hip roll and hip pitch axes intersect at the hip joint centre (a 2-DoF hip)
 ANKLE_HEIGHT = 0.07  # m, ankle joint centre above the sole
 FOOT_LENGTH = 0.22  # m
@@ -78,22 +82,22 @@ STANCE_EXTENSION = 0.94
 
 # -- upper body: the trunk (pelvis + torso + head) is one rigid body, `base` -------------
 PELVIS_MASS = 4.0  # kg, box 0.16 x 0.30 x 0.12 m around the base origin
-PELVIS_SIZE = np.array([0.16, 0.30, 0.12])
-PELVIS_CENTRE = np.array([0.0, 0.0, -0.03])
-TORSO_SIZE = np.array([0.20, 0.32, 0.40])  # box; battery, computer, wiring inside
-TORSO_CENTRE = np.array([0.0, 0.0, 0.28])
+_VECTORS["PELVIS_SIZE"] = (0.16, 0.30, 0.12)
+_VECTORS["PELVIS_CENTRE"] = (0.0, 0.0, -0.03)
+_VECTORS["TORSO_SIZE"] = (0.20, 0.32, 0.40)  # box; battery, computer, wiring inside
+_VECTORS["TORSO_CENTRE"] = (0.0, 0.0, 0.28)
 HEAD_MASS = 1.5  # kg, sphere
 HEAD_RADIUS = 0.11
 HIP_ROLL_BRACKET_MASS = 0.5  # kg, the hip clevis carrying the hip-pitch actuator
 #: hip-roll actuator housings sit in the pelvis, behind the hip on the roll axis
-HIP_ROLL_ACTUATOR_OFFSET = np.array([-0.07, 0.0, 0.0])
+_VECTORS["HIP_ROLL_ACTUATOR_OFFSET"] = (-0.07, 0.0, 0.0)
 
 # Arms: two shoulder joints, fixed during optimization (paper 4.1.1), modelled as fixed
 # joints; each arm a 1.25 kg capsule hanging straight down from the shoulder.
 ARM_MASS = 1.25
 ARM_LENGTH = 0.50
 ARM_RADIUS = 0.04
-SHOULDER_OFFSET = np.array([0.0, 0.20, 0.44])  # left shoulder in the base frame
+_VECTORS["SHOULDER_OFFSET"] = (0.0, 0.20, 0.44)  # left shoulder in the base frame
 
 FOOT_MASS = 0.9  # kg, aluminium sole plate + rubber + ankle bearing
 
@@ -118,3 +122,13 @@ NOMINAL_KD = {"hip_roll": 12.0, "hip_pitch": 12.0, "knee": 10.0, "ankle": 2.0}  
 
 # -- numerical physics options ------------------------------------------------------------
 TIMESTEP = 0.005  # s
+
+
+def __getattr__(name: str) -> Any:
+    """A vector of `_VECTORS` as a numpy array (one array per name, made once)."""
+    if name not in _VECTORS:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    import numpy as np
+
+    globals()[name] = value = np.array(_VECTORS[name])
+    return value

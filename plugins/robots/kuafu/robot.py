@@ -5,15 +5,14 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, ClassVar
 
-import numpy as np
 from coadapt_plugins.robots.kuafu import constants as C
-from coadapt_plugins.robots.kuafu.generator import build_cached
 
 from coadapt_core.design_space import Continuous, DesignSpace, Discrete
 from coadapt_core.errors import DesignError
 from coadapt_core.robot import Robot, RobotModel, ValidationReport
 
 if TYPE_CHECKING:
+    import numpy as np
     import torch
 
 #: designs closer than this are the same model (cache key rounding)
@@ -43,6 +42,8 @@ class Kuafu(Robot):
         return DesignSpace(_CONTINUOUS + _DISCRETE if mixed else _CONTINUOUS)
 
     def nominal_design(self, mixed: bool = False) -> np.ndarray:
+        import numpy as np
+
         nominal = [1.0, 1.0] + ([float(C.NOMINAL_MOTOR_TYPE)] * 2 if mixed else [])
         return np.array(nominal)
 
@@ -50,6 +51,8 @@ class Kuafu(Robot):
         """The design as a validated float vector; `DesignError` naming the variable and
         what is accepted otherwise. 2 values: (thigh_scale, shank_scale) with motor types
         (1, 1); 4 values: (thigh_scale, shank_scale, hip_motor, knee_motor)."""
+        import numpy as np
+
         values = np.atleast_1d(np.asarray(design, dtype=float))
         if values.ndim != 1 or values.shape[0] not in (2, 4):
             raise DesignError(
@@ -60,6 +63,9 @@ class Kuafu(Robot):
         return self.design_space(values.shape[0] == 4).validate(values)
 
     def build(self, design: np.ndarray) -> RobotModel:
+        import numpy as np
+        from coadapt_plugins.robots.kuafu.generator import build_cached
+
         values = self.check_design(design)
         if values.shape[0] == 4:
             values[2:] = np.round(values[2:])

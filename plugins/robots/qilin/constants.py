@@ -11,8 +11,11 @@ assumption of ours and says so (README.md lists them all).
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
-import numpy as np
+if TYPE_CHECKING:  # numpy is imported where it is used: listing the plugins loads none
+    import numpy as np
+
 
 # -- body ----------------------------------------------------------------------------------
 #: Go1 trunk mass, kg
@@ -75,6 +78,8 @@ def side(leg: str) -> float:
 
 def hip_centre(leg: str) -> np.ndarray:
     """The abduction joint's centre in the base frame, m."""
+    import numpy as np
+
     return np.array([HIP_X if leg[0] == "F" else -HIP_X, side(leg) * HIP_Y, 0.0])
 
 

@@ -5,15 +5,14 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, ClassVar
 
-import numpy as np
 from coadapt_plugins.robots.qilin import constants as C
-from coadapt_plugins.robots.qilin.generator import build_cached
 
 from coadapt_core.design_space import Continuous, DesignSpace, Discrete
 from coadapt_core.errors import DesignError
 from coadapt_core.robot import Leg, Robot, RobotModel, ValidationReport
 
 if TYPE_CHECKING:
+    import numpy as np
     import torch
 
 #: designs closer than this are the same model (cache key rounding)
@@ -44,6 +43,8 @@ class Qilin(Robot):
         return DesignSpace(_CONTINUOUS + _DISCRETE if mixed else _CONTINUOUS)
 
     def nominal_design(self, mixed: bool = False) -> np.ndarray:
+        import numpy as np
+
         motors = [float(C.NOMINAL_HIP_MOTOR), float(C.NOMINAL_KNEE_MOTOR)] if mixed else []
         return np.array([1.0, 1.0, *motors])
 
@@ -52,6 +53,8 @@ class Qilin(Robot):
 
     def check_design(self, design: np.ndarray) -> np.ndarray:
         """The design as a validated float vector; `DesignError` naming what is accepted."""
+        import numpy as np
+
         values = np.atleast_1d(np.asarray(design, dtype=float))
         if values.ndim != 1 or values.shape[0] not in (2, 4):
             raise DesignError(
@@ -62,6 +65,9 @@ class Qilin(Robot):
         return self.design_space(values.shape[0] == 4).validate(values)
 
     def build(self, design: np.ndarray) -> RobotModel:
+        import numpy as np
+        from coadapt_plugins.robots.qilin.generator import build_cached
+
         values = self.check_design(design)
         if values.shape[0] == 4:
             values[2:] = np.round(values[2:])

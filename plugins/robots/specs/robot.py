@@ -12,7 +12,6 @@ from functools import cached_property, lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
 
-import numpy as np
 from coadapt_plugins.robots.specs.spec import DESIGN_DECIMALS, RobotSpec, read_spec
 
 from coadapt_core.design_space import Continuous, DesignSpace, Discrete
@@ -20,6 +19,7 @@ from coadapt_core.errors import DesignError
 from coadapt_core.robot import Leg, Mirror, Robot, RobotModel, ValidationReport
 
 if TYPE_CHECKING:
+    import numpy as np
     import torch
 
 
@@ -55,12 +55,16 @@ class SpecRobot(Robot):
         return DesignSpace(variables)
 
     def nominal_design(self, mixed: bool = False) -> np.ndarray:
+        import numpy as np
+
         values = [p.nominal for p in self.spec.parameters]
         if mixed:
             values += [float(m.nominal) for m in self.spec.motor_parameters]
         return np.array(values, dtype=float)
 
     def check_design(self, design: np.ndarray) -> np.ndarray:
+        import numpy as np
+
         values = np.atleast_1d(np.asarray(design, dtype=float))
         plain, mixed = self.design_space(False), self.design_space(True)
         if values.ndim != 1 or values.shape[0] not in (plain.dim, mixed.dim):
@@ -76,11 +80,15 @@ class SpecRobot(Robot):
 
     # -- models -----------------------------------------------------------------------------
     def build(self, design: np.ndarray) -> RobotModel:
+        import numpy as np
+
         values = self.check_design(design)
         return self._cached(tuple(float(x) for x in np.round(values, DESIGN_DECIMALS)))
 
     @lru_cache(maxsize=1024)  # noqa: B019 - one cache per robot instance is what we want
     def _cached(self, key: tuple[float, ...]) -> RobotModel:
+        import numpy as np
+
         return self._built.model(np.array(key))
 
     def validate(self, design: np.ndarray) -> ValidationReport:

@@ -12,9 +12,8 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
 from coadapt_plugins.robots.specs.fields import (
     _assets,
     _collision,
@@ -32,6 +31,9 @@ from coadapt_plugins.robots.specs.fields import (
 )
 
 from coadapt_core.errors import UserError
+
+if TYPE_CHECKING:  # numpy is imported where it is used: listing the plugins loads none
+    import numpy as np
 
 #: designs closer than this are the same model (cache key rounding), as for every robot
 DESIGN_DECIMALS = 6
@@ -383,6 +385,8 @@ def joint_values(patterns: dict[str, Any], joints: list[str], what: str) -> list
 
 
 def readonly(values: Any) -> np.ndarray:
+    import numpy as np
+
     a = np.array(values, dtype=float)
     a.setflags(write=False)
     return a

@@ -15,14 +15,13 @@ from collections import OrderedDict
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from coadapt_core.errors import UserError
 from coadapt_core.physics.terrain import Terrain, make_terrain
 from coadapt_core.robot import Robot, RobotModel
 
 if TYPE_CHECKING:
     import mujoco
+    import numpy as np
 
 #: name prefix of everything this module adds, so it never clashes with a robot's names
 PREFIX = "coadapt_"
@@ -58,6 +57,8 @@ class CompiledDesign:
 
 def terrain_normal(terrain: Terrain) -> np.ndarray:
     """[3] upward unit normal of the terrain's mean plane."""
+    import numpy as np
+
     a = terrain.slope_radians
     return np.array([-math.sin(a), 0.0, math.cos(a)])
 
@@ -141,6 +142,7 @@ def compile_design(
     robot_model: RobotModel | None = None,
 ) -> CompiledDesign:
     import mujoco
+    import numpy as np
 
     rm = robot_model if robot_model is not None else robot.build(design)
     spec = compose_spec(rm, terrain, physics_dt=physics_dt, fixed_base=fixed_base)
@@ -226,6 +228,8 @@ class ModelCache:
     ) -> CompiledDesign:
         # the robot's class as well as its name: a subclass (a test's planted fault, a
         # variant) named like its parent builds other models and must not read the parent's
+        import numpy as np
+
         key = (
             type(robot),
             robot.name,

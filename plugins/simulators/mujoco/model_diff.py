@@ -5,10 +5,14 @@ cannot share the batch and is refused. MuJoCo is imported when fields are compar
 
 from __future__ import annotations
 
-import numpy as np
+from typing import TYPE_CHECKING
+
 from coadapt_plugins.simulators.mujoco.compose import CompiledDesign
 
 from coadapt_core.errors import UserError
+
+if TYPE_CHECKING:  # numpy is imported where it is used: listing the plugins loads none
+    pass
 
 #: model fields never expanded per design (MuJoCo options, shared by the whole batch)
 SKIP_PREFIX = ("opt.",)
@@ -18,6 +22,7 @@ def _same_collision_meshes(ref, other, design: list) -> None:
     """Mesh assets are the batch's, shared by every row: a design whose collision meshes
     differ in shape (a stretched link's) cannot share it. Visual meshes may differ."""
     import mujoco
+    import numpy as np
 
     for g in range(ref.ngeom):
         if ref.geom_type[g] != mujoco.mjtGeom.mjGEOM_MESH:
@@ -41,6 +46,7 @@ def _same_collision_meshes(ref, other, design: list) -> None:
 def diff_fields(reference: CompiledDesign, item: CompiledDesign) -> list[str]:
     """Model fields in which `item` differs from the batch's `reference` model."""
     import mujoco.batch
+    import numpy as np
 
     ref, other = reference.model, item.model
     design = np.round(item.robot_model.design, 4).tolist()

@@ -7,11 +7,13 @@ are imported when a row is reset, not with the module (docs/architecture.md, "St
 from __future__ import annotations
 
 import functools
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from coadapt_core.physics.randomization import RandomizationConfig
 from coadapt_core.physics.simulator import spawn_base_height
+
+if TYPE_CHECKING:  # numpy is imported where it is used: listing the plugins loads none
+    import numpy as np
 
 #: each environment's MuJoCo clock restarts here at reset, so that MuJoCo resetting a
 #: simulation itself on a bad state (clock back to 0) is always visible
@@ -32,13 +34,15 @@ def bad_state_warnings() -> list[int]:
 #: at contact damping ratio RESTITUTION_DAMPRATIO (docs/simulators.md). Below 0.5 a resting
 #: contact rings in a sustained 50 Hz limit cycle; above 1 MuJoCo softens the contact
 #: (its stiffness scales with 1 / dampratio^2). So the reachable bounce is [0.14, 0.33].
-RESTITUTION_DAMPRATIO = np.array([1.0, 0.8, 0.6, 0.5])
-RESTITUTION_MEASURED = np.array([0.139, 0.191, 0.276, 0.328])
+RESTITUTION_DAMPRATIO = (1.0, 0.8, 0.6, 0.5)
+RESTITUTION_MEASURED = (0.139, 0.191, 0.276, 0.328)
 
 
 def restitution_to_dampratio(restitution: np.ndarray) -> np.ndarray:
     """Contact damping ratio (solref[1]) whose measured bounce is `restitution`, clamped to
     the reachable [0.14, 0.33]: 0 (and anything up to 0.14) is MuJoCo's default 1.0."""
+    import numpy as np
+
     e = np.asarray(restitution, dtype=float)
     return np.interp(e, RESTITUTION_MEASURED, RESTITUTION_DAMPRATIO)
 
@@ -52,6 +56,8 @@ class RowResetMixin:
         `draw=False` (construction) keeps the parameters in force and spawns at the origin,
         consuming no randomness: the first `reset()` makes the first draw, as in every
         backend, so one seed gives one set of parameters everywhere."""
+        import numpy as np
+
         if ids.size == 0:
             return
         import mujoco

@@ -18,11 +18,14 @@ from __future__ import annotations
 import time
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
 from coadapt_plugins.simulators.mujoco.compose import CompiledDesign, ModelCache, terrain_normal
 from coadapt_plugins.simulators.mujoco.model_diff import diff_fields
 from coadapt_plugins.simulators.mujoco.row_reset import RowResetMixin, bad_state_warnings
-from coadapt_plugins.simulators.mujoco.state_read import StateReadMixin
+from coadapt_plugins.simulators.mujoco.state_read import (
+    StateReadMixin,
+    ancestor_dofs,
+    as_slice,
+)
 
 from coadapt_core import threads
 from coadapt_core.errors import UserError
@@ -31,6 +34,7 @@ from coadapt_core.physics.simulator import SimState, Simulator
 if TYPE_CHECKING:
     import mujoco
     import mujoco.batch
+    import numpy as np
     import torch
 
     from coadapt_core.robot import Robot
@@ -77,6 +81,7 @@ class MujocoSimulator(RowResetMixin, StateReadMixin, Simulator):
         """The `Simulator` options (terrain, randomization, physics_dt, decimation, seed,
         device, num_threads, fixed_base),         checked by the base class."""
         import mujoco.batch
+        import numpy as np
         import torch
 
         super().__init__(robot, designs, **options)
@@ -112,6 +117,7 @@ class MujocoSimulator(RowResetMixin, StateReadMixin, Simulator):
         """Zero-copy views of the batch's live state, the rows of the contact sensors and the
         expanded (per-row) model fields."""
         import mujoco
+        import numpy as np
 
         self._qpos = b.bind("qpos")  # [N, nq] live state rows
         self._qvel = b.bind("qvel")  # [N, nv]
@@ -128,7 +134,7 @@ class MujocoSimulator(RowResetMixin, StateReadMixin, Simulator):
         self._foot_root = ref.model.body_rootid[
             ref.foot_body_ids
         ]  # [L] root body of each foot's tree
-        self._foot_dofs = [self._ancestor_dofs(ref.model, body) for body in ref.foot_body_ids]
+        self._foot_dofs = [ancestor_dofs(ref.model, body) for body in ref.foot_body_ids]
         self._sensor_adr = np.array(
             [
                 ref.model.sensor_adr[
@@ -138,9 +144,9 @@ class MujocoSimulator(RowResetMixin, StateReadMixin, Simulator):
             ]
         )
         # contiguous joint blocks read as slices (no gather in the hot loop)
-        self._q_index = self._as_slice(ref.qpos_adr)
-        self._dq_index = self._as_slice(ref.dof_adr)
-        self._act_index = self._as_slice(ref.actuator_ids)
+        self._q_index = as_slice(ref.qpos_adr)
+        self._dq_index = as_slice(ref.dof_adr)
+        self._act_index = as_slice(ref.actuator_ids)
         # the actuation law reads joint state through zero-copy torch views of the live rows
         # (views only when the joints are contiguous; otherwise gathered per physics step)
         self._q_view = self._joint_view(self._qpos, self._q_index)
@@ -163,6 +169,7 @@ class MujocoSimulator(RowResetMixin, StateReadMixin, Simulator):
     def _init_design_arrays(self, n: int, j: int, ref: CompiledDesign) -> None:
         """Per row the design's actuator facts, spawn facts and the model fields that
         randomization starts from (filled by `_write_designs`)."""
+        import numpy as np
         import torch
 
         self._kp = np.zeros((n, j))  # [N, J] row order, as every per-environment array here
@@ -189,6 +196,7 @@ class MujocoSimulator(RowResetMixin, StateReadMixin, Simulator):
         """The delay line, the randomized gain factors, torque buffers and the step's
         bookkeeping. The actuation runs where the physics state lives: on the CPU, in
         float64."""
+        import numpy as np
         import torch
 
         from coadapt_core.physics.actuation import DelayLine
@@ -209,13 +217,6 @@ class MujocoSimulator(RowResetMixin, StateReadMixin, Simulator):
         self.timings = {"physics": 0.0, "actuation": 0.0, "state": 0.0}
         #: set to a list to receive each physics step's ctrl [N, nu] (open-loop replay)
         self.record_controls: list[np.ndarray] | None = None
-
-    @staticmethod
-    def _as_slice(index: np.ndarray) -> slice | np.ndarray:
-        index = np.asarray(index, dtype=int)
-        if index.size and np.array_equal(index, np.arange(index[0], index[0] + index.size)):
-            return slice(int(index[0]), int(index[0] + index.size))
-        return index
 
     @staticmethod
     def _joint_view(live: np.ndarray, index: slice | np.ndarray) -> torch.Tensor | None:
@@ -239,16 +240,6 @@ class MujocoSimulator(RowResetMixin, StateReadMixin, Simulator):
         )
         return q, dq
 
-    @staticmethod
-    def _ancestor_dofs(model: mujoco.MjModel, body: int) -> np.ndarray:
-        """Degrees of freedom that move `body` (its own and its ancestors')."""
-        dofs = []
-        while body > 0:
-            start, count = model.body_dofadr[body], model.body_dofnum[body]
-            dofs.extend(range(start, start + count))
-            body = model.body_parentid[body]
-        return np.array(sorted(dofs), dtype=int)
-
     def _compile(self, design: np.ndarray) -> CompiledDesign:
         return _CACHE.get(
             self.robot,
@@ -271,6 +262,8 @@ class MujocoSimulator(RowResetMixin, StateReadMixin, Simulator):
 
     def _write_designs(self, rows: np.ndarray, compiled: list[CompiledDesign]) -> None:
         """Copy each design's model fields and actuator facts into its batch rows."""
+        import numpy as np
+
         groups: dict[int, tuple[CompiledDesign, list[int]]] = {}
         for row, item in zip(rows, compiled, strict=True):
             groups.setdefault(id(item), (item, []))[1].append(int(row))
@@ -355,6 +348,7 @@ class MujocoSimulator(RowResetMixin, StateReadMixin, Simulator):
 
     def step(self, joint_targets: torch.Tensor) -> SimState:
         import mujoco.batch
+        import numpy as np
         import torch
 
         from coadapt_core.physics.actuation import bind_speed, pd_torque

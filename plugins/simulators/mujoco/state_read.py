@@ -1,18 +1,20 @@
 """The state of the MuJoCo batch as a `SimState` in environment order: base pose and
 velocities from the free joint, joint state, the last policy step's torque, foot positions
 (moved to the current state to first order) and foot contacts from the contact sensors.
-`StateReadMixin` is that part of `MujocoSimulator`."""
+`StateReadMixin` is that part of `MujocoSimulator`; `as_slice` and `ancestor_dofs` index the
+batch's arrays."""
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import numpy as np
 from coadapt_plugins.simulators.mujoco.compose import CONTACT_SENSOR_DIM
 
 from coadapt_core.physics.simulator import SimState, quat_rotate
 
 if TYPE_CHECKING:
+    import mujoco
+    import numpy as np
     import torch
 
 
@@ -20,6 +22,7 @@ class StateReadMixin:
     """The state side of `MujocoSimulator` (its bound arrays, rows and reference model)."""
 
     def _build_state(self) -> SimState:
+        import numpy as np
         import torch
 
         n = self._n
@@ -73,6 +76,8 @@ class StateReadMixin:
         under the new joint velocities (MuJoCo's Euler step moves positions with the new
         velocities), which is exact to first order, impacts included (tests check < 2 mm).
         """
+        import numpy as np
+
         qvel = self._qvel
         out = np.empty((self._n, len(self._foot_dofs), 3))
         for leg, (body, dofs) in enumerate(
@@ -83,3 +88,26 @@ class StateReadMixin:
             lever = pos - self._subtree_com[:, self._foot_root[leg]]
             out[:, leg] = pos + self.physics_dt * (twist[:, 3:] + np.cross(twist[:, :3], lever))
         return out
+
+
+def as_slice(index: np.ndarray) -> slice | np.ndarray:
+    """`index` as a slice when its entries are consecutive (a view, not a copy, of the rows'
+    columns), else as an integer array."""
+    import numpy as np
+
+    index = np.asarray(index, dtype=int)
+    if index.size and np.array_equal(index, np.arange(index[0], index[0] + index.size)):
+        return slice(int(index[0]), int(index[0] + index.size))
+    return index
+
+
+def ancestor_dofs(model: mujoco.MjModel, body: int) -> np.ndarray:
+    """Degrees of freedom that move `body` (its own and its ancestors')."""
+    import numpy as np
+
+    dofs = []
+    while body > 0:
+        start, count = model.body_dofadr[body], model.body_dofnum[body]
+        dofs.extend(range(start, start + count))
+        body = model.body_parentid[body]
+    return np.array(sorted(dofs), dtype=int)

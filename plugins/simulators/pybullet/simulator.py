@@ -13,13 +13,12 @@ import contextlib
 import importlib.util
 from typing import TYPE_CHECKING, Any, ClassVar
 
-import numpy as np
-
 from coadapt_core import threads
 from coadapt_core.errors import DesignError, UserError
 from coadapt_core.physics.simulator import SimState, Simulator
 
 if TYPE_CHECKING:
+    import numpy as np
     import torch
     from coadapt_plugins.simulators.pybullet.spec import EnvSpec
 
@@ -82,6 +81,8 @@ class PyBulletSimulator(Simulator):
         predicted from Bullet's mass matrix over every generalized velocity, the floating
         base's included), "link_inertia" (added to the child link's inertia) or "none"; see
         docs/sim-to-sim.md."""
+        import numpy as np
+
         require_pybullet()
         super().__init__(robot, designs, **options)
         if armature not in ARMATURE_MODES:
@@ -127,6 +128,7 @@ class PyBulletSimulator(Simulator):
         # parameters and spawn points on MuJoCo and PyBullet
 
     def _spec(self, design: np.ndarray) -> EnvSpec:
+        import numpy as np
         from coadapt_plugins.simulators.pybullet.spec import EnvSpec
 
         key = tuple(float(x) for x in design)
@@ -149,6 +151,8 @@ class PyBulletSimulator(Simulator):
     # -- plumbing to the engines ---------------------------------------------------------
     def _split(self, env_ids: np.ndarray) -> dict[int, tuple[np.ndarray, np.ndarray]]:
         """{worker: (positions in env_ids, local indices in that worker's slice)}."""
+        import numpy as np
+
         out = {}
         for w, ids in enumerate(self._slices):
             mask = np.isin(env_ids, ids)
@@ -157,6 +161,8 @@ class PyBulletSimulator(Simulator):
         return out
 
     def _gather(self, parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+        import numpy as np
+
         return {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
 
     def _engine_params(self, env_ids: np.ndarray, spawn_xy: np.ndarray) -> dict[str, np.ndarray]:
@@ -172,6 +178,7 @@ class PyBulletSimulator(Simulator):
         }
 
     def _to_state(self, raw: dict[str, np.ndarray]) -> SimState:
+        import numpy as np
         import torch
 
         def t(x: np.ndarray, dtype=torch.float32) -> torch.Tensor:
@@ -234,6 +241,8 @@ class PyBulletSimulator(Simulator):
             self._pool.call("set_binding", [(binding,)] * len(self._slices))
 
     def step(self, joint_targets: torch.Tensor) -> SimState:
+        import numpy as np
+
         if hasattr(joint_targets, "detach"):
             joint_targets = joint_targets.detach().cpu().numpy()
         targets = np.asarray(joint_targets, dtype=float)  # [N, J]
@@ -256,6 +265,8 @@ class PyBulletSimulator(Simulator):
         return self._to_state(raw)
 
     def set_designs(self, env_ids: torch.Tensor | np.ndarray, designs: np.ndarray) -> None:
+        import numpy as np
+
         ids, designs = self.parse_new_designs(env_ids, designs)
         specs = [self._spec(d) for d in designs]  # validates every design before touching any env
         if specs and len(specs[0].joint_names) != self._num_joints:
