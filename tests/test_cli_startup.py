@@ -129,14 +129,46 @@ def test_top_level_help_and_an_unknown_command_load_no_command_module():
     assert done.stdout.strip().splitlines()[-1] == "[]"
 
 
-def test_plugins_and_a_mistyped_plugin_name_load_neither_torch_nor_the_run_settings():
-    """`coadapt plugins` imports the plugins (and the numpy their modules import), not torch
-    nor `coadapt run`'s settings; a refusal of `coadapt run` reads its settings but no torch."""
-    listed = _loaded("plugins")
-    assert listed["code"] == 0 and "coadapt_plugins" in listed["loaded"]
-    assert not {"torch", *RUN_SETTINGS} & set(listed["loaded"]), listed["loaded"]
-    refused = _loaded("run", "--sim", "mujocoo")
-    assert refused["code"] == 2 and "torch" not in refused["loaded"]
+#: command lines answered from the command line and the installed plugins alone (issue 61):
+#: listing the plugins, `coadapt run --help`, a refused value of `coadapt run` (a plugin name,
+#: the preset, --verify-budget) and of `coadapt robot show` (an unknown robot, a --design that
+#: is no numbers). They may load the plugin modules (the registry lists them), never numpy,
+#: torch nor pydantic's models of `coadapt run`'s settings: those load when a run goes.
+LIGHT = [
+    (["plugins"], 0),
+    (["plugins", "--json"], 0),
+    (["run", "--help"], 0),
+    (["run", "--optimizer", "nope"], 2),
+    (["run", "--sim", "mujocoo"], 2),
+    (["run", "--objective", "power,torq"], 2),
+    (["run", "--robot", "kuafuu"], 2),
+    (["run", "--preset", "smok"], 2),
+    (["run", "--verify-budget", "0"], 2),
+    (["run", "--threads", "0"], 2),
+    (["robot", "--help"], 0),
+    (["robot", "show", "--help"], 0),
+    (["robot", "show", "nope"], 2),
+    (["robot", "show", "kuafu", "--design", "abc"], 2),
+]
+
+
+@pytest.mark.parametrize(("args", "code"), LIGHT)
+def test_plugins_run_help_and_refusals_load_neither_numpy_nor_the_run_settings_nor_torch(
+    args, code
+):
+    result = _loaded(*args)
+    assert result["code"] == code, result["err"]
+    assert not {"numpy", "torch", *RUN_SETTINGS} & set(result["loaded"]), result["loaded"]
+    if code == 2:
+        assert len(result["err"].strip().splitlines()) == 1, result["err"]
+
+
+def test_the_plugins_listed_and_a_refusal_load_the_plugins_themselves():
+    """The light answers above still read the installed plugins: `coadapt plugins` imports
+    every plugin's module (the check would pass vacuously if the registry stayed unloaded)."""
+    assert "coadapt_plugins" in _loaded("plugins")["loaded"]
+    refused = _loaded("run", "--optimizer", "nope")
+    assert "coadapt_plugins" in refused["loaded"] and "unknown optimizer" in refused["err"]
 
 
 @pytest.mark.parametrize("name", list(__import__("coadapt_core.cli").cli.COMMANDS))

@@ -67,6 +67,10 @@ EXEMPT: dict[tuple[str, str], str] = {
         "bo",
     ): "bo_designs, the bo-specialized method's setting (see methods.py)",
     (
+        "coadapt_core/coadapt/presets.py",
+        "bo",
+    ): "bo_designs per preset, the presets moved out of config.py (see config.py)",
+    (
         "coadapt_core/task/commands.py",
         "tracking",
     ): "the curriculum's velocity-tracking sum, a word of the task",

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import re
 import typing
+from collections.abc import Callable
 from typing import Any
 
 import typer
@@ -70,14 +71,8 @@ def leaf_default(leaf: Leaf) -> str | None:
     if hand is not None:
         return hand
     if leaf.extra.get("plugin"):  # declared by the plugins themselves (`default_rank`)
-        rule = f"the installed {leaf.extra['plugin']} of highest default_rank"
-        try:
-            value = leaf.default
-        except Exception:  # the registry cannot be built: the command reports why
-            return rule
-        if value is None:  # unset: the ranked one; a list left unset names none
-            return None if typing.get_origin(leaf.annotation) is list else rule
-        return f"{value}, {rule}"
+        many = typing.get_origin(leaf.annotation) is list
+        return plugin_default(leaf.extra["plugin"], lambda: leaf.default, many)
     if leaf.extra.get("unset"):
         return f"{leaf.extra['unset']}, else {show_default(leaf.extra['base_default'])}"
     try:
@@ -87,16 +82,32 @@ def leaf_default(leaf: Leaf) -> str | None:
     return None if value in ("", None) or value == {} else show_default(value)
 
 
+def plugin_default(kind: str, default: Callable[[], Any], many: bool = False) -> str | None:
+    """The shown default of a setting that names a plugin of `kind`: the rule and the plugin
+    it picks now (`default()`, the setting's default value); `many`: a list, which names none
+    when left unset."""
+    rule = f"the installed {kind} of highest default_rank"
+    try:
+        value = default()
+    except Exception:  # the registry cannot be built: the command reports why
+        return rule
+    if value is None:  # unset: the ranked one; a list left unset names none
+        return None if many else rule
+    return f"{value}, {rule}"
+
+
 def config_default(leaf: Leaf, presets: dict[str, Any] | None = None) -> str | None:
     """The default of a `coadapt run` option that is a config setting (or a plugin option's
     alias): the value, or the value per preset when the presets differ; for a plugin or a
     learner setting, `leaf_default`'s. `presets`: `preset_defaults()`, when already read."""
-    from coadapt_core.coadapt.config import preset_defaults
-
     hand = _hand_default(leaf)
     if hand is not None:
         return hand
-    found = (preset_defaults() if presets is None else presets).get(leaf.param)
+    if presets is None:
+        from coadapt_core.coadapt.config import preset_defaults
+
+        presets = preset_defaults()
+    found = presets.get(leaf.param)
     if found is None:  # the preset itself, and names that are no config setting
         return leaf_default(leaf) if leaf.key == "preset" else None
     leaf, values = found
@@ -143,9 +154,22 @@ def option_help(leaf: Leaf, presets: dict[str, Any] | None = None) -> str:
     `resolved` renders when the option's help is first read (`plain_help`)."""
     if not _names_plugins(leaf, presets):
         return _option_help(leaf, presets)
+    return deferred(lambda: _option_help(leaf, presets))
+
+
+def deferred(render: Callable[[], str]) -> str:
+    """A placeholder help text that `resolved` renders (`render()`) when first read."""
     mark = f"{_DEFERRED_MARK}{len(_DEFERRED)}"
-    _DEFERRED[mark] = lambda: _option_help(leaf, presets)
+    _DEFERRED[mark] = render
     return mark
+
+
+def plugin_help(meaning: str, kind: str, default: str | None) -> str:
+    """The help of a setting naming a plugin of `kind`: its meaning, the installed plugins
+    of that kind and its shown `default`."""
+    names = choices(kind)
+    text = f"{meaning} One of: {', '.join(names)}." if names else meaning
+    return f"{text} [default: {default}]" if default else text
 
 
 def resolved(text: Any) -> Any:
@@ -182,9 +206,8 @@ def _lazy_help(param: Any) -> None:
 def _option_help(leaf: Leaf, presets: dict[str, Any] | None = None) -> str:
     text = meaning(leaf)
     if leaf.extra.get("plugin"):
-        names = choices(leaf.extra["plugin"])
-        text = f"{text} One of: {', '.join(names)}." if names else text
-    elif leaf.kind == "choice":
+        return plugin_help(text, leaf.extra["plugin"], shown_default(leaf, presets))
+    if leaf.kind == "choice":
         text = f"{text} One of: {', '.join(map(str, leaf.choices or ()))}."
     elif leaf.kind in ("range", "ints", "weights"):
         text = f"{text} ({leaf.accepted()})"

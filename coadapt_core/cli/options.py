@@ -147,16 +147,21 @@ class LateSignature:
 
 
 def options_of(
-    cls: type, *, aliases: Mapping[str, tuple[str, ...]] | None = None, per_preset: bool = False
+    cls: type,
+    *,
+    aliases: Mapping[str, tuple[str, ...]] | None = None,
+    per_preset: bool = False,
+    presets: dict[str, Any] | None = None,
 ) -> OptionGroup:
     """One `CommandOption` per command-line setting of the settings tree `cls` (nested
     sections expanded: `--task-commands-yaw-range`), its help rendered by
     `coadapt_core.cli.help.option_help`. `aliases` adds option names by key; `per_preset`:
-    the settings of `coadapt run`'s config, whose shown default is the preset's."""
+    the settings of `coadapt run`'s config, whose shown default is the preset's (`presets`:
+    `preset_defaults()` when already read; {} for settings no preset sets, which then show
+    the default a preset would, none, without reading the config)."""
     from coadapt_core.settings import leaves
 
-    presets = None
-    if per_preset:
+    if per_preset and presets is None:
         from coadapt_core.coadapt.config import preset_defaults
 
         presets = preset_defaults()
@@ -164,25 +169,35 @@ def options_of(
     for leaf in leaves(cls):
         if not leaf.extra.get("cli", True):
             continue
-        default = ... if leaf.required else None
-        text = option_help(leaf, presets)
-        metavar, names = (
-            leaf.extra.get("argument"),
-            option_names(leaf, tuple((aliases or {}).get(leaf.key, ()))),
+        names = option_names(leaf, tuple((aliases or {}).get(leaf.key, ())))
+        parameter = typer_parameter(
+            ... if leaf.required else None,
+            names,
+            option_help(leaf, presets),
+            metavar=leaf.extra.get("argument"),
+            hidden=bool(leaf.extra.get("hidden")),
+            callback=leaf.extra.get("callback"),
         )
-        if metavar:
-            parameter = typer.Argument(default, metavar=metavar, help=text, show_default=False)
-        else:
-            parameter = typer.Option(
-                default,
-                *names,
-                help=text,
-                hidden=bool(leaf.extra.get("hidden")),
-                callback=leaf.extra.get("callback"),
-                is_eager=leaf.extra.get("callback") is not None,
-            )
         out.append(CommandOption(leaf.param, _kind(leaf), parameter, leaf, names))
     return OptionGroup(cls, out)
+
+
+def typer_parameter(
+    default: Any,
+    names: tuple[str, ...],
+    text: str,
+    *,
+    metavar: str | None = None,
+    hidden: bool = False,
+    callback: Callable[..., Any] | None = None,
+) -> Any:
+    """The typer parameter of one setting: an option of `names`, or the positional argument
+    `metavar`; its help `text` (`coadapt_core.cli.help.option_help`)."""
+    if metavar:
+        return typer.Argument(default, metavar=metavar, help=text, show_default=False)
+    return typer.Option(
+        default, *names, help=text, hidden=hidden, callback=callback, is_eager=callback is not None
+    )
 
 
 @dataclass(frozen=True)

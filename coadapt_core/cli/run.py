@@ -211,13 +211,13 @@ def alias_settings_class() -> type:
     (`PluginOption.alias`), as a settings class: `--<alias>` sets that plugin option."""
     import dataclasses
 
-    from coadapt_core.coadapt.config import CoadaptConfig
+    from coadapt_core.cli.run_options import stored
     from coadapt_core.coadapt.config_aliases import option_aliases
-    from coadapt_core.settings import leaves
 
-    taken = {leaf.param for leaf in leaves(CoadaptConfig)} | set(RunCommand.__pydantic_fields__)
+    table = stored()  # the config's names, without the config (`coadapt run --help` reads them)
+    taken = set(table["params"]) | set(RunCommand.__pydantic_fields__)
     specs = []
-    for key, alias in option_aliases().items():
+    for key, alias in option_aliases(table["settings"]).items():
         if key in taken:
             continue
         spec, kind = alias.option, alias.field.removesuffix("_options")
@@ -240,11 +240,12 @@ def alias_settings_class() -> type:
 
 
 def config_options() -> OptionGroup:
-    """The options of every config setting on the command line (their defaults: the preset's)."""
-    from coadapt_core.coadapt.config import CoadaptConfig
-    from coadapt_core.coadapt.config_aliases import OPTION_ALIASES
+    """The options of every config setting on the command line (their defaults: the preset's),
+    from the table stored from the config's declaration (`coadapt_core.cli.run_options`): the
+    command is made, and refuses a bad option, without loading the config's classes."""
+    from coadapt_core.cli.run_options import config_options as stored_options
 
-    return options_of(CoadaptConfig, aliases=OPTION_ALIASES, per_preset=True)
+    return stored_options()
 
 
 def _resume_folder(resume: str, out: str | None) -> Path:
@@ -377,7 +378,7 @@ def register(app: typer.Typer) -> None:
     # hold one (an option that is no other of its options) or asks for its help
     known = {n for group in (settings, own) for o in group for x in o.names for n in x.split("/")}
     aliases = LateGroup(
-        lambda: options_of(alias_settings_class(), per_preset=True),
+        lambda: options_of(alias_settings_class(), per_preset=True, presets={}),
         lambda argv: any(
             w.split("=")[0] not in known or w in ("--help", "--help-all")
             for w in argv
@@ -389,7 +390,7 @@ def register(app: typer.Typer) -> None:
         """Co-adapt design and policy: universal policy + pseudo-critics, optimizer with hybrid
         real/surrogate fitness, range narrowing (paper Algorithm 4)."""
         values = filled(values, own)
-        from coadapt_core.coadapt.config_loading import check_preset
+        from coadapt_core.coadapt.presets import check_preset
 
         try:  # a typo is refused before torch and the plugins load
             check_preset(values["preset"])

@@ -4,9 +4,9 @@ that now set one option of a plugin, as the plugins declare them (`option_aliase
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass
 
-from coadapt_core.coadapt.config import FIELD_NAMES
 from coadapt_core.options import PluginOption
 
 #: the plugin kind whose declared options each plugin-option mapping of the config holds
@@ -30,11 +30,18 @@ class OptionAlias:
     plugins: tuple[str, ...]  # the installed plugins declaring it
 
 
-def option_aliases() -> dict[str, OptionAlias]:
+def option_aliases(settings: Collection[str] | None = None) -> dict[str, OptionAlias]:
     """Every alias the installed optimizer and objective plugins declare for their options,
     by key (none when the registry cannot be built; a key that is a config setting, or that
-    two plugins declare for different options, is left out)."""
+    two plugins declare for different options, is left out). `settings`: the config's
+    top-level setting names when known without it (`coadapt run`'s stored option table,
+    `coadapt_core.cli.run_options`); by default read from `CoadaptConfig`."""
     from coadapt_core.plugins import get_registry
+
+    if settings is None:
+        from coadapt_core.coadapt.config import FIELD_NAMES
+
+        settings = FIELD_NAMES
 
     try:
         registry = get_registry()
@@ -45,7 +52,7 @@ def option_aliases() -> dict[str, OptionAlias]:
     for field_name, kind in OPTION_KINDS.items():
         for name in registry.names(kind):
             for spec in getattr(registry.get(kind, name), "option_specs", ()):
-                if not spec.alias or spec.alias in FIELD_NAMES:
+                if not spec.alias or spec.alias in settings:
                     continue
                 known = out.get(spec.alias)
                 if known is None:

@@ -11,7 +11,8 @@ from typing import Any
 
 from coadapt_core.coadapt.config import FIELD_NAMES, PRESETS, SECTIONS, CoadaptConfig
 from coadapt_core.coadapt.config_aliases import RENAMED_KEYS, OptionAlias, option_aliases
-from coadapt_core.errors import UserError, did_you_mean
+from coadapt_core.coadapt.presets import check_preset
+from coadapt_core.errors import UserError
 
 #: config keys that are plugin-option mappings, merged key by key (CLI over YAML over preset)
 OPTION_FIELDS = ("optimizer_options", "objective_options")
@@ -41,15 +42,6 @@ def load_yaml(path: str | Path) -> dict[str, Any]:
     if not isinstance(data, dict):
         raise UserError(f"config file '{path}' must hold a mapping of config keys", field="config")
     return {str(k).replace("-", "_"): v for k, v in data.items()}
-
-
-def check_preset(preset: str | None) -> None:
-    """A preset name that is none of `PRESETS` is a one-line `UserError` naming the nearest."""
-    if preset is not None and preset not in PRESETS:
-        raise UserError(
-            f"preset '{preset}' is not one of {', '.join(PRESETS)}{did_you_mean(preset, PRESETS)}",
-            field="preset",
-        )
 
 
 def make_config(

@@ -84,6 +84,30 @@ def test_docs_table_is_generated_from_the_tree():
     assert DOC.read_text() == settings_markdown()
 
 
+def test_run_options_table_is_the_configs_declaration():
+    """`coadapt run` makes its config options from a stored table (so that its --help and a
+    refusal load no config): the table is what the config declares now (regenerate:
+    `python -m coadapt_core.cli.run_options > coadapt_core/cli/run_options.json`), and each
+    option's help as the command shows it, installed plugins and their default included, is
+    the one its declaration renders."""
+    from coadapt_core.cli.help import option_help, resolved
+    from coadapt_core.cli.run_options import TABLE, config_options, stored, table_text
+    from coadapt_core.coadapt.config import FIELD_NAMES, preset_defaults
+
+    assert TABLE.read_text(encoding="utf-8") == table_text()
+    assert tuple(stored()["settings"]) == FIELD_NAMES
+    presets, declared = preset_defaults(), {leaf.key: leaf for leaf in leaves(CoadaptConfig)}
+    made = config_options()
+    assert [o.leaf.key for o in made] == [
+        k for k, leaf in declared.items() if leaf.extra.get("cli", True)
+    ]
+    for option in made:
+        expected = resolved(option_help(declared[option.leaf.key], presets))
+        assert resolved(option.option.help) == expected, option.leaf.key
+    plugins = [r["key"] for r in stored()["options"] if "plugin" in r]
+    assert plugins == ["robot", "sim", "optimizer", "objective"]
+
+
 def test_docs_table_and_run_help_list_the_same_options_helps_and_defaults():
     run = _run_command()
     helps = {
