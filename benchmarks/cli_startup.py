@@ -12,8 +12,12 @@ overlap), and whether it loaded torch, numpy or pydantic. `cpu s` is the median 
 time of a quiet one (one thread; it still grows somewhat with the load, through the caches
 the other processes share).
 
-    python benchmarks/cli_startup.py [--repeat 5] [--json] [--work]
+    python benchmarks/cli_startup.py [--repeat 5] [--json] [--work] [--cold]
 
+The timed processes find their bytecode cached, as an installed copy does (`.pyc` files in a
+folder of the temporary directory when the environment sets PYTHONDONTWRITEBYTECODE; one
+untimed run writes them); `--cold` compiles every module in every run instead, as a checkout
+that cannot write its `.pyc` files (about 0.1 s more per command on the 2-core machine).
 `--work` adds commands that do their work (`coadapt robot show kuafu`: it builds the model,
 which takes numpy, and checks it, which takes Pinocchio and MuJoCo), to name what they load.
 
@@ -30,6 +34,7 @@ import resource
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 
 #: (label, arguments after `python -m coadapt_core`, exit status expected)
@@ -50,11 +55,12 @@ COMMANDS = (
     ),
     ("coadapt robot show nope (refused)", ["robot", "show", "nope"], 2),
 )
-#: commands that do their work (build a model: numpy; check it: Pinocchio and MuJoCo), timed
-#: beside the others with `--work`; no start-up goal applies to them
+#: commands that do their work (build a model: numpy; a spec robot's standing pose: torch;
+#: check it: Pinocchio and MuJoCo), timed with `--work`; no start-up goal applies to them
 WORK = (
     ("coadapt robot show kuafu --no-validate", ["robot", "show", "kuafu", "--no-validate"], 0),
     ("coadapt robot show kuafu", ["robot", "show", "kuafu"], 0),
+    ("coadapt robot show nezha", ["robot", "show", "nezha"], 0),
 )
 
 #: the libraries whose loading the table names
@@ -65,10 +71,23 @@ CEILINGS = (
 )
 
 
-def _time(args: list[str], expected: int | None, repeat: int) -> dict:
-    """Median wall-clock seconds of `python args` over `repeat` fresh processes, and whether
-    torch was imported (one extra run with -X importtime)."""
+def child_env(cold: bool) -> dict[str, str]:
+    """The environment of the timed processes: bytecode cached (`.pyc` files under a folder
+    of the temporary directory, not the checkout; one untimed run writes them first), as an
+    installed copy has it, unless `cold` (every module compiled from source in every run, as
+    under PYTHONDONTWRITEBYTECODE=1: about 0.1 s more per command here)."""
     env = {**os.environ, "COLUMNS": "80"}
+    if cold:
+        return {**env, "PYTHONDONTWRITEBYTECODE": "1"}
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    env.setdefault("PYTHONPYCACHEPREFIX", os.path.join(tempfile.gettempdir(), "cli_startup_pyc"))
+    return env
+
+
+def _time(args: list[str], expected: int | None, repeat: int, env: dict[str, str]) -> dict:
+    """Median wall-clock seconds of `python args` over `repeat` fresh processes (after one
+    untimed run), and whether torch was imported (one extra run with -X importtime)."""
+    subprocess.run([sys.executable, *args], capture_output=True, env=env, check=False)
     seconds, cpu = [], []
     for _ in range(repeat):
         used = _children_cpu()
@@ -127,20 +146,26 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--work", action="store_true", help="also time commands that do their work (WORK)"
     )
+    parser.add_argument(
+        "--cold", action="store_true", help="no bytecode cache: compile every module every run"
+    )
     args = parser.parse_args(argv)
+    env = child_env(args.cold)
     out = {
         "repeat": args.repeat,
         "cpus": os.cpu_count(),
         "load_average": [round(x, 2) for x in os.getloadavg()],
-        "ceilings": {label: _time(a, 0, args.repeat) for label, a in CEILINGS},
+        "bytecode": "compiled every run" if args.cold else "cached",
+        "ceilings": {label: _time(a, 0, args.repeat, env) for label, a in CEILINGS},
         "commands": {
-            label: _time(["-m", "coadapt_core", *a], code, args.repeat)
+            label: _time(["-m", "coadapt_core", *a], code, args.repeat, env)
             for label, a, code in COMMANDS
         },
     }
     if args.work:
         out["work"] = {
-            label: _time(["-m", "coadapt_core", *a], code, args.repeat) for label, a, code in WORK
+            label: _time(["-m", "coadapt_core", *a], code, args.repeat, env)
+            for label, a, code in WORK
         }
     typer_s = out["ceilings"]["python -c 'import typer'"]["seconds"]
     for r in out["commands"].values():
@@ -162,7 +187,8 @@ def main(argv: list[str] | None = None) -> int:
             top = "  ".join(f"{name} {s:.3f}" for name, s in r["top_imports"])
             print(f"{'':4}imports (cumulative s): {top}")
     print(
-        f"load average {out['load_average']} on {out['cpus']} CPUs, {args.repeat} runs each; "
+        f"load average {out['load_average']} on {out['cpus']} CPUs, {args.repeat} runs each, "
+        f"bytecode {out['bytecode']}; "
         f"2x import typer = {2 * typer_s:.3f} s"
     )
     return 0

@@ -138,7 +138,9 @@ LIGHT = [
     (["plugins"], 0),
     (["plugins", "--json"], 0),
     (["run", "--help"], 0),
+    (["run", "--help-all"], 0),
     (["run", "--optimizer", "nope"], 2),
+    (["run", "--inertia", "0.5", "--optimizer", "nope"], 2),  # a plugin's alias is made
     (["run", "--sim", "mujocoo"], 2),
     (["run", "--objective", "power,torq"], 2),
     (["run", "--robot", "kuafuu"], 2),
@@ -149,10 +151,11 @@ LIGHT = [
     (["robot", "show", "--help"], 0),
     (["robot", "show", "nope"], 2),
     (["robot", "show", "kuafu", "--design", "abc"], 2),
+    (["robot", "show", "kuafu", "--design", "1,2,3"], 2),
 ]
 
 
-@pytest.mark.parametrize(("args", "code"), LIGHT)
+@pytest.mark.parametrize(("args", "code"), LIGHT, ids=[" ".join(a) for a, _ in LIGHT])
 def test_plugins_run_help_and_refusals_load_neither_numpy_nor_the_run_settings_nor_torch(
     args, code
 ):
