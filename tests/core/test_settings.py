@@ -94,7 +94,9 @@ def test_run_options_table_is_the_configs_declaration():
     from coadapt_core.cli.run_options import TABLE, config_options, stored, table_text
     from coadapt_core.coadapt.config import FIELD_NAMES, preset_defaults
 
-    assert TABLE.read_text(encoding="utf-8") == table_text()
+    assert TABLE.read_text(encoding="utf-8") == table_text(), (
+        "regenerate: python -m coadapt_core.cli.run_options > coadapt_core/cli/run_options.json"
+    )
     assert tuple(stored()["settings"]) == FIELD_NAMES
     presets, declared = preset_defaults(), {leaf.key: leaf for leaf in leaves(CoadaptConfig)}
     made = config_options()
