@@ -7,8 +7,6 @@ import sys
 from typing import Any
 
 import typer
-from rich.console import Console
-from rich.table import Table
 
 from coadapt_core.cli.common_options import CommonOptions
 from coadapt_core.cli.options import options_of
@@ -49,6 +47,9 @@ def register(app: typer.Typer) -> None:
             }
             print(json.dumps(out, indent=2))
         else:
+            from rich.console import Console  # the table only: --json prints without rich
+            from rich.table import Table
+
             table = Table(title=f"coadapt plugins (plugin API {PLUGIN_API_VERSION})")
             for column in ("kind", "name", "distribution", "version", "api", "description"):
                 table.add_column(column)
