@@ -123,9 +123,14 @@ def run_stage(result: Any, values: dict[str, Any]) -> None:
     run's store; what it found printed before the run's own summary (on stderr with --json)."""
     import contextlib
 
-    from coadapt_core.coadapt.verify import plan_verification
+    from coadapt_core.coadapt.verify import NothingToVerify, plan_verification
 
-    plan = plan_verification(result.run_dir, budget=values["verify_budget"])
+    try:
+        plan = plan_verification(result.run_dir, budget=values["verify_budget"])
+    except NothingToVerify as nothing:
+        result.summary["verification"] = {"skipped": str(nothing)}
+        print(f"verify: skipped: {nothing}", file=sys.stderr)
+        return
     quiet = values.get("quiet")
     found = verify_and_record(
         plan,

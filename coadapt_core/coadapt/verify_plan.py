@@ -34,6 +34,13 @@ PICKS = ("chosen", "extremes", "all")
 #: the difference of the two improvements counts as a change (grows / shrinks) beyond this
 #: many standard errors
 CHANGE_RATIO = 2.0
+
+
+class NothingToVerify(UserError):
+    """The run's answer is its nominal design (no candidate beat it): no improvement to check.
+    `coadapt verify` refuses it (exit 2); `coadapt run --verify` says so and goes on."""
+
+
 #: seed positions of a verification (`seed_at(seed, VERIFY_SEED, ...)`), apart from the run's
 VERIFY_SEED = 60
 
@@ -163,6 +170,26 @@ def _picked(
     return {"best": np.asarray(summary["best_design"], dtype=float)}
 
 
+def _not_nominal(run_id: str, picked: dict[str, Any], nominal: np.ndarray) -> dict[str, Any]:
+    """The picked designs other than the nominal one: a specialist pair at one design would
+    compare the nominal design with itself (0 +- 0 %), so a run that kept its nominal design
+    has nothing to verify."""
+    kept = {
+        role: np.asarray(d, dtype=float)
+        for role, d in picked.items()
+        if not np.allclose(np.asarray(d, dtype=float), nominal, rtol=0.0, atol=1e-9)
+    }
+    if not kept:
+        what = "the design given is" if "design" in picked else f"run {run_id}'s answer is"
+        raise NothingToVerify(
+            f"{what} the nominal design ({', '.join(f'{x:g}' for x in nominal)}): no candidate "
+            "beat it, so there is no improvement to verify; give --design to verify another "
+            "design against it",
+            field="design",
+        )
+    return kept
+
+
 def _universal(
     run_dir: Path, state: Any, config: Any, checkpoint: str | Path | None
 ) -> tuple[Path, dict]:
@@ -214,8 +241,9 @@ def plan_verification(
     budget, seed = int(budget), int(config.seed if seed is None else seed)
     picked = _picked(state, list(config.objectives), pick, design)
     universal, header = _universal(run_dir, state, config, checkpoint)
-    designs = {role: np.asarray(d, dtype=float) for role, d in picked.items()}
-    designs["nominal"] = np.asarray(state.summary["nominal_design"], dtype=float)
+    nominal = np.asarray(state.summary["nominal_design"], dtype=float)
+    designs = _not_nominal(state.run_id, picked, nominal)
+    designs["nominal"] = nominal
     for role, d in designs.items():
         why = _in_space(header.get("design_space"), d)
         if why is not None:

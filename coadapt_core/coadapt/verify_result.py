@@ -136,9 +136,9 @@ def verdict_line(entry: dict[str, Any]) -> str:
 
 
 def _why_not(u: dict[str, Any], s: dict[str, Any]) -> str:
-    def weak(side: dict[str, Any]) -> bool:
-        se = side["improvement_se"]
-        return se is None or abs(side["improvement"]) < SIGNIFICANCE_RATIO * se
+    def weak(side: dict[str, Any]) -> bool:  # not significant, as `verdict` reads it
+        x, se = side["improvement"], side["improvement_se"]
+        return se is None or x == 0 or abs(x) < SIGNIFICANCE_RATIO * se
 
     if weak(u) and weak(s):
         return f"neither improvement is {SIGNIFICANCE_RATIO:g} standard errors"

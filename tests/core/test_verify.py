@@ -288,6 +288,45 @@ def test_bad_input_is_one_line_exit_2_and_nothing_created(smoke_run, capsys, tmp
     assert "no final check" in _refused(capsys, ["verify", str(unchecked)], unchecked)
 
 
+def test_a_run_that_kept_its_nominal_design_has_nothing_to_verify(smoke_run, capsys, tmp_path):
+    """A quick tracking run whose candidates all lost to the nominal design fine-tuned two
+    specialists at the same design and reported 0.0 +- 0.0 % as "the specialists reverse its
+    sign". Now `coadapt verify` refuses it (one line, exit 2, nothing created), `--design` at
+    the nominal design likewise, and `coadapt run --verify` says so and goes on."""
+    from types import SimpleNamespace
+
+    from coadapt_core.cli.verify import run_stage
+
+    kept = shutil.copytree(smoke_run, tmp_path / "kept")
+    state = load_state(kept)
+    nominal = list(state.summary["nominal_design"])
+    state.summary = {**state.summary, "best_design": nominal}
+    save_state(kept, state)
+    assert "no improvement to verify" in _refused(capsys, ["verify", str(kept)], kept)
+    given = ",".join(f"{x:g}" for x in nominal)
+    run = shutil.copytree(smoke_run, tmp_path / "run")
+    line = _refused(capsys, ["verify", str(run), "--design", given], run)
+    assert "the design given is the nominal design" in line
+
+    before = sorted(p.name for p in kept.iterdir())
+    result = SimpleNamespace(run_dir=kept, summary={})
+    run_stage(result, {"verify_budget": None, "quiet": False, "as_json": False, "store": None})
+    assert "no improvement to verify" in result.summary["verification"]["skipped"]
+    assert capsys.readouterr().err.startswith("verify: skipped: ")
+    assert sorted(p.name for p in kept.iterdir()) == before
+
+
+def test_a_verdict_of_two_zero_improvements_says_neither_is_significant():
+    from coadapt_core.coadapt.verify_result import verdict_line
+
+    side = {"improvement": 0.0, "improvement_se": 0.0}
+    entry = {"role": "best", "universal": side, "specialist": side, "difference": 0.0}
+    entry |= {"difference_se": 0.0, "verdict": verdict(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)}
+    line = verdict_line(entry)
+    assert entry["verdict"] == "does not hold" and "neither improvement" in line, line
+    assert "reverse" not in line
+
+
 def test_run_verify_and_a_two_objective_run_with_the_chosen_design_and_the_fronts_extremes(
     tmp_path, capsys
 ):
