@@ -17,7 +17,7 @@ the other processes share).
 The timed processes find their bytecode cached, as an installed copy does (`.pyc` files in a
 folder of the temporary directory when the environment sets PYTHONDONTWRITEBYTECODE; one
 untimed run writes them); `--cold` compiles every module in every run instead, as a checkout
-that cannot write its `.pyc` files (about 0.1 s more per command on the 2-core machine).
+that cannot write its `.pyc` files (up to 0.13 s more per command on the 2-core machine).
 `--work` adds commands that do their work (`coadapt robot show kuafu`: it builds the model,
 which takes numpy, and checks it, which takes Pinocchio and MuJoCo), to name what they load.
 
@@ -75,7 +75,7 @@ def child_env(cold: bool) -> dict[str, str]:
     """The environment of the timed processes: bytecode cached (`.pyc` files under a folder
     of the temporary directory, not the checkout; one untimed run writes them first), as an
     installed copy has it, unless `cold` (every module compiled from source in every run, as
-    under PYTHONDONTWRITEBYTECODE=1: about 0.1 s more per command here)."""
+    under PYTHONDONTWRITEBYTECODE=1: up to 0.13 s more per command here)."""
     env = {**os.environ, "COLUMNS": "80"}
     if cold:
         return {**env, "PYTHONDONTWRITEBYTECODE": "1"}
