@@ -118,3 +118,29 @@ def test_a_tip_on_a_body_that_does_not_exist_is_one_line(tmp_path):
     robot = spec_robot_class(folder)()
     with pytest.raises(UserError, match=r"'tips.no_such_shin': no body 'no_such_shin' in the"):
         robot.build(robot.nominal_design())
+
+
+def test_a_humanoids_feet_are_placed_under_its_hips_its_second_ankle_hinge_held():
+    """The waist's joints are locked (both legs' chains hold them), so each leg is measured
+    from its thigh, the first body that turns; the ankle's second hinge (ankle_x) stays at
+    its reference and the first (ankle_y) keeps the foot flat: each foot ends under its hip
+    at 0.75 of the leg's length (0.403 + 0.39 m), solved again at each design."""
+    source = DATA / "mjcf" / "humanoid.xml"
+    data, notes, _ = starting_spec("hum", source)
+    assert [leg.get("hip") for leg in data["legs"]] == ["left_thigh", "right_thigh"]
+    pose = data["standing_pose"]
+    assert pose["solve"] == 0.75
+    assert any("standing pose solved with 2 of 2 feet" in n for n in notes)
+    assert not {"left_ankle_x", "right_ankle_x"} & set(pose["joints"])  # held at 0
+    model = mujoco.MjModel.from_xml_path(str(source))
+    d = mujoco.MjData(model)
+    for joint, angle in pose["joints"].items():
+        d.qpos[model.jnt_qposadr[model.joint(joint).id]] = angle
+    mujoco.mj_kinematics(model, d)
+    for side in ("left", "right"):
+        foot, hip = d.xpos[model.body(f"{side}_foot").id], d.xpos[model.body(f"{side}_thigh").id]
+        torso = d.xmat[model.body("torso").id].reshape(3, 3)
+        rel = torso.T @ (foot - hip)
+        assert abs(rel[0]) < 1e-3 and rel[2] == pytest.approx(-0.75 * (0.403 + 0.39), abs=1e-3)
+        sole = d.xmat[model.body(f"{side}_foot").id].reshape(3, 3)[:, 2] @ torso[:, 2]
+        assert sole > np.cos(np.radians(2.0))  # the foot flat within 2 deg, as in the file

@@ -77,8 +77,9 @@ def _path(model: mujoco.MjModel, base_id: int, foot: str) -> list[int]:
     return path[::-1]
 
 
-def _leg_elements(model, path, joints, scaled_links, owner: dict, leg: int, hip_body: int):
-    """(elements, joint indices of the leg's slots, hip element) of one leg's chain."""
+def _leg_elements(model, path, joints, scaled_links, owner: dict, leg: int, hip_body: int, held=()):
+    """(elements, joint indices of the leg's slots, hip element) of one leg's chain; a
+    hinge of `held` is no slot: it stays at its reference (no turn)."""
     elements, slots, hip_element = [], [], 0
     for b in path:
         link = (model.body(int(model.body_parentid[b])).name, model.body(b).name)
@@ -90,6 +91,8 @@ def _leg_elements(model, path, joints, scaled_links, owner: dict, leg: int, hip_
         ]
         for k, j in enumerate(hinges or [None]):
             slot = -1
+            if j is not None and model.joint(j).name in held:
+                j = None
             if j is not None:
                 name = model.joint(j).name
                 if owner.setdefault(name, leg) != leg:
@@ -122,10 +125,12 @@ def build_chain(
     standing: np.ndarray,
     nominal: np.ndarray,
     decimals: int = 6,
+    held: frozenset = frozenset(),
 ) -> Chain:
     """The chains of `legs` ((foot body, hip body or None) each) in `model` (the nominal
-    design); `scaled_links[p]` the links continuous parameter p scales. `ValueError` when a
-    foot does not hang below `base` or a joint lies on two legs."""
+    design); `scaled_links[p]` the links continuous parameter p scales; the hinges of `held`
+    stay at their reference. `ValueError` when a foot does not hang below `base` or a joint
+    lies on two legs."""
     base_id = model.body(base).id
     rows, owner = [], {}
     for leg, (foot, hip) in enumerate(legs):
@@ -133,7 +138,7 @@ def build_chain(
         hip_body = model.body(hip).id if hip else path[0]
         if hip_body not in path:
             raise ValueError(f"hip body '{hip}' is not on the chain of foot '{foot}'")
-        rows.append(_leg_elements(model, path, joints, scaled_links, owner, leg, hip_body))
+        rows.append(_leg_elements(model, path, joints, scaled_links, owner, leg, hip_body, held))
     num_e = max(len(r[0]) for r in rows)
     num_m = max(max(len(r[1]) for r in rows), 1)
     pad = (np.zeros(3), np.eye(3), [0.0] * len(scaled_links), -1, np.zeros(3), np.zeros(3), 0.0)

@@ -211,7 +211,7 @@ def starting_spec(
         else tuple(float(x) for x in model.jnt_range[model.joint(j).id])
         for j in joints
     }  # fmt: skip
-    pose = _pose_entry(model, data, key, base, joints, legs, params, ranges, notes, comments)
+    pose, hips = _pose_entry(model, data, key, base, joints, legs, params, ranges, notes, comments)
     speed_table = _speed_table(model_file, joints, notes, comments)
     collision = _collision_rule(model, params, notes)
     names = _leg_names(model, legs)
@@ -233,7 +233,10 @@ def starting_spec(
         },
         "legs": [
             {"name": leg_name, "foot": model.body(g["foot"]).name, "phase": phase}
-            for leg_name, g, phase in zip(names, legs, _gait(len(legs)), strict=True)
+            | ({"hip": hips[k]} if hips else {})
+            for k, (leg_name, g, phase) in enumerate(
+                zip(names, legs, _gait(len(legs)), strict=True)
+            )
         ],
         "standing_pose": pose,
         "gains": {
@@ -289,7 +292,7 @@ def write_robot(
         for source, target in plan:
             (folder / target).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(source, folder / target)
-        factor, stand, nominal_ok = _raise_gains(folder, data, comments)
+        factor, stand, nominal_ok, at_nominal_ok = _raise_gains(folder, data, comments)
         biped = len(data["legs"]) < 3
         if not stand.ok and not biped:
             raise UserError(
@@ -300,6 +303,7 @@ def write_robot(
             )
         if not stand.ok:  # a biped: its policy balances it; PD alone need not
             factor = nominal_ok if nominal_ok is not None else 1.0
+            stand = at_nominal_ok or stand  # the corner that falls at the gains written
             what = (
                 "the nominal design stands 3 s under joint PD, a corner does not"
                 if nominal_ok is not None

@@ -49,6 +49,54 @@ def _leg_length(model: mujoco.MjModel, leg: dict, params: list[dict]) -> float:
     return float(sum(np.linalg.norm(model.body_pos[b]) for b in bodies))
 
 
+def _held_ankles(model: mujoco.MjModel, legs: list[dict]) -> frozenset:
+    """The hinges of each foot body after its first: an ankle of stacked hinges turns about
+    its first in the standing solve, the others stay at their reference."""
+    return frozenset(
+        model.joint(j).name
+        for g in legs
+        for j in [
+            j
+            for j in range(model.njnt)
+            if model.jnt_bodyid[j] == g["foot"] and model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE
+        ][1:]
+    )
+
+
+def _starts(model, joints, legs, guess, ranges, held) -> list[np.ndarray]:
+    """The IK's three starts: the guess, and each leg's last hinge (not held) bent either
+    way by BEND inside its range."""
+    starts = []
+    for bend in (0.0, BEND, -BEND):
+        start = guess.copy()
+        for g in legs:
+            hinges = [
+                joints.index(model.joint(j).name)
+                for j in range(model.njnt)
+                if model.jnt_bodyid[j] in g["chain"]
+                and model.joint(j).name in joints
+                and model.joint(j).name not in held
+            ]
+            if hinges and bend:
+                k = hinges[-1]
+                lo, hi = ranges[joints[k]]
+                start[k] = float(np.clip(start[k] + bend, lo, hi))
+        starts.append(start)
+    return starts
+
+
+def _knee(slot, anchors, foot, length: float) -> int:
+    """The element of a leg's knee: its last hinge whose anchor lies a quarter of the leg's
+    length from the foot or more (an ankle's hinges lie nearer)."""
+    turning = torch_nonzero(slot)
+    far = [e for e in turning if float((anchors[e] - foot).norm()) >= 0.25 * length]
+    return far[-1] if far else turning[-1]
+
+
+def torch_nonzero(slot) -> list[int]:
+    return [e for e, s in enumerate(slot.tolist()) if s >= 0]
+
+
 def _solve_standing(
     model: mujoco.MjModel,
     base: int,
@@ -58,40 +106,33 @@ def _solve_standing(
     guess: np.ndarray,
     ranges: dict[str, tuple[float, float]],
     quadruped_like: bool,
+    hips: list[str | None] | None = None,
 ) -> tuple[np.ndarray, list[str]]:
     """A standing pose with each foot under its hip at STAND_SHARE of its leg's length, by
     the generic leg IK from three starts (the guess, and its last hinge per leg bent either
     way); per leg the start whose answer is inside the joint ranges and nearest its target,
     a quadruped's knee behind its hip-foot line and a biped's in front on a tie. Returns the
-    pose and the legs (by index) it could not place, which keep the guess."""
+    pose and the legs (by index) it could not place, which keep the guess. `hips`: each
+    leg's hip body (None: the first below the base), as the spec's legs name them."""
     import torch
     from coadapt_plugins.robots.specs.kinematics import LegKinematics, build_chain
 
     links = [set(map(tuple, p["links"])) for p in params]
     nominal = np.ones(len(params))
-    feet = [(model.body(g["foot"]).name, None) for g in legs]
-    starts = []
-    for bend in (0.0, BEND, -BEND):
-        start = guess.copy()
-        for g in legs:
-            hinges = [
-                joints.index(model.joint(j).name)
-                for j in range(model.njnt)
-                if model.jnt_bodyid[j] in g["chain"] and model.joint(j).name in joints
-            ]
-            if hinges and bend:
-                k = hinges[-1]
-                lo, hi = ranges[joints[k]]
-                start[k] = float(np.clip(start[k] + bend, lo, hi))
-        starts.append(start)
+    held = _held_ankles(model, legs)
+    hips = hips or [None] * len(legs)
+    feet = [(model.body(g["foot"]).name, hip) for g, hip in zip(legs, hips, strict=True)]
+    starts = _starts(model, joints, legs, guess, ranges, held)
     designs = torch.tensor(nominal[None, :])
     try:
         first = LegKinematics(
-            build_chain(model, model.body(base).name, joints, feet, links, starts[0], nominal)
+            build_chain(
+                model, model.body(base).name, joints, feet, links, starts[0], nominal, held=held
+            )
         )
     except ValueError:  # legs that share a joint (a humanoid's abdomen): no leg IK for them
         return guess.copy(), list(range(len(legs)))
-    rel, _, _ = first.standing(designs)
+    rel, upright, _ = first.standing(designs)
     targets = torch.zeros_like(rel)
     for k, g in enumerate(legs):
         targets[0, k, 1] = rel[0, k, 1]
@@ -102,12 +143,14 @@ def _solve_standing(
     hi = np.array([ranges[j][1] for j in joints])
     for start in starts:
         kin = LegKinematics(
-            build_chain(model, model.body(base).name, joints, feet, links, start, nominal)
+            build_chain(
+                model, model.body(base).name, joints, feet, links, start, nominal, held=held
+            )
         )
         q = kin.inverse(designs, targets)[0].numpy()
         chain = kin.chain
         x = kin.leg_angles(torch.tensor(q[None, :]))
-        foot, _, hip, _, anchors = kin.forward(kin.scales(designs), x)
+        foot, turned, hip, _, anchors = kin.forward(kin.scales(designs), x)
         for k, g in enumerate(legs):
             slots = chain.joint_index[k][chain.joint_index[k] >= 0].numpy()
             inside = bool(np.all((q[slots] >= lo[slots] - 1e-9) & (q[slots] <= hi[slots] + 1e-9)))
@@ -115,10 +158,13 @@ def _solve_standing(
             length = _leg_length(model, g, params)
             if not inside or error > 0.02 * length:
                 continue
-            last = int(torch.nonzero(chain.slot[k] >= 0)[-1])
-            knee_x = float(anchors[0, k, last, 0] - 0.5 * (foot[0, k, 0] + hip[0, k, 0]))
+            knee = _knee(chain.slot[k], anchors[0, k], foot[0, k], length)
+            knee_x = float(anchors[0, k, knee, 0] - 0.5 * (foot[0, k, 0] + hip[0, k, 0]))
             behind = knee_x < 0 if quadruped_like else knee_x > 0
             score = error + (0.0 if behind else 0.01 * length)
+            if len(slots) > 3:  # a leg with an ankle: its foot as it stands (flat) first
+                cos = 0.5 * (float(torch.trace(turned[0, k].T @ upright[0, k])) - 1.0)
+                score += 0.01 * length * float(np.arccos(np.clip(cos, -1.0, 1.0)))
             if best[k] is None or score < best[k][0]:
                 best[k] = (score, q[slots].copy(), slots)
     missed = []
@@ -141,10 +187,12 @@ def _pose_entry(
     ranges: dict[str, tuple[float, float]],
     notes: list[str],
     comments: dict[str, str],
-) -> dict:
-    """The spec's `standing_pose`: the model's first "home" or "stand" keyframe (else its
+) -> tuple[dict, list[str] | None]:
+    """(The spec's `standing_pose`, each leg's `hip` where it is not the first body below
+    the base, else None). The standing pose: the model's first "home" or "stand" keyframe (else its
     first) when it has a name, else the pose `_solve_standing` finds from `data`'s, solved
     again at each design (`solve`) when it placed every foot."""
+    hips = None
     if model.nkey and model.key(key).name:
         pose: dict = {"keyframe": model.key(key).name}
     else:
@@ -155,6 +203,16 @@ def _pose_entry(
         solved, missed = _solve_standing(
             model, base, joints, legs, params, guess, ranges, len(legs) >= 4
         )
+        hinged = _hinged_hips(model, legs)
+        if hinged:  # measured from the first body that turns (below a locked waist)
+            again, left = _solve_standing(
+                model, base, joints, legs, params, guess, ranges, len(legs) >= 4, hinged
+            )
+            if len(left) <= len(missed) and len(left) < len(legs):
+                solved, missed, hips = again, left, hinged
+                comments["legs"] = (
+                    "hip: the first body of each leg that turns (the body below the base does not)"
+                )
         pose = {
             "joints": {
                 j: round(float(v), 6) for j, v in zip(joints, solved, strict=True) if abs(v) > 1e-12
@@ -174,7 +232,26 @@ def _pose_entry(
             f"{STAND_SHARE:g} of the leg's length under their hips"
             + ("" if not missed else "; the others at 0 or their nearest limit")
         )
-    return pose
+    return pose, hips
+
+
+def _hinged_hips(model: mujoco.MjModel, legs: list[dict]) -> list[str] | None:
+    """Each leg's first body holding a hinge, where one differs from the first body below
+    the base (a humanoid's waist, its joints locked), else None."""
+    hips = []
+    for g in legs:
+        turning = [
+            b
+            for b in g["chain"]
+            if any(
+                model.jnt_bodyid[j] == b and model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE
+                for j in range(model.njnt)
+            )
+        ]
+        hips.append(model.body(turning[0] if turning else g["chain"][0]).name)
+    if all(h == model.body(g["chain"][0]).name for h, g in zip(hips, legs, strict=True)):
+        return None
+    return hips
 
 
 def _set_gains(data: dict, factor: float) -> None:
@@ -186,25 +263,26 @@ def _set_gains(data: dict, factor: float) -> None:
 def _raise_gains(folder: Path, data: dict, comments: dict):
     """(the first factor of GAIN_FACTORS at which the nominal design and every corner pass
     the stand test, else the last; the stand test that decided; the first factor at which
-    the nominal design alone passed, or None)."""
+    the nominal design alone passed, or None; the stand test that decided at that factor)."""
     from coadapt_plugins.robots.specs.robot import spec_robot_class
     from coadapt_plugins.robots.specs.validation import corners, stand_test
 
-    nominal_ok = None
+    nominal_ok, at_nominal_ok = None, None
     for factor in GAIN_FACTORS:
         _set_gains(data, factor)
         (folder / SPEC_FILE).write_text(spec_text(data, comments), encoding="utf-8")
         robot = spec_robot_class(folder)()
         stand = stand_test(robot.build(_nominal(data)))  # it must build
         if stand.ok:
-            nominal_ok = factor if nominal_ok is None else nominal_ok
             stand = next(
                 (t for t in (stand_test(robot.build(c)) for c in corners(robot)) if not t.ok),
                 stand,
             )
+            if nominal_ok is None:
+                nominal_ok, at_nominal_ok = factor, stand
         if stand.ok:
-            return factor, stand, nominal_ok
-    return factor, stand, nominal_ok
+            return factor, stand, nominal_ok, at_nominal_ok
+    return factor, stand, nominal_ok, at_nominal_ok
 
 
 def _nominal(data: dict) -> np.ndarray:
