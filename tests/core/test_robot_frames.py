@@ -144,3 +144,56 @@ def test_a_humanoids_feet_are_placed_under_its_hips_its_second_ankle_hinge_held(
         assert abs(rel[0]) < 1e-3 and rel[2] == pytest.approx(-0.75 * (0.403 + 0.39), abs=1e-3)
         sole = d.xmat[model.body(f"{side}_foot").id].reshape(3, 3)[:, 2] @ torso[:, 2]
         assert sole > np.cos(np.radians(2.0))  # the foot flat within 2 deg, as in the file
+
+
+def _obj_vertices(text: str) -> np.ndarray:
+    return np.array(
+        [[float(x) for x in line.split()[1:]] for line in text.splitlines() if line[:2] == "v "]
+    )
+
+
+def test_the_urdf_carries_visual_meshes_stretched_as_the_mjcfs_and_pybullet_shows_them(tmp_path):
+    """A visual mesh (the thighs' skins, 30 deg off their link) is a `<visual>` of the URDF
+    only, in MuJoCo's colour: at a stretched design its vertices, placed by the visual's
+    origin, are the MJCF's within 1e-6 m, and PyBullet loads it as the thigh's visual."""
+    import re
+
+    from coadapt_plugins.robots.specs.robot import spec_robot_class
+    from coadapt_plugins.robots.specs.urdf import mesh_files
+
+    from tests.core.test_spec_shapes import _mat, body_vertices, meshy_folder
+
+    folder = meshy_folder(tmp_path / "meshy", guard=40.0, collision="fit")
+    model = spec_robot_class(folder)().build(np.array([1.3, 0.7]))
+    urdf = model.text("urdf")
+    link = re.search(r'<link name="left_thigh">.*?</link>', urdf, flags=re.S).group(0)
+    visual = re.search(
+        r'<visual><origin xyz="([^"]*)" rpy="([^"]*)"/><geometry><mesh filename="([^"]*)"/>'
+        r'</geometry><material name="[^"]*"><color rgba="([^"]*)"/></material></visual>',
+        link,
+    )
+    assert visual and "<collision><origin" in link  # the capsule still collides
+    xyz, rpy = (np.array([float(x) for x in g.split()]) for g in visual.group(1, 2))
+    roll, pitch, yaw = rpy
+    rot = (
+        _mat([np.cos(yaw / 2), 0, 0, np.sin(yaw / 2)])
+        @ _mat([np.cos(pitch / 2), 0, np.sin(pitch / 2), 0])
+        @ _mat([np.cos(roll / 2), np.sin(roll / 2), 0, 0])
+    )
+    placed = xyz + _obj_vertices(mesh_files(model.formats)[visual.group(3)]) @ rot.T
+    mjcf = body_vertices(model, "left_skin")
+    np.testing.assert_allclose(np.sort(placed, axis=0), np.sort(mjcf, axis=0), atol=1e-6)
+    pybullet = pytest.importorskip("pybullet")
+    out = tmp_path / "urdf"
+    out.mkdir()
+    (out / "m.urdf").write_text(urdf)
+    for name, text in mesh_files(model.formats).items():
+        (out / name).write_text(text)
+    client = pybullet.connect(pybullet.DIRECT)
+    try:
+        body = pybullet.loadURDF(str(out / "m.urdf"), physicsClientId=client)
+        shapes = pybullet.getVisualShapeData(body, physicsClientId=client)
+        files = {s[4].decode() for s in shapes if s[2] == pybullet.GEOM_MESH}
+    finally:
+        pybullet.disconnect(client)
+    assert any(f.endswith(visual.group(3)) for f in files), files

@@ -7,6 +7,7 @@ meshes stretch when aligned with it, are fitted on request or refused in one lin
 from __future__ import annotations
 
 import os
+import re
 import struct
 import subprocess
 import sys
@@ -409,7 +410,11 @@ def test_collision_fit_replaces_collision_meshes_by_primitives_and_says_how_well
     # the fitted box is the file's box (half-sizes 0.01, 0.02, 0.1), moved with the link
     np.testing.assert_allclose(np.sort(mj.geom_size[guard]), [0.01, 0.02, 0.1], atol=1e-6)
     assert mj.geom_type[mj.geom("left_skin").id] == mujoco.mjtGeom.mjGEOM_MESH
-    assert not any(k.startswith("urdf:") for k in model.formats)  # no collision mesh left
+    # no collision mesh left: the URDF's one mesh file is the skins' (both alike), a visual
+    files = [k.split(":", 1)[1] for k in model.formats if k.startswith("urdf:")]
+    urdf = model.text("urdf")
+    assert len(files) == 1 and urdf.count(f'<mesh filename="{files[0]}"/>') == 2
+    assert not re.search(r"<collision>[^/]*<geometry><mesh", urdf)
 
 
 def prism_triangles(radius: float, half: float, sides: int = 24) -> np.ndarray:
@@ -483,8 +488,9 @@ def test_robots_with_meshes_in_scaled_links_pass_every_step(tmp_path, collision)
     )
     assert done.returncode == 0, done.stderr
     meshes = sorted(p.name for p in out.parent.glob("*.obj"))
-    # the guard, and the two shins' shells, alike, in one file
-    assert len(meshes) == (2 if collision == "stretch" else 0)
+    # the two thighs' visual skins, alike, in one file; the guard and the two shins' shells,
+    # alike, in one more when they stay meshes
+    assert len(meshes) == (3 if collision == "stretch" else 1)
     for name in meshes:
         assert f'filename="{name}"' in out.read_text()
     if meshes:  # standard output cannot carry the mesh files: one line, exit 2

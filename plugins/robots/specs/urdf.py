@@ -11,11 +11,12 @@ hinge's `ref` turns its joint origin). Intermediate links carry a tiny mass and 
 (`TINY_MASS`, `TINY_INERTIA`; Bullet integrates a zero-mass moving link badly), named
 `<body>__<joint>`; `intermediate_links` lists them.
 
-A collision mesh is written as a file the URDF names, `coadapt_<hash>.obj` (its compiled
-vertices and faces, the hash of its text: a stretched design's mesh is another file), which
-the robot model carries beside the URDF as format `urdf:<file>` (`mesh_files`); a reader
-writes those files beside the URDF (PyBullet's engine, `coadapt robot export -o`). Visual
-meshes are left out of the URDF: the simulators that read it do not draw.
+A mesh is written as a file the URDF names, `coadapt_<hash>.obj` (its compiled vertices and
+faces, the hash of its text: a stretched design's mesh is another file), which the robot
+model carries beside the URDF as format `urdf:<file>` (`mesh_files`); a reader writes those
+files beside the URDF (PyBullet's engine, `coadapt robot export -o`). A visual mesh (a geom
+that does not collide) is a `<visual>` only, stretched as the MJCF's is, in its MuJoCo
+colour, so PyBullet's GUI shows the robot as MuJoCo does.
 """
 
 from __future__ import annotations
@@ -67,8 +68,6 @@ def _obj(model: mujoco.MjModel, mesh: int) -> str:
 def _geometry(model: mujoco.MjModel, g: int, files: dict[str, str]) -> str | None:
     size, kind = model.geom_size[g], mujoco.mjtGeom(int(model.geom_type[g]))
     if kind == mujoco.mjtGeom.mjGEOM_MESH:
-        if not (model.geom_contype[g] or model.geom_conaffinity[g]):
-            return None  # a visual mesh: left out
         text = _obj(model, int(model.geom_dataid[g]))
         name = f"coadapt_{hashlib.sha1(text.encode()).hexdigest()[:16]}.obj"
         files[name] = text
@@ -82,6 +81,15 @@ def _geometry(model: mujoco.MjModel, g: int, files: dict[str, str]) -> str | Non
     if kind in (mujoco.mjtGeom.mjGEOM_BOX, mujoco.mjtGeom.mjGEOM_ELLIPSOID):
         return f'<box size="{_v(2 * size)}"/>'
     return None
+
+
+def _colour(model: mujoco.MjModel, g: int) -> str:
+    """A mesh's colour as MuJoCo draws it (its material's, else its own), as a URDF
+    material named by its value."""
+    mat = int(model.geom_matid[g])
+    rgba = model.mat_rgba[mat] if mat >= 0 else model.geom_rgba[g]
+    name = "coadapt_" + "_".join(f"{x:.3f}" for x in rgba)
+    return f'<material name="{name}"><color rgba="{_v(rgba)}"/></material>'
 
 
 def _link(model: mujoco.MjModel, b: int, files: dict[str, str]) -> tuple[str | None, str]:
@@ -108,7 +116,8 @@ def _link(model: mujoco.MjModel, b: int, files: dict[str, str]) -> tuple[str | N
             continue
         origin = f'<origin xyz="{_v(model.geom_pos[g])}" rpy="{_v(_rpy(model.geom_quat[g]))}"/>'
         body = f"{origin}<geometry>{shape}</geometry>"
-        parts.append(f"<visual>{body}</visual>")
+        colour = _colour(model, g) if shape.startswith("<mesh") else ""
+        parts.append(f"<visual>{body}{colour}</visual>")
         if collides:
             parts.append(f"<collision>{body}</collision>")
     return None, "".join(parts) + "</link>"
