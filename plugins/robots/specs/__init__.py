@@ -1,7 +1,7 @@
 """Robots described by data: a YAML spec over the robot's own MJCF or URDF file
 (docs/your-robot.md). This plugin registers the spec robots it ships (every folder beside
-this file holding a `robot.yaml`: nezha, which has no Python of its own) and those of the
-user's folders (`COADAPT_ROBOT_PATH`, else `~/.coadapt/robots`); its robots write a
+this file holding a `robot.yaml`: nezha and jingwei, which have no Python of their own) and
+those of the user's folders (`COADAPT_ROBOT_PATH`, else `~/.coadapt/robots`); its robots write a
 starting spec from a model file for `coadapt robot new` (`SpecRobot.write_from_model`).
 
 `spec` reads the file (`fields` its field readers), `model` scales a model per design with

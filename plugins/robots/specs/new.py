@@ -54,8 +54,8 @@ from coadapt_plugins.robots.specs.stand import (
     _inside_ranges,
     _nominal,
     _pose_entry,
-    _raise_gains,
     _set_gains,
+    stand_by_gains,
 )
 
 from coadapt_core.errors import UserError
@@ -292,7 +292,7 @@ def write_robot(
         for source, target in plan:
             (folder / target).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(source, folder / target)
-        factor, stand, nominal_ok, at_nominal_ok = _raise_gains(folder, data, comments)
+        factor, stand, nominal_ok, at_nominal_ok = stand_by_gains(folder, data, comments, notes)
         biped = len(data["legs"]) < 3
         if not stand.ok and not biped:
             raise UserError(

@@ -1,7 +1,9 @@
 """The standing pose `robot new` solves and the gains it raises (`new`): without a named
 keyframe each foot goes under its hip at STAND_SHARE of its leg's length by the generic leg IK
 (`kinematics`), and the gains, kp KP_PER_TORQUE per N m of peak torque, go up through
-GAIN_FACTORS until the nominal design and every corner pass the stand test (`validation`).
+GAIN_FACTORS until the nominal design and every corner pass the stand test (`validation`); a
+keyframe that stands at the nominal design but leaves a corner falling is solved again at each
+design from its angles (`stand_by_gains`).
 """
 
 from __future__ import annotations
@@ -287,3 +289,61 @@ def _raise_gains(folder: Path, data: dict, comments: dict):
 
 def _nominal(data: dict) -> np.ndarray:
     return np.array([p["nominal"] for p in data["design"]], dtype=float)
+
+
+def _keyframe_solved(folder: Path, data: dict, comments: dict) -> dict | None:
+    """The spec's keyframe pose as `{joints, solve}`: its joint angles the nominal pose and,
+    as the share, its own feet's mean depth under their hips over the leg's length, so the
+    nominal design keeps about the keyframe's pose and every design puts its feet under its
+    hips as deep. None when the leg IK cannot take it."""
+    import torch
+    from coadapt_plugins.robots.specs.robot import spec_robot_class
+
+    from coadapt_core.errors import UserError
+
+    built = spec_robot_class(folder)()._built
+    joints = {
+        j: round(float(v), 6)
+        for j, v in zip(built.prepared.joints, built.prepared.standing, strict=True)
+        if abs(v) > 1e-12
+    }
+    trial = {**data, "standing_pose": {"joints": joints, "solve": 0.5}}
+    (folder / SPEC_FILE).write_text(spec_text(trial, comments), encoding="utf-8")
+    nominal = torch.as_tensor(_nominal(data)[None])
+    try:
+        built = spec_robot_class(folder)()._built
+        half = built.stand_targets(nominal)[0, :, 2]  # -0.5 x each leg's length
+        depth = built.kinematics.standing(nominal)[0][0, :, 2]  # the keyframe's feet
+    except (UserError, ValueError):
+        return None
+    share = round(float((depth / (2.0 * half)).mean()), 4)
+    return {"joints": joints, "solve": share} if 0.0 < share < 1.0 else None
+
+
+def stand_by_gains(folder: Path, data: dict, comments: dict, notes: list[str]):
+    """`_raise_gains`; and when a keyframe's pose stands at the nominal design but not at a
+    corner (a leg's segments scaled apart move its foot out from under its hip), the same
+    pose solved again at each design (`_keyframe_solved`), kept when then every corner
+    stands. Returns `_raise_gains`'s four values."""
+    first = _raise_gains(folder, data, comments)
+    pose = data["standing_pose"]
+    if first[1].ok or first[2] is None or "keyframe" not in pose:
+        return first
+    solved = _keyframe_solved(folder, data, comments)
+    if solved is not None:
+        data["standing_pose"] = solved
+        second = _raise_gains(folder, data, comments)
+        if second[1].ok:
+            comments["standing_pose"] = (
+                f"keyframe '{pose['keyframe']}', solved at each design with the feet "
+                f"{solved['solve']:g} of the leg's length under their hips (robot new: the "
+                "keyframe alone leaves a corner falling under joint PD)"
+            )
+            notes.append(
+                f"keyframe '{pose['keyframe']}' solved at each design (solve: "
+                f"{solved['solve']:g}): with its angles at every design a corner falls under "
+                "joint PD"
+            )
+            return second
+    data["standing_pose"] = pose
+    return _raise_gains(folder, data, comments)
