@@ -6,6 +6,7 @@ rows, and a robot without a map is refused in one line."""
 from __future__ import annotations
 
 import shutil
+from types import SimpleNamespace
 
 import mujoco
 import numpy as np
@@ -83,21 +84,30 @@ def _quat(roll: float, pitch: float, yaw: float) -> np.ndarray:
 
 
 @pytest.mark.slow
-def test_a_mirrored_state_observes_as_the_mirrored_observation(nezha) -> None:
+@pytest.mark.parametrize("name", ["nezha", "jingwei", "qilin"])
+def test_a_mirrored_state_observes_as_the_mirrored_observation(name) -> None:
     """Environment 1 holds the mirror image of environment 0's state (base pose and twist,
     joints, command, action history, gait clock); its observation and critic state are the
-    mirror map's image of environment 0's."""
-    mirror, maps = nezha.mirror(), _maps(nezha)
+    mirror map's image of environment 0's. nezha and jingwei derive their maps from their
+    specs; Qilin, a Python plugin, writes its own."""
+    robot = get_registry().create("robot", name)
+    mirror = robot.mirror()
     task = TaskConfig()
     task.noise.enabled = False
-    designs = np.repeat(nezha.nominal_design()[None], 2, axis=0)
-    with MujocoSimulator(nezha, designs, randomization=RandomizationConfig.off()) as sim:
-        env = LocomotionEnv(sim, nezha, task, device="cpu")
+    designs = np.repeat(robot.nominal_design()[None], 2, axis=0)
+    with MujocoSimulator(robot, designs, randomization=RandomizationConfig.off()) as sim:
+        env = LocomotionEnv(sim, robot, task, device="cpu")
+        norms = SimpleNamespace(
+            obs_norm=EmpiricalNormalization(env.num_obs),
+            critic_norm=EmpiricalNormalization(env.num_critic_obs),
+        )
+        maps = MirrorMaps.for_env(robot, env, norms)
         rng = np.random.default_rng(3)
+        count = env.num_actions
         joints, signs = np.array(mirror.joints), np.array(mirror.joint_signs)
         default = env.default_joint_pos[0].numpy().astype(float)
-        bend = rng.normal(0.0, 0.15, 12)
-        speed = rng.normal(0.0, 1.0, 12)
+        bend = rng.normal(0.0, 0.15, count)
+        speed = rng.normal(0.0, 1.0, count)
         height = float(sim.get_state().base_pos[0, 2]) - 0.06
         q, v = sim._q_index, sim._dq_index
         for env_id, flip in ((0, 1.0), (1, -1.0)):
@@ -113,10 +123,10 @@ def test_a_mirrored_state_observes_as_the_mirrored_observation(nezha) -> None:
             sim._qpos[row], sim._qvel[row] = pos, vel
         sim._live().forward(np.unique(sim.rows(np.arange(2))), stage=mujoco.mjtStage.mjSTAGE_ACC)
         state = sim._build_state()
-        history = torch.randn(5, 12, generator=torch.Generator().manual_seed(1))
+        history = torch.randn(task.history, count, generator=torch.Generator().manual_seed(1))
         env.command = torch.tensor([[0.4, 0.2, 0.3], [0.4, -0.2, -0.3]])
         env.action_history = torch.stack([history, history[:, joints] * torch.tensor(signs)])
-        env.gait.phase = torch.tensor([0.2, 0.7])
+        env.gait.phase = torch.tensor([0.2, 0.7])  # the legs' offsets move by half a period
         obs, critic = env._observe(state)
     assert bool(state.foot_contact.any())  # the soles touch the ground: contacts are compared
     torch.testing.assert_close(MirrorMaps.apply(obs[0], maps.obs), obs[1], rtol=0, atol=2e-4)

@@ -9,7 +9,7 @@ from coadapt_plugins.robots.qilin import constants as C
 
 from coadapt_core.design_space import Continuous, DesignSpace, Discrete
 from coadapt_core.errors import DesignError
-from coadapt_core.robot import Leg, Robot, RobotModel, ValidationReport
+from coadapt_core.robot import Leg, Mirror, Robot, RobotModel, ValidationReport
 
 if TYPE_CHECKING:
     import numpy as np
@@ -50,6 +50,18 @@ class Qilin(Robot):
 
     def legs(self) -> list[Leg]:
         return [Leg(leg, C.TROT[leg]) for leg in C.LEGS]
+
+    def mirror(self) -> Mirror:
+        """Left and right trade places (FL <-> FR, RL <-> RR, the trot's pairs swapped: the
+        clock moves half a period); the abduction joints (x axis on every leg) change sign,
+        hip and knee (y axis) keep it; every design variable applies to all legs alike.
+        `tests/core/test_symmetry.py` checks it against the model in MuJoCo."""
+        side = {"FL": "FR", "FR": "FL", "RL": "RR", "RR": "RL"}
+        legs = tuple(C.LEGS.index(side[leg]) for leg in C.LEGS)
+        n = len(C.JOINTS)
+        joints = tuple(legs[k // n] * n + k % n for k in range(len(C.JOINT_NAMES)))
+        signs = tuple(-1.0 if j == "abduction" else 1.0 for _ in C.LEGS for j in C.JOINTS)
+        return Mirror(joints, signs, legs)
 
     def check_design(self, design: np.ndarray) -> np.ndarray:
         """The design as a validated float vector; `DesignError` naming what is accepted."""
