@@ -201,3 +201,32 @@ def test_the_learners_arithmetic_counts_the_mirror_images(nezha) -> None:
     listed = sum(matrix_flops(pass_runner(ppo, p)) * p.count for p in passes)
     assert matrix_flops(lambda: (ppo.compute_returns(), ppo.update())) == listed
     trainer.close()
+
+
+def _asymmetry(trainer: Trainer, maps: MirrorMaps) -> float:
+    """mean |pi(M o) - M pi(o)| / mean |pi(o)| of the policy mean over the last rollout."""
+    obs = trainer.last_rollout_critic_obs[:, : trainer.env.num_obs]
+    design = torch.zeros(obs.shape[0], 2)  # the nominal design (both scales 1)
+    with torch.no_grad():
+        act = trainer.ppo.act_inference(obs, design)
+        image = trainer.ppo.act_inference(MirrorMaps.apply(obs, maps.obs), design)
+    return float((image - MirrorMaps.apply(act, maps.action)).abs().mean() / act.abs().mean())
+
+
+@pytest.mark.slow
+def test_training_with_symmetry_makes_the_policy_its_own_mirror_image() -> None:
+    """jingwei, 6 iterations of 2 x 8 environments from scratch: with symmetry the policy's
+    action at a mirrored state departs from the mirrored action by 0.58 of its size, without
+    by 1.31 (measured: the two runs apart from the first iteration on)."""
+    robot = get_registry().create("robot", "jingwei")
+    gaps = {}
+    for symmetry in (False, True):
+        config = TrainConfig(
+            num_designs=2, agents_per_design=8, steps_per_env=16, epochs=2, minibatches=2,
+            symmetry=symmetry,
+        )  # fmt: skip
+        trainer = Trainer(robot, MujocoSimulator, train_config=config, seed=0, num_threads=1)
+        trainer.learn(6)
+        gaps[symmetry] = _asymmetry(trainer, MirrorMaps.for_env(robot, trainer.env, trainer.ppo))
+        trainer.close()
+    assert gaps[True] < 0.6 * gaps[False], gaps
