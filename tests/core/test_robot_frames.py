@@ -64,6 +64,10 @@ def test_the_turned_base_stands_its_feet_below_it_and_keeps_the_models_masses(tm
     mujoco.mj_kinematics(model, data)
     assert model.body("chassis").mass[0] == pytest.approx(13.715)
     assert np.all(model.body_inertia[1:] > 0)
+    # the box bounding the chassis's collision mesh: within 5 % of the moments the authors of
+    # laikago_toes_zup.urdf (the same robot, z-up) wrote, 0.22, 0.431, 0.565 kg m^2
+    moments = np.sort(model.body_inertia[model.body("chassis").id])
+    np.testing.assert_allclose(moments, [0.22, 0.431, 0.565], rtol=0.05)
     front, rear = data.xpos[model.body("FL_hip_motor").id], data.xpos[model.body("RL_hip_motor").id]
     assert front[0] > 0.2 and rear[0] < -0.15 and front[1] > 0  # x forward, y left
     assert np.all(data.xpos[[model.body(f"{g}_lower_leg").id for g in ("FL", "RR")], 2] < -0.1)

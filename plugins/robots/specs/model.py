@@ -57,7 +57,8 @@ def load_mjspec(
     and assets as MuJoCo finds them from the file's folder, a URDF's `package://` meshes and
     the files of `assets` (reference -> path) handed over as bytes (`files`);
     `balanceinertia` is MuJoCo's compiler option; `shape_inertia` gives a body of zero
-    inertia its shape's (`orient.inertia_from_shape`; their names appended to `shaped`).
+    inertia its collision shape's box's (`orient.inertia_from_shape`; their names appended
+    to `shaped`).
     MuJoCo's own message in one line."""
     from coadapt_plugins.robots.specs.files import loader_assets
 

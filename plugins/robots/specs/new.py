@@ -64,7 +64,8 @@ from coadapt_core.errors import UserError
 def _load(model_file: Path, package_paths: tuple, notes: list[str]) -> tuple:
     """(the model as MuJoCo reads it from where it lives, the loading fixes it needed): an
     inertia MuJoCo refuses (A + B >= C) is balanced by its own compiler option, a body of
-    mass and zero inertia gets its shape's (`orient`); each written to the spec and said."""
+    mass and zero inertia gets its collision shape's box's (`orient`); each written to the
+    spec and said."""
     flags = {"balanceinertia": False, "shape_inertia": False}
     shaped: list[str] = []
     while True:
@@ -84,7 +85,8 @@ def _load(model_file: Path, package_paths: tuple, notes: list[str]) -> tuple:
     if shaped:
         notes.append(
             f"bodies with a mass and zero inertia ({_few(shaped)}): inertia_from_shape: true "
-            "(each gets its geoms' inertia scaled to its mass, as PyBullet computes it)"
+            "(each gets the inertia of a box of its mass bounding its collision geoms, as "
+            "Bullet approximates a mesh's)"
         )
     return spec, flags, shaped
 
@@ -169,7 +171,7 @@ def _loading_fixes(
         data_out["inertia_from_shape"] = True
         comments["inertia_from_shape"] = (
             f"assumed: {_few(shaped)} have a mass but zero inertia in the model (MuJoCo refuses "
-            "it); each gets its geoms' inertia scaled to its mass"
+            "it); each gets that of a box of its mass bounding its collision geoms"
         )
     if turn is not None:
         data_out["base_orientation"] = turn

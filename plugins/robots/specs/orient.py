@@ -16,9 +16,9 @@
   biped's sole is shorter, and its origin is the ankle the IK places).
 - `inertia_from_shape`: a body the model gives a mass but a zero inertia (MuJoCo refuses it:
   "mass and inertia of moving bodies must be larger than mjMINVAL"; PyBullet by default
-  computes it from the collision shape) gets the principal inertia of its geoms as MuJoCo
-  computes it from their shape, scaled to the body's mass; its centre of mass stays the
-  model's.
+  computes it from the collision shape) gets the inertia of a solid box of its mass filling
+  the box that bounds its collision geoms in its frame (as Bullet approximates a mesh's);
+  its centre of mass stays the model's.
 """
 
 from __future__ import annotations
@@ -155,24 +155,33 @@ def zero_inertia_bodies(spec: mujoco.MjSpec) -> list[mujoco.MjsBody]:
 
 
 def inertia_from_shape(spec: mujoco.MjSpec) -> list[str]:
-    """Give each zero-inertia body (`zero_inertia_bodies`) its geoms' principal inertia
-    scaled to its mass (module docstring); returns their names."""
+    """Give each zero-inertia body (`zero_inertia_bodies`) the inertia of a solid box of its
+    mass filling the box that bounds its collision geoms, body axes (Bullet's approximation
+    of a mesh's inertia); returns their names."""
     bodies = zero_inertia_bodies(spec)
     if not bodies:
         return []
     scratch = spec.copy()
-    scratch.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_TRUE
     scratch.compiler.boundmass = 1e-9
     scratch.compiler.boundinertia = 1e-12
     model = scratch.compile()
     done = []
     for body in bodies:
         b = model.body(body.name).id
-        shaped = float(model.body_mass[b])
-        if shaped <= 1e-8:  # no geoms to take a shape from
+        geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] == b]
+        colliding = [g for g in geoms if model.geom_contype[g] or model.geom_conaffinity[g]]
+        points = [_geom_points(model, g) for g in colliding or geoms]
+        points = np.concatenate(points) if points else np.zeros((0, 3))
+        if len(points) < 2:  # no shape to take an inertia from
             continue
-        body.inertia = model.body_inertia[b] * float(body.mass) / shaped
-        body.iquat = model.body_iquat[b].copy()
+        dx, dy, dz = np.ptp(points, axis=0)
+        m = float(body.mass)
+        body.inertia = [
+            m * (dy**2 + dz**2) / 12,
+            m * (dx**2 + dz**2) / 12,
+            m * (dx**2 + dy**2) / 12,
+        ]
+        body.iquat = [1.0, 0.0, 0.0, 0.0]
         body.fullinertia = [np.nan, 0.0, 0.0, 0.0, 0.0, 0.0]
         done.append(body.name)
     return done

@@ -108,7 +108,8 @@ class RobotSpec:
     #: "armature": kg m^2, "damping": N m s/rad}
     joints: dict[str, dict[str, Any]] = field(default_factory=dict)
     balanceinertia: bool = False  # MuJoCo's compiler option, for inertias it would refuse
-    #: a body with a mass and a zero inertia gets its shape's inertia (`orient`)
+    #: a body with a mass and a zero inertia gets that of the box bounding its collision
+    #: geoms (`orient`)
     inertia_from_shape: bool = False
     #: [w, x, y, z] from the model's base frame to the robot's (x forward, z up), `orient`
     base_orientation: tuple[float, float, float, float] | None = None
