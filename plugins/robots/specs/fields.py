@@ -1,8 +1,8 @@
 """A spec's field readers (`spec`): the one-line error naming a field, the checks of a
 value's type, and the fields that fix the model where it lacks something, the model file left
 as it is: `joints` (a range, armature or damping per joint pattern), `assets` (files the model
-names by an absolute path, copied into the robot's folder), `balanceinertia` and `collision`
-(how a collision mesh in a scaled link scales).
+names by an absolute path, copied into the robot's folder), `balanceinertia`, `collision`
+(how a collision mesh in a scaled link scales) and `urdf_fixes`.
 """
 
 from __future__ import annotations
@@ -136,3 +136,15 @@ def _tips(raw: Any) -> dict[str, tuple[float, float, float]]:
             raise _fail(where, f"needs a point [x, y, z] in the body's frame, got {three!r}")
         out[str(body)] = tuple(_number(x, where) for x in three)
     return out
+
+
+def _urdf_fixes(raw: Any) -> tuple[str, ...]:
+    """`urdf_fixes`: a list of the names in `urdffix.URDF_FIXES`."""
+    from coadapt_plugins.robots.specs.urdffix import URDF_FIXES
+
+    out = []
+    for k, name in enumerate(_list(raw, "urdf_fixes")):
+        if name not in URDF_FIXES:
+            raise _fail(f"urdf_fixes[{k}]", f"{name!r} is not one of: {', '.join(URDF_FIXES)}")
+        out.append(name)
+    return tuple(out)

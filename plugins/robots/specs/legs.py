@@ -98,7 +98,17 @@ def _legs(model, data, base: int) -> list[dict]:
     # feet near the ground: a leaf well above the lowest foot is an arm or a tail
     lowest = min(float(g["pos"][2]) for g in legs)
     reach = max(float(data.xpos[base][2]) - lowest, 1e-9)
-    legs = [g for g in legs if float(g["pos"][2]) <= lowest + FOOT_BAND * reach]
+    kept = [g for g in legs if float(g["pos"][2]) <= lowest + FOOT_BAND * reach]
+    if len(kept) < 2 <= len(legs):
+        raised = [model.body(g["foot"]).name for g in legs if g not in kept]
+        raise UserError(
+            f"found one leg standing: at the model's pose (its keyframe, else each joint at 0 "
+            f"or its nearest limit) the chains ending in {', '.join(raised)} end above the "
+            f"lowest foot by more than {FOOT_BAND:g} of the base's height over it (arms, or "
+            "legs posed upward); robot new needs two feet near the ground there",
+            field="model",
+        )
+    legs = kept
     # front to back (x rounded to a centimetre), then left (y > 0) before right
     legs.sort(key=lambda g: (-round(float(g["pos"][0]), 2), -float(g["pos"][1])))
     return legs
@@ -229,7 +239,7 @@ def _refuse_four_bars(model: mujoco.MjModel, data, base: int, legs: list[dict]) 
     )
     for a in range(len(legs)):
         b = int(np.argmin(gaps[a]))
-        if b < a or int(np.argmin(gaps[b])) != a or side[a] != side[b]:
+        if b <= a or int(np.argmin(gaps[b])) != a or side[a] != side[b]:
             continue  # a biped's hips are coaxial too, on either side of the base
         axis, gap = data.xaxis[first[a]], anchors[b] - anchors[a]
         off_axis = float(np.linalg.norm(gap - (gap @ axis) * axis))

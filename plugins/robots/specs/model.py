@@ -52,20 +52,27 @@ def load_mjspec(
     balanceinertia: bool = False,
     shape_inertia: bool = False,
     shaped: list | None = None,
+    urdf_fixes: tuple = (),
 ) -> mujoco.MjSpec:
     """The model file as an `MjSpec` (MJCF or URDF), read from where it lives: its includes
     and assets as MuJoCo finds them from the file's folder, a URDF's `package://` meshes and
     the files of `assets` (reference -> path) handed over as bytes (`files`);
     `balanceinertia` is MuJoCo's compiler option; `shape_inertia` gives a body of zero
     inertia its collision shape's box's (`orient.inertia_from_shape`; their names appended
-    to `shaped`).
+    to `shaped`); `urdf_fixes` are made in memory (`urdffix`).
     MuJoCo's own message in one line."""
     from coadapt_plugins.robots.specs.files import loader_assets
 
     path = Path(path)
     handed = loader_assets(path, tuple(package_paths), assets)
     try:
-        spec = mujoco.MjSpec.from_file(str(path), assets=handed)
+        if urdf_fixes:
+            from coadapt_plugins.robots.specs.urdffix import fixed_xml
+
+            text = fixed_xml(path, tuple(urdf_fixes), tuple(package_paths), assets)
+            spec = mujoco.MjSpec.from_string(text)
+        else:
+            spec = mujoco.MjSpec.from_file(str(path), assets=handed)
         # keep bodies fixed to their parents (a URDF's feet) and a URDF's root link: MuJoCo
         # fuses them into their parents by default when it reads a URDF
         spec.compiler.fusestatic = False
@@ -84,12 +91,13 @@ def load_mjspec(
 
 def spec_mjspec(rs: RobotSpec) -> mujoco.MjSpec:
     """`rs`'s model file loaded with the spec's fixes for loading (assets, balanceinertia,
-    inertia_from_shape)."""
+    inertia_from_shape, urdf_fixes)."""
     return load_mjspec(
         rs.model_path,
         assets=rs.asset_paths,
         balanceinertia=rs.balanceinertia,
         shape_inertia=rs.inertia_from_shape,
+        urdf_fixes=rs.urdf_fixes,
     )
 
 

@@ -60,13 +60,27 @@ from coadapt_plugins.robots.specs.stand import (
 
 from coadapt_core.errors import UserError
 
+#: why each of `urdffix.URDF_FIXES` is made (the note and the spec line's comment)
+_URDF_WHY = {
+    "first_axis": "a joint has several <axis> (MuJoCo refuses it); its first kept, as PyBullet "
+    "reads it",
+    "rpy_three": "an rpy of more than three numbers (MuJoCo refuses it); its first three kept, "
+    "as PyBullet reads it",
+}
+
 
 def _load(model_file: Path, package_paths: tuple, notes: list[str]) -> tuple:
-    """(the model as MuJoCo reads it from where it lives, the loading fixes it needed): an
+    """(the model as MuJoCo reads it from where it lives, the loading fixes it needed): URDF
+    forms MuJoCo refuses are read as PyBullet reads them (`urdffix`), an
     inertia MuJoCo refuses (A + B >= C) is balanced by its own compiler option, a body of
     mass and zero inertia gets its collision shape's box's (`orient`); each written to the
     spec and said."""
-    flags = {"balanceinertia": False, "shape_inertia": False}
+    from coadapt_plugins.robots.specs.urdffix import needed
+
+    fixes = needed(model_file)
+    flags = {"balanceinertia": False, "shape_inertia": False, "urdf_fixes": tuple(fixes)}
+    for fix, where in fixes.items():
+        notes.append(f"urdf_fixes: {fix} ({_few(where)}): {_URDF_WHY[fix]}")
     shaped: list[str] = []
     while True:
         try:
@@ -167,6 +181,11 @@ def _loading_fixes(
     if flags["balanceinertia"]:
         data_out["balanceinertia"] = True
         comments["balanceinertia"] = "assumed: MuJoCo refuses an inertia of the model (A + B < C)"
+    if flags["urdf_fixes"]:
+        data_out["urdf_fixes"] = list(flags["urdf_fixes"])
+        comments["urdf_fixes"] = "assumed: " + "; ".join(
+            _URDF_WHY[fix] for fix in flags["urdf_fixes"]
+        )
     if flags["shape_inertia"]:
         data_out["inertia_from_shape"] = True
         comments["inertia_from_shape"] = (

@@ -27,6 +27,7 @@ from coadapt_plugins.robots.specs.fields import (
     _text,
     _tips,
     _unknown,
+    _urdf_fixes,
     spec_error,
 )
 
@@ -120,6 +121,8 @@ class RobotSpec:
     standing_share: float | None = None
     #: files the model names by an absolute path -> their copy inside `folder`
     assets: dict[str, str] = field(default_factory=dict)
+    #: URDF forms MuJoCo refuses, read as PyBullet reads them (`urdffix`)
+    urdf_fixes: tuple[str, ...] = ()
 
     @property
     def model_path(self) -> Path:
@@ -282,7 +285,7 @@ _TOP = {
     "name", "description", "model", "base", "locked_joints", "design", "motors", "limits",
     "legs", "standing_pose", "gains", "gain_scale_exponent", "collision", "joints",
     "balanceinertia", "assets", "inertia_from_shape", "base_orientation",
-    "tips",
+    "tips", "urdf_fixes",
 }  # fmt: skip
 
 
@@ -339,6 +342,7 @@ def parse_spec(data: Any, folder: Path, *, fallback_name: str = "") -> RobotSpec
         inertia_from_shape=_flag(data.get("inertia_from_shape", False), "inertia_from_shape"),
         base_orientation=_quaternion(data.get("base_orientation")),
         tips=_tips(data.get("tips", {})),
+        urdf_fixes=_urdf_fixes(data.get("urdf_fixes", [])),
     )
 
 
