@@ -11,7 +11,9 @@ Prints JSON, with `end_to_end_vs_physics_ceiling` (training env steps/s over the
 ceiling measured in the same run), `update_vs_learner_ceiling` (the update's achieved GFLOP/s,
 compute_returns + update, over the learner's ceiling measured in the same run) and
 `pseudo_critic_share` (the pseudo-critics' part of the update's time: their targets in
-compute_returns and their regression steps, over compute_returns + update). `--resume`
+compute_returns and their regression steps, over compute_returns + update), and
+`update_sections`: compute_returns + update split into its network passes and each part that is
+not one, seconds an update and share (`update_sections.py`). `--resume`
 starts from a checkpoint ('shipped': the robot's shipped policy), so the rollouts are a
 walking policy's under its command curriculum rather than a new run's.
 
@@ -30,6 +32,7 @@ import platform
 import time
 
 import numpy as np
+from update_sections import UpdateSections
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -220,8 +223,20 @@ def main() -> None:
     ppo.profile = True  # exact section timings on a GPU (a synchronisation at each boundary)
     ppo.timing = dict.fromkeys(ppo.timing, 0.0)
     rows = []
-    for _ in range(args.iterations):
-        runner.run(1, rows.append)
+    sections = UpdateSections(ppo)
+    returns, update = ppo.compute_returns, ppo.update
+
+    def timed(fn):
+        def run():
+            with sections.active():
+                return fn()
+
+        return run
+
+    ppo.compute_returns, ppo.update = timed(returns), timed(update)
+    with sections.installed():
+        for _ in range(args.iterations):
+            runner.run(1, rows.append)
         # after every iteration, outside its timing: on a shared machine the load drifts
         # within seconds, and the ratio compares means taken over the same stretch of time
         learner_ceilings.append(_learner_ceiling(trainer, samples))
@@ -278,6 +293,7 @@ def main() -> None:
         ),
         **_learner_figures(learner_ceilings, learner_seconds / args.iterations, samples),
         "pseudo_critic_share": round(pseudo_share, 3),
+        "update_sections": sections.report(args.iterations),
         "time_share": {
             "physics": round(physics, 3),
             "task": round(task, 3),
