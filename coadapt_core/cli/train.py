@@ -308,7 +308,6 @@ def register(app: typer.Typer) -> None:
         from coadapt_core.learning.checkpoints import read_checkpoint
 
         values = filled(values, own)
-        robot = plugin_name("robot", values["robot"])
         steps = values["steps"]
         if steps < 0 or (steps == 0 and values["resume"] is None and values["init_from"] is None):
             fail(
@@ -324,10 +323,12 @@ def register(app: typer.Typer) -> None:
             given = overrides(train_settings_class()(**given_settings(values, settings)))
         except UserError as exc:
             fail(str(exc))
-        plugins = train_plugins(values, robot)
         values["resume"], values["init_from"] = checkpoint_sources(values)
         source = values["resume"] or values["init_from"]
         state = read_checkpoint(source) if source is not None else None
+        # no --robot: the checkpoint's robot (a resumed nezha run is nezha's), else the default
+        robot = plugin_name("robot", values["robot"] or (state["robot"] if state else None))
+        plugins = train_plugins(values, robot)
         if state is not None and state["robot"] != robot:
             flag = "--resume" if values["resume"] is not None else "--init-from"
             fail(f"{flag} checkpoint was trained for robot '{state['robot']}', not '{robot}'")

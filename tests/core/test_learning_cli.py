@@ -8,6 +8,7 @@ import json
 import pytest
 
 from coadapt_core.cli import main
+from coadapt_core.learning.checkpoints import read_checkpoint
 
 
 @pytest.mark.slow
@@ -162,3 +163,21 @@ def test_eval_without_checkpoint_says_no_policy_is_shipped(capsys, monkeypatch) 
         "robot 'kuafu' ships no policy for terrain 'slope' and the mixed design space"
         in capsys.readouterr().err
     )
+
+
+@pytest.mark.slow
+def test_resume_without_robot_takes_the_checkpoints_robot(tmp_path, capsys) -> None:
+    """`coadapt train --resume` of a nezha run, the command the interrupted run prints, had
+    to be told `--robot nezha` again (refused: 'trained for robot nezha, not kuafu')."""
+    small = ["--num-designs", "2", "--agents", "2", "--steps-per-env", "8", "--epochs", "1"]
+    small += ["--minibatches", "1", "--quiet", "--logger", "none", "--threads", "1"]
+    out = tmp_path / "nezha"
+    assert main(["train", "--robot", "nezha", "--steps", "32", "--out", str(out), *small]) == 0
+    capsys.readouterr()
+    resumed = ["train", "--resume", str(out / "model_final.pt"), "--steps", "32", *small]
+    assert main([*resumed, "--out", str(tmp_path / "resumed")]) == 0
+    captured = capsys.readouterr()
+    assert captured.err.count("training nezha on") + captured.out.count("training nezha on") == 1
+    assert read_checkpoint(tmp_path / "resumed" / "model_final.pt")["robot"] == "nezha"
+    assert main([*resumed, "--robot", "kuafu", "--out", str(tmp_path / "kuafu")]) == 2
+    assert "trained for robot 'nezha', not 'kuafu'" in capsys.readouterr().err
