@@ -313,15 +313,15 @@ class PPO:
         params = list(self.loss.parameters())
         pseudo_params = [] if self.pseudo_critic is None else list(self.pseudo_critic.parameters())
         pseudo_epochs = c.pseudo_epochs or c.epochs
-        pseudo_seconds = 0.0
-        begin = self._clock()
+        pseudo_seconds, begin = 0.0, self._clock()
         frozen = self.policy_frozen
         images = None if self.mirror is None or frozen else self.mirror.image(flat)
         for epoch in range(pseudo_epochs if frozen else c.epochs):
-            # one gather per epoch, the minibatches its slices (views): the same rows as
-            # gathering each minibatch on its own, in one pass over memory instead of one each
+            # one gather per epoch (`index_select` per entry: a third of `flat[order]`'s time),
+            # the minibatches its slices (views): the same rows as gathering each on its own
             order = torch.randperm(n, device=self.device)
-            shuffled, mirrored = flat[order], None if images is None else images[order]
+            take = lambda x, order=order: x.index_select(0, order)  # noqa: E731
+            shuffled, mirrored = flat.apply(take), None if images is None else images.apply(take)
             for start in range(0, n - size + 1, size):
                 batch = shuffled[start : start + size]
                 if frozen:
