@@ -25,6 +25,7 @@ from coadapt_core.cli.options import OptionGroup, filled, given_settings, option
 from coadapt_core.cli.options import register as register_command
 from coadapt_core.cli.progress import ProgressLine
 from coadapt_core.cli.train_setup import (
+    RECIPE_NAME,
     build_trainer,
     checkpoint_sources,
     start_runner,
@@ -174,6 +175,22 @@ def train_options() -> OptionGroup:
     return options_of(train_settings_class(), aliases=TRAIN_ALIASES)
 
 
+def _recipe_clause(values: dict[str, Any], task: Any) -> str:
+    """The start line's clause naming the new-robot recipe a run starts from ("" where none);
+    the recipe for two legs with the reward settings in force (the options given win)."""
+    name = values.get("recipe")
+    if not name:
+        return ""
+    rewards = task.rewards
+    settings = (
+        f"contact_match weight {rewards.weights['contact_match']:g}, tracking sigma "
+        f"{rewards.tracking_sigma:g}; "
+        if name != RECIPE_NAME
+        else ""
+    )
+    return f", {name} ({settings}no shipped policy here; docs/training.md)"
+
+
 def _announce(values: dict[str, Any], robot: str, trainer: Any, iterations: int) -> None:
     base, task, sim = (
         trainer.config,
@@ -188,11 +205,7 @@ def _announce(values: dict[str, Any], robot: str, trainer: Any, iterations: int)
         f"{trainer.design_space.describe()}, device {values['device']}, "
         f"{trainer.num_threads} threads, randomization "
         f"{base.extra.get('randomization', 'table2')}, yaw {yaw[0]:g}:{yaw[1]:g} rad/s"
-        + (
-            ", the new-robot recipe (no shipped policy here; docs/training.md)"
-            if values.get("recipe")
-            else ""
-        )
+        + _recipe_clause(values, task)
         + (
             ", pseudo-critics only (the policy stays as loaded)"
             if values["pseudo_critics_only"]

@@ -78,15 +78,33 @@ def train_plugins(values: dict[str, Any], robot: str) -> tuple[Any, type, list]:
     )
 
 
-def fresh_train_config(robot: Any, terrain: str, mixed: bool) -> tuple[Any, bool]:
-    """The train config a new `coadapt train` starts from, and whether it is the recipe:
-    TrainConfig's defaults where the robot ships a policy for this terrain and design space
-    (Kuafu's were trained so), else the new-robot recipe (`NEW_ROBOT_RECIPE`, measured in
-    docs/training.md "Time to walk"); options given on the command line apply over either."""
-    from coadapt_core.learning.config import TrainConfig, new_robot_config
+#: the name the start line gives the new-robot recipe (with " for two legs" where the leg
+#: count adds task settings)
+RECIPE_NAME = "the new-robot recipe"
+#: leg counts the start line names in words
+_LEG_WORDS = {1: "one", 2: "two", 3: "three", 4: "four", 5: "five", 6: "six", 8: "eight"}
 
-    recipe = robot.shipped_policy(terrain, mixed) is None
-    return (new_robot_config() if recipe else TrainConfig()), recipe
+
+def fresh_train_config(robot: Any, terrain: str, mixed: bool) -> tuple[Any, Any, str]:
+    """The train and task configs a new `coadapt train` starts from, and the recipe's name
+    ("" where none): TrainConfig's and TaskConfig's defaults where the robot ships a policy
+    for this terrain and design space (Kuafu's were trained so), else the new-robot recipe
+    (`NEW_ROBOT_RECIPE` over TrainConfig's defaults, measured in docs/training.md "Time to
+    walk") with, for a robot of a leg count `NEW_ROBOT_TASK_RECIPE` names (two legs), its
+    task settings over TaskConfig's defaults; options given on the command line apply over
+    either."""
+    from coadapt_core.learning.config import NEW_ROBOT_TASK_RECIPE, TrainConfig, new_robot_config
+    from coadapt_core.settings import apply_overrides
+    from coadapt_core.task.config import TaskConfig
+
+    if robot.shipped_policy(terrain, mixed) is not None:
+        return TrainConfig(), TaskConfig(), ""
+    legs = len(robot.legs())
+    task = NEW_ROBOT_TASK_RECIPE.get(legs)
+    if task is None:
+        return new_robot_config(), TaskConfig(), RECIPE_NAME
+    name = f"{RECIPE_NAME} for {_LEG_WORDS.get(legs, legs)} legs"
+    return new_robot_config(), apply_overrides(TaskConfig(), task), name
 
 
 def build_trainer(
@@ -105,14 +123,14 @@ def build_trainer(
     from coadapt_core.task.config import TaskConfig
 
     robot_obj, sim_cls, objectives = plugins
-    fresh, values["recipe"] = (
-        (None, False)
+    fresh, fresh_task, values["recipe"] = (
+        (None, None, "")
         if state
         else fresh_train_config(robot_obj, values["terrain"], values["mixed"])
     )
     try:
         learner = resolve_learner(
-            state, given, given.pop("task", {}), given.pop("randomization", {}), fresh
+            state, given, given.pop("task", {}), given.pop("randomization", {}), fresh, fresh_task
         )
     except UserError as exc:
         fail(str(exc))
@@ -120,7 +138,7 @@ def build_trainer(
         TrainConfig.from_dict(state["train_config"]) if state else fresh
     )
     task = learner.get("task_config") or (
-        TaskConfig.from_dict(state["task_config"]) if state else TaskConfig()
+        TaskConfig.from_dict(state["task_config"]) if state else fresh_task
     )
     base.device, base.seed = values["device"], values["seed"]
     if values["designs"] is not None:

@@ -19,13 +19,14 @@ def resolve_learner(
     task: dict[str, Any],
     randomization: dict[str, Any],
     fresh: TrainConfig | None = None,
+    fresh_task: TaskConfig | None = None,
 ) -> dict[str, Any]:
     """`train_config`, `task_config` and `randomization` for the learner: a checkpoint's
     (`saved`, None: the defaults) with the given nested overrides applied; only the parts
     with overrides are returned. A randomization `preset` replaces the checkpoint's before
     single ranges apply; the train config records both (`extra`), so a resumed training
-    draws the same ranges. `fresh`: the train config a run without `saved` starts from
-    (default: TrainConfig's defaults)."""
+    draws the same ranges. `fresh`, `fresh_task`: the train and task configs a run without
+    `saved` starts from (default: TrainConfig's and TaskConfig's defaults)."""
     out: dict[str, Any] = {}
     saved_train = (
         TrainConfig.from_dict(saved["train_config"]) if saved else (fresh or TrainConfig())
@@ -48,6 +49,7 @@ def resolve_learner(
             out["randomization"] = RandomizationConfig.recorded(extra)
     if task:
         out["task_config"] = apply_overrides(
-            TaskConfig.from_dict(saved["task_config"]) if saved else TaskConfig(), task
+            TaskConfig.from_dict(saved["task_config"]) if saved else (fresh_task or TaskConfig()),
+            task,
         )
     return out
