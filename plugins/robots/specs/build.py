@@ -10,6 +10,7 @@ import mujoco
 import numpy as np
 from coadapt_plugins.robots.specs import model as M
 from coadapt_plugins.robots.specs.kinematics import LegKinematics, build_chain
+from coadapt_plugins.robots.specs.loops import close_loops
 from coadapt_plugins.robots.specs.spec import (
     DESIGN_DECIMALS,
     Parameter,
@@ -160,6 +161,11 @@ class SpecBuilder:
         joints = self.prepared.joints
         compiled = spec.compile()
         pose = self.standing_pose(design, compiled)
+        if self.spec.loops:  # closed at the standing pose, the passive hinges' zero there
+            p = self.prepared
+            compiled = close_loops(
+                spec, compiled, self.spec, joints, pose, p.passive, p.passive_seeds
+            )
         height, contact = self._standing(compiled, pose)
         compiled.body_pos[compiled.body(self.prepared.base).id] = [0.0, 0.0, height]
         formats = {"mjcf": mjcf_text(compiled, self.spec.name, joints, torque)}

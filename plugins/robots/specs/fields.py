@@ -148,3 +148,24 @@ def _urdf_fixes(raw: Any) -> tuple[str, ...]:
             raise _fail(f"urdf_fixes[{k}]", f"{name!r} is not one of: {', '.join(URDF_FIXES)}")
         out.append(name)
     return tuple(out)
+
+
+def _loops(raw: Any) -> tuple[tuple[str, str, tuple[str, ...]], ...]:
+    """`loops`: [{bodies: [A, B], passive: [joint, ...]}, ...], each two bodies whose
+    origins the robot holds together and the hinges on their chains no motor drives."""
+    out = []
+    for k, entry in enumerate(_list(raw, "loops")):
+        where = f"loops[{k}]"
+        data = _mapping(entry, where)
+        _unknown(data, {"bodies", "passive"}, where)
+        bodies = _list(data.get("bodies"), f"{where}.bodies")
+        if len(bodies) != 2:
+            raise _fail(f"{where}.bodies", f"needs two bodies [A, B], got {bodies!r}")
+        a, b = (_text(x, f"{where}.bodies") for x in bodies)
+        if a == b:
+            raise _fail(f"{where}.bodies", f"needs two different bodies, got '{a}' twice")
+        passive = tuple(
+            _text(j, f"{where}.passive") for j in _list(data.get("passive", []), f"{where}.passive")
+        )
+        out.append((a, b, passive))
+    return tuple(out)

@@ -3,8 +3,8 @@
 `MjSpec.to_xml` rounds numbers to six significant digits; a design's model must keep the
 bodies, masses and inertias it was built with, so the robot is written from its compiled
 `MjModel`: every value explicit (no defaults, inertials given, meshes inline), one motor
-per actuated joint. Tendons and equality constraints are not written (`prepare` refuses
-them).
+per actuated joint. Tendons are not written (`prepare` refuses them); the only equality
+constraints are the spec's loops (`loops`), written as a connect between two sites.
 """
 
 from __future__ import annotations
@@ -145,6 +145,15 @@ def mjcf_text(model: mujoco.MjModel, name: str, joints: list[str], torque: np.nd
         )
     if excludes:
         out += ["  <contact>", *excludes, "  </contact>"]
+    if model.neq:  # the spec's loops (`loops`): a connect between two sites each
+        out.append("  <equality>")
+        out += [
+            f'    <connect name="{model.eq(e).name}" site1="{model.site(model.eq_obj1id[e]).name}" '
+            f'site2="{model.site(model.eq_obj2id[e]).name}" solref="{_v(model.eq_solref[e])}" '
+            f'solimp="{_v(model.eq_solimp[e])}"/>'
+            for e in range(model.neq)
+        ]
+        out.append("  </equality>")
     out.append("  <actuator>")
     out += [
         f'    <motor name="{j}" joint="{j}" gear="1" ctrllimited="true" '

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+from coadapt_plugins.robots.specs.loops import check_loops
 from coadapt_plugins.robots.specs.meshes import _MESH, ALONG, _own_meshes, _quat_mat
 from coadapt_plugins.robots.specs.orient import add_tips, inertia_from_shape, reorient
 from coadapt_plugins.robots.specs.spec import RobotSpec, spec_error
@@ -157,6 +158,8 @@ class Prepared:
     armature: np.ndarray  # [J]
     damping: np.ndarray  # [J]
     fits: list[str] = field(default_factory=list)  # one line per collision mesh fitted
+    passive: list[str] = field(default_factory=list)  # hinges of `loops` no motor drives
+    passive_seeds: np.ndarray | None = None  # [P] their standing angles (the loops' seeds)
 
 
 def _standing_pose(spec: mujoco.MjSpec, rs: RobotSpec, joints: list[str]) -> np.ndarray:
@@ -178,7 +181,7 @@ def _standing_pose(spec: mujoco.MjSpec, rs: RobotSpec, joints: list[str]) -> np.
         return qpos[adr]
     unknown = sorted(set(pose) - set(joints))
     if unknown:
-        raise spec_error(f"standing_pose.joints.{unknown[0]}", "not an actuated joint of the model")
+        raise spec_error(f"standing_pose.joints.{unknown[0]}", "not a hinge joint of the model")
     return np.array([pose.get(j, 0.0) for j in joints], dtype=float)
 
 
@@ -207,22 +210,26 @@ def prepare(rs: RobotSpec) -> Prepared:
                 "base", f"the base '{root.name}' has a joint '{j.name}' that is not free"
             )
         root.add_freejoint()
-    joints = []
+    hinges = []
     for body in bodies:
         for j in body.joints:
             if j.type == mujoco.mjtJoint.mjJNT_HINGE:
-                joints.append(j.name)
+                hinges.append(j.name)
             elif j.type != mujoco.mjtJoint.mjJNT_FREE or body is not root:
                 raise spec_error(
                     "locked_joints", f"joint '{j.name}' is not a hinge; lock it or model a hinge"
                 )
-    if any(not name for name in joints):
+    if any(not name for name in hinges):
         raise spec_error("model", "every hinge joint needs a name")
-    fix_joints(spec, rs, joints)
+    passive = check_loops(spec, rs.loops, hinges)  # hinges no motor drives (`loops`)
+    joints = [h for h in hinges if h not in passive]
+    fix_joints(spec, rs, hinges)
     # keep the robot alone: no floor, no keyframes, sensors or actuators of its own
     for geom in list(spec.worldbody.geoms):
         spec.delete(geom)
-    standing = _standing_pose(spec, rs, joints)
+    standing = _standing_pose(spec, rs, hinges)
+    seeds = standing[[hinges.index(p) for p in passive]]
+    standing = standing[[hinges.index(j) for j in joints]]
     for element in [*spec.keys, *spec.sensors, *spec.actuators]:
         spec.delete(element)
     for body in bodies:
@@ -240,6 +247,8 @@ def prepare(rs: RobotSpec) -> Prepared:
         model.dof_armature[dofs].copy(),
         model.dof_damping[dofs].copy(),
         fits,
+        passive,
+        seeds,
     )
 
 

@@ -21,6 +21,7 @@ from coadapt_plugins.robots.specs.fields import (
     _flag,
     _joint_fixes,
     _list,
+    _loops,
     _mapping,
     _number,
     _quaternion,
@@ -123,6 +124,8 @@ class RobotSpec:
     assets: dict[str, str] = field(default_factory=dict)
     #: URDF forms MuJoCo refuses, read as PyBullet reads them (`urdffix`)
     urdf_fixes: tuple[str, ...] = ()
+    #: closed loops the model file leaves open (`loops`): (body A, body B, passive hinges)
+    loops: tuple[tuple[str, str, tuple[str, ...]], ...] = ()
 
     @property
     def model_path(self) -> Path:
@@ -285,7 +288,7 @@ _TOP = {
     "name", "description", "model", "base", "locked_joints", "design", "motors", "limits",
     "legs", "standing_pose", "gains", "gain_scale_exponent", "collision", "joints",
     "balanceinertia", "assets", "inertia_from_shape", "base_orientation",
-    "tips", "urdf_fixes",
+    "tips", "urdf_fixes", "loops",
 }  # fmt: skip
 
 
@@ -343,6 +346,7 @@ def parse_spec(data: Any, folder: Path, *, fallback_name: str = "") -> RobotSpec
         base_orientation=_quaternion(data.get("base_orientation")),
         tips=_tips(data.get("tips", {})),
         urdf_fixes=_urdf_fixes(data.get("urdf_fixes", [])),
+        loops=_loops(data.get("loops", [])),
     )
 
 

@@ -177,16 +177,19 @@ def _joints(model: mujoco.MjModel, b: int, limit: dict) -> list[str]:
                 rpy = _rpy(both)
         else:
             xyz, rpy = here - anchor, _rpy(turn) if ref else np.zeros(3)
-        effort, velocity = limit[jname]
+        effort, velocity = limit.get(jname, (0.0, 0.0))  # a loop's passive hinge: no motor
         lo, hi = model.jnt_range[j]
+        kind, bounds = "revolute", f'lower="{_f(lo)}" upper="{_f(hi)}" '
+        if not model.jnt_limited[j]:  # only a passive hinge may have no range
+            kind, bounds = "continuous", ""
         damping = model.dof_damping[model.jnt_dofadr[j]]
         if not exact:
             out.append(_tiny_link(child))
         out.append(
-            f'  <joint name="{jname}" type="revolute"><origin xyz="{_v(xyz)}" rpy="{_v(rpy)}"/>'
+            f'  <joint name="{jname}" type="{kind}"><origin xyz="{_v(xyz)}" rpy="{_v(rpy)}"/>'
             f'<parent link="{previous}"/><child link="{child}"/>'
             f'<axis xyz="{_v(model.jnt_axis[j])}"/>'
-            f'<limit lower="{_f(lo)}" upper="{_f(hi)}" effort="{_f(effort)}" '
+            f'<limit {bounds}effort="{_f(effort)}" '
             f'velocity="{_f(velocity)}"/><dynamics damping="{_f(damping)}" friction="0"/></joint>'
         )
         previous, anchor = child, here

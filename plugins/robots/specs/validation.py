@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from coadapt_plugins.robots.specs.loops import loop_forces
 
 from coadapt_core.robot import Finding, RobotModel, ValidationReport
 
@@ -233,13 +234,15 @@ def _self_contact(rm: RobotModel) -> Finding:
 def _statics(rm: RobotModel, model: mujoco.MjModel, data: mujoco.MjData) -> Finding:
     """Joint torques holding the standing pose with the weight shared equally by the feet:
     gravity on every body (`qfrc_bias` at rest) less each foot's reaction through its
-    Jacobian; the largest share of a motor's peak torque."""
+    Jacobian (and, with `loops`, the pins' forces that leave the passive hinges free); the
+    largest share of a motor's peak torque."""
     support = np.array([0.0, 0.0, rm.total_mass * GRAVITY / len(rm.foot_bodies)])
     torque = data.qfrc_bias.copy()
     jac = np.zeros((3, model.nv))
     for foot in rm.foot_bodies:
         mujoco.mj_jacBody(model, data, jac, None, model.body(foot).id)
         torque -= jac.T @ support
+    torque = loop_forces(model, data, torque)  # a four-bar's pins carry their share
     dofs = [model.jnt_dofadr[model.joint(j).id] for j in rm.joint_names]
     share = np.abs(torque[dofs]) / rm.torque_limit
     worst = int(np.argmax(share))

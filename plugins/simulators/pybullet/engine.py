@@ -18,6 +18,7 @@ import pybullet as p
 import torch
 from coadapt_plugins.simulators.pybullet.armature import ArmatureMixin
 from coadapt_plugins.simulators.pybullet.divergence import diverged
+from coadapt_plugins.simulators.pybullet.loops import add_loops
 from coadapt_plugins.simulators.pybullet.spec import EnvSpec
 from coadapt_plugins.simulators.pybullet.urdf import prepare_urdf
 from coadapt_plugins.simulators.pybullet.world import open_world
@@ -155,6 +156,7 @@ class Engine(ArmatureMixin):
         if missing:
             raise ValueError(f"URDF lacks joints/links {missing}")
         self.joint_ids[e] = [names[n] for n in spec.joint_names]
+        add_loops(client, body, names, spec.loops, self.joint_ids[e])  # a four-bar's pins
         self.foot_ids[e] = [names["link:" + n] for n in spec.foot_bodies]
         self.all_links[e] = [-1, *range(p.getNumJoints(body, physicsClientId=client))]
         for link in self.all_links[e]:

@@ -41,6 +41,8 @@ class EnvSpec:
     # file name -> text of the files the URDF names (a collision mesh's OBJ): the model's
     # "urdf:<file>" formats, written beside the URDF before it loads
     urdf_files: dict[str, str] = field(default_factory=dict)
+    # (link A, point in A, link B, point in B) per closed loop of the MJCF (`loops`)
+    loops: list = field(default_factory=list)
 
     @classmethod
     def from_model(cls, model: RobotModel) -> EnvSpec:
@@ -70,7 +72,18 @@ class EnvSpec:
             urdf_files={
                 k.split(":", 1)[1]: v for k, v in model.formats.items() if k.startswith("urdf:")
             },
+            loops=_loops(model.text("mjcf")),
         )
+
+
+def _loops(mjcf: str) -> list:
+    """The closed loops of the robot's MJCF (`loops.mjcf_loops`); none without a connect."""
+    if "<connect" not in mjcf:
+        return []
+    import mujoco
+    from coadapt_plugins.simulators.pybullet.loops import mjcf_loops
+
+    return mjcf_loops(mujoco.MjModel.from_xml_string(mjcf))
 
 
 def _foot_radius(points: np.ndarray) -> float:

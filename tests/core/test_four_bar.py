@@ -1,0 +1,219 @@
+"""Four-bar legs a model file leaves open, closed by the robot (issue 58, spec `loops`):
+pybullet_data's minitaur.urdf as it is, with a spec written here, builds with its knees
+passive (no motor, not policy joints) and its loops closed at the standing pose; joint PD
+holds it standing in MuJoCo (a `<connect>` per leg) and in PyBullet (a point-to-point
+constraint per leg, as PyBullet's own minitaur environment adds) with each toe's two ends
+together; the statics count the pins' forces; bad loops are one line naming the field."""
+
+from __future__ import annotations
+
+import math
+import shutil
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+import yaml
+
+from coadapt_core.errors import UserError
+
+pytest.importorskip("pybullet_data")
+import pybullet_data
+
+SOURCE = Path(pybullet_data.getDataPath()) / "quadruped" / "minitaur.urdf"
+LEGS = ("front_left", "front_right", "back_left", "back_right")
+
+
+def minitaur_spec(**change) -> dict:
+    """A spec for minitaur.urdf as the file is: each leg's two lower legs' ends pinned
+    together, the knees passive, the motors at pi/2 (upper legs level, the leg a diamond)."""
+    pose = {}
+    for leg in LEGS:
+        for side in "LR":
+            pose[f"motor_{leg}{side}_joint"] = math.pi / 2
+            pose[f"knee_{leg}{side}_link"] = -2.1834  # PyBullet's minitaur's knee angle
+    halves = [(leg, side) for leg in LEGS for side in "LR"]
+    spec = {
+        "name": "minitaur-test",
+        "model": "minitaur.urdf",
+        "base": "base_chassis_link",
+        "tips": {f"lower_leg_{g}{s}_link": [0.0, 0.0, 0.2] for g, s in halves},
+        "loops": [
+            {
+                "bodies": [f"lower_leg_{g}L_link_tip", f"lower_leg_{g}R_link_tip"],
+                "passive": [f"knee_{g}L_link", f"knee_{g}R_link"],
+            }
+            for g in LEGS
+        ],
+        "design": [
+            {
+                "name": "upper_scale",
+                "bounds": [0.8, 1.2],
+                "mass": "fixed",
+                "links": [[f"upper_leg_{g}{s}_link", f"lower_leg_{g}{s}_link"] for g, s in halves],
+            },
+            {
+                "name": "lower_scale",
+                "bounds": [0.8, 1.2],
+                "mass": "fixed",
+                "links": [
+                    [f"lower_leg_{g}{s}_link", f"lower_leg_{g}{s}_link_tip"] for g, s in halves
+                ],
+            },
+        ],
+        "limits": {"torque": {"motor_.*": 10.0}, "speed": {"motor_.*": 50.0}},
+        "joints": {"motor_.*": {"range": [-3.2, 3.2]}},
+        "legs": [
+            {"name": g, "foot": f"lower_leg_{g}L_link_tip", "hip": f"motor_{g}L_link", "phase": ph}
+            for g, ph in zip(LEGS, (0.0, 0.5, 0.5, 0.0), strict=True)
+        ],
+        "standing_pose": {"joints": pose},
+        "gains": {"default": {"kp": 100.0, "kd": 2.5}},
+    }
+    spec.update(change)
+    return spec
+
+
+def robot_in(folder: Path, **change):
+    from coadapt_plugins.robots.specs.robot import spec_robot_class
+
+    folder.mkdir(parents=True, exist_ok=True)
+    shutil.copy(SOURCE, folder / SOURCE.name)
+    (folder / "robot.yaml").write_text(yaml.safe_dump(minitaur_spec(**change)))
+    return spec_robot_class(folder)()
+
+
+def pin_gaps(model, data) -> np.ndarray:
+    """[K] the distance between each loop's two sites."""
+    return np.array(
+        [
+            np.linalg.norm(data.site_xpos[model.eq_obj1id[e]] - data.site_xpos[model.eq_obj2id[e]])
+            for e in range(model.neq)
+        ]
+    )
+
+
+def test_the_knees_are_passive_and_every_loop_is_closed_at_the_standing_pose(tmp_path):
+    before = SOURCE.read_bytes()
+    robot = robot_in(tmp_path / "mt")
+    rm = robot.build(robot.nominal_design())
+    assert SOURCE.read_bytes() == before  # the user's file is theirs
+    assert sorted(rm.joint_names) == sorted(f"motor_{g}{s}_joint" for g in LEGS for s in "LR")
+    model = mujoco.MjModel.from_xml_string(rm.text("mjcf"))
+    assert model.nu == 8 and model.neq == 4  # a motor per motor joint, a pin per leg
+    data = mujoco.MjData(model)
+    for name, angle in zip(rm.joint_names, rm.default_joint_pos, strict=True):
+        data.qpos[model.jnt_qposadr[model.joint(name).id]] = angle
+    mujoco.mj_kinematics(model, data)  # the knees at 0: the standing pose's angles
+    assert pin_gaps(model, data).max() < 1e-9
+    knee = data.xpos[model.body("lower_leg_front_leftL_link").id]
+    toe = data.xpos[model.body("lower_leg_front_leftL_link_tip").id]
+    assert toe[2] < knee[2] - 0.1  # a diamond: the toe below the knees
+    assert 0.14 < rm.standing_base_height < 0.2
+    urdf = rm.text("urdf")
+    assert 'name="knee_front_leftL_link" type="continuous"' in urdf
+    # another design closes its loops too (its knees solved again)
+    longer = robot.build(np.array([1.2, 0.8]))
+    model = mujoco.MjModel.from_xml_string(longer.text("mjcf"))
+    data = mujoco.MjData(model)
+    for name, angle in zip(longer.joint_names, longer.default_joint_pos, strict=True):
+        data.qpos[model.jnt_qposadr[model.joint(name).id]] = angle
+    mujoco.mj_kinematics(model, data)
+    assert pin_gaps(model, data).max() < 1e-9
+
+
+@pytest.mark.slow
+def test_joint_pd_holds_it_standing_in_mujoco_and_pybullet_with_the_toes_pinned(tmp_path):
+    from coadapt_plugins.robots.specs.validation import stand_test
+
+    robot = robot_in(tmp_path / "mt")
+    rm = robot.build(robot.nominal_design())
+    stand = stand_test(rm)
+    assert stand.ok and stand.lowest > 0.8, stand.text()
+    # the pins hold in MuJoCo, stepped as the stand test steps it, for 6 s (the file's
+    # links have inertias of 1 kg m^2: the legs settle slowly)
+    spec = mujoco.MjSpec.from_string(rm.text("mjcf"))
+    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], conaffinity=1)
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    data.qpos[:7] = [0, 0, rm.standing_base_height, 1, 0, 0, 0]
+    qadr = [model.jnt_qposadr[model.joint(j).id] for j in rm.joint_names]
+    vadr = [model.jnt_dofadr[model.joint(j).id] for j in rm.joint_names]
+    data.qpos[qadr] = rm.default_joint_pos
+    for _ in range(3000):
+        torque = rm.kp * (rm.default_joint_pos - data.qpos[qadr]) - rm.kd * data.qvel[vadr]
+        data.ctrl[:] = np.clip(torque, -rm.torque_limit, rm.torque_limit)
+        mujoco.mj_step(model, data)
+    assert pin_gaps(model, data).max() < 2e-3
+    assert data.qpos[2] > 0.8 * rm.standing_base_height
+    # the statics count the pins: its largest motor torque is what PD holds at rest
+    report = robot.validate(robot.nominal_design())
+    statics = next(f for f in report.findings if f.check == "statics.standing_torque")
+    held = float(np.max(np.abs(data.ctrl) / rm.torque_limit))
+    assert statics.ok and abs(statics.value - held) < 0.05 * held, (statics.value, held)
+    assert all(f.ok for f in report.findings), [f.message for f in report.findings if not f.ok]
+    # PyBullet: the URDF is a tree, the engine pins the toes as PyBullet's minitaur does
+    gaps, height, bent = _pybullet_hold(robot, rm)
+    assert max(gaps) < 2e-3 and height > 0.5 * rm.standing_base_height, (max(gaps), height)
+    assert abs(bent) > 0.05  # the knees, free, follow the motors (0.1 rad)
+
+
+def _pybullet_hold(robot, rm) -> tuple[list[float], float]:
+    """(each loop's gap, the base height, how far a knee turned) on PyBullet after 1 s of
+    joint PD toward the standing pose with every motor 0.2 rad on."""
+    import pybullet as p
+    from coadapt_plugins.simulators.pybullet.simulator import PyBulletSimulator
+    from coadapt_plugins.simulators.pybullet.spec import EnvSpec
+
+    from coadapt_core.physics.randomization import RandomizationConfig
+
+    loops = EnvSpec.from_model(rm).loops
+    assert len(loops) == 4
+    with PyBulletSimulator(
+        robot, robot.nominal_design()[None], randomization=RandomizationConfig.off()
+    ) as sim:
+        sim.reset()
+        engine = sim._engine  # one environment: in this process
+        client, body = engine.clients[0], engine.bodies[0]
+        names = {
+            p.getJointInfo(body, i, physicsClientId=client)[12].decode(): i
+            for i in range(p.getNumJoints(body, physicsClientId=client))
+        }
+        knee = names["lower_leg_front_leftL_link"]  # a joint's index is its child link's
+        start = p.getJointState(body, knee, physicsClientId=client)[0]
+        # every motor turned 0.2 rad on: each leg shortens, its knees bend with it
+        targets = sim.default_joint_pos.clone() + 0.2
+        for _ in range(50):
+            state = sim.step(targets)
+        bent = p.getJointState(body, knee, physicsClientId=client)[0] - start
+        gaps = []
+        for a, pa, b, pb in loops:
+            ends = []
+            for link, point in ((a, pa), (b, pb)):
+                frame = p.getLinkState(body, names[link], physicsClientId=client)
+                rot = np.array(p.getMatrixFromQuaternion(frame[5])).reshape(3, 3)
+                ends.append(np.array(frame[4]) + rot @ np.array(point))
+            gaps.append(float(np.linalg.norm(ends[0] - ends[1])))
+    return gaps, float(state.base_pos[0, 2]), bent
+
+
+@pytest.mark.parametrize(
+    ("change", "field", "says"),
+    [
+        ({"loops": [{"bodies": ["nowhere", "lower_leg_front_leftR_link_tip"]}]},
+         "loops[0].bodies", "no body 'nowhere'"),
+        ({"loops": [{"bodies": ["lower_leg_front_leftL_link_tip", "lower_leg_front_leftR_link_tip"],
+                     "passive": ["knee_nowhere"]}]},
+         "loops[0].passive", "'knee_nowhere' is not a hinge"),
+        ({"loops": [{**loop, "bodies": [loop["bodies"][0], "lower_leg_back_rightR_link_tip"]}
+                    if k == 0 else loop for k, loop in enumerate(minitaur_spec()["loops"])]},
+         "loops[0]", "the loop does not close"),
+        ({"loops": [{"bodies": ["a"]}]}, "loops[0].bodies", "needs two bodies"),
+    ],
+)  # fmt: skip
+def test_a_bad_loop_is_one_line_naming_it(change, field, says, tmp_path):
+    with pytest.raises(UserError) as caught:
+        robot_in(tmp_path / "mt", **change).build(np.array([1.0, 1.0]))
+    message = str(caught.value)
+    assert "\n" not in message and f"'{field}'" in message and says in message, message
