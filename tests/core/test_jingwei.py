@@ -50,3 +50,19 @@ def test_its_mirror_map_flips_the_hip_roll_only(jingwei) -> None:
     assert mirror.joints == (4, 5, 6, 7, 0, 1, 2, 3) and mirror.legs == (1, 0)
     # hip roll, hip pitch, knee, ankle: only the roll joint changes sign
     assert mirror.joint_signs == (-1, 1, 1, 1) * 2
+
+
+def test_no_design_of_it_needs_the_level_search(jingwei) -> None:
+    """Its pose solved per design is the leg IK's answer at 0.9087 of the leg's length at
+    every design (each joint inside its range, the soles level): the search that a design
+    clipping a joint gets (`level.level_targets`) leaves jingwei's standing poses as they
+    were, bit for bit."""
+    import numpy as np
+    import torch
+
+    space = jingwei.design_space()
+    corners = np.array([[x, y] for x in (space.lower[0], space.upper[0])
+                        for y in (space.lower[1], space.upper[1])])  # fmt: skip
+    designs = torch.as_tensor(np.vstack([space.sample(64, rng=3), corners]), dtype=torch.float64)
+    built = jingwei._built
+    assert torch.equal(built.stand_targets(designs), built.stand_targets(designs, level=False))

@@ -79,6 +79,7 @@ class SpecBuilder:
         joints = self.prepared.joints
         self.torque, self.speed, self.types = self._motor_table(joints)
         self.gains = joint_values(spec.gains, joints, "gains")
+        self._levelled: dict = {}  # each design's standing targets searched (`level`)
 
     def _motor_table(self, joints: list[str]):
         """Nominal (torque [J], speed [J], type per joint or None)."""
@@ -195,12 +196,15 @@ class SpecBuilder:
             info=self._info(design, compiled, types, why_not),
         )
 
-    def stand_targets(self, designs):
+    def stand_targets(self, designs, level: bool = True):
         """[n, L, 3] each foot relative to its hip (base frame) when the standing pose is
         solved per design (`standing_pose.solve`): under the hip (x 0), at the nominal
         pose's lateral offset, STANDING_SHARE of the leg's length down; the leg's length is
-        its scaled links' lengths summed (its chain below the hip when none is scaled)."""
+        its scaled links' lengths summed (its chain below the hip when none is scaled). With
+        `level`, a design whose IK answer there leaves a joint outside its range or a sole
+        tilted gets the nearest share that does not (`level.level_targets`)."""
         import torch
+        from coadapt_plugins.robots.specs.level import level_targets
 
         kin = self.kinematics
         c = kin.chain
@@ -215,7 +219,20 @@ class SpecBuilder:
         out = torch.zeros(designs.shape[0], c.num_legs, 3, dtype=torch.float64)
         out[..., 1] = rel[0, :, 1]
         out[..., 2] = -self.spec.standing_share * leg
-        return out
+        if not level:
+            return out
+        return level_targets(
+            kin, designs, out, self.spec.standing_share, *self._ranges, self._levelled
+        )
+
+    @cached_property
+    def _ranges(self) -> tuple[np.ndarray, np.ndarray]:
+        """([J], [J]) each joint's range at the nominal design (unlimited: +-inf)."""
+        model = self.prepared.spec.compile()
+        ids = [model.joint(j).id for j in self.prepared.joints]
+        limited = model.jnt_limited[ids].astype(bool)
+        lower = np.where(limited, model.jnt_range[ids, 0], -np.inf)
+        return lower, np.where(limited, model.jnt_range[ids, 1], np.inf)
 
     def standing_pose(self, design: np.ndarray, model: mujoco.MjModel) -> np.ndarray:
         """[J] the design's standing pose: the spec's, or solved for it (`stand_targets`,

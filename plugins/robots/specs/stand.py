@@ -312,7 +312,7 @@ def _keyframe_solved(folder: Path, data: dict, comments: dict) -> dict | None:
     nominal = torch.as_tensor(_nominal(data)[None])
     try:
         built = spec_robot_class(folder)()._built
-        half = built.stand_targets(nominal)[0, :, 2]  # -0.5 x each leg's length
+        half = built.stand_targets(nominal, level=False)[0, :, 2]  # -0.5 x each leg's length
         depth = built.kinematics.standing(nominal)[0][0, :, 2]  # the keyframe's feet
     except (UserError, ValueError):
         return None
