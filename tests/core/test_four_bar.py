@@ -3,7 +3,10 @@ pybullet_data's minitaur.urdf as it is, with a spec written here, builds with it
 passive (no motor, not policy joints) and its loops closed at the standing pose; joint PD
 holds it standing in MuJoCo (a `<connect>` per leg) and in PyBullet (a point-to-point
 constraint per leg, as PyBullet's own minitaur environment adds) with each toe's two ends
-together; the statics count the pins' forces; bad loops are one line naming the field."""
+together; the statics count the pins' forces; the leg IK moves both halves of a leg; bad
+loops are one line naming the field. `robot new` finds the four-bars and writes the loops
+itself (tests/core/test_robot_corpus.py takes three minitaur files on to a co-design run);
+coaxial halves whose ends do not meet are refused in one line."""
 
 from __future__ import annotations
 
@@ -15,6 +18,7 @@ import mujoco
 import numpy as np
 import pytest
 import yaml
+from coadapt_plugins.robots.specs.new import starting_spec
 
 from coadapt_core.errors import UserError
 
@@ -217,3 +221,72 @@ def test_a_bad_loop_is_one_line_naming_it(change, field, says, tmp_path):
         robot_in(tmp_path / "mt", **change).build(np.array([1.0, 1.0]))
     message = str(caught.value)
     assert "\n" not in message and f"'{field}'" in message and says in message, message
+
+
+def test_robot_new_finds_the_four_bars_and_writes_them_as_loops():
+    data, notes, comments = starting_spec("probe", SOURCE)
+    assert [leg["name"] for leg in data["legs"]] == list(LEGS)
+    assert [leg["hip"] for leg in data["legs"]] == [f"motor_{g}L_link" for g in LEGS]
+    assert data["loops"][0] == {
+        "bodies": ["lower_leg_front_leftL_link_tip", "lower_leg_front_leftR_link_tip"],
+        "passive": ["knee_front_leftL_link", "knee_front_leftR_link"],
+    }
+    assert len(data["loops"]) == 4 and "loops" in comments
+    assert "base_orientation" not in data  # its legs point up at zero: the file's z is up
+    assert sorted(data["limits"]["torque"]) == sorted(
+        f"motor_{g}{s}_joint" for g in LEGS for s in "LR"
+    )  # the knees get no motor
+    assert abs(data["tips"]["lower_leg_front_leftR_link"][2] - 0.19) < 1e-9  # 0.2 less 1 cm
+    assert any(n.startswith("four-bar legs (4, each two chains") for n in notes)
+    # each half's standing angles written, the knees apart (upper legs out on either side)
+    pose = data["standing_pose"]["joints"]
+    assert "solve" not in data["standing_pose"] and len(pose) == 16
+
+
+def test_the_leg_ik_moves_both_halves_and_keeps_the_toes_together(tmp_path):
+    import torch
+    from coadapt_plugins.robots.specs.loops import solve_passive
+
+    robot = robot_in(tmp_path / "mt")
+    design = torch.tensor([[1.2, 0.8]], dtype=torch.float64)
+    rm = robot.build(design[0].numpy())
+    toes = robot.default_foot_positions(design)  # [1, 4, 3] from the hips, closed
+    model = mujoco.MjModel.from_xml_string(rm.text("mjcf"))
+    data = mujoco.MjData(model)
+    data.qpos[3:7] = [1, 0, 0, 0]
+
+    def toe_at(motors) -> np.ndarray:
+        passive = [model.joint(j).name for j in range(1, model.njnt)]
+        passive = [j for j in passive if j not in rm.joint_names]
+        loops = [(f"lower_leg_{g}L_link_tip", f"lower_leg_{g}R_link_tip", ()) for g in LEGS]
+        knees, _ = solve_passive(
+            model, loops, rm.joint_names, motors, passive, np.zeros(len(passive))
+        )
+        pairs = [*zip(rm.joint_names, motors, strict=True), *zip(passive, knees, strict=True)]
+        for name, angle in pairs:
+            data.qpos[model.jnt_qposadr[model.joint(name).id]] = angle
+        mujoco.mj_kinematics(model, data)
+        leg = robot.spec.legs[0]
+        return data.xpos[model.body(leg.foot).id] - data.xpos[model.body(leg.hip).id]
+
+    assert np.abs(toe_at(rm.default_joint_pos) - toes[0, 0].numpy()).max() < 1e-6
+    target = toes.clone()
+    target[..., 0] += 0.03  # 3 cm forward, 2 cm up
+    target[..., 2] += 0.02
+    motors = robot.leg_inverse_kinematics(design, target)[0].numpy()
+    assert np.abs(motors - rm.default_joint_pos).max() > 0.1
+    reached = toe_at(motors)
+    assert abs(reached[0] - target[0, 0, 0]) < 1e-3 and abs(reached[2] - target[0, 0, 2]) < 1e-3
+
+
+def test_coaxial_halves_whose_ends_do_not_meet_are_refused_in_one_line(tmp_path):
+    text = SOURCE.read_text()
+    start = text.index('<link name="lower_leg_front_leftR_link">')
+    end = text.index("</link>", start)
+    half = text[start:end].replace('xyz="0 0 .1"', 'xyz="0 0 .05"').replace(' .2"/>', ' .1"/>')
+    model = tmp_path / "shortened.urdf"  # one lower leg 10 cm short: its end meets nothing
+    model.write_text(text[:start] + half + text[end:])
+    with pytest.raises(UserError) as found:
+        starting_spec("probe", model)
+    message = str(found.value)
+    assert "\n" not in message and "two halves of a four-bar leg, but their ends" in message

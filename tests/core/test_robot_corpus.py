@@ -12,12 +12,13 @@ joint PD holds its nominal design and its four corners standing in MuJoCo (the l
 corner since its standing pose keeps the ankles inside their ranges and the soles level,
 `plugins/robots/specs/level.py`), and its nominal design in PyBullet.
 
-Every other legged file of pybullet_data is refused by `robot new` in one line, exit 2,
-nothing created (`REFUSED`, with why): the minitaurs and `quadruped.urdf` have four-bar legs
-whose closing joint PyBullet's minitaur environment adds in code (as the file is, each leg is
-two open chains hinged on one axis); others have their knees or motors fixed, stand on one
-leg at their zero pose (the microtaur), or are files MuJoCo refuses as they are (global
-coordinates, malformed XML).
+The minitaurs' four-bar legs (each leg two open chains hinged on one axis whose ends meet;
+PyBullet's minitaur environment pins them in code) go through with spec `loops` that `robot
+new` writes. Every other legged file of pybullet_data is refused by `robot new` in one line,
+exit 2, nothing created (`REFUSED`, with why): two minitaurs that joint PD does not hold up,
+one whose motors hang on joints that are not hinges, files with their knees or motors fixed,
+one that stands on one leg at its zero pose (the microtaur), and files MuJoCo refuses as
+they are (global coordinates, malformed XML).
 """
 
 from __future__ import annotations
@@ -50,6 +51,9 @@ CORPUS = [
     ("laikago-limits", DATA / "laikago" / "laikago_toes_limits.urdf"),  # the same with limits
     ("laikago-lores", DATA / "laikago" / "laikago_toes_zup_lores.urdf"),  # coarser meshes
     ("mini-cheetah", DATA / "mini_cheetah" / "mini_cheetah.urdf"),  # collision meshes: fit
+    ("minitaur", DATA / "quadruped" / "minitaur.urdf"),  # four-bar legs: loops
+    ("minitaur-v1", DATA / "quadruped" / "minitaur_v1.urdf"),  # four-bar legs: loops
+    ("quadruped", DATA / "quadruped" / "quadruped.urdf"),  # four-bar legs: loops
     ("ant", DATA / "mjcf" / "ant.xml"),
     ("humanoid", DATA / "mjcf" / "humanoid.xml"),  # stacked hinges; a biped
     ("menagerie-quad", HERE / "menagerie" / "quad.xml"),  # meshdir, nested includes, keyframe
@@ -176,20 +180,18 @@ def test_a_model_file_goes_to_co_design_with_no_edit(name, source, robots, tmp_p
         print(f"\n{name}: " + ", ".join(f"{k} {v:.1f} s" for k, v in times.items()))
 
 
-FOUR_BAR = "two halves of a four-bar leg"
-#: pybullet_data's other legged files and why `robot new` refuses each: four-bar legs closed
-#: in code (the minitaurs), legs with one hinge or none left (knees or motors fixed), and
-#: files MuJoCo or an XML reader refuses as they are
+STAND = "the stand test fails with gains up to 8 x the peak torque"
+#: pybullet_data's other legged files and why `robot new` refuses each: four-bar minitaurs
+#: that joint PD does not hold up within their motors' peaks or whose motors hang on slide
+#: joints, legs with one hinge or none left (knees or motors fixed), and files MuJoCo or an
+#: XML reader refuses as they are
 REFUSED = [
-    ("quadruped/minitaur.urdf", FOUR_BAR),
-    ("quadruped/minitaur_derpy.urdf", FOUR_BAR),
-    ("quadruped/minitaur_rainbow_dash.urdf", FOUR_BAR),
-    ("quadruped/minitaur_v1.urdf", FOUR_BAR),
-    ("quadruped/quadruped.urdf", FOUR_BAR),
+    ("quadruped/minitaur_derpy.urdf", STAND),
+    ("quadruped/minitaur_rainbow_dash.urdf", STAND),
     ("quadruped/minitaur_fixed_all.urdf", "found no legs"),
     ("quadruped/minitaur_fixed_knees.urdf", "found no legs"),
     ("quadruped/minitaur_single_motor.urdf", "found no legs"),
-    ("quadruped/minitaur_rainbow_dash_v1.urdf", FOUR_BAR),
+    ("quadruped/minitaur_rainbow_dash_v1.urdf", "is not a hinge"),  # its motor brackets
     ("quadruped/microtaur/microtaur.urdf", "found one leg standing"),  # rpy_three read
     ("biped/biped2d_pybullet.urdf", "is not readable XML"),
     ("humanoid/humanoid.urdf", "is not readable XML"),

@@ -1,8 +1,8 @@
 """Models whose frames and inertias are their own (issue 58): a y-up URDF whose bodies have a
 mass but zero inertia and whose legs end in a knee (pybullet_data's laikago.urdf) gets
 `base_orientation`, `inertia_from_shape` and `tips` written by `robot new`, the file left as
-it is; a four-bar leg the file leaves open (the minitaurs) is refused in one line; each new
-spec field's bad value is one line naming it. tests/core/test_robot_corpus.py takes laikago
+it is (four-bar legs the file leaves open: tests/core/test_four_bar.py); each new spec
+field's bad value is one line naming it. tests/core/test_robot_corpus.py takes laikago
 on to a co-design run."""
 
 from __future__ import annotations
@@ -78,15 +78,6 @@ def test_z_up_models_and_an_ant_at_rest_are_left_as_they_are():
     for source in (DATA / "a1" / "a1.urdf", DATA / "mjcf" / "ant.xml", NEZHA / "model.xml"):
         data, _, _ = starting_spec("probe", source)
         assert "base_orientation" not in data and "tips" not in data, source.name
-
-
-@pytest.mark.parametrize("name", ["minitaur.urdf", "quadruped.urdf"])
-def test_a_four_bar_leg_left_open_in_the_file_is_refused_in_one_line(name):
-    with pytest.raises(UserError) as found:
-        starting_spec("probe", DATA / "quadruped" / name)
-    message = str(found.value)
-    assert "\n" not in message and "two halves of a four-bar leg" in message
-    assert "'lower_leg_front_rightR_link' and 'lower_leg_front_rightL_link'" in message
 
 
 def _spec(**extra) -> dict:

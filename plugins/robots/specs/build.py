@@ -112,6 +112,15 @@ class SpecBuilder:
         legs = [(leg.foot, leg.hip) for leg in self.spec.legs]
         links = [set(p.links) for p in self.spec.parameters]
         nominal = np.array([p.nominal for p in self.spec.parameters])
+        if self.spec.loops:  # four-bar legs: both halves of each, the motors returned
+            from coadapt_plugins.robots.specs.loopkin import LoopKinematics
+
+            try:
+                return LoopKinematics(
+                    model, self.prepared, self.spec, links, nominal, DESIGN_DECIMALS
+                )
+            except ValueError as exc:
+                raise spec_error("legs", str(exc)) from None
         try:
             chain = build_chain(
                 model, self.prepared.base, self.prepared.joints, legs, links,

@@ -79,7 +79,9 @@ def _gait(count: int) -> list[float]:
     return [round(k / count, 6) for k in range(count)]
 
 
-def _legs(model, data, base: int) -> list[dict]:
+def _legs(model, data, base: int, band: bool = True) -> list[dict]:
+    """The legs at `data`'s pose (module docstring); `band` False keeps every chain (a
+    four-bar's halves point up at the model's zero pose: none is near the ground there)."""
     leaves = [
         b
         for b in range(1, model.nbody)
@@ -96,6 +98,9 @@ def _legs(model, data, base: int) -> list[dict]:
             field="model",
         )
     # feet near the ground: a leaf well above the lowest foot is an arm or a tail
+    if not band:
+        legs.sort(key=lambda g: (-round(float(g["pos"][0]), 2), -float(g["pos"][1])))
+        return legs
     lowest = min(float(g["pos"][2]) for g in legs)
     reach = max(float(data.xpos[base][2]) - lowest, 1e-9)
     kept = [g for g in legs if float(g["pos"][2]) <= lowest + FOOT_BAND * reach]
@@ -209,46 +214,3 @@ def _leg_names(model: mujoco.MjModel, legs: list[dict]) -> list[str]:
     if len(legs) == 4:
         return ["FL", "FR", "RL", "RR"]
     return [f"leg{k}" for k in range(len(legs))]
-
-
-#: two legs whose first hinges share an axis line (within this share of their distance) and
-#: are each other's nearest are the two halves of a four-bar leg
-FOUR_BAR_SHARE = 0.05
-
-
-def _refuse_four_bars(model: mujoco.MjModel, data, base: int, legs: list[dict]) -> None:
-    """One line when two legs are the open halves of a four-bar leg: two motors on one axis,
-    side by side on one side of the base (each the other's nearest leg), each turning a chain
-    whose foot the other's meets in the real robot (PyBullet's minitaur closes it in code);
-    as a file it is not a legged tree. `data` holds a pose, kinematics done."""
-    first = []
-    for g in legs:
-        first.append(
-            next(
-                j
-                for b in g["chain"]
-                for j in range(model.njnt)
-                if model.jnt_bodyid[j] == b and model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE
-            )
-        )
-    frame = data.xmat[base].reshape(3, 3)
-    anchors = data.xanchor[first]
-    side = np.sign((anchors - data.xpos[base]) @ frame[:, 1])  # left (+) or right of the base
-    gaps = np.linalg.norm(anchors[:, None] - anchors[None], axis=-1) + np.diag(
-        np.full(len(legs), np.inf)
-    )
-    for a in range(len(legs)):
-        b = int(np.argmin(gaps[a]))
-        if b <= a or int(np.argmin(gaps[b])) != a or side[a] != side[b]:
-            continue  # a biped's hips are coaxial too, on either side of the base
-        axis, gap = data.xaxis[first[a]], anchors[b] - anchors[a]
-        off_axis = float(np.linalg.norm(gap - (gap @ axis) * axis))
-        if abs(axis @ data.xaxis[first[b]]) > 0.99 and off_axis < FOUR_BAR_SHARE * gaps[a, b]:
-            raise UserError(
-                f"legs ending in '{model.body(legs[a]['foot']).name}' and "
-                f"'{model.body(legs[b]['foot']).name}' turn about one axis {gaps[a, b]:.3g} m "
-                "apart: the two halves of a four-bar leg whose closing joint the file does "
-                "not have (closed in code); a spec robot is a tree of hinges: write a robot "
-                "plugin for it (docs/plugins.md)",
-                field="model",
-            )

@@ -34,13 +34,13 @@ from coadapt_plugins.robots.specs.assumed import (
     spec_text,
 )
 from coadapt_plugins.robots.specs.files import is_urdf
+from coadapt_plugins.robots.specs.fourbar import four_bar_pose, four_bars, loop_entries, loop_tip
 from coadapt_plugins.robots.specs.legs import (
     _actuated,
     _base,
     _gait,
     _leg_names,
     _legs,
-    _refuse_four_bars,
     _segments,
     _shared_joints,
 )
@@ -51,6 +51,7 @@ from coadapt_plugins.robots.specs.stand import (
     GAIN_FACTORS,
     KD_RATIO,
     KP_PER_TORQUE,
+    STAND_SHARE,
     _inside_ranges,
     _nominal,
     _pose_entry,
@@ -127,11 +128,13 @@ def _upright(spec: mujoco.MjSpec, notes: list[str], comments: dict[str, str]) ->
     return quat
 
 
-def _model_legs(spec: mujoco.MjSpec, notes: list[str], comments: dict[str, str]) -> tuple:
+def _model_legs(
+    spec: mujoco.MjSpec, notes: list[str], comments: dict[str, str], band: bool = True
+) -> tuple:
     """(the model compiled, its data posed at its first "home" or "stand" keyframe (else its
     first) or at 0 inside the joint ranges, the base, that keyframe, the legs, the joints on
     several legs' chains); without a keyframe those joints are locked (deleted from `spec`
-    with their actuators) and the legs found again."""
+    with their actuators) and the legs found again; `band` as `legs._legs` takes it."""
     model = spec.compile()
     data = mujoco.MjData(model)
     base = _base(model)
@@ -143,7 +146,7 @@ def _model_legs(spec: mujoco.MjSpec, notes: list[str], comments: dict[str, str])
         data.qpos[:] = model.qpos0
         _inside_ranges(model, data, [])
     mujoco.mj_kinematics(model, data)
-    legs = _legs(model, data, base)
+    legs = _legs(model, data, base, band)
     shared = _shared_joints(model, legs)
     if shared and not model.nkey:  # lock them: each leg needs a chain of its own
         for actuator in [a for a in spec.actuators if a.target in shared]:
@@ -155,7 +158,7 @@ def _model_legs(spec: mujoco.MjSpec, notes: list[str], comments: dict[str, str])
         data.qpos[:] = model.qpos0
         _inside_ranges(model, data, [])
         mujoco.mj_kinematics(model, data)
-        legs = _legs(model, data, base)
+        legs = _legs(model, data, base, band)
         comments["locked_joints"] = (
             "assumed: joints on the chains of several legs (the gait's leg IK needs each leg's "
             "own chain)"
@@ -163,9 +166,56 @@ def _model_legs(spec: mujoco.MjSpec, notes: list[str], comments: dict[str, str])
         notes.append(
             f"joints on the chains of several legs, locked: {', '.join(shared)} (locked_joints)"
         )
-    if not shared:
-        _refuse_four_bars(model, data, base, legs)
     return model, data, base, key, legs, shared
+
+
+def _has_four_bars(spec: mujoco.MjSpec) -> bool:
+    """Whether the model's legs at its zero pose hold four-bar halves (`fourbar`): its zero
+    pose then says nothing about up (the minitaurs' legs point up there), so the file's z is
+    taken as up, as PyBullet loads it; coaxial halves whose ends do not meet are refused."""
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    data.qpos[:] = model.qpos0
+    _inside_ranges(model, data, [])
+    mujoco.mj_kinematics(model, data)
+    base = _base(model)
+    try:
+        legs = _legs(model, data, base, band=False)
+    except UserError:
+        return False
+    return bool(_shared_joints(model, legs) == [] and four_bars(model, data, base, legs))
+
+
+def _four_bar_legs(model, data, legs, pairs, notes, comments) -> tuple[dict, list[str], list]:
+    """(standing pose, hips, the legs: each pair's first half) of four-bar legs."""
+    joints = four_bar_pose(model, legs, pairs, STAND_SHARE)
+    hips = [model.body(int(model.jnt_bodyid[model.joint(_first(model, legs[a])).id])).name
+            for a, _ in pairs]  # fmt: skip
+    comments["standing_pose"] = (
+        f"solved by robot new: each four-bar's toe {STAND_SHARE:g} of its length under its "
+        "motor axis, knees apart; the motors' angles at every design, the passive hinges "
+        "solved per design to close the loops"
+    )
+    comments["loops"] = (
+        "assumed: each leg's two halves turn about one axis and their ends meet at the "
+        "model's zero pose: a four-bar whose pin the file leaves out (its simulator adds it "
+        "in code); pinned at those ends, every hinge of a half after its first passive"
+    )
+    notes.append(
+        f"four-bar legs ({len(pairs)}, each two chains whose ends meet): loops written, "
+        f"their knees passive; the file's z taken as up; standing pose solved with each toe "
+        f"{STAND_SHARE:g} of the leg's length under its motor axis"
+    )
+    return {"joints": joints}, hips, [legs[a] for a, _ in pairs]
+
+
+def _first(model, leg: dict) -> str:
+    return next(
+        model.joint(j).name
+        for b in leg["chain"]
+        for j in range(model.njnt)
+        if model.jnt_bodyid[j] == b and model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE
+    )
 
 
 def _loading_fixes(
@@ -194,7 +244,13 @@ def _loading_fixes(
         )
     if turn is not None:
         data_out["base_orientation"] = turn
-    if tips:
+    if tips and "loops" in data_out:
+        data_out["tips"] = tips
+        comments["tips"] = (
+            "assumed: each four-bar half's end, where the pin goes: on the line through its "
+            "collision geoms' centre, at their far end less the tip sphere's radius"
+        )
+    elif tips:
         data_out["tips"] = tips
         comments["tips"] = (
             "assumed: these legs' last bodies turn about their own origins (a knee, not a "
@@ -204,6 +260,24 @@ def _loading_fixes(
             f"legs ending in a knee ({_few(list(tips))}): a foot point at each one's tip "
             "written under tips:"
         )
+
+
+def _feet(spec: mujoco.MjSpec, bars: bool, notes: list[str], comments: dict) -> tuple:
+    """`_model_legs`'s values, the four-bar pairs (`fourbar`) and the `tips` written: a foot
+    at each four-bar half's end (where the pin goes), else at the tip of each leg ending in a
+    knee (`orient.find_tips`); the legs found again with them."""
+    model, data, base, key, legs, shared = _model_legs(spec, notes, comments, not bars)
+    pairs = four_bars(model, data, base, legs) if bars else []
+    tips = find_tips(model, legs)
+    if pairs:
+        ends = {model.body(g["foot"]).name: loop_tip(model, g["foot"]) for g in legs}
+        tips = {b: [round(float(x), 6) + 0.0 for x in t] for b, t in ends.items() if t is not None}
+    if tips:
+        add_tips(spec, tips)
+        model, data, base, key, legs, again = _model_legs(spec, notes, comments, not bars)
+        shared = shared or again
+        pairs = four_bars(model, data, base, legs) if bars else []
+    return model, data, base, key, legs, shared, pairs, tips
 
 
 def starting_spec(
@@ -216,15 +290,12 @@ def starting_spec(
     notes: list[str] = []
     comments: dict[str, str] = {}
     spec, flags, shaped = _load(model_file, tuple(package_paths), notes)
-    turn = _upright(spec, notes, comments)
-    model, data, base, key, legs, shared = _model_legs(spec, notes, comments)
-    tips = find_tips(model, legs)
-    if tips:  # legs whose last body's origin is a knee: a foot point at each tip
-        add_tips(spec, tips)
-        model, data, base, key, legs, again = _model_legs(spec, notes, comments)
-        shared = shared or again
+    bars = _has_four_bars(spec)
+    turn = None if bars else _upright(spec, notes, comments)
+    model, data, base, key, legs, shared, pairs, tips = _feet(spec, bars, notes, comments)
     torques = _torques(model, notes)
-    joints = _actuated(model, base)
+    loops, passive = loop_entries(model, legs, pairs)
+    joints = [j for j in _actuated(model, base) if j not in passive]
     fixes = _fixes(model, joints, torques, notes)
     params = _segments(model, legs)
     ranges = {
@@ -232,7 +303,12 @@ def starting_spec(
         else tuple(float(x) for x in model.jnt_range[model.joint(j).id])
         for j in joints
     }  # fmt: skip
-    pose, hips = _pose_entry(model, data, key, base, joints, legs, params, ranges, notes, comments)
+    if pairs:
+        pose, hips, legs = _four_bar_legs(model, data, legs, pairs, notes, comments)
+    else:
+        pose, hips = _pose_entry(
+            model, data, key, base, joints, legs, params, ranges, notes, comments
+        )
     speed_table = _speed_table(model_file, joints, notes, comments)
     collision = _collision_rule(model, params, notes)
     names = _leg_names(model, legs)
@@ -243,7 +319,8 @@ def starting_spec(
         "name": name,
         "description": (
             f"{what}: {len(legs)} legs ({', '.join(names)}), {len(joints)} hinge joints, "
-            f"{mass:.3g} kg, from {model_file.name} ({kind}); spec written by coadapt robot new"
+            + (f"{len(passive)} passive ones closing four-bar legs, " if passive else "")
+            + f"{mass:.3g} kg, from {model_file.name} ({kind}); spec written by coadapt robot new"
         ),
         "model": model_file.name,
         "base": model.body(base).name,
@@ -270,6 +347,8 @@ def starting_spec(
     }
     if shared and not model.nkey:
         data_out["locked_joints"] = shared
+    if loops:
+        data_out["loops"] = loops
     if collision:
         data_out["collision"] = collision
     _loading_fixes(data_out, flags, shaped, turn, tips, notes, comments)

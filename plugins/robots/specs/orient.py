@@ -211,7 +211,7 @@ def add_tips(spec: mujoco.MjSpec, tips: dict) -> None:
 def _geom_points(model: mujoco.MjModel, g: int) -> np.ndarray:
     """Points of geom `g`'s surface (a mesh's vertices, a primitive's extremes), body frame."""
     pos, rot = model.geom_pos[g], _mat(model.geom_quat[g])
-    size, kind = model.geom_size[g], model.geom_type[g]
+    size, kind = model.geom_size[g], int(model.geom_type[g])  # an int: `in` needs one
     if kind == mujoco.mjtGeom.mjGEOM_MESH:
         m = int(model.geom_dataid[g])
         v0, nv = model.mesh_vertadr[m], model.mesh_vertnum[m]
