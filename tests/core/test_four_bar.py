@@ -279,14 +279,34 @@ def test_the_leg_ik_moves_both_halves_and_keeps_the_toes_together(tmp_path):
     assert abs(reached[0] - target[0, 0, 0]) < 1e-3 and abs(reached[2] - target[0, 0, 2]) < 1e-3
 
 
-def test_coaxial_halves_whose_ends_do_not_meet_are_refused_in_one_line(tmp_path):
+def _edited(text: str, start: str, old: str, new: str) -> str:
+    """`text` with `old` replaced by `new` in the element that starts with `start`."""
+    begin = text.index(start)
+    end = text.index(f"</{start.split()[0][1:]}>", begin)
+    return text[:begin] + text[begin:end].replace(old, new) + text[end:]
+
+
+@pytest.mark.parametrize(
+    ("edits", "says"),
+    [
+        # one lower leg 10 cm short: the other reaches on past the point where they meet
+        ([('<link name="lower_leg_front_leftR_link">', 'xyz="0 0 .1"', 'xyz="0 0 .05"'),
+          ('<link name="lower_leg_front_leftR_link">', ' .2"/>', ' .1"/>')],
+         "its pin lies short of one half's end"),
+        # one lower leg hung 5 cm further out along the axis: the ends do not meet
+        ([('<joint name="knee_front_leftR_link"', 'xyz="0.0 0.01 .055"', 'xyz="0.0 0.06 .055"')],
+         "two halves of a four-bar leg, but their ends are"),
+    ],
+)  # fmt: skip
+def test_coaxial_halves_whose_ends_do_not_meet_are_refused_in_one_line(edits, says, tmp_path):
     text = SOURCE.read_text()
-    start = text.index('<link name="lower_leg_front_leftR_link">')
-    end = text.index("</link>", start)
-    half = text[start:end].replace('xyz="0 0 .1"', 'xyz="0 0 .05"').replace(' .2"/>', ' .1"/>')
-    model = tmp_path / "shortened.urdf"  # one lower leg 10 cm short: its end meets nothing
-    model.write_text(text[:start] + half + text[end:])
+    for start, old, new in edits:
+        changed = _edited(text, start, old, new)
+        assert changed != text
+        text = changed
+    model = tmp_path / "edited.urdf"  # a model written for the test: the user's file as it is
+    model.write_text(text)
     with pytest.raises(UserError) as found:
         starting_spec("probe", model)
     message = str(found.value)
-    assert "\n" not in message and "two halves of a four-bar leg, but their ends" in message
+    assert "\n" not in message and says in message, message

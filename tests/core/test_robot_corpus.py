@@ -15,10 +15,10 @@ corner since its standing pose keeps the ankles inside their ranges and the sole
 The minitaurs' four-bar legs (each leg two open chains hinged on one axis whose ends meet;
 PyBullet's minitaur environment pins them in code) go through with spec `loops` that `robot
 new` writes. Every other legged file of pybullet_data is refused by `robot new` in one line,
-exit 2, nothing created (`REFUSED`, with why): two minitaurs that joint PD does not hold up,
-one whose motors hang on joints that are not hinges, files with their knees or motors fixed,
-one that stands on one leg at its zero pose (the microtaur), and files MuJoCo refuses as
-they are (global coordinates, malformed XML).
+exit 2, nothing created (`REFUSED`, with why): three minitaurs whose pin lies short of one
+lower leg's end (one of them also hangs its motors on slide joints), files with their
+knees or motors fixed, one that stands on one leg at its zero pose (the microtaur), and
+files MuJoCo refuses as they are (global coordinates, malformed XML).
 """
 
 from __future__ import annotations
@@ -180,18 +180,17 @@ def test_a_model_file_goes_to_co_design_with_no_edit(name, source, robots, tmp_p
         print(f"\n{name}: " + ", ".join(f"{k} {v:.1f} s" for k, v in times.items()))
 
 
-STAND = "the stand test fails with gains up to 8 x the peak torque"
+SHORT = "its pin lies short of one half's end"
 #: pybullet_data's other legged files and why `robot new` refuses each: four-bar minitaurs
-#: that joint PD does not hold up within their motors' peaks or whose motors hang on slide
-#: joints, legs with one hinge or none left (knees or motors fixed), and files MuJoCo or an
-#: XML reader refuses as they are
+#: whose pin lies short of a lower leg's end, legs with one hinge or none left (knees or
+#: motors fixed), and files MuJoCo or an XML reader refuses as they are
 REFUSED = [
-    ("quadruped/minitaur_derpy.urdf", STAND),
-    ("quadruped/minitaur_rainbow_dash.urdf", STAND),
+    ("quadruped/minitaur_derpy.urdf", SHORT),
+    ("quadruped/minitaur_rainbow_dash.urdf", SHORT),
     ("quadruped/minitaur_fixed_all.urdf", "found no legs"),
     ("quadruped/minitaur_fixed_knees.urdf", "found no legs"),
     ("quadruped/minitaur_single_motor.urdf", "found no legs"),
-    ("quadruped/minitaur_rainbow_dash_v1.urdf", "is not a hinge"),  # its motor brackets
+    ("quadruped/minitaur_rainbow_dash_v1.urdf", SHORT),  # its brackets are slide joints too
     ("quadruped/microtaur/microtaur.urdf", "found one leg standing"),  # rpy_three read
     ("biped/biped2d_pybullet.urdf", "is not readable XML"),
     ("humanoid/humanoid.urdf", "is not readable XML"),

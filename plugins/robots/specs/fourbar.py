@@ -12,7 +12,7 @@ the others are passive (`loops.passive`), its foot is the first half's tip and i
 first half's motor body. Its standing pose (`four_bar_pose`): the toe under the motor axis
 at STAND_SHARE of the leg's length (upper plus lower leg), each half solved to it with its
 knee out on its own side (the diamond the real robot stands in). Coaxial halves whose ends
-do not meet are refused in one line.
+do not meet, or meet only short of one half's end, are refused in one line.
 """
 
 from __future__ import annotations
@@ -26,8 +26,11 @@ from coadapt_core.errors import UserError
 #: two legs whose first hinges share an axis line (within this share of their distance) and
 #: are each other's nearest turn side by side on one axis
 FOUR_BAR_SHARE = 0.05
-#: their ends meet when nearer than this share of the first's reach from its motor axis
+#: their ends meet when nearer than this share of the first's reach from its motor axis,
+#: and nearer than PIN_SHARE of it across the axis (in the legs' plane): a pin short of one
+#: half's end (its lower leg reaching on past it, minitaur_derpy's) is not placed
 MEET_SHARE = 0.1
+PIN_SHARE = 0.02
 #: the seeds (motor, knee) of each half's standing solve, rad
 SEEDS = [(m, k) for m in (np.pi / 2, -np.pi / 2) for k in (2.0, -2.0)]
 
@@ -89,6 +92,16 @@ def four_bars(model: mujoco.MjModel, data, base: int, legs: list[dict]) -> list[
         ends = [_world_tip(model, data, legs[k]["foot"]) for k in (a, b)]
         reach = float(np.linalg.norm(ends[0] - anchors[a]))
         apart = float(np.linalg.norm(ends[0] - ends[1]))
+        across = ends[1] - ends[0] - ((ends[1] - ends[0]) @ axis) * axis
+        if np.linalg.norm(across) > PIN_SHARE * reach:
+            raise UserError(
+                f"legs ending in '{model.body(legs[a]['foot']).name}' and "
+                f"'{model.body(legs[b]['foot']).name}' are the two halves of a four-bar leg "
+                f"whose ends are {np.linalg.norm(across):.3g} m apart along the legs at the "
+                "model's zero pose: its pin lies short of one half's end, which robot new does "
+                "not place; write a robot plugin for it (docs/plugins.md)",
+                field="model",
+            )
         if apart > MEET_SHARE * reach:
             raise UserError(
                 f"legs ending in '{model.body(legs[a]['foot']).name}' and "
