@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import importlib
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from importlib import metadata
 from types import ModuleType
 from typing import Any
@@ -51,10 +51,18 @@ class PluginInfo:
     name: str
     cls: type
     distribution: str
-    version: str
+    #: the distribution's version (`version` unless the class declares its own)
+    release: str
     entry_point: str
     #: the plugin API version the class declares it was written for (None: undeclared)
     api: str | None = None
+
+    @property
+    def version(self) -> str:
+        """The class's own `plugin_version` where it declares one as text (e.g. a data file's
+        digest, which a class may read when first asked), else its distribution's version."""
+        own = getattr(self.cls, "plugin_version", None)
+        return own if isinstance(own, str) else self.release
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -85,33 +93,81 @@ class BrokenPlugin:
         return f"{where} failed to load: {self.error}"
 
 
-@dataclass
-class Registry:
-    """`{kind: {name: PluginInfo}}` plus the plugins that failed to load."""
+#: one plugin module to ask for classes: (plugin, distribution, version, entry-point name)
+Source = tuple[object, str, str, str]
 
-    entries: dict[str, dict[str, PluginInfo]] = field(
-        default_factory=lambda: {k: {} for k in KINDS}
-    )
-    broken: list[BrokenPlugin] = field(default_factory=list)
-    manager: pluggy.PluginManager | None = None
+
+class Registry:
+    """`{kind: {name: PluginInfo}}` plus the plugins that failed to load.
+
+    A registry made by `load_registry(lazy=True)` (the process-wide one, `get_registry`) has
+    imported every plugin module but calls a kind's `coadapt_register_*` hooks only when that
+    kind is first asked for: naming the simulators imports no robot's module and reads no
+    robot's data file. `entries`, `broken` and `all()` load every kind first, so they are
+    complete whenever read; a kind's names, default and classes load that kind alone.
+    """
+
+    def __init__(
+        self,
+        entries: dict[str, dict[str, PluginInfo]] | None = None,
+        broken: list[BrokenPlugin] | None = None,
+        manager: pluggy.PluginManager | None = None,
+    ):
+        self._entries = {k: {} for k in KINDS} if entries is None else entries
+        self._broken = list(broken or [])
+        self.manager = manager
+        self._sources: list[Source] = []  # the plugins whose hooks give the classes
+        self._pending: list[str] = []  # the kinds whose hooks are not asked yet
+
+    @property
+    def entries(self) -> dict[str, dict[str, PluginInfo]]:
+        self.load_all()
+        return self._entries
+
+    @property
+    def broken(self) -> list[BrokenPlugin]:
+        self.load_all()
+        return self._broken
+
+    def load_all(self) -> Registry:
+        """Every kind's classes registered (a plugin's module imported by its hook may
+        register what it saves, e.g. `statefile.register_dataclass`)."""
+        for kind in list(self._pending):
+            self._of(kind)
+        return self
+
+    def _of(self, kind: str) -> dict[str, PluginInfo]:
+        """`kind`'s classes, asked of every plugin's hook the first time; a name claimed twice
+        (`PluginError`) leaves the kind unloaded, so the next use says so again."""
+        if kind in self._pending:
+            known = len(self._broken)
+            try:
+                for source in self._sources:
+                    _register_classes(self, kind, *source)
+            except PluginError:
+                self._entries[kind], self._broken[known:] = {}, []
+                raise
+            self._pending.remove(kind)
+        return self._entries[kind]
 
     def names(self, kind: str) -> list[str]:
-        return sorted(self.entries[kind])
+        return sorted(self._of(kind))
 
     def get(self, kind: str, name: str) -> type:
         """The class registered as `name` for `kind`; `UnknownPluginError` (a user error,
         listing what is available and every plugin that failed to load, with its error)
-        otherwise."""
+        otherwise (the plugins that failed to import, and the classes refused so far: those of
+        `kind` among them)."""
         try:
-            return self.entries[kind][name].cls
+            return self._of(kind)[name].cls
         except KeyError:
-            refused = [b.line() for b in self.broken if b.refused == (kind, name)]
+            refused = [b.line() for b in self._broken if b.refused == (kind, name)]
             # written for another plugin API: that line alone says what to do
             raise UnknownPluginError(
                 kind,
                 name,
                 self.names(kind),
-                [b.line() for b in self.broken],
+                [b.line() for b in self._broken],
                 reason=refused[0] if refused else None,
             ) from None
 
@@ -121,9 +177,9 @@ class Registry:
         name first in alphabetical order, so the choice never depends on load order. `exclude`
         leaves names out (a second simulator: exclude the default one). A kind with nothing
         left is the registry's one-line `UnknownPluginError`."""
-        infos = [i for i in self.entries[kind].values() if i.name not in exclude]
+        infos = [i for i in self._of(kind).values() if i.name not in exclude]
         if not infos:
-            raise UnknownPluginError(kind, "(default)", [], [b.line() for b in self.broken])
+            raise UnknownPluginError(kind, "(default)", [], [b.line() for b in self._broken])
         return min(infos, key=lambda i: (-int(getattr(i.cls, "default_rank", 0)), i.name)).name
 
     def defaults(self, kind: str) -> list[str]:
@@ -131,9 +187,7 @@ class Registry:
         objectives of a grid): every registered class with a positive `default_rank`, lowest
         rank first, so the default of the kind (`default`) comes last; ties by name. A kind
         where none declares a rank gives its default alone."""
-        ranked = [
-            i for i in self.entries[kind].values() if int(getattr(i.cls, "default_rank", 0)) > 0
-        ]
+        ranked = [i for i in self._of(kind).values() if int(getattr(i.cls, "default_rank", 0)) > 0]
         if not ranked:
             return [self.default(kind)]
         return [
@@ -146,9 +200,7 @@ class Registry:
 
     def all(self) -> list[PluginInfo]:
         return [
-            info
-            for kind in KINDS
-            for info in sorted(self.entries[kind].values(), key=lambda i: i.name)
+            info for kind in KINDS for info in sorted(self._of(kind).values(), key=lambda i: i.name)
         ]
 
 
@@ -163,21 +215,28 @@ def _allowed(ep: metadata.EntryPoint, distribution: str) -> bool:
     return distribution in wanted or ep.name in wanted
 
 
-def _distribution_of(ep: metadata.EntryPoint) -> tuple[str, str]:
+def _distribution_of(ep: metadata.EntryPoint, read: dict[int, tuple[str, str]]) -> tuple[str, str]:
+    """(name, version) of the distribution declaring `ep`, its metadata file parsed once per
+    distribution (`read`: by the distribution object, which its entry points share)."""
     dist = getattr(ep, "dist", None)
     if dist is None:
         return "unknown", "unknown"
-    return dist.metadata["Name"], dist.version
+    if id(dist) not in read:
+        found = dist.metadata
+        read[id(dist)] = (found["Name"], found["Version"])
+    return read[id(dist)]
 
 
-def _entry_point_plugins(registry: Registry) -> list[tuple[object, str, str, str]]:
+def _entry_point_plugins(registry: Registry) -> list[Source]:
     """The plugin modules the entry points name, loaded one by one (allowed ones only, each
     distribution once), as (plugin, distribution, version, entry-point name); one that fails
-    to import is recorded in `registry.broken`, the others load."""
-    sources: list[tuple[object, str, str, str]] = []
+    to import is recorded in the registry's broken plugins, the others load."""
+    sources: list[Source] = []
     seen: set[tuple[str, str]] = set()
-    for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
-        dist, version = _distribution_of(ep)
+    read: dict[int, tuple[str, str]] = {}
+    entry_points = list(metadata.entry_points(group=ENTRY_POINT_GROUP))  # alive: ids stay
+    for ep in entry_points:
+        dist, version = _distribution_of(ep, read)
         if (dist, ep.name) in seen:  # the same distribution visible twice on sys.path
             continue
         seen.add((dist, ep.name))
@@ -186,7 +245,7 @@ def _entry_point_plugins(registry: Registry) -> list[tuple[object, str, str, str
         try:
             plugin = ep.load()
         except Exception as exc:  # a broken plugin must not take the others down
-            registry.broken.append(BrokenPlugin(ep.name, dist, f"{type(exc).__name__}: {exc}"))
+            registry._broken.append(BrokenPlugin(ep.name, dist, f"{type(exc).__name__}: {exc}"))
             continue
         sources.append((plugin, dist, version, ep.name))
     return sources
@@ -222,11 +281,11 @@ def _gives_way(
     registered before; otherwise `PluginError` naming both distributions."""
     if getattr(cls, "yields_name", False):
         line = f"{kind} name '{cls.name}' is taken by {existing.distribution}'s; rename this one"
-        registry.broken.append(BrokenPlugin(ep_name, dist, line))
+        registry._broken.append(BrokenPlugin(ep_name, dist, line))
         return True
     if getattr(existing.cls, "yields_name", False):
         line = f"{kind} name '{cls.name}' is taken by {dist}'s; rename this one"
-        registry.broken.append(BrokenPlugin(existing.entry_point, existing.distribution, line))
+        registry._broken.append(BrokenPlugin(existing.entry_point, existing.distribution, line))
         return False
     raise PluginError(
         f"{kind} name '{cls.name}' is claimed twice: by {existing.cls.__qualname__} "
@@ -236,43 +295,46 @@ def _gives_way(
 
 
 def _register_classes(
-    registry: Registry, plugin: object, dist: str, version: str, ep_name: str
+    registry: Registry, kind: str, plugin: object, dist: str, version: str, ep_name: str
 ) -> None:
-    """The classes of each kind that `plugin`'s hooks return, checked (`_refusal`) and
-    entered in `registry`; `PluginError` when a name of a kind is claimed twice."""
-    for kind, (hook_name, _) in KINDS.items():
-        impl = getattr(plugin, hook_name, None)
-        if impl is None:
+    """The classes of `kind` that `plugin`'s hook returns, checked (`_refusal`) and entered in
+    `registry`; `PluginError` when a name of the kind is claimed twice."""
+    hook_name = KINDS[kind][0]
+    impl = getattr(plugin, hook_name, None)
+    if impl is None:
+        return
+    try:
+        classes = impl() or []
+    except Exception as exc:
+        error = f"{hook_name} raised {type(exc).__name__}: {exc}"
+        registry._broken.append(BrokenPlugin(ep_name, dist, error))
+        return
+    for cls in classes:
+        refused = _refusal(kind, cls, plugin)
+        if refused is not None:
+            error, for_api = refused
+            claim = (kind, cls.name) if for_api else None
+            registry._broken.append(BrokenPlugin(ep_name, dist, error, claim))
             continue
-        try:
-            classes = impl() or []
-        except Exception as exc:
-            error = f"{hook_name} raised {type(exc).__name__}: {exc}"
-            registry.broken.append(BrokenPlugin(ep_name, dist, error))
+        existing = registry._entries[kind].get(cls.name)
+        clash = existing is not None and existing.cls is not cls
+        if clash and _gives_way(registry, kind, existing, cls, dist, ep_name):
             continue
-        for cls in classes:
-            refused = _refusal(kind, cls, plugin)
-            if refused is not None:
-                error, for_api = refused
-                claim = (kind, cls.name) if for_api else None
-                registry.broken.append(BrokenPlugin(ep_name, dist, error, claim))
-                continue
-            existing = registry.entries[kind].get(cls.name)
-            clash = existing is not None and existing.cls is not cls
-            if clash and _gives_way(registry, kind, existing, cls, dist, ep_name):
-                continue
-            api = declared_api(cls, plugin)
-            own = getattr(cls, "plugin_version", None)  # e.g. a data file's digest
-            registry.entries[kind][cls.name] = PluginInfo(
-                kind, cls.name, cls, dist, own if isinstance(own, str) else version, ep_name, api
-            )
+        api = declared_api(cls, plugin)  # the version is the class's own when it has one
+        registry._entries[kind][cls.name] = PluginInfo(
+            kind, cls.name, cls, dist, version, ep_name, api
+        )
 
 
-def load_registry(extra_plugins: list[tuple[ModuleType | object, str]] | None = None) -> Registry:
+def load_registry(
+    extra_plugins: list[tuple[ModuleType | object, str]] | None = None, *, lazy: bool = False
+) -> Registry:
     """Discover plugins from entry points (and `extra_plugins`: (module-or-object,
     distribution) pairs, for tests) and build a fresh registry.
 
-    Raises `PluginError` when two plugins claim the same name for one kind.
+    Raises `PluginError` when two plugins claim the same name for one kind. `lazy`: every
+    plugin module is imported here, each kind's hooks are called when the kind is first
+    used (`Registry`), which is where a name claimed twice is raised then.
     """
     pm = pluggy.PluginManager("coadapt")
     pm.add_hookspecs(hookspecs)
@@ -284,11 +346,12 @@ def load_registry(extra_plugins: list[tuple[ModuleType | object, str]] | None = 
         try:
             pm.register(plugin, name=f"{dist}:{ep_name}")
         except ValueError as exc:
-            registry.broken.append(BrokenPlugin(ep_name, dist, str(exc)))
+            registry._broken.append(BrokenPlugin(ep_name, dist, str(exc)))
             continue
-        _register_classes(registry, plugin, dist, version, ep_name)
+        registry._sources.append((plugin, dist, version, ep_name))
     pm.check_pending()
-    return registry
+    registry._pending = list(KINDS)
+    return registry if lazy else registry.load_all()
 
 
 _REGISTRY: Registry | None = None
@@ -300,8 +363,9 @@ def default_plugin(kind: str) -> str:
 
 
 def get_registry(refresh: bool = False) -> Registry:
-    """The process-wide registry, built on first use."""
+    """The process-wide registry, built on first use; each kind's classes are registered when
+    the kind is first used (`load_registry(lazy=True)`)."""
     global _REGISTRY
     if _REGISTRY is None or refresh:
-        _REGISTRY = load_registry()
+        _REGISTRY = load_registry(lazy=True)
     return _REGISTRY

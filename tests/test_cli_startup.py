@@ -166,6 +166,40 @@ def test_plugins_run_help_and_refusals_load_neither_numpy_nor_the_run_settings_n
         assert len(result["err"].strip().splitlines()) == 1, result["err"]
 
 
+#: modules a refusal of one plugin kind never loads (issue 61): the registry asks only the kind
+#: named (no robot's module for a simulator, no simulator's for a robot), and the shipped spec
+#: robots are listed by their folders' names (no spec read: neither YAML nor the spec reader)
+ROBOTS = ("coadapt_plugins.robots.kuafu.robot", "coadapt_plugins.robots.specs.robot")
+SPECS_READ = ("yaml", "coadapt_plugins.robots.specs.spec")
+SIMULATORS = ("coadapt_core.physics.simulator", "coadapt_plugins.simulators.mujoco.simulator")
+KIND_ONLY = [
+    (["run", "--sim", "mujocoo"], (*ROBOTS, *SPECS_READ)),
+    (["run", "--optimizer", "nope"], (*ROBOTS, *SPECS_READ, *SIMULATORS)),
+    (["robot", "show", "nope"], (*SPECS_READ, *SIMULATORS)),
+    (["robot", "show", "kuafu", "--design", "abc"], (*SPECS_READ, *SIMULATORS)),
+    (["run", "--help"], SPECS_READ),
+]
+
+
+@pytest.mark.parametrize(("args", "absent"), KIND_ONLY, ids=[" ".join(a) for a, _ in KIND_ONLY])
+def test_a_refusal_loads_the_plugins_of_the_kind_it_names_alone(args, absent):
+    code = (
+        "import contextlib, io, json, sys\n"
+        "from coadapt_core.cli import main\n"
+        "with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):"
+        "\n    code = main(sys.argv[1:])\n"
+        f"print(json.dumps([code, sorted(m for m in {absent!r} if m in sys.modules)]))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert json.loads(done.stdout.strip().splitlines()[-1]) == [
+        2 if "--help" not in args else 0,
+        [],
+    ]
+
+
 def test_the_plugins_listed_and_a_refusal_load_the_plugins_themselves():
     """The light answers above still read the installed plugins: `coadapt plugins` imports
     every plugin's module (the check would pass vacuously if the registry stayed unloaded)."""

@@ -294,7 +294,8 @@ def load_state(run_dir: Path) -> LoopState:
             )
         from coadapt_core.plugins import get_registry
 
-        get_registry()  # plugins register their buffer types (statefile.register_dataclass)
+        # every plugin's classes: their modules register the buffer types they save
+        get_registry().load_all()  # (statefile.register_dataclass)
         state.buffer = read_npz(buffer_path, what="evaluation buffer", recover=_RECOVER)
     if state.torch_rng_state is not None:
         import torch

@@ -20,14 +20,18 @@ from coadapt_core import hookimpl
 #: the coadapt plugin API version this plugin is written for (docs/plugins.md#migration)
 COADAPT_PLUGIN_API = "2.2"
 HERE = Path(__file__).resolve().parent
+#: the spec's file name inside a robot folder (`<folder>/robot.yaml`)
+SPEC_FILE = "robot.yaml"
 
 
 @hookimpl
 def coadapt_register_robots() -> list[type]:
+    """The shipped robots by their folders' names, each read on first use (a test reads them
+    all: a shipped spec that does not read, or names another robot, is a bug of this
+    package), then the user's, read here (their names are in their specs, and a spec that
+    does not read is listed with its problem)."""
     from coadapt_plugins.robots.specs.discovery import search_path, spec_robots_in
 
-    shipped, problems = spec_robots_in(HERE)
-    if problems:  # a shipped spec that does not read is a bug of this package
-        raise RuntimeError("; ".join(problems))
+    shipped, _ = spec_robots_in(HERE, by_folder=True)
     users, _ = spec_robots_in(*search_path(), user=True)  # each problem is its class's line
     return shipped + users

@@ -11,7 +11,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from coadapt_plugins.robots.specs.spec import SPEC_FILE
+from coadapt_plugins.robots.specs import SPEC_FILE
 
 from coadapt_core.errors import UserError
 
@@ -39,19 +39,23 @@ def robot_folders(folder: Path) -> list[Path]:
     return sorted(p for p in folder.iterdir() if (p / SPEC_FILE).is_file())
 
 
-def spec_robots_in(*folders: Path, user: bool = False) -> tuple[list[type], list[str]]:
+def spec_robots_in(
+    *folders: Path, user: bool = False, by_folder: bool = False
+) -> tuple[list[type], list[str]]:
     """(Robot classes of every spec in `folders`, one line per spec that does not read).
     A spec that does not read still gives a class, named by its folder, that the registry
     refuses with that line (`Robot.unavailable`), so `--robot NAME` says what is wrong with
     it. `user`: robots of a user's folders, which give way to a plugin's robot of the same
-    name (`yields_name`)."""
-    from coadapt_plugins.robots.specs.robot import SpecRobot, spec_robot_class
+    name (`yields_name`). `by_folder`: each robot named by its folder and read on first use
+    (`folder_robot_class`: listing their names reads no file), for folders whose specs are
+    known to read and to name their folders (a plugin's own, checked by its tests)."""
+    from coadapt_plugins.robots.specs.robot import SpecRobot, folder_robot_class, spec_robot_class
 
     classes, problems, seen = [], [], set()
     for folder in folders:
         for robot in robot_folders(Path(folder)):
             try:
-                cls = spec_robot_class(robot)
+                cls = folder_robot_class(robot) if by_folder else spec_robot_class(robot)
             except UserError as exc:
                 line = f"{robot / SPEC_FILE}: {exc}"
                 problems.append(line)

@@ -1,8 +1,9 @@
 """The `Robot` a spec becomes: design spaces, cached models per design, the generic leg IK.
 
 `spec_robot_class(path)` turns a spec file into a `Robot` subclass named by the spec, which
-any plugin's `coadapt_register_robots` hook may return (the built-in spec robots and the
-folders of `COADAPT_ROBOT_PATH` are registered that way, `discovery`).
+any plugin's `coadapt_register_robots` hook may return (the folders of `COADAPT_ROBOT_PATH`
+are registered that way, `discovery`); `folder_robot_class(folder)` names it by its folder
+and reads the files on first use (the built-in spec robots: listing them reads nothing).
 """
 
 from __future__ import annotations
@@ -12,8 +13,6 @@ from functools import cached_property, lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
 
-from coadapt_plugins.robots.specs.spec import DESIGN_DECIMALS, RobotSpec, read_spec
-
 from coadapt_core.design_space import Continuous, DesignSpace, Discrete
 from coadapt_core.errors import DesignError
 from coadapt_core.robot import Leg, Mirror, Robot, RobotModel, ValidationReport
@@ -21,6 +20,7 @@ from coadapt_core.robot import Leg, Mirror, Robot, RobotModel, ValidationReport
 if TYPE_CHECKING:
     import numpy as np
     import torch
+    from coadapt_plugins.robots.specs.spec import RobotSpec
 
 
 class SpecRobot(Robot):
@@ -35,6 +35,8 @@ class SpecRobot(Robot):
 
     @cached_property
     def spec(self) -> RobotSpec:
+        from coadapt_plugins.robots.specs.spec import read_spec
+
         return read_spec(self.spec_path)
 
     @cached_property
@@ -81,6 +83,7 @@ class SpecRobot(Robot):
     # -- models -----------------------------------------------------------------------------
     def build(self, design: np.ndarray) -> RobotModel:
         import numpy as np
+        from coadapt_plugins.robots.specs.spec import DESIGN_DECIMALS
 
         values = self.check_design(design)
         return self._cached(tuple(float(x) for x in np.round(values, DESIGN_DECIMALS)))
@@ -157,21 +160,72 @@ class SpecRobot(Robot):
 def spec_robot_class(path: str | Path, *, description: str | None = None) -> type[SpecRobot]:
     """A `Robot` subclass for the spec at `path` (a robot.yaml or its folder), named by the
     spec. The file is read here, so a bad spec fails at registration with its field named."""
+    from coadapt_plugins.robots.specs.spec import read_spec
+
     spec = read_spec(path)
+    return type(
+        f"SpecRobot_{spec.name.replace('-', '_')}",
+        (SpecRobot,),
+        {
+            "name": spec.name,
+            "spec_path": spec.folder,
+            **_facts(spec, description),
+            "__module__": __name__,
+        },
+    )
+
+
+def _facts(spec: RobotSpec, description: str | None = None) -> dict[str, str]:
+    """The class attributes read from a spec's files: its description, and the SHA-256 (12
+    hex) of the spec, its model file and the files the model names (`plugin_version`)."""
     text = description or spec.description or f"robot from the spec {spec.folder / 'robot.yaml'}"
     digest = hashlib.sha256((spec.folder / "robot.yaml").read_bytes())
     if spec.model_path.is_file():
         digest.update(spec.model_path.read_bytes())
         for path in _needed_files(spec):
             digest.update(path.read_bytes())
+    return {"description": text, "plugin_version": digest.hexdigest()[:12]}
+
+
+class _ReadOnUse:
+    """A class attribute of a `folder_robot_class` robot (its description, its version): the
+    robot's files are read when one of them is first asked for, and both are set on the
+    class. A spec that does not read, or names another robot than its folder, is the
+    `UserError` of its field."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.attr = name
+
+    def __get__(self, instance: object, owner: type[SpecRobot]) -> str:
+        from coadapt_plugins.robots.specs.spec import read_spec
+
+        from coadapt_core.errors import UserError
+
+        spec = read_spec(owner.spec_path)
+        if spec.name != owner.name:
+            raise UserError(
+                f"robot spec '{owner.spec_path / 'robot.yaml'}' names the robot '{spec.name}'; "
+                f"the robots of this folder are named by their folders: '{owner.name}'",
+                field="name",
+            )
+        facts = _facts(spec)
+        for key, value in facts.items():
+            setattr(owner, key, value)  # in place of these descriptors: read once
+        return facts[self.attr]
+
+
+def folder_robot_class(folder: str | Path) -> type[SpecRobot]:
+    """A `Robot` subclass for the spec in `folder`, named by the folder; nothing is read until
+    the robot is used (`_ReadOnUse`: its description and version, `SpecRobot.spec`)."""
+    folder = Path(folder).resolve()
     return type(
-        f"SpecRobot_{spec.name.replace('-', '_')}",
+        f"SpecRobot_{folder.name.replace('-', '_')}",
         (SpecRobot,),
         {
-            "name": spec.name,
-            "description": text,
-            "spec_path": spec.folder,
-            "plugin_version": digest.hexdigest()[:12],
+            "name": folder.name,
+            "spec_path": folder,
+            "description": _ReadOnUse(),
+            "plugin_version": _ReadOnUse(),
             "__module__": __name__,
         },
     )
