@@ -310,3 +310,23 @@ def test_coaxial_halves_whose_ends_do_not_meet_are_refused_in_one_line(edits, sa
         starting_spec("probe", model)
     message = str(found.value)
     assert "\n" not in message and says in message, message
+
+
+def test_the_mirror_pairs_each_four_bars_outer_motor_with_the_mirror_legs_outer_one(tmp_path):
+    """quadruped.urdf's halves sit 0.125 m (outer) and 0.06 m (inner) from the base's x-z
+    plane on either side."""
+    from coadapt_plugins.robots.specs.new import write_robot
+    from coadapt_plugins.robots.specs.robot import spec_robot_class
+
+    folder, _, _ = write_robot("quadruped", SOURCE.parent / "quadruped.urdf", tmp_path)
+    robot = spec_robot_class(folder)()
+    mirror = robot.mirror()
+    joints = robot._built.prepared.joints
+    pairs = {joints[k]: joints[m] for k, m in enumerate(mirror.joints)}
+    assert pairs["motor_front_leftR_joint"] == "motor_front_rightR_joint"  # both outer
+    assert pairs["motor_back_rightL_joint"] == "motor_back_leftL_joint"  # both inner
+    assert mirror.legs == (1, 0, 3, 2)
+    # minitaur.urdf's outer lower legs differ by 1 mm (0.198 and 0.2 m boxes): no mirror
+    folder, _, _ = write_robot("minitaur", SOURCE, tmp_path)
+    with pytest.raises(UserError, match="the standing pose is not its own mirror image"):
+        spec_robot_class(folder)().mirror()

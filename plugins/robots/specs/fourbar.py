@@ -173,9 +173,15 @@ def four_bar_pose(model, legs: list[dict], pairs, share: float) -> dict[str, flo
                 )
             found.append((hinges[:2], options))
         (ha, oa), (hb, ob) = found
+        # knees apart (a diamond); of the two diamonds, the outer half's knee behind, so
+        # mirror-image legs stand as mirror images
+        outer = 0 if abs(data.xanchor[ha[0]][1]) >= abs(data.xanchor[hb[0]][1]) else 1
         best = max(
             ((x, y) for x in oa for y in ob),
-            key=lambda xy: float(np.linalg.norm(xy[0][1] - xy[1][1])),
+            key=lambda xy: (
+                round(float(np.linalg.norm(xy[0][1] - xy[1][1])), 4),
+                -float(xy[outer][1][0]),
+            ),
         )
         for hinges, (angles, _) in zip((ha, hb), best, strict=True):
             for j, angle in zip(hinges, angles, strict=True):

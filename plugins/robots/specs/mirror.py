@@ -70,15 +70,30 @@ def _leg_map(robot) -> list[int]:
 
 
 def _chains(robot, model: mujoco.MjModel, base: int, joints: list[str]) -> list[list[int]]:
-    """Each leg's actuated joints, base to foot (indices into `joints`)."""
+    """Each leg's actuated joints, base to foot (indices into `joints`); a leg closed by
+    `loops` (a four-bar) holds its other halves' motors too, the leg's motors ordered from
+    the base's x-z plane outward (side by side on one axis: the mirror pairs outer with
+    outer)."""
     index = {model.joint(name).id: k for k, name in enumerate(joints)}
     chains = []
     for leg in robot.spec.legs:
-        bodies = _chain(model, base, model.body(leg.foot).id)
+        ends = [leg.foot] + [b for a, b, _ in robot.spec.loops if a == leg.foot]
+        bodies = [b for end in ends for b in _chain(model, base, model.body(end).id)]
         found = [
             index.get(j) for b in bodies for j in range(model.njnt) if model.jnt_bodyid[j] == b
         ]
-        chains.append([k for k in found if k is not None])  # locked joints are not actuated
+        found = [k for k in found if k is not None]  # locked joints are not actuated
+        if len(ends) > 1:
+            data = mujoco.MjData(model)
+            mujoco.mj_kinematics(model, data)
+            side = data.xmat[base].reshape(3, 3)[:, 1]
+            found.sort(
+                key=lambda k: round(
+                    abs(float((data.xanchor[model.joint(joints[k]).id] - data.xpos[base]) @ side)),
+                    4,
+                )
+            )
+        chains.append(found)
     return chains
 
 
