@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import threading
 from dataclasses import dataclass
 from importlib import metadata
 from types import ModuleType
@@ -118,6 +119,8 @@ class Registry:
         self.manager = manager
         self._sources: list[Source] = []  # the plugins whose hooks give the classes
         self._pending: list[str] = []  # the kinds whose hooks are not asked yet
+        self._loading: set[str] = set()  # the kinds whose hooks are being asked
+        self._lock = threading.RLock()  # threads (a grid's cells) ask a kind once
 
     @property
     def entries(self) -> dict[str, dict[str, PluginInfo]]:
@@ -140,14 +143,19 @@ class Registry:
         """`kind`'s classes, asked of every plugin's hook the first time; a name claimed twice
         (`PluginError`) leaves the kind unloaded, so the next use says so again."""
         if kind in self._pending:
-            known = len(self._broken)
-            try:
-                for source in self._sources:
-                    _register_classes(self, kind, *source)
-            except PluginError:
-                self._entries[kind], self._broken[known:] = {}, []
-                raise
-            self._pending.remove(kind)
+            with self._lock:
+                if kind in self._pending and kind not in self._loading:  # (a hook asking it)
+                    self._loading.add(kind)
+                    known = len(self._broken)
+                    try:
+                        for source in self._sources:
+                            _register_classes(self, kind, *source)
+                    except PluginError:
+                        self._entries[kind], self._broken[known:] = {}, []
+                        raise
+                    finally:
+                        self._loading.discard(kind)
+                    self._pending.remove(kind)
         return self._entries[kind]
 
     def names(self, kind: str) -> list[str]:

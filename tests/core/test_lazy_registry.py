@@ -144,3 +144,39 @@ def test_a_folder_named_robot_whose_spec_names_another_is_refused_on_use(tmp_pat
     assert cls.name == "renamed"
     with pytest.raises(UserError, match="names the robot 'jingwei'"):
         _ = cls.plugin_version
+
+
+def test_threads_asking_one_kind_at_once_register_it_once():
+    """A grid's cells run in threads: the first use of a kind asks its hooks once, even where
+    a hook makes new classes on each call (as a spec robot's does), which a second asking
+    would refuse as a name claimed twice."""
+    import threading
+    import time
+
+    calls: list[str] = []
+    module = type(sys)("slow_plugin")
+    module.COADAPT_PLUGIN_API = "2.2"
+
+    @hookimpl
+    def coadapt_register_objectives():
+        calls.append("objective")
+        time.sleep(0.05)
+        return [type("SlowObjective", (ProbeObjective,), {"name": "slow-objective"})]
+
+    module.coadapt_register_objectives = coadapt_register_objectives
+    registry = load_registry(extra_plugins=[(module, "coadapt-slow")], lazy=True)
+    found, errors = [], []
+
+    def ask():
+        try:
+            found.append(registry.names("objective"))
+        except Exception as exc:
+            errors.append(exc)
+
+    threads = [threading.Thread(target=ask) for _ in range(6)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert errors == [] and calls == ["objective"]
+    assert len(found) == 6 and all("slow-objective" in names for names in found)
