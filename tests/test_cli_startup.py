@@ -171,7 +171,12 @@ def test_plugins_run_help_and_refusals_load_neither_numpy_nor_the_run_settings_n
 #: robots are listed by their folders' names (no spec read: neither YAML nor the spec reader)
 ROBOTS = ("coadapt_plugins.robots.kuafu.robot", "coadapt_plugins.robots.specs.robot")
 SPECS_READ = ("yaml", "coadapt_plugins.robots.specs.spec")
-SIMULATORS = ("coadapt_core.physics.simulator", "coadapt_plugins.simulators.mujoco.simulator")
+SIMULATORS = (
+    "coadapt_core.physics.simulator",
+    "coadapt_core.physics.randomization",  # its settings class (a pydantic dataclass)
+    "coadapt_plugins.simulators.mujoco.simulator",
+    "coadapt_plugins.simulators.pybullet.simulator",
+)
 KIND_ONLY = [
     (["run", "--sim", "mujocoo"], (*ROBOTS, *SPECS_READ)),
     (["run", "--optimizer", "nope"], (*ROBOTS, *SPECS_READ, *SIMULATORS)),
