@@ -211,6 +211,21 @@ def test_the_command_line_refuses_a_bad_spec_in_one_line(folder):
     assert "Traceback" not in done.stderr
 
 
+def test_a_spec_with_a_python_tag_is_refused_and_its_payload_does_not_run(folder, tmp_path):
+    """robot.yaml is read with the safe loader: a tag that would build an object or call a
+    function is refused in one line, and the call never happens."""
+    marker = tmp_path / "ran"
+    text = (folder / "robot.yaml").read_text()
+    payload = f"!!python/object/apply:os.mkdir ['{marker}']"
+    (folder / "robot.yaml").write_text(text.replace("name: probe", f"name: {payload}", 1))
+    with pytest.raises(UserError, match="not readable YAML") as refused:
+        spec_robot_class(folder)
+    assert refused.value.field == "robot"
+    done = _cli(["robot", "show", "probe"], folder.parent)
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
+    assert not marker.exists()
+
+
 def test_robot_new_on_a_broken_model_creates_nothing(tmp_path):
     model = tmp_path / "broken.xml"
     model.write_text(
