@@ -223,6 +223,40 @@ def test_a_bad_loop_is_one_line_naming_it(change, field, says, tmp_path):
     assert "\n" not in message and f"'{field}'" in message and says in message, message
 
 
+@pytest.mark.parametrize(
+    ("pins", "field", "says"),
+    [
+        ({"nowhere": [0.0, 0.0, 0.1]}, "pins.nowhere",
+         "no body 'nowhere' in the model; pins takes a body of the model and a point [x, y, z]"),
+        ({"lower_leg_front_leftL_link": [0.0, 0.2]}, "pins.lower_leg_front_leftL_link",
+         "needs a point [x, y, z] in the body's frame, got [0.0, 0.2]"),
+        ({"lower_leg_front_leftL_link": [0.0, 0.0, 0.1, 0.0]}, "pins.lower_leg_front_leftL_link",
+         "needs a point [x, y, z]"),
+        ([[0.0, 0.0, 0.1]], "pins", "needs a mapping"),
+    ],
+)  # fmt: skip
+def test_a_bad_pin_is_one_line_naming_it(pins, field, says, tmp_path):
+    with pytest.raises(UserError) as caught:
+        robot_in(tmp_path / "mt", pins=pins).build(np.array([1.0, 1.0]))
+    message = str(caught.value)
+    assert "\n" not in message and f"'{field}'" in message and says in message, message
+
+
+def test_the_command_line_refuses_a_bad_pin_in_one_line_exit_2(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    robot_in(tmp_path / "robots" / "mt", pins={"nowhere": [0.0, 0.0, 0.1]})
+    done = subprocess.run(
+        [sys.executable, "-m", "coadapt_core", "robot", "show", "minitaur-test", "--no-validate"],
+        capture_output=True, text=True, timeout=300,
+        env=dict(os.environ, COADAPT_ROBOT_PATH=str(tmp_path / "robots")),
+    )  # fmt: skip
+    lines = (done.stdout + done.stderr).strip().splitlines()
+    assert done.returncode == 2 and len(lines) == 1 and "'pins.nowhere'" in lines[0], lines
+
+
 def test_robot_new_finds_the_four_bars_and_writes_them_as_loops():
     data, notes, comments = starting_spec("probe", SOURCE)
     assert [leg["name"] for leg in data["legs"]] == list(LEGS)

@@ -126,11 +126,12 @@ def _quaternion(value: Any) -> tuple[float, float, float, float] | None:
     return tuple(x / norm for x in q)
 
 
-def _tips(raw: Any) -> dict[str, tuple[float, float, float]]:
-    """`tips`: {body: [x, y, z] in its frame}, the foot points the model has no body for."""
+def _tips(raw: Any, name: str = "tips") -> dict[str, tuple[float, float, float]]:
+    """`tips`: {body: [x, y, z] in its frame}, the foot points the model has no body for
+    (`pins` alike: the points a loop pins that are no body's origin)."""
     out = {}
-    for body, point in _mapping(raw, "tips").items():
-        where = f"tips.{body}"
+    for body, point in _mapping(raw, name).items():
+        where = f"{name}.{body}"
         three = _list(point, where)
         if len(three) != 3:
             raise _fail(where, f"needs a point [x, y, z] in the body's frame, got {three!r}")

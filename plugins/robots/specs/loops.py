@@ -33,6 +33,30 @@ STEP = 1e-12
 SITE = "coadapt_loop{k}_{side}"
 
 
+#: the body a spec `pins` entry adds: BODY + PIN_SUFFIX, massless as a tip is (TIP_MASS)
+PIN_SUFFIX = "_pin"
+
+
+def add_pins(spec: mujoco.MjSpec, pins: dict) -> None:
+    """The spec's `pins`: a body `BODY_pin` at each point, no geom, a tip's mass."""
+    from coadapt_plugins.robots.specs.orient import TIP_MASS
+
+    for body, pos in pins.items():
+        parent = spec.body(body)
+        if parent is None:
+            raise spec_error(
+                f"pins.{body}",
+                f"no body '{body}' in the model; pins takes a body of the model and a point "
+                "[x, y, z] in its frame",
+            )
+        if spec.body(body + PIN_SUFFIX) is not None:
+            raise spec_error(f"pins.{body}", f"the model has a body '{body}{PIN_SUFFIX}' already")
+        pin = parent.add_body(name=body + PIN_SUFFIX, pos=[float(x) for x in pos])
+        pin.mass = TIP_MASS
+        pin.inertia = [TIP_MASS * 1e-4] * 3
+        pin.explicitinertial = True
+
+
 def check_loops(spec: mujoco.MjSpec, loops, hinges: list[str]) -> list[str]:
     """The passive hinges of `loops` (spec `loops`), in model order; one line naming the
     field for a body or joint the model lacks."""

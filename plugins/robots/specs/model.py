@@ -31,7 +31,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-from coadapt_plugins.robots.specs.loops import check_loops
+from coadapt_plugins.robots.specs.loops import add_pins, check_loops
 from coadapt_plugins.robots.specs.meshes import _MESH, ALONG, _own_meshes, _quat_mat
 from coadapt_plugins.robots.specs.orient import add_tips, inertia_from_shape, reorient
 from coadapt_plugins.robots.specs.spec import RobotSpec, spec_error
@@ -198,6 +198,7 @@ def prepare(rs: RobotSpec) -> Prepared:
     if rs.base_orientation is not None:
         reorient(root, rs.base_orientation)
     add_tips(spec, rs.tips)
+    add_pins(spec, rs.pins)
     bodies = _subtree(root)
     for joint in rs.locked_joints:
         found = spec.joint(joint)

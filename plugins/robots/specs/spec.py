@@ -125,6 +125,8 @@ class RobotSpec:
     urdf_fixes: tuple[str, ...] = ()
     #: closed loops the model file leaves open (`loops`): (body A, body B, passive hinges)
     loops: tuple[tuple[str, str, tuple[str, ...]], ...] = ()
+    #: points a loop pins that are no body's origin: body -> [x, y, z], a body BODY_pin
+    pins: dict[str, tuple[float, float, float]] = field(default_factory=dict)
 
     @property
     def model_path(self) -> Path:
@@ -287,7 +289,7 @@ _TOP = {
     "name", "description", "model", "base", "locked_joints", "design", "motors", "limits",
     "legs", "standing_pose", "gains", "gain_scale_exponent", "collision", "joints",
     "balanceinertia", "assets", "inertia_from_shape", "base_orientation",
-    "tips", "urdf_fixes", "loops",
+    "tips", "urdf_fixes", "loops", "pins",
 }  # fmt: skip
 
 
@@ -346,6 +348,7 @@ def parse_spec(data: Any, folder: Path, *, fallback_name: str = "") -> RobotSpec
         tips=_tips(data.get("tips", {})),
         urdf_fixes=_urdf_fixes(data.get("urdf_fixes", [])),
         loops=_loops(data.get("loops", [])),
+        pins=_tips(data.get("pins", {}), "pins"),
     )
 
 
