@@ -11,6 +11,7 @@ coaxial halves whose ends do not meet are refused in one line."""
 from __future__ import annotations
 
 import math
+import re
 import shutil
 from pathlib import Path
 
@@ -260,7 +261,9 @@ def test_the_command_line_refuses_a_bad_pin_in_one_line_exit_2(tmp_path):
 def test_robot_new_finds_the_four_bars_and_writes_them_as_loops():
     data, notes, comments = starting_spec("probe", SOURCE)
     assert [leg["name"] for leg in data["legs"]] == list(LEGS)
-    assert [leg["hip"] for leg in data["legs"]] == [f"motor_{g}L_link" for g in LEGS]
+    # each leg's outer half first: its motor the hip, its end the toe
+    outer = {"front_left": "L", "front_right": "R", "back_left": "L", "back_right": "R"}
+    assert [leg["hip"] for leg in data["legs"]] == [f"motor_{g}{outer[g]}_link" for g in LEGS]
     assert data["loops"][0] == {
         "bodies": ["lower_leg_front_leftL_link_tip", "lower_leg_front_leftR_link_tip"],
         "passive": ["knee_front_leftL_link", "knee_front_leftR_link"],
@@ -274,7 +277,24 @@ def test_robot_new_finds_the_four_bars_and_writes_them_as_loops():
     assert any(n.startswith("four-bar legs (4, each two chains") for n in notes)
     # each half's standing angles written, the knees apart (upper legs out on either side)
     pose = data["standing_pose"]["joints"]
-    assert "solve" not in data["standing_pose"] and len(pose) == 16
+    assert len(pose) == 16 and 0.85 < data["standing_pose"]["solve"] < 0.95  # solved per design
+
+
+def test_robot_new_pins_a_longer_lower_leg_where_the_other_meets_it():
+    """minitaur_derpy.urdf: each leg's lower legs reach 0.24 and 0.216 m; the shorter one's
+    end meets the longer 0.206 m along it, and the longer one's end is the toe."""
+    data, _, comments = starting_spec("probe", SOURCE.parent / "minitaur_derpy.urdf")
+    assert data["pins"]["lower_leg_front_leftL_link"] == [0.0, 0.0, 0.206]
+    assert data["loops"][0]["bodies"] == [
+        "lower_leg_front_leftL_link_pin",
+        "lower_leg_front_leftR_link_tip",
+    ]
+    assert data["legs"][0]["foot"] == "lower_leg_front_leftL_link_tip"  # the longer's end
+    assert abs(data["tips"]["lower_leg_front_leftL_link"][2] - 0.23) < 1e-9
+    assert "pins" in comments
+    # the pin moves with the lower leg's scale, as its tip does
+    lower = next(p for p in data["design"] if p["name"] == "lower_leg_scale")
+    assert ["lower_leg_front_leftL_link", "lower_leg_front_leftL_link_pin"] in lower["links"]
 
 
 def test_the_leg_ik_moves_both_halves_and_keeps_the_toes_together(tmp_path):
@@ -323,16 +343,14 @@ def _edited(text: str, start: str, old: str, new: str) -> str:
 @pytest.mark.parametrize(
     ("edits", "says"),
     [
-        # one lower leg 10 cm short: the other reaches on past the point where they meet
-        ([('<link name="lower_leg_front_leftR_link">', 'xyz="0 0 .1"', 'xyz="0 0 .05"'),
-          ('<link name="lower_leg_front_leftR_link">', ' .2"/>', ' .1"/>')],
-         "its pin lies short of one half's end"),
         # one lower leg hung 5 cm further out along the axis: the ends do not meet
         ([('<joint name="knee_front_leftR_link"', 'xyz="0.0 0.01 .055"', 'xyz="0.0 0.06 .055"')],
          "two halves of a four-bar leg, but their ends are"),
     ],
 )  # fmt: skip
 def test_coaxial_halves_whose_ends_do_not_meet_are_refused_in_one_line(edits, says, tmp_path):
+    """(One lower leg shorter than the other meets it short of its end: a `pins` body there,
+    as minitaur_derpy's, test_robot_new_pins_a_longer_lower_leg_where_the_other_meets_it.)"""
     text = SOURCE.read_text()
     for start, old, new in edits:
         changed = _edited(text, start, old, new)
@@ -347,20 +365,29 @@ def test_coaxial_halves_whose_ends_do_not_meet_are_refused_in_one_line(edits, sa
 
 
 def test_the_mirror_pairs_each_four_bars_outer_motor_with_the_mirror_legs_outer_one(tmp_path):
-    """quadruped.urdf's halves sit 0.125 m (outer) and 0.06 m (inner) from the base's x-z
-    plane on either side."""
+    """quadruped.urdf's halves sit 0.125 m (outer, R) and 0.06 m (inner, L) from the base's
+    x-z plane on either side: the mirror pairs R with R. Its pose solved per design differs
+    between mirror legs by up to 6.6e-5 rad (its motors turned by rpy 1.57075, not pi/2, the
+    same way on both sides), minitaur.urdf's by up to 0.025 rad (its outer lower legs differ
+    by 1 mm): beyond the mirror map's 1e-6, each refused in one line. minitaur_derpy's
+    (1.4e-7 rad) gets a map: its longer, pinned halves outer on both sides, paired."""
     from coadapt_plugins.robots.specs.new import write_robot
     from coadapt_plugins.robots.specs.robot import spec_robot_class
 
     folder, _, _ = write_robot("quadruped", SOURCE.parent / "quadruped.urdf", tmp_path)
-    robot = spec_robot_class(folder)()
-    mirror = robot.mirror()
-    joints = robot._built.prepared.joints
-    pairs = {joints[k]: joints[m] for k, m in enumerate(mirror.joints)}
-    assert pairs["motor_front_leftR_joint"] == "motor_front_rightR_joint"  # both outer
-    assert pairs["motor_back_rightL_joint"] == "motor_back_leftL_joint"  # both inner
-    assert mirror.legs == (1, 0, 3, 2)
-    # minitaur.urdf's outer lower legs differ by 1 mm (0.198 and 0.2 m boxes): no mirror
+    with pytest.raises(UserError) as found:
+        spec_robot_class(folder)().mirror()
+    message = str(found.value)
+    assert "the standing pose is not its own mirror image" in message and "\n" not in message
+    pair = re.findall(r"'(motor_\w+)' (-?[0-9.]+)", message)
+    assert {name[-7] for name, _ in pair} == {"R"} and pair[0][1] == pair[1][1], pair
     folder, _, _ = write_robot("minitaur", SOURCE, tmp_path)
     with pytest.raises(UserError, match="the standing pose is not its own mirror image"):
         spec_robot_class(folder)().mirror()
+    folder, _, _ = write_robot("derpy", SOURCE.parent / "minitaur_derpy.urdf", tmp_path)
+    robot = spec_robot_class(folder)()
+    mirror, joints = robot.mirror(), robot._built.prepared.joints
+    pairs = {joints[k]: joints[m] for k, m in enumerate(mirror.joints)}
+    assert pairs["motor_front_leftL_joint"] == "motor_front_rightR_joint"  # the pinned halves
+    assert pairs["motor_back_leftR_joint"] == "motor_back_rightL_joint"
+    assert mirror.legs == (1, 0, 3, 2)

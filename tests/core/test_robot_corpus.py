@@ -13,10 +13,10 @@ corner since its standing pose keeps the ankles inside their ranges and the sole
 `plugins/robots/specs/level.py`), and its nominal design in PyBullet.
 
 The minitaurs' four-bar legs (each leg two open chains hinged on one axis whose ends meet;
-PyBullet's minitaur environment pins them in code) go through with spec `loops` that `robot
-new` writes. Every other legged file of pybullet_data is refused by `robot new` in one line,
-exit 2, nothing created (`REFUSED`, with why): three minitaurs whose pin lies short of one
-lower leg's end (one of them also hangs its motors on slide joints), files with their
+PyBullet's minitaur environment pins them in code) go through with spec `loops` (and `pins`
+where one lower leg reaches on past the other's end) that `robot new` writes. Every other
+legged file of pybullet_data is refused by `robot new` in one line, exit 2, nothing created
+(`REFUSED`, with why): a minitaur that hangs its motors on slide joints, files with their
 knees or motors fixed, one that stands on one leg at its zero pose (the microtaur), and
 files MuJoCo refuses as they are (global coordinates, malformed XML).
 """
@@ -54,6 +54,8 @@ CORPUS = [
     ("minitaur", DATA / "quadruped" / "minitaur.urdf"),  # four-bar legs: loops
     ("minitaur-v1", DATA / "quadruped" / "minitaur_v1.urdf"),  # four-bar legs: loops
     ("quadruped", DATA / "quadruped" / "quadruped.urdf"),  # four-bar legs: loops
+    ("minitaur-derpy", DATA / "quadruped" / "minitaur_derpy.urdf"),  # loops and pins
+    ("minitaur-rainbow-dash", DATA / "quadruped" / "minitaur_rainbow_dash.urdf"),  # the same
     ("ant", DATA / "mjcf" / "ant.xml"),
     ("humanoid", DATA / "mjcf" / "humanoid.xml"),  # stacked hinges; a biped
     ("menagerie-quad", HERE / "menagerie" / "quad.xml"),  # meshdir, nested includes, keyframe
@@ -178,19 +180,20 @@ def test_a_model_file_goes_to_co_design_with_no_edit(name, source, robots, tmp_p
     assert lowest >= 0.75 and tilt <= 0.35, (lowest, tilt)  # the humanoid's nominal design too
     with capsys.disabled():
         print(f"\n{name}: " + ", ".join(f"{k} {v:.1f} s" for k, v in times.items()))
+        print(
+            f"{name}: {stand['message'].split(' (limits')[0]}; PyBullet lowest {lowest:.0%}, "
+            f"tilt {np.degrees(tilt):.1f} deg"
+        )
 
 
-SHORT = "its pin lies short of one half's end"
-#: pybullet_data's other legged files and why `robot new` refuses each: four-bar minitaurs
-#: whose pin lies short of a lower leg's end, legs with one hinge or none left (knees or
-#: motors fixed), and files MuJoCo or an XML reader refuses as they are
+#: pybullet_data's other legged files and why `robot new` refuses each: a four-bar minitaur
+#: whose motors hang on slide joints, legs with one hinge or none left (knees or motors
+#: fixed), and files MuJoCo or an XML reader refuses as they are
 REFUSED = [
-    ("quadruped/minitaur_derpy.urdf", SHORT),
-    ("quadruped/minitaur_rainbow_dash.urdf", SHORT),
     ("quadruped/minitaur_fixed_all.urdf", "found no legs"),
     ("quadruped/minitaur_fixed_knees.urdf", "found no legs"),
     ("quadruped/minitaur_single_motor.urdf", "found no legs"),
-    ("quadruped/minitaur_rainbow_dash_v1.urdf", SHORT),  # its brackets are slide joints too
+    ("quadruped/minitaur_rainbow_dash_v1.urdf", "is not a hinge"),  # motor brackets on slides
     ("quadruped/microtaur/microtaur.urdf", "found one leg standing"),  # rpy_three read
     ("biped/biped2d_pybullet.urdf", "is not readable XML"),
     ("humanoid/humanoid.urdf", "is not readable XML"),

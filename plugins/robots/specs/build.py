@@ -228,7 +228,7 @@ class SpecBuilder:
         out = torch.zeros(designs.shape[0], c.num_legs, 3, dtype=torch.float64)
         out[..., 1] = rel[0, :, 1]
         out[..., 2] = -self.spec.standing_share * leg
-        if not level:
+        if not level or self.spec.loops:  # a four-bar's motors: no range or sole to keep
             return out
         return level_targets(
             kin, designs, out, self.spec.standing_share, *self._ranges, self._levelled

@@ -69,10 +69,22 @@ def _world_tip(model, data, body: int) -> np.ndarray:
     return data.xpos[body] + data.xmat[body].reshape(3, 3) @ local
 
 
-def four_bars(model: mujoco.MjModel, data, base: int, legs: list[dict]) -> list[tuple[int, int]]:
-    """The pairs (a, b) of `legs` (indices, a first) that are the halves of one four-bar
-    leg (module docstring); one line for coaxial halves whose ends do not meet. `data`
-    holds the model's zero pose, kinematics done."""
+def _pin_of(model, foot: int, pinned: dict) -> int | None:
+    """The `pins` body on a foot's lower leg (`pinned`: lower leg -> pin body), else None."""
+    lower = model.body(int(model.body_parentid[foot])).name
+    name = pinned.get(model.body(foot).name) or pinned.get(lower)
+    return None if name is None else model.body(name).id
+
+
+def four_bars(model, data, base: int, legs: list[dict], pinned: dict | None = None) -> list:
+    """The triples (a, b, pin) of `legs` (indices) that are the halves of one four-bar leg
+    (module docstring): a the outer half (or the one a `pins` body is on), its end the toe;
+    b's end pinned to a at `pin` (a point in a's foot body's frame where b's end meets it,
+    when that is short of a's end: the longer half's lower leg reaches on past the pin) or
+    at a's end (None); with `pinned` (lower leg -> its `pins` body) a pinned half's end
+    meets at its pin body. One line for coaxial halves whose ends do not meet. `data` holds
+    the model's zero pose, kinematics done."""
+    pinned = pinned or {}
     first = [_hinges_on(model, g["chain"])[0] for g in legs]
     frame = data.xmat[base].reshape(3, 3)
     anchors = data.xanchor[first]
@@ -80,7 +92,7 @@ def four_bars(model: mujoco.MjModel, data, base: int, legs: list[dict]) -> list[
     gaps = np.linalg.norm(anchors[:, None] - anchors[None], axis=-1) + np.diag(
         np.full(len(legs), np.inf)
     )
-    pairs = []
+    found = []
     for a in range(len(legs)):
         b = int(np.argmin(gaps[a]))
         if b <= a or int(np.argmin(gaps[b])) != a or side[a] != side[b]:
@@ -89,19 +101,18 @@ def four_bars(model: mujoco.MjModel, data, base: int, legs: list[dict]) -> list[
         off_axis = float(np.linalg.norm(gap - (gap @ axis) * axis))
         if abs(axis @ data.xaxis[first[b]]) <= 0.99 or off_axis >= FOUR_BAR_SHARE * gaps[a, b]:
             continue
-        ends = [_world_tip(model, data, legs[k]["foot"]) for k in (a, b)]
+        pins = [_pin_of(model, legs[k]["foot"], pinned) for k in (a, b)]
+        outer = abs((anchors[b] - data.xpos[base]) @ frame[:, 1]) > abs(
+            (anchors[a] - data.xpos[base]) @ frame[:, 1]
+        )
+        if pins[1] is not None or (pins[0] is None and outer):  # the outer half first
+            a, b, pins = b, a, pins[::-1]
+        ends = [
+            data.xpos[pin] if pin is not None else _world_tip(model, data, legs[k]["foot"])
+            for k, pin in zip((a, b), pins, strict=True)
+        ]
         reach = float(np.linalg.norm(ends[0] - anchors[a]))
         apart = float(np.linalg.norm(ends[0] - ends[1]))
-        across = ends[1] - ends[0] - ((ends[1] - ends[0]) @ axis) * axis
-        if np.linalg.norm(across) > PIN_SHARE * reach:
-            raise UserError(
-                f"legs ending in '{model.body(legs[a]['foot']).name}' and "
-                f"'{model.body(legs[b]['foot']).name}' are the two halves of a four-bar leg "
-                f"whose ends are {np.linalg.norm(across):.3g} m apart along the legs at the "
-                "model's zero pose: its pin lies short of one half's end, which robot new does "
-                "not place; write a robot plugin for it (docs/plugins.md)",
-                field="model",
-            )
         if apart > MEET_SHARE * reach:
             raise UserError(
                 f"legs ending in '{model.body(legs[a]['foot']).name}' and "
@@ -111,8 +122,18 @@ def four_bars(model: mujoco.MjModel, data, base: int, legs: list[dict]) -> list[
                 "spec loops by hand or write a robot plugin (docs/plugins.md)",
                 field="model",
             )
-        pairs.append((a, b))
-    return pairs
+        across = ends[1] - ends[0] - ((ends[1] - ends[0]) @ axis) * axis
+        pin = None
+        if np.linalg.norm(across) > PIN_SHARE * reach:  # one lower leg reaches on past the pin
+            if np.linalg.norm(ends[1] - anchors[b]) > reach:
+                a, b, ends = b, a, ends[::-1]
+            foot = legs[a]["foot"]
+            local = data.xmat[foot].reshape(3, 3).T @ (ends[1] - data.xpos[foot])
+            u = loop_tip(model, foot)
+            u = u / np.linalg.norm(u)
+            pin = u * float(local @ u)  # on the longer lower leg's line, where b's end meets
+        found.append((a, b, pin))
+    return found
 
 
 def _solve_half(model, data, hinges: list[int], foot: int, target, seed) -> tuple:
@@ -138,69 +159,156 @@ def _solve_half(model, data, hinges: list[int], foot: int, target, seed) -> tupl
     return angles, float(np.linalg.norm(miss - (miss @ axis) * axis))
 
 
-def four_bar_pose(model, legs: list[dict], pairs, share: float) -> dict[str, float]:
+def _options(model, data, foot, hinges, target, length) -> list:
+    """[(angles, knee anchor, the world of every body)] of each seed's solve putting `foot`
+    at `target`."""
+    out = []
+    for seed in SEEDS:
+        angles, miss = _solve_half(model, data, hinges[:2], foot, target, seed)
+        if miss < 1e-4 * length:  # the knee axis may lean off the motor axis
+            out.append((angles, data.xanchor[hinges[1]].copy(), data.xpos.copy()))
+    if not out:
+        raise UserError(
+            f"the four-bar leg ending in '{model.body(foot).name}' cannot put its toe "
+            "under its motor axis at the standing share of its length",
+            field="model",
+        )
+    return out
+
+
+def four_bar_pose(model, legs: list[dict], pairs, share: float, pinned=None) -> dict:
     """{hinge: angle} of each four-bar's halves (their tips' bodies the feet) standing with
-    the toe under the motor axis at `share` of the leg's length, knees apart (module
-    docstring); one line when a half cannot reach it."""
+    the toe under the motor axis at `share` of the leg's length, the other half's end where
+    the first puts the pin, knees apart (module docstring); one line when a half cannot reach
+    it. `pinned` as `four_bars` takes it."""
+    pinned = pinned or {}
     data = mujoco.MjData(model)
     data.qpos[:] = model.qpos0
     mujoco.mj_kinematics(model, data)
     pose: dict[str, float] = {}
-    for a, b in pairs:
-        halves = [(legs[k]["foot"], _hinges_on(model, legs[k]["chain"])) for k in (a, b)]
-        motor, knee = halves[0][1][0], halves[0][1][1]
-        axis, centre = data.xaxis[motor], data.xanchor[motor]
-        upper = data.xanchor[knee] - centre
-        lower = data.xpos[halves[0][0]] - data.xanchor[knee]
+    for a, b, _ in pairs:
+        (fa, ha), (fb, hb) = [
+            (legs[k]["foot"], _hinges_on(model, legs[k]["chain"])) for k in (a, b)
+        ]
+        pin = _pin_of(model, fa, pinned)
+        pin = fa if pin is None else pin
+        axis, centre = data.xaxis[ha[0]], data.xanchor[ha[0]]
+        upper = data.xanchor[ha[1]] - centre
+        lower = data.xpos[fa] - data.xanchor[ha[1]]
         length = sum(float(np.linalg.norm(v - (v @ axis) * axis)) for v in (upper, lower))
-        tips = [data.xpos[foot].copy() for foot, _ in halves]
-        along = (tips[0] - centre) @ axis
+        offset = data.xpos[fb] - data.xpos[pin]  # along the axis: where b's end meets the pin
+        along = (data.xpos[fa] - centre) @ axis
         down = np.array([0.0, 0.0, -1.0]) - axis[2] * axis  # straight down in the leg's plane
         target = centre + along * axis + share * length * down / np.linalg.norm(down)
-        found = []
-        for (foot, hinges), offset in zip(halves, (0.0, tips[1] - tips[0]), strict=True):
-            options = []
-            for seed in SEEDS:
-                angles, miss = _solve_half(model, data, hinges[:2], foot, target + offset, seed)
-                if miss < 1e-4 * length:  # the knee axis may lean off the motor axis
-                    knee_at = data.xanchor[hinges[1]].copy()
-                    options.append((angles, knee_at))
-            if not options:
-                raise UserError(
-                    f"the four-bar leg ending in '{model.body(foot).name}' cannot put its toe "
-                    f"{share:g} of its length under its motor axis",
-                    field="model",
-                )
-            found.append((hinges[:2], options))
-        (ha, oa), (hb, ob) = found
+        combos = []
+        for first in _options(model, data, fa, ha, target, length):
+            for second in _options(model, data, fb, hb, first[2][pin] + offset, length):
+                combos.append((first, second))
+            data.qpos[:] = model.qpos0
         # knees apart (a diamond); of the two diamonds, the outer half's knee behind, so
         # mirror-image legs stand as mirror images
-        outer = 0 if abs(data.xanchor[ha[0]][1]) >= abs(data.xanchor[hb[0]][1]) else 1
+        outer = 0 if abs(centre[1]) >= abs(data.xanchor[hb[0]][1]) else 1
         best = max(
-            ((x, y) for x in oa for y in ob),
+            combos,
             key=lambda xy: (
                 round(float(np.linalg.norm(xy[0][1] - xy[1][1])), 4),
                 -float(xy[outer][1][0]),
             ),
         )
-        for hinges, (angles, _) in zip((ha, hb), best, strict=True):
-            for j, angle in zip(hinges, angles, strict=True):
+        for hinges, (angles, _, _) in zip((ha, hb), best, strict=True):
+            for j, angle in zip(hinges[:2], angles, strict=True):
                 pose[model.joint(j).name] = round(float(angle), 6) + 0.0
         data.qpos[:] = model.qpos0
+        mujoco.mj_kinematics(model, data)
     return pose
 
 
-def loop_entries(model, legs: list[dict], pairs) -> tuple[list[dict], list[str]]:
-    """(the spec's `loops`, the passive hinges in model order): each pair's feet pinned,
-    every hinge of each half after its first passive."""
+def loop_entries(model, legs: list[dict], pairs, pinned=None) -> tuple[list[dict], list[str]]:
+    """(the spec's `loops`, the passive hinges in model order): each pair's first half's pin
+    (its `pins` body, else its foot) pinned to the second's foot, every hinge of each half
+    after its first passive."""
     loops, passive = [], set()
-    for a, b in pairs:
+    for a, b, _ in pairs:
         knees = [
             model.joint(j).name for k in (a, b) for j in _hinges_on(model, legs[k]["chain"])[1:]
         ]
         passive.update(knees)
+        pin = _pin_of(model, legs[a]["foot"], pinned or {})
+        first = legs[a]["foot"] if pin is None else pin
         loops.append(
-            {"bodies": [model.body(legs[k]["foot"]).name for k in (a, b)], "passive": knees}
+            {"bodies": [model.body(first).name, model.body(legs[b]["foot"]).name], "passive": knees}
         )
     order = [model.joint(j).name for j in range(model.njnt)]
     return loops, [j for j in order if j in passive]
+
+
+def four_bar_legs(
+    model, legs, pairs, pinned, params, notes, comments
+) -> tuple[dict, list[str], list]:
+    """(the spec's standing pose, each leg's hip (its first half's motor body), the legs:
+    each pair's first half) of four-bar legs, with `robot new`'s comments and note. The pose
+    is solved again at each design (`solve`: the toes as deep under the hips, as a share of
+    the legs' scaled links, as at the nominal design)."""
+    from coadapt_plugins.robots.specs.stand import STAND_SHARE, _leg_length
+
+    joints = four_bar_pose(model, legs, pairs, STAND_SHARE, pinned)
+    hips = [model.body(int(model.jnt_bodyid[model.joint(_first(model, legs[a])).id])).name
+            for a, _, _ in pairs]  # fmt: skip
+    data = mujoco.MjData(model)
+    data.qpos[:] = model.qpos0
+    for name, angle in joints.items():
+        data.qpos[model.jnt_qposadr[model.joint(name).id]] = angle
+    mujoco.mj_kinematics(model, data)
+    shares = [
+        (data.xpos[model.body(hip).id][2] - data.xpos[legs[a]["foot"]][2])
+        / _leg_length(model, legs[a], params)
+        for hip, (a, _, _) in zip(hips, pairs, strict=True)
+    ]
+    comments["standing_pose"] = (
+        f"solved by robot new: each four-bar's toe {STAND_SHARE:g} of its length under its "
+        "motor axis, knees apart; solve: as deep under the hip at every design, the passive "
+        "hinges solved per design to close the loops"
+    )
+    comments["loops"] = (
+        "assumed: each leg's two halves turn about one axis and their ends meet at the "
+        "model's zero pose: a four-bar whose pin the file leaves out (its simulator adds it "
+        "in code); pinned at those ends, every hinge of a half after its first passive"
+    )
+    notes.append(
+        f"four-bar legs ({len(pairs)}, each two chains whose ends meet): loops written, "
+        f"their knees passive; the file's z taken as up; standing pose solved with each toe "
+        f"{STAND_SHARE:g} of the leg's length under its motor axis"
+    )
+    pose = {"joints": joints, "solve": round(float(np.mean(shares)), 4)}
+    return pose, hips, [legs[a] for a, _, _ in pairs]
+
+
+def _first(model, leg: dict) -> str:
+    return next(
+        model.joint(j).name
+        for b in leg["chain"]
+        for j in range(model.njnt)
+        if model.jnt_bodyid[j] == b and model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE
+    )
+
+
+def pair_names(first: list[str], second: list[str]) -> list[str]:
+    """Each four-bar leg's name: the tokens its two halves' names share, in order (the
+    first half's name where they share none or two legs would be named alike)."""
+    out = []
+    for a, b in zip(first, second, strict=True):
+        shared = [t for t in a.split("_") if t in b.split("_")]
+        out.append("_".join(shared) or a)
+    return out if len(set(out)) == len(out) else first
+
+
+def write_loops(data_out: dict, loops: list, pins: dict, comments: dict) -> None:
+    """The spec's `loops` and `pins`, each where there are any."""
+    if loops:
+        data_out["loops"] = loops
+    if pins:
+        data_out["pins"] = pins
+        comments["pins"] = (
+            "assumed: where the other half's end meets this lower leg at the model's zero "
+            "pose, short of its own end (its toe reaches on past the pin)"
+        )

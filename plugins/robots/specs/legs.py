@@ -79,13 +79,15 @@ def _gait(count: int) -> list[float]:
     return [round(k / count, 6) for k in range(count)]
 
 
-def _legs(model, data, base: int, band: bool = True) -> list[dict]:
+def _legs(model, data, base: int, band: bool = True, skip: frozenset = frozenset()) -> list[dict]:
     """The legs at `data`'s pose (module docstring); `band` False keeps every chain (a
-    four-bar's halves point up at the model's zero pose: none is near the ground there)."""
+    four-bar's halves point up at the model's zero pose: none is near the ground there);
+    the bodies named in `skip` (a four-bar's pin bodies) are no feet."""
     leaves = [
         b
         for b in range(1, model.nbody)
         if not any(model.body_parentid[c] == b for c in range(1, model.nbody))
+        and model.body(b).name not in skip
     ]
     legs = []
     for leaf in leaves:
@@ -119,17 +121,16 @@ def _legs(model, data, base: int, band: bool = True) -> list[dict]:
     return legs
 
 
-def _segments(model, legs: list[dict]) -> list[dict]:
-    """Up to two parameters (upper, lower leg) from the longest links nearest the feet."""
+def _segments(model, legs: list[dict], share: float = SEGMENT_SHARE) -> list[dict]:
+    """Up to two parameters (upper, lower leg) from the longest links nearest the feet (at
+    least `share` of the chain's longest: 0 takes the last two links, a four-bar's halves')."""
     per_leg = []
     for leg in legs:
         links = [(model.body_parentid[b], b) for b in leg["chain"][1:]]
         lengths = [float(np.linalg.norm(model.body_pos[c])) for _, c in links]
         longest = max(lengths, default=0.0)
         kept = [
-            link
-            for link, length in zip(links, lengths, strict=True)
-            if length >= SEGMENT_SHARE * longest
+            link for link, length in zip(links, lengths, strict=True) if length >= share * longest
         ]
         per_leg.append(kept[-2:])
     count = min(len(k) for k in per_leg)

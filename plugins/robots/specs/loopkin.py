@@ -1,14 +1,16 @@
 """The leg IK of legs closed by spec `loops` (four-bar legs): the generic leg IK
-(`kinematics`) on every hinge, passive ones included, over the legs' chains and, for each
-loop, the chain of its other half (its foot the loop's second body, its hip the first body on
-it that turns).
+(`kinematics`) on every hinge, passive ones included, over three sets of chains: the legs'
+(to their feet), and per loop the chain to its first body (the pin on the leg's own half: its
+foot, or a `pins` body on it) and to its second (the other half's end; its hip the first
+body on it that turns).
 
-A design's standing toe (`default_foot_positions`) is where the two halves meet with the
-motors at the standing pose: the passive hinges solved (Gauss-Newton, finite differences,
-batched over designs) so that each loop's two feet come nearest, as the built model closes
-them (`loops`). A target for a leg's toe (`inverse`) is solved for both halves, the second
-half's target offset from the first's as the two feet lie at that design's closed standing
-pose (their offset along the hinges' axis), and the motors' angles are returned.
+A design's standing toe (`default_foot_positions`) is where the leg's foot lies once the two
+halves meet with the motors at the standing pose: the passive hinges solved (Gauss-Newton,
+finite differences, batched over designs) so that each loop's two bodies come nearest, as the
+built model closes them (`loops`). A target for a leg's toe (`inverse`) is solved for the
+leg's chain, then the other half is solved to where that puts the pin (offset as the two lie
+at that design's closed standing pose: along the hinges' axis), and the motors' angles are
+returned.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 from coadapt_plugins.robots.specs.kinematics import LegKinematics, build_chain
+from coadapt_plugins.robots.specs.loops import loop_leg
 from coadapt_plugins.robots.specs.spec import spec_error
 
 #: Gauss-Newton steps closing the loops, and the finite-difference step (rad)
@@ -38,71 +41,81 @@ class LoopKinematics:
     whose legs are closed by `loops` (module docstring)."""
 
     def __init__(self, model, prepared, rs, links, nominal, decimals):
+        base = model.body(prepared.base).id
         feet = [leg.foot for leg in rs.legs]
-        partners, self.owner = [], []
-        for k, (a, b, _) in enumerate(rs.loops):
-            if a not in feet:
-                raise spec_error(
-                    f"loops[{k}].bodies", f"'{a}' is not a leg's foot (the leg IK pins a foot)"
-                )
-            self.owner.append(feet.index(a))
-            partners.append((b, _hip_of(model, model.body(prepared.base).id, b)))
+        self.owner = []
+        for k, (a, _, _) in enumerate(rs.loops):
+            leg = loop_leg(model, base, feet, a)
+            if leg is None:
+                raise spec_error(f"loops[{k}].bodies", f"'{a}' is on no leg's chain")
+            self.owner.append(leg)
         self.num_legs, self.num_joints = len(feet), len(prepared.joints)
+        joints = [*prepared.joints, *prepared.passive]
         standing = np.concatenate([prepared.standing, prepared.passive_seeds])
-        chain = build_chain(
-            model, prepared.base, [*prepared.joints, *prepared.passive],
-            [(leg.foot, leg.hip) for leg in rs.legs] + partners, links, standing, nominal,
-            decimals,
-        )  # fmt: skip
-        self.inner = LegKinematics(chain)
-        self.chain = chain
+
+        def kin(ends):
+            return LegKinematics(
+                build_chain(model, prepared.base, joints, ends, links, standing, nominal, decimals)
+            )
+
+        self.legs = kin([(leg.foot, leg.hip) for leg in rs.legs])
+        self.pins = kin([(a, _hip_of(model, base, a)) for a, _, _ in rs.loops])
+        self.others = kin([(b, _hip_of(model, base, b)) for _, b, _ in rs.loops])
+        self.chain = self.legs.chain
+        index = self.others.chain.joint_index
+        self._other_joints = sorted({int(j) for j in index.flatten() if j >= 0})
 
     def _closed(self, designs: torch.Tensor):
-        """(feet [n, L+K, 3] and hips [n, L+K, 3], base frame) at each design's closed
-        standing pose."""
-        inner, n = self.inner, designs.shape[0]
-        scales = inner.scales(designs)
+        """(feet, hips [n, L, 3]; the loops' pins, the other halves' ends and their hips
+        [n, K, 3]; base frame) at each design's closed standing pose."""
+        n = designs.shape[0]
+        scales = [k.scales(designs) for k in (self.legs, self.pins, self.others)]
         q = self.chain.standing.expand(n, -1).clone()
         passive = list(range(self.num_joints, q.shape[1]))
-        owner = torch.tensor(self.owner)
-        partner = torch.arange(self.num_legs, self.num_legs + len(self.owner))
+
+        def ends(kin, scale, angles):
+            foot, _, hip, _, _ = kin.forward(scale, kin.leg_angles(angles))
+            return foot, hip
 
         def gaps(angles):
-            foot, _, hip, _, _ = inner.forward(scales, inner.leg_angles(angles))
-            return (foot[:, owner] - foot[:, partner]).reshape(n, -1), foot, hip
+            pin = ends(self.pins, scales[1], angles)[0]
+            return (pin - ends(self.others, scales[2], angles)[0]).reshape(n, -1)
 
         for _ in range(ITERATIONS):
-            gap, _, _ = gaps(q)
+            gap = gaps(q)
             columns = []
             for j in passive:
                 moved = q.clone()
                 moved[:, j] += DELTA
-                columns.append((gaps(moved)[0] - gap) / DELTA)
-            jac = torch.stack(columns, dim=-1)  # [n, 3K, P]
-            step = -(torch.linalg.pinv(jac, rtol=1e-10) @ gap[..., None])[..., 0]
-            q[:, passive] += step.clamp(-0.5, 0.5)
+                columns.append((gaps(moved) - gap) / DELTA)
+            step = -(torch.linalg.pinv(torch.stack(columns, dim=-1), rtol=1e-10) @ gap[..., None])
+            q[:, passive] += step[..., 0].clamp(-0.5, 0.5)
             if float(step.abs().max()) < 1e-12:
                 break
-        _, foot, hip = gaps(q)
-        return foot, hip, q
+        foot, hip = ends(self.legs, scales[0], q)
+        pin = ends(self.pins, scales[1], q)[0]
+        other, other_hip = ends(self.others, scales[2], q)
+        return foot, hip, pin, other, other_hip
+
+    def scales(self, designs: torch.Tensor) -> torch.Tensor:
+        """[n, L, E] the legs' chains' element scales (`LegKinematics.scales`)."""
+        return self.legs.scales(designs)
 
     def standing(self, designs: torch.Tensor):
         """(toes relative to hips [n, L, 3], None, hips [n, L, 3]) at the closed standing
         pose."""
-        foot, hip, _ = self._closed(designs)
-        legs = slice(0, self.num_legs)
-        return foot[:, legs] - hip[:, legs], None, hip[:, legs]
+        foot, hip, _, _, _ = self._closed(designs)
+        return foot - hip, None, hip
 
     def default_foot_positions(self, designs: torch.Tensor) -> torch.Tensor:
         return self.standing(designs)[0]
 
     def inverse(self, designs: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
         """[n, J] the motors' angles putting each leg's toe at targets [n, L, 3] (relative to
-        its hip), both halves of each loop solved to it."""
-        foot, hip, _ = self._closed(designs)
-        owner = torch.tensor(self.owner)
-        partner = torch.arange(self.num_legs, self.num_legs + len(self.owner))
-        toe = hip[:, owner] + targets[:, owner]  # [n, K, 3] base frame
-        other = toe + foot[:, partner] - foot[:, owner] - hip[:, partner]
-        inner_targets = torch.cat([targets, other], dim=1)
-        return self.inner.inverse(designs, inner_targets)[:, : self.num_joints]
+        its hip), the other half of each loop solved to the pin."""
+        _, _, pin, other, other_hip = self._closed(designs)
+        q = self.legs.inverse(designs, targets)
+        moved = self.pins.forward(self.pins.scales(designs), self.pins.leg_angles(q))[0]
+        q_other = self.others.inverse(designs, moved + other - pin - other_hip)
+        q[:, self._other_joints] = q_other[:, self._other_joints]
+        return q[:, : self.num_joints]

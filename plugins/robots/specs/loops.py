@@ -57,6 +57,19 @@ def add_pins(spec: mujoco.MjSpec, pins: dict) -> None:
         pin.explicitinertial = True
 
 
+def loop_leg(model, base_id: int, feet: list[str], body: str) -> int | None:
+    """The leg (index into `feet`) whose chain holds `body` (its foot, or a body hanging from
+    a body of its chain), else None."""
+    for k, foot in enumerate(feet):
+        path, b = set(), model.body(foot).id
+        while b not in (base_id, 0):
+            path.add(b)
+            b = int(model.body_parentid[b])
+        if body == foot or int(model.body_parentid[model.body(body).id]) in path:
+            return k
+    return None
+
+
 def check_loops(spec: mujoco.MjSpec, loops, hinges: list[str]) -> list[str]:
     """The passive hinges of `loops` (spec `loops`), in model order; one line naming the
     field for a body or joint the model lacks."""
@@ -166,10 +179,10 @@ def close_loops(spec, model, rs, joints, pose, passive, seeds) -> mujoco.MjModel
             name2=SITE.format(k=k, side="b"),
         )
         # the two bodies pinned together and the links carrying them meet at the pin
-        pairs = {(a, b), (spec.body(a).parent.name, spec.body(b).parent.name)}
+        sides = [(a, spec.body(a).parent.name), (b, spec.body(b).parent.name)]
+        pairs = {(x, y) for x in sides[0] for y in sides[1] if x != y}
         for first, second in sorted(pairs):
-            if first != second:
-                spec.add_exclude(bodyname1=first, bodyname2=second)
+            spec.add_exclude(bodyname1=first, bodyname2=second)
     return spec.compile()
 
 

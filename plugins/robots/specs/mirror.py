@@ -74,10 +74,15 @@ def _chains(robot, model: mujoco.MjModel, base: int, joints: list[str]) -> list[
     `loops` (a four-bar) holds its other halves' motors too, the leg's motors ordered from
     the base's x-z plane outward (side by side on one axis: the mirror pairs outer with
     outer)."""
+    from coadapt_plugins.robots.specs.loops import loop_leg
+
     index = {model.joint(name).id: k for k, name in enumerate(joints)}
+    feet = [leg.foot for leg in robot.spec.legs]
     chains = []
-    for leg in robot.spec.legs:
-        ends = [leg.foot] + [b for a, b, _ in robot.spec.loops if a == leg.foot]
+    for number, leg in enumerate(robot.spec.legs):
+        ends = [leg.foot] + [
+            b for a, b, _ in robot.spec.loops if loop_leg(model, base, feet, a) == number
+        ]
         bodies = [b for end in ends for b in _chain(model, base, model.body(end).id)]
         found = [
             index.get(j) for b in bodies for j in range(model.njnt) if model.jnt_bodyid[j] == b

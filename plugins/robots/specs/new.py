@@ -34,7 +34,14 @@ from coadapt_plugins.robots.specs.assumed import (
     spec_text,
 )
 from coadapt_plugins.robots.specs.files import is_urdf
-from coadapt_plugins.robots.specs.fourbar import four_bar_pose, four_bars, loop_entries, loop_tip
+from coadapt_plugins.robots.specs.fourbar import (
+    four_bar_legs,
+    four_bars,
+    loop_entries,
+    loop_tip,
+    pair_names,
+    write_loops,
+)
 from coadapt_plugins.robots.specs.legs import (
     _actuated,
     _base,
@@ -44,6 +51,7 @@ from coadapt_plugins.robots.specs.legs import (
     _segments,
     _shared_joints,
 )
+from coadapt_plugins.robots.specs.loops import PIN_SUFFIX, add_pins
 from coadapt_plugins.robots.specs.model import load_mjspec
 from coadapt_plugins.robots.specs.orient import add_tips, find_tips, reorient, up_rotation
 from coadapt_plugins.robots.specs.spec import NAME_PATTERN, SPEC_FILE
@@ -51,7 +59,6 @@ from coadapt_plugins.robots.specs.stand import (
     GAIN_FACTORS,
     KD_RATIO,
     KP_PER_TORQUE,
-    STAND_SHARE,
     _inside_ranges,
     _nominal,
     _pose_entry,
@@ -129,12 +136,14 @@ def _upright(spec: mujoco.MjSpec, notes: list[str], comments: dict[str, str]) ->
 
 
 def _model_legs(
-    spec: mujoco.MjSpec, notes: list[str], comments: dict[str, str], band: bool = True
-) -> tuple:
+    spec: mujoco.MjSpec, notes: list[str], comments: dict[str, str], band: bool = True,
+    skip: frozenset = frozenset(),
+) -> tuple:  # fmt: skip
     """(the model compiled, its data posed at its first "home" or "stand" keyframe (else its
     first) or at 0 inside the joint ranges, the base, that keyframe, the legs, the joints on
     several legs' chains); without a keyframe those joints are locked (deleted from `spec`
-    with their actuators) and the legs found again; `band` as `legs._legs` takes it."""
+    with their actuators) and the legs found again; `band` and `skip` as `legs._legs` takes
+    them."""
     model = spec.compile()
     data = mujoco.MjData(model)
     base = _base(model)
@@ -146,7 +155,7 @@ def _model_legs(
         data.qpos[:] = model.qpos0
         _inside_ranges(model, data, [])
     mujoco.mj_kinematics(model, data)
-    legs = _legs(model, data, base, band)
+    legs = _legs(model, data, base, band, skip)
     shared = _shared_joints(model, legs)
     if shared and not model.nkey:  # lock them: each leg needs a chain of its own
         for actuator in [a for a in spec.actuators if a.target in shared]:
@@ -158,7 +167,7 @@ def _model_legs(
         data.qpos[:] = model.qpos0
         _inside_ranges(model, data, [])
         mujoco.mj_kinematics(model, data)
-        legs = _legs(model, data, base, band)
+        legs = _legs(model, data, base, band, skip)
         comments["locked_joints"] = (
             "assumed: joints on the chains of several legs (the gait's leg IK needs each leg's "
             "own chain)"
@@ -184,38 +193,6 @@ def _has_four_bars(spec: mujoco.MjSpec) -> bool:
     except UserError:
         return False
     return bool(_shared_joints(model, legs) == [] and four_bars(model, data, base, legs))
-
-
-def _four_bar_legs(model, data, legs, pairs, notes, comments) -> tuple[dict, list[str], list]:
-    """(standing pose, hips, the legs: each pair's first half) of four-bar legs."""
-    joints = four_bar_pose(model, legs, pairs, STAND_SHARE)
-    hips = [model.body(int(model.jnt_bodyid[model.joint(_first(model, legs[a])).id])).name
-            for a, _ in pairs]  # fmt: skip
-    comments["standing_pose"] = (
-        f"solved by robot new: each four-bar's toe {STAND_SHARE:g} of its length under its "
-        "motor axis, knees apart; the motors' angles at every design, the passive hinges "
-        "solved per design to close the loops"
-    )
-    comments["loops"] = (
-        "assumed: each leg's two halves turn about one axis and their ends meet at the "
-        "model's zero pose: a four-bar whose pin the file leaves out (its simulator adds it "
-        "in code); pinned at those ends, every hinge of a half after its first passive"
-    )
-    notes.append(
-        f"four-bar legs ({len(pairs)}, each two chains whose ends meet): loops written, "
-        f"their knees passive; the file's z taken as up; standing pose solved with each toe "
-        f"{STAND_SHARE:g} of the leg's length under its motor axis"
-    )
-    return {"joints": joints}, hips, [legs[a] for a, _ in pairs]
-
-
-def _first(model, leg: dict) -> str:
-    return next(
-        model.joint(j).name
-        for b in leg["chain"]
-        for j in range(model.njnt)
-        if model.jnt_bodyid[j] == b and model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE
-    )
 
 
 def _loading_fixes(
@@ -268,16 +245,42 @@ def _feet(spec: mujoco.MjSpec, bars: bool, notes: list[str], comments: dict) -> 
     knee (`orient.find_tips`); the legs found again with them."""
     model, data, base, key, legs, shared = _model_legs(spec, notes, comments, not bars)
     pairs = four_bars(model, data, base, legs) if bars else []
-    tips = find_tips(model, legs)
+    tips, pins = find_tips(model, legs), {}
     if pairs:
         ends = {model.body(g["foot"]).name: loop_tip(model, g["foot"]) for g in legs}
         tips = {b: [round(float(x), 6) + 0.0 for x in t] for b, t in ends.items() if t is not None}
+        pins = {
+            model.body(legs[a]["foot"]).name: [round(float(x), 6) + 0.0 for x in pin]
+            for a, _, pin in pairs
+            if pin is not None
+        }
     if tips:
         add_tips(spec, tips)
-        model, data, base, key, legs, again = _model_legs(spec, notes, comments, not bars)
+        add_pins(spec, pins)
+        skip = frozenset(body + PIN_SUFFIX for body in pins)
+        model, data, base, key, legs, again = _model_legs(spec, notes, comments, not bars, skip)
         shared = shared or again
-        pairs = four_bars(model, data, base, legs) if bars else []
-    return model, data, base, key, legs, shared, pairs, tips
+        pinned = {body: body + PIN_SUFFIX for body in pins}
+        pairs = four_bars(model, data, base, legs, pinned) if bars else []
+    return model, data, base, key, legs, shared, pairs, tips, pins
+
+
+def _params(model, legs: list[dict], pairs: list, pinned: dict) -> list[dict]:
+    """The design parameters (`legs._segments`; a four-bar's: its halves' last two links),
+    a `pins` body listed with the link it is on (a pin on a scaled lower leg moves with it)."""
+    params = _segments(model, legs, 0.0) if pairs else _segments(model, legs)
+    for p in params:
+        p["links"] += [[parent, pinned[parent]] for parent, _ in p["links"] if parent in pinned]
+    return params
+
+
+def _ranges(model, joints: list[str], fixes: dict) -> dict[str, tuple]:
+    """{joint: (low, high)}: the range a fix writes, else the model's."""
+    return {
+        j: tuple(fixes[j][0]["range"]) if j in fixes and "range" in fixes[j][0]
+        else tuple(float(x) for x in model.jnt_range[model.joint(j).id])
+        for j in joints
+    }  # fmt: skip
 
 
 def starting_spec(
@@ -292,26 +295,26 @@ def starting_spec(
     spec, flags, shaped = _load(model_file, tuple(package_paths), notes)
     bars = _has_four_bars(spec)
     turn = None if bars else _upright(spec, notes, comments)
-    model, data, base, key, legs, shared, pairs, tips = _feet(spec, bars, notes, comments)
+    model, data, base, key, legs, shared, pairs, tips, pins = _feet(spec, bars, notes, comments)
+    pinned = {body: body + PIN_SUFFIX for body in pins}
     torques = _torques(model, notes)
-    loops, passive = loop_entries(model, legs, pairs)
+    loops, passive = loop_entries(model, legs, pairs, pinned)
     joints = [j for j in _actuated(model, base) if j not in passive]
     fixes = _fixes(model, joints, torques, notes)
-    params = _segments(model, legs)
-    ranges = {
-        j: tuple(fixes[j][0]["range"]) if j in fixes and "range" in fixes[j][0]
-        else tuple(float(x) for x in model.jnt_range[model.joint(j).id])
-        for j in joints
-    }  # fmt: skip
+    params = _params(model, legs, pairs, pinned)
     if pairs:
-        pose, hips, legs = _four_bar_legs(model, data, legs, pairs, notes, comments)
+        halves = legs
+        pose, hips, legs = four_bar_legs(model, legs, pairs, pinned, params, notes, comments)
     else:
+        ranges = _ranges(model, joints, fixes)
         pose, hips = _pose_entry(
             model, data, key, base, joints, legs, params, ranges, notes, comments
         )
     speed_table = _speed_table(model_file, joints, notes, comments)
     collision = _collision_rule(model, params, notes)
     names = _leg_names(model, legs)
+    if pairs:  # the tokens both halves' names share (front_left_L, front_left_R: front_left)
+        names = pair_names(names, _leg_names(model, [halves[b] for _, b, _ in pairs]))
     mass = float(model.body_subtreemass[base])
     kind = "URDF" if is_urdf(model_file) else "MJCF"
     what = spec.modelname or model_file.stem
@@ -347,8 +350,7 @@ def starting_spec(
     }
     if shared and not model.nkey:
         data_out["locked_joints"] = shared
-    if loops:
-        data_out["loops"] = loops
+    write_loops(data_out, loops, pins, comments)
     if collision:
         data_out["collision"] = collision
     _loading_fixes(data_out, flags, shaped, turn, tips, notes, comments)
