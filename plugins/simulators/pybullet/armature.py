@@ -40,15 +40,12 @@ class ArmatureMixin:
 
     def _urdf_armature(self, spec: EnvSpec) -> dict[str, float] | None:
         """Joint name -> armature to write into the URDF's link inertia (None: none)."""
-        if spec.joint_armature is not None and self.armature == "link_inertia":
-            return dict(zip(spec.joint_names, spec.joint_armature, strict=True))
-        if spec.joint_armature is not None and self.armature == "foot_link":
+        armature = carried_armature(spec, self.physics_dt)
+        if armature is not None and self.armature == "link_inertia":
+            return dict(zip(spec.joint_names, armature, strict=True))
+        if armature is not None and self.armature == "foot_link":
             folded = set(folded_joints(spec))
-            return {
-                n: a
-                for n, a in zip(spec.joint_names, spec.joint_armature, strict=True)
-                if n in folded
-            }
+            return {n: a for n, a in zip(spec.joint_names, armature, strict=True) if n in folded}
         return None
 
     def _fold_extra(self, e: int, spec: EnvSpec, text: str, armature: dict[str, float]) -> None:
@@ -87,8 +84,9 @@ class ArmatureMixin:
         self.columns[e] = np.array([offset + movable.index(jid) for jid in self.joint_ids[e]])
         self.prev_u[e] = np.zeros(offset + len(movable))
         self.fresh[e] = True  # a (re)loaded body: no last step to measure h over
-        use = self.armature in ("joint_space", "foot_link") and spec.joint_armature is not None
-        self.armature_diag[e] = spec.joint_armature if use else 0.0
+        armature = carried_armature(spec, self.physics_dt)
+        use = self.armature in ("joint_space", "foot_link") and armature is not None
+        self.armature_diag[e] = armature if use else 0.0
         folded = set(folded_joints(spec)) if use and self.armature == "foot_link" else set()
         self.folded[e] = np.array(
             [i for i, n in enumerate(spec.joint_names) if n in folded], dtype=int
@@ -185,6 +183,23 @@ class ArmatureMixin:
         """[movable] positions (which=0) or velocities (1) of env e's movable joints."""
         states = p.getJointStates(self.bodies[e], self.movable[e], physicsClientId=self.clients[e])
         return np.array([s_[which] for s_ in states])
+
+
+def carried_armature(spec: EnvSpec, physics_dt: float) -> np.ndarray | None:
+    """[J] kg m^2 the joints carry beyond Bullet's mass matrix: MuJoCo's armature, plus h d
+    where MuJoCo's integrator takes a joint's damping d implicitly (`EnvSpec.implicit_damping`,
+    h the physics step). MuJoCo's velocity update then solves (M + A + h D) dv = h f, f
+    with -D v in it: Bullet applies -D v (its joint damping) but solves with M alone, so an
+    explicit PD law that MuJoCo's step keeps stable could chatter on Bullet's. pybullet_data's
+    humanoid at its 6 x gains: the ankle roll turns 0.0043 kg m^2 under a 0.0006 armature and
+    damping 1 N m s/rad, h d = 0.005 more than doubles it (kd h / I from 6.99 to 3.2); without
+    it both ankles chattered from 0.36 s and the robot fell, with it PyBullet holds it 3 s as
+    MuJoCo does (docs/sim-to-sim.md). None when the spec has no MJCF dynamics."""
+    if spec.joint_armature is None:
+        return None
+    if not spec.implicit_damping or spec.joint_damping is None:
+        return spec.joint_armature
+    return spec.joint_armature + physics_dt * spec.joint_damping
 
 
 def base_velocity(client: int, body: int) -> np.ndarray:

@@ -38,6 +38,10 @@ class EnvSpec:
     # [J] kg m^2, the inertia each joint turns at the standing pose (its subtree about its
     # axis: the joint's diagonal of MuJoCo's mass matrix less its armature)
     joint_inertia: np.ndarray | None = None
+    # MuJoCo's integrator takes the joints' damping implicitly (Euler, unless its eulerdamp
+    # flag is off, implicit, implicitfast; not RK4): its velocity update then solves with
+    # M + h D, h the time step, as if each joint carried h times its damping as armature
+    implicit_damping: bool = False
     # file name -> text of the files the URDF names (a collision mesh's OBJ): the model's
     # "urdf:<file>" formats, written beside the URDF before it loads
     urdf_files: dict[str, str] = field(default_factory=dict)
@@ -46,11 +50,11 @@ class EnvSpec:
 
     @classmethod
     def from_model(cls, model: RobotModel) -> EnvSpec:
-        dynamics = mjcf_joint_dynamics(
+        dynamics = compiled_dynamics(
             model.text("mjcf"), model.joint_names, np.asarray(model.default_joint_pos, dtype=float)
         )
-        damping, armature, frictionloss, inertia = (
-            dynamics if dynamics is not None else (None, None, None, None)
+        damping, armature, frictionloss, inertia, implicit = (
+            dynamics if dynamics is not None else (None, None, None, None, False)
         )
         return cls(
             design=np.asarray(model.design, dtype=float).copy(),
@@ -69,6 +73,7 @@ class EnvSpec:
             joint_armature=armature,
             joint_frictionloss=frictionloss,
             joint_inertia=inertia,
+            implicit_damping=implicit,
             urdf_files={
                 k.split(":", 1)[1]: v for k, v in model.formats.items() if k.startswith("urdf:")
             },
@@ -102,6 +107,15 @@ def mjcf_joint_dynamics(
     Compiling (rather than parsing the XML) resolves MJCF default classes the same way
     MuJoCo does. None when there is no MJCF or it does not compile.
     """
+    dynamics = compiled_dynamics(mjcf, joint_names, pose)
+    return None if dynamics is None else dynamics[:4]
+
+
+def compiled_dynamics(
+    mjcf: str, joint_names: list[str], pose: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, bool] | None:
+    """`mjcf_joint_dynamics` and whether MuJoCo integrates the joints' damping implicitly
+    (`damps_implicitly`), from one compile."""
     n = len(joint_names)
     if not mjcf:
         return None
@@ -129,4 +143,16 @@ def mjcf_joint_dynamics(
     mujoco.mj_fullM(mj, data, full)
     found = dofs >= 0
     inertia[found] = full[dofs[found], dofs[found]] - armature[found]
-    return damping, armature, frictionloss, inertia
+    return damping, armature, frictionloss, inertia, damps_implicitly(mj)
+
+
+def damps_implicitly(mj) -> bool:
+    """Whether MuJoCo's integrator takes joint damping into its velocity update implicitly,
+    solving (M + h D) dv = h f: Euler (unless the model disables `eulerdamp`), implicit and
+    implicitfast do; RK4 does not."""
+    import mujoco
+
+    integrator = mujoco.mjtIntegrator(mj.opt.integrator)
+    if integrator == mujoco.mjtIntegrator.mjINT_EULER:
+        return not mj.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP
+    return integrator != mujoco.mjtIntegrator.mjINT_RK4

@@ -179,3 +179,90 @@ def test_a_standing_quadrupeds_step_response_follows_mujoco(joint):
         moved = _step_response(PyBulletSimulator, robot, joint, armature=mode)
         rms = float(np.sqrt(np.mean((moved - reference) ** 2)))
         assert rms < 0.05, (mode, rms)
+
+
+#: a 1 kg sphere of radius 0.1 m (0.004 kg m^2 about any axis) on a vertical hinge with
+#: armature 0.0006 and damping 1 N m s/rad, in MJCF and URDF; gravity does not turn it
+WHEEL_MJCF = """<mujoco><option timestep="0.005"/><worldbody><body name="base">
+  <geom type="box" size="0.05 0.05 0.05" mass="1" contype="0" conaffinity="0"/>
+  <body name="wheel"><joint name="spin" type="hinge" axis="0 0 1" armature="0.0006" damping="1"/>
+    <geom type="sphere" size="0.1" mass="1" contype="0" conaffinity="0"/></body>
+</body></worldbody><actuator><motor name="spin" joint="spin"/></actuator></mujoco>"""
+WHEEL_URDF = """<robot name="wheel"><link name="base"><inertial><mass value="1"/>
+  <inertia ixx="0.00167" ixy="0" ixz="0" iyy="0.00167" iyz="0" izz="0.00167"/></inertial></link>
+<link name="wheel"><inertial><mass value="1"/>
+  <inertia ixx="0.004" ixy="0" ixz="0" iyy="0.004" iyz="0" izz="0.004"/></inertial></link>
+<joint name="spin" type="revolute"><parent link="base"/><child link="wheel"/>
+  <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1000" velocity="100"/></joint></robot>"""
+
+
+def _wheel_spec(implicit: bool) -> EnvSpec:
+    from coadapt_plugins.simulators.pybullet.spec import compiled_dynamics
+
+    damping, armature, frictionloss, inertia, implicit_damping = compiled_dynamics(
+        WHEEL_MJCF, ["spin"]
+    )
+    assert implicit_damping and inertia == pytest.approx([0.004])
+    one = np.ones(1)
+    return EnvSpec(
+        design=np.zeros(1), urdf=WHEEL_URDF, base_body="base", joint_names=["spin"],
+        foot_bodies=["wheel"], default_joint_pos=np.zeros(1), kp=100 * one, kd=2 * one,
+        torque_limit=1000 * one, speed_limit=100 * one, standing_base_height=0.5,
+        foot_radius=0.1, joint_damping=damping, joint_armature=armature,
+        joint_frictionloss=frictionloss, joint_inertia=inertia, implicit_damping=implicit,
+    )  # fmt: skip
+
+
+def test_mujocos_implicit_joint_damping_is_carried_like_armature():
+    """MuJoCo's Euler step solves (M + A + h D) dv = h f: with h = 5 ms and damping 1 the
+    wheel's 0.0046 kg m^2 (inertia and armature) gains 0.005, and explicit PD with kd = 2
+    N m s/rad is stable in MuJoCo (kd h / I = 1.04) and not without that term (2.17, above
+    the bound 2). PyBullet (damping applied explicitly, as torque) carries h D as armature
+    (folded into the wheel's inertia) and follows MuJoCo's step response to 1e-4 rad; without
+    it, it swings from limit to limit. Kuafu, Qilin and nezha have damping 0.1: 0.0005 kg m^2
+    beside their armature's 0.01-0.03. (The "joint_space" mode diverges here with or without
+    the term: its h, Bullet's damping torque in it, lags one step, which is unstable once
+    d h / I = 1.25 exceeds 1; the default mode folds such a light joint, `folded_joints`.)"""
+    import mujoco as mj
+    from coadapt_plugins.simulators.pybullet.engine import Engine
+
+    model = mj.MjModel.from_xml_string(WHEEL_MJCF)
+    data = mj.MjData(model)
+    reference = []
+    for _ in range(100):
+        data.ctrl[0] = 100 * (0.2 - data.qpos[0]) - 2 * data.qvel[0]
+        mj.mj_step(model, data)
+        reference.append(data.qpos[0])
+    assert abs(reference[-1] - 0.2) < 1e-3  # MuJoCo settles on the target
+    options = dict(
+        terrain="flat", terrain_seed=0, physics_dt=0.005, decimation=1, fixed_base=True,
+        max_delay_steps=0,
+    )  # fmt: skip
+    for implicit, mode in ((True, "foot_link"), (True, "link_inertia"), (False, "foot_link")):
+        engine = Engine([_wheel_spec(implicit)], armature=mode, **options)
+        moved = [engine.step(np.array([[0.2]]))["joint_pos"][0, 0] for _ in range(100)]
+        engine.close()
+        error = np.abs(np.array(moved) - np.array(reference))
+        if implicit:
+            assert error.max() < 1e-4, (mode, error.max())
+        else:  # the explicit PD on 0.0046 kg m^2 alone grows until the joint's limits
+            assert error.max() > 2.0, error.max()
+
+
+def test_which_mujoco_integrators_damp_implicitly():
+    """Euler (unless eulerdamp is disabled), implicit and implicitfast take joint damping
+    into the velocity update; RK4 does not; the carried armature follows."""
+    import mujoco as mj
+    from coadapt_plugins.simulators.pybullet.armature import carried_armature
+    from coadapt_plugins.simulators.pybullet.spec import damps_implicitly
+
+    def compiled(option: str):
+        return mj.MjModel.from_xml_string(WHEEL_MJCF.replace('<option timestep="0.005"/>', option))
+
+    assert damps_implicitly(compiled("<option/>"))
+    assert not damps_implicitly(compiled('<option><flag eulerdamp="disable"/></option>'))
+    assert damps_implicitly(compiled('<option integrator="implicitfast"/>'))
+    assert damps_implicitly(compiled('<option integrator="implicit"/>'))
+    assert not damps_implicitly(compiled('<option integrator="RK4"/>'))
+    assert carried_armature(_wheel_spec(True), 0.005) == pytest.approx([0.0056])
+    assert carried_armature(_wheel_spec(False), 0.005) == pytest.approx([0.0006])

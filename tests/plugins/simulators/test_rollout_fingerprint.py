@@ -11,7 +11,9 @@ its machine: an AMD EPYC (AVX-512) and an Intel Xeon (AVX-512 with AMX) differ b
 passes when it matches one variant of its case to 1e-6. The PyBullet case was recorded
 anew in issue 49, a deliberate physics change (the armature correction over the floating
 base's velocities too: joint angles up to 0.009 rad apart after the six steps, parameters
-and draws unchanged).
+and draws unchanged), and again in issue 58 (MuJoCo's implicit joint damping carried as h d
+of armature: joint angles up to 0.003 rad and the base 0.15 mm apart, parameters and draws
+unchanged).
 
     # this machine's variant, if new
     python tests/plugins/simulators/test_rollout_fingerprint.py --add
