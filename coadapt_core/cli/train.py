@@ -31,6 +31,7 @@ from coadapt_core.cli.train_setup import (
     start_runner,
     train_plugins,
 )
+from coadapt_core.cli.until_walks import PSEUDO_CATCH_UP
 from coadapt_core.errors import UserError
 from coadapt_core.settings import Float, Int, overrides, setting, settings, shared
 from coadapt_core.threads import apply_threads
@@ -104,6 +105,13 @@ class TrainCommand:
         "With --until-walks: simulated seconds per design in a check (the gate judges "
         "tracking over >= 50 policy steps).",
         gt=0,
+    )
+    pseudo_catch_up: Int = setting(
+        PSEUDO_CATCH_UP,
+        "With --until-walks: the pseudo-critics are not trained while the policy learns to "
+        "walk; once a check walks they are fitted for this many iterations on its rollouts, "
+        "the policy frozen, before OUT/walks.pt is written (0: trained all along).",
+        ge=0,
     )
     quiet: Any = shared(CommonOptions)
     logger: str = setting(

@@ -17,6 +17,9 @@ from coadapt_core.cli.common import fail
 
 #: `coadapt train --until-walks`'s exit status when a budget ran out before a check walked
 EXIT_NOT_WALKING = 3
+#: --pseudo-catch-up's default: iterations of the pseudo-critics' fit on the walking policy
+#: (docs/training.md, "Time to walk", has the measurement)
+PSEUDO_CATCH_UP = 50
 
 
 def check_options(values: dict[str, Any]) -> None:
@@ -59,6 +62,12 @@ def announced(values: dict[str, Any]) -> str:
             if values["max_seconds"] is not None
             else ""
         )
+        + (
+            f", the pseudo-critics fitted for {values['pseudo_catch_up']} iterations once it "
+            "walks (not before)"
+            if values["pseudo_catch_up"]
+            else ""
+        )
     )
 
 
@@ -93,7 +102,7 @@ def train_until_walking(values: dict[str, Any], runner: Any, show: Any, show_che
         if row["walking"]:
             (out / "check.pt").replace(out / "walks.pt")
 
-    return train_until_walks(
+    walks = train_until_walks(
         runner,
         steps=values["steps"],
         check=check,
@@ -101,7 +110,11 @@ def train_until_walking(values: dict[str, Any], runner: Any, show: Any, show_che
         max_seconds=values["max_seconds"],
         on_iteration=show,
         on_check=on_check,
+        pseudo_catch_up=values["pseudo_catch_up"],
     )
+    if walks.catch_up_interactions:  # walks.pt again, with the pseudo-critics fitted
+        trainer.save(out / "walks.pt")
+    return walks
 
 
 def walks_report(
@@ -113,10 +126,17 @@ def walks_report(
 
     out, quiet = values["out"], values["quiet"]
     last = walks.checks[-1] if walks.checks else None
+    n = len(walks.checks)
+    notes = [
+        f"the {n} check{'s' if n != 1 else ''} took {walks.check_seconds:.0f} s more",
+        f"the pseudo-critics' fit on the walking policy {walks.catch_up_interactions:,} "
+        f"interactions and {walks.catch_up_seconds:.0f} s"
+        if walks.catch_up_interactions
+        else "",
+    ]
     took = (
         f"{walks.interactions:,} interactions and {walks.train_seconds:.0f} s of training "
-        f"(the {len(walks.checks)} check{'s' if len(walks.checks) != 1 else ''} took "
-        f"{walks.check_seconds:.0f} s more)"
+        f"({'; '.join(x for x in notes if x)})"
     )
     if quiet:
         summary = {
@@ -124,6 +144,8 @@ def walks_report(
             "interactions": walks.interactions,
             "train_seconds": round(walks.train_seconds, 2),
             "check_seconds": round(walks.check_seconds, 2),
+            "pseudo_catch_up_interactions": walks.catch_up_interactions,
+            "pseudo_catch_up_seconds": round(walks.catch_up_seconds, 2),
             "budget": walks.budget,
             "checkpoint": str(out / "walks.pt") if walks.walked else None,
             "last_check": last,

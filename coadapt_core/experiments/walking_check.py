@@ -13,6 +13,11 @@ actions than one checked once.
 `train_until_walks` drives a `Runner` one iteration at a time under an interaction budget and
 an optional training wall-clock budget (the checks outside it), checking every `check_every`
 iterations and once more when a budget runs out, and stops at the first check that walks.
+With `pseudo_catch_up` > 0 the pseudo-critics are paused meanwhile (`PPO.pseudo_paused`: no
+targets, no regression; the policy's training draws and weights are those of a run that
+trains them, to the bit) and, once a check walks, fitted for that many iterations on the
+walking policy's rollouts with the policy frozen (`fit_pseudo_critics`), so the checkpoint
+a co-design starts from carries trained pseudo-critics.
 """
 
 from __future__ import annotations
@@ -153,6 +158,42 @@ class UntilWalks:
     check_seconds: float
     budget: str | None
     checks: list[dict[str, Any]] = field(default_factory=list)
+    #: the pseudo-critics' fit after the check that walked (`fit_pseudo_critics`): its
+    #: interactions and seconds (0 when they trained all along or nothing walked)
+    catch_up_interactions: int = 0
+    catch_up_seconds: float = 0.0
+
+
+def fit_pseudo_critics(
+    runner: Any,
+    iterations: int,
+    on_iteration: Callable[[Any], None] | None = None,
+    clock: Callable[[], float] = time.perf_counter,
+) -> tuple[int, float]:
+    """Fit the pseudo-critics for `iterations` iterations on the rollouts of the policy as it
+    is, the policy frozen (`PPO.freeze_policy`: actor, critic, their optimizer and the
+    observation normalisers stay as they were), then let the policy learn again. Returns
+    the interactions and seconds it took."""
+    trainer = runner.trainer
+    first, start = trainer.total_steps, clock()
+    trainer.ppo.freeze_policy()  # and unpauses the pseudo-critics
+    try:
+        runner.run(iterations, on_iteration)
+    finally:
+        trainer.ppo.policy_frozen = False
+    return trainer.total_steps - first, clock() - start
+
+
+def _row(trainer: Any, stats: Any, train_seconds: float, seconds: float, result: dict) -> dict:
+    """A check's row: where the training was, what the check took and what it found."""
+    return {
+        "iteration": trainer.iteration,
+        "interactions": trainer.total_steps,
+        "train_seconds": round(train_seconds, 2),
+        "check_seconds": round(seconds, 2),
+        "mean_reward": round(float(stats.mean_reward), 5),
+        **result,
+    }
 
 
 def train_until_walks(
@@ -165,14 +206,20 @@ def train_until_walks(
     on_iteration: Callable[[Any], None] | None = None,
     on_check: Callable[[dict[str, Any]], None] | None = None,
     clock: Callable[[], float] = time.perf_counter,
+    pseudo_catch_up: int = 0,
 ) -> UntilWalks:
     """Train `runner` for at most `steps` interactions (this call's) and `max_seconds` of
     training wall clock (None: no limit; the checks are not counted), calling `check()` (a
     `check_walking`) after every `check_every` iterations and after the last one a budget
     allows; stop at the first check that walks. `on_iteration` sees each iteration's
     statistics, `on_check` each check's row: the check's result with 'iteration',
-    'interactions', 'train_seconds', 'check_seconds' and 'mean_reward'."""
+    'interactions', 'train_seconds', 'check_seconds' and 'mean_reward'. `pseudo_catch_up` > 0:
+    the pseudo-critics pause meanwhile and, when a check walked, `fit_pseudo_critics` runs
+    for that many iterations after it (the checkpoint the check wrote has them untrained:
+    write it again)."""
     trainer = runner.trainer
+    paused = pseudo_catch_up > 0 and trainer.ppo.pseudo_critic is not None
+    trainer.ppo.pseudo_paused = paused
     first_steps = trainer.total_steps
     iterations = runner.iterations_for(steps)
     train_seconds = check_seconds = 0.0
@@ -188,14 +235,7 @@ def train_until_walks(
         tick = clock()
         result = check()
         check_seconds += clock() - tick
-        row = {
-            "iteration": trainer.iteration,
-            "interactions": trainer.total_steps,
-            "train_seconds": round(train_seconds, 2),
-            "check_seconds": round(clock() - tick, 2),
-            "mean_reward": round(float(stats.mean_reward), 5),
-            **result,
-        }
+        row = _row(trainer, stats, train_seconds, clock() - tick, result)
         checks.append(row)
         if on_check is not None:
             on_check(row)
@@ -206,14 +246,20 @@ def train_until_walks(
             break
     else:
         budget = "interactions"
-    return UntilWalks(
-        walked=bool(checks and checks[-1]["walking"]),
-        interactions=trainer.total_steps - first_steps,
-        train_seconds=train_seconds,
-        check_seconds=check_seconds,
-        budget=budget,
-        checks=checks,
+    walked = bool(checks and checks[-1]["walking"])
+    out = UntilWalks(
+        walked,
+        trainer.total_steps - first_steps,
+        train_seconds,
+        check_seconds,
+        budget,
+        checks,
     )
+    trainer.ppo.pseudo_paused = False
+    if paused and walked:
+        fit = fit_pseudo_critics(runner, pseudo_catch_up, on_iteration, clock)
+        out.catch_up_interactions, out.catch_up_seconds = fit
+    return out
 
 
 __all__ = [
@@ -222,6 +268,7 @@ __all__ = [
     "check_text",
     "check_walking",
     "corners",
+    "fit_pseudo_critics",
     "gate_designs",
     "train_until_walks",
     "training_draws_kept",

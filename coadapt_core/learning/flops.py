@@ -73,7 +73,7 @@ def update_passes(ppo, samples: int) -> list[Pass]:
             Pass("actor", True, size, calls, ppo.precision),
             Pass("critic", True, size, calls, ppo.precision),
         ]
-    if ppo.pseudo_critic is not None:
+    if ppo.pseudo_critic is not None and not getattr(ppo, "pseudo_paused", False):
         epochs = pseudo_epochs if ppo.policy_frozen else min(pseudo_epochs, c.epochs)
         passes += [
             Pass("pseudo", False, samples, 1, ppo.pseudo_precision),

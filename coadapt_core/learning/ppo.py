@@ -109,9 +109,9 @@ class PPO:
         self.transitions: list[TensorDict] = []  # one [N] TensorDict per rollout step
         self.rollout: TensorDict | None = None  # [N, T] after compute_returns
         self.training = True
-        #: `freeze_policy`: only the pseudo-critics learn (actor, critic, their optimizer and
-        #: the observation normalisers stay exactly as they are)
-        self.policy_frozen = False
+        #: `freeze_policy`: only the pseudo-critics learn (the rest stays exactly as it is);
+        #: `pseudo_paused`: all but them (no targets, no regression; `coadapt train --until-walks`)
+        self.policy_frozen = self.pseudo_paused = False
         #: wall seconds of compute_returns ("returns") and update ("update") and of the
         #: pseudo-critics' part of both ("pseudo"); `profile` makes them exact on a GPU
         self.timing = {"returns": 0.0, "update": 0.0, "pseudo": 0.0}
@@ -241,7 +241,7 @@ class PPO:
         begin = self._clock()
         if not self.policy_frozen:
             self.gae(td)
-        if self.pseudo_critic is not None:
+        if self.pseudo_critic is not None and not self.pseudo_paused:
             tick = self._clock()
             with self._autocast(self.pseudo_precision):  # the regression's numerics
                 value_next = self.pseudo_values(
@@ -312,7 +312,7 @@ class PPO:
         count = pseudo_count = 0
         params = list(self.loss.parameters())
         pseudo_params = [] if self.pseudo_critic is None else list(self.pseudo_critic.parameters())
-        pseudo_epochs = c.pseudo_epochs or c.epochs
+        pseudo_epochs = 0 if self.pseudo_paused else (c.pseudo_epochs or c.epochs)
         pseudo_seconds, begin = 0.0, self._clock()
         frozen = self.policy_frozen
         images = None if self.mirror is None or frozen else self.mirror.image(flat)
@@ -440,7 +440,7 @@ class PPO:
         (or give it a new objective) without changing how it acts."""
         if self.pseudo_critic is None:
             raise ValueError("no pseudo-critics to train: the policy has no objectives")
-        self.policy_frozen = True
+        self.policy_frozen, self.pseudo_paused = True, False
 
     def reset_pseudo_critics(self) -> None:
         """Restart the pseudo-critics, their target normaliser and optimizer from scratch."""

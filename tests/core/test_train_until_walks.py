@@ -1,7 +1,8 @@
 """`coadapt train --until-walks` on real MuJoCo at a tiny size: the walking checks leave the
 training's random draws as they were, each budget stops it (exit 3), a check that walks stops
 it and keeps its checkpoint as OUT/walks.pt (Kuafu's shipped policy as the start, so the gate
-holds after one update), and bad options are one line with exit 2."""
+holds after one update; the pseudo-critics, paused meanwhile, fitted before it is written), and
+bad options are one line with exit 2."""
 
 from __future__ import annotations
 
@@ -103,12 +104,14 @@ def test_a_check_that_walks_stops_it_and_keeps_the_checkpoint(tmp_path, capsys):
         out,
         *("--robot", "kuafu", "--init-from", "plugins/robots/kuafu/policies/flat.pt"),
         *("--learning-rate", "1e-5", "--steps", "640", "--check-every", "2"),
+        *("--pseudo-catch-up", "3"),
     )
     assert code == 0
     checks = _checks(out)
     assert len(checks) == 1 and checks[0]["walking"] is True
-    # stopped at the first check: 2 of the budget's 10 iterations
-    assert len((out / "progress.jsonl").read_text().splitlines()) == 2
+    # stopped at the first check: 2 of the budget's 10 iterations, then the pseudo-critics'
+    # 3 iterations of fit on the walking policy
+    assert len((out / "progress.jsonl").read_text().splitlines()) == 2 + 3
     for name in GATE_DESIGNS:
         d = checks[0]["designs"][name]
         assert d["survival"] >= 0.8 and d["tracking_ratio"] <= 0.5
@@ -116,8 +119,19 @@ def test_a_check_that_walks_stops_it_and_keeps_the_checkpoint(tmp_path, capsys):
     assert (out / "walks.pt").is_file() and not (out / "check.pt").exists()
     a, b = _actor(out / "walks.pt"), _actor(out / "model_final.pt")
     assert all(torch.equal(a[k], b[k]) for k in a)
+    # paused while it trained, the pseudo-critics were fitted before walks.pt was written:
+    # they are no longer the ones it started from
+    walks = torch.load(out / "walks.pt", map_location="cpu", weights_only=True)
+    start = torch.load(
+        "plugins/robots/kuafu/policies/flat.pt", map_location="cpu", weights_only=True
+    )
+    fitted, initial = walks["ppo"]["pseudo_critic"], start["ppo"]["pseudo_critic"]
+    assert fitted.keys() == initial.keys()
+    assert all(not torch.equal(fitted[k], initial[k]) for k in fitted)
+    assert walks["total_steps"] - start["total_steps"] == 128 + 3 * 64
     err = capsys.readouterr().err
     assert "walks at the nominal design and the four corners after 128 interactions" in err
+    assert "the pseudo-critics' fit on the walking policy 192 interactions" in err
     assert "policies/flat.pt" in err and str(out / "walks.pt") in err
 
 
