@@ -94,8 +94,8 @@ class TrainCommand:
     )
     max_seconds: Float | None = setting(
         None,
-        "With --until-walks: training wall-clock budget, s (the checks not counted; "
-        "default: none, --steps alone).",
+        "With --until-walks: training wall-clock budget, s (the checks not counted; a "
+        "resumed run's count goes on from its checkpoint's; default: none, --steps alone).",
         gt=0,
     )
     check_every: Int = setting(50, "With --until-walks: iterations between walking checks.", ge=1)

@@ -128,6 +128,9 @@ def walks_report(
     last = walks.checks[-1] if walks.checks else None
     n = len(walks.checks)
     notes = [
+        f"{walks.carried_seconds:.0f} s of it before the resume, as the checkpoint counted"
+        if walks.carried_seconds
+        else "",
         f"the {n} check{'s' if n != 1 else ''} took {walks.check_seconds:.0f} s more",
         f"the pseudo-critics' fit on the walking policy {walks.catch_up_interactions:,} "
         f"interactions and {walks.catch_up_seconds:.0f} s"
@@ -143,6 +146,7 @@ def walks_report(
             "walked": walks.walked,
             "interactions": walks.interactions,
             "train_seconds": round(walks.train_seconds, 2),
+            "carried_seconds": round(walks.carried_seconds, 2),
             "check_seconds": round(walks.check_seconds, 2),
             "pseudo_catch_up_interactions": walks.catch_up_interactions,
             "pseudo_catch_up_seconds": round(walks.catch_up_seconds, 2),
@@ -173,7 +177,13 @@ def walks_report(
         + (f"last {check_text(last)}" if last else "no check ran")
         + f". Go on with coadapt train --robot {robot} --terrain {values['terrain']}"
         + (" --mixed" if values["mixed"] else "")
-        + f" --resume {out / 'model_final.pt'} --until-walks --out {out}",
+        + f" --resume {out / 'model_final.pt'} --until-walks --out {out}"
+        + (
+            f" --max-seconds S (S above {walks.train_seconds:.0f}: the resumed run's count "
+            "goes on from there)"
+            if walks.budget == "seconds"
+            else ""
+        ),
         file=sys.stderr,
     )
     raise typer.Exit(EXIT_NOT_WALKING)

@@ -147,10 +147,10 @@ def check_text(row: dict[str, Any]) -> str:
 
 @dataclass
 class UntilWalks:
-    """What `train_until_walks` did: whether a check walked, the interactions and training
-    seconds (checks excluded) until then or until the budget ran out, the seconds the
-    checks took, the budget that ran out ('interactions', 'seconds'; None when it walked)
-    and every check's row."""
+    """What `train_until_walks` did: whether a check walked, the interactions (this call's)
+    and training seconds (the run's count, a resumed checkpoint's included; checks excluded)
+    until then or until the budget ran out, the seconds this call's checks took, the budget
+    that ran out ('interactions', 'seconds'; None when it walked) and every check's row."""
 
     walked: bool
     interactions: int
@@ -158,6 +158,9 @@ class UntilWalks:
     check_seconds: float
     budget: str | None
     checks: list[dict[str, Any]] = field(default_factory=list)
+    #: the training seconds the run had counted before this call (a resumed checkpoint's
+    #: `train_seconds`): `train_seconds` includes them
+    carried_seconds: float = 0.0
     #: the pseudo-critics' fit after the check that walked (`fit_pseudo_critics`): its
     #: interactions and seconds (0 when they trained all along or nothing walked)
     catch_up_interactions: int = 0
@@ -208,8 +211,9 @@ def train_until_walks(
     clock: Callable[[], float] = time.perf_counter,
     pseudo_catch_up: int = 0,
 ) -> UntilWalks:
-    """Train `runner` for at most `steps` interactions (this call's) and `max_seconds` of
-    training wall clock (None: no limit; the checks are not counted), calling `check()` (a
+    """Train `runner` for at most `steps` interactions (this call's) and until the training
+    wall clock `trainer.train_seconds` (the checks not counted; a resumed checkpoint's count
+    goes on) reaches `max_seconds` (None: no limit), calling `check()` (a
     `check_walking`) after every `check_every` iterations and after the last one a budget
     allows; stop at the first check that walks. `on_iteration` sees each iteration's
     statistics, `on_check` each check's row: the check's result with 'iteration',
@@ -222,13 +226,23 @@ def train_until_walks(
     trainer.ppo.pseudo_paused = paused
     first_steps = trainer.total_steps
     iterations = runner.iterations_for(steps)
-    train_seconds = check_seconds = 0.0
+    carried, check_seconds = trainer.train_seconds, 0.0
     checks: list[dict[str, Any]] = []
     budget: str | None = None
+
+    mark = [0.0, 0.0]  # the count and the clock when the iteration under way began
+
+    def counted(stats: Any) -> None:
+        # the count moves on before anything sees the iteration: a Ctrl-C's checkpoint, written
+        # after this, carries it
+        trainer.train_seconds = mark[0] + clock() - mark[1]
+        if on_iteration is not None:
+            on_iteration(stats)
+
     for done in range(1, iterations + 1):
-        start = clock()
-        stats = runner.run(1, on_iteration)
-        train_seconds += clock() - start
+        mark[:] = trainer.train_seconds, clock()
+        stats = runner.run(1, counted)
+        trainer.train_seconds = train_seconds = mark[0] + clock() - mark[1]
         out_of_time = max_seconds is not None and train_seconds >= max_seconds
         if not (done % check_every == 0 or done == iterations or out_of_time):
             continue
@@ -250,10 +264,11 @@ def train_until_walks(
     out = UntilWalks(
         walked,
         trainer.total_steps - first_steps,
-        train_seconds,
+        trainer.train_seconds,
         check_seconds,
         budget,
         checks,
+        carried_seconds=carried,
     )
     trainer.ppo.pseudo_paused = False
     if paused and walked:

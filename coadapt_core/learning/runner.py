@@ -80,10 +80,12 @@ class Runner:
         return self.trainer.load(path)
 
     def init_from(self, path: Path) -> int | None:
-        """Start a new run from `path`'s weights and normalisers (fresh optimizer state). A
+        """Start a new run from `path`'s weights and normalisers (fresh optimizer state, the
+        training clock `train_seconds` at 0). A
         policy taking fewer design values than the trainer's space gets zero weights for the
         new ones: returns the number it took then (None when no widening was needed)."""
         state = self.trainer.load(path, optimizers=False, widen=True)
+        self.trainer.train_seconds = 0.0  # a new run: its training clock starts now
         taken = int(state["dims"]["num_design"])
         return taken if taken < self.trainer.design_space.dim else None
 

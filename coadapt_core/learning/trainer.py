@@ -101,6 +101,9 @@ class Trainer:
         self.ppo: PPO | None = None
         self.iteration = 0
         self.total_steps = 0
+        #: training wall clock, s, that `train_until_walks` (`coadapt train --until-walks`)
+        #: counts: its checkpoints carry it, so a resumed run's count goes on
+        self.train_seconds = 0.0
         self.rng = np.random.default_rng(self.config.seed)
         torch.manual_seed(self.config.seed)
         #: torch threads while updating (the budget) and while collecting (one: the physics
@@ -376,6 +379,8 @@ class Trainer:
         if commands is not None:
             state["commands"] = commands
         state["design_rng"] = self.rng.bit_generator.state  # sample_designs / design resampling
+        if self.train_seconds > 0:  # only runs that count it (--until-walks) carry it
+            state["train_seconds"] = float(self.train_seconds)
         # written to a temporary file first: a kill mid-write leaves the previous checkpoint
         write_atomic(path, lambda tmp: torch.save(state, tmp))
         return path
@@ -434,6 +439,8 @@ class Trainer:
             )
         self.iteration = int(state["iteration"])
         self.total_steps = int(state["total_steps"])
+        seconds = state.get("train_seconds", 0.0)  # a number, or the count starts again
+        self.train_seconds = float(seconds) if isinstance(seconds, int | float) else 0.0
         if self.env is not None and "commands" in state:
             self.env.commands.load_state_dict(state["commands"])
         self._pending_commands = state.get("commands")

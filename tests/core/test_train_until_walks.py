@@ -133,6 +133,46 @@ def test_a_check_that_walks_stops_it_and_keeps_the_checkpoint(tmp_path, capsys):
     assert "walks at the nominal design and the four corners after 128 interactions" in err
     assert "the pseudo-critics' fit on the walking policy 192 interactions" in err
     assert "policies/flat.pt" in err and str(out / "walks.pt") in err
+    # a new run from a shipped policy: its training clock started at 0, and walks.pt holds it
+    assert "before the resume" not in err and "train_seconds" not in start
+    assert 0 < walks["train_seconds"] == pytest.approx(checks[0]["train_seconds"], abs=0.01)
+
+
+@pytest.mark.slow
+def test_a_resumed_run_counts_the_training_seconds_before_the_resume(tmp_path, capsys):
+    out = tmp_path / "r"
+    scratch = ["--robot", "qilin", "--terrain", "slope", "--quiet"]
+    assert _train(out, *scratch, "--steps", "64") == EXIT_NOT_WALKING
+    first = torch.load(out / "model_final.pt", map_location="cpu", weights_only=True)
+    carried = first["train_seconds"]  # one iteration's training, the check's not counted
+    assert carried > 0 and _checks(out)[0]["train_seconds"] == round(carried, 2)
+    capsys.readouterr()
+    # resumed under a wall-clock budget the first part already spent: one iteration, then it
+    # stops, its count going on from the checkpoint's
+    code = _train(
+        out, *scratch, "--resume", str(out / "model_final.pt"), "--steps", "640",
+        "--max-seconds", f"{carried:.6f}",
+    )  # fmt: skip
+    assert code == EXIT_NOT_WALKING
+    printed = capsys.readouterr()
+    summary = json.loads(printed.out.strip().splitlines()[-1])["until_walks"]
+    assert summary["budget"] == "seconds" and summary["interactions"] == 64
+    assert summary["carried_seconds"] == round(carried, 2)
+    second = torch.load(out / "model_final.pt", map_location="cpu", weights_only=True)
+    assert second["train_seconds"] > carried
+    assert summary["train_seconds"] == round(second["train_seconds"], 2)
+    assert [r["interactions"] for r in _checks(out)] == [64, 128]
+    assert _checks(out)[1]["train_seconds"] == summary["train_seconds"]
+    assert f"{carried:.0f} s of it before the resume" in printed.err
+    assert f"--max-seconds S (S above {second['train_seconds']:.0f}" in printed.err
+    # --init-from starts a new run: its count from 0
+    new = tmp_path / "n"
+    assert _train(new, *scratch, "--init-from", str(out / "model_final.pt"), "--steps", "64") == 3
+    printed = capsys.readouterr()
+    summary = json.loads(printed.out.strip().splitlines()[-1])["until_walks"]
+    assert summary["carried_seconds"] == 0 and _checks(new)[0]["interactions"] == 128 + 64
+    assert _checks(new)[0]["train_seconds"] == summary["train_seconds"]  # one iteration's
+    assert "before the resume" not in printed.err
 
 
 @pytest.mark.parametrize(
