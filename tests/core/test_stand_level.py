@@ -71,3 +71,80 @@ def test_the_long_thigh_corner_keeps_its_joints_in_range_and_its_soles_level(hum
     assert torch.allclose(share, torch.tensor(0.88, dtype=torch.float64))
     # the gait's default feet are the same targets (the pose the policy is trained around)
     assert torch.equal(humanoid.default_foot_positions(design), targets)
+
+
+#: a biped as a user might write it: each hip three stacked hinges (yaw, roll, pitch) in the
+#: thigh body, a knee, an ankle in the foot body, no keyframe. Every joint at 0 is a straight
+#: leg, the leg IK's singular point: bending the last hinge (the ankle) does not leave it.
+STRAIGHT_BIPED = """<mujoco model="straight_biped">
+  <compiler angle="radian" autolimits="true"/>
+  <default><joint damping="0.5" armature="0.02"/></default>
+  <worldbody>
+    <geom name="floor" type="plane" size="5 5 0.1"/>
+    <body name="pelvis" pos="0 0 0.6">
+      <freejoint/>
+      <inertial pos="0 0 0" mass="9" diaginertia="0.08 0.06 0.07"/>
+      <geom type="box" size="0.08 0.12 0.05"/>
+      {legs}
+    </body>
+  </worldbody>
+  <actuator>{motors}</actuator>
+</mujoco>
+"""
+LEG = """<body name="{s}_thigh" pos="0 {y} -0.05">
+        <joint name="{s}_hip_yaw" axis="0 0 1" range="-0.5 0.5"/>
+        <joint name="{s}_hip_roll" axis="1 0 0" range="-0.5 0.5"/>
+        <joint name="{s}_hip_pitch" axis="0 1 0" range="-1.5 1.0"/>
+        <inertial pos="0 0 -0.12" mass="1.5" diaginertia="0.008 0.008 0.001"/>
+        <geom type="capsule" fromto="0 0 0 0 0 -0.24" size="0.03"/>
+        <body name="{s}_shin" pos="0 0 -0.24">
+          <joint name="{s}_knee" axis="0 1 0" range="-2.5 2.5"/>
+          <inertial pos="0 0 -0.12" mass="0.8" diaginertia="0.004 0.004 0.0005"/>
+          <geom type="capsule" fromto="0 0 0 0 0 -0.24" size="0.025"/>
+          <body name="{s}_foot" pos="0 0 -0.24">
+            <joint name="{s}_ankle" axis="0 1 0" range="-0.8 0.8"/>
+            <inertial pos="0.02 0 -0.02" mass="0.3" diaginertia="0.0005 0.0005 0.0002"/>
+            <geom type="box" pos="0.02 0 -0.02" size="0.08 0.04 0.015"/>
+          </body>
+        </body>
+      </body>"""
+
+
+def test_straight_legs_whose_last_hinge_is_an_ankle_get_a_bent_knee_and_level_soles(tmp_path):
+    """robot new's standing solve bends the knee of a leg the first starts left straight (it
+    used to leave both feet at 0, the knees locked straight); the soles stay as the file has
+    them, and the robot stands under joint PD at the nominal design and the corners."""
+    hinges = ("hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle")
+    text = STRAIGHT_BIPED.format(
+        legs="\n      ".join(LEG.format(s=s, y=y) for s, y in (("left", 0.09), ("right", -0.09))),
+        motors="".join(
+            f'<motor joint="{s}_{j}" ctrlrange="-60 60"/>'
+            for s in ("left", "right")
+            for j in hinges
+        ),
+    )
+    source = tmp_path / "biped.xml"
+    source.write_text(text)
+    folder, notes, _ = write_robot("straight", source, tmp_path / "robots")
+    assert any("solved with 2 of 2 feet" in n for n in notes), notes
+    assert any("stand 3 s under joint PD" in n for n in notes), notes
+    robot = spec_robot_class(folder)()
+    model = robot.build(robot.nominal_design())
+    pose = dict(zip(model.joint_names, model.default_joint_pos, strict=True))
+    for side in ("left", "right"):
+        assert pose[f"{side}_knee"] > 1.0  # bent (1.45 rad), the knee in front
+        # the sole level: the pitch hinges' angles cancel
+        assert abs(pose[f"{side}_hip_pitch"] + pose[f"{side}_knee"] + pose[f"{side}_ankle"]) < TILT
+    assert max(_foot_tilts(model, model.default_joint_pos)) <= TILT
+    # the feet 0.75 of the leg's length (0.48 m) under the hips
+    compiled = mujoco.MjModel.from_xml_string(model.text("mjcf"))
+    data = mujoco.MjData(compiled)
+    for name, angle in pose.items():
+        data.qpos[compiled.jnt_qposadr[compiled.joint(name).id]] = angle
+    mujoco.mj_kinematics(compiled, data)
+    for side in ("left", "right"):
+        drop = (
+            data.xpos[compiled.body(f"{side}_thigh").id]
+            - data.xpos[compiled.body(f"{side}_foot").id]
+        )
+        assert drop[2] == pytest.approx(0.75 * 0.48, abs=0.01)

@@ -340,8 +340,12 @@ class LegKinematics:
     def default_foot_positions(self, designs: torch.Tensor) -> torch.Tensor:
         return self.standing(designs)[0]
 
-    def inverse(self, designs: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
-        """[n, J] joint angles putting each foot at targets [n, L, 3] (relative to its hip).
+    def inverse(
+        self, designs: torch.Tensor, targets: torch.Tensor, start: torch.Tensor | None = None
+    ) -> torch.Tensor:
+        """[n, J] joint angles putting each foot at targets [n, L, 3] (relative to its hip),
+        iterated from the chain's standing pose or from `start` [J] (the feet's standing
+        orientations, a redundant leg's secondary goal, stay the standing pose's).
 
         Each design's legs stop iterating once they have settled (every foot within
         TOLERANCE of its target after a last joint step below 1e-6 rad, from the third
@@ -352,15 +356,16 @@ class LegKinematics:
         # no autograd bookkeeping unless a gradient is asked for: the iterations are many
         # small operations, and on few designs their dispatch is most of the time
         with torch.inference_mode(not (designs.requires_grad or targets.requires_grad)):
-            x = self._solve(designs, targets)
+            x = self._solve(designs, targets, start)
         valid = c.joint_index >= 0
         q[:, c.joint_index[valid]] = x[:, valid]
         return q
 
-    def _solve(self, designs: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
+    def _solve(self, designs: torch.Tensor, targets: torch.Tensor, start=None) -> torch.Tensor:
         """[n, L, M] the slot angles of `inverse`."""
         n = designs.shape[0]
-        x = self.leg_angles(self.chain.standing.expand(n, -1)).clone()
+        first = self.chain.standing if start is None else start.to(self.chain.standing)
+        x = self.leg_angles(first.expand(n, -1)).clone()
         _, want_rot, hip = self.standing(designs)
         goal = targets.to(torch.float64) + hip
         rows = torch.arange(n)  # the designs still iterating

@@ -13,6 +13,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 from coadapt_plugins.robots.specs.assumed import spec_text
+from coadapt_plugins.robots.specs.level import TILT
 from coadapt_plugins.robots.specs.spec import SPEC_FILE
 
 #: the stiffness written per N m of a joint's peak torque (the peak at 1 rad of error), and
@@ -87,6 +88,31 @@ def _starts(model, joints, legs, guess, ranges, held) -> list[np.ndarray]:
     return starts
 
 
+def _knee_starts(model, joints, legs, guess, ranges, held, params) -> list[np.ndarray]:
+    """Two more starts for legs the first three left unplaced: each leg's knee (its last
+    hinge, not held, a quarter of the leg's length or more above the foot along the chain)
+    bent either way by BEND. A straight leg is the IK's singular point, which bending an
+    ankle (the last hinge of a leg with one) does not leave."""
+    starts = []
+    for bend in (BEND, -BEND):
+        start = guess.copy()
+        for g in legs:
+            chain = list(g["chain"])
+            length = _leg_length(model, g, params)
+            for j in reversed(range(model.njnt)):
+                body = int(model.jnt_bodyid[j])
+                name = model.joint(j).name
+                if body not in chain or name not in joints or name in held:
+                    continue
+                below = chain[chain.index(body) + 1 :]
+                if sum(float(np.linalg.norm(model.body_pos[b])) for b in below) >= 0.25 * length:
+                    k = joints.index(name)
+                    start[k] = float(np.clip(start[k] + bend, *ranges[name]))
+                    break
+        starts.append(start)
+    return starts
+
+
 def _knee(slot, anchors, foot, length: float) -> int:
     """The element of a leg's knee: its last hinge whose anchor lies a quarter of the leg's
     length from the foot or more (an ankle's hinges lie nearer)."""
@@ -97,6 +123,36 @@ def _knee(slot, anchors, foot, length: float) -> int:
 
 def torch_nonzero(slot) -> list[int]:
     return [e for e, s in enumerate(slot.tolist()) if s >= 0]
+
+
+def _candidate(kin, q, k, fit, model, leg, params, quadruped_like, init):
+    """(score, angles, slots) of leg k in the IK's answer q, or None when a joint lies
+    outside its range, the foot misses its target by 2 % of the leg's length or more, or
+    (an answer iterated from a bent knee, `init`) the sole turned more than TILT."""
+    import torch
+
+    designs, targets, upright, lo, hi = fit
+    chain = kin.chain
+    foot, turned, hip, _, anchors = kin.forward(
+        kin.scales(designs), kin.leg_angles(torch.tensor(q[None, :]))
+    )
+    slots = chain.joint_index[k][chain.joint_index[k] >= 0].numpy()
+    inside = bool(np.all((q[slots] >= lo[slots] - 1e-9) & (q[slots] <= hi[slots] + 1e-9)))
+    error = float(torch.linalg.norm(foot[0, k] - hip[0, k] - targets[0, k]))
+    length = _leg_length(model, leg, params)
+    if not inside or error > 0.02 * length:
+        return None
+    cos = 0.5 * (float(torch.trace(turned[0, k].T @ upright[0, k])) - 1.0)
+    tilt = float(np.arccos(np.clip(cos, -1.0, 1.0)))
+    if init is not None and tilt > TILT:  # a bent knee's answer must keep the sole
+        return None
+    knee = _knee(chain.slot[k], anchors[0, k], foot[0, k], length)
+    knee_x = float(anchors[0, k, knee, 0] - 0.5 * (foot[0, k, 0] + hip[0, k, 0]))
+    behind = knee_x < 0 if quadruped_like else knee_x > 0
+    score = error + (0.0 if behind else 0.01 * length)
+    if len(slots) > 3:  # a leg with an ankle: its foot as it stands (flat) first
+        score += 0.01 * length * tilt
+    return score, q[slots].copy(), slots
 
 
 def _solve_standing(
@@ -112,8 +168,10 @@ def _solve_standing(
 ) -> tuple[np.ndarray, list[str]]:
     """A standing pose with each foot under its hip at STAND_SHARE of its leg's length, by
     the generic leg IK from three starts (the guess, and its last hinge per leg bent either
-    way); per leg the start whose answer is inside the joint ranges and nearest its target,
-    a quadruped's knee behind its hip-foot line and a biped's in front on a tie. Returns the
+    way; a leg none of these places gets two more, its knee bent either way, whose answer
+    must keep the sole: `_knee_starts`); per leg the start whose answer is inside the joint
+    ranges and nearest its target, a quadruped's knee behind its hip-foot line and a biped's
+    in front on a tie. Returns the
     pose and the legs (by index) it could not place, which keep the guess. `hips`: each
     leg's hip body (None: the first below the base), as the spec's legs name them."""
     import torch
@@ -143,32 +201,27 @@ def _solve_standing(
     pose = guess.copy()
     lo = np.array([ranges[j][0] for j in joints])
     hi = np.array([ranges[j][1] for j in joints])
-    for start in starts:
+
+    def attempt(start: np.ndarray, legs_open: list[int], init=None) -> None:
         kin = LegKinematics(
             build_chain(
                 model, model.body(base).name, joints, feet, links, start, nominal, held=held
             )
         )
-        q = kin.inverse(designs, targets)[0].numpy()
-        chain = kin.chain
-        x = kin.leg_angles(torch.tensor(q[None, :]))
-        foot, turned, hip, _, anchors = kin.forward(kin.scales(designs), x)
-        for k, g in enumerate(legs):
-            slots = chain.joint_index[k][chain.joint_index[k] >= 0].numpy()
-            inside = bool(np.all((q[slots] >= lo[slots] - 1e-9) & (q[slots] <= hi[slots] + 1e-9)))
-            error = float(torch.linalg.norm(foot[0, k] - hip[0, k] - targets[0, k]))
-            length = _leg_length(model, g, params)
-            if not inside or error > 0.02 * length:
-                continue
-            knee = _knee(chain.slot[k], anchors[0, k], foot[0, k], length)
-            knee_x = float(anchors[0, k, knee, 0] - 0.5 * (foot[0, k, 0] + hip[0, k, 0]))
-            behind = knee_x < 0 if quadruped_like else knee_x > 0
-            score = error + (0.0 if behind else 0.01 * length)
-            if len(slots) > 3:  # a leg with an ankle: its foot as it stands (flat) first
-                cos = 0.5 * (float(torch.trace(turned[0, k].T @ upright[0, k])) - 1.0)
-                score += 0.01 * length * float(np.arccos(np.clip(cos, -1.0, 1.0)))
-            if best[k] is None or score < best[k][0]:
-                best[k] = (score, q[slots].copy(), slots)
+        q = kin.inverse(designs, targets, init)[0].numpy()
+        fit = (designs, targets, upright, lo, hi)
+        for k in legs_open:
+            found = _candidate(kin, q, k, fit, model, legs[k], params, quadruped_like, init)
+            if found is not None and (best[k] is None or found[0] < best[k][0]):
+                best[k] = found
+
+    for start in starts:
+        attempt(start, list(range(len(legs))))
+    open_legs = [k for k, found in enumerate(best) if found is None]
+    if open_legs:  # straight legs whose last hinge is an ankle: bend their knees instead
+        for start in _knee_starts(model, joints, legs, guess, ranges, held, params):
+            # iterated from the bent knee, the soles kept as they are at the guess
+            attempt(starts[0], open_legs, torch.tensor(start))
     missed = []
     for k, found in enumerate(best):
         if found is None:
