@@ -183,16 +183,17 @@ def train_options() -> OptionGroup:
     return options_of(train_settings_class(), aliases=TRAIN_ALIASES)
 
 
-def _recipe_clause(values: dict[str, Any], task: Any) -> str:
+def _recipe_clause(values: dict[str, Any], task: Any, config: Any) -> str:
     """The start line's clause naming the new-robot recipe a run starts from ("" where none);
-    the recipe for two legs with the reward settings in force (the options given win)."""
+    the recipe for two legs with the reward and symmetry settings in force (the options
+    given win)."""
     name = values.get("recipe")
     if not name:
         return ""
     rewards = task.rewards
     settings = (
         f"contact_match weight {rewards.weights['contact_match']:g}, tracking sigma "
-        f"{rewards.tracking_sigma:g}; "
+        f"{rewards.tracking_sigma:g}, symmetry {'on' if config.symmetry else 'off'}; "
         if name != RECIPE_NAME
         else ""
     )
@@ -213,7 +214,7 @@ def _announce(values: dict[str, Any], robot: str, trainer: Any, iterations: int)
         f"{trainer.design_space.describe()}, device {values['device']}, "
         f"{trainer.num_threads} threads, randomization "
         f"{base.extra.get('randomization', 'table2')}, yaw {yaw[0]:g}:{yaw[1]:g} rad/s"
-        + _recipe_clause(values, task)
+        + _recipe_clause(values, task, base)
         + (
             ", pseudo-critics only (the policy stays as loaded)"
             if values["pseudo_critics_only"]

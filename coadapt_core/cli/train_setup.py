@@ -93,7 +93,12 @@ def fresh_train_config(robot: Any, terrain: str, mixed: bool) -> tuple[Any, Any,
     walk") with, for a robot of a leg count `NEW_ROBOT_TASK_RECIPE` names (two legs), its
     task settings over TaskConfig's defaults; options given on the command line apply over
     either."""
-    from coadapt_core.learning.config import NEW_ROBOT_TASK_RECIPE, TrainConfig, new_robot_config
+    from coadapt_core.learning.config import (
+        NEW_ROBOT_TASK_RECIPE,
+        NEW_ROBOT_TRAIN_RECIPE,
+        TrainConfig,
+        new_robot_config,
+    )
     from coadapt_core.settings import apply_overrides
     from coadapt_core.task.config import TaskConfig
 
@@ -101,10 +106,24 @@ def fresh_train_config(robot: Any, terrain: str, mixed: bool) -> tuple[Any, Any,
         return TrainConfig(), TaskConfig(), ""
     legs = len(robot.legs())
     task = NEW_ROBOT_TASK_RECIPE.get(legs)
-    if task is None:
+    train = dict(NEW_ROBOT_TRAIN_RECIPE.get(legs, {}))
+    if train.get("symmetry") and not _has_mirror(robot):
+        train["symmetry"] = False  # no mirror map: the recipe goes without it
+    if task is None and not train:
         return new_robot_config(), TaskConfig(), RECIPE_NAME
     name = f"{RECIPE_NAME} for {_LEG_WORDS.get(legs, legs)} legs"
-    return new_robot_config(), apply_overrides(TaskConfig(), task), name
+    return new_robot_config(**train), apply_overrides(TaskConfig(), task or {}), name
+
+
+def _has_mirror(robot: Any) -> bool:
+    """Whether the robot declares a left-right mirror map (`Robot.mirror`)."""
+    from coadapt_core.errors import UserError
+
+    try:
+        robot.mirror()
+    except UserError:
+        return False
+    return True
 
 
 def build_trainer(

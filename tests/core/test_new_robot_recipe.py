@@ -1,7 +1,7 @@
 """`coadapt train` for a robot with no shipped policy starts from the new-robot recipe
 (issue 53), and a two-legged one from its task settings too (issue 59: contact_match weight 4,
-tracking sigma 0.05); where a policy ships, TrainConfig's and TaskConfig's defaults; options
-given apply over either."""
+tracking sigma 0.05) and left-right symmetry where it has a mirror map; where a policy
+ships, TrainConfig's and TaskConfig's defaults; options given apply over either."""
 
 from __future__ import annotations
 
@@ -56,7 +56,32 @@ def test_a_biped_without_a_policy_takes_the_two_legged_task_settings():
         fresh, task, recipe = fresh_train_config(_robot(name), terrain, False)
         assert recipe == "the new-robot recipe for two legs"
         assert (fresh.num_designs, fresh.agents_per_design, fresh.epochs) == (16, 16, 2)
+        assert fresh.symmetry is True  # both declare a mirror map
         assert _changed_task(task) == {"contact_match": 4.0, "tracking_sigma": 0.05}
+    # four legs: no symmetry from the recipe (Qilin has a map)
+    assert fresh_train_config(_qilin(), "slope", False)[0].symmetry is False
+
+
+class _NoMirror:
+    """jingwei with no mirror map declared."""
+
+    def __init__(self) -> None:
+        self._robot = _robot("jingwei")
+
+    def __getattr__(self, name):
+        return getattr(self._robot, name)
+
+    def mirror(self):
+        from coadapt_core.robot import Robot
+
+        return Robot.mirror(self._robot)  # the base class: none declared
+
+
+def test_a_biped_without_a_mirror_map_takes_the_recipe_without_symmetry():
+    fresh, task, recipe = fresh_train_config(_NoMirror(), "flat", False)
+    assert recipe == "the new-robot recipe for two legs"
+    assert fresh.symmetry is False
+    assert _changed_task(task) == {"contact_match": 4.0, "tracking_sigma": 0.05}
 
 
 def test_options_given_apply_over_the_biped_task_settings():
@@ -97,15 +122,24 @@ def test_coadapt_train_starts_a_biped_on_the_two_legged_recipe(tmp_path, capsys)
     args += ["--steps-per-env", "2", "--quiet", "--logger", "none"]
     assert main([*args, "--out", str(tmp_path / "a")]) == 0
     err = capsys.readouterr().err
-    assert "the new-robot recipe for two legs (contact_match weight 4, tracking sigma 0.05;" in err
+    assert (
+        "the new-robot recipe for two legs (contact_match weight 4, tracking sigma 0.05, "
+        "symmetry on;" in err
+    )
     saved = torch.load(tmp_path / "a" / "model_final.pt", map_location="cpu", weights_only=True)
     rewards = saved["task_config"]["rewards"]
     assert (rewards["weights"]["contact_match"], rewards["tracking_sigma"]) == (4.0, 0.05)
+    assert saved["train_config"]["symmetry"] is True
     # an option given wins, and the start line says what is in force
     extra = ["--task-rewards-tracking-sigma", "0.1", "--task-rewards-weights", "contact_match=1"]
+    extra += ["--no-symmetry"]
     assert main([*args, *extra, "--out", str(tmp_path / "b")]) == 0
     err = capsys.readouterr().err
-    assert "the new-robot recipe for two legs (contact_match weight 1, tracking sigma 0.1;" in err
+    assert (
+        "the new-robot recipe for two legs (contact_match weight 1, tracking sigma 0.1, "
+        "symmetry off;" in err
+    )
     saved = torch.load(tmp_path / "b" / "model_final.pt", map_location="cpu", weights_only=True)
     rewards = saved["task_config"]["rewards"]
     assert (rewards["weights"]["contact_match"], rewards["tracking_sigma"]) == (1.0, 0.1)
+    assert saved["train_config"]["symmetry"] is False
