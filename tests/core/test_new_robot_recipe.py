@@ -5,6 +5,7 @@ ships, TrainConfig's and TaskConfig's defaults; options given apply over either.
 
 from __future__ import annotations
 
+import pytest
 import torch
 
 from coadapt_core.cli import main
@@ -117,29 +118,31 @@ def test_coadapt_train_announces_and_records_the_recipe(tmp_path, capsys):
     assert (saved["num_designs"], saved["epochs"], saved["minibatches"]) == (2, 2, 4)
 
 
-def test_coadapt_train_starts_a_biped_on_the_two_legged_recipe(tmp_path, capsys):
+@pytest.mark.parametrize(
+    "extra, line, weight, sigma, symmetry",
+    [
+        ([], "contact_match weight 4, tracking sigma 0.05, symmetry on;", 4.0, 0.05, True),
+        # an option given wins, and the start line says what is in force
+        (
+            [
+                *("--task-rewards-tracking-sigma", "0.1"),
+                *("--task-rewards-weights", "contact_match=1", "--no-symmetry"),
+            ],
+            "contact_match weight 1, tracking sigma 0.1, symmetry off;",
+            1.0,
+            0.1,
+            False,
+        ),
+    ],
+)
+def test_coadapt_train_starts_a_biped_on_the_two_legged_recipe(
+    tmp_path, capsys, extra, line, weight, sigma, symmetry
+):
     args = ["train", "--robot", "jingwei", "--steps", "8", "--num-designs", "2", "--agents", "2"]
-    args += ["--steps-per-env", "2", "--quiet", "--logger", "none"]
-    assert main([*args, "--out", str(tmp_path / "a")]) == 0
-    err = capsys.readouterr().err
-    assert (
-        "the new-robot recipe for two legs (contact_match weight 4, tracking sigma 0.05, "
-        "symmetry on;" in err
-    )
-    saved = torch.load(tmp_path / "a" / "model_final.pt", map_location="cpu", weights_only=True)
+    args += ["--steps-per-env", "2", "--quiet", "--logger", "none", *extra]
+    assert main([*args, "--out", str(tmp_path)]) == 0
+    assert f"the new-robot recipe for two legs ({line}" in capsys.readouterr().err
+    saved = torch.load(tmp_path / "model_final.pt", map_location="cpu", weights_only=True)
     rewards = saved["task_config"]["rewards"]
-    assert (rewards["weights"]["contact_match"], rewards["tracking_sigma"]) == (4.0, 0.05)
-    assert saved["train_config"]["symmetry"] is True
-    # an option given wins, and the start line says what is in force
-    extra = ["--task-rewards-tracking-sigma", "0.1", "--task-rewards-weights", "contact_match=1"]
-    extra += ["--no-symmetry"]
-    assert main([*args, *extra, "--out", str(tmp_path / "b")]) == 0
-    err = capsys.readouterr().err
-    assert (
-        "the new-robot recipe for two legs (contact_match weight 1, tracking sigma 0.1, "
-        "symmetry off;" in err
-    )
-    saved = torch.load(tmp_path / "b" / "model_final.pt", map_location="cpu", weights_only=True)
-    rewards = saved["task_config"]["rewards"]
-    assert (rewards["weights"]["contact_match"], rewards["tracking_sigma"]) == (1.0, 0.1)
-    assert saved["train_config"]["symmetry"] is False
+    assert (rewards["weights"]["contact_match"], rewards["tracking_sigma"]) == (weight, sigma)
+    assert saved["train_config"]["symmetry"] is symmetry
