@@ -9,7 +9,7 @@ derived from the spec and its model, nothing written by hand:
   anchors must be mirror images through the base's x-z plane and the axes parallel to the
   mirrored axis (either way); the sign is -(axis' . mirrored axis): +1 for pitch joints
   with the same axis on both sides, -1 for roll and yaw joints. The standing pose must be
-  its own mirror image;
+  its own mirror image within `POSE_TOL`;
 - a design parameter's links (a motor parameter's joints) on some legs pair it with the
   parameter on the mirror legs (itself when those are the same legs).
 
@@ -35,6 +35,10 @@ SIDES = {**_PAIRS, **{v: k for k, v in _PAIRS.items()}}
 ANCHOR_TOL = 1e-4
 #: how far |cos| between an axis and its partner's mirrored axis may fall short of 1
 AXIS_TOL = 1e-4
+#: rad: how far a joint's standing angle may lie from its partner's mirrored angle (a file's
+#: rounded rotations, `rpy` 1.57075 for pi/2, move a solved pose by 1e-4 rad; a link 1 mm
+#: longer on one side, by 1e-2)
+POSE_TOL = 1e-3
 
 
 def mirrored_name(name: str) -> str:
@@ -183,7 +187,7 @@ def derive_mirror(robot) -> Mirror:
     signs = _signs(robot, model, data, base, pairs)
     pose = robot.build(nominal).default_joint_pos
     for k, m in enumerate(pairs):
-        if abs(pose[k] - signs[k] * pose[m]) > 1e-6:
+        if abs(pose[k] - signs[k] * pose[m]) > POSE_TOL:
             raise _fail(
                 robot,
                 f"the standing pose is not its own mirror image ('{joints[k]}' {pose[k]:.4g}, "
