@@ -7,8 +7,11 @@ on MuJoCo and a 3 s PyBullet rollout holding the standing pose (the stand test's
 command is the command a user runs (`coadapt_core.cli.main`, in this process: a fresh
 process per command would double the test's time); each step's time is printed (pytest -s).
 
-A biped (the humanoid) goes through the same steps; `robot validate` reports its stand test
-rather than requiring it (its policy balances it, not joint PD), and this test requires it:
+The bipeds (the humanoid, and a biped written for the tests: meshes under a meshdir, an
+include, stacked hip hinges, knees without a range, a visual mesh on each thigh and a collision
+mesh along each shin, no keyframe) go through the same steps; `robot validate` reports
+their stand test rather than requiring it (a policy balances a biped, not joint PD), and this
+test requires it:
 joint PD holds its nominal design and its four corners standing in MuJoCo (the long-thigh
 corner since its standing pose keeps the ankles inside their ranges and the soles level,
 `plugins/robots/specs/level.py`), and the same five designs 3 s in PyBullet (since PyBullet
@@ -62,7 +65,12 @@ CORPUS = [
     ("humanoid", DATA / "mjcf" / "humanoid.xml"),  # stacked hinges; a biped
     ("menagerie-quad", HERE / "menagerie" / "quad.xml"),  # meshdir, nested includes, keyframe
     ("ros-quad", HERE / "ros" / "quad_description" / "urdf" / "quad.urdf"),  # package://, ...
+    # meshdir, include, stacked hip hinges, knees without a range, visual and collision meshes
+    # in the links a design scales, no keyframe
+    ("written-biped", HERE / "biped" / "biped.xml"),
 ]
+#: the two-legged ones: PyBullet holds them at the nominal design and every corner
+BIPEDS = {"humanoid", "written-biped"}
 
 #: models whose PyBullet rollout diverges and is reset (every few policy steps), and why;
 #: the rollout's height and tilt are then those of a robot put back standing
@@ -160,17 +168,17 @@ def test_a_model_file_goes_to_co_design_with_no_edit(name, source, robots, tmp_p
         times[label] = time.perf_counter() - start
         return done
 
+    biped = name in BIPEDS
     before = source.read_bytes()
     code, out, err = step("new", ["robot", "new", name, "--from", str(source)])
     assert code == 0, out + err
-    if name == "humanoid":  # its feet placed under its hips, its soles level: every corner
+    if biped:  # its feet placed under its hips, its soles level: every corner
         assert "the nominal design and every corner stand 3 s under joint PD" in out, out
     if name == "spirit40newer":  # read as PyBullet reads it, the file unchanged
         assert "urdf_fixes: first_axis (RL_lower_joint)" in out, out
     assert source.read_bytes() == before  # the user's file is theirs
     assert f"wrote {robots / name}" in out
     spec = yaml.safe_load((robots / name / "robot.yaml").read_text())
-    biped = name == "humanoid"
     assert len(spec["legs"]) == (2 if biped else 4) and not any(
         re.fullmatch(r"leg\d", leg["name"]) for leg in spec["legs"]
     )  # named from the bodies (or their places), not leg0..leg3
