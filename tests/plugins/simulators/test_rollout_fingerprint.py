@@ -17,8 +17,10 @@ unchanged).
 
     # this machine's variant, if new
     python tests/plugins/simulators/test_rollout_fingerprint.py --add
-    # start again (a deliberate physics change)
+    # start again (a deliberate physics change): every case, or the named ones only (the
+    # others keep every machine's variant)
     python tests/plugins/simulators/test_rollout_fingerprint.py --write
+    python tests/plugins/simulators/test_rollout_fingerprint.py --write pybullet
 """
 
 from __future__ import annotations
@@ -135,12 +137,16 @@ def test_a_changed_number_matches_no_variant() -> None:
 
 
 if __name__ == "__main__":
-    if sys.argv[1:] not in (["--write"], ["--add"]):
+    mode, named = sys.argv[1:2], sys.argv[2:]
+    if mode not in (["--write"], ["--add"]) or not set(named) <= set(CASES):
         sys.exit(
             "usage: python tests/plugins/simulators/test_rollout_fingerprint.py --add | --write"
+            f" [CASE ...] (cases: {', '.join(CASES)})"
         )
-    record = {} if sys.argv[1] == "--write" else json.loads(RECORD.read_text())
-    for case in CASES:
+    record = {} if mode == ["--write"] and not named else json.loads(RECORD.read_text())
+    for case in named or CASES:
+        if mode == ["--write"]:  # that case starts again; the others keep their variants
+            record[case] = []
         now = rollout(case)
         known = record.setdefault(case, [])
         if all(matches(now, recorded) is not None for recorded in known):
