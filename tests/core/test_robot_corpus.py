@@ -73,24 +73,20 @@ CORPUS = [
 BIPEDS = {"humanoid", "written-biped"}
 
 #: models whose PyBullet rollout diverges and is reset (every few policy steps), and why;
-#: the rollout's height and tilt are then those of a robot put back standing
-DIVERGES_ON_PYBULLET = {
-    # its armature (1 kg m^2 on every joint, 33-124 times the inertia each turns) is folded
-    # into its light leg links ("foot_link"), and the correction of the folded inertia's
-    # coupling diverges: 12-50 resets in 3 s over its 5 designs (11-50 before MuJoCo's
-    # implicit damping was carried); armature="link_inertia" none (docs/your-robot.md)
-    "ant": "foot_link's folded-armature correction diverges",
-}
+#: the rollout's height and tilt are then those of a robot put back standing. None now: the
+#: ant was here (12-50 resets in 3 s over its 5 designs) until the armature correction
+#: predicted the base's accelerations as Bullet takes them, its folded inertia in them
+#: (issue 58, docs/your-robot.md)
+DIVERGES_ON_PYBULLET: dict[str, str] = {}
 
 #: models that hold PyBullet's first second and fall within the stand test's 3 s there, and
-#: why; the test holds them to 1 s and requires the 3 s fall, so a fix shows here
-FALLS_ON_PYBULLET = {
-    # its pinned four-bars stand 3 s in MuJoCo (82 %, 13.3 deg); on PyBullet its motors sit up
-    # to 0.4 rad off their targets at 18-36 rad/s and it tips over: nominal design 91 %, 13.9
-    # deg over 1 s, on its back by 2.4 s (101 %, 14.5 deg and still tipping, 82.7 deg at 3 s,
-    # before MuJoCo's implicit joint damping was carried; docs/your-robot.md)
-    "minitaur-derpy": "tips over on PyBullet after the first second",
-}
+#: why; the test holds them to 1 s and requires the 3 s fall, so a fix shows here. None now:
+#: minitaur_derpy was here (on its back by 2.4 s) until the same fix
+FALLS_ON_PYBULLET: dict[str, str] = {}
+
+#: the quadrupeds whose PyBullet rollout runs at the corners too (as the humanoid's does):
+#: the two that issue 58's armature fix stood up there, every design of theirs
+PYBULLET_CORNERS = {"ant", "minitaur-derpy"}
 
 #: the smoke run made small, as tests/core/test_your_robot.py makes it
 TINY = [
@@ -209,14 +205,15 @@ def test_a_model_file_goes_to_co_design_with_no_edit(name, source, robots, tmp_p
     # PyBullet holds it standing 3 s with joint targets at the standing pose, as MuJoCo's
     # stand test does (those of FALLS_ON_PYBULLET 1 s); the humanoid at its nominal design
     # and every corner (it fell at 4 of them before MuJoCo's implicit joint damping was
-    # carried, docs/sim-to-sim.md)
+    # carried, docs/sim-to-sim.md), the ant and minitaur_derpy too (`PYBULLET_CORNERS`)
     from coadapt_plugins.robots.specs.robot import spec_robot_class
     from coadapt_plugins.robots.specs.validation import corners
 
     start = time.perf_counter()
     robot = spec_robot_class(robots / name)()
     held = 1.0 if name in FALLS_ON_PYBULLET else 3.0
-    for design in [robot.nominal_design(), *(corners(robot) if biped else [])]:
+    every = biped or name in PYBULLET_CORNERS
+    for design in [robot.nominal_design(), *(corners(robot) if every else [])]:
         lowest, tilt, resets = pybullet_rollout(robots / name, design, held)
         assert lowest >= 0.75 and tilt <= 0.35, (design, lowest, tilt)
         assert (resets > 0) == (name in DIVERGES_ON_PYBULLET), (design, resets)

@@ -37,6 +37,9 @@ class ArmatureMixin:
         self.prev_u: list[np.ndarray] = [np.zeros(0) for _ in range(self.k)]  # [D] each
         self.prev_applied = np.zeros((self.k, j))  # [k, J]
         self.fresh = np.ones(self.k, dtype=bool)  # [k] no physics step since reset
+        # per env the generalized accelerations [D] the last correction predicted (tests
+        # compare them with the step Bullet took)
+        self.predicted: list[np.ndarray] = [np.zeros(0) for _ in range(self.k)]
 
     def _urdf_armature(self, spec: EnvSpec) -> dict[str, float] | None:
         """Joint name -> armature to write into the URDF's link inertia (None: none)."""
@@ -111,11 +114,21 @@ class ArmatureMixin:
         the joint axis, plus c about the perpendicular axes where the foot's principal
         moments needed it), so Bullet's matrix is M_b = M + dM, dM = (a - c) v v' + c W'W,
         W the foot's angular Jacobian and v = W's the projection of every velocity on the
-        foot joint's axis s; the correction becomes tau' = tau - S(S'AS - dM) du with
-        du = (M_b - dM + S'AS)^-1 (S'tau + h) (the base's rows of dM cannot be applied: the
-        folded inertia stays in the base's own motion). The contact solver then sees the
-        foot as heavy as MuJoCo's does (without it, a light foot under stiff PD chattered on
-        a bouncy ground, docs/sim-to-sim.md).
+        foot joint's axis s; the correction becomes tau' = tau - S(S'AS - dM) du. The base's
+        rows of dM cannot be applied (no motor drives the base): the folded inertia stays in
+        the base's own motion. The contact solver then sees the foot as heavy as MuJoCo's
+        does (without it, a light foot under stiff PD chattered on a bouncy ground,
+        docs/sim-to-sim.md).
+
+        du is predicted as Bullet will take it: K du = S'tau + h, K's joint rows those of
+        M_b - dM + S'AS (what the correction makes of them, MuJoCo's) and its base's rows
+        Bullet's own, M_b's, the folded inertia in them. Predicted with M_b - dM + S'AS in
+        every row (as before issue 58), the base was taken as lighter than Bullet moves it,
+        and the folded joints' coupling to it, -dM on the base's columns, fed that error
+        into the motor torque: where the folded armature outweighs the links it sits in
+        (the ant's 1 kg m^2 on legs turning 0.008-0.022, minitaur_derpy's motors at 9-13 x)
+        the correction diverged or tipped the robot over. Without a folded joint (or on a
+        fixed base) both are the same.
         """
         out = np.zeros_like(tau)
         if not np.any(self.armature_diag):
@@ -141,8 +154,12 @@ class ArmatureMixin:
                 force[cols] -= self.prev_applied[e]
             correction = -self._folded_mass(e, positions, len(u))  # [D, D] S'AS - dM
             correction[cols, cols] += self.armature_diag[e]
-            predicted = np.linalg.solve(mass + correction, force)  # [D] du
+            system = mass + correction  # [D, D] the joints' rows: MuJoCo's M + S'AS
+            if not self.fixed_base:  # the base's: Bullet's own, the folded inertia in them
+                system[:6] = mass[:6]
+            predicted = np.linalg.solve(system, force)  # [D] du, the step Bullet takes
             out[e] = (correction @ predicted)[cols]
+            self.predicted[e] = predicted
             self.prev_u[e] = u
             self.fresh[e] = False
         return out

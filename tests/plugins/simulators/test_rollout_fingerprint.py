@@ -13,7 +13,9 @@ anew in issue 49, a deliberate physics change (the armature correction over the 
 base's velocities too: joint angles up to 0.009 rad apart after the six steps, parameters
 and draws unchanged), and again in issue 58 (MuJoCo's implicit joint damping carried as h d
 of armature: joint angles up to 0.003 rad and the base 0.15 mm apart, parameters and draws
-unchanged).
+unchanged), and once more in issue 58 (the armature correction predicts the base's rows as
+Bullet's, the folded inertia in them: joint angles up to 0.0006 rad and the base 0.05 mm
+apart, parameters and draws unchanged; `--write pybullet`, the MuJoCo cases kept).
 
     # this machine's variant, if new
     python tests/plugins/simulators/test_rollout_fingerprint.py --add
