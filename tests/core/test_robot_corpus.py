@@ -19,11 +19,12 @@ carries MuJoCo's implicit joint damping, `armature.carried_armature`).
 
 The minitaurs' four-bar legs (each leg two open chains hinged on one axis whose ends meet;
 PyBullet's minitaur environment pins them in code) go through with spec `loops` (and `pins`
-where one lower leg reaches on past the other's end) that `robot new` writes. Every other
-legged file of pybullet_data is refused by `robot new` in one line, exit 2, nothing created
-(`REFUSED`, with why): a minitaur that hangs its motors on slide joints, files with their
-knees or motors fixed, one that stands on one leg at its zero pose (the microtaur), and
-files MuJoCo refuses as they are (global coordinates, malformed XML).
+where one lower leg reaches on past the other's end) that `robot new` writes; the minitaur
+that hangs its motors on slide joints (rainbow_dash_v1) with those slides locked at 0
+(`locked_joints`). Every other legged file of pybullet_data is refused by `robot new` in
+one line, exit 2, nothing created (`REFUSED`, with why): files with their knees or motors
+fixed, one that stands on one leg at its zero pose (the microtaur), and files MuJoCo
+refuses as they are (global coordinates, malformed XML).
 """
 
 from __future__ import annotations
@@ -61,6 +62,8 @@ CORPUS = [
     ("quadruped", DATA / "quadruped" / "quadruped.urdf"),  # four-bar legs: loops
     ("minitaur-derpy", DATA / "quadruped" / "minitaur_derpy.urdf"),  # loops and pins
     ("minitaur-rainbow-dash", DATA / "quadruped" / "minitaur_rainbow_dash.urdf"),  # the same
+    # the same with its motors hung on slide joints (sprung brackets): robot new locks them
+    ("minitaur-rainbow-dash-v1", DATA / "quadruped" / "minitaur_rainbow_dash_v1.urdf"),
     ("ant", DATA / "mjcf" / "ant.xml"),
     ("humanoid", DATA / "mjcf" / "humanoid.xml"),  # stacked hinges; a biped
     ("menagerie-quad", HERE / "menagerie" / "quad.xml"),  # meshdir, nested includes, keyframe
@@ -229,14 +232,13 @@ def test_a_model_file_goes_to_co_design_with_no_edit(name, source, robots, tmp_p
         )
 
 
-#: pybullet_data's other legged files and why `robot new` refuses each: a four-bar minitaur
-#: whose motors hang on slide joints, legs with one hinge or none left (knees or motors
-#: fixed), and files MuJoCo or an XML reader refuses as they are
+#: pybullet_data's other legged files and why `robot new` refuses each: legs with one hinge
+#: or none left (knees or motors fixed), one leg down at the zero pose, and files MuJoCo or
+#: an XML reader refuses as they are
 REFUSED = [
     ("quadruped/minitaur_fixed_all.urdf", "found no legs"),
     ("quadruped/minitaur_fixed_knees.urdf", "found no legs"),
     ("quadruped/minitaur_single_motor.urdf", "found no legs"),
-    ("quadruped/minitaur_rainbow_dash_v1.urdf", "is not a hinge"),  # motor brackets on slides
     ("quadruped/microtaur/microtaur.urdf", "found one leg standing"),  # rpy_three read
     ("biped/biped2d_pybullet.urdf", "is not readable XML"),
     ("humanoid/humanoid.urdf", "is not readable XML"),

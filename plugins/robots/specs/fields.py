@@ -106,6 +106,25 @@ def _flag(value: Any, path: str) -> bool:
     return value
 
 
+def _locked(raw: Any) -> tuple[list[str], dict[str, float]]:
+    """(the joint names, {name: value} of those welded at a value): `locked_joints` is a list
+    of joint names (each welded where the model draws it) or one-entry mappings
+    `{NAME: VALUE}` (welded at that value: m for a slide, rad for a hinge)."""
+    names, at = [], {}
+    for k, entry in enumerate(_list(raw, "locked_joints")):
+        where = f"locked_joints[{k}]"
+        if isinstance(entry, dict):
+            if len(entry) != 1:
+                raise _fail(where, f"needs one NAME: VALUE, got {len(entry)} entries")
+            ((name, value),) = entry.items()
+            name = _text(name, where)
+            at[name] = _number(value, f"{where}.{name}")
+        else:
+            name = _text(entry, where)
+        names.append(name)
+    return names, at
+
+
 def _collision(value: Any) -> str:
     if value not in COLLISION_RULES:
         raise _fail("collision", f"{value!r} is not one of: {', '.join(COLLISION_RULES)}")

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+from coadapt_plugins.robots.specs.locks import lock_joints
 from coadapt_plugins.robots.specs.loops import add_pins, check_loops
 from coadapt_plugins.robots.specs.meshes import _MESH, ALONG, _own_meshes, _quat_mat
 from coadapt_plugins.robots.specs.orient import add_tips, inertia_from_shape, reorient
@@ -200,11 +201,7 @@ def prepare(rs: RobotSpec) -> Prepared:
     add_tips(spec, rs.tips)
     add_pins(spec, rs.pins)
     bodies = _subtree(root)
-    for joint in rs.locked_joints:
-        found = spec.joint(joint)
-        if found is None:
-            raise spec_error("locked_joints", f"no joint '{joint}' in the model")
-        spec.delete(found)
+    lock_joints(spec, rs.locked_joints, rs.locked_at)
     if not any(j.type == mujoco.mjtJoint.mjJNT_FREE for j in root.joints):
         for j in list(root.joints):
             raise spec_error(

@@ -7,12 +7,13 @@ quadruped trotting, hexapod tripod, else evenly spread), a parameter per leg seg
 (the two longest links nearest each foot: upper and lower leg), torque limits from the
 model's actuators, gains from those limits, the standing pose from a keyframe or else solved
 by the generic leg IK (each foot under its hip at STAND_SHARE of the leg's length, solved
-again at each design: `standing_pose.solve`), joints several legs share locked, the legs
-named by their bodies' names. What the model lacks is assumed in the spec, never in the
-model file: a range for a joint without one, armature and damping where it has none,
-`balanceinertia` where MuJoCo refuses an inertia; each such line carries a comment, and the
-gains are raised until the nominal design and every corner pass the stand test
-(`validation`). What it had to guess is listed for the user to check.
+again at each design: `standing_pose.solve`), joints several legs share locked and the
+slides between the base and the legs (`locks`), the legs named by their bodies' names. What
+the model lacks is assumed in the spec, never in the model file: a range for a joint
+without one, armature and damping where it has none, `balanceinertia` where MuJoCo refuses
+an inertia; each such line carries a comment, and the gains are raised until the nominal
+design and every corner pass the stand test (`validation`). What it had to guess is listed
+for the user to check.
 
 `legs` finds and names the legs, `assumed` writes what the model lacks and the spec's text,
 `stand` solves the standing pose and raises the gains; this module puts them together.
@@ -51,6 +52,7 @@ from coadapt_plugins.robots.specs.legs import (
     _segments,
     _shared_joints,
 )
+from coadapt_plugins.robots.specs.locks import lock_slides
 from coadapt_plugins.robots.specs.loops import PIN_SUFFIX, add_pins
 from coadapt_plugins.robots.specs.model import load_mjspec
 from coadapt_plugins.robots.specs.orient import add_tips, find_tips, reorient, up_rotation
@@ -168,10 +170,14 @@ def _model_legs(
         _inside_ranges(model, data, [])
         mujoco.mj_kinematics(model, data)
         legs = _legs(model, data, base, band, skip)
-        comments["locked_joints"] = (
+        why = (
             "assumed: joints on the chains of several legs (the gait's leg IK needs each leg's "
             "own chain)"
         )
+        if why not in comments.get("locked_joints", ""):  # after the slides' (`locks`)
+            comments["locked_joints"] = "; ".join(
+                filter(None, [comments.get("locked_joints"), why])
+            )
         notes.append(
             f"joints on the chains of several legs, locked: {', '.join(shared)} (locked_joints)"
         )
@@ -293,6 +299,7 @@ def starting_spec(
     notes: list[str] = []
     comments: dict[str, str] = {}
     spec, flags, shaped = _load(model_file, tuple(package_paths), notes)
+    slides = lock_slides(spec, notes, comments)
     bars = _has_four_bars(spec)
     turn = None if bars else _upright(spec, notes, comments)
     model, data, base, key, legs, shared, pairs, tips, pins = _feet(spec, bars, notes, comments)
@@ -348,8 +355,8 @@ def starting_spec(
             for j in joints
         },
     }
-    if shared and not model.nkey:
-        data_out["locked_joints"] = shared
+    if slides or (shared and not model.nkey):
+        data_out["locked_joints"] = slides + (shared if not model.nkey else [])
     write_loops(data_out, loops, pins, comments)
     if collision:
         data_out["collision"] = collision

@@ -22,6 +22,7 @@ from coadapt_plugins.robots.specs.fields import (
     _flag,
     _joint_fixes,
     _list,
+    _locked,
     _loops,
     _mapping,
     _number,
@@ -102,6 +103,7 @@ class RobotSpec:
     motor_parameters: tuple[MotorParameter, ...] = ()
     base: str | None = None
     locked_joints: tuple[str, ...] = ()
+    locked_at: dict[str, float] = field(default_factory=dict)  # joint -> value it is welded at
     gain_scale_exponent: float = 0.0  # gains x (leg length / nominal) ** k
     description: str = ""
     collision: str = "stretch"  # collision meshes in scaled links: "stretch" or "fit"
@@ -319,6 +321,7 @@ def parse_spec(data: Any, folder: Path, *, fallback_name: str = "") -> RobotSpec
     names += [p.name for p in motor_params]
     if len(set(names)) != len(names):
         raise _fail("design", f"parameter names repeat: {names}")
+    locked, locked_at = _locked(data.get("locked_joints", []))
     return RobotSpec(
         name=name,
         folder=folder,
@@ -334,9 +337,8 @@ def parse_spec(data: Any, folder: Path, *, fallback_name: str = "") -> RobotSpec
         motor_joints=motor_joints,
         motor_parameters=motor_params,
         base=None if data.get("base") is None else _text(data["base"], "base"),
-        locked_joints=tuple(
-            _text(j, "locked_joints") for j in _list(data.get("locked_joints", []), "locked_joints")
-        ),
+        locked_joints=tuple(locked),
+        locked_at=locked_at,
         gain_scale_exponent=_number(data.get("gain_scale_exponent", 0.0), "gain_scale_exponent"),
         description=str(data.get("description", "")),
         collision=_collision(data.get("collision", "stretch")),
