@@ -1,8 +1,9 @@
 """Legs as a model file poses them (issue 58): `robot new` locks the slide joints between the
 base and the legs (motors hung on sprung brackets, PyBullet's minitaur_rainbow_dash_v1) at 0
 inside their range, at the nearest limit where 0 lies outside it, or at the keyframe's value,
-writes them under `locked_joints` with a comment and says so. Small MJCF models written
-here; a slide a motor drives stays one line, exit 2."""
+writes them under `locked_joints` with a comment and says so; it takes alike leg chains posed
+straight out (PyBullet's microtaur at its zero pose) as the legs and solves each foot under its
+hip. Small MJCF models written here; a slide a motor drives stays one line, exit 2."""
 
 from __future__ import annotations
 
@@ -146,3 +147,63 @@ def test_a_slide_a_motor_drives_is_not_locked_and_robot_new_says_so_in_one_line(
     assert done.stderr.startswith("error: ") and done.stderr.strip().count("\n") == 0
     assert "joint 'fl_slide' is not a hinge" in done.stderr
     assert not (tmp_path / "robots" / "bq").exists()
+
+
+def sideways_quad(down: bool = False, rr_shin: float = 0.2) -> str:
+    """A quadruped whose legs (abduction about x at the trunk's side, then pitch and knee
+    hinges about the trunk's z at 0) lie straight out sideways at the zero pose, as
+    PyBullet's microtaur's; `down`: the rear right abduction's range [1.4, 1.7] rad leaves
+    out 0, so that leg alone hangs (near) down at the pose; `rr_shin` its shin's length."""
+    legs = []
+    for name, x, y in CORNERS:
+        s = 1.0 if y > 0 else -1.0
+        length = rr_shin if name == "rr" else 0.2
+        shin = f"0 {s * length} 0"
+        limits = ' range="1.4 1.7"' if down and name == "rr" else ""
+        legs.append(f"""
+      <body name="{name}_hip" pos="{x} {y} 0">
+        <joint name="{name}_abduct" axis="1 0 0"{limits}/>
+        <geom type="box" size="0.03 0.03 0.03" mass="0.3"/>
+        <body name="{name}_thigh" pos="0 {s * 0.05} 0">
+          <joint name="{name}_pitch" axis="0 0 1"/>
+          <geom type="capsule" fromto="0 0 0 0 {s * 0.2} 0" size="0.02" mass="0.5"/>
+          <body name="{name}_shin" pos="0 {s * 0.2} 0">
+            <joint name="{name}_knee" axis="0 0 1"/>
+            <geom type="capsule" fromto="0 0 0 {shin}" size="0.015" mass="0.3"/>
+            <body name="{name}_foot" pos="{shin}">
+              <geom type="sphere" size="0.02" mass="0.05"/>
+            </body>
+          </body>
+        </body>
+      </body>""")
+    return f"""<mujoco model="sideways_quad">
+  <compiler angle="radian"/>
+  <worldbody>
+    <body name="trunk" pos="0 0 0.4">
+      <freejoint/>
+      <geom type="box" size="0.2 0.1 0.04" mass="9"/>{"".join(legs)}
+    </body>
+  </worldbody>
+</mujoco>"""
+
+
+@pytest.mark.parametrize("down", [False, True], ids=["all-out", "one-down"])
+def test_alike_legs_posed_out_sideways_are_the_legs_feet_solved_under_hips(down, tmp_path):
+    data, notes, _ = starting_spec("sq", written(tmp_path, sideways_quad(down)))
+    assert [leg["foot"] for leg in data["legs"]] == [f"{n}_foot" for n, _, _ in CORNERS]
+    assert any(
+        "its 4 alike chains of 3 hinges taken as the legs, each foot solved under its hip" in line
+        for line in notes
+    )
+    pose = data["standing_pose"]["joints"]
+    assert abs(abs(pose["fl_abduct"]) - np.pi / 2) < 0.1  # the leg turned down
+    if not down:  # (the rear right leg, hung near down at its limit, may stay as it hangs)
+        assert any("standing pose solved with 4 of 4 feet" in line for line in notes)
+
+
+def test_one_foot_down_of_legs_not_alike_is_still_refused_in_one_line(tmp_path):
+    """The rear right shin 0.3 m, the others 0.2 m: not one kind of leg, so the one foot
+    near the ground is all robot new sees, as before."""
+    with pytest.raises(UserError, match="found one leg standing") as info:
+        starting_spec("sq", written(tmp_path, sideways_quad(down=True, rr_shin=0.3)))
+    assert "\n" not in str(info.value)

@@ -21,9 +21,10 @@ The minitaurs' four-bar legs (each leg two open chains hinged on one axis whose 
 PyBullet's minitaur environment pins them in code) go through with spec `loops` (and `pins`
 where one lower leg reaches on past the other's end) that `robot new` writes; the minitaur
 that hangs its motors on slide joints (rainbow_dash_v1) with those slides locked at 0
-(`locked_joints`). Every other legged file of pybullet_data is refused by `robot new` in
-one line, exit 2, nothing created (`REFUSED`, with why): files with their knees or motors
-fixed, one that stands on one leg at its zero pose (the microtaur), and files MuJoCo
+(`locked_joints`), and the microtaur, whose legs lie straight out sideways at its zero pose,
+with its four alike chains taken as the legs and each foot solved under its hip. Every
+other legged file of pybullet_data is refused by `robot new` in one line, exit 2, nothing
+created (`REFUSED`, with why): files with their knees or motors fixed, and files MuJoCo
 refuses as they are (global coordinates, malformed XML).
 """
 
@@ -64,6 +65,8 @@ CORPUS = [
     ("minitaur-rainbow-dash", DATA / "quadruped" / "minitaur_rainbow_dash.urdf"),  # the same
     # the same with its motors hung on slide joints (sprung brackets): robot new locks them
     ("minitaur-rainbow-dash-v1", DATA / "quadruped" / "minitaur_rainbow_dash_v1.urdf"),
+    # legs straight out sideways at 0 (no keyframe): 4 alike chains taken as the legs
+    ("microtaur", DATA / "quadruped" / "microtaur" / "microtaur.urdf"),  # rpy_three read
     ("ant", DATA / "mjcf" / "ant.xml"),
     ("humanoid", DATA / "mjcf" / "humanoid.xml"),  # stacked hinges; a biped
     ("menagerie-quad", HERE / "menagerie" / "quad.xml"),  # meshdir, nested includes, keyframe
@@ -233,13 +236,11 @@ def test_a_model_file_goes_to_co_design_with_no_edit(name, source, robots, tmp_p
 
 
 #: pybullet_data's other legged files and why `robot new` refuses each: legs with one hinge
-#: or none left (knees or motors fixed), one leg down at the zero pose, and files MuJoCo or
-#: an XML reader refuses as they are
+#: or none left (knees or motors fixed), and files MuJoCo or an XML reader refuses as they are
 REFUSED = [
     ("quadruped/minitaur_fixed_all.urdf", "found no legs"),
     ("quadruped/minitaur_fixed_knees.urdf", "found no legs"),
     ("quadruped/minitaur_single_motor.urdf", "found no legs"),
-    ("quadruped/microtaur/microtaur.urdf", "found one leg standing"),  # rpy_three read
     ("biped/biped2d_pybullet.urdf", "is not readable XML"),
     ("humanoid/humanoid.urdf", "is not readable XML"),
     ("mjcf/half_cheetah.xml", "required attribute missing: 'pos'"),

@@ -1,6 +1,7 @@
 """The legs `robot new` finds in a model (`new`): the floating base (the body with the free
 joint, else the root body), the leaf bodies below it whose chain has at least two hinges and
-whose foot is near the ground, ordered front to back and left before right and named by their
+whose foot is near the ground (all of them where the model's pose holds alike chains up or
+flat: `ALIKE_COUNT`), ordered front to back and left before right and named by their
 bodies' names; the gait for their count, a design parameter per leg segment kind (the two
 longest links nearest each foot), the joints several legs share and the actuated hinges.
 """
@@ -19,6 +20,12 @@ from coadapt_core.errors import UserError
 FOOT_BAND = 0.25
 #: a link counts as a leg segment when at least this share of its chain's longest link
 SEGMENT_SHARE = 0.25
+#: legs posed up or flat at the model's pose (no foot FOOT_BAND of the chains' mean length
+#: below the base, or fewer than two near the ground) are taken as they are when the chains
+#: are alike: ALIKE_COUNT or more, one hinge count, lengths within ALIKE_SHARE of the longest
+#: (PyBullet's microtaur, its legs straight out sideways at 0; its environment poses them)
+ALIKE_COUNT = 4
+ALIKE_SHARE = 0.1
 
 
 def _base(model: mujoco.MjModel) -> int:
@@ -104,8 +111,14 @@ def _legs(model, data, base: int, band: bool = True, skip: frozenset = frozenset
         legs.sort(key=lambda g: (-round(float(g["pos"][0]), 2), -float(g["pos"][1])))
         return legs
     lowest = min(float(g["pos"][2]) for g in legs)
-    reach = max(float(data.xpos[base][2]) - lowest, 1e-9)
+    reach = float(data.xpos[base][2]) - lowest
+    lengths = [_length(model, g["chain"]) for g in legs]
+    if reach < FOOT_BAND * float(np.mean(lengths)) and _alike(model, legs, lengths):
+        return _posed_up(legs)
+    reach = max(reach, 1e-9)
     kept = [g for g in legs if float(g["pos"][2]) <= lowest + FOOT_BAND * reach]
+    if len(kept) < 2 <= len(legs) and _alike(model, legs, lengths):
+        return _posed_up(legs)
     if len(kept) < 2 <= len(legs):
         raised = [model.body(g["foot"]).name for g in legs if g not in kept]
         raise UserError(
@@ -117,6 +130,33 @@ def _legs(model, data, base: int, band: bool = True, skip: frozenset = frozenset
         )
     legs = kept
     # front to back (x rounded to a centimetre), then left (y > 0) before right
+    legs.sort(key=lambda g: (-round(float(g["pos"][0]), 2), -float(g["pos"][1])))
+    return legs
+
+
+def _length(model: mujoco.MjModel, chain: list[int]) -> float:
+    """A chain's length: its bodies' offsets from their parents summed."""
+    return float(sum(np.linalg.norm(model.body_pos[b]) for b in chain))
+
+
+def _alike(model: mujoco.MjModel, legs: list[dict], lengths: list[float]) -> bool:
+    """Whether the chains are alike enough to be taken as the legs as they are posed (at
+    least ALIKE_COUNT, one hinge count, lengths within ALIKE_SHARE of the longest)."""
+    hinges = {_hinges(model, g["chain"]) for g in legs}
+    longest = max(lengths)
+    return (
+        len(legs) >= ALIKE_COUNT
+        and len(hinges) == 1
+        and longest - min(lengths) <= ALIKE_SHARE * longest
+    )
+
+
+def _posed_up(legs: list[dict]) -> list[dict]:
+    """The legs posed up or flat (`ALIKE_COUNT`), each marked `raised` (the standing solve
+    then puts a foot the pose holds out sideways beyond reach under its hip,
+    `stand.OUT_SHARE`), in leg order."""
+    for g in legs:
+        g["raised"] = True
     legs.sort(key=lambda g: (-round(float(g["pos"][0]), 2), -float(g["pos"][1])))
     return legs
 

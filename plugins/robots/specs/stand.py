@@ -26,6 +26,10 @@ GAIN_FACTORS = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0)
 #: the IK starts with each leg's last hinge bent either way by BEND rad too
 STAND_SHARE = 0.75
 BEND = 0.6
+#: a foot the model's pose holds out sideways by more than this share of its leg's length
+#: (legs posed up or flat, `legs.ALIKE_COUNT`) cannot keep that offset 0.75 of the length
+#: down: it is solved under its hip instead
+OUT_SHARE = float(np.sqrt(1.0 - STAND_SHARE**2))
 
 
 def _inside_ranges(model: mujoco.MjModel, data: mujoco.MjData, notes: list[str]) -> dict:
@@ -195,7 +199,10 @@ def _solve_standing(
     rel, upright, _ = first.standing(designs)
     targets = torch.zeros_like(rel)
     for k, g in enumerate(legs):
-        targets[0, k, 1] = rel[0, k, 1]
+        side = float(rel[0, k, 1])
+        if g.get("raised") and abs(side) > OUT_SHARE * _leg_length(model, g, params):
+            side, g["under"] = 0.0, True  # posed out sideways, beyond reach: under its hip
+        targets[0, k, 1] = side
         targets[0, k, 2] = -STAND_SHARE * _leg_length(model, g, params)
     best: list[tuple[float, np.ndarray] | None] = [None] * len(legs)
     pose = guess.copy()
@@ -268,6 +275,13 @@ def _pose_entry(
                 comments["legs"] = (
                     "hip: the first body of each leg that turns (the body below the base does not)"
                 )
+        if any(g.get("under") for k, g in enumerate(legs) if k not in missed):
+            notes.append(
+                f"the model's pose holds its legs up or flat, the feet out sideways beyond "
+                f"reach (no two feet below its base): its {len(legs)} alike chains of "
+                f"{_hinge_count(model, legs[0])} hinges taken as the legs, each foot solved "
+                "under its hip"
+            )
         pose = {
             "joints": {
                 j: round(float(v), 6) for j, v in zip(joints, solved, strict=True) if abs(v) > 1e-12
@@ -288,6 +302,12 @@ def _pose_entry(
             + ("" if not missed else "; the others at 0 or their nearest limit")
         )
     return pose, hips
+
+
+def _hinge_count(model: mujoco.MjModel, leg: dict) -> int:
+    from coadapt_plugins.robots.specs.legs import _hinges
+
+    return _hinges(model, leg["chain"])
 
 
 def _hinged_hips(model: mujoco.MjModel, legs: list[dict]) -> list[str] | None:
