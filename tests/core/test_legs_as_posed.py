@@ -207,3 +207,34 @@ def test_one_foot_down_of_legs_not_alike_is_still_refused_in_one_line(tmp_path):
     with pytest.raises(UserError, match="found one leg standing") as info:
         starting_spec("sq", written(tmp_path, sideways_quad(down=True, rr_shin=0.3)))
     assert "\n" not in str(info.value)
+
+
+def test_a_joint_welded_at_a_value_puts_its_body_where_that_value_does():
+    """`locks.lock_joints` on a hinge off its body's origin, about a slanted axis, with a
+    reference angle, and on a slide: every body lies where the free model puts it with the
+    joints at those values."""
+    from coadapt_plugins.robots.specs.locks import lock_joints
+
+    xml = """<mujoco><compiler angle="radian"/><worldbody><body name="a" pos="0 0 1">
+      <freejoint/><geom size="0.1"/>
+      <body name="b" pos="0.1 0.2 0" euler="0.3 0.1 0.2">
+        <joint name="h" pos="0.05 0 0.02" axis="0 1 1" ref="0.2"/><geom size="0.05"/>
+        <body name="c" pos="0 0 -0.3" euler="0 0.4 0">
+          <joint name="s" type="slide" axis="1 0 1"/><geom size="0.05"/>
+          <body name="d" pos="0.1 0 -0.2"><geom size="0.02"/></body>
+        </body>
+      </body></body></worldbody></mujoco>"""
+    free = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(free)
+    data.qpos[:7] = free.qpos0[:7]
+    data.qpos[7:] = [0.9, 0.03]  # the hinge at 0.9 rad (0.7 from its reference), the slide
+    mujoco.mj_kinematics(free, data)
+    spec = mujoco.MjSpec.from_string(xml)
+    lock_joints(spec, ["h", "s"], {"h": 0.9, "s": 0.03})
+    welded = spec.compile()
+    assert welded.njnt == 1
+    weld = mujoco.MjData(welded)
+    mujoco.mj_kinematics(welded, weld)
+    for body in ("b", "c", "d"):
+        np.testing.assert_allclose(weld.body(body).xpos, data.body(body).xpos, atol=1e-12)
+        np.testing.assert_allclose(weld.body(body).xmat, data.body(body).xmat, atol=1e-12)

@@ -29,17 +29,17 @@ def _drop(values, drop: set[int], size: int) -> list | None:
     return [v for k, v in enumerate(values) if k not in drop]
 
 
-def _weld_at(joint: mujoco.MjsJoint, value: float) -> None:
-    """Move `joint`'s body as the joint at `value` would (module docstring)."""
+def _weld_at(joint: mujoco.MjsJoint, value: float, compiled: np.ndarray) -> None:
+    """Move `joint`'s body as the joint at `value` would (module docstring); `compiled`
+    the body's orientation as MuJoCo compiled it (where the model gives it as Euler angles,
+    an axis-angle or axes, it becomes that quaternion)."""
     body = joint.parent
-    if body.alt.type != mujoco.mjtOrientation.mjORIENTATION_QUAT:
-        raise spec_error(
-            "locked_joints",
-            f"the body '{body.name}' gives its orientation other than as a quaternion; lock "
-            f"'{joint.name}' at its zero",
-        )
-    shift = value - float(joint.ref)
     quat = np.array(body.quat, dtype=float)
+    if body.alt.type != mujoco.mjtOrientation.mjORIENTATION_QUAT:
+        quat = np.array(compiled, dtype=float)
+        body.alt.type = mujoco.mjtOrientation.mjORIENTATION_QUAT
+    body.quat = quat
+    shift = value - float(joint.ref)
     quat /= np.linalg.norm(quat)
     rot = np.zeros(9)
     mujoco.mju_quat2Mat(rot, quat)
@@ -91,7 +91,7 @@ def lock_joints(spec: mujoco.MjSpec, names, at: dict | None = None) -> None:
     for name in names:
         joint = spec.joint(name)
         if name in at:
-            _weld_at(joint, float(at[name]))
+            _weld_at(joint, float(at[name]), model.body_quat[model.joint(name).bodyid[0]])
         spec.delete(joint)
     for key, attr, values in kept:  # after the deletions: MuJoCo checks each key's sizes
         if values is not None:
