@@ -21,7 +21,7 @@ from coadapt_plugins.simulators.pybullet.divergence import diverged
 from coadapt_plugins.simulators.pybullet.loops import add_loops
 from coadapt_plugins.simulators.pybullet.spec import EnvSpec
 from coadapt_plugins.simulators.pybullet.urdf import prepare_urdf
-from coadapt_plugins.simulators.pybullet.world import open_world
+from coadapt_plugins.simulators.pybullet.world import open_world, renew_world
 
 from coadapt_core.physics.actuation import DelayLine, bind_speed, pd_torque
 from coadapt_core.physics.simulator import spawn_base_height
@@ -133,8 +133,10 @@ class Engine(ArmatureMixin):
         """(Re)load environment e's robot from its URDF (a new design or a new CoM shift)."""
         client = self.clients[e]
         shift = np.zeros(3) if com_shift is None else np.asarray(com_shift, dtype=float)
-        if self.bodies[e] >= 0:
-            p.removeBody(self.bodies[e], physicsClientId=client)
+        if self.bodies[e] >= 0:  # its world renewed, not the body removed (`renew_world`)
+            self.grounds[e] = renew_world(
+                client, self.terrain, self.physics_dt, self.solver_iterations
+            )
         path = self._urdf_path(e, spec, shift)
         body = p.loadURDF(
             path,

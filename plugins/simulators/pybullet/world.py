@@ -22,6 +22,20 @@ def open_world(
     client = p.connect(p.DIRECT)
     if client < 0:
         raise RuntimeError("pybullet could not open a DIRECT physics client")
+    return client, renew_world(client, terrain, physics_dt, solver_iterations)
+
+
+def renew_world(
+    client: int, terrain: Terrain, physics_dt: float, solver_iterations: int
+) -> list[int]:
+    """Empty `client`'s world (`resetSimulation`), set it up again and return the terrain's
+    new bodies. A robot is reloaded into a renewed world, never beside a removed body:
+    Bullet keeps the tree `calculateMassMatrix` and `calculateJacobian` compute on, one per
+    body, keyed by the body's address, until its world goes (`removeBody` leaves it), so a
+    body loaded where a removed one lay was given the removed one's masses and inertias.
+    That happened by chance, in some processes and not others: the armature correction
+    then used the previous design's or CoM shift's mass matrix for a whole episode."""
+    p.resetSimulation(physicsClientId=client)
     p.setGravity(0.0, 0.0, -GRAVITY, physicsClientId=client)
     p.setTimeStep(physics_dt, physicsClientId=client)
     p.setPhysicsEngineParameter(
@@ -30,7 +44,7 @@ def open_world(
         deterministicOverlappingPairs=1,
         physicsClientId=client,
     )
-    return client, create_ground(client, terrain)
+    return create_ground(client, terrain)
 
 
 def create_ground(client: int, terrain: Terrain) -> list[int]:

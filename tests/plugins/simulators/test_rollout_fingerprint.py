@@ -8,8 +8,7 @@ same to the bit on every CPU. The random-terrain case has two, each repeated to 
 its machine: an AMD EPYC (AVX-512) and an Intel Xeon (AVX-512 with AMX) differ by up to
 4e-4 m in base position after six steps (their parameters, draws and the step after
 `reseed` agree to the bit; the slope and PyBullet cases are one variant on both). A rollout
-passes when it matches one variant of its case to 1e-6 (PyBullet's case in a fresh
-interpreter, three tries at most: see the test). The PyBullet case was recorded
+passes when it matches one variant of its case to 1e-6. The PyBullet case was recorded
 anew in issue 49, a deliberate physics change (the armature correction over the floating
 base's velocities too: joint angles up to 0.009 rad apart after the six steps, parameters
 and draws unchanged), and again in issue 58 (MuJoCo's implicit joint damping carried as h d
@@ -29,7 +28,6 @@ apart, parameters and draws unchanged; `--write pybullet`, the MuJoCo cases kept
 from __future__ import annotations
 
 import json
-import subprocess
 import sys
 from pathlib import Path
 
@@ -132,43 +130,15 @@ def deviations(now: dict[str, list], recorded: dict[str, list]) -> str:
     return ", ".join(far[:8]) + (f" and {len(far) - 8} more" if len(far) > 8 else "")
 
 
-def rollout_in_a_fresh_interpreter(case: str) -> dict[str, list]:
-    """`rollout(case)` in a new Python process (no state left by the tests before it)."""
-    code = (
-        "import importlib.util, json, sys; "
-        f"spec = importlib.util.spec_from_file_location('t', {str(Path(__file__))!r}); "
-        "m = importlib.util.module_from_spec(spec); spec.loader.exec_module(m); "
-        f"print(json.dumps(m.rollout({case!r})))"
-    )
-    done = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, timeout=600, check=True
-    )
-    return json.loads(done.stdout.strip().splitlines()[-1])
-
-
 @pytest.mark.parametrize("case", list(CASES))
 def test_rollout_repeats_the_recorded_numbers(case: str) -> None:
-    """MuJoCo's cases run here; PyBullet's in a fresh interpreter (nothing left by the tests
-    before it), three at most. Known, cause not found (CHANGELOG): about one fresh
-    interpreter in eight or so takes the other of two ways after the reset that follows
-    `reseed` (2e-9 rad/s in a joint velocity here), the same thing that has the in-process
-    run leave its worker processes in `test_pybullet`; CI once saw base_quat off by more
-    than 1e-6 in a worker that had run other tests first. A physics change misses in
-    every try, and the message says by how much each key missed."""
-    tries = 1
     if CASES[case][0] == "pybullet":
         pytest.importorskip("pybullet")
-        tries = 3
-    misses = []
-    for _ in range(tries):
-        now = rollout_in_a_fresh_interpreter(case) if tries > 1 else rollout(case)
-        far = [deviations(now, recorded) for recorded in variants(case)]
-        if "" in far:
-            return
-        misses.append(far)
-    raise AssertionError(
-        f"{case}: matches none of its {len(variants(case))} recorded variants in {tries} "
-        f"tries; per try and variant, the keys off by more than 1e-6: {misses}"
+    now = rollout(case)
+    far = [deviations(now, recorded) for recorded in variants(case)]
+    assert "" in far, (
+        f"{case}: matches none of its {len(far)} recorded variants; per variant, the keys "
+        f"off by more than 1e-6: {far}"
     )
 
 
