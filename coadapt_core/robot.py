@@ -36,6 +36,11 @@ def _no_points() -> np.ndarray:
     return np.zeros((0, 3))
 
 
+def carried_files(formats: Mapping[str, str], fmt: str) -> dict[str, str]:
+    """File name -> text of the "FMT:FILE" entries of a model's `formats`."""
+    return {k.split(":", 1)[1]: v for k, v in formats.items() if k.startswith(f"{fmt}:")}
+
+
 @dataclass
 class RobotModel:
     """Everything a simulator and the locomotion task need about one design.
@@ -87,6 +92,11 @@ class RobotModel:
                 field="robot",
             )
         return value
+
+    def files(self, fmt: str) -> dict[str, str]:
+        """File name -> text of the files the `fmt` description names and carries with it
+        (its "FMT:FILE" formats, e.g. a URDF's mesh stretched for this design)."""
+        return carried_files(self.formats, fmt)
 
 
 @dataclass(frozen=True)

@@ -248,7 +248,7 @@ def export_command(**values: Any) -> None:
     model = instance.build(parse_design(instance, design))
     text = model.text("mjcf") if fmt == "mjcf" else model.text("urdf")
     # the files the description names (a URDF's meshes): formats "<fmt>:<file name>"
-    files = {k.split(":", 1)[1]: v for k, v in model.formats.items() if k.startswith(f"{fmt}:")}
+    files = model.files(fmt)
     if output is None:
         if files:
             fail(f"the {fmt} names {len(files)} mesh files: give -o FILE to write them beside it")

@@ -6,8 +6,9 @@ MuJoCo, Pinocchio or a URDF viewer wherever it is moved.
 A reference is looked up as given when absolute, else against the model's own asset
 folders (MJCF `compiler` meshdir / texturedir / assetdir) under the folder of the module
 that defines the robot class (where a plugin keeps its package data); `package://` and
-`file://` URIs are resolved the same way after their scheme. A referenced file that cannot
-be found is a one-line `UserError` naming it.
+`file://` URIs are resolved the same way after their scheme; a file the model carries in
+memory (its "FORMAT:FILE" formats, e.g. a mesh stretched for the design) is written from
+there. A referenced file that cannot be found is a one-line `UserError` naming it.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from coadapt_core.errors import UserError
+from coadapt_core.robot import carried_files
 
 ASSET_DIR = "assets"
 MJCF_NAME = "robot.xml"
@@ -78,19 +80,31 @@ class _Copier:
         self.copied: dict[Path, str] = {}
 
     def place(self, source: Path) -> str:
-        if source in self.copied:
-            return self.copied[source]
-        (self.folder / ASSET_DIR).mkdir(exist_ok=True)
-        taken = set(self.copied.values())
-        name, k = source.name, 1
-        while f"{ASSET_DIR}/{name}" in taken:
-            name, k = f"{source.stem}_{k}{source.suffix}", k + 1
-        shutil.copy2(source, self.folder / ASSET_DIR / name)
-        self.copied[source] = f"{ASSET_DIR}/{name}"
+        if source not in self.copied:
+            self.copied[source] = self._free_name(Path(source.name))
+            shutil.copy2(source, self.folder / self.copied[source])
         return self.copied[source]
 
+    def put(self, name: str, text: str) -> str:
+        """A file the model carries in memory (a mesh stretched for this design)."""
+        key = Path("<model>") / Path(name).name
+        if key not in self.copied:
+            self.copied[key] = self._free_name(Path(Path(name).name))
+            (self.folder / self.copied[key]).write_text(text)
+        return self.copied[key]
 
-def _mjcf_with_assets(text: str, bases: list[Path], copier: _Copier) -> str:
+    def _free_name(self, wanted: Path) -> str:
+        (self.folder / ASSET_DIR).mkdir(exist_ok=True)
+        taken = set(self.copied.values())
+        name, k = wanted.name, 1
+        while f"{ASSET_DIR}/{name}" in taken:
+            name, k = f"{wanted.stem}_{k}{wanted.suffix}", k + 1
+        return f"{ASSET_DIR}/{name}"
+
+
+def _mjcf_with_assets(
+    text: str, bases: list[Path], copier: _Copier, carried: dict[str, str]
+) -> str:
     if "file=" not in text:
         return text
     root = ET.fromstring(text)
@@ -107,8 +121,10 @@ def _mjcf_with_assets(text: str, bases: list[Path], copier: _Copier) -> str:
             continue
         own = dirs.get(_MJCF_COMPILER_DIRS.get(element.tag, "")) or dirs.get("assetdir")
         search = [b / own for b in bases] + bases if own else bases
-        source = _find(ref, search, f"MJCF <{element.tag}>")
-        element.set("file", copier.place(source))
+        if ref in carried:
+            element.set("file", copier.put(ref, carried[ref]))
+        else:
+            element.set("file", copier.place(_find(ref, search, f"MJCF <{element.tag}>")))
         changed = True
     if changed and compiler is not None:  # references now name the folder's own files
         for key in ("meshdir", "texturedir", "assetdir"):
@@ -117,13 +133,17 @@ def _mjcf_with_assets(text: str, bases: list[Path], copier: _Copier) -> str:
     return ET.tostring(root, encoding="unicode") + "\n" if changed else text
 
 
-def _urdf_with_assets(text: str, bases: list[Path], copier: _Copier) -> str:
+def _urdf_with_assets(
+    text: str, bases: list[Path], copier: _Copier, carried: dict[str, str]
+) -> str:
     if "filename=" not in text:
         return text
     root = ET.fromstring(text)
     for element in root.iter():
         ref = element.get("filename")
-        if ref is not None:
+        if ref in carried:
+            element.set("filename", copier.put(ref, carried[ref]))
+        elif ref is not None:
             element.set("filename", copier.place(_find(ref, bases, f"URDF <{element.tag}>")))
     return ET.tostring(root, encoding="unicode") + "\n"
 
@@ -134,8 +154,12 @@ def write_model_files(robot: Any, model: Any, folder: Path) -> ModelFiles:
     bases = [home] if home is not None else []
     copier = _Copier(folder)
     try:
-        mjcf = _mjcf_with_assets(model.text("mjcf"), bases, copier)
-        urdf = _urdf_with_assets(model.text("urdf"), bases, copier)
+        mjcf = _mjcf_with_assets(
+            model.text("mjcf"), bases, copier, carried_files(model.formats, "mjcf")
+        )
+        urdf = _urdf_with_assets(
+            model.text("urdf"), bases, copier, carried_files(model.formats, "urdf")
+        )
     except ET.ParseError as exc:
         raise UserError(
             f"robot '{robot.name}' gives a model that is not XML ({exc})", field="robot"

@@ -117,6 +117,34 @@ def test_model_files_carry_every_referenced_mesh(tmp_path, monkeypatch):
         )
 
 
+def test_model_files_write_the_meshes_a_model_carries(tmp_path, monkeypatch):
+    """A URDF mesh the model carries in memory (format "urdf:FILE", a mesh stretched for the
+    design) is written into assets/ from there, named apart from a copied file of the same
+    name; nothing is looked up on disk for it."""
+    home, out = tmp_path / "plugin", tmp_path / "out"
+    (home / "meshes").mkdir(parents=True)
+    out.mkdir()
+    _stl(home / "meshes" / "shin.obj")
+    stretched = "v 0 0 0\nv 0.1 0 0\nv 0 0.2 0\nf 1 2 3\n"
+    urdf = (
+        '<robot name="r"><link name="base"><visual><geometry><mesh filename="shin.obj"/>'
+        '</geometry></visual><collision><geometry><mesh filename="package://meshes/shin.obj"/>'
+        "</geometry></collision></link></robot>"
+    )
+    model = _Model("<mujoco/>", urdf)
+    model.formats["urdf:shin.obj"] = stretched
+
+    monkeypatch.setattr(model_files, "robot_folder", lambda robot: home)
+    written = model_files.write_model_files(_MeshRobot(), model, out)
+    text = (out / "robot.urdf").read_text()
+    assert 'filename="assets/shin.obj"' in text and 'filename="assets/shin_1.obj"' in text
+    assert (out / "assets" / "shin.obj").read_text() == stretched
+    assert (out / "assets" / "shin_1.obj").read_bytes() == (
+        home / "meshes" / "shin.obj"
+    ).read_bytes()
+    assert sorted(p.name for p in written.assets) == ["shin.obj", "shin_1.obj"]
+
+
 def _random_policy_state(seed: int) -> dict:
     """A saved state of a small random learner whose observation normaliser has seen data."""
     import torch
