@@ -2,15 +2,25 @@
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE_PLUGIN = ROOT / "tests" / "example_plugin"
+
+# The suite never sees the spec robots of whoever runs it: `coadapt robot new` writes them to
+# ~/.coadapt/robots (or COADAPT_ROBOT_PATH), which every process would register beside the
+# built-in ones (a trial robot there failed five tests). Tests that want spec robots set the
+# variable themselves; the rest, and their subprocesses, find an empty folder.
+os.environ["COADAPT_ROBOT_PATH"] = tempfile.mkdtemp(prefix="coadapt-test-robots-")
+atexit.register(shutil.rmtree, os.environ["COADAPT_ROBOT_PATH"], True)
 
 
 @pytest.fixture(scope="session")
